@@ -1,0 +1,9 @@
+# Every dependency is a Debian 12 package installed by tools/run.sh.
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(Ceres 2.1 REQUIRED)
+find_package(yaml-cpp REQUIRED)
+find_package(nanoflann REQUIRED)
+find_package(glog REQUIRED)
+# Debian ships GeographicLib's find module outside CMake's default module path.
+list(APPEND CMAKE_MODULE_PATH /usr/share/cmake/geographiclib)
+find_package(GeographicLib REQUIRED)

@@ -1,0 +1,96 @@
+#pragma once
+
+// A dataset directory in autocal's format (datasets/README.md):
+//   sensors.yaml, imu.csv, wheel.csv, gnss.csv, lidar.csv + lidar/<file>.ply,
+//   groundtruth/trajectory.csv, groundtruth/calibration.yaml.
+// Every file but imu.csv is optional. Readers validate as they go and throw
+// autocal::ParseError naming file, line and column (or byte offset) on the first problem.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "autocal/geometry/se3.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sensor_config.h"
+
+namespace autocal {
+namespace io {
+
+// Content of sensors.yaml: which sensors exist, their rates and noise, and the nominal
+// calibration (the initial guess a calibration starts from).
+struct SensorsConfig {
+  sensors::ImuConfig imu;
+  std::optional<sensors::LidarConfig> lidar;
+  std::optional<sensors::WheelConfig> wheel;
+  std::optional<sensors::GnssConfig> gnss;
+  sensors::Calibration nominal_calibration;
+};
+
+// One ground-truth state: the IMU pose T_W_I and velocity v_W_I at IMU-clock time t_ns.
+struct TrajectorySample {
+  int64_t t_ns = 0;
+  geometry::Pose3d T_W_I;
+  Eigen::Vector3d v_W_I = Eigen::Vector3d::Zero();
+};
+using Trajectory = std::vector<TrajectorySample>;
+
+// A row of lidar.csv: the sweep's reference stamp (LiDAR clock) and its PLY file name,
+// relative to <dataset>/lidar/.
+struct LidarSweepRef {
+  int64_t t_ns = 0;
+  std::string file;
+};
+
+struct Dataset {
+  std::string directory;
+  SensorsConfig sensors;
+  sensors::ImuSamples imu;
+  sensors::WheelSamples wheel;           // empty without wheel.csv
+  sensors::GnssFixes gnss;               // empty without gnss.csv
+  std::vector<LidarSweepRef> lidar_sweeps;  // empty without lidar.csv
+  Trajectory groundtruth_trajectory;     // empty without groundtruth/trajectory.csv
+  std::optional<sensors::Calibration> groundtruth_calibration;
+
+  // Sweeps are large, so they are read on demand. Throws ParseError on a missing or
+  // malformed file.
+  lidar::LidarSweep LoadSweep(size_t index) const;
+};
+
+// Reads and validates a whole dataset directory (sweeps excepted: their index is checked,
+// the files must exist).
+Dataset ReadDataset(const std::string& directory);
+
+// Writes a dataset incrementally, so a simulator need not hold all sweeps in memory.
+// Creates the directory (and lidar/, groundtruth/) if needed.
+class DatasetWriter {
+ public:
+  explicit DatasetWriter(std::string directory);
+  ~DatasetWriter();
+  DatasetWriter(const DatasetWriter&) = delete;
+  DatasetWriter& operator=(const DatasetWriter&) = delete;
+
+  void WriteSensorsConfig(const SensorsConfig& config);
+  void WriteImu(const sensors::ImuSamples& samples);
+  void WriteWheel(const sensors::WheelSamples& samples);
+  void WriteGnss(const sensors::GnssFixes& fixes);
+  // Writes lidar/<t_ns>.ply and appends a row to lidar.csv.
+  void AddSweep(const lidar::LidarSweep& sweep);
+  void WriteGroundTruth(const Trajectory& trajectory, const sensors::Calibration& calibration);
+  // Flushes and closes every file; throws autocal::Error on I/O failure. The destructor
+  // closes too but cannot report failures, so call Close() to know the data is on disk.
+  void Close();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,31 @@
+#pragma once
+
+// The calibration of a sensor rig: everything autocal estimates besides the trajectory.
+// Frame names follow docs/design.md: I IMU, L LiDAR, V vehicle (rear-axle centre,
+// x forward, y left, z up), A GNSS antenna.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace autocal {
+namespace sensors {
+
+struct Calibration {
+  // LiDAR-IMU extrinsic T_I_L: p_I = q_I_L * p_L + p_I_L.
+  Eigen::Quaterniond q_I_L = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_I_L = Eigen::Vector3d::Zero();
+  // t_imu = t_lidar + time_offset_lidar_imu_s.
+  double time_offset_lidar_imu_s = 0.0;
+  // Vehicle frame in the IMU frame, T_I_V.
+  Eigen::Quaterniond q_I_V = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_I_V = Eigen::Vector3d::Zero();
+  // Rear-wheel intrinsics.
+  double wheel_radius_left_m = 0.33;
+  double wheel_radius_right_m = 0.33;
+  double track_width_m = 1.6;
+  // GNSS lever arm: antenna position in the IMU frame.
+  Eigen::Vector3d p_I_A = Eigen::Vector3d::Zero();
+};
+
+}  // namespace sensors
+}  // namespace autocal

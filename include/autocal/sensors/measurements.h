@@ -1,0 +1,43 @@
+#pragma once
+
+// Raw measurement types, exactly as a dataset carries them (DESIGN.md "Data formats").
+// Stamps are int64 nanoseconds on the sensor's own clock.
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace autocal {
+namespace sensors {
+
+// One IMU sample in the IMU frame I: body rate and specific force (gravity included).
+struct ImuSample {
+  int64_t t_ns = 0;
+  Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d accel_m_s2 = Eigen::Vector3d::Zero();
+};
+
+// Angular rates of the left and right rear wheels (positive when driving forward).
+struct WheelSample {
+  int64_t t_ns = 0;
+  double left_rad_s = 0.0;
+  double right_rad_s = 0.0;
+};
+
+// A GNSS position fix of the antenna A with the receiver's 1-sigma (east, north, up).
+// Heights are ellipsoidal (WGS84).
+struct GnssFix {
+  int64_t t_ns = 0;
+  double lat_deg = 0.0;
+  double lon_deg = 0.0;
+  double alt_m = 0.0;
+  Eigen::Vector3d std_enu_m = Eigen::Vector3d::Ones();
+};
+
+using ImuSamples = std::vector<ImuSample>;
+using WheelSamples = std::vector<WheelSample>;
+using GnssFixes = std::vector<GnssFix>;
+
+}  // namespace sensors
+}  // namespace autocal

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# autocal's two entry points (see README.md):
+#   tools/run.sh demo   simulate an urban log and print its summary
+#   tools/run.sh test   run every test suite (ctest), excluding the label "long"
+# Each one installs the Debian 12 packages it needs when they are missing (as root),
+# configures a Release build in build/ (or $AUTOCAL_BUILD_DIR) and builds it.
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${AUTOCAL_BUILD_DIR:-$root/build}"
+jobs="$(nproc)"
+
+packages=(
+  cmake ninja-build g++ pkg-config
+  libeigen3-dev libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev libnanoflann-dev
+  libgeographiclib-dev
+)
+
+install_missing_packages() {
+  local missing=()
+  for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  echo "autocal: installing missing Debian packages: ${missing[*]}"
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "autocal: need root to install them; run as root or: sudo apt-get install ${missing[*]}" >&2
+    exit 1
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${missing[@]}"
+}
+
+configure_and_build() {
+  cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+  cmake --build "$build" -j "$jobs"
+}
+
+case "${1:-}" in
+  demo)
+    install_missing_packages
+    configure_and_build
+    out="${AUTOCAL_DEMO_DIR:-$build/demo}"
+    "$build/tools/autocal_simulate" --scenario=urban --duration_s=60 --seed=1 --out="$out/urban"
+    ;;
+  test)
+    install_missing_packages
+    configure_and_build
+    ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE long
+    ;;
+  *)
+    echo "usage: tools/run.sh demo|test" >&2
+    exit 2
+    ;;
+esac
