@@ -44,5 +44,17 @@ Eigen::Matrix<double, N, 4, Eigen::RowMajor> LiftTangentJacobian(
   return j_tangent * QuaternionMinusJacobian(q_xyzw);
 }
 
+// The same for a single row, written out for hot factors:
+// a * MinusJacobian(q) = 2 [w a + (v x a)^T, -a . v] with q = [v, w].
+inline void LiftTangentRow(const Eigen::RowVector3d& a, const double* q_xyzw, double* ambient) {
+  const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
+  const double w = q_xyzw[3];
+  const Eigen::Vector3d head = 2.0 * (w * a.transpose() + v.cross(a.transpose()));
+  ambient[0] = head.x();
+  ambient[1] = head.y();
+  ambient[2] = head.z();
+  ambient[3] = -2.0 * a.dot(v.transpose());
+}
+
 }  // namespace geometry
 }  // namespace autocal

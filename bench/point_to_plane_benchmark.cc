@@ -1,0 +1,68 @@
+// Cost of one LiDAR point-to-plane residual with all Jacobians, analytic vs autodiff twin.
+#include <memory>
+#include <random>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace {
+
+constexpr int kPoints = 2000;  // a typical sweep after downsampling
+
+std::vector<factors::PointToPlaneMeasurement> RandomMeasurements() {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<factors::PointToPlaneMeasurement> out(kPoints);
+  for (auto& m : out) {
+    m.p_L = 20.0 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    m.motion.dt_s = 0.05 * (u(rng) + 1.0);
+    m.motion.delta_q = geometry::Exp(Eigen::Vector3d(0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)));
+    m.motion.delta_v = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    m.motion.delta_p = 0.1 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    m.motion.omega_rad_s = 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    m.plane.n_W = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    m.plane.d_m = 5.0 * u(rng);
+  }
+  return out;
+}
+
+template <bool kAnalytic>
+void BM_PointToPlaneEvaluate(benchmark::State& state) {
+  const Eigen::Vector3d g(0.0, 0.0, -9.80665);
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  for (const auto& m : RandomMeasurements()) {
+    costs.emplace_back(kAnalytic ? new factors::PointToPlaneFactor(m, g)
+                                 : factors::CreatePointToPlaneAutoDiff(m, g));
+  }
+  Eigen::Quaterniond q_W_I = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.0));
+  Eigen::Vector3d p_W_I(10.0, -4.0, 1.0), v_W_I(8.0, 1.0, 0.0);
+  Eigen::Quaterniond q_I_L = geometry::Exp(Eigen::Vector3d(0.02, -0.03, 0.5));
+  Eigen::Vector3d p_I_L(0.3, 0.0, 0.4);
+  double offset_s = 0.01;
+  const double* params[] = {q_W_I.coeffs().data(), p_W_I.data(), v_W_I.data(),
+                            q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
+  double j0[4], j1[3], j2[3], j3[4], j4[3], j5[1];
+  double* jacobians[] = {j0, j1, j2, j3, j4, j5};
+  double residual = 0.0;
+  for (auto _ : state) {
+    for (const auto& cost : costs) {
+      cost->Evaluate(params, &residual, jacobians);
+      benchmark::DoNotOptimize(residual);
+      benchmark::DoNotOptimize(j5[0]);
+    }
+  }
+  // items_per_second is points per second; the time per point is its inverse.
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+
+BENCHMARK_TEMPLATE(BM_PointToPlaneEvaluate, true)->Name("PointToPlane/analytic");
+BENCHMARK_TEMPLATE(BM_PointToPlaneEvaluate, false)->Name("PointToPlane/autodiff");
+
+}  // namespace
+}  // namespace autocal
+
+BENCHMARK_MAIN();

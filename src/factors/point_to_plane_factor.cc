@@ -1,0 +1,84 @@
+#include "autocal/factors/point_to_plane_factor.h"
+
+#include "autocal/geometry/manifolds.h"
+
+namespace autocal {
+namespace factors {
+
+PointToPlaneFactor::PointToPlaneFactor(const PointToPlaneMeasurement& measurement,
+                                       const Eigen::Vector3d& g_W)
+    : delta_R_(measurement.motion.delta_q.toRotationMatrix()),
+      delta_R_omega_hat_(delta_R_ * geometry::Hat(measurement.motion.omega_rad_s)),
+      p_L_(measurement.p_L),
+      n_W_over_sigma_(measurement.plane.n_W / measurement.sigma_m),
+      delta_v_(measurement.motion.delta_v),
+      delta_p_(measurement.motion.delta_p),
+      n_gravity_velocity_(n_W_over_sigma_.dot(g_W) * measurement.motion.dt_s),
+      n_gravity_position_(0.5 * n_W_over_sigma_.dot(g_W) * measurement.motion.dt_s *
+                          measurement.motion.dt_s),
+      d_over_sigma_(measurement.plane.d_m / measurement.sigma_m),
+      dt_s_(measurement.motion.dt_s),
+      offset_linearization_s_(measurement.offset_linearization_s) {}
+
+bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* residuals,
+                                  double** jacobians) const {
+  const Eigen::Map<const Eigen::Quaterniond> q_W_I(parameters[0]);
+  const Eigen::Map<const Eigen::Vector3d> p_W_I(parameters[1]);
+  const Eigen::Map<const Eigen::Vector3d> v_W_I(parameters[2]);
+  const Eigen::Map<const Eigen::Quaterniond> q_I_L(parameters[3]);
+  const Eigen::Map<const Eigen::Vector3d> p_I_L(parameters[4]);
+  const double delta = parameters[5][0] - offset_linearization_s_;
+
+  // Eq. (P1-P4) with the normal taken into the keyframe's body frame, m = R_k^T n / sigma,
+  // so that the residual is m . (R_k^T-part) + n . (world part):
+  //   r = m . (dR x_I + delta dR Hat(omega) x_I + dp + delta dv)
+  //     + n . (p_k + (dt + delta) v_k + 1/2 g dt^2 + delta g dt) / sigma + d / sigma.
+  const Eigen::Vector3d m = q_W_I.conjugate() * n_W_over_sigma_;
+  const Eigen::Matrix3d R_I_L = q_I_L.toRotationMatrix();
+  const Eigen::Vector3d x_I = R_I_L * p_L_ + p_I_L;  // the point in I(t)
+  const Eigen::Vector3d rotated_x = delta_R_ * x_I;
+  const Eigen::Vector3d spun_x = delta_R_omega_hat_ * x_I;
+  const Eigen::Vector3d lever = rotated_x + delta * spun_x + delta_p_ + delta * delta_v_;
+  residuals[0] = m.dot(lever) + n_W_over_sigma_.dot(p_W_I + (dt_s_ + delta) * v_W_I) +
+                 n_gravity_position_ + delta * n_gravity_velocity_ + d_over_sigma_;
+  if (jacobians == nullptr) return true;
+
+  if (jacobians[0] != nullptr) {
+    // d/dtheta_k of n^T R_k Exp(theta) lever = -n^T R_k Hat(lever) = (lever x m)^T.
+    geometry::LiftTangentRow(lever.cross(m).transpose(), parameters[0], jacobians[0]);
+  }
+  if (jacobians[1] != nullptr) {
+    Eigen::Map<Eigen::RowVector3d> j(jacobians[1]);
+    j = n_W_over_sigma_.transpose();
+  }
+  if (jacobians[2] != nullptr) {
+    Eigen::Map<Eigen::RowVector3d> j(jacobians[2]);
+    j = (dt_s_ + delta) * n_W_over_sigma_.transpose();
+  }
+  if (jacobians[3] != nullptr || jacobians[4] != nullptr) {
+    // d r / d x_I = m^T (dR + delta dR Hat(omega)).
+    const Eigen::Vector3d m_x = delta_R_.transpose() * m + delta * (delta_R_omega_hat_.transpose() * m);
+    if (jacobians[3] != nullptr) {
+      // d x_I / d theta_IL = -R_I_L Hat(p_L).
+      geometry::LiftTangentRow(p_L_.cross(R_I_L.transpose() * m_x).transpose(), parameters[3],
+                               jacobians[3]);
+    }
+    if (jacobians[4] != nullptr) {
+      Eigen::Map<Eigen::RowVector3d> j(jacobians[4]);
+      j = m_x.transpose();
+    }
+  }
+  if (jacobians[5] != nullptr) {
+    jacobians[5][0] = m.dot(spun_x + delta_v_) + n_W_over_sigma_.dot(v_W_I) + n_gravity_velocity_;
+  }
+  return true;
+}
+
+ceres::CostFunction* CreatePointToPlaneAutoDiff(const PointToPlaneMeasurement& measurement,
+                                                const Eigen::Vector3d& g_W) {
+  return new ceres::AutoDiffCostFunction<PointToPlaneResidual, 1, 4, 3, 3, 4, 3, 1>(
+      new PointToPlaneResidual(measurement, g_W));
+}
+
+}  // namespace factors
+}  // namespace autocal
