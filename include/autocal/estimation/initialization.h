@@ -1,0 +1,132 @@
+#pragma once
+
+// Initialization without a hand-measured guess (docs/estimation.md, "Initialization"):
+//   1. gravity direction and gyro bias from a still start (DetectStillStart);
+//   2. the LiDAR-IMU time offset by cross-correlating angular-rate magnitudes, which do not
+//      depend on the unknown rotation between the sensors (EstimateTimeOffset);
+//   3. q_I_L by hand-eye rotation alignment of IMU and LiDAR relative rotations
+//      (SolveHandEyeRotation);
+//   4. p_I_L by hand-eye translation least squares where the motion excites it
+//      (SolveHandEyeTranslation).
+// Each step reports when the motion is too poor to determine its result.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "autocal/sensors/measurements.h"
+
+namespace autocal {
+namespace estimation {
+
+// ---- 1. Still start.
+
+struct StillStartOptions {
+  double min_duration_s = 1.0;           // shortest still period accepted
+  double max_gyro_std_rad_s = 0.01;      // per-axis standard deviation while still
+  double max_accel_std_m_s2 = 0.05;      // per-axis standard deviation while still
+  double max_search_s = 30.0;            // look for the still period in the first seconds
+};
+
+struct StillStart {
+  bool found = false;
+  std::string reason;                     // why not, when !found
+  int64_t t_begin_ns = 0;
+  int64_t t_end_ns = 0;
+  Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();
+  // Roll and pitch of the IMU from the measured specific force (yaw set to 0).
+  Eigen::Quaterniond q_W_I = Eigen::Quaterniond::Identity();
+  double gravity_m_s2 = 0.0;              // measured magnitude of the specific force
+};
+
+// Finds the longest still period that starts within the first max_search_s seconds.
+StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOptions& options = {});
+
+// ---- 2. Time offset.
+
+// A relative rotation between two instants of one sensor's clock: R_a_b maps vectors from
+// the frame at t1 to the frame at t0.
+struct RelativeRotation {
+  int64_t t0_ns = 0;
+  int64_t t1_ns = 0;
+  Eigen::Quaterniond q_0_1 = Eigen::Quaterniond::Identity();
+};
+
+struct TimeOffsetOptions {
+  double search_range_s = 0.2;  // offsets in [-range, +range] are tried
+  double step_s = 0.001;        // grid step before sub-step refinement
+  // Below this Pearson correlation at the peak the motion is too poor (too little rate
+  // variation) to trust the estimate.
+  double min_peak_correlation = 0.8;
+};
+
+struct TimeOffsetEstimate {
+  bool reliable = false;
+  std::string reason;
+  double offset_s = 0.0;          // t_imu = t_lidar + offset_s
+  double peak_correlation = 0.0;
+  std::vector<double> candidate_offsets_s;  // the correlation curve, for reports
+  std::vector<double> correlation;
+};
+
+// Correlates |mean angular rate| of the LiDAR's relative rotations (stamped on the LiDAR
+// clock) with the gyro's (bias removed) over the same intervals shifted by each candidate
+// offset; the peak, refined by a parabola through its neighbours, is the offset.
+TimeOffsetEstimate EstimateTimeOffset(const std::vector<RelativeRotation>& lidar_rotations,
+                                      const sensors::ImuSamples& imu,
+                                      const Eigen::Vector3d& gyro_bias_rad_s,
+                                      const TimeOffsetOptions& options = {});
+
+// The IMU's rotation R_I(t0)_I(t1) from gyro integration (bias removed), t in IMU time.
+Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Vector3d& gyro_bias,
+                                 int64_t t0_ns, int64_t t1_ns);
+
+// ---- 3. Hand-eye rotation.
+
+struct HandEyeOptions {
+  int robust_iterations = 5;
+  double huber_threshold_rad = 0.005;   // angular residual where Huber weights start
+  // The rotation is determined when the second smallest singular value of the stacked
+  // system exceeds this fraction of the largest (rotation about two non-parallel axes).
+  double min_singular_value_ratio = 0.02;
+};
+
+struct HandEyeRotation {
+  bool observable = false;
+  std::string reason;
+  Eigen::Quaterniond q_I_L = Eigen::Quaterniond::Identity();
+  double rms_residual_rad = 0.0;
+  double singular_value_ratio = 0.0;   // second smallest / largest
+};
+
+// Solves R_I_ij R_I_L = R_I_L R_L_ij for pairs of simultaneous relative rotations
+// (quaternion form (Q_L(q_I) - Q_R(q_L)) q_I_L = 0, smallest right singular vector, with
+// Huber re-weighting).
+HandEyeRotation SolveHandEyeRotation(const std::vector<Eigen::Quaterniond>& imu_rotations,
+                                     const std::vector<Eigen::Quaterniond>& lidar_rotations,
+                                     const HandEyeOptions& options = {});
+
+// ---- 4. Hand-eye translation.
+
+struct HandEyeTranslation {
+  Eigen::Vector3d p_I_L = Eigen::Vector3d::Zero();
+  // Per axis of the IMU frame: whether the rotations excited it (singular value of the
+  // stacked (R_I_ij - I) above the threshold).
+  Eigen::Matrix<bool, 3, 1> observable = Eigen::Matrix<bool, 3, 1>::Constant(false);
+  Eigen::Vector3d singular_values = Eigen::Vector3d::Zero();
+};
+
+// Least squares for (R_I_ij - I) p_I_L = R_I_L t_L_ij - t_I_ij over pairs of simultaneous
+// relative motions; unexcited directions keep the prior value `p_I_L_prior`.
+HandEyeTranslation SolveHandEyeTranslation(const std::vector<Eigen::Quaterniond>& imu_rotations,
+                                           const std::vector<Eigen::Vector3d>& imu_translations,
+                                           const std::vector<Eigen::Vector3d>& lidar_translations,
+                                           const Eigen::Quaterniond& q_I_L,
+                                           const Eigen::Vector3d& p_I_L_prior,
+                                           double min_singular_value = 0.1);
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,330 @@
+#include "autocal/estimation/initialization.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <Eigen/SVD>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace {
+
+using geometry::Exp;
+using geometry::Hat;
+
+// Running per-axis mean and variance of a block of samples.
+struct AxisStats {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Vector3d std = Eigen::Vector3d::Zero();
+};
+
+template <typename Get>
+AxisStats Stats(const sensors::ImuSamples& imu, size_t begin, size_t end, Get get) {
+  AxisStats s;
+  const double n = static_cast<double>(end - begin);
+  for (size_t i = begin; i < end; ++i) s.mean += get(imu[i]);
+  s.mean /= n;
+  Eigen::Vector3d var = Eigen::Vector3d::Zero();
+  for (size_t i = begin; i < end; ++i) var += (get(imu[i]) - s.mean).cwiseAbs2();
+  s.std = (var / std::max(1.0, n - 1.0)).cwiseSqrt();
+  return s;
+}
+
+Eigen::Vector3d Gyro(const sensors::ImuSample& s) { return s.gyro_rad_s; }
+Eigen::Vector3d Accel(const sensors::ImuSample& s) { return s.accel_m_s2; }
+
+// Orientation of the IMU at every sample time relative to the first sample, integrated with
+// the mean rate of each step (bias removed), so that the rotation between any two instants
+// is a lookup and one interpolation.
+class GyroOrientationTable {
+ public:
+  GyroOrientationTable(const sensors::ImuSamples& imu, const Eigen::Vector3d& bias) : imu_(imu) {
+    q_.reserve(imu.size());
+    rate_.reserve(imu.size());
+    q_.push_back(Eigen::Quaterniond::Identity());
+    for (size_t i = 0; i + 1 < imu.size(); ++i) {
+      const Eigen::Vector3d w = 0.5 * (imu[i].gyro_rad_s + imu[i + 1].gyro_rad_s) - bias;
+      rate_.push_back(w);
+      const double dt = SecondsBetween(imu[i].t_ns, imu[i + 1].t_ns);
+      q_.push_back((q_.back() * Exp(Eigen::Vector3d(w * dt))).normalized());
+    }
+  }
+
+  bool Covers(int64_t t_ns) const {
+    return !imu_.empty() && t_ns >= imu_.front().t_ns && t_ns <= imu_.back().t_ns;
+  }
+
+  Eigen::Quaterniond At(int64_t t_ns) const {
+    auto it = std::upper_bound(imu_.begin(), imu_.end(), t_ns,
+                               [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
+    size_t i = static_cast<size_t>(std::max<std::ptrdiff_t>(0, (it - imu_.begin()) - 1));
+    if (i + 1 >= imu_.size()) return q_.back();
+    const double dt = SecondsBetween(imu_[i].t_ns, t_ns);
+    return q_[i] * Exp(Eigen::Vector3d(rate_[i] * dt));
+  }
+
+ private:
+  const sensors::ImuSamples& imu_;
+  std::vector<Eigen::Quaterniond> q_;
+  std::vector<Eigen::Vector3d> rate_;
+};
+
+double Pearson(const std::vector<double>& a, const std::vector<double>& b) {
+  const double n = static_cast<double>(a.size());
+  const double mean_a = std::accumulate(a.begin(), a.end(), 0.0) / n;
+  const double mean_b = std::accumulate(b.begin(), b.end(), 0.0) / n;
+  double sab = 0.0, saa = 0.0, sbb = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    sab += (a[i] - mean_a) * (b[i] - mean_b);
+    saa += (a[i] - mean_a) * (a[i] - mean_a);
+    sbb += (b[i] - mean_b) * (b[i] - mean_b);
+  }
+  if (saa <= 0.0 || sbb <= 0.0) return 0.0;
+  return sab / std::sqrt(saa * sbb);
+}
+
+// Left and right quaternion-product matrices in Eigen's [x, y, z, w] order:
+// q (x) p = QuaternionLeft(q) p,  p (x) q = QuaternionRight(q) p.
+Eigen::Matrix4d QuaternionLeft(const Eigen::Quaterniond& q) {
+  Eigen::Matrix4d m;
+  m.topLeftCorner<3, 3>() = q.w() * Eigen::Matrix3d::Identity() + Hat(q.vec());
+  m.topRightCorner<3, 1>() = q.vec();
+  m.bottomLeftCorner<1, 3>() = -q.vec().transpose();
+  m(3, 3) = q.w();
+  return m;
+}
+
+Eigen::Matrix4d QuaternionRight(const Eigen::Quaterniond& q) {
+  Eigen::Matrix4d m;
+  m.topLeftCorner<3, 3>() = q.w() * Eigen::Matrix3d::Identity() - Hat(q.vec());
+  m.topRightCorner<3, 1>() = q.vec();
+  m.bottomLeftCorner<1, 3>() = -q.vec().transpose();
+  m(3, 3) = q.w();
+  return m;
+}
+
+Eigen::Quaterniond PositiveW(const Eigen::Quaterniond& q) {
+  return q.w() < 0.0 ? Eigen::Quaterniond(-q.coeffs()) : q;
+}
+
+}  // namespace
+
+StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOptions& options) {
+  StillStart out;
+  if (imu.size() < 2) {
+    out.reason = "too few IMU samples";
+    return out;
+  }
+  // Blocks of a quarter of the minimum duration are classified still or moving; the first
+  // run of still blocks long enough is the still start.
+  const int64_t block_ns = SecondsToNs(0.25 * options.min_duration_s);
+  const int64_t search_end_ns = imu.front().t_ns + SecondsToNs(options.max_search_s);
+  std::vector<std::pair<size_t, size_t>> blocks;
+  size_t begin = 0;
+  while (begin < imu.size() && imu[begin].t_ns < search_end_ns) {
+    size_t end = begin;
+    while (end < imu.size() && imu[end].t_ns < imu[begin].t_ns + block_ns) ++end;
+    if (end - begin < 3) break;
+    blocks.emplace_back(begin, end);
+    begin = end;
+  }
+  size_t run_begin = 0;
+  size_t best_begin = 0, best_end = 0;
+  for (size_t b = 0; b <= blocks.size(); ++b) {
+    bool still = false;
+    if (b < blocks.size()) {
+      const AxisStats g = Stats(imu, blocks[b].first, blocks[b].second, Gyro);
+      const AxisStats a = Stats(imu, blocks[b].first, blocks[b].second, Accel);
+      still = g.std.maxCoeff() <= options.max_gyro_std_rad_s &&
+              a.std.maxCoeff() <= options.max_accel_std_m_s2;
+    }
+    if (!still) {
+      if (b > run_begin && b - run_begin > best_end - best_begin) {
+        best_begin = run_begin;
+        best_end = b;
+      }
+      run_begin = b + 1;
+    }
+  }
+  if (best_end == best_begin) {
+    out.reason = "no still period in the first " + std::to_string(options.max_search_s) + " s";
+    return out;
+  }
+  const size_t first = blocks[best_begin].first;
+  const size_t last = blocks[best_end - 1].second;
+  out.t_begin_ns = imu[first].t_ns;
+  out.t_end_ns = imu[last - 1].t_ns;
+  if (SecondsBetween(out.t_begin_ns, out.t_end_ns) < 0.75 * options.min_duration_s) {
+    out.reason = "the longest still period is shorter than " +
+                 std::to_string(options.min_duration_s) + " s";
+    return out;
+  }
+  const AxisStats g = Stats(imu, first, last, Gyro);
+  const AxisStats a = Stats(imu, first, last, Accel);
+  out.gyro_bias_rad_s = g.mean;
+  out.gravity_m_s2 = a.mean.norm();
+  // At rest the specific force is R_W_I^T (0, 0, g): f = g (-sin p, sin r cos p, cos r cos p)
+  // for R_W_I = Rz(0) Ry(p) Rx(r).
+  const Eigen::Vector3d& f = a.mean;
+  const double roll = std::atan2(f.y(), f.z());
+  const double pitch = std::atan2(-f.x(), std::hypot(f.y(), f.z()));
+  out.q_W_I = Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+              Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
+  out.found = true;
+  return out;
+}
+
+Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Vector3d& gyro_bias,
+                                 int64_t t0_ns, int64_t t1_ns) {
+  const GyroOrientationTable table(imu, gyro_bias);
+  if (!table.Covers(t0_ns) || !table.Covers(t1_ns)) {
+    throw Error("IntegrateGyro: the IMU samples do not cover the requested interval");
+  }
+  return table.At(t0_ns).conjugate() * table.At(t1_ns);
+}
+
+TimeOffsetEstimate EstimateTimeOffset(const std::vector<RelativeRotation>& lidar_rotations,
+                                      const sensors::ImuSamples& imu,
+                                      const Eigen::Vector3d& gyro_bias_rad_s,
+                                      const TimeOffsetOptions& options) {
+  TimeOffsetEstimate out;
+  const GyroOrientationTable table(imu, gyro_bias_rad_s);
+  const int64_t range_ns = SecondsToNs(options.search_range_s);
+  // Intervals usable for every candidate offset.
+  std::vector<const RelativeRotation*> usable;
+  std::vector<double> lidar_rate;
+  for (const RelativeRotation& r : lidar_rotations) {
+    if (r.t1_ns <= r.t0_ns) continue;
+    if (!table.Covers(r.t0_ns - range_ns) || !table.Covers(r.t1_ns + range_ns)) continue;
+    usable.push_back(&r);
+    lidar_rate.push_back(geometry::AngleOf(r.q_0_1) / SecondsBetween(r.t0_ns, r.t1_ns));
+  }
+  if (usable.size() < 10) {
+    out.reason = "fewer than 10 LiDAR relative rotations inside the IMU's time span";
+    return out;
+  }
+  const int steps = static_cast<int>(std::round(options.search_range_s / options.step_s));
+  std::vector<double> imu_rate(usable.size());
+  for (int k = -steps; k <= steps; ++k) {
+    const double offset_s = k * options.step_s;
+    const int64_t offset_ns = SecondsToNs(offset_s);
+    for (size_t i = 0; i < usable.size(); ++i) {
+      const Eigen::Quaterniond q = table.At(usable[i]->t0_ns + offset_ns).conjugate() *
+                                   table.At(usable[i]->t1_ns + offset_ns);
+      imu_rate[i] = geometry::AngleOf(q) / SecondsBetween(usable[i]->t0_ns, usable[i]->t1_ns);
+    }
+    out.candidate_offsets_s.push_back(offset_s);
+    out.correlation.push_back(Pearson(lidar_rate, imu_rate));
+  }
+  const auto peak = std::max_element(out.correlation.begin(), out.correlation.end());
+  const size_t p = static_cast<size_t>(peak - out.correlation.begin());
+  out.peak_correlation = *peak;
+  out.offset_s = out.candidate_offsets_s[p];
+  if (p == 0 || p + 1 == out.correlation.size()) {
+    out.reason = "the correlation peaks at the edge of the search range";
+    return out;
+  }
+  // Parabola through the peak and its neighbours.
+  const double c_minus = out.correlation[p - 1], c0 = out.correlation[p],
+               c_plus = out.correlation[p + 1];
+  const double curvature = c_minus - 2.0 * c0 + c_plus;
+  if (curvature < 0.0) out.offset_s += 0.5 * options.step_s * (c_minus - c_plus) / curvature;
+  if (out.peak_correlation < options.min_peak_correlation) {
+    out.reason = "angular-rate correlation " + std::to_string(out.peak_correlation) +
+                 " is too weak: the drive needs more varied turning";
+    return out;
+  }
+  out.reliable = true;
+  return out;
+}
+
+HandEyeRotation SolveHandEyeRotation(const std::vector<Eigen::Quaterniond>& imu_rotations,
+                                     const std::vector<Eigen::Quaterniond>& lidar_rotations,
+                                     const HandEyeOptions& options) {
+  if (imu_rotations.size() != lidar_rotations.size()) {
+    throw Error("SolveHandEyeRotation: IMU and LiDAR rotation lists differ in length");
+  }
+  HandEyeRotation out;
+  const size_t n = imu_rotations.size();
+  if (n < 3) {
+    out.reason = "fewer than 3 rotation pairs";
+    return out;
+  }
+  std::vector<Eigen::Matrix4d> blocks(n);
+  for (size_t i = 0; i < n; ++i) {
+    blocks[i] = QuaternionLeft(PositiveW(imu_rotations[i])) -
+                QuaternionRight(PositiveW(lidar_rotations[i]));
+  }
+  std::vector<double> weights(n, 1.0);
+  Eigen::Quaterniond x = Eigen::Quaterniond::Identity();
+  Eigen::Vector4d singular_values = Eigen::Vector4d::Zero();
+  for (int iteration = 0; iteration < std::max(1, options.robust_iterations); ++iteration) {
+    Eigen::MatrixXd A(4 * n, 4);
+    for (size_t i = 0; i < n; ++i) A.middleRows<4>(4 * i) = weights[i] * blocks[i];
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinV);
+    x.coeffs() = svd.matrixV().col(3);
+    x.normalize();
+    singular_values = svd.singularValues();
+    double sum_sq = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      const double r = geometry::AngularDistance(Eigen::Quaterniond(imu_rotations[i] * x),
+                                                 Eigen::Quaterniond(x * lidar_rotations[i]));
+      sum_sq += r * r;
+      weights[i] = r <= options.huber_threshold_rad ? 1.0 : std::sqrt(options.huber_threshold_rad / r);
+    }
+    out.rms_residual_rad = std::sqrt(sum_sq / static_cast<double>(n));
+  }
+  out.q_I_L = PositiveW(x);
+  out.singular_value_ratio = singular_values(2) / std::max(singular_values(0), 1e-300);
+  if (out.singular_value_ratio < options.min_singular_value_ratio) {
+    out.reason = "the rotations do not excite two independent axes (planar motion?)";
+    return out;
+  }
+  out.observable = true;
+  return out;
+}
+
+HandEyeTranslation SolveHandEyeTranslation(const std::vector<Eigen::Quaterniond>& imu_rotations,
+                                           const std::vector<Eigen::Vector3d>& imu_translations,
+                                           const std::vector<Eigen::Vector3d>& lidar_translations,
+                                           const Eigen::Quaterniond& q_I_L,
+                                           const Eigen::Vector3d& p_I_L_prior,
+                                           double min_singular_value) {
+  const size_t n = imu_rotations.size();
+  if (imu_translations.size() != n || lidar_translations.size() != n) {
+    throw Error("SolveHandEyeTranslation: input lists differ in length");
+  }
+  HandEyeTranslation out;
+  out.p_I_L = p_I_L_prior;
+  if (n == 0) return out;
+  Eigen::MatrixXd A(3 * n, 3);
+  Eigen::VectorXd b(3 * n);
+  for (size_t i = 0; i < n; ++i) {
+    A.middleRows<3>(3 * i) = imu_rotations[i].toRotationMatrix() - Eigen::Matrix3d::Identity();
+    b.segment<3>(3 * i) = q_I_L * lidar_translations[i] - imu_translations[i];
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  out.singular_values = svd.singularValues();
+  // Correct the prior only along excited directions.
+  const Eigen::VectorXd residual = b - A * p_I_L_prior;
+  Eigen::Vector3d correction = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d projector = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < 3; ++k) {
+    if (out.singular_values(k) < min_singular_value) continue;
+    const Eigen::Vector3d v = svd.matrixV().col(k);
+    correction += v * (svd.matrixU().col(k).dot(residual) / out.singular_values(k));
+    projector += v * v.transpose();
+  }
+  out.p_I_L = p_I_L_prior + correction;
+  for (int axis = 0; axis < 3; ++axis) out.observable(axis) = projector(axis, axis) > 0.9;
+  return out;
+}
+
+}  // namespace estimation
+}  // namespace autocal
