@@ -4,10 +4,11 @@
 // optional per-point intensity and time. The lidar module's operations (transform,
 // voxel grid, neighbour search, normals) work on this type.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 
-#include <Eigen/Core>
+#include "autocal/geometry/se3.h"
 
 namespace autocal {
 namespace lidar {
@@ -30,6 +31,29 @@ struct LidarSweep {
   int64_t t_ns = 0;
   PointCloud cloud;
 };
+
+// Batch spatial operations (docs/lidar.md §2). Each returns a new cloud that keeps the
+// intensity and time channels; points are columns, so every operation is one matrix
+// expression over the 3xN block.
+
+// p' = p + t for every point.
+PointCloud Translate(const PointCloud& cloud, const Eigen::Vector3d& t);
+// p' = R p. R must be a rotation (orthonormal, det +1); throws autocal::Error otherwise.
+PointCloud Rotate(const PointCloud& cloud, const Eigen::Matrix3d& R);
+// p' = diag(s) p (anisotropic scaling, eq. 2.1); Scale(cloud, k) is the isotropic case.
+PointCloud Scale(const PointCloud& cloud, const Eigen::Vector3d& s);
+PointCloud Scale(const PointCloud& cloud, double k);
+// Points of frame b expressed in frame a: p_a = T_a_b * p_b.
+PointCloud Transform(const PointCloud& cloud_b, const geometry::Pose3d& T_a_b);
+void TransformInPlace(const geometry::Pose3d& T_a_b, PointCloud* cloud);
+
+// Throws autocal::Error naming `what` when the optional channels do not match the number
+// of points or a coordinate is not finite.
+void CheckPointCloud(const PointCloud& cloud, const std::string& what);
+
+// The cloud without points that have a non-finite coordinate (organized PCD files mark
+// missing returns with NaN). Keeps the optional channels aligned.
+PointCloud RemoveNonFinite(const PointCloud& cloud);
 
 }  // namespace lidar
 }  // namespace autocal

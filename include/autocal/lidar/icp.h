@@ -1,0 +1,112 @@
+#pragma once
+
+// Iterative closest point (docs/lidar.md §4). Results are named by frame: T_target_source
+// maps source points into the target frame, p_target = T_target_source * p_source.
+//
+// Pose updates and the covariance live in the tangent space of a LEFT perturbation in the
+// target frame: T = Exp(delta) * T_hat with delta = [rho; phi] (geometry::ExpSE3 order,
+// translation first), so IcpResult::covariance is Cov(delta) in m^2, m rad and rad^2.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "autocal/geometry/se3.h"
+#include "autocal/lidar/kd_tree.h"
+#include "autocal/lidar/normals.h"
+#include "autocal/lidar/robust_loss.h"
+
+namespace autocal {
+namespace lidar {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+enum class IcpMethod { kPointToPoint, kPointToPlane };
+
+// "point_to_point" | "point_to_plane"; throws autocal::Error otherwise.
+IcpMethod ParseIcpMethod(const std::string& name);
+const char* IcpMethodName(IcpMethod method);
+
+// Closed-form rigid alignment of known correspondences (course §7.2 steps 1-4, eqs.
+// 4.1-4.4): the T_target_source minimizing sum_i w_i |target_i - T source_i|^2.
+// `weights` is empty (all 1) or one non-negative weight per pair. Throws autocal::Error
+// with fewer than 3 pairs (of positive weight), mismatched sizes, non-finite input, or
+// collinear/coincident source points (the rotation about their line is undetermined).
+geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
+                                      const Eigen::Matrix3Xd& target,
+                                      const Eigen::VectorXd& weights = Eigen::VectorXd());
+
+struct IcpConvergenceSetting {
+  // Upper bound on iterations (correspondence search + solve).
+  int max_iterations = 30;
+  // Converged when one iteration moves the estimate by less than both of these. 1e-4 m and
+  // 1e-5 rad are far below LiDAR noise yet reached in a few Gauss-Newton steps.
+  double translation_m = 1e-4;
+  double rotation_rad = 1e-5;
+};
+
+struct IcpSetting {
+  IcpMethod method = IcpMethod::kPointToPlane;
+  // Pairs farther apart than this are not correspondences. About 4 voxels: wide enough to
+  // pull in a start that is off by tens of centimetres, tight enough to ignore other
+  // surfaces.
+  double max_correspondence_m = 1.0;
+  // Robust loss on the residual (point-to-plane distance, or point-to-point distance).
+  RobustKernel robust;
+  IcpConvergenceSetting convergence;
+  // Target points whose neighbourhood planarity is below this carry no plane
+  // (point-to-plane only); 0 keeps every point with a defined normal.
+  double min_target_planarity = 0.0;
+  // Residual standard deviation (m) for the covariance; 0 estimates it from the final
+  // weighted residuals (eq. 4.15).
+  double residual_sigma_m = 0.0;
+  // Point-to-plane only: when > 0, the source points' range noise (1-sigma, along the
+  // beam from the source origin) is propagated per point instead, Censi's sandwich form
+  // Cov = H^-1 (sum w^2 var_i J J^T) H^-1 with var_i = sigma_r^2 (n . R u_i)^2 (eq. 4.16).
+  // Grazing ground returns then count with their small along-normal noise.
+  double source_range_sigma_m = 0.0;
+};
+
+// A target cloud prepared once for many alignments: its k-d tree and, for point-to-plane,
+// its normals.
+class IcpTarget {
+ public:
+  // Throws autocal::Error on non-finite points.
+  IcpTarget(Eigen::Matrix3Xd points, bool with_normals,
+            const NormalEstimationSetting& normal_setting = {});
+
+  const KdTree& tree() const { return tree_; }
+  const Eigen::Matrix3Xd& points() const { return tree_.points(); }
+  bool has_normals() const { return normals_.normals.cols() == tree_.size(); }
+  const SurfaceNormals& normals() const { return normals_; }
+
+ private:
+  KdTree tree_;
+  SurfaceNormals normals_;
+};
+
+struct IcpResult {
+  geometry::Pose3d T_target_source;
+  // Cov of the left perturbation [rho; phi] (eq. 4.14), see the file comment.
+  Matrix6d covariance = Matrix6d::Zero();
+  int iterations = 0;
+  bool converged = false;
+  // Source points with a correspondence at the final estimate, and their fraction.
+  int num_correspondences = 0;
+  double fitness = 0.0;
+  // RMS of the residuals of those correspondences (point-to-plane distance for
+  // point-to-plane, point distance for point-to-point), unweighted.
+  double inlier_rmse_m = 0.0;
+  // The residual sigma used in the covariance (given or estimated).
+  double residual_sigma_m = 0.0;
+};
+
+// Aligns `source` to `target` starting from `T_target_source_guess` (e.g. from a motion
+// model). Throws autocal::Error on non-finite input, when the target lacks normals for
+// point-to-plane, when too few correspondences are found (fewer than 6), or when the
+// geometry leaves a direction of motion unconstrained.
+IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                   const geometry::Pose3d& T_target_source_guess, const IcpSetting& setting);
+
+}  // namespace lidar
+}  // namespace autocal

@@ -1,0 +1,53 @@
+#pragma once
+
+// Nearest-neighbour search over a fixed set of 3D points: a k-d tree (nanoflann) built
+// once, queried many times. nanoflann stays an implementation detail of the library.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace autocal {
+namespace lidar {
+
+struct Neighbor {
+  int index = -1;  // column in KdTree::points()
+  double squared_distance_m2 = 0.0;
+};
+
+class KdTree {
+ public:
+  // Copies (or moves) the points in and builds the tree. Throws autocal::Error on a
+  // non-finite point.
+  explicit KdTree(Eigen::Matrix3Xd points);
+  ~KdTree();
+  KdTree(KdTree&&) noexcept;
+  KdTree& operator=(KdTree&&) noexcept;
+  KdTree(const KdTree&) = delete;
+  KdTree& operator=(const KdTree&) = delete;
+
+  int64_t size() const;
+  const Eigen::Matrix3Xd& points() const;
+
+  // The nearest point closer than max_distance_m (pass infinity for no bound). Returns
+  // false when there is none. The bound prunes the search, so a tight bound is faster.
+  bool Nearest(const Eigen::Vector3d& query, double max_distance_m, Neighbor* nearest) const;
+
+  // The k nearest points, closest first, into out[0 .. returned count). out must have
+  // room for k entries. Returns min(k, size()).
+  int Knn(const Eigen::Vector3d& query, int k, Neighbor* out) const;
+  std::vector<Neighbor> Knn(const Eigen::Vector3d& query, int k) const;
+
+  // Every point within radius_m (inclusive bound is not guaranteed), closest first.
+  // `neighbors` is cleared first; reuse it across calls to avoid allocations.
+  void RadiusSearch(const Eigen::Vector3d& query, double radius_m,
+                    std::vector<Neighbor>* neighbors) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lidar
+}  // namespace autocal

@@ -1,0 +1,89 @@
+#pragma once
+
+// LiDAR odometry (docs/lidar.md §5): every sweep is deskewed, registered point-to-plane
+// against a local map of the last sweeps, and added to that map.
+//
+//   predict  T_W_k = T_W_{k-1} Exp(xi dt)       constant velocity (eq. 5.1)
+//   deskew   p_k = Exp(xi tau) p(tau)            each point into the frame at the sweep stamp
+//                                                (eq. 5.2), or with the IMU rotation
+//   register T_W_k = ICP(deskewed sweep -> local map, start T_W_k)
+//   update   xi = Log(T_W_{k-1}^-1 T_W_k) / dt, append the sweep to the map
+//
+// Poses are T_W_L at each sweep's stamp (the time its points' time_s is relative to); W is
+// the LiDAR frame of the first sweep unless an initial pose is given.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <vector>
+
+#include "autocal/geometry/se3.h"
+#include "autocal/lidar/icp.h"
+#include "autocal/lidar/normals.h"
+#include "autocal/lidar/point_cloud.h"
+
+namespace autocal {
+namespace lidar {
+
+struct LidarOdometrySetting {
+  // Voxel edge for each incoming sweep and for the local map.
+  double voxel_m = 0.25;
+  // Sweeps kept in the local map.
+  int local_map_sweeps = 10;
+  // Remove motion distortion within each sweep (needs per-point time).
+  bool deskew = true;
+  // Map normals from at most 1 m around a point so that corners do not blend faces.
+  NormalEstimationSetting map_normals{10, 1.0, Eigen::Vector3d::Zero()};
+  // Point-to-plane, Huber with 0.1 m scale: moving objects and map clutter are down-weighted.
+  IcpSetting icp = [] {
+    IcpSetting setting;
+    setting.robust = RobustKernel{RobustLoss::kHuber, 0.1};
+    return setting;
+  }();
+  geometry::Pose3d initial_T_W_L;
+};
+
+struct OdometryFrame {
+  int64_t t_ns = 0;
+  geometry::Pose3d T_W_L;        // at the sweep stamp
+  geometry::Pose3d T_prev_curr;  // relative motion from the previous sweep (identity first)
+  IcpResult icp;                 // empty for the first sweep
+};
+
+class LidarOdometry {
+ public:
+  explicit LidarOdometry(LidarOdometrySetting setting = {});
+
+  // Processes the next sweep (stamps strictly increasing). angular_velocity_L_rad_s, when
+  // given, is the sensor's rate during the sweep (e.g. IMU gyro rotated into L) and replaces
+  // the constant-velocity rotation for deskewing. Throws autocal::Error on a non-increasing
+  // stamp, a sweep without per-point time while deskewing, or a failed registration.
+  const OdometryFrame& AddSweep(
+      const LidarSweep& sweep,
+      const std::optional<Eigen::Vector3d>& angular_velocity_L_rad_s = std::nullopt);
+
+  const std::vector<OdometryFrame>& frames() const { return frames_; }
+
+ private:
+  Eigen::Matrix3Xd Deskew(const PointCloud& cloud,
+                          const std::optional<Eigen::Vector3d>& angular_velocity) const;
+  // The sweep deskewed (if enabled) into its stamp's frame and voxel-downsampled.
+  Eigen::Matrix3Xd Downsampled(const PointCloud& cloud,
+                               const std::optional<Eigen::Vector3d>& angular_velocity) const;
+  IcpTarget BuildMap(const Eigen::Vector3d& viewpoint_W) const;
+  static Eigen::Matrix3Xd ToWorld(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
+  void AddToMap(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
+
+  LidarOdometrySetting setting_;
+  std::vector<OdometryFrame> frames_;
+  // Body-frame twist [v; w] per second from the last two poses (eq. 5.1).
+  Eigen::Matrix<double, 6, 1> velocity_ = Eigen::Matrix<double, 6, 1>::Zero();
+  std::deque<Eigen::Matrix3Xd> map_sweeps_W_;
+  // The first sweep is kept until a velocity is known to deskew it.
+  PointCloud first_sweep_;
+  std::optional<Eigen::Vector3d> first_angular_velocity_;
+};
+
+}  // namespace lidar
+}  // namespace autocal

@@ -1,0 +1,64 @@
+#pragma once
+
+// LiDAR sensor models (docs/lidar.md §1). A spinning LiDAR reports each return in
+// spherical coordinates: range r, azimuth alpha measured counter-clockwise from the
+// sensor's x axis in its xy plane, and elevation epsilon measured up from that plane.
+//
+//   inverse model (eq. 1.1): p = h^-1(r, alpha, eps) = r (cos eps cos alpha,
+//                                                        cos eps sin alpha,
+//                                                        sin eps)
+//   forward model (eq. 1.2): h(p) = (|p|, atan2(y, x), atan2(z, sqrt(x^2 + y^2)))
+//
+// The forward model uses atan2 so that every quadrant round-trips (arctan(y/x) cannot tell
+// (x, y) from (-x, -y)), and the elevation uses atan2 rather than arcsin(z/r) so that it
+// stays accurate near +-90 degrees. A 2D LiDAR is the special case eps = 0, z = 0.
+
+#include <Eigen/Core>
+
+namespace autocal {
+namespace lidar {
+
+struct SphericalPoint {
+  double range_m = 0.0;
+  double azimuth_rad = 0.0;    // in (-pi, pi]
+  double elevation_rad = 0.0;  // in [-pi/2, pi/2]
+};
+
+struct PolarPoint {
+  double range_m = 0.0;
+  double azimuth_rad = 0.0;  // in (-pi, pi]
+};
+
+// Inverse sensor model, eq. (1.1).
+Eigen::Vector3d SphericalToCartesian(const SphericalPoint& s);
+
+// Forward sensor model, eq. (1.2). The origin maps to range 0 with both angles 0; a point
+// on the z axis gets azimuth 0.
+SphericalPoint CartesianToSpherical(const Eigen::Vector3d& p);
+
+// 2D LiDAR (eq. 1.3): polar coordinates in the sensor's xy plane.
+Eigen::Vector2d PolarToCartesian(const PolarPoint& s);
+PolarPoint CartesianToPolar(const Eigen::Vector2d& p);
+
+// Jacobian of the inverse model d p / d (r, alpha, eps), eq. (1.4).
+Eigen::Matrix3d InverseModelJacobian(const SphericalPoint& s);
+
+// Independent zero-mean Gaussian noise on the three spherical measurements (1-sigma).
+// Defaults: a typical automotive spinning LiDAR (2 cm range, 0.1 deg encoder and beam
+// angle uncertainty).
+struct SphericalNoise {
+  double range_sigma_m = 0.02;
+  double azimuth_sigma_rad = 0.1 * 3.14159265358979323846 / 180.0;
+  double elevation_sigma_rad = 0.1 * 3.14159265358979323846 / 180.0;
+};
+
+// First-order Cartesian covariance of a point measured at s, eq. (1.5):
+// Sigma_p = J Sigma_s J^T with J = InverseModelJacobian(s).
+Eigen::Matrix3d CartesianCovariance(const SphericalPoint& s, const SphericalNoise& noise);
+
+// The same for the 2D model (eq. 1.6).
+Eigen::Matrix2d CartesianCovariance2d(const PolarPoint& s, double range_sigma_m,
+                                      double azimuth_sigma_rad);
+
+}  // namespace lidar
+}  // namespace autocal

@@ -1,0 +1,323 @@
+#include "autocal/lidar/icp.h"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+
+namespace autocal {
+namespace lidar {
+namespace {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+// A Gauss-Newton system needs 6 independent constraints; below this a solve is noise.
+constexpr int kMinCorrespondences = 6;
+// Relative size of the smallest eigenvalue of J^T W J below which a motion direction is
+// treated as unconstrained.
+constexpr double kDegenerateEigenRatio = 1e-10;
+
+struct WeightedPair {
+  Eigen::Vector3d source;
+  Eigen::Vector3d target;
+  double weight;
+};
+
+void RequireFinite(const Eigen::Matrix3Xd& points, const char* what) {
+  if (!points.allFinite()) {
+    throw Error(std::string(what) + " contains a non-finite coordinate");
+  }
+}
+
+// Eqs. (4.1)-(4.4): weighted centroids, cross-covariance W, SVD with the determinant
+// correction, translation from the centroids.
+geometry::Pose3d SolveRigid(const std::vector<WeightedPair>& pairs) {
+  double weight_sum = 0.0;
+  int positive = 0;
+  Eigen::Vector3d mu_source = Eigen::Vector3d::Zero();
+  Eigen::Vector3d mu_target = Eigen::Vector3d::Zero();
+  for (const WeightedPair& pair : pairs) {
+    weight_sum += pair.weight;
+    positive += pair.weight > 0.0;
+    mu_source += pair.weight * pair.source;
+    mu_target += pair.weight * pair.target;
+  }
+  if (positive < 3 || !(weight_sum > 0.0)) {
+    throw Error("rigid alignment needs at least 3 correspondences with positive weight, got " +
+                std::to_string(positive));
+  }
+  mu_source /= weight_sum;  // eq. (4.1)
+  mu_target /= weight_sum;
+  Eigen::Matrix3d W = Eigen::Matrix3d::Zero();  // eq. (4.2), target x source
+  Eigen::Matrix3d source_scatter = Eigen::Matrix3d::Zero();
+  for (const WeightedPair& pair : pairs) {
+    const Eigen::Vector3d ds = pair.source - mu_source;
+    W.noalias() += pair.weight * (pair.target - mu_target) * ds.transpose();
+    source_scatter.noalias() += pair.weight * ds * ds.transpose();
+  }
+  const Eigen::Vector3d spread =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(source_scatter, Eigen::EigenvaluesOnly)
+          .eigenvalues();  // ascending
+  if (!(spread(1) > 1e-12 * spread(2))) {
+    throw Error(
+        "rigid alignment is undetermined: the source points are collinear or coincident, so "
+        "the rotation about their line cannot be recovered");
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(W, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d s = svd.singularValues();
+  if (!(s(1) > 1e-12 * s(0))) {
+    throw Error(
+        "rigid alignment is undetermined: the matched target points are collinear or "
+        "coincident");
+  }
+  const Eigen::Matrix3d& U = svd.matrixU();
+  const Eigen::Matrix3d& V = svd.matrixV();
+  // eq. (4.3): D flips the axis of the smallest singular value when U V^T is a reflection.
+  const Eigen::Vector3d d(1.0, 1.0, U.determinant() * V.determinant());
+  const Eigen::Matrix3d R = U * d.asDiagonal() * V.transpose();
+  const Eigen::Vector3d t = mu_target - R * mu_source;  // eq. (4.4)
+  return geometry::Pose3d(Eigen::Quaterniond(R).normalized(), t);
+}
+
+// Sums of one linearization: H = sum w J^T J, g = sum w J^T r (eqs. 4.8-4.10).
+struct NormalEquations {
+  Matrix6d H = Matrix6d::Zero();
+  Vector6d g = Vector6d::Zero();
+  // sum w^2 var_i J J^T of eq. (4.16), when the source range noise is given.
+  Matrix6d propagated = Matrix6d::Zero();
+  double weighted_squared_residuals = 0.0;
+  double squared_residuals = 0.0;
+  int count = 0;
+  // Scalar residuals per correspondence: 1 for point-to-plane, 3 for point-to-point.
+  int residual_dimension = 1;
+};
+
+// Point-to-plane linearization at T (eqs. 4.6-4.10): r = n . (T p - q) and, for the left
+// perturbation, dr/d[rho; phi] = [n; (T p) x n].
+NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                                      const geometry::Pose3d& T, const IcpSetting& setting) {
+  const Eigen::Matrix3d R = T.R();
+  const Eigen::Matrix3Xd& target_points = target.points();
+  const Eigen::Matrix3Xd& normals = target.normals().normals;
+  const Eigen::VectorXd& planarity = target.normals().planarity;
+  NormalEquations eq;
+  Vector6d J;
+  Neighbor nearest;
+  for (Eigen::Index i = 0; i < source.cols(); ++i) {
+    const Eigen::Vector3d p = R * source.col(i) + T.p;
+    if (!target.tree().Nearest(p, setting.max_correspondence_m, &nearest)) continue;
+    // Planarity 0 marks a target point without a normal (EstimateNormals).
+    const double target_planarity = planarity(nearest.index);
+    if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
+    const Eigen::Vector3d n = normals.col(nearest.index);
+    const double r = n.dot(p - target_points.col(nearest.index));
+    J.head<3>() = n;
+    J.tail<3>() = p.cross(n);
+    const double w = setting.robust.Weight(r);
+    eq.H.noalias() += (w * J) * J.transpose();
+    if (setting.source_range_sigma_m > 0.0) {
+      const double along_normal = n.dot(R * source.col(i).normalized());
+      const double variance = std::pow(setting.source_range_sigma_m * along_normal, 2);
+      eq.propagated.noalias() += (w * w * variance * J) * J.transpose();
+    }
+    eq.g.noalias() += (w * r) * J;
+    eq.weighted_squared_residuals += w * r * r;
+    eq.squared_residuals += r * r;
+    ++eq.count;
+  }
+  eq.residual_dimension = 1;
+  return eq;
+}
+
+// Point-to-point correspondences at T with IRLS weights of the point distance.
+void CollectPointPairs(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                       const geometry::Pose3d& T, const IcpSetting& setting,
+                       std::vector<WeightedPair>* pairs) {
+  const Eigen::Matrix3d R = T.R();
+  pairs->clear();
+  Neighbor nearest;
+  for (Eigen::Index i = 0; i < source.cols(); ++i) {
+    const Eigen::Vector3d p = R * source.col(i) + T.p;
+    if (!target.tree().Nearest(p, setting.max_correspondence_m, &nearest)) continue;
+    const double distance = std::sqrt(nearest.squared_distance_m2);
+    pairs->push_back(WeightedPair{source.col(i), target.points().col(nearest.index),
+                                  setting.robust.Weight(distance)});
+  }
+}
+
+// Point-to-point normal equations at T for the covariance: r = T p - q (3 rows) with
+// dr/d[rho; phi] = [I, -(T p)^].
+NormalEquations LinearizePointPairs(const std::vector<WeightedPair>& pairs,
+                                    const geometry::Pose3d& T) {
+  const Eigen::Matrix3d R = T.R();
+  NormalEquations eq;
+  Eigen::Matrix<double, 3, 6> J;
+  J.leftCols<3>().setIdentity();
+  for (const WeightedPair& pair : pairs) {
+    const Eigen::Vector3d p = R * pair.source + T.p;
+    const Eigen::Vector3d r = p - pair.target;
+    J.rightCols<3>() = -geometry::Hat(p);
+    eq.H.noalias() += pair.weight * J.transpose() * J;
+    eq.g.noalias() += pair.weight * J.transpose() * r;
+    eq.weighted_squared_residuals += pair.weight * r.squaredNorm();
+    eq.squared_residuals += r.squaredNorm();
+    ++eq.count;
+  }
+  eq.residual_dimension = 3;
+  return eq;
+}
+
+void RequireConstrained(const NormalEquations& eq) {
+  const Eigen::Matrix<double, 6, 1> l =
+      Eigen::SelfAdjointEigenSolver<Matrix6d>(eq.H, Eigen::EigenvaluesOnly).eigenvalues();
+  if (!(l(0) > kDegenerateEigenRatio * l(5))) {
+    std::ostringstream message;
+    message << "ICP is degenerate: the " << eq.count
+            << " correspondences leave a direction of motion unconstrained (eigenvalues of "
+               "J^T W J: "
+            << l.transpose() << ")";
+    throw Error(message.str());
+  }
+}
+
+void RequireEnough(int count, const IcpSetting& setting, Eigen::Index source_size) {
+  if (count < kMinCorrespondences) {
+    throw Error("ICP found only " + std::to_string(count) + " correspondences for " +
+                std::to_string(source_size) + " source points within max_correspondence_m = " +
+                std::to_string(setting.max_correspondence_m) + " m (need " +
+                std::to_string(kMinCorrespondences) +
+                "): the clouds do not overlap at the initial guess");
+  }
+}
+
+// Eqs. (4.14)-(4.15): Cov = sigma^2 H^-1 with sigma^2 estimated from the weighted residuals
+// when not given.
+void FillStatistics(const NormalEquations& eq, const IcpSetting& setting, Eigen::Index source_size,
+                    IcpResult* result) {
+  result->num_correspondences = eq.count;
+  result->fitness = source_size > 0 ? static_cast<double>(eq.count) / source_size : 0.0;
+  const int num_residuals = eq.count * eq.residual_dimension;
+  result->inlier_rmse_m = eq.count > 0 ? std::sqrt(eq.squared_residuals / eq.count) : 0.0;
+  double sigma = setting.residual_sigma_m;
+  if (!(sigma > 0.0)) {
+    sigma =
+        num_residuals > 6 ? std::sqrt(eq.weighted_squared_residuals / (num_residuals - 6)) : 0.0;
+  }
+  result->residual_sigma_m = sigma;
+  const Matrix6d H_inverse = eq.H.inverse();
+  if (setting.source_range_sigma_m > 0.0 && eq.residual_dimension == 1) {
+    result->covariance = H_inverse * eq.propagated * H_inverse;  // eq. (4.16)
+  } else {
+    result->covariance = sigma * sigma * H_inverse;  // eq. (4.14)
+  }
+}
+
+}  // namespace
+
+IcpMethod ParseIcpMethod(const std::string& name) {
+  if (name == "point_to_point") return IcpMethod::kPointToPoint;
+  if (name == "point_to_plane") return IcpMethod::kPointToPlane;
+  throw Error("unknown ICP method '" + name + "' (expected point_to_point or point_to_plane)");
+}
+
+const char* IcpMethodName(IcpMethod method) {
+  return method == IcpMethod::kPointToPoint ? "point_to_point" : "point_to_plane";
+}
+
+geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
+                                      const Eigen::Matrix3Xd& target,
+                                      const Eigen::VectorXd& weights) {
+  if (source.cols() != target.cols()) {
+    throw Error("AlignCorrespondences: " + std::to_string(source.cols()) + " source points but " +
+                std::to_string(target.cols()) + " target points");
+  }
+  if (weights.size() != 0 && weights.size() != source.cols()) {
+    throw Error("AlignCorrespondences: " + std::to_string(weights.size()) + " weights for " +
+                std::to_string(source.cols()) + " pairs");
+  }
+  RequireFinite(source, "AlignCorrespondences: the source");
+  RequireFinite(target, "AlignCorrespondences: the target");
+  if (weights.size() != 0 && (!weights.allFinite() || (weights.array() < 0.0).any())) {
+    throw Error("AlignCorrespondences: weights must be finite and non-negative");
+  }
+  std::vector<WeightedPair> pairs(static_cast<size_t>(source.cols()));
+  for (Eigen::Index i = 0; i < source.cols(); ++i) {
+    pairs[i] = WeightedPair{source.col(i), target.col(i), weights.size() ? weights(i) : 1.0};
+  }
+  return SolveRigid(pairs);
+}
+
+IcpTarget::IcpTarget(Eigen::Matrix3Xd points, bool with_normals,
+                     const NormalEstimationSetting& normal_setting)
+    : tree_(std::move(points)) {
+  if (with_normals) normals_ = EstimateNormals(tree_, normal_setting);
+}
+
+IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                   const geometry::Pose3d& T_target_source_guess, const IcpSetting& setting) {
+  RequireFinite(source, "ICP source");
+  if (!T_target_source_guess.p.allFinite() || !T_target_source_guess.q.coeffs().allFinite()) {
+    throw Error("ICP initial guess is not finite");
+  }
+  if (!(setting.max_correspondence_m > 0.0) || setting.convergence.max_iterations < 1) {
+    throw Error("ICP setting: max_correspondence_m must be > 0 and max_iterations >= 1");
+  }
+  if (setting.robust.loss != RobustLoss::kNone && !(setting.robust.scale_m > 0.0)) {
+    throw Error("ICP setting: the robust loss scale must be > 0");
+  }
+  const bool point_to_plane = setting.method == IcpMethod::kPointToPlane;
+  if (point_to_plane && !target.has_normals()) {
+    throw Error("point-to-plane ICP needs a target prepared with normals");
+  }
+
+  IcpResult result;
+  geometry::Pose3d T = T_target_source_guess;
+  T.q.normalize();
+  NormalEquations last;
+  std::vector<WeightedPair> pairs;
+  if (!point_to_plane) pairs.reserve(static_cast<size_t>(source.cols()));
+
+  for (int iteration = 1; iteration <= setting.convergence.max_iterations; ++iteration) {
+    result.iterations = iteration;
+    double step_translation_m = 0.0;
+    double step_rotation_rad = 0.0;
+    if (point_to_plane) {
+      last = LinearizePointToPlane(source, target, T, setting);
+      RequireEnough(last.count, setting, source.cols());
+      RequireConstrained(last);
+      // Gauss-Newton step of eq. (4.11); LDLT on the 6x6 system, no explicit inverse.
+      const Vector6d delta = -last.H.ldlt().solve(last.g);
+      T = geometry::ExpSE3(delta) * T;
+      T.q.normalize();
+      step_translation_m = delta.head<3>().norm();
+      step_rotation_rad = delta.tail<3>().norm();
+    } else {
+      CollectPointPairs(source, target, T, setting, &pairs);
+      RequireEnough(static_cast<int>(pairs.size()), setting, source.cols());
+      const geometry::Pose3d T_new = SolveRigid(pairs);
+      step_translation_m = (T_new.p - T.p).norm();
+      step_rotation_rad = geometry::AngularDistance(T.q, T_new.q);
+      T = T_new;
+      last = LinearizePointPairs(pairs, T);
+      RequireConstrained(last);
+    }
+    if (step_translation_m < setting.convergence.translation_m &&
+        step_rotation_rad < setting.convergence.rotation_rad) {
+      result.converged = true;
+      break;
+    }
+  }
+  // The statistics use the last linearization; after convergence it is one step (below the
+  // tolerances) from the returned pose, which changes nothing at the noise level.
+  result.T_target_source = T;
+  FillStatistics(last, setting, source.cols(), &result);
+  return result;
+}
+
+}  // namespace lidar
+}  // namespace autocal

@@ -1,0 +1,134 @@
+#include "autocal/lidar/registration.h"
+
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+
+#include "autocal/common/error.h"
+#include "autocal/lidar/voxel_grid.h"
+
+namespace autocal {
+namespace lidar {
+namespace {
+
+Eigen::Matrix3Xd Downsampled(const PointCloud& cloud, double voxel_m) {
+  if (voxel_m > 0.0) return VoxelDownsample(cloud, voxel_m).points;
+  CheckPointCloud(cloud, "registration input");
+  return cloud.points;
+}
+
+void WriteMatrixRows(std::ostream& out, const Eigen::MatrixXd& m, const std::string& indent) {
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    out << indent << "- [";
+    for (Eigen::Index c = 0; c < m.cols(); ++c) out << (c ? ", " : "") << m(r, c);
+    out << "]\n";
+  }
+}
+
+}  // namespace
+
+RegistrationSetting MakeRegistrationSetting(const std::string& method, const std::string& loss,
+                                            double loss_scale_m, double voxel_m,
+                                            double max_correspondence_m) {
+  RegistrationSetting setting;
+  setting.icp.method = ParseIcpMethod(method);
+  setting.icp.robust.loss = ParseRobustLoss(loss);
+  if (!(loss_scale_m > 0.0) || !std::isfinite(loss_scale_m)) {
+    throw Error("loss_scale_m must be a positive number of metres, got " +
+                std::to_string(loss_scale_m));
+  }
+  setting.icp.robust.scale_m = loss_scale_m;
+  if (!(voxel_m >= 0.0) || !std::isfinite(voxel_m)) {
+    throw Error("voxel_m must be >= 0 (0 disables downsampling), got " + std::to_string(voxel_m));
+  }
+  setting.voxel_m = voxel_m;
+  if (!(max_correspondence_m > 0.0) || !std::isfinite(max_correspondence_m)) {
+    throw Error("max_correspondence_m must be a positive number of metres, got " +
+                std::to_string(max_correspondence_m));
+  }
+  setting.icp.max_correspondence_m = max_correspondence_m;
+  return setting;
+}
+
+RegistrationResult RegisterPointClouds(const PointCloud& source, const PointCloud& target,
+                                       const geometry::Pose3d& T_target_source_guess,
+                                       const RegistrationSetting& setting) {
+  if (source.empty()) throw Error("registration: the source cloud is empty");
+  if (target.empty()) throw Error("registration: the target cloud is empty");
+  if (setting.voxel_m < 0.0) {
+    throw Error("registration: voxel size must be >= 0, got " + std::to_string(setting.voxel_m));
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const Eigen::Matrix3Xd source_points = Downsampled(source, setting.voxel_m);
+  const bool with_normals = setting.icp.method == IcpMethod::kPointToPlane;
+  const IcpTarget prepared(Downsampled(target, setting.voxel_m), with_normals,
+                           setting.target_normals);
+  RegistrationResult result;
+  result.icp = AlignIcp(source_points, prepared, T_target_source_guess, setting.icp);
+  result.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.source_points = source_points.cols();
+  result.target_points = prepared.points().cols();
+  return result;
+}
+
+std::string FormatRegistrationReport(const RegistrationResult& result,
+                                     const RegistrationSetting& setting) {
+  const IcpResult& icp = result.icp;
+  std::ostringstream out;
+  out << std::setprecision(9);
+  const Eigen::IOFormat matrix_format(Eigen::FullPrecision, 0, " ", "\n", "  ", "");
+  out << "method: " << IcpMethodName(setting.icp.method)
+      << "  loss: " << RobustLossName(setting.icp.robust.loss);
+  if (setting.icp.robust.loss != RobustLoss::kNone)
+    out << " (scale " << setting.icp.robust.scale_m << " m)";
+  out << "  voxel: " << setting.voxel_m
+      << " m  max correspondence: " << setting.icp.max_correspondence_m << " m\n";
+  out << "points after downsampling: source " << result.source_points << ", target "
+      << result.target_points << "\n";
+  out << "T_target_source:\n" << icp.T_target_source.Matrix().format(matrix_format) << "\n";
+  out << "inlier RMSE: " << icp.inlier_rmse_m << " m over " << icp.num_correspondences
+      << " correspondences (fitness " << icp.fitness << ")\n";
+  out << "iterations: " << icp.iterations << (icp.converged ? " (converged)" : " (not converged)")
+      << "\n";
+  out << "time: " << 1e3 * result.time_s << " ms\n";
+  out << "covariance of [rho; phi] (left perturbation in the target frame, m and rad; "
+         "residual sigma "
+      << icp.residual_sigma_m << " m):\n"
+      << icp.covariance.format(matrix_format) << "\n";
+  return out.str();
+}
+
+std::string FormatRegistrationYaml(const RegistrationResult& result,
+                                   const RegistrationSetting& setting) {
+  const IcpResult& icp = result.icp;
+  const Eigen::Quaterniond& q = icp.T_target_source.q;
+  const Eigen::Vector3d& p = icp.T_target_source.p;
+  std::ostringstream out;
+  out << std::setprecision(12);
+  out << "method: " << IcpMethodName(setting.icp.method) << "\n";
+  out << "loss: " << RobustLossName(setting.icp.robust.loss) << "\n";
+  out << "loss_scale_m: " << setting.icp.robust.scale_m << "\n";
+  out << "voxel_m: " << setting.voxel_m << "\n";
+  out << "max_correspondence_m: " << setting.icp.max_correspondence_m << "\n";
+  out << "T_target_source:\n";
+  WriteMatrixRows(out, icp.T_target_source.Matrix(), "  ");
+  out << "q_xyzw: [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w() << "]\n";
+  out << "p_m: [" << p.x() << ", " << p.y() << ", " << p.z() << "]\n";
+  out << "# Cov of the left perturbation [rho (m); phi (rad)] in the target frame.\n";
+  out << "covariance:\n";
+  WriteMatrixRows(out, icp.covariance, "  ");
+  out << "residual_sigma_m: " << icp.residual_sigma_m << "\n";
+  out << "inlier_rmse_m: " << icp.inlier_rmse_m << "\n";
+  out << "num_correspondences: " << icp.num_correspondences << "\n";
+  out << "fitness: " << icp.fitness << "\n";
+  out << "iterations: " << icp.iterations << "\n";
+  out << "converged: " << (icp.converged ? "true" : "false") << "\n";
+  out << "source_points: " << result.source_points << "\n";
+  out << "target_points: " << result.target_points << "\n";
+  out << "time_s: " << result.time_s << "\n";
+  return out.str();
+}
+
+}  // namespace lidar
+}  // namespace autocal

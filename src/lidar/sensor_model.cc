@@ -1,0 +1,71 @@
+#include "autocal/lidar/sensor_model.h"
+
+#include <cmath>
+
+namespace autocal {
+namespace lidar {
+
+Eigen::Vector3d SphericalToCartesian(const SphericalPoint& s) {
+  const double ce = std::cos(s.elevation_rad);
+  return Eigen::Vector3d(s.range_m * ce * std::cos(s.azimuth_rad),
+                         s.range_m * ce * std::sin(s.azimuth_rad),
+                         s.range_m * std::sin(s.elevation_rad));
+}
+
+SphericalPoint CartesianToSpherical(const Eigen::Vector3d& p) {
+  const double horizontal = std::hypot(p.x(), p.y());
+  SphericalPoint s;
+  s.range_m = p.norm();
+  // atan2(0, 0) is 0 on IEEE platforms, which gives the documented values at the origin.
+  s.azimuth_rad = std::atan2(p.y(), p.x());
+  s.elevation_rad = std::atan2(p.z(), horizontal);
+  return s;
+}
+
+Eigen::Vector2d PolarToCartesian(const PolarPoint& s) {
+  return Eigen::Vector2d(s.range_m * std::cos(s.azimuth_rad), s.range_m * std::sin(s.azimuth_rad));
+}
+
+PolarPoint CartesianToPolar(const Eigen::Vector2d& p) {
+  PolarPoint s;
+  s.range_m = p.norm();
+  s.azimuth_rad = std::atan2(p.y(), p.x());
+  return s;
+}
+
+Eigen::Matrix3d InverseModelJacobian(const SphericalPoint& s) {
+  const double ca = std::cos(s.azimuth_rad);
+  const double sa = std::sin(s.azimuth_rad);
+  const double ce = std::cos(s.elevation_rad);
+  const double se = std::sin(s.elevation_rad);
+  const double r = s.range_m;
+  Eigen::Matrix3d J;
+  // Columns: d/dr, d/dalpha, d/deps of eq. (1.1).
+  J << ce * ca, -r * ce * sa, -r * se * ca,  //
+      ce * sa, r * ce * ca, -r * se * sa,    //
+      se, 0.0, r * ce;
+  return J;
+}
+
+Eigen::Matrix3d CartesianCovariance(const SphericalPoint& s, const SphericalNoise& noise) {
+  const Eigen::Matrix3d J = InverseModelJacobian(s);
+  const Eigen::Vector3d variances(noise.range_sigma_m * noise.range_sigma_m,
+                                  noise.azimuth_sigma_rad * noise.azimuth_sigma_rad,
+                                  noise.elevation_sigma_rad * noise.elevation_sigma_rad);
+  return J * variances.asDiagonal() * J.transpose();
+}
+
+Eigen::Matrix2d CartesianCovariance2d(const PolarPoint& s, double range_sigma_m,
+                                      double azimuth_sigma_rad) {
+  const double ca = std::cos(s.azimuth_rad);
+  const double sa = std::sin(s.azimuth_rad);
+  Eigen::Matrix2d J;
+  J << ca, -s.range_m * sa,  //
+      sa, s.range_m * ca;
+  const Eigen::Vector2d variances(range_sigma_m * range_sigma_m,
+                                  azimuth_sigma_rad * azimuth_sigma_rad);
+  return J * variances.asDiagonal() * J.transpose();
+}
+
+}  // namespace lidar
+}  // namespace autocal

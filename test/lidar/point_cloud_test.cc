@@ -1,0 +1,235 @@
+#include "autocal/lidar/point_cloud.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <tuple>
+
+#include "autocal/common/error.h"
+#include "autocal/lidar/kd_tree.h"
+#include "autocal/lidar/normals.h"
+#include "autocal/lidar/voxel_grid.h"
+#include "lidar/synthetic_scene.h"
+
+namespace autocal {
+namespace lidar {
+namespace {
+
+PointCloud RandomCloud(int n, uint64_t seed, double extent_m = 50.0) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-extent_m, extent_m);
+  PointCloud cloud;
+  cloud.points.resize(3, n);
+  cloud.intensity.resize(n);
+  cloud.time_s.resize(n);
+  for (int i = 0; i < n; ++i) {
+    cloud.points.col(i) = Eigen::Vector3d(u(rng), u(rng), 0.2 * u(rng));
+    cloud.intensity(i) = static_cast<float>(i % 256);
+    cloud.time_s(i) = 1e-5 * i;
+  }
+  return cloud;
+}
+
+TEST(PointCloudTest, BatchOperationsMatchPerPointMath) {
+  const PointCloud cloud = RandomCloud(500, 1);
+  const geometry::Pose3d T_a_b = test::MakePose(3.0, -2.0, 0.5, 40.0, -5.0, 12.0);
+  const Eigen::Vector3d s(2.0, 0.5, -1.0);
+  const PointCloud translated = Translate(cloud, T_a_b.p);
+  const PointCloud rotated = Rotate(cloud, T_a_b.R());
+  const PointCloud scaled = Scale(cloud, s);
+  const PointCloud scaled_iso = Scale(cloud, 3.0);
+  const PointCloud transformed = Transform(cloud, T_a_b);
+  PointCloud in_place = cloud;
+  TransformInPlace(T_a_b, &in_place);
+  for (int i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = cloud.points.col(i);
+    EXPECT_TRUE(translated.points.col(i).isApprox(p + T_a_b.p));
+    EXPECT_TRUE(rotated.points.col(i).isApprox(T_a_b.q * p));
+    EXPECT_TRUE(scaled.points.col(i).isApprox(s.cwiseProduct(p)));
+    EXPECT_TRUE(scaled_iso.points.col(i).isApprox(3.0 * p));
+    EXPECT_TRUE(transformed.points.col(i).isApprox(T_a_b * p, 1e-12));
+    EXPECT_TRUE(in_place.points.col(i).isApprox(T_a_b * p, 1e-12));
+  }
+  // Channels travel with the points; transforming back restores the cloud.
+  EXPECT_EQ(transformed.intensity, cloud.intensity);
+  EXPECT_EQ(transformed.time_s, cloud.time_s);
+  EXPECT_TRUE(Transform(transformed, T_a_b.Inverse()).points.isApprox(cloud.points, 1e-12));
+}
+
+TEST(PointCloudTest, RejectsNonRotationsAndBadChannels) {
+  const PointCloud cloud = RandomCloud(10, 2);
+  EXPECT_THROW(Rotate(cloud, Eigen::Vector3d(1, 1, -1).asDiagonal()), Error);  // reflection
+  EXPECT_THROW(Rotate(cloud, 2.0 * Eigen::Matrix3d::Identity()), Error);
+  PointCloud bad = cloud;
+  bad.time_s.resize(3);
+  EXPECT_THROW(CheckPointCloud(bad, "test"), Error);
+  bad = cloud;
+  bad.points(1, 4) = std::nan("");
+  EXPECT_THROW(CheckPointCloud(bad, "test"), Error);
+  const PointCloud cleaned = RemoveNonFinite(bad);
+  EXPECT_EQ(cleaned.size(), cloud.size() - 1);
+  EXPECT_EQ(cleaned.intensity(4), cloud.intensity(5));
+  EXPECT_NO_THROW(CheckPointCloud(cleaned, "test"));
+}
+
+TEST(VoxelGridTest, CentroidPerOccupiedVoxel) {
+  const PointCloud cloud = RandomCloud(20000, 3, 10.0);
+  const double voxel_m = 0.7;
+  const PointCloud down = VoxelDownsample(cloud, voxel_m);
+  // Reference: a map keyed by the voxel index relative to the cloud's minimum corner.
+  const Eigen::Vector3d min_corner = cloud.points.rowwise().minCoeff();
+  std::map<std::tuple<int64_t, int64_t, int64_t>, std::pair<Eigen::Vector3d, int>> voxels;
+  for (int i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d v = (cloud.points.col(i) - min_corner) / voxel_m;
+    auto& entry = voxels[{static_cast<int64_t>(v.x()), static_cast<int64_t>(v.y()),
+                          static_cast<int64_t>(v.z())}];
+    if (entry.second == 0) entry.first.setZero();
+    entry.first += cloud.points.col(i);
+    ++entry.second;
+  }
+  ASSERT_EQ(static_cast<size_t>(down.size()), voxels.size());
+  ASSERT_TRUE(down.has_intensity());
+  ASSERT_TRUE(down.has_time());
+  int i = 0;
+  for (const auto& [key, entry] : voxels) {  // both ordered by (x, y, z) index
+    const Eigen::Vector3d centroid = entry.first / entry.second;
+    EXPECT_TRUE(down.points.col(i).isApprox(centroid, 1e-12))
+        << "voxel " << i << ": " << down.points.col(i).transpose() << " vs "
+        << centroid.transpose();
+    ++i;
+  }
+}
+
+TEST(VoxelGridTest, IndependentOfOrderAndRejectsBadInput) {
+  PointCloud cloud = RandomCloud(5000, 4);
+  const PointCloud a = VoxelDownsample(cloud, 1.0);
+  PointCloud reversed = cloud;
+  reversed.points = cloud.points.rowwise().reverse();
+  reversed.intensity = cloud.intensity.reverse();
+  reversed.time_s = cloud.time_s.reverse();
+  EXPECT_TRUE(VoxelDownsample(reversed, 1.0).points.isApprox(a.points, 1e-12));
+  EXPECT_THROW(VoxelDownsample(cloud, 0.0), Error);
+  EXPECT_THROW(VoxelDownsample(cloud, -1.0), Error);
+  EXPECT_THROW(VoxelDownsample(cloud, 1e-6), Error);  // 2^21 voxels per axis exceeded
+  cloud.points(2, 10) = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(VoxelDownsample(cloud, 1.0), Error);
+  EXPECT_EQ(VoxelDownsample(PointCloud(), 1.0).size(), 0);
+}
+
+TEST(KdTreeTest, MatchesBruteForce) {
+  const PointCloud cloud = RandomCloud(3000, 5, 20.0);
+  const KdTree tree(cloud.points);
+  const PointCloud queries = RandomCloud(200, 6, 22.0);
+  std::vector<Neighbor> radius_result;
+  for (int q = 0; q < queries.size(); ++q) {
+    const Eigen::Vector3d query = queries.points.col(q);
+    std::vector<std::pair<double, int>> brute;
+    for (int i = 0; i < cloud.size(); ++i) {
+      brute.emplace_back((cloud.points.col(i) - query).squaredNorm(), i);
+    }
+    std::sort(brute.begin(), brute.end());
+    const std::vector<Neighbor> knn = tree.Knn(query, 8);
+    ASSERT_EQ(knn.size(), 8u);
+    for (int k = 0; k < 8; ++k) {
+      EXPECT_EQ(knn[k].index, brute[k].second) << "query " << q << " rank " << k;
+      EXPECT_DOUBLE_EQ(knn[k].squared_distance_m2, brute[k].first);
+    }
+    Neighbor nearest;
+    ASSERT_TRUE(tree.Nearest(query, 100.0, &nearest));
+    EXPECT_EQ(nearest.index, brute[0].second);
+    const double nearest_m = std::sqrt(brute[0].first);
+    EXPECT_FALSE(tree.Nearest(query, 0.999 * nearest_m, &nearest));
+    EXPECT_TRUE(tree.Nearest(query, 1.001 * nearest_m, &nearest));
+    const double radius_m = 2.5;
+    tree.RadiusSearch(query, radius_m, &radius_result);
+    const size_t expected = std::count_if(
+        brute.begin(), brute.end(), [&](const auto& e) { return e.first < radius_m * radius_m; });
+    ASSERT_EQ(radius_result.size(), expected) << "query " << q;
+    for (size_t k = 0; k < expected; ++k) EXPECT_EQ(radius_result[k].index, brute[k].second);
+  }
+  EXPECT_THROW(KdTree(Eigen::Matrix3Xd::Constant(3, 4, std::nan(""))), Error);
+  const KdTree empty{Eigen::Matrix3Xd(3, 0)};
+  Neighbor none;
+  EXPECT_FALSE(empty.Nearest(Eigen::Vector3d::Zero(), 1.0, &none));
+  EXPECT_TRUE(empty.Knn(Eigen::Vector3d::Zero(), 3).empty());
+}
+
+TEST(NormalsTest, SimulatedScanNormalsMatchTheSurfaces) {
+  // Ray-cast scene: every point lies on the ground (normal z) or on a box face (normal x
+  // or y); far from edges the PCA normal must be the face normal, facing the sensor.
+  const test::Scene scene = test::MakeStreetScene(8);
+  std::mt19937_64 rng(9);
+  const geometry::Pose3d T_W_L = test::MakePose(0.0, 0.0, 1.8, 0.0, 0.0, 0.0);
+  const PointCloud scan = VoxelDownsample(test::SimulateStaticSweep(scene, T_W_L, {}, &rng), 0.2);
+  const KdTree tree(scan.points);
+  NormalEstimationSetting setting;
+  setting.max_radius_m = 1.0;
+  const SurfaceNormals normals = EstimateNormals(tree, setting);
+  int checked = 0;
+  for (int i = 0; i < scan.size(); ++i) {
+    const Eigen::Vector3d p_W = T_W_L * Eigen::Vector3d(scan.points.col(i));
+    if (normals.planarity(i) < 0.5) continue;
+    // The true surface: the ground if the point is on it, else the nearest box face.
+    Eigen::Vector3d truth = Eigen::Vector3d::UnitZ();
+    if (std::abs(p_W.z()) > 0.05) {
+      double best = 1e9;
+      for (const test::Box& box : scene.boxes) {
+        for (int axis = 0; axis < 2; ++axis) {
+          for (double face : {box.min_corner(axis), box.max_corner(axis)}) {
+            const Eigen::Vector3d clamped = p_W.cwiseMax(box.min_corner).cwiseMin(box.max_corner);
+            const double d = std::abs(p_W(axis) - face) + (clamped - p_W).norm();
+            if (d < best) {
+              best = d;
+              truth = Eigen::Vector3d::Unit(axis);
+            }
+          }
+        }
+      }
+      if (best > 0.05) continue;
+    }
+    // Skip points near an edge, where the neighbourhood straddles two faces.
+    std::vector<Neighbor> near;
+    tree.RadiusSearch(scan.points.col(i), setting.max_radius_m, &near);
+    bool near_edge = false;
+    for (const Neighbor& nb : near) {
+      const Eigen::Vector3d q_W = T_W_L * Eigen::Vector3d(scan.points.col(nb.index));
+      near_edge |= std::abs((q_W - p_W).dot(truth)) > 0.05;
+    }
+    if (near_edge) continue;
+    const Eigen::Vector3d n_W = T_W_L.q * Eigen::Vector3d(normals.normals.col(i));
+    EXPECT_GT(std::abs(n_W.dot(truth)), std::cos(1.0 * test::kDegToRad))
+        << "point " << p_W.transpose() << " normal " << n_W.transpose() << " truth "
+        << truth.transpose();
+    // Oriented towards the sensor.
+    EXPECT_GE(n_W.dot(T_W_L.p - p_W), 0.0);
+    ++checked;
+  }
+  EXPECT_GT(checked, scan.size() / 3);
+}
+
+TEST(NormalsTest, PlanarityTellsPlanesFromLines) {
+  std::mt19937_64 rng(10);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  // A square grid patch (isotropic in its plane, so l1 = l2) and a thin line.
+  Eigen::Matrix3Xd plane(3, 49), line(3, 49);
+  for (int i = 0; i < 49; ++i) {
+    plane.col(i) = Eigen::Vector3d(i % 7 - 3.0, i / 7 - 3.0, 0.001 * u(rng));
+    line.col(i) = Eigen::Vector3d(u(rng), 0.001 * u(rng), 0.001 * u(rng));
+  }
+  Eigen::Vector3d normal;
+  double planarity = 0.0;
+  ASSERT_TRUE(PcaNormal(plane, &normal, &planarity));
+  EXPECT_GT(std::abs(normal.z()), 0.9999);
+  EXPECT_GT(planarity, 0.95);
+  ASSERT_TRUE(PcaNormal(line, &normal, &planarity));
+  EXPECT_LT(planarity, 0.01);
+  EXPECT_FALSE(PcaNormal(plane.leftCols(2), &normal, &planarity));
+  EXPECT_FALSE(PcaNormal(Eigen::Matrix3Xd::Ones(3, 5), &normal, &planarity));
+}
+
+}  // namespace
+}  // namespace lidar
+}  // namespace autocal
