@@ -1,7 +1,7 @@
 #pragma once
 
-// LiDAR point-to-plane factor with extrinsic and time offset (docs/factors.md, section
-// "LiDAR point-to-plane").
+// LiDAR point-to-plane factor with extrinsic and time offset (docs/estimation.md, section
+// "LiDAR point-to-plane factor").
 //
 // A point p_L stamped t_sweep + tau by the LiDAR was measured at IMU time
 // t = t_sweep + tau + offset. The IMU pose at t is its keyframe state propagated with the

@@ -1,0 +1,151 @@
+#include "autocal/factors/wheel_factor.h"
+
+#include <cmath>
+#include <string>
+
+#include "autocal/common/error.h"
+#include "autocal/geometry/manifolds.h"
+
+namespace autocal {
+namespace factors {
+
+namespace {
+
+void CheckSigma(double sigma, const char* name) {
+  if (!(sigma > 0.0) || !std::isfinite(sigma)) {
+    throw Error(std::string("wheel factor: ") + name + " must be positive, got " +
+                std::to_string(sigma));
+  }
+}
+
+using RowMajor4x3 = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
+
+// Copies the first `rows` rows of a tangent Jacobian into Ceres' row-major block, lifted to
+// the quaternion's ambient coordinates when q is given. Plain loops: the blocks are tiny and
+// a dynamic-size copy costs more than the arithmetic.
+void Store(const RowMajor4x3& j, int rows, const double* q, double* out) {
+  if (q != nullptr) {
+    const Eigen::Matrix<double, 3, 4, Eigen::RowMajor> minus = geometry::QuaternionMinusJacobian(q);
+    const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> lifted = j * minus;
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < 4; ++c) out[4 * r + c] = lifted(r, c);
+    }
+  } else {
+    for (int r = 0; r < rows; ++r) {
+      for (int c = 0; c < 3; ++c) out[3 * r + c] = j(r, c);
+    }
+  }
+}
+
+}  // namespace
+
+WheelFactorOptions WheelFactorOptions::FromEncoderNoise(const sensors::WheelConfig& config,
+                                                        double radius_m, double track_width_m) {
+  CheckSigma(config.noise_rad_s, "encoder rate noise");
+  CheckSigma(radius_m, "wheel radius");
+  CheckSigma(track_width_m, "track width");
+  WheelFactorOptions options;
+  // Eq. F23: independent rate noise s_w on both wheels.
+  options.speed_sigma_m_s = radius_m * config.noise_rad_s / std::sqrt(2.0);
+  options.yaw_rate_sigma_rad_s = std::sqrt(2.0) * radius_m * config.noise_rad_s / track_width_m;
+  return options;
+}
+
+WheelFactor::WheelFactor(const WheelMeasurement& measurement, const WheelFactorOptions& options)
+    : m_(measurement), options_(options) {
+  if (!std::isfinite(measurement.left_rad_s) || !std::isfinite(measurement.right_rad_s) ||
+      !measurement.gyro_rad_s.allFinite()) {
+    throw Error("wheel factor: wheel or gyro rate is not finite");
+  }
+  CheckSigma(options.speed_sigma_m_s, "speed_sigma_m_s");
+  CheckSigma(options.yaw_rate_sigma_rad_s, "yaw_rate_sigma_rad_s");
+  if (options.non_holonomic) CheckSigma(options.non_holonomic_sigma_m_s, "non_holonomic_sigma_m_s");
+  set_num_residuals(options.non_holonomic ? 4 : 2);
+  auto* sizes = mutable_parameter_block_sizes();
+  *sizes = {4, 3, 3, 4, 3, 1};
+  if (!options.shared_radius) sizes->push_back(1);
+  sizes->push_back(1);
+}
+
+bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
+                           double** jacobians) const {
+  const Eigen::Map<const Eigen::Quaterniond> q_W_I(parameters[0]);
+  const Eigen::Map<const Eigen::Vector3d> v_W_I(parameters[1]);
+  const Eigen::Map<const Eigen::Vector3d> b_g(parameters[2]);
+  const Eigen::Map<const Eigen::Quaterniond> q_I_V(parameters[3]);
+  const Eigen::Map<const Eigen::Vector3d> p_I_V(parameters[4]);
+  const int radius_right_index = options_.shared_radius ? 5 : 6;
+  const int track_index = radius_right_index + 1;
+  const double r_l = parameters[5][0];
+  const double r_r = parameters[radius_right_index][0];
+  const double b = parameters[track_index][0];
+  if (!(b > 0.0)) return false;
+
+  // Eq. F20-F22.
+  const Eigen::Matrix3d Rt_I_V = q_I_V.conjugate().toRotationMatrix();
+  const Eigen::Vector3d w_I = m_.gyro_rad_s - b_g;
+  const Eigen::Vector3d v_I = q_W_I.conjugate() * v_W_I;
+  const Eigen::Vector3d v_V = Rt_I_V * (v_I + w_I.cross(p_I_V));
+  const Eigen::Vector3d w_V = Rt_I_V * w_I;
+  const double left = m_.left_rad_s * r_l;
+  const double right = m_.right_rad_s * r_r;
+  const double yaw_wheel = (right - left) / b;
+  const double inv_s_v = 1.0 / options_.speed_sigma_m_s;
+  const double inv_s_yaw = 1.0 / options_.yaw_rate_sigma_rad_s;
+  const double inv_s_nh = options_.non_holonomic ? 1.0 / options_.non_holonomic_sigma_m_s : 0.0;
+  residuals[0] = (v_V.x() - 0.5 * (left + right)) * inv_s_v;
+  residuals[1] = (w_V.z() - yaw_wheel) * inv_s_yaw;
+  if (options_.non_holonomic) {
+    residuals[2] = v_V.y() * inv_s_nh;
+    residuals[3] = v_V.z() * inv_s_nh;
+  }
+  if (jacobians == nullptr) return true;
+
+  // Eq. F24: rows [v_V.x, w_V.z, v_V.y, v_V.z] scaled by their sigmas.
+  const int rows = num_residuals();
+  const Eigen::Vector4d row_scale(inv_s_v, inv_s_yaw, inv_s_nh, inv_s_nh);
+  auto state_rows = [&](const Eigen::Matrix3d& d_v_V, const Eigen::Matrix3d& d_w_V) {
+    RowMajor4x3 j;
+    j.row(0) = d_v_V.row(0);
+    j.row(1) = d_w_V.row(2);
+    j.row(2) = d_v_V.row(1);
+    j.row(3) = d_v_V.row(2);
+    return RowMajor4x3(row_scale.asDiagonal() * j);
+  };
+  const Eigen::Matrix3d zero = Eigen::Matrix3d::Zero();
+  if (jacobians[0] != nullptr) {
+    Store(state_rows(Rt_I_V * geometry::Hat(v_I), zero), rows, parameters[0], jacobians[0]);
+  }
+  if (jacobians[1] != nullptr) {
+    const Eigen::Matrix3d Rt_W_V = Rt_I_V * q_W_I.conjugate().toRotationMatrix();
+    Store(state_rows(Rt_W_V, zero), rows, nullptr, jacobians[1]);
+  }
+  if (jacobians[2] != nullptr) {
+    Store(state_rows(Rt_I_V * geometry::Hat(p_I_V), -Rt_I_V), rows, nullptr, jacobians[2]);
+  }
+  if (jacobians[3] != nullptr) {
+    Store(state_rows(geometry::Hat(v_V), geometry::Hat(w_V)), rows, parameters[3], jacobians[3]);
+  }
+  if (jacobians[4] != nullptr) {
+    Store(state_rows(Rt_I_V * geometry::Hat(w_I), zero), rows, nullptr, jacobians[4]);
+  }
+  // Scalar blocks: d r / d(r_l, r_r, b) of the wheel-side prediction.
+  const Eigen::Vector4d d_r_l(-0.5 * m_.left_rad_s * inv_s_v, m_.left_rad_s / b * inv_s_yaw, 0, 0);
+  const Eigen::Vector4d d_r_r(-0.5 * m_.right_rad_s * inv_s_v, -m_.right_rad_s / b * inv_s_yaw, 0,
+                              0);
+  auto store_scalar = [&](const Eigen::Vector4d& column, double* out) {
+    if (out == nullptr) return;
+    for (int r = 0; r < rows; ++r) out[r] = column(r);
+  };
+  if (options_.shared_radius) {
+    store_scalar(d_r_l + d_r_r, jacobians[5]);
+  } else {
+    store_scalar(d_r_l, jacobians[5]);
+    store_scalar(d_r_r, jacobians[6]);
+  }
+  store_scalar(Eigen::Vector4d(0.0, yaw_wheel / b * inv_s_yaw, 0.0, 0.0), jacobians[track_index]);
+  return true;
+}
+
+}  // namespace factors
+}  // namespace autocal

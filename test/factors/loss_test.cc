@@ -1,0 +1,76 @@
+#include "autocal/factors/loss.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+
+#include "autocal/common/error.h"
+
+namespace autocal {
+namespace factors {
+namespace {
+
+TEST(Loss, ParsesTypesAndScales) {
+  EXPECT_EQ(ParseLossType("none"), LossType::kNone);
+  EXPECT_EQ(ParseLossType(" Huber "), LossType::kHuber);
+  EXPECT_EQ(ParseLossType("CAUCHY"), LossType::kCauchy);
+  for (LossType type : {LossType::kNone, LossType::kHuber, LossType::kCauchy}) {
+    EXPECT_EQ(ParseLossType(LossTypeName(type)), type);
+  }
+  const LossOptions plain = ParseLossOptions("cauchy");
+  EXPECT_EQ(plain.type, LossType::kCauchy);
+  EXPECT_EQ(plain.scale, 1.0);
+  const LossOptions colon = ParseLossOptions("huber:1.5");
+  EXPECT_EQ(colon.type, LossType::kHuber);
+  EXPECT_EQ(colon.scale, 1.5);
+  const LossOptions space = ParseLossOptions("cauchy 0.25");
+  EXPECT_EQ(space.type, LossType::kCauchy);
+  EXPECT_EQ(space.scale, 0.25);
+}
+
+TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
+  const std::string cases[] = {"tukey",    "huber:",     "huber:abc", "huber:-1",
+                               "cauchy 0", "huber:1.5x", ""};
+  for (const std::string& text : cases) {
+    try {
+      ParseLossOptions(text);
+      ADD_FAILURE() << "no error for '" << text << "'";
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_TRUE(what.find("robust loss") != std::string::npos) << what;
+    }
+  }
+  try {
+    ParseLossType("tukey");
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("expected none, huber or cauchy"), std::string::npos);
+  }
+  EXPECT_THROW(MakeLossFunction(LossOptions{LossType::kHuber, 0.0}), Error);
+}
+
+// The created losses behave as their kind: quadratic inside the scale, and for Huber
+// rho(s) = 2 a sqrt(s) - a^2, for Cauchy rho(s) = a^2 log(1 + s / a^2) outside.
+TEST(Loss, MakesTheSelectedLoss) {
+  EXPECT_EQ(MakeLossFunction(LossOptions{}), nullptr);
+  const double a = 2.0;
+  std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({LossType::kHuber, a}));
+  std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({LossType::kCauchy, a}));
+  ASSERT_NE(huber, nullptr);
+  ASSERT_NE(cauchy, nullptr);
+  double rho[3];
+  huber->Evaluate(1.0, rho);
+  EXPECT_DOUBLE_EQ(rho[0], 1.0);
+  huber->Evaluate(25.0, rho);
+  EXPECT_DOUBLE_EQ(rho[0], 2.0 * a * 5.0 - a * a);
+  cauchy->Evaluate(25.0, rho);
+  EXPECT_NEAR(rho[0], a * a * std::log1p(25.0 / (a * a)), 1e-12);
+  const FactorLossOptions defaults;
+  EXPECT_EQ(defaults.imu.type, LossType::kNone);
+  EXPECT_EQ(defaults.gnss.type, LossType::kCauchy);
+}
+
+}  // namespace
+}  // namespace factors
+}  // namespace autocal

@@ -1,0 +1,282 @@
+#include "autocal/factors/wheel_factor.h"
+
+#include <ceres/ceres.h>
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/imu_factor.h"
+#include "autocal/geometry/manifolds.h"
+#include "factors/factor_test_utils.h"
+#include "sensors/imu_test_trajectory.h"
+
+namespace autocal {
+namespace factors {
+namespace {
+
+const Eigen::Vector3d kGravity(0.0, 0.0, -9.80665);
+
+// Everything a wheel residual reads, as parameter blocks.
+struct WheelBlocks {
+  Eigen::Quaterniond q_W_I = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d v_W_I = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b_g = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_I_V = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_I_V = Eigen::Vector3d::Zero();
+  double r_l = 0.33;
+  double r_r = 0.33;
+  double track_width = 1.6;
+
+  std::vector<double*> Pointers(bool shared_radius) {
+    std::vector<double*> p = {q_W_I.coeffs().data(), v_W_I.data(), b_g.data(),
+                              q_I_V.coeffs().data(), p_I_V.data(), &r_l};
+    if (!shared_radius) p.push_back(&r_r);
+    p.push_back(&track_width);
+    return p;
+  }
+};
+
+std::vector<const ceres::Manifold*> Manifolds(const ceres::Manifold* quaternion, bool shared) {
+  std::vector<const ceres::Manifold*> m = {quaternion, nullptr, nullptr,
+                                           quaternion, nullptr, nullptr};
+  if (!shared) m.push_back(nullptr);
+  m.push_back(nullptr);
+  return m;
+}
+
+// A car whose rear-axle centre V moves without side slip: in V it has forward speed v and
+// yaw rate w (piecewise constant), an IMU mounted at T_I_V with bias b_g. Returns the wheel
+// measurement and the IMU state of that instant.
+struct CarInstant {
+  WheelMeasurement measurement;
+  Eigen::Quaterniond q_W_I;
+  Eigen::Vector3d v_W_I;
+};
+
+CarInstant SimulateCar(const Eigen::Quaterniond& q_W_V, double speed_m_s, double yaw_rate_rad_s,
+                       const WheelBlocks& truth) {
+  const Eigen::Vector3d v_V(speed_m_s, 0.0, 0.0);
+  const Eigen::Vector3d w_V(0.0, 0.0, yaw_rate_rad_s);
+  // p_W_I = p_W_V + R_W_V p_V_I with p_V_I = -R_I_V^T p_I_V.
+  const Eigen::Vector3d p_V_I = -(truth.q_I_V.conjugate() * truth.p_I_V);
+  CarInstant out;
+  out.q_W_I = q_W_V * truth.q_I_V.conjugate();
+  out.v_W_I = q_W_V * (v_V + w_V.cross(p_V_I));
+  out.measurement.gyro_rad_s = truth.q_I_V * w_V + truth.b_g;
+  // Eq. F20 solved for the wheel rates.
+  const double half_b = 0.5 * truth.track_width;
+  out.measurement.left_rad_s = (speed_m_s - yaw_rate_rad_s * half_b) / truth.r_l;
+  out.measurement.right_rad_s = (speed_m_s + yaw_rate_rad_s * half_b) / truth.r_r;
+  return out;
+}
+
+WheelBlocks RandomCalibration(std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  WheelBlocks b;
+  b.q_I_V = geometry::Exp(Eigen::Vector3d(0.1 * u(*rng), 0.1 * u(*rng), 3.0 * u(*rng)));
+  b.p_I_V = Eigen::Vector3d(1.2 * u(*rng), 0.3 * u(*rng), 0.5 * u(*rng));
+  b.r_l = 0.33 + 0.02 * u(*rng);
+  b.r_r = 0.33 + 0.02 * u(*rng);
+  b.track_width = 1.6 + 0.1 * u(*rng);
+  b.b_g = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)) * 0.01;
+  return b;
+}
+
+TEST(WheelFactor, ResidualVanishesAtGroundTruth) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    WheelBlocks truth = RandomCalibration(&rng);
+    const CarInstant car =
+        SimulateCar(Eigen::Quaterniond::UnitRandom(), 15.0 * u(rng), 0.5 * u(rng), truth);
+    WheelBlocks state = truth;
+    state.q_W_I = car.q_W_I;
+    state.v_W_I = car.v_W_I;
+    for (bool shared : {false, true}) {
+      if (shared) state.r_r = state.r_l;
+      WheelFactorOptions options;
+      options.shared_radius = shared;
+      WheelMeasurement m = car.measurement;
+      if (shared) m.right_rad_s *= truth.r_r / truth.r_l;
+      const WheelFactor factor(m, options);
+      Eigen::Vector4d residual;
+      const std::vector<double*> blocks = state.Pointers(shared);
+      ASSERT_TRUE(factor.Evaluate(blocks.data(), residual.data(), nullptr));
+      EXPECT_LT(residual.norm(), 1e-9)
+          << "trial " << trial << ", shared " << shared << ": " << residual.transpose();
+    }
+  }
+}
+
+TEST(WheelFactor, JacobiansPassGradientCheckerAndMatchAutodiff) {
+  const geometry::RightQuaternionManifold quaternion;
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    WheelBlocks state = RandomCalibration(&rng);
+    state.q_W_I = Eigen::Quaterniond::UnitRandom();
+    state.v_W_I = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 15.0;
+    WheelMeasurement m;
+    m.left_rad_s = 40.0 * u(rng);
+    m.right_rad_s = 40.0 * u(rng);
+    m.gyro_rad_s = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    WheelFactorOptions options;
+    options.non_holonomic = trial % 2 == 0;
+    options.shared_radius = trial % 4 == 1;
+    const std::string context = "trial " + std::to_string(trial);
+    const WheelFactor analytic(m, options);
+    std::vector<double*> blocks = state.Pointers(options.shared_radius);
+    test::ExpectGradientCheckPasses(analytic, Manifolds(&quaternion, options.shared_radius), blocks,
+                                    1e-6, context);
+    if (!options.shared_radius) {
+      std::unique_ptr<ceres::CostFunction> autodiff(WheelResidual::CreateAutoDiff(m, options));
+      test::ExpectSameJacobians(analytic, *autodiff, Manifolds(&quaternion, false), blocks, 1e-9,
+                                context);
+    }
+  }
+}
+
+TEST(WheelFactor, RejectsBadInputAndInvalidTrackWidth) {
+  WheelMeasurement m;
+  m.left_rad_s = std::nan("");
+  EXPECT_THROW(WheelFactor(m, WheelFactorOptions{}), Error);
+  WheelFactorOptions bad;
+  bad.speed_sigma_m_s = 0.0;
+  EXPECT_THROW(WheelFactor(WheelMeasurement{}, bad), Error);
+  const WheelFactor factor(WheelMeasurement{}, WheelFactorOptions{});
+  WheelBlocks state;
+  state.track_width = -1.0;
+  Eigen::Vector4d residual;
+  const std::vector<double*> blocks = state.Pointers(false);
+  EXPECT_FALSE(factor.Evaluate(blocks.data(), residual.data(), nullptr));
+}
+
+// Left/right radii and track width recovered from noisy encoder rates with known states,
+// the car driving straight and through left and right turns at several speeds.
+TEST(WheelFactor, RecoversRadiiAndTrackWidth) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const sensors::WheelConfig config;  // encoder noise sigma
+  std::normal_distribution<double> noise(0.0, config.noise_rad_s);
+  WheelBlocks truth = RandomCalibration(&rng);
+  const WheelFactorOptions options = WheelFactorOptions::FromEncoderNoise(config, 0.33, 1.6);
+  std::vector<WheelBlocks> states;
+  std::vector<WheelMeasurement> measurements;
+  for (int k = 0; k < 400; ++k) {
+    const double speed = 2.0 + 12.0 * (0.5 + 0.5 * u(rng));
+    const double yaw_rate = 0.4 * u(rng);
+    CarInstant car = SimulateCar(Eigen::Quaterniond::UnitRandom(), speed, yaw_rate, truth);
+    car.measurement.left_rad_s += noise(rng);
+    car.measurement.right_rad_s += noise(rng);
+    WheelBlocks state = truth;
+    state.q_W_I = car.q_W_I;
+    state.v_W_I = car.v_W_I;
+    states.push_back(state);
+    measurements.push_back(car.measurement);
+  }
+  double r_l = 0.33, r_r = 0.33, track_width = 1.6;
+  ceres::Problem problem;
+  for (size_t k = 0; k < states.size(); ++k) {
+    std::vector<double*> blocks = states[k].Pointers(false);
+    blocks[5] = &r_l;
+    blocks[6] = &r_r;
+    blocks[7] = &track_width;
+    problem.AddResidualBlock(WheelFactor::Create(measurements[k], options), nullptr, blocks);
+    for (int b = 0; b < 5; ++b) problem.SetParameterBlockConstant(blocks[b]);
+  }
+  ceres::Solver::Options solver;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &problem, &summary);
+  EXPECT_NEAR(r_l, truth.r_l, 1e-3) << summary.BriefReport();
+  EXPECT_NEAR(r_r, truth.r_r, 1e-3) << summary.BriefReport();
+  EXPECT_NEAR(track_width, truth.track_width, 1e-2) << summary.BriefReport();
+}
+
+// The course's intrinsic-calibration example: a car moving along a line, an encoder on the
+// rear wheels (v = w R), GNSS positions; the wheel radius is estimated together with the
+// states. Here the motion model is the IMU factor between keyframes.
+TEST(WheelFactor, CourseExampleRecoversRadiusWithTheStates) {
+  constexpr double kTrueRadius = 0.317;
+  constexpr int kKeyframes = 21;
+  constexpr int64_t kKeyframePeriodNs = 100'000'000;
+  test::SmoothTrajectory::Curve position, rotation;
+  position.c1 = Eigen::Vector3d(6.0, 0.0, 0.0);
+  position.c2 = Eigen::Vector3d(1.0, 0.0, 0.0);
+  position.amplitude = {Eigen::Vector3d(1.5, 0.0, 0.0)};
+  position.frequency_rad_s = {Eigen::Vector3d(2.0, 0.0, 0.0)};
+  position.phase = {Eigen::Vector3d::Zero()};
+  const test::SmoothTrajectory car(position, rotation);
+  const sensors::ImuSamples imu = test::SampleImu(car, 0, 5'000'000, 420, kGravity);
+
+  std::mt19937 rng(3);
+  std::normal_distribution<double> gnss_noise(0.0, 0.05), wheel_noise(0.0, 0.02);
+  struct Keyframe {
+    Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+    Eigen::Vector3d p, v, b_g = Eigen::Vector3d::Zero(), b_a = Eigen::Vector3d::Zero();
+  };
+  std::vector<Keyframe> keyframes(kKeyframes);
+  double radius = 0.30;  // nominal guess, 5% off
+  double track_width = 1.6;
+  Eigen::Vector3d p_I_A = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_I_V = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_I_V = Eigen::Vector3d::Zero();
+  ceres::Problem problem;
+  WheelFactorOptions wheel_options;
+  wheel_options.shared_radius = true;
+  for (int k = 0; k < kKeyframes; ++k) {
+    const double t = NsToSeconds(k * kKeyframePeriodNs);
+    Keyframe& kf = keyframes[k];
+    kf.p = car.p_W_I(t) + Eigen::Vector3d(0.5, 0.2, -0.1);  // initial guesses off the truth
+    kf.v = Eigen::Vector3d(5.0, 0.0, 0.0);
+    GnssMeasurement fix;
+    fix.p_W_A = car.p_W_I(t) + Eigen::Vector3d(gnss_noise(rng), gnss_noise(rng), gnss_noise(rng));
+    fix.sigma_enu_m = Eigen::Vector3d::Constant(0.05);
+    problem.AddResidualBlock(GnssFactor::Create(fix), nullptr, kf.q.coeffs().data(), kf.p.data(),
+                             p_I_A.data());
+    WheelMeasurement wheel;
+    const double speed = car.v_W_I(t).x();
+    wheel.left_rad_s = speed / kTrueRadius + wheel_noise(rng);
+    wheel.right_rad_s = speed / kTrueRadius + wheel_noise(rng);
+    problem.AddResidualBlock(WheelFactor::Create(wheel, wheel_options), nullptr,
+                             {kf.q.coeffs().data(), kf.v.data(), kf.b_g.data(),
+                              q_I_V.coeffs().data(), p_I_V.data(), &radius, &track_width});
+    if (k > 0) {
+      sensors::ImuPreintegration pim{sensors::ImuNoise(), sensors::PreintegrationOptions()};
+      pim.Integrate(imu, (k - 1) * kKeyframePeriodNs, k * kKeyframePeriodNs);
+      Keyframe& prev = keyframes[k - 1];
+      problem.AddResidualBlock(
+          ImuFactor::Create(pim), nullptr,
+          {prev.q.coeffs().data(), prev.p.data(), prev.v.data(), prev.b_g.data(), prev.b_a.data(),
+           kf.q.coeffs().data(), kf.p.data(), kf.v.data(), kf.b_g.data(), kf.b_a.data()});
+    }
+  }
+  // Only positions, velocities and the radius are estimated (the course's state [p, v, R]).
+  for (Keyframe& kf : keyframes) {
+    problem.SetParameterBlockConstant(kf.q.coeffs().data());
+    problem.SetParameterBlockConstant(kf.b_g.data());
+    problem.SetParameterBlockConstant(kf.b_a.data());
+  }
+  for (double* fixed : {p_I_A.data(), q_I_V.coeffs().data(), p_I_V.data(), &track_width}) {
+    problem.SetParameterBlockConstant(fixed);
+  }
+  ceres::Solver::Options options;
+  options.max_num_iterations = 50;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  ASSERT_TRUE(summary.IsSolutionUsable()) << summary.BriefReport();
+  EXPECT_NEAR(radius, kTrueRadius, 1e-3) << summary.BriefReport();
+  for (int k = 0; k < kKeyframes; k += 5) {
+    const double t = NsToSeconds(k * kKeyframePeriodNs);
+    EXPECT_LT((keyframes[k].v - car.v_W_I(t)).norm(), 0.05) << "keyframe " << k;
+    EXPECT_LT((keyframes[k].p - car.p_W_I(t)).norm(), 0.05) << "keyframe " << k;
+  }
+}
+
+}  // namespace
+}  // namespace factors
+}  // namespace autocal
