@@ -1,0 +1,215 @@
+#pragma once
+
+// The sensor simulator: turns a scenario (drive + world) and a true calibration into the
+// measurements of an IMU, a spinning LiDAR, rear-wheel encoders and a GNSS receiver, with
+// ground truth, in memory (Simulator, Simulate) or as a dataset directory (WriteDataset).
+// Noise models and what is exact are described in docs/simulator.md.
+//
+// Clocks: the IMU clock is the reference; the trajectory time t_s is seconds since
+// start_time_ns on that clock. Wheel and GNSS stamps are on the IMU clock. LiDAR stamps are
+// on the LiDAR clock: a point stamped t_sweep + tau was measured at IMU time
+// t_sweep + tau + time_offset_lidar_imu_s.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "autocal/io/dataset.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sensor_config.h"
+#include "autocal/sim/scenario.h"
+
+namespace autocal {
+namespace sim {
+
+struct ImuSimOptions {
+  // Off: exact body rate and specific force (no white noise, no bias); the densities below
+  // are still what sensors.yaml reports.
+  bool add_noise = true;
+  // Continuous-time densities (Kalibr names); the simulated noise is these times noise_scale,
+  // and sensors.yaml states the scaled values.
+  sensors::ImuNoise noise;
+  double noise_scale = 1.0;
+  // Turn-on biases are drawn per axis from N(0, sigma^2), then random-walk.
+  double initial_gyro_bias_sigma_rad_s = 2e-3;
+  double initial_accel_bias_sigma_m_s2 = 3e-2;
+  double gravity_m_s2 = 9.80665;
+};
+
+struct LidarSimOptions {
+  bool enabled = true;
+  // Beams are spread evenly between the configured elevations; range_noise_m is the 1-sigma
+  // of Gaussian range noise.
+  sensors::LidarConfig config;
+  bool add_noise = true;              // range noise on/off (config.range_noise_m is reported)
+  double dropout_probability = 0.02;  // returns lost at random
+};
+
+struct WheelSimOptions {
+  bool enabled = true;
+  sensors::WheelConfig config;  // rate and 1-sigma noise of each wheel rate
+  bool add_noise = true;
+};
+
+struct GnssSimOptions {
+  bool enabled = true;
+  sensors::GnssConfig config;  // rate_hz: 10 or 1
+  // Receiver-reported 1-sigma (east, north, up); each fix scales it by a factor in [1, 2]
+  // that drifts slowly, and the error is drawn with the reported sigma.
+  Eigen::Vector3d std_enu_m = Eigen::Vector3d(0.03, 0.03, 0.06);
+  bool add_noise = true;  // off: fixes are exact (sigma is still reported)
+  // Outages: this many gaps without fixes, each outage_duration_s long, placed at random.
+  int num_outages = 2;
+  double outage_duration_s = 4.0;
+  // Multipath outliers: with this probability a fix is off by 3-15 m horizontally and up to
+  // 5 m vertically while reporting the normal sigma.
+  double outlier_probability = 0.02;
+  // Geodetic origin of W (WGS84, ellipsoidal height): Karlsruhe, Germany.
+  double origin_lat_deg = 49.0110;
+  double origin_lon_deg = 8.4170;
+  double origin_alt_m = 165.0;
+};
+
+// How far sensors.yaml's nominal calibration is from the truth (per-axis 1-sigma of a
+// seeded Gaussian draw). Wheel radii and track width are nominal values by design (the
+// truth is ~1% off them, see DefaultTrueCalibration).
+struct NominalPerturbation {
+  double rotation_deg = 1.5;
+  double translation_m = 0.03;
+  double time_offset_s = 0.004;
+};
+
+// LiDAR 0.55 m above and 0.3 m ahead of the IMU, rotated (2, -3, 4) deg (roll, pitch, yaw);
+// time offset 25 ms; IMU 1.3 m ahead of the rear axle, 1.2 m up, rotated (0.3, -0.5, 1) deg;
+// rear wheel radii 0.3335 m (left) and 0.3326 m (right) for a nominal 0.33 m; track width
+// 1.62 m for a nominal 1.60 m; antenna 1.2 m behind and 0.65 m above the IMU.
+sensors::Calibration DefaultTrueCalibration();
+
+struct SimulationOptions {
+  ScenarioType scenario = ScenarioType::kUrban;
+  double duration_s = 60.0;
+  uint64_t seed = 1;
+  // IMU-clock stamp of t_s = 0 (an epoch-sized stamp, as real logs have).
+  int64_t start_time_ns = 1'700'000'000'000'000'000;
+  VehicleDynamicsOptions dynamics;
+  ImuSimOptions imu;
+  LidarSimOptions lidar;
+  WheelSimOptions wheel;
+  GnssSimOptions gnss;
+  sensors::Calibration true_calibration = DefaultTrueCalibration();
+  NominalPerturbation nominal_perturbation;
+  double nominal_wheel_radius_m = 0.33;
+  double nominal_track_width_m = 1.60;
+
+  // The same options with every random effect off (add_noise = false everywhere, no LiDAR
+  // dropouts, no GNSS outliers). Outages stay: they are not noise.
+  SimulationOptions WithoutNoise() const;
+};
+
+// The IMU log with its truth: samples, the true biases at each sample and T_W_I, v_W_I.
+struct ImuLog {
+  sensors::ImuSamples samples;
+  std::vector<Eigen::Vector3d> gyro_bias;
+  std::vector<Eigen::Vector3d> accel_bias;
+  io::Trajectory truth;
+};
+
+struct GnssLog {
+  sensors::GnssFixes fixes;
+  std::vector<bool> is_outlier;                      // per fix
+  std::vector<Eigen::Vector3d> true_p_W_A;           // true antenna position per fix
+  std::vector<std::pair<double, double>> outages_s;  // [begin, end) in trajectory time
+};
+
+class Simulator {
+ public:
+  // Validates the options (throws autocal::Error naming the bad field) and builds the
+  // scenario and the nominal calibration.
+  explicit Simulator(const SimulationOptions& options);
+
+  const SimulationOptions& options() const { return options_; }
+  const Scenario& scenario() const { return scenario_; }
+  const sensors::Calibration& true_calibration() const { return options_.true_calibration; }
+  const sensors::Calibration& nominal_calibration() const { return nominal_; }
+  // sensors.yaml content: rates, the IMU noise actually simulated, nominal calibration.
+  io::SensorsConfig sensors_config() const;
+
+  // IMU-clock stamp of trajectory time t_s, and back.
+  int64_t StampAt(double t_s) const;
+  double TimeOf(int64_t t_ns) const;
+  // True T_W_I at trajectory time t_s.
+  geometry::Pose3d ImuPoseAt(double t_s) const;
+
+  ImuLog GenerateImu() const;
+  sensors::WheelSamples GenerateWheel() const;
+  GnssLog GenerateGnss() const;
+
+  // Sweeps are generated one at a time (each from its own random stream, so any subset is
+  // reproducible): stamps on the LiDAR clock, points in L with per-point time.
+  int num_sweeps() const { return num_sweeps_; }
+  int64_t SweepStamp(int index) const;
+  lidar::LidarSweep GenerateSweep(int index) const;
+  // The unit direction in L of beam b at column c, and the column's time after the stamp.
+  int num_columns() const { return num_columns_; }
+  Eigen::Vector3d BeamDirection(int beam, int column) const;
+  double ColumnTime(int column) const;
+
+ private:
+  SimulationOptions options_;
+  Scenario scenario_;
+  sensors::Calibration nominal_;
+  geometry::Pose3d T_V_I_, T_V_L_;
+  int64_t first_sweep_stamp_ns_ = 0;
+  int num_sweeps_ = 0;
+  int num_columns_ = 0;
+  // Unit beam directions in L, column-major: beam b of column c at c * num_beams + b.
+  std::vector<Eigen::Vector3d> beam_directions_;
+};
+
+// Everything in memory (sweeps included: use for short logs).
+struct SimulatedLog {
+  ImuLog imu;
+  sensors::WheelSamples wheel;
+  GnssLog gnss;
+  std::vector<lidar::LidarSweep> sweeps;
+};
+SimulatedLog Simulate(const Simulator& simulator);
+SimulatedLog Simulate(const SimulationOptions& options);
+
+// Figures that describe a simulated log (printed by autocal_simulate).
+struct SimulationSummary {
+  std::string scenario;
+  double duration_s = 0.0;
+  double distance_m = 0.0;
+  double min_speed_m_s = 0.0, max_speed_m_s = 0.0;
+  double max_yaw_rate_deg_s = 0.0;
+  double total_turn_deg = 0.0;  // integral of |yaw rate|
+  double max_lateral_accel_m_s2 = 0.0;
+  double min_pitch_deg = 0.0, max_pitch_deg = 0.0;
+  double min_roll_deg = 0.0, max_roll_deg = 0.0;
+  double standstill_s = 0.0;
+  int64_t imu_samples = 0, wheel_samples = 0, gnss_fixes = 0, gnss_outliers = 0;
+  int gnss_outages = 0;
+  double gnss_outage_s = 0.0;
+  int64_t sweeps = 0, points = 0;
+  sensors::Calibration true_calibration, nominal_calibration;
+};
+
+// Figures of the drive (from the truth) and of the logs generated so far.
+SimulationSummary Summarize(const Simulator& simulator, const ImuLog& imu,
+                            const sensors::WheelSamples& wheel, const GnssLog& gnss, int64_t sweeps,
+                            int64_t points);
+std::string FormatSummary(const SimulationSummary& summary);
+
+// Simulates and writes a dataset directory (DESIGN.md "Data formats") through
+// io::DatasetWriter, sweep by sweep; adds groundtruth/imu_bias.csv and groundtruth/gnss.csv
+// (true antenna position and outlier flag per fix). Throws autocal::Error on I/O failure.
+SimulationSummary WriteDataset(const Simulator& simulator, const std::string& directory);
+
+}  // namespace sim
+}  // namespace autocal

@@ -1,0 +1,79 @@
+// Writes a simulated log as a dataset directory. Kept apart from simulator.cc so that code
+// generating logs in memory does not pull in the dataset writer.
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "autocal/common/error.h"
+#include "autocal/sim/simulator.h"
+
+namespace autocal {
+namespace sim {
+namespace {
+
+std::ofstream OpenForWriting(const std::string& path) {
+  std::ofstream out(path);
+  if (!out) throw Error("cannot write " + path);
+  out.precision(17);
+  return out;
+}
+
+void CloseChecked(std::ofstream* out, const std::string& path) {
+  out->close();
+  if (!*out) throw Error("failed writing " + path);
+}
+
+// groundtruth/imu_bias.csv: the true biases at every IMU sample.
+void WriteImuBias(const ImuLog& imu, const std::string& path) {
+  std::ofstream out = OpenForWriting(path);
+  out << "t_ns,bgx,bgy,bgz,bax,bay,baz\n";
+  for (size_t k = 0; k < imu.samples.size(); ++k) {
+    const Eigen::Vector3d& g = imu.gyro_bias[k];
+    const Eigen::Vector3d& a = imu.accel_bias[k];
+    out << imu.samples[k].t_ns << ',' << g.x() << ',' << g.y() << ',' << g.z() << ',' << a.x()
+        << ',' << a.y() << ',' << a.z() << '\n';
+  }
+  CloseChecked(&out, path);
+}
+
+// groundtruth/gnss.csv: per fix, the true antenna position in W and whether it is an outlier.
+void WriteGnssTruth(const GnssLog& gnss, const std::string& path) {
+  std::ofstream out = OpenForWriting(path);
+  out << "t_ns,east_m,north_m,up_m,outlier\n";
+  for (size_t i = 0; i < gnss.fixes.size(); ++i) {
+    const Eigen::Vector3d& p = gnss.true_p_W_A[i];
+    out << gnss.fixes[i].t_ns << ',' << p.x() << ',' << p.y() << ',' << p.z() << ','
+        << (gnss.is_outlier[i] ? 1 : 0) << '\n';
+  }
+  CloseChecked(&out, path);
+}
+
+}  // namespace
+
+SimulationSummary WriteDataset(const Simulator& simulator, const std::string& directory) {
+  io::DatasetWriter writer(directory);
+  writer.WriteSensorsConfig(simulator.sensors_config());
+  const ImuLog imu = simulator.GenerateImu();
+  writer.WriteImu(imu.samples);
+  const sensors::WheelSamples wheel = simulator.GenerateWheel();
+  if (simulator.options().wheel.enabled) writer.WriteWheel(wheel);
+  const GnssLog gnss = simulator.GenerateGnss();
+  if (simulator.options().gnss.enabled) writer.WriteGnss(gnss.fixes);
+  int64_t points = 0;
+  for (int k = 0; k < simulator.num_sweeps(); ++k) {
+    const lidar::LidarSweep sweep = simulator.GenerateSweep(k);
+    points += sweep.cloud.size();
+    writer.AddSweep(sweep);
+  }
+  writer.WriteGroundTruth(imu.truth, simulator.true_calibration());
+  writer.Close();
+  const std::filesystem::path truth_dir = std::filesystem::path(directory) / "groundtruth";
+  WriteImuBias(imu, (truth_dir / "imu_bias.csv").string());
+  if (simulator.options().gnss.enabled) WriteGnssTruth(gnss, (truth_dir / "gnss.csv").string());
+  return Summarize(simulator, imu, wheel, gnss, simulator.num_sweeps(), points);
+}
+
+}  // namespace sim
+}  // namespace autocal

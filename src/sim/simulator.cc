@@ -1,0 +1,395 @@
+#include "autocal/sim/simulator.h"
+
+#include <GeographicLib/LocalCartesian.hpp>
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "sim/random_streams.h"
+
+namespace autocal {
+namespace sim {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+Eigen::Quaterniond FromRollPitchYawDeg(double roll, double pitch, double yaw) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw * kDeg, Eigen::Vector3d::UnitZ()) *
+                            Eigen::AngleAxisd(pitch * kDeg, Eigen::Vector3d::UnitY()) *
+                            Eigen::AngleAxisd(roll * kDeg, Eigen::Vector3d::UnitX()));
+}
+
+void Require(bool ok, const std::string& what) {
+  if (!ok) throw Error("simulation options: " + what);
+}
+
+void Validate(const SimulationOptions& o) {
+  Require(o.duration_s > 0.0 && o.duration_s <= 3600.0, "duration_s must be in (0, 3600]");
+  Require(o.imu.noise.update_rate_hz >= 50.0 && o.imu.noise.update_rate_hz <= 2000.0,
+          "imu update_rate_hz must be in [50, 2000]");
+  Require(o.imu.noise_scale >= 0.0 && std::isfinite(o.imu.noise_scale),
+          "imu noise_scale must be >= 0");
+  const sensors::LidarConfig& l = o.lidar.config;
+  Require(l.num_beams >= 1 && l.num_beams <= 256, "lidar num_beams must be in [1, 256]");
+  Require(l.rate_hz >= 1.0 && l.rate_hz <= 50.0, "lidar rate_hz must be in [1, 50]");
+  Require(l.azimuth_resolution_deg >= 0.05 && l.azimuth_resolution_deg <= 10.0,
+          "lidar azimuth_resolution_deg must be in [0.05, 10]");
+  Require(l.max_elevation_deg > l.min_elevation_deg && l.min_elevation_deg >= -90.0 &&
+              l.max_elevation_deg <= 90.0,
+          "lidar elevations must satisfy -90 <= min < max <= 90");
+  Require(l.min_range_m >= 0.0 && l.max_range_m > l.min_range_m, "lidar ranges invalid");
+  Require(l.range_noise_m >= 0.0, "lidar range_noise_m must be >= 0");
+  Require(o.lidar.dropout_probability >= 0.0 && o.lidar.dropout_probability < 1.0,
+          "lidar dropout_probability must be in [0, 1)");
+  Require(o.wheel.config.rate_hz > 0.0 && o.wheel.config.rate_hz <= 1000.0,
+          "wheel rate_hz must be in (0, 1000]");
+  Require(o.gnss.config.rate_hz > 0.0 && o.gnss.config.rate_hz <= 100.0,
+          "gnss rate_hz must be in (0, 100]");
+  Require((o.gnss.std_enu_m.array() > 0.0).all(), "gnss std_enu_m must be positive");
+  Require(o.gnss.outlier_probability >= 0.0 && o.gnss.outlier_probability <= 1.0,
+          "gnss outlier_probability must be in [0, 1]");
+  Require(o.gnss.num_outages >= 0 && o.gnss.outage_duration_s >= 0.0, "gnss outages invalid");
+  Require(std::abs(o.gnss.origin_lat_deg) < 85.0 && std::abs(o.gnss.origin_lon_deg) <= 180.0,
+          "gnss origin latitude/longitude out of range");
+  Require(std::abs(o.true_calibration.time_offset_lidar_imu_s) < 0.5,
+          "|time_offset_lidar_imu_s| must be below 0.5 s");
+  Require(o.true_calibration.wheel_radius_left_m > 0.05 &&
+              o.true_calibration.wheel_radius_right_m > 0.05 &&
+              o.true_calibration.track_width_m > 0.3,
+          "wheel radii must exceed 0.05 m and the track width 0.3 m");
+}
+
+}  // namespace
+
+sensors::Calibration DefaultTrueCalibration() {
+  sensors::Calibration c;
+  const geometry::Pose3d T_V_I(FromRollPitchYawDeg(0.3, -0.5, 1.0), Eigen::Vector3d(1.3, 0.0, 1.2));
+  const geometry::Pose3d T_I_V = T_V_I.Inverse();
+  c.q_I_V = T_I_V.q;
+  c.p_I_V = T_I_V.p;
+  c.q_I_L = FromRollPitchYawDeg(2.0, -3.0, 4.0);
+  c.p_I_L = Eigen::Vector3d(0.30, -0.05, 0.55);
+  c.time_offset_lidar_imu_s = 0.025;
+  c.wheel_radius_left_m = 0.3335;
+  c.wheel_radius_right_m = 0.3326;
+  c.track_width_m = 1.62;
+  c.p_I_A = Eigen::Vector3d(-1.2, 0.05, 0.65);
+  return c;
+}
+
+SimulationOptions SimulationOptions::WithoutNoise() const {
+  SimulationOptions o = *this;
+  o.imu.add_noise = false;
+  o.lidar.add_noise = false;
+  o.lidar.dropout_probability = 0.0;
+  o.wheel.add_noise = false;
+  o.gnss.add_noise = false;
+  o.gnss.outlier_probability = 0.0;
+  return o;
+}
+
+Simulator::Simulator(const SimulationOptions& options) : options_(options) {
+  Validate(options_);
+  ScenarioOptions scenario_options;
+  scenario_options.type = options_.scenario;
+  scenario_options.duration_s = options_.duration_s;
+  scenario_options.seed = options_.seed;
+  scenario_options.dynamics = options_.dynamics;
+  scenario_ = BuildScenario(scenario_options);
+
+  const sensors::Calibration& truth = options_.true_calibration;
+  T_V_I_ = geometry::Pose3d(truth.q_I_V, truth.p_I_V).Inverse();
+  T_V_L_ = T_V_I_ * geometry::Pose3d(truth.q_I_L, truth.p_I_L);
+
+  // Nominal calibration: the truth perturbed (rotations on the right, in the body frame).
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kNominal);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const NominalPerturbation& np = options_.nominal_perturbation;
+  auto rotation = [&]() -> Eigen::Quaterniond {
+    const Eigen::Vector3d phi(normal(rng), normal(rng), normal(rng));
+    return geometry::Exp(Eigen::Vector3d(np.rotation_deg * kDeg * phi));
+  };
+  auto translation = [&]() -> Eigen::Vector3d {
+    return Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * np.translation_m;
+  };
+  nominal_ = truth;
+  nominal_.q_I_L = (truth.q_I_L * rotation()).normalized();
+  nominal_.p_I_L = truth.p_I_L + translation();
+  nominal_.time_offset_lidar_imu_s = truth.time_offset_lidar_imu_s + np.time_offset_s * normal(rng);
+  nominal_.q_I_V = (truth.q_I_V * rotation()).normalized();
+  nominal_.p_I_V = truth.p_I_V + translation();
+  nominal_.p_I_A = truth.p_I_A + translation();
+  nominal_.wheel_radius_left_m = options_.nominal_wheel_radius_m;
+  nominal_.wheel_radius_right_m = options_.nominal_wheel_radius_m;
+  nominal_.track_width_m = options_.nominal_track_width_m;
+
+  // Sweeps: the first one starts 50 ms after t = 0 on the IMU clock; every sweep lies inside
+  // [0, duration_s] on the IMU clock.
+  const sensors::LidarConfig& l = options_.lidar.config;
+  const double offset = truth.time_offset_lidar_imu_s;
+  first_sweep_stamp_ns_ = options_.start_time_ns + SecondsToNs(0.05 - offset);
+  const double period = 1.0 / l.rate_hz;
+  num_columns_ = static_cast<int>(std::lround(360.0 / l.azimuth_resolution_deg));
+  num_sweeps_ = 0;
+  if (options_.lidar.enabled) {
+    while (TimeOf(SweepStamp(num_sweeps_)) + offset + period <= options_.duration_s) ++num_sweeps_;
+  }
+  // The head spins counter-clockwise about z_L, starting behind the sensor (azimuth -pi);
+  // beams are spread evenly between the configured elevations.
+  beam_directions_.resize(static_cast<size_t>(num_columns_) * l.num_beams);
+  for (int c = 0; c < num_columns_; ++c) {
+    const double azimuth = -M_PI + 2.0 * M_PI * c / num_columns_;
+    for (int b = 0; b < l.num_beams; ++b) {
+      const double f = l.num_beams == 1 ? 0.5 : static_cast<double>(b) / (l.num_beams - 1);
+      const double elevation =
+          (l.min_elevation_deg + f * (l.max_elevation_deg - l.min_elevation_deg)) * kDeg;
+      beam_directions_[static_cast<size_t>(c) * l.num_beams + b] =
+          Eigen::Vector3d(std::cos(azimuth) * std::cos(elevation),
+                          std::sin(azimuth) * std::cos(elevation), std::sin(elevation));
+    }
+  }
+}
+
+io::SensorsConfig Simulator::sensors_config() const {
+  io::SensorsConfig config;
+  config.imu.noise = options_.imu.noise;
+  config.imu.noise.gyroscope_noise_density *= options_.imu.noise_scale;
+  config.imu.noise.gyroscope_random_walk *= options_.imu.noise_scale;
+  config.imu.noise.accelerometer_noise_density *= options_.imu.noise_scale;
+  config.imu.noise.accelerometer_random_walk *= options_.imu.noise_scale;
+  config.imu.gravity_m_s2 = options_.imu.gravity_m_s2;
+  if (options_.lidar.enabled) config.lidar = options_.lidar.config;
+  if (options_.wheel.enabled) config.wheel = options_.wheel.config;
+  if (options_.gnss.enabled) config.gnss = options_.gnss.config;
+  config.nominal_calibration = nominal_;
+  return config;
+}
+
+int64_t Simulator::StampAt(double t_s) const { return options_.start_time_ns + SecondsToNs(t_s); }
+
+double Simulator::TimeOf(int64_t t_ns) const {
+  return SecondsBetween(options_.start_time_ns, t_ns);
+}
+
+geometry::Pose3d Simulator::ImuPoseAt(double t_s) const {
+  return scenario_.trajectory->PoseAt(t_s) * T_V_I_;
+}
+
+ImuLog Simulator::GenerateImu() const {
+  const ImuSimOptions& o = options_.imu;
+  const double rate = o.noise.update_rate_hz;
+  const int64_t dt_ns = SecondsToNs(1.0 / rate);
+  const double dt = NsToSeconds(dt_ns);
+  const int64_t n = static_cast<int64_t>(std::floor(options_.duration_s / dt)) + 1;
+  const double scale = o.add_noise ? o.noise_scale : 0.0;
+  // Discrete white noise sigma_d = sigma_c sqrt(rate); bias step sigma_b = sigma_bc sqrt(dt).
+  const double gyro_sigma = scale * o.noise.gyroscope_noise_density * std::sqrt(1.0 / dt);
+  const double accel_sigma = scale * o.noise.accelerometer_noise_density * std::sqrt(1.0 / dt);
+  const double gyro_walk = scale * o.noise.gyroscope_random_walk * std::sqrt(dt);
+  const double accel_walk = scale * o.noise.accelerometer_random_walk * std::sqrt(dt);
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kImu);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  auto draw = [&](double sigma) -> Eigen::Vector3d {
+    return Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * sigma;
+  };
+  const double bias_scale = o.add_noise ? 1.0 : 0.0;
+  Eigen::Vector3d b_g = draw(bias_scale * o.initial_gyro_bias_sigma_rad_s);
+  Eigen::Vector3d b_a = draw(bias_scale * o.initial_accel_bias_sigma_m_s2);
+  const Eigen::Vector3d g_W(0.0, 0.0, -o.gravity_m_s2);
+
+  ImuLog log;
+  log.samples.reserve(n);
+  log.gyro_bias.reserve(n);
+  log.accel_bias.reserve(n);
+  log.truth.reserve(n);
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t t_ns = options_.start_time_ns + k * dt_ns;
+    const BodyState state = scenario_.trajectory->StateAt(TimeOf(t_ns), T_V_I_);
+    sensors::ImuSample sample;
+    sample.t_ns = t_ns;
+    sample.gyro_rad_s = state.omega_B + b_g + draw(gyro_sigma);
+    // Specific force: f_I = R_W_I^T (a_W - g_W).
+    sample.accel_m_s2 = state.T_W_B.q.conjugate() * (state.a_W - g_W) + b_a + draw(accel_sigma);
+    log.samples.push_back(sample);
+    log.gyro_bias.push_back(b_g);
+    log.accel_bias.push_back(b_a);
+    log.truth.push_back({t_ns, state.T_W_B, state.v_W});
+    b_g += draw(gyro_walk);
+    b_a += draw(accel_walk);
+  }
+  return log;
+}
+
+sensors::WheelSamples Simulator::GenerateWheel() const {
+  sensors::WheelSamples samples;
+  if (!options_.wheel.enabled) return samples;
+  const WheelSimOptions& o = options_.wheel;
+  const sensors::Calibration& truth = options_.true_calibration;
+  const int64_t dt_ns = SecondsToNs(1.0 / o.config.rate_hz);
+  const int64_t n = static_cast<int64_t>(std::floor(options_.duration_s / NsToSeconds(dt_ns))) + 1;
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kWheel);
+  std::normal_distribution<double> noise(0.0, o.add_noise ? o.config.noise_rad_s : 0.0);
+  samples.reserve(n);
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t t_ns = options_.start_time_ns + k * dt_ns;
+    const BodyState v_state = scenario_.trajectory->StateAt(TimeOf(t_ns));
+    // Rear-axle centre: forward speed and yaw rate in V; wheel contact speeds
+    // v -+ omega b / 2 (left, right), rates over the true radii.
+    const double forward = (v_state.T_W_B.q.conjugate() * v_state.v_W).x();
+    const double yaw_rate = v_state.omega_B.z();
+    const double half_track = 0.5 * truth.track_width_m;
+    sensors::WheelSample sample;
+    sample.t_ns = t_ns;
+    sample.left_rad_s = (forward - yaw_rate * half_track) / truth.wheel_radius_left_m + noise(rng);
+    sample.right_rad_s =
+        (forward + yaw_rate * half_track) / truth.wheel_radius_right_m + noise(rng);
+    samples.push_back(sample);
+  }
+  return samples;
+}
+
+GnssLog Simulator::GenerateGnss() const {
+  GnssLog log;
+  if (!options_.gnss.enabled) return log;
+  const GnssSimOptions& o = options_.gnss;
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kGnss);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const double duration = options_.duration_s;
+  for (int i = 0; i < o.num_outages; ++i) {
+    const double span = std::max(0.0, 0.8 * duration - o.outage_duration_s);
+    const double begin = 0.1 * duration + span * uniform(rng);
+    log.outages_s.emplace_back(begin, begin + o.outage_duration_s);
+  }
+  std::sort(log.outages_s.begin(), log.outages_s.end());
+  // The reported sigma drifts slowly between 1x and 2x the configured one.
+  const double sigma_phase = 2.0 * M_PI * uniform(rng);
+  const double sigma_period_s = 20.0 + 20.0 * uniform(rng);
+
+  const GeographicLib::LocalCartesian enu(o.origin_lat_deg, o.origin_lon_deg, o.origin_alt_m);
+  const int64_t dt_ns = SecondsToNs(1.0 / o.config.rate_hz);
+  const int64_t n = static_cast<int64_t>(std::floor(duration / NsToSeconds(dt_ns))) + 1;
+  const double noise_on = o.add_noise ? 1.0 : 0.0;
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t t_ns = options_.start_time_ns + k * dt_ns;
+    const double t = TimeOf(t_ns);
+    // Draw every random number of the epoch even when it falls in an outage, so that an
+    // outage does not shift the noise of the fixes after it.
+    const Eigen::Vector3d unit_noise(normal(rng), normal(rng), normal(rng));
+    const bool outlier = uniform(rng) < o.outlier_probability;
+    const double outlier_angle = 2.0 * M_PI * uniform(rng);
+    const double outlier_horizontal = 3.0 + 12.0 * uniform(rng);
+    const double outlier_vertical = -5.0 + 10.0 * uniform(rng);
+    const bool in_outage = std::any_of(log.outages_s.begin(), log.outages_s.end(),
+                                       [t](const auto& o) { return t >= o.first && t < o.second; });
+    if (in_outage) continue;
+    const double sigma_scale = 1.5 + 0.5 * std::sin(2.0 * M_PI * t / sigma_period_s + sigma_phase);
+    const Eigen::Vector3d sigma = sigma_scale * o.std_enu_m;
+    const Eigen::Vector3d p_W_A = ImuPoseAt(t) * options_.true_calibration.p_I_A;
+    Eigen::Vector3d measured = p_W_A + noise_on * sigma.cwiseProduct(unit_noise);
+    if (outlier) {
+      measured += Eigen::Vector3d(outlier_horizontal * std::cos(outlier_angle),
+                                  outlier_horizontal * std::sin(outlier_angle), outlier_vertical);
+    }
+    sensors::GnssFix fix;
+    fix.t_ns = t_ns;
+    enu.Reverse(measured.x(), measured.y(), measured.z(), fix.lat_deg, fix.lon_deg, fix.alt_m);
+    fix.std_enu_m = sigma;
+    log.fixes.push_back(fix);
+    log.is_outlier.push_back(outlier);
+    log.true_p_W_A.push_back(p_W_A);
+  }
+  return log;
+}
+
+int64_t Simulator::SweepStamp(int index) const {
+  return first_sweep_stamp_ns_ + index * SecondsToNs(1.0 / options_.lidar.config.rate_hz);
+}
+
+double Simulator::ColumnTime(int column) const {
+  return column / (options_.lidar.config.rate_hz * num_columns_);
+}
+
+Eigen::Vector3d Simulator::BeamDirection(int beam, int column) const {
+  return beam_directions_[static_cast<size_t>(column) * options_.lidar.config.num_beams + beam];
+}
+
+lidar::LidarSweep Simulator::GenerateSweep(int index) const {
+  if (index < 0 || index >= num_sweeps_) {
+    throw Error("simulated LiDAR: sweep " + std::to_string(index) + " out of range [0, " +
+                std::to_string(num_sweeps_) + ")");
+  }
+  const LidarSimOptions& o = options_.lidar;
+  const sensors::LidarConfig& l = o.config;
+  lidar::LidarSweep sweep;
+  sweep.t_ns = SweepStamp(index);
+  // IMU time of the sweep stamp: t_imu = t_lidar + offset.
+  const double t0 = TimeOf(sweep.t_ns) + options_.true_calibration.time_offset_lidar_imu_s;
+  const double period = 1.0 / l.rate_hz;
+  const VehicleTrajectory& trajectory = *scenario_.trajectory;
+  SweepRaycaster raycaster(*scenario_.world, (trajectory.PoseAt(t0) * T_V_L_).p,
+                           (trajectory.PoseAt(t0 + period) * T_V_L_).p, t0, t0 + period,
+                           l.max_range_m);
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kLidar, index);
+  std::normal_distribution<double> range_noise(0.0, o.add_noise ? l.range_noise_m : 0.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+
+  std::vector<Eigen::Vector3d> points;
+  std::vector<float> intensity;
+  std::vector<double> time_s;
+  const size_t expected = static_cast<size_t>(num_columns_) * l.num_beams / 2;
+  points.reserve(expected);
+  intensity.reserve(expected);
+  time_s.reserve(expected);
+  RayHit hit;
+  for (int c = 0; c < num_columns_; ++c) {
+    const double tau = ColumnTime(c);
+    const geometry::Pose3d T_W_L = trajectory.PoseAt(t0 + tau) * T_V_L_;
+    const Eigen::Matrix3d R_W_L = T_W_L.R();
+    raycaster.SetTime(t0 + tau);
+    for (int b = 0; b < l.num_beams; ++b) {
+      const Eigen::Vector3d d_L = BeamDirection(b, c);
+      const Eigen::Vector3d d_W = R_W_L * d_L;
+      const double noise = range_noise(rng);
+      const bool dropped = uniform(rng) < o.dropout_probability;
+      if (!raycaster.Raycast(T_W_L.p, d_W, l.min_range_m, l.max_range_m, &hit) || dropped) {
+        continue;
+      }
+      const double range = hit.range_m + noise;
+      if (range < l.min_range_m || range > l.max_range_m) continue;
+      points.push_back(range * d_L);
+      // Lambertian return: reflectivity times the cosine of the incidence angle.
+      intensity.push_back(
+          static_cast<float>(255.0 * hit.reflectivity * std::abs(hit.normal_W.dot(d_W))));
+      time_s.push_back(tau);
+    }
+  }
+  const Eigen::Index n = static_cast<Eigen::Index>(points.size());
+  sweep.cloud.points.resize(3, n);
+  sweep.cloud.intensity.resize(n);
+  sweep.cloud.time_s.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    sweep.cloud.points.col(i) = points[i];
+    sweep.cloud.intensity(i) = intensity[i];
+    sweep.cloud.time_s(i) = time_s[i];
+  }
+  return sweep;
+}
+
+SimulatedLog Simulate(const Simulator& simulator) {
+  SimulatedLog log;
+  log.imu = simulator.GenerateImu();
+  log.wheel = simulator.GenerateWheel();
+  log.gnss = simulator.GenerateGnss();
+  log.sweeps.reserve(simulator.num_sweeps());
+  for (int k = 0; k < simulator.num_sweeps(); ++k) log.sweeps.push_back(simulator.GenerateSweep(k));
+  return log;
+}
+
+SimulatedLog Simulate(const SimulationOptions& options) { return Simulate(Simulator(options)); }
+
+}  // namespace sim
+}  // namespace autocal

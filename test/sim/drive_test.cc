@@ -1,0 +1,105 @@
+// The simulated drives respect their scenario's limits, are smooth (continuous acceleration)
+// and carry the excitation a calibration needs.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "autocal/sim/scenario.h"
+#include "autocal/sim/simulator.h"
+#include "sim/sim_test_util.h"
+
+namespace autocal {
+namespace sim {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+class DriveTest : public ::testing::TestWithParam<ScenarioType> {};
+
+TEST_P(DriveTest, SpeedAccelerationAndJerkStayWithinTheScenarioLimits) {
+  // 90 s cover every urban maneuver (turns, stops, roundabout, overtaking) and every
+  // highway one (lane changes, curves, speed changes).
+  const Simulator simulator(test::SmallLog(GetParam(), 90.0));
+  const Scenario& scenario = simulator.scenario();
+  const DriveLimits& limits = scenario.limits;
+  const VehicleTrajectory& trajectory = *scenario.trajectory;
+  const double h = 0.01;
+  BodyState previous = trajectory.StateAt(0.0);
+  double max_speed = 0.0, min_speed = 1e9, max_accel = 0.0, max_jerk = 0.0, jerk_t = 0.0;
+  for (double t = h; t <= simulator.options().duration_s; t += h) {
+    const BodyState state = trajectory.StateAt(t);
+    const double speed = state.v_W.norm();
+    max_speed = std::max(max_speed, speed);
+    min_speed = std::min(min_speed, speed);
+    max_accel = std::max(max_accel, state.a_W.head<2>().norm());
+    const double jerk = (state.a_W - previous.a_W).norm() / h;
+    if (jerk > max_jerk) max_jerk = jerk, jerk_t = t;
+    previous = state;
+  }
+  EXPECT_LE(max_speed, limits.max_speed_m_s) << "km/h: " << max_speed * 3.6;
+  EXPECT_GE(min_speed, limits.min_cruise_speed_m_s) << "km/h: " << min_speed * 3.6;
+  EXPECT_LE(max_accel, limits.max_horizontal_accel_m_s2);
+  EXPECT_LE(max_jerk, limits.max_jerk_m_s3) << "at t = " << jerk_t << " s";
+  if (GetParam() == ScenarioType::kHighway) {
+    EXPECT_GT(max_speed * 3.6, 110.0) << "a highway drive runs at about 120 km/h";
+  }
+}
+
+TEST_P(DriveTest, AccelerationOfTheImuIsContinuous) {
+  // C^2: over 1 ms the IMU's acceleration changes by at most jerk * 1 ms. A jump (a kink in
+  // velocity) anywhere in the drive would show up as a change orders of magnitude larger.
+  const Simulator simulator(test::SmallLog(GetParam(), 30.0));
+  const VehicleTrajectory& trajectory = *simulator.scenario().trajectory;
+  const geometry::Pose3d T_V_I =
+      geometry::Pose3d(simulator.true_calibration().q_I_V, simulator.true_calibration().p_I_V)
+          .Inverse();
+  const double h = 1e-3;
+  BodyState previous = trajectory.StateAt(0.0, T_V_I);
+  double worst = 0.0, worst_t = 0.0;
+  double worst_omega = 0.0;
+  for (double t = h; t <= simulator.options().duration_s; t += h) {
+    const BodyState state = trajectory.StateAt(t, T_V_I);
+    const double change = (state.a_W - previous.a_W).norm();
+    if (change > worst) worst = change, worst_t = t;
+    worst_omega = std::max(worst_omega, (state.omega_B - previous.omega_B).norm());
+    previous = state;
+  }
+  EXPECT_LT(worst, 10.0 * h) << "acceleration jumps by " << worst << " m/s^2 at t = " << worst_t;
+  EXPECT_LT(worst_omega, 2.0 * h) << "body rate jumps by " << worst_omega << " rad/s";
+}
+
+TEST(DriveTest, UrbanDriveHasStandstillTurnsStopsAndGrades) {
+  const Simulator simulator(test::SmallLog(ScenarioType::kUrban, 120.0));
+  const VehicleTrajectory& trajectory = *simulator.scenario().trajectory;
+  double standstill_at_start = 0.0, total_turn = 0.0, stops = 0.0;
+  double min_pitch = 1e9, max_pitch = -1e9;
+  bool moving = false;
+  const double h = 0.02;
+  for (double t = 0.0; t <= 120.0; t += h) {
+    const BodyState state = trajectory.StateAt(t);
+    const double speed = state.v_W.norm();
+    if (speed < 1e-3 && t < 5.0 && !moving) standstill_at_start += h;
+    if (speed > 1.0) moving = true;
+    if (moving && speed < 1e-3) {
+      stops += h;
+    }
+    total_turn += std::abs(state.omega_B.z()) * h;
+    const double pitch = std::asin(state.T_W_B.R()(2, 0)) * -kRadToDeg;
+    min_pitch = std::min(min_pitch, pitch);
+    max_pitch = std::max(max_pitch, pitch);
+  }
+  EXPECT_GE(standstill_at_start, 1.0) << "the drive starts standing";
+  EXPECT_GE(stops, 2.0) << "seconds standing after the start";
+  // Several 90-degree turns and a roundabout in two minutes.
+  EXPECT_GE(total_turn * kRadToDeg, 360.0);
+  EXPECT_GE(max_pitch - min_pitch, 2.0) << "road grades give pitch excitation, deg";
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenarios, DriveTest,
+                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway),
+                         [](const auto& info) { return test::Name(info.param); });
+
+}  // namespace
+}  // namespace sim
+}  // namespace autocal

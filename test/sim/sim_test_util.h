@@ -1,0 +1,30 @@
+#pragma once
+
+// Small simulated logs shared by the simulator's physics tests.
+
+#include <string>
+
+#include "autocal/sim/simulator.h"
+
+namespace autocal {
+namespace sim {
+namespace test {
+
+// A short log of the given scenario with a 16-beam LiDAR.
+inline SimulationOptions SmallLog(ScenarioType scenario, double duration_s = 25.0,
+                                  uint64_t seed = 3) {
+  SimulationOptions options;
+  options.scenario = scenario;
+  options.duration_s = duration_s;
+  options.seed = seed;
+  options.lidar.config.num_beams = 16;
+  options.lidar.config.min_elevation_deg = -15.0;
+  options.lidar.config.max_elevation_deg = 15.0;
+  return options;
+}
+
+inline std::string Name(ScenarioType scenario) { return ScenarioName(scenario); }
+
+}  // namespace test
+}  // namespace sim
+}  // namespace autocal
