@@ -15,6 +15,8 @@
 #include <Eigen/Core>
 
 #include "autocal/geometry/se3.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/imu_plausibility.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/measurements.h"
@@ -31,6 +33,9 @@ struct SensorsConfig {
   std::optional<sensors::WheelConfig> wheel;
   std::optional<sensors::GnssConfig> gnss;
   sensors::Calibration nominal_calibration;
+  // Optional sigmas of the nominal calibration (usable as prior widths) and observability
+  // flags, as the nominal_calibration section of sensors.yaml states them.
+  CalibrationUncertainty nominal_uncertainty;
 };
 
 // One ground-truth state: the IMU pose T_W_I and velocity v_W_I at IMU-clock time t_ns.
@@ -52,10 +57,10 @@ struct Dataset {
   std::string directory;
   SensorsConfig sensors;
   sensors::ImuSamples imu;
-  sensors::WheelSamples wheel;           // empty without wheel.csv
-  sensors::GnssFixes gnss;               // empty without gnss.csv
+  sensors::WheelSamples wheel;              // empty without wheel.csv
+  sensors::GnssFixes gnss;                  // empty without gnss.csv
   std::vector<LidarSweepRef> lidar_sweeps;  // empty without lidar.csv
-  Trajectory groundtruth_trajectory;     // empty without groundtruth/trajectory.csv
+  Trajectory groundtruth_trajectory;        // empty without groundtruth/trajectory.csv
   std::optional<sensors::Calibration> groundtruth_calibration;
 
   // Sweeps are large, so they are read on demand. Throws ParseError on a missing or
@@ -63,9 +68,15 @@ struct Dataset {
   lidar::LidarSweep LoadSweep(size_t index) const;
 };
 
+struct DatasetReadOptions {
+  // Unit checks on imu.csv (the gravity they use comes from sensors.yaml).
+  ImuPlausibilityOptions imu_checks;
+};
+
 // Reads and validates a whole dataset directory (sweeps excepted: their index is checked,
 // the files must exist).
 Dataset ReadDataset(const std::string& directory);
+Dataset ReadDataset(const std::string& directory, const DatasetReadOptions& options);
 
 // Writes a dataset incrementally, so a simulator need not hold all sweeps in memory.
 // Creates the directory (and lidar/, groundtruth/) if needed.

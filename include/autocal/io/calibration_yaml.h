@@ -1,0 +1,91 @@
+#pragma once
+
+// The calibration file schema (datasets/README.md, "calibration.yaml"), shared by the
+// nominal calibration in sensors.yaml, the simulator's ground truth and the results of a
+// calibration run:
+//
+//   T_I_L: {q_xyzw: [x, y, z, w], p_m: [x, y, z],
+//           sigma_rot_deg: [x, y, z], sigma_p_m: [x, y, z], observable: true}
+//   time_offset_lidar_imu_s: {value: 0.012, sigma: 0.0004, observable: true}
+//   wheel_radius_left_m: {value: 0.33, sigma: 0.001}
+//   wheel_radius_right_m: {value: 0.33}
+//   track_width_m: {value: 1.6}
+//   p_I_A_m: {value: [x, y, z], sigma: [x, y, z], observable: [true, true, false]}
+//   T_I_V: {q_xyzw: [...], p_m: [...]}
+//   solver: {key: value, ...}                       # free-form solver summary
+//   residuals: {lidar: {rms: 0.02, ...}, imu: {...}} # statistics per sensor
+//
+// Every block is optional (a missing block keeps the sensors::Calibration default);
+// sigma and observable are optional inside a block. A scalar block may be written as a
+// bare number and p_I_A_m as a bare [x, y, z]. Unknown keys, wrong types, non-finite
+// numbers and quaternions whose norm is off 1 by more than 1e-3 are ParseErrors with
+// file, line and column.
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "autocal/sensors/calibration.h"
+
+namespace autocal {
+namespace io {
+
+// Uncertainty of a pose block T_I_X: rotation sigma about the block's own axes (the right
+// perturbation of README "rotation perturbation") in degrees, translation sigma in metres.
+// observable is empty, one flag for the whole block, or six flags (rotation x y z,
+// translation x y z).
+struct PoseBlockInfo {
+  std::optional<Eigen::Vector3d> sigma_rot_deg;
+  std::optional<Eigen::Vector3d> sigma_p_m;
+  std::vector<bool> observable;
+};
+
+// observable is empty, one flag for the whole block, or one per axis.
+struct VectorBlockInfo {
+  std::optional<Eigen::Vector3d> sigma;
+  std::vector<bool> observable;
+};
+
+struct ScalarBlockInfo {
+  std::optional<double> sigma;
+  std::optional<bool> observable;
+};
+
+struct CalibrationUncertainty {
+  PoseBlockInfo T_I_L;
+  ScalarBlockInfo time_offset_lidar_imu_s;
+  ScalarBlockInfo wheel_radius_left_m;
+  ScalarBlockInfo wheel_radius_right_m;
+  ScalarBlockInfo track_width_m;
+  VectorBlockInfo p_I_A_m;
+  PoseBlockInfo T_I_V;
+};
+
+struct CalibrationFile {
+  sensors::Calibration value;
+  CalibrationUncertainty uncertainty;
+  // Free-form solver summary, e.g. {"termination": "CONVERGENCE", "iterations": "14"}.
+  // Values are kept as the text the file holds.
+  std::map<std::string, std::string> solver;
+  // Residual statistics per sensor, e.g. residuals["lidar"]["rms_m"] = 0.021.
+  std::map<std::string, std::map<std::string, double>> residuals;
+};
+
+// Reads a calibration file. Throws ParseError (file, line, column) on malformed content
+// and autocal::Error when the file cannot be read.
+CalibrationFile ReadCalibrationYaml(const std::string& path);
+
+// Writes `calibration` so that ReadCalibrationYaml returns exactly the same values
+// (shortest round-trip decimal for every double). Throws autocal::Error on I/O failure or
+// a non-finite value.
+void WriteCalibrationYaml(const std::string& path, const CalibrationFile& calibration);
+
+// The same schema as text, for embedding (sensors.yaml's nominal_calibration section).
+// `indent` spaces precede every line.
+std::string CalibrationYamlText(const CalibrationFile& calibration, int indent = 0);
+
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,46 @@
+#pragma once
+
+// Readers and writers for the CSV files of a dataset (datasets/README.md):
+//   imu.csv                    t_ns,gx,gy,gz,ax,ay,az
+//   wheel.csv                  t_ns,left_rad_s,right_rad_s
+//   gnss.csv                   t_ns,lat_deg,lon_deg,alt_m,std_east_m,std_north_m,std_up_m
+//   lidar.csv                  t_ns,file
+//   groundtruth/trajectory.csv t_ns,px,py,pz,qx,qy,qz,qw,vx,vy,vz
+// Readers check the header, the column count, every number (finite, no trailing
+// characters), strictly increasing timestamps and the plausibility checks below; the first
+// problem is a ParseError with file, line and column. Writers print every double as the
+// shortest decimal that reads back exactly.
+
+#include <string>
+#include <vector>
+
+#include "autocal/io/dataset.h"
+#include "autocal/io/imu_plausibility.h"
+#include "autocal/sensors/measurements.h"
+
+namespace autocal {
+namespace io {
+
+// Wheel-rate plausibility: a car wheel (r ~ 0.3 m) at 300 km/h turns at ~280 rad/s.
+// Larger rates mean rpm or deg/s.
+constexpr double kMaxPlausibleWheelRateRadS = 500.0;
+
+sensors::ImuSamples ReadImuCsv(const std::string& path, const ImuPlausibilityOptions& checks = {});
+sensors::WheelSamples ReadWheelCsv(const std::string& path);
+sensors::GnssFixes ReadGnssCsv(const std::string& path);
+// When `sweep_directory` is not empty, each row's file must exist in it (the error names
+// the row and the column of the file name).
+std::vector<LidarSweepRef> ReadLidarCsv(const std::string& path,
+                                        const std::string& sweep_directory = "");
+// Quaternions are normalized; a norm off 1 by more than 1e-3 is an error.
+Trajectory ReadTrajectoryCsv(const std::string& path);
+
+// Writers throw autocal::Error on I/O failure or a non-finite value.
+void WriteImuCsv(const std::string& path, const sensors::ImuSamples& samples);
+void WriteWheelCsv(const std::string& path, const sensors::WheelSamples& samples);
+void WriteGnssCsv(const std::string& path, const sensors::GnssFixes& fixes);
+void WriteLidarCsv(const std::string& path, const std::vector<LidarSweepRef>& sweeps);
+void WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory);
+
+}  // namespace io
+}  // namespace autocal

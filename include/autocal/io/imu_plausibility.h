@@ -1,0 +1,28 @@
+#pragma once
+
+// Plausibility checks that catch unit mistakes in an IMU log (datasets/README.md).
+
+namespace autocal {
+namespace io {
+
+// Unit checks over a whole imu.csv, catching the two common export mistakes.
+struct ImuPlausibilityOptions {
+  bool enabled = true;
+  // A car turns at most ~1 rad/s (a 5 m radius at 18 km/h) and rolls/pitches far slower,
+  // so in rad/s the 99th percentile of |omega| stays well below 3 rad/s. The same drive
+  // logged in deg/s has 57x larger numbers: as soon as more than 1% of the log turns faster
+  // than 3 deg/s (any corner), the percentile passes the limit. The percentile, not the
+  // maximum, keeps a few spikes (a pothole) from tripping the check. A log that never
+  // turns cannot be told apart and passes.
+  double gyro_percentile = 0.99;
+  double max_gyro_percentile_rad_s = 3.0;
+  // The accelerometer measures specific force: averaged over a log its norm is close to g
+  // (the vehicle's own accelerations average out). A mean below this fraction of g means
+  // gravity was removed (or the unit is g); above max_mean_accel_g the unit is wrong.
+  double min_mean_accel_g = 0.5;
+  double max_mean_accel_g = 2.0;
+  double gravity_m_s2 = 9.80665;
+};
+
+}  // namespace io
+}  // namespace autocal

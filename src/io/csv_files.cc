@@ -1,0 +1,329 @@
+#include "autocal/io/csv_files.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "io/csv_format.h"
+#include "io/csv_reader.h"
+#include "io/text_format.h"
+
+namespace autocal {
+namespace io {
+namespace internal {
+
+const std::vector<std::string>& ImuColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns", "gx", "gy", "gz", "ax", "ay", "az"};
+  return kColumns;
+}
+const std::vector<std::string>& WheelColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns", "left_rad_s", "right_rad_s"};
+  return kColumns;
+}
+const std::vector<std::string>& GnssColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns",       "lat_deg",     "lon_deg", "alt_m",
+                                                    "std_east_m", "std_north_m", "std_up_m"};
+  return kColumns;
+}
+const std::vector<std::string>& LidarColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns", "file"};
+  return kColumns;
+}
+const std::vector<std::string>& TrajectoryColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns", "px", "py", "pz", "qx", "qy",
+                                                    "qz",   "qw", "vx", "vy", "vz"};
+  return kColumns;
+}
+
+std::string HeaderLine(const std::vector<std::string>& columns) {
+  std::string line;
+  for (const std::string& column : columns) line += (line.empty() ? "" : ",") + column;
+  return line + "\n";
+}
+
+void CheckSweepFileName(const std::string& file) {
+  const bool bad = file.empty() || file[0] == '/' || file.find("..") != std::string::npos ||
+                   file.find_first_of(",\n\r") != std::string::npos || Trim(file) != file;
+  if (bad)
+    throw Error("invalid sweep file name '" + file +
+                "' (relative to lidar/, no ',', '..' or blanks)");
+}
+
+std::string LidarRow(const LidarSweepRef& sweep) {
+  CheckSweepFileName(sweep.file);
+  return std::to_string(sweep.t_ns) + "," + sweep.file + "\n";
+}
+
+}  // namespace internal
+
+namespace {
+
+using internal::CsvReader;
+using internal::FormatDouble;
+
+// ---- writing ----
+
+// Appends the doubles of one row, refusing what the reader would refuse.
+void AppendNumbers(const std::vector<double>& values, const std::string& path, size_t row,
+                   std::string* out) {
+  for (double value : values) {
+    if (!std::isfinite(value)) {
+      throw Error("cannot write '" + path + "': row " + std::to_string(row) +
+                  " has a non-finite value");
+    }
+    *out += ',';
+    *out += FormatDouble(value);
+  }
+  *out += '\n';
+}
+
+void CheckIncreasing(int64_t previous_ns, int64_t t_ns, size_t row, const std::string& path) {
+  if (row > 0 && t_ns <= previous_ns) {
+    throw Error("cannot write '" + path + "': row " + std::to_string(row) + " has t_ns " +
+                std::to_string(t_ns) + " <= previous " + std::to_string(previous_ns) +
+                " (timestamps must strictly increase)");
+  }
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
+  out.write(text.data(), static_cast<std::streamsize>(text.size()));
+  out.close();
+  if (!out) throw Error("error while writing '" + path + "'");
+}
+
+template <typename Sample, typename Numbers>
+void WriteRows(const std::string& path, const std::vector<std::string>& columns,
+               const std::vector<Sample>& samples, Numbers numbers) {
+  std::string text = internal::HeaderLine(columns);
+  for (size_t i = 0; i < samples.size(); ++i) {
+    if (i > 0) CheckIncreasing(samples[i - 1].t_ns, samples[i].t_ns, i, path);
+    text += std::to_string(samples[i].t_ns);
+    AppendNumbers(numbers(samples[i]), path, i, &text);
+  }
+  WriteText(path, text);
+}
+
+// ---- plausibility of imu.csv ----
+
+struct ImuRowPosition {
+  int64_t line = 0;
+  int64_t gyro_column = 0;
+  int64_t accel_column = 0;
+};
+
+// printf-style formatting for messages with numbers.
+std::string Printf(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string Printf(const char* format, ...) {
+  char buffer[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buffer, sizeof(buffer), format, args);
+  va_end(args);
+  return buffer;
+}
+
+void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& samples,
+                          const std::vector<ImuRowPosition>& rows,
+                          const ImuPlausibilityOptions& checks) {
+  if (!checks.enabled || samples.empty()) return;
+  std::vector<double> rates(samples.size());
+  for (size_t i = 0; i < samples.size(); ++i) rates[i] = samples[i].gyro_rad_s.norm();
+  std::vector<double> sorted = rates;
+  const size_t k =
+      std::min(sorted.size() - 1,
+               static_cast<size_t>(checks.gyro_percentile * static_cast<double>(sorted.size())));
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), sorted.end());
+  const double percentile = sorted[k];
+  if (percentile > checks.max_gyro_percentile_rad_s) {
+    size_t first = 0;
+    while (rates[first] <= checks.max_gyro_percentile_rad_s) ++first;
+    reader.FailAt(
+        rows[first].line, rows[first].gyro_column,
+        Printf("gyroscope seems to be in deg/s, autocal expects rad/s: the %.0fth "
+               "percentile of |omega| over the log is %.3g rad/s, beyond any car "
+               "(limit %.3g rad/s); this is the first row above the limit",
+               100.0 * checks.gyro_percentile, percentile, checks.max_gyro_percentile_rad_s));
+  }
+  double sum = 0.0;
+  for (const sensors::ImuSample& sample : samples) sum += sample.accel_m_s2.norm();
+  const double mean_g = sum / static_cast<double>(samples.size()) / checks.gravity_m_s2;
+  if (mean_g < checks.min_mean_accel_g) {
+    const bool looks_like_g = std::abs(mean_g * checks.gravity_m_s2 - 1.0) < 0.2;
+    reader.FailAt(
+        rows[0].line, rows[0].accel_column,
+        Printf("mean |a| over the log is %.3g m/s^2 = %.3g g: ", mean_g * checks.gravity_m_s2,
+               mean_g) +
+            (looks_like_g ? "the accelerometer seems to be in units of g; autocal expects m/s^2"
+                          : "accelerometer seems to exclude gravity; autocal expects "
+                            "specific force (gravity included) in m/s^2"));
+  }
+  if (mean_g > checks.max_mean_accel_g) {
+    reader.FailAt(rows[0].line, rows[0].accel_column,
+                  Printf("mean |a| over the log is %.3g m/s^2 = %.3g g, far above gravity: the "
+                         "accelerometer unit is not m/s^2",
+                         mean_g * checks.gravity_m_s2, mean_g));
+  }
+}
+
+}  // namespace
+
+sensors::ImuSamples ReadImuCsv(const std::string& path, const ImuPlausibilityOptions& checks) {
+  CsvReader reader(path, internal::ImuColumns());
+  sensors::ImuSamples samples;
+  std::vector<ImuRowPosition> rows;
+  while (reader.Next()) {
+    sensors::ImuSample sample;
+    sample.t_ns = reader.Timestamp();
+    for (int i = 0; i < 3; ++i) {
+      sample.gyro_rad_s[i] = reader.Double(1 + i);
+      sample.accel_m_s2[i] = reader.Double(4 + i);
+    }
+    samples.push_back(sample);
+    rows.push_back({reader.line(), reader.column(1), reader.column(4)});
+  }
+  if (samples.empty()) reader.FailAt(2, 1, "no IMU samples after the header");
+  CheckImuPlausibility(reader, samples, rows, checks);
+  return samples;
+}
+
+sensors::WheelSamples ReadWheelCsv(const std::string& path) {
+  CsvReader reader(path, internal::WheelColumns());
+  sensors::WheelSamples samples;
+  while (reader.Next()) {
+    sensors::WheelSample sample;
+    sample.t_ns = reader.Timestamp();
+    sample.left_rad_s = reader.Double(1);
+    sample.right_rad_s = reader.Double(2);
+    for (size_t field : {1, 2}) {
+      const double rate = field == 1 ? sample.left_rad_s : sample.right_rad_s;
+      if (std::abs(rate) > kMaxPlausibleWheelRateRadS) {
+        reader.Fail(field, Printf("wheel rate %.4g rad/s is beyond any car (limit %.0f rad/s): "
+                                  "is the column in rpm or deg/s?",
+                                  rate, kMaxPlausibleWheelRateRadS));
+      }
+    }
+    samples.push_back(sample);
+  }
+  return samples;
+}
+
+sensors::GnssFixes ReadGnssCsv(const std::string& path) {
+  CsvReader reader(path, internal::GnssColumns());
+  sensors::GnssFixes fixes;
+  while (reader.Next()) {
+    sensors::GnssFix fix;
+    fix.t_ns = reader.Timestamp();
+    fix.lat_deg = reader.Double(1);
+    if (std::abs(fix.lat_deg) > 90.0) reader.Fail(1, "latitude must be within [-90, 90] deg");
+    fix.lon_deg = reader.Double(2);
+    if (std::abs(fix.lon_deg) > 180.0) reader.Fail(2, "longitude must be within [-180, 180] deg");
+    fix.alt_m = reader.Double(3);
+    for (int i = 0; i < 3; ++i) {
+      fix.std_enu_m[i] = reader.Double(4 + i);
+      if (!(fix.std_enu_m[i] > 0.0)) reader.Fail(4 + i, "a standard deviation must be > 0");
+    }
+    fixes.push_back(fix);
+  }
+  return fixes;
+}
+
+std::vector<LidarSweepRef> ReadLidarCsv(const std::string& path,
+                                        const std::string& sweep_directory) {
+  CsvReader reader(path, internal::LidarColumns());
+  std::vector<LidarSweepRef> sweeps;
+  while (reader.Next()) {
+    LidarSweepRef sweep;
+    sweep.t_ns = reader.Timestamp();
+    sweep.file = std::string(reader.Text(1));
+    try {
+      internal::CheckSweepFileName(sweep.file);
+    } catch (const Error& e) {
+      reader.Fail(1, e.what());
+    }
+    if (!sweep_directory.empty()) {
+      const std::filesystem::path full = std::filesystem::path(sweep_directory) / sweep.file;
+      std::error_code error;
+      if (!std::filesystem::is_regular_file(full, error)) {
+        reader.Fail(1, "sweep file " + internal::Quote(sweep.file) + " not found (looked for '" +
+                           full.string() + "')");
+      }
+    }
+    sweeps.push_back(sweep);
+  }
+  return sweeps;
+}
+
+Trajectory ReadTrajectoryCsv(const std::string& path) {
+  CsvReader reader(path, internal::TrajectoryColumns());
+  Trajectory trajectory;
+  while (reader.Next()) {
+    TrajectorySample sample;
+    sample.t_ns = reader.Timestamp();
+    for (int i = 0; i < 3; ++i) sample.T_W_I.p[i] = reader.Double(1 + i);
+    Eigen::Vector4d xyzw;
+    for (int i = 0; i < 4; ++i) xyzw[i] = reader.Double(4 + i);
+    const double norm = xyzw.norm();
+    if (std::abs(norm - 1.0) > 1e-3) {
+      reader.Fail(4, Printf("quaternion (qx, qy, qz, qw) has norm %.6g, not a rotation (|norm - 1| "
+                            "must be <= 1e-3)",
+                            norm));
+    }
+    // Below 1e-15, |q| - 1 is rounding: keep the digits so that files round trip exactly.
+    if (std::abs(norm - 1.0) > 1e-15) xyzw /= norm;
+    sample.T_W_I.q = Eigen::Quaterniond(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
+    for (int i = 0; i < 3; ++i) sample.v_W_I[i] = reader.Double(8 + i);
+    trajectory.push_back(sample);
+  }
+  return trajectory;
+}
+
+void WriteImuCsv(const std::string& path, const sensors::ImuSamples& samples) {
+  WriteRows(path, internal::ImuColumns(), samples, [](const sensors::ImuSample& s) {
+    return std::vector<double>{s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(),
+                               s.accel_m_s2.x(), s.accel_m_s2.y(), s.accel_m_s2.z()};
+  });
+}
+
+void WriteWheelCsv(const std::string& path, const sensors::WheelSamples& samples) {
+  WriteRows(path, internal::WheelColumns(), samples, [](const sensors::WheelSample& s) {
+    return std::vector<double>{s.left_rad_s, s.right_rad_s};
+  });
+}
+
+void WriteGnssCsv(const std::string& path, const sensors::GnssFixes& fixes) {
+  WriteRows(path, internal::GnssColumns(), fixes, [](const sensors::GnssFix& f) {
+    return std::vector<double>{f.lat_deg,       f.lon_deg,       f.alt_m,
+                               f.std_enu_m.x(), f.std_enu_m.y(), f.std_enu_m.z()};
+  });
+}
+
+void WriteLidarCsv(const std::string& path, const std::vector<LidarSweepRef>& sweeps) {
+  std::string text = internal::HeaderLine(internal::LidarColumns());
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    if (i > 0) CheckIncreasing(sweeps[i - 1].t_ns, sweeps[i].t_ns, i, path);
+    text += internal::LidarRow(sweeps[i]);
+  }
+  WriteText(path, text);
+}
+
+void WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory) {
+  WriteRows(path, internal::TrajectoryColumns(), trajectory, [](const TrajectorySample& s) {
+    const Eigen::Quaterniond& q = s.T_W_I.q;
+    return std::vector<double>{s.T_W_I.p.x(), s.T_W_I.p.y(), s.T_W_I.p.z(), q.x(),
+                               q.y(),         q.z(),         q.w(),         s.v_W_I.x(),
+                               s.v_W_I.y(),   s.v_W_I.z()};
+  });
+}
+
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,189 @@
+#include "autocal/io/dataset.h"
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <utility>
+
+#include "autocal/common/error.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/csv_files.h"
+#include "autocal/io/point_cloud_file.h"
+#include "autocal/io/sensors_yaml.h"
+#include "io/csv_format.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Join(const std::string& directory, const std::string& name) {
+  return (fs::path(directory) / name).string();
+}
+
+bool IsFile(const std::string& path) {
+  std::error_code error;
+  return fs::is_regular_file(path, error);
+}
+
+}  // namespace
+
+lidar::LidarSweep Dataset::LoadSweep(size_t index) const {
+  if (index >= lidar_sweeps.size()) {
+    throw Error("LoadSweep(" + std::to_string(index) + "): the dataset '" + directory + "' has " +
+                std::to_string(lidar_sweeps.size()) + " sweeps");
+  }
+  lidar::LidarSweep sweep;
+  sweep.t_ns = lidar_sweeps[index].t_ns;
+  const std::string path = (fs::path(directory) / "lidar" / lidar_sweeps[index].file).string();
+  if (!IsFile(path)) {
+    SourceLocation location;
+    location.file = path;
+    throw ParseError(location, "sweep file not found (listed in lidar.csv)");
+  }
+  sweep.cloud = ReadPointCloudFile(path);
+  return sweep;
+}
+
+Dataset ReadDataset(const std::string& directory) {
+  return ReadDataset(directory, DatasetReadOptions());
+}
+
+Dataset ReadDataset(const std::string& directory, const DatasetReadOptions& options) {
+  std::error_code error;
+  if (!fs::is_directory(directory, error)) {
+    throw Error("dataset directory '" + directory + "' does not exist or is not a directory");
+  }
+  Dataset dataset;
+  dataset.directory = directory;
+  const std::string sensors_path = Join(directory, "sensors.yaml");
+  if (IsFile(sensors_path)) dataset.sensors = ReadSensorsYaml(sensors_path);
+
+  const std::string imu_path = Join(directory, "imu.csv");
+  if (!IsFile(imu_path)) {
+    SourceLocation location;
+    location.file = imu_path;
+    throw ParseError(location,
+                     "missing file: every dataset needs imu.csv (t_ns,gx,gy,gz,ax,ay,az)");
+  }
+  ImuPlausibilityOptions imu_checks = options.imu_checks;
+  imu_checks.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  dataset.imu = ReadImuCsv(imu_path, imu_checks);
+
+  const std::string wheel_path = Join(directory, "wheel.csv");
+  if (IsFile(wheel_path)) dataset.wheel = ReadWheelCsv(wheel_path);
+  const std::string gnss_path = Join(directory, "gnss.csv");
+  if (IsFile(gnss_path)) dataset.gnss = ReadGnssCsv(gnss_path);
+  const std::string lidar_path = Join(directory, "lidar.csv");
+  if (IsFile(lidar_path)) dataset.lidar_sweeps = ReadLidarCsv(lidar_path, Join(directory, "lidar"));
+
+  const std::string trajectory_path = Join(directory, "groundtruth/trajectory.csv");
+  if (IsFile(trajectory_path)) dataset.groundtruth_trajectory = ReadTrajectoryCsv(trajectory_path);
+  const std::string calibration_path = Join(directory, "groundtruth/calibration.yaml");
+  if (IsFile(calibration_path))
+    dataset.groundtruth_calibration = ReadCalibrationYaml(calibration_path).value;
+  return dataset;
+}
+
+// ---- DatasetWriter ----
+
+struct DatasetWriter::Impl {
+  std::string directory;
+  std::ofstream lidar_csv;
+  bool has_sweep = false;
+  int64_t last_sweep_ns = 0;
+  bool closed = false;
+
+  void CheckOpen() const {
+    if (closed) throw Error("DatasetWriter for '" + directory + "' is already closed");
+  }
+};
+
+DatasetWriter::DatasetWriter(std::string directory) : impl_(std::make_unique<Impl>()) {
+  impl_->directory = std::move(directory);
+  for (const char* sub : {"", "lidar", "groundtruth"}) {
+    std::error_code error;
+    fs::create_directories(fs::path(impl_->directory) / sub, error);
+    if (error) {
+      throw Error("cannot create '" + (fs::path(impl_->directory) / sub).string() +
+                  "': " + error.message());
+    }
+  }
+}
+
+DatasetWriter::~DatasetWriter() {
+  try {
+    Close();
+  } catch (const Error&) {
+    // A destructor cannot report; Close() is the documented way to learn about failures.
+  }
+}
+
+void DatasetWriter::WriteSensorsConfig(const SensorsConfig& config) {
+  impl_->CheckOpen();
+  WriteSensorsYaml(Join(impl_->directory, "sensors.yaml"), config);
+}
+
+void DatasetWriter::WriteImu(const sensors::ImuSamples& samples) {
+  impl_->CheckOpen();
+  WriteImuCsv(Join(impl_->directory, "imu.csv"), samples);
+}
+
+void DatasetWriter::WriteWheel(const sensors::WheelSamples& samples) {
+  impl_->CheckOpen();
+  WriteWheelCsv(Join(impl_->directory, "wheel.csv"), samples);
+}
+
+void DatasetWriter::WriteGnss(const sensors::GnssFixes& fixes) {
+  impl_->CheckOpen();
+  WriteGnssCsv(Join(impl_->directory, "gnss.csv"), fixes);
+}
+
+void DatasetWriter::AddSweep(const lidar::LidarSweep& sweep) {
+  impl_->CheckOpen();
+  if (impl_->has_sweep && sweep.t_ns <= impl_->last_sweep_ns) {
+    throw Error("DatasetWriter::AddSweep: sweep stamp " + std::to_string(sweep.t_ns) +
+                " ns does not follow the previous one (" + std::to_string(impl_->last_sweep_ns) +
+                " ns)");
+  }
+  const std::string lidar_csv_path = Join(impl_->directory, "lidar.csv");
+  if (!impl_->has_sweep) {
+    impl_->lidar_csv.open(lidar_csv_path, std::ios::binary | std::ios::trunc);
+    if (!impl_->lidar_csv)
+      throw Error("cannot open '" + lidar_csv_path + "' for writing: " + std::strerror(errno));
+    impl_->lidar_csv << internal::HeaderLine(internal::LidarColumns());
+  }
+  LidarSweepRef ref;
+  ref.t_ns = sweep.t_ns;
+  ref.file = std::to_string(sweep.t_ns) + ".ply";
+  WritePly((fs::path(impl_->directory) / "lidar" / ref.file).string(), sweep.cloud);
+  impl_->lidar_csv << internal::LidarRow(ref);
+  if (!impl_->lidar_csv) throw Error("error while writing '" + lidar_csv_path + "'");
+  impl_->has_sweep = true;
+  impl_->last_sweep_ns = sweep.t_ns;
+}
+
+void DatasetWriter::WriteGroundTruth(const Trajectory& trajectory,
+                                     const sensors::Calibration& calibration) {
+  impl_->CheckOpen();
+  WriteTrajectoryCsv(Join(impl_->directory, "groundtruth/trajectory.csv"), trajectory);
+  CalibrationFile file;
+  file.value = calibration;
+  WriteCalibrationYaml(Join(impl_->directory, "groundtruth/calibration.yaml"), file);
+}
+
+void DatasetWriter::Close() {
+  if (impl_->closed) return;
+  impl_->closed = true;
+  if (impl_->lidar_csv.is_open()) {
+    impl_->lidar_csv.close();
+    if (!impl_->lidar_csv)
+      throw Error("error while closing '" + Join(impl_->directory, "lidar.csv") + "'");
+  }
+}
+
+}  // namespace io
+}  // namespace autocal

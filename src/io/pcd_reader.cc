@@ -1,0 +1,333 @@
+// PCD reader (PCL's format, v0.7): a text header of KEY value lines ending with DATA,
+// then one point per line (ascii) or packed little-endian records (binary).
+// binary_compressed (LZF) is not supported and says so.
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "io/point_cloud_builder.h"
+#include "io/point_cloud_formats.h"
+#include "io/scalar_type.h"
+#include "io/text_format.h"
+
+namespace autocal {
+namespace io {
+namespace internal {
+namespace {
+
+struct PcdField {
+  std::string name;
+  ScalarType type = ScalarType::kFloat32;
+  int64_t count = 1;
+  size_t offset = 0;  // byte offset inside a binary record
+  int role = -1;      // PointValue filled by this field, -1 when skipped
+};
+
+enum class PcdData { kAscii, kBinary };
+
+class PcdParser {
+ public:
+  PcdParser(const std::string& path, const std::string& bytes, const PointCloudReadOptions& options)
+      : path_(path), bytes_(bytes), options_(options) {}
+
+  lidar::PointCloud Parse() {
+    ParseHeader();
+    ResolveRoles();
+    return data_ == PcdData::kAscii ? ReadAscii() : ReadBinary();
+  }
+
+ private:
+  [[noreturn]] void FailAt(int64_t line, int64_t column, const std::string& message) const {
+    SourceLocation location;
+    location.file = path_;
+    location.line = line;
+    location.column = column;
+    throw ParseError(location, message);
+  }
+
+  [[noreturn]] void FailAtByte(size_t offset, const std::string& message) const {
+    SourceLocation location;
+    location.file = path_;
+    location.byte_offset = static_cast<int64_t>(offset);
+    throw ParseError(location, message);
+  }
+
+  bool NextLine(std::string_view* line) {
+    if (pos_ >= bytes_.size()) return false;
+    size_t end = bytes_.find('\n', pos_);
+    const size_t next = end == std::string::npos ? bytes_.size() : end + 1;
+    if (end == std::string::npos) end = bytes_.size();
+    *line = std::string_view(bytes_).substr(pos_, end - pos_);
+    if (!line->empty() && line->back() == '\r') line->remove_suffix(1);
+    pos_ = next;
+    ++line_;
+    return true;
+  }
+
+  int64_t ParseCount(const Word& word, int64_t min_value) const {
+    int64_t value = 0;
+    std::string why;
+    if (!ParseInt64(word.text, &value, &why)) FailAt(line_, word.column, why);
+    if (value < min_value) {
+      FailAt(line_, word.column,
+             "expected an integer >= " + std::to_string(min_value) + ", found " + Quote(word.text));
+    }
+    return value;
+  }
+
+  // One value per field; its count must match FIELDS.
+  void CheckPerField(const std::vector<Word>& words) const {
+    if (fields_.empty()) FailAt(line_, 1, Quote(words[0].text) + " before FIELDS");
+    if (words.size() - 1 != fields_.size()) {
+      FailAt(line_, words[0].column,
+             Quote(words[0].text) + " has " + std::to_string(words.size() - 1) +
+                 " values but FIELDS names " + std::to_string(fields_.size()));
+    }
+  }
+
+  void ParseHeader() {
+    if (bytes_.empty())
+      FailAtByte(0, "empty file; a PCD file starts with its header (VERSION, FIELDS, ...)");
+    std::vector<Word> sizes;
+    std::vector<Word> types;
+    int64_t sizes_line = 0;
+    int64_t types_line = 0;
+    std::string_view line;
+    while (NextLine(&line)) {
+      const std::vector<Word> words = SplitWords(line);
+      if (words.empty() || words[0].text[0] == '#') continue;
+      const std::string_view key = words[0].text;
+      if (key == "VERSION" || key == "VIEWPOINT") continue;
+      if (key == "FIELDS") {
+        for (size_t i = 1; i < words.size(); ++i) fields_.push_back({std::string(words[i].text)});
+        if (fields_.empty()) FailAt(line_, 1, "FIELDS names no field");
+      } else if (key == "SIZE") {
+        CheckPerField(words);
+        sizes = words;
+        sizes_line = line_;
+      } else if (key == "TYPE") {
+        CheckPerField(words);
+        types = words;
+        types_line = line_;
+      } else if (key == "COUNT") {
+        CheckPerField(words);
+        for (size_t i = 1; i < words.size(); ++i) fields_[i - 1].count = ParseCount(words[i], 1);
+      } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
+        if (words.size() != 2) FailAt(line_, 1, "expected '" + std::string(key) + " <integer>'");
+        const int64_t value = ParseCount(words[1], 0);
+        (key == "WIDTH" ? width_ : key == "HEIGHT" ? height_ : points_) = value;
+      } else if (key == "DATA") {
+        if (words.size() != 2) FailAt(line_, 1, "expected 'DATA ascii' or 'DATA binary'");
+        if (words[1].text == "ascii") {
+          data_ = PcdData::kAscii;
+        } else if (words[1].text == "binary") {
+          data_ = PcdData::kBinary;
+        } else if (words[1].text == "binary_compressed") {
+          FailAt(line_, words[1].column,
+                 "PCD 'DATA binary_compressed' is unsupported; convert the file to binary or "
+                 "ascii (e.g. with PCL's pcl_convert_pcd_ascii_binary)");
+        } else {
+          FailAt(line_, words[1].column, "unknown PCD DATA kind " + Quote(words[1].text));
+        }
+        data_line_ = line_;
+        ResolveTypes(sizes, sizes_line, types, types_line);
+        ResolvePointCount();
+        return;
+      } else {
+        FailAt(line_, words[0].column, "unknown PCD header key " + Quote(key));
+      }
+    }
+    FailAtByte(bytes_.size(),
+               "file ends inside the PCD header (no DATA line): truncated or not a PCD file");
+  }
+
+  void ResolveTypes(const std::vector<Word>& sizes, int64_t sizes_line,
+                    const std::vector<Word>& types, int64_t types_line) {
+    if (fields_.empty()) FailAt(data_line_, 1, "PCD header has no FIELDS line");
+    if (sizes.empty()) FailAt(data_line_, 1, "PCD header has no SIZE line");
+    if (types.empty()) FailAt(data_line_, 1, "PCD header has no TYPE line");
+    size_t offset = 0;
+    for (size_t i = 0; i < fields_.size(); ++i) {
+      const Word& size_word = sizes[i + 1];
+      const Word& type_word = types[i + 1];
+      const std::string_view t = type_word.text;
+      const std::string_view s = size_word.text;
+      std::optional<ScalarType> type;
+      if (t == "F") {
+        if (s == "4") type = ScalarType::kFloat32;
+        if (s == "8") type = ScalarType::kFloat64;
+      } else if (t == "I") {
+        if (s == "1") type = ScalarType::kInt8;
+        if (s == "2") type = ScalarType::kInt16;
+        if (s == "4") type = ScalarType::kInt32;
+      } else if (t == "U") {
+        if (s == "1") type = ScalarType::kUint8;
+        if (s == "2") type = ScalarType::kUint16;
+        if (s == "4") type = ScalarType::kUint32;
+      } else {
+        FailAt(types_line, type_word.column,
+               "unknown PCD TYPE " + Quote(t) + " (expected I, U or F)");
+      }
+      if (!type) {
+        FailAt(sizes_line, size_word.column,
+               "unsupported SIZE " + Quote(s) + " for TYPE " + std::string(t) + " of field '" +
+                   fields_[i].name + "' (supported: F 4/8, I 1/2/4, U 1/2/4)");
+      }
+      fields_[i].type = *type;
+      fields_[i].offset = offset;
+      offset += ScalarSize(*type) * static_cast<size_t>(fields_[i].count);
+    }
+    record_size_ = offset;
+  }
+
+  void ResolvePointCount() {
+    if (width_ < 0) FailAt(data_line_, 1, "PCD header has no WIDTH line");
+    if (height_ < 0) height_ = 1;
+    if (height_ > 0 && width_ > std::numeric_limits<int64_t>::max() / height_) {
+      FailAt(data_line_, 1, "PCD WIDTH x HEIGHT overflows");
+    }
+    if (points_ < 0) points_ = width_ * height_;
+    if (points_ != width_ * height_) {
+      FailAt(data_line_, 1,
+             "PCD header says POINTS " + std::to_string(points_) +
+                 " but WIDTH x HEIGHT = " + std::to_string(width_ * height_));
+    }
+  }
+
+  void ResolveRoles() {
+    const auto find = [&](std::string_view name) -> int {
+      for (size_t i = 0; i < fields_.size(); ++i) {
+        if (fields_[i].name == name) return static_cast<int>(i);
+      }
+      return -1;
+    };
+    const char* const kAxes[] = {"x", "y", "z"};
+    for (int axis = 0; axis < 3; ++axis) {
+      const int i = find(kAxes[axis]);
+      if (i < 0) {
+        FailAt(
+            data_line_, 1,
+            std::string("PCD FIELDS has no '") + kAxes[axis] + "'; a point cloud needs x, y and z");
+      }
+      if (fields_[i].count != 1) {
+        FailAt(data_line_, 1, std::string("PCD field '") + kAxes[axis] + "' has COUNT != 1");
+      }
+      fields_[i].role = axis;
+    }
+    const auto assign_optional = [&](int role, std::string_view first, std::string_view second) {
+      int i = find(first);
+      if (i < 0) i = find(second);
+      if (i < 0 || fields_[i].count != 1) return false;
+      fields_[i].role = role;
+      return true;
+    };
+    has_intensity_ = assign_optional(kIntensity, "intensity", "scalar_intensity");
+    has_time_ = assign_optional(kTime, "t", "time");
+  }
+
+  void AddPoint(PointCloudBuilder* builder, const double (&values)[kNumPointValues], int64_t index,
+                int64_t line, size_t byte_offset) const {
+    int bad = 0;
+    if (builder->Add(values, &bad) == PointCloudBuilder::AddResult::kNonFinite) {
+      const std::string message = "point " + std::to_string(index) + " has a non-finite " +
+                                  PointValueName(bad) +
+                                  " (set PointCloudReadOptions::drop_non_finite_points to "
+                                  "drop such points)";
+      if (line > 0) FailAt(line, 1, message);
+      FailAtByte(byte_offset, message);
+    }
+  }
+
+  lidar::PointCloud ReadAscii() {
+    int64_t values_per_line = 0;
+    for (const PcdField& field : fields_) values_per_line += field.count;
+    if (static_cast<uint64_t>(points_) > bytes_.size() - pos_ + 1) {
+      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
+                                    " but the header declares " + std::to_string(points_) +
+                                    " points: truncated?");
+    }
+    PointCloudBuilder builder(points_, has_intensity_, has_time_, options_.drop_non_finite_points);
+    for (int64_t i = 0; i < points_; ++i) {
+      std::string_view line;
+      if (!NextLine(&line)) {
+        FailAtByte(bytes_.size(), "file ends after " + std::to_string(i) + " of " +
+                                      std::to_string(points_) + " points: truncated?");
+      }
+      const std::vector<Word> words = SplitWords(line);
+      if (static_cast<int64_t>(words.size()) != values_per_line) {
+        const int64_t column = static_cast<int64_t>(words.size()) > values_per_line
+                                   ? words[values_per_line].column
+                                   : static_cast<int64_t>(line.size()) + 1;
+        FailAt(line_, column,
+               "expected " + std::to_string(values_per_line) + " values, found " +
+                   std::to_string(words.size()));
+      }
+      double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
+      size_t w = 0;
+      for (const PcdField& field : fields_) {
+        if (field.role >= 0) {
+          std::string why;
+          if (!ParseDouble(words[w].text, &values[field.role], &why)) {
+            FailAt(line_, words[w].column, why);
+          }
+        }
+        w += static_cast<size_t>(field.count);
+      }
+      AddPoint(&builder, values, i, line_, 0);
+    }
+    return builder.Finish();
+  }
+
+  lidar::PointCloud ReadBinary() {
+    const size_t remaining = bytes_.size() - pos_;
+    if (record_size_ == 0 || static_cast<uint64_t>(points_) > remaining / record_size_) {
+      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
+                                    " but the header declares " + std::to_string(points_) +
+                                    " points of " + std::to_string(record_size_) +
+                                    " bytes after byte " + std::to_string(pos_) + ": truncated?");
+    }
+    PointCloudBuilder builder(points_, has_intensity_, has_time_, options_.drop_non_finite_points);
+    for (int64_t i = 0; i < points_; ++i) {
+      const size_t record = pos_ + static_cast<size_t>(i) * record_size_;
+      double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
+      for (const PcdField& field : fields_) {
+        if (field.role < 0) continue;
+        // PCD binary data is a memory dump of little-endian machines.
+        values[field.role] = DecodeScalar(bytes_.data() + record + field.offset, field.type, true);
+      }
+      AddPoint(&builder, values, i, 0, record);
+    }
+    return builder.Finish();
+  }
+
+  const std::string& path_;
+  const std::string& bytes_;
+  const PointCloudReadOptions& options_;
+  size_t pos_ = 0;
+  int64_t line_ = 0;
+  int64_t data_line_ = 0;
+  std::vector<PcdField> fields_;
+  int64_t width_ = -1;
+  int64_t height_ = -1;
+  int64_t points_ = -1;
+  size_t record_size_ = 0;
+  PcdData data_ = PcdData::kAscii;
+  bool has_intensity_ = false;
+  bool has_time_ = false;
+};
+
+}  // namespace
+
+lidar::PointCloud ParsePcd(const std::string& path, const std::string& bytes,
+                           const PointCloudReadOptions& options) {
+  return PcdParser(path, bytes, options).Parse();
+}
+
+}  // namespace internal
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,454 @@
+// PLY reader (http://paulbourke.net/dataformats/ply/): a text header declaring elements
+// and their properties, then the body in ascii or binary of either endianness. Only the
+// `vertex` element is read; elements before it are parsed to be skipped, elements after it
+// (faces, ...) are ignored.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "io/point_cloud_builder.h"
+#include "io/point_cloud_formats.h"
+#include "io/scalar_type.h"
+#include "io/text_format.h"
+
+namespace autocal {
+namespace io {
+namespace internal {
+namespace {
+
+enum class PlyFormat { kAscii, kBinaryLittleEndian, kBinaryBigEndian };
+
+struct PlyProperty {
+  std::string name;
+  ScalarType type = ScalarType::kFloat32;
+  bool is_list = false;
+  ScalarType count_type = ScalarType::kUint8;
+};
+
+struct PlyElement {
+  std::string name;
+  int64_t count = 0;
+  std::vector<PlyProperty> properties;
+  int64_t header_line = 0;
+};
+
+// Whitespace-separated tokens of an ascii body with their line and column.
+struct AsciiToken {
+  std::string_view text;
+  int64_t line = 0;
+  int64_t column = 0;
+};
+
+class PlyParser {
+ public:
+  PlyParser(const std::string& path, const std::string& bytes, const PointCloudReadOptions& options)
+      : path_(path), bytes_(bytes), options_(options) {}
+
+  lidar::PointCloud Parse() {
+    ParseHeader();
+    const size_t vertex_index = FindVertexElement();
+    ResolveVertexRoles(elements_[vertex_index]);
+    if (format_ == PlyFormat::kAscii) {
+      // The body starts on the line after end_header.
+      ++line_;
+      line_start_ = pos_;
+      for (size_t e = 0; e < vertex_index; ++e) SkipAsciiElement(elements_[e]);
+      return ReadAsciiVertices(elements_[vertex_index]);
+    }
+    for (size_t e = 0; e < vertex_index; ++e) SkipBinaryElement(elements_[e]);
+    return ReadBinaryVertices(elements_[vertex_index]);
+  }
+
+ private:
+  [[noreturn]] void FailAt(int64_t line, int64_t column, const std::string& message) const {
+    SourceLocation location;
+    location.file = path_;
+    location.line = line;
+    location.column = column;
+    throw ParseError(location, message);
+  }
+
+  [[noreturn]] void FailAtByte(size_t offset, const std::string& message) const {
+    SourceLocation location;
+    location.file = path_;
+    location.byte_offset = static_cast<int64_t>(offset);
+    throw ParseError(location, message);
+  }
+
+  // Next header line without its line break; false at the end of the file.
+  bool NextHeaderLine(std::string_view* line) {
+    if (pos_ >= bytes_.size()) return false;
+    size_t end = bytes_.find('\n', pos_);
+    const size_t next = end == std::string::npos ? bytes_.size() : end + 1;
+    if (end == std::string::npos) end = bytes_.size();
+    *line = std::string_view(bytes_).substr(pos_, end - pos_);
+    if (!line->empty() && line->back() == '\r') line->remove_suffix(1);
+    pos_ = next;
+    ++line_;
+    return true;
+  }
+
+  ScalarType ParseType(const Word& word) const {
+    const std::optional<ScalarType> type = PlyScalarType(std::string(word.text));
+    if (!type) {
+      FailAt(line_, word.column,
+             "unknown PLY property type " + Quote(word.text) +
+                 " (expected char, uchar, short, ushort, int, uint, float, double or int8, "
+                 "uint8, int16, uint16, int32, uint32, float32, float64)");
+    }
+    return *type;
+  }
+
+  void ParseFormat(const std::vector<Word>& words) {
+    if (format_seen_) FailAt(line_, 1, "second 'format' line in the PLY header");
+    if (words.size() != 3)
+      FailAt(line_, 1, "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'");
+    if (words[1].text == "ascii") {
+      format_ = PlyFormat::kAscii;
+    } else if (words[1].text == "binary_little_endian") {
+      format_ = PlyFormat::kBinaryLittleEndian;
+    } else if (words[1].text == "binary_big_endian") {
+      format_ = PlyFormat::kBinaryBigEndian;
+    } else {
+      FailAt(line_, words[1].column,
+             "unknown PLY format " + Quote(words[1].text) +
+                 " (expected ascii, binary_little_endian or binary_big_endian)");
+    }
+    if (words[2].text != "1.0") {
+      FailAt(line_, words[2].column,
+             "unsupported PLY version " + Quote(words[2].text) + " (expected 1.0)");
+    }
+    format_seen_ = true;
+  }
+
+  void ParseElement(const std::vector<Word>& words) {
+    if (words.size() != 3) FailAt(line_, 1, "expected 'element <name> <count>'");
+    PlyElement element;
+    element.name = std::string(words[1].text);
+    element.header_line = line_;
+    std::string why;
+    if (!ParseInt64(words[2].text, &element.count, &why)) FailAt(line_, words[2].column, why);
+    if (element.count < 0) FailAt(line_, words[2].column, "negative element count");
+    elements_.push_back(element);
+  }
+
+  void ParseProperty(const std::vector<Word>& words) {
+    if (elements_.empty()) FailAt(line_, 1, "'property' before any 'element' line");
+    PlyProperty property;
+    if (words.size() >= 2 && words[1].text == "list") {
+      if (words.size() != 5)
+        FailAt(line_, 1, "expected 'property list <count type> <value type> <name>'");
+      property.is_list = true;
+      property.count_type = ParseType(words[2]);
+      if (!IsIntegerType(property.count_type)) {
+        FailAt(line_, words[2].column, "a list count must have an integer type");
+      }
+      property.type = ParseType(words[3]);
+      property.name = std::string(words[4].text);
+    } else {
+      if (words.size() != 3) FailAt(line_, 1, "expected 'property <type> <name>'");
+      property.type = ParseType(words[1]);
+      property.name = std::string(words[2].text);
+    }
+    elements_.back().properties.push_back(property);
+  }
+
+  void ParseHeader() {
+    if (bytes_.empty()) FailAtByte(0, "empty file; a PLY file starts with the line 'ply'");
+    std::string_view line;
+    NextHeaderLine(&line);
+    if (line != "ply") {
+      FailAt(1, 1, "not a PLY file: the first line must be 'ply', found " + Quote(line));
+    }
+    while (NextHeaderLine(&line)) {
+      const std::vector<Word> words = SplitWords(line);
+      if (words.empty()) continue;
+      const std::string_view keyword = words[0].text;
+      if (keyword == "comment" || keyword == "obj_info") continue;
+      if (keyword == "format") {
+        ParseFormat(words);
+      } else if (keyword == "element") {
+        ParseElement(words);
+      } else if (keyword == "property") {
+        ParseProperty(words);
+      } else if (keyword == "end_header") {
+        if (!format_seen_) FailAt(line_, 1, "PLY header has no 'format' line");
+        end_header_line_ = line_;
+        return;
+      } else {
+        FailAt(line_, words[0].column, "unknown PLY header keyword " + Quote(keyword));
+      }
+    }
+    FailAtByte(bytes_.size(), "file ends inside the PLY header (no 'end_header' line): truncated?");
+  }
+
+  size_t FindVertexElement() const {
+    for (size_t e = 0; e < elements_.size(); ++e) {
+      if (elements_[e].name == "vertex") return e;
+    }
+    FailAt(end_header_line_, 1, "PLY header declares no 'vertex' element");
+  }
+
+  // Maps each vertex property to the PointValue it fills, or -1 to skip it.
+  void ResolveVertexRoles(const PlyElement& vertex) {
+    roles_.assign(vertex.properties.size(), -1);
+    const auto find = [&](std::string_view name) -> int {
+      for (size_t p = 0; p < vertex.properties.size(); ++p) {
+        if (vertex.properties[p].name == name) return static_cast<int>(p);
+      }
+      return -1;
+    };
+    const char* const kAxes[] = {"x", "y", "z"};
+    for (int axis = 0; axis < 3; ++axis) {
+      const int p = find(kAxes[axis]);
+      if (p < 0) {
+        FailAt(vertex.header_line, 1,
+               std::string("vertex element has no property '") + kAxes[axis] +
+                   "'; a point cloud needs x, y and z");
+      }
+      if (vertex.properties[p].is_list) {
+        FailAt(vertex.header_line, 1,
+               std::string("vertex property '") + kAxes[axis] + "' is a list");
+      }
+      roles_[p] = axis;
+    }
+    const auto assign_optional = [&](int role, std::string_view first, std::string_view second) {
+      int p = find(first);
+      if (p < 0) p = find(second);
+      if (p >= 0 && !vertex.properties[p].is_list) roles_[p] = role;
+      return p >= 0 && !vertex.properties[p].is_list;
+    };
+    has_intensity_ = assign_optional(kIntensity, "intensity", "scalar_intensity");
+    has_time_ = assign_optional(kTime, "t", "time");
+  }
+
+  void CheckPointCount(const PlyElement& vertex, size_t min_bytes_per_vertex) const {
+    const size_t remaining = bytes_.size() - pos_;
+    if (min_bytes_per_vertex > 0 &&
+        static_cast<uint64_t>(vertex.count) > remaining / min_bytes_per_vertex) {
+      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
+                                    " but the header declares " + std::to_string(vertex.count) +
+                                    " vertices needing at least " +
+                                    std::to_string(min_bytes_per_vertex) +
+                                    " bytes each: truncated?");
+    }
+  }
+
+  void AddPoint(PointCloudBuilder* builder, const double (&values)[kNumPointValues], int64_t index,
+                int64_t line, size_t byte_offset) const {
+    int bad = 0;
+    if (builder->Add(values, &bad) == PointCloudBuilder::AddResult::kNonFinite) {
+      const std::string message = "vertex " + std::to_string(index) + " has a non-finite " +
+                                  PointValueName(bad) +
+                                  " (set PointCloudReadOptions::drop_non_finite_points to "
+                                  "drop such points)";
+      if (line > 0) FailAt(line, 1, message);
+      FailAtByte(byte_offset, message);
+    }
+  }
+
+  // ---- ascii body ----
+
+  bool NextToken(AsciiToken* token) {
+    while (pos_ < bytes_.size()) {
+      const char c = bytes_[pos_];
+      if (c == '\n') {
+        ++line_;
+        line_start_ = pos_ + 1;
+      } else if (c != ' ' && c != '\t' && c != '\r') {
+        break;
+      }
+      ++pos_;
+    }
+    if (pos_ >= bytes_.size()) return false;
+    const size_t start = pos_;
+    while (pos_ < bytes_.size() && bytes_[pos_] != ' ' && bytes_[pos_] != '\t' &&
+           bytes_[pos_] != '\r' && bytes_[pos_] != '\n') {
+      ++pos_;
+    }
+    token->text = std::string_view(bytes_).substr(start, pos_ - start);
+    token->line = line_;
+    token->column = static_cast<int64_t>(start - line_start_) + 1;
+    return true;
+  }
+
+  // Reads the next value of instance `index` of `element`, which must be on `line`.
+  AsciiToken AsciiValue(const PlyElement& element, int64_t index, int64_t line) {
+    AsciiToken token;
+    const int64_t end_column = static_cast<int64_t>(pos_ - line_start_) + 1;
+    if (!NextToken(&token)) {
+      FailAtByte(bytes_.size(), "file ends inside " + element.name + " " + std::to_string(index) +
+                                    " of " + std::to_string(element.count) + " (line " +
+                                    std::to_string(line_) + "): truncated?");
+    }
+    if (line > 0 && token.line != line) {
+      FailAt(line, end_column,
+             element.name + " line has fewer values than the header declares (" +
+                 std::to_string(element.properties.size()) + " properties)");
+    }
+    return token;
+  }
+
+  void ExpectEndOfAsciiLine(const PlyElement& element) {
+    while (pos_ < bytes_.size() &&
+           (bytes_[pos_] == ' ' || bytes_[pos_] == '\t' || bytes_[pos_] == '\r')) {
+      ++pos_;
+    }
+    if (pos_ < bytes_.size() && bytes_[pos_] != '\n') {
+      FailAt(line_, static_cast<int64_t>(pos_ - line_start_) + 1,
+             element.name + " line has more values than the header declares (" +
+                 std::to_string(element.properties.size()) + " properties)");
+    }
+  }
+
+  int64_t AsciiListCount(const AsciiToken& token) const {
+    int64_t count = 0;
+    std::string why;
+    if (!ParseInt64(token.text, &count, &why)) FailAt(token.line, token.column, why);
+    if (count < 0) FailAt(token.line, token.column, "negative list length");
+    return count;
+  }
+
+  void SkipAsciiElement(const PlyElement& element) {
+    for (int64_t i = 0; i < element.count; ++i) {
+      int64_t line = 0;
+      for (const PlyProperty& property : element.properties) {
+        const AsciiToken first = AsciiValue(element, i, line);
+        line = first.line;
+        const int64_t n = property.is_list ? AsciiListCount(first) : 0;
+        for (int64_t k = 0; k < n; ++k) AsciiValue(element, i, line);
+      }
+      ExpectEndOfAsciiLine(element);
+    }
+  }
+
+  lidar::PointCloud ReadAsciiVertices(const PlyElement& vertex) {
+    CheckPointCount(vertex, vertex.properties.size());
+    PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
+                              options_.drop_non_finite_points);
+    for (int64_t i = 0; i < vertex.count; ++i) {
+      double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
+      int64_t line = 0;
+      for (size_t p = 0; p < vertex.properties.size(); ++p) {
+        const AsciiToken token = AsciiValue(vertex, i, line);
+        line = token.line;
+        if (vertex.properties[p].is_list) {
+          const int64_t n = AsciiListCount(token);
+          for (int64_t k = 0; k < n; ++k) AsciiValue(vertex, i, line);
+          continue;
+        }
+        if (roles_[p] < 0) continue;
+        std::string why;
+        if (!ParseDouble(token.text, &values[roles_[p]], &why))
+          FailAt(token.line, token.column, why);
+      }
+      ExpectEndOfAsciiLine(vertex);
+      AddPoint(&builder, values, i, line, 0);
+    }
+    return builder.Finish();
+  }
+
+  // ---- binary body ----
+
+  bool LittleEndian() const { return format_ == PlyFormat::kBinaryLittleEndian; }
+
+  void NeedBytes(size_t n, const PlyElement& element, int64_t index) const {
+    if (n > bytes_.size() - pos_) {
+      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) + " inside " +
+                                    element.name + " " + std::to_string(index) + " of " +
+                                    std::to_string(element.count) + ": truncated?");
+    }
+  }
+
+  double BinaryValue(ScalarType type, const PlyElement& element, int64_t index) {
+    NeedBytes(ScalarSize(type), element, index);
+    const double value = DecodeScalar(bytes_.data() + pos_, type, LittleEndian());
+    pos_ += ScalarSize(type);
+    return value;
+  }
+
+  void SkipBinaryList(const PlyProperty& property, const PlyElement& element, int64_t index) {
+    const size_t count_offset = pos_;
+    const double count = BinaryValue(property.count_type, element, index);
+    if (count < 0)
+      FailAtByte(count_offset,
+                 "negative list length in " + element.name + " " + std::to_string(index));
+    const size_t bytes = static_cast<size_t>(count) * ScalarSize(property.type);
+    NeedBytes(bytes, element, index);
+    pos_ += bytes;
+  }
+
+  size_t MinBinarySize(const PlyElement& element) const {
+    size_t size = 0;
+    for (const PlyProperty& property : element.properties) {
+      size += ScalarSize(property.is_list ? property.count_type : property.type);
+    }
+    return size;
+  }
+
+  void SkipBinaryElement(const PlyElement& element) {
+    CheckPointCount(element, MinBinarySize(element));
+    for (int64_t i = 0; i < element.count; ++i) {
+      for (const PlyProperty& property : element.properties) {
+        if (property.is_list) {
+          SkipBinaryList(property, element, i);
+        } else {
+          NeedBytes(ScalarSize(property.type), element, i);
+          pos_ += ScalarSize(property.type);
+        }
+      }
+    }
+  }
+
+  lidar::PointCloud ReadBinaryVertices(const PlyElement& vertex) {
+    CheckPointCount(vertex, MinBinarySize(vertex));
+    PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
+                              options_.drop_non_finite_points);
+    for (int64_t i = 0; i < vertex.count; ++i) {
+      const size_t vertex_offset = pos_;
+      double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
+      for (size_t p = 0; p < vertex.properties.size(); ++p) {
+        const PlyProperty& property = vertex.properties[p];
+        if (property.is_list) {
+          SkipBinaryList(property, vertex, i);
+        } else if (roles_[p] >= 0) {
+          values[roles_[p]] = BinaryValue(property.type, vertex, i);
+        } else {
+          NeedBytes(ScalarSize(property.type), vertex, i);
+          pos_ += ScalarSize(property.type);
+        }
+      }
+      AddPoint(&builder, values, i, 0, vertex_offset);
+    }
+    return builder.Finish();
+  }
+
+  const std::string& path_;
+  const std::string& bytes_;
+  const PointCloudReadOptions& options_;
+  size_t pos_ = 0;
+  int64_t line_ = 0;
+  size_t line_start_ = 0;
+  int64_t end_header_line_ = 0;
+  bool format_seen_ = false;
+  PlyFormat format_ = PlyFormat::kAscii;
+  std::vector<PlyElement> elements_;
+  std::vector<int> roles_;
+  bool has_intensity_ = false;
+  bool has_time_ = false;
+};
+
+}  // namespace
+
+lidar::PointCloud ParsePly(const std::string& path, const std::string& bytes,
+                           const PointCloudReadOptions& options) {
+  return PlyParser(path, bytes, options).Parse();
+}
+
+}  // namespace internal
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,177 @@
+#include "autocal/io/tum_trajectory.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "io/text_format.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+using internal::Quote;
+using internal::Word;
+
+constexpr int kTumColumns = 8;
+
+[[noreturn]] void Fail(const std::string& path, int64_t line, int64_t column,
+                       const std::string& message) {
+  SourceLocation location;
+  location.file = path;
+  location.line = line;
+  location.column = column;
+  throw ParseError(location, message);
+}
+
+// "<seconds>.<nine digits>" -> nanoseconds, exactly (no detour through double). Accepts
+// fewer decimals (evo and other tools may print microseconds).
+bool ParseSecondsToNs(std::string_view text, int64_t* t_ns, std::string* why) {
+  const size_t dot = text.find('.');
+  const std::string_view whole = text.substr(0, dot);
+  const std::string_view fraction =
+      dot == std::string_view::npos ? std::string_view() : text.substr(dot + 1);
+  const bool negative = !whole.empty() && whole[0] == '-';
+  int64_t seconds = 0;
+  if (whole.empty() || (negative && whole.size() == 1) ||
+      !internal::ParseInt64(whole, &seconds, why)) {
+    *why = "expected a timestamp in seconds, found " + Quote(text);
+    return false;
+  }
+  if (fraction.size() > 9) {
+    *why = "timestamp " + Quote(text) + " has more than 9 decimals (finer than a nanosecond)";
+    return false;
+  }
+  int64_t nanos = 0;
+  for (size_t i = 0; i < 9; ++i) {
+    int digit = 0;
+    if (i < fraction.size()) {
+      if (fraction[i] < '0' || fraction[i] > '9') {
+        *why = "expected a timestamp in seconds, found " + Quote(text);
+        return false;
+      }
+      digit = fraction[i] - '0';
+    }
+    nanos = nanos * 10 + digit;
+  }
+  const int64_t limit = std::numeric_limits<int64_t>::max() / kNanosecondsPerSecond;
+  if (std::abs(seconds) >= limit) {
+    *why = "timestamp " + Quote(text) + " does not fit in int64 nanoseconds";
+    return false;
+  }
+  *t_ns =
+      negative ? seconds * kNanosecondsPerSecond - nanos : seconds * kNanosecondsPerSecond + nanos;
+  return true;
+}
+
+std::string FormatSeconds(int64_t t_ns) {
+  const bool negative = t_ns < 0;
+  const uint64_t magnitude =
+      negative ? 0 - static_cast<uint64_t>(t_ns) : static_cast<uint64_t>(t_ns);
+  char buffer[48];
+  std::snprintf(buffer, sizeof(buffer), "%s%llu.%09llu", negative ? "-" : "",
+                static_cast<unsigned long long>(magnitude / 1000000000ULL),
+                static_cast<unsigned long long>(magnitude % 1000000000ULL));
+  return buffer;
+}
+
+}  // namespace
+
+void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
+  std::string text = "# timestamp tx ty tz qx qy qz qw\n";
+  for (size_t i = 0; i < trajectory.size(); ++i) {
+    const TrajectorySample& s = trajectory[i];
+    if (i > 0 && s.t_ns <= trajectory[i - 1].t_ns) {
+      throw Error("cannot write '" + path + "': pose " + std::to_string(i) +
+                  " does not follow the previous one in time");
+    }
+    const Eigen::Quaterniond& q = s.T_W_I.q;
+    const double values[7] = {s.T_W_I.p.x(), s.T_W_I.p.y(), s.T_W_I.p.z(), q.x(),
+                              q.y(),         q.z(),         q.w()};
+    text += FormatSeconds(s.t_ns);
+    for (double value : values) {
+      if (!std::isfinite(value)) {
+        throw Error("cannot write '" + path + "': pose " + std::to_string(i) + " is not finite");
+      }
+      text += ' ';
+      text += internal::FormatDouble(value);
+    }
+    text += '\n';
+  }
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
+  out << text;
+  out.close();
+  if (!out) throw Error("error while writing '" + path + "'");
+}
+
+Trajectory ReadTumTrajectory(const std::string& path) {
+  const std::string bytes = internal::ReadFileBytes(path);
+  Trajectory trajectory;
+  int64_t line_number = 0;
+  int64_t previous_line = 0;
+  size_t pos = 0;
+  while (pos < bytes.size()) {
+    const size_t end = std::min(bytes.find('\n', pos), bytes.size());
+    const std::string_view line = std::string_view(bytes).substr(pos, end - pos);
+    pos = end + 1;
+    ++line_number;
+    const std::string_view trimmed = internal::Trim(line);
+    if (trimmed.empty() || trimmed[0] == '#') continue;
+    std::string_view content = line;
+    if (content.back() == '\r') content.remove_suffix(1);
+    const std::vector<Word> fields = internal::SplitWords(content);
+    if (fields.size() != kTumColumns) {
+      const int64_t column = fields.size() > kTumColumns ? fields[kTumColumns].column
+                                                         : static_cast<int64_t>(content.size()) + 1;
+      Fail(path, line_number, column,
+           "expected 8 values 'timestamp tx ty tz qx qy qz qw', found " +
+               std::to_string(fields.size()));
+    }
+    TrajectorySample sample;
+    std::string why;
+    if (!ParseSecondsToNs(fields[0].text, &sample.t_ns, &why))
+      Fail(path, line_number, fields[0].column, why);
+    if (!trajectory.empty() && sample.t_ns <= trajectory.back().t_ns) {
+      Fail(path, line_number, fields[0].column,
+           std::string(sample.t_ns == trajectory.back().t_ns ? "duplicate" : "non-monotonic") +
+               " timestamp: the previous pose (line " + std::to_string(previous_line) +
+               ") is not earlier; timestamps must strictly increase");
+    }
+    double values[7];
+    for (int i = 0; i < 7; ++i) {
+      if (!internal::ParseFiniteDouble(fields[1 + i].text, &values[i], &why)) {
+        Fail(path, line_number, fields[1 + i].column, why);
+      }
+    }
+    Eigen::Vector4d xyzw(values[3], values[4], values[5], values[6]);
+    const double norm = xyzw.norm();
+    if (std::abs(norm - 1.0) > 1e-3) {
+      char buffer[160];
+      std::snprintf(
+          buffer, sizeof(buffer),
+          "quaternion (qx qy qz qw) has norm %.6g, not a rotation (|norm - 1| must be <= 1e-3)",
+          norm);
+      Fail(path, line_number, fields[4].column, buffer);
+    }
+    // Below 1e-15, |q| - 1 is rounding: keep the digits so that files round trip exactly.
+    if (std::abs(norm - 1.0) > 1e-15) xyzw /= norm;
+    sample.T_W_I.p = Eigen::Vector3d(values[0], values[1], values[2]);
+    sample.T_W_I.q = Eigen::Quaterniond(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
+    trajectory.push_back(sample);
+    previous_line = line_number;
+  }
+  return trajectory;
+}
+
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,363 @@
+#include "autocal/io/csv_files.h"
+
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "io/io_test_data.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string OutPath(const std::string& name) {
+  return (test::OutputDir("csv_files") / name).string();
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+}
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+std::string JoinLines(const std::vector<std::string>& lines) {
+  std::string text;
+  for (const std::string& line : lines) text += line + "\n";
+  return text;
+}
+
+// 1-based column where comma-separated field `field` (0-based) of `line` starts.
+int64_t FieldColumn(const std::string& line, int field) {
+  size_t pos = 0;
+  for (int i = 0; i < field; ++i) pos = line.find(',', pos) + 1;
+  return static_cast<int64_t>(pos) + 1;
+}
+
+// Replaces field `field` of line `line` (1-based, as an editor shows it).
+std::string ReplaceField(std::vector<std::string> lines, int line, int field,
+                         const std::string& value) {
+  std::string& text = lines[line - 1];
+  const size_t start = FieldColumn(text, field) - 1;
+  const size_t end = std::min(text.find(',', start), text.size());
+  text.replace(start, end - start, value);
+  return JoinLines(lines);
+}
+
+struct Expected {
+  int64_t line;
+  int64_t column;
+  std::string message;
+};
+
+template <typename Read>
+void ExpectParseError(const std::string& path, Read read, const Expected& expected) {
+  try {
+    read(path);
+    ADD_FAILURE() << "no ParseError for " << path;
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, path);
+    EXPECT_EQ(e.location().line, expected.line) << e.what();
+    EXPECT_EQ(e.location().column, expected.column) << e.what();
+    EXPECT_THAT(e.detail(), HasSubstr(expected.message)) << e.what();
+  }
+}
+
+const auto kReadImu = [](const std::string& path) { ReadImuCsv(path); };
+
+// imu.csv of the reference drive as lines, header first.
+std::vector<std::string> ImuLines() {
+  const std::string path = OutPath("reference_imu.csv");
+  WriteImuCsv(path, test_data::MakeDrive(2.0).imu);
+  return Lines(ReadText(path));
+}
+
+// ---- round trips ----
+
+TEST(CsvFilesTest, ImuRoundTripsExactly) {
+  const sensors::ImuSamples imu = test_data::MakeDrive(3.0).imu;
+  const std::string path = OutPath("imu.csv");
+  WriteImuCsv(path, imu);
+  const sensors::ImuSamples read = ReadImuCsv(path);
+  ASSERT_EQ(read.size(), imu.size());
+  for (size_t i = 0; i < imu.size(); ++i) {
+    ASSERT_EQ(read[i].t_ns, imu[i].t_ns) << "sample " << i;
+    ASSERT_EQ(read[i].gyro_rad_s, imu[i].gyro_rad_s) << "sample " << i;
+    ASSERT_EQ(read[i].accel_m_s2, imu[i].accel_m_s2)
+        << "sample " << i << "\nread " << read[i].accel_m_s2.transpose() << "\nwrote "
+        << imu[i].accel_m_s2.transpose();
+  }
+}
+
+TEST(CsvFilesTest, WheelGnssLidarRoundTripExactly) {
+  const test_data::Drive drive = test_data::MakeDrive(3.0);
+  WriteWheelCsv(OutPath("wheel.csv"), drive.wheel);
+  const sensors::WheelSamples wheel = ReadWheelCsv(OutPath("wheel.csv"));
+  ASSERT_EQ(wheel.size(), drive.wheel.size());
+  for (size_t i = 0; i < wheel.size(); ++i) {
+    ASSERT_EQ(wheel[i].t_ns, drive.wheel[i].t_ns) << "sample " << i;
+    ASSERT_EQ(wheel[i].left_rad_s, drive.wheel[i].left_rad_s) << "sample " << i;
+    ASSERT_EQ(wheel[i].right_rad_s, drive.wheel[i].right_rad_s) << "sample " << i;
+  }
+  WriteGnssCsv(OutPath("gnss.csv"), drive.gnss);
+  const sensors::GnssFixes gnss = ReadGnssCsv(OutPath("gnss.csv"));
+  ASSERT_EQ(gnss.size(), drive.gnss.size());
+  for (size_t i = 0; i < gnss.size(); ++i) {
+    ASSERT_EQ(gnss[i].t_ns, drive.gnss[i].t_ns) << "fix " << i;
+    ASSERT_EQ(gnss[i].lat_deg, drive.gnss[i].lat_deg) << "fix " << i;
+    ASSERT_EQ(gnss[i].lon_deg, drive.gnss[i].lon_deg) << "fix " << i;
+    ASSERT_EQ(gnss[i].alt_m, drive.gnss[i].alt_m) << "fix " << i;
+    ASSERT_EQ(gnss[i].std_enu_m, drive.gnss[i].std_enu_m) << "fix " << i;
+  }
+  std::vector<LidarSweepRef> sweeps;
+  for (const lidar::LidarSweep& sweep : drive.sweeps)
+    sweeps.push_back({sweep.t_ns, std::to_string(sweep.t_ns) + ".ply"});
+  WriteLidarCsv(OutPath("lidar.csv"), sweeps);
+  const std::vector<LidarSweepRef> read = ReadLidarCsv(OutPath("lidar.csv"));
+  ASSERT_EQ(read.size(), sweeps.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    ASSERT_EQ(read[i].t_ns, sweeps[i].t_ns) << "row " << i;
+    ASSERT_EQ(read[i].file, sweeps[i].file) << "row " << i;
+  }
+}
+
+TEST(CsvFilesTest, TrajectoryRoundTripsExactly) {
+  const Trajectory trajectory = test_data::MakeDrive(3.0).trajectory;
+  WriteTrajectoryCsv(OutPath("trajectory.csv"), trajectory);
+  const Trajectory read = ReadTrajectoryCsv(OutPath("trajectory.csv"));
+  ASSERT_EQ(read.size(), trajectory.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    ASSERT_EQ(read[i].t_ns, trajectory[i].t_ns) << "pose " << i;
+    ASSERT_EQ(read[i].T_W_I.p, trajectory[i].T_W_I.p) << "pose " << i;
+    ASSERT_EQ(read[i].T_W_I.q.coeffs(), trajectory[i].T_W_I.q.coeffs())
+        << "pose " << i << "\nread " << read[i].T_W_I.q.coeffs().transpose() << "\nwrote "
+        << trajectory[i].T_W_I.q.coeffs().transpose();
+    ASSERT_EQ(read[i].v_W_I, trajectory[i].v_W_I) << "pose " << i;
+  }
+}
+
+TEST(CsvFilesTest, AcceptsBomEuRoCStyleHeaderBlanksAndCrLf) {
+  std::vector<std::string> lines = ImuLines();
+  // A byte order mark, as spreadsheet exports write it, then an EuRoC-style header.
+  lines[0] = "\xEF\xBB\xBF#t_ns, gx, gy, gz, ax, ay, az\r";
+  for (size_t i = 1; i < lines.size(); ++i) lines[i] += "\r";
+  WriteText(OutPath("crlf.csv"), JoinLines(lines));
+  EXPECT_EQ(ReadImuCsv(OutPath("crlf.csv")).size(), lines.size() - 1);
+}
+
+// ---- bad input ----
+
+TEST(CsvFilesTest, EmptyFile) {
+  WriteText(OutPath("empty.csv"), "");
+  ExpectParseError(OutPath("empty.csv"), kReadImu, {1, 1, "empty file"});
+}
+
+TEST(CsvFilesTest, HeaderOnlyImuHasNoSamples) {
+  WriteText(OutPath("header_only.csv"), ImuLines()[0] + "\n");
+  ExpectParseError(OutPath("header_only.csv"), kReadImu, {2, 1, "no IMU samples"});
+}
+
+TEST(CsvFilesTest, MissingHeader) {
+  std::vector<std::string> lines = ImuLines();
+  lines.erase(lines.begin());
+  WriteText(OutPath("no_header.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("no_header.csv"), kReadImu, {1, 1, "missing header line"});
+}
+
+TEST(CsvFilesTest, WrongHeaderName) {
+  const std::vector<std::string> lines = ImuLines();
+  WriteText(OutPath("bad_header.csv"), ReplaceField(lines, 1, 6, "acc_z"));
+  ExpectParseError(OutPath("bad_header.csv"), kReadImu,
+                   {1, FieldColumn(lines[0], 6), "is 'acc_z', expected 'az'"});
+}
+
+TEST(CsvFilesTest, HeaderWithTooFewColumns) {
+  WriteText(OutPath("short_header.csv"), "t_ns,gx,gy,gz,ax,ay\n");
+  ExpectParseError(OutPath("short_header.csv"), kReadImu,
+                   {1, 20, "header has 6 columns, expected 7"});
+}
+
+TEST(CsvFilesTest, RowWithTooFewColumns) {
+  std::vector<std::string> lines = ImuLines();
+  lines[4] = lines[4].substr(0, lines[4].rfind(','));
+  WriteText(OutPath("few.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("few.csv"), kReadImu,
+                   {5, static_cast<int64_t>(lines[4].size()) + 1, "expected 7 columns"});
+}
+
+TEST(CsvFilesTest, RowWithTooManyColumns) {
+  std::vector<std::string> lines = ImuLines();
+  lines[6] += ",0.5";
+  WriteText(OutPath("many.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("many.csv"), kReadImu, {7, FieldColumn(lines[6], 7), "found 8"});
+}
+
+TEST(CsvFilesTest, TextInNumber) {
+  const std::vector<std::string> lines = ImuLines();
+  WriteText(OutPath("text.csv"), ReplaceField(lines, 9, 2, "abc"));
+  ExpectParseError(OutPath("text.csv"), kReadImu,
+                   {9, FieldColumn(lines[8], 2), "gy: expected a number, found 'abc'"});
+}
+
+TEST(CsvFilesTest, TrailingGarbageInNumber) {
+  const std::vector<std::string> lines = ImuLines();
+  WriteText(OutPath("garbage.csv"), ReplaceField(lines, 3, 5, "0.25m"));
+  ExpectParseError(OutPath("garbage.csv"), kReadImu,
+                   {3, FieldColumn(lines[2], 5), "trailing characters 'm'"});
+}
+
+TEST(CsvFilesTest, TrailingGarbageInTimestamp) {
+  const std::vector<std::string> lines = ImuLines();
+  WriteText(OutPath("garbage_t.csv"),
+            ReplaceField(lines, 3, 0, lines[2].substr(0, lines[2].find(',')) + ".5"));
+  ExpectParseError(OutPath("garbage_t.csv"), kReadImu, {3, 1, "trailing characters '.5'"});
+}
+
+TEST(CsvFilesTest, NaNAndInf) {
+  const std::vector<std::string> lines = ImuLines();
+  WriteText(OutPath("nan.csv"), ReplaceField(lines, 11, 4, "nan"));
+  ExpectParseError(OutPath("nan.csv"), kReadImu,
+                   {11, FieldColumn(lines[10], 4), "ax: non-finite value 'nan'"});
+  WriteText(OutPath("inf.csv"), ReplaceField(lines, 12, 3, "-inf"));
+  ExpectParseError(OutPath("inf.csv"), kReadImu,
+                   {12, FieldColumn(lines[11], 3), "gz: non-finite value '-inf'"});
+  WriteText(OutPath("overflow.csv"), ReplaceField(lines, 13, 1, "1e999"));
+  ExpectParseError(OutPath("overflow.csv"), kReadImu,
+                   {13, FieldColumn(lines[12], 1), "out of the range"});
+}
+
+TEST(CsvFilesTest, NonMonotonicAndDuplicateTime) {
+  std::vector<std::string> lines = ImuLines();
+  std::swap(lines[20], lines[21]);
+  WriteText(OutPath("non_monotonic.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("non_monotonic.csv"), kReadImu, {22, 1, "non-monotonic timestamp"});
+  lines = ImuLines();
+  lines[30] = lines[31];
+  WriteText(OutPath("duplicate.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("duplicate.csv"), kReadImu, {32, 1, "duplicate timestamp"});
+}
+
+TEST(CsvFilesTest, EmptyLineInData) {
+  std::vector<std::string> lines = ImuLines();
+  lines[10] = "";
+  WriteText(OutPath("blank.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("blank.csv"), kReadImu, {11, 1, "empty line"});
+}
+
+TEST(CsvFilesTest, GyroInDegreesPerSecond) {
+  sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
+  for (sensors::ImuSample& s : imu) s.gyro_rad_s *= 180.0 / M_PI;
+  WriteImuCsv(OutPath("deg_s.csv"), imu);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("deg_s.csv")));
+  // The reference drive turns at 0.25 rad/s = 14.3 "rad/s" in deg/s, from the first row.
+  ExpectParseError(OutPath("deg_s.csv"), kReadImu,
+                   {2, FieldColumn(lines[1], 1), "seems to be in deg/s"});
+}
+
+TEST(CsvFilesTest, GyroCheckToleratesRareSpikes) {
+  sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
+  // 0.5% of the samples at 10 rad/s (a pothole, a glitch): below the 99th percentile.
+  for (size_t i = 0; i < imu.size(); i += 200) imu[i].gyro_rad_s.x() = 10.0;
+  WriteImuCsv(OutPath("spikes.csv"), imu);
+  EXPECT_EQ(ReadImuCsv(OutPath("spikes.csv")).size(), imu.size());
+}
+
+TEST(CsvFilesTest, AccelerometerWithoutGravity) {
+  sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
+  // The IMU only yaws, so gravity is exactly +g on its z axis.
+  for (sensors::ImuSample& s : imu) s.accel_m_s2.z() -= test_data::kGravity;
+  WriteImuCsv(OutPath("no_gravity.csv"), imu);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("no_gravity.csv")));
+  ExpectParseError(OutPath("no_gravity.csv"), kReadImu,
+                   {2, FieldColumn(lines[1], 4), "accelerometer seems to exclude gravity"});
+}
+
+TEST(CsvFilesTest, AccelerometerInG) {
+  sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
+  for (sensors::ImuSample& s : imu) s.accel_m_s2 /= test_data::kGravity;
+  WriteImuCsv(OutPath("in_g.csv"), imu);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("in_g.csv")));
+  ExpectParseError(OutPath("in_g.csv"), kReadImu, {2, FieldColumn(lines[1], 4), "units of g"});
+}
+
+TEST(CsvFilesTest, AccelerometerInFeetPerSecondSquared) {
+  sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
+  for (sensors::ImuSample& s : imu) s.accel_m_s2 /= 0.3048;
+  WriteImuCsv(OutPath("in_ft.csv"), imu);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("in_ft.csv")));
+  ExpectParseError(OutPath("in_ft.csv"), kReadImu,
+                   {2, FieldColumn(lines[1], 4), "far above gravity"});
+}
+
+TEST(CsvFilesTest, TrajectoryQuaternionNotUnit) {
+  WriteTrajectoryCsv(OutPath("traj_ref.csv"), test_data::MakeDrive(1.0).trajectory);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("traj_ref.csv")));
+  // qw of the first pose is 1 (yaw 0): 1.01 is a quaternion of norm 1.01.
+  WriteText(OutPath("traj_bad_q.csv"), ReplaceField(lines, 2, 7, "1.01"));
+  ExpectParseError(OutPath("traj_bad_q.csv"), [](const std::string& p) { ReadTrajectoryCsv(p); },
+                   {2, FieldColumn(lines[1], 4), "norm 1.01"});
+  // Off by 1e-4 (rounded digits) is normalized, not rejected.
+  WriteText(OutPath("traj_rounded_q.csv"), ReplaceField(lines, 2, 7, "1.0001"));
+  const Trajectory read = ReadTrajectoryCsv(OutPath("traj_rounded_q.csv"));
+  EXPECT_NEAR(read[0].T_W_I.q.norm(), 1.0, 1e-15);
+}
+
+TEST(CsvFilesTest, MissingSweepFile) {
+  const std::string directory = test::OutputDir("csv_files/sweeps").string();
+  WriteText(directory + "/100.ply", "ply\n");
+  WriteLidarCsv(OutPath("lidar_missing.csv"), {{100, "100.ply"}, {200, "200.ply"}});
+  ExpectParseError(OutPath("lidar_missing.csv"),
+                   [&](const std::string& p) { ReadLidarCsv(p, directory); },
+                   {3, 5, "sweep file '200.ply' not found"});
+}
+
+TEST(CsvFilesTest, WheelRateInRpm) {
+  sensors::WheelSamples wheel = test_data::MakeDrive(1.0).wheel;
+  for (sensors::WheelSample& w : wheel) w.right_rad_s *= 60.0 / (2.0 * M_PI) * 60.0;
+  WriteWheelCsv(OutPath("wheel_rpm.csv"), wheel);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("wheel_rpm.csv")));
+  ExpectParseError(OutPath("wheel_rpm.csv"), [](const std::string& p) { ReadWheelCsv(p); },
+                   {2, FieldColumn(lines[1], 2), "rpm or deg/s"});
+}
+
+TEST(CsvFilesTest, GnssLatitudeOutOfRange) {
+  WriteGnssCsv(OutPath("gnss_ref.csv"), test_data::MakeDrive(1.0).gnss);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("gnss_ref.csv")));
+  WriteText(OutPath("gnss_lat.csv"), ReplaceField(lines, 4, 1, "148.1"));
+  ExpectParseError(OutPath("gnss_lat.csv"), [](const std::string& p) { ReadGnssCsv(p); },
+                   {4, FieldColumn(lines[3], 1), "latitude"});
+}
+
+TEST(CsvFilesTest, WritersRefuseWhatReadersReject) {
+  sensors::ImuSamples imu = test_data::MakeDrive(1.0).imu;
+  imu[3].accel_m_s2.x() = std::nan("");
+  EXPECT_THROW(WriteImuCsv(OutPath("w_nan.csv"), imu), Error);
+  imu = test_data::MakeDrive(1.0).imu;
+  imu[5].t_ns = imu[4].t_ns;
+  EXPECT_THROW(WriteImuCsv(OutPath("w_dup.csv"), imu), Error);
+  EXPECT_THROW(WriteLidarCsv(OutPath("w_name.csv"), {{1, "../escape.ply"}}), Error);
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace autocal

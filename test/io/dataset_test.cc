@@ -1,0 +1,190 @@
+#include "autocal/io/dataset.h"
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "autocal/io/csv_files.h"
+#include "io/io_test_data.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+using ::testing::HasSubstr;
+namespace fs = std::filesystem;
+
+// A fresh dataset directory written by DatasetWriter from the reference drive.
+std::string WriteDrive(const std::string& name, const test_data::Drive& drive) {
+  const fs::path directory = test::OutputDir("dataset") / name;
+  fs::remove_all(directory);
+  DatasetWriter writer(directory.string());
+  writer.WriteSensorsConfig(drive.config);
+  writer.WriteImu(drive.imu);
+  writer.WriteWheel(drive.wheel);
+  writer.WriteGnss(drive.gnss);
+  for (const lidar::LidarSweep& sweep : drive.sweeps) writer.AddSweep(sweep);
+  writer.WriteGroundTruth(drive.trajectory, drive.calibration);
+  writer.Close();
+  return directory.string();
+}
+
+TEST(DatasetTest, WriterAndReaderRoundTripExactly) {
+  const test_data::Drive drive = test_data::MakeDrive(2.0);
+  const std::string directory = WriteDrive("round_trip", drive);
+  const Dataset dataset = ReadDataset(directory);
+  EXPECT_EQ(dataset.directory, directory);
+
+  ASSERT_EQ(dataset.imu.size(), drive.imu.size());
+  for (size_t i = 0; i < drive.imu.size(); ++i) {
+    ASSERT_EQ(dataset.imu[i].t_ns, drive.imu[i].t_ns) << "imu " << i;
+    ASSERT_EQ(dataset.imu[i].gyro_rad_s, drive.imu[i].gyro_rad_s) << "imu " << i;
+    ASSERT_EQ(dataset.imu[i].accel_m_s2, drive.imu[i].accel_m_s2) << "imu " << i;
+  }
+  ASSERT_EQ(dataset.wheel.size(), drive.wheel.size());
+  for (size_t i = 0; i < drive.wheel.size(); ++i) {
+    ASSERT_EQ(dataset.wheel[i].left_rad_s, drive.wheel[i].left_rad_s) << "wheel " << i;
+    ASSERT_EQ(dataset.wheel[i].right_rad_s, drive.wheel[i].right_rad_s) << "wheel " << i;
+  }
+  ASSERT_EQ(dataset.gnss.size(), drive.gnss.size());
+  for (size_t i = 0; i < drive.gnss.size(); ++i) {
+    ASSERT_EQ(dataset.gnss[i].lat_deg, drive.gnss[i].lat_deg) << "gnss " << i;
+    ASSERT_EQ(dataset.gnss[i].lon_deg, drive.gnss[i].lon_deg) << "gnss " << i;
+  }
+  ASSERT_EQ(dataset.groundtruth_trajectory.size(), drive.trajectory.size());
+  for (size_t i = 0; i < drive.trajectory.size(); ++i) {
+    const TrajectorySample& a = dataset.groundtruth_trajectory[i];
+    const TrajectorySample& b = drive.trajectory[i];
+    ASSERT_EQ(a.t_ns, b.t_ns) << "pose " << i;
+    ASSERT_EQ(a.T_W_I.p, b.T_W_I.p) << "pose " << i;
+    ASSERT_EQ(a.T_W_I.q.coeffs(), b.T_W_I.q.coeffs()) << "pose " << i;
+    ASSERT_EQ(a.v_W_I, b.v_W_I) << "pose " << i;
+  }
+  ASSERT_TRUE(dataset.groundtruth_calibration.has_value());
+  EXPECT_EQ(dataset.groundtruth_calibration->p_I_L, drive.calibration.p_I_L);
+  EXPECT_EQ(dataset.groundtruth_calibration->q_I_L.coeffs(), drive.calibration.q_I_L.coeffs());
+  EXPECT_EQ(dataset.groundtruth_calibration->time_offset_lidar_imu_s,
+            drive.calibration.time_offset_lidar_imu_s);
+  EXPECT_EQ(dataset.sensors.nominal_calibration.p_I_L, drive.config.nominal_calibration.p_I_L);
+  EXPECT_TRUE(dataset.sensors.lidar && dataset.sensors.wheel && dataset.sensors.gnss);
+
+  ASSERT_EQ(dataset.lidar_sweeps.size(), drive.sweeps.size());
+  for (size_t i = 0; i < drive.sweeps.size(); ++i) {
+    ASSERT_EQ(dataset.lidar_sweeps[i].t_ns, drive.sweeps[i].t_ns) << "sweep " << i;
+    const lidar::LidarSweep sweep = dataset.LoadSweep(i);
+    ASSERT_EQ(sweep.t_ns, drive.sweeps[i].t_ns);
+    ASSERT_EQ(sweep.cloud.points, drive.sweeps[i].cloud.points) << "sweep " << i;
+    ASSERT_EQ(sweep.cloud.intensity, drive.sweeps[i].cloud.intensity) << "sweep " << i;
+    ASSERT_EQ(sweep.cloud.time_s, drive.sweeps[i].cloud.time_s) << "sweep " << i;
+  }
+  EXPECT_THROW(dataset.LoadSweep(drive.sweeps.size()), Error);
+}
+
+// The file contents are the ground truth of the analytic drive: the IMU a reader returns
+// integrates back to the trajectory the same reader returns (a check that the columns mean
+// what the format says: gyro in I, specific force with gravity, velocity in W).
+TEST(DatasetTest, ImuAgreesWithGroundTruth) {
+  const std::string directory = WriteDrive("consistency", test_data::MakeDrive(2.0));
+  const Dataset dataset = ReadDataset(directory);
+  const Trajectory& truth = dataset.groundtruth_trajectory;
+  const Eigen::Vector3d g_W(0.0, 0.0, -dataset.sensors.imu.gravity_m_s2);
+  Eigen::Quaterniond q = truth.front().T_W_I.q;
+  Eigen::Vector3d v = truth.front().v_W_I;
+  Eigen::Vector3d p = truth.front().T_W_I.p;
+  for (size_t i = 0; i + 1 < dataset.imu.size(); ++i) {
+    // Midpoint integration of the two samples around the step.
+    const double dt = SecondsBetween(dataset.imu[i].t_ns, dataset.imu[i + 1].t_ns);
+    const Eigen::Vector3d omega = 0.5 * (dataset.imu[i].gyro_rad_s + dataset.imu[i + 1].gyro_rad_s);
+    const Eigen::Quaterniond q_next =
+        q * Eigen::Quaterniond(Eigen::AngleAxisd(omega.norm() * dt, omega.normalized()));
+    const Eigen::Vector3d a_W =
+        0.5 * (q * dataset.imu[i].accel_m_s2 + q_next * dataset.imu[i + 1].accel_m_s2) + g_W;
+    p += v * dt + 0.5 * a_W * dt * dt;
+    v += a_W * dt;
+    q = q_next;
+  }
+  const TrajectorySample& last = truth.back();
+  ASSERT_EQ(last.t_ns, dataset.imu.back().t_ns);
+  EXPECT_LT((p - last.T_W_I.p).norm(), 1e-3) << p.transpose() << " vs " << last.T_W_I.p.transpose();
+  EXPECT_LT((v - last.v_W_I).norm(), 1e-3) << v.transpose() << " vs " << last.v_W_I.transpose();
+  EXPECT_LT(q.angularDistance(last.T_W_I.q), 1e-9);
+}
+
+TEST(DatasetTest, MissingImuCsv) {
+  const std::string directory = WriteDrive("no_imu", test_data::MakeDrive(0.5));
+  fs::remove(fs::path(directory) / "imu.csv");
+  try {
+    ReadDataset(directory);
+    FAIL() << "no error for a dataset without imu.csv";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, (fs::path(directory) / "imu.csv").string());
+    EXPECT_EQ(e.location().line, 0);
+    EXPECT_THAT(e.detail(), HasSubstr("every dataset needs imu.csv"));
+  }
+}
+
+TEST(DatasetTest, MissingSweepFile) {
+  const test_data::Drive drive = test_data::MakeDrive(0.5);
+  const std::string directory = WriteDrive("no_sweep", drive);
+  const std::string missing = std::to_string(drive.sweeps[3].t_ns) + ".ply";
+  fs::remove(fs::path(directory) / "lidar" / missing);
+  try {
+    ReadDataset(directory);
+    FAIL() << "no error for a missing sweep";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, (fs::path(directory) / "lidar.csv").string());
+    EXPECT_EQ(e.location().line, 5);  // header + 4th sweep
+    EXPECT_EQ(e.location().column,
+              static_cast<int64_t>(std::to_string(drive.sweeps[3].t_ns).size()) + 2);
+    EXPECT_THAT(e.detail(), HasSubstr("sweep file '" + missing + "' not found"));
+  }
+}
+
+TEST(DatasetTest, OnlyImuIsRequired) {
+  const fs::path directory = test::OutputDir("dataset") / "imu_only";
+  fs::remove_all(directory);
+  fs::create_directories(directory);
+  const test_data::Drive drive = test_data::MakeDrive(0.5);
+  WriteImuCsv((directory / "imu.csv").string(), drive.imu);
+  const Dataset dataset = ReadDataset(directory.string());
+  EXPECT_EQ(dataset.imu.size(), drive.imu.size());
+  EXPECT_TRUE(dataset.wheel.empty() && dataset.gnss.empty() && dataset.lidar_sweeps.empty());
+  EXPECT_FALSE(dataset.groundtruth_calibration.has_value());
+  EXPECT_FALSE(dataset.sensors.lidar.has_value());
+}
+
+TEST(DatasetTest, ErrorsInAnyFileNameThatFile) {
+  const std::string directory = WriteDrive("bad_wheel", test_data::MakeDrive(0.5));
+  const std::string wheel = (fs::path(directory) / "wheel.csv").string();
+  std::ofstream(wheel, std::ios::app) << "1,2\n";
+  try {
+    ReadDataset(directory);
+    FAIL() << "no error for a short wheel.csv row";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, wheel);
+    EXPECT_THAT(e.detail(), HasSubstr("expected 3 columns"));
+  }
+}
+
+TEST(DatasetTest, WriterRejectsOutOfOrderSweepsAndUseAfterClose) {
+  const test_data::Drive drive = test_data::MakeDrive(0.5);
+  const fs::path directory = test::OutputDir("dataset") / "writer_misuse";
+  DatasetWriter writer(directory.string());
+  writer.AddSweep(drive.sweeps[1]);
+  EXPECT_THROW(writer.AddSweep(drive.sweeps[0]), Error);
+  writer.Close();
+  EXPECT_THROW(writer.WriteImu(drive.imu), Error);
+}
+
+TEST(DatasetTest, MissingDirectory) {
+  EXPECT_THROW(ReadDataset((test::OutputDir("dataset") / "does_not_exist").string()), Error);
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace autocal

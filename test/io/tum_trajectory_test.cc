@@ -1,0 +1,82 @@
+#include "autocal/io/tum_trajectory.h"
+
+#include <fstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "io/io_test_data.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string OutPath(const std::string& name) { return (test::OutputDir("tum") / name).string(); }
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+}
+
+TEST(TumTrajectoryTest, RoundTripsPosesAndNanosecondStamps) {
+  Trajectory trajectory = test_data::MakeDrive(2.0).trajectory;
+  // Stamps that a double in seconds could not hold: epoch-sized with odd nanoseconds.
+  for (size_t i = 0; i < trajectory.size(); ++i) trajectory[i].t_ns += static_cast<int64_t>(i % 7);
+  WriteTumTrajectory(OutPath("drive.tum"), trajectory);
+  const Trajectory read = ReadTumTrajectory(OutPath("drive.tum"));
+  ASSERT_EQ(read.size(), trajectory.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    ASSERT_EQ(read[i].t_ns, trajectory[i].t_ns) << "pose " << i;
+    ASSERT_EQ(read[i].T_W_I.p, trajectory[i].T_W_I.p) << "pose " << i;
+    ASSERT_EQ(read[i].T_W_I.q.coeffs(), trajectory[i].T_W_I.q.coeffs()) << "pose " << i;
+  }
+  std::ifstream in(OutPath("drive.tum"));
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "# timestamp tx ty tz qx qy qz qw");
+}
+
+TEST(TumTrajectoryTest, ReadsShorterDecimalsAndNegativeStamps) {
+  WriteText(OutPath("short.tum"),
+            "# comment\n-0.5 0 0 0 0 0 0 1\n1.25 1 2 3 0 0 0 1\n\n2 1 2 3 0 0 1 0\n");
+  const Trajectory read = ReadTumTrajectory(OutPath("short.tum"));
+  ASSERT_EQ(read.size(), 3u);
+  EXPECT_EQ(read[0].t_ns, -500'000'000);
+  EXPECT_EQ(read[1].t_ns, 1'250'000'000);
+  EXPECT_EQ(read[2].t_ns, 2'000'000'000);
+}
+
+void ExpectParseError(const std::string& name, const std::string& text, int64_t line,
+                      int64_t column, const std::string& message) {
+  const std::string path = OutPath(name);
+  WriteText(path, text);
+  try {
+    ReadTumTrajectory(path);
+    ADD_FAILURE() << "no ParseError for\n" << text;
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, path);
+    EXPECT_EQ(e.location().line, line) << e.what();
+    EXPECT_EQ(e.location().column, column) << e.what();
+    EXPECT_THAT(e.detail(), HasSubstr(message)) << e.what();
+  }
+}
+
+TEST(TumTrajectoryTest, BadInput) {
+  const std::string head = "# timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n";
+  ExpectParseError("few.tum", head + "2.0 0 0 0 0 0 1\n", 3, 16, "expected 8 values");
+  ExpectParseError("many.tum", head + "2.0 0 0 0 0 0 0 1 9\n", 3, 19, "found 9");
+  ExpectParseError("nan.tum", head + "2.0 0 nan 0 0 0 0 1\n", 3, 7, "non-finite");
+  ExpectParseError("stamp.tum", head + "2.0s 0 0 0 0 0 0 1\n", 3, 1, "expected a timestamp");
+  ExpectParseError("duplicate.tum", head + "1.0 0 0 0 0 0 0 1\n", 3, 1, "duplicate timestamp");
+  ExpectParseError("backwards.tum", head + "0.5 0 0 0 0 0 0 1\n", 3, 1, "non-monotonic timestamp");
+  ExpectParseError("quaternion.tum", head + "2.0 0 0 0 0 0 0 2\n", 3, 11, "norm 2");
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace autocal
