@@ -24,8 +24,8 @@ std::vector<factors::PointToPlaneMeasurement> RandomMeasurements() {
     m.motion.delta_v = Eigen::Vector3d(u(rng), u(rng), u(rng));
     m.motion.delta_p = 0.1 * Eigen::Vector3d(u(rng), u(rng), u(rng));
     m.motion.omega_rad_s = 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    m.plane.n_W = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
-    m.plane.d_m = 5.0 * u(rng);
+    m.plane.normal = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    m.plane.d = 5.0 * u(rng);
   }
   return out;
 }

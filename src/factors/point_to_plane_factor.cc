@@ -10,13 +10,13 @@ PointToPlaneFactor::PointToPlaneFactor(const PointToPlaneMeasurement& measuremen
     : delta_R_(measurement.motion.delta_q.toRotationMatrix()),
       delta_R_omega_hat_(delta_R_ * geometry::Hat(measurement.motion.omega_rad_s)),
       p_L_(measurement.p_L),
-      n_W_over_sigma_(measurement.plane.n_W / measurement.sigma_m),
+      n_W_over_sigma_(measurement.plane.normal / measurement.sigma_m),
       delta_v_(measurement.motion.delta_v),
       delta_p_(measurement.motion.delta_p),
       n_gravity_velocity_(n_W_over_sigma_.dot(g_W) * measurement.motion.dt_s),
       n_gravity_position_(0.5 * n_W_over_sigma_.dot(g_W) * measurement.motion.dt_s *
                           measurement.motion.dt_s),
-      d_over_sigma_(measurement.plane.d_m / measurement.sigma_m),
+      d_over_sigma_(measurement.plane.d / measurement.sigma_m),
       dt_s_(measurement.motion.dt_s),
       offset_linearization_s_(measurement.offset_linearization_s) {}
 

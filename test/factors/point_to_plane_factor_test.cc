@@ -74,7 +74,7 @@ struct Scene {
   double t_k = 2.0;
   double t_sweep_lidar = 1.96;  // LiDAR clock
   Eigen::Vector3d p_L;
-  Plane plane;
+  lidar::Plane plane;
   double tau = 0.0;
 
   Scene(std::mt19937* rng, double tau_s) : tau(tau_s) {
@@ -89,8 +89,8 @@ struct Scene {
     const double t_true = t_sweep_lidar + tau + truth.offset_s;
     const Eigen::Vector3d p_W =
         traj.Rotation(t_true) * (truth.q_I_L * p_L + truth.p_I_L) + traj.Position(t_true);
-    plane.n_W = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)).normalized();
-    plane.d_m = -plane.n_W.dot(p_W);
+    plane.normal = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)).normalized();
+    plane.d = -plane.normal.dot(p_W);
   }
 
   // The measurement as an estimator would build it, propagating at offset_0.
@@ -166,8 +166,8 @@ PointToPlaneMeasurement RandomMeasurement(std::mt19937* rng) {
   m.motion.delta_v = 2.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
   m.motion.delta_p = 2.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
   m.motion.omega_rad_s = Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
-  m.plane.n_W = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)).normalized();
-  m.plane.d_m = 10.0 * u(*rng);
+  m.plane.normal = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)).normalized();
+  m.plane.d = 10.0 * u(*rng);
   m.sigma_m = 0.02;
   m.offset_linearization_s = 0.03 * u(*rng);
   return m;

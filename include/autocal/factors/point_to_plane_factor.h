@@ -24,6 +24,7 @@
 #include <Eigen/Geometry>
 
 #include "autocal/geometry/so3.h"
+#include "autocal/lidar/plane_fitting.h"
 
 namespace autocal {
 namespace factors {
@@ -38,16 +39,10 @@ struct PointMotion {
   Eigen::Vector3d omega_rad_s = Eigen::Vector3d::Zero();   // body rate at t, bias-corrected
 };
 
-// A plane n_W . x + d_m = 0 with unit normal, in the world frame.
-struct Plane {
-  Eigen::Vector3d n_W = Eigen::Vector3d::UnitZ();
-  double d_m = 0.0;
-};
-
 struct PointToPlaneMeasurement {
   Eigen::Vector3d p_L = Eigen::Vector3d::Zero();  // the point in the LiDAR frame
   PointMotion motion;
-  Plane plane;
+  lidar::Plane plane;                 // in W: normal . x + d = 0
   double sigma_m = 0.02;               // 1-sigma of the point-to-plane distance
   double offset_linearization_s = 0.0;  // offset_0
 };
@@ -99,7 +94,7 @@ struct PointToPlaneResidual {
     const Vec3 p_t = p_W_I + v_W_I * T(dt) + (0.5 * g * dt * dt).cast<T>() +
                      R_k * m.motion.delta_p.cast<T>() + delta * v_t;
     const Vec3 p_W = R_t * (q_I_L * m.p_L.cast<T>() + p_I_L) + p_t;
-    residual[0] = (m.plane.n_W.cast<T>().dot(p_W) + T(m.plane.d_m)) / T(m.sigma_m);
+    residual[0] = (m.plane.normal.cast<T>().dot(p_W) + T(m.plane.d)) / T(m.sigma_m);
     return true;
   }
 

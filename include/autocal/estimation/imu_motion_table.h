@@ -1,0 +1,49 @@
+#pragma once
+
+// IMU motion from a keyframe to any instant shortly after it, for the many LiDAR points of a
+// sweep: the preintegrated deltas (dR, dv, dp) of Eq. F1 are tabulated at the IMU samples
+// once, and each query integrates only the last partial step. Biases are fixed at the values
+// given (the keyframe's estimate), so a table is rebuilt when they move.
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/sensors/measurements.h"
+
+namespace autocal {
+namespace estimation {
+
+class ImuMotionTable {
+ public:
+  // Tabulates from t_begin_ns (the keyframe, IMU clock) to t_end_ns. Throws autocal::Error
+  // when the samples do not cover the interval.
+  ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
+                 const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a);
+
+  int64_t t_begin_ns() const { return t_begin_ns_; }
+  int64_t t_end_ns() const { return t_end_ns_; }
+
+  // Motion from t_begin_ns to t_ns (clamped into the tabulated interval), with the
+  // bias-corrected body rate at t_ns.
+  factors::PointMotion At(int64_t t_ns) const;
+
+ private:
+  struct Node {
+    int64_t t_ns;
+    Eigen::Quaterniond delta_q;
+    Eigen::Vector3d delta_v;
+    Eigen::Vector3d delta_p;
+    Eigen::Vector3d gyro;   // bias-corrected mean rate over the step that starts here
+    Eigen::Vector3d accel;  // bias-corrected mean specific force over that step
+  };
+  int64_t t_begin_ns_;
+  int64_t t_end_ns_;
+  std::vector<Node> nodes_;
+};
+
+}  // namespace estimation
+}  // namespace autocal

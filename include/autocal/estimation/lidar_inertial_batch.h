@@ -1,0 +1,94 @@
+#pragma once
+
+// Batch LiDAR-inertial refinement over a whole log (docs/estimation.md, "Batch
+// LiDAR-inertial solve"): one keyframe per LiDAR sweep, IMU preintegration factors between
+// consecutive keyframes, point-to-plane factors from every sweep against a plane map built
+// from all sweeps, and the LiDAR-IMU extrinsic and time offset shared by all of them.
+// An outer loop re-propagates the sweeps with the current estimate, rebuilds the map,
+// re-associates the points and solves again (ICP style) until the calibration settles.
+//
+// This is the solver core: it starts from given keyframe states and calibration (from an
+// initializer or a previous run) and refines them in place.
+
+#include <cstdint>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "autocal/estimation/plane_map.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sensor_config.h"
+
+namespace autocal {
+namespace estimation {
+
+// One keyframe's state as Ceres parameter blocks (DESIGN.md "State").
+struct Keyframe {
+  int64_t t_ns = 0;  // IMU clock
+  Eigen::Quaterniond q_W_I = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p_W_I = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_W_I = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b_g = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b_a = Eigen::Vector3d::Zero();
+};
+
+struct LidarInertialBatchOptions {
+  sensors::ImuNoise imu_noise;
+  double gravity_m_s2 = 9.80665;
+  // Keyframe k sits this long before the first point of sweep k (IMU clock, at the initial
+  // offset), so that the offset estimate may move earlier by up to this much.
+  double keyframe_lead_s = 0.02;
+  // Points of each sweep used as residuals: a voxel grid in L, then at most this many.
+  double residual_voxel_m = 0.6;
+  int max_residuals_per_sweep = 1500;
+  // Points of each sweep that build the plane map (one per voxel of this size).
+  double map_voxel_m = 0.3;
+  PlaneMapOptions plane_map;
+  double min_range_m = 2.0;  // points closer than this (the car itself) are ignored
+  // 1-sigma of a point-to-plane distance (range noise and plane fit).
+  double point_sigma_m = 0.03;
+  // Robust loss on point residuals, in units of sigma: Cauchy with this scale (0 = none).
+  double cauchy_scale = 2.0;
+  // The first iterations accept planes 2^(steps - iteration) times thicker and points that
+  // much noisier, so that a calibration still far off finds associations.
+  int coarse_to_fine_steps = 3;
+  int outer_iterations = 8;
+  int solver_iterations = 15;
+  int num_threads = 1;
+  bool estimate_extrinsic_rotation = true;
+  bool estimate_extrinsic_translation = true;
+  bool estimate_time_offset = true;
+  // Stop the outer loop when an iteration moves the extrinsic less than these.
+  double converged_rotation_deg = 1e-3;
+  double converged_translation_m = 1e-4;
+  double converged_time_offset_s = 1e-5;
+};
+
+struct LidarInertialBatchReport {
+  int outer_iterations = 0;
+  int associated_points = 0;          // in the last iteration
+  double final_cost = 0.0;
+  double point_rms_m = 0.0;           // RMS point-to-plane distance of the last iteration
+  std::vector<sensors::Calibration> calibration_per_iteration;
+};
+
+// Refines `keyframes` (one per sweep, in sweep order) and the LiDAR-IMU part of
+// `calibration` (q_I_L, p_I_L, time_offset_lidar_imu_s) in place. The first keyframe's pose
+// fixes the gauge (position and yaw are unobservable from IMU and LiDAR alone) and is held.
+// Throws autocal::Error when the inputs do not fit (sizes, IMU coverage).
+LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
+                                                 const std::vector<lidar::LidarSweep>& sweeps,
+                                                 std::vector<Keyframe>* keyframes,
+                                                 sensors::Calibration* calibration,
+                                                 const LidarInertialBatchOptions& options = {});
+
+// Keyframe time for a sweep stamped t_sweep_ns (LiDAR clock) at time offset offset_s.
+int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s, const LidarInertialBatchOptions& options);
+
+}  // namespace estimation
+}  // namespace autocal

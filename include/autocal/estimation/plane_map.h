@@ -1,0 +1,60 @@
+#pragma once
+
+// A map of local planes in the world frame for point-to-plane association
+// (docs/estimation.md, "Local map and association"): the map points are voxel-downsampled
+// and indexed by a k-d tree; a query point is associated with the total-least-squares plane
+// of its k nearest map points when those points are close, flat and thin enough.
+
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "autocal/lidar/kd_tree.h"
+#include "autocal/lidar/plane_fitting.h"
+
+namespace autocal {
+namespace estimation {
+
+struct PlaneMapOptions {
+  double voxel_m = 0.2;                  // map resolution
+  int num_neighbors = 5;                 // points per local plane
+  double max_neighbor_distance_m = 1.0;  // farthest neighbour accepted
+  // With the neighbourhood's covariance eigenvalues l0 <= l1 <= l2: flatness (l1 - l0) / l1
+  // is 1 for a plane and 0 for an isotropic blob; l1 / l2 is 0 for points on a line.
+  double min_flatness = 0.8;
+  double min_spread_ratio = 0.02;
+  // Largest distance of any neighbour to the fitted plane: rejects corners and clutter.
+  double max_plane_thickness_m = 0.1;
+  // Tagged maps only: a query tagged t uses map points whose tag differs from t by at least
+  // this much, among the search_neighbors nearest.
+  int min_tag_gap = 5;
+  int search_neighbors = 30;
+};
+
+class PlaneMap {
+ public:
+  // Voxel-downsamples the points (options.voxel_m) into an untagged map.
+  PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options = {});
+  // A map whose points carry tags (e.g. their sweep index), used as given (no downsampling),
+  // so that a sweep can be associated only with planes seen at other times: with its own
+  // points in the planes, a sweep would anchor the estimate it is meant to correct.
+  PlaneMap(Eigen::Matrix3Xd points_W, std::vector<int> tags, const PlaneMapOptions& options);
+
+  // The local plane around p_W, or false when the neighbourhood is not a clean plane.
+  bool FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const;
+  // The same, from the points of a tagged map whose tags are far enough from query_tag.
+  bool FindPlane(const Eigen::Vector3d& p_W, int query_tag, lidar::Plane* plane) const;
+
+  int64_t size() const { return tree_.size(); }
+
+ private:
+  bool FitLocalPlane(const Eigen::Matrix3Xd& local, lidar::Plane* plane) const;
+
+  PlaneMapOptions options_;
+  lidar::KdTree tree_;
+  std::vector<int> tags_;
+};
+
+}  // namespace estimation
+}  // namespace autocal

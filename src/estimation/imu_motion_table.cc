@@ -1,0 +1,87 @@
+#include "autocal/estimation/imu_motion_table.h"
+
+#include <algorithm>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace {
+
+// Linear interpolation of a sample at t_ns between its neighbours.
+sensors::ImuSample Interpolate(const sensors::ImuSample& a, const sensors::ImuSample& b,
+                               int64_t t_ns) {
+  const double s = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
+  sensors::ImuSample out;
+  out.t_ns = t_ns;
+  out.gyro_rad_s = (1.0 - s) * a.gyro_rad_s + s * b.gyro_rad_s;
+  out.accel_m_s2 = (1.0 - s) * a.accel_m_s2 + s * b.accel_m_s2;
+  return out;
+}
+
+}  // namespace
+
+ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns,
+                               int64_t t_end_ns, const Eigen::Vector3d& b_g,
+                               const Eigen::Vector3d& b_a)
+    : t_begin_ns_(t_begin_ns), t_end_ns_(t_end_ns) {
+  if (imu.size() < 2 || t_begin_ns < imu.front().t_ns || t_end_ns > imu.back().t_ns ||
+      t_end_ns < t_begin_ns) {
+    throw Error("ImuMotionTable: the IMU samples do not cover [" + std::to_string(t_begin_ns) +
+                ", " + std::to_string(t_end_ns) + "] ns");
+  }
+  // The IMU signal is piecewise linear between samples: the boundaries are interpolated and
+  // each step integrates the mean of its end values.
+  auto first = std::upper_bound(imu.begin(), imu.end(), t_begin_ns,
+                                [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
+  if (first == imu.end()) --first;  // t_begin_ns is the last sample
+  std::vector<sensors::ImuSample> knots;
+  knots.push_back(Interpolate(*(first - 1), *first, t_begin_ns));
+  for (auto it = first; it != imu.end() && it->t_ns < t_end_ns; ++it) knots.push_back(*it);
+  if (knots.back().t_ns < t_end_ns) {
+    auto last = std::lower_bound(imu.begin(), imu.end(), t_end_ns,
+                                 [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
+    knots.push_back(last->t_ns == t_end_ns ? *last : Interpolate(*(last - 1), *last, t_end_ns));
+  }
+
+  Node node{t_begin_ns, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(),
+            Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  for (size_t i = 0; i + 1 < knots.size(); ++i) {
+    node.t_ns = knots[i].t_ns;
+    node.gyro = 0.5 * (knots[i].gyro_rad_s + knots[i + 1].gyro_rad_s) - b_g;
+    node.accel = 0.5 * (knots[i].accel_m_s2 + knots[i + 1].accel_m_s2) - b_a;
+    nodes_.push_back(node);
+    const double dt = SecondsBetween(knots[i].t_ns, knots[i + 1].t_ns);
+    // The specific force is rotated with the attitude at mid-step (midpoint rule).
+    const Eigen::Vector3d a_k =
+        node.delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * node.gyro)) * node.accel);
+    node.delta_p += node.delta_v * dt + 0.5 * a_k * dt * dt;
+    node.delta_v += a_k * dt;
+    node.delta_q = (node.delta_q * geometry::Exp(Eigen::Vector3d(node.gyro * dt))).normalized();
+  }
+  node.t_ns = knots.back().t_ns;
+  nodes_.push_back(node);  // terminal node: rates of the last step
+}
+
+factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
+  t_ns = std::clamp(t_ns, t_begin_ns_, t_end_ns_);
+  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), t_ns,
+                             [](int64_t t, const Node& n) { return t < n.t_ns; });
+  const Node& n = *(it - 1);
+  const double dt = SecondsBetween(n.t_ns, t_ns);
+  const Eigen::Vector3d a_k =
+      n.delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * n.gyro)) * n.accel);
+  factors::PointMotion m;
+  m.dt_s = SecondsBetween(t_begin_ns_, t_ns);
+  m.delta_q = (n.delta_q * geometry::Exp(Eigen::Vector3d(n.gyro * dt))).normalized();
+  m.delta_v = n.delta_v + a_k * dt;
+  m.delta_p = n.delta_p + n.delta_v * dt + 0.5 * a_k * dt * dt;
+  m.omega_rad_s = n.gyro;
+  return m;
+}
+
+}  // namespace estimation
+}  // namespace autocal

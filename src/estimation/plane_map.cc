@@ -1,0 +1,81 @@
+#include "autocal/estimation/plane_map.h"
+
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "autocal/common/error.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/lidar/voxel_grid.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace {
+
+Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
+  lidar::PointCloud cloud;
+  cloud.points = points;
+  return lidar::VoxelDownsample(cloud, voxel_m).points;
+}
+
+}  // namespace
+
+PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options)
+    : options_(options), tree_(Downsample(points_W, options.voxel_m)) {}
+
+PlaneMap::PlaneMap(Eigen::Matrix3Xd points_W, std::vector<int> tags, const PlaneMapOptions& options)
+    : options_(options), tree_(std::move(points_W)), tags_(std::move(tags)) {
+  if (static_cast<int64_t>(tags_.size()) != tree_.size()) {
+    throw Error("PlaneMap: one tag per point is required");
+  }
+}
+
+bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const {
+  const int k = options_.num_neighbors;
+  std::vector<lidar::Neighbor> neighbors(static_cast<size_t>(k));
+  if (tree_.Knn(p_W, k, neighbors.data()) < k) return false;
+  const double max_sq = options_.max_neighbor_distance_m * options_.max_neighbor_distance_m;
+  if (neighbors.back().squared_distance_m2 > max_sq) return false;
+  Eigen::Matrix3Xd local(3, k);
+  for (int i = 0; i < k; ++i) local.col(i) = tree_.points().col(neighbors[i].index);
+  return FitLocalPlane(local, plane);
+}
+
+bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, int query_tag, lidar::Plane* plane) const {
+  if (tags_.empty()) return FindPlane(p_W, plane);
+  const int k = options_.num_neighbors;
+  thread_local std::vector<lidar::Neighbor> neighbors;
+  neighbors.resize(static_cast<size_t>(options_.search_neighbors));
+  const int found = tree_.Knn(p_W, options_.search_neighbors, neighbors.data());
+  const double max_sq = options_.max_neighbor_distance_m * options_.max_neighbor_distance_m;
+  Eigen::Matrix3Xd local(3, k);
+  int used = 0;
+  for (int i = 0; i < found && used < k; ++i) {
+    if (neighbors[i].squared_distance_m2 > max_sq) break;
+    if (std::abs(tags_[neighbors[i].index] - query_tag) < options_.min_tag_gap) continue;
+    local.col(used++) = tree_.points().col(neighbors[i].index);
+  }
+  return used == k && FitLocalPlane(local, plane);
+}
+
+bool PlaneMap::FitLocalPlane(const Eigen::Matrix3Xd& local, lidar::Plane* plane) const {
+  const Eigen::Vector3d centroid = local.rowwise().mean();
+  const Eigen::Matrix3Xd centered = local.colwise() - centroid;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(centered * centered.transpose());
+  const Eigen::Vector3d l = solver.eigenvalues();  // ascending
+  if (l(2) <= 0.0 || l(1) < options_.min_spread_ratio * l(2)) return false;  // a line
+  if ((l(1) - l(0)) < options_.min_flatness * l(1)) return false;            // a blob
+  const Eigen::Vector3d normal = solver.eigenvectors().col(0);
+  if ((normal.transpose() * centered).cwiseAbs().maxCoeff() > options_.max_plane_thickness_m) {
+    return false;
+  }
+  plane->normal = normal;
+  plane->d = -normal.dot(centroid);
+  return true;
+}
+
+}  // namespace estimation
+}  // namespace autocal

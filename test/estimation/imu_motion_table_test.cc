@@ -1,0 +1,84 @@
+#include "autocal/estimation/imu_motion_table.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace estimation {
+namespace {
+
+const Eigen::Vector3d kGravity(0.0, 0.0, -9.80665);
+
+// Smooth motion with exact derivatives: R = Exp(phi(t)), body rate Jr(phi) phi'.
+struct Motion {
+  Eigen::Vector3d p(double t) const {
+    return {8.0 * t + 0.5 * std::sin(1.3 * t), 3.0 * std::cos(0.4 * t), 0.2 * std::sin(0.8 * t)};
+  }
+  Eigen::Vector3d v(double t) const {
+    return {8.0 + 0.65 * std::cos(1.3 * t), -1.2 * std::sin(0.4 * t), 0.16 * std::cos(0.8 * t)};
+  }
+  Eigen::Vector3d a(double t) const {
+    return {-0.845 * std::sin(1.3 * t), -0.48 * std::cos(0.4 * t), -0.128 * std::sin(0.8 * t)};
+  }
+  Eigen::Vector3d phi(double t) const {
+    return {0.05 * std::sin(2.0 * t), 0.04 * std::cos(1.5 * t), 0.5 * t};
+  }
+  Eigen::Vector3d phi_dot(double t) const {
+    return {0.1 * std::cos(2.0 * t), -0.06 * std::sin(1.5 * t), 0.5};
+  }
+  Eigen::Quaterniond q(double t) const { return geometry::Exp(phi(t)); }
+  Eigen::Vector3d omega(double t) const { return geometry::RightJacobian(phi(t)) * phi_dot(t); }
+};
+
+sensors::ImuSamples Sample(const Motion& m, const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a) {
+  sensors::ImuSamples imu;
+  for (int64_t t_ns = 0; t_ns <= SecondsToNs(3.0); t_ns += 5'000'000) {
+    const double t = NsToSeconds(t_ns);
+    imu.push_back({t_ns, m.omega(t) + b_g, m.q(t).conjugate() * (m.a(t) - kGravity) + b_a});
+  }
+  return imu;
+}
+
+TEST(ImuMotionTable, MatchesTrueMotionInsideASweep) {
+  const Motion motion;
+  const Eigen::Vector3d b_g(0.01, -0.02, 0.005), b_a(0.1, 0.05, -0.08);
+  const sensors::ImuSamples imu = Sample(motion, b_g, b_a);
+  const int64_t t_k = 1'002'500'000;  // between two samples
+  const ImuMotionTable table(imu, t_k, t_k + 110'000'000, b_g, b_a);
+  const double tk = NsToSeconds(t_k);
+  for (int64_t offset_ns : {0LL, 1'234'567LL, 50'000'000LL, 99'999'999LL, 110'000'000LL}) {
+    const int64_t t_ns = t_k + offset_ns;
+    const double t = NsToSeconds(t_ns), dt = t - tk;
+    const factors::PointMotion m = table.At(t_ns);
+    const Eigen::Quaterniond q_k = motion.q(tk);
+    EXPECT_NEAR(m.dt_s, dt, 1e-12);
+    const Eigen::Quaterniond dq_true = q_k.conjugate() * motion.q(t);
+    const Eigen::Vector3d dv_true = q_k.conjugate() * (motion.v(t) - motion.v(tk) - kGravity * dt);
+    const Eigen::Vector3d dp_true = q_k.conjugate() * (motion.p(t) - motion.p(tk) -
+                                                       motion.v(tk) * dt - 0.5 * kGravity * dt * dt);
+    // Midpoint integration of 5 ms steps: errors of order (rate change per step)^2.
+    EXPECT_LT(geometry::AngularDistance(m.delta_q, dq_true), 2e-6) << "dt " << dt;
+    EXPECT_LT((m.delta_v - dv_true).norm(), 1e-4) << "dt " << dt;
+    EXPECT_LT((m.delta_p - dp_true).norm(), 1e-5) << "dt " << dt;
+    EXPECT_LT((m.omega_rad_s - motion.omega(t)).norm(), 5e-3) << "dt " << dt;
+  }
+}
+
+TEST(ImuMotionTable, RefusesIntervalsOutsideTheSamples) {
+  const Motion motion;
+  const sensors::ImuSamples imu = Sample(motion, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_THROW(ImuMotionTable(imu, -1, 100, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()),
+               Error);
+  EXPECT_THROW(ImuMotionTable(imu, 2'900'000'000, 3'100'000'000, Eigen::Vector3d::Zero(),
+                              Eigen::Vector3d::Zero()),
+               Error);
+}
+
+}  // namespace
+}  // namespace estimation
+}  // namespace autocal
