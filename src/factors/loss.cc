@@ -28,33 +28,11 @@ void CheckScale(double scale, const std::string& context) {
 
 }  // namespace
 
-LossType ParseLossType(const std::string& name) {
-  std::string lower = Trim(name);
-  std::transform(lower.begin(), lower.end(), lower.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (lower == "none") return LossType::kNone;
-  if (lower == "huber") return LossType::kHuber;
-  if (lower == "cauchy") return LossType::kCauchy;
-  throw Error("unknown robust loss '" + name + "' (expected none, huber or cauchy)");
-}
-
-const char* LossTypeName(LossType type) {
-  switch (type) {
-    case LossType::kNone:
-      return "none";
-    case LossType::kHuber:
-      return "huber";
-    case LossType::kCauchy:
-      return "cauchy";
-  }
-  return "none";
-}
-
 LossOptions ParseLossOptions(const std::string& text) {
   const std::string trimmed = Trim(text);
   const size_t split = trimmed.find_first_of(": \t");
   LossOptions options;
-  options.type = ParseLossType(trimmed.substr(0, split));
+  options.type = lidar::ParseRobustLoss(trimmed.substr(0, split));
   if (split == std::string::npos) return options;
   const std::string scale_text = Trim(trimmed.substr(split + 1));
   char* end = nullptr;
@@ -69,13 +47,13 @@ LossOptions ParseLossOptions(const std::string& text) {
 }
 
 ceres::LossFunction* MakeLossFunction(const LossOptions& options) {
-  CheckScale(options.scale, LossTypeName(options.type));
+  CheckScale(options.scale, lidar::RobustLossName(options.type));
   switch (options.type) {
-    case LossType::kNone:
+    case lidar::RobustLoss::kNone:
       return nullptr;
-    case LossType::kHuber:
+    case lidar::RobustLoss::kHuber:
       return new ceres::HuberLoss(options.scale);
-    case LossType::kCauchy:
+    case lidar::RobustLoss::kCauchy:
       return new ceres::CauchyLoss(options.scale);
   }
   return nullptr;

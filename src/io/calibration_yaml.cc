@@ -1,9 +1,6 @@
 #include "autocal/io/calibration_yaml.h"
 
-#include <cerrno>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <string>
 
 #include "autocal/common/error.h"
@@ -229,11 +226,7 @@ void WriteCalibrationYaml(const std::string& path, const CalibrationFile& calibr
       "# autocal calibration (schema: datasets/README.md). T_a_b maps frame b into frame a;\n"
       "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_lidar + time_offset_lidar_imu_s.\n" +
       CalibrationYamlText(calibration);
-  std::ofstream out(path, std::ios::trunc);
-  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
-  out << text;
-  out.close();
-  if (!out) throw Error("error while writing '" + path + "'");
+  internal::WriteFileText(path, text);
 }
 
 }  // namespace io

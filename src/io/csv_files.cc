@@ -1,13 +1,10 @@
 #include "autocal/io/csv_files.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -93,14 +90,6 @@ void CheckIncreasing(int64_t previous_ns, int64_t t_ns, size_t row, const std::s
   }
 }
 
-void WriteText(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
-  out.write(text.data(), static_cast<std::streamsize>(text.size()));
-  out.close();
-  if (!out) throw Error("error while writing '" + path + "'");
-}
-
 template <typename Sample, typename Numbers>
 void WriteRows(const std::string& path, const std::vector<std::string>& columns,
                const std::vector<Sample>& samples, Numbers numbers) {
@@ -110,7 +99,7 @@ void WriteRows(const std::string& path, const std::vector<std::string>& columns,
     text += std::to_string(samples[i].t_ns);
     AppendNumbers(numbers(samples[i]), path, i, &text);
   }
-  WriteText(path, text);
+  internal::WriteFileText(path, text);
 }
 
 // ---- plausibility of imu.csv ----
@@ -313,7 +302,7 @@ void WriteLidarCsv(const std::string& path, const std::vector<LidarSweepRef>& sw
     if (i > 0) CheckIncreasing(sweeps[i - 1].t_ns, sweeps[i].t_ns, i, path);
     text += internal::LidarRow(sweeps[i]);
   }
-  WriteText(path, text);
+  internal::WriteFileText(path, text);
 }
 
 void WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory) {

@@ -2,7 +2,6 @@
 
 #include <utility>
 
-#include "autocal/common/error.h"
 #include "io/text_format.h"
 
 namespace autocal {
@@ -10,15 +9,15 @@ namespace io {
 namespace internal {
 
 CsvReader::CsvReader(std::string path, std::vector<std::string> columns)
-    : path_(std::move(path)), columns_(std::move(columns)), bytes_(ReadFileBytes(path_)) {
+    : path_(std::move(path)),
+      columns_(std::move(columns)),
+      bytes_(ReadFileBytes(path_)),
+      source_(path_, bytes_) {
   if (bytes_.empty()) FailAt(1, 1, "empty file; expected the header line '" + HeaderText() + "'");
   // Spreadsheet programs may prefix a UTF-8 byte order mark; it is not part of the header.
-  const size_t start = bytes_.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0;
-  const size_t end = bytes_.find('\n');
-  std::string_view header = std::string_view(bytes_).substr(start, end - start);
-  if (!header.empty() && header.back() == '\r') header.remove_suffix(1);
-  pos_ = end == std::string::npos ? bytes_.size() : end + 1;
-  line_ = 1;
+  source_.set_pos(bytes_.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0);
+  std::string_view header;
+  source_.NextLine(&header);
   CheckHeader(header);
 }
 
@@ -82,19 +81,15 @@ void CsvReader::CheckHeader(std::string_view line) {
 }
 
 bool CsvReader::Next() {
-  if (pos_ >= bytes_.size()) return false;
-  const size_t end = bytes_.find('\n', pos_);
-  std::string_view line = std::string_view(bytes_).substr(
-      pos_, end == std::string::npos ? std::string::npos : end - pos_);
-  pos_ = end == std::string::npos ? bytes_.size() : end + 1;
-  ++line_;
-  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-  if (Trim(line).empty()) FailAt(line_, 1, "empty line; every line after the header is a data row");
+  std::string_view line;
+  if (!source_.NextLine(&line)) return false;
+  if (Trim(line).empty())
+    source_.FailAtColumn(1, "empty line; every line after the header is a data row");
   Split(line);
   if (fields_.size() < columns_.size()) {
-    FailAt(line_, static_cast<int64_t>(line_length_) + 1,
-           "expected " + std::to_string(columns_.size()) + " columns (" + HeaderText() +
-               "), found " + std::to_string(fields_.size()));
+    source_.FailAtColumn(static_cast<int64_t>(line_length_) + 1,
+                         "expected " + std::to_string(columns_.size()) + " columns (" +
+                             HeaderText() + "), found " + std::to_string(fields_.size()));
   }
   if (fields_.size() > columns_.size()) {
     Fail(columns_.size(), "expected " + std::to_string(columns_.size()) + " columns (" +
@@ -128,20 +123,16 @@ int64_t CsvReader::Timestamp() {
   }
   has_previous_time_ = true;
   previous_time_ns_ = t_ns;
-  previous_time_line_ = line_;
+  previous_time_line_ = source_.line();
   return t_ns;
 }
 
 void CsvReader::Fail(size_t field, const std::string& message) const {
-  FailAt(line_, fields_[field].column, message);
+  source_.FailAtColumn(fields_[field].column, message);
 }
 
 void CsvReader::FailAt(int64_t line, int64_t column, const std::string& message) const {
-  SourceLocation location;
-  location.file = path_;
-  location.line = line;
-  location.column = column;
-  throw ParseError(location, message);
+  source_.FailAt(line, column, message);
 }
 
 }  // namespace internal

@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include "io/byte_source.h"
+
 namespace autocal {
 namespace io {
 namespace internal {
@@ -19,11 +21,14 @@ class CsvReader {
   // Reads `path` and checks its header against `columns`. Throws autocal::Error when the
   // file cannot be read, ParseError on an empty file or a wrong header.
   CsvReader(std::string path, std::vector<std::string> columns);
+  // source_ refers to path_ and bytes_ of this object.
+  CsvReader(const CsvReader&) = delete;
+  CsvReader& operator=(const CsvReader&) = delete;
 
   // Advances to the next data row; false after the last one.
   bool Next();
 
-  int64_t line() const { return line_; }
+  int64_t line() const { return source_.line(); }
   int64_t column(size_t field) const { return fields_[field].column; }
   const std::string& path() const { return path_; }
   // "t_ns,gx,..." for messages.
@@ -52,8 +57,7 @@ class CsvReader {
   std::string path_;
   std::vector<std::string> columns_;
   std::string bytes_;
-  size_t pos_ = 0;
-  int64_t line_ = 0;
+  ByteSource source_;  // over path_ and bytes_, so declared after them
   size_t line_length_ = 0;
   std::vector<Field> fields_;
   bool has_previous_time_ = false;

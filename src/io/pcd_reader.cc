@@ -9,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-#include "autocal/common/error.h"
+#include "io/byte_source.h"
 #include "io/point_cloud_builder.h"
 #include "io/point_cloud_formats.h"
 #include "io/scalar_type.h"
@@ -33,7 +33,7 @@ enum class PcdData { kAscii, kBinary };
 class PcdParser {
  public:
   PcdParser(const std::string& path, const std::string& bytes, const PointCloudReadOptions& options)
-      : path_(path), bytes_(bytes), options_(options) {}
+      : source_(path, bytes), options_(options) {}
 
   lidar::PointCloud Parse() {
     ParseHeader();
@@ -42,115 +42,89 @@ class PcdParser {
   }
 
  private:
-  [[noreturn]] void FailAt(int64_t line, int64_t column, const std::string& message) const {
-    SourceLocation location;
-    location.file = path_;
-    location.line = line;
-    location.column = column;
-    throw ParseError(location, message);
-  }
-
-  [[noreturn]] void FailAtByte(size_t offset, const std::string& message) const {
-    SourceLocation location;
-    location.file = path_;
-    location.byte_offset = static_cast<int64_t>(offset);
-    throw ParseError(location, message);
-  }
-
-  bool NextLine(std::string_view* line) {
-    if (pos_ >= bytes_.size()) return false;
-    size_t end = bytes_.find('\n', pos_);
-    const size_t next = end == std::string::npos ? bytes_.size() : end + 1;
-    if (end == std::string::npos) end = bytes_.size();
-    *line = std::string_view(bytes_).substr(pos_, end - pos_);
-    if (!line->empty() && line->back() == '\r') line->remove_suffix(1);
-    pos_ = next;
-    ++line_;
-    return true;
-  }
-
   int64_t ParseCount(const Word& word, int64_t min_value) const {
-    int64_t value = 0;
-    std::string why;
-    if (!ParseInt64(word.text, &value, &why)) FailAt(line_, word.column, why);
+    const int64_t value = source_.IntegerAt(word.text, source_.line(), word.column);
     if (value < min_value) {
-      FailAt(line_, word.column,
-             "expected an integer >= " + std::to_string(min_value) + ", found " + Quote(word.text));
+      source_.FailAtColumn(word.column, "expected an integer >= " + std::to_string(min_value) +
+                                            ", found " + Quote(word.text));
     }
     return value;
   }
 
   // One value per field; its count must match FIELDS.
   void CheckPerField(const std::vector<Word>& words) const {
-    if (fields_.empty()) FailAt(line_, 1, Quote(words[0].text) + " before FIELDS");
+    if (fields_.empty()) source_.FailAtColumn(1, Quote(words[0].text) + " before FIELDS");
     if (words.size() - 1 != fields_.size()) {
-      FailAt(line_, words[0].column,
-             Quote(words[0].text) + " has " + std::to_string(words.size() - 1) +
-                 " values but FIELDS names " + std::to_string(fields_.size()));
+      source_.FailAtColumn(words[0].column,
+                           Quote(words[0].text) + " has " + std::to_string(words.size() - 1) +
+                               " values but FIELDS names " + std::to_string(fields_.size()));
     }
   }
 
   void ParseHeader() {
-    if (bytes_.empty())
-      FailAtByte(0, "empty file; a PCD file starts with its header (VERSION, FIELDS, ...)");
+    if (source_.size() == 0)
+      source_.FailAtByte(0, "empty file; a PCD file starts with its header (VERSION, FIELDS, ...)");
     std::vector<Word> sizes;
     std::vector<Word> types;
     int64_t sizes_line = 0;
     int64_t types_line = 0;
     std::string_view line;
-    while (NextLine(&line)) {
+    while (source_.NextLine(&line)) {
       const std::vector<Word> words = SplitWords(line);
       if (words.empty() || words[0].text[0] == '#') continue;
       const std::string_view key = words[0].text;
       if (key == "VERSION" || key == "VIEWPOINT") continue;
       if (key == "FIELDS") {
         for (size_t i = 1; i < words.size(); ++i) fields_.push_back({std::string(words[i].text)});
-        if (fields_.empty()) FailAt(line_, 1, "FIELDS names no field");
+        if (fields_.empty()) source_.FailAtColumn(1, "FIELDS names no field");
       } else if (key == "SIZE") {
         CheckPerField(words);
         sizes = words;
-        sizes_line = line_;
+        sizes_line = source_.line();
       } else if (key == "TYPE") {
         CheckPerField(words);
         types = words;
-        types_line = line_;
+        types_line = source_.line();
       } else if (key == "COUNT") {
         CheckPerField(words);
         for (size_t i = 1; i < words.size(); ++i) fields_[i - 1].count = ParseCount(words[i], 1);
       } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
-        if (words.size() != 2) FailAt(line_, 1, "expected '" + std::string(key) + " <integer>'");
+        if (words.size() != 2)
+          source_.FailAtColumn(1, "expected '" + std::string(key) + " <integer>'");
         const int64_t value = ParseCount(words[1], 0);
         (key == "WIDTH" ? width_ : key == "HEIGHT" ? height_ : points_) = value;
       } else if (key == "DATA") {
-        if (words.size() != 2) FailAt(line_, 1, "expected 'DATA ascii' or 'DATA binary'");
+        if (words.size() != 2) source_.FailAtColumn(1, "expected 'DATA ascii' or 'DATA binary'");
         if (words[1].text == "ascii") {
           data_ = PcdData::kAscii;
         } else if (words[1].text == "binary") {
           data_ = PcdData::kBinary;
         } else if (words[1].text == "binary_compressed") {
-          FailAt(line_, words[1].column,
-                 "PCD 'DATA binary_compressed' is unsupported; convert the file to binary or "
-                 "ascii (e.g. with PCL's pcl_convert_pcd_ascii_binary)");
+          source_.FailAtColumn(
+              words[1].column,
+              "PCD 'DATA binary_compressed' is unsupported; convert the file to binary or "
+              "ascii (e.g. with PCL's pcl_convert_pcd_ascii_binary)");
         } else {
-          FailAt(line_, words[1].column, "unknown PCD DATA kind " + Quote(words[1].text));
+          source_.FailAtColumn(words[1].column, "unknown PCD DATA kind " + Quote(words[1].text));
         }
-        data_line_ = line_;
+        data_line_ = source_.line();
         ResolveTypes(sizes, sizes_line, types, types_line);
         ResolvePointCount();
         return;
       } else {
-        FailAt(line_, words[0].column, "unknown PCD header key " + Quote(key));
+        source_.FailAtColumn(words[0].column, "unknown PCD header key " + Quote(key));
       }
     }
-    FailAtByte(bytes_.size(),
-               "file ends inside the PCD header (no DATA line): truncated or not a PCD file");
+    source_.FailAtByte(
+        source_.size(),
+        "file ends inside the PCD header (no DATA line): truncated or not a PCD file");
   }
 
   void ResolveTypes(const std::vector<Word>& sizes, int64_t sizes_line,
                     const std::vector<Word>& types, int64_t types_line) {
-    if (fields_.empty()) FailAt(data_line_, 1, "PCD header has no FIELDS line");
-    if (sizes.empty()) FailAt(data_line_, 1, "PCD header has no SIZE line");
-    if (types.empty()) FailAt(data_line_, 1, "PCD header has no TYPE line");
+    if (fields_.empty()) source_.FailAt(data_line_, 1, "PCD header has no FIELDS line");
+    if (sizes.empty()) source_.FailAt(data_line_, 1, "PCD header has no SIZE line");
+    if (types.empty()) source_.FailAt(data_line_, 1, "PCD header has no TYPE line");
     size_t offset = 0;
     for (size_t i = 0; i < fields_.size(); ++i) {
       const Word& size_word = sizes[i + 1];
@@ -170,13 +144,14 @@ class PcdParser {
         if (s == "2") type = ScalarType::kUint16;
         if (s == "4") type = ScalarType::kUint32;
       } else {
-        FailAt(types_line, type_word.column,
-               "unknown PCD TYPE " + Quote(t) + " (expected I, U or F)");
+        source_.FailAt(types_line, type_word.column,
+                       "unknown PCD TYPE " + Quote(t) + " (expected I, U or F)");
       }
       if (!type) {
-        FailAt(sizes_line, size_word.column,
-               "unsupported SIZE " + Quote(s) + " for TYPE " + std::string(t) + " of field '" +
-                   fields_[i].name + "' (supported: F 4/8, I 1/2/4, U 1/2/4)");
+        source_.FailAt(sizes_line, size_word.column,
+                       "unsupported SIZE " + Quote(s) + " for TYPE " + std::string(t) +
+                           " of field '" + fields_[i].name +
+                           "' (supported: F 4/8, I 1/2/4, U 1/2/4)");
       }
       fields_[i].type = *type;
       fields_[i].offset = offset;
@@ -186,16 +161,16 @@ class PcdParser {
   }
 
   void ResolvePointCount() {
-    if (width_ < 0) FailAt(data_line_, 1, "PCD header has no WIDTH line");
+    if (width_ < 0) source_.FailAt(data_line_, 1, "PCD header has no WIDTH line");
     if (height_ < 0) height_ = 1;
     if (height_ > 0 && width_ > std::numeric_limits<int64_t>::max() / height_) {
-      FailAt(data_line_, 1, "PCD WIDTH x HEIGHT overflows");
+      source_.FailAt(data_line_, 1, "PCD WIDTH x HEIGHT overflows");
     }
     if (points_ < 0) points_ = width_ * height_;
     if (points_ != width_ * height_) {
-      FailAt(data_line_, 1,
-             "PCD header says POINTS " + std::to_string(points_) +
-                 " but WIDTH x HEIGHT = " + std::to_string(width_ * height_));
+      source_.FailAt(data_line_, 1,
+                     "PCD header says POINTS " + std::to_string(points_) +
+                         " but WIDTH x HEIGHT = " + std::to_string(width_ * height_));
     }
   }
 
@@ -210,12 +185,13 @@ class PcdParser {
     for (int axis = 0; axis < 3; ++axis) {
       const int i = find(kAxes[axis]);
       if (i < 0) {
-        FailAt(
+        source_.FailAt(
             data_line_, 1,
             std::string("PCD FIELDS has no '") + kAxes[axis] + "'; a point cloud needs x, y and z");
       }
       if (fields_[i].count != 1) {
-        FailAt(data_line_, 1, std::string("PCD field '") + kAxes[axis] + "' has COUNT != 1");
+        source_.FailAt(data_line_, 1,
+                       std::string("PCD field '") + kAxes[axis] + "' has COUNT != 1");
       }
       fields_[i].role = axis;
     }
@@ -234,82 +210,72 @@ class PcdParser {
                 int64_t line, size_t byte_offset) const {
     int bad = 0;
     if (builder->Add(values, &bad) == PointCloudBuilder::AddResult::kNonFinite) {
-      const std::string message = "point " + std::to_string(index) + " has a non-finite " +
-                                  PointValueName(bad) +
-                                  " (set PointCloudReadOptions::drop_non_finite_points to "
-                                  "drop such points)";
-      if (line > 0) FailAt(line, 1, message);
-      FailAtByte(byte_offset, message);
+      source_.FailAtLineOrByte(line, byte_offset, NonFiniteMessage("point", index, bad));
     }
   }
 
   lidar::PointCloud ReadAscii() {
     int64_t values_per_line = 0;
     for (const PcdField& field : fields_) values_per_line += field.count;
-    if (static_cast<uint64_t>(points_) > bytes_.size() - pos_ + 1) {
-      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
-                                    " but the header declares " + std::to_string(points_) +
-                                    " points: truncated?");
+    if (static_cast<uint64_t>(points_) > source_.remaining() + 1) {
+      source_.FailAtByte(source_.size(), "file ends at byte " + std::to_string(source_.size()) +
+                                             " but the header declares " + std::to_string(points_) +
+                                             " points: truncated?");
     }
     PointCloudBuilder builder(points_, has_intensity_, has_time_, options_.drop_non_finite_points);
     for (int64_t i = 0; i < points_; ++i) {
       std::string_view line;
-      if (!NextLine(&line)) {
-        FailAtByte(bytes_.size(), "file ends after " + std::to_string(i) + " of " +
-                                      std::to_string(points_) + " points: truncated?");
+      if (!source_.NextLine(&line)) {
+        source_.FailAtByte(source_.size(), "file ends after " + std::to_string(i) + " of " +
+                                               std::to_string(points_) + " points: truncated?");
       }
       const std::vector<Word> words = SplitWords(line);
       if (static_cast<int64_t>(words.size()) != values_per_line) {
         const int64_t column = static_cast<int64_t>(words.size()) > values_per_line
                                    ? words[values_per_line].column
                                    : static_cast<int64_t>(line.size()) + 1;
-        FailAt(line_, column,
-               "expected " + std::to_string(values_per_line) + " values, found " +
-                   std::to_string(words.size()));
+        source_.FailAtColumn(column, "expected " + std::to_string(values_per_line) +
+                                         " values, found " + std::to_string(words.size()));
       }
       double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
       size_t w = 0;
       for (const PcdField& field : fields_) {
         if (field.role >= 0) {
-          std::string why;
-          if (!ParseDouble(words[w].text, &values[field.role], &why)) {
-            FailAt(line_, words[w].column, why);
-          }
+          values[field.role] = source_.DoubleAt(words[w].text, source_.line(), words[w].column);
         }
         w += static_cast<size_t>(field.count);
       }
-      AddPoint(&builder, values, i, line_, 0);
+      AddPoint(&builder, values, i, source_.line(), 0);
     }
     return builder.Finish();
   }
 
   lidar::PointCloud ReadBinary() {
-    const size_t remaining = bytes_.size() - pos_;
+    const size_t remaining = source_.remaining();
     if (record_size_ == 0 || static_cast<uint64_t>(points_) > remaining / record_size_) {
-      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
-                                    " but the header declares " + std::to_string(points_) +
-                                    " points of " + std::to_string(record_size_) +
-                                    " bytes after byte " + std::to_string(pos_) + ": truncated?");
+      source_.FailAtByte(source_.size(), "file ends at byte " + std::to_string(source_.size()) +
+                                             " but the header declares " + std::to_string(points_) +
+                                             " points of " + std::to_string(record_size_) +
+                                             " bytes after byte " + std::to_string(source_.pos()) +
+                                             ": truncated?");
     }
     PointCloudBuilder builder(points_, has_intensity_, has_time_, options_.drop_non_finite_points);
     for (int64_t i = 0; i < points_; ++i) {
-      const size_t record = pos_ + static_cast<size_t>(i) * record_size_;
+      const size_t record = source_.pos() + static_cast<size_t>(i) * record_size_;
       double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
       for (const PcdField& field : fields_) {
         if (field.role < 0) continue;
         // PCD binary data is a memory dump of little-endian machines.
-        values[field.role] = DecodeScalar(bytes_.data() + record + field.offset, field.type, true);
+        values[field.role] =
+            DecodeScalar(source_.bytes().data() + record + field.offset, field.type, true);
       }
       AddPoint(&builder, values, i, 0, record);
     }
     return builder.Finish();
   }
 
-  const std::string& path_;
-  const std::string& bytes_;
+  ByteSource source_;
   const PointCloudReadOptions& options_;
-  size_t pos_ = 0;
-  int64_t line_ = 0;
   int64_t data_line_ = 0;
   std::vector<PcdField> fields_;
   int64_t width_ = -1;

@@ -9,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-#include "autocal/common/error.h"
+#include "io/byte_source.h"
 #include "io/point_cloud_builder.h"
 #include "io/point_cloud_formats.h"
 #include "io/scalar_type.h"
@@ -46,7 +46,7 @@ struct AsciiToken {
 class PlyParser {
  public:
   PlyParser(const std::string& path, const std::string& bytes, const PointCloudReadOptions& options)
-      : path_(path), bytes_(bytes), options_(options) {}
+      : source_(path, bytes), options_(options) {}
 
   lidar::PointCloud Parse() {
     ParseHeader();
@@ -54,8 +54,8 @@ class PlyParser {
     ResolveVertexRoles(elements_[vertex_index]);
     if (format_ == PlyFormat::kAscii) {
       // The body starts on the line after end_header.
-      ++line_;
-      line_start_ = pos_;
+      source_.set_line(source_.line() + 1);
+      line_start_ = source_.pos();
       for (size_t e = 0; e < vertex_index; ++e) SkipAsciiElement(elements_[e]);
       return ReadAsciiVertices(elements_[vertex_index]);
     }
@@ -64,49 +64,23 @@ class PlyParser {
   }
 
  private:
-  [[noreturn]] void FailAt(int64_t line, int64_t column, const std::string& message) const {
-    SourceLocation location;
-    location.file = path_;
-    location.line = line;
-    location.column = column;
-    throw ParseError(location, message);
-  }
-
-  [[noreturn]] void FailAtByte(size_t offset, const std::string& message) const {
-    SourceLocation location;
-    location.file = path_;
-    location.byte_offset = static_cast<int64_t>(offset);
-    throw ParseError(location, message);
-  }
-
-  // Next header line without its line break; false at the end of the file.
-  bool NextHeaderLine(std::string_view* line) {
-    if (pos_ >= bytes_.size()) return false;
-    size_t end = bytes_.find('\n', pos_);
-    const size_t next = end == std::string::npos ? bytes_.size() : end + 1;
-    if (end == std::string::npos) end = bytes_.size();
-    *line = std::string_view(bytes_).substr(pos_, end - pos_);
-    if (!line->empty() && line->back() == '\r') line->remove_suffix(1);
-    pos_ = next;
-    ++line_;
-    return true;
-  }
-
   ScalarType ParseType(const Word& word) const {
     const std::optional<ScalarType> type = PlyScalarType(std::string(word.text));
     if (!type) {
-      FailAt(line_, word.column,
-             "unknown PLY property type " + Quote(word.text) +
-                 " (expected char, uchar, short, ushort, int, uint, float, double or int8, "
-                 "uint8, int16, uint16, int32, uint32, float32, float64)");
+      source_.FailAtColumn(
+          word.column,
+          "unknown PLY property type " + Quote(word.text) +
+              " (expected char, uchar, short, ushort, int, uint, float, double or int8, "
+              "uint8, int16, uint16, int32, uint32, float32, float64)");
     }
     return *type;
   }
 
   void ParseFormat(const std::vector<Word>& words) {
-    if (format_seen_) FailAt(line_, 1, "second 'format' line in the PLY header");
+    if (format_seen_) source_.FailAtColumn(1, "second 'format' line in the PLY header");
     if (words.size() != 3)
-      FailAt(line_, 1, "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'");
+      source_.FailAtColumn(1,
+                           "expected 'format <ascii|binary_little_endian|binary_big_endian> 1.0'");
     if (words[1].text == "ascii") {
       format_ = PlyFormat::kAscii;
     } else if (words[1].text == "binary_little_endian") {
@@ -114,43 +88,42 @@ class PlyParser {
     } else if (words[1].text == "binary_big_endian") {
       format_ = PlyFormat::kBinaryBigEndian;
     } else {
-      FailAt(line_, words[1].column,
-             "unknown PLY format " + Quote(words[1].text) +
-                 " (expected ascii, binary_little_endian or binary_big_endian)");
+      source_.FailAtColumn(words[1].column,
+                           "unknown PLY format " + Quote(words[1].text) +
+                               " (expected ascii, binary_little_endian or binary_big_endian)");
     }
     if (words[2].text != "1.0") {
-      FailAt(line_, words[2].column,
-             "unsupported PLY version " + Quote(words[2].text) + " (expected 1.0)");
+      source_.FailAtColumn(words[2].column,
+                           "unsupported PLY version " + Quote(words[2].text) + " (expected 1.0)");
     }
     format_seen_ = true;
   }
 
   void ParseElement(const std::vector<Word>& words) {
-    if (words.size() != 3) FailAt(line_, 1, "expected 'element <name> <count>'");
+    if (words.size() != 3) source_.FailAtColumn(1, "expected 'element <name> <count>'");
     PlyElement element;
     element.name = std::string(words[1].text);
-    element.header_line = line_;
-    std::string why;
-    if (!ParseInt64(words[2].text, &element.count, &why)) FailAt(line_, words[2].column, why);
-    if (element.count < 0) FailAt(line_, words[2].column, "negative element count");
+    element.header_line = source_.line();
+    element.count = source_.IntegerAt(words[2].text, source_.line(), words[2].column);
+    if (element.count < 0) source_.FailAtColumn(words[2].column, "negative element count");
     elements_.push_back(element);
   }
 
   void ParseProperty(const std::vector<Word>& words) {
-    if (elements_.empty()) FailAt(line_, 1, "'property' before any 'element' line");
+    if (elements_.empty()) source_.FailAtColumn(1, "'property' before any 'element' line");
     PlyProperty property;
     if (words.size() >= 2 && words[1].text == "list") {
       if (words.size() != 5)
-        FailAt(line_, 1, "expected 'property list <count type> <value type> <name>'");
+        source_.FailAtColumn(1, "expected 'property list <count type> <value type> <name>'");
       property.is_list = true;
       property.count_type = ParseType(words[2]);
       if (!IsIntegerType(property.count_type)) {
-        FailAt(line_, words[2].column, "a list count must have an integer type");
+        source_.FailAtColumn(words[2].column, "a list count must have an integer type");
       }
       property.type = ParseType(words[3]);
       property.name = std::string(words[4].text);
     } else {
-      if (words.size() != 3) FailAt(line_, 1, "expected 'property <type> <name>'");
+      if (words.size() != 3) source_.FailAtColumn(1, "expected 'property <type> <name>'");
       property.type = ParseType(words[1]);
       property.name = std::string(words[2].text);
     }
@@ -158,13 +131,14 @@ class PlyParser {
   }
 
   void ParseHeader() {
-    if (bytes_.empty()) FailAtByte(0, "empty file; a PLY file starts with the line 'ply'");
+    if (source_.size() == 0)
+      source_.FailAtByte(0, "empty file; a PLY file starts with the line 'ply'");
     std::string_view line;
-    NextHeaderLine(&line);
+    source_.NextLine(&line);
     if (line != "ply") {
-      FailAt(1, 1, "not a PLY file: the first line must be 'ply', found " + Quote(line));
+      source_.FailAt(1, 1, "not a PLY file: the first line must be 'ply', found " + Quote(line));
     }
-    while (NextHeaderLine(&line)) {
+    while (source_.NextLine(&line)) {
       const std::vector<Word> words = SplitWords(line);
       if (words.empty()) continue;
       const std::string_view keyword = words[0].text;
@@ -176,21 +150,22 @@ class PlyParser {
       } else if (keyword == "property") {
         ParseProperty(words);
       } else if (keyword == "end_header") {
-        if (!format_seen_) FailAt(line_, 1, "PLY header has no 'format' line");
-        end_header_line_ = line_;
+        if (!format_seen_) source_.FailAtColumn(1, "PLY header has no 'format' line");
+        end_header_line_ = source_.line();
         return;
       } else {
-        FailAt(line_, words[0].column, "unknown PLY header keyword " + Quote(keyword));
+        source_.FailAtColumn(words[0].column, "unknown PLY header keyword " + Quote(keyword));
       }
     }
-    FailAtByte(bytes_.size(), "file ends inside the PLY header (no 'end_header' line): truncated?");
+    source_.FailAtByte(source_.size(),
+                       "file ends inside the PLY header (no 'end_header' line): truncated?");
   }
 
   size_t FindVertexElement() const {
     for (size_t e = 0; e < elements_.size(); ++e) {
       if (elements_[e].name == "vertex") return e;
     }
-    FailAt(end_header_line_, 1, "PLY header declares no 'vertex' element");
+    source_.FailAt(end_header_line_, 1, "PLY header declares no 'vertex' element");
   }
 
   // Maps each vertex property to the PointValue it fills, or -1 to skip it.
@@ -206,13 +181,13 @@ class PlyParser {
     for (int axis = 0; axis < 3; ++axis) {
       const int p = find(kAxes[axis]);
       if (p < 0) {
-        FailAt(vertex.header_line, 1,
-               std::string("vertex element has no property '") + kAxes[axis] +
-                   "'; a point cloud needs x, y and z");
+        source_.FailAt(vertex.header_line, 1,
+                       std::string("vertex element has no property '") + kAxes[axis] +
+                           "'; a point cloud needs x, y and z");
       }
       if (vertex.properties[p].is_list) {
-        FailAt(vertex.header_line, 1,
-               std::string("vertex property '") + kAxes[axis] + "' is a list");
+        source_.FailAt(vertex.header_line, 1,
+                       std::string("vertex property '") + kAxes[axis] + "' is a list");
       }
       roles_[p] = axis;
     }
@@ -227,14 +202,14 @@ class PlyParser {
   }
 
   void CheckPointCount(const PlyElement& vertex, size_t min_bytes_per_vertex) const {
-    const size_t remaining = bytes_.size() - pos_;
+    const size_t remaining = source_.remaining();
     if (min_bytes_per_vertex > 0 &&
         static_cast<uint64_t>(vertex.count) > remaining / min_bytes_per_vertex) {
-      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
-                                    " but the header declares " + std::to_string(vertex.count) +
-                                    " vertices needing at least " +
-                                    std::to_string(min_bytes_per_vertex) +
-                                    " bytes each: truncated?");
+      source_.FailAtByte(source_.size(),
+                         "file ends at byte " + std::to_string(source_.size()) +
+                             " but the header declares " + std::to_string(vertex.count) +
+                             " vertices needing at least " + std::to_string(min_bytes_per_vertex) +
+                             " bytes each: truncated?");
     }
   }
 
@@ -242,36 +217,36 @@ class PlyParser {
                 int64_t line, size_t byte_offset) const {
     int bad = 0;
     if (builder->Add(values, &bad) == PointCloudBuilder::AddResult::kNonFinite) {
-      const std::string message = "vertex " + std::to_string(index) + " has a non-finite " +
-                                  PointValueName(bad) +
-                                  " (set PointCloudReadOptions::drop_non_finite_points to "
-                                  "drop such points)";
-      if (line > 0) FailAt(line, 1, message);
-      FailAtByte(byte_offset, message);
+      source_.FailAtLineOrByte(line, byte_offset, NonFiniteMessage("vertex", index, bad));
     }
   }
 
   // ---- ascii body ----
 
   bool NextToken(AsciiToken* token) {
-    while (pos_ < bytes_.size()) {
-      const char c = bytes_[pos_];
+    const std::string& bytes = source_.bytes();
+    size_t pos = source_.pos();
+    int64_t line = source_.line();
+    while (pos < bytes.size()) {
+      const char c = bytes[pos];
       if (c == '\n') {
-        ++line_;
-        line_start_ = pos_ + 1;
+        ++line;
+        line_start_ = pos + 1;
       } else if (c != ' ' && c != '\t' && c != '\r') {
         break;
       }
-      ++pos_;
+      ++pos;
     }
-    if (pos_ >= bytes_.size()) return false;
-    const size_t start = pos_;
-    while (pos_ < bytes_.size() && bytes_[pos_] != ' ' && bytes_[pos_] != '\t' &&
-           bytes_[pos_] != '\r' && bytes_[pos_] != '\n') {
-      ++pos_;
+    source_.set_line(line);
+    const size_t start = pos;
+    while (pos < bytes.size() && bytes[pos] != ' ' && bytes[pos] != '\t' && bytes[pos] != '\r' &&
+           bytes[pos] != '\n') {
+      ++pos;
     }
-    token->text = std::string_view(bytes_).substr(start, pos_ - start);
-    token->line = line_;
+    source_.set_pos(pos);
+    if (pos == start) return false;
+    token->text = std::string_view(bytes).substr(start, pos - start);
+    token->line = line;
     token->column = static_cast<int64_t>(start - line_start_) + 1;
     return true;
   }
@@ -279,37 +254,38 @@ class PlyParser {
   // Reads the next value of instance `index` of `element`, which must be on `line`.
   AsciiToken AsciiValue(const PlyElement& element, int64_t index, int64_t line) {
     AsciiToken token;
-    const int64_t end_column = static_cast<int64_t>(pos_ - line_start_) + 1;
+    const int64_t end_column = static_cast<int64_t>(source_.pos() - line_start_) + 1;
     if (!NextToken(&token)) {
-      FailAtByte(bytes_.size(), "file ends inside " + element.name + " " + std::to_string(index) +
-                                    " of " + std::to_string(element.count) + " (line " +
-                                    std::to_string(line_) + "): truncated?");
+      source_.FailAtByte(source_.size(), "file ends inside " + element.name + " " +
+                                             std::to_string(index) + " of " +
+                                             std::to_string(element.count) + " (line " +
+                                             std::to_string(source_.line()) + "): truncated?");
     }
     if (line > 0 && token.line != line) {
-      FailAt(line, end_column,
-             element.name + " line has fewer values than the header declares (" +
-                 std::to_string(element.properties.size()) + " properties)");
+      source_.FailAt(line, end_column,
+                     element.name + " line has fewer values than the header declares (" +
+                         std::to_string(element.properties.size()) + " properties)");
     }
     return token;
   }
 
   void ExpectEndOfAsciiLine(const PlyElement& element) {
-    while (pos_ < bytes_.size() &&
-           (bytes_[pos_] == ' ' || bytes_[pos_] == '\t' || bytes_[pos_] == '\r')) {
-      ++pos_;
+    const std::string& bytes = source_.bytes();
+    size_t pos = source_.pos();
+    while (pos < bytes.size() && (bytes[pos] == ' ' || bytes[pos] == '\t' || bytes[pos] == '\r')) {
+      ++pos;
     }
-    if (pos_ < bytes_.size() && bytes_[pos_] != '\n') {
-      FailAt(line_, static_cast<int64_t>(pos_ - line_start_) + 1,
-             element.name + " line has more values than the header declares (" +
-                 std::to_string(element.properties.size()) + " properties)");
+    source_.set_pos(pos);
+    if (pos < bytes.size() && bytes[pos] != '\n') {
+      source_.FailAtColumn(static_cast<int64_t>(pos - line_start_) + 1,
+                           element.name + " line has more values than the header declares (" +
+                               std::to_string(element.properties.size()) + " properties)");
     }
   }
 
   int64_t AsciiListCount(const AsciiToken& token) const {
-    int64_t count = 0;
-    std::string why;
-    if (!ParseInt64(token.text, &count, &why)) FailAt(token.line, token.column, why);
-    if (count < 0) FailAt(token.line, token.column, "negative list length");
+    const int64_t count = source_.IntegerAt(token.text, token.line, token.column);
+    if (count < 0) source_.FailAt(token.line, token.column, "negative list length");
     return count;
   }
 
@@ -342,9 +318,7 @@ class PlyParser {
           continue;
         }
         if (roles_[p] < 0) continue;
-        std::string why;
-        if (!ParseDouble(token.text, &values[roles_[p]], &why))
-          FailAt(token.line, token.column, why);
+        values[roles_[p]] = source_.DoubleAt(token.text, token.line, token.column);
       }
       ExpectEndOfAsciiLine(vertex);
       AddPoint(&builder, values, i, line, 0);
@@ -357,29 +331,30 @@ class PlyParser {
   bool LittleEndian() const { return format_ == PlyFormat::kBinaryLittleEndian; }
 
   void NeedBytes(size_t n, const PlyElement& element, int64_t index) const {
-    if (n > bytes_.size() - pos_) {
-      FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) + " inside " +
-                                    element.name + " " + std::to_string(index) + " of " +
-                                    std::to_string(element.count) + ": truncated?");
+    if (n > source_.remaining()) {
+      source_.FailAtByte(source_.size(), "file ends at byte " + std::to_string(source_.size()) +
+                                             " inside " + element.name + " " +
+                                             std::to_string(index) + " of " +
+                                             std::to_string(element.count) + ": truncated?");
     }
   }
 
   double BinaryValue(ScalarType type, const PlyElement& element, int64_t index) {
     NeedBytes(ScalarSize(type), element, index);
-    const double value = DecodeScalar(bytes_.data() + pos_, type, LittleEndian());
-    pos_ += ScalarSize(type);
+    const double value = DecodeScalar(source_.bytes().data() + source_.pos(), type, LittleEndian());
+    source_.Advance(ScalarSize(type));
     return value;
   }
 
   void SkipBinaryList(const PlyProperty& property, const PlyElement& element, int64_t index) {
-    const size_t count_offset = pos_;
+    const size_t count_offset = source_.pos();
     const double count = BinaryValue(property.count_type, element, index);
     if (count < 0)
-      FailAtByte(count_offset,
-                 "negative list length in " + element.name + " " + std::to_string(index));
+      source_.FailAtByte(count_offset,
+                         "negative list length in " + element.name + " " + std::to_string(index));
     const size_t bytes = static_cast<size_t>(count) * ScalarSize(property.type);
     NeedBytes(bytes, element, index);
-    pos_ += bytes;
+    source_.Advance(bytes);
   }
 
   size_t MinBinarySize(const PlyElement& element) const {
@@ -398,7 +373,7 @@ class PlyParser {
           SkipBinaryList(property, element, i);
         } else {
           NeedBytes(ScalarSize(property.type), element, i);
-          pos_ += ScalarSize(property.type);
+          source_.Advance(ScalarSize(property.type));
         }
       }
     }
@@ -409,7 +384,7 @@ class PlyParser {
     PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
                               options_.drop_non_finite_points);
     for (int64_t i = 0; i < vertex.count; ++i) {
-      const size_t vertex_offset = pos_;
+      const size_t vertex_offset = source_.pos();
       double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
       for (size_t p = 0; p < vertex.properties.size(); ++p) {
         const PlyProperty& property = vertex.properties[p];
@@ -419,7 +394,7 @@ class PlyParser {
           values[roles_[p]] = BinaryValue(property.type, vertex, i);
         } else {
           NeedBytes(ScalarSize(property.type), vertex, i);
-          pos_ += ScalarSize(property.type);
+          source_.Advance(ScalarSize(property.type));
         }
       }
       AddPoint(&builder, values, i, 0, vertex_offset);
@@ -427,11 +402,8 @@ class PlyParser {
     return builder.Finish();
   }
 
-  const std::string& path_;
-  const std::string& bytes_;
+  ByteSource source_;
   const PointCloudReadOptions& options_;
-  size_t pos_ = 0;
-  int64_t line_ = 0;
   size_t line_start_ = 0;
   int64_t end_header_line_ = 0;
   bool format_seen_ = false;

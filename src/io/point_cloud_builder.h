@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <utility>
 
 #include "autocal/lidar/point_cloud.h"
@@ -61,6 +62,14 @@ class PointCloudBuilder {
 inline const char* PointValueName(int value) {
   static const char* const kNames[kNumPointValues] = {"x", "y", "z", "intensity", "time"};
   return kNames[value];
+}
+
+// Why a point cannot be added: `noun` names it in the file's own terms ("point",
+// "vertex"), `bad_value` is the PointValue that is not finite.
+inline std::string NonFiniteMessage(const char* noun, int64_t index, int bad_value) {
+  return std::string(noun) + " " + std::to_string(index) + " has a non-finite " +
+         PointValueName(bad_value) +
+         " (set PointCloudReadOptions::drop_non_finite_points to drop such points)";
 }
 
 }  // namespace internal

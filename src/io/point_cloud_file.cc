@@ -1,11 +1,9 @@
 #include "autocal/io/point_cloud_file.h"
 
 #include <cctype>
-#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
 #include <string>
 #include <utility>
 
@@ -92,11 +90,7 @@ void WritePly(const std::string& path, const lidar::PointCloud& cloud) {
       AppendLittleEndianFloat(static_cast<float>(value), &out);
     }
   }
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
-  file.write(out.data(), static_cast<std::streamsize>(out.size()));
-  file.close();
-  if (!file) throw Error("error while writing '" + path + "'");
+  internal::WriteFileText(path, out);
 }
 
 }  // namespace io

@@ -44,6 +44,14 @@ inline bool HostIsLittleEndian() {
   return first_byte == 1;
 }
 
+// The T stored in host byte order at `buffer` (memcpy: `buffer` need not be aligned).
+template <typename T>
+double LoadAs(const unsigned char* buffer) {
+  T value;
+  std::memcpy(&value, buffer, sizeof(T));
+  return static_cast<double>(value);
+}
+
 // Reads one value of `type` from `bytes`, stored little endian when `little_endian`.
 inline double DecodeScalar(const char* bytes, ScalarType type, bool little_endian) {
   unsigned char buffer[8];
@@ -53,43 +61,22 @@ inline double DecodeScalar(const char* bytes, ScalarType type, bool little_endia
     for (size_t i = 0; i < size / 2; ++i) std::swap(buffer[i], buffer[size - 1 - i]);
   }
   switch (type) {
-    case ScalarType::kInt8: {
-      int8_t v;
-      std::memcpy(&v, buffer, 1);
-      return v;
-    }
+    case ScalarType::kInt8:
+      return LoadAs<int8_t>(buffer);
     case ScalarType::kUint8:
-      return buffer[0];
-    case ScalarType::kInt16: {
-      int16_t v;
-      std::memcpy(&v, buffer, 2);
-      return v;
-    }
-    case ScalarType::kUint16: {
-      uint16_t v;
-      std::memcpy(&v, buffer, 2);
-      return v;
-    }
-    case ScalarType::kInt32: {
-      int32_t v;
-      std::memcpy(&v, buffer, 4);
-      return v;
-    }
-    case ScalarType::kUint32: {
-      uint32_t v;
-      std::memcpy(&v, buffer, 4);
-      return v;
-    }
-    case ScalarType::kFloat32: {
-      float v;
-      std::memcpy(&v, buffer, 4);
-      return v;
-    }
-    case ScalarType::kFloat64: {
-      double v;
-      std::memcpy(&v, buffer, 8);
-      return v;
-    }
+      return LoadAs<uint8_t>(buffer);
+    case ScalarType::kInt16:
+      return LoadAs<int16_t>(buffer);
+    case ScalarType::kUint16:
+      return LoadAs<uint16_t>(buffer);
+    case ScalarType::kInt32:
+      return LoadAs<int32_t>(buffer);
+    case ScalarType::kUint32:
+      return LoadAs<uint32_t>(buffer);
+    case ScalarType::kFloat32:
+      return LoadAs<float>(buffer);
+    case ScalarType::kFloat64:
+      return LoadAs<double>(buffer);
   }
   return 0.0;
 }

@@ -1,9 +1,6 @@
 #include "autocal/io/sensors_yaml.h"
 
-#include <cerrno>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <string>
 
 #include "autocal/common/error.h"
@@ -162,11 +159,7 @@ void WriteSensorsYaml(const std::string& path, const SensorsConfig& config) {
   nominal.value = config.nominal_calibration;
   nominal.uncertainty = config.nominal_uncertainty;
   text += "nominal_calibration:\n" + CalibrationYamlText(nominal, 2);
-  std::ofstream out(path, std::ios::trunc);
-  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
-  out << text;
-  out.close();
-  if (!out) throw Error("error while writing '" + path + "'");
+  internal::WriteFileText(path, text);
 }
 
 }  // namespace io

@@ -25,6 +25,43 @@ std::string_view StripPlus(std::string_view text) {
   return text;
 }
 
+// How error messages name the number a parser expects.
+struct NumberKind {
+  const char* noun;          // "number 'x' is out of range", "after the number"
+  const char* with_article;  // "expected a number"
+  const char* out_of_range;  // "number 'x' <out_of_range>"
+};
+
+constexpr NumberKind kDoubleKind{"number", "a number", "is out of the range of a double"};
+constexpr NumberKind kInt64Kind{"integer", "an integer", "does not fit in 64 bits"};
+
+// The whole of `text` as a T (std::from_chars, which would reject the leading '+' that
+// StripPlus removes).
+template <typename T>
+bool ParseNumber(std::string_view text, const NumberKind& kind, T* value, std::string* why) {
+  if (text.empty()) {
+    *why = std::string("expected ") + kind.with_article + ", found an empty field";
+    return false;
+  }
+  const std::string_view digits = StripPlus(text);
+  const char* end = digits.data() + digits.size();
+  const std::from_chars_result result = std::from_chars(digits.data(), end, *value);
+  if (result.ec == std::errc::invalid_argument) {
+    *why = std::string("expected ") + kind.with_article + ", found " + Quote(text);
+    return false;
+  }
+  if (result.ec == std::errc::result_out_of_range) {
+    *why = std::string(kind.noun) + " " + Quote(text) + " " + kind.out_of_range;
+    return false;
+  }
+  if (result.ptr != end) {
+    *why = "trailing characters " + Quote(std::string_view(result.ptr, end - result.ptr)) +
+           " after the " + kind.noun + " in " + Quote(text);
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 std::string FormatDouble(double value) {
@@ -34,27 +71,7 @@ std::string FormatDouble(double value) {
 }
 
 bool ParseDouble(std::string_view text, double* value, std::string* why) {
-  if (text.empty()) {
-    *why = "expected a number, found an empty field";
-    return false;
-  }
-  const std::string_view digits = StripPlus(text);
-  const char* end = digits.data() + digits.size();
-  const std::from_chars_result result = std::from_chars(digits.data(), end, *value);
-  if (result.ec == std::errc::invalid_argument) {
-    *why = "expected a number, found " + Quote(text);
-    return false;
-  }
-  if (result.ec == std::errc::result_out_of_range) {
-    *why = "number " + Quote(text) + " is out of the range of a double";
-    return false;
-  }
-  if (result.ptr != end) {
-    *why = "trailing characters " + Quote(std::string_view(result.ptr, end - result.ptr)) +
-           " after the number in " + Quote(text);
-    return false;
-  }
-  return true;
+  return ParseNumber(text, kDoubleKind, value, why);
 }
 
 bool ParseFiniteDouble(std::string_view text, double* value, std::string* why) {
@@ -67,27 +84,7 @@ bool ParseFiniteDouble(std::string_view text, double* value, std::string* why) {
 }
 
 bool ParseInt64(std::string_view text, int64_t* value, std::string* why) {
-  if (text.empty()) {
-    *why = "expected an integer, found an empty field";
-    return false;
-  }
-  const std::string_view digits = StripPlus(text);
-  const char* end = digits.data() + digits.size();
-  const std::from_chars_result result = std::from_chars(digits.data(), end, *value);
-  if (result.ec == std::errc::invalid_argument) {
-    *why = "expected an integer, found " + Quote(text);
-    return false;
-  }
-  if (result.ec == std::errc::result_out_of_range) {
-    *why = "integer " + Quote(text) + " does not fit in 64 bits";
-    return false;
-  }
-  if (result.ptr != end) {
-    *why = "trailing characters " + Quote(std::string_view(result.ptr, end - result.ptr)) +
-           " after the integer in " + Quote(text);
-    return false;
-  }
-  return true;
+  return ParseNumber(text, kInt64Kind, value, why);
 }
 
 std::vector<Word> SplitWords(std::string_view line) {
@@ -132,6 +129,14 @@ std::string ReadFileBytes(const std::string& path) {
   in.read(bytes.data(), size);
   if (in.gcount() != size) throw Error("error while reading '" + path + "'");
   return bytes;
+}
+
+void WriteFileText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
+  out.write(text.data(), static_cast<std::streamsize>(text.size()));
+  out.close();
+  if (!out) throw Error("error while writing '" + path + "'");
 }
 
 }  // namespace internal

@@ -47,6 +47,10 @@ std::string Quote(std::string_view text);
 // The whole file as bytes; throws autocal::Error naming the path when it cannot be read.
 std::string ReadFileBytes(const std::string& path);
 
+// Replaces the file at `path` by `text`, byte for byte; throws autocal::Error naming the
+// path when it cannot be opened or written.
+void WriteFileText(const std::string& path, const std::string& text);
+
 }  // namespace internal
 }  // namespace io
 }  // namespace autocal

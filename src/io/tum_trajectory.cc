@@ -1,11 +1,7 @@
 #include "autocal/io/tum_trajectory.h"
 
-#include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <fstream>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -13,6 +9,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "io/byte_source.h"
 #include "io/text_format.h"
 
 namespace autocal {
@@ -23,15 +20,6 @@ using internal::Quote;
 using internal::Word;
 
 constexpr int kTumColumns = 8;
-
-[[noreturn]] void Fail(const std::string& path, int64_t line, int64_t column,
-                       const std::string& message) {
-  SourceLocation location;
-  location.file = path;
-  location.line = line;
-  location.column = column;
-  throw ParseError(location, message);
-}
 
 // "<seconds>.<nine digits>" -> nanoseconds, exactly (no detour through double). Accepts
 // fewer decimals (evo and other tools may print microseconds).
@@ -107,50 +95,40 @@ void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
     }
     text += '\n';
   }
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
-  out << text;
-  out.close();
-  if (!out) throw Error("error while writing '" + path + "'");
+  internal::WriteFileText(path, text);
 }
 
 Trajectory ReadTumTrajectory(const std::string& path) {
   const std::string bytes = internal::ReadFileBytes(path);
+  internal::ByteSource source(path, bytes);
   Trajectory trajectory;
-  int64_t line_number = 0;
   int64_t previous_line = 0;
-  size_t pos = 0;
-  while (pos < bytes.size()) {
-    const size_t end = std::min(bytes.find('\n', pos), bytes.size());
-    const std::string_view line = std::string_view(bytes).substr(pos, end - pos);
-    pos = end + 1;
-    ++line_number;
+  std::string_view line;
+  while (source.NextLine(&line)) {
     const std::string_view trimmed = internal::Trim(line);
     if (trimmed.empty() || trimmed[0] == '#') continue;
-    std::string_view content = line;
-    if (content.back() == '\r') content.remove_suffix(1);
-    const std::vector<Word> fields = internal::SplitWords(content);
+    const std::vector<Word> fields = internal::SplitWords(line);
     if (fields.size() != kTumColumns) {
       const int64_t column = fields.size() > kTumColumns ? fields[kTumColumns].column
-                                                         : static_cast<int64_t>(content.size()) + 1;
-      Fail(path, line_number, column,
-           "expected 8 values 'timestamp tx ty tz qx qy qz qw', found " +
-               std::to_string(fields.size()));
+                                                         : static_cast<int64_t>(line.size()) + 1;
+      source.FailAtColumn(column, "expected 8 values 'timestamp tx ty tz qx qy qz qw', found " +
+                                      std::to_string(fields.size()));
     }
     TrajectorySample sample;
     std::string why;
     if (!ParseSecondsToNs(fields[0].text, &sample.t_ns, &why))
-      Fail(path, line_number, fields[0].column, why);
+      source.FailAtColumn(fields[0].column, why);
     if (!trajectory.empty() && sample.t_ns <= trajectory.back().t_ns) {
-      Fail(path, line_number, fields[0].column,
-           std::string(sample.t_ns == trajectory.back().t_ns ? "duplicate" : "non-monotonic") +
-               " timestamp: the previous pose (line " + std::to_string(previous_line) +
-               ") is not earlier; timestamps must strictly increase");
+      source.FailAtColumn(
+          fields[0].column,
+          std::string(sample.t_ns == trajectory.back().t_ns ? "duplicate" : "non-monotonic") +
+              " timestamp: the previous pose (line " + std::to_string(previous_line) +
+              ") is not earlier; timestamps must strictly increase");
     }
     double values[7];
     for (int i = 0; i < 7; ++i) {
       if (!internal::ParseFiniteDouble(fields[1 + i].text, &values[i], &why)) {
-        Fail(path, line_number, fields[1 + i].column, why);
+        source.FailAtColumn(fields[1 + i].column, why);
       }
     }
     Eigen::Vector4d xyzw(values[3], values[4], values[5], values[6]);
@@ -161,14 +139,14 @@ Trajectory ReadTumTrajectory(const std::string& path) {
           buffer, sizeof(buffer),
           "quaternion (qx qy qz qw) has norm %.6g, not a rotation (|norm - 1| must be <= 1e-3)",
           norm);
-      Fail(path, line_number, fields[4].column, buffer);
+      source.FailAtColumn(fields[4].column, buffer);
     }
     // Below 1e-15, |q| - 1 is rounding: keep the digits so that files round trip exactly.
     if (std::abs(norm - 1.0) > 1e-15) xyzw /= norm;
     sample.T_W_I.p = Eigen::Vector3d(values[0], values[1], values[2]);
     sample.T_W_I.q = Eigen::Quaterniond(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
     trajectory.push_back(sample);
-    previous_line = line_number;
+    previous_line = source.line();
   }
   return trajectory;
 }

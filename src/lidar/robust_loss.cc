@@ -1,5 +1,7 @@
 #include "autocal/lidar/robust_loss.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 
 #include "autocal/common/error.h"
@@ -39,9 +41,15 @@ double RobustKernel::Loss(double residual_m) const {
 }
 
 RobustLoss ParseRobustLoss(const std::string& name) {
-  if (name == "none") return RobustLoss::kNone;
-  if (name == "huber") return RobustLoss::kHuber;
-  if (name == "cauchy") return RobustLoss::kCauchy;
+  const auto not_space = [](unsigned char c) { return !std::isspace(c); };
+  const auto begin = std::find_if(name.begin(), name.end(), not_space);
+  const auto end = std::find_if(name.rbegin(), name.rend(), not_space).base();
+  std::string lower = begin < end ? std::string(begin, end) : std::string();
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (lower == "none") return RobustLoss::kNone;
+  if (lower == "huber") return RobustLoss::kHuber;
+  if (lower == "cauchy") return RobustLoss::kCauchy;
   throw Error("unknown robust loss '" + name + "' (expected none, huber or cauchy)");
 }
 

@@ -13,20 +13,21 @@ namespace factors {
 namespace {
 
 TEST(Loss, ParsesTypesAndScales) {
-  EXPECT_EQ(ParseLossType("none"), LossType::kNone);
-  EXPECT_EQ(ParseLossType(" Huber "), LossType::kHuber);
-  EXPECT_EQ(ParseLossType("CAUCHY"), LossType::kCauchy);
-  for (LossType type : {LossType::kNone, LossType::kHuber, LossType::kCauchy}) {
-    EXPECT_EQ(ParseLossType(LossTypeName(type)), type);
+  EXPECT_EQ(lidar::ParseRobustLoss("none"), lidar::RobustLoss::kNone);
+  EXPECT_EQ(lidar::ParseRobustLoss(" Huber "), lidar::RobustLoss::kHuber);
+  EXPECT_EQ(lidar::ParseRobustLoss("CAUCHY"), lidar::RobustLoss::kCauchy);
+  for (lidar::RobustLoss type :
+       {lidar::RobustLoss::kNone, lidar::RobustLoss::kHuber, lidar::RobustLoss::kCauchy}) {
+    EXPECT_EQ(lidar::ParseRobustLoss(lidar::RobustLossName(type)), type);
   }
   const LossOptions plain = ParseLossOptions("cauchy");
-  EXPECT_EQ(plain.type, LossType::kCauchy);
+  EXPECT_EQ(plain.type, lidar::RobustLoss::kCauchy);
   EXPECT_EQ(plain.scale, 1.0);
   const LossOptions colon = ParseLossOptions("huber:1.5");
-  EXPECT_EQ(colon.type, LossType::kHuber);
+  EXPECT_EQ(colon.type, lidar::RobustLoss::kHuber);
   EXPECT_EQ(colon.scale, 1.5);
   const LossOptions space = ParseLossOptions("cauchy 0.25");
-  EXPECT_EQ(space.type, LossType::kCauchy);
+  EXPECT_EQ(space.type, lidar::RobustLoss::kCauchy);
   EXPECT_EQ(space.scale, 0.25);
 }
 
@@ -43,11 +44,11 @@ TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
     }
   }
   try {
-    ParseLossType("tukey");
+    lidar::ParseRobustLoss("tukey");
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("expected none, huber or cauchy"), std::string::npos);
   }
-  EXPECT_THROW(MakeLossFunction(LossOptions{LossType::kHuber, 0.0}), Error);
+  EXPECT_THROW(MakeLossFunction(LossOptions{lidar::RobustLoss::kHuber, 0.0}), Error);
 }
 
 // The created losses behave as their kind: quadratic inside the scale, and for Huber
@@ -55,8 +56,8 @@ TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
 TEST(Loss, MakesTheSelectedLoss) {
   EXPECT_EQ(MakeLossFunction(LossOptions{}), nullptr);
   const double a = 2.0;
-  std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({LossType::kHuber, a}));
-  std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({LossType::kCauchy, a}));
+  std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({lidar::RobustLoss::kHuber, a}));
+  std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({lidar::RobustLoss::kCauchy, a}));
   ASSERT_NE(huber, nullptr);
   ASSERT_NE(cauchy, nullptr);
   double rho[3];
@@ -67,8 +68,8 @@ TEST(Loss, MakesTheSelectedLoss) {
   cauchy->Evaluate(25.0, rho);
   EXPECT_NEAR(rho[0], a * a * std::log1p(25.0 / (a * a)), 1e-12);
   const FactorLossOptions defaults;
-  EXPECT_EQ(defaults.imu.type, LossType::kNone);
-  EXPECT_EQ(defaults.gnss.type, LossType::kCauchy);
+  EXPECT_EQ(defaults.imu.type, lidar::RobustLoss::kNone);
+  EXPECT_EQ(defaults.gnss.type, lidar::RobustLoss::kCauchy);
 }
 
 }  // namespace

@@ -7,13 +7,14 @@
 
 #include <string>
 
+#include "autocal/lidar/robust_loss.h"
+
 namespace autocal {
 namespace factors {
 
-enum class LossType { kNone, kHuber, kCauchy };
-
 struct LossOptions {
-  LossType type = LossType::kNone;
+  // The kinds are ICP's (lidar/robust_loss.h); here they act on whitened residuals.
+  lidar::RobustLoss type = lidar::RobustLoss::kNone;
   double scale = 1.0;  // > 0, in whitened units (sigmas)
 };
 
@@ -22,17 +23,13 @@ struct LossOptions {
 struct FactorLossOptions {
   LossOptions imu;
   LossOptions prior;
-  LossOptions wheel{LossType::kHuber, 2.0};
-  LossOptions gnss{LossType::kCauchy, 3.0};
-  LossOptions lidar{LossType::kHuber, 1.0};
+  LossOptions wheel{lidar::RobustLoss::kHuber, 2.0};
+  LossOptions gnss{lidar::RobustLoss::kCauchy, 3.0};
+  LossOptions lidar{lidar::RobustLoss::kHuber, 1.0};
 };
 
-// "none", "huber" or "cauchy" (case-insensitive); throws autocal::Error naming the
-// accepted values otherwise.
-LossType ParseLossType(const std::string& name);
-const char* LossTypeName(LossType type);
-
-// "none", "<type>" (scale 1) or "<type>:<scale>" / "<type> <scale>", e.g. "huber:1.5".
+// "none", "<type>" (scale 1) or "<type>:<scale>" / "<type> <scale>", e.g. "huber:1.5";
+// <type> as lidar::ParseRobustLoss reads it (case-insensitive).
 // Throws autocal::Error on an unknown type or a scale that is not a positive number.
 LossOptions ParseLossOptions(const std::string& text);
 

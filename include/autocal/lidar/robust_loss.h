@@ -26,7 +26,9 @@ struct RobustKernel {
   double Loss(double residual_m) const;
 };
 
-// "none" | "huber" | "cauchy"; throws autocal::Error naming the accepted values otherwise.
+// "none", "huber" or "cauchy", case-insensitive and ignoring surrounding blanks (" Huber "
+// is kHuber); throws autocal::Error naming the accepted values otherwise. The one parser for
+// every robust loss name: ICP settings and factors::ParseLossOptions.
 RobustLoss ParseRobustLoss(const std::string& name);
 const char* RobustLossName(RobustLoss loss);
 
