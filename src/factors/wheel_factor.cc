@@ -18,25 +18,6 @@ void CheckSigma(double sigma, const char* name) {
   }
 }
 
-using RowMajor4x3 = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
-
-// Copies the first `rows` rows of a tangent Jacobian into Ceres' row-major block, lifted to
-// the quaternion's ambient coordinates when q is given. Plain loops: the blocks are tiny and
-// a dynamic-size copy costs more than the arithmetic.
-void Store(const RowMajor4x3& j, int rows, const double* q, double* out) {
-  if (q != nullptr) {
-    const Eigen::Matrix<double, 3, 4, Eigen::RowMajor> minus = geometry::QuaternionMinusJacobian(q);
-    const Eigen::Matrix<double, 4, 4, Eigen::RowMajor> lifted = j * minus;
-    for (int r = 0; r < rows; ++r) {
-      for (int c = 0; c < 4; ++c) out[4 * r + c] = lifted(r, c);
-    }
-  } else {
-    for (int r = 0; r < rows; ++r) {
-      for (int c = 0; c < 3; ++c) out[3 * r + c] = j(r, c);
-    }
-  }
-}
-
 }  // namespace
 
 WheelFactorOptions WheelFactorOptions::FromEncoderNoise(const sensors::WheelConfig& config,
@@ -101,41 +82,64 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
   }
   if (jacobians == nullptr) return true;
 
-  // Eq. F24: rows [v_V.x, w_V.z, v_V.y, v_V.z] scaled by their sigmas.
-  const int rows = num_residuals();
-  const Eigen::Vector4d row_scale(inv_s_v, inv_s_yaw, inv_s_nh, inv_s_nh);
-  auto state_rows = [&](const Eigen::Matrix3d& d_v_V, const Eigen::Matrix3d& d_w_V) {
-    RowMajor4x3 j;
-    j.row(0) = d_v_V.row(0);
-    j.row(1) = d_w_V.row(2);
-    j.row(2) = d_v_V.row(1);
-    j.row(3) = d_v_V.row(2);
-    return RowMajor4x3(row_scale.asDiagonal() * j);
+  // Eq. F24: rows [v_V.x, w_V.z, v_V.y, v_V.z] scaled by their sigmas, each written straight
+  // into Ceres' row-major block (lifted to the quaternion's ambient coordinates when q is
+  // given) from the transposed rows of d v_V and d w_V.z. Row i of Rt_I_V Hat(a) is
+  // (c_i x a)^T with c_i the i-th column of R_I_V. The blocks are tiny: generic products,
+  // temporaries and loops over the row count cost more than the arithmetic.
+  const bool non_holonomic = options_.non_holonomic;
+  auto store_row = [](const Eigen::Vector3d& row, const double* q, double* out) {
+    if (q != nullptr) {
+      geometry::LiftTangentRow(row.transpose(), q, out);
+    } else {
+      out[0] = row.x();
+      out[1] = row.y();
+      out[2] = row.z();
+    }
   };
-  const Eigen::Matrix3d zero = Eigen::Matrix3d::Zero();
-  if (jacobians[0] != nullptr) {
-    Store(state_rows(Rt_I_V * geometry::Hat(v_I), zero), rows, parameters[0], jacobians[0]);
-  }
+  auto store = [&](const Eigen::Vector3d& d_v_x, const Eigen::Vector3d& d_w_z,
+                   const Eigen::Vector3d& d_v_y, const Eigen::Vector3d& d_v_z, const double* q,
+                   double* out) {
+    const int stride = q != nullptr ? 4 : 3;
+    store_row(inv_s_v * d_v_x, q, out);
+    store_row(inv_s_yaw * d_w_z, q, out + stride);
+    if (non_holonomic) {
+      store_row(inv_s_nh * d_v_y, q, out + 2 * stride);
+      store_row(inv_s_nh * d_v_z, q, out + 3 * stride);
+    }
+  };
+  const Eigen::Matrix3d R_I_V = Rt_I_V.transpose();
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  auto store_rotated_hat = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& d_w_z,
+                               const double* q, double* out) {
+    store(R_I_V.col(0).cross(a), d_w_z, R_I_V.col(1).cross(a), R_I_V.col(2).cross(a), q, out);
+  };
+  if (jacobians[0] != nullptr) store_rotated_hat(v_I, zero, parameters[0], jacobians[0]);
   if (jacobians[1] != nullptr) {
-    const Eigen::Matrix3d Rt_W_V = Rt_I_V * q_W_I.conjugate().toRotationMatrix();
-    Store(state_rows(Rt_W_V, zero), rows, nullptr, jacobians[1]);
+    const Eigen::Matrix3d R_W_V = (q_W_I * q_I_V).toRotationMatrix();
+    store(R_W_V.col(0), zero, R_W_V.col(1), R_W_V.col(2), nullptr, jacobians[1]);
   }
-  if (jacobians[2] != nullptr) {
-    Store(state_rows(Rt_I_V * geometry::Hat(p_I_V), -Rt_I_V), rows, nullptr, jacobians[2]);
-  }
+  if (jacobians[2] != nullptr) store_rotated_hat(p_I_V, -R_I_V.col(2), nullptr, jacobians[2]);
   if (jacobians[3] != nullptr) {
-    Store(state_rows(geometry::Hat(v_V), geometry::Hat(w_V)), rows, parameters[3], jacobians[3]);
+    // d v_V / d(right tangent of q_I_V) = Hat(v_V), d w_V / d(...) = Hat(w_V).
+    store(Eigen::Vector3d(0.0, -v_V.z(), v_V.y()), Eigen::Vector3d(-w_V.y(), w_V.x(), 0.0),
+          Eigen::Vector3d(v_V.z(), 0.0, -v_V.x()), Eigen::Vector3d(-v_V.y(), v_V.x(), 0.0),
+          parameters[3], jacobians[3]);
   }
-  if (jacobians[4] != nullptr) {
-    Store(state_rows(Rt_I_V * geometry::Hat(w_I), zero), rows, nullptr, jacobians[4]);
-  }
+  if (jacobians[4] != nullptr) store_rotated_hat(w_I, zero, nullptr, jacobians[4]);
   // Scalar blocks: d r / d(r_l, r_r, b) of the wheel-side prediction.
   const Eigen::Vector4d d_r_l(-0.5 * m_.left_rad_s * inv_s_v, m_.left_rad_s / b * inv_s_yaw, 0, 0);
   const Eigen::Vector4d d_r_r(-0.5 * m_.right_rad_s * inv_s_v, -m_.right_rad_s / b * inv_s_yaw, 0,
                               0);
-  auto store_scalar = [&](const Eigen::Vector4d& column, double* out) {
+  // Fixed-size writes: a loop over the row count compiles to a call to memcpy.
+  auto store_scalar = [non_holonomic](const Eigen::Vector4d& column, double* out) {
     if (out == nullptr) return;
-    for (int r = 0; r < rows; ++r) out[r] = column(r);
+    out[0] = column(0);
+    out[1] = column(1);
+    if (non_holonomic) {
+      out[2] = column(2);
+      out[3] = column(3);
+    }
   };
   if (options_.shared_radius) {
     store_scalar(d_r_l + d_r_r, jacobians[5]);

@@ -69,15 +69,64 @@ Eigen::Quaterniond StepExp(const Eigen::Vector3d& phi) {
   return Eigen::Quaterniond(w, k * phi.x(), k * phi.y(), k * phi.z());
 }
 
-// Jl(phi) = I + a Hat(phi) + b Hat(phi)^2 with Hat(phi)^2 = phi phi^T - theta^2 I.
-Eigen::Matrix3d StepLeftJacobian(const Eigen::Vector3d& phi) {
+// X Hat(a), column by column: row r of the product is (r x a)^T. A third fewer operations
+// than the dense product with the skew matrix.
+template <int Rows>
+inline Eigen::Matrix<double, Rows, 3> TimesHat(const Eigen::Matrix<double, Rows, 3>& X,
+                                               const Eigen::Vector3d& a) {
+  Eigen::Matrix<double, Rows, 3> out;
+  out.col(0) = a.z() * X.col(1) - a.y() * X.col(2);
+  out.col(1) = a.x() * X.col(2) - a.z() * X.col(0);
+  out.col(2) = a.y() * X.col(0) - a.x() * X.col(1);
+  return out;
+}
+
+// -Hat(a) X: column j is x_j x a.
+inline Eigen::Matrix3d MinusHatTimes(const Eigen::Vector3d& a, const Eigen::Matrix3d& X) {
+  Eigen::Matrix3d out;
+  out.col(0) = X.col(0).cross(a);
+  out.col(1) = X.col(1).cross(a);
+  out.col(2) = X.col(2).cross(a);
+  return out;
+}
+
+// P <- E P E^T for E: p += h v on the blocks D (9x9, symmetric) and B (9x6) of the
+// covariance, by columns (contiguous): the p columns, then the p-p block takes the row
+// update, and the p rows are mirrored.
+void AddVelocityToPosition(double h, Eigen::Matrix<double, 9, 9>* D,
+                           Eigen::Matrix<double, 9, 6>* B) {
+  D->middleCols<3>(6) += h * D->middleCols<3>(3);
+  D->block<3, 3>(6, 6) += h * D->block<3, 3>(3, 6);
+  D->block<3, 6>(6, 0) = D->block<6, 3>(0, 6).transpose();
+  B->middleRows<3>(6) += h * B->middleRows<3>(3);
+}
+
+// dt R Jl(phi) for the full step angle phi = w dt and dt/2 R Jl(phi / 2), the two rate
+// sensitivities of a step. Jl(phi) = I + a Hat(phi) + b Hat(phi)^2 = (1 - b theta^2) I +
+// a Hat(phi) + b phi phi^T, so both are combinations of R, R Hat(phi) and (R phi) phi^T,
+// formed once.
+void StepRotatedLeftJacobians(const Eigen::Matrix3d& R, const Eigen::Vector3d& phi, double dt,
+                              Eigen::Matrix3d* g_full, Eigen::Matrix3d* g_half) {
   const double t2 = phi.squaredNorm();
-  if (t2 > kStepSeriesThetaSquared) return geometry::LeftJacobian(phi);
-  const double a = 0.5 - t2 * (1.0 / 24.0 - t2 * (1.0 / 720.0 - t2 / 40320.0));
-  const double b = 1.0 / 6.0 - t2 * (1.0 / 120.0 - t2 * (1.0 / 5040.0 - t2 / 362880.0));
-  Eigen::Matrix3d J = (b * phi) * phi.transpose() + a * Hat(phi);
-  J.diagonal().array() += 1.0 - b * t2;
-  return J;
+  const double half_dt = 0.5 * dt;
+  if (t2 > kStepSeriesThetaSquared) {
+    *g_full = R * geometry::LeftJacobian(phi) * dt;
+    *g_half = R * geometry::LeftJacobian(Eigen::Vector3d(0.5 * phi)) * half_dt;
+    return;
+  }
+  const auto coefficients = [](double s2, double* a, double* b) {
+    *a = 0.5 - s2 * (1.0 / 24.0 - s2 * (1.0 / 720.0 - s2 / 40320.0));
+    *b = 1.0 / 6.0 - s2 * (1.0 / 120.0 - s2 * (1.0 / 5040.0 - s2 / 362880.0));
+  };
+  double a, b, a_half, b_half;
+  coefficients(t2, &a, &b);
+  coefficients(0.25 * t2, &a_half, &b_half);
+  const Eigen::Matrix3d R_hat = TimesHat<3>(R, phi);
+  const Eigen::Matrix3d R_outer = (R * phi) * phi.transpose();
+  *g_full = (dt * (1.0 - b * t2)) * R + (dt * a) * R_hat + (dt * b) * R_outer;
+  // phi / 2: Hat scales by 1/2, the outer product by 1/4.
+  *g_half = (half_dt * (1.0 - 0.25 * b_half * t2)) * R + (half_dt * 0.5 * a_half) * R_hat +
+            (half_dt * 0.25 * b_half) * R_outer;
 }
 
 }  // namespace
@@ -116,7 +165,11 @@ void ImuPreintegration::ResetDeltas() {
   delta_q_.setIdentity();
   delta_v_.setZero();
   delta_p_.setZero();
-  cov_left_.setZero();
+  cov_delta_.setZero();
+  cov_delta_bias_.setZero();
+  cov_pending_half_dt_s_ = 0.0;
+  var_bg_ = 0.0;
+  var_ba_ = 0.0;
   d_theta_d_bg_.setZero();
   d_v_d_bg_.setZero();
   d_v_d_ba_.setZero();
@@ -133,6 +186,11 @@ void ImuPreintegration::Integrate(const ImuSamples& samples, int64_t t_start_ns,
   size_t k = LastAtOrBefore(samples, t_start_ns);
   CheckSample(samples, k);
   ImuSample previous = samples[k];
+  // At most one step per sample interval; geometric growth keeps repeated calls amortized.
+  // (Unsorted samples, rejected in the loop below, may give last < k.)
+  const size_t last = LastAtOrBefore(samples, t_end_ns);
+  const size_t max_steps = steps_.size() + (last > k ? last - k : 0) + 1;
+  if (max_steps > steps_.capacity()) steps_.reserve(std::max(max_steps, 2 * steps_.capacity()));
   // Walk the knots t_start < samples in between < t_end; each step uses the mean of the
   // piecewise-linear signal over it, which is the average of its two end values.
   for (++k;; ++k) {
@@ -179,75 +237,102 @@ void ImuPreintegration::Propagate(const Step& step) {
   const Eigen::Vector3d u = R_mid * (accel * dt);  // velocity increment in frame i
 
   if (options_.compute_covariance) {
-    const Eigen::Matrix3d R_k = delta_q_.toRotationMatrix();
-    const Eigen::Vector3d full_angle = dt * omega;
-    // R_k Jl(w dt) = R_{k+1} Jr(w dt): sensitivity of the left rotation error to the rate.
-    const Eigen::Matrix3d g_theta = R_k * StepLeftJacobian(full_angle) * dt;
-    const Eigen::Matrix3d g_half = R_k * StepLeftJacobian(half_angle) * (0.5 * dt);
-    const Eigen::Matrix3d S = Hat(u);
-    const Eigen::Matrix3d g_v_gyro = -S * g_half;  // Eq. F4, gyro input to dv
-    const Eigen::Matrix3d g_v_accel = R_mid * dt;
     const double half_dt = 0.5 * dt;
+    // R_k Jl(w dt) = R_{k+1} Jr(w dt): sensitivity of the left rotation error to the rate.
+    Eigen::Matrix3d g_theta, g_half;
+    StepRotatedLeftJacobians(delta_q_.toRotationMatrix(), dt * omega, dt, &g_theta, &g_half);
+    // Eq. F4, gyro input to dv: -S g_half with S = Hat(u).
+    const Eigen::Matrix3d g_v_gyro = MinusHatTimes(u, g_half);
+    const Eigen::Matrix3d g_v_accel = R_mid * dt;
 
     // Bias Jacobians, Eq. F6 (old values on the right-hand side).
-    const Eigen::Matrix3d u_bg = -S * (d_theta_d_bg_ - g_half);
+    const Eigen::Matrix3d u_bg = MinusHatTimes(u, d_theta_d_bg_ - g_half);
     d_p_d_bg_ += dt * d_v_d_bg_ + half_dt * u_bg;
     d_p_d_ba_ += dt * d_v_d_ba_ - half_dt * g_v_accel;
     d_v_d_bg_ += u_bg;
     d_v_d_ba_ -= g_v_accel;
     d_theta_d_bg_ -= g_theta;
 
-    // Covariance, Eq. F4: P <- A P A^T with
-    //   A = I + [0 0 0 | g_theta 0; -S 0 0 | g_v_gyro g_v_accel; -dt/2 S, dt I, 0 | ..; 0 | 0],
-    // the p row of the input blocks being dt/2 times the v row. The bias drift enters like a
-    // measurement error, so its input blocks equal the noise ones. Applied to rows, then to
-    // columns, without forming A.
-    auto& P = cov_left_;
-    const Eigen::Matrix<double, 3, 15> m_v =
-        -S * P.topRows<3>() + g_v_gyro * P.middleRows<3>(9) + g_v_accel * P.middleRows<3>(12);
-    P.middleRows<3>(6) += dt * P.middleRows<3>(3) + half_dt * m_v;
-    P.middleRows<3>(3) += m_v;
-    P.topRows<3>() += g_theta * P.middleRows<3>(9);
-    // Columns: only the delta rows; the bias rows of the result are the transpose of the
-    // bias columns, which the column pass leaves unchanged (P stays symmetric).
-    auto P9 = P.topRows<9>();
-    const Eigen::Matrix<double, 9, 3> c_v = P9.leftCols<3>() * S +
-                                            P9.middleCols<3>(9) * g_v_gyro.transpose() +
-                                            P9.middleCols<3>(12) * g_v_accel.transpose();
-    P9.middleCols<3>(6) += dt * P9.middleCols<3>(3) + half_dt * c_v;
-    P9.middleCols<3>(3) += c_v;
-    P9.leftCols<3>() += P9.middleCols<3>(9) * g_theta.transpose();
-    P.bottomLeftCorner<6, 9>() = P.topRightCorner<9, 6>().transpose();
-
-    // + G Qd G^T with Qd = diag(sg^2/dt, sa^2/dt) (Eq. F5); the accelerometer block is
-    // rotation invariant: R_mid (sa^2/dt) R_mid^T dt^2 = sa^2 dt I. The bias random walk
-    // adds s_w^2 dt per step.
-    const double qg = noise_.gyroscope_noise_density * noise_.gyroscope_noise_density / dt;
-    const double sa2_dt =
-        noise_.accelerometer_noise_density * noise_.accelerometer_noise_density * dt;
-    const Eigen::Matrix3d q_tt = qg * g_theta * g_theta.transpose();
-    const Eigen::Matrix3d q_tv = qg * g_theta * g_v_gyro.transpose();
-    Eigen::Matrix3d q_vv = qg * g_v_gyro * g_v_gyro.transpose();
-    q_vv.diagonal().array() += sa2_dt;
-    P.block<3, 3>(0, 0) += q_tt;
-    P.block<3, 3>(0, 3) += q_tv;
-    P.block<3, 3>(3, 0) += q_tv.transpose();
-    P.block<3, 3>(0, 6) += half_dt * q_tv;
-    P.block<3, 3>(6, 0) += half_dt * q_tv.transpose();
-    P.block<3, 3>(3, 3) += q_vv;
-    P.block<3, 3>(3, 6) += half_dt * q_vv;
-    P.block<3, 3>(6, 3) += half_dt * q_vv;
-    P.block<3, 3>(6, 6) += (half_dt * half_dt) * q_vv;
-    const double bg = noise_.gyroscope_random_walk;
-    const double ba = noise_.accelerometer_random_walk;
-    P.block<3, 3>(9, 9).diagonal().array() += bg * bg * dt;
-    P.block<3, 3>(12, 12).diagonal().array() += ba * ba * dt;
+    PropagateCovariance(u, g_theta, g_v_gyro, g_v_accel, dt);
   }
 
   delta_p_ += dt * delta_v_ + (0.5 * dt) * u;
   delta_v_ += u;
   delta_q_ = (q_mid * q_half).normalized();
   dt_s_ += dt;
+}
+
+// Covariance, Eq. F4: P <- A P A^T + G Qd G^T with
+//   A = I + [0 0 0 | g_theta 0; -S 0 0 | g_v_gyro g_v_accel; -dt/2 S, dt I, 0 | ..; 0 | 0],
+// the p rows of the input blocks being dt/2 times the v rows. Since the v error after the
+// step (noise included) is v' = v - S dtheta + g_v_gyro db_g + g_v_accel db_a + n_v, the p row
+// equals p' = p + dt/2 v + dt/2 v', so A splits into p += dt/2 v, the (dtheta, v) update, and
+// p += dt/2 v again (deferred and merged with the next step's first): only the second needs
+// 3x3 products. P = [D B; B^T C] is kept in blocks; the bias rows of A are identity, so
+// C = diag(var_bg I, var_ba I) only gains the drift. D is symmetric, so the rows of A D are
+// read as columns of D: every product is 9x3 or 6x3 times 3x3, column-major and
+// coefficient-based (Eigen's GEMM path costs more at this size).
+void ImuPreintegration::PropagateCovariance(const Eigen::Vector3d& u,
+                                            const Eigen::Matrix3d& g_theta,
+                                            const Eigen::Matrix3d& g_v_gyro,
+                                            const Eigen::Matrix3d& g_v_accel, double dt) {
+  const double half_dt = 0.5 * dt;
+  auto& D = cov_delta_;
+  auto& B = cov_delta_bias_;
+  // The second p += dt/2 v of the previous step is still pending; v has not changed since.
+  AddVelocityToPosition(cov_pending_half_dt_s_ + half_dt, &D, &B);
+
+  // (dtheta, v) rows of A [D B], stored transposed (9x3 each), with the old B. The
+  // dtheta-b_a block of B stays zero (the dtheta row of A has no b_a input), so B_a's
+  // products use only its v and p rows.
+  const Eigen::Matrix<double, 9, 3> D_theta = D.leftCols<3>();
+  const Eigen::Matrix<double, 9, 3> rows_theta =
+      D_theta + B.leftCols<3>().lazyProduct(g_theta.transpose());
+  Eigen::Matrix<double, 9, 3> rows_v = D.middleCols<3>(3) + TimesHat(D_theta, u);
+  rows_v.noalias() += B.leftCols<3>().lazyProduct(g_v_gyro.transpose());
+  rows_v.bottomRows<6>().noalias() +=
+      B.bottomRightCorner<6, 3>().lazyProduct(g_v_accel.transpose());
+  // The same rows of A [B; C] (the bias columns, final: A^T leaves them unchanged).
+  const Eigen::Matrix3d B_theta_g = B.topLeftCorner<3, 3>();
+  B.block<3, 3>(3, 0) += var_bg_ * g_v_gyro + MinusHatTimes(u, B_theta_g);
+  B.block<3, 3>(3, 3) += var_ba_ * g_v_accel;
+  B.topLeftCorner<3, 3>() += var_bg_ * g_theta;
+
+  // Columns (dtheta, v) of (A P) A^T on the (dtheta, v) rows; the p columns are unchanged.
+  Eigen::Matrix<double, 6, 3> col_theta, col_v;
+  col_theta << rows_theta.topRows<3>().transpose(), rows_v.topRows<3>().transpose();
+  col_v << rows_theta.middleRows<3>(3).transpose(), rows_v.middleRows<3>(3).transpose();
+  const auto B_g = B.topLeftCorner<6, 3>();
+  col_v += TimesHat(col_theta, u);
+  col_v.noalias() += B_g.lazyProduct(g_v_gyro.transpose());
+  col_v.bottomRows<3>().noalias() += B.block<3, 3>(3, 3).lazyProduct(g_v_accel.transpose());
+  Eigen::Matrix3d theta_theta = col_theta.topRows<3>();
+  theta_theta.noalias() += B_g.topRows<3>().lazyProduct(g_theta.transpose());
+
+  // + G Qd G^T on (dtheta, v) with Qd = diag(sg^2/dt, sa^2/dt) (Eq. F5); the p rows of G
+  // follow from the second p += dt/2 v. The accelerometer block is rotation invariant:
+  // R_mid (sa^2/dt) R_mid^T dt^2 = sa^2 dt I.
+  const double qg = noise_.gyroscope_noise_density * noise_.gyroscope_noise_density / dt;
+  const double sa2_dt =
+      noise_.accelerometer_noise_density * noise_.accelerometer_noise_density * dt;
+  const Eigen::Matrix3d qg_g_theta = qg * g_theta;
+  const Eigen::Matrix3d qg_g_v_gyro = qg * g_v_gyro;
+  D.block<3, 3>(0, 0) = theta_theta + qg_g_theta.lazyProduct(g_theta.transpose());
+  D.block<3, 3>(0, 3) = col_v.topRows<3>() + qg_g_theta.lazyProduct(g_v_gyro.transpose());
+  D.block<3, 3>(3, 3) = col_v.bottomRows<3>() + qg_g_v_gyro.lazyProduct(g_v_gyro.transpose());
+  D.block<3, 3>(3, 3).diagonal().array() += sa2_dt;
+  D.block<3, 3>(0, 6) = rows_theta.bottomRows<3>().transpose();
+  D.block<3, 3>(3, 6) = rows_v.bottomRows<3>().transpose();
+  D.block<3, 3>(3, 0) = D.block<3, 3>(0, 3).transpose();
+  D.block<3, 3>(6, 0) = D.block<3, 3>(0, 6).transpose();
+  D.block<3, 3>(6, 3) = D.block<3, 3>(3, 6).transpose();
+
+  cov_pending_half_dt_s_ = half_dt;
+  // The bias random walk adds s_w^2 dt per step.
+  const double bg = noise_.gyroscope_random_walk;
+  const double ba = noise_.accelerometer_random_walk;
+  var_bg_ += bg * bg * dt;
+  var_ba_ += ba * ba * dt;
 }
 
 void ImuPreintegration::Reintegrate(const Eigen::Vector3d& b_g_lin,
@@ -278,7 +363,16 @@ Eigen::Matrix3d ImuPreintegration::d_R_d_bg() const {
 // Left to right rotation error: dphi = dR^T dtheta; the other components are unchanged.
 Matrix15d ImuPreintegration::Covariance() const {
   const Eigen::Matrix3d Rt = delta_q_.conjugate().toRotationMatrix();
-  Matrix15d cov = cov_left_;
+  Eigen::Matrix<double, 9, 9> D = cov_delta_;
+  Eigen::Matrix<double, 9, 6> B = cov_delta_bias_;
+  AddVelocityToPosition(cov_pending_half_dt_s_, &D, &B);
+  Matrix15d cov;
+  cov.topLeftCorner<9, 9>() = D;
+  cov.topRightCorner<9, 6>() = B;
+  cov.bottomLeftCorner<6, 9>() = B.transpose();
+  cov.bottomRightCorner<6, 6>().setZero();
+  cov.diagonal().segment<3>(9).setConstant(var_bg_);
+  cov.diagonal().segment<3>(12).setConstant(var_ba_);
   cov.topRows<3>() = Rt * cov.topRows<3>();
   cov.leftCols<3>() = cov.leftCols<3>() * Rt.transpose();
   return cov;

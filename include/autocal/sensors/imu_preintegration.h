@@ -115,6 +115,10 @@ class ImuPreintegration {
   };
   void ResetDeltas();
   void Propagate(const Step& step);
+  // u: the step's velocity increment in frame i (S = Hat(u) in Eq. F4).
+  void PropagateCovariance(const Eigen::Vector3d& u, const Eigen::Matrix3d& g_theta,
+                           const Eigen::Matrix3d& g_v_gyro, const Eigen::Matrix3d& g_v_accel,
+                           double dt_s);
 
   ImuNoise noise_;
   PreintegrationOptions options_;
@@ -128,8 +132,17 @@ class ImuPreintegration {
   Eigen::Vector3d delta_p_;
   // Covariance and bias Jacobians are propagated for the left (frame-i) rotation error
   // dtheta = dR dphi, whose transition is sparse (Eq. F4); they are rotated to the right
-  // error on output. The bias blocks hold the random-walk drift since t_i.
-  Matrix15d cov_left_;
+  // error on output. The covariance is kept in blocks: the bias rows of the transition are
+  // identity, so the bias-bias block is the random-walk drift since t_i, diag(var_bg I,
+  // var_ba I), and only the 9x9 delta block and the 9x6 delta-bias block need products.
+  Eigen::Matrix<double, 9, 9> cov_delta_;
+  Eigen::Matrix<double, 9, 6> cov_delta_bias_;
+  double var_bg_ = 0.0;
+  double var_ba_ = 0.0;
+  // The step's transition ends with p += dt/2 v (Eq. F4 split, see PropagateCovariance);
+  // the blocks above lack it for the last step, so that the next step applies it together
+  // with its own first one, and Covariance() applies it on output.
+  double cov_pending_half_dt_s_ = 0.0;
   Eigen::Matrix3d d_theta_d_bg_;
   Eigen::Matrix3d d_v_d_bg_;
   Eigen::Matrix3d d_v_d_ba_;
