@@ -21,9 +21,14 @@ inline std::filesystem::path SharedDataDir(const std::string& name) {
   return SharedDir() / "data" / name;
 }
 
-// A fresh directory below the build tree for this test program (created on demand).
+// A directory below the build tree (created on demand), private to the running test:
+// ctest runs the tests of one program in parallel, so tests must never share files.
 inline std::filesystem::path OutputDir(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::path(AUTOCAL_TEST_OUTPUT_DIR) / name;
+  std::filesystem::path dir(AUTOCAL_TEST_OUTPUT_DIR);
+  if (const auto* info = ::testing::UnitTest::GetInstance()->current_test_info()) {
+    dir /= std::string(info->test_suite_name()) + "." + info->name();
+  }
+  dir /= name;
   std::filesystem::create_directories(dir);
   return dir;
 }
