@@ -269,65 +269,81 @@ void ImuPreintegration::Propagate(const Step& step) {
 // equals p' = p + dt/2 v + dt/2 v', so A splits into p += dt/2 v, the (dtheta, v) update, and
 // p += dt/2 v again (deferred and merged with the next step's first): only the second needs
 // 3x3 products. P = [D B; B^T C] is kept in blocks; the bias rows of A are identity, so
-// C = diag(var_bg I, var_ba I) only gains the drift. D is symmetric, so the rows of A D are
-// read as columns of D: every product is 9x3 or 6x3 times 3x3, column-major and
+// C = diag(var_bg I, var_ba I) only gains the drift.
+//
+// On the (dtheta, v) rows, with A6 = [I 0; -S I] and H = [g_theta 0; g_v_gyro g_v_accel] the
+// bias inputs, the white-noise inputs equal H (the noise enters like a bias over one step), so
+//   D66 <- A6 D66 A6^T + A6 B6 H^T + H B6^T A6^T + H (C + Qd) H^T = A6 D66 A6^T + X H^T + H X^T
+// with X = A6 B6 + H (C + Qd) / 2: the one product X H^T covers both the bias coupling and
+// the noise, and its sum with its transpose is symmetric by construction. The accelerometer noise stays apart since it is rotation
+// invariant: g_v_accel (sa^2/dt) g_v_accel^T = sa^2 dt I. The dtheta-b_a block of B is zero
+// (the dtheta row of A has no b_a input), which removes one 3x3 product. Products are 3x3,
 // coefficient-based (Eigen's GEMM path costs more at this size).
 void ImuPreintegration::PropagateCovariance(const Eigen::Vector3d& u,
                                             const Eigen::Matrix3d& g_theta,
                                             const Eigen::Matrix3d& g_v_gyro,
                                             const Eigen::Matrix3d& g_v_accel, double dt) {
-  const double half_dt = 0.5 * dt;
   auto& D = cov_delta_;
   auto& B = cov_delta_bias_;
   // The second p += dt/2 v of the previous step is still pending; v has not changed since.
-  AddVelocityToPosition(cov_pending_half_dt_s_ + half_dt, &D, &B);
+  // As AddVelocityToPosition(), but only the p rows are formed: the (dtheta, v) columns of
+  // the p rows are overwritten below and mirrored at the end.
+  const double h = cov_pending_half_dt_s_ + 0.5 * dt;
+  const Eigen::Matrix3d D_vv = D.block<3, 3>(3, 3);
+  const Eigen::Matrix3d h_D_pv = h * D.block<3, 3>(6, 3);
+  D.block<3, 3>(6, 6) += h_D_pv + h_D_pv.transpose() + (h * h) * D_vv;
+  const Eigen::Matrix3d D_pt = D.block<3, 3>(6, 0) + h * D.block<3, 3>(3, 0);
+  const Eigen::Matrix3d D_pv = D.block<3, 3>(6, 3) + h * D_vv;
+  B.bottomRows<3>() += h * B.middleRows<3>(3);
 
-  // (dtheta, v) rows of A [D B], stored transposed (9x3 each), with the old B. The
-  // dtheta-b_a block of B stays zero (the dtheta row of A has no b_a input), so B_a's
-  // products use only its v and p rows.
-  const Eigen::Matrix<double, 9, 3> D_theta = D.leftCols<3>();
-  const Eigen::Matrix<double, 9, 3> rows_theta =
-      D_theta + B.leftCols<3>().lazyProduct(g_theta.transpose());
-  Eigen::Matrix<double, 9, 3> rows_v = D.middleCols<3>(3) + TimesHat(D_theta, u);
-  rows_v.noalias() += B.leftCols<3>().lazyProduct(g_v_gyro.transpose());
-  rows_v.bottomRows<6>().noalias() +=
-      B.bottomRightCorner<6, 3>().lazyProduct(g_v_accel.transpose());
-  // The same rows of A [B; C] (the bias columns, final: A^T leaves them unchanged).
-  const Eigen::Matrix3d B_theta_g = B.topLeftCorner<3, 3>();
-  B.block<3, 3>(3, 0) += var_bg_ * g_v_gyro + MinusHatTimes(u, B_theta_g);
-  B.block<3, 3>(3, 3) += var_ba_ * g_v_accel;
-  B.topLeftCorner<3, 3>() += var_bg_ * g_theta;
+  const Eigen::Matrix3d D_tt = D.block<3, 3>(0, 0);
+  const Eigen::Matrix3d D_tv = D.block<3, 3>(0, 3);
+  const Eigen::Matrix3d B_tg = B.block<3, 3>(0, 0);
+  // (A6 B6) on the v rows; the dtheta rows of A6 are identity.
+  const Eigen::Matrix3d AB_vg = B.block<3, 3>(3, 0) + MinusHatTimes(u, B_tg);
 
-  // Columns (dtheta, v) of (A P) A^T on the (dtheta, v) rows; the p columns are unchanged.
-  Eigen::Matrix<double, 6, 3> col_theta, col_v;
-  col_theta << rows_theta.topRows<3>().transpose(), rows_v.topRows<3>().transpose();
-  col_v << rows_theta.middleRows<3>(3).transpose(), rows_v.middleRows<3>(3).transpose();
-  const auto B_g = B.topLeftCorner<6, 3>();
-  col_v += TimesHat(col_theta, u);
-  col_v.noalias() += B_g.lazyProduct(g_v_gyro.transpose());
-  col_v.bottomRows<3>().noalias() += B.block<3, 3>(3, 3).lazyProduct(g_v_accel.transpose());
-  Eigen::Matrix3d theta_theta = col_theta.topRows<3>();
-  theta_theta.noalias() += B_g.topRows<3>().lazyProduct(g_theta.transpose());
+  // p rows, final for this step: D_p6 A6^T + B_p H^T (the p-p block was final above).
+  Eigen::Matrix3d new_pt = D_pt;
+  new_pt.noalias() += B.block<3, 3>(6, 0).lazyProduct(g_theta.transpose());
+  Eigen::Matrix3d new_pv = D_pv + TimesHat<3>(D_pt, u);
+  new_pv.noalias() += B.block<3, 3>(6, 0).lazyProduct(g_v_gyro.transpose());
+  new_pv.noalias() += B.block<3, 3>(6, 3).lazyProduct(g_v_accel.transpose());
 
-  // + G Qd G^T on (dtheta, v) with Qd = diag(sg^2/dt, sa^2/dt) (Eq. F5); the p rows of G
-  // follow from the second p += dt/2 v. The accelerometer block is rotation invariant:
-  // R_mid (sa^2/dt) R_mid^T dt^2 = sa^2 dt I.
+  // X = A6 B6 + H (C + Qd) / 2, Qd = sg^2/dt for the gyro (Eq. F5).
   const double qg = noise_.gyroscope_noise_density * noise_.gyroscope_noise_density / dt;
   const double sa2_dt =
       noise_.accelerometer_noise_density * noise_.accelerometer_noise_density * dt;
-  const Eigen::Matrix3d qg_g_theta = qg * g_theta;
-  const Eigen::Matrix3d qg_g_v_gyro = qg * g_v_gyro;
-  D.block<3, 3>(0, 0) = theta_theta + qg_g_theta.lazyProduct(g_theta.transpose());
-  D.block<3, 3>(0, 3) = col_v.topRows<3>() + qg_g_theta.lazyProduct(g_v_gyro.transpose());
-  D.block<3, 3>(3, 3) = col_v.bottomRows<3>() + qg_g_v_gyro.lazyProduct(g_v_gyro.transpose());
-  D.block<3, 3>(3, 3).diagonal().array() += sa2_dt;
-  D.block<3, 3>(0, 6) = rows_theta.bottomRows<3>().transpose();
-  D.block<3, 3>(3, 6) = rows_v.bottomRows<3>().transpose();
-  D.block<3, 3>(3, 0) = D.block<3, 3>(0, 3).transpose();
-  D.block<3, 3>(6, 0) = D.block<3, 3>(0, 6).transpose();
-  D.block<3, 3>(6, 3) = D.block<3, 3>(3, 6).transpose();
+  const double cg = 0.5 * (var_bg_ + qg);
+  const Eigen::Matrix3d X_tg = B_tg + cg * g_theta;
+  const Eigen::Matrix3d X_vg = AB_vg + cg * g_v_gyro;
+  const Eigen::Matrix3d X_va = B.block<3, 3>(3, 3) + (0.5 * var_ba_) * g_v_accel;
+  // Blocks of X H^T.
+  const Eigen::Matrix3d M_tt = X_tg.lazyProduct(g_theta.transpose());
+  const Eigen::Matrix3d M_tv = X_tg.lazyProduct(g_v_gyro.transpose());
+  const Eigen::Matrix3d M_vt = X_vg.lazyProduct(g_theta.transpose());
+  // A6 D66 A6^T: the v-v block is D_vv - S D_tv - D_vt S^T + S D_tt S^T; its cross terms
+  // join those of X H^T.
+  const Eigen::Matrix3d D_tt_S = TimesHat<3>(D_tt, u);
+  Eigen::Matrix3d W_vv = MinusHatTimes(u, D_tv);
+  W_vv.noalias() += X_vg.lazyProduct(g_v_gyro.transpose());
+  W_vv.noalias() += X_va.lazyProduct(g_v_accel.transpose());
 
-  cov_pending_half_dt_s_ = half_dt;
+  D.block<3, 3>(0, 0) = D_tt + (M_tt + M_tt.transpose());
+  D.block<3, 3>(0, 3) = D_tv + D_tt_S + M_tv + M_vt.transpose();
+  D.block<3, 3>(3, 3) = D_vv + MinusHatTimes(u, D_tt_S) + (W_vv + W_vv.transpose());
+  D.block<3, 3>(3, 3).diagonal().array() += sa2_dt;
+  D.block<3, 3>(6, 0) = new_pt;
+  D.block<3, 3>(6, 3) = new_pv;
+  D.block<3, 3>(3, 0) = D.block<3, 3>(0, 3).transpose();
+  D.block<3, 3>(0, 6) = new_pt.transpose();
+  D.block<3, 3>(3, 6) = new_pv.transpose();
+
+  // B6 <- A6 B6 + H C; the p rows of B are unchanged until the deferred p += dt/2 v.
+  B.block<3, 3>(0, 0) = B_tg + var_bg_ * g_theta;
+  B.block<3, 3>(3, 0) = AB_vg + var_bg_ * g_v_gyro;
+  B.block<3, 3>(3, 3) += var_ba_ * g_v_accel;
+
+  cov_pending_half_dt_s_ = 0.5 * dt;
   // The bias random walk adds s_w^2 dt per step.
   const double bg = noise_.gyroscope_random_walk;
   const double ba = noise_.accelerometer_random_walk;
