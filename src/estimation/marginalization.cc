@@ -157,34 +157,58 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
   }
 
   // 2. Gauss-Newton system of those residuals at the current values, in tangent coordinates.
+  //    Buffers are reused across residual blocks.
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+  std::vector<double*> params;
+  std::vector<RowMajorMatrix> tangent;
+  std::vector<double*> jacobian_ptrs;
+  Eigen::VectorXd residual;
+  struct TouchedBlock {
+    int offset;
+    const RowMajorMatrix* jacobian;
+  };
+  std::vector<TouchedBlock> touched;
   for (ceres::ResidualBlockId id : residual_blocks) {
-    std::vector<double*> params;
     problem->GetParameterBlocksForResidualBlock(id, &params);
     const int num_residuals = problem->GetCostFunctionForResidualBlock(id)->num_residuals();
     // Ceres returns these Jacobians already in tangent coordinates (manifolds applied).
-    std::vector<RowMajorMatrix> tangent(params.size());
-    std::vector<double*> jacobian_ptrs(params.size(), nullptr);
+    tangent.resize(params.size());
+    jacobian_ptrs.assign(params.size(), nullptr);
     for (size_t k = 0; k < params.size(); ++k) {
       if (!offset_of.count(params[k])) continue;  // constant block
       tangent[k].resize(num_residuals, problem->ParameterBlockTangentSize(params[k]));
       jacobian_ptrs[k] = tangent[k].data();
     }
-    Eigen::VectorXd residual(num_residuals);
+    residual.resize(num_residuals);
     double cost = 0.0;
     if (!problem->EvaluateResidualBlock(id, /*apply_loss_function=*/true, &cost, residual.data(),
                                         jacobian_ptrs.data())) {
       throw Error("marginalization: a residual block failed to evaluate");
     }
-    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(num_residuals, n);
+    // Accumulate only the block pairs this residual touches (a point residual touches a
+    // few small blocks of a much larger system).
+    touched.clear();
     for (size_t k = 0; k < params.size(); ++k) {
-      if (jacobian_ptrs[k] == nullptr) continue;
-      J.middleCols(offset_of[params[k]], tangent[k].cols()) = tangent[k];
+      if (jacobian_ptrs[k] != nullptr) touched.push_back({offset_of[params[k]], &tangent[k]});
     }
-    H.noalias() += J.transpose() * J;
-    b.noalias() += J.transpose() * residual;
+    for (size_t x = 0; x < touched.size(); ++x) {
+      const RowMajorMatrix& J_x = *touched[x].jacobian;
+      const int gx = touched[x].offset;
+      b.segment(gx, J_x.cols()).noalias() += J_x.transpose().lazyProduct(residual);
+      for (size_t y = 0; y <= x; ++y) {
+        // Only the block below the diagonal (or on it) is accumulated; mirrored at the end.
+        const bool x_below = gx >= touched[y].offset;
+        const RowMajorMatrix& J_lo = x_below ? *touched[y].jacobian : J_x;
+        const RowMajorMatrix& J_hi = x_below ? J_x : *touched[y].jacobian;
+        const int g_hi = std::max(gx, touched[y].offset);
+        const int g_lo = std::min(gx, touched[y].offset);
+        H.block(g_hi, g_lo, J_hi.cols(), J_lo.cols()).noalias() +=
+            J_hi.transpose().lazyProduct(J_lo);
+      }
+    }
   }
+  H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
   if (!H.allFinite() || !b.allFinite()) {
     throw Error("marginalization: non-finite Jacobians or residuals");
   }
