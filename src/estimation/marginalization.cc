@@ -173,24 +173,23 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
     problem->GetParameterBlocksForResidualBlock(id, &params);
     const int num_residuals = problem->GetCostFunctionForResidualBlock(id)->num_residuals();
     // Ceres returns these Jacobians already in tangent coordinates (manifolds applied).
+    // Only the block pairs this residual touches are accumulated (a point residual touches
+    // a few small blocks of a much larger system).
     tangent.resize(params.size());
     jacobian_ptrs.assign(params.size(), nullptr);
+    touched.clear();
     for (size_t k = 0; k < params.size(); ++k) {
-      if (!offset_of.count(params[k])) continue;  // constant block
+      const auto offset = offset_of.find(params[k]);
+      if (offset == offset_of.end()) continue;  // constant block
       tangent[k].resize(num_residuals, problem->ParameterBlockTangentSize(params[k]));
       jacobian_ptrs[k] = tangent[k].data();
+      touched.push_back({offset->second, &tangent[k]});
     }
     residual.resize(num_residuals);
     double cost = 0.0;
     if (!problem->EvaluateResidualBlock(id, /*apply_loss_function=*/true, &cost, residual.data(),
                                         jacobian_ptrs.data())) {
       throw Error("marginalization: a residual block failed to evaluate");
-    }
-    // Accumulate only the block pairs this residual touches (a point residual touches a
-    // few small blocks of a much larger system).
-    touched.clear();
-    for (size_t k = 0; k < params.size(); ++k) {
-      if (jacobian_ptrs[k] != nullptr) touched.push_back({offset_of[params[k]], &tangent[k]});
     }
     for (size_t x = 0; x < touched.size(); ++x) {
       const RowMajorMatrix& J_x = *touched[x].jacobian;
