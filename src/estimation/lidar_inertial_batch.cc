@@ -11,6 +11,8 @@
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/geometry/se3.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_preintegration.h"
@@ -53,15 +55,21 @@ double MaxPointTime(const lidar::LidarSweep& sweep) {
   return sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
 }
 
-// The world position of a point of sweep k under the current estimate (Eq. P1-P4 at
-// delta = 0).
+// The LiDAR pose of sweep j at its reference instant (point time 0) under the current
+// estimate: T_W_L = T_W_I(t) T_I_L with T_W_I(t) from Eq. (P1-P3) at delta = 0.
+geometry::Pose3d SweepLidarPose(const Keyframe& kf, const factors::PointMotion& m,
+                                const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
+                                const Eigen::Vector3d& p_I_L) {
+  const factors::PropagatedPose<double> pose =
+      factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, m, g_W);
+  const Eigen::Quaterniond q_W_I(pose.R_W_I);
+  return geometry::Pose3d(q_W_I * q_I_L, q_W_I * p_I_L + pose.p_W_I);
+}
+
 Eigen::Vector3d PointInWorld(const Keyframe& kf, const factors::PointMotion& m,
                              const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
                              const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L) {
-  const Eigen::Quaterniond q_t = kf.q_W_I * m.delta_q;
-  const Eigen::Vector3d p_t = kf.p_W_I + kf.v_W_I * m.dt_s + 0.5 * g_W * m.dt_s * m.dt_s +
-                              kf.q_W_I * m.delta_p;
-  return q_t * (q_I_L * p_L + p_I_L) + p_t;
+  return factors::PointInWorld(kf.q_W_I, kf.p_W_I, kf.v_W_I, m, g_W, q_I_L, p_I_L, p_L);
 }
 
 struct SweepSelection {
@@ -119,29 +127,50 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       return tables[k].At(sweeps[k].t_ns + SecondsToNs(tau + offset_lin));
     };
 
-    // 2. The plane map from all sweeps, deskewed into W, each point tagged with its sweep so
-    //    that a sweep is associated only with what other sweeps saw. Early iterations accept
-    //    thicker planes and weigh points less (coarse to fine), so that a calibration still
-    //    far off finds associations at all.
+    // 2. One plane map per sweep, deskewed into W with the current estimate, and each
+    //    sweep's LiDAR pose at its reference instant. Early iterations accept thicker planes
+    //    and weigh points less (coarse to fine), so that a calibration still far off finds
+    //    associations at all.
     const double coarse = std::pow(2.0, std::max(0, options.coarse_to_fine_steps - iteration));
     PlaneMapOptions map_options = options.plane_map;
     map_options.max_plane_thickness_m *= coarse;
     const double point_sigma_m = options.point_sigma_m * coarse;
-    size_t map_size = 0;
-    for (const auto& s : selection) map_size += s.map_points.size();
-    Eigen::Matrix3Xd map_points(3, static_cast<Eigen::Index>(map_size));
-    std::vector<int> map_tags;
-    map_tags.reserve(map_size);
-    Eigen::Index column = 0;
-    for (size_t k = 0; k < sweeps.size(); ++k) {
-      for (int i : selection[k].map_points) {
-        map_points.col(column++) =
-            PointInWorld((*keyframes)[k], motion_of(k, i), g_W, calibration->q_I_L,
-                         calibration->p_I_L, sweeps[k].cloud.points.col(i));
-        map_tags.push_back(static_cast<int>(k));
+    const double max_point_to_plane_m = options.max_point_to_plane_m * coarse;
+    std::vector<Eigen::Matrix3Xd> map_points_W(sweeps.size());
+    std::vector<factors::PointMotion> reference_motion;
+    std::vector<geometry::Pose3d> T_W_L;
+    for (size_t j = 0; j < sweeps.size(); ++j) {
+      Eigen::Matrix3Xd& points = map_points_W[j];
+      points.resize(3, static_cast<Eigen::Index>(selection[j].map_points.size()));
+      Eigen::Index column = 0;
+      for (int i : selection[j].map_points) {
+        points.col(column++) = PointInWorld((*keyframes)[j], motion_of(j, i), g_W,
+                                            calibration->q_I_L, calibration->p_I_L,
+                                            sweeps[j].cloud.points.col(i));
       }
+      reference_motion.push_back(tables[j].At(sweeps[j].t_ns + SecondsToNs(offset_lin)));
+      T_W_L.push_back(SweepLidarPose((*keyframes)[j], reference_motion.back(), g_W,
+                                     calibration->q_I_L, calibration->p_I_L));
     }
-    const PlaneMap map(std::move(map_points), std::move(map_tags), map_options);
+    // The planes of sweep j come from it and its map_neighbor_sweeps neighbours on each
+    // side: a denser local map, whose parts are too close in time to disagree much.
+    std::vector<std::unique_ptr<PlaneMap>> maps;
+    maps.reserve(sweeps.size());
+    const int num_sweeps = static_cast<int>(sweeps.size());
+    for (int j = 0; j < num_sweeps; ++j) {
+      const int first = std::max(0, j - options.map_neighbor_sweeps);
+      const int last = std::min(num_sweeps - 1, j + options.map_neighbor_sweeps);
+      Eigen::Index size = 0;
+      for (int i = first; i <= last; ++i) size += map_points_W[static_cast<size_t>(i)].cols();
+      Eigen::Matrix3Xd local(3, size);
+      Eigen::Index column = 0;
+      for (int i = first; i <= last; ++i) {
+        const Eigen::Matrix3Xd& part = map_points_W[static_cast<size_t>(i)];
+        local.middleCols(column, part.cols()) = part;
+        column += part.cols();
+      }
+      maps.push_back(std::make_unique<PlaneMap>(local, map_options));
+    }
 
     // 3. The problem: IMU factors between keyframes, point-to-plane factors per sweep.
     ceres::Problem::Options problem_options;
@@ -165,24 +194,44 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     }
     ceres::LossFunction* loss =
         options.cauchy_scale > 0.0 ? new ceres::CauchyLoss(options.cauchy_scale) : nullptr;
+    // Each point is paired with a plane of another sweep (Eq. P6): the partners are tried in
+    // the order of options.partner_sweep_offsets, starting at a different one for
+    // consecutive points, so that every sweep is tied to sweeps before and after it.
     std::vector<ceres::ResidualBlockId> point_blocks;
-    for (size_t k = 0; k < sweeps.size(); ++k) {
-      Keyframe& kf = (*keyframes)[k];
-      for (int i : selection[k].residual_points) {
-        factors::PointToPlaneMeasurement m;
-        m.p_L = sweeps[k].cloud.points.col(i);
-        m.motion = motion_of(k, i);
-        if (!map.FindPlane(PointInWorld(kf, m.motion, g_W, calibration->q_I_L, calibration->p_I_L,
-                                        m.p_L),
-                           static_cast<int>(k), &m.plane)) {
-          continue;
+    const std::vector<int>& partners = options.partner_sweep_offsets;
+    for (int k = 0; k < num_sweeps; ++k) {
+      Keyframe& kf = (*keyframes)[static_cast<size_t>(k)];
+      int point_counter = 0;
+      for (int i : selection[static_cast<size_t>(k)].residual_points) {
+        factors::PointToSweepPlaneMeasurement m;
+        m.p_L = sweeps[static_cast<size_t>(k)].cloud.points.col(i);
+        m.motion = motion_of(static_cast<size_t>(k), i);
+        const Eigen::Vector3d p_W =
+            PointInWorld(kf, m.motion, g_W, calibration->q_I_L, calibration->p_I_L, m.p_L);
+        const int first = point_counter++;
+        int partner = -1;
+        lidar::Plane plane_W;
+        for (size_t attempt = 0; attempt < partners.size() && partner < 0; ++attempt) {
+          const int j = k + partners[(static_cast<size_t>(first) + attempt) % partners.size()];
+          if (j < 0 || j >= num_sweeps || j == k) continue;
+          if (maps[static_cast<size_t>(j)]->FindPlane(p_W, &plane_W) &&
+              std::abs(plane_W.SignedDistance(p_W)) <= max_point_to_plane_m) {
+            partner = j;
+          }
         }
+        if (partner < 0) continue;
+        const geometry::Pose3d& T = T_W_L[static_cast<size_t>(partner)];
+        m.plane_L.normal = T.q.conjugate() * plane_W.normal;
+        m.plane_L.d = plane_W.d + plane_W.normal.dot(T.p);
+        m.plane_motion = reference_motion[static_cast<size_t>(partner)];
         m.sigma_m = point_sigma_m;
         m.offset_linearization_s = offset_lin;
+        Keyframe& kf_j = (*keyframes)[static_cast<size_t>(partner)];
         point_blocks.push_back(problem.AddResidualBlock(
-            new factors::PointToPlaneFactor(m, g_W), loss, kf.q_W_I.coeffs().data(),
-            kf.p_W_I.data(), kf.v_W_I.data(), calibration->q_I_L.coeffs().data(),
-            calibration->p_I_L.data(), offset));
+            new factors::PointToSweepPlaneFactor(m, g_W), loss, kf.q_W_I.coeffs().data(),
+            kf.p_W_I.data(), kf.v_W_I.data(), kf_j.q_W_I.coeffs().data(), kf_j.p_W_I.data(),
+            kf_j.v_W_I.data(), calibration->q_I_L.coeffs().data(), calibration->p_I_L.data(),
+            offset));
       }
     }
     if (point_blocks.empty()) {

@@ -14,6 +14,7 @@ namespace estimation {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kFirstSweepS = 14.0;
 
 // The true state at IMU time t_ns, interpolated in the simulator's IMU-rate truth.
 Keyframe TrueKeyframe(const sim::ImuLog& log, int64_t t_ns) {
@@ -35,13 +36,16 @@ Keyframe TrueKeyframe(const sim::ImuLog& log, int64_t t_ns) {
   return kf;
 }
 
-// A 10 s urban drive with a 16-beam LiDAR, simulated once for the suite.
+// An urban drive with a 16-beam LiDAR, simulated once for the suite. Seed 7 reaches the
+// roundabout at 18 s and leaves it at 34 s: the sweeps from 14 s on see straight driving
+// and turns, without which the extrinsic rotation is unobservable (driving straight, a
+// rotated LiDAR sees a consistently rotated world).
 class LidarInertialBatchTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     sim::SimulationOptions sim_options;
     sim_options.scenario = sim::ScenarioType::kUrban;
-    sim_options.duration_s = 10.0;
+    sim_options.duration_s = 34.0;
     sim_options.seed = 7;
     sim_options.lidar.config.num_beams = 16;
     sim_options.wheel.enabled = false;
@@ -56,7 +60,7 @@ class LidarInertialBatchTest : public ::testing::Test {
 
   // Sweeps whose keyframe and points lie inside the IMU log, with true keyframe states.
   void Setup(const sensors::Calibration& start, const LidarInertialBatchOptions& options) {
-    const int64_t imu_begin = log_->imu.samples.front().t_ns + 50'000'000;
+    const int64_t imu_begin = log_->imu.samples.front().t_ns + SecondsToNs(kFirstSweepS);
     const int64_t imu_end = log_->imu.samples.back().t_ns - 200'000'000;
     for (const lidar::LidarSweep& sweep : log_->sweeps) {
       const int64_t t_k = KeyframeTime(sweep.t_ns, start.time_offset_lidar_imu_s, options);
@@ -64,7 +68,7 @@ class LidarInertialBatchTest : public ::testing::Test {
       sweeps_.push_back(sweep);
       keyframes_.push_back(TrueKeyframe(log_->imu, t_k));
     }
-    ASSERT_GT(sweeps_.size(), 80u);
+    ASSERT_GT(sweeps_.size(), 150u);
   }
 
   static sim::Simulator* simulator_;
@@ -76,34 +80,39 @@ class LidarInertialBatchTest : public ::testing::Test {
 sim::Simulator* LidarInertialBatchTest::simulator_ = nullptr;
 sim::SimulatedLog* LidarInertialBatchTest::log_ = nullptr;
 
-// Started at the truth, the solve must not move away from it: no bias in the point model,
-// the time-offset model, the map or the IMU coupling.
-TEST_F(LidarInertialBatchTest, StaysAtTheTruth) {
+// From the simulator's nominal guess (1.5 deg per axis, 3 cm, 4 ms off) the solve reaches
+// the truth: planes that move with the sweeps that saw them leave a wrong calibration
+// nowhere to hide.
+TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
   LidarInertialBatchOptions options;
   options.imu_noise = simulator_->sensors_config().imu.noise;
-  options.outer_iterations = 4;
-  options.coarse_to_fine_steps = 0;  // started at the truth: no coarse phase needed
+  options.max_residuals_per_sweep = 400;  // enough for the goals, keeps the test fast
   const sensors::Calibration& truth = simulator_->true_calibration();
-  sensors::Calibration calibration = truth;
+  sensors::Calibration calibration = simulator_->nominal_calibration();
   Setup(calibration, options);
   const LidarInertialBatchReport report =
       SolveLidarInertialBatch(log_->imu.samples, sweeps_, &keyframes_, &calibration, options);
+  for (const sensors::Calibration& c : report.calibration_per_iteration) {
+    std::cout << "  rotation error "
+              << geometry::AngularDistance(c.q_I_L, truth.q_I_L) * kRadToDeg << " deg, p error "
+              << (c.p_I_L - truth.p_I_L).transpose() << " m, offset error "
+              << (c.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s) * 1e3 << " ms\n";
+  }
   const double rotation_error_deg =
       geometry::AngularDistance(calibration.q_I_L, truth.q_I_L) * kRadToDeg;
-  const double translation_error_m = (calibration.p_I_L - truth.p_I_L).norm();
   const double offset_error_s =
       std::abs(calibration.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s);
-  std::cout << "rotation error " << rotation_error_deg << " deg, translation "
-            << translation_error_m << " m, offset " << offset_error_s * 1e3 << " ms, "
-            << report.associated_points << " points, rms " << report.point_rms_m << " m\n";
-  EXPECT_LT(rotation_error_deg, 0.02);
-  EXPECT_LT(translation_error_m, 0.005);
-  // Known limitation (docs/estimation.md, "Batch LiDAR-inertial solve"): the fixed-map
-  // association leaves the time offset weakly anchored; it is reported, not yet asserted to
-  // the 0.5 ms goal.
-  EXPECT_LT(offset_error_s, 2e-3);
-  // 2 cm range noise; planes from noisy neighbours and moving cars (Cauchy-weighted) add some.
-  EXPECT_LT(report.point_rms_m, 0.035);
+  std::cout << report.outer_iterations << " iterations, " << report.associated_points
+            << " points, rms " << report.point_rms_m << " m\n";
+  // Goals: 0.1 deg, 1 cm on observable axes, 0.5 ms. Measured: 0.057 deg; x, y within 5 mm;
+  // 0.66 ms (0.11 ms with a noise-free IMU: 20 s with one roundabout leave the offset short
+  // of information against the gyro noise).
+  EXPECT_LT(rotation_error_deg, 0.1);
+  // z is not excited by driving on a (nearly) level road: rotations about the vertical leave
+  // (R - I) p_I_L without a z component. It is reported by the observability analysis.
+  EXPECT_LT((calibration.p_I_L - truth.p_I_L).head<2>().norm(), 0.01);
+  EXPECT_LT(offset_error_s, 1e-3);
+  EXPECT_LT(report.point_rms_m, 0.03);  // 2 cm range noise, measured 0.022 m
 }
 
 }  // namespace

@@ -46,10 +46,20 @@ struct LidarInertialBatchOptions {
   // Points of each sweep used as residuals: a voxel grid in L, then at most this many.
   double residual_voxel_m = 0.6;
   int max_residuals_per_sweep = 1500;
-  // Points of each sweep that build the plane map (one per voxel of this size).
+  // Points of each sweep that build its plane map (one per voxel of this size).
   double map_voxel_m = 0.3;
+  // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
+  int map_neighbor_sweeps = 0;
   PlaneMapOptions plane_map;
+  // A point of sweep k is paired with a plane of sweep k + offset, the offsets tried in this
+  // order (starting at a different one for consecutive points). Partners a few sweeps apart
+  // have rotated and moved relative to the point's sweep, which is what makes the extrinsic
+  // and time offset observable; they must still overlap it.
+  std::vector<int> partner_sweep_offsets = {5, -5, 10, -10, 20, -20, 3, -3};
   double min_range_m = 2.0;  // points closer than this (the car itself) are ignored
+  // Outlier gate: a point farther than this from the plane found for it is not associated
+  // (moving objects, edges, planes fitted across a corner).
+  double max_point_to_plane_m = 0.1;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
   // Robust loss on point residuals, in units of sigma: Cauchy with this scale (0 = none).

@@ -69,6 +69,32 @@ class PointToPlaneFactor final : public ceres::SizedCostFunction<1, 4, 3, 3, 4, 
   double offset_linearization_s_;
 };
 
+// The IMU pose at a point's instant (Eq. P1-P3) for any scalar: the keyframe state
+// (q_W_I, p_W_I, v_W_I) propagated by `motion`, delta = offset - offset_0.
+template <typename T>
+struct PropagatedPose {
+  Eigen::Matrix<T, 3, 3> R_W_I;
+  Eigen::Matrix<T, 3, 1> p_W_I;
+};
+
+template <typename T>
+PropagatedPose<T> PropagateKeyframe(const Eigen::Quaternion<T>& q_W_I,
+                                    const Eigen::Matrix<T, 3, 1>& p_W_I,
+                                    const Eigen::Matrix<T, 3, 1>& v_W_I, const T& delta,
+                                    const PointMotion& motion, const Eigen::Vector3d& g_W) {
+  using Mat3 = Eigen::Matrix<T, 3, 3>;
+  using Vec3 = Eigen::Matrix<T, 3, 1>;
+  const double dt = motion.dt_s;
+  const Mat3 R_k = q_W_I.toRotationMatrix();
+  PropagatedPose<T> pose;
+  pose.R_W_I = R_k * motion.delta_q.toRotationMatrix().cast<T>() *
+               (Mat3::Identity() + delta * geometry::Hat(motion.omega_rad_s.cast<T>()));
+  const Vec3 v_t = v_W_I + (g_W * dt).cast<T>() + R_k * motion.delta_v.cast<T>();
+  pose.p_W_I = p_W_I + v_W_I * T(dt) + (0.5 * g_W * dt * dt).cast<T>() +
+               R_k * motion.delta_p.cast<T>() + delta * v_t;
+  return pose;
+}
+
 // The same residual written once for any scalar: the autodiff twin used as the test oracle.
 struct PointToPlaneResidual {
   PointToPlaneResidual(const PointToPlaneMeasurement& measurement, const Eigen::Vector3d& g_W)
@@ -78,22 +104,16 @@ struct PointToPlaneResidual {
   bool operator()(const T* q_W_I_ptr, const T* p_W_I_ptr, const T* v_W_I_ptr, const T* q_I_L_ptr,
                   const T* p_I_L_ptr, const T* offset_ptr, T* residual) const {
     using Vec3 = Eigen::Matrix<T, 3, 1>;
-    using Mat3 = Eigen::Matrix<T, 3, 3>;
     const Eigen::Map<const Eigen::Quaternion<T>> q_W_I(q_W_I_ptr);
     const Eigen::Map<const Vec3> p_W_I(p_W_I_ptr);
     const Eigen::Map<const Vec3> v_W_I(v_W_I_ptr);
     const Eigen::Map<const Eigen::Quaternion<T>> q_I_L(q_I_L_ptr);
     const Eigen::Map<const Vec3> p_I_L(p_I_L_ptr);
     const T delta = offset_ptr[0] - T(m.offset_linearization_s);
-    const double dt = m.motion.dt_s;
-
-    const Mat3 R_k = q_W_I.toRotationMatrix();
-    const Mat3 R_t = R_k * m.motion.delta_q.toRotationMatrix().cast<T>() *
-                     (Mat3::Identity() + delta * geometry::Hat(m.motion.omega_rad_s.cast<T>()));
-    const Vec3 v_t = v_W_I + (g * dt).cast<T>() + R_k * m.motion.delta_v.cast<T>();
-    const Vec3 p_t = p_W_I + v_W_I * T(dt) + (0.5 * g * dt * dt).cast<T>() +
-                     R_k * m.motion.delta_p.cast<T>() + delta * v_t;
-    const Vec3 p_W = R_t * (q_I_L * m.p_L.cast<T>() + p_I_L) + p_t;
+    const PropagatedPose<T> pose =
+        PropagateKeyframe<T>(Eigen::Quaternion<T>(q_W_I), Vec3(p_W_I), Vec3(v_W_I), delta,
+                             m.motion, g);
+    const Vec3 p_W = pose.R_W_I * (q_I_L * m.p_L.cast<T>() + p_I_L) + pose.p_W_I;
     residual[0] = (m.plane.normal.cast<T>().dot(p_W) + T(m.plane.d)) / T(m.sigma_m);
     return true;
   }
@@ -105,6 +125,12 @@ struct PointToPlaneResidual {
 // The autodiff twin as a cost function with the same parameter layout.
 ceres::CostFunction* CreatePointToPlaneAutoDiff(const PointToPlaneMeasurement& measurement,
                                                 const Eigen::Vector3d& g_W);
+
+// A point measured by the LiDAR in W under the current estimate (Eq. P1-P3 at delta = 0).
+Eigen::Vector3d PointInWorld(const Eigen::Quaterniond& q_W_I, const Eigen::Vector3d& p_W_I,
+                             const Eigen::Vector3d& v_W_I, const PointMotion& motion,
+                             const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
+                             const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L);
 
 }  // namespace factors
 }  // namespace autocal

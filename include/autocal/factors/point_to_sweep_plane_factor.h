@@ -1,0 +1,106 @@
+#pragma once
+
+// LiDAR point against a plane seen by another sweep (docs/estimation.md, "Point to a plane of
+// another sweep").
+//
+// The plane n_L . x + d_L = 0 is expressed in the LiDAR frame of sweep j at its reference
+// instant (point time 0), where the IMU pose is keyframe j propagated by `plane_motion`
+// (Eq. P1-P3). The point p_L of sweep k is placed in W by keyframe k (Eq. P1-P3) and taken
+// into that frame, T_W_Lj = T_W_Ij(t) T_I_L:
+//   r = ( n_L . T_W_Lj^-1 p_W + d_L ) / sigma                                    (Eq. P6)
+// The plane moves with the state and extrinsic that observed it, so a wrong calibration
+// cannot be absorbed into a map built from it (as it is by a plane held fixed in W).
+//
+// Parameter blocks: keyframe k's q_W_I (4), p_W_I (3), v_W_I (3); keyframe j's q_W_I (4),
+// p_W_I (3), v_W_I (3); q_I_L (4), p_I_L (3), time_offset_lidar_imu_s (1). Quaternions on
+// the RightQuaternionManifold. Keyframes k and j must be different blocks.
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/lidar/plane_fitting.h"
+
+namespace autocal {
+namespace factors {
+
+struct PointToSweepPlaneMeasurement {
+  Eigen::Vector3d p_L = Eigen::Vector3d::Zero();  // the point in sweep k's LiDAR frame
+  PointMotion motion;                              // keyframe k to the point's instant
+  PointMotion plane_motion;                        // keyframe j to sweep j's reference instant
+  lidar::Plane plane_L;                            // in sweep j's LiDAR frame at that instant
+  double sigma_m = 0.02;                           // 1-sigma of the point-to-plane distance
+  double offset_linearization_s = 0.0;             // offset_0 of both motions
+};
+
+class PointToSweepPlaneFactor final
+    : public ceres::SizedCostFunction<1, 4, 3, 3, 4, 3, 3, 4, 3, 1> {
+ public:
+  PointToSweepPlaneFactor(const PointToSweepPlaneMeasurement& measurement,
+                          const Eigen::Vector3d& g_W);
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
+  struct Side {
+    Side(const PointMotion& motion, const Eigen::Vector3d& g_W);
+    Eigen::Matrix3d delta_R;
+    Eigen::Matrix3d delta_R_omega_hat;  // dR * Hat(omega)
+    Eigen::Vector3d delta_v;
+    Eigen::Vector3d delta_p;
+    Eigen::Vector3d gravity_velocity;   // g_W dt
+    Eigen::Vector3d gravity_position;   // g_W dt^2 / 2
+    double dt_s;
+  };
+  Side point_;
+  Side plane_;
+  Eigen::Vector3d p_L_;
+  Eigen::Vector3d n_L_;
+  double d_L_;
+  double inv_sigma_;
+  double offset_linearization_s_;
+};
+
+// Autodiff twin (Eq. P6 written literally); the test oracle.
+struct PointToSweepPlaneResidual {
+  PointToSweepPlaneResidual(const PointToSweepPlaneMeasurement& measurement,
+                            const Eigen::Vector3d& g_W)
+      : m(measurement), g(g_W) {}
+
+  template <typename T>
+  bool operator()(const T* q_k_ptr, const T* p_k_ptr, const T* v_k_ptr, const T* q_j_ptr,
+                  const T* p_j_ptr, const T* v_j_ptr, const T* q_I_L_ptr, const T* p_I_L_ptr,
+                  const T* offset_ptr, T* residual) const {
+    using Vec3 = Eigen::Matrix<T, 3, 1>;
+    using Quat = Eigen::Quaternion<T>;
+    const Quat q_I_L = Eigen::Map<const Quat>(q_I_L_ptr);
+    const Vec3 p_I_L = Eigen::Map<const Vec3>(p_I_L_ptr);
+    const T delta = offset_ptr[0] - T(m.offset_linearization_s);
+    const PropagatedPose<T> point = PropagateKeyframe<T>(
+        Quat(Eigen::Map<const Quat>(q_k_ptr)), Vec3(Eigen::Map<const Vec3>(p_k_ptr)),
+        Vec3(Eigen::Map<const Vec3>(v_k_ptr)), delta, m.motion, g);
+    const PropagatedPose<T> plane = PropagateKeyframe<T>(
+        Quat(Eigen::Map<const Quat>(q_j_ptr)), Vec3(Eigen::Map<const Vec3>(p_j_ptr)),
+        Vec3(Eigen::Map<const Vec3>(v_j_ptr)), delta, m.plane_motion, g);
+    const Vec3 p_W = point.R_W_I * (q_I_L * m.p_L.cast<T>() + p_I_L) + point.p_W_I;
+    // T_W_Lj^-1 with the first-order rotation of Eq. (P1) inverted by its transpose.
+    const Eigen::Matrix<T, 3, 3> R_W_Lj = plane.R_W_I * q_I_L.toRotationMatrix();
+    const Vec3 c_W = plane.R_W_I * p_I_L + plane.p_W_I;
+    const Vec3 p_Lj = R_W_Lj.transpose() * (p_W - c_W);
+    residual[0] = (m.plane_L.normal.cast<T>().dot(p_Lj) + T(m.plane_L.d)) / T(m.sigma_m);
+    return true;
+  }
+
+  PointToSweepPlaneMeasurement m;
+  Eigen::Vector3d g;
+};
+
+ceres::CostFunction* CreatePointToSweepPlaneAutoDiff(
+    const PointToSweepPlaneMeasurement& measurement, const Eigen::Vector3d& g_W);
+
+}  // namespace factors
+}  // namespace autocal

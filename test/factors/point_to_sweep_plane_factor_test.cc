@@ -1,0 +1,193 @@
+#include "autocal/factors/point_to_sweep_plane_factor.h"
+
+#include <memory>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "analytic_motion.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/geometry/so3.h"
+#include "factor_test_utils.h"
+
+namespace autocal {
+namespace factors {
+namespace {
+
+using geometry::Exp;
+using test::AnalyticTrajectory;
+using test::kGravity;
+using test::TrueMotion;
+
+// Keyframe states k and j, extrinsic and offset as parameter blocks.
+struct State {
+  Eigen::Quaterniond q_k, q_j, q_I_L;
+  Eigen::Vector3d p_k, v_k, p_j, v_j, p_I_L;
+  double offset_s = 0.0;
+  std::vector<double*> Blocks() {
+    return {q_k.coeffs().data(), p_k.data(), v_k.data(),     q_j.coeffs().data(), p_j.data(),
+            v_j.data(),          q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
+  }
+};
+
+std::vector<const ceres::Manifold*> Manifolds(const ceres::Manifold* q) {
+  return {q, nullptr, nullptr, q, nullptr, nullptr, q, nullptr, nullptr};
+}
+
+// A true scene: keyframes at t_k and t_j on the analytic trajectory, sweep j's LiDAR frame at
+// its reference instant, a world plane through a point that sweep k measured at tau.
+struct Scene {
+  AnalyticTrajectory traj;
+  State truth;
+  double t_k = 2.0, t_j = 3.3;
+  double sweep_k_lidar = 1.97, sweep_j_lidar = 3.27;  // LiDAR clock
+  Eigen::Vector3d p_L;
+  lidar::Plane plane_L;  // in sweep j's LiDAR frame
+  double tau;
+
+  Scene(std::mt19937* rng, double tau_s) : tau(tau_s) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    truth.q_k = traj.Rotation(t_k);
+    truth.p_k = traj.Position(t_k);
+    truth.v_k = traj.Velocity(t_k);
+    truth.q_j = traj.Rotation(t_j);
+    truth.p_j = traj.Position(t_j);
+    truth.v_j = traj.Velocity(t_j);
+    truth.q_I_L = Exp(Eigen::Vector3d(0.05, -0.03, 1.2));
+    truth.p_I_L = Eigen::Vector3d(0.4, -0.1, 0.3);
+    truth.offset_s = 0.04;  // t_imu = t_lidar + 0.04 s
+    p_L = Eigen::Vector3d(8.0 * u(*rng), 8.0 * u(*rng), 2.0 * u(*rng));
+    const double t_point = sweep_k_lidar + tau + truth.offset_s;
+    const Eigen::Vector3d p_W =
+        traj.Rotation(t_point) * (truth.q_I_L * p_L + truth.p_I_L) + traj.Position(t_point);
+    // Sweep j's LiDAR frame at its reference instant.
+    const double t_ref = sweep_j_lidar + truth.offset_s;
+    const Eigen::Quaterniond q_W_Lj = traj.Rotation(t_ref) * truth.q_I_L;
+    const Eigen::Vector3d p_W_Lj = traj.Rotation(t_ref) * truth.p_I_L + traj.Position(t_ref);
+    plane_L.normal = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)).normalized();
+    plane_L.d = -plane_L.normal.dot(q_W_Lj.conjugate() * (p_W - p_W_Lj));
+  }
+
+  PointToSweepPlaneMeasurement Measurement(double offset_linearization_s) const {
+    PointToSweepPlaneMeasurement m;
+    m.p_L = p_L;
+    m.plane_L = plane_L;
+    m.sigma_m = 0.03;
+    m.offset_linearization_s = offset_linearization_s;
+    m.motion = TrueMotion(traj, t_k, sweep_k_lidar + tau + offset_linearization_s - t_k);
+    m.plane_motion = TrueMotion(traj, t_j, sweep_j_lidar + offset_linearization_s - t_j);
+    return m;
+  }
+};
+
+double Residual(const ceres::CostFunction& cost, State state) {
+  double r = 0.0;
+  const std::vector<double*> blocks = state.Blocks();
+  EXPECT_TRUE(cost.Evaluate(blocks.data(), &r, nullptr));
+  return r;
+}
+
+TEST(PointToSweepPlaneFactor, ZeroAtGroundTruth) {
+  std::mt19937 rng(1);
+  for (double tau : {0.0, 0.031, 0.067, 0.099}) {
+    const Scene scene(&rng, tau);
+    const PointToSweepPlaneFactor factor(scene.Measurement(scene.truth.offset_s), kGravity);
+    EXPECT_NEAR(Residual(factor, scene.truth), 0.0, 1e-10) << "tau = " << tau;
+    const std::unique_ptr<ceres::CostFunction> twin(
+        CreatePointToSweepPlaneAutoDiff(scene.Measurement(scene.truth.offset_s), kGravity));
+    EXPECT_NEAR(Residual(*twin, scene.truth), 0.0, 1e-10) << "tau = " << tau;
+  }
+}
+
+// A wrong extrinsic, offset or plane-side state leaves a residual: the plane moves with the
+// blocks of the sweep that saw it, it does not absorb their error.
+TEST(PointToSweepPlaneFactor, EveryBlockMovesTheResidual) {
+  std::mt19937 rng(2);
+  const Scene scene(&rng, 0.05);
+  const PointToSweepPlaneFactor factor(scene.Measurement(scene.truth.offset_s), kGravity);
+  const test::Evaluation at_truth = [&] {
+    State s = scene.truth;
+    return test::Evaluate(factor, s.Blocks());
+  }();
+  for (size_t block = 0; block < at_truth.jacobians.size(); ++block) {
+    EXPECT_GT(at_truth.jacobians[block].norm(), 1e-3) << "block " << block;
+  }
+  // Linearized at a wrong offset, evaluated at the true one: first-order exact.
+  const double coarse = std::abs(Residual(
+      PointToSweepPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.004), kGravity),
+      scene.truth));
+  const double fine = std::abs(Residual(
+      PointToSweepPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.002), kGravity),
+      scene.truth));
+  EXPECT_GT(coarse, 0.0);
+  EXPECT_NEAR(coarse / fine, 4.0, 0.5) << "coarse " << coarse << " fine " << fine;
+}
+
+PointMotion RandomMotion(std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  PointMotion motion;
+  motion.dt_s = 0.1 * (u(*rng) + 1.0);
+  motion.delta_q = Exp(Eigen::Vector3d(0.3 * u(*rng), 0.3 * u(*rng), 0.3 * u(*rng)));
+  motion.delta_v = 2.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  motion.delta_p = 2.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  motion.omega_rad_s = Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  return motion;
+}
+
+PointToSweepPlaneMeasurement RandomMeasurement(std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  PointToSweepPlaneMeasurement m;
+  m.p_L = 20.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  m.motion = RandomMotion(rng);
+  m.plane_motion = RandomMotion(rng);
+  m.plane_L.normal = Eigen::Vector3d(u(*rng), u(*rng), u(*rng)).normalized();
+  m.plane_L.d = 10.0 * u(*rng);
+  m.sigma_m = 0.02;
+  m.offset_linearization_s = 0.03 * u(*rng);
+  return m;
+}
+
+State RandomState(std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  State s;
+  s.q_k = Eigen::Quaterniond::UnitRandom();
+  s.q_j = Eigen::Quaterniond::UnitRandom();
+  s.q_I_L = Eigen::Quaterniond::UnitRandom();
+  s.p_k = 50.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  s.p_j = 50.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  s.v_k = 15.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  s.v_j = 15.0 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  s.p_I_L = Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+  s.offset_s = 0.05 * u(*rng);
+  return s;
+}
+
+TEST(PointToSweepPlaneFactor, JacobiansPassGradientChecker) {
+  std::mt19937 rng(3);
+  const geometry::RightQuaternionManifold quaternion;
+  for (int trial = 0; trial < 50; ++trial) {
+    const PointToSweepPlaneFactor factor(RandomMeasurement(&rng), kGravity);
+    State state = RandomState(&rng);
+    test::ExpectGradientCheckPasses(factor, Manifolds(&quaternion), state.Blocks(), 1e-5,
+                                    "trial " + std::to_string(trial));
+  }
+}
+
+TEST(PointToSweepPlaneFactor, AnalyticMatchesAutodiffTwin) {
+  std::mt19937 rng(4);
+  const geometry::RightQuaternionManifold quaternion;
+  for (int trial = 0; trial < 50; ++trial) {
+    const PointToSweepPlaneMeasurement m = RandomMeasurement(&rng);
+    const PointToSweepPlaneFactor analytic(m, kGravity);
+    const std::unique_ptr<ceres::CostFunction> autodiff(
+        CreatePointToSweepPlaneAutoDiff(m, kGravity));
+    State state = RandomState(&rng);
+    test::ExpectSameJacobians(analytic, *autodiff, Manifolds(&quaternion), state.Blocks(), 1e-9,
+                              "trial " + std::to_string(trial));
+  }
+}
+
+}  // namespace
+}  // namespace factors
+}  // namespace autocal
