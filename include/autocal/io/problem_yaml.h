@@ -1,0 +1,126 @@
+#pragma once
+
+// Calibration problem files (problems/README.md): what one calibration run solves for.
+//
+//   description: "urban drive, every sensor, every block"   # optional, free text
+//   sensors: {lidar: true, wheel: true, gnss: true}          # the IMU always takes part
+//   calibration:
+//     T_I_L: {rotation: estimate, translation: {prior_sigma_m: [0.05, 0.05, 0.02]}}
+//     time_offset_lidar_imu_s: estimate                     # or fixed, {prior_sigma_s: 0.005}
+//     wheel_radius_left_m: estimate                         # or {prior_sigma_m: 0.002}
+//     wheel_radius_right_m: estimate
+//     wheel_radius_shared: false                            # true: one radius for both wheels
+//     track_width_m: {prior_sigma_m: 0.02}
+//     p_I_A_m: estimate
+//     T_I_V: {rotation: fixed, translation: fixed}          # rotation priors: prior_sigma_deg
+//   loss: {imu: none, prior: none, wheel: "huber:2", gnss: "cauchy:3", lidar: "huber:1"}
+//   window: {size: 10}
+//   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
+//   lidar: {max_points_per_sweep: 1500, voxel_m: 0.6}
+//
+// Every key is optional and takes the default of the structs below. A sensor that does not
+// take part holds its calibration blocks fixed; setting one of those blocks (or the sensor's
+// loss, or the lidar section without the LiDAR) is an error, since it would have no effect.
+// Unknown keys, wrong types, bad enum values and out-of-range numbers are ParseErrors with
+// file, line and column.
+
+#include <Eigen/Core>
+#include <string>
+
+#include "autocal/factors/loss.h"
+#include "autocal/io/dataset.h"
+
+namespace autocal {
+namespace io {
+
+// How a calibration block enters the problem.
+enum class BlockMode {
+  kEstimate,  // free parameter, starts at the initial guess
+  kFixed,     // held constant at the initial guess
+  kPrior,     // free, with a Gaussian prior of the given sigma centred on the initial guess
+};
+
+// "estimate", "fixed" or "prior".
+const char* BlockModeName(BlockMode mode);
+
+// A one-dimensional block (time offset, a wheel radius, the track width). prior_sigma is in
+// the block's unit (s or m) and is > 0 exactly when mode is kPrior.
+struct ScalarBlockSetting {
+  BlockMode mode = BlockMode::kEstimate;
+  double prior_sigma = 0.0;
+};
+
+// A three-dimensional block: a translation or lever arm (sigma per axis in m), or a rotation
+// (sigma in degrees about the block's own axes, the right perturbation q = q0 ⊗ Exp(δ) of
+// docs/design.md). prior_sigma is > 0 on every axis exactly when mode is kPrior.
+struct VectorBlockSetting {
+  BlockMode mode = BlockMode::kEstimate;
+  Eigen::Vector3d prior_sigma = Eigen::Vector3d::Zero();
+};
+
+struct PoseBlockSetting {
+  VectorBlockSetting rotation;     // prior_sigma in degrees
+  VectorBlockSetting translation;  // prior_sigma in metres
+};
+
+// Which sensors take part besides the IMU (which always does).
+struct ProblemSensors {
+  bool lidar = true;
+  bool wheel = true;
+  bool gnss = true;
+};
+
+// Every block defaults to kEstimate. The LiDAR owns T_I_L and the time offset, the wheel
+// encoders own both radii, the track width and T_I_V (wheel odometry lives in V), the GNSS
+// receiver owns the lever arm.
+struct ProblemCalibration {
+  PoseBlockSetting T_I_L;
+  ScalarBlockSetting time_offset_lidar_imu_s;
+  ScalarBlockSetting wheel_radius_left_m;
+  ScalarBlockSetting wheel_radius_right_m;
+  // One radius r = r_l = r_r for both rear wheels; the left and right settings are then equal.
+  bool wheel_radius_shared = false;
+  ScalarBlockSetting track_width_m;
+  VectorBlockSetting p_I_A_m;
+  PoseBlockSetting T_I_V;
+};
+
+struct ProblemSolver {
+  int max_iterations = 15;   // Ceres iterations per solve, >= 1
+  int outer_iterations = 8;  // associate planes -> solve rounds of the batch solver, >= 1
+  int num_threads = 1;       // Ceres threads, >= 1
+};
+
+// LiDAR point-to-plane residuals.
+struct ProblemLidar {
+  int max_points_per_sweep = 1500;  // residuals per sweep at most, >= 1
+  double voxel_m = 0.6;             // one residual point per voxel of this size, > 0
+};
+
+struct Problem {
+  // The file the problem was read from, for messages; empty for a problem built in code.
+  std::string path;
+  std::string description;
+  ProblemSensors sensors;
+  ProblemCalibration calibration;
+  // Robust loss per factor type; defaults in factors/loss.h (wheel huber:2, GNSS cauchy:3,
+  // LiDAR huber:1, IMU and priors quadratic).
+  factors::FactorLossOptions loss;
+  int window_size = 10;  // keyframes of the sliding window, >= 2
+  ProblemSolver solver;
+  ProblemLidar lidar;
+};
+
+// Reads and checks a problem file. Throws ParseError (file, line, column) on malformed
+// content and autocal::Error when the file cannot be read.
+Problem ReadProblemYaml(const std::string& path);
+
+// Refuses a problem that asks for data the dataset does not have: the LiDAR without sweeps in
+// lidar.csv, the wheel encoders without wheel.csv, GNSS without gnss.csv, or an IMU log with
+// fewer than two samples. Throws one autocal::Error naming the problem, the dataset and every
+// missing piece, e.g. "problem problems/urban_full.yaml estimates wheel_radius_left_m but
+// dataset DIR has no wheel.csv".
+void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset);
+
+}  // namespace io
+}  // namespace autocal

@@ -1,0 +1,360 @@
+#include "autocal/io/problem_yaml.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "io/text_format.h"
+#include "io/yaml_util.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+using internal::YamlFile;
+
+// The key node of `key` in a map ExpectMap has checked (for messages that point at the key).
+YAML::Node KeyNode(const YAML::Node& map, const std::string& key) {
+  for (const auto& entry : map) {
+    if (entry.first.Scalar() == key) return entry.first;
+  }
+  return map;
+}
+
+// Whole number within [min_value, max_value].
+int IntInRange(const YamlFile& file, const YAML::Node& node, const std::string& what,
+               int64_t min_value, int64_t max_value) {
+  const int64_t value = file.Int(node, what);
+  if (value < min_value || value > max_value) {
+    file.Fail(node, what + ": must be within [" + std::to_string(min_value) + ", " +
+                        std::to_string(max_value) + "], found " + node.Scalar());
+  }
+  return static_cast<int>(value);
+}
+
+// "estimate" | "fixed" | {<sigma_key>: sigma}. Returns true for the prior form, leaving the
+// sigma node in *sigma_node.
+bool ParseMode(const YamlFile& file, const YAML::Node& node, const std::string& what,
+               const char* sigma_key, const char* sigma_form, BlockMode* mode,
+               YAML::Node* sigma_node) {
+  const std::string expected =
+      "expected estimate, fixed or {" + std::string(sigma_key) + ": " + sigma_form + "}";
+  if (node.IsScalar()) {
+    const std::string& text = node.Scalar();
+    if (text == "estimate") {
+      *mode = BlockMode::kEstimate;
+      return false;
+    }
+    if (text == "fixed") {
+      *mode = BlockMode::kFixed;
+      return false;
+    }
+    file.Fail(node, what + ": " + expected + ", found " + internal::Quote(text));
+  }
+  if (!node.IsMap()) file.Fail(node, what + ": " + expected);
+  file.ExpectMap(node, what, {sigma_key});
+  *mode = BlockMode::kPrior;
+  *sigma_node = file.Required(node, what, sigma_key);
+  return true;
+}
+
+ScalarBlockSetting ParseScalarBlock(const YamlFile& file, const YAML::Node& node,
+                                    const std::string& what, const char* sigma_key) {
+  ScalarBlockSetting setting;
+  YAML::Node sigma;
+  if (ParseMode(file, node, what, sigma_key, "sigma", &setting.mode, &sigma)) {
+    setting.prior_sigma = file.Positive(sigma, what + "." + sigma_key);
+  }
+  return setting;
+}
+
+// The prior sigma of a vector block: one number for every axis or [x, y, z], each > 0.
+VectorBlockSetting ParseVectorBlock(const YamlFile& file, const YAML::Node& node,
+                                    const std::string& what, const char* sigma_key) {
+  VectorBlockSetting setting;
+  YAML::Node sigma;
+  if (ParseMode(file, node, what, sigma_key, "sigma or [x, y, z]", &setting.mode, &sigma)) {
+    const std::string name = what + "." + sigma_key;
+    if (sigma.IsScalar()) {
+      setting.prior_sigma = Eigen::Vector3d::Constant(file.Positive(sigma, name));
+    } else {
+      setting.prior_sigma = file.Vector3(sigma, name);
+      if (!(setting.prior_sigma.minCoeff() > 0.0)) file.Fail(sigma, name + ": must be > 0");
+    }
+  }
+  return setting;
+}
+
+PoseBlockSetting ParsePoseBlock(const YamlFile& file, const YAML::Node& node,
+                                const std::string& what) {
+  file.ExpectMap(node, what, {"rotation", "translation"});
+  PoseBlockSetting setting;
+  if (const YAML::Node n = node["rotation"])
+    setting.rotation = ParseVectorBlock(file, n, what + ".rotation", "prior_sigma_deg");
+  if (const YAML::Node n = node["translation"])
+    setting.translation = ParseVectorBlock(file, n, what + ".translation", "prior_sigma_m");
+  return setting;
+}
+
+bool SameSetting(const ScalarBlockSetting& a, const ScalarBlockSetting& b) {
+  return a.mode == b.mode && a.prior_sigma == b.prior_sigma;
+}
+
+ProblemSensors ParseSensors(const YamlFile& file, const YAML::Node& node) {
+  file.ExpectMap(node, "sensors", {"imu", "lidar", "wheel", "gnss"});
+  ProblemSensors sensors;
+  if (const YAML::Node n = node["imu"]) {
+    if (!file.Bool(n, "sensors.imu"))
+      file.Fail(n, "sensors.imu: the IMU always takes part (the state lives in its frame)");
+  }
+  if (const YAML::Node n = node["lidar"]) sensors.lidar = file.Bool(n, "sensors.lidar");
+  if (const YAML::Node n = node["wheel"]) sensors.wheel = file.Bool(n, "sensors.wheel");
+  if (const YAML::Node n = node["gnss"]) sensors.gnss = file.Bool(n, "sensors.gnss");
+  if (!sensors.lidar && !sensors.wheel && !sensors.gnss) {
+    file.Fail(node, "sensors: the IMU alone calibrates nothing; enable lidar, wheel or gnss");
+  }
+  return sensors;
+}
+
+// Rejects `key` in `map` when its sensor does not take part.
+void RejectWithoutSensor(const YamlFile& file, const YAML::Node& map, const std::string& section,
+                         const char* key, bool sensor_enabled, const char* sensor) {
+  if (sensor_enabled || !map[key]) return;
+  const std::string name = section.empty() ? std::string(key) : section + "." + key;
+  file.Fail(KeyNode(map, key), name + ": sensors." + sensor +
+                                   " is false, so this setting has no effect (remove it or "
+                                   "enable the sensor)");
+}
+
+// Blocks of a sensor that does not take part enter no factor: they are held fixed.
+void FixBlocksOfAbsentSensors(const ProblemSensors& sensors, ProblemCalibration* c) {
+  const ScalarBlockSetting fixed_scalar{BlockMode::kFixed, 0.0};
+  const VectorBlockSetting fixed_vector{BlockMode::kFixed, Eigen::Vector3d::Zero()};
+  if (!sensors.lidar) {
+    c->T_I_L = {fixed_vector, fixed_vector};
+    c->time_offset_lidar_imu_s = fixed_scalar;
+  }
+  if (!sensors.wheel) {
+    c->wheel_radius_left_m = fixed_scalar;
+    c->wheel_radius_right_m = fixed_scalar;
+    c->track_width_m = fixed_scalar;
+    c->T_I_V = {fixed_vector, fixed_vector};
+  }
+  if (!sensors.gnss) c->p_I_A_m = fixed_vector;
+}
+
+ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node,
+                                    const ProblemSensors& sensors) {
+  const std::string what = "calibration";
+  file.ExpectMap(node, what,
+                 {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
+                  "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V"});
+  for (const char* key : {"T_I_L", "time_offset_lidar_imu_s"})
+    RejectWithoutSensor(file, node, what, key, sensors.lidar, "lidar");
+  for (const char* key : {"wheel_radius_left_m", "wheel_radius_right_m", "wheel_radius_shared",
+                          "track_width_m", "T_I_V"})
+    RejectWithoutSensor(file, node, what, key, sensors.wheel, "wheel");
+  RejectWithoutSensor(file, node, what, "p_I_A_m", sensors.gnss, "gnss");
+
+  ProblemCalibration c;
+  if (const YAML::Node n = node["T_I_L"]) c.T_I_L = ParsePoseBlock(file, n, "calibration.T_I_L");
+  if (const YAML::Node n = node["time_offset_lidar_imu_s"]) {
+    c.time_offset_lidar_imu_s =
+        ParseScalarBlock(file, n, "calibration.time_offset_lidar_imu_s", "prior_sigma_s");
+  }
+  const YAML::Node left = node["wheel_radius_left_m"];
+  const YAML::Node right = node["wheel_radius_right_m"];
+  if (left) {
+    c.wheel_radius_left_m =
+        ParseScalarBlock(file, left, "calibration.wheel_radius_left_m", "prior_sigma_m");
+  }
+  if (right) {
+    c.wheel_radius_right_m =
+        ParseScalarBlock(file, right, "calibration.wheel_radius_right_m", "prior_sigma_m");
+  }
+  if (const YAML::Node n = node["wheel_radius_shared"]) {
+    c.wheel_radius_shared = file.Bool(n, "calibration.wheel_radius_shared");
+  }
+  if (c.wheel_radius_shared) {
+    // One parameter serves both wheels: a setting given for one side applies to both.
+    if (left && !right) c.wheel_radius_right_m = c.wheel_radius_left_m;
+    if (right && !left) c.wheel_radius_left_m = c.wheel_radius_right_m;
+    if (!SameSetting(c.wheel_radius_left_m, c.wheel_radius_right_m)) {
+      file.Fail(right,
+                "calibration.wheel_radius_right_m: wheel_radius_shared is true, so both "
+                "radii are one parameter and need the same setting");
+    }
+  }
+  if (const YAML::Node n = node["track_width_m"])
+    c.track_width_m = ParseScalarBlock(file, n, "calibration.track_width_m", "prior_sigma_m");
+  if (const YAML::Node n = node["p_I_A_m"])
+    c.p_I_A_m = ParseVectorBlock(file, n, "calibration.p_I_A_m", "prior_sigma_m");
+  if (const YAML::Node n = node["T_I_V"]) c.T_I_V = ParsePoseBlock(file, n, "calibration.T_I_V");
+  return c;
+}
+
+factors::LossOptions ParseLoss(const YamlFile& file, const YAML::Node& node,
+                               const std::string& what) {
+  const std::string text = file.String(node, what);
+  try {
+    return factors::ParseLossOptions(text);
+  } catch (const Error& e) {
+    file.Fail(node, what + ": " + e.what() + "; write none, huber:<scale> or cauchy:<scale>");
+  }
+}
+
+factors::FactorLossOptions ParseLosses(const YamlFile& file, const YAML::Node& node,
+                                       const ProblemSensors& sensors) {
+  file.ExpectMap(node, "loss", {"imu", "prior", "wheel", "gnss", "lidar"});
+  RejectWithoutSensor(file, node, "loss", "lidar", sensors.lidar, "lidar");
+  RejectWithoutSensor(file, node, "loss", "wheel", sensors.wheel, "wheel");
+  RejectWithoutSensor(file, node, "loss", "gnss", sensors.gnss, "gnss");
+  factors::FactorLossOptions loss;
+  if (const YAML::Node n = node["imu"]) loss.imu = ParseLoss(file, n, "loss.imu");
+  if (const YAML::Node n = node["prior"]) loss.prior = ParseLoss(file, n, "loss.prior");
+  if (const YAML::Node n = node["wheel"]) loss.wheel = ParseLoss(file, n, "loss.wheel");
+  if (const YAML::Node n = node["gnss"]) loss.gnss = ParseLoss(file, n, "loss.gnss");
+  if (const YAML::Node n = node["lidar"]) loss.lidar = ParseLoss(file, n, "loss.lidar");
+  return loss;
+}
+
+// Upper bounds that catch typos (an extra digit) rather than limit real use.
+constexpr int64_t kMaxWindowSize = 10000;
+constexpr int64_t kMaxIterations = 100000;
+constexpr int64_t kMaxThreads = 1024;
+constexpr int64_t kMaxPointsPerSweep = 10000000;
+
+Problem ParseProblem(const YamlFile& file) {
+  const YAML::Node& root = file.root();
+  file.ExpectMap(root, "problem",
+                 {"description", "sensors", "calibration", "loss", "window", "solver", "lidar"});
+  Problem problem;
+  problem.path = file.path();
+  if (const YAML::Node n = root["description"]) problem.description = file.String(n, "description");
+  if (const YAML::Node n = root["sensors"]) problem.sensors = ParseSensors(file, n);
+  if (const YAML::Node n = root["calibration"])
+    problem.calibration = ParseCalibration(file, n, problem.sensors);
+  FixBlocksOfAbsentSensors(problem.sensors, &problem.calibration);
+  if (const YAML::Node n = root["loss"]) problem.loss = ParseLosses(file, n, problem.sensors);
+  if (const YAML::Node window = root["window"]) {
+    file.ExpectMap(window, "window", {"size"});
+    if (const YAML::Node n = window["size"])
+      problem.window_size = IntInRange(file, n, "window.size", 2, kMaxWindowSize);
+  }
+  if (const YAML::Node solver = root["solver"]) {
+    file.ExpectMap(solver, "solver", {"max_iterations", "outer_iterations", "num_threads"});
+    ProblemSolver& s = problem.solver;
+    if (const YAML::Node n = solver["max_iterations"])
+      s.max_iterations = IntInRange(file, n, "solver.max_iterations", 1, kMaxIterations);
+    if (const YAML::Node n = solver["outer_iterations"])
+      s.outer_iterations = IntInRange(file, n, "solver.outer_iterations", 1, kMaxIterations);
+    if (const YAML::Node n = solver["num_threads"])
+      s.num_threads = IntInRange(file, n, "solver.num_threads", 1, kMaxThreads);
+  }
+  RejectWithoutSensor(file, root, "", "lidar", problem.sensors.lidar, "lidar");
+  if (const YAML::Node lidar = root["lidar"]) {
+    file.ExpectMap(lidar, "lidar", {"max_points_per_sweep", "voxel_m"});
+    if (const YAML::Node n = lidar["max_points_per_sweep"]) {
+      problem.lidar.max_points_per_sweep =
+          IntInRange(file, n, "lidar.max_points_per_sweep", 1, kMaxPointsPerSweep);
+    }
+    if (const YAML::Node n = lidar["voxel_m"])
+      problem.lidar.voxel_m = file.Positive(n, "lidar.voxel_m");
+  }
+  return problem;
+}
+
+// What the problem does with a block, for messages: "estimates", "puts a prior on", or empty
+// for a fixed block.
+std::string Verb(BlockMode mode) {
+  switch (mode) {
+    case BlockMode::kEstimate:
+      return "estimates";
+    case BlockMode::kPrior:
+      return "puts a prior on";
+    case BlockMode::kFixed:
+      return "";
+  }
+  return "";
+}
+
+struct NamedMode {
+  const char* name;
+  BlockMode mode;
+};
+
+// "estimates wheel_radius_left_m" for the first block that is not fixed, else `fallback`
+// ("uses the wheel encoders"): a sensor whose blocks are all fixed still adds factors.
+std::string Demand(const std::vector<NamedMode>& blocks, const std::string& fallback) {
+  for (const NamedMode& block : blocks) {
+    if (block.mode != BlockMode::kFixed) return Verb(block.mode) + " " + block.name;
+  }
+  return fallback;
+}
+
+// "has no wheel.csv", or "has no samples in wheel.csv" when the file is there but empty.
+std::string Lacks(const Dataset& dataset, const char* file) {
+  std::error_code error;
+  const bool exists =
+      std::filesystem::exists(std::filesystem::path(dataset.directory) / file, error);
+  return exists ? std::string("has no samples in ") + file : std::string("has no ") + file;
+}
+
+}  // namespace
+
+const char* BlockModeName(BlockMode mode) {
+  switch (mode) {
+    case BlockMode::kEstimate:
+      return "estimate";
+    case BlockMode::kFixed:
+      return "fixed";
+    case BlockMode::kPrior:
+      return "prior";
+  }
+  return "unknown";
+}
+
+Problem ReadProblemYaml(const std::string& path) {
+  const YamlFile file(path);
+  return ParseProblem(file);
+}
+
+void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
+  const ProblemCalibration& c = problem.calibration;
+  const std::string who = "problem " + (problem.path.empty() ? "(built in code)" : problem.path);
+  const std::string where = "dataset " + dataset.directory;
+  std::vector<std::string> reasons;
+  if (dataset.imu.size() < 2) {
+    reasons.push_back(who + " needs the IMU but " + where + " has " +
+                      std::to_string(dataset.imu.size()) + " IMU samples in imu.csv");
+  }
+  if (problem.sensors.lidar && dataset.lidar_sweeps.empty()) {
+    const std::string demand = Demand({{"T_I_L rotation", c.T_I_L.rotation.mode},
+                                       {"T_I_L translation", c.T_I_L.translation.mode},
+                                       {"time_offset_lidar_imu_s", c.time_offset_lidar_imu_s.mode}},
+                                      "uses the LiDAR");
+    reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "lidar.csv"));
+  }
+  if (problem.sensors.wheel && dataset.wheel.empty()) {
+    const std::string demand = Demand({{"wheel_radius_left_m", c.wheel_radius_left_m.mode},
+                                       {"wheel_radius_right_m", c.wheel_radius_right_m.mode},
+                                       {"track_width_m", c.track_width_m.mode},
+                                       {"T_I_V rotation", c.T_I_V.rotation.mode},
+                                       {"T_I_V translation", c.T_I_V.translation.mode}},
+                                      "uses the wheel encoders");
+    reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "wheel.csv"));
+  }
+  if (problem.sensors.gnss && dataset.gnss.empty()) {
+    const std::string demand = Demand({{"p_I_A_m", c.p_I_A_m.mode}}, "uses GNSS");
+    reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "gnss.csv"));
+  }
+  if (reasons.empty()) return;
+  std::string message = reasons[0];
+  for (size_t i = 1; i < reasons.size(); ++i) message += "; " + reasons[i];
+  throw Error(message);
+}
+
+}  // namespace io
+}  // namespace autocal

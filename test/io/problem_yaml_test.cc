@@ -1,0 +1,327 @@
+#include "autocal/io/problem_yaml.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace io {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string WriteProblem(const std::string& name, const std::string& text) {
+  const std::string path = (test::OutputDir("problems") / name).string();
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  return path;
+}
+
+// 1-based column of the first `token` in line `line` (1-based) of `text`.
+int64_t ColumnOf(const std::string& text, int line, const std::string& token) {
+  size_t start = 0;
+  for (int i = 1; i < line; ++i) start = text.find('\n', start) + 1;
+  const size_t end = text.find('\n', start);
+  const size_t at = text.substr(start, end - start).find(token);
+  EXPECT_NE(at, std::string::npos) << "token '" << token << "' not on line " << line;
+  return static_cast<int64_t>(at) + 1;
+}
+
+struct BadCase {
+  std::string name;
+  std::string text;
+  int line;
+  std::string token;  // the error points at its first occurrence on `line`
+  std::string message;
+};
+
+void ExpectParseError(const BadCase& c) {
+  const std::string path = WriteProblem(c.name + ".yaml", c.text);
+  try {
+    ReadProblemYaml(path);
+    ADD_FAILURE() << "no ParseError for " << c.name << ":\n" << c.text;
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, path) << e.what();
+    EXPECT_EQ(e.location().line, c.line) << c.name << ": " << e.what();
+    EXPECT_EQ(e.location().column, ColumnOf(c.text, c.line, c.token)) << c.name << ": " << e.what();
+    EXPECT_THAT(e.what(), HasSubstr(c.message)) << c.name;
+  }
+}
+
+std::vector<std::filesystem::path> ProblemFiles() {
+  std::vector<std::filesystem::path> files;
+  for (const auto& entry : std::filesystem::directory_iterator(
+           std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems")) {
+    if (entry.path().extension() == ".yaml") files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+Problem ReadShipped(const std::string& name) {
+  return ReadProblemYaml((std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / name).string());
+}
+
+bool Fixed(const VectorBlockSetting& s) { return s.mode == BlockMode::kFixed; }
+bool Fixed(const ScalarBlockSetting& s) { return s.mode == BlockMode::kFixed; }
+
+TEST(ProblemYamlTest, EveryShippedProblemParses) {
+  const std::vector<std::filesystem::path> files = ProblemFiles();
+  std::vector<std::string> names;
+  for (const auto& file : files) {
+    names.push_back(file.filename().string());
+    SCOPED_TRACE(file.string());
+    Problem problem;
+    EXPECT_NO_THROW(problem = ReadProblemYaml(file.string()));
+    EXPECT_EQ(problem.path, file.string());
+    EXPECT_FALSE(problem.description.empty());
+  }
+  for (const char* expected :
+       {"highway.yaml", "imu_wheel_gnss.yaml", "lidar_imu.yaml", "urban_full.yaml"}) {
+    EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end())
+        << expected << " missing from problems/";
+  }
+}
+
+TEST(ProblemYamlTest, ShippedProblemsSayWhatTheirNamesPromise) {
+  const Problem urban = ReadShipped("urban_full.yaml");
+  EXPECT_TRUE(urban.sensors.lidar && urban.sensors.wheel && urban.sensors.gnss);
+  const ProblemCalibration& u = urban.calibration;
+  for (BlockMode mode :
+       {u.T_I_L.rotation.mode, u.T_I_L.translation.mode, u.time_offset_lidar_imu_s.mode,
+        u.wheel_radius_left_m.mode, u.wheel_radius_right_m.mode, u.track_width_m.mode,
+        u.p_I_A_m.mode, u.T_I_V.rotation.mode, u.T_I_V.translation.mode}) {
+    EXPECT_EQ(mode, BlockMode::kEstimate);
+  }
+
+  const Problem highway = ReadShipped("highway.yaml");
+  EXPECT_TRUE(highway.sensors.lidar && highway.sensors.wheel && highway.sensors.gnss);
+  const ProblemCalibration& h = highway.calibration;
+  EXPECT_STREQ(BlockModeName(h.T_I_L.rotation.mode), "estimate");
+  EXPECT_STREQ(BlockModeName(h.T_I_L.translation.mode), "prior");
+  EXPECT_EQ(h.T_I_L.translation.mode, BlockMode::kPrior);
+  EXPECT_EQ(h.T_I_L.translation.prior_sigma, Eigen::Vector3d(0.05, 0.05, 0.02));
+  EXPECT_EQ(h.track_width_m.mode, BlockMode::kPrior);
+  EXPECT_EQ(h.track_width_m.prior_sigma, 0.03);
+  EXPECT_EQ(h.p_I_A_m.mode, BlockMode::kPrior);
+  EXPECT_EQ(h.p_I_A_m.prior_sigma, Eigen::Vector3d::Constant(0.05));
+
+  const Problem lidar_imu = ReadShipped("lidar_imu.yaml");
+  EXPECT_TRUE(lidar_imu.sensors.lidar);
+  EXPECT_FALSE(lidar_imu.sensors.wheel);
+  EXPECT_FALSE(lidar_imu.sensors.gnss);
+  const ProblemCalibration& l = lidar_imu.calibration;
+  EXPECT_EQ(l.T_I_L.rotation.mode, BlockMode::kEstimate);
+  EXPECT_EQ(l.time_offset_lidar_imu_s.mode, BlockMode::kEstimate);
+  EXPECT_TRUE(Fixed(l.wheel_radius_left_m) && Fixed(l.wheel_radius_right_m) &&
+              Fixed(l.track_width_m) && Fixed(l.p_I_A_m) && Fixed(l.T_I_V.rotation) &&
+              Fixed(l.T_I_V.translation));
+
+  const Problem no_lidar = ReadShipped("imu_wheel_gnss.yaml");
+  EXPECT_FALSE(no_lidar.sensors.lidar);
+  EXPECT_TRUE(no_lidar.sensors.wheel && no_lidar.sensors.gnss);
+  const ProblemCalibration& n = no_lidar.calibration;
+  EXPECT_TRUE(Fixed(n.T_I_L.rotation) && Fixed(n.T_I_L.translation) &&
+              Fixed(n.time_offset_lidar_imu_s));
+  EXPECT_EQ(n.wheel_radius_left_m.mode, BlockMode::kEstimate);
+  EXPECT_EQ(n.T_I_V.translation.mode, BlockMode::kPrior);
+}
+
+TEST(ProblemYamlTest, EmptyMapsGiveTheDocumentedDefaults) {
+  const Problem read = ReadProblemYaml(WriteProblem("defaults.yaml", "sensors: {}\n"));
+  const Problem defaults;
+  EXPECT_TRUE(read.sensors.lidar && read.sensors.wheel && read.sensors.gnss);
+  EXPECT_EQ(read.calibration.T_I_L.rotation.mode, BlockMode::kEstimate);
+  EXPECT_FALSE(read.calibration.wheel_radius_shared);
+  EXPECT_EQ(read.window_size, defaults.window_size);
+  EXPECT_EQ(read.solver.max_iterations, defaults.solver.max_iterations);
+  EXPECT_EQ(read.solver.outer_iterations, defaults.solver.outer_iterations);
+  EXPECT_EQ(read.solver.num_threads, defaults.solver.num_threads);
+  EXPECT_EQ(read.lidar.max_points_per_sweep, defaults.lidar.max_points_per_sweep);
+  EXPECT_EQ(read.lidar.voxel_m, defaults.lidar.voxel_m);
+  EXPECT_EQ(read.loss.gnss.type, factors::FactorLossOptions().gnss.type);
+  EXPECT_EQ(read.loss.gnss.scale, factors::FactorLossOptions().gnss.scale);
+}
+
+TEST(ProblemYamlTest, EveryKeyIsRead) {
+  const std::string text =
+      "description: test rig\n"
+      "sensors: {imu: true, lidar: true, wheel: true, gnss: true}\n"
+      "calibration:\n"
+      "  T_I_L: {rotation: {prior_sigma_deg: [1, 2, 3]}, translation: fixed}\n"
+      "  time_offset_lidar_imu_s: {prior_sigma_s: 0.005}\n"
+      "  wheel_radius_left_m: {prior_sigma_m: 0.002}\n"
+      "  wheel_radius_shared: true\n"
+      "  track_width_m: fixed\n"
+      "  p_I_A_m: {prior_sigma_m: 0.1}\n"
+      "  T_I_V: {rotation: fixed}\n"
+      "loss: {imu: \"huber:4\", prior: none, wheel: cauchy, gnss: \"huber 2.5\", lidar: none}\n"
+      "window: {size: 7}\n"
+      "solver: {max_iterations: 30, outer_iterations: 3, num_threads: 2}\n"
+      "lidar: {max_points_per_sweep: 800, voxel_m: 0.25}\n";
+  const Problem p = ReadProblemYaml(WriteProblem("full.yaml", text));
+  EXPECT_EQ(p.description, "test rig");
+  const ProblemCalibration& c = p.calibration;
+  EXPECT_EQ(c.T_I_L.rotation.mode, BlockMode::kPrior);
+  EXPECT_EQ(c.T_I_L.rotation.prior_sigma, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(c.T_I_L.translation.mode, BlockMode::kFixed);
+  EXPECT_EQ(c.time_offset_lidar_imu_s.mode, BlockMode::kPrior);
+  EXPECT_EQ(c.time_offset_lidar_imu_s.prior_sigma, 0.005);
+  // Shared radii: the left setting applies to both wheels.
+  EXPECT_TRUE(c.wheel_radius_shared);
+  EXPECT_EQ(c.wheel_radius_right_m.mode, BlockMode::kPrior);
+  EXPECT_EQ(c.wheel_radius_right_m.prior_sigma, 0.002);
+  EXPECT_EQ(c.track_width_m.mode, BlockMode::kFixed);
+  EXPECT_EQ(c.p_I_A_m.prior_sigma, Eigen::Vector3d::Constant(0.1));
+  EXPECT_EQ(c.T_I_V.rotation.mode, BlockMode::kFixed);
+  EXPECT_EQ(c.T_I_V.translation.mode, BlockMode::kEstimate);
+  EXPECT_EQ(p.loss.imu.type, lidar::RobustLoss::kHuber);
+  EXPECT_EQ(p.loss.imu.scale, 4.0);
+  EXPECT_EQ(p.loss.wheel.type, lidar::RobustLoss::kCauchy);
+  EXPECT_EQ(p.loss.wheel.scale, 1.0);
+  EXPECT_EQ(p.loss.gnss.type, lidar::RobustLoss::kHuber);
+  EXPECT_EQ(p.loss.gnss.scale, 2.5);
+  EXPECT_EQ(p.loss.lidar.type, lidar::RobustLoss::kNone);
+  EXPECT_EQ(p.window_size, 7);
+  EXPECT_EQ(p.solver.max_iterations, 30);
+  EXPECT_EQ(p.solver.outer_iterations, 3);
+  EXPECT_EQ(p.solver.num_threads, 2);
+  EXPECT_EQ(p.lidar.max_points_per_sweep, 800);
+  EXPECT_EQ(p.lidar.voxel_m, 0.25);
+}
+
+TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
+  const std::vector<BadCase> cases = {
+      {"unknown_top", "sensors: {}\nwindows: {size: 5}\n", 2, "windows", "unknown key 'windows'"},
+      {"unknown_block", "calibration:\n  track_widht_m: estimate\n", 2, "track_widht_m",
+       "calibration: unknown key 'track_widht_m'"},
+      {"unknown_pose_part", "calibration:\n  T_I_L: {rotation: estimate, rot: fixed}\n", 2,
+       "rot:", "calibration.T_I_L: unknown key 'rot'"},
+      {"bad_mode", "calibration:\n  T_I_L:\n    rotation: estimated\n", 3, "estimated",
+       "calibration.T_I_L.rotation: expected estimate, fixed or {prior_sigma_deg: "},
+      {"prior_without_sigma", "calibration:\n  track_width_m: prior\n", 2, "prior",
+       "expected estimate, fixed or {prior_sigma_m: sigma}, found 'prior'"},
+      {"wrong_sigma_unit", "calibration:\n  time_offset_lidar_imu_s: {prior_sigma_m: 0.01}\n", 2,
+       "prior_sigma_m", "unknown key 'prior_sigma_m' (expected one of: prior_sigma_s)"},
+      {"negative_sigma", "calibration:\n  track_width_m: {prior_sigma_m: -0.1}\n", 2, "-0.1",
+       "prior_sigma_m: must be > 0"},
+      {"zero_axis_sigma", "calibration:\n  p_I_A_m: {prior_sigma_m: [0.1, 0, 0.1]}\n", 2, "[",
+       "calibration.p_I_A_m.prior_sigma_m: must be > 0"},
+      {"short_sigma", "calibration:\n  p_I_A_m: {prior_sigma_m: [0.1, 0.1]}\n", 2, "[",
+       "expected a list of 3 numbers"},
+      {"sensor_not_bool", "sensors:\n  wheel: yes\n", 2, "yes",
+       "sensors.wheel: expected true or false"},
+      {"imu_off", "sensors:\n  imu: false\n", 2, "false", "the IMU always takes part"},
+      {"nothing_but_imu", "sensors:\n  lidar: false\n  wheel: false\n  gnss: false\n", 2, "lidar",
+       "the IMU alone calibrates nothing"},
+      {"block_of_absent_sensor",
+       "sensors: {wheel: false}\ncalibration:\n  T_I_L: {rotation: estimate}\n  track_width_m: "
+       "estimate\n",
+       4, "track_width_m", "calibration.track_width_m: sensors.wheel is false"},
+      {"loss_of_absent_sensor", "sensors: {gnss: false}\nloss:\n  gnss: \"cauchy:3\"\n", 3, "gnss",
+       "loss.gnss: sensors.gnss is false"},
+      {"lidar_section_without_lidar", "sensors: {lidar: false}\nlidar: {voxel_m: 0.5}\n", 2,
+       "lidar", "lidar: sensors.lidar is false, so this setting has no effect"},
+      {"bad_loss", "loss:\n  wheel: \"hubber:2\"\n", 2, "\"hubber",
+       "loss.wheel: unknown robust loss 'hubber'"},
+      {"bad_loss_scale", "loss:\n  lidar: \"huber:-1\"\n", 2, "\"huber",
+       "loss.lidar: robust loss 'huber:-1': scale must be a positive number"},
+      {"loss_not_scalar", "loss:\n  lidar: [huber, 1]\n", 2, "[", "loss.lidar: expected a scalar"},
+      {"window_too_small", "window: {size: 1}\n", 1, "1", "window.size: must be within [2, 10000]"},
+      {"window_not_int", "window:\n  size: 10.5\n", 2, "10.5", "window.size"},
+      {"threads_zero", "solver:\n  num_threads: 0\n", 2, "0", "solver.num_threads: must be within"},
+      {"voxel_zero", "lidar:\n  voxel_m: 0\n", 2, "0", "lidar.voxel_m: must be > 0"},
+      {"shared_mismatch",
+       "calibration:\n  wheel_radius_shared: true\n  wheel_radius_left_m: estimate\n"
+       "  wheel_radius_right_m: fixed\n",
+       4, "fixed", "wheel_radius_shared is true, so both radii are one parameter"},
+      {"not_a_map", "- sensors\n", 1, "-", "problem: expected a map"},
+  };
+  for (const BadCase& c : cases) ExpectParseError(c);
+}
+
+Dataset DatasetWith(bool imu, bool lidar, bool wheel, bool gnss) {
+  Dataset dataset;
+  dataset.directory = "/nonexistent/run3";
+  if (imu) dataset.imu.resize(10);
+  if (lidar) dataset.lidar_sweeps.resize(3);
+  if (wheel) dataset.wheel.resize(5);
+  if (gnss) dataset.gnss.resize(5);
+  return dataset;
+}
+
+std::string ValidationMessage(const Problem& problem, const Dataset& dataset) {
+  try {
+    ValidateProblemForDataset(problem, dataset);
+  } catch (const ParseError& e) {
+    ADD_FAILURE() << "validation must not be a ParseError: " << e.what();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ProblemYamlTest, ValidationAcceptsADatasetWithEverythingTheProblemUses) {
+  EXPECT_NO_THROW(ValidateProblemForDataset(ReadShipped("urban_full.yaml"),
+                                            DatasetWith(true, true, true, true)));
+  // The LiDAR-IMU problem needs neither wheels nor GNSS.
+  EXPECT_NO_THROW(ValidateProblemForDataset(ReadShipped("lidar_imu.yaml"),
+                                            DatasetWith(true, true, false, false)));
+  EXPECT_NO_THROW(ValidateProblemForDataset(ReadShipped("imu_wheel_gnss.yaml"),
+                                            DatasetWith(true, false, true, true)));
+}
+
+TEST(ProblemYamlTest, ValidationRefusesWhatTheDatasetCannotGive) {
+  const Problem urban = ReadShipped("urban_full.yaml");
+  EXPECT_EQ(ValidationMessage(urban, DatasetWith(true, true, false, true)),
+            "problem " + urban.path +
+                " estimates wheel_radius_left_m but dataset /nonexistent/run3 has no wheel.csv");
+  EXPECT_EQ(ValidationMessage(urban, DatasetWith(true, false, true, true)),
+            "problem " + urban.path +
+                " estimates T_I_L rotation but dataset /nonexistent/run3 has no lidar.csv");
+  EXPECT_EQ(
+      ValidationMessage(urban, DatasetWith(true, true, true, false)),
+      "problem " + urban.path + " estimates p_I_A_m but dataset /nonexistent/run3 has no gnss.csv");
+  // Every missing piece in one message.
+  const std::string all = ValidationMessage(urban, DatasetWith(false, false, false, false));
+  EXPECT_THAT(all, HasSubstr("has 0 IMU samples in imu.csv"));
+  EXPECT_THAT(all, HasSubstr("no lidar.csv"));
+  EXPECT_THAT(all, HasSubstr("no wheel.csv"));
+  EXPECT_THAT(all, HasSubstr("no gnss.csv"));
+
+  // The verb follows the block's mode; the first block that is not fixed is named.
+  Problem problem;
+  problem.path = "problems/x.yaml";
+  problem.calibration.T_I_L.rotation.mode = BlockMode::kFixed;
+  problem.calibration.T_I_L.translation.mode = BlockMode::kFixed;
+  problem.calibration.time_offset_lidar_imu_s = {BlockMode::kPrior, 0.01};
+  EXPECT_EQ(ValidationMessage(problem, DatasetWith(true, false, true, true)),
+            "problem problems/x.yaml puts a prior on time_offset_lidar_imu_s but dataset "
+            "/nonexistent/run3 has no lidar.csv");
+  // A sensor whose blocks are all fixed still needs its data (its factors remain).
+  problem.calibration.p_I_A_m.mode = BlockMode::kFixed;
+  EXPECT_EQ(ValidationMessage(problem, DatasetWith(true, true, true, false)),
+            "problem problems/x.yaml uses GNSS but dataset /nonexistent/run3 has no gnss.csv");
+}
+
+TEST(ProblemYamlTest, ValidationTellsAnEmptyFileFromAMissingOne) {
+  const std::filesystem::path dir = test::OutputDir("empty_wheel");
+  std::ofstream(dir / "wheel.csv") << "t_ns,left_rad_s,right_rad_s\n";
+  Dataset dataset = DatasetWith(true, true, false, true);
+  dataset.directory = dir.string();
+  EXPECT_THAT(ValidationMessage(ReadShipped("urban_full.yaml"), dataset),
+              HasSubstr("has no samples in wheel.csv"));
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace autocal
