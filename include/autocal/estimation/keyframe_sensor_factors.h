@@ -1,0 +1,125 @@
+#pragma once
+
+// Wheel and GNSS factors attached to batch keyframes (docs/keyframe_factors.md).
+//
+// A batch problem has one Keyframe per LiDAR sweep. Wheel and GNSS measurements do not fall
+// on keyframe instants, so each keyframe gets one factor from the measurements linearly
+// interpolated to its time t_k (Eq. K1) between the two samples bracketing it:
+//   x(t_k) = (1 - s) x_0 + s x_1,   s = (t_k - t_0) / (t_1 - t_0),
+// and none when those samples are farther apart than a maximum gap (dropouts, GNSS outages).
+//
+// With GNSS factors, W is the ENU frame at the converter's origin: the fixes anchor position
+// and yaw, so no keyframe needs to be held for the gauge. A trajectory from an initializer
+// lives in its own gravity-aligned frame; AlignKeyframesToGnss moves it into ENU first.
+//
+// Quaternion blocks (each keyframe's q_W_I, the calibration's q_I_V) must already be in the
+// problem with geometry::RightQuaternionManifold; the functions add every other block they use.
+
+#include <cstdint>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+
+#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/loss.h"
+#include "autocal/factors/wheel_factor.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/gnss_enu.h"
+#include "autocal/sensors/measurements.h"
+
+namespace autocal {
+namespace estimation {
+
+struct KeyframeWheelOptions {
+  // Sigmas and rows of each factor. With factor.shared_radius the left radius block
+  // (Calibration::wheel_radius_left_m) stands for both wheels; the right one is not touched.
+  factors::WheelFactorOptions factor;
+  factors::LossOptions loss = factors::FactorLossOptions().wheel;  // Huber, 2 sigma
+  // A keyframe whose bracketing wheel samples are farther apart than this gets no factor
+  // (2.5 periods of a 100 Hz encoder: one lost sample is bridged, a dropout is not).
+  double max_wheel_gap_s = 0.025;
+  // The same for the IMU samples that give the raw gyro at the keyframe (2.5 periods at 200 Hz).
+  double max_imu_gap_s = 0.0125;
+  // Blocks not estimated are set constant in the problem (blocks left estimated are not
+  // made variable: a caller may have fixed them).
+  bool estimate_vehicle_rotation = true;     // q_I_V
+  bool estimate_vehicle_translation = true;  // p_I_V
+  bool estimate_radii = true;
+  bool estimate_track_width = true;
+};
+
+// Adds one WheelFactor (Eq. F22) per keyframe whose time both the wheel samples and the IMU
+// samples bracket within the maximum gaps: wheel rates and raw gyro interpolated to t_k
+// (Eq. K1), on the keyframe's q_W_I, v_W_I, b_g (the factor removes b_g from the gyro) and
+// the calibration's q_I_V, p_I_V, radii and track width. A standing car gives zero rates: its
+// factors carry no radius information but tie the keyframe's velocity to zero.
+// The keyframes and the calibration must outlive the problem (their members are the blocks);
+// the problem takes ownership of the cost and loss functions (Problem::Options defaults).
+// Returns the number of factors added. Throws autocal::Error for stamps that do not increase,
+// non-positive gaps, or a quaternion block missing from the problem or without a manifold.
+int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                    const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
+                    sensors::Calibration* calibration, const KeyframeWheelOptions& options = {});
+
+struct KeyframeGnssOptions {
+  factors::LossOptions loss = factors::FactorLossOptions().gnss;  // Cauchy, 3 sigma (multipath)
+  // A keyframe whose bracketing fixes are farther apart than this gets no factor (outages).
+  // The default suits 10 Hz receivers; use about 1.5 s at 1 Hz.
+  double max_fix_gap_s = 0.25;
+  bool estimate_lever_arm = true;  // else p_I_A is set constant
+};
+
+// The antenna position in ENU at t_ns (Eq. K1 on the fixes converted by `converter`) with the
+// linearly interpolated per-axis sigma (Eq. K2). Returns false when no two fixes within
+// max_fix_gap_s bracket t_ns (a fix exactly at t_ns is used alone).
+// Throws autocal::Error for fix stamps that do not increase, a non-positive gap or a fix
+// the converter rejects.
+bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
+                     int64_t t_ns, double max_fix_gap_s, factors::GnssMeasurement* measurement);
+
+// Adds one GnssFactor (Eq. F30) per keyframe with an interpolated fix (InterpolateGnss), on
+// the keyframe's q_W_I, p_W_I and the calibration's p_I_A. Returns the number added.
+// Ownership as AddWheelFactors. Throws autocal::Error as InterpolateGnss, for a non-positive
+// gap, a keyframe q_W_I missing from the problem or without a manifold, or an invalid fix.
+int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
+                   const sensors::EnuConverter& converter, std::vector<Keyframe>* keyframes,
+                   sensors::Calibration* calibration, const KeyframeGnssOptions& options = {});
+
+struct GnssAlignmentOptions {
+  double max_fix_gap_s = 0.25;  // as KeyframeGnssOptions::max_fix_gap_s
+  // Multipath outliers would pull a plain least-squares fit: after each fit, pairs farther
+  // than max(min_outlier_distance_m, outlier_mad_factor * 1.4826 * median distance) from
+  // their fix are dropped and the fit is repeated, at most this many times.
+  int max_refits = 3;
+  double outlier_mad_factor = 5.0;
+  double min_outlier_distance_m = 0.5;
+  // The yaw is only as good as fix noise over the horizontal extent of the pairs: below this
+  // RMS distance from their centroid the alignment is refused.
+  double min_horizontal_extent_m = 5.0;
+};
+
+struct GnssAlignment {
+  double yaw_rad = 0.0;                                     // rotation about z_W applied
+  Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();  // then this shift (Eq. K5)
+  int num_pairs = 0;                                        // keyframes with an interpolated fix
+  int num_inliers = 0;                                      // pairs used by the last fit
+  double rms_m = 0.0;  // RMS antenna-to-fix distance of the inliers after alignment
+};
+
+// 4-DoF alignment (yaw about the gravity axis and a translation, Eqs. K3-K5) of keyframes in a
+// gravity-aligned frame to ENU: the antenna positions p_W_I + R_W_I p_I_A are fitted by least
+// squares to the fixes interpolated at the keyframe times, and every keyframe state is moved
+// (q <- R_z q, p <- R_z p + t, v <- R_z v; biases are body-frame and stay).
+// Throws autocal::Error with fewer than two pairs, inliers spread less than
+// min_horizontal_extent_m horizontally (yaw unobservable), or as InterpolateGnss.
+GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
+                                   const sensors::GnssFixes& fixes,
+                                   const sensors::EnuConverter& converter,
+                                   const Eigen::Vector3d& p_I_A,
+                                   const GnssAlignmentOptions& options = {});
+
+}  // namespace estimation
+}  // namespace autocal
