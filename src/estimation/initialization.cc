@@ -134,6 +134,9 @@ StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOpti
     blocks.emplace_back(begin, end);
     begin = end;
   }
+  // The first run of at least min_duration_s wins (else the longest, to report it): a later
+  // steady stretch, e.g. cruising straight, also passes the thresholds but is not at rest.
+  const size_t min_blocks = 4;
   size_t run_begin = 0;
   size_t best_begin = 0, best_end = 0;
   for (size_t b = 0; b <= blocks.size(); ++b) {
@@ -142,13 +145,15 @@ StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOpti
       const AxisStats g = Stats(imu, blocks[b].first, blocks[b].second, Gyro);
       const AxisStats a = Stats(imu, blocks[b].first, blocks[b].second, Accel);
       still = g.std.maxCoeff() <= options.max_gyro_std_rad_s &&
-              a.std.maxCoeff() <= options.max_accel_std_m_s2;
+              a.std.maxCoeff() <= options.max_accel_std_m_s2 &&
+              g.mean.norm() <= options.max_gyro_mean_rad_s;
     }
     if (!still) {
       if (b > run_begin && b - run_begin > best_end - best_begin) {
         best_begin = run_begin;
         best_end = b;
       }
+      if (best_end - best_begin >= min_blocks) break;
       run_begin = b + 1;
     }
   }

@@ -28,6 +28,9 @@ struct StillStartOptions {
   double min_duration_s = 1.0;           // shortest still period accepted
   double max_gyro_std_rad_s = 0.01;      // per-axis standard deviation while still
   double max_accel_std_m_s2 = 0.05;      // per-axis standard deviation while still
+  // Mean rate (norm, bias included) above which a block is turning, however steadily: a
+  // constant-rate turn has a small standard deviation too. Gyro biases are far below this.
+  double max_gyro_mean_rad_s = 0.05;
   double max_search_s = 30.0;            // look for the still period in the first seconds
 };
 
@@ -42,7 +45,8 @@ struct StillStart {
   double gravity_m_s2 = 0.0;              // measured magnitude of the specific force
 };
 
-// Finds the longest still period that starts within the first max_search_s seconds.
+// Finds the first still period of at least min_duration_s that starts within the first
+// max_search_s seconds (blocks turning at a steady rate do not count as still).
 StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOptions& options = {});
 
 // ---- 2. Time offset.

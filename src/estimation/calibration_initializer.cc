@@ -1,0 +1,552 @@
+#include "autocal/estimation/calibration_initializer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <sstream>
+
+#include <Eigen/Cholesky>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/geometry/so3.h"
+#include "autocal/sensors/imu_preintegration.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+std::string Format(double value, int precision = 3) {
+  std::ostringstream s;
+  s.precision(precision);
+  s << value;
+  return s.str();
+}
+
+// T_O_L at LiDAR time t_ns, interpolated on SE(3) between the odometry poses around it (or
+// extrapolated with the nearest interval's twist): T_a Exp(s Log(T_a^-1 T_b)).
+geometry::Pose3d PoseAt(const std::vector<lidar::OdometryFrame>& frames, int64_t t_ns) {
+  auto it = std::upper_bound(frames.begin(), frames.end(), t_ns,
+                             [](int64_t t, const lidar::OdometryFrame& f) { return t < f.t_ns; });
+  std::ptrdiff_t b = std::clamp<std::ptrdiff_t>(it - frames.begin(), 1,
+                                                static_cast<std::ptrdiff_t>(frames.size()) - 1);
+  const lidar::OdometryFrame& fa = frames[static_cast<size_t>(b - 1)];
+  const lidar::OdometryFrame& fb = frames[static_cast<size_t>(b)];
+  const double s = SecondsBetween(fa.t_ns, t_ns) / SecondsBetween(fa.t_ns, fb.t_ns);
+  const geometry::Vector6<double> xi = geometry::LogSE3(fa.T_W_L.Inverse() * fb.T_W_L);
+  return fa.T_W_L * geometry::ExpSE3(geometry::Vector6<double>(s * xi));
+}
+
+// The mean gyro rate (bias removed) over IMU times [t0_ns, t1_ns]; zero when no sample
+// falls inside.
+Eigen::Vector3d MeanRate(const sensors::ImuSamples& imu, const Eigen::Vector3d& bias, int64_t t0_ns,
+                         int64_t t1_ns) {
+  auto it = std::lower_bound(imu.begin(), imu.end(), t0_ns,
+                             [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (; it != imu.end() && it->t_ns <= t1_ns; ++it, ++count) sum += it->gyro_rad_s;
+  return count == 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(sum / count - bias);
+}
+
+// Step 1 (and its repetition). With `gyro` set, each sweep is deskewed with the gyro rate
+// over the sweep rotated into L, R_I_L^T (w - b_g), at the estimated offset (eq. I2). Returns false
+// (with a problem) when a registration fails.
+struct GyroDeskew {
+  Eigen::Quaterniond q_I_L;
+  double offset_s = 0.0;
+  Eigen::Vector3d gyro_bias_rad_s;
+};
+
+bool RunOdometry(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
+                 const lidar::LidarOdometrySetting& setting, const std::optional<GyroDeskew>& gyro,
+                 CalibrationInitialization* out) {
+  lidar::LidarOdometry odometry(setting);
+  for (size_t k = 0; k < sweeps.size(); ++k) {
+    std::optional<Eigen::Vector3d> rate_L;
+    if (gyro) {
+      const lidar::PointCloud& cloud = sweeps[k].cloud;
+      const double duration_s = cloud.has_time() ? cloud.time_s.maxCoeff() : 0.0;
+      const int64_t t0_ns = sweeps[k].t_ns + SecondsToNs(gyro->offset_s);
+      rate_L = gyro->q_I_L.conjugate() *
+               MeanRate(imu, gyro->gyro_bias_rad_s, t0_ns, t0_ns + SecondsToNs(duration_s));
+    }
+    try {
+      odometry.AddSweep(sweeps[k], rate_L);
+    } catch (const Error& e) {
+      out->problems.push_back("LiDAR odometry failed at sweep " + std::to_string(k) + " of " +
+                              std::to_string(sweeps.size()) + ": " + e.what());
+      return false;
+    }
+  }
+  out->odometry = odometry.frames();
+  return true;
+}
+
+// Step 2.
+void FindRestPeriod(const sensors::ImuSamples& imu, const CalibrationInitializerOptions& options,
+                    CalibrationInitialization* out) {
+  out->still_start = DetectStillStart(imu, options.still_start);
+  if (out->still_start.found) return;
+  const StillStart quiet = DetectStillStart(imu, options.low_excitation);
+  if (quiet.found) {
+    out->still_start = quiet;
+    out->still_start_is_low_excitation = true;
+    return;
+  }
+  out->problems.push_back(
+      "no still start (" + out->still_start.reason + ") and no low-excitation period (" +
+      quiet.reason +
+      "): the gyro bias and the direction of gravity are unknown; start the log with the "
+      "vehicle at rest for at least " +
+      Format(options.still_start.min_duration_s) + " s");
+}
+
+// Step 3.
+void EstimateOffset(const sensors::ImuSamples& imu, const CalibrationInitializerOptions& options,
+                    CalibrationInitialization* out) {
+  const auto& frames = out->odometry;
+  for (size_t k = 1; k < frames.size(); ++k) {
+    RelativeRotation r;
+    r.t0_ns = frames[k - 1].t_ns;
+    r.t1_ns = frames[k].t_ns;
+    r.q_0_1 = frames[k - 1].T_W_L.q.conjugate() * frames[k].T_W_L.q;
+    out->sweep_rotations.push_back(r);
+  }
+  out->time_offset = EstimateTimeOffset(out->sweep_rotations, imu,
+                                        out->still_start.gyro_bias_rad_s, options.time_offset);
+  if (!out->time_offset.reliable) {
+    out->problems.push_back("the LiDAR-IMU time offset is not determined: " +
+                            out->time_offset.reason);
+  }
+}
+
+// Step 4: hand-eye pairs about hand_eye_pair_spacing_s long (eq. I1).
+void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerOptions& options,
+                   CalibrationInitialization* out) {
+  const auto& frames = out->odometry;
+  const int64_t offset_ns = SecondsToNs(out->time_offset.offset_s);
+  const int64_t spacing_ns = SecondsToNs(options.hand_eye_pair_spacing_s);
+  int rotating = 0;
+  for (size_t a = 0, b = 0; a < frames.size(); ++a) {
+    b = std::max(b, a + 1);
+    while (b < frames.size() && frames[b].t_ns < frames[a].t_ns + spacing_ns) ++b;
+    if (b >= frames.size()) break;
+    const int64_t t0 = frames[a].t_ns + offset_ns, t1 = frames[b].t_ns + offset_ns;
+    if (t0 < imu.front().t_ns || t1 > imu.back().t_ns) continue;
+    const Eigen::Quaterniond q_L = frames[a].T_W_L.q.conjugate() * frames[b].T_W_L.q;
+    out->hand_eye_lidar_rotations.push_back(q_L);
+    out->hand_eye_imu_rotations.push_back(
+        IntegrateGyro(imu, out->still_start.gyro_bias_rad_s, t0, t1));
+    if (geometry::AngleOf(q_L) * kRadToDeg >= options.min_pair_rotation_deg) ++rotating;
+  }
+  if (rotating < options.min_rotating_pairs) {
+    out->problems.push_back(
+        "too little rotation for the hand-eye rotation: " + std::to_string(rotating) + " of " +
+        std::to_string(out->hand_eye_lidar_rotations.size()) + " intervals of " +
+        Format(options.hand_eye_pair_spacing_s) + " s turned more than " +
+        Format(options.min_pair_rotation_deg) + " deg (need " +
+        std::to_string(options.min_rotating_pairs) + "); the drive needs turns");
+    return;
+  }
+  out->rotation = SolveHandEyeRotation(out->hand_eye_imu_rotations,
+                                       out->hand_eye_lidar_rotations, options.hand_eye);
+  if (!out->rotation.observable) {
+    out->problems.push_back("the LiDAR-IMU rotation is not determined: " + out->rotation.reason);
+  }
+}
+
+// The keyframes of steps 5 and 6: sweep index, IMU time, odometry pose at that instant.
+struct KeyframeSlot {
+  int sweep = 0;
+  int64_t t_ns = 0;         // IMU clock
+  geometry::Pose3d T_O_L;   // at LiDAR time t_ns - offset
+};
+
+std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
+                                        const std::vector<lidar::LidarSweep>& sweeps,
+                                        const CalibrationInitializerOptions& options,
+                                        const CalibrationInitialization& out) {
+  LidarInertialBatchOptions batch;
+  batch.keyframe_lead_s = options.keyframe_lead_s;
+  const double offset_s = out.time_offset.offset_s;
+  const int64_t offset_ns = SecondsToNs(offset_s);
+  std::vector<KeyframeSlot> slots;
+  for (size_t k = 0; k < sweeps.size(); ++k) {
+    const int64_t t_ns = KeyframeTime(sweeps[k].t_ns, offset_s, batch);
+    const double sweep_end_s = sweeps[k].cloud.has_time() ? sweeps[k].cloud.time_s.maxCoeff() : 0.0;
+    // The whole sweep (and the lead again as a margin) must be inside the IMU log.
+    const int64_t end_ns = sweeps[k].t_ns + offset_ns + SecondsToNs(sweep_end_s + options.keyframe_lead_s);
+    if (t_ns < imu.front().t_ns || end_ns > imu.back().t_ns) continue;
+    slots.push_back({static_cast<int>(k), t_ns, PoseAt(out.odometry, t_ns - offset_ns)});
+  }
+  return slots;
+}
+
+// Step 5: the lever arm p_I_L, the accelerometer bias b_a, gravity in O, a rotation theta
+// of R_I_L about the IMU's vertical u and one velocity v_k (in O) per keyframe, from IMU
+// preintegration between consecutive keyframes with the IMU positions and rotations
+// p_k = p_O_L,k - R_k p_I_L, R_k = R_O_L,k R_I_L^T Exp(-theta u) taken from odometry
+// (docs/initialization.md, eq. I3-I7). Linear in x = [p_I_L, b_a, g_O, theta, v_0 ..
+// v_{N-1}] to first order in theta; solved by normal equations, with Huber re-weighting of
+// the odometry positions (a sweep where the odometry slipped, e.g. along a featureless
+// street, is down-weighted). Outputs the IMU positions p_O_I,k integrated from the fitted
+// velocities (eq. I7), which bridge such slips.
+class InertialFit {
+ public:
+  InertialFit(const sensors::ImuSamples& imu, const std::vector<KeyframeSlot>& slots,
+              const CalibrationInitializerOptions& options, const Eigen::Matrix3d& R_I_L,
+              const Eigen::Vector3d& b_g, const Eigen::Matrix3d& R_O_I_rest,
+              const Eigen::Vector3d& f_rest, const Eigen::Vector3d& up_I,
+              const StillStart* rest)
+      : options_(options), n_(static_cast<int>(slots.size())), dim_(kV + 3 * n_) {
+    const Eigen::Matrix3d I3 = Eigen::Matrix3d::Identity();
+    // Weak priors on the lever arm and the accelerometer bias, and gravity from the rest
+    // period (eq. I3): g_O = -R_O_I,rest (f_rest - b_a).
+    rows_.push_back({{{kP, I3}}, options.p_I_L_prior, options.p_I_L_prior_sigma_m});
+    rows_.push_back({{{kBa, I3}}, Eigen::Vector3d::Zero(), options.accel_bias_prior_sigma_m_s2});
+    rows_.push_back({{{kG, I3}, {kBa, -R_O_I_rest}}, -(R_O_I_rest * f_rest),
+                     options.gravity_prior_sigma_m_s2});
+    sensors::PreintegrationOptions preintegration_options;
+    for (const KeyframeSlot& slot : slots) R_.push_back(slot.T_O_L.R() * R_I_L.transpose());
+    p_O_I_0_ = slots.front().T_O_L.p;
+    for (int i = 0; i + 1 < n_; ++i) {
+      const KeyframeSlot& si = slots[static_cast<size_t>(i)];
+      const KeyframeSlot& sj = slots[static_cast<size_t>(i + 1)];
+      const Eigen::Matrix3d& Ri = R_[static_cast<size_t>(i)];
+      const Eigen::Matrix3d& Rj = R_[static_cast<size_t>(i + 1)];
+      sensors::ImuPreintegration pre(options.imu_noise, preintegration_options, b_g,
+                                     Eigen::Vector3d::Zero());
+      pre.Integrate(imu, si.t_ns, sj.t_ns);
+      const double dt = pre.dt_s();
+      deltas_.push_back({dt, pre.delta_p(), pre.d_p_d_ba()});
+      const sensors::Matrix15d cov = pre.Covariance();
+      // Odometry tilt errors rotate the gravity-compensating part of dv and dp.
+      const double tilt_v =
+          options.odometry_rotation_sigma_rad * preintegration_options.gravity_m_s2 * dt;
+      const double sigma_v = std::sqrt(cov.block<3, 3>(3, 3).trace() / 3.0 + tilt_v * tilt_v);
+      const double sigma_p =
+          std::sqrt(2.0 * options.odometry_position_sigma_m * options.odometry_position_sigma_m +
+                    cov.block<3, 3>(6, 6).trace() / 3.0 + 0.25 * dt * dt * tilt_v * tilt_v);
+      // Eq. I5: p_j - p_i - v_i dt - g_O dt^2/2 - R_i (dp + J_p b_a) = 0.
+      position_rows_.push_back(rows_.size());
+      rows_.push_back({{{kP, -(Rj - Ri)},
+                        {kBa, -Ri * pre.d_p_d_ba()},
+                        {kG, -0.5 * dt * dt * I3},
+                        {kTheta, Ri * up_I.cross(pre.delta_p())},
+                        {VelocityIndex(i), -dt * I3}},
+                       Ri * pre.delta_p() - (sj.T_O_L.p - si.T_O_L.p),
+                       sigma_p});
+      // Eq. I6: v_j - v_i - g_O dt - R_i (dv + J_v b_a) = 0.
+      rows_.push_back({{{kBa, -Ri * pre.d_v_d_ba()},
+                        {kG, -dt * I3},
+                        {kTheta, Ri * up_I.cross(pre.delta_v())},
+                        {VelocityIndex(i), -I3},
+                        {VelocityIndex(i + 1), I3}},
+                       Ri * pre.delta_v(),
+                       sigma_v});
+    }
+    // Zero-velocity rows (eq. I4) for keyframes inside a true rest period: they anchor the IMU's
+    // velocity chain, so that an odometry slip cannot shift it and shows as an outlier.
+    if (rest) {
+      for (int k = 0; k < n_; ++k) {
+        const int64_t t_ns = slots[static_cast<size_t>(k)].t_ns;
+        if (t_ns < rest->t_begin_ns || t_ns > rest->t_end_ns) continue;
+        rows_.push_back({{{VelocityIndex(k), I3}}, Eigen::Vector3d::Zero(),
+                         options.rest_velocity_sigma_m_s});
+      }
+    }
+    weights_.assign(rows_.size(), 1.0);
+  }
+
+  void Solve(InertialAlignment* fit, std::vector<Eigen::Vector3d>* p_O_I,
+             std::vector<Eigen::Vector3d>* v_O_I) {
+    // Huber re-weighting of the odometry positions with every lever-arm axis free.
+    Eigen::VectorXd x;
+    for (int iteration = 0; iteration < options_.robust_iterations; ++iteration) {
+      x = SolveHolding(Eigen::Matrix<bool, 3, 1>::Constant(false));
+      for (size_t r : position_rows_) {
+        const double normalized = Residual(rows_[r], x).norm() / rows_[r].sigma;
+        weights_[r] = normalized <= options_.huber_sigmas ? 1.0 : options_.huber_sigmas / normalized;
+      }
+    }
+    x = SolveHolding(Eigen::Matrix<bool, 3, 1>::Constant(false));
+    // Which lever-arm axes the data determines: posterior standard deviations with only the
+    // weak prior, scaled by the variance factor of the position residuals.
+    double chi2 = 0.0, sum_sq = 0.0, weight_sum = 0.0;
+    for (size_t r : position_rows_) {
+      const Eigen::Vector3d e = Residual(rows_[r], x);
+      chi2 += weights_[r] * e.squaredNorm() / (rows_[r].sigma * rows_[r].sigma);
+      sum_sq += weights_[r] * e.squaredNorm();
+      weight_sum += weights_[r];
+    }
+    const double variance_factor = chi2 / std::max(1.0, 3.0 * weight_sum);
+    fit->position_rms_m = std::sqrt(sum_sq / std::max(1.0, 3.0 * weight_sum));
+    Eigen::MatrixXd H;
+    Eigen::VectorXd g;
+    Build(&H, &g);
+    const Eigen::MatrixXd covariance =
+        variance_factor *
+        Eigen::LDLT<Eigen::MatrixXd>(H).solve(Eigen::MatrixXd::Identity(dim_, kV)).topRows<kV>();
+    for (int axis = 0; axis < 3; ++axis) {
+      fit->lever_arm_std_m(axis) = std::sqrt(std::max(0.0, covariance(kP + axis, kP + axis)));
+      fit->excited(axis) = fit->lever_arm_std_m(axis) < options_.max_excited_lever_arm_std_m;
+    }
+    fit->vertical_rotation_std_rad = std::sqrt(std::max(0.0, covariance(kTheta, kTheta)));
+    x = SolveHolding(fit->excited.unaryExpr([](bool e) { return !e; }));
+    fit->p_I_L = x.segment<3>(kP);
+    fit->accel_bias_m_s2 = x.segment<3>(kBa);
+    fit->gravity_O_m_s2 = x.segment<3>(kG);
+    fit->vertical_rotation_rad = x(kTheta);
+    fit->downweighted_positions = 0;
+    for (size_t r : position_rows_) fit->downweighted_positions += weights_[r] < 1.0 ? 1 : 0;
+
+    // Eq. I7: p_k+1 = p_k + v_k dt + g_O dt^2/2 + R_k (dp + J_p b_a), from p_0 = p_O_L,0 - R_0 p_I_L.
+    v_O_I->resize(static_cast<size_t>(n_));
+    for (int k = 0; k < n_; ++k) (*v_O_I)[static_cast<size_t>(k)] = x.segment<3>(VelocityIndex(k));
+    p_O_I->assign(1, p_O_I_0_ - R_.front() * fit->p_I_L);
+    for (size_t k = 0; k < deltas_.size(); ++k) {
+      const Delta& d = deltas_[k];
+      p_O_I->push_back(p_O_I->back() + (*v_O_I)[k] * d.dt_s + 0.5 * d.dt_s * d.dt_s * fit->gravity_O_m_s2 +
+                       R_[k] * (d.dp + d.d_p_d_ba * fit->accel_bias_m_s2));
+    }
+  }
+
+ private:
+  static constexpr int kP = 0, kBa = 3, kG = 6, kTheta = 9, kV = 10;
+  static int VelocityIndex(int k) { return kV + 3 * k; }
+  // One block row r = sum_c A_c x_c - b, whitened by 1/sigma.
+  struct Row {
+    std::vector<std::pair<int, Eigen::MatrixXd>> blocks;
+    Eigen::Vector3d b;
+    double sigma;
+  };
+  struct Delta {
+    double dt_s;
+    Eigen::Vector3d dp;
+    Eigen::Matrix3d d_p_d_ba;
+  };
+
+  static Eigen::Vector3d Residual(const Row& row, const Eigen::VectorXd& x) {
+    Eigen::Vector3d r = -row.b;
+    for (const auto& [c, A] : row.blocks) r += A * x.segment(c, A.cols());
+    return r;
+  }
+
+  void Build(Eigen::MatrixXd* H, Eigen::VectorXd* g) const {
+    *H = Eigen::MatrixXd::Zero(dim_, dim_);
+    *g = Eigen::VectorXd::Zero(dim_);
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      const Row& row = rows_[r];
+      const double w = weights_[r] / (row.sigma * row.sigma);
+      for (const auto& [ci, Ai] : row.blocks) {
+        g->segment(ci, Ai.cols()) += w * Ai.transpose() * row.b;
+        for (const auto& [cj, Aj] : row.blocks) {
+          H->block(ci, cj, Ai.cols(), Aj.cols()) += w * Ai.transpose() * Aj;
+        }
+      }
+    }
+  }
+
+  // Solves with the lever-arm axes flagged in `hold` fixed at the prior (their columns move
+  // to the right-hand side).
+  Eigen::VectorXd SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold) const {
+    Eigen::MatrixXd H;
+    Eigen::VectorXd g;
+    Build(&H, &g);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(dim_);
+    std::vector<int> free;
+    for (int c = 0; c < dim_; ++c) {
+      if (c >= 3 || !hold(c)) free.push_back(c);
+      if (c < 3 && hold(c)) x(c) = options_.p_I_L_prior(c);
+    }
+    const int m = static_cast<int>(free.size());
+    Eigen::MatrixXd H_free(m, m);
+    Eigen::VectorXd g_free(m);
+    for (int r = 0; r < m; ++r) {
+      g_free(r) = g(free[r]);
+      for (int c = 0; c < 3; ++c) {
+        if (hold(c)) g_free(r) -= H(free[r], c) * x(c);
+      }
+      for (int c = 0; c < m; ++c) H_free(r, c) = H(free[r], free[c]);
+    }
+    const Eigen::VectorXd x_free = H_free.ldlt().solve(g_free);
+    for (int r = 0; r < m; ++r) x(free[r]) = x_free(r);
+    return x;
+  }
+
+  const CalibrationInitializerOptions& options_;
+  int n_;
+  int dim_;
+  std::vector<Row> rows_;
+  std::vector<double> weights_;
+  std::vector<size_t> position_rows_;
+  std::vector<Eigen::Matrix3d> R_;
+  std::vector<Delta> deltas_;
+  Eigen::Vector3d p_O_I_0_;
+};
+
+// Step 6: W is O rotated so that gravity points along -z and the first keyframe's yaw is
+// zero, with its origin at the first keyframe's IMU position.
+geometry::Pose3d GravityAlignedWorld(const Eigen::Vector3d& g_O, const Eigen::Matrix3d& R_O_I_0,
+                                     const Eigen::Vector3d& p_O_I_0) {
+  const Eigen::Quaterniond q_tilt =
+      Eigen::Quaterniond::FromTwoVectors(-g_O, Eigen::Vector3d::UnitZ());
+  const Eigen::Matrix3d R = q_tilt * R_O_I_0;
+  const double yaw = std::atan2(R(1, 0), R(0, 0));
+  const Eigen::Quaterniond q_W_O =
+      (Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()) * q_tilt).normalized();
+  return geometry::Pose3d(q_W_O, -(q_W_O * p_O_I_0));
+}
+
+}  // namespace
+
+namespace {
+
+void CheckStamps(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps) {
+  for (size_t k = 1; k < sweeps.size(); ++k) {
+    if (sweeps[k].t_ns <= sweeps[k - 1].t_ns) {
+      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) + ")");
+    }
+  }
+  for (size_t i = 1; i < imu.size(); ++i) {
+    if (imu[i].t_ns <= imu[i - 1].t_ns) {
+      throw Error("InitializeLidarImu: IMU stamps must increase (sample " + std::to_string(i) + ")");
+    }
+  }
+}
+
+bool TooShort(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
+              CalibrationInitialization* out) {
+  if (imu.size() >= 2 && sweeps.size() >= 2) return false;
+  out->problems.push_back("the log holds " + std::to_string(imu.size()) + " IMU samples and " +
+                          std::to_string(sweeps.size()) + " sweeps: too short to initialize");
+  return true;
+}
+
+// Steps 5 and 6 on out's odometry, rest period, offset and rotation.
+void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
+                            const std::vector<lidar::LidarSweep>& sweeps,
+                            const CalibrationInitializerOptions& options,
+                            CalibrationInitialization* out_ptr);
+
+}  // namespace
+
+CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
+                                             const std::vector<lidar::LidarSweep>& sweeps,
+                                             const CalibrationInitializerOptions& options) {
+  CheckStamps(imu, sweeps);
+  CalibrationInitialization out;
+  if (TooShort(imu, sweeps, &out)) return out;
+  if (!RunOdometry(imu, sweeps, options.odometry, std::nullopt, &out)) return out;
+  FindRestPeriod(imu, options, &out);
+  // The later steps also run without a rest period (zero gyro bias) so that every problem of
+  // a poor log is reported at once.
+  EstimateOffset(imu, options, &out);
+  SolveRotation(imu, options, &out);
+  if (!out.problems.empty()) return out;
+  if (options.gyro_deskew_pass) {
+    // Constant-velocity deskewing lets the odometry lag when the turn rate changes; with the
+    // rotation and offset known roughly, the gyro deskews each sweep and steps 3-4 repeat.
+    const GyroDeskew gyro{out.rotation.q_I_L, out.time_offset.offset_s,
+                          out.still_start.gyro_bias_rad_s};
+    out.sweep_rotations.clear();
+    out.hand_eye_imu_rotations.clear();
+    out.hand_eye_lidar_rotations.clear();
+    if (!RunOdometry(imu, sweeps, options.odometry, gyro, &out)) return out;
+    EstimateOffset(imu, options, &out);
+    SolveRotation(imu, options, &out);
+    if (!out.problems.empty()) return out;
+  }
+  AlignAndBuildKeyframes(imu, sweeps, options, &out);
+  return out;
+}
+
+CalibrationInitialization InitializeLidarImuFromOdometry(
+    const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
+    const std::vector<lidar::OdometryFrame>& odometry, const CalibrationInitializerOptions& options) {
+  CheckStamps(imu, sweeps);
+  if (odometry.size() != sweeps.size()) {
+    throw Error("InitializeLidarImuFromOdometry: " + std::to_string(odometry.size()) +
+                " odometry frames for " + std::to_string(sweeps.size()) + " sweeps");
+  }
+  for (size_t k = 0; k < sweeps.size(); ++k) {
+    if (odometry[k].t_ns != sweeps[k].t_ns) {
+      throw Error("InitializeLidarImuFromOdometry: odometry frame " + std::to_string(k) +
+                  " is not stamped like its sweep");
+    }
+  }
+  CalibrationInitialization out;
+  if (TooShort(imu, sweeps, &out)) return out;
+  out.odometry = odometry;
+  FindRestPeriod(imu, options, &out);
+  EstimateOffset(imu, options, &out);
+  SolveRotation(imu, options, &out);
+  if (!out.problems.empty()) return out;
+  AlignAndBuildKeyframes(imu, sweeps, options, &out);
+  return out;
+}
+
+namespace {
+
+void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
+                            const std::vector<lidar::LidarSweep>& sweeps,
+                            const CalibrationInitializerOptions& options,
+                            CalibrationInitialization* out_ptr) {
+  CalibrationInitialization& out = *out_ptr;
+  out.q_I_L = out.rotation.q_I_L;
+  out.time_offset_lidar_imu_s = out.time_offset.offset_s;
+  const std::vector<KeyframeSlot> slots = KeyframeSlots(imu, sweeps, options, out);
+  if (slots.size() < 2) {
+    out.problems.push_back("fewer than two sweeps lie inside the IMU log");
+    return;
+  }
+  // The specific force at rest, R_W_I^T (0, 0, g), and the IMU's vertical.
+  const Eigen::Vector3d f_rest =
+      out.still_start.q_W_I.conjugate() * Eigen::Vector3d(0.0, 0.0, out.still_start.gravity_m_s2);
+  const Eigen::Vector3d up_I = f_rest.normalized();
+  // Theta enters to first order: a second fit starts from the corrected rotation.
+  std::vector<Eigen::Vector3d> p_O_I, v_O_I;
+  double theta_total_rad = 0.0;
+  for (int iteration = 0; iteration < 2; ++iteration) {
+    // The IMU orientation in O at the end of the rest period, through the first keyframe.
+    const Eigen::Matrix3d R_I_L = out.q_I_L.toRotationMatrix();
+    const Eigen::Matrix3d R_O_I_rest =
+        slots.front().T_O_L.R() * R_I_L.transpose() *
+        IntegrateGyro(imu, out.still_start.gyro_bias_rad_s, slots.front().t_ns,
+                      out.still_start.t_end_ns)
+            .toRotationMatrix();
+    InertialFit fit(imu, slots, options, R_I_L, out.still_start.gyro_bias_rad_s, R_O_I_rest,
+                    f_rest, up_I, out.still_start_is_low_excitation ? nullptr : &out.still_start);
+    fit.Solve(&out.inertial, &p_O_I, &v_O_I);
+    theta_total_rad += out.inertial.vertical_rotation_rad;
+    out.q_I_L = (Eigen::Quaterniond(Eigen::AngleAxisd(out.inertial.vertical_rotation_rad, up_I)) *
+                 out.q_I_L).normalized();
+  }
+  out.inertial.vertical_rotation_rad = theta_total_rad;
+  out.p_I_L = out.inertial.p_I_L;
+
+  const geometry::Pose3d T_I_L(out.q_I_L, out.p_I_L);
+  const geometry::Pose3d T_O_I_0 = slots.front().T_O_L * T_I_L.Inverse();
+  out.T_W_O = GravityAlignedWorld(out.inertial.gravity_O_m_s2, T_O_I_0.R(), p_O_I.front());
+  for (size_t k = 0; k < slots.size(); ++k) {
+    const geometry::Pose3d T_W_I = out.T_W_O * slots[k].T_O_L * T_I_L.Inverse();
+    Keyframe keyframe;
+    keyframe.t_ns = slots[k].t_ns;
+    keyframe.q_W_I = T_W_I.q.normalized();
+    keyframe.p_W_I = out.T_W_O * p_O_I[k];
+    keyframe.v_W_I = out.T_W_O.q * v_O_I[k];
+    keyframe.b_g = out.still_start.gyro_bias_rad_s;
+    out.keyframe_sweeps.push_back(slots[k].sweep);
+    out.keyframes.push_back(keyframe);
+  }
+  out.ok = true;
+}
+
+}  // namespace
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,283 @@
+#include "autocal/estimation/calibration_initializer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/geometry/so3.h"
+#include "autocal/sim/simulator.h"
+
+namespace autocal {
+namespace estimation {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+sim::SimulationOptions UrbanOptions(double duration_s, uint64_t seed) {
+  sim::SimulationOptions options;
+  options.scenario = sim::ScenarioType::kUrban;
+  options.duration_s = duration_s;
+  options.seed = seed;
+  options.lidar.config.num_beams = 16;
+  options.wheel.enabled = false;
+  options.gnss.enabled = false;
+  return options;
+}
+
+// The true IMU pose and velocity at IMU time t_ns, interpolated in the IMU-rate truth.
+Keyframe TrueKeyframe(const sim::ImuLog& log, int64_t t_ns) {
+  const auto& truth = log.truth;
+  auto it = std::lower_bound(truth.begin(), truth.end(), t_ns,
+                             [](const io::TrajectorySample& s, int64_t t) { return s.t_ns < t; });
+  const size_t i1 = std::min(static_cast<size_t>(it - truth.begin()), truth.size() - 1);
+  const size_t i0 = i1 == 0 ? 0 : i1 - 1;
+  const double s = i1 == i0 ? 0.0
+                            : static_cast<double>(t_ns - truth[i0].t_ns) /
+                                  static_cast<double>(truth[i1].t_ns - truth[i0].t_ns);
+  Keyframe kf;
+  kf.t_ns = t_ns;
+  kf.q_W_I = truth[i0].T_W_I.q.slerp(s, truth[i1].T_W_I.q);
+  kf.p_W_I = (1.0 - s) * truth[i0].T_W_I.p + s * truth[i1].T_W_I.p;
+  kf.v_W_I = (1.0 - s) * truth[i0].v_W_I + s * truth[i1].v_W_I;
+  return kf;
+}
+
+// The rotation about z and translation that best map estimated keyframe positions onto the
+// true ones (least squares; roll and pitch are not fitted: gravity fixes them).
+geometry::Pose3d YawAlignment(const std::vector<Keyframe>& estimate, const std::vector<Keyframe>& truth) {
+  Eigen::Vector3d mean_est = Eigen::Vector3d::Zero(), mean_true = Eigen::Vector3d::Zero();
+  for (size_t k = 0; k < estimate.size(); ++k) {
+    mean_est += estimate[k].p_W_I;
+    mean_true += truth[k].p_W_I;
+  }
+  mean_est /= static_cast<double>(estimate.size());
+  mean_true /= static_cast<double>(truth.size());
+  double sin_sum = 0.0, cos_sum = 0.0;
+  for (size_t k = 0; k < estimate.size(); ++k) {
+    const Eigen::Vector3d a = estimate[k].p_W_I - mean_est, b = truth[k].p_W_I - mean_true;
+    cos_sum += a.x() * b.x() + a.y() * b.y();
+    sin_sum += a.x() * b.y() - a.y() * b.x();
+  }
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(std::atan2(sin_sum, cos_sum), Eigen::Vector3d::UnitZ()));
+  return geometry::Pose3d(q, mean_true - q * mean_est);
+}
+
+std::string Problems(const CalibrationInitialization& init) {
+  std::string text;
+  for (const std::string& p : init.problems) text += p + "\n";
+  return text;
+}
+
+// A 28 s urban drive (1.5 s standstill, a straight acceleration and cruise, a roundabout),
+// simulated once; the initializer runs once without any guess (p_I_L prior zero) and the
+// tests look at that result.
+class CalibrationInitializerUrbanTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    simulator_ = new sim::Simulator(UrbanOptions(28.0, 3));
+    log_ = new sim::SimulatedLog(sim::Simulate(*simulator_));
+    const auto start = std::chrono::steady_clock::now();
+    init_ = new CalibrationInitialization(InitializeLidarImu(log_->imu.samples, log_->sweeps, Options()));
+    std::cout << "initializer: "
+              << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+              << " s for " << log_->sweeps.size() << " sweeps\n";
+  }
+  static void TearDownTestSuite() {
+    delete init_;
+    delete log_;
+    delete simulator_;
+  }
+  static CalibrationInitializerOptions Options() {
+    CalibrationInitializerOptions options;
+    options.imu_noise = simulator_->sensors_config().imu.noise;
+    return options;
+  }
+
+  static sim::Simulator* simulator_;
+  static sim::SimulatedLog* log_;
+  static CalibrationInitialization* init_;
+};
+
+sim::Simulator* CalibrationInitializerUrbanTest::simulator_ = nullptr;
+sim::SimulatedLog* CalibrationInitializerUrbanTest::log_ = nullptr;
+CalibrationInitialization* CalibrationInitializerUrbanTest::init_ = nullptr;
+
+TEST_F(CalibrationInitializerUrbanTest, RecoversCalibrationWithoutAGuess) {
+  const CalibrationInitialization& init = *init_;
+  ASSERT_TRUE(init.ok) << Problems(init);
+  ASSERT_EQ(init.odometry.size(), log_->sweeps.size());
+  EXPECT_FALSE(init.still_start_is_low_excitation);
+  const sensors::Calibration& truth = simulator_->true_calibration();
+  const double rotation_error_deg = geometry::AngularDistance(init.q_I_L, truth.q_I_L) * kRadToDeg;
+  const double offset_error_s = std::abs(init.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s);
+  const Eigen::Vector3d lever_error_m = (init.p_I_L - truth.p_I_L).cwiseAbs();
+  std::cout << "rotation error " << rotation_error_deg << " deg (hand-eye alone "
+            << geometry::AngularDistance(init.rotation.q_I_L, truth.q_I_L) * kRadToDeg
+            << " deg, singular value ratio " << init.rotation.singular_value_ratio
+            << "; vertical correction " << init.inertial.vertical_rotation_rad * kRadToDeg << " +- "
+            << init.inertial.vertical_rotation_std_rad * kRadToDeg << " deg)\noffset error "
+            << offset_error_s * 1e3 << " ms (correlation " << init.time_offset.peak_correlation
+            << ")\nlever arm " << init.p_I_L.transpose() << " vs true " << truth.p_I_L.transpose()
+            << ", excited " << init.inertial.excited.transpose() << ", std "
+            << init.inertial.lever_arm_std_m.transpose() << " m\naccel bias "
+            << init.inertial.accel_bias_m_s2.transpose() << " vs true "
+            << log_->imu.accel_bias.front().transpose() << "; position rms "
+            << init.inertial.position_rms_m << " m, " << init.inertial.downweighted_positions
+            << " intervals down-weighted\n";
+  // Planar driving leaves the hand-eye rotation about the vertical to ~2 deg of pitch and
+  // roll; the accelerations correct it (measured 0.81 deg).
+  EXPECT_LT(rotation_error_deg, 1.0);
+  EXPECT_LT(offset_error_s, 3e-3);  // measured 0.83 ms
+  for (int axis = 0; axis < 3; ++axis) {
+    if (init.inertial.excited(axis)) {
+      EXPECT_LT(lever_error_m(axis), 0.10) << "axis " << axis;
+    } else {
+      EXPECT_EQ(init.p_I_L(axis), Options().p_I_L_prior(axis)) << "axis " << axis;
+    }
+  }
+  // Mean of ~1.5 s at rest; the true bias also walks (measured 0.63 mrad/s).
+  EXPECT_LT((init.still_start.gyro_bias_rad_s - log_->imu.gyro_bias.front()).norm(), 1e-3);
+}
+
+TEST_F(CalibrationInitializerUrbanTest, KeyframesFollowTheTrueTrajectory) {
+  const CalibrationInitialization& init = *init_;
+  ASSERT_TRUE(init.ok) << Problems(init);
+  ASSERT_EQ(init.keyframes.size(), init.keyframe_sweeps.size());
+  ASSERT_GT(init.keyframes.size(), 250u);
+  // Keyframes against the truth after aligning W by yaw and translation.
+  std::vector<Keyframe> true_keyframes;
+  for (const Keyframe& kf : init.keyframes) true_keyframes.push_back(TrueKeyframe(log_->imu, kf.t_ns));
+  const geometry::Pose3d T_true_est = YawAlignment(init.keyframes, true_keyframes);
+  double worst_rotation_deg = 0.0, worst_position_m = 0.0, worst_velocity_m_s = 0.0;
+  for (size_t k = 0; k < init.keyframes.size(); ++k) {
+    const Keyframe& est = init.keyframes[k];
+    const Keyframe& tru = true_keyframes[k];
+    EXPECT_EQ(est.t_ns, KeyframeTime(log_->sweeps[static_cast<size_t>(init.keyframe_sweeps[k])].t_ns,
+                                     init.time_offset_lidar_imu_s, LidarInertialBatchOptions()));
+    worst_rotation_deg = std::max(
+        worst_rotation_deg,
+        geometry::AngularDistance(Eigen::Quaterniond(T_true_est.q * est.q_W_I), tru.q_W_I) * kRadToDeg);
+    worst_position_m = std::max(worst_position_m, (T_true_est * est.p_W_I - tru.p_W_I).norm());
+    worst_velocity_m_s = std::max(worst_velocity_m_s, (T_true_est.q * est.v_W_I - tru.v_W_I).norm());
+    EXPECT_EQ(est.b_g, init.still_start.gyro_bias_rad_s);
+    EXPECT_EQ(est.b_a, Eigen::Vector3d::Zero());
+  }
+  std::cout << "keyframes: worst orientation error " << worst_rotation_deg << " deg, position "
+            << worst_position_m << " m, velocity " << worst_velocity_m_s << " m/s\n";
+  // Measured 1.03 deg, 1.10 m, 0.22 m/s: the 16-beam odometry slips ~4 m along the straight
+  // street while accelerating and its pitch drifts; the IMU bridges part of it
+  // (docs/initialization.md, "Accuracy").
+  EXPECT_LT(worst_rotation_deg, 1.5);
+  EXPECT_LT(worst_position_m, 1.5);
+  EXPECT_LT(worst_velocity_m_s, 0.4);
+  // W has its origin at the first keyframe and that keyframe's yaw is zero.
+  EXPECT_LT(init.keyframes.front().p_W_I.norm(), 1e-9);
+  const Eigen::Matrix3d R0 = init.keyframes.front().q_W_I.toRotationMatrix();
+  EXPECT_NEAR(std::atan2(R0(1, 0), R0(0, 0)), 0.0, 1e-9);
+}
+
+// The only guess the chain takes is the lever-arm prior for unexcited axes: a prior 0.3 m
+// off per axis changes the rest only through the acceleration fit, where the held lever arm
+// meets the rotation about the vertical (measured 0.14 deg). The odometry takes no guess;
+// it is reused.
+TEST_F(CalibrationInitializerUrbanTest, ResultDoesNotDependOnTheGuess) {
+  ASSERT_TRUE(init_->ok) << Problems(*init_);
+  CalibrationInitializerOptions options = Options();
+  options.p_I_L_prior = simulator_->true_calibration().p_I_L + Eigen::Vector3d(0.3, -0.3, 0.3);
+  const CalibrationInitialization other =
+      InitializeLidarImuFromOdometry(log_->imu.samples, log_->sweeps, init_->odometry, options);
+  ASSERT_TRUE(other.ok) << Problems(other);
+  // Same odometry, same rest period: the offset and the hand-eye rotation are identical.
+  EXPECT_EQ(other.time_offset_lidar_imu_s, init_->time_offset_lidar_imu_s);
+  EXPECT_EQ(other.rotation.q_I_L.coeffs(), init_->rotation.q_I_L.coeffs());
+  const double rotation_difference_deg = geometry::AngularDistance(other.q_I_L, init_->q_I_L) * kRadToDeg;
+  std::cout << "rotation difference " << rotation_difference_deg << " deg, lever arm "
+            << other.p_I_L.transpose() << " vs " << init_->p_I_L.transpose() << "\n";
+  EXPECT_LT(rotation_difference_deg, 0.3);
+  EXPECT_LT(geometry::AngularDistance(other.q_I_L, simulator_->true_calibration().q_I_L) * kRadToDeg, 1.0);
+  EXPECT_EQ(other.inertial.excited, init_->inertial.excited);
+  for (int axis = 0; axis < 3; ++axis) {
+    if (other.inertial.excited(axis)) {
+      EXPECT_NEAR(other.p_I_L(axis), init_->p_I_L(axis), 0.01) << "axis " << axis;
+    } else {
+      EXPECT_EQ(other.p_I_L(axis), options.p_I_L_prior(axis)) << "axis " << axis;
+    }
+  }
+}
+
+TEST_F(CalibrationInitializerUrbanTest, RejectsOdometryThatDoesNotMatchTheSweeps) {
+  std::vector<lidar::OdometryFrame> odometry = init_->odometry;
+  odometry.pop_back();
+  EXPECT_THROW(InitializeLidarImuFromOdometry(log_->imu.samples, log_->sweeps, odometry), Error);
+}
+
+// A steady turn has gyro and accelerometer standard deviations as small as rest; its mean
+// rate tells it apart. 2 s at rest, then 10 s turning at 0.3 rad/s.
+TEST(DetectStillStart, ASteadyTurnIsNotStill) {
+  std::mt19937 rng(21);
+  std::normal_distribution<double> noise(0.0, 0.002);
+  const Eigen::Vector3d bias(0.002, -0.001, 0.003);
+  sensors::ImuSamples imu;
+  for (int64_t t_ns = 0; t_ns <= SecondsToNs(12.0); t_ns += 5'000'000) {
+    const bool turning = t_ns > SecondsToNs(2.0);
+    sensors::ImuSample s;
+    s.t_ns = t_ns;
+    s.gyro_rad_s = bias + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    s.accel_m_s2 = Eigen::Vector3d(noise(rng), noise(rng), 9.80665 + noise(rng));
+    if (turning) {
+      s.gyro_rad_s.z() += 0.3;
+      s.accel_m_s2.y() += 1.5;  // centripetal, 5 m/s on a 16.7 m radius
+    }
+    imu.push_back(s);
+  }
+  const StillStart still = DetectStillStart(imu);
+  ASSERT_TRUE(still.found) << still.reason;
+  EXPECT_LE(still.t_end_ns, SecondsToNs(2.0));
+  EXPECT_LT((still.gyro_bias_rad_s - bias).norm(), 5e-4);
+  // Without the rest, nothing is still.
+  const sensors::ImuSamples turn_only(imu.begin() + 450, imu.end());
+  EXPECT_FALSE(DetectStillStart(turn_only).found);
+}
+
+bool Mentions(const CalibrationInitialization& init, const std::string& word) {
+  for (const std::string& p : init.problems) {
+    if (p.find(word) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// 8 s of the urban drive: the standstill, then straight ahead. No turn: no hand-eye rotation
+// and no time offset.
+TEST(CalibrationInitializer, ReportsStraightDrivingAsTooLittleRotation) {
+  sim::SimulationOptions sim_options = UrbanOptions(8.0, 3);
+  const sim::SimulatedLog log = sim::Simulate(sim_options);
+  const CalibrationInitialization init = InitializeLidarImu(log.imu.samples, log.sweeps);
+  std::cout << Problems(init);
+  EXPECT_FALSE(init.ok);
+  EXPECT_TRUE(Mentions(init, "too little rotation")) << Problems(init);
+  EXPECT_TRUE(init.keyframes.empty());
+}
+
+// 1.2 s at rest: the still start is found, nothing else is determined.
+TEST(CalibrationInitializer, ReportsAStationaryLog) {
+  sim::SimulationOptions sim_options = UrbanOptions(1.2, 3);
+  const sim::SimulatedLog log = sim::Simulate(sim_options);
+  const CalibrationInitialization init = InitializeLidarImu(log.imu.samples, log.sweeps);
+  std::cout << Problems(init);
+  EXPECT_FALSE(init.ok);
+  EXPECT_TRUE(init.still_start.found) << init.still_start.reason;
+  EXPECT_TRUE(Mentions(init, "time offset")) << Problems(init);
+  EXPECT_TRUE(Mentions(init, "too little rotation")) << Problems(init);
+  EXPECT_TRUE(init.keyframes.empty());
+}
+
+}  // namespace
+}  // namespace estimation
+}  // namespace autocal
