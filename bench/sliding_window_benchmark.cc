@@ -1,0 +1,107 @@
+// The sliding-window estimator over a simulated urban drive (16 beams, all sensors): the
+// distribution of the per-update time (one update per LiDAR sweep) and of the time spent
+// marginalizing the oldest keyframe, as p50/p99 counters in milliseconds.
+#include <algorithm>
+#include <memory>
+#include <tuple>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "autocal/common/time.h"
+#include "autocal/estimation/sliding_window.h"
+#include "autocal/sim/simulator.h"
+
+namespace autocal {
+namespace {
+
+struct Log {
+  sim::SimulationOptions options;
+  std::unique_ptr<sim::Simulator> simulator;
+  sim::SimulatedLog data;
+  // (arrival time, kind, index) in arrival order; kind 0 IMU, 1 wheel, 2 GNSS, 3 sweep.
+  std::vector<std::tuple<int64_t, int, size_t>> events;
+};
+
+const Log& UrbanLog() {
+  static const Log* log = [] {
+    auto* l = new Log;
+    l->options.scenario = sim::ScenarioType::kUrban;
+    l->options.duration_s = 20.0;
+    l->options.seed = 11;
+    l->options.lidar.config.num_beams = 16;
+    l->simulator = std::make_unique<sim::Simulator>(l->options);
+    l->data = sim::Simulate(*l->simulator);
+    const sim::SimulatedLog& d = l->data;
+    for (size_t i = 0; i < d.imu.samples.size(); ++i) l->events.emplace_back(d.imu.samples[i].t_ns, 0, i);
+    for (size_t i = 0; i < d.wheel.size(); ++i) l->events.emplace_back(d.wheel[i].t_ns, 1, i);
+    for (size_t i = 0; i < d.gnss.fixes.size(); ++i) l->events.emplace_back(d.gnss.fixes[i].t_ns, 2, i);
+    for (size_t i = 0; i < d.sweeps.size(); ++i) {
+      l->events.emplace_back(d.sweeps[i].t_ns + SecondsToNs(d.sweeps[i].cloud.time_s.maxCoeff()),
+                             3, i);
+    }
+    std::stable_sort(l->events.begin(), l->events.end(),
+                     [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+    return l;
+  }();
+  return *log;
+}
+
+double Percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const size_t i = static_cast<size_t>(q * static_cast<double>(values.size() - 1) + 0.5);
+  return values[i];
+}
+
+void BM_SlidingWindowUrban(benchmark::State& bench) {
+  const Log& log = UrbanLog();
+  const io::SensorsConfig config = log.simulator->sensors_config();
+  estimation::SlidingWindowOptions options;
+  options.imu = config.imu;
+  options.wheel = *config.wheel;
+  options.enu_origin_lla = Eigen::Vector3d(log.options.gnss.origin_lat_deg,
+                                           log.options.gnss.origin_lon_deg,
+                                           log.options.gnss.origin_alt_m);
+  options.max_residuals_per_sweep = static_cast<int>(bench.range(0));
+  // The initial state: the truth at the first IMU sample (the drive starts at rest).
+  const io::TrajectorySample& first = log.data.imu.truth.front();
+  estimation::SlidingWindowState initial;
+  initial.t_ns = first.t_ns;
+  initial.q_W_I = first.T_W_I.q;
+  initial.p_W_I = first.T_W_I.p;
+  initial.v_W_I = first.v_W_I;
+  initial.b_g = log.data.imu.gyro_bias.front();
+  initial.b_a = log.data.imu.accel_bias.front();
+
+  std::vector<double> update_ms, marginalization_ms;
+  for (auto _ : bench) {
+    estimation::SlidingWindowEstimator estimator(options, log.simulator->nominal_calibration(),
+                                                 initial);
+    int64_t updates = 0;
+    for (const auto& [t, kind, i] : log.events) {
+      switch (kind) {
+        case 0: estimator.AddImu(log.data.imu.samples[i]); break;
+        case 1: estimator.AddWheel(log.data.wheel[i]); break;
+        case 2: estimator.AddGnss(log.data.gnss.fixes[i]); break;
+        default: estimator.AddSweep(log.data.sweeps[i]); break;
+      }
+      if (estimator.counters().updates == updates) continue;
+      updates = estimator.counters().updates;
+      const estimation::SlidingWindowUpdateTiming& timing = estimator.last_update_timing();
+      update_ms.push_back(1e3 * timing.total_s);
+      if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
+    }
+  }
+  bench.counters["updates"] = static_cast<double>(update_ms.size());
+  bench.counters["update_p50_ms"] = Percentile(update_ms, 0.5);
+  bench.counters["update_p99_ms"] = Percentile(update_ms, 0.99);
+  bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
+  bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);
+}
+BENCHMARK(BM_SlidingWindowUrban)->Arg(500)->Arg(2000)->Iterations(1)->Unit(benchmark::kSecond);
+
+}  // namespace
+}  // namespace autocal
+
+BENCHMARK_MAIN();

@@ -1,0 +1,278 @@
+#pragma once
+
+// Online sliding-window estimator (docs/sliding_window.md): IMU preintegration, wheel,
+// GNSS and LiDAR point-to-plane factors over the last N keyframes, the calibration blocks
+// shared by all of them, and the older keyframes marginalized into a linear prior.
+//
+// Data is streamed in with AddImu / AddWheel / AddGnss / AddSweep. Every LiDAR sweep becomes
+// a keyframe once the IMU covers it; each new keyframe triggers one window update:
+//   1. predict the keyframe with the IMU from the previous one,
+//   2. attach the IMU factor and the wheel/GNSS samples of the interval,
+//   3. deskew the window's sweeps with the current estimate into a tagged plane map and
+//      re-associate every keyframe's residual points with it,
+//   4. solve,
+//   5. marginalize the oldest keyframe when the window holds more than N.
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/marginalization.h"
+#include "autocal/estimation/plane_map.h"
+#include "autocal/factors/loss.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/gnss_enu.h"
+#include "autocal/sensors/imu_preintegration.h"
+#include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sensor_config.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace internal {
+struct AttachedFactor;
+}  // namespace internal
+
+// Which calibration blocks the window estimates; the others are held at their initial value.
+struct SlidingWindowEstimatedBlocks {
+  bool extrinsic_rotation = true;     // q_I_L
+  bool extrinsic_translation = true;  // p_I_L
+  bool time_offset = true;            // time_offset_lidar_imu_s
+  bool wheel_radii = true;            // wheel_radius_left_m, wheel_radius_right_m
+  bool track_width = true;            // track_width_m
+  bool vehicle_frame = false;         // q_I_V, p_I_V (weakly observable from wheel data)
+  bool gnss_lever_arm = true;         // p_I_A
+};
+
+// 1-sigma of the priors that tie each estimated calibration block to its initial value.
+// They are added once and never marginalized, so they regularize directions the first
+// seconds of driving do not excite.
+struct SlidingWindowCalibrationPrior {
+  double extrinsic_rotation_deg = 3.0;
+  double extrinsic_translation_m = 0.1;
+  double time_offset_s = 0.01;
+  double wheel_radius_m = 0.01;
+  double track_width_m = 0.05;
+  double vehicle_rotation_deg = 2.0;
+  double vehicle_translation_m = 0.1;
+  double gnss_lever_arm_m = 0.2;
+};
+
+// 1-sigma of the prior on the initial state (the gauge: position and yaw are unobservable
+// from IMU and LiDAR alone, so the first keyframe anchors the window until GNSS does).
+struct SlidingWindowInitialStateSigmas {
+  double rotation_deg = 0.01;
+  double position_m = 0.001;
+  double velocity_m_s = 0.01;
+  double gyro_bias_rad_s = 2e-3;
+  double accel_bias_m_s2 = 3e-2;
+};
+
+struct SlidingWindowOptions {
+  // Keyframes kept in the window; the oldest beyond this is marginalized. Keyframe policy:
+  // every LiDAR sweep becomes a keyframe (plus the initial state, keyframe 0).
+  int window_size = 10;
+
+  // Noise of the sensors (sensors/sensor_config.h).
+  sensors::ImuConfig imu;
+  sensors::WheelConfig wheel;
+  // Robust loss per sensor, on whitened residuals (factors/loss.h).
+  factors::FactorLossOptions loss;
+  SlidingWindowEstimatedBlocks estimate;
+  SlidingWindowCalibrationPrior calibration_prior;
+  SlidingWindowInitialStateSigmas initial_state_sigmas;
+
+  // Wheel factors: non-holonomic rows and their sigma. The speed and yaw-rate rows are
+  // whitened with `wheel.noise_rad_s` and the gyro's sample noise at the current radii and
+  // track width (docs/sliding_window.md, Eq. SW1-SW2). At most this many wheel samples per
+  // keyframe interval are used (evenly spread; 0 = all).
+  bool wheel_non_holonomic = true;
+  double wheel_non_holonomic_sigma_m_s = 0.05;
+  int max_wheel_samples_per_interval = 5;
+
+  // GNSS: origin of W for AddGnss(GnssFix) (WGS84 latitude, longitude, ellipsoidal height).
+  // Unset: W is the ENU frame at the first fix received (docs/design.md), so the initial
+  // state must be given in that frame.
+  std::optional<Eigen::Vector3d> enu_origin_lla;
+
+  // LiDAR keyframes sit this long before their sweep's first point (IMU clock, at the time
+  // offset estimate when the sweep arrives), so that the offset may move earlier by this much.
+  double keyframe_lead_s = 0.02;
+  // A sweep is processed when the IMU covers its last point at the current offset plus this
+  // margin (room for the offset estimate to grow).
+  double imu_coverage_margin_s = 0.02;
+  // Residual points of each sweep: one per voxel of this size (in L), then at most this many.
+  double residual_voxel_m = 0.6;
+  int max_residuals_per_sweep = 2000;
+  // Points of each sweep that build the plane map (one per voxel of this size).
+  double map_voxel_m = 0.3;
+  double min_range_m = 2.0;  // closer points (the car itself) are ignored
+  // The map is tagged with the keyframe index: a sweep uses planes of sweeps at least
+  // plane_map.min_tag_gap keyframes away. Default 1 (only its own points excluded): with a gap
+  // of 3 the newest sweeps lack their neighbours' planes and the window drifted by metres on
+  // the 12 s urban test log (docs/sliding_window.md, "Figures").
+  PlaneMapOptions plane_map = [] {
+    PlaneMapOptions o;
+    o.min_tag_gap = 1;
+    return o;
+  }();
+  // 1-sigma of a point-to-plane distance (range noise and plane fit).
+  double point_sigma_m = 0.03;
+
+  int solver_iterations = 10;
+  int num_threads = 1;
+  MarginalizationOptions marginalization;
+};
+
+// One keyframe's state with its time (IMU clock) — the same fields as the batch solver's.
+using SlidingWindowState = Keyframe;
+
+// A GNSS antenna position already in W (e.g. from sensors::EnuConverter).
+struct GnssPosition {
+  int64_t t_ns = 0;  // IMU clock
+  Eigen::Vector3d p_W_A = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sigma_enu_m = Eigen::Vector3d::Ones();
+};
+
+// Counters of the streaming rules (docs/sliding_window.md, "Ordering rule").
+struct SlidingWindowCounters {
+  int64_t imu_accepted = 0;
+  int64_t wheel_accepted = 0;
+  int64_t gnss_accepted = 0;
+  int64_t sweeps_accepted = 0;
+  // Samples not newer than the newest of their stream (dropped).
+  int64_t out_of_order = 0;
+  // Wheel/GNSS samples and sweeps at or before the newest keyframe, whose interval is
+  // already solved (dropped).
+  int64_t late = 0;
+  int64_t updates = 0;          // keyframes added (= window updates)
+  int64_t marginalizations = 0;
+};
+
+// Timing of the last update (seconds, wall clock).
+struct SlidingWindowUpdateTiming {
+  double total_s = 0.0;
+  double association_s = 0.0;  // map building and association
+  double solve_s = 0.0;
+  double marginalization_s = 0.0;
+};
+
+// Covariance of the estimated calibration blocks in tangent coordinates (right-perturbed
+// rotations), blocks in the order of `names` starting at `offsets`.
+struct CalibrationCovariance {
+  std::vector<std::string> names;  // e.g. "q_I_L", "p_I_L", "time_offset_lidar_imu_s"
+  std::vector<int> offsets;
+  Eigen::MatrixXd covariance;
+};
+
+class SlidingWindowEstimator {
+ public:
+  // `initial_state` is keyframe 0, in W at its IMU time t_ns. Throws autocal::Error on
+  // invalid options (window_size < 2, non-positive sigmas or voxel sizes).
+  SlidingWindowEstimator(const SlidingWindowOptions& options,
+                         const sensors::Calibration& initial_calibration,
+                         const SlidingWindowState& initial_state);
+  ~SlidingWindowEstimator();
+  // The marginalization prior points into the estimator's blocks: neither copy nor move.
+  SlidingWindowEstimator(const SlidingWindowEstimator&) = delete;
+  SlidingWindowEstimator& operator=(const SlidingWindowEstimator&) = delete;
+
+  // Streaming input, each stream in increasing time. A sample not newer than the newest
+  // accepted one of its stream is dropped (counted as out_of_order); a wheel/GNSS sample or
+  // a sweep at or before the newest keyframe's time is dropped (counted as late). Returns
+  // whether the datum was accepted. Non-finite values throw autocal::Error. AddImu and
+  // AddSweep process every buffered sweep the IMU now covers (one update per sweep).
+  bool AddImu(const sensors::ImuSample& sample);
+  bool AddWheel(const sensors::WheelSample& sample);
+  bool AddGnss(const sensors::GnssFix& fix);
+  bool AddGnss(const GnssPosition& position);
+  bool AddSweep(const lidar::LidarSweep& sweep);
+
+  const SlidingWindowState& latest_state() const;
+  // Every keyframe so far in time order: marginalized ones as last estimated in the window,
+  // the window's at their current estimate.
+  std::vector<SlidingWindowState> Trajectory() const;
+  const sensors::Calibration& calibration() const { return calibration_; }
+  // Covariance of the estimated calibration blocks given the window problem (its factors,
+  // the calibration priors and the marginalization prior, points re-associated at the
+  // current estimate), computed with ceres::Covariance, DENSE_SVD and a Moore-Penrose
+  // pseudo-inverse (null_space_rank = -1: singular values below
+  // min_reciprocal_condition_number times the largest are dropped), so unobservable
+  // directions get zero variance instead of failing. Not const: Ceres evaluates through the
+  // estimator's blocks (their values are not changed). Throws autocal::Error when Ceres fails.
+  CalibrationCovariance ComputeCalibrationCovariance(double min_reciprocal_condition_number = 1e-12);
+
+  int window_size() const;  // keyframes currently in the window
+  int pending_sweeps() const { return static_cast<int>(pending_sweeps_.size()); }
+  bool has_marginalization_prior() const { return prior_ != nullptr; }
+  const SlidingWindowCounters& counters() const { return counters_; }
+  const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
+  // Point-to-plane residuals of the last update and their RMS (metres, without the loss).
+  int last_associated_points() const { return last_associated_points_; }
+  double last_point_rms_m() const { return last_point_rms_m_; }
+
+ private:
+  struct WindowKeyframe;
+  struct ProblemBuild;
+
+  int64_t KeyframeTimeOf(const lidar::LidarSweep& sweep) const;
+  void ProcessCoveredSweeps();
+  // One window update for a covered sweep (steps 1-5 above).
+  void Update(const lidar::LidarSweep& sweep);
+  void AddKeyframe(const lidar::LidarSweep& sweep);
+  // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
+  void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
+  void RelinearizeImuFactors();
+  // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors, and
+  // (with_points) point factors re-associated with a plane map at the current estimate.
+  std::unique_ptr<ProblemBuild> BuildProblem(bool with_points);
+  void AddPointFactors(ProblemBuild* build);
+  void Solve(ProblemBuild* build);
+  std::unique_ptr<MarginalizationPrior> MarginalizeOldest(ProblemBuild* build);
+  void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
+  void TrimImuBuffer();
+
+  SlidingWindowOptions options_;
+  Eigen::Vector3d g_W_;
+  sensors::Calibration calibration_;
+  geometry::RightQuaternionManifold quaternion_manifold_;
+  std::optional<sensors::EnuConverter> enu_;
+  // One loss per sensor (nullptr = plain least squares), shared by its residual blocks.
+  std::unique_ptr<ceres::LossFunction> imu_loss_;
+  std::unique_ptr<ceres::LossFunction> wheel_loss_;
+  std::unique_ptr<ceres::LossFunction> gnss_loss_;
+  std::unique_ptr<ceres::LossFunction> lidar_loss_;
+  std::unique_ptr<ceres::LossFunction> prior_loss_;
+
+  sensors::ImuSamples imu_;  // from the oldest window keyframe on
+  std::deque<sensors::WheelSample> wheel_;
+  std::deque<GnssPosition> gnss_;
+  std::deque<lidar::LidarSweep> pending_sweeps_;
+  int64_t newest_wheel_ns_;
+  int64_t newest_gnss_ns_;
+  int64_t newest_sweep_ns_;
+
+  std::deque<std::unique_ptr<WindowKeyframe>> window_;
+  int next_keyframe_id_ = 0;
+  std::vector<SlidingWindowState> marginalized_;
+  // Prior of the marginalized keyframes; replaced by every marginalization.
+  std::unique_ptr<MarginalizationPrior> prior_;
+  std::vector<internal::AttachedFactor> calibration_priors_;
+
+  SlidingWindowCounters counters_;
+  SlidingWindowUpdateTiming timing_;
+  int last_associated_points_ = 0;
+  double last_point_rms_m_ = 0.0;
+};
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,42 @@
+#include "estimation/sliding_window_factors.h"
+
+#include <cmath>
+#include <cstdint>
+#include <unordered_set>
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+
+std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
+                                  double min_range_m) {
+  // 21 bits per axis: +-2^20 voxels around the sensor, far beyond any LiDAR's range.
+  constexpr int64_t kHalfRange = int64_t{1} << 20;
+  const double inv = 1.0 / voxel_m;
+  const auto cell = [inv](double x) {
+    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x * inv)) + kHalfRange) &
+           0x1FFFFF;
+  };
+  std::unordered_set<uint64_t> occupied;
+  std::vector<int> out;
+  for (int64_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = cloud.points.col(i);
+    if (p.squaredNorm() < min_range_m * min_range_m) continue;
+    const uint64_t key = (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
+    if (occupied.insert(key).second) out.push_back(static_cast<int>(i));
+  }
+  return out;
+}
+
+std::vector<int> EvenlyThinned(const std::vector<int>& indices, int max_count) {
+  if (max_count <= 0 || static_cast<int>(indices.size()) <= max_count) return indices;
+  std::vector<int> out;
+  out.reserve(static_cast<size_t>(max_count));
+  const double stride = static_cast<double>(indices.size()) / max_count;
+  for (int i = 0; i < max_count; ++i) out.push_back(indices[static_cast<size_t>(i * stride)]);
+  return out;
+}
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,150 @@
+#pragma once
+
+// Private building blocks of the sliding window (docs/sliding_window.md, "Factors"): wheel and
+// GNSS residuals at an instant between keyframes, attached to the earlier keyframe through
+// IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8), and the choice of a sweep's
+// residual and map points.
+
+#include <cmath>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/wheel_factor.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/sensors/imu_preintegration.h"
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+
+// A residual block kept between updates: its cost function, its loss (owned by the
+// estimator, nullptr = plain least squares) and its parameter blocks.
+struct AttachedFactor {
+  std::unique_ptr<ceres::CostFunction> cost;
+  ceres::LossFunction* loss = nullptr;
+  std::vector<double*> blocks;
+};
+
+// The state at the sample's instant, x(t) = Predict(x_k, b_g_k, b_a_k) (Eq. F8) with the
+// preintegration from the keyframe to t; the bias at t is the keyframe's (random walk over
+// one interval neglected, as the IMU factor's bias rows assume).
+template <typename T>
+sensors::NavState<T> PropagatedState(const sensors::ImuPreintegration& pim, const T* q_ptr,
+                                     const T* p_ptr, const T* v_ptr, const T* b_g_ptr,
+                                     const T* b_a_ptr) {
+  sensors::NavState<T> state;
+  state.q_W_I = Eigen::Map<const Eigen::Quaternion<T>>(q_ptr);
+  state.p_W_I = Eigen::Map<const geometry::Vector3<T>>(p_ptr);
+  state.v_W_I = Eigen::Map<const geometry::Vector3<T>>(v_ptr);
+  return pim.Predict(state, geometry::Vector3<T>(Eigen::Map<const geometry::Vector3<T>>(b_g_ptr)),
+                     geometry::Vector3<T>(Eigen::Map<const geometry::Vector3<T>>(b_a_ptr)));
+}
+
+// Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened
+// at the current radii and track width (docs/sliding_window.md, "Wheel rows", Eq. SW1-SW2).
+// The encoder noise s_w enters the wheel speed as w r and the wheel yaw rate as w r / b, and
+// the gyro's sample noise s_g enters the predicted yaw rate; with the sigmas fixed at nominal
+// values the estimate of r and b drifts wherever the wheels barely turn (errors in variables).
+// Row 0 is whitened by s_v = s_w sqrt(r_l^2 + r_r^2) / 2; row 1 is taken in wheel-speed units,
+// (w_z b - (w_r r_r - w_l r_l)), and whitened by sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2), the
+// Deming-regression weighting that stays unbiased with noise on both sides.
+// Parameter blocks: q_W_I, p_W_I, v_W_I, b_g, b_a of the keyframe, then q_I_V, p_I_V, r_l, r_r,
+// track width.
+class PropagatedWheelResidual {
+ public:
+  PropagatedWheelResidual(sensors::ImuPreintegration pim,
+                          const factors::WheelMeasurement& measurement,
+                          const factors::WheelFactorOptions& options,
+                          double encoder_sigma_rad_s, double gyro_sigma_rad_s)
+      : pim_(std::move(pim)),
+        wheel_(measurement, options),
+        speed_sigma_m_s_(options.speed_sigma_m_s),
+        yaw_rate_sigma_rad_s_(options.yaw_rate_sigma_rad_s),
+        encoder_sigma_rad_s_(encoder_sigma_rad_s),
+        gyro_sigma_rad_s_(gyro_sigma_rad_s) {}
+
+  // encoder_sigma_rad_s: 1-sigma of each wheel rate; gyro_sigma_rad_s: 1-sigma of one gyro
+  // sample (noise density times the square root of the IMU rate).
+  static ceres::CostFunction* Create(sensors::ImuPreintegration pim,
+                                     const factors::WheelMeasurement& measurement,
+                                     const factors::WheelFactorOptions& options,
+                                     double encoder_sigma_rad_s, double gyro_sigma_rad_s) {
+    return new ceres::AutoDiffCostFunction<PropagatedWheelResidual, ceres::DYNAMIC, 4, 3, 3, 3,
+                                           3, 4, 3, 1, 1, 1>(
+        new PropagatedWheelResidual(std::move(pim), measurement, options, encoder_sigma_rad_s,
+                                    gyro_sigma_rad_s),
+        options.non_holonomic ? 4 : 2);
+  }
+
+  template <typename T>
+  bool operator()(const T* q, const T* p, const T* v, const T* b_g, const T* b_a, const T* q_I_V,
+                  const T* p_I_V, const T* r_l, const T* r_r, const T* track_width,
+                  T* residual) const {
+    const sensors::NavState<T> x = PropagatedState(pim_, q, p, v, b_g, b_a);
+    if (!wheel_(x.q_W_I.coeffs().data(), x.v_W_I.data(), b_g, q_I_V, p_I_V, r_l, r_r,
+                track_width, residual)) {
+      return false;
+    }
+    using std::sqrt;
+    const T radius_sq = r_l[0] * r_l[0] + r_r[0] * r_r[0];
+    const T s_w(encoder_sigma_rad_s_), s_g(gyro_sigma_rad_s_);
+    // Eq. SW1: back to metres per second, over s_v at the current radii.
+    residual[0] *= T(2.0 * speed_sigma_m_s_) / (s_w * sqrt(radius_sq));
+    // Eq. SW2: (w_z - y / b) / s_yaw0 times s_yaw0 b is w_z b - y.
+    const T b = track_width[0];
+    residual[1] *= T(yaw_rate_sigma_rad_s_) * b / sqrt(s_w * s_w * radius_sq + b * b * s_g * s_g);
+    return true;
+  }
+
+ private:
+  sensors::ImuPreintegration pim_;
+  factors::WheelResidual wheel_;
+  double speed_sigma_m_s_;       // the sigmas wheel_ whitens with
+  double yaw_rate_sigma_rad_s_;
+  double encoder_sigma_rad_s_;
+  double gyro_sigma_rad_s_;
+};
+
+// GNSS residual (Eq. F30) at the propagated state.
+// Parameter blocks: q_W_I, p_W_I, v_W_I, b_g, b_a of the keyframe, then p_I_A.
+class PropagatedGnssResidual {
+ public:
+  PropagatedGnssResidual(sensors::ImuPreintegration pim, const factors::GnssMeasurement& m)
+      : pim_(std::move(pim)), gnss_(m) {}
+
+  static ceres::CostFunction* Create(sensors::ImuPreintegration pim,
+                                     const factors::GnssMeasurement& m) {
+    return new ceres::AutoDiffCostFunction<PropagatedGnssResidual, 3, 4, 3, 3, 3, 3, 3>(
+        new PropagatedGnssResidual(std::move(pim), m));
+  }
+
+  template <typename T>
+  bool operator()(const T* q, const T* p, const T* v, const T* b_g, const T* b_a, const T* p_I_A,
+                  T* residual) const {
+    const sensors::NavState<T> x = PropagatedState(pim_, q, p, v, b_g, b_a);
+    return gnss_(x.q_W_I.coeffs().data(), x.p_W_I.data(), p_I_A, residual);
+  }
+
+ private:
+  sensors::ImuPreintegration pim_;
+  factors::GnssResidual gnss_;
+};
+
+// Indices of one point per occupied voxel of edge voxel_m (the first met, so a representative
+// keeps its exact coordinates and time), points closer than min_range_m dropped.
+std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
+                                  double min_range_m);
+
+// Evenly spread indices so that at most max_count remain (all when max_count <= 0).
+std::vector<int> EvenlyThinned(const std::vector<int>& indices, int max_count);
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
