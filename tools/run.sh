@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # autocal's two entry points (see README.md):
-#   tools/run.sh demo   simulate an urban log and print its summary
+#   tools/run.sh demo   simulate an urban log, calibrate it, evaluate against the truth
 #   tools/run.sh test   run every test suite (ctest), excluding the label "long"
 # Each one installs the Debian 12 packages it needs when they are missing (as root),
 # configures a Release build in build/ (or $AUTOCAL_BUILD_DIR) and builds it.
@@ -43,7 +43,12 @@ case "${1:-}" in
     install_missing_packages
     configure_and_build
     out="${AUTOCAL_DEMO_DIR:-$build/demo}"
+    rm -rf "$out/urban" "$out/result"
     "$build/tools/autocal_simulate" --scenario=urban --duration_s=60 --seed=1 --out="$out/urban"
+    "$build/tools/autocal_calibrate" --dataset="$out/urban" --problem="$root/problems/urban_full.yaml" \
+      --output="$out/result"
+    "$build/tools/autocal_evaluate" --dataset="$out/urban" --result="$out/result"
+    echo "report: $out/result/report.html"
     ;;
   test)
     install_missing_packages

@@ -1,9 +1,9 @@
 #include "autocal/estimation/lidar_inertial_batch.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <memory>
-#include <unordered_set>
 #include <utility>
 
 #include "autocal/common/error.h"
@@ -16,40 +16,12 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_preintegration.h"
+#include "estimation/point_selection.h"
 
 namespace autocal {
 namespace estimation {
 
 namespace {
-
-// Indices of one point per occupied voxel (the first met), points closer than min_range_m
-// dropped; a representative keeps its exact coordinates and time.
-std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
-                                  double min_range_m) {
-  std::unordered_set<uint64_t> occupied;
-  std::vector<int> out;
-  const double inv = 1.0 / voxel_m;
-  for (int64_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3d p = cloud.points.col(i);
-    if (p.squaredNorm() < min_range_m * min_range_m) continue;
-    const auto cell = [inv](double x) {
-      return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x * inv)) + (1 << 20)) &
-             0x1FFFFF;
-    };
-    const uint64_t key = (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
-    if (occupied.insert(key).second) out.push_back(static_cast<int>(i));
-  }
-  return out;
-}
-
-// Every k-th index so that at most max_count remain.
-std::vector<int> Thin(const std::vector<int>& indices, int max_count) {
-  if (static_cast<int>(indices.size()) <= max_count) return indices;
-  std::vector<int> out;
-  const double stride = static_cast<double>(indices.size()) / max_count;
-  for (int i = 0; i < max_count; ++i) out.push_back(indices[static_cast<size_t>(i * stride)]);
-  return out;
-}
 
 double MaxPointTime(const lidar::LidarSweep& sweep) {
   return sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
@@ -77,6 +49,56 @@ struct SweepSelection {
   std::vector<int> map_points;
 };
 
+// Fills report->covariance for the calibration blocks that the problem estimates; held
+// blocks and axes keep zero rows.
+void ComputeCovariance(ceres::Problem* problem, sensors::Calibration* calibration,
+                       const std::vector<int>& held_p_axes, LidarInertialBatchReport* report) {
+  double* q = calibration->q_I_L.coeffs().data();
+  double* p = calibration->p_I_L.data();
+  double* o = &calibration->time_offset_lidar_imu_s;
+  std::vector<double*> blocks;
+  for (double* block : {q, p, o}) {
+    if (!problem->IsParameterBlockConstant(block)) blocks.push_back(block);
+  }
+  if (blocks.empty()) return;
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (double* a : blocks) {
+    for (double* b : blocks) pairs.emplace_back(a, b);
+  }
+  ceres::Covariance::Options covariance_options;
+  covariance_options.algorithm_type = ceres::SPARSE_QR;
+  ceres::Covariance covariance(covariance_options);
+  if (!covariance.Compute(pairs, problem)) return;
+  // Rows of the 7x7 result that each block's tangent coordinates fill (p_I_L's held axes
+  // have none).
+  auto rows_of = [&](const double* block) {
+    if (block == q) return std::vector<int>{0, 1, 2};
+    if (block == o) return std::vector<int>{6};
+    std::vector<int> rows;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (std::find(held_p_axes.begin(), held_p_axes.end(), axis) == held_p_axes.end()) {
+        rows.push_back(3 + axis);
+      }
+    }
+    return rows;
+  };
+  for (double* a : blocks) {
+    for (double* b : blocks) {
+      const std::vector<int> rows_a = rows_of(a), rows_b = rows_of(b);
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(rows_a.size(),
+                                                                                rows_b.size());
+      if (!covariance.GetCovarianceBlockInTangentSpace(a, b, c.data())) return;
+      for (size_t i = 0; i < rows_a.size(); ++i) {
+        for (size_t j = 0; j < rows_b.size(); ++j) {
+          report->covariance(rows_a[i], rows_b[j]) = c(static_cast<Eigen::Index>(i),
+                                                       static_cast<Eigen::Index>(j));
+        }
+      }
+    }
+  }
+  report->covariance_ok = true;
+}
+
 }  // namespace
 
 int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s, const LidarInertialBatchOptions& options) {
@@ -95,17 +117,18 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
   std::vector<SweepSelection> selection(sweeps.size());
   for (size_t k = 0; k < sweeps.size(); ++k) {
     if (!sweeps[k].cloud.has_time()) throw Error("SolveLidarInertialBatch: sweeps need per-point time");
-    selection[k].residual_points = Thin(
-        OnePointPerVoxel(sweeps[k].cloud, options.residual_voxel_m, options.min_range_m),
+    selection[k].residual_points = internal::Thin(
+        internal::OnePointPerVoxel(sweeps[k].cloud, options.residual_voxel_m, options.min_range_m),
         options.max_residuals_per_sweep);
     selection[k].map_points =
-        OnePointPerVoxel(sweeps[k].cloud, options.map_voxel_m, options.min_range_m);
+        internal::OnePointPerVoxel(sweeps[k].cloud, options.map_voxel_m, options.min_range_m);
   }
 
   // Parameter blocks shared by every iteration.
   double* offset = &calibration->time_offset_lidar_imu_s;
   geometry::RightQuaternionManifold quaternion_manifold;
   LidarInertialBatchReport report;
+  const auto start = std::chrono::steady_clock::now();
 
   for (int iteration = 0; iteration < options.outer_iterations; ++iteration) {
     const sensors::Calibration before = *calibration;
@@ -192,8 +215,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
                                b.b_g.data(), b.b_a.data());
     }
-    ceres::LossFunction* loss =
-        options.cauchy_scale > 0.0 ? new ceres::CauchyLoss(options.cauchy_scale) : nullptr;
+    ceres::LossFunction* loss = factors::MakeLossFunction(options.point_loss);
     // Each point is paired with a plane of another sweep (Eq. P6): the partners are tried in
     // the order of options.partner_sweep_offsets, starting at a different one for
     // consecutive points, so that every sweep is tied to sweeps before and after it.
@@ -239,16 +261,39 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       throw Error("SolveLidarInertialBatch: no point found a plane");
     }
 
-    // Gauge: the first pose is held (position and yaw are unobservable).
-    problem.SetParameterBlockConstant((*keyframes)[0].q_W_I.coeffs().data());
-    problem.SetParameterBlockConstant((*keyframes)[0].p_W_I.data());
+    // Other sensors' factors and priors, from the caller.
+    if (options.add_factors) options.add_factors(&problem, keyframes, calibration);
+
+    // Gauge: position and yaw are unobservable from IMU and LiDAR alone.
+    if (options.hold_first_pose) {
+      problem.SetParameterBlockConstant((*keyframes)[0].q_W_I.coeffs().data());
+      problem.SetParameterBlockConstant((*keyframes)[0].p_W_I.data());
+    }
     if (!options.estimate_extrinsic_rotation) {
       problem.SetParameterBlockConstant(calibration->q_I_L.coeffs().data());
     }
-    if (!options.estimate_extrinsic_translation) {
+    std::vector<int> held_axes;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (options.hold_p_I_L_axes(axis)) held_axes.push_back(axis);
+    }
+    if (!options.estimate_extrinsic_translation || held_axes.size() == 3) {
       problem.SetParameterBlockConstant(calibration->p_I_L.data());
+    } else if (!held_axes.empty()) {
+      problem.SetManifold(calibration->p_I_L.data(), new ceres::SubsetManifold(3, held_axes));
     }
     if (!options.estimate_time_offset) problem.SetParameterBlockConstant(offset);
+
+    // Signed point-to-plane distances (m) without the robust loss.
+    auto point_distances_m = [&]() {
+      ceres::Problem::EvaluateOptions evaluate;
+      evaluate.residual_blocks = point_blocks;
+      evaluate.apply_loss_function = false;
+      std::vector<double> residuals;
+      problem.Evaluate(evaluate, nullptr, &residuals, nullptr, nullptr);
+      for (double& r : residuals) r *= point_sigma_m;
+      return residuals;
+    };
+    if (iteration == 0) report.initial_point_residuals_m = point_distances_m();
 
     // 4. Solve.
     ceres::Solver::Options solver_options;
@@ -262,19 +307,27 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     }
 
     // 5. Point residual statistics without the robust loss.
-    ceres::Problem::EvaluateOptions evaluate;
-    evaluate.residual_blocks = point_blocks;
-    evaluate.apply_loss_function = false;
-    std::vector<double> residuals;
-    problem.Evaluate(evaluate, nullptr, &residuals, nullptr, nullptr);
+    const std::vector<double> residuals = point_distances_m();
     double sum_sq = 0.0;
     for (double r : residuals) sum_sq += r * r;
-    report.point_rms_m =
-        point_sigma_m * std::sqrt(sum_sq / static_cast<double>(residuals.size()));
+    report.final_point_residuals_m = residuals;
+    report.point_rms_m = std::sqrt(sum_sq / static_cast<double>(residuals.size()));
     report.associated_points = static_cast<int>(point_blocks.size());
     report.final_cost = summary.final_cost;
     report.outer_iterations = iteration + 1;
     report.calibration_per_iteration.push_back(*calibration);
+
+    if (options.progress) {
+      LidarInertialBatchProgress progress;
+      progress.iteration = iteration + 1;
+      progress.max_iterations = options.outer_iterations;
+      progress.cost = summary.final_cost;
+      progress.elapsed_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      progress.associated_points = report.associated_points;
+      options.progress(progress);
+    }
+    report.termination = summary.message;
 
     const bool converged =
         geometry::AngularDistance(before.q_I_L, calibration->q_I_L) * 180.0 / M_PI <
@@ -282,7 +335,11 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
         (before.p_I_L - calibration->p_I_L).norm() < options.converged_translation_m &&
         std::abs(before.time_offset_lidar_imu_s - calibration->time_offset_lidar_imu_s) <
             options.converged_time_offset_s;
-    if (converged && iteration >= options.coarse_to_fine_steps) break;
+    const bool last = (converged && iteration >= options.coarse_to_fine_steps) ||
+                      iteration + 1 == options.outer_iterations;
+    if (last && options.compute_covariance) ComputeCovariance(&problem, calibration, held_axes, &report);
+    if (last && options.inspect_final_problem) options.inspect_final_problem(&problem);
+    if (last) break;
   }
   return report;
 }

@@ -113,6 +113,14 @@ TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
   EXPECT_LT((calibration.p_I_L - truth.p_I_L).head<2>().norm(), 0.01);
   EXPECT_LT(offset_error_s, 1e-3);
   EXPECT_LT(report.point_rms_m, 0.03);  // 2 cm range noise, measured 0.022 m
+
+  // The covariance is computed and its sigmas are of the size of the errors above.
+  ASSERT_TRUE(report.covariance_ok);
+  const Eigen::Matrix<double, 7, 1> sigma = report.covariance.diagonal().cwiseSqrt();
+  std::cout << "sigma: rotation " << (sigma.head<3>() * kRadToDeg).transpose() << " deg, p "
+            << sigma.segment<3>(3).transpose() << " m, offset " << sigma(6) * 1e3 << " ms\n";
+  EXPECT_TRUE(sigma.allFinite());
+  EXPECT_GT(sigma.minCoeff(), 0.0);
 }
 
 }  // namespace

@@ -11,6 +11,8 @@
 // initializer or a previous run) and refines them in place.
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include <ceres/ceres.h>
@@ -19,6 +21,7 @@
 #include <Eigen/Geometry>
 
 #include "autocal/estimation/plane_map.h"
+#include "autocal/factors/loss.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/measurements.h"
@@ -35,6 +38,14 @@ struct Keyframe {
   Eigen::Vector3d v_W_I = Eigen::Vector3d::Zero();
   Eigen::Vector3d b_g = Eigen::Vector3d::Zero();
   Eigen::Vector3d b_a = Eigen::Vector3d::Zero();
+};
+
+struct LidarInertialBatchProgress {
+  int iteration = 0;          // 1-based outer iteration just finished
+  int max_iterations = 0;
+  double cost = 0.0;          // final cost of its solve
+  double elapsed_s = 0.0;     // wall time since the solve began
+  int associated_points = 0;
 };
 
 struct LidarInertialBatchOptions {
@@ -62,8 +73,8 @@ struct LidarInertialBatchOptions {
   double max_point_to_plane_m = 0.1;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
-  // Robust loss on point residuals, in units of sigma: Cauchy with this scale (0 = none).
-  double cauchy_scale = 2.0;
+  // Robust loss on point residuals, scale in units of sigma.
+  factors::LossOptions point_loss{lidar::RobustLoss::kCauchy, 2.0};
   // The first iterations accept planes 2^(steps - iteration) times thicker and points that
   // much noisier, so that a calibration still far off finds associations.
   int coarse_to_fine_steps = 3;
@@ -73,6 +84,23 @@ struct LidarInertialBatchOptions {
   bool estimate_extrinsic_rotation = true;
   bool estimate_extrinsic_translation = true;
   bool estimate_time_offset = true;
+  // Axes of p_I_L (IMU frame) held at their starting value, e.g. those the motion does not
+  // excite (z under planar driving): the estimate keeps the prior there instead of noise.
+  Eigen::Matrix<bool, 3, 1> hold_p_I_L_axes = Eigen::Matrix<bool, 3, 1>::Constant(false);
+  // After the last solve, the covariance of the estimated calibration blocks.
+  bool compute_covariance = true;
+  // Adds other factors (wheel, GNSS, priors) to every outer iteration's problem, after the
+  // keyframe and LiDAR-IMU calibration blocks are in it; may be empty. Quaternion blocks it
+  // adds need a manifold that outlives the solve (the problem does not own manifolds).
+  std::function<void(ceres::Problem*, std::vector<Keyframe>*, sensors::Calibration*)> add_factors;
+  // Holds the first keyframe's pose, which fixes the gauge (position and yaw). Factors that
+  // fix it themselves (GNSS) replace this.
+  bool hold_first_pose = true;
+  // Called with the final problem after the last solve (e.g. for the covariance of blocks
+  // added by add_factors); may be empty.
+  std::function<void(ceres::Problem*)> inspect_final_problem;
+  // Called after every outer iteration (for progress displays); may be empty.
+  std::function<void(const LidarInertialBatchProgress&)> progress;
   // Stop the outer loop when an iteration moves the extrinsic less than these.
   double converged_rotation_deg = 1e-3;
   double converged_translation_m = 1e-4;
@@ -85,11 +113,23 @@ struct LidarInertialBatchReport {
   double final_cost = 0.0;
   double point_rms_m = 0.0;           // RMS point-to-plane distance of the last iteration
   std::vector<sensors::Calibration> calibration_per_iteration;
+  // Signed point-to-plane distances (m, no robust loss) at the start of the first iteration
+  // and after the last solve, for residual statistics and histograms.
+  std::vector<double> initial_point_residuals_m;
+  std::vector<double> final_point_residuals_m;
+  std::string termination;            // Ceres' message of the last solve
+  // Covariance of the LiDAR-IMU calibration (when options.compute_covariance and Ceres could
+  // compute it: held or constant blocks have zero rows): rotation about the right
+  // perturbation of q_I_L (rad^2), p_I_L (m^2) and the offset (s^2), in that order.
+  bool covariance_ok = false;
+  Eigen::Matrix<double, 7, 7> covariance = Eigen::Matrix<double, 7, 7>::Zero();
 };
 
 // Refines `keyframes` (one per sweep, in sweep order) and the LiDAR-IMU part of
-// `calibration` (q_I_L, p_I_L, time_offset_lidar_imu_s) in place. The first keyframe's pose
-// fixes the gauge (position and yaw are unobservable from IMU and LiDAR alone) and is held.
+// `calibration` (q_I_L, p_I_L, time_offset_lidar_imu_s, and whatever blocks the factors of
+// options.add_factors touch) in place. Unless options.hold_first_pose is off, the first
+// keyframe's pose fixes the gauge (position and yaw are unobservable from IMU and LiDAR
+// alone) and is held.
 // Throws autocal::Error when the inputs do not fit (sizes, IMU coverage).
 LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                                  const std::vector<lidar::LidarSweep>& sweeps,

@@ -1,0 +1,80 @@
+#pragma once
+
+// Offline calibration of a recorded dataset (docs/calibration.md): load and validate →
+// initialize without a hand-measured guess → batch solve over the whole log → covariance and
+// observability → a result in the calibration.yaml schema, the trajectory, and a report.
+// This is what autocal_calibrate runs; estimators linking the library may call it directly.
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "autocal/estimation/calibration_initializer.h"
+#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+
+namespace autocal {
+namespace pipeline {
+
+struct CalibrationProgress {
+  std::string stage;          // "loading sweeps", "initializing", "solving"
+  double fraction = 0.0;      // of the stage, 0 ... 1
+  double cost = 0.0;          // solver cost, when solving
+  double seconds_left = 0.0;  // estimate for the stage, 0 when unknown
+};
+
+struct OfflineCalibrationOptions {
+  // Initializer settings; its IMU noise and the lever-arm prior are taken from the dataset.
+  estimation::CalibrationInitializerOptions initializer;
+  // Every estimated block carries a prior at the nominal value: the problem's sigma in prior
+  // mode, else the dataset's nominal uncertainty, else these weak defaults, which keep the
+  // problem regular where the drive excites nothing (an excited direction ends far inside).
+  double default_translation_prior_sigma_m = 0.3;  // T_I_L, T_I_V, p_I_A
+  double default_rotation_prior_sigma_deg = 5.0;   // T_I_L, T_I_V
+  double default_time_offset_prior_sigma_s = 0.05;
+  double default_wheel_radius_prior_sigma_m = 0.01;
+  double default_track_width_prior_sigma_m = 0.05;
+  // A direction whose posterior sigma exceeds its limit is reported unobservable and held at
+  // its nominal value, the others conditioned on it (docs/calibration.md, Eq. C1).
+  double max_observable_rotation_sigma_deg = 0.3;
+  double max_observable_translation_sigma_m = 0.03;  // T_I_L
+  double max_observable_time_offset_sigma_s = 0.002;
+  double max_observable_wheel_radius_sigma_m = 0.0005;
+  double max_observable_track_width_sigma_m = 0.005;
+  double max_observable_vehicle_translation_sigma_m = 0.05;  // T_I_V
+  double max_observable_lever_arm_sigma_m = 0.03;            // p_I_A
+  // Called as the stages advance; may be empty.
+  std::function<void(const CalibrationProgress&)> progress;
+};
+
+struct OfflineCalibrationResult {
+  // Values, sigma per component, observability, solver summary, residual statistics.
+  io::CalibrationFile calibration;
+  io::Trajectory trajectory;  // one state per keyframe (IMU clock)
+  // Plain-language findings: directions the drive did not excite, unreliable steps.
+  std::vector<std::string> warnings;
+  estimation::CalibrationInitialization initialization;
+  estimation::LidarInertialBatchReport batch;
+  sensors::Calibration nominal;  // the dataset's initial guess, for comparison
+  double seconds_total = 0.0;
+};
+
+// Runs the whole calibration. Throws autocal::Error with a message naming what is wrong when
+// the problem asks for data the dataset lacks, when the drive cannot initialize the
+// calibration (the initializer's reasons), or when the problem needs a part this version does
+// not solve (a calibration without LiDAR).
+OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::Problem& problem,
+                                          const OfflineCalibrationOptions& options = {});
+
+// Writes calibration.yaml, trajectory.tum (TUM format, seconds),
+// calibration_per_iteration.csv and report.html into `directory` (created). Throws autocal::Error on I/O
+// failure.
+void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result);
+
+// A plain-text summary table (values, sigma, observability, warnings) for terminals.
+std::string FormatCalibrationSummary(const OfflineCalibrationResult& result);
+
+}  // namespace pipeline
+}  // namespace autocal

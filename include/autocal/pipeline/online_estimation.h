@@ -1,0 +1,90 @@
+#pragma once
+
+// Online estimation of a recorded dataset (docs/sliding_window.md, "Streaming a dataset"):
+// the dataset's IMU, wheel, GNSS and LiDAR data are streamed in arrival order through the
+// sliding-window estimator, as a car would deliver them. This is what autocal_estimate runs.
+//
+// The initial state comes from the LiDAR-IMU initializer (estimation::InitializeLidarImu) on
+// the first `initialization_duration_s` of the log: its first keyframe starts the window,
+// moved into ENU by the 4-DoF GNSS alignment when GNSS takes part. The initial calibration
+// is the dataset's nominal one; the blocks the initializer estimates (q_I_L, p_I_L, time
+// offset) take its values when the problem estimates them.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "autocal/estimation/calibration_initializer.h"
+#include "autocal/estimation/sliding_window.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+
+namespace autocal {
+namespace pipeline {
+
+struct OnlineEstimationProgress {
+  double log_fraction = 0.0;  // of the log's duration streamed so far, 0 ... 1
+  int64_t updates = 0;        // window updates (keyframes) so far
+  double update_s = 0.0;      // wall time of the last update
+  sensors::Calibration calibration;  // current estimate
+};
+
+struct OnlineEstimationOptions {
+  // Seconds of the log (from its first sweep) given to the initializer. The window starts at
+  // the first keyframe the initializer returns.
+  double initialization_duration_s = 30.0;
+  estimation::CalibrationInitializerOptions initializer;
+  // Window settings that the problem file does not set (noise, association, keyframes...).
+  // window_size, solver iterations and threads, losses, residual points and the estimated
+  // blocks come from the problem; IMU and wheel noise from the dataset.
+  estimation::SlidingWindowOptions window;
+  // 1-sigma of the prior on the initial state: the initializer's first keyframe is good to a
+  // few centimetres and tenths of a degree, not to the window's defaults (meant for a known
+  // start).
+  estimation::SlidingWindowInitialStateSigmas initial_state_sigmas = [] {
+    estimation::SlidingWindowInitialStateSigmas s;
+    s.rotation_deg = 0.5;
+    s.position_m = 0.1;
+    s.velocity_m_s = 0.1;
+    return s;
+  }();
+  // Called after every window update; may be empty.
+  std::function<void(const OnlineEstimationProgress&)> progress;
+};
+
+// The calibration estimate after one window update.
+struct CalibrationSample {
+  int64_t t_ns = 0;  // the new keyframe's time (IMU clock)
+  sensors::Calibration calibration;
+};
+
+struct OnlineEstimationResult {
+  // Final values with sigma from the window's calibration covariance; blocks the problem
+  // holds carry no sigma. solver: counters of the run; residuals["lidar"]: the last update's.
+  io::CalibrationFile calibration;
+  io::Trajectory trajectory;  // every keyframe, marginalized ones as last estimated
+  std::vector<CalibrationSample> calibration_over_time;
+  estimation::SlidingWindowCounters counters;
+  sensors::Calibration initial;  // the calibration the window started from
+  double seconds_total = 0.0;
+};
+
+// Streams the dataset through the window. Throws autocal::Error naming what is wrong when the
+// problem asks for data the dataset lacks, asks for what the window does not estimate
+// (a calibration without LiDAR, one shared wheel radius, only one radius estimated), or when
+// the initializer cannot start (its reasons).
+OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
+                                             const io::Problem& problem,
+                                             const OnlineEstimationOptions& options = {});
+
+// Writes trajectory.tum, calibration_over_time.csv and calibration.yaml into `directory`
+// (created). calibration_over_time.csv columns: t_s (IMU clock, seconds), q_I_L (qx qy qz qw),
+// p_I_L (m), time_offset_lidar_imu_s, wheel radii (m), track_width_m, p_I_A (m).
+// Throws autocal::Error on I/O failure.
+void WriteOnlineEstimationResult(const std::string& directory,
+                                 const OnlineEstimationResult& result);
+
+}  // namespace pipeline
+}  // namespace autocal

@@ -1,0 +1,59 @@
+#pragma once
+
+// The calibration blocks an offline calibration estimates, seen as one vector: their priors,
+// their joint covariance, and which directions the drive excited (docs/calibration.md,
+// "Observability and uncertainty").
+
+#include <string>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+
+#include "autocal/factors/loss.h"
+
+namespace autocal {
+namespace pipeline {
+
+struct CalibrationBlock {
+  std::string name;         // e.g. "T_I_L rotation"
+  double* data = nullptr;   // the parameter block (in the calibration being solved)
+  int size = 0;             // tangent size: 3 or 1
+  bool rotation = false;    // a quaternion [x, y, z, w]; tangent = right perturbation (rad)
+  Eigen::VectorXd prior;    // ambient value of the prior (the nominal calibration)
+  Eigen::VectorXd prior_sigma;  // per tangent direction
+  // A direction whose posterior sigma exceeds this is unobservable (tangent units).
+  double max_observable_sigma = 0.0;
+  std::vector<std::string> direction_names;  // physical words, one per tangent direction
+  double display_scale = 1.0;                // tangent units to display units
+  std::string display_unit;
+};
+
+// A prior at the nominal value on every block (Gaussian, sigma per direction).
+void AddBlockPriors(const std::vector<CalibrationBlock>& blocks, const factors::LossOptions& loss,
+                    ceres::Problem* problem);
+
+// The joint covariance of the blocks' tangent coordinates, blocks in order.
+struct BlockCovariance {
+  bool ok = false;
+  Eigen::MatrixXd matrix;
+  std::vector<int> offsets;  // first row of each block
+};
+BlockCovariance ComputeBlockCovariance(const std::vector<CalibrationBlock>& blocks,
+                                       ceres::Problem* problem);
+
+// Directions whose posterior sigma exceeds their block's limit are unobservable (U); they are
+// set to their prior value and the others (O) conditioned on it (Eq. C1):
+//   x_O <- x_O - S_OU S_UU^-1 (x_U - x0_U),   S_OO <- S_OO - S_OU S_UU^-1 S_UO.
+// Updates the blocks' data in place.
+struct BlockObservability {
+  std::vector<std::vector<bool>> observable;  // per block, per direction
+  std::vector<Eigen::VectorXd> sigma;         // posterior (held directions: the prior's)
+  std::vector<std::string> warnings;          // one plain-language line per held direction
+};
+BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock>& blocks,
+                                              const BlockCovariance& covariance);
+
+}  // namespace pipeline
+}  // namespace autocal

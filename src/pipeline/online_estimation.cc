@@ -1,0 +1,289 @@
+#include "autocal/pipeline/online_estimation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <optional>
+#include <tuple>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/io/tum_trajectory.h"
+
+namespace autocal {
+namespace pipeline {
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+bool Estimated(io::BlockMode mode) { return mode != io::BlockMode::kFixed; }
+
+// The window's priors are one sigma per block: a per-axis prior takes its widest axis.
+double PriorSigma(const io::VectorBlockSetting& s, double fallback) {
+  return s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff() : fallback;
+}
+double PriorSigma(const io::ScalarBlockSetting& s, double fallback) {
+  return s.mode == io::BlockMode::kPrior ? s.prior_sigma : fallback;
+}
+
+std::string Join(const std::vector<std::string>& parts, const std::string& separator) {
+  std::string out;
+  for (size_t i = 0; i < parts.size(); ++i) out += (i ? separator : "") + parts[i];
+  return out;
+}
+
+// The window options of a problem: what it estimates, its priors, losses and solver.
+estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
+                                               const io::Problem& problem, bool use_wheel,
+                                               bool use_gnss,
+                                               const OnlineEstimationOptions& options) {
+  const io::ProblemCalibration& b = problem.calibration;
+  if (b.wheel_radius_shared) {
+    throw Error("problem " + problem.path + ": wheel_radius_shared is not supported by the "
+                "online estimator (it estimates both radii)");
+  }
+  if (use_wheel && Estimated(b.wheel_radius_left_m.mode) != Estimated(b.wheel_radius_right_m.mode)) {
+    throw Error("problem " + problem.path + ": the online estimator estimates both wheel radii "
+                "or neither; the problem fixes only one");
+  }
+  estimation::SlidingWindowOptions w = options.window;
+  w.imu = dataset.sensors.imu;
+  if (dataset.sensors.wheel) w.wheel = *dataset.sensors.wheel;
+  w.loss = problem.loss;
+  w.window_size = problem.window_size;
+  w.solver_iterations = problem.solver.max_iterations;
+  w.num_threads = problem.solver.num_threads;
+  w.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
+  w.residual_voxel_m = problem.lidar.voxel_m;
+  w.initial_state_sigmas = options.initial_state_sigmas;
+
+  estimation::SlidingWindowEstimatedBlocks& e = w.estimate;
+  e.extrinsic_rotation = Estimated(b.T_I_L.rotation.mode);
+  e.extrinsic_translation = Estimated(b.T_I_L.translation.mode);
+  e.time_offset = Estimated(b.time_offset_lidar_imu_s.mode);
+  e.wheel_radii = use_wheel && Estimated(b.wheel_radius_left_m.mode);
+  e.track_width = use_wheel && Estimated(b.track_width_m.mode);
+  e.vehicle_frame =
+      use_wheel && (Estimated(b.T_I_V.rotation.mode) || Estimated(b.T_I_V.translation.mode));
+  e.gnss_lever_arm = use_gnss && Estimated(b.p_I_A_m.mode);
+
+  estimation::SlidingWindowCalibrationPrior& p = w.calibration_prior;
+  p.extrinsic_rotation_deg = PriorSigma(b.T_I_L.rotation, p.extrinsic_rotation_deg);
+  p.extrinsic_translation_m = PriorSigma(b.T_I_L.translation, p.extrinsic_translation_m);
+  p.time_offset_s = PriorSigma(b.time_offset_lidar_imu_s, p.time_offset_s);
+  p.wheel_radius_m = std::max(PriorSigma(b.wheel_radius_left_m, p.wheel_radius_m),
+                              PriorSigma(b.wheel_radius_right_m, p.wheel_radius_m));
+  p.track_width_m = PriorSigma(b.track_width_m, p.track_width_m);
+  p.vehicle_rotation_deg = PriorSigma(b.T_I_V.rotation, p.vehicle_rotation_deg);
+  p.vehicle_translation_m = PriorSigma(b.T_I_V.translation, p.vehicle_translation_m);
+  p.gnss_lever_arm_m = PriorSigma(b.p_I_A_m, p.gnss_lever_arm_m);
+  return w;
+}
+
+// Sigmas of the estimated blocks from the window's covariance, into the calibration file.
+void FillUncertainty(const estimation::CalibrationCovariance& covariance,
+                     io::CalibrationUncertainty* u) {
+  for (size_t b = 0; b < covariance.names.size(); ++b) {
+    const int i = covariance.offsets[b];
+    const std::string& name = covariance.names[b];
+    const auto sigma = [&](int k) {
+      return std::sqrt(std::max(0.0, covariance.covariance(i + k, i + k)));
+    };
+    const auto sigma3 = [&]() { return Eigen::Vector3d(sigma(0), sigma(1), sigma(2)); };
+    if (name == "q_I_L") u->T_I_L.sigma_rot_deg = sigma3() * kRadToDeg;
+    if (name == "p_I_L") u->T_I_L.sigma_p_m = sigma3();
+    if (name == "q_I_V") u->T_I_V.sigma_rot_deg = sigma3() * kRadToDeg;
+    if (name == "p_I_V") u->T_I_V.sigma_p_m = sigma3();
+    if (name == "p_I_A") u->p_I_A_m.sigma = sigma3();
+    if (name == "time_offset_lidar_imu_s") u->time_offset_lidar_imu_s.sigma = sigma(0);
+    if (name == "wheel_radius_left_m") u->wheel_radius_left_m.sigma = sigma(0);
+    if (name == "wheel_radius_right_m") u->wheel_radius_right_m.sigma = sigma(0);
+    if (name == "track_width_m") u->track_width_m.sigma = sigma(0);
+  }
+}
+
+}  // namespace
+
+OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
+                                             const io::Problem& problem,
+                                             const OnlineEstimationOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  io::ValidateProblemForDataset(problem, dataset);
+  if (!problem.sensors.lidar) {
+    throw Error("problem " + problem.path + ": the online estimator needs the LiDAR (its "
+                "keyframes are the sweeps)");
+  }
+  if (!(options.initialization_duration_s > 0.0)) {
+    throw Error("OnlineEstimationOptions: initialization_duration_s must be positive");
+  }
+  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
+  OnlineEstimationResult result;
+
+  // 1. The initial state: the initializer on the first seconds of the log.
+  std::vector<lidar::LidarSweep> sweeps;
+  const int64_t init_end_ns = dataset.lidar_sweeps.front().t_ns +
+                              SecondsToNs(options.initialization_duration_s);
+  for (size_t i = 0; i < dataset.lidar_sweeps.size() && dataset.lidar_sweeps[i].t_ns < init_end_ns;
+       ++i) {
+    sweeps.push_back(dataset.LoadSweep(i));
+  }
+  estimation::CalibrationInitializerOptions init_options = options.initializer;
+  init_options.imu_noise = dataset.sensors.imu.noise;
+  init_options.p_I_L_prior = dataset.sensors.nominal_calibration.p_I_L;
+  init_options.keyframe_lead_s = options.window.keyframe_lead_s;
+  const estimation::CalibrationInitialization init =
+      estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
+  sweeps.clear();
+  if (!init.ok || init.keyframes.empty()) {
+    throw Error("dataset " + dataset.directory + ": the initializer could not start the window "
+                "from the first " + std::to_string(options.initialization_duration_s) +
+                " s: " + Join(init.problems, "; "));
+  }
+  sensors::Calibration calibration = dataset.sensors.nominal_calibration;
+  const io::ProblemCalibration& blocks = problem.calibration;
+  if (Estimated(blocks.T_I_L.rotation.mode)) calibration.q_I_L = init.q_I_L;
+  if (Estimated(blocks.T_I_L.translation.mode)) calibration.p_I_L = init.p_I_L;
+  if (Estimated(blocks.time_offset_lidar_imu_s.mode)) {
+    calibration.time_offset_lidar_imu_s = init.time_offset_lidar_imu_s;
+  }
+  std::vector<estimation::Keyframe> keyframes = init.keyframes;
+  estimation::SlidingWindowOptions window_options =
+      WindowOptions(dataset, problem, use_wheel, use_gnss, options);
+  if (use_gnss) {
+    // W is the ENU frame at the first fix: the initializer's gravity-aligned keyframes are
+    // moved there by the 4-DoF alignment.
+    const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
+    estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, enu, calibration.p_I_A);
+    window_options.enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
+  }
+  // The initializer's keyframes use its time offset; the window's keyframe time rule
+  // (KeyframeTimeOf) uses the calibration's, which is the same value or the nominal one.
+  const estimation::Keyframe initial = keyframes.front();
+  result.initial = calibration;
+  estimation::SlidingWindowEstimator estimator(window_options, calibration, initial);
+
+  // 2. Every datum after the initial state in arrival order: a sweep arrives when its last
+  //    point is measured, IMU samples from the last one at or before the initial state on.
+  enum Kind { kImu, kWheel, kGnss, kSweep };
+  std::vector<std::tuple<int64_t, int, size_t>> events;
+  const int64_t t0 = initial.t_ns;
+  for (size_t i = 0; i < dataset.imu.size(); ++i) {
+    const bool needed = dataset.imu[i].t_ns > t0 ||
+                        (i + 1 < dataset.imu.size() && dataset.imu[i + 1].t_ns > t0);
+    if (needed) events.emplace_back(dataset.imu[i].t_ns, kImu, i);
+  }
+  if (use_wheel) {
+    for (size_t i = 0; i < dataset.wheel.size(); ++i) {
+      if (dataset.wheel[i].t_ns > t0) events.emplace_back(dataset.wheel[i].t_ns, kWheel, i);
+    }
+  }
+  if (use_gnss) {
+    for (size_t i = 0; i < dataset.gnss.size(); ++i) {
+      if (dataset.gnss[i].t_ns > t0) events.emplace_back(dataset.gnss[i].t_ns, kGnss, i);
+    }
+  }
+  // A sweep's keyframe precedes its stamp by less than keyframe_lead_s plus the offset; one
+  // whose keyframe would precede the initial state belongs to no interval. Its arrival time
+  // is its stamp plus the sweep period (the points' times are known once it is loaded).
+  const double sweep_period_s =
+      dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
+  for (size_t i = 0; i < dataset.lidar_sweeps.size(); ++i) {
+    const int64_t t = dataset.lidar_sweeps[i].t_ns;
+    if (t + SecondsToNs(calibration.time_offset_lidar_imu_s - window_options.keyframe_lead_s) <= t0) {
+      continue;
+    }
+    events.emplace_back(t + SecondsToNs(sweep_period_s), kSweep, i);
+  }
+  std::stable_sort(events.begin(), events.end(), [](const auto& a, const auto& b) {
+    return std::get<0>(a) < std::get<0>(b);
+  });
+
+  const int64_t log_begin_ns = events.empty() ? t0 : std::get<0>(events.front());
+  const int64_t log_end_ns = events.empty() ? t0 : std::get<0>(events.back());
+  int64_t updates = 0;
+  for (const auto& [t, kind, i] : events) {
+    switch (kind) {
+      case kImu: estimator.AddImu(dataset.imu[i]); break;
+      case kWheel: estimator.AddWheel(dataset.wheel[i]); break;
+      case kGnss: estimator.AddGnss(dataset.gnss[i]); break;
+      default: estimator.AddSweep(dataset.LoadSweep(i)); break;
+    }
+    if (estimator.counters().updates == updates) continue;
+    updates = estimator.counters().updates;
+    result.calibration_over_time.push_back({estimator.latest_state().t_ns, estimator.calibration()});
+    if (options.progress) {
+      OnlineEstimationProgress progress;
+      progress.log_fraction = log_end_ns > log_begin_ns
+                                  ? static_cast<double>(t - log_begin_ns) /
+                                        static_cast<double>(log_end_ns - log_begin_ns)
+                                  : 1.0;
+      progress.updates = updates;
+      progress.update_s = estimator.last_update_timing().total_s;
+      progress.calibration = estimator.calibration();
+      options.progress(progress);
+    }
+  }
+  if (updates == 0) {
+    throw Error("dataset " + dataset.directory + ": no sweep after the initial state was "
+                "covered by the IMU log; nothing was estimated");
+  }
+
+  // 3. The result.
+  for (const estimation::SlidingWindowState& x : estimator.Trajectory()) {
+    io::TrajectorySample s;
+    s.t_ns = x.t_ns;
+    s.T_W_I = geometry::Pose3d(x.q_W_I, x.p_W_I);
+    s.v_W_I = x.v_W_I;
+    result.trajectory.push_back(s);
+  }
+  result.counters = estimator.counters();
+  result.calibration.value = estimator.calibration();
+  FillUncertainty(estimator.ComputeCalibrationCovariance(), &result.calibration.uncertainty);
+  result.calibration.solver["estimator"] = "sliding_window";
+  result.calibration.solver["window_size"] = std::to_string(window_options.window_size);
+  result.calibration.solver["updates"] = std::to_string(result.counters.updates);
+  result.calibration.solver["marginalizations"] = std::to_string(result.counters.marginalizations);
+  result.calibration.solver["dropped_late"] = std::to_string(result.counters.late);
+  result.calibration.residuals["lidar"]["rms_m"] = estimator.last_point_rms_m();
+  result.calibration.residuals["lidar"]["points"] = estimator.last_associated_points();
+  result.seconds_total =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+void WriteOnlineEstimationResult(const std::string& directory,
+                                 const OnlineEstimationResult& result) {
+  std::error_code error;
+  std::filesystem::create_directories(directory, error);
+  if (error) throw Error("cannot create " + directory + ": " + error.message());
+  io::WriteCalibrationYaml(directory + "/calibration.yaml", result.calibration);
+  io::WriteTumTrajectory(directory + "/trajectory.tum", result.trajectory);
+  const std::string csv_path = directory + "/calibration_over_time.csv";
+  std::ofstream csv(csv_path);
+  csv << "t_s,q_I_L_x,q_I_L_y,q_I_L_z,q_I_L_w,p_I_L_x_m,p_I_L_y_m,p_I_L_z_m,"
+         "time_offset_lidar_imu_s,wheel_radius_left_m,wheel_radius_right_m,track_width_m,"
+         "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m\n";
+  csv << std::setprecision(12);
+  csv.fill('0');
+  for (const CalibrationSample& s : result.calibration_over_time) {
+    const sensors::Calibration& c = s.calibration;
+    // Seconds with all nine decimals (a double holds only ~16 digits of a Unix stamp).
+    csv << s.t_ns / kNanosecondsPerSecond << '.' << std::setw(9) << s.t_ns % kNanosecondsPerSecond
+        << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z()
+        << ',' << c.q_I_L.w() << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z()
+        << ',' << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','
+        << c.wheel_radius_right_m << ',' << c.track_width_m << ',' << c.p_I_A.x() << ','
+        << c.p_I_A.y() << ',' << c.p_I_A.z() << '\n';
+  }
+  csv.close();
+  if (!csv) throw Error("cannot write " + csv_path);
+}
+
+}  // namespace pipeline
+}  // namespace autocal
