@@ -1,4 +1,5 @@
-// Cost of one LiDAR point-to-plane residual with all Jacobians, analytic vs autodiff twin.
+// Cost of one LiDAR point-to-plane residual with all Jacobians, analytic vs autodiff twin:
+// against a plane held in W, and against a plane of another sweep.
 #include <memory>
 #include <random>
 #include <vector>
@@ -6,6 +7,7 @@
 #include <benchmark/benchmark.h>
 
 #include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_factor.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -61,6 +63,49 @@ void BM_PointToPlaneEvaluate(benchmark::State& state) {
 
 BENCHMARK_TEMPLATE(BM_PointToPlaneEvaluate, true)->Name("PointToPlane/analytic");
 BENCHMARK_TEMPLATE(BM_PointToPlaneEvaluate, false)->Name("PointToPlane/autodiff");
+
+// The same points against planes of another sweep (two keyframes, Eq. P6-P8).
+template <bool kAnalytic>
+void BM_PointToSweepPlaneEvaluate(benchmark::State& state) {
+  const Eigen::Vector3d g(0.0, 0.0, -9.80665);
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  for (const auto& m : RandomMeasurements()) {
+    factors::PointToSweepPlaneMeasurement sweep_m;
+    sweep_m.p_L = m.p_L;
+    sweep_m.motion = m.motion;
+    sweep_m.plane_motion.dt_s = 0.02;
+    sweep_m.plane_motion.delta_q = geometry::Exp(Eigen::Vector3d(0.001, 0.002, 0.01));
+    sweep_m.plane_motion.delta_v = Eigen::Vector3d(0.2, 0.0, 0.0);
+    sweep_m.plane_motion.delta_p = Eigen::Vector3d(0.002, 0.0, 0.0);
+    sweep_m.plane_motion.omega_rad_s = Eigen::Vector3d(0.0, 0.0, 0.3);
+    sweep_m.plane_L = m.plane;
+    costs.emplace_back(kAnalytic ? new factors::PointToSweepPlaneFactor(sweep_m, g)
+                                 : factors::CreatePointToSweepPlaneAutoDiff(sweep_m, g));
+  }
+  Eigen::Quaterniond q_k = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.0));
+  Eigen::Quaterniond q_j = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.3));
+  Eigen::Vector3d p_k(10.0, -4.0, 1.0), v_k(8.0, 1.0, 0.0), p_j(14.0, -3.0, 1.0), v_j(8.0, 2.0, 0.0);
+  Eigen::Quaterniond q_I_L = geometry::Exp(Eigen::Vector3d(0.02, -0.03, 0.5));
+  Eigen::Vector3d p_I_L(0.3, 0.0, 0.4);
+  double offset_s = 0.01;
+  const double* params[] = {q_k.coeffs().data(), p_k.data(),   v_k.data(),
+                            q_j.coeffs().data(), p_j.data(),   v_j.data(),
+                            q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
+  double j0[4], j1[3], j2[3], j3[4], j4[3], j5[3], j6[4], j7[3], j8[1];
+  double* jacobians[] = {j0, j1, j2, j3, j4, j5, j6, j7, j8};
+  double residual = 0.0;
+  for (auto _ : state) {
+    for (const auto& cost : costs) {
+      cost->Evaluate(params, &residual, jacobians);
+      benchmark::DoNotOptimize(residual);
+      benchmark::DoNotOptimize(j8[0]);
+    }
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+
+BENCHMARK_TEMPLATE(BM_PointToSweepPlaneEvaluate, true)->Name("PointToSweepPlane/analytic");
+BENCHMARK_TEMPLATE(BM_PointToSweepPlaneEvaluate, false)->Name("PointToSweepPlane/autodiff");
 
 }  // namespace
 }  // namespace autocal

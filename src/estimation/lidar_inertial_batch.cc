@@ -134,6 +134,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     const sensors::Calibration before = *calibration;
     const double offset_lin = *offset;
 
+    const auto iteration_start = std::chrono::steady_clock::now();
     // 1. Propagate every sweep with the current estimate.
     std::vector<ImuMotionTable> tables;
     tables.reserve(sweeps.size());
@@ -295,6 +296,9 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     };
     if (iteration == 0) report.initial_point_residuals_m = point_distances_m();
 
+    const auto solve_start = std::chrono::steady_clock::now();
+    report.seconds_association +=
+        std::chrono::duration<double>(solve_start - iteration_start).count();
     // 4. Solve.
     ceres::Solver::Options solver_options;
     solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -302,6 +306,8 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     solver_options.num_threads = options.num_threads;
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &problem, &summary);
+    report.seconds_solver +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
     if (!summary.IsSolutionUsable()) {
       throw Error("SolveLidarInertialBatch: the solver failed: " + summary.message);
     }

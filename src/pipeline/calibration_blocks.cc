@@ -104,7 +104,10 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
     difference.segment(first, blocks[b].size) = TangentFromPrior(blocks[b]);
     for (int i = 0; i < blocks[b].size; ++i) {
       const double sigma = std::sqrt(std::max(0.0, S(first + i, first + i)));
-      (sigma > blocks[b].max_observable_sigma ? unobservable : observable).push_back(first + i);
+      const bool excited =
+          sigma <= blocks[b].max_observable_sigma &&
+          sigma <= blocks[b].max_posterior_to_prior_sigma * blocks[b].prior_sigma(i);
+      (excited ? observable : unobservable).push_back(first + i);
     }
   }
   Eigen::MatrixXd conditioned = S;
@@ -155,9 +158,10 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
       text << std::setprecision(3) << block.direction_names[static_cast<size_t>(i)]
            << ": not excited by the drive (sigma "
            << std::sqrt(std::max(0.0, S(first + i, first + i))) * block.display_scale << ' '
-           << block.display_unit << " after the solve, limit "
-           << block.max_observable_sigma * block.display_scale << ' ' << block.display_unit
-           << "); held at the nominal value";
+           << block.display_unit << " after the solve, prior "
+           << block.prior_sigma(i) * block.display_scale << ' ' << block.display_unit
+           << ", limit " << block.max_observable_sigma * block.display_scale << ' '
+           << block.display_unit << "); held at the nominal value";
       out.warnings.push_back(text.str());
     }
     out.observable.push_back(flags);

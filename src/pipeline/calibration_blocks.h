@@ -23,8 +23,10 @@ struct CalibrationBlock {
   bool rotation = false;    // a quaternion [x, y, z, w]; tangent = right perturbation (rad)
   Eigen::VectorXd prior;    // ambient value of the prior (the nominal calibration)
   Eigen::VectorXd prior_sigma;  // per tangent direction
-  // A direction whose posterior sigma exceeds this is unobservable (tangent units).
+  // A direction whose posterior sigma exceeds this (tangent units), or this fraction of its
+  // prior sigma (the data added little to the prior), is unobservable.
   double max_observable_sigma = 0.0;
+  double max_posterior_to_prior_sigma = 0.5;
   std::vector<std::string> direction_names;  // physical words, one per tangent direction
   double display_scale = 1.0;                // tangent units to display units
   std::string display_unit;
@@ -43,7 +45,7 @@ struct BlockCovariance {
 BlockCovariance ComputeBlockCovariance(const std::vector<CalibrationBlock>& blocks,
                                        ceres::Problem* problem);
 
-// Directions whose posterior sigma exceeds their block's limit are unobservable (U); they are
+// Directions whose posterior sigma exceeds their block's limits are unobservable (U); they are
 // set to their prior value and the others (O) conditioned on it (Eq. C1):
 //   x_O <- x_O - S_OU S_UU^-1 (x_U - x0_U),   S_OO <- S_OO - S_OU S_UU^-1 S_UO.
 // Updates the blocks' data in place.

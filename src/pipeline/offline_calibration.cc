@@ -95,6 +95,10 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
   const io::CalibrationUncertainty& u = sensors.nominal_uncertainty;
   const double deg = 1.0 / kRadToDeg;
   std::vector<CalibrationBlock> blocks;
+  const auto push = [&](CalibrationBlock b) {
+    b.max_posterior_to_prior_sigma = o.max_posterior_to_prior_sigma;
+    blocks.push_back(std::move(b));
+  };
   auto rotation = [&](const std::string& name, const io::VectorBlockSetting& setting,
                       const std::optional<Eigen::Vector3d>& nominal_sigma_deg,
                       const Eigen::Quaterniond& q0, double* data,
@@ -112,7 +116,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
     b.direction_names = std::move(directions);
     b.display_scale = kRadToDeg;
     b.display_unit = "deg";
-    blocks.push_back(b);
+    push(b);
   };
   auto vector = [&](const std::string& name, const io::VectorBlockSetting& setting,
                     const std::optional<Eigen::Vector3d>& nominal_sigma,
@@ -129,7 +133,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
     b.direction_names = std::move(directions);
     b.display_scale = 100.0;
     b.display_unit = "cm";
-    blocks.push_back(b);
+    push(b);
   };
   auto scalar = [&](const std::string& name, const io::ScalarBlockSetting& setting,
                     const std::optional<double>& nominal_sigma, double x0, double* data,
@@ -146,7 +150,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
     b.direction_names = {name};
     b.display_scale = display_scale;
     b.display_unit = unit;
-    blocks.push_back(b);
+    push(b);
   };
   if (Estimated(p.T_I_L.rotation.mode)) {
     rotation("T_I_L rotation", p.T_I_L.rotation, u.T_I_L.sigma_rot_deg, nominal.q_I_L,
@@ -269,6 +273,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   }
 
   // 2. Initialization: no hand-measured guess needed.
+  result.seconds_loading = SecondsSince(start);
   Report(options, "initializing", 0.0, 0.0, 0.0);
   estimation::CalibrationInitializerOptions init_options = options.initializer;
   init_options.imu_noise = dataset.sensors.imu.noise;
@@ -279,6 +284,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
     throw Error("dataset " + dataset.directory + ": the drive cannot initialize the calibration: " +
                 Join(init.problems, "; "));
   }
+  result.seconds_initialization = SecondsSince(start) - result.seconds_loading;
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
   // 3. Batch solve from the initializer's calibration (fixed blocks keep the nominal value),
@@ -386,7 +392,13 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
     result.trajectory.push_back(sample);
   }
   result.seconds_total = SecondsSince(start);
+  result.seconds_solve = result.seconds_total - result.seconds_loading - result.seconds_initialization;
   file.solver["seconds"] = std::to_string(result.seconds_total);
+  file.solver["seconds_loading"] = std::to_string(result.seconds_loading);
+  file.solver["seconds_initialization"] = std::to_string(result.seconds_initialization);
+  file.solver["seconds_solve"] = std::to_string(result.seconds_solve);
+  file.solver["seconds_association"] = std::to_string(batch.seconds_association);
+  file.solver["seconds_ceres"] = std::to_string(batch.seconds_solver);
   return result;
 }
 
@@ -431,8 +443,11 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
   }
   out << "\nLiDAR residual RMS (m):               " << std::setprecision(4)
       << result.batch.point_rms_m << " over " << result.batch.associated_points << " points\n";
-  out << "solver: " << result.batch.outer_iterations << " outer iterations, "
-      << std::setprecision(1) << result.seconds_total << " s\n";
+  out << "solver: " << result.batch.outer_iterations << " outer iterations; "
+      << std::setprecision(1) << result.seconds_total << " s (loading " << result.seconds_loading
+      << " s, initialization " << result.seconds_initialization << " s, solve "
+      << result.seconds_solve << " s: association " << result.batch.seconds_association
+      << " s, Ceres " << result.batch.seconds_solver << " s)\n";
   for (const std::string& warning : result.warnings) out << "warning: " << warning << '\n';
   return out.str();
 }

@@ -47,7 +47,8 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
     throw Error("problem " + problem.path + ": wheel_radius_shared is not supported by the "
                 "online estimator (it estimates both radii)");
   }
-  if (use_wheel && Estimated(b.wheel_radius_left_m.mode) != Estimated(b.wheel_radius_right_m.mode)) {
+  if (use_wheel &&
+      Estimated(b.wheel_radius_left_m.mode) != Estimated(b.wheel_radius_right_m.mode)) {
     throw Error("problem " + problem.path + ": the online estimator estimates both wheel radii "
                 "or neither; the problem fixes only one");
   }
@@ -123,6 +124,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   }
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
+  estimation::SlidingWindowOptions window_options =
+      WindowOptions(dataset, problem, use_wheel, use_gnss, options);
   OnlineEstimationResult result;
 
   // 1. The initial state: the initializer on the first seconds of the log.
@@ -153,8 +156,6 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     calibration.time_offset_lidar_imu_s = init.time_offset_lidar_imu_s;
   }
   std::vector<estimation::Keyframe> keyframes = init.keyframes;
-  estimation::SlidingWindowOptions window_options =
-      WindowOptions(dataset, problem, use_wheel, use_gnss, options);
   if (use_gnss) {
     // W is the ENU frame at the first fix: the initializer's gravity-aligned keyframes are
     // moved there by the 4-DoF alignment.
@@ -195,7 +196,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
       dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
   for (size_t i = 0; i < dataset.lidar_sweeps.size(); ++i) {
     const int64_t t = dataset.lidar_sweeps[i].t_ns;
-    if (t + SecondsToNs(calibration.time_offset_lidar_imu_s - window_options.keyframe_lead_s) <= t0) {
+    const double lead_s = window_options.keyframe_lead_s;
+    if (t + SecondsToNs(calibration.time_offset_lidar_imu_s - lead_s) <= t0) {
       continue;
     }
     events.emplace_back(t + SecondsToNs(sweep_period_s), kSweep, i);
@@ -216,7 +218,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     }
     if (estimator.counters().updates == updates) continue;
     updates = estimator.counters().updates;
-    result.calibration_over_time.push_back({estimator.latest_state().t_ns, estimator.calibration()});
+    result.calibration_over_time.push_back(
+        {estimator.latest_state().t_ns, estimator.calibration()});
     if (options.progress) {
       OnlineEstimationProgress progress;
       progress.log_fraction = log_end_ns > log_begin_ns

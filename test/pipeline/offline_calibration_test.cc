@@ -5,6 +5,8 @@
 #include <iostream>
 #include <string>
 
+#include <unistd.h>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -21,21 +23,19 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-// Every sensor, every block (problems/urban_full.yaml with fewer points per sweep).
+// Every sensor, every block (problems/urban_full.yaml).
 io::Problem FullProblem() {
   io::Problem problem;
   problem.path = "urban_full (test)";
-  problem.lidar.max_points_per_sweep = 400;
   return problem;
 }
 
-// A LiDAR-IMU problem built in code (problems/lidar_imu.yaml with fewer points per sweep).
+// A LiDAR-IMU problem built in code (problems/lidar_imu.yaml).
 io::Problem LidarImuProblem() {
   io::Problem problem;
   problem.path = "lidar_imu (test)";
   problem.sensors.wheel = false;
   problem.sensors.gnss = false;
-  problem.lidar.max_points_per_sweep = 400;
   return problem;
 }
 
@@ -50,11 +50,15 @@ class OfflineCalibrationTest : public ::testing::Test {
     options.seed = 7;
     options.lidar.config.num_beams = 16;
     simulator_ = new sim::Simulator(options);
-    directory_ = new std::string(test::OutputDir("urban_34s").string());
+    // ctest runs each test of the suite in its own process, in parallel: each writes its own
+    // copy of the dataset.
+    directory_ = new std::string(
+        test::OutputDir("urban_34s_" + std::to_string(static_cast<long>(getpid()))).string());
     std::filesystem::remove_all(*directory_);
     sim::WriteDataset(*simulator_, *directory_);
   }
   static void TearDownTestSuite() {
+    std::filesystem::remove_all(*directory_);
     delete simulator_;
     delete directory_;
   }

@@ -56,7 +56,7 @@ struct LidarInertialBatchOptions {
   double keyframe_lead_s = 0.02;
   // Points of each sweep used as residuals: a voxel grid in L, then at most this many.
   double residual_voxel_m = 0.6;
-  int max_residuals_per_sweep = 1500;
+  int max_residuals_per_sweep = 400;
   // Points of each sweep that build its plane map (one per voxel of this size).
   double map_voxel_m = 0.3;
   // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
@@ -118,6 +118,10 @@ struct LidarInertialBatchReport {
   std::vector<double> initial_point_residuals_m;
   std::vector<double> final_point_residuals_m;
   std::string termination;            // Ceres' message of the last solve
+  // Wall time spent propagating, building maps, associating and building the problems, and
+  // in Ceres, summed over the outer iterations.
+  double seconds_association = 0.0;
+  double seconds_solver = 0.0;
   // Covariance of the LiDAR-IMU calibration (when options.compute_covariance and Ceres could
   // compute it: held or constant blocks have zero rows): rotation about the right
   // perturbation of q_I_L (rad^2), p_I_L (m^2) and the offset (s^2), in that order.

@@ -16,7 +16,7 @@
 //   loss: {imu: none, prior: none, wheel: "huber:2", gnss: "cauchy:3", lidar: "huber:1"}
 //   window: {size: 10}
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
-//   lidar: {max_points_per_sweep: 1500, voxel_m: 0.6}
+//   lidar: {max_points_per_sweep: 400, voxel_m: 0.6}
 //
 // Every key is optional and takes the default of the structs below. A sensor that does not
 // take part holds its calibration blocks fixed; setting one of those blocks (or the sensor's
@@ -93,7 +93,7 @@ struct ProblemSolver {
 
 // LiDAR point-to-plane residuals.
 struct ProblemLidar {
-  int max_points_per_sweep = 1500;  // residuals per sweep at most, >= 1
+  int max_points_per_sweep = 400;  // residuals per sweep at most, >= 1
   double voxel_m = 0.6;             // one residual point per voxel of this size, > 0
 };
 

@@ -45,6 +45,9 @@ struct OfflineCalibrationOptions {
   double max_observable_track_width_sigma_m = 0.005;
   double max_observable_vehicle_translation_sigma_m = 0.05;  // T_I_V
   double max_observable_lever_arm_sigma_m = 0.03;            // p_I_A
+  // ... or whose posterior sigma is above this fraction of its prior sigma: the drive added
+  // little information to the prior (at 0.5, less than three times the prior's).
+  double max_posterior_to_prior_sigma = 0.5;
   // Called as the stages advance; may be empty.
   std::function<void(const CalibrationProgress&)> progress;
 };
@@ -58,7 +61,10 @@ struct OfflineCalibrationResult {
   estimation::CalibrationInitialization initialization;
   estimation::LidarInertialBatchReport batch;
   sensors::Calibration nominal;  // the dataset's initial guess, for comparison
-  double seconds_total = 0.0;
+  double seconds_total = 0.0;  // wall time, and its stages
+  double seconds_loading = 0.0;
+  double seconds_initialization = 0.0;
+  double seconds_solve = 0.0;  // batch solve, covariance and observability
 };
 
 // Runs the whole calibration. Throws autocal::Error with a message naming what is wrong when
