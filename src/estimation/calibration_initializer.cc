@@ -63,7 +63,7 @@ struct GyroDeskew {
 
 bool RunOdometry(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
                  const lidar::LidarOdometrySetting& setting, const std::optional<GyroDeskew>& gyro,
-                 CalibrationInitialization* out) {
+                 CalibrationInitialization* out, size_t* failed_sweep = nullptr) {
   lidar::LidarOdometry odometry(setting);
   for (size_t k = 0; k < sweeps.size(); ++k) {
     std::optional<Eigen::Vector3d> rate_L;
@@ -79,6 +79,7 @@ bool RunOdometry(const sensors::ImuSamples& imu, const std::vector<lidar::LidarS
     } catch (const Error& e) {
       out->problems.push_back("LiDAR odometry failed at sweep " + std::to_string(k) + " of " +
                               std::to_string(sweeps.size()) + ": " + e.what());
+      if (failed_sweep != nullptr) *failed_sweep = k;
       return false;
     }
   }
@@ -119,8 +120,14 @@ void EstimateOffset(const sensors::ImuSamples& imu, const CalibrationInitializer
   out->time_offset = EstimateTimeOffset(out->sweep_rotations, imu,
                                         out->still_start.gyro_bias_rad_s, options.time_offset);
   if (!out->time_offset.reliable) {
-    out->problems.push_back("the LiDAR-IMU time offset is not determined: " +
-                            out->time_offset.reason);
+    const std::string why = "the LiDAR-IMU time offset is not determined: " + out->time_offset.reason;
+    if (options.fallback_time_offset_s) {
+      out->time_offset.offset_s = *options.fallback_time_offset_s;
+      out->fallbacks.push_back(why + "; the given " + Format(*options.fallback_time_offset_s * 1e3) +
+                               " ms is used");
+    } else {
+      out->problems.push_back(why);
+    }
   }
 }
 
@@ -143,19 +150,28 @@ void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerO
         IntegrateGyro(imu, out->still_start.gyro_bias_rad_s, t0, t1));
     if (geometry::AngleOf(q_L) * kRadToDeg >= options.min_pair_rotation_deg) ++rotating;
   }
+  std::string why;
   if (rotating < options.min_rotating_pairs) {
-    out->problems.push_back(
-        "too little rotation for the hand-eye rotation: " + std::to_string(rotating) + " of " +
-        std::to_string(out->hand_eye_lidar_rotations.size()) + " intervals of " +
-        Format(options.hand_eye_pair_spacing_s) + " s turned more than " +
-        Format(options.min_pair_rotation_deg) + " deg (need " +
-        std::to_string(options.min_rotating_pairs) + "); the drive needs turns");
-    return;
+    why = "too little rotation for the hand-eye rotation: " + std::to_string(rotating) + " of " +
+          std::to_string(out->hand_eye_lidar_rotations.size()) + " intervals of " +
+          Format(options.hand_eye_pair_spacing_s) + " s turned more than " +
+          Format(options.min_pair_rotation_deg) + " deg (need " +
+          std::to_string(options.min_rotating_pairs) + "); the drive needs turns";
+  } else {
+    out->rotation = SolveHandEyeRotation(out->hand_eye_imu_rotations,
+                                         out->hand_eye_lidar_rotations, options.hand_eye);
+    if (!out->rotation.observable) {
+      why = "the LiDAR-IMU rotation is not determined: " + out->rotation.reason;
+    }
   }
-  out->rotation = SolveHandEyeRotation(out->hand_eye_imu_rotations,
-                                       out->hand_eye_lidar_rotations, options.hand_eye);
-  if (!out->rotation.observable) {
-    out->problems.push_back("the LiDAR-IMU rotation is not determined: " + out->rotation.reason);
+  if (why.empty()) return;
+  if (options.fallback_q_I_L) {
+    out->rotation.observable = false;
+    out->rotation.reason = why;
+    out->rotation.q_I_L = *options.fallback_q_I_L;
+    out->fallbacks.push_back(why + "; the given rotation is used");
+  } else {
+    out->problems.push_back(why);
   }
 }
 
@@ -441,7 +457,25 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
   CheckStamps(imu, sweeps);
   CalibrationInitialization out;
   if (TooShort(imu, sweeps, &out)) return out;
-  if (!RunOdometry(imu, sweeps, options.odometry, std::nullopt, &out)) return out;
+  // A long enough log before a stretch the odometry cannot follow (a featureless road) still
+  // initializes: the chain runs again on the sweeps before it.
+  size_t failed_sweep = 0;
+  const auto on_sweeps_before_failure = [&]() {
+    if (failed_sweep < 2 ||
+        static_cast<double>(failed_sweep) <
+            options.min_odometry_fraction * static_cast<double>(sweeps.size())) {
+      return out;
+    }
+    const std::string why = out.problems.back();
+    CalibrationInitialization prefix = InitializeLidarImu(
+        imu, std::vector<lidar::LidarSweep>(sweeps.begin(), sweeps.begin() + failed_sweep),
+        options);
+    prefix.fallbacks.insert(prefix.fallbacks.begin(), why + "; the sweeps before it are used");
+    return prefix;
+  };
+  if (!RunOdometry(imu, sweeps, options.odometry, std::nullopt, &out, &failed_sweep)) {
+    return on_sweeps_before_failure();
+  }
   FindRestPeriod(imu, options, &out);
   // The later steps also run without a rest period (zero gyro bias) so that every problem of
   // a poor log is reported at once.
@@ -454,9 +488,12 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
     const GyroDeskew gyro{out.rotation.q_I_L, out.time_offset.offset_s,
                           out.still_start.gyro_bias_rad_s};
     out.sweep_rotations.clear();
+    out.fallbacks.clear();
     out.hand_eye_imu_rotations.clear();
     out.hand_eye_lidar_rotations.clear();
-    if (!RunOdometry(imu, sweeps, options.odometry, gyro, &out)) return out;
+    if (!RunOdometry(imu, sweeps, options.odometry, gyro, &out, &failed_sweep)) {
+      return on_sweeps_before_failure();
+    }
     EstimateOffset(imu, options, &out);
     SolveRotation(imu, options, &out);
     if (!out.problems.empty()) return out;

@@ -9,6 +9,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/factors/prior_factors.h"
+#include "estimation/point_selection.h"
 #include "estimation/sliding_window_internal.h"
 
 namespace autocal {
@@ -43,6 +44,11 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPositive(o.residual_voxel_m, "residual_voxel_m");
   CheckPositive(o.map_voxel_m, "map_voxel_m");
   CheckPositive(o.point_sigma_m, "point_sigma_m");
+  CheckPositive(o.max_point_to_plane_m, "max_point_to_plane_m");
+  if (o.partner_keyframe_offsets.empty() ||
+      std::count(o.partner_keyframe_offsets.begin(), o.partner_keyframe_offsets.end(), 0) > 0) {
+    throw Error("SlidingWindowOptions: partner_keyframe_offsets must be non-empty and non-zero");
+  }
   CheckPositive(o.wheel_non_holonomic_sigma_m_s, "wheel_non_holonomic_sigma_m_s");
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
@@ -335,7 +341,7 @@ void SlidingWindowEstimator::AddKeyframe(const lidar::LidarSweep& sweep) {
   kf->state.b_g = previous.state.b_g;
   kf->state.b_a = previous.state.b_a;
 
-  kf->residual_points = internal::EvenlyThinned(
+  kf->residual_points = internal::Thin(
       internal::OnePointPerVoxel(sweep.cloud, options_.residual_voxel_m, options_.min_range_m),
       options_.max_residuals_per_sweep);
   kf->map_points =
@@ -369,7 +375,7 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
   wheel_options.non_holonomic_sigma_m_s = options_.wheel_non_holonomic_sigma_m_s;
   sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
   int64_t integrated_to_ns = s.t_ns;
-  for (int i : internal::EvenlyThinned(all, options_.max_wheel_samples_per_interval)) {
+  for (int i : internal::Thin(all, options_.max_wheel_samples_per_interval)) {
     const sensors::WheelSample& w = wheel[static_cast<size_t>(i)];
     pim.Integrate(imu_, integrated_to_ns, w.t_ns);
     integrated_to_ns = w.t_ns;

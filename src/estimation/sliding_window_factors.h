@@ -2,8 +2,7 @@
 
 // Private building blocks of the sliding window (docs/sliding_window.md, "Factors"): wheel and
 // GNSS residuals at an instant between keyframes, attached to the earlier keyframe through
-// IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8), and the choice of a sweep's
-// residual and map points.
+// IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8).
 
 #include <cmath>
 #include <memory>
@@ -17,7 +16,6 @@
 
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/wheel_factor.h"
-#include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/imu_preintegration.h"
 
 namespace autocal {
@@ -136,14 +134,6 @@ class PropagatedGnssResidual {
   sensors::ImuPreintegration pim_;
   factors::GnssResidual gnss_;
 };
-
-// Indices of one point per occupied voxel of edge voxel_m (the first met, so a representative
-// keeps its exact coordinates and time), points closer than min_range_m dropped.
-std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
-                                  double min_range_m);
-
-// Evenly spread indices so that at most max_count remain (all when max_count <= 0).
-std::vector<int> EvenlyThinned(const std::vector<int>& indices, int max_count);
 
 }  // namespace internal
 }  // namespace estimation

@@ -12,6 +12,8 @@
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/geometry/se3.h"
 #include "estimation/sliding_window_internal.h"
 
 namespace autocal {
@@ -22,14 +24,41 @@ using internal::StateBlocks;
 
 namespace {
 
-// The world position of a point under the current estimate (Eq. P1-P4 at delta = 0).
-Eigen::Vector3d PointInWorld(const SlidingWindowState& kf, const factors::PointMotion& m,
-                             const Eigen::Vector3d& g_W, const sensors::Calibration& c,
-                             const Eigen::Vector3d& p_L) {
-  const Eigen::Quaterniond q_t = kf.q_W_I * m.delta_q;
-  const Eigen::Vector3d p_t = kf.p_W_I + kf.v_W_I * m.dt_s + 0.5 * g_W * m.dt_s * m.dt_s +
-                              kf.q_W_I * m.delta_p;
-  return q_t * (c.q_I_L * p_L + c.p_I_L) + p_t;
+// The LiDAR pose of a sweep at its reference instant (point time 0) under the current
+// estimate: T_W_L = T_W_I(t) T_I_L, T_W_I(t) from Eq. P1-P3 at delta = 0.
+geometry::Pose3d SweepLidarPose(const SlidingWindowState& kf, const factors::PointMotion& m,
+                                const Eigen::Vector3d& g_W, const sensors::Calibration& c) {
+  const factors::PropagatedPose<double> pose =
+      factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, m, g_W);
+  const Eigen::Quaterniond q_W_I(pose.R_W_I);
+  return geometry::Pose3d(q_W_I * c.q_I_L, q_W_I * c.p_I_L + pose.p_W_I);
+}
+
+// The IMU motion table of a keyframe's sweep, from the keyframe to its last point at the
+// offset estimate (clamped to the IMU received so far).
+ImuMotionTable SweepMotionTable(const sensors::ImuSamples& imu, const SlidingWindowState& kf,
+                                const lidar::LidarSweep& sweep, double sweep_duration_s,
+                                double offset_s) {
+  const int64_t end_ns = std::clamp(sweep.t_ns + SecondsToNs(sweep_duration_s + offset_s),
+                                    kf.t_ns, imu.back().t_ns);
+  return ImuMotionTable(imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
+}
+
+// The points `indices` of a keyframe's sweep in W at the current estimate (Eq. P1-P4 at
+// delta = 0).
+Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const SlidingWindowState& kf,
+                                    const lidar::LidarSweep& sweep,
+                                    const std::vector<int>& indices, const Eigen::Vector3d& g_W,
+                                    const sensors::Calibration& c) {
+  Eigen::Matrix3Xd points_W(3, static_cast<Eigen::Index>(indices.size()));
+  Eigen::Index column = 0;
+  for (int i : indices) {
+    const factors::PointMotion m =
+        table.At(sweep.t_ns + SecondsToNs(sweep.cloud.time_s(i) + c.time_offset_lidar_imu_s));
+    points_W.col(column++) = factors::PointInWorld(kf.q_W_I, kf.p_W_I, kf.v_W_I, m, g_W, c.q_I_L,
+                                                   c.p_I_L, sweep.cloud.points.col(i));
+  }
+  return points_W;
 }
 
 }  // namespace
@@ -89,62 +118,79 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   return build;
 }
 
-// Point-to-plane factors (Eq. P1-P4): every window sweep is deskewed into W at the current
-// estimate into one map tagged by keyframe, held fixed during the solve; each keyframe's
-// residual points are associated with planes of keyframes at least min_tag_gap away.
+// Point-to-plane factors between window sweeps (Eq. P6, docs/sliding_window.md "Association"):
+// every window sweep is deskewed into W at the current estimate into its own plane map, used
+// for association only. A residual point of keyframe k is paired with the plane found for it
+// in the sweep of keyframe k + o, the window offsets o tried in the order of
+// partner_keyframe_offsets (starting at a different one for consecutive points); the plane is
+// stored in that sweep's LiDAR frame at its reference instant, so in the solve it moves with
+// the partner keyframe's q, p, v and with q_I_L, p_I_L and the time offset.
 void SlidingWindowEstimator::AddPointFactors(ProblemBuild* build) {
   sensors::Calibration& c = calibration_;
   const double offset_lin = c.time_offset_lidar_imu_s;
-  const int64_t newest_imu_ns = imu_.back().t_ns;
 
-  std::vector<WindowKeyframe*> lidar_keyframes;
-  std::vector<ImuMotionTable> tables;
-  Eigen::Index map_size = 0;
+  struct LidarKeyframe {
+    WindowKeyframe* kf;
+    ImuMotionTable table;
+    std::unique_ptr<PlaneMap> map;
+    factors::PointMotion reference_motion;
+    geometry::Pose3d T_W_L;  // at the reference instant
+  };
+  std::vector<LidarKeyframe> sweeps;
   for (const auto& kf : window_) {
     if (!kf->sweep) continue;
-    const int64_t end_ns = std::clamp(
-        kf->sweep->t_ns + SecondsToNs(kf->sweep_duration_s + offset_lin), kf->state.t_ns,
-        newest_imu_ns);
-    tables.emplace_back(imu_, kf->state.t_ns, end_ns, kf->state.b_g, kf->state.b_a);
-    lidar_keyframes.push_back(kf.get());
-    map_size += static_cast<Eigen::Index>(kf->map_points.size());
+    sweeps.push_back({kf.get(), SweepMotionTable(imu_, kf->state, *kf->sweep,
+                                                 kf->sweep_duration_s, offset_lin),
+                      nullptr, factors::PointMotion(), geometry::Pose3d()});
   }
-  if (map_size == 0) return;
-  const auto motion_of = [&](size_t k, int point) {
-    const lidar::LidarSweep& sweep = *lidar_keyframes[k]->sweep;
-    return tables[k].At(sweep.t_ns + SecondsToNs(sweep.cloud.time_s(point) + offset_lin));
+  const auto motion_of = [&](const LidarKeyframe& s, int point) {
+    const lidar::LidarSweep& sweep = *s.kf->sweep;
+    return s.table.At(sweep.t_ns + SecondsToNs(sweep.cloud.time_s(point) + offset_lin));
   };
-
-  Eigen::Matrix3Xd map_points(3, map_size);
-  std::vector<int> tags;
-  tags.reserve(static_cast<size_t>(map_size));
-  Eigen::Index column = 0;
-  for (size_t k = 0; k < lidar_keyframes.size(); ++k) {
-    const WindowKeyframe& kf = *lidar_keyframes[k];
-    for (int i : kf.map_points) {
-      map_points.col(column++) =
-          PointInWorld(kf.state, motion_of(k, i), g_W_, c, kf.sweep->cloud.points.col(i));
-      tags.push_back(kf.id);
-    }
+  for (LidarKeyframe& s : sweeps) {
+    s.map = std::make_unique<PlaneMap>(
+        SweepPointsInWorld(s.table, s.kf->state, *s.kf->sweep, s.kf->map_points, g_W_, c),
+        options_.plane_map);
+    s.reference_motion = s.table.At(s.kf->sweep->t_ns + SecondsToNs(offset_lin));
+    s.T_W_L = SweepLidarPose(s.kf->state, s.reference_motion, g_W_, c);
   }
-  const PlaneMap map(std::move(map_points), std::move(tags), options_.plane_map);
-
-  for (size_t k = 0; k < lidar_keyframes.size(); ++k) {
-    WindowKeyframe& kf = *lidar_keyframes[k];
-    for (int i : kf.residual_points) {
-      factors::PointToPlaneMeasurement m;
-      m.p_L = kf.sweep->cloud.points.col(i);
-      m.motion = motion_of(k, i);
-      if (!map.FindPlane(PointInWorld(kf.state, m.motion, g_W_, c, m.p_L), kf.id, &m.plane)) {
-        continue;
+  const std::vector<int>& partners = options_.partner_keyframe_offsets;
+  const int num_sweeps = static_cast<int>(sweeps.size());
+  for (int k = 0; k < num_sweeps; ++k) {
+    const LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
+    SlidingWindowState& x = s.kf->state;
+    size_t point_counter = 0;
+    for (int i : s.kf->residual_points) {
+      factors::PointToSweepPlaneMeasurement m;
+      m.p_L = s.kf->sweep->cloud.points.col(i);
+      m.motion = motion_of(s, i);
+      const Eigen::Vector3d p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion, g_W_,
+                                                        c.q_I_L, c.p_I_L, m.p_L);
+      const size_t first = point_counter++;
+      int partner = -1;
+      lidar::Plane plane_W;
+      for (size_t attempt = 0; attempt < partners.size() && partner < 0; ++attempt) {
+        const int j = k + partners[(first + attempt) % partners.size()];
+        if (j < 0 || j >= num_sweeps || j == k) continue;
+        if (sweeps[static_cast<size_t>(j)].map->FindPlane(p_W, &plane_W) &&
+            std::abs(plane_W.SignedDistance(p_W)) <= options_.max_point_to_plane_m) {
+          partner = j;
+        }
       }
+      if (partner < 0) continue;
+      const LidarKeyframe& other = sweeps[static_cast<size_t>(partner)];
+      // The plane n . p_W + d = 0 in L_j (Eq. SW3): n_L = R_W_Lj^T n, d_L = d + n . t_W_Lj.
+      m.plane_L.normal = other.T_W_L.q.conjugate() * plane_W.normal;
+      m.plane_L.d = plane_W.d + plane_W.normal.dot(other.T_W_L.p);
+      m.plane_motion = other.reference_motion;
       m.sigma_m = options_.point_sigma_m;
       m.offset_linearization_s = offset_lin;
-      build->owned.push_back(std::make_unique<factors::PointToPlaneFactor>(m, g_W_));
+      SlidingWindowState& y = other.kf->state;
+      build->owned.push_back(std::make_unique<factors::PointToSweepPlaneFactor>(m, g_W_));
       build->point_blocks.push_back(build->problem->AddResidualBlock(
-          build->owned.back().get(), lidar_loss_.get(), kf.state.q_W_I.coeffs().data(),
-          kf.state.p_W_I.data(), kf.state.v_W_I.data(), c.q_I_L.coeffs().data(), c.p_I_L.data(),
-          &c.time_offset_lidar_imu_s));
+          build->owned.back().get(), lidar_loss_.get(), x.q_W_I.coeffs().data(), x.p_W_I.data(),
+          x.v_W_I.data(), y.q_W_I.coeffs().data(), y.p_W_I.data(), y.v_W_I.data(),
+          c.q_I_L.coeffs().data(), c.p_I_L.data(), &c.time_offset_lidar_imu_s));
     }
   }
 }
@@ -177,7 +223,8 @@ void SlidingWindowEstimator::Solve(ProblemBuild* build) {
 
 // Eq. M1-M3 over every factor touching the oldest keyframe: its prior or the previous
 // marginalization prior, its IMU factor to the next keyframe, its wheel/GNSS factors and the
-// point factors of its sweep. The result replaces the previous prior, which it includes.
+// point factors that pair its sweep with other window sweeps (either way round). The result
+// replaces the previous prior, which it includes.
 std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::MarginalizeOldest(
     ProblemBuild* build) {
   const std::vector<double*> blocks = StateBlocks(&window_.front()->state);

@@ -278,6 +278,10 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   estimation::CalibrationInitializerOptions init_options = options.initializer;
   init_options.imu_noise = dataset.sensors.imu.noise;
   init_options.p_I_L_prior = result.nominal.p_I_L;
+  // A drive without turns (a highway) cannot determine the rotation and offset: the nominal
+  // values stand in, and the observability analysis then says what the solve could fix.
+  init_options.fallback_q_I_L = result.nominal.q_I_L;
+  init_options.fallback_time_offset_s = result.nominal.time_offset_lidar_imu_s;
   result.initialization = estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
   const estimation::CalibrationInitialization& init = result.initialization;
   if (!init.ok) {
@@ -285,6 +289,9 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
                 Join(init.problems, "; "));
   }
   result.seconds_initialization = SecondsSince(start) - result.seconds_loading;
+  for (const std::string& fallback : init.fallbacks) {
+    result.warnings.push_back("initialization: " + fallback);
+  }
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
   // 3. Batch solve from the initializer's calibration (fixed blocks keep the nominal value),
@@ -316,6 +323,9 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
     enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, *enu, calibration.p_I_A);
     batch_options.hold_first_pose = false;
+    for (const sensors::GnssFix& fix : dataset.gnss) {
+      result.gnss_positions_W.push_back(enu->ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
+    }
   }
   const std::vector<CalibrationBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, use_gnss, &calibration);
@@ -369,9 +379,6 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
         "observability are reported");
   }
   if (blocks.wheel_radius_shared) calibration.wheel_radius_right_m = calibration.wheel_radius_left_m;
-  if (!init.time_offset.reliable) {
-    result.warnings.push_back("time offset initialization: " + init.time_offset.reason);
-  }
   if (problem.sensors.wheel && !use_wheel) {
     result.warnings.push_back("the dataset has no wheel samples: wheel blocks keep their nominal value");
   }

@@ -119,8 +119,10 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     throw Error("problem " + problem.path + ": the online estimator needs the LiDAR (its "
                 "keyframes are the sweeps)");
   }
-  if (!(options.initialization_duration_s > 0.0)) {
-    throw Error("OnlineEstimationOptions: initialization_duration_s must be positive");
+  if (!(options.initialization_duration_s > 0.0) ||
+      !(options.initial_position_sigma_with_gnss_m > 0.0)) {
+    throw Error("OnlineEstimationOptions: initialization_duration_s and "
+                "initial_position_sigma_with_gnss_m must be positive");
   }
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
@@ -162,6 +164,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, enu, calibration.p_I_A);
     window_options.enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
+    window_options.initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
   }
   // The initializer's keyframes use its time offset; the window's keyframe time rule
   // (KeyframeTimeOf) uses the calibration's, which is the same value or the nominal one.

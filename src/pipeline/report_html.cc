@@ -36,6 +36,7 @@ struct Series {
   std::string label;
   std::string color;
   std::vector<double> x, y;
+  bool dots = false;  // points instead of a line
 };
 
 // Maps data ranges onto the plot area (y up).
@@ -97,11 +98,19 @@ std::string LineChart(const std::string& title, const std::string& x_label,
       << ")' text-anchor='middle'>" << Escape(y_label) << "</text>";
   int legend_y = kMargin + 14;
   for (const Series& s : series) {
-    svg << "<polyline fill='none' stroke='" << s.color << "' stroke-width='1.5' points='";
-    for (size_t i = 0; i < s.x.size(); ++i) {
-      svg << std::fixed << std::setprecision(1) << a.X(s.x[i]) << ',' << a.Y(s.y[i]) << ' ';
+    if (s.dots) {
+      for (size_t i = 0; i < s.x.size(); ++i) {
+        svg << "<circle r='1.5' fill='" << s.color << "' cx='" << std::fixed
+            << std::setprecision(1) << a.X(s.x[i]) << "' cy='" << a.Y(s.y[i]) << "'/>";
+      }
+    } else {
+      svg << "<polyline fill='none' stroke='" << s.color << "' stroke-width='1.5' points='";
+      for (size_t i = 0; i < s.x.size(); ++i) {
+        svg << std::fixed << std::setprecision(1) << a.X(s.x[i]) << ',' << a.Y(s.y[i]) << ' ';
+      }
+      svg << "'/>";
     }
-    svg << "'/><text x='" << kWidth - kMargin - 6 << "' y='" << legend_y
+    svg << "<text x='" << kWidth - kMargin - 6 << "' y='" << legend_y
         << "' text-anchor='end' fill='" << s.color << "'>" << Escape(s.label) << "</text>";
     legend_y += 14;
   }
@@ -186,7 +195,46 @@ std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
        << (u.time_offset_lidar_imu_s.sigma ? Number(*u.time_offset_lidar_imu_s.sigma * 1e3) : "–")
        << "</td><td>" << Number(result.nominal.time_offset_lidar_imu_s * 1e3) << "</td><td>"
        << (u.time_offset_lidar_imu_s.observable.value_or(true) ? "yes" : "<b>no</b>")
-       << "</td></tr></table>\n";
+       << "</td></tr>";
+  // Wheel and GNSS blocks: shown when the result carries their sigma (they were estimated).
+  const auto scalar_row = [&](const std::string& label, double value, double nominal,
+                              const io::ScalarBlockInfo& info, double scale) {
+    if (!info.sigma) return;
+    html << "<tr><td>" << label << "</td><td>" << Number(value * scale) << "</td><td>"
+         << Number(*info.sigma * scale) << "</td><td>" << Number(nominal * scale) << "</td><td>"
+         << (info.observable.value_or(true) ? "yes" : "<b>no</b>") << "</td></tr>";
+  };
+  scalar_row("wheel radius left (mm)", c.wheel_radius_left_m, result.nominal.wheel_radius_left_m,
+             u.wheel_radius_left_m, 1e3);
+  scalar_row("wheel radius right (mm)", c.wheel_radius_right_m,
+             result.nominal.wheel_radius_right_m, u.wheel_radius_right_m, 1e3);
+  scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m, u.track_width_m,
+             1e3);
+  if (u.p_I_A_m.sigma) {
+    for (int i = 0; i < 3; ++i) {
+      html << "<tr><td>GNSS lever arm " << axes[i] << " (m)</td><td>" << Number(c.p_I_A(i))
+           << "</td><td>" << Number((*u.p_I_A_m.sigma)(i)) << "</td><td>"
+           << Number(result.nominal.p_I_A(i)) << "</td><td>"
+           << Observable(u.p_I_A_m.observable, static_cast<size_t>(i)) << "</td></tr>";
+    }
+  }
+  if (u.T_I_V.sigma_rot_deg || u.T_I_V.sigma_p_m) {
+    const Eigen::Vector3d v_deg = geometry::Log(c.q_I_V) * kRadToDeg;
+    const Eigen::Vector3d v_nominal_deg = geometry::Log(result.nominal.q_I_V) * kRadToDeg;
+    for (int i = 0; i < 3; ++i) {
+      html << "<tr><td>T_I_V rotation vector " << axes[i] << " (deg)</td><td>"
+           << Number(v_deg(i)) << "</td><td>" << Sigma(u.T_I_V.sigma_rot_deg, 1.0, i)
+           << "</td><td>" << Number(v_nominal_deg(i)) << "</td><td>"
+           << Observable(u.T_I_V.observable, static_cast<size_t>(i)) << "</td></tr>";
+    }
+    for (int i = 0; i < 3; ++i) {
+      html << "<tr><td>T_I_V translation " << axes[i] << " (m)</td><td>" << Number(c.p_I_V(i))
+           << "</td><td>" << Sigma(u.T_I_V.sigma_p_m, 1.0, i) << "</td><td>"
+           << Number(result.nominal.p_I_V(i)) << "</td><td>"
+           << Observable(u.T_I_V.observable, static_cast<size_t>(3 + i)) << "</td></tr>";
+    }
+  }
+  html << "</table>\n";
   html << "<p>" << result.batch.outer_iterations << " outer iterations, "
        << result.trajectory.size() << " keyframes, " << result.batch.associated_points
        << " LiDAR residuals, " << Number(result.seconds_total) << " s. Solver: "
@@ -241,12 +289,24 @@ std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
   }
 
   // Trajectory.
-  Series top{"keyframes (x-y)", "#333", {}, {}};
+  Series top{"keyframes", "#333", {}, {}};
   for (const io::TrajectorySample& s : result.trajectory) {
     top.x.push_back(s.T_W_I.p.x());
     top.y.push_back(s.T_W_I.p.y());
   }
-  html << "<h2>Trajectory</h2>" << LineChart("IMU trajectory from above", "x (m)", "y (m)", {top}, true);
+  std::vector<Series> trajectory = {top};
+  if (!result.gnss_positions_W.empty()) {
+    Series fixes{"GNSS fixes (incl. outliers)", "#c33", {}, {}, true};
+    for (const Eigen::Vector3d& p : result.gnss_positions_W) {
+      fixes.x.push_back(p.x());
+      fixes.y.push_back(p.y());
+    }
+    trajectory.insert(trajectory.begin(), fixes);
+  }
+  html << "<h2>Trajectory</h2>"
+       << LineChart(result.gnss_positions_W.empty() ? "IMU trajectory from above"
+                                                     : "IMU trajectory against GNSS (ENU)",
+                    "east (m)", "north (m)", trajectory, true);
   html << "</body></html>\n";
   return html.str();
 }

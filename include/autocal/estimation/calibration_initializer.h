@@ -19,6 +19,7 @@
 // instead of producing numbers; the result is usable only when ok.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,9 @@ namespace estimation {
 struct CalibrationInitializerOptions {
   // Step 1: scan-to-map odometry, constant-velocity deskewing (q_I_L is not known yet).
   lidar::LidarOdometrySetting odometry;
+  // When the odometry fails at a sweep after at least this fraction of the log (a featureless
+  // stretch), the chain runs on the sweeps before it and says so in `fallbacks`.
+  double min_odometry_fraction = 0.5;
   // Step 2: the still start; when there is none, a low-excitation period (driving straight at
   // steady speed) found with the looser thresholds of `low_excitation` stands in for it.
   StillStartOptions still_start;
@@ -68,6 +72,11 @@ struct CalibrationInitializerOptions {
   // the first q_I_L, at the first offset): constant-velocity deskewing lets the odometry lag
   // when the turn rate changes, which biased the offset by ~10 ms in the urban test.
   bool gyro_deskew_pass = true;
+  // Steps 3-4 on a drive that cannot determine them (no turns, e.g. a highway): with these
+  // set, the chain goes on with the given value and says so in `fallbacks` instead of
+  // stopping with a problem. Unset (the default), such a drive is a problem.
+  std::optional<double> fallback_time_offset_s;
+  std::optional<Eigen::Quaterniond> fallback_q_I_L;
   // Step 5: the lever arm's prior value; axes the motion does not excite keep it.
   Eigen::Vector3d p_I_L_prior = Eigen::Vector3d::Zero();
   // 1-sigma of the weak priors that keep the linear system regular: the lever arm about
@@ -118,6 +127,8 @@ struct CalibrationInitialization {
   bool ok = false;
   // Why the result is not usable, one plain-language sentence per problem.
   std::vector<std::string> problems;
+  // Steps that the drive could not determine and that took the options' fallback values.
+  std::vector<std::string> fallbacks;
 
   // Step 1: one frame per input sweep (T_W_L there is T_O_L here).
   std::vector<lidar::OdometryFrame> odometry;

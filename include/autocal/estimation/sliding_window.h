@@ -1,15 +1,17 @@
 #pragma once
 
 // Online sliding-window estimator (docs/sliding_window.md): IMU preintegration, wheel,
-// GNSS and LiDAR point-to-plane factors over the last N keyframes, the calibration blocks
-// shared by all of them, and the older keyframes marginalized into a linear prior.
+// GNSS and LiDAR point-to-plane factors (a point of one window sweep against a plane of
+// another) over the last N keyframes, the calibration blocks shared by all of them, and the
+// older keyframes marginalized into a linear prior.
 //
 // Data is streamed in with AddImu / AddWheel / AddGnss / AddSweep. Every LiDAR sweep becomes
 // a keyframe once the IMU covers it; each new keyframe triggers one window update:
 //   1. predict the keyframe with the IMU from the previous one,
 //   2. attach the IMU factor and the wheel/GNSS samples of the interval,
-//   3. deskew the window's sweeps with the current estimate into a tagged plane map and
-//      re-associate every keyframe's residual points with it,
+//   3. deskew the window's sweeps with the current estimate into one plane map each and pair
+//      every keyframe's residual points with planes of other window sweeps; the planes are
+//      kept in their sweep's LiDAR frame, so they move with that keyframe and the extrinsic,
 //   4. solve,
 //   5. marginalize the oldest keyframe when the window holds more than N.
 
@@ -94,8 +96,11 @@ struct SlidingWindowOptions {
   // Wheel factors: non-holonomic rows and their sigma. The speed and yaw-rate rows are
   // whitened with `wheel.noise_rad_s` and the gyro's sample noise at the current radii and
   // track width (docs/sliding_window.md, Eq. SW1-SW2). At most this many wheel samples per
-  // keyframe interval are used (evenly spread; 0 = all).
-  bool wheel_non_holonomic = true;
+  // keyframe interval are used (evenly spread; 0 = all). The non-holonomic rows (no lateral
+  // or vertical speed of the rear axle) are off by default: the simulated rear axle moves
+  // sideways and vertically by up to 0.14 m/s, and with the LiDAR pairs moving with the
+  // extrinsic the rows pulled p_I_L up to 0.7 m forward (docs/sliding_window.md, "Figures").
+  bool wheel_non_holonomic = false;
   double wheel_non_holonomic_sigma_m_s = 0.05;
   int max_wheel_samples_per_interval = 5;
 
@@ -116,15 +121,17 @@ struct SlidingWindowOptions {
   // Points of each sweep that build the plane map (one per voxel of this size).
   double map_voxel_m = 0.3;
   double min_range_m = 2.0;  // closer points (the car itself) are ignored
-  // The map is tagged with the keyframe index: a sweep uses planes of sweeps at least
-  // plane_map.min_tag_gap keyframes away. Default 1 (only its own points excluded): with a gap
-  // of 3 the newest sweeps lack their neighbours' planes and the window drifted by metres on
-  // the 12 s urban test log (docs/sliding_window.md, "Figures").
-  PlaneMapOptions plane_map = [] {
-    PlaneMapOptions o;
-    o.min_tag_gap = 1;
-    return o;
-  }();
+  // Association (docs/sliding_window.md, "Association"): a residual point of window keyframe
+  // k is paired with a plane of the sweep of keyframe k + o, the offsets o (in keyframes)
+  // tried in this order, starting at a different one for consecutive points. Partners a few
+  // sweeps apart have moved relative to the point's sweep, which makes the extrinsic and time
+  // offset observable; they must still overlap it, and lie in the window.
+  std::vector<int> partner_keyframe_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
+  // Local plane fitting in each sweep's map (its min_tag_gap is not used).
+  PlaneMapOptions plane_map;
+  // Outlier gate: a point farther than this from the plane found for it is not associated
+  // (moving objects, edges, planes fitted across a corner).
+  double max_point_to_plane_m = 0.1;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
 

@@ -56,6 +56,8 @@ struct OfflineCalibrationResult {
   // Values, sigma per component, observability, solver summary, residual statistics.
   io::CalibrationFile calibration;
   io::Trajectory trajectory;  // one state per keyframe (IMU clock)
+  // The GNSS fixes in W (ENU at the first fix) when GNSS took part, for the report.
+  std::vector<Eigen::Vector3d> gnss_positions_W;
   // Plain-language findings: directions the drive did not excite, unreliable steps.
   std::vector<std::string> warnings;
   estimation::CalibrationInitialization initialization;

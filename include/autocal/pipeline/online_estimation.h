@@ -50,6 +50,11 @@ struct OnlineEstimationOptions {
     s.velocity_m_s = 0.1;
     return s;
   }();
+  // With GNSS, 1-sigma of the initial position instead of initial_state_sigmas.position_m:
+  // the aligned initializer keyframe can be off by a metre in height (a drift of the
+  // initializer's trajectory spread by the alignment), and held tighter the GNSS lever arm
+  // absorbed that offset; the fixes fix the position instead.
+  double initial_position_sigma_with_gnss_m = 2.0;
   // Called after every window update; may be empty.
   std::function<void(const OnlineEstimationProgress&)> progress;
 };

@@ -1,4 +1,4 @@
-#include "estimation/sliding_window_factors.h"
+#include "estimation/point_selection.h"
 
 #include <cmath>
 #include <cstdint>
@@ -28,7 +28,7 @@ std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m
   return out;
 }
 
-std::vector<int> EvenlyThinned(const std::vector<int>& indices, int max_count) {
+std::vector<int> Thin(const std::vector<int>& indices, int max_count) {
   if (max_count <= 0 || static_cast<int>(indices.size()) <= max_count) return indices;
   std::vector<int> out;
   out.reserve(static_cast<size_t>(max_count));

@@ -1,0 +1,24 @@
+#pragma once
+
+// Choice of a sweep's residual and map points, shared by the batch solver and the sliding
+// window (docs/estimation.md, "Batch LiDAR-inertial solve"; docs/sliding_window.md).
+
+#include <vector>
+
+#include "autocal/lidar/point_cloud.h"
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+
+// Indices of one point per occupied voxel of edge voxel_m (the first met, so a representative
+// keeps its exact coordinates and time), points closer than min_range_m dropped.
+std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
+                                  double min_range_m);
+
+// Evenly spread indices so that at most max_count remain (all when max_count <= 0).
+std::vector<int> Thin(const std::vector<int>& indices, int max_count);
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
