@@ -93,6 +93,25 @@ BlockCovariance ComputeBlockCovariance(const std::vector<CalibrationBlock>& bloc
   return out;
 }
 
+std::vector<std::string> ImplausibleDirections(const std::vector<CalibrationBlock>& blocks,
+                                               double max_sigmas) {
+  std::vector<std::string> out;
+  for (const CalibrationBlock& block : blocks) {
+    const Eigen::VectorXd difference = TangentFromPrior(block);
+    for (int i = 0; i < block.size; ++i) {
+      const double sigmas = std::abs(difference(i)) / block.prior_sigma(i);
+      if (!(sigmas <= max_sigmas)) {  // also catches NaN
+        std::ostringstream text;
+        text << std::setprecision(3) << block.direction_names[static_cast<size_t>(i)]
+             << " moved " << difference(i) * block.display_scale << ' ' << block.display_unit
+             << " from the nominal value, " << sigmas << " prior sigmas";
+        out.push_back(text.str());
+      }
+    }
+  }
+  return out;
+}
+
 BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock>& blocks,
                                               const BlockCovariance& covariance) {
   const Eigen::MatrixXd& S = covariance.matrix;

@@ -45,6 +45,12 @@ struct BlockCovariance {
 BlockCovariance ComputeBlockCovariance(const std::vector<CalibrationBlock>& blocks,
                                        ceres::Problem* problem);
 
+// The directions whose estimate lies more than max_sigmas prior sigmas from the prior value, as
+// plain-language lines ("T_I_L rotation about ... moved 41.2 deg, 8.2 prior sigmas"): a solve
+// that went there did not converge to anything the priors allow.
+std::vector<std::string> ImplausibleDirections(const std::vector<CalibrationBlock>& blocks,
+                                               double max_sigmas);
+
 // Directions whose posterior sigma exceeds their block's limits are unobservable (U); they are
 // set to their prior value and the others (O) conditioned on it (Eq. C1):
 //   x_O <- x_O - S_OU S_UU^-1 (x_U - x0_U),   S_OO <- S_OO - S_OU S_UU^-1 S_UO.

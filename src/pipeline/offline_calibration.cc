@@ -367,6 +367,15 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   //    prior value, the rest conditioned on it (Eq. C1).
   io::CalibrationFile& file = result.calibration;
   const estimation::LidarInertialBatchReport& batch = result.batch;
+  const std::vector<std::string> implausible =
+      ImplausibleDirections(blocks_estimated, options.max_prior_deviation_sigmas);
+  if (!implausible.empty()) {
+    throw Error("dataset " + dataset.directory +
+                ": the calibration solve did not converge to a plausible result (" +
+                Join(implausible, "; ") +
+                "); nothing is written. The drive may not excite these blocks: fix them or "
+                "give them priors in the problem file");
+  }
   if (covariance.ok) {
     const BlockObservability observability =
         HoldUnobservableDirections(blocks_estimated, covariance);

@@ -48,6 +48,9 @@ struct OfflineCalibrationOptions {
   // ... or whose posterior sigma is above this fraction of its prior sigma: the drive added
   // little information to the prior (at 0.5, less than three times the prior's).
   double max_posterior_to_prior_sigma = 0.5;
+  // A solve that moves any direction farther than this many prior sigmas from the nominal
+  // value is not trusted: CalibrateDataset throws instead of returning it.
+  double max_prior_deviation_sigmas = 5.0;
   // Called as the stages advance; may be empty.
   std::function<void(const CalibrationProgress&)> progress;
 };
@@ -71,8 +74,9 @@ struct OfflineCalibrationResult {
 
 // Runs the whole calibration. Throws autocal::Error with a message naming what is wrong when
 // the problem asks for data the dataset lacks, when the drive cannot initialize the
-// calibration (the initializer's reasons), or when the problem needs a part this version does
-// not solve (a calibration without LiDAR).
+// calibration (the initializer's reasons), when the solve ends implausibly far from the priors
+// (max_prior_deviation_sigmas), or when the problem needs a part this version does not solve
+// (a calibration without LiDAR).
 OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::Problem& problem,
                                           const OfflineCalibrationOptions& options = {});
 

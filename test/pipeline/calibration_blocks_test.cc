@@ -1,0 +1,107 @@
+#include "pipeline/calibration_blocks.h"
+
+#include <cmath>
+#include <memory>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+CalibrationBlock VectorBlock(double* data, const Eigen::Vector3d& prior, double prior_sigma,
+                             double limit) {
+  CalibrationBlock b;
+  b.name = "T_I_L translation";
+  b.data = data;
+  b.size = 3;
+  b.prior = prior;
+  b.prior_sigma = Eigen::Vector3d::Constant(prior_sigma);
+  b.max_observable_sigma = limit;
+  b.direction_names = {"x", "y", "z"};
+  b.display_scale = 100.0;
+  b.display_unit = "cm";
+  return b;
+}
+
+// Eq. (C1) on a Gaussian with a known covariance: the unobservable z is set to its prior and
+// x, correlated with it, moves by S_xz / S_zz times z's correction; y, uncorrelated, stays.
+TEST(CalibrationBlocks, HoldsUnobservableDirectionsAndConditionsTheRest) {
+  Eigen::Vector3d p(0.31, -0.05, 0.60);
+  const std::vector<CalibrationBlock> blocks = {
+      VectorBlock(p.data(), Eigen::Vector3d(0.30, -0.05, 0.55), 0.3, 0.03)};
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Matrix3d::Zero();
+  covariance.matrix(0, 0) = 1e-4;   // sigma 1 cm
+  covariance.matrix(1, 1) = 4e-4;   // sigma 2 cm
+  covariance.matrix(2, 2) = 1e-2;   // sigma 10 cm: unobservable (limit 3 cm)
+  covariance.matrix(0, 2) = covariance.matrix(2, 0) = 5e-4;
+  const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  EXPECT_DOUBLE_EQ(p.z(), 0.55);
+  EXPECT_NEAR(p.x(), 0.31 - 5e-4 / 1e-2 * (0.60 - 0.55), 1e-12);
+  EXPECT_DOUBLE_EQ(p.y(), -0.05);
+  ASSERT_EQ(result.observable.size(), 1u);
+  EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
+  EXPECT_NEAR(result.sigma[0](0), std::sqrt(1e-4 - 5e-4 * 5e-4 / 1e-2), 1e-12);
+  EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);  // the prior's
+  ASSERT_EQ(result.warnings.size(), 1u);
+  EXPECT_THAT(result.warnings[0], ::testing::HasSubstr("z: not excited by the drive"));
+}
+
+// A direction whose posterior is barely narrower than its prior is unobservable too, even
+// when the prior itself is tighter than the limit.
+TEST(CalibrationBlocks, ADirectionTheDataDidNotNarrowIsUnobservable) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  const std::vector<CalibrationBlock> blocks = {
+      VectorBlock(p.data(), p, 0.02, 0.03)};
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, 0.019 * 0.019).asDiagonal();
+  const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
+}
+
+TEST(CalibrationBlocks, NamesDirectionsFarFromTheirPrior) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  std::vector<CalibrationBlock> blocks = {VectorBlock(p.data(), p, 0.05, 0.03)};
+  EXPECT_TRUE(ImplausibleDirections(blocks, 5.0).empty());
+  p.y() += 0.3;  // 6 prior sigmas
+  EXPECT_THAT(ImplausibleDirections(blocks, 5.0),
+              ::testing::ElementsAre(::testing::HasSubstr("y moved 30 cm")));
+  p.x() = std::nan("");
+  EXPECT_EQ(ImplausibleDirections(blocks, 5.0).size(), 2u);
+}
+
+// Rotation blocks work in the tangent of the right perturbation.
+TEST(CalibrationBlocks, RotationBlocksUseTheTangent) {
+  const Eigen::Quaterniond nominal = geometry::Exp(Eigen::Vector3d(0.1, -0.2, 0.3));
+  Eigen::Quaterniond q = nominal * geometry::Exp(Eigen::Vector3d(0.0, 0.0, 0.2));
+  CalibrationBlock b;
+  b.name = "T_I_L rotation";
+  b.data = q.coeffs().data();
+  b.size = 3;
+  b.rotation = true;
+  b.prior = nominal.coeffs();
+  b.prior_sigma = Eigen::Vector3d::Constant(0.05);
+  b.max_observable_sigma = 0.01;
+  b.direction_names = {"roll", "pitch", "yaw"};
+  b.display_scale = 180.0 / M_PI;
+  b.display_unit = "deg";
+  EXPECT_THAT(ImplausibleDirections({b}, 3.0), ::testing::ElementsAre(::testing::HasSubstr("yaw")));
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, 1.0).asDiagonal();  // yaw unobservable
+  HoldUnobservableDirections({b}, covariance);
+  EXPECT_LT(geometry::AngularDistance(q, nominal), 1e-12);
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal
