@@ -31,6 +31,12 @@ Eigen::VectorXd TangentFromPrior(const CalibrationBlock& block) {
   return Eigen::Map<const Eigen::VectorXd>(block.data, block.size) - block.prior;
 }
 
+// Direction i of a block is excited when its posterior sigma is within both limits.
+bool Excited(const CalibrationBlock& block, int i, double posterior_sigma) {
+  return posterior_sigma <= block.max_observable_sigma &&
+         posterior_sigma <= block.max_posterior_to_prior_sigma * block.prior_sigma(i);
+}
+
 void Step(const CalibrationBlock& block, const Eigen::VectorXd& step) {
   if (block.rotation) {
     Eigen::Map<Eigen::Quaterniond> q(block.data);
@@ -94,11 +100,17 @@ BlockCovariance ComputeBlockCovariance(const std::vector<CalibrationBlock>& bloc
 }
 
 std::vector<std::string> ImplausibleDirections(const std::vector<CalibrationBlock>& blocks,
+                                               const BlockCovariance& covariance,
                                                double max_sigmas) {
   std::vector<std::string> out;
-  for (const CalibrationBlock& block : blocks) {
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const CalibrationBlock& block = blocks[b];
     const Eigen::VectorXd difference = TangentFromPrior(block);
     for (int i = 0; i < block.size; ++i) {
+      if (covariance.ok) {
+        const int row = covariance.offsets[b] + i;
+        if (!Excited(block, i, std::sqrt(std::max(0.0, covariance.matrix(row, row))))) continue;
+      }
       const double sigmas = std::abs(difference(i)) / block.prior_sigma(i);
       if (!(sigmas <= max_sigmas)) {  // also catches NaN
         std::ostringstream text;
@@ -123,10 +135,7 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
     difference.segment(first, blocks[b].size) = TangentFromPrior(blocks[b]);
     for (int i = 0; i < blocks[b].size; ++i) {
       const double sigma = std::sqrt(std::max(0.0, S(first + i, first + i)));
-      const bool excited =
-          sigma <= blocks[b].max_observable_sigma &&
-          sigma <= blocks[b].max_posterior_to_prior_sigma * blocks[b].prior_sigma(i);
-      (excited ? observable : unobservable).push_back(first + i);
+      (Excited(blocks[b], i, sigma) ? observable : unobservable).push_back(first + i);
     }
   }
   Eigen::MatrixXd conditioned = S;

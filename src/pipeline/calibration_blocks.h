@@ -45,10 +45,13 @@ struct BlockCovariance {
 BlockCovariance ComputeBlockCovariance(const std::vector<CalibrationBlock>& blocks,
                                        ceres::Problem* problem);
 
-// The directions whose estimate lies more than max_sigmas prior sigmas from the prior value, as
-// plain-language lines ("T_I_L rotation about ... moved 41.2 deg, 8.2 prior sigmas"): a solve
-// that went there did not converge to anything the priors allow.
+// The directions that the drive excited (posterior sigma within both limits of their block)
+// and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
+// plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a solve
+// that went there did not converge to anything the priors allow. Unexcited directions are not
+// judged: they are held at their prior anyway. Without a covariance every direction is judged.
 std::vector<std::string> ImplausibleDirections(const std::vector<CalibrationBlock>& blocks,
+                                               const BlockCovariance& covariance,
                                                double max_sigmas);
 
 // Directions whose posterior sigma exceeds their block's limits are unobservable (U); they are

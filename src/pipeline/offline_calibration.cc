@@ -368,7 +368,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   io::CalibrationFile& file = result.calibration;
   const estimation::LidarInertialBatchReport& batch = result.batch;
   const std::vector<std::string> implausible =
-      ImplausibleDirections(blocks_estimated, options.max_prior_deviation_sigmas);
+      ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);
   if (!implausible.empty()) {
     throw Error("dataset " + dataset.directory +
                 ": the calibration solve did not converge to a plausible result (" +

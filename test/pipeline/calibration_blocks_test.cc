@@ -67,15 +67,27 @@ TEST(CalibrationBlocks, ADirectionTheDataDidNotNarrowIsUnobservable) {
   EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
 }
 
-TEST(CalibrationBlocks, NamesDirectionsFarFromTheirPrior) {
+TEST(CalibrationBlocks, NamesExcitedDirectionsFarFromTheirPrior) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
   std::vector<CalibrationBlock> blocks = {VectorBlock(p.data(), p, 0.05, 0.03)};
-  EXPECT_TRUE(ImplausibleDirections(blocks, 5.0).empty());
+  const BlockCovariance none;  // not computed: every direction is judged
+  EXPECT_TRUE(ImplausibleDirections(blocks, none, 5.0).empty());
   p.y() += 0.3;  // 6 prior sigmas
-  EXPECT_THAT(ImplausibleDirections(blocks, 5.0),
+  EXPECT_THAT(ImplausibleDirections(blocks, none, 5.0),
               ::testing::ElementsAre(::testing::HasSubstr("y moved 30 cm")));
   p.x() = std::nan("");
-  EXPECT_EQ(ImplausibleDirections(blocks, 5.0).size(), 2u);
+  EXPECT_EQ(ImplausibleDirections(blocks, none, 5.0).size(), 2u);
+
+  // A direction the drive did not excite wanders within its flat cost and is held at its
+  // prior afterwards: it is not judged.
+  p.x() = 0.30;
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Vector3d(1e-6, 0.04 * 0.04, 1e-6).asDiagonal();
+  EXPECT_TRUE(ImplausibleDirections(blocks, covariance, 5.0).empty());
+  covariance.matrix(1, 1) = 1e-6;  // excited: judged
+  EXPECT_EQ(ImplausibleDirections(blocks, covariance, 5.0).size(), 1u);
 }
 
 // Rotation blocks work in the tangent of the right perturbation.
@@ -93,7 +105,8 @@ TEST(CalibrationBlocks, RotationBlocksUseTheTangent) {
   b.direction_names = {"roll", "pitch", "yaw"};
   b.display_scale = 180.0 / M_PI;
   b.display_unit = "deg";
-  EXPECT_THAT(ImplausibleDirections({b}, 3.0), ::testing::ElementsAre(::testing::HasSubstr("yaw")));
+  EXPECT_THAT(ImplausibleDirections({b}, BlockCovariance(), 3.0),
+              ::testing::ElementsAre(::testing::HasSubstr("yaw")));
   BlockCovariance covariance;
   covariance.ok = true;
   covariance.offsets = {0};
