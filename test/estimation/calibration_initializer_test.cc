@@ -13,6 +13,7 @@
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
+#include "estimation/true_keyframe.h"
 
 namespace autocal {
 namespace estimation {
@@ -31,23 +32,7 @@ sim::SimulationOptions UrbanOptions(double duration_s, uint64_t seed) {
   return options;
 }
 
-// The true IMU pose and velocity at IMU time t_ns, interpolated in the IMU-rate truth.
-Keyframe TrueKeyframe(const sim::ImuLog& log, int64_t t_ns) {
-  const auto& truth = log.truth;
-  auto it = std::lower_bound(truth.begin(), truth.end(), t_ns,
-                             [](const io::TrajectorySample& s, int64_t t) { return s.t_ns < t; });
-  const size_t i1 = std::min(static_cast<size_t>(it - truth.begin()), truth.size() - 1);
-  const size_t i0 = i1 == 0 ? 0 : i1 - 1;
-  const double s = i1 == i0 ? 0.0
-                            : static_cast<double>(t_ns - truth[i0].t_ns) /
-                                  static_cast<double>(truth[i1].t_ns - truth[i0].t_ns);
-  Keyframe kf;
-  kf.t_ns = t_ns;
-  kf.q_W_I = truth[i0].T_W_I.q.slerp(s, truth[i1].T_W_I.q);
-  kf.p_W_I = (1.0 - s) * truth[i0].T_W_I.p + s * truth[i1].T_W_I.p;
-  kf.v_W_I = (1.0 - s) * truth[i0].v_W_I + s * truth[i1].v_W_I;
-  return kf;
-}
+using test::TrueKeyframe;
 
 // The rotation about z and translation that best map estimated keyframe positions onto the
 // true ones (least squares; roll and pitch are not fitted: gravity fixes them).

@@ -12,6 +12,7 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
+#include "estimation/true_keyframe.h"
 
 namespace autocal {
 namespace estimation {
@@ -20,25 +21,7 @@ namespace {
 constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kKeyframeSpacingS = 0.1;
 
-// The true state at IMU time t_ns, interpolated in the simulator's IMU-rate truth.
-Keyframe TrueKeyframe(const sim::ImuLog& log, int64_t t_ns) {
-  const auto& truth = log.truth;
-  auto it = std::lower_bound(truth.begin(), truth.end(), t_ns,
-                             [](const io::TrajectorySample& s, int64_t t) { return s.t_ns < t; });
-  const size_t i1 = static_cast<size_t>(it - truth.begin());
-  const size_t i0 = i1 == 0 ? 0 : i1 - 1;
-  const double s = i1 == i0 ? 0.0
-                            : static_cast<double>(t_ns - truth[i0].t_ns) /
-                                  static_cast<double>(truth[i1].t_ns - truth[i0].t_ns);
-  Keyframe kf;
-  kf.t_ns = t_ns;
-  kf.q_W_I = truth[i0].T_W_I.q.slerp(s, truth[i1].T_W_I.q);
-  kf.p_W_I = (1.0 - s) * truth[i0].T_W_I.p + s * truth[i1].T_W_I.p;
-  kf.v_W_I = (1.0 - s) * truth[i0].v_W_I + s * truth[i1].v_W_I;
-  kf.b_g = log.gyro_bias[i0];
-  kf.b_a = log.accel_bias[i0];
-  return kf;
-}
+using test::TrueKeyframe;
 
 // True keyframes every 0.1 s, phase_s after the sample grid (IMU, wheel and GNSS stamps are
 // multiples of their periods from the start), from 0.5 s to 0.5 s before the end.

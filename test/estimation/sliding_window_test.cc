@@ -12,6 +12,7 @@
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
+#include "estimation/true_keyframe.h"
 
 namespace autocal {
 namespace estimation {
@@ -172,25 +173,7 @@ TEST(SlidingWindowMarginalization, KeepsAtMostNKeyframesAndAPrior) {
 // ---------------------------------------------------------------------------------------------
 // A simulated urban drive.
 
-// The true state at IMU time t_ns, interpolated in the simulator's IMU-rate truth.
-SlidingWindowState TrueState(const sim::ImuLog& log, int64_t t_ns) {
-  const auto& truth = log.truth;
-  auto it = std::lower_bound(truth.begin(), truth.end(), t_ns,
-                             [](const io::TrajectorySample& s, int64_t t) { return s.t_ns < t; });
-  const size_t i1 = std::min(static_cast<size_t>(it - truth.begin()), truth.size() - 1);
-  const size_t i0 = i1 == 0 ? 0 : i1 - 1;
-  const double s = i1 == i0 ? 0.0
-                            : static_cast<double>(t_ns - truth[i0].t_ns) /
-                                  static_cast<double>(truth[i1].t_ns - truth[i0].t_ns);
-  SlidingWindowState x;
-  x.t_ns = t_ns;
-  x.q_W_I = truth[i0].T_W_I.q.slerp(s, truth[i1].T_W_I.q);
-  x.p_W_I = (1.0 - s) * truth[i0].T_W_I.p + s * truth[i1].T_W_I.p;
-  x.v_W_I = (1.0 - s) * truth[i0].v_W_I + s * truth[i1].v_W_I;
-  x.b_g = log.gyro_bias[i0];
-  x.b_a = log.accel_bias[i0];
-  return x;
-}
+using test::TrueKeyframe;
 
 struct CalibrationErrors {
   double rotation_deg, translation_m, offset_ms, radius_left_mm, radius_right_mm,
@@ -260,7 +243,7 @@ class SlidingWindowUrban : public ::testing::Test {
   static Run Estimate(const sensors::Calibration& start, const SlidingWindowOptions& options) {
     const sim::SimulatedLog& log = *log_;
     const int64_t t0 = log.imu.samples.front().t_ns + SecondsToNs(kStartS);
-    SlidingWindowEstimator estimator(options, start, TrueState(log.imu, t0));
+    SlidingWindowEstimator estimator(options, start, TrueKeyframe(log.imu, t0));
 
     // Everything in arrival order: a sweep arrives when its last point is measured. Wheel
     // and GNSS samples before the initial state, and sweeps whose keyframe would precede
@@ -301,7 +284,7 @@ class SlidingWindowUrban : public ::testing::Test {
     run.covariance = estimator.ComputeCalibrationCovariance();
     double sum_sq = 0.0;
     for (const SlidingWindowState& x : run.trajectory) {
-      const SlidingWindowState truth = TrueState(log.imu, x.t_ns);
+      const SlidingWindowState truth = TrueKeyframe(log.imu, x.t_ns);
       const double e = (x.p_W_I - truth.p_W_I).norm();
       sum_sq += e * e;
       run.max_position_error_m = std::max(run.max_position_error_m, e);
