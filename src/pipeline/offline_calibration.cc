@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <optional>
 #include <sstream>
+#include <utility>
 
 #include "autocal/common/error.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
@@ -311,7 +312,10 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
            per_iteration * (p.max_iterations - p.iteration));
   };
   std::vector<lidar::LidarSweep> keyframe_sweeps;
-  for (int index : init.keyframe_sweeps) keyframe_sweeps.push_back(sweeps[static_cast<size_t>(index)]);
+  // The sweeps are not needed elsewhere any more: moved, not copied.
+  for (int index : init.keyframe_sweeps) {
+    keyframe_sweeps.push_back(std::move(sweeps[static_cast<size_t>(index)]));
+  }
   sweeps.clear();
   std::vector<estimation::Keyframe> keyframes = init.keyframes;
 
