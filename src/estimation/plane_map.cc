@@ -26,13 +26,6 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
 PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options)
     : options_(options), tree_(Downsample(points_W, options.voxel_m)) {}
 
-PlaneMap::PlaneMap(Eigen::Matrix3Xd points_W, std::vector<int> tags, const PlaneMapOptions& options)
-    : options_(options), tree_(std::move(points_W)), tags_(std::move(tags)) {
-  if (static_cast<int64_t>(tags_.size()) != tree_.size()) {
-    throw Error("PlaneMap: one tag per point is required");
-  }
-}
-
 bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const {
   const int k = options_.num_neighbors;
   std::vector<lidar::Neighbor> neighbors(static_cast<size_t>(k));
@@ -42,23 +35,6 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const 
   Eigen::Matrix3Xd local(3, k);
   for (int i = 0; i < k; ++i) local.col(i) = tree_.points().col(neighbors[i].index);
   return FitLocalPlane(local, plane);
-}
-
-bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, int query_tag, lidar::Plane* plane) const {
-  if (tags_.empty()) return FindPlane(p_W, plane);
-  const int k = options_.num_neighbors;
-  thread_local std::vector<lidar::Neighbor> neighbors;
-  neighbors.resize(static_cast<size_t>(options_.search_neighbors));
-  const int found = tree_.Knn(p_W, options_.search_neighbors, neighbors.data());
-  const double max_sq = options_.max_neighbor_distance_m * options_.max_neighbor_distance_m;
-  Eigen::Matrix3Xd local(3, k);
-  int used = 0;
-  for (int i = 0; i < found && used < k; ++i) {
-    if (neighbors[i].squared_distance_m2 > max_sq) break;
-    if (std::abs(tags_[neighbors[i].index] - query_tag) < options_.min_tag_gap) continue;
-    local.col(used++) = tree_.points().col(neighbors[i].index);
-  }
-  return used == k && FitLocalPlane(local, plane);
 }
 
 bool PlaneMap::FitLocalPlane(const Eigen::Matrix3Xd& local, lidar::Plane* plane) const {

@@ -26,25 +26,14 @@ struct PlaneMapOptions {
   double min_spread_ratio = 0.02;
   // Largest distance of any neighbour to the fitted plane: rejects corners and clutter.
   double max_plane_thickness_m = 0.1;
-  // Tagged maps only: a query tagged t uses map points whose tag differs from t by at least
-  // this much, among the search_neighbors nearest.
-  int min_tag_gap = 5;
-  int search_neighbors = 30;
 };
 
 class PlaneMap {
  public:
-  // Voxel-downsamples the points (options.voxel_m) into an untagged map.
+  // Voxel-downsamples the points (options.voxel_m) into a map.
   PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options = {});
-  // A map whose points carry tags (e.g. their sweep index), used as given (no downsampling),
-  // so that a sweep can be associated only with planes seen at other times: with its own
-  // points in the planes, a sweep would anchor the estimate it is meant to correct.
-  PlaneMap(Eigen::Matrix3Xd points_W, std::vector<int> tags, const PlaneMapOptions& options);
-
   // The local plane around p_W, or false when the neighbourhood is not a clean plane.
   bool FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const;
-  // The same, from the points of a tagged map whose tags are far enough from query_tag.
-  bool FindPlane(const Eigen::Vector3d& p_W, int query_tag, lidar::Plane* plane) const;
 
   int64_t size() const { return tree_.size(); }
 
@@ -53,7 +42,6 @@ class PlaneMap {
 
   PlaneMapOptions options_;
   lidar::KdTree tree_;
-  std::vector<int> tags_;
 };
 
 }  // namespace estimation

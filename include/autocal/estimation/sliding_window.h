@@ -127,7 +127,7 @@ struct SlidingWindowOptions {
   // sweeps apart have moved relative to the point's sweep, which makes the extrinsic and time
   // offset observable; they must still overlap it, and lie in the window.
   std::vector<int> partner_keyframe_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
-  // Local plane fitting in each sweep's map (its min_tag_gap is not used).
+  // Local plane fitting in each sweep's map.
   PlaneMapOptions plane_map;
   // Outlier gate: a point farther than this from the plane found for it is not associated
   // (moving objects, edges, planes fitted across a corner).
