@@ -4,6 +4,7 @@ find_package(Ceres 2.1 REQUIRED)
 find_package(yaml-cpp REQUIRED)
 find_package(nanoflann REQUIRED)
 find_package(glog REQUIRED)
+find_package(Threads REQUIRED)
 # Debian ships GeographicLib's find module outside CMake's default module path.
 list(APPEND CMAKE_MODULE_PATH /usr/share/cmake/geographiclib)
 find_package(GeographicLib REQUIRED)

@@ -5,7 +5,8 @@
 #include <optional>
 #include <sstream>
 
-#include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -301,12 +302,14 @@ class InertialFit {
     }
     const double variance_factor = chi2 / std::max(1.0, 3.0 * weight_sum);
     fit->position_rms_m = std::sqrt(sum_sq / std::max(1.0, 3.0 * weight_sum));
-    Eigen::MatrixXd H;
+    Eigen::SparseMatrix<double> H;
     Eigen::VectorXd g;
-    Build(&H, &g);
+    Build(AllFree(), x, dim_, &H, &g);
+    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(H);
+    if (solver.info() != Eigen::Success) throw Error("inertial alignment: singular normal equations");
     const Eigen::MatrixXd covariance =
         variance_factor *
-        Eigen::LDLT<Eigen::MatrixXd>(H).solve(Eigen::MatrixXd::Identity(dim_, kV)).topRows<kV>();
+        Eigen::MatrixXd(solver.solve(Eigen::MatrixXd::Identity(dim_, kV))).topRows<kV>();
     for (int axis = 0; axis < 3; ++axis) {
       fit->lever_arm_std_m(axis) = std::sqrt(std::max(0.0, covariance(kP + axis, kP + axis)));
       fit->excited(axis) = fit->lever_arm_std_m(axis) < options_.max_excited_lever_arm_std_m;
@@ -352,45 +355,67 @@ class InertialFit {
     return r;
   }
 
-  void Build(Eigen::MatrixXd* H, Eigen::VectorXd* g) const {
-    *H = Eigen::MatrixXd::Zero(dim_, dim_);
-    *g = Eigen::VectorXd::Zero(dim_);
+  // The normal equations over the columns `index` maps to (index[c] < 0: column c is held
+  // at held_x(c) and moves to the right-hand side). H is sparse: each keyframe's velocity
+  // couples only to its neighbours' and to the 10 shared unknowns.
+  void Build(const std::vector<int>& index, const Eigen::VectorXd& held_x, int size,
+             Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g) const {
+    std::vector<Eigen::Triplet<double>> triplets;
+    *g = Eigen::VectorXd::Zero(size);
     for (size_t r = 0; r < rows_.size(); ++r) {
       const Row& row = rows_[r];
       const double w = weights_[r] / (row.sigma * row.sigma);
+      Eigen::Vector3d b = row.b;
+      for (const auto& [c, A] : row.blocks) {
+        for (Eigen::Index k = 0; k < A.cols(); ++k) {
+          if (index[static_cast<size_t>(c + k)] < 0) b -= A.col(k) * held_x(c + k);
+        }
+      }
       for (const auto& [ci, Ai] : row.blocks) {
-        g->segment(ci, Ai.cols()) += w * Ai.transpose() * row.b;
-        for (const auto& [cj, Aj] : row.blocks) {
-          H->block(ci, cj, Ai.cols(), Aj.cols()) += w * Ai.transpose() * Aj;
+        for (Eigen::Index ki = 0; ki < Ai.cols(); ++ki) {
+          const int i = index[static_cast<size_t>(ci + ki)];
+          if (i < 0) continue;
+          (*g)(i) += w * Ai.col(ki).dot(b);
+          for (const auto& [cj, Aj] : row.blocks) {
+            for (Eigen::Index kj = 0; kj < Aj.cols(); ++kj) {
+              const int j = index[static_cast<size_t>(cj + kj)];
+              if (j >= 0) triplets.emplace_back(i, j, w * Ai.col(ki).dot(Aj.col(kj)));
+            }
+          }
         }
       }
     }
+    H->resize(size, size);
+    H->setFromTriplets(triplets.begin(), triplets.end());
+  }
+
+  // Every column free.
+  std::vector<int> AllFree() const {
+    std::vector<int> index(static_cast<size_t>(dim_));
+    for (int c = 0; c < dim_; ++c) index[static_cast<size_t>(c)] = c;
+    return index;
   }
 
   // Solves with the lever-arm axes flagged in `hold` fixed at the prior (their columns move
   // to the right-hand side).
   Eigen::VectorXd SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold) const {
-    Eigen::MatrixXd H;
-    Eigen::VectorXd g;
-    Build(&H, &g);
     Eigen::VectorXd x = Eigen::VectorXd::Zero(dim_);
-    std::vector<int> free;
+    std::vector<int> index(static_cast<size_t>(dim_));
+    int size = 0;
     for (int c = 0; c < dim_; ++c) {
-      if (c >= 3 || !hold(c)) free.push_back(c);
-      if (c < 3 && hold(c)) x(c) = options_.p_I_L_prior(c);
+      const bool held = c < 3 && hold(c);
+      if (held) x(c) = options_.p_I_L_prior(c);
+      index[static_cast<size_t>(c)] = held ? -1 : size++;
     }
-    const int m = static_cast<int>(free.size());
-    Eigen::MatrixXd H_free(m, m);
-    Eigen::VectorXd g_free(m);
-    for (int r = 0; r < m; ++r) {
-      g_free(r) = g(free[r]);
-      for (int c = 0; c < 3; ++c) {
-        if (hold(c)) g_free(r) -= H(free[r], c) * x(c);
-      }
-      for (int c = 0; c < m; ++c) H_free(r, c) = H(free[r], free[c]);
+    Eigen::SparseMatrix<double> H;
+    Eigen::VectorXd g;
+    Build(index, x, size, &H, &g);
+    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(H);
+    if (solver.info() != Eigen::Success) throw Error("inertial alignment: singular normal equations");
+    const Eigen::VectorXd x_free = solver.solve(g);
+    for (int c = 0; c < dim_; ++c) {
+      if (index[static_cast<size_t>(c)] >= 0) x(c) = x_free(index[static_cast<size_t>(c)]);
     }
-    const Eigen::VectorXd x_free = H_free.ldlt().solve(g_free);
-    for (int r = 0; r < m; ++r) x(free[r]) = x_free(r);
     return x;
   }
 
@@ -473,7 +498,12 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
     prefix.fallbacks.insert(prefix.fallbacks.begin(), why + "; the sweeps before it are used");
     return prefix;
   };
-  if (!RunOdometry(imu, sweeps, options.odometry, std::nullopt, &out, &failed_sweep)) {
+  lidar::LidarOdometrySetting first_pass = options.odometry;
+  if (options.gyro_deskew_pass) {
+    first_pass.registration_voxel_m =
+        std::max(first_pass.registration_voxel_m, options.first_pass_registration_voxel_m);
+  }
+  if (!RunOdometry(imu, sweeps, first_pass, std::nullopt, &out, &failed_sweep)) {
     return on_sweeps_before_failure();
   }
   FindRestPeriod(imu, options, &out);

@@ -3,10 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/factors/imu_factor.h"
@@ -135,20 +138,29 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     const double offset_lin = *offset;
 
     const auto iteration_start = std::chrono::steady_clock::now();
+    // Steps 1-3 work on each sweep independently, on options.num_threads threads.
+    const int num_sweeps = static_cast<int>(sweeps.size());
+    const auto for_each_sweep = [&](const std::function<void(size_t)>& body) {
+      ParallelFor(0, num_sweeps, options.num_threads, [&](int64_t begin, int64_t end, int) {
+        for (int64_t k = begin; k < end; ++k) body(static_cast<size_t>(k));
+      });
+    };
     // 1. Propagate every sweep with the current estimate.
-    std::vector<ImuMotionTable> tables;
-    tables.reserve(sweeps.size());
     for (size_t k = 0; k < sweeps.size(); ++k) {
-      const Keyframe& kf = (*keyframes)[k];
       const int64_t end_ns = sweeps[k].t_ns + SecondsToNs(MaxPointTime(sweeps[k]) + offset_lin);
-      if (end_ns < kf.t_ns) {
+      if (end_ns < (*keyframes)[k].t_ns) {
         throw Error("SolveLidarInertialBatch: the time offset moved beyond the keyframe lead");
       }
-      tables.emplace_back(imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
     }
+    std::vector<std::optional<ImuMotionTable>> tables(sweeps.size());
+    for_each_sweep([&](size_t k) {
+      const Keyframe& kf = (*keyframes)[k];
+      const int64_t end_ns = sweeps[k].t_ns + SecondsToNs(MaxPointTime(sweeps[k]) + offset_lin);
+      tables[k].emplace(imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
+    });
     auto motion_of = [&](size_t k, int point) {
       const double tau = sweeps[k].cloud.time_s(point);
-      return tables[k].At(sweeps[k].t_ns + SecondsToNs(tau + offset_lin));
+      return tables[k]->At(sweeps[k].t_ns + SecondsToNs(tau + offset_lin));
     };
 
     // 2. One plane map per sweep, deskewed into W with the current estimate, and each
@@ -161,9 +173,9 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     const double point_sigma_m = options.point_sigma_m * coarse;
     const double max_point_to_plane_m = options.max_point_to_plane_m * coarse;
     std::vector<Eigen::Matrix3Xd> map_points_W(sweeps.size());
-    std::vector<factors::PointMotion> reference_motion;
-    std::vector<geometry::Pose3d> T_W_L;
-    for (size_t j = 0; j < sweeps.size(); ++j) {
+    std::vector<factors::PointMotion> reference_motion(sweeps.size());
+    std::vector<geometry::Pose3d> T_W_L(sweeps.size());
+    for_each_sweep([&](size_t j) {
       Eigen::Matrix3Xd& points = map_points_W[j];
       points.resize(3, static_cast<Eigen::Index>(selection[j].map_points.size()));
       Eigen::Index column = 0;
@@ -172,16 +184,15 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                             calibration->q_I_L, calibration->p_I_L,
                                             sweeps[j].cloud.points.col(i));
       }
-      reference_motion.push_back(tables[j].At(sweeps[j].t_ns + SecondsToNs(offset_lin)));
-      T_W_L.push_back(SweepLidarPose((*keyframes)[j], reference_motion.back(), g_W,
-                                     calibration->q_I_L, calibration->p_I_L));
-    }
+      reference_motion[j] = tables[j]->At(sweeps[j].t_ns + SecondsToNs(offset_lin));
+      T_W_L[j] = SweepLidarPose((*keyframes)[j], reference_motion[j], g_W, calibration->q_I_L,
+                                calibration->p_I_L);
+    });
     // The planes of sweep j come from it and its map_neighbor_sweeps neighbours on each
     // side: a denser local map, whose parts are too close in time to disagree much.
-    std::vector<std::unique_ptr<PlaneMap>> maps;
-    maps.reserve(sweeps.size());
-    const int num_sweeps = static_cast<int>(sweeps.size());
-    for (int j = 0; j < num_sweeps; ++j) {
+    std::vector<std::unique_ptr<PlaneMap>> maps(sweeps.size());
+    for_each_sweep([&](size_t sweep) {
+      const int j = static_cast<int>(sweep);
       const int first = std::max(0, j - options.map_neighbor_sweeps);
       const int last = std::min(num_sweeps - 1, j + options.map_neighbor_sweeps);
       Eigen::Index size = 0;
@@ -193,42 +204,27 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
         local.middleCols(column, part.cols()) = part;
         column += part.cols();
       }
-      maps.push_back(std::make_unique<PlaneMap>(local, map_options));
-    }
+      maps[sweep] = std::make_unique<PlaneMap>(local, map_options);
+    });
 
-    // 3. The problem: IMU factors between keyframes, point-to-plane factors per sweep.
-    ceres::Problem::Options problem_options;
-    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    ceres::Problem problem(problem_options);
-    for (Keyframe& kf : *keyframes) {
-      problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
-    }
-    problem.AddParameterBlock(calibration->q_I_L.coeffs().data(), 4, &quaternion_manifold);
-    sensors::PreintegrationOptions preintegration_options;
-    preintegration_options.gravity_m_s2 = options.gravity_m_s2;
-    for (size_t k = 0; k + 1 < keyframes->size(); ++k) {
-      Keyframe& a = (*keyframes)[k];
-      Keyframe& b = (*keyframes)[k + 1];
-      sensors::ImuPreintegration pim(options.imu_noise, preintegration_options, a.b_g, a.b_a);
-      pim.Integrate(imu, a.t_ns, b.t_ns);
-      problem.AddResidualBlock(factors::ImuFactor::Create(pim), nullptr, a.q_W_I.coeffs().data(),
-                               a.p_W_I.data(), a.v_W_I.data(), a.b_g.data(), a.b_a.data(),
-                               b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
-                               b.b_g.data(), b.b_a.data());
-    }
-    ceres::LossFunction* loss = factors::MakeLossFunction(options.point_loss);
-    // Each point is paired with a plane of another sweep (Eq. P6): the partners are tried in
-    // the order of options.partner_sweep_offsets, starting at a different one for
-    // consecutive points, so that every sweep is tied to sweeps before and after it.
-    std::vector<ceres::ResidualBlockId> point_blocks;
+    // 3. Association: each point is paired with a plane of another sweep (Eq. P6). The
+    //    partners are tried in the order of options.partner_sweep_offsets, starting at a
+    //    different one for consecutive points, so that every sweep is tied to sweeps before
+    //    and after it.
+    struct Association {
+      factors::PointToSweepPlaneMeasurement measurement;
+      int partner;
+    };
+    std::vector<std::vector<Association>> associations(sweeps.size());
     const std::vector<int>& partners = options.partner_sweep_offsets;
-    for (int k = 0; k < num_sweeps; ++k) {
-      Keyframe& kf = (*keyframes)[static_cast<size_t>(k)];
+    for_each_sweep([&](size_t sweep) {
+      const int k = static_cast<int>(sweep);
+      const Keyframe& kf = (*keyframes)[sweep];
       int point_counter = 0;
-      for (int i : selection[static_cast<size_t>(k)].residual_points) {
+      for (int i : selection[sweep].residual_points) {
         factors::PointToSweepPlaneMeasurement m;
-        m.p_L = sweeps[static_cast<size_t>(k)].cloud.points.col(i);
-        m.motion = motion_of(static_cast<size_t>(k), i);
+        m.p_L = sweeps[sweep].cloud.points.col(i);
+        m.motion = motion_of(sweep, i);
         const Eigen::Vector3d p_W =
             PointInWorld(kf, m.motion, g_W, calibration->q_I_L, calibration->p_I_L, m.p_L);
         const int first = point_counter++;
@@ -249,12 +245,50 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
         m.plane_motion = reference_motion[static_cast<size_t>(partner)];
         m.sigma_m = point_sigma_m;
         m.offset_linearization_s = offset_lin;
-        Keyframe& kf_j = (*keyframes)[static_cast<size_t>(partner)];
+        associations[sweep].push_back({m, partner});
+      }
+    });
+    std::vector<std::unique_ptr<sensors::ImuPreintegration>> preintegrations(sweeps.size() - 1);
+    sensors::PreintegrationOptions preintegration_options;
+    preintegration_options.gravity_m_s2 = options.gravity_m_s2;
+    ParallelFor(0, num_sweeps - 1, options.num_threads, [&](int64_t begin, int64_t end, int) {
+      for (int64_t k = begin; k < end; ++k) {
+        const Keyframe& a = (*keyframes)[static_cast<size_t>(k)];
+        const Keyframe& b = (*keyframes)[static_cast<size_t>(k + 1)];
+        auto pim = std::make_unique<sensors::ImuPreintegration>(
+            options.imu_noise, preintegration_options, a.b_g, a.b_a);
+        pim->Integrate(imu, a.t_ns, b.t_ns);
+        preintegrations[static_cast<size_t>(k)] = std::move(pim);
+      }
+    });
+
+    // 4. The problem: IMU factors between keyframes, point-to-plane factors per sweep.
+    ceres::Problem::Options problem_options;
+    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(problem_options);
+    for (Keyframe& kf : *keyframes) {
+      problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
+    }
+    problem.AddParameterBlock(calibration->q_I_L.coeffs().data(), 4, &quaternion_manifold);
+    for (size_t k = 0; k + 1 < keyframes->size(); ++k) {
+      Keyframe& a = (*keyframes)[k];
+      Keyframe& b = (*keyframes)[k + 1];
+      problem.AddResidualBlock(factors::ImuFactor::Create(*preintegrations[k]), nullptr, a.q_W_I.coeffs().data(),
+                               a.p_W_I.data(), a.v_W_I.data(), a.b_g.data(), a.b_a.data(),
+                               b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
+                               b.b_g.data(), b.b_a.data());
+    }
+    ceres::LossFunction* loss = factors::MakeLossFunction(options.point_loss);
+    std::vector<ceres::ResidualBlockId> point_blocks;
+    for (int k = 0; k < num_sweeps; ++k) {
+      Keyframe& kf = (*keyframes)[static_cast<size_t>(k)];
+      for (const Association& a : associations[static_cast<size_t>(k)]) {
+        Keyframe& kf_j = (*keyframes)[static_cast<size_t>(a.partner)];
         point_blocks.push_back(problem.AddResidualBlock(
-            new factors::PointToSweepPlaneFactor(m, g_W), loss, kf.q_W_I.coeffs().data(),
-            kf.p_W_I.data(), kf.v_W_I.data(), kf_j.q_W_I.coeffs().data(), kf_j.p_W_I.data(),
-            kf_j.v_W_I.data(), calibration->q_I_L.coeffs().data(), calibration->p_I_L.data(),
-            offset));
+            new factors::PointToSweepPlaneFactor(a.measurement, g_W), loss,
+            kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(),
+            kf_j.q_W_I.coeffs().data(), kf_j.p_W_I.data(), kf_j.v_W_I.data(),
+            calibration->q_I_L.coeffs().data(), calibration->p_I_L.data(), offset));
       }
     }
     if (point_blocks.empty()) {
@@ -299,7 +333,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     const auto solve_start = std::chrono::steady_clock::now();
     report.seconds_association +=
         std::chrono::duration<double>(solve_start - iteration_start).count();
-    // 4. Solve.
+    // 5. Solve.
     ceres::Solver::Options solver_options;
     solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
     solver_options.max_num_iterations = options.solver_iterations;
@@ -312,7 +346,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       throw Error("SolveLidarInertialBatch: the solver failed: " + summary.message);
     }
 
-    // 5. Point residual statistics without the robust loss.
+    // 6. Point residual statistics without the robust loss.
     const std::vector<double> residuals = point_distances_m();
     double sum_sq = 0.0;
     for (double r : residuals) sum_sq += r * r;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 
 namespace autocal {
 namespace lidar {
@@ -98,37 +99,65 @@ struct NormalEquations {
 };
 
 // Point-to-plane linearization at T (eqs. 4.6-4.10): r = n . (T p - q) and, for the left
-// perturbation, dr/d[rho; phi] = [n; (T p) x n].
+// perturbation, dr/d[rho; phi] = [n; (T p) x n]. Correspondences are searched first, then
+// the target's normals for them are prepared, then the equations are summed per chunk and
+// combined in chunk order.
 NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
                                       const geometry::Pose3d& T, const IcpSetting& setting) {
   const Eigen::Matrix3d R = T.R();
+  const Eigen::Index n = source.cols();
+  std::vector<int> matches(static_cast<size_t>(n), -1);
+  ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int /*chunk*/) {
+    Neighbor nearest;
+    for (int64_t i = begin; i < end; ++i) {
+      const Eigen::Vector3d p = R * source.col(i) + T.p;
+      if (target.tree().Nearest(p, setting.max_correspondence_m, &nearest)) {
+        matches[static_cast<size_t>(i)] = nearest.index;
+      }
+    }
+  });
+  target.PrepareNormals(matches, setting.num_threads);
+
   const Eigen::Matrix3Xd& target_points = target.points();
   const Eigen::Matrix3Xd& normals = target.normals().normals;
   const Eigen::VectorXd& planarity = target.normals().planarity;
-  NormalEquations eq;
-  Vector6d J;
-  Neighbor nearest;
-  for (Eigen::Index i = 0; i < source.cols(); ++i) {
-    const Eigen::Vector3d p = R * source.col(i) + T.p;
-    if (!target.tree().Nearest(p, setting.max_correspondence_m, &nearest)) continue;
-    // Planarity 0 marks a target point without a normal (EstimateNormals).
-    const double target_planarity = planarity(nearest.index);
-    if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
-    const Eigen::Vector3d n = normals.col(nearest.index);
-    const double r = n.dot(p - target_points.col(nearest.index));
-    J.head<3>() = n;
-    J.tail<3>() = p.cross(n);
-    const double w = setting.robust.Weight(r);
-    eq.H.noalias() += (w * J) * J.transpose();
-    if (setting.source_range_sigma_m > 0.0) {
-      const double along_normal = n.dot(R * source.col(i).normalized());
-      const double variance = std::pow(setting.source_range_sigma_m * along_normal, 2);
-      eq.propagated.noalias() += (w * w * variance * J) * J.transpose();
+  std::vector<NormalEquations> partial(
+      static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
+  ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int chunk) {
+    NormalEquations& eq = partial[static_cast<size_t>(chunk)];
+    Vector6d J;
+    for (int64_t i = begin; i < end; ++i) {
+      const int match = matches[static_cast<size_t>(i)];
+      if (match < 0) continue;
+      // Planarity 0 marks a target point without a normal (EstimateNormals).
+      const double target_planarity = planarity(match);
+      if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
+      const Eigen::Vector3d p = R * source.col(i) + T.p;
+      const Eigen::Vector3d normal = normals.col(match);
+      const double r = normal.dot(p - target_points.col(match));
+      J.head<3>() = normal;
+      J.tail<3>() = p.cross(normal);
+      const double w = setting.robust.Weight(r);
+      eq.H.noalias() += (w * J) * J.transpose();
+      if (setting.source_range_sigma_m > 0.0) {
+        const double along_normal = normal.dot(R * source.col(i).normalized());
+        const double variance = std::pow(setting.source_range_sigma_m * along_normal, 2);
+        eq.propagated.noalias() += (w * w * variance * J) * J.transpose();
+      }
+      eq.g.noalias() += (w * r) * J;
+      eq.weighted_squared_residuals += w * r * r;
+      eq.squared_residuals += r * r;
+      ++eq.count;
     }
-    eq.g.noalias() += (w * r) * J;
-    eq.weighted_squared_residuals += w * r * r;
-    eq.squared_residuals += r * r;
-    ++eq.count;
+  });
+  NormalEquations eq = partial.front();
+  for (size_t chunk = 1; chunk < partial.size(); ++chunk) {
+    eq.H += partial[chunk].H;
+    eq.propagated += partial[chunk].propagated;
+    eq.g += partial[chunk].g;
+    eq.weighted_squared_residuals += partial[chunk].weighted_squared_residuals;
+    eq.squared_residuals += partial[chunk].squared_residuals;
+    eq.count += partial[chunk].count;
   }
   eq.residual_dimension = 1;
   return eq;
@@ -252,10 +281,43 @@ geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
   return SolveRigid(pairs);
 }
 
-IcpTarget::IcpTarget(Eigen::Matrix3Xd points, bool with_normals,
-                     const NormalEstimationSetting& normal_setting)
-    : tree_(std::move(points)) {
-  if (with_normals) normals_ = EstimateNormals(tree_, normal_setting);
+IcpTarget::IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
+                     const NormalEstimationSetting& normal_setting, int num_threads)
+    : tree_(std::move(points)), mode_(normals), normal_setting_(normal_setting) {
+  if (mode_ == TargetNormals::kAll) {
+    normals_ = EstimateNormals(tree_, normal_setting_, num_threads);
+  } else if (mode_ == TargetNormals::kOnDemand) {
+    if (normal_setting_.num_neighbors < 3) {
+      throw Error("IcpTarget: num_neighbors must be at least 3, got " +
+                  std::to_string(normal_setting_.num_neighbors));
+    }
+    normals_.normals.setZero(3, tree_.size());
+    normals_.planarity.setZero(tree_.size());
+    prepared_.assign(static_cast<size_t>(tree_.size()), 0);
+  }
+}
+
+void IcpTarget::PrepareNormals(const std::vector<int>& indices, int num_threads) const {
+  if (mode_ != TargetNormals::kOnDemand) return;
+  std::lock_guard<std::mutex> lock(*mutex_);
+  std::vector<int> missing;
+  for (const int index : indices) {
+    if (index < 0 || prepared_[static_cast<size_t>(index)]) continue;
+    prepared_[static_cast<size_t>(index)] = 1;  // also de-duplicates `missing`
+    missing.push_back(index);
+  }
+  ParallelFor(0, static_cast<int64_t>(missing.size()), num_threads,
+              [&](int64_t begin, int64_t end, int /*chunk*/) {
+                Eigen::Vector3d normal;
+                double planarity = 0.0;
+                for (int64_t k = begin; k < end; ++k) {
+                  const int index = missing[static_cast<size_t>(k)];
+                  if (EstimateNormal(tree_, index, normal_setting_, &normal, &planarity)) {
+                    normals_.normals.col(index) = normal;
+                    normals_.planarity(index) = planarity;
+                  }
+                }
+              });
 }
 
 IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,

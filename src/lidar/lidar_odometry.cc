@@ -3,6 +3,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/lidar/voxel_grid.h"
 
 namespace autocal {
@@ -11,9 +12,10 @@ namespace lidar {
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 LidarOdometry::LidarOdometry(LidarOdometrySetting setting) : setting_(std::move(setting)) {
-  if (!(setting_.voxel_m > 0.0) || setting_.local_map_sweeps < 1) {
-    throw Error("LidarOdometry: voxel_m must be > 0 and local_map_sweeps >= 1");
+  if (!(setting_.voxel_m > 0.0) || setting_.local_map_sweeps < 1 || setting_.num_threads < 1) {
+    throw Error("LidarOdometry: voxel_m must be > 0, local_map_sweeps >= 1 and num_threads >= 1");
   }
+  setting_.icp.num_threads = setting_.num_threads;
 }
 
 Eigen::Matrix3Xd LidarOdometry::Deskew(
@@ -21,12 +23,14 @@ Eigen::Matrix3Xd LidarOdometry::Deskew(
   Vector6d twist = velocity_;
   if (angular_velocity) twist.tail<3>() = *angular_velocity;
   Eigen::Matrix3Xd out(3, cloud.size());
-  for (int64_t i = 0; i < cloud.size(); ++i) {
-    // eq. (5.2): T_k_tau = Exp(xi tau) maps the point from the sensor frame at its firing
-    // time into the frame at the sweep stamp.
-    const Vector6d xi_tau = twist * cloud.time_s(i);
-    out.col(i) = geometry::ExpSE3(xi_tau) * Eigen::Vector3d(cloud.points.col(i));
-  }
+  ParallelFor(0, cloud.size(), setting_.num_threads, [&](int64_t begin, int64_t end, int) {
+    for (int64_t i = begin; i < end; ++i) {
+      // eq. (5.2): T_k_tau = Exp(xi tau) maps the point from the sensor frame at its firing
+      // time into the frame at the sweep stamp.
+      const Vector6d xi_tau = twist * cloud.time_s(i);
+      out.col(i) = geometry::ExpSE3(xi_tau) * Eigen::Vector3d(cloud.points.col(i));
+    }
+  });
   return out;
 }
 
@@ -43,6 +47,13 @@ Eigen::Matrix3Xd LidarOdometry::Downsampled(
   return VoxelDownsample(deskewed, setting_.voxel_m).points;
 }
 
+Eigen::Matrix3Xd LidarOdometry::RegistrationPoints(const Eigen::Matrix3Xd& points) const {
+  if (!(setting_.registration_voxel_m > setting_.voxel_m)) return points;
+  PointCloud cloud;
+  cloud.points = points;
+  return VoxelDownsample(cloud, setting_.registration_voxel_m).points;
+}
+
 IcpTarget LidarOdometry::BuildMap(const Eigen::Vector3d& viewpoint_W) const {
   int64_t total = 0;
   for (const Eigen::Matrix3Xd& part : map_sweeps_W_) total += part.cols();
@@ -55,7 +66,10 @@ IcpTarget LidarOdometry::BuildMap(const Eigen::Vector3d& viewpoint_W) const {
   }
   NormalEstimationSetting normals = setting_.map_normals;
   normals.viewpoint = viewpoint_W;  // normals face the sensor at its last pose
-  return IcpTarget(VoxelDownsample(map_cloud, setting_.voxel_m).points, true, normals);
+  // Each map is registered against once or twice; most of its points never pair with a
+  // sweep point, so their normals are not computed.
+  return IcpTarget(VoxelDownsample(map_cloud, setting_.voxel_m).points, TargetNormals::kOnDemand,
+                   normals);
 }
 
 void LidarOdometry::AddToMap(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L) {
@@ -103,7 +117,7 @@ const OdometryFrame& LidarOdometry::AddSweep(
   const int passes = setting_.deskew ? 2 : 1;
   for (int pass = 0; pass < passes; ++pass) {
     points = Downsampled(sweep.cloud, angular_velocity_L_rad_s);
-    frame.icp = AlignIcp(points, *map, T_W_L, setting_.icp);
+    frame.icp = AlignIcp(RegistrationPoints(points), *map, T_W_L, setting_.icp);
     T_W_L = frame.icp.T_target_source;
     velocity_ = geometry::LogSE3(geometry::Pose3d(previous.T_W_L.Inverse() * T_W_L)) / dt_s;
     if (frames_.size() == 1 && setting_.deskew && pass == 0) {

@@ -2,10 +2,12 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <limits>
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 
 namespace autocal {
 namespace lidar {
@@ -46,39 +48,69 @@ bool PcaNormal(const Eigen::Matrix3Xd& neighbourhood, Eigen::Vector3d* normal, d
   return NormalFromMoments(sum, sum_outer, count, normal, planarity);
 }
 
-SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting) {
+namespace {
+
+void RequireNeighbors(const NormalEstimationSetting& setting) {
   if (setting.num_neighbors < 3) {
     throw Error("EstimateNormals: num_neighbors must be at least 3, got " +
                 std::to_string(setting.num_neighbors));
   }
+}
+
+// EstimateNormal with the caller's scratch space for the neighbours.
+bool NormalOfPoint(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
+                   Neighbor* neighbors, Eigen::Vector3d* normal, double* planarity) {
   const Eigen::Matrix3Xd& points = tree.points();
-  const int64_t n = points.cols();
+  const double max_sq = setting.max_radius_m > 0.0 ? setting.max_radius_m * setting.max_radius_m
+                                                   : std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d p = points.col(index);
+  const int found = tree.Knn(p, setting.num_neighbors, neighbors);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
+  int count = 0;
+  for (int j = 0; j < found; ++j) {
+    if (neighbors[j].squared_distance_m2 > max_sq) break;  // sorted, closest first
+    const Eigen::Vector3d q = points.col(neighbors[j].index) - p;
+    sum += q;
+    sum_outer.noalias() += q * q.transpose();
+    ++count;
+  }
+  if (!NormalFromMoments(sum, sum_outer, count, normal, planarity)) return false;
+  if (normal->dot(setting.viewpoint - p) < 0.0) *normal = -*normal;
+  return true;
+}
+
+}  // namespace
+
+bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
+                    Eigen::Vector3d* normal, double* planarity) {
+  RequireNeighbors(setting);
+  constexpr int kStackNeighbors = 32;
+  if (setting.num_neighbors <= kStackNeighbors) {
+    std::array<Neighbor, kStackNeighbors> neighbors;
+    return NormalOfPoint(tree, index, setting, neighbors.data(), normal, planarity);
+  }
+  std::vector<Neighbor> neighbors(static_cast<size_t>(setting.num_neighbors));
+  return NormalOfPoint(tree, index, setting, neighbors.data(), normal, planarity);
+}
+
+SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting,
+                               int num_threads) {
+  RequireNeighbors(setting);
+  const int64_t n = tree.size();
   SurfaceNormals out;
   out.normals.setZero(3, n);
   out.planarity.setZero(n);
-  const double max_sq = setting.max_radius_m > 0.0 ? setting.max_radius_m * setting.max_radius_m
-                                                   : std::numeric_limits<double>::infinity();
-  std::vector<Neighbor> neighbors(static_cast<size_t>(setting.num_neighbors));
-  for (int64_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d p = points.col(i);
-    const int found = tree.Knn(p, setting.num_neighbors, neighbors.data());
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
-    int count = 0;
-    for (int j = 0; j < found; ++j) {
-      if (neighbors[j].squared_distance_m2 > max_sq) break;  // sorted, closest first
-      const Eigen::Vector3d q = points.col(neighbors[j].index) - p;
-      sum += q;
-      sum_outer.noalias() += q * q.transpose();
-      ++count;
-    }
+  ParallelFor(0, n, num_threads, [&](int64_t begin, int64_t end, int /*chunk*/) {
+    std::vector<Neighbor> neighbors(static_cast<size_t>(setting.num_neighbors));
     Eigen::Vector3d normal;
     double planarity = 0.0;
-    if (!NormalFromMoments(sum, sum_outer, count, &normal, &planarity)) continue;
-    if (normal.dot(setting.viewpoint - p) < 0.0) normal = -normal;
-    out.normals.col(i) = normal;
-    out.planarity(i) = planarity;
-  }
+    for (int64_t i = begin; i < end; ++i) {
+      if (!NormalOfPoint(tree, i, setting, neighbors.data(), &normal, &planarity)) continue;
+      out.normals.col(i) = normal;
+      out.planarity(i) = planarity;
+    }
+  });
   return out;
 }
 

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -262,16 +263,20 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   result.nominal = dataset.sensors.nominal_calibration;
 
   // 1. Sweeps.
-  std::vector<lidar::LidarSweep> sweeps;
-  sweeps.reserve(dataset.lidar_sweeps.size());
-  for (size_t i = 0; i < dataset.lidar_sweeps.size(); ++i) {
-    sweeps.push_back(dataset.LoadSweep(i));
-    if (i % 50 == 0) {
-      Report(options, "loading sweeps",
-             static_cast<double>(i + 1) / static_cast<double>(dataset.lidar_sweeps.size()), 0.0,
-             0.0);
-    }
-  }
+  const int64_t num_sweeps = static_cast<int64_t>(dataset.lidar_sweeps.size());
+  std::vector<lidar::LidarSweep> sweeps(static_cast<size_t>(num_sweeps));
+  ParallelFor(0, num_sweeps, problem.solver.num_threads,
+              [&](int64_t begin, int64_t end, int chunk) {
+                for (int64_t i = begin; i < end; ++i) {
+                  sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i));
+                  // The first chunk's progress stands for all of them.
+                  if (chunk == 0 && (i - begin) % 50 == 0) {
+                    Report(options, "loading sweeps",
+                           static_cast<double>(i - begin + 1) / static_cast<double>(end - begin),
+                           0.0, 0.0);
+                  }
+                }
+              });
 
   // 2. Initialization: no hand-measured guess needed.
   result.seconds_loading = SecondsSince(start);
@@ -279,6 +284,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   estimation::CalibrationInitializerOptions init_options = options.initializer;
   init_options.imu_noise = dataset.sensors.imu.noise;
   init_options.p_I_L_prior = result.nominal.p_I_L;
+  init_options.odometry.num_threads = problem.solver.num_threads;
   // A drive without turns (a highway) cannot determine the rotation and offset: the nominal
   // values stand in, and the observability analysis then says what the solve could fix.
   init_options.fallback_q_I_L = result.nominal.q_I_L;

@@ -194,6 +194,44 @@ TEST(IcpTest, PointToPlaneRecoversSimulatedMotionWithRangeNoise) {
   }
 }
 
+TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
+  const test::Scene scene = test::MakeStreetScene(24);
+  const SweepPair pair = SimulatePair(scene, MakePose(0.0, 0.0, 1.8, 0.0, 0.0, 0.0),
+                                      MakePose(1.0, 0.2, 1.8, 2.0, 0.2, 0.1), 0.02, 0.25, 24);
+  const IcpTarget all(pair.target, TargetNormals::kAll, StreetNormals());
+  const IcpTarget on_demand(pair.target, TargetNormals::kOnDemand, StreetNormals());
+  const IcpResult reference = AlignIcp(pair.source, all, Pose3d::Identity(), StreetSetting());
+  const IcpResult lazy = AlignIcp(pair.source, on_demand, Pose3d::Identity(), StreetSetting());
+  // The same normals, computed later: the same arithmetic, bit for bit.
+  EXPECT_EQ(lazy.T_target_source.p, reference.T_target_source.p);
+  EXPECT_EQ(lazy.T_target_source.q.coeffs(), reference.T_target_source.q.coeffs());
+  EXPECT_EQ(lazy.iterations, reference.iterations);
+  // Only the paired points got a normal, and each equals the precomputed one.
+  int prepared = 0;
+  for (Eigen::Index i = 0; i < on_demand.points().cols(); ++i) {
+    if (on_demand.normals().planarity(i) == 0.0) continue;
+    ++prepared;
+    EXPECT_EQ(on_demand.normals().normals.col(i), all.normals().normals.col(i)) << i;
+  }
+  EXPECT_GT(prepared, 0);
+  EXPECT_LT(prepared, on_demand.points().cols());
+  // Threads change only the summation order.
+  IcpSetting threaded = StreetSetting();
+  threaded.num_threads = 3;
+  const IcpResult parallel = AlignIcp(pair.source, on_demand, Pose3d::Identity(), threaded);
+  EXPECT_LT(geometry::TranslationError(parallel.T_target_source, reference.T_target_source), 1e-9);
+  EXPECT_LT(RotationErrorDeg(parallel.T_target_source, reference.T_target_source), 1e-7);
+  EXPECT_EQ(parallel.num_correspondences, reference.num_correspondences);
+  // Normals on several threads are the single-threaded ones exactly.
+  const SurfaceNormals threaded_normals = EstimateNormals(all.tree(), StreetNormals(), 3);
+  EXPECT_EQ(threaded_normals.normals, all.normals().normals);
+  EXPECT_EQ(threaded_normals.planarity, all.normals().planarity);
+  // A bad normal setting is refused when the target is built, not at the first alignment.
+  NormalEstimationSetting bad;
+  bad.num_neighbors = 2;
+  EXPECT_THROW(IcpTarget(pair.target, TargetNormals::kOnDemand, bad), Error);
+}
+
 TEST(IcpTest, RobustLossRecoversEgoMotionBehindAMovingLeadVehicle) {
   // Course §7.3: a truck 7 m ahead drives at the ego car's speed, so in the sensor frame it
   // does not move while the street does. Its large rear face says "no motion along x";

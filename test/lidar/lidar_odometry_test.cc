@@ -143,6 +143,43 @@ TEST_F(LidarOdometryTest, ImuRotationDeskewsAsWell) {
   EXPECT_LT(report.max_relative_rotation_error_deg, 0.1);
 }
 
+TEST_F(LidarOdometryTest, CoarseRegistrationGridAndThreadsKeepTracking) {
+  const ArcTrajectory trajectory;
+  LidarOdometrySetting setting;
+  setting.num_threads = 2;
+  LidarOdometry threaded(setting);
+  setting.num_threads = 1;
+  setting.registration_voxel_m = 0.75;
+  LidarOdometry coarse(setting);
+  LidarOdometry reference;
+  for (const LidarSweep& sweep : *sweeps_) {
+    threaded.AddSweep(sweep);
+    coarse.AddSweep(sweep);
+    reference.AddSweep(sweep);
+  }
+  for (size_t k = 0; k < sweeps_->size(); ++k) {
+    // Threads change only the summation order of the normal equations, so the estimates
+    // agree to the ICP's convergence tolerance (its last step is below it).
+    const IcpConvergenceSetting& tolerance = setting.icp.convergence;
+    EXPECT_LT(geometry::TranslationError(threaded.frames()[k].T_W_L, reference.frames()[k].T_W_L),
+              2.0 * tolerance.translation_m)
+        << "sweep " << k;
+    EXPECT_LT(geometry::AngularDistance(threaded.frames()[k].T_W_L.q, reference.frames()[k].T_W_L.q),
+              2.0 * tolerance.rotation_rad)
+        << "sweep " << k;
+    // The coarse grid registers with fewer points (the map keeps them all).
+    if (k > 0) {
+      EXPECT_LT(coarse.frames()[k].icp.num_correspondences,
+                reference.frames()[k].icp.num_correspondences / 2)
+          << "sweep " << k;
+    }
+  }
+  const DriftReport report = Evaluate(coarse.frames(), trajectory);
+  RecordProperty("coarse_drift_percent", std::to_string(report.drift_percent()));
+  EXPECT_LT(report.drift_percent(), 1.0);
+  EXPECT_LT(report.max_relative_rotation_error_deg, 0.1);
+}
+
 TEST(LidarOdometryErrorsTest, RejectsBadSequences) {
   LidarOdometry odometry;
   LidarSweep sweep;

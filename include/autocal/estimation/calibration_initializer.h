@@ -72,6 +72,10 @@ struct CalibrationInitializerOptions {
   // the first q_I_L, at the first offset): constant-velocity deskewing lets the odometry lag
   // when the turn rate changes, which biased the offset by ~10 ms in the urban test.
   bool gyro_deskew_pass = true;
+  // With the gyro pass on, the first pass only has to find the offset and rotation to
+  // deskew with, not their final values: it registers each sweep with this coarser grid
+  // (LidarOdometrySetting::registration_voxel_m), which halves its cost.
+  double first_pass_registration_voxel_m = 0.75;
   // Steps 3-4 on a drive that cannot determine them (no turns, e.g. a highway): with these
   // set, the chain goes on with the given value and says so in `fallbacks` instead of
   // stopping with a problem. Unset (the default), such a drive is a problem.

@@ -9,6 +9,9 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
 #include <vector>
 
 #include "autocal/geometry/se3.h"
@@ -65,24 +68,52 @@ struct IcpSetting {
   // Cov = H^-1 (sum w^2 var_i J J^T) H^-1 with var_i = sigma_r^2 (n . R u_i)^2 (eq. 4.16).
   // Grazing ground returns then count with their small along-normal noise.
   double source_range_sigma_m = 0.0;
+  // Threads for the correspondence search and the normal equations (common/parallel_for.h).
+  // The result depends on it only through the summation order.
+  int num_threads = 1;
+};
+
+// How an IcpTarget provides normals for point-to-plane alignment.
+enum class TargetNormals {
+  kNone,       // point-to-point only
+  kAll,        // every point's normal, computed when the target is built
+  kOnDemand,   // a point's normal computed when an alignment first pairs a point with it:
+               // a map registered against once computes a fraction of its normals
 };
 
 // A target cloud prepared once for many alignments: its k-d tree and, for point-to-plane,
 // its normals.
 class IcpTarget {
  public:
-  // Throws autocal::Error on non-finite points.
+  // Throws autocal::Error on non-finite points. num_threads is used for kAll.
+  IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
+            const NormalEstimationSetting& normal_setting = {}, int num_threads = 1);
   IcpTarget(Eigen::Matrix3Xd points, bool with_normals,
-            const NormalEstimationSetting& normal_setting = {});
+            const NormalEstimationSetting& normal_setting = {})
+      : IcpTarget(std::move(points), with_normals ? TargetNormals::kAll : TargetNormals::kNone,
+                  normal_setting) {}
 
   const KdTree& tree() const { return tree_; }
   const Eigen::Matrix3Xd& points() const { return tree_.points(); }
-  bool has_normals() const { return normals_.normals.cols() == tree_.size(); }
+  bool has_normals() const { return mode_ != TargetNormals::kNone; }
+  // Every normal for kAll; for kOnDemand only those of points prepared so far (the others
+  // are zero with planarity 0).
   const SurfaceNormals& normals() const { return normals_; }
+
+  // Makes sure the normals of the points with these indices exist (kOnDemand computes the
+  // missing ones on num_threads threads; negative indices are skipped). Safe to call from
+  // concurrent alignments against the same target.
+  void PrepareNormals(const std::vector<int>& indices, int num_threads) const;
 
  private:
   KdTree tree_;
-  SurfaceNormals normals_;
+  TargetNormals mode_;
+  NormalEstimationSetting normal_setting_;
+  // The on-demand cache: normals_ columns are written once, under mutex_, for the points
+  // whose `prepared_` flag is still 0.
+  mutable SurfaceNormals normals_;
+  mutable std::vector<uint8_t> prepared_;
+  mutable std::unique_ptr<std::mutex> mutex_ = std::make_unique<std::mutex>();
 };
 
 struct IcpResult {

@@ -29,6 +29,10 @@ namespace lidar {
 struct LidarOdometrySetting {
   // Voxel edge for each incoming sweep and for the local map.
   double voxel_m = 0.25;
+  // When larger than voxel_m, the sweep is registered with a coarser grid of its points
+  // (the map keeps voxel_m): a few thousand well-spread points determine the pose as well
+  // as all of them, at a fraction of the correspondence searches.
+  double registration_voxel_m = 0.0;
   // Sweeps kept in the local map.
   int local_map_sweeps = 10;
   // Remove motion distortion within each sweep (needs per-point time).
@@ -42,6 +46,9 @@ struct LidarOdometrySetting {
     return setting;
   }();
   geometry::Pose3d initial_T_W_L;
+  // Threads for deskewing, map normals and registration (common/parallel_for.h); also
+  // overrides icp.num_threads.
+  int num_threads = 1;
 };
 
 struct OdometryFrame {
@@ -71,6 +78,8 @@ class LidarOdometry {
   // The sweep deskewed (if enabled) into its stamp's frame and voxel-downsampled.
   Eigen::Matrix3Xd Downsampled(const PointCloud& cloud,
                                const std::optional<Eigen::Vector3d>& angular_velocity) const;
+  // The points that register the sweep (registration_voxel_m).
+  Eigen::Matrix3Xd RegistrationPoints(const Eigen::Matrix3Xd& points) const;
   IcpTarget BuildMap(const Eigen::Vector3d& viewpoint_W) const;
   static Eigen::Matrix3Xd ToWorld(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
   void AddToMap(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);

@@ -6,6 +6,7 @@
 // (l1 - l0) / l2 (eq. 2.3): 1 for a perfect plane, near 0 for a line or an isotropic blob.
 
 #include <Eigen/Core>
+#include <cstdint>
 
 #include "autocal/lidar/kd_tree.h"
 
@@ -31,8 +32,17 @@ struct SurfaceNormals {
   Eigen::VectorXd planarity;
 };
 
-// Normals of every point of `tree.points()`, searching neighbours in the same tree.
-SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting = {});
+// Normals of every point of `tree.points()`, searching neighbours in the same tree, on
+// num_threads threads (common/parallel_for.h). Throws autocal::Error when
+// setting.num_neighbors < 3.
+SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting = {},
+                               int num_threads = 1);
+
+// The normal (facing setting.viewpoint) and planarity of the single point
+// tree.points().col(index), as EstimateNormals computes them. Returns false where the
+// normal is undefined (fewer than 3 neighbours within the radius, or coincident points).
+bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
+                    Eigen::Vector3d* normal, double* planarity);
 
 // Normal (unit, sign arbitrary) and planarity of one neighbourhood given as columns.
 // Returns false when there are fewer than 3 points or they are all the same point.

@@ -1,0 +1,24 @@
+#pragma once
+
+// A minimal fork-join loop for the library's data-parallel kernels (nearest-neighbour
+// searches, normals, residual accumulation). Work is split into num_threads contiguous
+// chunks of [begin, end); chunk 0 runs on the calling thread, so num_threads = 1 costs
+// nothing and runs inline. Results that are summed per chunk and then combined in chunk
+// order are deterministic for a given num_threads.
+
+#include <cstdint>
+#include <functional>
+
+namespace autocal {
+
+// The number of chunks ParallelFor uses for `count` items on `num_threads` threads: at
+// least 1, at most count, never more than requested.
+int ParallelChunks(int64_t count, int num_threads);
+
+// Calls body(chunk_begin, chunk_end, chunk) for every chunk, concurrently, and returns
+// when all have finished. An exception thrown by a body is rethrown on the caller after
+// every chunk has finished (the first one, by chunk order).
+void ParallelFor(int64_t begin, int64_t end, int num_threads,
+                 const std::function<void(int64_t, int64_t, int)>& body);
+
+}  // namespace autocal
