@@ -69,24 +69,84 @@ Eigen::Quaterniond StepExp(const Eigen::Vector3d& phi) {
   return Eigen::Quaterniond(w, k * phi.x(), k * phi.y(), k * phi.z());
 }
 
+using Block = Eigen::Matrix<double, 4, 3>;
+
+// Blocks are written a whole column (4-vector) at a time: a column assembled from separate
+// scalar stores and read back as packets would stall store-to-load forwarding.
+
+// Column j of *out = (x, y, z, 0), as two packets built in registers.
+EIGEN_ALWAYS_INLINE void SetColumn(int j, double x, double y, double z, Block* out) {
+#ifdef EIGEN_VECTORIZE_SSE2
+  double* o = out->data() + 4 * j;
+  _mm_storeu_pd(o, _mm_set_pd(y, x));
+  _mm_storeu_pd(o + 2, _mm_set_sd(z));
+#else
+  out->col(j) = Eigen::Vector4d(x, y, z, 0.0);
+#endif
+}
+
+// The 3x3 matrix m as a Block (zero last row).
+inline Block Padded(const Eigen::Matrix3d& m) {
+  Block out;
+  for (int j = 0; j < 3; ++j) SetColumn(j, m(0, j), m(1, j), m(2, j), &out);
+  return out;
+}
+
+// X^T.
+EIGEN_ALWAYS_INLINE Block Transposed(const Block& X) {
+  Block out;
+#ifdef EIGEN_VECTORIZE_SSE2
+  // Register shuffles of the packets (x0j, x1j) and (x2j, 0) of the columns.
+  const double* x = X.data();
+  const __m128d top0 = _mm_loadu_pd(x), top1 = _mm_loadu_pd(x + 4), top2 = _mm_loadu_pd(x + 8);
+  const __m128d low0 = _mm_loadu_pd(x + 2), low1 = _mm_loadu_pd(x + 6);
+  const __m128d zero = _mm_setzero_pd();
+  double* o = out.data();
+  _mm_storeu_pd(o, _mm_unpacklo_pd(top0, top1));      // (x00, x01)
+  _mm_storeu_pd(o + 2, _mm_unpacklo_pd(top2, zero));  // (x02, 0)
+  _mm_storeu_pd(o + 4, _mm_unpackhi_pd(top0, top1));  // (x10, x11)
+  _mm_storeu_pd(o + 6, _mm_unpackhi_pd(top2, zero));  // (x12, 0)
+  _mm_storeu_pd(o + 8, _mm_unpacklo_pd(low0, low1));  // (x20, x21)
+  _mm_storeu_pd(o + 10, _mm_loadu_pd(x + 10));        // (x22, 0)
+#else
+  for (int j = 0; j < 3; ++j) SetColumn(j, X(j, 0), X(j, 1), X(j, 2), &out);
+#endif
+  return out;
+}
+
+// X Y^T as column combinations of X: column j is sum_k X_k Y(j, k).
+EIGEN_ALWAYS_INLINE Block TimesTransposed(const Block& X, const Block& Y) {
+  Block out;
+  out.col(0) = X.col(0) * Y(0, 0) + X.col(1) * Y(0, 1) + X.col(2) * Y(0, 2);
+  out.col(1) = X.col(0) * Y(1, 0) + X.col(1) * Y(1, 1) + X.col(2) * Y(1, 2);
+  out.col(2) = X.col(0) * Y(2, 0) + X.col(1) * Y(2, 1) + X.col(2) * Y(2, 2);
+  return out;
+}
+
 // X Hat(a), column by column: row r of the product is (r x a)^T. A third fewer operations
 // than the dense product with the skew matrix.
-template <int Rows>
-inline Eigen::Matrix<double, Rows, 3> TimesHat(const Eigen::Matrix<double, Rows, 3>& X,
-                                               const Eigen::Vector3d& a) {
-  Eigen::Matrix<double, Rows, 3> out;
+EIGEN_ALWAYS_INLINE Block TimesHat(const Block& X, const Eigen::Vector3d& a) {
+  Block out;
   out.col(0) = a.z() * X.col(1) - a.y() * X.col(2);
   out.col(1) = a.x() * X.col(2) - a.z() * X.col(0);
   out.col(2) = a.y() * X.col(0) - a.x() * X.col(1);
   return out;
 }
 
-// -Hat(a) X: column j is x_j x a.
-inline Eigen::Matrix3d MinusHatTimes(const Eigen::Vector3d& a, const Eigen::Matrix3d& X) {
-  Eigen::Matrix3d out;
-  out.col(0) = X.col(0).cross(a);
-  out.col(1) = X.col(1).cross(a);
-  out.col(2) = X.col(2).cross(a);
+// -Hat(a) X: column j is x_j x a, as a Block (Rows = 4) or a plain 3x3 matrix (Rows = 3).
+// It mixes rows, so it does not vectorize; the propagation uses it only where no
+// transposed form is at hand.
+template <int Rows>
+inline Eigen::Matrix<double, Rows, 3> MinusHatTimes(const Eigen::Vector3d& a, const Block& X) {
+  Eigen::Matrix<double, Rows, 3> out;
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d c = X.col(j).head<3>().cross(a);
+    if constexpr (Rows == 4) {
+      SetColumn(j, c.x(), c.y(), c.z(), &out);
+    } else {
+      out.col(j) = c;
+    }
+  }
   return out;
 }
 
@@ -101,32 +161,36 @@ void AddVelocityToPosition(double h, Eigen::Matrix<double, 9, 9>* D,
   B->middleRows<3>(6) += h * B->middleRows<3>(3);
 }
 
-// dt R Jl(phi) for the full step angle phi = w dt and dt/2 R Jl(phi / 2), the two rate
-// sensitivities of a step. Jl(phi) = I + a Hat(phi) + b Hat(phi)^2 = (1 - b theta^2) I +
-// a Hat(phi) + b phi phi^T, so both are combinations of R, R Hat(phi) and (R phi) phi^T,
-// formed once.
-void StepRotatedLeftJacobians(const Eigen::Matrix3d& R, const Eigen::Vector3d& phi, double dt,
-                              Eigen::Matrix3d* g_full, Eigen::Matrix3d* g_half) {
+// The two rate sensitivities of a step, g_full = dt R_k Jl(phi) for the full step angle
+// phi = w dt and g_half = dt/2 R_k Jl(phi / 2), from the mid-step rotation R_mid = R_k H,
+// H = Exp(phi / 2), which the deltas need anyway. Since Jl(x) = Exp(x) Jr(x):
+//   g_half = dt/2 R_mid H^T Jl(phi/2) = dt/2 R_mid Jr(phi/2),
+//   g_full = dt R_mid H^T Exp(phi) Jr(phi) = dt R_mid Exp(phi/2) Jr(phi) = dt R_mid Jm(phi),
+// Jm(phi) = int_{-1/2}^{1/2} Exp(s phi) ds = I + c Hat(phi)^2, c = (1 - sin(t/2) 2/t) / t^2
+// (the odd part of the integrand cancels). With Hat(phi)^2 = phi phi^T - t^2 I both are
+// combinations of R_mid, R_mid Hat(phi) and (R_mid phi) phi^T.
+void StepRateJacobians(const Block& R_mid, const Eigen::Vector3d& phi, double dt, Block* g_full,
+                       Block* g_half) {
   const double t2 = phi.squaredNorm();
   const double half_dt = 0.5 * dt;
   if (t2 > kStepSeriesThetaSquared) {
-    *g_full = R * geometry::LeftJacobian(phi) * dt;
-    *g_half = R * geometry::LeftJacobian(Eigen::Vector3d(0.5 * phi)) * half_dt;
+    const Eigen::Matrix3d R = R_mid.topRows<3>();
+    const Eigen::Vector3d half_phi = 0.5 * phi;
+    *g_full = Padded(R * (geometry::ExpMatrix(half_phi) * geometry::RightJacobian(phi)) * dt);
+    *g_half = Padded(R * geometry::RightJacobian(half_phi) * half_dt);
     return;
   }
-  const auto coefficients = [](double s2, double* a, double* b) {
-    *a = 0.5 - s2 * (1.0 / 24.0 - s2 * (1.0 / 720.0 - s2 / 40320.0));
-    *b = 1.0 / 6.0 - s2 * (1.0 / 120.0 - s2 * (1.0 / 5040.0 - s2 / 362880.0));
-  };
-  double a, b, a_half, b_half;
-  coefficients(t2, &a, &b);
-  coefficients(0.25 * t2, &a_half, &b_half);
-  const Eigen::Matrix3d R_hat = TimesHat<3>(R, phi);
-  const Eigen::Matrix3d R_outer = (R * phi) * phi.transpose();
-  *g_full = (dt * (1.0 - b * t2)) * R + (dt * a) * R_hat + (dt * b) * R_outer;
-  // phi / 2: Hat scales by 1/2, the outer product by 1/4.
-  *g_half = (half_dt * (1.0 - 0.25 * b_half * t2)) * R + (half_dt * 0.5 * a_half) * R_hat +
-            (half_dt * 0.25 * b_half) * R_outer;
+  // Series in x2 = (t/2)^2 of c and of the coefficients a = (1 - cos s) / s^2,
+  // b = (s - sin s) / s^3 of Jr at s = t/2.
+  const double x2 = 0.25 * t2;
+  const double c = 1.0 / 24.0 - x2 * (1.0 / 480.0 - x2 * (1.0 / 20160.0 - x2 / 1451520.0));
+  const double a = 0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0 - x2 / 40320.0));
+  const double b = 1.0 / 6.0 - x2 * (1.0 / 120.0 - x2 * (1.0 / 5040.0 - x2 / 362880.0));
+  const Block R_outer = (R_mid * phi) * phi.transpose();
+  *g_full = (dt * (1.0 - c * t2)) * R_mid + (dt * c) * R_outer;
+  // Jr(phi/2) = (1 - b t^2/4) I - a/2 Hat(phi) + b/4 phi phi^T.
+  *g_half = (half_dt * (1.0 - b * x2)) * R_mid - (half_dt * 0.5 * a) * TimesHat(R_mid, phi) +
+            (half_dt * 0.25 * b) * R_outer;
 }
 
 }  // namespace
@@ -165,8 +229,10 @@ void ImuPreintegration::ResetDeltas() {
   delta_q_.setIdentity();
   delta_v_.setZero();
   delta_p_.setZero();
-  cov_delta_.setZero();
-  cov_delta_bias_.setZero();
+  for (Block* block : {&cov_.tt, &cov_.vt, &cov_.vv, &cov_.pt, &cov_.pv, &cov_.pp, &cov_.tg,
+                       &cov_.vg, &cov_.va, &cov_.pg, &cov_.pa}) {
+    block->setZero();
+  }
   cov_pending_half_dt_s_ = 0.0;
   var_bg_ = 0.0;
   var_ba_ = 0.0;
@@ -238,19 +304,21 @@ void ImuPreintegration::Propagate(const Step& step) {
 
   if (options_.compute_covariance) {
     const double half_dt = 0.5 * dt;
-    // R_k Jl(w dt) = R_{k+1} Jr(w dt): sensitivity of the left rotation error to the rate.
-    Eigen::Matrix3d g_theta, g_half;
-    StepRotatedLeftJacobians(delta_q_.toRotationMatrix(), dt * omega, dt, &g_theta, &g_half);
+    // Sensitivities of the left rotation error to the rate over the step and its first half.
+    const Block R_mid_block = Padded(R_mid);
+    const Block g_v_accel = dt * R_mid_block;
+    Block g_theta, g_half;
+    StepRateJacobians(R_mid_block, dt * omega, dt, &g_theta, &g_half);
     // Eq. F4, gyro input to dv: -S g_half with S = Hat(u).
-    const Eigen::Matrix3d g_v_gyro = MinusHatTimes(u, g_half);
-    const Eigen::Matrix3d g_v_accel = R_mid * dt;
+    const Block g_v_gyro = MinusHatTimes<4>(u, g_half);
 
     // Bias Jacobians, Eq. F6 (old values on the right-hand side).
-    const Eigen::Matrix3d u_bg = MinusHatTimes(u, d_theta_d_bg_ - g_half);
+    const Eigen::Matrix3d u_bg = MinusHatTimes<3>(u, d_theta_d_bg_ - g_half);
+    const Eigen::Matrix3d g_v_accel_3 = dt * R_mid;
     d_p_d_bg_ += dt * d_v_d_bg_ + half_dt * u_bg;
-    d_p_d_ba_ += dt * d_v_d_ba_ - half_dt * g_v_accel;
+    d_p_d_ba_ += dt * d_v_d_ba_ - half_dt * g_v_accel_3;
     d_v_d_bg_ += u_bg;
-    d_v_d_ba_ -= g_v_accel;
+    d_v_d_ba_ -= g_v_accel_3;
     d_theta_d_bg_ -= g_theta;
 
     PropagateCovariance(u, g_theta, g_v_gyro, g_v_accel, dt);
@@ -275,73 +343,65 @@ void ImuPreintegration::Propagate(const Step& step) {
 // bias inputs, the white-noise inputs equal H (the noise enters like a bias over one step), so
 //   D66 <- A6 D66 A6^T + A6 B6 H^T + H B6^T A6^T + H (C + Qd) H^T = A6 D66 A6^T + X H^T + H X^T
 // with X = A6 B6 + H (C + Qd) / 2: the one product X H^T covers both the bias coupling and
-// the noise, and its sum with its transpose is symmetric by construction. The accelerometer noise stays apart since it is rotation
-// invariant: g_v_accel (sa^2/dt) g_v_accel^T = sa^2 dt I. The dtheta-b_a block of B is zero
-// (the dtheta row of A has no b_a input), which removes one 3x3 product. Products are 3x3,
-// coefficient-based (Eigen's GEMM path costs more at this size).
-void ImuPreintegration::PropagateCovariance(const Eigen::Vector3d& u,
-                                            const Eigen::Matrix3d& g_theta,
-                                            const Eigen::Matrix3d& g_v_gyro,
-                                            const Eigen::Matrix3d& g_v_accel, double dt) {
-  auto& D = cov_delta_;
-  auto& B = cov_delta_bias_;
+// the noise, and its sum with its transpose is symmetric by construction. The accelerometer
+// noise stays apart since it is rotation invariant: g_v_accel (sa^2/dt) g_v_accel^T =
+// sa^2 dt I. The dtheta-b_a block of B is zero (the dtheta row of A has no b_a input), which
+// removes one 3x3 product. Every product is written as X Y^T or X Hat(u), column
+// combinations of a padded Block X, using the lower blocks of D and transposing where the
+// other side is needed (Eigen's GEMM path costs more at this size, and its 3-row columns do
+// not vectorize).
+void ImuPreintegration::PropagateCovariance(const Eigen::Vector3d& u, const Block& g_theta,
+                                            const Block& g_v_gyro, const Block& g_v_accel,
+                                            double dt) {
+  CovarianceBlocks& c = cov_;
   // The second p += dt/2 v of the previous step is still pending; v has not changed since.
-  // As AddVelocityToPosition(), but only the p rows are formed: the (dtheta, v) columns of
-  // the p rows are overwritten below and mirrored at the end.
   const double h = cov_pending_half_dt_s_ + 0.5 * dt;
-  const Eigen::Matrix3d D_vv = D.block<3, 3>(3, 3);
-  const Eigen::Matrix3d h_D_pv = h * D.block<3, 3>(6, 3);
-  D.block<3, 3>(6, 6) += h_D_pv + h_D_pv.transpose() + (h * h) * D_vv;
-  const Eigen::Matrix3d D_pt = D.block<3, 3>(6, 0) + h * D.block<3, 3>(3, 0);
-  const Eigen::Matrix3d D_pv = D.block<3, 3>(6, 3) + h * D_vv;
-  B.bottomRows<3>() += h * B.middleRows<3>(3);
+  const Block h_pv = h * c.pv;
+  c.pp += (h_pv + Transposed(h_pv)) + (h * h) * c.vv;
+  c.pt += h * c.vt;
+  c.pv += h * c.vv;
+  c.pg += h * c.vg;
+  c.pa += h * c.va;
 
-  const Eigen::Matrix3d D_tt = D.block<3, 3>(0, 0);
-  const Eigen::Matrix3d D_tv = D.block<3, 3>(0, 3);
-  const Eigen::Matrix3d B_tg = B.block<3, 3>(0, 0);
   // (A6 B6) on the v rows; the dtheta rows of A6 are identity.
-  const Eigen::Matrix3d AB_vg = B.block<3, 3>(3, 0) + MinusHatTimes(u, B_tg);
+  const Block AB_vg = c.vg + MinusHatTimes<4>(u, c.tg);
 
   // p rows, final for this step: D_p6 A6^T + B_p H^T (the p-p block was final above).
-  Eigen::Matrix3d new_pt = D_pt;
-  new_pt.noalias() += B.block<3, 3>(6, 0).lazyProduct(g_theta.transpose());
-  Eigen::Matrix3d new_pv = D_pv + TimesHat<3>(D_pt, u);
-  new_pv.noalias() += B.block<3, 3>(6, 0).lazyProduct(g_v_gyro.transpose());
-  new_pv.noalias() += B.block<3, 3>(6, 3).lazyProduct(g_v_accel.transpose());
+  const Block new_pt = c.pt + TimesTransposed(c.pg, g_theta);
+  const Block new_pv =
+      c.pv + TimesHat(c.pt, u) + TimesTransposed(c.pg, g_v_gyro) + TimesTransposed(c.pa, g_v_accel);
 
   // X = A6 B6 + H (C + Qd) / 2, Qd = sg^2/dt for the gyro (Eq. F5).
   const double qg = noise_.gyroscope_noise_density * noise_.gyroscope_noise_density / dt;
   const double sa2_dt =
       noise_.accelerometer_noise_density * noise_.accelerometer_noise_density * dt;
   const double cg = 0.5 * (var_bg_ + qg);
-  const Eigen::Matrix3d X_tg = B_tg + cg * g_theta;
-  const Eigen::Matrix3d X_vg = AB_vg + cg * g_v_gyro;
-  const Eigen::Matrix3d X_va = B.block<3, 3>(3, 3) + (0.5 * var_ba_) * g_v_accel;
-  // Blocks of X H^T.
-  const Eigen::Matrix3d M_tt = X_tg.lazyProduct(g_theta.transpose());
-  const Eigen::Matrix3d M_tv = X_tg.lazyProduct(g_v_gyro.transpose());
-  const Eigen::Matrix3d M_vt = X_vg.lazyProduct(g_theta.transpose());
-  // A6 D66 A6^T: the v-v block is D_vv - S D_tv - D_vt S^T + S D_tt S^T; its cross terms
-  // join those of X H^T.
-  const Eigen::Matrix3d D_tt_S = TimesHat<3>(D_tt, u);
-  Eigen::Matrix3d W_vv = MinusHatTimes(u, D_tv);
-  W_vv.noalias() += X_vg.lazyProduct(g_v_gyro.transpose());
-  W_vv.noalias() += X_va.lazyProduct(g_v_accel.transpose());
+  const Block X_tg = c.tg + cg * g_theta;
+  const Block X_vg = AB_vg + cg * g_v_gyro;
+  const Block X_va = c.va + (0.5 * var_ba_) * g_v_accel;
+  // Blocks of X H^T; the dtheta-v one transposed, (X_tg G_vg^T)^T = G_vg X_tg^T, since the
+  // v-dtheta block is the one kept.
+  const Block M_tt = TimesTransposed(X_tg, g_theta);
+  const Block M_vt = TimesTransposed(X_vg, g_theta);
+  const Block M_tv_T = TimesTransposed(g_v_gyro, X_tg);
+  // A6 D66 A6^T: the v-dtheta block gains (D_tt S)^T = -S D_tt, the v-v block
+  // S D_tt S^T = (-S D_tt) S and -S D_tv - D_vt S^T, whose sum with its transpose is formed
+  // from D_vt S = (-S D_tv)^T together with the X H^T terms.
+  const Block minus_S_D_tt = Transposed(TimesHat(c.tt, u));
+  Block W_vv = TimesHat(c.vt, u);
+  W_vv += TimesTransposed(X_vg, g_v_gyro) + TimesTransposed(X_va, g_v_accel);
 
-  D.block<3, 3>(0, 0) = D_tt + (M_tt + M_tt.transpose());
-  D.block<3, 3>(0, 3) = D_tv + D_tt_S + M_tv + M_vt.transpose();
-  D.block<3, 3>(3, 3) = D_vv + MinusHatTimes(u, D_tt_S) + (W_vv + W_vv.transpose());
-  D.block<3, 3>(3, 3).diagonal().array() += sa2_dt;
-  D.block<3, 3>(6, 0) = new_pt;
-  D.block<3, 3>(6, 3) = new_pv;
-  D.block<3, 3>(3, 0) = D.block<3, 3>(0, 3).transpose();
-  D.block<3, 3>(0, 6) = new_pt.transpose();
-  D.block<3, 3>(3, 6) = new_pv.transpose();
+  c.tt += M_tt + Transposed(M_tt);
+  c.vt += minus_S_D_tt + M_tv_T + M_vt;
+  c.vv += TimesHat(minus_S_D_tt, u) + (W_vv + Transposed(W_vv));
+  c.vv.diagonal().array() += sa2_dt;
+  c.pt = new_pt;
+  c.pv = new_pv;
 
   // B6 <- A6 B6 + H C; the p rows of B are unchanged until the deferred p += dt/2 v.
-  B.block<3, 3>(0, 0) = B_tg + var_bg_ * g_theta;
-  B.block<3, 3>(3, 0) = AB_vg + var_bg_ * g_v_gyro;
-  B.block<3, 3>(3, 3) += var_ba_ * g_v_accel;
+  c.tg += var_bg_ * g_theta;
+  c.vg = AB_vg + var_bg_ * g_v_gyro;
+  c.va += var_ba_ * g_v_accel;
 
   cov_pending_half_dt_s_ = 0.5 * dt;
   // The bias random walk adds s_w^2 dt per step.
@@ -373,14 +433,25 @@ bool ImuPreintegration::ReintegrateIfNeeded(const Eigen::Vector3d& b_g,
 
 // Right error dphi = dR^T dtheta, so d(dphi)/d(b_g) = dR^T d(dtheta)/d(b_g).
 Eigen::Matrix3d ImuPreintegration::d_R_d_bg() const {
-  return delta_q_.conjugate().toRotationMatrix() * d_theta_d_bg_;
+  return delta_q_.conjugate().toRotationMatrix() * d_theta_d_bg_.topRows<3>();
 }
 
 // Left to right rotation error: dphi = dR^T dtheta; the other components are unchanged.
 Matrix15d ImuPreintegration::Covariance() const {
   const Eigen::Matrix3d Rt = delta_q_.conjugate().toRotationMatrix();
-  Eigen::Matrix<double, 9, 9> D = cov_delta_;
-  Eigen::Matrix<double, 9, 6> B = cov_delta_bias_;
+  const CovarianceBlocks& c = cov_;
+  Eigen::Matrix<double, 9, 9> D;
+  D.block<3, 3>(0, 0) = c.tt.topRows<3>();
+  D.block<3, 3>(3, 0) = c.vt.topRows<3>();
+  D.block<3, 3>(3, 3) = c.vv.topRows<3>();
+  D.block<3, 3>(6, 0) = c.pt.topRows<3>();
+  D.block<3, 3>(6, 3) = c.pv.topRows<3>();
+  D.block<3, 3>(6, 6) = c.pp.topRows<3>();
+  D.block<3, 3>(0, 3) = c.vt.topRows<3>().transpose();
+  D.block<6, 3>(0, 6) = D.block<3, 6>(6, 0).transpose();
+  Eigen::Matrix<double, 9, 6> B;
+  B << c.tg.topRows<3>(), Eigen::Matrix3d::Zero(), c.vg.topRows<3>(), c.va.topRows<3>(),
+      c.pg.topRows<3>(), c.pa.topRows<3>();
   AddVelocityToPosition(cov_pending_half_dt_s_, &D, &B);
   Matrix15d cov;
   cov.topLeftCorner<9, 9>() = D;

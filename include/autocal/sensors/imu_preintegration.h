@@ -113,12 +113,23 @@ class ImuPreintegration {
     Eigen::Vector3d accel_m_s2;
     double dt_s;
   };
+  // A 3x3 block kept in the top rows of a 4x3 matrix whose last row is zero: each column
+  // is two aligned SSE2 packets, so the column combinations that make up the 3x3 products
+  // of a step vectorize without any -march flag.
+  using Block = Eigen::Matrix<double, 4, 3>;
+  // The covariance blocks that change during integration (see the comment on the members).
+  // Of the symmetric 9x9 delta block only the lower blocks are kept; the delta-bias block
+  // is 9x6 with a zero dtheta-b_a block.
+  struct CovarianceBlocks {
+    Block tt, vt, vv, pt, pv, pp;  // delta-delta: dtheta, dv, dp
+    Block tg, vg, va, pg, pa;      // delta-bias: (dtheta, dv, dp) x (b_g, b_a)
+  };
+
   void ResetDeltas();
   void Propagate(const Step& step);
   // u: the step's velocity increment in frame i (S = Hat(u) in Eq. F4).
-  void PropagateCovariance(const Eigen::Vector3d& u, const Eigen::Matrix3d& g_theta,
-                           const Eigen::Matrix3d& g_v_gyro, const Eigen::Matrix3d& g_v_accel,
-                           double dt_s);
+  void PropagateCovariance(const Eigen::Vector3d& u, const Block& g_theta, const Block& g_v_gyro,
+                           const Block& g_v_accel, double dt_s);
 
   ImuNoise noise_;
   PreintegrationOptions options_;
@@ -135,15 +146,14 @@ class ImuPreintegration {
   // error on output. The covariance is kept in blocks: the bias rows of the transition are
   // identity, so the bias-bias block is the random-walk drift since t_i, diag(var_bg I,
   // var_ba I), and only the 9x9 delta block and the 9x6 delta-bias block need products.
-  Eigen::Matrix<double, 9, 9> cov_delta_;
-  Eigen::Matrix<double, 9, 6> cov_delta_bias_;
+  CovarianceBlocks cov_;
   double var_bg_ = 0.0;
   double var_ba_ = 0.0;
   // The step's transition ends with p += dt/2 v (Eq. F4 split, see PropagateCovariance);
   // the blocks above lack it for the last step, so that the next step applies it together
   // with its own first one, and Covariance() applies it on output.
   double cov_pending_half_dt_s_ = 0.0;
-  Eigen::Matrix3d d_theta_d_bg_;
+  Block d_theta_d_bg_;
   Eigen::Matrix3d d_v_d_bg_;
   Eigen::Matrix3d d_v_d_ba_;
   Eigen::Matrix3d d_p_d_bg_;
