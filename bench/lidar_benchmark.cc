@@ -1,12 +1,18 @@
 // LiDAR module speed on the real scan pair (../shared/data/lidar_scan_pair, or
-// $AUTOCAL_SHARED_DIR/data/lidar_scan_pair): voxel downsampling, k-d tree build, target
-// normals, and full point-to-plane registration at 0.25 m voxels. Single-threaded.
+// $AUTOCAL_SHARED_DIR/data/lidar_scan_pair): voxel downsampling, k-d tree build and queries,
+// target normals, and full point-to-plane registration at 0.25 m voxels. Single-threaded.
+// nanoflann, the k-d tree the library used before its own, is measured alongside.
 
 #include <benchmark/benchmark.h>
 
+#include <nanoflann.hpp>
+
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
+#include <random>
 #include <string>
+#include <vector>
 
 #include "autocal/io/point_cloud_file.h"
 #include "autocal/lidar/icp.h"
@@ -73,6 +79,123 @@ void BM_KdTreeBuildFullScan(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(pair.source.size());
 }
 BENCHMARK(BM_KdTreeBuildFullScan)->Unit(benchmark::kMillisecond);
+
+// Query workload on the full-scan tree: 10,000 points of the target scan (the other sweep,
+// so queries lie near but not on the indexed points), drawn with a fixed seed.
+constexpr int kNumQueries = 10000;
+
+Eigen::Matrix3Xd QueryPoints(const PointCloud& cloud) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<Eigen::Index> pick(0, cloud.points.cols() - 1);
+  Eigen::Matrix3Xd queries(3, kNumQueries);
+  for (int i = 0; i < kNumQueries; ++i) queries.col(i) = cloud.points.col(pick(rng));
+  return queries;
+}
+
+void BM_KdTreeKnnFullScan(benchmark::State& state) {
+  REQUIRE_PAIR(state);
+  const autocal::lidar::KdTree tree(pair.source.points);
+  const Eigen::Matrix3Xd queries = QueryPoints(pair.target);
+  const int k = static_cast<int>(state.range(0));
+  std::vector<autocal::lidar::Neighbor> neighbors(static_cast<size_t>(k));
+  for (auto _ : state) {
+    double sum_m2 = 0.0;
+    for (int i = 0; i < kNumQueries; ++i) {
+      tree.Knn(queries.col(i), k, neighbors.data());
+      sum_m2 += neighbors[static_cast<size_t>(k - 1)].squared_distance_m2;
+    }
+    benchmark::DoNotOptimize(sum_m2);
+  }
+  state.counters["queries"] = kNumQueries;
+}
+BENCHMARK(BM_KdTreeKnnFullScan)->Arg(5)->Arg(10)->Unit(benchmark::kMillisecond);
+
+// The same build and k-NN workload through nanoflann 1.4 (leaf 16, as the library used it
+// before its own tree): the peer the k-d tree is measured against.
+struct NanoflannAdaptor {
+  const Eigen::Matrix3Xd* points = nullptr;
+  size_t kdtree_get_point_count() const { return static_cast<size_t>(points->cols()); }
+  double kdtree_get_pt(size_t index, size_t dim) const {
+    return (*points)(static_cast<Eigen::Index>(dim), static_cast<Eigen::Index>(index));
+  }
+  template <class BoundingBox>
+  bool kdtree_get_bbox(BoundingBox& /*bbox*/) const {
+    return false;
+  }
+};
+using NanoflannIndex =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, NanoflannAdaptor>,
+                                        NanoflannAdaptor, 3, uint32_t>;
+
+void BM_NanoflannBuildFullScan(benchmark::State& state) {
+  REQUIRE_PAIR(state);
+  for (auto _ : state) {
+    const Eigen::Matrix3Xd points = pair.source.points;  // the copy KdTree makes too
+    const NanoflannAdaptor adaptor{&points};
+    NanoflannIndex index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    benchmark::DoNotOptimize(index.root_node);
+  }
+}
+BENCHMARK(BM_NanoflannBuildFullScan)->Unit(benchmark::kMillisecond);
+
+void BM_NanoflannKnnFullScan(benchmark::State& state) {
+  REQUIRE_PAIR(state);
+  const NanoflannAdaptor adaptor{&pair.source.points};
+  const NanoflannIndex index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  const Eigen::Matrix3Xd queries = QueryPoints(pair.target);
+  const size_t k = static_cast<size_t>(state.range(0));
+  std::vector<uint32_t> indices(k);
+  std::vector<double> distances(k);
+  for (auto _ : state) {
+    double sum_m2 = 0.0;
+    for (int i = 0; i < kNumQueries; ++i) {
+      nanoflann::KNNResultSet<double, uint32_t, size_t> result(k);
+      result.init(indices.data(), distances.data());
+      index.findNeighbors(result, queries.col(i).data(), nanoflann::SearchParams());
+      sum_m2 += distances[k - 1];
+    }
+    benchmark::DoNotOptimize(sum_m2);
+  }
+  state.counters["queries"] = kNumQueries;
+}
+BENCHMARK(BM_NanoflannKnnFullScan)->Arg(5)->Arg(10)->Unit(benchmark::kMillisecond);
+
+// Nearest with no bound (argument 0) and with the ICP default bound of 1 m (argument 100, cm).
+void BM_KdTreeNearestFullScan(benchmark::State& state) {
+  REQUIRE_PAIR(state);
+  const autocal::lidar::KdTree tree(pair.source.points);
+  const Eigen::Matrix3Xd queries = QueryPoints(pair.target);
+  const double bound_m =
+      state.range(0) == 0 ? std::numeric_limits<double>::infinity() : state.range(0) / 100.0;
+  int found = 0;
+  for (auto _ : state) {
+    found = 0;
+    autocal::lidar::Neighbor nearest;
+    for (int i = 0; i < kNumQueries; ++i) found += tree.Nearest(queries.col(i), bound_m, &nearest);
+    benchmark::DoNotOptimize(found);
+  }
+  state.counters["found"] = found;
+}
+BENCHMARK(BM_KdTreeNearestFullScan)->Arg(0)->Arg(100)->Unit(benchmark::kMillisecond);
+
+void BM_KdTreeRadiusFullScan(benchmark::State& state) {
+  REQUIRE_PAIR(state);
+  const autocal::lidar::KdTree tree(pair.source.points);
+  const Eigen::Matrix3Xd queries = QueryPoints(pair.target);
+  const double radius_m = state.range(0) / 100.0;
+  std::vector<autocal::lidar::Neighbor> neighbors;
+  size_t total = 0;
+  for (auto _ : state) {
+    total = 0;
+    for (int i = 0; i < kNumQueries; ++i) {
+      tree.RadiusSearch(queries.col(i), radius_m, &neighbors);
+      total += neighbors.size();
+    }
+    benchmark::DoNotOptimize(total);
+  }
+  state.counters["mean_found"] = static_cast<double>(total) / kNumQueries;
+}
+BENCHMARK(BM_KdTreeRadiusFullScan)->Arg(50)->Unit(benchmark::kMillisecond);
 
 void BM_TargetPreparation(benchmark::State& state) {
   REQUIRE_PAIR(state);

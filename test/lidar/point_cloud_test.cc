@@ -119,44 +119,6 @@ TEST(VoxelGridTest, IndependentOfOrderAndRejectsBadInput) {
   EXPECT_EQ(VoxelDownsample(PointCloud(), 1.0).size(), 0);
 }
 
-TEST(KdTreeTest, MatchesBruteForce) {
-  const PointCloud cloud = RandomCloud(3000, 5, 20.0);
-  const KdTree tree(cloud.points);
-  const PointCloud queries = RandomCloud(200, 6, 22.0);
-  std::vector<Neighbor> radius_result;
-  for (int q = 0; q < queries.size(); ++q) {
-    const Eigen::Vector3d query = queries.points.col(q);
-    std::vector<std::pair<double, int>> brute;
-    for (int i = 0; i < cloud.size(); ++i) {
-      brute.emplace_back((cloud.points.col(i) - query).squaredNorm(), i);
-    }
-    std::sort(brute.begin(), brute.end());
-    const std::vector<Neighbor> knn = tree.Knn(query, 8);
-    ASSERT_EQ(knn.size(), 8u);
-    for (int k = 0; k < 8; ++k) {
-      EXPECT_EQ(knn[k].index, brute[k].second) << "query " << q << " rank " << k;
-      EXPECT_DOUBLE_EQ(knn[k].squared_distance_m2, brute[k].first);
-    }
-    Neighbor nearest;
-    ASSERT_TRUE(tree.Nearest(query, 100.0, &nearest));
-    EXPECT_EQ(nearest.index, brute[0].second);
-    const double nearest_m = std::sqrt(brute[0].first);
-    EXPECT_FALSE(tree.Nearest(query, 0.999 * nearest_m, &nearest));
-    EXPECT_TRUE(tree.Nearest(query, 1.001 * nearest_m, &nearest));
-    const double radius_m = 2.5;
-    tree.RadiusSearch(query, radius_m, &radius_result);
-    const size_t expected = std::count_if(
-        brute.begin(), brute.end(), [&](const auto& e) { return e.first < radius_m * radius_m; });
-    ASSERT_EQ(radius_result.size(), expected) << "query " << q;
-    for (size_t k = 0; k < expected; ++k) EXPECT_EQ(radius_result[k].index, brute[k].second);
-  }
-  EXPECT_THROW(KdTree(Eigen::Matrix3Xd::Constant(3, 4, std::nan(""))), Error);
-  const KdTree empty{Eigen::Matrix3Xd(3, 0)};
-  Neighbor none;
-  EXPECT_FALSE(empty.Nearest(Eigen::Vector3d::Zero(), 1.0, &none));
-  EXPECT_TRUE(empty.Knn(Eigen::Vector3d::Zero(), 3).empty());
-}
-
 TEST(NormalsTest, SimulatedScanNormalsMatchTheSurfaces) {
   // Ray-cast scene: every point lies on the ground (normal z) or on a box face (normal x
   // or y); far from edges the PCA normal must be the face normal, facing the sensor.

@@ -1,7 +1,8 @@
 #pragma once
 
-// Nearest-neighbour search over a fixed set of 3D points: a k-d tree (nanoflann) built
-// once, queried many times. nanoflann stays an implementation detail of the library.
+// Nearest-neighbour search over a fixed set of 3D points: a k-d tree built once, queried
+// many times. Results are exact: every query returns what a brute-force scan sorted by
+// (squared distance, index) would, so ties go to the lower index.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -30,16 +31,17 @@ class KdTree {
   int64_t size() const;
   const Eigen::Matrix3Xd& points() const;
 
-  // The nearest point closer than max_distance_m (pass infinity for no bound). Returns
-  // false when there is none. The bound prunes the search, so a tight bound is faster.
+  // The nearest point strictly closer than max_distance_m (pass infinity for no bound;
+  // ties: the lower index). Returns false when there is none. The bound prunes the search,
+  // so a tight bound is faster.
   bool Nearest(const Eigen::Vector3d& query, double max_distance_m, Neighbor* nearest) const;
 
-  // The k nearest points, closest first, into out[0 .. returned count). out must have
-  // room for k entries. Returns min(k, size()).
+  // The k nearest points, closest first (ties: lower index first), into
+  // out[0 .. returned count). out must have room for k entries. Returns min(k, size()).
   int Knn(const Eigen::Vector3d& query, int k, Neighbor* out) const;
   std::vector<Neighbor> Knn(const Eigen::Vector3d& query, int k) const;
 
-  // Every point within radius_m (inclusive bound is not guaranteed), closest first.
+  // Every point strictly closer than radius_m, closest first (ties: lower index first).
   // `neighbors` is cleared first; reuse it across calls to avoid allocations.
   void RadiusSearch(const Eigen::Vector3d& query, double radius_m,
                     std::vector<Neighbor>* neighbors) const;
