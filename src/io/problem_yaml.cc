@@ -225,6 +225,7 @@ constexpr int64_t kMaxWindowSize = 10000;
 constexpr int64_t kMaxIterations = 100000;
 constexpr int64_t kMaxThreads = 1024;
 constexpr int64_t kMaxPointsPerSweep = 10000000;
+constexpr int64_t kMaxSweepStride = 100;
 
 Problem ParseProblem(const YamlFile& file) {
   const YAML::Node& root = file.root();
@@ -255,13 +256,15 @@ Problem ParseProblem(const YamlFile& file) {
   }
   RejectWithoutSensor(file, root, "", "lidar", problem.sensors.lidar, "lidar");
   if (const YAML::Node lidar = root["lidar"]) {
-    file.ExpectMap(lidar, "lidar", {"max_points_per_sweep", "voxel_m"});
+    file.ExpectMap(lidar, "lidar", {"max_points_per_sweep", "voxel_m", "sweep_stride"});
     if (const YAML::Node n = lidar["max_points_per_sweep"]) {
       problem.lidar.max_points_per_sweep =
           IntInRange(file, n, "lidar.max_points_per_sweep", 1, kMaxPointsPerSweep);
     }
     if (const YAML::Node n = lidar["voxel_m"])
       problem.lidar.voxel_m = file.Positive(n, "lidar.voxel_m");
+    if (const YAML::Node n = lidar["sweep_stride"])
+      problem.lidar.sweep_stride = IntInRange(file, n, "lidar.sweep_stride", 1, kMaxSweepStride);
   }
   return problem;
 }

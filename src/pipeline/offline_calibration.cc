@@ -318,12 +318,15 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
            per_iteration * (p.max_iterations - p.iteration));
   };
   std::vector<lidar::LidarSweep> keyframe_sweeps;
-  // The sweeps are not needed elsewhere any more: moved, not copied.
-  for (int index : init.keyframe_sweeps) {
-    keyframe_sweeps.push_back(std::move(sweeps[static_cast<size_t>(index)]));
+  std::vector<estimation::Keyframe> keyframes;
+  // Every sweep_stride-th keyframe; the sweeps are not needed elsewhere any more: moved, not
+  // copied.
+  const size_t stride = static_cast<size_t>(problem.lidar.sweep_stride);
+  for (size_t k = 0; k < init.keyframe_sweeps.size(); k += stride) {
+    keyframe_sweeps.push_back(std::move(sweeps[static_cast<size_t>(init.keyframe_sweeps[k])]));
+    keyframes.push_back(init.keyframes[k]);
   }
   sweeps.clear();
-  std::vector<estimation::Keyframe> keyframes = init.keyframes;
 
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();

@@ -148,6 +148,7 @@ TEST(ProblemYamlTest, EmptyMapsGiveTheDocumentedDefaults) {
   EXPECT_EQ(read.solver.num_threads, defaults.solver.num_threads);
   EXPECT_EQ(read.lidar.max_points_per_sweep, defaults.lidar.max_points_per_sweep);
   EXPECT_EQ(read.lidar.voxel_m, defaults.lidar.voxel_m);
+  EXPECT_EQ(read.lidar.sweep_stride, 1);
   EXPECT_EQ(read.loss.gnss.type, factors::FactorLossOptions().gnss.type);
   EXPECT_EQ(read.loss.gnss.scale, factors::FactorLossOptions().gnss.scale);
 }
@@ -167,7 +168,7 @@ TEST(ProblemYamlTest, EveryKeyIsRead) {
       "loss: {imu: \"huber:4\", prior: none, wheel: cauchy, gnss: \"huber 2.5\", lidar: none}\n"
       "window: {size: 7}\n"
       "solver: {max_iterations: 30, outer_iterations: 3, num_threads: 2}\n"
-      "lidar: {max_points_per_sweep: 800, voxel_m: 0.25}\n";
+      "lidar: {max_points_per_sweep: 800, voxel_m: 0.25, sweep_stride: 3}\n";
   const Problem p = ReadProblemYaml(WriteProblem("full.yaml", text));
   EXPECT_EQ(p.description, "test rig");
   const ProblemCalibration& c = p.calibration;
@@ -197,6 +198,7 @@ TEST(ProblemYamlTest, EveryKeyIsRead) {
   EXPECT_EQ(p.solver.num_threads, 2);
   EXPECT_EQ(p.lidar.max_points_per_sweep, 800);
   EXPECT_EQ(p.lidar.voxel_m, 0.25);
+  EXPECT_EQ(p.lidar.sweep_stride, 3);
 }
 
 TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
@@ -240,6 +242,8 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
       {"window_not_int", "window:\n  size: 10.5\n", 2, "10.5", "window.size"},
       {"threads_zero", "solver:\n  num_threads: 0\n", 2, "0", "solver.num_threads: must be within"},
       {"voxel_zero", "lidar:\n  voxel_m: 0\n", 2, "0", "lidar.voxel_m: must be > 0"},
+      {"stride_zero", "lidar:\n  sweep_stride: 0\n", 2, "0",
+       "lidar.sweep_stride: must be within [1, 100]"},
       {"shared_mismatch",
        "calibration:\n  wheel_radius_shared: true\n  wheel_radius_left_m: estimate\n"
        "  wheel_radius_right_m: fixed\n",

@@ -16,7 +16,7 @@
 //   loss: {imu: none, prior: none, wheel: "huber:2", gnss: "cauchy:3", lidar: "huber:1"}
 //   window: {size: 10}
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
-//   lidar: {max_points_per_sweep: 400, voxel_m: 0.6}
+//   lidar: {max_points_per_sweep: 400, voxel_m: 0.6, sweep_stride: 1}
 //
 // Every key is optional and takes the default of the structs below. A sensor that does not
 // take part holds its calibration blocks fixed; setting one of those blocks (or the sensor's
@@ -95,6 +95,11 @@ struct ProblemSolver {
 struct ProblemLidar {
   int max_points_per_sweep = 400;  // residuals per sweep at most, >= 1
   double voxel_m = 0.6;             // one residual point per voxel of this size, > 0
+  // Every sweep_stride-th sweep becomes a keyframe of the batch solve (the initializer's
+  // odometry still registers every sweep), >= 1. Consecutive sweeps 0.1 s apart see nearly
+  // the same scene: on the 60 s urban log a stride of 2 halved the solve and kept every
+  // block's accuracy.
+  int sweep_stride = 1;
 };
 
 struct Problem {
