@@ -1,0 +1,152 @@
+// Is the reported uncertainty true? The offline calibration of 20 simulated urban drives
+// (different seeds: trajectories, noise, outliers), each compared with its ground truth: for
+// every component the calibration calls observable, the squared error over the reported
+// variance, z^2 = e^2 / sigma^2, is chi^2(1) when the sigmas are right. The average over all
+// drives and components (the normalized estimation error squared per degree of freedom,
+// ANEES) must lie in the two-sided 95 % band of chi^2(n) / n. Label "long": about 15 minutes,
+// run with `ctest -L long`.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "autocal/geometry/so3.h"
+#include "autocal/io/dataset.h"
+#include "autocal/pipeline/offline_calibration.h"
+#include "autocal/sim/simulator.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr int kSeeds = 20;
+
+// Normalized squared errors per component name, one entry per drive that observed it.
+using Samples = std::map<std::string, std::vector<double>>;
+
+void AddIfObservable(const std::string& name, double error, const std::optional<double>& sigma,
+                     bool observable, Samples* samples) {
+  if (!observable || !sigma || !(*sigma > 0.0)) return;
+  (*samples)[name].push_back(error * error / (*sigma * *sigma));
+}
+
+bool Flag(const std::vector<bool>& flags, size_t index) {
+  if (flags.empty()) return true;
+  return flags.size() == 1 ? flags[0] : flags[index];
+}
+
+void AddPoseBlock(const std::string& name, const Eigen::Quaterniond& q_estimate,
+                  const Eigen::Quaterniond& q_truth, const Eigen::Vector3d& p_estimate,
+                  const Eigen::Vector3d& p_truth, const io::PoseBlockInfo& info, Samples* samples) {
+  // The sigmas are of the right perturbation at the estimate: q_truth = q_estimate Exp(delta).
+  const Eigen::Vector3d delta_deg = geometry::Log(q_estimate.conjugate() * q_truth) * kRadToDeg;
+  const char* axes[] = {"x", "y", "z"};
+  for (size_t a = 0; a < 3; ++a) {
+    if (info.sigma_rot_deg) {
+      AddIfObservable(name + " rotation " + axes[a], delta_deg(a), (*info.sigma_rot_deg)(a),
+                      Flag(info.observable, a), samples);
+    }
+    if (info.sigma_p_m) {
+      AddIfObservable(name + " translation " + axes[a], p_estimate(a) - p_truth(a),
+                      (*info.sigma_p_m)(a), Flag(info.observable, 3 + a), samples);
+    }
+  }
+}
+
+// Two-sided 95 % band of chi^2(n) / n by the Wilson-Hilferty approximation (accurate to a
+// fraction of a percent for n >= 10).
+std::pair<double, double> ChiSquareBandPerDof(int n) {
+  const double z = 1.959964;
+  const double c = 2.0 / (9.0 * n);
+  const auto bound = [&](double zz) { return std::pow(1.0 - c + zz * std::sqrt(c), 3); };
+  return {bound(-z), bound(z)};
+}
+
+TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
+  Samples samples;
+  int calibrated = 0;
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    sim::SimulationOptions options;
+    options.scenario = sim::ScenarioType::kUrban;
+    options.duration_s = 40.0;
+    options.seed = static_cast<uint64_t>(seed);
+    options.lidar.config.num_beams = 16;
+    const sim::Simulator simulator(options);
+    const std::string directory = test::OutputDir("urban_seed_" + std::to_string(seed)).string();
+    std::filesystem::remove_all(directory);
+    sim::WriteDataset(simulator, directory);
+    io::Problem problem;
+    problem.path = "urban_full (consistency test)";
+    problem.solver.num_threads = 2;
+    pipeline::OfflineCalibrationResult result;
+    try {
+      result = pipeline::CalibrateDataset(io::ReadDataset(directory), problem);
+    } catch (const Error& e) {
+      // A drive that cannot be calibrated says so; it carries no sample.
+      std::cout << "seed " << seed << ": not calibrated: " << e.what() << "\n";
+      std::filesystem::remove_all(directory);
+      continue;
+    }
+    std::filesystem::remove_all(directory);
+    ++calibrated;
+    const sensors::Calibration& truth = simulator.true_calibration();
+    const sensors::Calibration& estimate = result.calibration.value;
+    const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+    AddPoseBlock("T_I_L", estimate.q_I_L, truth.q_I_L, estimate.p_I_L, truth.p_I_L, u.T_I_L,
+                 &samples);
+    AddPoseBlock("T_I_V", estimate.q_I_V, truth.q_I_V, estimate.p_I_V, truth.p_I_V, u.T_I_V,
+                 &samples);
+    AddIfObservable("time offset",
+                    estimate.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s,
+                    u.time_offset_lidar_imu_s.sigma,
+                    u.time_offset_lidar_imu_s.observable.value_or(true), &samples);
+    AddIfObservable("wheel radius left", estimate.wheel_radius_left_m - truth.wheel_radius_left_m,
+                    u.wheel_radius_left_m.sigma, u.wheel_radius_left_m.observable.value_or(true),
+                    &samples);
+    AddIfObservable("wheel radius right",
+                    estimate.wheel_radius_right_m - truth.wheel_radius_right_m,
+                    u.wheel_radius_right_m.sigma, u.wheel_radius_right_m.observable.value_or(true),
+                    &samples);
+    AddIfObservable("track width", estimate.track_width_m - truth.track_width_m,
+                    u.track_width_m.sigma, u.track_width_m.observable.value_or(true), &samples);
+    if (u.p_I_A_m.sigma) {
+      const char* axes[] = {"x", "y", "z"};
+      for (size_t a = 0; a < 3; ++a) {
+        AddIfObservable(std::string("lever arm ") + axes[a], estimate.p_I_A(a) - truth.p_I_A(a),
+                        (*u.p_I_A_m.sigma)(a), Flag(u.p_I_A_m.observable, a), &samples);
+      }
+    }
+  }
+  ASSERT_GE(calibrated, 15) << "too few drives calibrated for a consistency statement";
+
+  double sum = 0.0;
+  int count = 0;
+  std::cout << std::fixed << std::setprecision(2) << "component: ANEES (drives)\n";
+  for (const auto& [name, z2] : samples) {
+    double component_sum = 0.0;
+    for (double v : z2) component_sum += v;
+    std::cout << "  " << name << ": " << component_sum / z2.size() << " (" << z2.size() << ")\n";
+    sum += component_sum;
+    count += static_cast<int>(z2.size());
+  }
+  ASSERT_GT(count, 0);
+  const double anees = sum / count;
+  const auto [low, high] = ChiSquareBandPerDof(count);
+  std::cout << "ANEES " << anees << " over " << count << " normalized errors of " << calibrated
+            << " drives; 95 % band [" << low << ", " << high << "]\n";
+  RecordProperty("anees", std::to_string(anees));
+  RecordProperty("drives", calibrated);
+  EXPECT_GT(anees, low) << "the reported sigmas are too large (pessimistic)";
+  EXPECT_LT(anees, high) << "the reported sigmas are too small (overconfident)";
+}
+
+}  // namespace
+}  // namespace autocal
