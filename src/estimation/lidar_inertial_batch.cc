@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -15,6 +16,7 @@
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -278,23 +280,36 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
                                b.b_g.data(), b.b_a.data());
     }
-    ceres::LossFunction* loss = factors::MakeLossFunction(options.point_loss);
-    std::vector<ceres::ResidualBlockId> point_blocks;
+    // One residual block per pair of sweeps (Eq. P9): the points of sweep k on planes of
+    // sweep j share every parameter block; the robust loss acts per point inside the factor.
+    struct PointGroup {
+      const factors::PointToSweepPlaneGroupFactor* factor;  // owned by the problem
+      std::vector<double*> parameters;
+    };
+    std::vector<PointGroup> point_groups;
+    int associated_points = 0;
     for (int k = 0; k < num_sweeps; ++k) {
       Keyframe& kf = (*keyframes)[static_cast<size_t>(k)];
+      std::map<int, std::vector<factors::PointToSweepPlaneMeasurement>> by_partner;
       for (const Association& a : associations[static_cast<size_t>(k)]) {
-        Keyframe& kf_j = (*keyframes)[static_cast<size_t>(a.partner)];
-        point_blocks.push_back(problem.AddResidualBlock(
-            new factors::PointToSweepPlaneFactor(a.measurement, g_W), loss,
-            kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(),
-            kf_j.q_W_I.coeffs().data(), kf_j.p_W_I.data(), kf_j.v_W_I.data(),
-            calibration->q_I_L.coeffs().data(), calibration->p_I_L.data(), offset));
+        by_partner[a.partner].push_back(a.measurement);
+      }
+      for (const auto& [partner, measurements] : by_partner) {
+        Keyframe& kf_j = (*keyframes)[static_cast<size_t>(partner)];
+        PointGroup group;
+        group.parameters = {kf.q_W_I.coeffs().data(),   kf.p_W_I.data(),   kf.v_W_I.data(),
+                            kf_j.q_W_I.coeffs().data(), kf_j.p_W_I.data(), kf_j.v_W_I.data(),
+                            calibration->q_I_L.coeffs().data(), calibration->p_I_L.data(),
+                            offset};
+        auto factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
+            measurements, g_W, options.point_loss);
+        group.factor = factor.get();
+        problem.AddResidualBlock(factor.release(), nullptr, group.parameters);
+        point_groups.push_back(std::move(group));
+        associated_points += static_cast<int>(measurements.size());
       }
     }
-    if (point_blocks.empty()) {
-      delete loss;  // owned by the problem only once a residual block uses it
-      throw Error("SolveLidarInertialBatch: no point found a plane");
-    }
+    if (point_groups.empty()) throw Error("SolveLidarInertialBatch: no point found a plane");
 
     // Other sensors' factors and priors, from the caller.
     if (options.add_factors) options.add_factors(&problem, keyframes, calibration);
@@ -320,11 +335,12 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
 
     // Signed point-to-plane distances (m) without the robust loss.
     auto point_distances_m = [&]() {
-      ceres::Problem::EvaluateOptions evaluate;
-      evaluate.residual_blocks = point_blocks;
-      evaluate.apply_loss_function = false;
-      std::vector<double> residuals;
-      problem.Evaluate(evaluate, nullptr, &residuals, nullptr, nullptr);
+      std::vector<double> residuals(static_cast<size_t>(associated_points));
+      double* out = residuals.data();
+      for (const PointGroup& group : point_groups) {
+        group.factor->WhitenedDistances(group.parameters.data(), out);
+        out += group.factor->num_points();
+      }
       for (double& r : residuals) r *= point_sigma_m;
       return residuals;
     };
@@ -352,7 +368,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     for (double r : residuals) sum_sq += r * r;
     report.final_point_residuals_m = residuals;
     report.point_rms_m = std::sqrt(sum_sq / static_cast<double>(residuals.size()));
-    report.associated_points = static_cast<int>(point_blocks.size());
+    report.associated_points = associated_points;
     report.final_cost = summary.final_cost;
     report.outer_iterations = iteration + 1;
     report.calibration_per_iteration.push_back(*calibration);

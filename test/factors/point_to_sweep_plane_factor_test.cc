@@ -1,5 +1,7 @@
 #include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 
+#include <cmath>
 #include <memory>
 #include <random>
 #include <vector>
@@ -7,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "analytic_motion.h"
+#include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "factor_test_utils.h"
@@ -186,6 +189,73 @@ TEST(PointToSweepPlaneFactor, AnalyticMatchesAutodiffTwin) {
     test::ExpectSameJacobians(analytic, *autodiff, Manifolds(&quaternion), state.Blocks(), 1e-9,
                               "trial " + std::to_string(trial));
   }
+}
+
+// ---------------------------------------------------------------------------------------
+// Groups (Eq. P9).
+
+std::vector<PointToSweepPlaneMeasurement> RandomGroup(int n, std::mt19937* rng) {
+  std::vector<PointToSweepPlaneMeasurement> group;
+  for (int i = 0; i < n; ++i) group.push_back(RandomMeasurement(rng));
+  return group;
+}
+
+TEST(PointToSweepPlaneGroupFactor, WithoutLossItStacksThePointFactors) {
+  std::mt19937 rng(5);
+  const std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(7, &rng);
+  const PointToSweepPlaneGroupFactor group(points, kGravity, LossOptions());
+  State state = RandomState(&rng);
+  const test::Evaluation stacked = test::Evaluate(group, state.Blocks());
+  double distances[7];
+  group.WhitenedDistances(state.Blocks().data(), distances);
+  for (int i = 0; i < 7; ++i) {
+    const PointToSweepPlaneFactor single(points[static_cast<size_t>(i)], kGravity);
+    const test::Evaluation one = test::Evaluate(single, state.Blocks());
+    EXPECT_EQ(stacked.residual(i), one.residual(0));
+    EXPECT_EQ(distances[i], one.residual(0));
+    for (size_t b = 0; b < one.jacobians.size(); ++b) {
+      EXPECT_EQ(stacked.jacobians[b].row(i), one.jacobians[b].row(0)) << "point " << i;
+    }
+  }
+}
+
+TEST(PointToSweepPlaneGroupFactor, RobustRowsCarryTheRobustCostAndExactJacobians) {
+  std::mt19937 rng(6);
+  const geometry::RightQuaternionManifold quaternion;
+  for (const LossOptions& loss : {LossOptions{lidar::RobustLoss::kHuber, 1.0},
+                                  LossOptions{lidar::RobustLoss::kCauchy, 2.0}}) {
+    for (int trial = 0; trial < 10; ++trial) {
+      std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(5, &rng);
+      // Inliers too: a point on its plane within a fraction of a sigma.
+      State state = RandomState(&rng);
+      for (size_t i = 0; i < 2; ++i) {
+        const PointToSweepPlaneFactor single(points[i], kGravity);
+        points[i].plane_L.d -= (Residual(single, state) - 0.3) * points[i].sigma_m;
+      }
+      const PointToSweepPlaneGroupFactor group(points, kGravity, loss);
+      double distances[5];
+      group.WhitenedDistances(state.Blocks().data(), distances);
+      const test::Evaluation robust = test::Evaluate(group, state.Blocks());
+      const std::unique_ptr<ceres::LossFunction> rho(MakeLossFunction(loss));
+      for (int i = 0; i < 5; ++i) {
+        double value[3];
+        rho->Evaluate(distances[i] * distances[i], value);
+        // r~^2 = rho(r^2): the block's cost is the robust cost of its points.
+        EXPECT_NEAR(robust.residual(i) * robust.residual(i), value[0], 1e-9 * value[0]);
+        EXPECT_EQ(std::signbit(robust.residual(i)), std::signbit(distances[i]));
+      }
+      EXPECT_NEAR(distances[0], 0.3, 1e-6);
+      // Ridders from a first step of 1e-6 relative: the rows bend within a sigma (2 cm).
+      ceres::NumericDiffOptions small_steps;
+      small_steps.ridders_relative_initial_step_size = 1e-6;
+      test::ExpectGradientCheckPasses(group, Manifolds(&quaternion), state.Blocks(), 1e-5,
+                                      "trial " + std::to_string(trial), small_steps);
+    }
+  }
+}
+
+TEST(PointToSweepPlaneGroupFactor, AnEmptyGroupIsRefused) {
+  EXPECT_THROW(PointToSweepPlaneGroupFactor({}, kGravity, LossOptions()), Error);
 }
 
 }  // namespace

@@ -1,0 +1,70 @@
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
+
+#include <array>
+#include <cmath>
+
+#include "autocal/common/error.h"
+
+namespace autocal {
+namespace factors {
+namespace {
+
+constexpr std::array<int, 9> kBlockSizes = {4, 3, 3, 4, 3, 3, 4, 3, 1};
+
+}  // namespace
+
+PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
+    const std::vector<PointToSweepPlaneMeasurement>& points, const Eigen::Vector3d& g_W,
+    const LossOptions& loss)
+    : loss_(MakeLossFunction(loss)) {
+  if (points.empty()) throw Error("PointToSweepPlaneGroupFactor: no points");
+  points_.reserve(points.size());
+  for (const PointToSweepPlaneMeasurement& m : points) {
+    points_.push_back(std::make_unique<PointToSweepPlaneFactor>(m, g_W));
+  }
+  set_num_residuals(static_cast<int>(points.size()));
+  for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
+}
+
+bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
+                                            double** jacobians) const {
+  std::array<double*, kBlockSizes.size()> row_jacobians;
+  for (size_t i = 0; i < points_.size(); ++i) {
+    // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
+    double** point_jacobians = nullptr;
+    if (jacobians != nullptr) {
+      for (size_t b = 0; b < kBlockSizes.size(); ++b) {
+        row_jacobians[b] =
+            jacobians[b] != nullptr ? jacobians[b] + i * static_cast<size_t>(kBlockSizes[b])
+                                    : nullptr;
+      }
+      point_jacobians = row_jacobians.data();
+    }
+    if (!points_[i]->Evaluate(parameters, &residuals[i], point_jacobians)) return false;
+    if (!loss_) continue;
+    // Eq. P9.
+    const double r = residuals[i];
+    double rho[3];
+    loss_->Evaluate(r * r, rho);
+    const double root = std::sqrt(rho[0]);
+    residuals[i] = std::copysign(root, r);
+    if (point_jacobians == nullptr) continue;
+    // d r~/dr = rho' |r| / sqrt(rho), which tends to rho'(0) = 1 as r -> 0.
+    const double scale = root > 0.0 ? rho[1] * std::abs(r) / root : rho[1];
+    for (size_t b = 0; b < kBlockSizes.size(); ++b) {
+      if (point_jacobians[b] == nullptr) continue;
+      for (int c = 0; c < kBlockSizes[b]; ++c) point_jacobians[b][c] *= scale;
+    }
+  }
+  return true;
+}
+
+void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,
+                                                     double* distances) const {
+  for (size_t i = 0; i < points_.size(); ++i) {
+    points_[i]->Evaluate(parameters, &distances[i], nullptr);
+  }
+}
+
+}  // namespace factors
+}  // namespace autocal
