@@ -2,7 +2,6 @@
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(Ceres 2.1 REQUIRED)
 find_package(yaml-cpp REQUIRED)
-find_package(nanoflann REQUIRED)  # benchmark peer of lidar::KdTree
 find_package(glog REQUIRED)
 find_package(Threads REQUIRED)
 # Debian ships GeographicLib's find module outside CMake's default module path.

@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include "autocal/common/error.h"
 
@@ -62,7 +63,9 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,
                                                      double* distances) const {
   for (size_t i = 0; i < points_.size(); ++i) {
-    points_[i]->Evaluate(parameters, &distances[i], nullptr);
+    if (!points_[i]->Evaluate(parameters, &distances[i], nullptr)) {
+      distances[i] = std::numeric_limits<double>::quiet_NaN();  // never a silent 0
+    }
   }
 }
 

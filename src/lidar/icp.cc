@@ -302,22 +302,29 @@ void IcpTarget::PrepareNormals(const std::vector<int>& indices, int num_threads)
   std::lock_guard<std::mutex> lock(*mutex_);
   std::vector<int> missing;
   for (const int index : indices) {
-    if (index < 0 || prepared_[static_cast<size_t>(index)]) continue;
-    prepared_[static_cast<size_t>(index)] = 1;  // also de-duplicates `missing`
+    if (index < 0 || prepared_[static_cast<size_t>(index)] != 0) continue;
+    prepared_[static_cast<size_t>(index)] = 2;  // pending: de-duplicates `missing`
     missing.push_back(index);
   }
-  ParallelFor(0, static_cast<int64_t>(missing.size()), num_threads,
-              [&](int64_t begin, int64_t end, int /*chunk*/) {
-                Eigen::Vector3d normal;
-                double planarity = 0.0;
-                for (int64_t k = begin; k < end; ++k) {
-                  const int index = missing[static_cast<size_t>(k)];
-                  if (EstimateNormal(tree_, index, normal_setting_, &normal, &planarity)) {
-                    normals_.normals.col(index) = normal;
-                    normals_.planarity(index) = planarity;
-                  }
-                }
-              });
+  const auto compute = [&](int64_t begin, int64_t end, int /*chunk*/) {
+    Eigen::Vector3d normal;
+    double planarity = 0.0;
+    for (int64_t k = begin; k < end; ++k) {
+      const int index = missing[static_cast<size_t>(k)];
+      if (EstimateNormal(tree_, index, normal_setting_, &normal, &planarity)) {
+        normals_.normals.col(index) = normal;
+        normals_.planarity(index) = planarity;
+      }
+    }
+  };
+  try {
+    ParallelFor(0, static_cast<int64_t>(missing.size()), num_threads, compute);
+  } catch (...) {
+    // The pending points stay unprepared, for the next call to compute.
+    for (const int index : missing) prepared_[static_cast<size_t>(index)] = 0;
+    throw;
+  }
+  for (const int index : missing) prepared_[static_cast<size_t>(index)] = 1;
 }
 
 IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,

@@ -216,7 +216,7 @@ struct KdTree::Impl {
       tree_points[static_cast<size_t>(i)] =
           TreePoint{{points(0, i), points(1, i), points(2, i)}, i};
     }
-    nodes.reserve(static_cast<size_t>(4 * n / kLeafMaxSize + 1));
+    nodes.reserve(static_cast<size_t>(n) * 4 / kLeafMaxSize + 1);
     bounds = BoundsOf(tree_points.data(), tree_points.data() + n);
     Build(0, n, bounds);
   }

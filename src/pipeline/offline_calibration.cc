@@ -327,6 +327,12 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
     keyframes.push_back(init.keyframes[k]);
   }
   sweeps.clear();
+  if (keyframes.size() < 2) {
+    throw Error("problem " + problem.path + ": lidar.sweep_stride " +
+                std::to_string(problem.lidar.sweep_stride) + " leaves " +
+                std::to_string(keyframes.size()) + " keyframe(s) of the " +
+                std::to_string(init.keyframes.size()) + " the log gives; the solve needs two");
+  }
 
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();

@@ -3,8 +3,11 @@
 // every component the calibration calls observable, the squared error over the reported
 // variance, z^2 = e^2 / sigma^2, is chi^2(1) when the sigmas are right. The average over all
 // drives and components (the normalized estimation error squared per degree of freedom,
-// ANEES) must lie in the two-sided 95 % band of chi^2(n) / n. Label "long": about 15 minutes,
-// run with `ctest -L long`.
+// ANEES) must lie in the two-sided 95 % band of chi^2(n) / n. The band treats the components
+// as independent; components of one drive are correlated, which widens the true spread, so
+// a result just outside the band is weak evidence, while the per-component figures printed
+// show where a large excess comes from. Drives that cannot be calibrated (the pipeline
+// refuses them) carry no sample. Label "long": about 15 minutes, run with `ctest -L long`.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -15,6 +18,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
@@ -80,7 +84,11 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
     options.seed = static_cast<uint64_t>(seed);
     options.lidar.config.num_beams = 16;
     const sim::Simulator simulator(options);
-    const std::string directory = test::OutputDir("urban_seed_" + std::to_string(seed)).string();
+    // Concurrent runs of the suite each write their own copies.
+    const std::string directory =
+        test::OutputDir("urban_seed_" + std::to_string(seed) + "_" +
+                        std::to_string(static_cast<long>(getpid())))
+            .string();
     std::filesystem::remove_all(directory);
     sim::WriteDataset(simulator, directory);
     io::Problem problem;

@@ -2,8 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <stdexcept>
+#include <string>
+#include <thread>
 #include <vector>
 
 namespace autocal {
@@ -32,46 +36,54 @@ TEST(ParallelForTest, VisitsEveryIndexOnceInContiguousChunks) {
   }
 }
 
-TEST(ParallelForTest, ChunkCountIsBoundedByWorkAndThreads) {
+TEST(ParallelForTest, ChunkCountIsBoundedByWorkThreadsAndCores) {
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   EXPECT_EQ(ParallelChunks(0, 4), 1);
   EXPECT_EQ(ParallelChunks(1, 4), 1);
-  EXPECT_EQ(ParallelChunks(3, 4), 3);
-  EXPECT_EQ(ParallelChunks(100, 4), 4);
+  EXPECT_EQ(ParallelChunks(3, 4), std::min(3, cores));
+  EXPECT_EQ(ParallelChunks(100, 4), std::min(4, cores));
+  EXPECT_EQ(ParallelChunks(100, 1000), cores);
   EXPECT_EQ(ParallelChunks(100, 0), 1);
 }
 
 TEST(ParallelForTest, RunsChunksConcurrently) {
-  // Chunk 1 waits for chunk 0 to start: it would deadlock if the chunks ran one after the
-  // other on the calling thread (chunk 0 runs there).
-  std::atomic<bool> first_started{false};
+  if (ParallelChunks(2, 2) < 2) GTEST_SKIP() << "one core: the chunks run one after the other";
+  // Chunk 0 (on the calling thread) waits for chunk 1 to run: if the chunks ran one after
+  // the other it would give up after the deadline and the test fails.
   std::atomic<bool> second_done{false};
+  bool waited_out = false;
   ParallelFor(0, 2, 2, [&](int64_t, int64_t, int chunk) {
-    if (chunk == 0) {
-      first_started = true;
-      while (!second_done) {
-      }
-    } else {
-      while (!first_started) {
-      }
+    if (chunk == 1) {
       second_done = true;
+      return;
+    }
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    while (!second_done) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        waited_out = true;
+        return;
+      }
+      std::this_thread::yield();
     }
   });
-  EXPECT_TRUE(second_done);
+  EXPECT_FALSE(waited_out) << "chunk 1 did not run while chunk 0 was running";
 }
 
 TEST(ParallelForTest, RethrowsTheFirstChunksExceptionAfterAllFinish) {
+  const int chunks = ParallelChunks(1000, 8);
+  // Every chunk but the first throws (the only one does, on one core).
+  const int first_thrower = chunks > 1 ? 1 : 0;
   std::atomic<int> finished{0};
   try {
-    ParallelFor(0, 4, 4, [&](int64_t, int64_t, int chunk) {
+    ParallelFor(0, 1000, 8, [&](int64_t, int64_t, int chunk) {
       ++finished;
-      if (chunk == 1) throw std::runtime_error("chunk 1");
-      if (chunk == 3) throw std::runtime_error("chunk 3");
+      if (chunk >= first_thrower) throw std::runtime_error("chunk " + std::to_string(chunk));
     });
     ADD_FAILURE() << "the exception must reach the caller";
   } catch (const std::runtime_error& e) {
-    EXPECT_STREQ(e.what(), "chunk 1");
+    EXPECT_EQ(std::string(e.what()), "chunk " + std::to_string(first_thrower));
   }
-  EXPECT_EQ(finished, 4);
+  EXPECT_EQ(finished, chunks);
 }
 
 }  // namespace

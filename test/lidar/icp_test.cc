@@ -215,13 +215,16 @@ TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
   }
   EXPECT_GT(prepared, 0);
   EXPECT_LT(prepared, on_demand.points().cols());
-  // Threads change only the summation order.
+  // Threads change only the summation order, so the two runs stop within the convergence
+  // tolerance of each other (a last step just at the threshold may be taken by one only).
   IcpSetting threaded = StreetSetting();
   threaded.num_threads = 3;
   const IcpResult parallel = AlignIcp(pair.source, on_demand, Pose3d::Identity(), threaded);
-  EXPECT_LT(geometry::TranslationError(parallel.T_target_source, reference.T_target_source), 1e-9);
-  EXPECT_LT(RotationErrorDeg(parallel.T_target_source, reference.T_target_source), 1e-7);
-  EXPECT_EQ(parallel.num_correspondences, reference.num_correspondences);
+  const IcpConvergenceSetting& tolerance = threaded.convergence;
+  EXPECT_LT(geometry::TranslationError(parallel.T_target_source, reference.T_target_source),
+            2.0 * tolerance.translation_m);
+  EXPECT_LT(geometry::AngularDistance(parallel.T_target_source.q, reference.T_target_source.q),
+            2.0 * tolerance.rotation_rad);
   // Normals on several threads are the single-threaded ones exactly.
   const SurfaceNormals threaded_normals = EstimateNormals(all.tree(), StreetNormals(), 3);
   EXPECT_EQ(threaded_normals.normals, all.normals().normals);

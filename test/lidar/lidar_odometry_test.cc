@@ -158,14 +158,16 @@ TEST_F(LidarOdometryTest, CoarseRegistrationGridAndThreadsKeepTracking) {
     reference.AddSweep(sweep);
   }
   for (size_t k = 0; k < sweeps_->size(); ++k) {
-    // Threads change only the summation order of the normal equations, so the estimates
-    // agree to the ICP's convergence tolerance (its last step is below it).
+    // Threads change only the summation order of the normal equations. Each registration
+    // stops within the ICP's convergence tolerance, and the map carries the previous poses,
+    // so the sweep-to-sweep motions agree to a few tolerances (absolute poses may drift
+    // apart along the sequence by as much).
     const IcpConvergenceSetting& tolerance = setting.icp.convergence;
-    EXPECT_LT(geometry::TranslationError(threaded.frames()[k].T_W_L, reference.frames()[k].T_W_L),
-              2.0 * tolerance.translation_m)
+    const Pose3d& motion = threaded.frames()[k].T_prev_curr;
+    const Pose3d& reference_motion = reference.frames()[k].T_prev_curr;
+    EXPECT_LT(geometry::TranslationError(motion, reference_motion), 4.0 * tolerance.translation_m)
         << "sweep " << k;
-    EXPECT_LT(geometry::AngularDistance(threaded.frames()[k].T_W_L.q, reference.frames()[k].T_W_L.q),
-              2.0 * tolerance.rotation_rad)
+    EXPECT_LT(geometry::AngularDistance(motion.q, reference_motion.q), 4.0 * tolerance.rotation_rad)
         << "sweep " << k;
     // The coarse grid registers with fewer points (the map keeps them all).
     if (k > 0) {

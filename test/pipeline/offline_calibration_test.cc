@@ -115,7 +115,8 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
             << " %, lever arm " << (estimate.p_I_A - truth.p_I_A).transpose() << " m\n";
   for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
   // Measured on this log: 0.077 deg; x, y within 6 mm; 0.44 ms; radii 0.005 % and 0.019 %;
-  // lever arm x, y within 1 cm. Goals: 0.1 deg, 1 cm, 0.5 ms, 0.1 %, 2 cm.
+  // lever arm x, y within 1 cm. Goals: 0.1 deg, 1 cm, 0.1 %, 2 cm; the offset (goal 0.5 ms on
+  // the 60 s log, 0.10 ms there) is held to 1 ms on this 34 s log.
   ExpectLidarImuGoals(errors);
   EXPECT_LT(percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m), 0.1);
   EXPECT_LT(percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m), 0.1);
@@ -174,19 +175,26 @@ TEST_F(OfflineCalibrationTest, ABadNominalGuessChangesNothingObservable) {
 // everywhere shows what they protect against.
 TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
   ASSERT_GT(summary_->gnss_outliers, 0) << "the log must hold multipath fixes";
+  const sensors::Calibration& truth = simulator_->true_calibration();
+  const io::Dataset dataset = io::ReadDataset(*directory_);
+  // With the problem's losses the lever arm meets its goal on this very log ...
+  const sensors::Calibration robust = CalibrateDataset(dataset, FullProblem()).calibration.value;
+  const double robust_error_m = (robust.p_I_A - truth.p_I_A).head<2>().norm();
+  EXPECT_LT(robust_error_m, 0.02);
+  // ... and without them it does not.
   io::Problem problem = FullProblem();
   problem.loss = factors::FactorLossOptions();
   problem.loss.wheel = factors::LossOptions();
   problem.loss.gnss = factors::LossOptions();
   problem.loss.lidar = factors::LossOptions();
-  const OfflineCalibrationResult result = CalibrateDataset(io::ReadDataset(*directory_), problem);
-  const sensors::Calibration& truth = simulator_->true_calibration();
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
   const sensors::Calibration& estimate = result.calibration.value;
   const double lever_arm_error_m = (estimate.p_I_A - truth.p_I_A).head<2>().norm();
   const double rotation_error_deg =
       geometry::AngularDistance(estimate.q_I_L, truth.q_I_L) * kRadToDeg;
-  std::cout << "without robust losses: lever arm x-y error " << lever_arm_error_m
-            << " m, T_I_L rotation error " << rotation_error_deg << " deg\n";
+  std::cout << "lever arm x-y error " << robust_error_m << " m with the losses, "
+            << lever_arm_error_m << " m without; T_I_L rotation error without "
+            << rotation_error_deg << " deg\n";
   RecordProperty("lever_arm_xy_error_mm", std::to_string(1e3 * lever_arm_error_m));
   // The multipath fixes drag the lever arm far beyond its 2 cm goal.
   EXPECT_GT(lever_arm_error_m, 0.05);

@@ -12,11 +12,12 @@
 namespace autocal {
 
 // The number of chunks ParallelFor uses for `count` items on `num_threads` threads: at
-// least 1, at most count, never more than requested.
+// least 1, at most count, never more than requested nor than the machine's cores.
 int ParallelChunks(int64_t count, int num_threads);
 
 // Calls body(chunk_begin, chunk_end, chunk) for every chunk, concurrently, and returns
-// when all have finished. An exception thrown by a body is rethrown on the caller after
+// when all have finished. When a thread cannot be started, its chunks run on the calling
+// thread instead. An exception thrown by a body is rethrown on the caller after
 // every chunk has finished (the first one, by chunk order).
 void ParallelFor(int64_t begin, int64_t end, int num_threads,
                  const std::function<void(int64_t, int64_t, int)>& body);

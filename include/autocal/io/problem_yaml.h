@@ -98,7 +98,9 @@ struct ProblemLidar {
   // Every sweep_stride-th sweep becomes a keyframe of the batch solve (the initializer's
   // odometry still registers every sweep), >= 1. Consecutive sweeps 0.1 s apart see nearly
   // the same scene: on the 60 s urban log a stride of 2 halved the solve and kept every
-  // block's accuracy.
+  // block within its goal. What counts keyframes scales with it: the batch's partner sweeps
+  // (+-3 .. +-20 keyframes) span twice the time, and wheel and GNSS factors, attached at
+  // keyframes, use half the samples.
   int sweep_stride = 1;
 };
 

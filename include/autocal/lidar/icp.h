@@ -68,8 +68,9 @@ struct IcpSetting {
   // Cov = H^-1 (sum w^2 var_i J J^T) H^-1 with var_i = sigma_r^2 (n . R u_i)^2 (eq. 4.16).
   // Grazing ground returns then count with their small along-normal noise.
   double source_range_sigma_m = 0.0;
-  // Threads for the correspondence search and the normal equations (common/parallel_for.h).
-  // The result depends on it only through the summation order.
+  // Threads for the correspondence search and the normal equations of point-to-plane
+  // alignment (common/parallel_for.h; point-to-point runs on one thread). The result
+  // depends on it only through the summation order.
   int num_threads = 1;
 };
 
@@ -97,7 +98,8 @@ class IcpTarget {
   const Eigen::Matrix3Xd& points() const { return tree_.points(); }
   bool has_normals() const { return mode_ != TargetNormals::kNone; }
   // Every normal for kAll; for kOnDemand only those of points prepared so far (the others
-  // are zero with planarity 0).
+  // are zero with planarity 0). For kOnDemand, read it only while no alignment runs
+  // against this target: an alignment may be filling in columns.
   const SurfaceNormals& normals() const { return normals_; }
 
   // Makes sure the normals of the points with these indices exist (kOnDemand computes the
