@@ -28,10 +28,6 @@ namespace estimation {
 
 namespace {
 
-double MaxPointTime(const lidar::LidarSweep& sweep) {
-  return sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
-}
-
 // The LiDAR pose of sweep j at its reference instant (point time 0) under the current
 // estimate: T_W_L = T_W_I(t) T_I_L with T_W_I(t) from Eq. (P1-P3) at delta = 0.
 geometry::Pose3d SweepLidarPose(const Keyframe& kf, const factors::PointMotion& m,
@@ -120,8 +116,10 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
   }
   const Eigen::Vector3d g_W(0.0, 0.0, -options.gravity_m_s2);
   std::vector<SweepSelection> selection(sweeps.size());
+  std::vector<double> max_point_time_s(sweeps.size());
   for (size_t k = 0; k < sweeps.size(); ++k) {
     if (!sweeps[k].cloud.has_time()) throw Error("SolveLidarInertialBatch: sweeps need per-point time");
+    max_point_time_s[k] = sweeps[k].cloud.size() > 0 ? sweeps[k].cloud.time_s.maxCoeff() : 0.0;
     selection[k].residual_points = internal::Thin(
         internal::OnePointPerVoxel(sweeps[k].cloud, options.residual_voxel_m, options.min_range_m),
         options.max_residuals_per_sweep);
@@ -148,16 +146,13 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       });
     };
     // 1. Propagate every sweep with the current estimate.
-    for (size_t k = 0; k < sweeps.size(); ++k) {
-      const int64_t end_ns = sweeps[k].t_ns + SecondsToNs(MaxPointTime(sweeps[k]) + offset_lin);
-      if (end_ns < (*keyframes)[k].t_ns) {
-        throw Error("SolveLidarInertialBatch: the time offset moved beyond the keyframe lead");
-      }
-    }
     std::vector<std::optional<ImuMotionTable>> tables(sweeps.size());
     for_each_sweep([&](size_t k) {
       const Keyframe& kf = (*keyframes)[k];
-      const int64_t end_ns = sweeps[k].t_ns + SecondsToNs(MaxPointTime(sweeps[k]) + offset_lin);
+      const int64_t end_ns = sweeps[k].t_ns + SecondsToNs(max_point_time_s[k] + offset_lin);
+      if (end_ns < kf.t_ns) {
+        throw Error("SolveLidarInertialBatch: the time offset moved beyond the keyframe lead");
+      }
       tables[k].emplace(imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
     });
     auto motion_of = [&](size_t k, int point) {
