@@ -5,8 +5,6 @@
 #include <iostream>
 #include <string>
 
-#include <unistd.h>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -15,6 +13,7 @@
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/sim/simulator.h"
+#include "pipeline/simulated_urban_dataset.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -64,46 +63,23 @@ void ExpectLidarImuGoals(const LidarImuErrors& e) {
   EXPECT_LT(e.offset_ms, 1.0);
 }
 
-// A 34 s urban drive with a 16-beam LiDAR written as a dataset once for the suite: a still
-// start, straight driving and a roundabout (seed 7, from 18 s to 34 s).
+// The 34 s urban drive (test/pipeline/simulated_urban_dataset.h).
 class OfflineCalibrationTest : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    sim::SimulationOptions options;
-    options.scenario = sim::ScenarioType::kUrban;
-    options.duration_s = 34.0;
-    options.seed = 7;
-    options.lidar.config.num_beams = 16;
-    simulator_ = new sim::Simulator(options);
-    // ctest runs each test of the suite in its own process, in parallel: each writes its own
-    // copy of the dataset.
-    directory_ = new std::string(
-        test::OutputDir("urban_34s_" + std::to_string(static_cast<long>(getpid()))).string());
-    std::filesystem::remove_all(*directory_);
-    summary_ = new sim::SimulationSummary(sim::WriteDataset(*simulator_, *directory_));
-  }
-  static void TearDownTestSuite() {
-    std::filesystem::remove_all(*directory_);
-    delete simulator_;
-    delete directory_;
-    delete summary_;
-  }
-  static sim::Simulator* simulator_;
-  static std::string* directory_;
-  static sim::SimulationSummary* summary_;
+  static void SetUpTestSuite() { data_ = new test::SimulatedUrbanDataset(34.0, "urban_34s"); }
+  static void TearDownTestSuite() { delete data_; }
+  static test::SimulatedUrbanDataset* data_;
 };
 
-sim::Simulator* OfflineCalibrationTest::simulator_ = nullptr;
-std::string* OfflineCalibrationTest::directory_ = nullptr;
-sim::SimulationSummary* OfflineCalibrationTest::summary_ = nullptr;
+test::SimulatedUrbanDataset* OfflineCalibrationTest::data_ = nullptr;
 
 // The whole chain from the dataset on disk, with no guess from the user: the initializer
 // replaces the nominal calibration, the batch refines it, the result is written and reads back.
 TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
-  const io::Dataset dataset = io::ReadDataset(*directory_);
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
   OfflineCalibrationResult result = CalibrateDataset(dataset, FullProblem());
   std::cout << FormatCalibrationSummary(result);
-  const sensors::Calibration& truth = simulator_->true_calibration();
+  const sensors::Calibration& truth = data_->simulator.true_calibration();
   const sensors::Calibration& estimate = result.calibration.value;
   const LidarImuErrors errors = LidarImuErrorsOf(estimate, truth);
   const auto percent = [](double estimate, double truth) {
@@ -153,7 +129,7 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
 // The calibration takes no guess: a nominal calibration off by 20 deg, 0.3 m and 40 ms (the
 // issue's bad guess) only sets the priors' centres and the values of unexcited directions.
 TEST_F(OfflineCalibrationTest, ABadNominalGuessChangesNothingObservable) {
-  io::Dataset dataset = io::ReadDataset(*directory_);
+  io::Dataset dataset = io::ReadDataset(data_->directory);
   sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
   const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
   nominal.q_I_L = (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 / kRadToDeg, axis)))
@@ -163,7 +139,7 @@ TEST_F(OfflineCalibrationTest, ABadNominalGuessChangesNothingObservable) {
   const OfflineCalibrationResult result = CalibrateDataset(dataset, FullProblem());
   const sensors::Calibration& estimate = result.calibration.value;
   // The same goals as from the simulator's nominal guess.
-  ExpectLidarImuGoals(LidarImuErrorsOf(estimate, simulator_->true_calibration()));
+  ExpectLidarImuGoals(LidarImuErrorsOf(estimate, data_->simulator.true_calibration()));
   // The height the drive does not excite stays at the (bad) nominal value, and says so.
   EXPECT_FALSE(result.calibration.uncertainty.T_I_L.observable[5]);
   EXPECT_DOUBLE_EQ(estimate.p_I_L.z(), nominal.p_I_L.z());
@@ -174,9 +150,9 @@ TEST_F(OfflineCalibrationTest, ABadNominalGuessChangesNothingObservable) {
 // robust losses of the problem keep every goal; here the same log with plain least squares
 // everywhere shows what they protect against.
 TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
-  ASSERT_GT(summary_->gnss_outliers, 0) << "the log must hold multipath fixes";
-  const sensors::Calibration& truth = simulator_->true_calibration();
-  const io::Dataset dataset = io::ReadDataset(*directory_);
+  ASSERT_GT(data_->summary.gnss_outliers, 0) << "the log must hold multipath fixes";
+  const sensors::Calibration& truth = data_->simulator.true_calibration();
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
   // With the problem's losses the lever arm meets its goal on this very log ...
   const sensors::Calibration robust = CalibrateDataset(dataset, FullProblem()).calibration.value;
   const double robust_error_m = (robust.p_I_A - truth.p_I_A).head<2>().norm();
@@ -201,7 +177,7 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
 }
 
 TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
-  io::Dataset dataset = io::ReadDataset(*directory_);
+  io::Dataset dataset = io::ReadDataset(data_->directory);
   dataset.wheel.clear();
   io::Problem problem = LidarImuProblem();
   problem.sensors.wheel = true;
@@ -214,7 +190,7 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
   io::Problem no_lidar = LidarImuProblem();
   no_lidar.sensors.lidar = false;
   no_lidar.sensors.gnss = true;
-  EXPECT_THROW(CalibrateDataset(io::ReadDataset(*directory_), no_lidar), Error);
+  EXPECT_THROW(CalibrateDataset(io::ReadDataset(data_->directory), no_lidar), Error);
 }
 
 }  // namespace

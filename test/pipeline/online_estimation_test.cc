@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -15,6 +14,7 @@
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/sim/simulator.h"
+#include "pipeline/simulated_urban_dataset.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -46,36 +46,20 @@ Eigen::Vector3d TruePosition(const io::Trajectory& truth, int64_t t_ns) {
   return (1.0 - s) * truth[i0].T_W_I.p + s * truth[i1].T_W_I.p;
 }
 
-// A 30 s urban drive (16 beams, seed 7: a still start, straight driving and a roundabout from
-// 18 s, which the initializer needs) written as a dataset once for the suite.
+// The 30 s urban drive (test/pipeline/simulated_urban_dataset.h).
 class OnlineEstimationTest : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    sim::SimulationOptions options;
-    options.scenario = sim::ScenarioType::kUrban;
-    options.duration_s = 30.0;
-    options.seed = 7;
-    options.lidar.config.num_beams = 16;
-    simulator_ = new sim::Simulator(options);
-    directory_ = new std::string(test::OutputDir("urban_30s").string());
-    std::filesystem::remove_all(*directory_);
-    sim::WriteDataset(*simulator_, *directory_);
-  }
-  static void TearDownTestSuite() {
-    delete simulator_;
-    delete directory_;
-  }
-  static sim::Simulator* simulator_;
-  static std::string* directory_;
+  static void SetUpTestSuite() { data_ = new test::SimulatedUrbanDataset(30.0, "urban_30s"); }
+  static void TearDownTestSuite() { delete data_; }
+  static test::SimulatedUrbanDataset* data_;
 };
 
-sim::Simulator* OnlineEstimationTest::simulator_ = nullptr;
-std::string* OnlineEstimationTest::directory_ = nullptr;
+test::SimulatedUrbanDataset* OnlineEstimationTest::data_ = nullptr;
 
 // The dataset on disk streamed through the window from the initializer's start; the result
 // files are written and read back.
 TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
-  const io::Dataset dataset = io::ReadDataset(*directory_);
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
   int progress_calls = 0;
   OnlineEstimationOptions options;
   options.progress = [&progress_calls](const OnlineEstimationProgress& p) {
@@ -84,7 +68,7 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
     EXPECT_LE(p.log_fraction, 1.0);
   };
   const OnlineEstimationResult result = EstimateDatasetOnline(dataset, FullProblem(), options);
-  const sensors::Calibration& truth = simulator_->true_calibration();
+  const sensors::Calibration& truth = data_->simulator.true_calibration();
   const sensors::Calibration& estimate = result.calibration.value;
 
   // W is the ENU frame at the first (noisy) fix, the ground truth's is the simulator's ENU
@@ -157,7 +141,7 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
 }
 
 TEST_F(OnlineEstimationTest, RefusesWhatItCannotDo) {
-  const io::Dataset full = io::ReadDataset(*directory_);
+  const io::Dataset full = io::ReadDataset(data_->directory);
   io::Dataset no_wheel = full;
   no_wheel.wheel.clear();
   try {
