@@ -129,35 +129,60 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
   const Eigen::MatrixXd& S = covariance.matrix;
   const auto n = static_cast<int>(S.rows());
   Eigen::VectorXd difference(n);
-  std::vector<int> observable, unobservable;
+  Eigen::VectorXd prior_variance(n);
+  std::vector<bool> held(static_cast<size_t>(n), false);
+  // Held only because a held direction carries its error into it (Eq. C2), with that sigma.
+  std::vector<double> relative_sigma(static_cast<size_t>(n), 0.0);
+  // The block and direction of every row, for the excitation test.
+  std::vector<std::pair<size_t, int>> direction(static_cast<size_t>(n));
   for (size_t b = 0; b < blocks.size(); ++b) {
     const int first = covariance.offsets[b];
     difference.segment(first, blocks[b].size) = TangentFromPrior(blocks[b]);
     for (int i = 0; i < blocks[b].size; ++i) {
+      prior_variance(first + i) = blocks[b].prior_sigma(i) * blocks[b].prior_sigma(i);
+      direction[static_cast<size_t>(first + i)] = {b, i};
       const double sigma = std::sqrt(std::max(0.0, S(first + i, first + i)));
-      (Excited(blocks[b], i, sigma) ? observable : unobservable).push_back(first + i);
+      held[static_cast<size_t>(first + i)] = !Excited(blocks[b], i, sigma);
     }
   }
+  const auto pick = [&](const std::vector<int>& rows, const std::vector<int>& cols) {
+    Eigen::MatrixXd m(rows.size(), cols.size());
+    for (size_t r = 0; r < rows.size(); ++r) {
+      for (size_t c = 0; c < cols.size(); ++c) {
+        m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = S(rows[r], cols[c]);
+      }
+    }
+    return m;
+  };
+
+  // Eq. C1-C2 for the held set U; a direction that C2 leaves above its limit (it was known
+  // only relative to a held one) is held too, and U is conditioned on again.
   Eigen::MatrixXd conditioned = S;
   Eigen::VectorXd step = Eigen::VectorXd::Zero(n);
-  if (!unobservable.empty()) {
-    const auto pick = [&](const std::vector<int>& rows, const std::vector<int>& cols) {
-      Eigen::MatrixXd m(rows.size(), cols.size());
-      for (size_t r = 0; r < rows.size(); ++r) {
-        for (size_t c = 0; c < cols.size(); ++c) {
-          m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = S(rows[r], cols[c]);
-        }
-      }
-      return m;
-    };
+  std::vector<int> observable, unobservable;
+  for (bool changed = true; changed;) {
+    observable.clear();
+    unobservable.clear();
+    for (int r = 0; r < n; ++r) (held[static_cast<size_t>(r)] ? unobservable : observable).push_back(r);
+    conditioned = S;
+    step.setZero();
+    changed = false;
+    if (unobservable.empty()) break;
     const Eigen::MatrixXd S_ou = pick(observable, unobservable);
     const Eigen::LDLT<Eigen::MatrixXd> S_uu(pick(unobservable, unobservable));
-    Eigen::VectorXd d_u(unobservable.size());
+    Eigen::VectorXd d_u(unobservable.size()), prior_variance_u(unobservable.size());
     for (size_t u = 0; u < unobservable.size(); ++u) {
       d_u(static_cast<Eigen::Index>(u)) = difference(unobservable[u]);
+      prior_variance_u(static_cast<Eigen::Index>(u)) = prior_variance(unobservable[u]);
     }
-    const Eigen::VectorXd shift = -S_ou * S_uu.solve(d_u);
-    const Eigen::MatrixXd reduction = S_ou * S_uu.solve(S_ou.transpose());
+    // Eq. C2: the held values are the nominal ones, whose own error has the prior covariance
+    // P_U; through the gain K = S_OU S_UU^-1 it reaches the conditioned directions, so their
+    // covariance is S_OO - K S_UO + K P_U K^T (close to S_OO when the drive left U at its
+    // prior: holding U then takes nothing from O's uncertainty).
+    const Eigen::MatrixXd gain = S_uu.solve(S_ou.transpose()).transpose();
+    const Eigen::VectorXd shift = -gain * d_u;
+    const Eigen::MatrixXd reduction = gain * S_ou.transpose() -
+                                      gain * prior_variance_u.asDiagonal() * gain.transpose();
     for (size_t o = 0; o < observable.size(); ++o) {
       step(observable[o]) = shift(static_cast<Eigen::Index>(o));
       for (size_t o2 = 0; o2 < observable.size(); ++o2) {
@@ -166,6 +191,15 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
       }
     }
     for (int u : unobservable) step(u) = -difference(u);
+    for (int o : observable) {
+      const auto [b, i] = direction[static_cast<size_t>(o)];
+      const double sigma = std::sqrt(std::max(0.0, conditioned(o, o)));
+      if (!Excited(blocks[b], i, sigma)) {
+        held[static_cast<size_t>(o)] = true;
+        relative_sigma[static_cast<size_t>(o)] = sigma;
+        changed = true;
+      }
+    }
   }
 
   BlockObservability out;
@@ -182,14 +216,24 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
       }
       flags[static_cast<size_t>(i)] = false;
       sigma(i) = block.prior_sigma(i);
+      const auto value = [&](double x) {
+        std::ostringstream v;
+        v << std::setprecision(3) << x * block.display_scale << ' ' << block.display_unit;
+        return v.str();
+      };
+      const double relative = relative_sigma[static_cast<size_t>(first + i)];
       std::ostringstream text;
-      text << std::setprecision(3) << block.direction_names[static_cast<size_t>(i)]
-           << ": not excited by the drive (sigma "
-           << std::sqrt(std::max(0.0, S(first + i, first + i))) * block.display_scale << ' '
-           << block.display_unit << " after the solve, prior "
-           << block.prior_sigma(i) * block.display_scale << ' ' << block.display_unit
-           << ", limit " << block.max_observable_sigma * block.display_scale << ' '
-           << block.display_unit << "); held at the nominal value";
+      text << block.direction_names[static_cast<size_t>(i)];
+      if (relative > 0.0) {
+        text << ": known only relative to directions held at their nominal values (sigma "
+             << value(relative) << " with their prior error, limit "
+             << value(block.max_observable_sigma) << "); held at the nominal value";
+      } else {
+        text << ": not excited by the drive (sigma "
+             << value(std::sqrt(std::max(0.0, S(first + i, first + i)))) << " after the solve, prior "
+             << value(block.prior_sigma(i)) << ", limit " << value(block.max_observable_sigma)
+             << "); held at the nominal value";
+      }
       out.warnings.push_back(text.str());
     }
     out.observable.push_back(flags);

@@ -11,6 +11,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
+#include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -103,7 +104,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
   };
   auto rotation = [&](const std::string& name, const io::VectorBlockSetting& setting,
                       const std::optional<Eigen::Vector3d>& nominal_sigma_deg,
-                      const Eigen::Quaterniond& q0, double* data,
+                      const Eigen::Quaterniond& q0, double* data, double max_sigma_deg,
                       std::vector<std::string> directions) {
     CalibrationBlock b;
     b.name = name;
@@ -114,7 +115,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
     b.prior_sigma = PriorSigma(setting.mode, setting.prior_sigma * deg,
                                Optional(nominal_sigma_deg, deg),
                                Eigen::VectorXd::Constant(3, o.default_rotation_prior_sigma_deg * deg));
-    b.max_observable_sigma = o.max_observable_rotation_sigma_deg * deg;
+    b.max_observable_sigma = max_sigma_deg * deg;
     b.direction_names = std::move(directions);
     b.display_scale = kRadToDeg;
     b.display_unit = "deg";
@@ -156,7 +157,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
   };
   if (Estimated(p.T_I_L.rotation.mode)) {
     rotation("T_I_L rotation", p.T_I_L.rotation, u.T_I_L.sigma_rot_deg, nominal.q_I_L,
-             c->q_I_L.coeffs().data(),
+             c->q_I_L.coeffs().data(), o.max_observable_rotation_sigma_deg,
              {"LiDAR rotation about the IMU x axis (roll)", "LiDAR rotation about the IMU y axis (pitch)",
               "LiDAR rotation about the IMU z axis (yaw)"});
   }
@@ -190,7 +191,7 @@ std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
     }
     if (Estimated(p.T_I_V.rotation.mode)) {
       rotation("T_I_V rotation", p.T_I_V.rotation, u.T_I_V.sigma_rot_deg, nominal.q_I_V,
-               c->q_I_V.coeffs().data(),
+               c->q_I_V.coeffs().data(), o.max_observable_vehicle_rotation_sigma_deg,
                {"vehicle frame rotation about the IMU x axis (roll)",
                 "vehicle frame rotation about the IMU y axis (pitch)",
                 "vehicle frame rotation about the IMU z axis (yaw)"});
@@ -246,6 +247,52 @@ void FillUncertainty(const std::vector<CalibrationBlock>& blocks, const BlockObs
       info->observable = flags[0];
     }
   }
+}
+
+std::string FormatFixed(double value, int decimals) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(decimals) << value;
+  return out.str();
+}
+
+// The initializer's keyframes are in a gravity-aligned frame of their own; GNSS brings them
+// into ENU. Where the LiDAR odometry followed the drive, a 4-DoF alignment of its track does
+// (Eq. K3-K5) and true is returned. Where it did not (a featureless road, traffic moving with
+// the car: its track then misses the fixes by metres or is too short to give the yaw), every
+// state the initializer derived from that track is unusable: the keyframes are rebuilt from
+// GNSS and the IMU alone (estimation/gnss_inertial_keyframes.h), a warning says so, and false
+// is returned (the caller then starts the LiDAR blocks from their nominal values).
+bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter& enu,
+                         const sensors::Calibration& calibration,
+                         const OfflineCalibrationOptions& options, int num_threads,
+                         std::vector<estimation::Keyframe>* keyframes,
+                         std::vector<std::string>* warnings) {
+  std::vector<estimation::Keyframe> aligned = *keyframes;
+  std::string failure;
+  try {
+    const estimation::GnssAlignment fit =
+        estimation::AlignKeyframesToGnss(&aligned, dataset.gnss, enu, calibration.p_I_A);
+    if (fit.rms_m <= options.max_odometry_to_gnss_rms_m) {
+      *keyframes = std::move(aligned);
+      return true;
+    }
+    failure = "its track misses the GNSS fixes by " + FormatFixed(fit.rms_m, 2) +
+              " m RMS after alignment";
+  } catch (const Error& e) {
+    failure = e.what();
+  }
+  estimation::GnssInertialKeyframesOptions gnss_inertial;
+  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
+  gnss_inertial.num_threads = num_threads;
+  const estimation::GnssInertialKeyframes rebuilt = estimation::KeyframesFromGnssAndImu(
+      keyframes, dataset.imu, dataset.wheel, dataset.gnss, enu, calibration, gnss_inertial);
+  warnings->push_back(
+      "the LiDAR odometry did not follow the drive (" + failure + "): the keyframes were "
+      "rebuilt from GNSS and the IMU (" + std::to_string(rebuilt.placement.num_placed) +
+      " on the fitted GNSS track, " + std::to_string(rebuilt.placement.num_bridged) +
+      " bridged), and the LiDAR rotation, translation and time offset start from their nominal "
+      "values");
+  return false;
 }
 
 }  // namespace
@@ -340,7 +387,12 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   if (use_gnss) {
     // W becomes the ENU frame at the first fix: GNSS fixes position and yaw.
     enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-    estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, *enu, calibration.p_I_A);
+    if (!PlaceKeyframesInEnu(dataset, *enu, calibration, options, problem.solver.num_threads,
+                             &keyframes, &result.warnings)) {
+      calibration.q_I_L = result.nominal.q_I_L;
+      calibration.p_I_L = result.nominal.p_I_L;
+      calibration.time_offset_lidar_imu_s = result.nominal.time_offset_lidar_imu_s;
+    }
     batch_options.hold_first_pose = false;
     for (const sensors::GnssFix& fix : dataset.gnss) {
       result.gnss_positions_W.push_back(enu->ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));

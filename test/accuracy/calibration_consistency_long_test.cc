@@ -125,6 +125,16 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
                     &samples);
     AddIfObservable("track width", estimate.track_width_m - truth.track_width_m,
                     u.track_width_m.sigma, u.track_width_m.observable.value_or(true), &samples);
+    // The largest normalized error of this drive, to find a drive that breaks the average.
+    double largest = 0.0;
+    std::string largest_name;
+    for (const auto& [name, z2] : samples) {
+      if (!z2.empty() && z2.size() == static_cast<size_t>(calibrated) && z2.back() > largest) {
+        largest = z2.back();
+        largest_name = name;
+      }
+    }
+    std::cout << "seed " << seed << ": largest z^2 " << largest << " (" << largest_name << ")\n";
     if (u.p_I_A_m.sigma) {
       const char* axes[] = {"x", "y", "z"};
       for (size_t a = 0; a < 3; ++a) {

@@ -243,6 +243,118 @@ TEST_F(KeyframeSensorFactorsTest, WheelDropoutsLeaveKeyframesWithoutFactors) {
   EXPECT_EQ(added, static_cast<int>(keyframes.size()) - inside);
 }
 
+// The non-holonomic rows' model error is the body's pitch and roll on its suspension, which
+// follow the acceleration: on the noise-free drive with the true state and calibration, the
+// vertical speed of the rear axle in V is far from white (correlated over seconds), and
+// AddWheelFactors scales those rows' sigma by sqrt(2 tau / dt) (Eq. K6) and no other row.
+TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation) {
+  const auto residuals = [&](double tau_s) {
+    std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
+    sensors::Calibration calibration = exact_simulator_->true_calibration();
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    KeyframeWheelOptions options;
+    options.non_holonomic_correlation_s = tau_s;
+    options.loss = factors::LossOptions();  // plain least squares: raw whitened rows
+    EXPECT_GT(AddWheelFactors(problem.get(), exact_->imu.samples, exact_->wheel, &keyframes,
+                              &calibration, options),
+              200);
+    std::vector<double> r;
+    problem->Evaluate(ceres::Problem::EvaluateOptions(), nullptr, &r, nullptr, nullptr);
+    return r;
+  };
+  const std::vector<double> white = residuals(0.0);
+  const std::vector<double> correlated = residuals(2.0);
+  ASSERT_EQ(white.size(), correlated.size());
+  ASSERT_EQ(white.size() % 4, 0u);
+  const double scale = std::sqrt(2.0 * 2.0 / kKeyframeSpacingS);
+  std::vector<double> vertical;
+  for (size_t i = 0; i < white.size(); i += 4) {
+    EXPECT_EQ(correlated[i], white[i]);
+    EXPECT_EQ(correlated[i + 1], white[i + 1]);
+    EXPECT_NEAR(correlated[i + 2] * scale, white[i + 2], 1e-12);
+    EXPECT_NEAR(correlated[i + 3] * scale, white[i + 3], 1e-12);
+    vertical.push_back(white[i + 3]);
+  }
+  // The integral time of the vertical row's autocorrelation (up to its first zero): white
+  // noise would give half a keyframe spacing.
+  double mean = 0.0;
+  for (double v : vertical) mean += v;
+  mean /= static_cast<double>(vertical.size());
+  const auto covariance = [&](size_t lag) {
+    double c = 0.0;
+    for (size_t i = 0; i + lag < vertical.size(); ++i) {
+      c += (vertical[i] - mean) * (vertical[i + lag] - mean);
+    }
+    return c / static_cast<double>(vertical.size());
+  };
+  const double c0 = covariance(0);
+  double integral_time_s = 0.5 * kKeyframeSpacingS;
+  for (size_t lag = 1; lag < vertical.size() && covariance(lag) > 0.0; ++lag) {
+    integral_time_s += kKeyframeSpacingS * covariance(lag) / c0;
+  }
+  const double rms_m_s = 0.05 * std::sqrt(c0);
+  std::cout << "noise-free vertical rear-axle speed: rms " << rms_m_s
+            << " m/s, autocorrelation integral time " << integral_time_s << " s\n";
+  EXPECT_GT(rms_m_s, 0.005);
+  EXPECT_GT(integral_time_s, 1.0);
+}
+
+// Keyframes whose positions the odometry lost: true orientations turned by 30 deg about the
+// vertical and every position and velocity zeroed. The fitted antenna tracks (Eq. K7) put them
+// back, through the simulator's multipath outliers and its outages (bridged), and the heading
+// of the track against the vehicle's forward axis (Eq. K8) undoes the 30 deg.
+TEST_F(KeyframeSensorFactorsTest, PlacesKeyframesOnTheGnssTrack) {
+  const std::vector<Keyframe> truth = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+  std::vector<Keyframe> keyframes = truth;
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(30.0 / kRadToDeg, Eigen::Vector3d::UnitZ()));
+  for (Keyframe& kf : keyframes) {
+    kf.q_W_I = turn * kf.q_W_I;
+    kf.p_W_I.setZero();
+    kf.v_W_I.setZero();
+  }
+  const sensors::Calibration& c = noisy_simulator_->true_calibration();
+  const GnssPlacement placement = PlaceKeyframesOnGnss(
+      &keyframes, noisy_->gnss.fixes, Converter(*noisy_simulator_), c.p_I_A, c.q_I_V);
+  // Bridged keyframes lie in the outages, interpolated across curves: their positions and
+  // velocities only start the solve that follows (gnss_inertial_keyframes.h).
+  ASSERT_EQ(placement.placed.size(), keyframes.size());
+  double max_p_m = 0.0, max_v_m_s = 0.0, max_rotation_deg = 0.0, sum_p_m2 = 0.0;
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    max_rotation_deg = std::max(
+        max_rotation_deg, geometry::AngularDistance(keyframes[k].q_W_I, truth[k].q_W_I) * kRadToDeg);
+    if (!placement.placed[k]) continue;
+    const double p_m = (keyframes[k].p_W_I - truth[k].p_W_I).norm();
+    sum_p_m2 += p_m * p_m;
+    max_p_m = std::max(max_p_m, p_m);
+    max_v_m_s = std::max(max_v_m_s, (keyframes[k].v_W_I - truth[k].v_W_I).norm());
+  }
+  const double rms_p_m = std::sqrt(sum_p_m2 / static_cast<double>(placement.num_placed));
+  std::cout << placement.num_placed << " placed, " << placement.num_bridged << " bridged, "
+            << placement.num_headings << " headings (RMS " << placement.heading_rms_rad * kRadToDeg
+            << " deg); yaw " << placement.yaw_rad * kRadToDeg << " deg; errors on the placed: position max "
+            << max_p_m << " m (RMS " << rms_p_m << "), velocity max " << max_v_m_s
+            << " m/s, rotation max " << max_rotation_deg << " deg\n";
+  EXPECT_GT(placement.num_bridged, 0);  // the outages
+  EXPECT_GT(placement.num_headings, 100);
+  EXPECT_NEAR(placement.yaw_rad * kRadToDeg, -30.0, 0.5);
+  EXPECT_LT(max_rotation_deg, 0.5);
+  // Start values for the GNSS-inertial solve (measured: 4.3 cm RMS, 0.11 m and 0.51 m/s at
+  // most, the largest where the car enters the roundabout: a quadratic over 2 s of track).
+  EXPECT_LT(rms_p_m, 0.1);
+  EXPECT_LT(max_p_m, 0.3);
+  EXPECT_LT(max_v_m_s, 1.0);
+}
+
+// Too few fixes around any keyframe: refused with a message.
+TEST_F(KeyframeSensorFactorsTest, PlacementNeedsFixesAroundTheKeyframes) {
+  std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+  const sensors::GnssFixes few(noisy_->gnss.fixes.begin(), noisy_->gnss.fixes.begin() + 3);
+  const sensors::Calibration& c = noisy_simulator_->true_calibration();
+  EXPECT_THROW(PlaceKeyframesOnGnss(&keyframes, few, Converter(*noisy_simulator_), c.p_I_A,
+                                    c.q_I_V),
+               Error);
+}
+
 // A quaternion block that Ceres would add as a Euclidean 4-vector is refused.
 TEST_F(KeyframeSensorFactorsTest, QuaternionBlocksNeedTheirManifold) {
   std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);

@@ -47,7 +47,11 @@ TEST(CalibrationBlocks, HoldsUnobservableDirectionsAndConditionsTheRest) {
   EXPECT_DOUBLE_EQ(p.y(), -0.05);
   ASSERT_EQ(result.observable.size(), 1u);
   EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
-  EXPECT_NEAR(result.sigma[0](0), std::sqrt(1e-4 - 5e-4 * 5e-4 / 1e-2), 1e-12);
+  // Eq. C2: gain K = 5e-4 / 1e-2 from z to x; z is held at a nominal value whose error has
+  // the prior's variance 0.3^2, which K carries into x.
+  const double gain = 5e-4 / 1e-2;
+  EXPECT_NEAR(result.sigma[0](0), std::sqrt(1e-4 - gain * 5e-4 + gain * gain * 0.09), 1e-12);
+  EXPECT_DOUBLE_EQ(result.sigma[0](1), 0.02);  // uncorrelated with z: unchanged
   EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);  // the prior's
   ASSERT_EQ(result.warnings.size(), 1u);
   EXPECT_THAT(result.warnings[0], ::testing::HasSubstr("z: not excited by the drive"));

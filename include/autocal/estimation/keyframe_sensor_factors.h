@@ -43,6 +43,13 @@ struct KeyframeWheelOptions {
   double max_wheel_gap_s = 0.025;
   // The same for the IMU samples that give the raw gyro at the keyframe (2.5 periods at 200 Hz).
   double max_imu_gap_s = 0.0125;
+  // Correlation time of the non-holonomic rows' model error (Eq. K6): the rear axle's
+  // lateral and vertical speed in the vehicle frame is not white noise but follows the body's
+  // roll and pitch on its suspension, which follow the lateral and longitudinal acceleration
+  // over seconds (the integral time of its autocorrelation is about 2 s on the simulated
+  // urban drive). The rows' sigma is scaled by sqrt(2 tau / dt), dt the mean keyframe
+  // spacing; 0 treats the rows as white.
+  double non_holonomic_correlation_s = 2.0;
   // Blocks not estimated are set constant in the problem (blocks left estimated are not
   // made variable: a caller may have fixed them).
   bool estimate_vehicle_rotation = true;     // q_I_V
@@ -120,6 +127,42 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::EnuConverter& converter,
                                    const Eigen::Vector3d& p_I_A,
                                    const GnssAlignmentOptions& options = {});
+
+struct GnssPlacementOptions {
+  // The antenna track around a keyframe: the fixes within this half-width of its time, fitted
+  // per axis by a quadratic in time (Eq. K7) with outlier rejection as GnssAlignmentOptions.
+  double half_width_s = 1.0;
+  int min_fixes = 5;  // fewer inliers in the window: the keyframe is left to its neighbours
+  int max_refits = 3;
+  double outlier_mad_factor = 5.0;
+  double min_outlier_distance_m = 0.5;
+  // Keyframes slower than this give no heading for the yaw (Eq. K8).
+  double min_heading_speed_m_s = 3.0;
+};
+
+struct GnssPlacement {
+  double yaw_rad = 0.0;     // rotation about z_W applied to every keyframe (Eq. K8)
+  int num_placed = 0;       // keyframes placed on their own fitted track
+  int num_bridged = 0;      // keyframes without one, interpolated from placed neighbours
+  std::vector<bool> placed;  // per keyframe: on its own track (else bridged)
+  int num_headings = 0;     // keyframes whose heading entered the yaw
+  double heading_rms_rad = 0.0;  // RMS heading residual of those after the yaw
+};
+
+// For keyframes whose positions the LiDAR odometry could not determine (a featureless road,
+// or traffic moving with the car), positions and velocities from GNSS alone: the antenna
+// track fitted around each keyframe (Eq. K7) gives p_W_A and v_W_A, the yaw about gravity
+// comes from the track heading against the vehicle's forward axis R_W_I R_I_V x (Eq. K8), and
+// every keyframe becomes q <- R_z q, p <- p_W_A - R_W_I p_I_A, v <- v_W_A. Roll, pitch and
+// the biases are the initializer's. Keyframes without a fitted track (outages) are
+// interpolated between the nearest placed ones (or moved with the nearest one's velocity at
+// the ends). Throws autocal::Error when fewer than two keyframes can be placed or none moves
+// fast enough for a heading, or as InterpolateGnss.
+GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
+                                   const sensors::GnssFixes& fixes,
+                                   const sensors::EnuConverter& converter,
+                                   const Eigen::Vector3d& p_I_A, const Eigen::Quaterniond& q_I_V,
+                                   const GnssPlacementOptions& options = {});
 
 }  // namespace estimation
 }  // namespace autocal

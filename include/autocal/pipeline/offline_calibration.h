@@ -41,6 +41,12 @@ struct OfflineCalibrationOptions {
     o.gyro_deskew_pass = false;
     return o;
   }();
+  // The LiDAR odometry's keyframes are aligned to GNSS (yaw and shift); when they miss the
+  // fixes by more than this RMS afterwards (or span too little to give the yaw), the odometry
+  // did not follow the drive and the keyframes are rebuilt from GNSS and the IMU instead
+  // (docs/calibration.md). An urban odometry track misses by about 4 m RMS (its drift and the
+  // initializer's scale), which the batch corrects; a failed one by hundreds of metres.
+  double max_odometry_to_gnss_rms_m = 20.0;
   // Every estimated block carries a prior at the nominal value: the problem's sigma in prior
   // mode, else the dataset's nominal uncertainty, else these weak defaults, which keep the
   // problem regular where the drive excites nothing (an excited direction ends far inside).
@@ -50,14 +56,18 @@ struct OfflineCalibrationOptions {
   double default_wheel_radius_prior_sigma_m = 0.01;
   double default_track_width_prior_sigma_m = 0.05;
   // A direction whose posterior sigma exceeds its limit is reported unobservable and held at
-  // its nominal value, the others conditioned on it (docs/calibration.md, Eq. C1).
-  double max_observable_rotation_sigma_deg = 0.3;
-  double max_observable_translation_sigma_m = 0.03;  // T_I_L
-  double max_observable_time_offset_sigma_s = 0.002;
-  double max_observable_wheel_radius_sigma_m = 0.0005;
+  // its nominal value, the others conditioned on it (docs/calibration.md, Eq. C1-C2). The
+  // LiDAR, offset, radius and lever-arm limits are the accuracy a calibration is expected to
+  // reach (0.1 deg, 1 cm, 0.5 ms, 0.1 % of a radius, 2 cm): a direction known less well is not
+  // reported as found.
+  double max_observable_rotation_sigma_deg = 0.1;   // T_I_L
+  double max_observable_vehicle_rotation_sigma_deg = 0.3;  // T_I_V (only scales wheel speeds)
+  double max_observable_translation_sigma_m = 0.01;  // T_I_L
+  double max_observable_time_offset_sigma_s = 0.0005;
+  double max_observable_wheel_radius_sigma_m = 0.0003;
   double max_observable_track_width_sigma_m = 0.005;
   double max_observable_vehicle_translation_sigma_m = 0.05;  // T_I_V
-  double max_observable_lever_arm_sigma_m = 0.03;            // p_I_A
+  double max_observable_lever_arm_sigma_m = 0.02;            // p_I_A
   // ... or whose posterior sigma is above this fraction of its prior sigma: the drive added
   // little information to the prior (at 0.5, less than three times the prior's).
   double max_posterior_to_prior_sigma = 0.5;

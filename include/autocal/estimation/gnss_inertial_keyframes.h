@@ -1,0 +1,71 @@
+#pragma once
+
+// Keyframe states from GNSS and the IMU alone (docs/keyframe_factors.md, "Keyframes from GNSS
+// and the IMU"), for drives whose LiDAR odometry did not follow the car: a featureless road,
+// or traffic moving with it, leaves the odometry's track metres short of the drive, and every
+// state the initializer derives from it (velocities, gravity, the rotation about the vertical)
+// with it.
+//
+// 1. Each keyframe is placed on the antenna track fitted to the fixes around it (Eq. K7,
+//    PlaceKeyframesOnGnss), level, its vehicle x axis along the track heading (Eq. K9).
+// 2. A GNSS-inertial least-squares problem refines every state: IMU factors (Eq. F10) between
+//    consecutive keyframes, GNSS factors (Eq. F30, Cauchy loss) on each keyframe, wheel
+//    factors (Eq. F22) when wheel samples are given, and a weak prior on the first keyframe's
+//    biases. Roll and pitch follow from gravity against the track's acceleration. The yaw
+//    follows from the track only where the car accelerates sideways; on a straight road the
+//    wheel factor's non-holonomic rows hold the vehicle's x axis along the track (the wheel
+//    radii and q_I_V are estimated with the states, q_I_V about its given value; the track
+//    width and p_I_V are held), and without wheels the yaw drifts with the gyro bias.
+
+#include <string>
+#include <vector>
+
+#include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/gnss_enu.h"
+#include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sensor_config.h"
+
+namespace autocal {
+namespace estimation {
+
+struct GnssInertialKeyframesOptions {
+  GnssPlacementOptions placement;
+  KeyframeGnssOptions gnss;  // loss and fix gap of the GNSS factors (the lever arm is held)
+  KeyframeWheelOptions wheel;  // sigmas and loss of the wheel factors (blocks as above)
+  sensors::ImuNoise imu_noise;
+  double gravity_m_s2 = 9.80665;
+  // 1-sigma of the prior on the first keyframe's biases at zero.
+  double gyro_bias_prior_sigma_rad_s = 0.01;
+  double accel_bias_prior_sigma_m_s2 = 0.3;
+  // 1-sigma of the prior on q_I_V at its given value (used with wheel samples).
+  double vehicle_rotation_prior_sigma_deg = 3.0;
+  int max_iterations = 30;
+  int num_threads = 1;
+};
+
+struct GnssInertialKeyframes {
+  GnssPlacement placement;
+  int gnss_factors = 0;
+  int wheel_factors = 0;
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  std::string termination;  // Ceres's message
+};
+
+// Replaces q, p, v, b_g, b_a of every keyframe (their times are kept) with the estimate from
+// the fixes, the IMU samples and the wheel samples (may be empty); the calibration is used as
+// given (its radii only as the start of their estimate; it is not changed). Throws
+// autocal::Error as PlaceKeyframesOnGnss, for fewer than two keyframes, IMU samples that do
+// not cover the keyframes, or a failed solve.
+GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
+                                              const sensors::ImuSamples& imu,
+                                              const sensors::WheelSamples& wheel,
+                                              const sensors::GnssFixes& fixes,
+                                              const sensors::EnuConverter& converter,
+                                              const sensors::Calibration& calibration,
+                                              const GnssInertialKeyframesOptions& options = {});
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,115 @@
+#include "autocal/estimation/gnss_inertial_keyframes.h"
+
+#include <cmath>
+#include <memory>
+
+#include <ceres/ceres.h>
+
+#include "autocal/common/error.h"
+#include "autocal/factors/imu_factor.h"
+#include "autocal/factors/prior_factors.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/sensors/imu_preintegration.h"
+
+namespace autocal {
+namespace estimation {
+
+GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
+                                              const sensors::ImuSamples& imu,
+                                              const sensors::WheelSamples& wheel,
+                                              const sensors::GnssFixes& fixes,
+                                              const sensors::EnuConverter& converter,
+                                              const sensors::Calibration& calibration,
+                                              const GnssInertialKeyframesOptions& options) {
+  std::vector<Keyframe>& kfs = *keyframes;
+  if (kfs.size() < 2) throw Error("KeyframesFromGnssAndImu: need at least two keyframes");
+  if (imu.empty() || imu.front().t_ns > kfs.front().t_ns || imu.back().t_ns < kfs.back().t_ns) {
+    throw Error("KeyframesFromGnssAndImu: the IMU samples do not cover the keyframes");
+  }
+  // 1. Level keyframes (R_W_V = I), then placed on the track (Eq. K7) ...
+  const Eigen::Quaterniond q_V_I = calibration.q_I_V.conjugate();
+  for (Keyframe& kf : kfs) {
+    kf.q_W_I = q_V_I;
+    kf.b_g.setZero();
+    kf.b_a.setZero();
+  }
+  GnssInertialKeyframes result;
+  result.placement = PlaceKeyframesOnGnss(keyframes, fixes, converter, calibration.p_I_A,
+                                          calibration.q_I_V, options.placement);
+  // ... each turned to its own heading where it moves (Eq. K9): R_W_I = R_z(psi) R_V_I with
+  // psi the heading of the antenna velocity; the antenna stays where the track put it.
+  for (Keyframe& kf : kfs) {
+    if (kf.v_W_I.head<2>().norm() < options.placement.min_heading_speed_m_s) continue;
+    const Eigen::Vector3d p_W_A = kf.p_W_I + kf.q_W_I * calibration.p_I_A;
+    const double psi = std::atan2(kf.v_W_I.y(), kf.v_W_I.x());
+    kf.q_W_I = (Eigen::Quaterniond(Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ())) * q_V_I)
+                   .normalized();
+    kf.p_W_I = p_W_A - kf.q_W_I * calibration.p_I_A;
+  }
+
+  // 2. The GNSS-inertial problem.
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  geometry::RightQuaternionManifold quaternion_manifold;
+  for (Keyframe& kf : kfs) problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
+  sensors::PreintegrationOptions preintegration;
+  preintegration.gravity_m_s2 = options.gravity_m_s2;
+  for (size_t k = 0; k + 1 < kfs.size(); ++k) {
+    Keyframe& a = kfs[k];
+    Keyframe& b = kfs[k + 1];
+    sensors::ImuPreintegration pim(options.imu_noise, preintegration, a.b_g, a.b_a);
+    pim.Integrate(imu, a.t_ns, b.t_ns);
+    problem.AddResidualBlock(factors::ImuFactor::Create(pim), nullptr, a.q_W_I.coeffs().data(),
+                             a.p_W_I.data(), a.v_W_I.data(), a.b_g.data(), a.b_a.data(),
+                             b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
+                             b.b_g.data(), b.b_a.data());
+  }
+  sensors::Calibration held = calibration;
+  KeyframeGnssOptions gnss = options.gnss;
+  gnss.estimate_lever_arm = false;
+  result.gnss_factors = AddGnssFactors(&problem, fixes, converter, keyframes, &held, gnss);
+  if (!wheel.empty()) {
+    problem.AddParameterBlock(held.q_I_V.coeffs().data(), 4, &quaternion_manifold);
+    KeyframeWheelOptions wheel_options = options.wheel;
+    // q_I_V is estimated about its given value: held there, its error (degrees for a nominal
+    // value) would tilt every keyframe through the non-holonomic rows (measured 3 deg of roll
+    // and pitch for the simulator's nominal one, absorbed by a 0.7 m/s^2 accelerometer bias).
+    wheel_options.estimate_vehicle_rotation = true;
+    problem.AddResidualBlock(
+        new factors::QuaternionPriorFactor(
+            held.q_I_V, Eigen::Matrix3d::Identity() / (options.vehicle_rotation_prior_sigma_deg * M_PI / 180.0)),
+        nullptr, held.q_I_V.coeffs().data());
+    wheel_options.estimate_vehicle_translation = false;
+    wheel_options.estimate_radii = true;
+    wheel_options.estimate_track_width = false;
+    result.wheel_factors = AddWheelFactors(&problem, imu, wheel, keyframes, &held, wheel_options);
+  }
+  Keyframe& first = kfs.front();
+  problem.AddResidualBlock(
+      new factors::VectorPriorFactor(Eigen::Vector3d::Zero(),
+                                     Eigen::Matrix3d::Identity() / options.gyro_bias_prior_sigma_rad_s),
+      nullptr, first.b_g.data());
+  problem.AddResidualBlock(
+      new factors::VectorPriorFactor(Eigen::Vector3d::Zero(),
+                                     Eigen::Matrix3d::Identity() / options.accel_bias_prior_sigma_m_s2),
+      nullptr, first.b_a.data());
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.num_threads = options.num_threads;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  if (!summary.IsSolutionUsable()) {
+    throw Error("KeyframesFromGnssAndImu: the GNSS-inertial solve failed: " + summary.message);
+  }
+  for (Keyframe& kf : kfs) kf.q_W_I.normalize();
+  result.initial_cost = summary.initial_cost;
+  result.final_cost = summary.final_cost;
+  result.termination = summary.message;
+  return result;
+}
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,111 @@
+#include "autocal/estimation/gnss_inertial_keyframes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+
+#include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "autocal/geometry/so3.h"
+#include "autocal/sim/simulator.h"
+#include "estimation/true_keyframe.h"
+
+namespace autocal {
+namespace estimation {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+struct StateErrors {
+  double position_rms_m = 0.0;
+  double velocity_max_m_s = 0.0;
+  double rotation_max_deg = 0.0;
+  double gyro_bias_max_rad_s = 0.0;
+};
+
+// Keyframes every 0.2 s of a simulated drive (LiDAR off), given only their times, rebuilt
+// from GNSS (with the simulator's multipath outliers and outages), the IMU and the wheels,
+// and compared with the truth.
+StateErrors RebuildAndCompare(sim::ScenarioType scenario, uint64_t seed, bool true_calibration) {
+  sim::SimulationOptions options;
+  options.scenario = scenario;
+  options.duration_s = 30.0;
+  options.seed = seed;
+  options.lidar.enabled = false;
+  const sim::Simulator simulator(options);
+  const sim::SimulatedLog log = sim::Simulate(simulator);
+  std::vector<Keyframe> truth;
+  for (double t_s = 0.5; t_s < options.duration_s - 0.5; t_s += 0.2) {
+    truth.push_back(test::TrueKeyframe(log.imu, simulator.StampAt(t_s)));
+  }
+  std::vector<Keyframe> keyframes(truth.size());
+  for (size_t k = 0; k < truth.size(); ++k) keyframes[k].t_ns = truth[k].t_ns;
+  const sim::GnssSimOptions& g = options.gnss;
+  const sensors::EnuConverter enu(g.origin_lat_deg, g.origin_lon_deg, g.origin_alt_m);
+  GnssInertialKeyframesOptions rebuild;
+  rebuild.imu_noise = simulator.sensors_config().imu.noise;
+  const GnssInertialKeyframes result = KeyframesFromGnssAndImu(
+      &keyframes, log.imu.samples, log.wheel, log.gnss.fixes, enu,
+      true_calibration ? simulator.true_calibration() : simulator.nominal_calibration(), rebuild);
+  StateErrors e;
+  double sum_m2 = 0.0;
+  for (size_t k = 0; k < truth.size(); ++k) {
+    sum_m2 += (keyframes[k].p_W_I - truth[k].p_W_I).squaredNorm();
+    e.velocity_max_m_s = std::max(e.velocity_max_m_s, (keyframes[k].v_W_I - truth[k].v_W_I).norm());
+    e.rotation_max_deg = std::max(
+        e.rotation_max_deg, geometry::AngularDistance(keyframes[k].q_W_I, truth[k].q_W_I) * kRadToDeg);
+    e.gyro_bias_max_rad_s =
+        std::max(e.gyro_bias_max_rad_s, (keyframes[k].b_g - truth[k].b_g).norm());
+  }
+  e.position_rms_m = std::sqrt(sum_m2 / static_cast<double>(truth.size()));
+  std::cout << result.placement.num_placed << " placed, " << result.placement.num_bridged
+            << " bridged, " << result.gnss_factors << " GNSS and " << result.wheel_factors
+            << " wheel factors; cost "
+            << result.initial_cost << " -> " << result.final_cost << "; errors: position RMS "
+            << e.position_rms_m << " m, velocity max " << e.velocity_max_m_s
+            << " m/s, rotation max " << e.rotation_max_deg << " deg, gyro bias max "
+            << e.gyro_bias_max_rad_s << " rad/s\n";
+  return e;
+}
+
+// The case the rebuild exists for: 120 km/h without turns. With the true lever arm and
+// vehicle rotation the states follow the truth to the fix noise (measured 3.0 cm RMS, 0.47
+// deg at most: on a drive with little acceleration the pitch and the accelerometer bias are
+// hard to tell apart). With the nominal ones (the simulator's: 3 cm and 1.5 deg per axis
+// off) the lever-arm error moves every position (measured 5.0 cm RMS, 0.56 deg).
+TEST(GnssInertialKeyframes, RebuildsAHighwayDrive) {
+  const StateErrors exact = RebuildAndCompare(sim::ScenarioType::kHighway, 3, true);
+  EXPECT_LT(exact.position_rms_m, 0.05);
+  EXPECT_LT(exact.velocity_max_m_s, 0.1);
+  EXPECT_LT(exact.rotation_max_deg, 1.0);
+  EXPECT_LT(exact.gyro_bias_max_rad_s, 0.001);
+  const StateErrors nominal = RebuildAndCompare(sim::ScenarioType::kHighway, 3, false);
+  EXPECT_LT(nominal.position_rms_m, 0.1);
+  EXPECT_LT(nominal.velocity_max_m_s, 0.1);
+  EXPECT_LT(nominal.rotation_max_deg, 1.5);
+}
+
+// An urban drive with a still start (no heading until the car moves), GNSS outages and a
+// roundabout (measured 2.5 cm RMS, 0.11 deg at most).
+TEST(GnssInertialKeyframes, RebuildsAnUrbanDrive) {
+  const StateErrors exact = RebuildAndCompare(sim::ScenarioType::kUrban, 7, true);
+  EXPECT_LT(exact.position_rms_m, 0.05);
+  EXPECT_LT(exact.velocity_max_m_s, 0.1);
+  EXPECT_LT(exact.rotation_max_deg, 0.5);
+  EXPECT_LT(exact.gyro_bias_max_rad_s, 0.001);
+}
+
+TEST(GnssInertialKeyframes, RefusesWhatItCannotDo) {
+  std::vector<Keyframe> one(1);
+  const sensors::EnuConverter enu(48.0, 11.0, 500.0);
+  EXPECT_THROW(KeyframesFromGnssAndImu(&one, {}, {}, {}, enu, sensors::Calibration()), Error);
+  std::vector<Keyframe> two(2);
+  two[1].t_ns = 1000000000;
+  sensors::ImuSamples imu(1);  // one sample at t = 0 does not cover the keyframe at 1 s
+  EXPECT_THROW(KeyframesFromGnssAndImu(&two, imu, {}, {}, enu, sensors::Calibration()), Error);
+}
+
+}  // namespace
+}  // namespace estimation
+}  // namespace autocal
