@@ -129,56 +129,45 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
   const Eigen::MatrixXd& S = covariance.matrix;
   const auto n = static_cast<int>(S.rows());
   Eigen::VectorXd difference(n);
-  Eigen::VectorXd prior_variance(n);
-  std::vector<bool> held(static_cast<size_t>(n), false);
-  // Held only because a held direction carries its error into it (Eq. C2), with that sigma.
-  std::vector<double> relative_sigma(static_cast<size_t>(n), 0.0);
-  // The block and direction of every row, for the excitation test.
-  std::vector<std::pair<size_t, int>> direction(static_cast<size_t>(n));
+  // Held (U): the drive left them at their prior; the rest (O) is conditioned on them.
+  std::vector<int> observable, unobservable;
   for (size_t b = 0; b < blocks.size(); ++b) {
     const int first = covariance.offsets[b];
     difference.segment(first, blocks[b].size) = TangentFromPrior(blocks[b]);
     for (int i = 0; i < blocks[b].size; ++i) {
-      prior_variance(first + i) = blocks[b].prior_sigma(i) * blocks[b].prior_sigma(i);
-      direction[static_cast<size_t>(first + i)] = {b, i};
       const double sigma = std::sqrt(std::max(0.0, S(first + i, first + i)));
-      held[static_cast<size_t>(first + i)] = !Excited(blocks[b], i, sigma);
+      const bool informed = sigma <= blocks[b].max_posterior_to_prior_sigma * blocks[b].prior_sigma(i);
+      (informed ? observable : unobservable).push_back(first + i);
     }
   }
-  const auto pick = [&](const std::vector<int>& rows, const std::vector<int>& cols) {
-    Eigen::MatrixXd m(rows.size(), cols.size());
-    for (size_t r = 0; r < rows.size(); ++r) {
-      for (size_t c = 0; c < cols.size(); ++c) {
-        m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = S(rows[r], cols[c]);
-      }
-    }
-    return m;
-  };
-
-  // Eq. C1-C2 for the held set U; a direction that C2 leaves above its limit (it was known
-  // only relative to a held one) is held too, and U is conditioned on again.
   Eigen::MatrixXd conditioned = S;
   Eigen::VectorXd step = Eigen::VectorXd::Zero(n);
-  std::vector<int> observable, unobservable;
-  for (bool changed = true; changed;) {
-    observable.clear();
-    unobservable.clear();
-    for (int r = 0; r < n; ++r) (held[static_cast<size_t>(r)] ? unobservable : observable).push_back(r);
-    conditioned = S;
-    step.setZero();
-    changed = false;
-    if (unobservable.empty()) break;
+  if (!unobservable.empty()) {
+    const auto pick = [&](const std::vector<int>& rows, const std::vector<int>& cols) {
+      Eigen::MatrixXd m(rows.size(), cols.size());
+      for (size_t r = 0; r < rows.size(); ++r) {
+        for (size_t c = 0; c < cols.size(); ++c) {
+          m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = S(rows[r], cols[c]);
+        }
+      }
+      return m;
+    };
     const Eigen::MatrixXd S_ou = pick(observable, unobservable);
     const Eigen::LDLT<Eigen::MatrixXd> S_uu(pick(unobservable, unobservable));
     Eigen::VectorXd d_u(unobservable.size()), prior_variance_u(unobservable.size());
     for (size_t u = 0; u < unobservable.size(); ++u) {
       d_u(static_cast<Eigen::Index>(u)) = difference(unobservable[u]);
-      prior_variance_u(static_cast<Eigen::Index>(u)) = prior_variance(unobservable[u]);
+      for (size_t b = 0; b < blocks.size(); ++b) {
+        const int i = unobservable[u] - covariance.offsets[b];
+        if (i >= 0 && i < blocks[b].size) {
+          prior_variance_u(static_cast<Eigen::Index>(u)) =
+              blocks[b].prior_sigma(i) * blocks[b].prior_sigma(i);
+        }
+      }
     }
-    // Eq. C2: the held values are the nominal ones, whose own error has the prior covariance
-    // P_U; through the gain K = S_OU S_UU^-1 it reaches the conditioned directions, so their
-    // covariance is S_OO - K S_UO + K P_U K^T (close to S_OO when the drive left U at its
-    // prior: holding U then takes nothing from O's uncertainty).
+    // Eq. C1, and Eq. C2: the held values are the nominal ones, whose own error has the prior
+    // covariance P_U; through the gain K = S_OU S_UU^-1 it reaches the conditioned
+    // directions, so their covariance is S_OO - K S_UO + K P_U K^T.
     const Eigen::MatrixXd gain = S_uu.solve(S_ou.transpose()).transpose();
     const Eigen::VectorXd shift = -gain * d_u;
     const Eigen::MatrixXd reduction = gain * S_ou.transpose() -
@@ -191,15 +180,6 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
       }
     }
     for (int u : unobservable) step(u) = -difference(u);
-    for (int o : observable) {
-      const auto [b, i] = direction[static_cast<size_t>(o)];
-      const double sigma = std::sqrt(std::max(0.0, conditioned(o, o)));
-      if (!Excited(blocks[b], i, sigma)) {
-        held[static_cast<size_t>(o)] = true;
-        relative_sigma[static_cast<size_t>(o)] = sigma;
-        changed = true;
-      }
-    }
   }
 
   BlockObservability out;
@@ -210,31 +190,30 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
     Eigen::VectorXd sigma =
         conditioned.diagonal().segment(first, block.size).cwiseMax(0.0).cwiseSqrt();
     std::vector<bool> flags(static_cast<size_t>(block.size), true);
+    const auto value = [&](double x) {
+      std::ostringstream v;
+      v << std::setprecision(3) << x * block.display_scale << ' ' << block.display_unit;
+      return v.str();
+    };
     for (int i = 0; i < block.size; ++i) {
-      if (std::find(unobservable.begin(), unobservable.end(), first + i) == unobservable.end()) {
-        continue;
+      const std::string& name = block.direction_names[static_cast<size_t>(i)];
+      const bool held =
+          std::find(unobservable.begin(), unobservable.end(), first + i) != unobservable.end();
+      if (held) {
+        flags[static_cast<size_t>(i)] = false;
+        sigma(i) = block.prior_sigma(i);
+        out.warnings.push_back(name + ": not excited by the drive (sigma " +
+                               value(std::sqrt(std::max(0.0, S(first + i, first + i)))) +
+                               " after the solve, prior " + value(block.prior_sigma(i)) +
+                               "); held at the nominal value");
+      } else if (!(sigma(i) <= block.max_observable_sigma)) {
+        // Informed, but not to the accuracy asked for: the estimate is kept (it is better
+        // than the nominal value) with its sigma, and not reported as observable.
+        flags[static_cast<size_t>(i)] = false;
+        out.warnings.push_back(name + ": only partly determined by the drive (sigma " +
+                               value(sigma(i)) + ", limit " + value(block.max_observable_sigma) +
+                               "); the estimate is kept and not reported as observable");
       }
-      flags[static_cast<size_t>(i)] = false;
-      sigma(i) = block.prior_sigma(i);
-      const auto value = [&](double x) {
-        std::ostringstream v;
-        v << std::setprecision(3) << x * block.display_scale << ' ' << block.display_unit;
-        return v.str();
-      };
-      const double relative = relative_sigma[static_cast<size_t>(first + i)];
-      std::ostringstream text;
-      text << block.direction_names[static_cast<size_t>(i)];
-      if (relative > 0.0) {
-        text << ": known only relative to directions held at their nominal values (sigma "
-             << value(relative) << " with their prior error, limit "
-             << value(block.max_observable_sigma) << "); held at the nominal value";
-      } else {
-        text << ": not excited by the drive (sigma "
-             << value(std::sqrt(std::max(0.0, S(first + i, first + i)))) << " after the solve, prior "
-             << value(block.prior_sigma(i)) << ", limit " << value(block.max_observable_sigma)
-             << "); held at the nominal value";
-      }
-      out.warnings.push_back(text.str());
     }
     out.observable.push_back(flags);
     out.sigma.push_back(sigma);

@@ -26,7 +26,7 @@ struct CalibrationBlock {
   // A direction whose posterior sigma exceeds this (tangent units), or this fraction of its
   // prior sigma (the data added little to the prior), is unobservable.
   double max_observable_sigma = 0.0;
-  double max_posterior_to_prior_sigma = 0.5;
+  double max_posterior_to_prior_sigma = 0.2;
   std::vector<std::string> direction_names;  // physical words, one per tangent direction
   double display_scale = 1.0;                // tangent units to display units
   std::string display_unit;
@@ -54,14 +54,16 @@ std::vector<std::string> ImplausibleDirections(const std::vector<CalibrationBloc
                                                const BlockCovariance& covariance,
                                                double max_sigmas);
 
-// Directions whose posterior sigma exceeds their block's limits are unobservable (U); they are
-// set to their prior value and the others (O) conditioned on it (Eq. C1):
-//   x_O <- x_O - S_OU S_UU^-1 (x_U - x0_U),   S_OO <- S_OO - S_OU S_UU^-1 S_UO.
-// Updates the blocks' data in place.
+// Directions the drive left at their prior (posterior sigma above max_posterior_to_prior_sigma
+// of the prior's) are held (U): set to their prior value, and the others (O) conditioned on
+// them with the prior's error carried along (docs/calibration.md, Eq. C1-C2):
+//   x_O <- x_O - K (x_U - x0_U),   S_OO <- S_OO - K S_UO + K P_U K^T,   K = S_OU S_UU^-1.
+// A direction of O whose sigma then exceeds its block's limit keeps its estimate and sigma
+// but is not reported observable. Updates the blocks' data in place.
 struct BlockObservability {
   std::vector<std::vector<bool>> observable;  // per block, per direction
   std::vector<Eigen::VectorXd> sigma;         // posterior (held directions: the prior's)
-  std::vector<std::string> warnings;          // one plain-language line per held direction
+  std::vector<std::string> warnings;          // one plain-language line per unobservable one
 };
 BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock>& blocks,
                                               const BlockCovariance& covariance);

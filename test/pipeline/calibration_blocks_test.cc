@@ -37,24 +37,25 @@ TEST(CalibrationBlocks, HoldsUnobservableDirectionsAndConditionsTheRest) {
   covariance.ok = true;
   covariance.offsets = {0};
   covariance.matrix = Eigen::Matrix3d::Zero();
-  covariance.matrix(0, 0) = 1e-4;   // sigma 1 cm
-  covariance.matrix(1, 1) = 4e-4;   // sigma 2 cm
-  covariance.matrix(2, 2) = 1e-2;   // sigma 10 cm: unobservable (limit 3 cm)
+  covariance.matrix(0, 0) = 1e-4;   // sigma 1 cm: observable
+  covariance.matrix(1, 1) = 1.6e-3;  // sigma 4 cm: informed (prior 30 cm), above the 3 cm limit
+  covariance.matrix(2, 2) = 4e-2;   // sigma 20 cm: over half the prior's, held
   covariance.matrix(0, 2) = covariance.matrix(2, 0) = 5e-4;
   const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  // Eq. C1-C2 with the gain K = 5e-4 / 4e-2 from z to x; z is held at a nominal value whose
+  // error has the prior's variance 0.3^2, which K carries into x.
+  const double gain = 5e-4 / 4e-2;
   EXPECT_DOUBLE_EQ(p.z(), 0.55);
-  EXPECT_NEAR(p.x(), 0.31 - 5e-4 / 1e-2 * (0.60 - 0.55), 1e-12);
+  EXPECT_NEAR(p.x(), 0.31 - gain * (0.60 - 0.55), 1e-12);
   EXPECT_DOUBLE_EQ(p.y(), -0.05);
   ASSERT_EQ(result.observable.size(), 1u);
-  EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
-  // Eq. C2: gain K = 5e-4 / 1e-2 from z to x; z is held at a nominal value whose error has
-  // the prior's variance 0.3^2, which K carries into x.
-  const double gain = 5e-4 / 1e-2;
+  EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, false, false));
   EXPECT_NEAR(result.sigma[0](0), std::sqrt(1e-4 - gain * 5e-4 + gain * gain * 0.09), 1e-12);
-  EXPECT_DOUBLE_EQ(result.sigma[0](1), 0.02);  // uncorrelated with z: unchanged
-  EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);  // the prior's
-  ASSERT_EQ(result.warnings.size(), 1u);
-  EXPECT_THAT(result.warnings[0], ::testing::HasSubstr("z: not excited by the drive"));
+  EXPECT_DOUBLE_EQ(result.sigma[0](1), 0.04);  // kept with its own sigma
+  EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);   // the prior's
+  ASSERT_EQ(result.warnings.size(), 2u);
+  EXPECT_THAT(result.warnings[0], ::testing::HasSubstr("y: only partly determined by the drive"));
+  EXPECT_THAT(result.warnings[1], ::testing::HasSubstr("z: not excited by the drive"));
 }
 
 // A direction whose posterior is barely narrower than its prior is unobservable too, even

@@ -183,8 +183,8 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
 // problems/highway.yaml. The LiDAR odometry does not follow it (a featureless road and cars
 // moving with it): the keyframes are rebuilt from GNSS and the IMU, and the result says so.
 // The drive excites the wheel radii (speed against GNSS and the IMU) and nothing else to the
-// accuracy goals: every other direction is reported, by name, and held at its nominal value;
-// what is reported observable meets the goals.
+// accuracy goals: every other direction is reported by name, held at its nominal value where
+// the drive left it at its prior, and what is reported observable meets the goals.
 TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
   sim::SimulationOptions options;
   options.scenario = sim::ScenarioType::kHighway;
@@ -211,19 +211,23 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
   const sensors::Calibration& estimate = result.calibration.value;
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
 
-  // Held and named: the LiDAR rotation and offset (no turns), its translation, the antenna.
+  // Held at the nominal value and named: the LiDAR translation and the antenna, which the
+  // drive leaves at their priors.
   ASSERT_EQ(u.T_I_L.observable.size(), 6u);
-  for (bool observable : u.T_I_L.observable) EXPECT_FALSE(observable);
-  EXPECT_TRUE(estimate.q_I_L.isApprox(nominal.q_I_L, 1e-12));
+  for (size_t a = 3; a < 6; ++a) EXPECT_FALSE(u.T_I_L.observable[a]);
   EXPECT_EQ(estimate.p_I_L, nominal.p_I_L);
+  EXPECT_EQ(estimate.p_I_A, nominal.p_I_A);
+  EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr(
+                                   "LiDAR x translation (IMU frame): not excited by the drive")));
+  // Partly determined, kept at the estimate and not reported observable: the LiDAR rotation
+  // and the time offset (no turns; measured sigma 0.50, 0.26, 0.12 deg and 1.6 ms).
+  for (size_t a = 0; a < 3; ++a) EXPECT_FALSE(u.T_I_L.observable[a]);
   EXPECT_EQ(u.time_offset_lidar_imu_s.observable, false);
-  EXPECT_DOUBLE_EQ(estimate.time_offset_lidar_imu_s, nominal.time_offset_lidar_imu_s);
-  for (const char* name : {"LiDAR rotation about the IMU z axis", "LiDAR x translation",
-                           "LiDAR-IMU time offset"}) {
-    EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr(name)));
-  }
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::HasSubstr("LiDAR-IMU time offset: only partly determined")));
 
-  // Observable: the radii, within the goal (measured 0.0024 % and 0.0005 %).
+  // Observable: the radii, within the goal (measured 0.0019 % and 0.0000 %); and whatever
+  // else is reported observable meets its goal.
   const auto percent = [](double estimate, double truth) {
     return 100.0 * std::abs(estimate - truth) / truth;
   };
@@ -231,15 +235,11 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
   EXPECT_EQ(u.wheel_radius_right_m.observable, true);
   EXPECT_LT(percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m), 0.1);
   EXPECT_LT(percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m), 0.1);
-  // Any lever-arm axis reported observable meets its goal.
-  ASSERT_EQ(u.p_I_A_m.observable.size(), 3u);
-  for (int a = 0; a < 3; ++a) {
-    if (u.p_I_A_m.observable[static_cast<size_t>(a)]) {
-      EXPECT_LT(std::abs(estimate.p_I_A(a) - truth.p_I_A(a)), 0.02) << "axis " << a;
-    } else {
-      EXPECT_DOUBLE_EQ(estimate.p_I_A(a), nominal.p_I_A(a)) << "axis " << a;
-    }
+  if (u.track_width_m.observable.value_or(false)) {
+    EXPECT_LT(percent(estimate.track_width_m, truth.track_width_m), 0.5);
   }
+  ASSERT_EQ(u.p_I_A_m.observable.size(), 3u);
+  for (size_t a = 0; a < 3; ++a) EXPECT_FALSE(u.p_I_A_m.observable[a]);
 
   // The keyframes follow the drive (measured 8.3 cm RMS: the antenna lever arm and the LiDAR
   // extrinsic are held at nominal values a few cm off).
