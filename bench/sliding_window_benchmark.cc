@@ -1,6 +1,8 @@
 // The sliding-window estimator over a simulated urban drive (16 beams, all sensors): the
 // distribution of the per-update time (one update per LiDAR sweep) and of the time spent
-// marginalizing the oldest keyframe, as p50/p99 counters in milliseconds.
+// marginalizing the oldest keyframe, as p50/p99 counters in milliseconds, with the median
+// split of an update (association, problem build, solve), its solver iterations and the
+// point-to-plane residuals in the window.
 #include <algorithm>
 #include <memory>
 #include <tuple>
@@ -64,6 +66,10 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
                                            log.options.gnss.origin_lon_deg,
                                            log.options.gnss.origin_alt_m);
   options.max_residuals_per_sweep = static_cast<int>(bench.range(0));
+  if (bench.range(1) == 0) {  // no reuse: every keyframe re-paired, every map rebuilt
+    options.reassociation_tolerance_m = 0.0;
+    options.map_rebuild_tolerance_m = 0.0;
+  }
   // The initial state: the truth at the first IMU sample (the drive starts at rest).
   const io::TrajectorySample& first = log.data.imu.truth.front();
   estimation::SlidingWindowState initial;
@@ -74,7 +80,8 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   initial.b_g = log.data.imu.gyro_bias.front();
   initial.b_a = log.data.imu.accel_bias.front();
 
-  std::vector<double> update_ms, marginalization_ms;
+  std::vector<double> update_ms, association_ms, build_ms, solve_ms, marginalization_ms, points,
+      iterations;
   for (auto _ : bench) {
     estimation::SlidingWindowEstimator estimator(options, log.simulator->nominal_calibration(),
                                                  initial);
@@ -90,16 +97,34 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       updates = estimator.counters().updates;
       const estimation::SlidingWindowUpdateTiming& timing = estimator.last_update_timing();
       update_ms.push_back(1e3 * timing.total_s);
+      association_ms.push_back(1e3 * timing.association_s);
+      build_ms.push_back(1e3 * timing.build_s);
+      solve_ms.push_back(1e3 * timing.solve_s);
+      points.push_back(estimator.last_associated_points());
+      iterations.push_back(timing.solver_iterations);
       if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
     }
   }
   bench.counters["updates"] = static_cast<double>(update_ms.size());
   bench.counters["update_p50_ms"] = Percentile(update_ms, 0.5);
   bench.counters["update_p99_ms"] = Percentile(update_ms, 0.99);
+  bench.counters["association_p50_ms"] = Percentile(association_ms, 0.5);
+  bench.counters["build_p50_ms"] = Percentile(build_ms, 0.5);
+  bench.counters["solve_p50_ms"] = Percentile(solve_ms, 0.5);
+  bench.counters["points_p50"] = Percentile(points, 0.5);
+  bench.counters["iterations_p50"] = Percentile(iterations, 0.5);
   bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
   bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);
 }
-BENCHMARK(BM_SlidingWindowUrban)->Arg(500)->Arg(2000)->Iterations(1)->Unit(benchmark::kSecond);
+// Arguments: residual points per sweep; reuse between updates (1: the default tolerances,
+// 0: every keyframe re-paired and every plane map rebuilt at every update).
+BENCHMARK(BM_SlidingWindowUrban)
+    ->ArgNames({"points", "reuse"})
+    ->Args({500, 1})
+    ->Args({2000, 0})
+    ->Args({2000, 1})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond);
 
 }  // namespace
 }  // namespace autocal

@@ -44,7 +44,14 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPositive(o.residual_voxel_m, "residual_voxel_m");
   CheckPositive(o.map_voxel_m, "map_voxel_m");
   CheckPositive(o.point_sigma_m, "point_sigma_m");
+  CheckPositive(o.solver_function_tolerance, "solver_function_tolerance");
   CheckPositive(o.max_point_to_plane_m, "max_point_to_plane_m");
+  for (double tolerance : {o.reassociation_tolerance_m, o.map_rebuild_tolerance_m}) {
+    if (!(tolerance >= 0.0) || !std::isfinite(tolerance)) {
+      throw Error("SlidingWindowOptions: reassociation_tolerance_m and map_rebuild_tolerance_m "
+                  "must be finite and >= 0");
+    }
+  }
   if (o.partner_keyframe_offsets.empty() ||
       std::count(o.partner_keyframe_offsets.begin(), o.partner_keyframe_offsets.end(), 0) > 0) {
     throw Error("SlidingWindowOptions: partner_keyframe_offsets must be non-empty and non-zero");
@@ -113,7 +120,9 @@ SlidingWindowEstimator::SlidingWindowEstimator(const SlidingWindowOptions& optio
   imu_loss_.reset(factors::MakeLossFunction(options_.loss.imu));
   wheel_loss_.reset(factors::MakeLossFunction(options_.loss.wheel));
   gnss_loss_.reset(factors::MakeLossFunction(options_.loss.gnss));
-  lidar_loss_.reset(factors::MakeLossFunction(options_.loss.lidar));
+  // The point groups apply the LiDAR loss themselves (Eq. P9); its options are checked here.
+  const std::unique_ptr<ceres::LossFunction> lidar_loss(
+      factors::MakeLossFunction(options_.loss.lidar));
   prior_loss_.reset(factors::MakeLossFunction(options_.loss.prior));
 
   // Keyframe 0 is the initial state, tied to it by a state prior (Eq. F42) that fixes the
@@ -299,8 +308,12 @@ void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
   RelinearizeImuFactors();
 
   const auto association_start = std::chrono::steady_clock::now();
-  std::unique_ptr<ProblemBuild> build = BuildProblem(/*with_points=*/true);
+  AssociatePoints();
   timing_.association_s = SecondsSince(association_start);
+
+  const auto build_start = std::chrono::steady_clock::now();
+  std::unique_ptr<ProblemBuild> build = BuildProblem();
+  timing_.build_s = SecondsSince(build_start);
 
   const auto solve_start = std::chrono::steady_clock::now();
   Solve(build.get());
@@ -427,7 +440,19 @@ void SlidingWindowEstimator::RelinearizeImuFactors() {
 void SlidingWindowEstimator::DropOldest(std::unique_ptr<MarginalizationPrior> prior) {
   prior_ = std::move(prior);
   marginalized_.push_back(window_.front()->state);
+  const int dropped_id = window_.front()->id;
   window_.pop_front();
+  // Pairs with the dropped sweep are in the prior now.
+  for (auto& kf : window_) {
+    std::vector<internal::SweepPointGroup>& groups = kf->point_groups;
+    const size_t before = groups.size();
+    groups.erase(std::remove_if(groups.begin(), groups.end(),
+                                [dropped_id](const internal::SweepPointGroup& g) {
+                                  return g.partner_id == dropped_id;
+                                }),
+                 groups.end());
+    if (groups.size() != before) kf->lost_partner = true;
+  }
   window_.front()->imu_from_previous.reset();
   ++counters_.marginalizations;
 }

@@ -2,8 +2,11 @@
 
 // Private building blocks of the sliding window (docs/sliding_window.md, "Factors"): wheel and
 // GNSS residuals at an instant between keyframes, attached to the earlier keyframe through
-// IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8).
+// IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8), and the compressed form of a
+// point group the solver sees (Eq. SW5).
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <utility>
@@ -11,10 +14,12 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
 #include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/sensors/imu_preintegration.h"
 
@@ -133,6 +138,91 @@ class PropagatedGnssResidual {
  private:
   sensors::ImuPreintegration pim_;
   factors::GnssResidual gnss_;
+};
+
+// A point group (factors::PointToSweepPlaneGroupFactor, n rows) compressed to kRows rows with
+// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. SW5). With the
+// group's residual r and Jacobian J (n x 28, ambient coordinates of its nine blocks) and the
+// pivoted factorization J^T J = P^T L D L^T P, the block returns
+//   rows 0-27: rho = D^-1/2 L^-1 P J^T r,   Jacobian R = D^1/2 L^T P,
+//   row 28:    sqrt(|r|^2 - |rho|^2),       Jacobian 0,
+// (pivots D_i below kRelativePivot max D count as zero: their rows are 0), so R^T R = J^T J,
+// R^T rho = J^T r and |rho|^2 + row_28^2 = |r|^2. The solver's cost, gradient, linear model
+// and Jacobian scaling are those of the n-row block (the manifolds act on R as on J), but its
+// normal equations are formed from 29 rows instead of n. Worth it for n > kRows.
+class CompressedPointGroup final : public ceres::CostFunction {
+ public:
+  static constexpr int kAmbient = 28;  // 4 + 3 + 3 + 4 + 3 + 3 + 4 + 3 + 1
+  static constexpr int kRows = kAmbient + 1;
+  static constexpr double kRelativePivot = 1e-12;
+
+  // `group` must outlive this cost function.
+  explicit CompressedPointGroup(const factors::PointToSweepPlaneGroupFactor* group)
+      : group_(group) {
+    set_num_residuals(kRows);
+    *mutable_parameter_block_sizes() = group->parameter_block_sizes();
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    using Square = Eigen::Matrix<double, kAmbient, kAmbient>;
+    using Vector = Eigen::Matrix<double, kAmbient, 1>;
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const int n = group_->num_residuals();
+    const std::vector<int32_t>& sizes = parameter_block_sizes();
+    Eigen::VectorXd r(n);
+    Eigen::Map<Vector> rho(residuals);
+    if (jacobians == nullptr) {
+      // Only the cost is asked for: any rows with the same norm will do.
+      if (!group_->Evaluate(parameters, r.data(), nullptr)) return false;
+      rho.setZero();
+      residuals[kAmbient] = r.norm();
+      return true;
+    }
+    std::vector<RowMajor> block_jacobians(sizes.size());
+    std::vector<double*> pointers(sizes.size());
+    for (size_t b = 0; b < sizes.size(); ++b) {
+      block_jacobians[b].resize(n, sizes[b]);
+      pointers[b] = block_jacobians[b].data();
+    }
+    if (!group_->Evaluate(parameters, r.data(), pointers.data())) return false;
+    Eigen::Matrix<double, Eigen::Dynamic, kAmbient> J(n, kAmbient);
+    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
+      J.middleCols(static_cast<Eigen::Index>(column), sizes[b]) = block_jacobians[b];
+    }
+    Square A = Square::Zero();
+    A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
+    A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
+    const Vector g = J.transpose() * r;
+
+    const Eigen::LDLT<Square> ldlt(A);
+    const Vector d = ldlt.vectorD();
+    const double threshold = kRelativePivot * std::max(d.maxCoeff(), 0.0);
+    Vector y = ldlt.transpositionsP() * g;
+    ldlt.matrixL().solveInPlace(y);
+    Square R = ldlt.matrixU() * Square(ldlt.transpositionsP() * Square::Identity());
+    for (int i = 0; i < kAmbient; ++i) {
+      if (d(i) > threshold) {
+        const double root = std::sqrt(d(i));
+        rho(i) = y(i) / root;
+        R.row(i) *= root;
+      } else {
+        rho(i) = 0.0;
+        R.row(i).setZero();
+      }
+    }
+    residuals[kAmbient] = std::sqrt(std::max(0.0, r.squaredNorm() - rho.squaredNorm()));
+    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
+      if (jacobians[b] == nullptr) continue;
+      Eigen::Map<RowMajor> out(jacobians[b], kRows, sizes[b]);
+      out.topRows(kAmbient) = R.middleCols(static_cast<Eigen::Index>(column), sizes[b]);
+      out.row(kAmbient).setZero();
+    }
+    return true;
+  }
+
+ private:
+  const factors::PointToSweepPlaneGroupFactor* group_;
 };
 
 }  // namespace internal

@@ -1,19 +1,24 @@
 // The window problem of the sliding window (docs/sliding_window.md, "One update" steps 3-5):
-// building it, solving it, marginalizing its oldest keyframe and its calibration covariance.
+// associating the points, building it, solving it, marginalizing its oldest keyframe and its
+// calibration covariance.
 #include "autocal/estimation/sliding_window.h"
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/point_to_plane_factor.h"
-#include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/se3.h"
+#include "autocal/geometry/so3.h"
 #include "estimation/sliding_window_internal.h"
 
 namespace autocal {
@@ -61,10 +66,171 @@ Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const SlidingWi
   return points_W;
 }
 
+// Eq. SW4: the largest displacement of a point within `range_m` of the origin between the
+// poses `before` and `after` of its frame, |dp| + angle(dq) range_m with (dq, dp) = before^-1
+// after.
+double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& after,
+                      double range_m) {
+  const geometry::Pose3d change = before.Inverse() * after;
+  return change.p.norm() +
+         geometry::AngularDistance(change.q, Eigen::Quaterniond::Identity()) * range_m;
+}
+
 }  // namespace
 
-std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::BuildProblem(
-    bool with_points) {
+// Step 3 (docs/sliding_window.md, "Association" and "Reuse between updates"). Every window
+// sweep j gets its IMU motion table from keyframe j at the current estimate and its LiDAR pose
+// at the reference instant (point time 0), T_W_Lj = T_W_I(t_j) T_I_L. Its plane map holds the
+// map points deskewed into L_j at that instant; it is rebuilt when the deskew moved a point by
+// more than map_rebuild_tolerance_m (Eq. SW4). A keyframe due for pairing (below) places each
+// residual point p_W in W at the current
+// estimate and tries the sweeps j = k + o for the offsets o of partner_keyframe_offsets
+// (starting at a different one for consecutive points): the first that holds a plane within
+// max_point_to_plane_m of T_Lj_W p_W is its partner. The plane is kept in L_j (Eq. SW3), so in
+// the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the time offset. The
+// points of keyframe k on planes of sweep j form one group factor (Eq. P9).
+void SlidingWindowEstimator::AssociatePoints() {
+  const sensors::Calibration& c = calibration_;
+  const double offset_lin = c.time_offset_lidar_imu_s;
+
+  struct LidarKeyframe {
+    WindowKeyframe* kf;
+    std::optional<ImuMotionTable> table;
+    factors::PointMotion reference_motion;
+    geometry::Pose3d T_W_Lj;  // at the reference instant
+    geometry::Pose3d T_Lj_W;
+  };
+  std::vector<LidarKeyframe> sweeps;
+  for (const auto& kf : window_) {
+    if (kf->sweep) sweeps.push_back({kf.get(), std::nullopt, factors::PointMotion(), {}, {}});
+  }
+  const int num_sweeps = static_cast<int>(sweeps.size());
+  const auto motion_at = [offset_lin](const LidarKeyframe& s, double point_time_s) {
+    return s.table->At(s.kf->sweep->t_ns + SecondsToNs(point_time_s + offset_lin));
+  };
+
+  ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
+    for (int64_t k = begin; k < end; ++k) {
+      LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
+      WindowKeyframe& kf = *s.kf;
+      s.table.emplace(
+          SweepMotionTable(imu_, kf.state, *kf.sweep, kf.sweep_duration_s, offset_lin));
+      s.reference_motion = motion_at(s, 0.0);
+      s.T_W_Lj = SweepLidarPose(kf.state, s.reference_motion, g_W_, c);
+      s.T_Lj_W = s.T_W_Lj.Inverse();
+      // Eq. SW4: the deskew's pose at the sweep's last point, T_L0_L(tau_max); a point at
+      // range r moves by at most |dp| + angle(dq) r when it changes by (dq, dp).
+      const geometry::Pose3d deskew_end =
+          s.T_Lj_W * SweepLidarPose(kf.state, motion_at(s, kf.sweep_duration_s), g_W_, c);
+      if (kf.plane_map && MaxPointMotion(kf.map_deskew_end, deskew_end, kf.map_max_range_m) <=
+                              options_.map_rebuild_tolerance_m) {
+        continue;
+      }
+      const Eigen::Matrix3Xd points_W =
+          SweepPointsInWorld(*s.table, kf.state, *kf.sweep, kf.map_points, g_W_, c);
+      const Eigen::Matrix3Xd points_L =
+          (s.T_Lj_W.q.toRotationMatrix() * points_W).colwise() + s.T_Lj_W.p;
+      kf.plane_map = std::make_unique<PlaneMap>(points_L, options_.plane_map);
+      kf.map_deskew_end = deskew_end;
+      kf.map_max_range_m = 0.0;
+      for (int i : kf.map_points) {
+        kf.map_max_range_m = std::max(kf.map_max_range_m, kf.sweep->cloud.points.col(i).norm());
+      }
+    }
+  });
+
+  // A keyframe is due for pairing when it is new, when a sweep at one of its partner offsets
+  // entered the window or one of its partners left it since its last pairing (so that its
+  // pairs are those a fresh association would try), or when one of its partners moved
+  // relative to it by more than reassociation_tolerance_m at the range of its farthest
+  // residual point (Eq. SW4).
+  std::map<int, int> sweep_of_id;
+  for (int k = 0; k < num_sweeps; ++k) sweep_of_id[sweeps[static_cast<size_t>(k)].kf->id] = k;
+  const auto relative_pose = [&sweeps](int j, int k) {
+    return sweeps[static_cast<size_t>(j)].T_Lj_W * sweeps[static_cast<size_t>(k)].T_W_Lj;
+  };
+  std::vector<int> due;
+  for (int k = 0; k < num_sweeps; ++k) {
+    const WindowKeyframe& kf = *sweeps[static_cast<size_t>(k)].kf;
+    bool is_due = !kf.paired || kf.lost_partner;
+    for (int o : options_.partner_keyframe_offsets) {
+      const int partner_id = kf.id + o;
+      if (partner_id > kf.newest_id_at_pairing && partner_id <= window_.back()->id) {
+        is_due = true;
+      }
+    }
+    for (size_t g = 0; g < kf.point_groups.size() && !is_due; ++g) {
+      const internal::SweepPointGroup& group = kf.point_groups[g];
+      is_due = MaxPointMotion(group.T_Lj_Lk, relative_pose(sweep_of_id.at(group.partner_id), k),
+                              kf.residual_max_range_m) > options_.reassociation_tolerance_m;
+    }
+    if (is_due) due.push_back(k);
+  }
+  const std::vector<int>& partners = options_.partner_keyframe_offsets;
+  ParallelFor(0, static_cast<int64_t>(due.size()), options_.num_threads,
+              [&](int64_t begin, int64_t end, int) {
+    for (int64_t d = begin; d < end; ++d) {
+      const int k = due[static_cast<size_t>(d)];
+      const LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
+      WindowKeyframe& kf = *s.kf;
+      SlidingWindowState& x = kf.state;
+      std::map<int, std::vector<factors::PointToSweepPlaneMeasurement>> by_partner;
+      size_t point_counter = 0;
+      for (int i : kf.residual_points) {
+        factors::PointToSweepPlaneMeasurement m;
+        m.p_L = kf.sweep->cloud.points.col(i);
+        m.motion = motion_at(s, kf.sweep->cloud.time_s(i));
+        const Eigen::Vector3d p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion,
+                                                          g_W_, c.q_I_L, c.p_I_L, m.p_L);
+        const size_t first = point_counter++;
+        int partner = -1;
+        for (size_t attempt = 0; attempt < partners.size() && partner < 0; ++attempt) {
+          const int j = k + partners[(first + attempt) % partners.size()];
+          if (j < 0 || j >= num_sweeps || j == k) continue;
+          const LidarKeyframe& other = sweeps[static_cast<size_t>(j)];
+          const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
+          if (other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
+              std::abs(m.plane_L.SignedDistance(p_Lj)) <= options_.max_point_to_plane_m) {
+            partner = j;
+          }
+        }
+        if (partner < 0) continue;
+        m.plane_motion = sweeps[static_cast<size_t>(partner)].reference_motion;
+        m.sigma_m = options_.point_sigma_m;
+        m.offset_linearization_s = offset_lin;
+        by_partner[partner].push_back(m);
+      }
+      kf.point_groups.clear();
+      kf.residual_max_range_m = 0.0;
+      for (int i : kf.residual_points) {
+        kf.residual_max_range_m =
+            std::max(kf.residual_max_range_m, kf.sweep->cloud.points.col(i).norm());
+      }
+      for (const auto& [j, measurements] : by_partner) {
+        WindowKeyframe& other = *sweeps[static_cast<size_t>(j)].kf;
+        SlidingWindowState& y = other.state;
+        internal::SweepPointGroup group;
+        group.partner_id = other.id;
+        group.T_Lj_Lk = relative_pose(j, k);
+        group.factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
+            measurements, g_W_, options_.loss.lidar);
+        if (group.factor->num_residuals() > internal::CompressedPointGroup::kRows) {
+          group.compressed = std::make_unique<internal::CompressedPointGroup>(group.factor.get());
+        }
+        group.parameters = {x.q_W_I.coeffs().data(), x.p_W_I.data(), x.v_W_I.data(),
+                            y.q_W_I.coeffs().data(), y.p_W_I.data(), y.v_W_I.data(),
+                            calibration_.q_I_L.coeffs().data(), calibration_.p_I_L.data(),
+                            &calibration_.time_offset_lidar_imu_s};
+        kf.point_groups.push_back(std::move(group));
+      }
+      kf.paired = true;
+      kf.newest_id_at_pairing = window_.back()->id;
+      kf.lost_partner = false;
+    }
+  });
+}
+
+std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::BuildProblem() {
   auto build = std::make_unique<ProblemBuild>();
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -114,111 +280,49 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
     problem.AddResidualBlock(build->owned.back().get(), imu_loss_.get(), blocks);
   }
   if (prior_) problem.AddResidualBlock(prior_.get(), nullptr, prior_->parameter_pointers());
-  if (with_points) AddPointFactors(build.get());
+  // The point groups carry the LiDAR loss themselves (Eq. P9).
+  for (const auto& kf : window_) {
+    for (const internal::SweepPointGroup& g : kf->point_groups) {
+      problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters);
+    }
+  }
   return build;
 }
 
-// Point-to-plane factors between window sweeps (Eq. P6, docs/sliding_window.md "Association"):
-// every window sweep is deskewed into W at the current estimate into its own plane map, used
-// for association only. A residual point of keyframe k is paired with the plane found for it
-// in the sweep of keyframe k + o, the window offsets o tried in the order of
-// partner_keyframe_offsets (starting at a different one for consecutive points); the plane is
-// stored in that sweep's LiDAR frame at its reference instant, so in the solve it moves with
-// the partner keyframe's q, p, v and with q_I_L, p_I_L and the time offset.
-void SlidingWindowEstimator::AddPointFactors(ProblemBuild* build) {
-  sensors::Calibration& c = calibration_;
-  const double offset_lin = c.time_offset_lidar_imu_s;
-
-  struct LidarKeyframe {
-    WindowKeyframe* kf;
-    ImuMotionTable table;
-    std::unique_ptr<PlaneMap> map;
-    factors::PointMotion reference_motion;
-    geometry::Pose3d T_W_L;  // at the reference instant
-  };
-  std::vector<LidarKeyframe> sweeps;
+std::vector<double> SlidingWindowEstimator::PointDistances() const {
+  std::vector<double> distances;
   for (const auto& kf : window_) {
-    if (!kf->sweep) continue;
-    sweeps.push_back({kf.get(), SweepMotionTable(imu_, kf->state, *kf->sweep,
-                                                 kf->sweep_duration_s, offset_lin),
-                      nullptr, factors::PointMotion(), geometry::Pose3d()});
-  }
-  const auto motion_of = [&](const LidarKeyframe& s, int point) {
-    const lidar::LidarSweep& sweep = *s.kf->sweep;
-    return s.table.At(sweep.t_ns + SecondsToNs(sweep.cloud.time_s(point) + offset_lin));
-  };
-  for (LidarKeyframe& s : sweeps) {
-    s.map = std::make_unique<PlaneMap>(
-        SweepPointsInWorld(s.table, s.kf->state, *s.kf->sweep, s.kf->map_points, g_W_, c),
-        options_.plane_map);
-    s.reference_motion = s.table.At(s.kf->sweep->t_ns + SecondsToNs(offset_lin));
-    s.T_W_L = SweepLidarPose(s.kf->state, s.reference_motion, g_W_, c);
-  }
-  const std::vector<int>& partners = options_.partner_keyframe_offsets;
-  const int num_sweeps = static_cast<int>(sweeps.size());
-  for (int k = 0; k < num_sweeps; ++k) {
-    const LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
-    SlidingWindowState& x = s.kf->state;
-    size_t point_counter = 0;
-    for (int i : s.kf->residual_points) {
-      factors::PointToSweepPlaneMeasurement m;
-      m.p_L = s.kf->sweep->cloud.points.col(i);
-      m.motion = motion_of(s, i);
-      const Eigen::Vector3d p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion, g_W_,
-                                                        c.q_I_L, c.p_I_L, m.p_L);
-      const size_t first = point_counter++;
-      int partner = -1;
-      lidar::Plane plane_W;
-      for (size_t attempt = 0; attempt < partners.size() && partner < 0; ++attempt) {
-        const int j = k + partners[(first + attempt) % partners.size()];
-        if (j < 0 || j >= num_sweeps || j == k) continue;
-        if (sweeps[static_cast<size_t>(j)].map->FindPlane(p_W, &plane_W) &&
-            std::abs(plane_W.SignedDistance(p_W)) <= options_.max_point_to_plane_m) {
-          partner = j;
-        }
-      }
-      if (partner < 0) continue;
-      const LidarKeyframe& other = sweeps[static_cast<size_t>(partner)];
-      // The plane n . p_W + d = 0 in L_j (Eq. SW3): n_L = R_W_Lj^T n, d_L = d + n . t_W_Lj.
-      m.plane_L.normal = other.T_W_L.q.conjugate() * plane_W.normal;
-      m.plane_L.d = plane_W.d + plane_W.normal.dot(other.T_W_L.p);
-      m.plane_motion = other.reference_motion;
-      m.sigma_m = options_.point_sigma_m;
-      m.offset_linearization_s = offset_lin;
-      SlidingWindowState& y = other.kf->state;
-      build->owned.push_back(std::make_unique<factors::PointToSweepPlaneFactor>(m, g_W_));
-      build->point_blocks.push_back(build->problem->AddResidualBlock(
-          build->owned.back().get(), lidar_loss_.get(), x.q_W_I.coeffs().data(), x.p_W_I.data(),
-          x.v_W_I.data(), y.q_W_I.coeffs().data(), y.p_W_I.data(), y.v_W_I.data(),
-          c.q_I_L.coeffs().data(), c.p_I_L.data(), &c.time_offset_lidar_imu_s));
+    for (const internal::SweepPointGroup& g : kf->point_groups) {
+      const size_t first = distances.size();
+      distances.resize(first + static_cast<size_t>(g.factor->num_points()));
+      g.factor->WhitenedDistances(g.parameters.data(), distances.data() + first);
     }
   }
+  for (double& r : distances) r *= options_.point_sigma_m;
+  return distances;
 }
 
 void SlidingWindowEstimator::Solve(ProblemBuild* build) {
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.max_num_iterations = options_.solver_iterations;
+  solver_options.function_tolerance = options_.solver_function_tolerance;
   solver_options.num_threads = options_.num_threads;
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, build->problem.get(), &summary);
   if (!summary.IsSolutionUsable()) {
     throw Error("SlidingWindowEstimator: the solver failed: " + summary.message);
   }
+  timing_.solver_iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
   for (auto& kf : window_) kf->state.q_W_I.normalize();
 
-  last_associated_points_ = static_cast<int>(build->point_blocks.size());
+  const std::vector<double> distances = PointDistances();
+  last_associated_points_ = static_cast<int>(distances.size());
   last_point_rms_m_ = 0.0;
-  if (build->point_blocks.empty()) return;
-  ceres::Problem::EvaluateOptions evaluate;
-  evaluate.residual_blocks = build->point_blocks;
-  evaluate.apply_loss_function = false;
-  std::vector<double> residuals;
-  build->problem->Evaluate(evaluate, nullptr, &residuals, nullptr, nullptr);
+  if (distances.empty()) return;
   double sum_sq = 0.0;
-  for (double r : residuals) sum_sq += r * r;
-  last_point_rms_m_ =
-      options_.point_sigma_m * std::sqrt(sum_sq / static_cast<double>(residuals.size()));
+  for (double r : distances) sum_sq += r * r;
+  last_point_rms_m_ = std::sqrt(sum_sq / static_cast<double>(distances.size()));
 }
 
 // Eq. M1-M3 over every factor touching the oldest keyframe: its prior or the previous
@@ -240,7 +344,7 @@ std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::MarginalizeOldest(
 
 CalibrationCovariance SlidingWindowEstimator::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
-  const std::unique_ptr<ProblemBuild> build = BuildProblem(/*with_points=*/!imu_.empty());
+  const std::unique_ptr<ProblemBuild> build = BuildProblem();
   sensors::Calibration& c = calibration_;
   const SlidingWindowEstimatedBlocks& e = options_.estimate;
   struct Block {

@@ -260,11 +260,12 @@ std::string FormatFixed(double value, int decimals) {
 // (Eq. K3-K5) and true is returned. Where it did not (a featureless road, traffic moving with
 // the car: its track then misses the fixes by metres or is too short to give the yaw), every
 // state the initializer derived from that track is unusable: the keyframes are rebuilt from
-// GNSS and the IMU alone (estimation/gnss_inertial_keyframes.h), a warning says so, and false
+// GNSS, the IMU and the problem's wheels (estimation/gnss_inertial_keyframes.h), a warning says so, and false
 // is returned (the caller then starts the LiDAR blocks from their nominal values).
 bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter& enu,
                          const sensors::Calibration& calibration,
                          const OfflineCalibrationOptions& options, int num_threads,
+                         const sensors::WheelSamples& wheel,
                          std::vector<estimation::Keyframe>* keyframes,
                          std::vector<std::string>* warnings) {
   std::vector<estimation::Keyframe> aligned = *keyframes;
@@ -285,7 +286,7 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   gnss_inertial.imu_noise = dataset.sensors.imu.noise;
   gnss_inertial.num_threads = num_threads;
   const estimation::GnssInertialKeyframes rebuilt = estimation::KeyframesFromGnssAndImu(
-      keyframes, dataset.imu, dataset.wheel, dataset.gnss, enu, calibration, gnss_inertial);
+      keyframes, dataset.imu, wheel, dataset.gnss, enu, calibration, gnss_inertial);
   warnings->push_back(
       "the LiDAR odometry did not follow the drive (" + failure + "): the keyframes were "
       "rebuilt from GNSS and the IMU (" + std::to_string(rebuilt.placement.num_placed) +
@@ -388,7 +389,8 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
     // W becomes the ENU frame at the first fix: GNSS fixes position and yaw.
     enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     if (!PlaceKeyframesInEnu(dataset, *enu, calibration, options, problem.solver.num_threads,
-                             &keyframes, &result.warnings)) {
+                             use_wheel ? dataset.wheel : sensors::WheelSamples(), &keyframes,
+                             &result.warnings)) {
       calibration.q_I_L = result.nominal.q_I_L;
       calibration.p_I_L = result.nominal.p_I_L;
       calibration.time_offset_lidar_imu_s = result.nominal.time_offset_lidar_imu_s;

@@ -145,6 +145,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   const estimation::CalibrationInitialization init =
       estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
   sweeps.clear();
+  result.seconds_initialization =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!init.ok || init.keyframes.empty()) {
     throw Error("dataset " + dataset.directory + ": the initializer could not start the window "
                 "from the first " + std::to_string(options.initialization_duration_s) +

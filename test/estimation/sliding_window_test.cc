@@ -2,16 +2,20 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <string>
 #include <tuple>
 
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
+
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
+#include "estimation/sliding_window_factors.h"
 #include "estimation/true_keyframe.h"
 
 namespace autocal {
@@ -168,6 +172,79 @@ TEST(SlidingWindowMarginalization, KeepsAtMostNKeyframesAndAPrior) {
   EXPECT_LT(estimator.latest_state().p_W_I.norm(), 1e-3);
   EXPECT_LT(geometry::AngularDistance(estimator.latest_state().q_W_I,
                                       Eigen::Quaterniond::Identity()) * kRadToDeg, 0.01);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The compressed point group (Eq. SW5) against the group it compresses.
+
+TEST(SlidingWindowCompressedPointGroup, KeepsCostGradientAndGaussNewtonMatrix) {
+  std::srand(5);
+  std::vector<factors::PointToSweepPlaneMeasurement> points;
+  for (int i = 0; i < 80; ++i) {
+    factors::PointToSweepPlaneMeasurement m;
+    m.p_L = 10.0 * Eigen::Vector3d::Random();
+    m.motion.dt_s = 0.02 + 0.001 * i;
+    m.motion.delta_q = Eigen::Quaterniond(Eigen::AngleAxisd(0.01 * i, Eigen::Vector3d::UnitZ()));
+    m.motion.delta_v = Eigen::Vector3d::Random();
+    m.motion.delta_p = 0.1 * Eigen::Vector3d::Random();
+    m.motion.omega_rad_s = 0.3 * Eigen::Vector3d::Random();
+    m.plane_motion.dt_s = 0.03;
+    m.plane_L.normal = Eigen::Vector3d::Random().normalized();
+    m.plane_L.d = Eigen::Vector3d::Random().x() * 5.0;
+    points.push_back(m);
+  }
+  // Huber: some points are beyond 1 sigma, so the loss rows matter as well.
+  const factors::PointToSweepPlaneGroupFactor group(points, Eigen::Vector3d(0.0, 0.0, -kGravity),
+                                                    {lidar::RobustLoss::kHuber, 1.0});
+  const internal::CompressedPointGroup compressed(&group);
+  ASSERT_EQ(compressed.parameter_block_sizes(), group.parameter_block_sizes());
+
+  // Parameters: two keyframes, the extrinsic and the offset, away from identity.
+  std::vector<Eigen::VectorXd> values;
+  for (int size : group.parameter_block_sizes()) {
+    Eigen::VectorXd v = Eigen::VectorXd::Random(size);
+    if (size == 4) v = Eigen::Quaterniond(Eigen::Vector4d::Random()).normalized().coeffs();
+    values.push_back(v);
+  }
+  std::vector<const double*> parameters;
+  for (const Eigen::VectorXd& v : values) parameters.push_back(v.data());
+
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const auto stacked = [&](const ceres::CostFunction& f, Eigen::VectorXd* r) {
+    const int rows = f.num_residuals();
+    std::vector<RowMajor> blocks;
+    std::vector<double*> jacobians;
+    for (int size : f.parameter_block_sizes()) blocks.emplace_back(rows, size);
+    for (RowMajor& b : blocks) jacobians.push_back(b.data());
+    r->resize(rows);
+    EXPECT_TRUE(f.Evaluate(parameters.data(), r->data(), jacobians.data()));
+    Eigen::MatrixXd J(rows, internal::CompressedPointGroup::kAmbient);
+    Eigen::Index column = 0;
+    for (const RowMajor& b : blocks) {
+      J.middleCols(column, b.cols()) = b;
+      column += b.cols();
+    }
+    return J;
+  };
+  Eigen::VectorXd r, rho;
+  const Eigen::MatrixXd J = stacked(group, &r);
+  const Eigen::MatrixXd R = stacked(compressed, &rho);
+  ASSERT_EQ(rho.size(), internal::CompressedPointGroup::kRows);
+  ASSERT_GT(r.size(), rho.size());
+  const Eigen::MatrixXd H = J.transpose() * J;
+  const Eigen::VectorXd g = J.transpose() * r;
+  EXPECT_LT((R.transpose() * R - H).norm(), 1e-9 * H.norm());
+  EXPECT_LT((R.transpose() * rho - g).norm(), 1e-9 * g.norm());
+  EXPECT_NEAR(rho.squaredNorm(), r.squaredNorm(), 1e-9 * r.squaredNorm());
+  // The point groups' J^T J is singular (p_k and p_j enter as p_k - p_j): the pivots that
+  // vanish leave zero rows, not NaN.
+  EXPECT_LT(Eigen::FullPivLU<Eigen::MatrixXd>(H).rank(), internal::CompressedPointGroup::kAmbient);
+  EXPECT_TRUE(R.allFinite());
+
+  // Cost only: the same cost.
+  Eigen::VectorXd cost_rows(internal::CompressedPointGroup::kRows);
+  ASSERT_TRUE(compressed.Evaluate(parameters.data(), cost_rows.data(), nullptr));
+  EXPECT_NEAR(cost_rows.squaredNorm(), r.squaredNorm(), 1e-9 * r.squaredNorm());
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -9,9 +9,11 @@
 // a keyframe once the IMU covers it; each new keyframe triggers one window update:
 //   1. predict the keyframe with the IMU from the previous one,
 //   2. attach the IMU factor and the wheel/GNSS samples of the interval,
-//   3. deskew the window's sweeps with the current estimate into one plane map each and pair
-//      every keyframe's residual points with planes of other window sweeps; the planes are
-//      kept in their sweep's LiDAR frame, so they move with that keyframe and the extrinsic,
+//   3. pair the keyframes' residual points with planes of other window sweeps, one residual
+//      block per pair of sweeps; each sweep's plane map is kept in its LiDAR frame, so the
+//      planes move with that keyframe and the extrinsic. The new keyframe is paired at once,
+//      an older one when its partners changed or moved relative to it, a plane map is rebuilt
+//      only when its deskew moved (docs/sliding_window.md, "Reuse between updates"),
 //   4. solve,
 //   5. marginalize the oldest keyframe when the window holds more than N.
 
@@ -132,10 +134,23 @@ struct SlidingWindowOptions {
   // Outlier gate: a point farther than this from the plane found for it is not associated
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;
+  // Reuse between updates (docs/sliding_window.md, "Reuse between updates", Eq. SW4): a
+  // keyframe's points are paired when it enters the window, when a sweep at one of its
+  // partner offsets enters or leaves the window, and when one of its partner sweeps has moved
+  // relative to it by more than reassociation_tolerance_m at the range of its farthest point;
+  // a sweep's plane map is rebuilt when the deskew at the current estimate moves one of its
+  // points by more than map_rebuild_tolerance_m. 0 = at every update.
+  double reassociation_tolerance_m = 0.02;
+  double map_rebuild_tolerance_m = 0.02;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
 
+  // Solver stop: at most solver_iterations Levenberg-Marquardt iterations, fewer once an
+  // iteration lowers the cost by less than this fraction of it (ceres function_tolerance).
+  // The window starts from the previous solution, so a few iterations usually suffice; the
+  // cap matters while the calibration is still converging (docs/sliding_window.md, "Figures").
   int solver_iterations = 10;
+  double solver_function_tolerance = 1e-6;
   int num_threads = 1;
   MarginalizationOptions marginalization;
 };
@@ -168,9 +183,11 @@ struct SlidingWindowCounters {
 // Timing of the last update (seconds, wall clock).
 struct SlidingWindowUpdateTiming {
   double total_s = 0.0;
-  double association_s = 0.0;  // map building and association
+  double association_s = 0.0;  // plane maps and association
+  double build_s = 0.0;        // the window problem (factors and residual blocks)
   double solve_s = 0.0;
   double marginalization_s = 0.0;
+  int solver_iterations = 0;  // Levenberg-Marquardt steps taken
 };
 
 // Covariance of the estimated calibration blocks in tangent coordinates (right-perturbed
@@ -223,7 +240,8 @@ class SlidingWindowEstimator {
   bool has_marginalization_prior() const { return prior_ != nullptr; }
   const SlidingWindowCounters& counters() const { return counters_; }
   const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
-  // Point-to-plane residuals of the last update and their RMS (metres, without the loss).
+  // Point-to-plane residuals of the last update and their RMS after its solve (metres,
+  // without the loss).
   int last_associated_points() const { return last_associated_points_; }
   double last_point_rms_m() const { return last_point_rms_m_; }
 
@@ -239,11 +257,15 @@ class SlidingWindowEstimator {
   // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
   void RelinearizeImuFactors();
-  // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors, and
-  // (with_points) point factors re-associated with a plane map at the current estimate.
-  std::unique_ptr<ProblemBuild> BuildProblem(bool with_points);
-  void AddPointFactors(ProblemBuild* build);
+  // Step 3: refreshes the plane maps that moved and re-pairs the keyframes that are due.
+  void AssociatePoints();
+  // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors and the
+  // keyframes' point groups.
+  std::unique_ptr<ProblemBuild> BuildProblem();
   void Solve(ProblemBuild* build);
+  // Point-to-plane distances (metres, without the loss) of every point group at the current
+  // estimate.
+  std::vector<double> PointDistances() const;
   std::unique_ptr<MarginalizationPrior> MarginalizeOldest(ProblemBuild* build);
   void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
   void TrimImuBuffer();
@@ -257,7 +279,6 @@ class SlidingWindowEstimator {
   std::unique_ptr<ceres::LossFunction> imu_loss_;
   std::unique_ptr<ceres::LossFunction> wheel_loss_;
   std::unique_ptr<ceres::LossFunction> gnss_loss_;
-  std::unique_ptr<ceres::LossFunction> lidar_loss_;
   std::unique_ptr<ceres::LossFunction> prior_loss_;
 
   sensors::ImuSamples imu_;  // from the oldest window keyframe on
