@@ -62,7 +62,8 @@ int main(int argc, char** argv) {
     autocal::pipeline::WriteOnlineEstimationResult(FLAGS_output, result);
     const autocal::sensors::Calibration& c = result.calibration.value;
     std::cout << "keyframes " << result.trajectory.size() << ", marginalized "
-              << result.counters.marginalizations << ", " << result.seconds_total << " s\n"
+              << result.counters.marginalizations << ", " << result.seconds_total
+              << " s (initialization " << result.seconds_initialization << " s)\n"
               << "q_I_L (xyzw) " << c.q_I_L.coeffs().transpose() << "\np_I_L (m)    "
               << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
               << " ms\nwritten: " << FLAGS_output
