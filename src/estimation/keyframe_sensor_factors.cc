@@ -163,8 +163,9 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
     throw Error("AddWheelFactors: non_holonomic_correlation_s must be finite and >= 0");
   }
   factors::WheelFactorOptions factor_options = options.factor;
-  factor_options.non_holonomic_sigma_m_s *=
-      NonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
+  const double scale = NonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
+  factor_options.lateral_sigma_m_s *= scale;
+  factor_options.vertical_sigma_m_s *= scale;
   int added = 0;
   for (Keyframe& kf : *keyframes) {
     const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);

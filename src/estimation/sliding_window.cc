@@ -385,7 +385,8 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
   const double gyro_sample_sigma_rad_s =
       options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
   wheel_options.non_holonomic = options_.wheel_non_holonomic;
-  wheel_options.non_holonomic_sigma_m_s = options_.wheel_non_holonomic_sigma_m_s;
+  wheel_options.lateral_sigma_m_s = options_.wheel_non_holonomic_sigma_m_s;
+  wheel_options.vertical_sigma_m_s = options_.wheel_non_holonomic_sigma_m_s;
   sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
   int64_t integrated_to_ns = s.t_ns;
   for (int i : internal::Thin(all, options_.max_wheel_samples_per_interval)) {

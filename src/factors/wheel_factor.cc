@@ -40,7 +40,10 @@ WheelFactor::WheelFactor(const WheelMeasurement& measurement, const WheelFactorO
   }
   CheckSigma(options.speed_sigma_m_s, "speed_sigma_m_s");
   CheckSigma(options.yaw_rate_sigma_rad_s, "yaw_rate_sigma_rad_s");
-  if (options.non_holonomic) CheckSigma(options.non_holonomic_sigma_m_s, "non_holonomic_sigma_m_s");
+  if (options.non_holonomic) {
+    CheckSigma(options.lateral_sigma_m_s, "lateral_sigma_m_s");
+    CheckSigma(options.vertical_sigma_m_s, "vertical_sigma_m_s");
+  }
   set_num_residuals(options.non_holonomic ? 4 : 2);
   auto* sizes = mutable_parameter_block_sizes();
   *sizes = {4, 3, 3, 4, 3, 1};
@@ -73,12 +76,13 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
   const double yaw_wheel = (right - left) / b;
   const double inv_s_v = 1.0 / options_.speed_sigma_m_s;
   const double inv_s_yaw = 1.0 / options_.yaw_rate_sigma_rad_s;
-  const double inv_s_nh = options_.non_holonomic ? 1.0 / options_.non_holonomic_sigma_m_s : 0.0;
+  const double inv_s_lat = options_.non_holonomic ? 1.0 / options_.lateral_sigma_m_s : 0.0;
+  const double inv_s_vert = options_.non_holonomic ? 1.0 / options_.vertical_sigma_m_s : 0.0;
   residuals[0] = (v_V.x() - 0.5 * (left + right)) * inv_s_v;
   residuals[1] = (w_V.z() - yaw_wheel) * inv_s_yaw;
   if (options_.non_holonomic) {
-    residuals[2] = v_V.y() * inv_s_nh;
-    residuals[3] = v_V.z() * inv_s_nh;
+    residuals[2] = v_V.y() * inv_s_lat;
+    residuals[3] = v_V.z() * inv_s_vert;
   }
   if (jacobians == nullptr) return true;
 
@@ -104,8 +108,8 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
     store_row(inv_s_v * d_v_x, q, out);
     store_row(inv_s_yaw * d_w_z, q, out + stride);
     if (non_holonomic) {
-      store_row(inv_s_nh * d_v_y, q, out + 2 * stride);
-      store_row(inv_s_nh * d_v_z, q, out + 3 * stride);
+      store_row(inv_s_lat * d_v_y, q, out + 2 * stride);
+      store_row(inv_s_vert * d_v_z, q, out + 3 * stride);
     }
   };
   const Eigen::Matrix3d R_I_V = Rt_I_V.transpose();

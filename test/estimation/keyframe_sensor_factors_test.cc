@@ -263,10 +263,10 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
     return r;
   };
   const std::vector<double> white = residuals(0.0);
-  const std::vector<double> correlated = residuals(2.0);
+  const std::vector<double> correlated = residuals(0.5);
   ASSERT_EQ(white.size(), correlated.size());
   ASSERT_EQ(white.size() % 4, 0u);
-  const double scale = std::sqrt(2.0 * 2.0 / kKeyframeSpacingS);
+  const double scale = std::sqrt(2.0 * 0.5 / kKeyframeSpacingS);
   std::vector<double> vertical;
   for (size_t i = 0; i < white.size(); i += 4) {
     EXPECT_EQ(correlated[i], white[i]);
@@ -292,11 +292,18 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
   for (size_t lag = 1; lag < vertical.size() && covariance(lag) > 0.0; ++lag) {
     integral_time_s += kKeyframeSpacingS * covariance(lag) / c0;
   }
+  // Over +-10 s the negative lobe (a speed following the acceleration averages out) cancels
+  // most of it: the default correlation time (0.5 s) lies between the two.
+  double integral_10s_s = 0.5 * kKeyframeSpacingS;
+  for (size_t lag = 1; lag < 100; ++lag) integral_10s_s += kKeyframeSpacingS * covariance(lag) / c0;
   const double rms_m_s = 0.05 * std::sqrt(c0);
   std::cout << "noise-free vertical rear-axle speed: rms " << rms_m_s
-            << " m/s, autocorrelation integral time " << integral_time_s << " s\n";
+            << " m/s, autocorrelation integral time " << integral_time_s << " s to its first zero, "
+            << integral_10s_s << " s over 10 s\n";
   EXPECT_GT(rms_m_s, 0.005);
   EXPECT_GT(integral_time_s, 1.0);
+  EXPECT_LT(integral_10s_s, KeyframeWheelOptions().non_holonomic_correlation_s);
+  EXPECT_GT(integral_time_s, KeyframeWheelOptions().non_holonomic_correlation_s);
 }
 
 // Keyframes whose positions the odometry lost: true orientations turned by 30 deg about the

@@ -128,6 +128,8 @@ TEST(WheelFactor, JacobiansPassGradientCheckerAndMatchAutodiff) {
     WheelFactorOptions options;
     options.non_holonomic = trial % 2 == 0;
     options.shared_radius = trial % 4 == 1;
+    options.lateral_sigma_m_s = 0.03;  // distinct rows: a swapped sigma fails the comparison
+    options.vertical_sigma_m_s = 0.11;
     const std::string context = "trial " + std::to_string(trial);
     const WheelFactor analytic(m, options);
     std::vector<double*> blocks = state.Pointers(options.shared_radius);

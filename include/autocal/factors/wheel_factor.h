@@ -40,7 +40,10 @@ struct WheelFactorOptions {
   double speed_sigma_m_s = 0.02;          // 1-sigma of the wheel forward speed
   double yaw_rate_sigma_rad_s = 0.01;     // 1-sigma of the wheel yaw rate
   bool non_holonomic = true;              // add the zero lateral/vertical speed rows
-  double non_holonomic_sigma_m_s = 0.05;  // 1-sigma of the lateral/vertical speed (slip)
+  // 1-sigma of the rear axle's lateral speed (slip) and vertical speed (the body pitching on
+  // its suspension) in V, the non-holonomic rows.
+  double lateral_sigma_m_s = 0.05;
+  double vertical_sigma_m_s = 0.05;
   bool shared_radius = false;             // one radius block for both wheels
 
   // Sigmas of speed and yaw rate from the encoders' rate noise (Eq. F23) at nominal
@@ -95,8 +98,8 @@ class WheelResidual {
     residual[0] = (v_V.x() - T(0.5) * (left + right)) / T(options_.speed_sigma_m_s);
     residual[1] = (w_V.z() - (right - left) / track_width[0]) / T(options_.yaw_rate_sigma_rad_s);
     if (options_.non_holonomic) {
-      residual[2] = v_V.y() / T(options_.non_holonomic_sigma_m_s);
-      residual[3] = v_V.z() / T(options_.non_holonomic_sigma_m_s);
+      residual[2] = v_V.y() / T(options_.lateral_sigma_m_s);
+      residual[3] = v_V.z() / T(options_.vertical_sigma_m_s);
     }
     return true;
   }
