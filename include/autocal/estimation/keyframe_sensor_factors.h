@@ -47,11 +47,10 @@ struct KeyframeWheelOptions {
   // lateral and vertical speed in the vehicle frame is not white noise but follows the body's
   // roll and pitch on its suspension, which follow the acceleration. The rows' sigma is scaled
   // by sqrt(2 tau / dt), dt the mean keyframe spacing; 0 treats the rows as white. The default
-  // lies between the autocorrelation integral of the simulated vertical speed up to its first
-  // zero (2.0 s) and over +-10 s (0.25 s: a speed that follows the acceleration has a negative
-  // lobe), and makes the vehicle pitch's normalized error about 1 over 20 simulated drives
-  // (docs/keyframe_factors.md).
-  double non_holonomic_correlation_s = 0.5;
+  // is the autocorrelation integral of the simulated vertical speed up to its first zero; over
+  // +-10 s it is 0.25 s (a speed that follows the acceleration has a negative lobe), and the
+  // consistency suite finds 2 s cautious (docs/keyframe_factors.md).
+  double non_holonomic_correlation_s = 2.0;
   // Blocks not estimated are set constant in the problem (blocks left estimated are not
   // made variable: a caller may have fixed them).
   bool estimate_vehicle_rotation = true;     // q_I_V
