@@ -1,5 +1,5 @@
 // Cost of one LiDAR point-to-plane residual with all Jacobians, analytic vs autodiff twin:
-// against a plane held in W, and against a plane of another sweep.
+// against a plane held in W, and against a plane of another sweep, alone and in a group.
 #include <memory>
 #include <random>
 #include <vector>
@@ -8,6 +8,7 @@
 
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -65,10 +66,8 @@ BENCHMARK_TEMPLATE(BM_PointToPlaneEvaluate, true)->Name("PointToPlane/analytic")
 BENCHMARK_TEMPLATE(BM_PointToPlaneEvaluate, false)->Name("PointToPlane/autodiff");
 
 // The same points against planes of another sweep (two keyframes, Eq. P6-P8).
-template <bool kAnalytic>
-void BM_PointToSweepPlaneEvaluate(benchmark::State& state) {
-  const Eigen::Vector3d g(0.0, 0.0, -9.80665);
-  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+std::vector<factors::PointToSweepPlaneMeasurement> RandomSweepMeasurements() {
+  std::vector<factors::PointToSweepPlaneMeasurement> out;
   for (const auto& m : RandomMeasurements()) {
     factors::PointToSweepPlaneMeasurement sweep_m;
     sweep_m.p_L = m.p_L;
@@ -79,18 +78,38 @@ void BM_PointToSweepPlaneEvaluate(benchmark::State& state) {
     sweep_m.plane_motion.delta_p = Eigen::Vector3d(0.002, 0.0, 0.0);
     sweep_m.plane_motion.omega_rad_s = Eigen::Vector3d(0.0, 0.0, 0.3);
     sweep_m.plane_L = m.plane;
+    out.push_back(sweep_m);
+  }
+  return out;
+}
+
+// Two keyframes, an extrinsic and an offset for the sweep-plane benchmarks.
+struct SweepPairState {
+  Eigen::Quaterniond q_k = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.0));
+  Eigen::Quaterniond q_j = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.3));
+  Eigen::Vector3d p_k{10.0, -4.0, 1.0}, v_k{8.0, 1.0, 0.0}, p_j{14.0, -3.0, 1.0},
+      v_j{8.0, 2.0, 0.0};
+  Eigen::Quaterniond q_I_L = geometry::Exp(Eigen::Vector3d(0.02, -0.03, 0.5));
+  Eigen::Vector3d p_I_L{0.3, 0.0, 0.4};
+  double offset_s = 0.01;
+  std::vector<const double*> Blocks() const {
+    return {q_k.coeffs().data(), p_k.data(),   v_k.data(),
+            q_j.coeffs().data(), p_j.data(),   v_j.data(),
+            q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
+  }
+};
+
+template <bool kAnalytic>
+void BM_PointToSweepPlaneEvaluate(benchmark::State& state) {
+  const Eigen::Vector3d g(0.0, 0.0, -9.80665);
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  for (const auto& sweep_m : RandomSweepMeasurements()) {
     costs.emplace_back(kAnalytic ? new factors::PointToSweepPlaneFactor(sweep_m, g)
                                  : factors::CreatePointToSweepPlaneAutoDiff(sweep_m, g));
   }
-  Eigen::Quaterniond q_k = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.0));
-  Eigen::Quaterniond q_j = geometry::Exp(Eigen::Vector3d(0.1, 0.2, 1.3));
-  Eigen::Vector3d p_k(10.0, -4.0, 1.0), v_k(8.0, 1.0, 0.0), p_j(14.0, -3.0, 1.0), v_j(8.0, 2.0, 0.0);
-  Eigen::Quaterniond q_I_L = geometry::Exp(Eigen::Vector3d(0.02, -0.03, 0.5));
-  Eigen::Vector3d p_I_L(0.3, 0.0, 0.4);
-  double offset_s = 0.01;
-  const double* params[] = {q_k.coeffs().data(), p_k.data(),   v_k.data(),
-                            q_j.coeffs().data(), p_j.data(),   v_j.data(),
-                            q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
+  const SweepPairState x;
+  const std::vector<const double*> blocks = x.Blocks();
+  const double* const* params = blocks.data();
   double j0[4], j1[3], j2[3], j3[4], j4[3], j5[3], j6[4], j7[3], j8[1];
   double* jacobians[] = {j0, j1, j2, j3, j4, j5, j6, j7, j8};
   double residual = 0.0;
@@ -106,6 +125,31 @@ void BM_PointToSweepPlaneEvaluate(benchmark::State& state) {
 
 BENCHMARK_TEMPLATE(BM_PointToSweepPlaneEvaluate, true)->Name("PointToSweepPlane/analytic");
 BENCHMARK_TEMPLATE(BM_PointToSweepPlaneEvaluate, false)->Name("PointToSweepPlane/autodiff");
+
+// The same points as one group of a pair of sweeps (Eq. P9, no loss), as the sliding window
+// and the batch solver evaluate them: the rotations and lifts are shared by the points.
+void BM_PointToSweepPlaneGroupEvaluate(benchmark::State& state) {
+  const factors::PointToSweepPlaneGroupFactor group(
+      RandomSweepMeasurements(), Eigen::Vector3d(0.0, 0.0, -9.80665), factors::LossOptions());
+  const SweepPairState x;
+  const std::vector<const double*> params = x.Blocks();
+  const std::vector<int> sizes = {4, 3, 3, 4, 3, 3, 4, 3, 1};
+  std::vector<std::vector<double>> storage;
+  std::vector<double*> jacobians;
+  for (int size : sizes) {
+    storage.emplace_back(static_cast<size_t>(size * kPoints));
+    jacobians.push_back(storage.back().data());
+  }
+  std::vector<double> residuals(kPoints);
+  for (auto _ : state) {
+    group.Evaluate(params.data(), residuals.data(), jacobians.data());
+    benchmark::DoNotOptimize(residuals.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+
+BENCHMARK(BM_PointToSweepPlaneGroupEvaluate)->Name("PointToSweepPlaneGroup/analytic");
 
 }  // namespace
 }  // namespace autocal

@@ -1,8 +1,8 @@
 #include "autocal/estimation/plane_map.h"
 
+#include <array>
 #include <cmath>
-#include <utility>
-#include <vector>
+#include <string>
 
 #include <Eigen/Eigenvalues>
 
@@ -15,6 +15,15 @@ namespace estimation {
 
 namespace {
 
+const PlaneMapOptions& Checked(const PlaneMapOptions& options) {
+  if (options.num_neighbors < 3 || options.num_neighbors > PlaneMap::kMaxNeighbors) {
+    throw Error("PlaneMap: num_neighbors must be in [3, " +
+                std::to_string(PlaneMap::kMaxNeighbors) + "], got " +
+                std::to_string(options.num_neighbors));
+  }
+  return options;
+}
+
 Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
   lidar::PointCloud cloud;
   cloud.points = points;
@@ -24,29 +33,36 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
 }  // namespace
 
 PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options)
-    : options_(options), tree_(Downsample(points_W, options.voxel_m)) {}
+    : options_(Checked(options)),
+      max_neighbor_squared_distance_m2_(options.max_neighbor_distance_m *
+                                        options.max_neighbor_distance_m),
+      tree_(Downsample(points_W, options.voxel_m)) {}
 
 bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const {
   const int k = options_.num_neighbors;
-  std::vector<lidar::Neighbor> neighbors(static_cast<size_t>(k));
+  std::array<lidar::Neighbor, kMaxNeighbors> neighbors;
   if (tree_.Knn(p_W, k, neighbors.data()) < k) return false;
-  const double max_sq = options_.max_neighbor_distance_m * options_.max_neighbor_distance_m;
-  if (neighbors.back().squared_distance_m2 > max_sq) return false;
-  Eigen::Matrix3Xd local(3, k);
-  for (int i = 0; i < k; ++i) local.col(i) = tree_.points().col(neighbors[i].index);
+  if (neighbors[static_cast<size_t>(k - 1)].squared_distance_m2 >
+      max_neighbor_squared_distance_m2_) {
+    return false;
+  }
+  Neighborhood local(3, k);
+  for (int i = 0; i < k; ++i) {
+    local.col(i) = tree_.points().col(neighbors[static_cast<size_t>(i)].index);
+  }
   return FitLocalPlane(local, plane);
 }
 
-bool PlaneMap::FitLocalPlane(const Eigen::Matrix3Xd& local, lidar::Plane* plane) const {
+bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const {
   const Eigen::Vector3d centroid = local.rowwise().mean();
-  const Eigen::Matrix3Xd centered = local.colwise() - centroid;
+  const Neighborhood centered = local.colwise() - centroid;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(centered * centered.transpose());
   const Eigen::Vector3d l = solver.eigenvalues();  // ascending
   if (l(2) <= 0.0 || l(1) < options_.min_spread_ratio * l(2)) return false;  // a line
   if ((l(1) - l(0)) < options_.min_flatness * l(1)) return false;            // a blob
   const Eigen::Vector3d normal = solver.eigenvectors().col(0);
-  if ((normal.transpose() * centered).cwiseAbs().maxCoeff() > options_.max_plane_thickness_m) {
-    return false;
+  for (Eigen::Index i = 0; i < centered.cols(); ++i) {
+    if (std::abs(normal.dot(centered.col(i))) > options_.max_plane_thickness_m) return false;
   }
   plane->normal = normal;
   plane->d = -normal.dot(centroid);

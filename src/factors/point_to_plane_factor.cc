@@ -39,7 +39,9 @@ bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* resid
   const Eigen::Vector3d rotated_x = delta_R_ * x_I;
   const Eigen::Vector3d spun_x = delta_R_omega_hat_ * x_I;
   const Eigen::Vector3d lever = rotated_x + delta * spun_x + delta_p_ + delta * delta_v_;
-  residuals[0] = m.dot(lever) + n_W_over_sigma_.dot(p_W_I + (dt_s_ + delta) * v_W_I) +
+  // n . v_k / sigma enters the residual and the offset Jacobian.
+  const double n_v = n_W_over_sigma_.dot(v_W_I);
+  residuals[0] = m.dot(lever) + n_W_over_sigma_.dot(p_W_I) + (dt_s_ + delta) * n_v +
                  n_gravity_position_ + delta * n_gravity_velocity_ + d_over_sigma_;
   if (jacobians == nullptr) return true;
 
@@ -69,7 +71,7 @@ bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* resid
     }
   }
   if (jacobians[5] != nullptr) {
-    jacobians[5][0] = m.dot(spun_x + delta_v_) + n_W_over_sigma_.dot(v_W_I) + n_gravity_velocity_;
+    jacobians[5][0] = m.dot(spun_x + delta_v_) + n_v + n_gravity_velocity_;
   }
   return true;
 }

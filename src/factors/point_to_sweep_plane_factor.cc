@@ -1,13 +1,47 @@
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 
-#include "autocal/geometry/manifolds.h"
+#include "autocal/geometry/so3.h"
 
 namespace autocal {
 namespace factors {
 
+namespace {
+
+// The ambient row of a tangent row a at q: a^T lift = LiftTangentRow(a, q), i.e.
+// 2 (w a + v x a) for the vector part and -2 v . a for the scalar part.
+Eigen::Matrix<double, 3, 4> Lift(const double* q_xyzw) {
+  const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
+  Eigen::Matrix<double, 3, 4> lift;
+  lift.leftCols<3>() = 2.0 * (q_xyzw[3] * Eigen::Matrix3d::Identity() - geometry::Hat(v));
+  lift.col(3) = -2.0 * v;
+  return lift;
+}
+
+// A Jacobian row of N entries in Ceres' row-major storage.
+template <int N>
+Eigen::Map<Eigen::Matrix<double, 1, N>> Row(double* jacobian) {
+  return Eigen::Map<Eigen::Matrix<double, 1, N>>(jacobian);
+}
+
+}  // namespace
+
+PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters)
+    : R_k(Eigen::Map<const Eigen::Quaterniond>(parameters[0]).toRotationMatrix()),
+      p_k(parameters[1]),
+      v_k(parameters[2]),
+      R_j(Eigen::Map<const Eigen::Quaterniond>(parameters[3]).toRotationMatrix()),
+      p_j(parameters[4]),
+      v_j(parameters[5]),
+      R_I_L(Eigen::Map<const Eigen::Quaterniond>(parameters[6]).toRotationMatrix()),
+      p_I_L(parameters[7]),
+      time_offset_s(parameters[8][0]),
+      lift_k(Lift(parameters[0])),
+      lift_j(Lift(parameters[3])),
+      lift_I_L(Lift(parameters[6])) {}
+
 PointToSweepPlaneFactor::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
     : delta_R(motion.delta_q.toRotationMatrix()),
-      delta_R_omega_hat(delta_R * geometry::Hat(motion.omega_rad_s)),
+      omega_rad_s(motion.omega_rad_s),
       delta_v(motion.delta_v),
       delta_p(motion.delta_p),
       gravity_velocity(g_W * motion.dt_s),
@@ -26,96 +60,93 @@ PointToSweepPlaneFactor::PointToSweepPlaneFactor(const PointToSweepPlaneMeasurem
 
 bool PointToSweepPlaneFactor::Evaluate(double const* const* parameters, double* residuals,
                                        double** jacobians) const {
-  const Eigen::Map<const Eigen::Quaterniond> q_k(parameters[0]);
-  const Eigen::Map<const Eigen::Vector3d> p_k(parameters[1]);
-  const Eigen::Map<const Eigen::Vector3d> v_k(parameters[2]);
-  const Eigen::Map<const Eigen::Quaterniond> q_j(parameters[3]);
-  const Eigen::Map<const Eigen::Vector3d> p_j(parameters[4]);
-  const Eigen::Map<const Eigen::Vector3d> v_j(parameters[5]);
-  const Eigen::Map<const Eigen::Quaterniond> q_I_L(parameters[6]);
-  const Eigen::Map<const Eigen::Vector3d> p_I_L(parameters[7]);
-  const double delta = parameters[8][0] - offset_linearization_s_;
+  Evaluate(Frame(parameters), residuals, jacobians);
+  return true;
+}
 
-  // Point side (Eq. P1-P3): p_W = R_k lever + p_k + (dt + delta) v_k + g dt^2/2 + delta g dt.
-  const Eigen::Matrix3d R_I_L = q_I_L.toRotationMatrix();
-  const Eigen::Vector3d x_I = R_I_L * p_L_ + p_I_L;
-  const Eigen::Vector3d spun_x = point_.delta_R_omega_hat * x_I;
+void PointToSweepPlaneFactor::Evaluate(const Frame& f, double* residual,
+                                       double** jacobians) const {
+  const double delta = f.time_offset_s - offset_linearization_s_;
+
+  // Point side (Eq. P1-P3) with dR (I + delta Hat(omega)) applied as dR (x + delta omega x x):
+  //   lever = dR (x_I + delta omega_k x x_I) + dp + delta dv,
+  //   p_W = R_k lever + p_k + (dt + delta) v_k + g dt^2/2 + delta g dt.
+  const Eigen::Vector3d x_I = f.R_I_L * p_L_ + f.p_I_L;
+  const Eigen::Vector3d spun_x = point_.omega_rad_s.cross(x_I);  // Hat(omega_k) x_I
   const Eigen::Vector3d lever =
-      point_.delta_R * x_I + delta * spun_x + point_.delta_p + delta * point_.delta_v;
-  const Eigen::Vector3d p_W = q_k * lever + p_k + (point_.dt_s + delta) * v_k +
+      point_.delta_R * (x_I + delta * spun_x) + point_.delta_p + delta * point_.delta_v;
+  const Eigen::Vector3d p_W = f.R_k * lever + f.p_k + (point_.dt_s + delta) * f.v_k +
                               point_.gravity_position + delta * point_.gravity_velocity;
 
   // Plane side, with B = dR_j (I + delta Hat(omega_j)):
   //   a = B R_I_L n_L (the normal in I_j),  b = B p_I_L + dp_j + delta dv_j,
   //   w = p_W - p_j - (dt_j + delta) v_j - g dt_j^2/2 - delta g dt_j,   z = R_j^T w,
   //   r sigma = a . (z - b) + d_L.                                                 (Eq. P7)
-  const Eigen::Vector3d n_I_L = R_I_L * n_L_;
-  const Eigen::Vector3d a = plane_.delta_R * n_I_L +
-                            delta * (plane_.delta_R_omega_hat * n_I_L);
-  const Eigen::Vector3d b = plane_.delta_R * p_I_L + delta * (plane_.delta_R_omega_hat * p_I_L) +
-                            plane_.delta_p + delta * plane_.delta_v;
-  const Eigen::Vector3d w = p_W - p_j - (plane_.dt_s + delta) * v_j - plane_.gravity_position -
-                            delta * plane_.gravity_velocity;
-  const Eigen::Vector3d z = q_j.conjugate() * w;
+  // alpha = dR_j^T a and beta = dR_j^T (b - dp_j - delta dv_j) stay in the frame before dR_j.
+  const Eigen::Vector3d n_I = f.R_I_L * n_L_;
+  const Eigen::Vector3d spun_n = plane_.omega_rad_s.cross(n_I);
+  const Eigen::Vector3d spun_p = plane_.omega_rad_s.cross(f.p_I_L);
+  const Eigen::Vector3d alpha = n_I + delta * spun_n;
+  const Eigen::Vector3d a = plane_.delta_R * alpha;
+  const Eigen::Vector3d b = plane_.delta_R * (f.p_I_L + delta * spun_p) + plane_.delta_p +
+                            delta * plane_.delta_v;
+  const Eigen::Vector3d w = p_W - f.p_j - (plane_.dt_s + delta) * f.v_j -
+                            plane_.gravity_position - delta * plane_.gravity_velocity;
+  const Eigen::Vector3d z = f.R_j.transpose() * w;
   const Eigen::Vector3d z_minus_b = z - b;
-  residuals[0] = (a.dot(z_minus_b) + d_L_) * inv_sigma_;
-  if (jacobians == nullptr) return true;
+  residual[0] = (a.dot(z_minus_b) + d_L_) * inv_sigma_;
+  if (jacobians == nullptr) return;
 
   // The point side enters through n_W . p_W with n_W = R_j a: the Jacobians of Eq. (P5)
-  // with that normal; m = R_k^T n_W / sigma.
-  const Eigen::Vector3d n_W = q_j * a * inv_sigma_;
-  const Eigen::Vector3d m = q_k.conjugate() * n_W;
-  const Eigen::Vector3d m_x =
-      point_.delta_R.transpose() * m + delta * (point_.delta_R_omega_hat.transpose() * m);
+  // with that normal; m = R_k^T n_W / sigma and m_x = (I + delta Hat(omega_k))^T dR^T m, the
+  // gradient in x_I.
+  const Eigen::Vector3d n_W = f.R_j * a * inv_sigma_;
+  const Eigen::Vector3d m = f.R_k.transpose() * n_W;
+  const Eigen::Vector3d u = point_.delta_R.transpose() * m;
+  const Eigen::Vector3d m_x = u + delta * u.cross(point_.omega_rad_s);
   if (jacobians[0] != nullptr) {
-    geometry::LiftTangentRow(lever.cross(m).transpose(), parameters[0], jacobians[0]);
+    Row<4>(jacobians[0]) = lever.cross(m).transpose() * f.lift_k;
   }
-  if (jacobians[1] != nullptr) {
-    Eigen::Map<Eigen::RowVector3d> j1(jacobians[1]);
-    j1 = n_W.transpose();
-  }
+  if (jacobians[1] != nullptr) Row<3>(jacobians[1]) = n_W.transpose();
   if (jacobians[2] != nullptr) {
-    Eigen::Map<Eigen::RowVector3d> j2(jacobians[2]);
-    j2 = (point_.dt_s + delta) * n_W.transpose();
+    Row<3>(jacobians[2]) = (point_.dt_s + delta) * n_W.transpose();
   }
   // Plane side: d/dtheta_j of a . R_j^T w is (a x z)^T (Eq. P8).
   if (jacobians[3] != nullptr) {
-    geometry::LiftTangentRow(a.cross(z).transpose() * inv_sigma_, parameters[3], jacobians[3]);
+    Row<4>(jacobians[3]) =
+        (inv_sigma_ * a.cross(z)).transpose() * f.lift_j;
   }
-  if (jacobians[4] != nullptr) {
-    Eigen::Map<Eigen::RowVector3d> j4(jacobians[4]);
-    j4 = -n_W.transpose();
-  }
+  if (jacobians[4] != nullptr) Row<3>(jacobians[4]) = -n_W.transpose();
   if (jacobians[5] != nullptr) {
-    Eigen::Map<Eigen::RowVector3d> j5(jacobians[5]);
-    j5 = -(plane_.dt_s + delta) * n_W.transpose();
+    Row<3>(jacobians[5]) = -(plane_.dt_s + delta) * n_W.transpose();
   }
-  const Eigen::Matrix3d B = plane_.delta_R + delta * plane_.delta_R_omega_hat;
+  if (jacobians[6] == nullptr && jacobians[7] == nullptr && jacobians[8] == nullptr) return;
+  // t = dR_j^T (z - b); B^T (z - b) = (I - delta Hat(omega_j)) t = t + delta t x omega_j.
+  const Eigen::Vector3d t = plane_.delta_R.transpose() * z_minus_b;
   if (jacobians[6] != nullptr) {
-    // Point side through x_I; plane side through a = B R_I_L n_L:
-    // d(a . (z - b))/dphi = (n_L x e)^T with e = R_I_L^T B^T (z - b).
-    const Eigen::Vector3d e = R_I_L.transpose() * (B.transpose() * z_minus_b);
+    // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
+    // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both share one R_I_L^T.
+    const Eigen::Vector3d e = t + delta * t.cross(plane_.omega_rad_s);
     const Eigen::Vector3d gradient =
-        p_L_.cross(R_I_L.transpose() * m_x) + n_L_.cross(e) * inv_sigma_;
-    geometry::LiftTangentRow(gradient.transpose(), parameters[6], jacobians[6]);
+        f.R_I_L.transpose() * ((x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e));
+    Row<4>(jacobians[6]) = gradient.transpose() * f.lift_I_L;
   }
   if (jacobians[7] != nullptr) {
-    Eigen::Map<Eigen::RowVector3d> j7(jacobians[7]);
-    j7 =
-        m_x.transpose() - (B.transpose() * a).transpose() * inv_sigma_;
+    // B^T a = alpha + delta alpha x omega_j.
+    const Eigen::Vector3d B_t_a = alpha + delta * alpha.cross(plane_.omega_rad_s);
+    Row<3>(jacobians[7]) = (m_x - inv_sigma_ * B_t_a).transpose();
   }
   if (jacobians[8] != nullptr) {
-    // Point side: Eq. (P5) with n_W. Plane side: da/d(delta) = dR_j Hat(omega_j) R_I_L n_L,
-    // db/d(delta) = dR_j Hat(omega_j) p_I_L + dv_j, dz/d(delta) = -R_j^T (v_j + g dt_j).
+    // Point side: Eq. (P5) with n_W, m . dR Hat(omega) x_I = u . spun_x. Plane side:
+    // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j spun_p + dv_j,
+    // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W.
     const double point_side =
-        m.dot(spun_x + point_.delta_v) + n_W.dot(v_k + point_.gravity_velocity);
-    const Eigen::Vector3d a_dot = plane_.delta_R_omega_hat * n_I_L;
-    const Eigen::Vector3d b_dot = plane_.delta_R_omega_hat * p_I_L + plane_.delta_v;
-    const double plane_side = a_dot.dot(z_minus_b) -
-                              (q_j * a).dot(v_j + plane_.gravity_velocity) - a.dot(b_dot);
-    jacobians[8][0] = point_side + plane_side * inv_sigma_;
+        u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
+    const double plane_side = inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) -
+                                            a.dot(plane_.delta_v)) -
+                              n_W.dot(f.v_j + plane_.gravity_velocity);
+    jacobians[8][0] = point_side + plane_side;
   }
-  return true;
 }
 
 ceres::CostFunction* CreatePointToSweepPlaneAutoDiff(

@@ -2,7 +2,6 @@
 
 #include <array>
 #include <cmath>
-#include <limits>
 
 #include "autocal/common/error.h"
 
@@ -29,6 +28,8 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
 
 bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
                                             double** jacobians) const {
+  // The rotations and lifts every point shares, once per evaluation (Eq. P8).
+  const PointToSweepPlaneFactor::Frame frame(parameters);
   std::array<double*, kBlockSizes.size()> row_jacobians;
   for (size_t i = 0; i < points_.size(); ++i) {
     // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
@@ -41,7 +42,7 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
       }
       point_jacobians = row_jacobians.data();
     }
-    if (!points_[i]->Evaluate(parameters, &residuals[i], point_jacobians)) return false;
+    points_[i]->Evaluate(frame, &residuals[i], point_jacobians);
     if (!loss_) continue;
     // Eq. P9.
     const double r = residuals[i];
@@ -62,11 +63,8 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
 
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,
                                                      double* distances) const {
-  for (size_t i = 0; i < points_.size(); ++i) {
-    if (!points_[i]->Evaluate(parameters, &distances[i], nullptr)) {
-      distances[i] = std::numeric_limits<double>::quiet_NaN();  // never a silent 0
-    }
-  }
+  const PointToSweepPlaneFactor::Frame frame(parameters);
+  for (size_t i = 0; i < points_.size(); ++i) points_[i]->Evaluate(frame, &distances[i], nullptr);
 }
 
 }  // namespace factors

@@ -4,7 +4,13 @@
 #include <random>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+
+#include "autocal/common/error.h"
+#include "autocal/lidar/kd_tree.h"
+#include "autocal/lidar/point_cloud.h"
+#include "autocal/lidar/voxel_grid.h"
 
 namespace autocal {
 namespace estimation {
@@ -49,6 +55,68 @@ TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
   strict.max_plane_thickness_m = 0.02;
   const PlaneMap strict_map(Scene(0.0), strict);
   EXPECT_FALSE(strict_map.FindPlane(Eigen::Vector3d(19.95, 0.0, 0.05), &plane)) << "corner";
+}
+
+// The TLS plane of the k nearest map points computed the plain way, with heap-allocated
+// neighbourhoods: the reference the stack-buffered FindPlane must reproduce.
+bool ReferencePlane(const lidar::KdTree& tree, const PlaneMapOptions& o, const Eigen::Vector3d& q,
+                    lidar::Plane* plane) {
+  const std::vector<lidar::Neighbor> nn = tree.Knn(q, o.num_neighbors);
+  if (static_cast<int>(nn.size()) < o.num_neighbors) return false;
+  if (nn.back().squared_distance_m2 > o.max_neighbor_distance_m * o.max_neighbor_distance_m) {
+    return false;
+  }
+  Eigen::Matrix3Xd local(3, o.num_neighbors);
+  for (int i = 0; i < o.num_neighbors; ++i) {
+    local.col(i) = tree.points().col(nn[static_cast<size_t>(i)].index);
+  }
+  const Eigen::Vector3d centroid = local.rowwise().mean();
+  const Eigen::Matrix3Xd centered = local.colwise() - centroid;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(centered * centered.transpose());
+  const Eigen::Vector3d l = solver.eigenvalues();
+  if (l(2) <= 0.0 || l(1) < o.min_spread_ratio * l(2)) return false;
+  if ((l(1) - l(0)) < o.min_flatness * l(1)) return false;
+  plane->normal = solver.eigenvectors().col(0);
+  if ((plane->normal.transpose() * centered).cwiseAbs().maxCoeff() > o.max_plane_thickness_m) {
+    return false;
+  }
+  plane->d = -plane->normal.dot(centroid);
+  return true;
+}
+
+TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
+  const Eigen::Matrix3Xd scene = Scene(0.01);
+  lidar::PointCloud cloud;
+  cloud.points = scene;
+  const lidar::KdTree tree(lidar::VoxelDownsample(cloud, PlaneMapOptions().voxel_m).points);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> x(-1.0, 22.0), y(-6.0, 6.0), z(-0.5, 4.5);
+  for (int k : {3, 5, 10, PlaneMap::kMaxNeighbors}) {
+    PlaneMapOptions options;
+    options.num_neighbors = k;
+    const PlaneMap map(scene, options);
+    int found = 0;
+    for (int trial = 0; trial < 2000; ++trial) {
+      const Eigen::Vector3d q(x(rng), y(rng), z(rng));
+      lidar::Plane plane, reference;
+      const bool ok = map.FindPlane(q, &plane);
+      ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference))
+          << "k " << k << " at " << q.transpose();
+      if (!ok) continue;
+      ++found;
+      EXPECT_NEAR(plane.normal.dot(reference.normal), 1.0, 1e-12);
+      EXPECT_NEAR(plane.d, reference.d, 1e-12);
+    }
+    EXPECT_GT(found, 200) << "k " << k;  // the comparison must cover accepted planes
+  }
+}
+
+TEST(PlaneMap, RejectsNeighbourCountsOutsideTheBuffer) {
+  PlaneMapOptions options;
+  options.num_neighbors = 2;
+  EXPECT_THROW(PlaneMap(Scene(0.0), options), Error);
+  options.num_neighbors = PlaneMap::kMaxNeighbors + 1;
+  EXPECT_THROW(PlaneMap(Scene(0.0), options), Error);
 }
 
 }  // namespace

@@ -5,8 +5,7 @@
 // and indexed by a k-d tree; a query point is associated with the total-least-squares plane
 // of its k nearest map points when those points are close, flat and thin enough.
 
-#include <memory>
-#include <vector>
+#include <cstdint>
 
 #include <Eigen/Core>
 
@@ -18,7 +17,7 @@ namespace estimation {
 
 struct PlaneMapOptions {
   double voxel_m = 0.2;                  // map resolution
-  int num_neighbors = 5;                 // points per local plane
+  int num_neighbors = 5;                 // points per local plane, 3 .. PlaneMap::kMaxNeighbors
   double max_neighbor_distance_m = 1.0;  // farthest neighbour accepted
   // With the neighbourhood's covariance eigenvalues l0 <= l1 <= l2: flatness (l1 - l0) / l1
   // is 1 for a plane and 0 for an isotropic blob; l1 / l2 is 0 for points on a line.
@@ -30,17 +29,25 @@ struct PlaneMapOptions {
 
 class PlaneMap {
  public:
-  // Voxel-downsamples the points (options.voxel_m) into a map.
+  // The neighbourhood lives in fixed-size buffers on the stack: a query allocates nothing.
+  static constexpr int kMaxNeighbors = 32;
+
+  // Voxel-downsamples the points (options.voxel_m) into a map. Throws autocal::Error when
+  // options.num_neighbors is outside [3, kMaxNeighbors].
   PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options = {});
   // The local plane around p_W, or false when the neighbourhood is not a clean plane.
+  // Safe to call from several threads at once.
   bool FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const;
 
   int64_t size() const { return tree_.size(); }
 
  private:
-  bool FitLocalPlane(const Eigen::Matrix3Xd& local, lidar::Plane* plane) const;
+  using Neighborhood =
+      Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxNeighbors>;
+  bool FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const;
 
   PlaneMapOptions options_;
+  double max_neighbor_squared_distance_m2_;
   lidar::KdTree tree_;
 };
 

@@ -38,18 +38,39 @@ struct PointToSweepPlaneMeasurement {
 class PointToSweepPlaneFactor final
     : public ceres::SizedCostFunction<1, 4, 3, 3, 4, 3, 3, 4, 3, 1> {
  public:
+  // What every point of a pair of sweeps shares: the parameter blocks as rotation matrices
+  // and the quaternion lifts of the tangent Jacobians (a tangent row a maps to the ambient
+  // row a^T lift), computed once per evaluation of a group (Eq. P8).
+  struct Frame {
+    explicit Frame(double const* const* parameters);
+    Eigen::Matrix3d R_k;
+    Eigen::Vector3d p_k;
+    Eigen::Vector3d v_k;
+    Eigen::Matrix3d R_j;
+    Eigen::Vector3d p_j;
+    Eigen::Vector3d v_j;
+    Eigen::Matrix3d R_I_L;
+    Eigen::Vector3d p_I_L;
+    double time_offset_s;
+    Eigen::Matrix<double, 3, 4> lift_k;
+    Eigen::Matrix<double, 3, 4> lift_j;
+    Eigen::Matrix<double, 3, 4> lift_I_L;
+  };
+
   PointToSweepPlaneFactor(const PointToSweepPlaneMeasurement& measurement,
                           const Eigen::Vector3d& g_W);
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
+  // The same with the shared quantities given; jacobians as in Evaluate.
+  void Evaluate(const Frame& frame, double* residual, double** jacobians) const;
 
  private:
   // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
   struct Side {
     Side(const PointMotion& motion, const Eigen::Vector3d& g_W);
     Eigen::Matrix3d delta_R;
-    Eigen::Matrix3d delta_R_omega_hat;  // dR * Hat(omega)
+    Eigen::Vector3d omega_rad_s;
     Eigen::Vector3d delta_v;
     Eigen::Vector3d delta_p;
     Eigen::Vector3d gravity_velocity;   // g_W dt

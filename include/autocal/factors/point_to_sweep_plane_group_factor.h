@@ -35,8 +35,7 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
 
   int num_points() const { return static_cast<int>(points_.size()); }
 
-  // The whitened point-to-plane distances r_i (no loss), one per point; NaN for a point
-  // whose evaluation failed.
+  // The whitened point-to-plane distances r_i (no loss), one per point.
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
  private:
