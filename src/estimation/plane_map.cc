@@ -34,18 +34,12 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
 
 PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options)
     : options_(Checked(options)),
-      max_neighbor_squared_distance_m2_(options.max_neighbor_distance_m *
-                                        options.max_neighbor_distance_m),
       tree_(Downsample(points_W, options.voxel_m)) {}
 
 bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const {
   const int k = options_.num_neighbors;
   std::array<lidar::Neighbor, kMaxNeighbors> neighbors;
-  if (tree_.Knn(p_W, k, neighbors.data()) < k) return false;
-  if (neighbors[static_cast<size_t>(k - 1)].squared_distance_m2 >
-      max_neighbor_squared_distance_m2_) {
-    return false;
-  }
+  if (tree_.Knn(p_W, k, options_.max_neighbor_distance_m, neighbors.data()) < k) return false;
   Neighborhood local(3, k);
   for (int i = 0; i < k; ++i) {
     local.col(i) = tree_.points().col(neighbors[static_cast<size_t>(i)].index);

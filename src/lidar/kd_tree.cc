@@ -144,13 +144,17 @@ bool Closer(double d_a, int i_a, double d_b, int i_b) {
 // The k closest so far, sorted by Closer, in the caller's out[0 .. count).
 class KnnResult {
  public:
-  KnnResult(int k, Neighbor* out) : k_(k), out_(out) {}
+  // Only points within max_squared_distance (inclusive) are kept.
+  KnnResult(int k, Neighbor* out,
+            double max_squared_distance = std::numeric_limits<double>::infinity())
+      : k_(k), out_(out), max_squared_distance_(max_squared_distance) {}
   int count() const { return count_; }
   // Cells farther than this cannot improve the result.
   double bound() const {
-    return count_ < k_ ? std::numeric_limits<double>::infinity() : out_[k_ - 1].squared_distance_m2;
+    return count_ < k_ ? max_squared_distance_ : out_[k_ - 1].squared_distance_m2;
   }
   void Offer(double d, int index) {
+    if (d > max_squared_distance_) return;
     int i;
     if (count_ < k_) {
       i = count_++;
@@ -169,6 +173,7 @@ class KnnResult {
  private:
   int k_;
   Neighbor* out_;
+  double max_squared_distance_;
   int count_ = 0;
 };
 
@@ -363,6 +368,13 @@ bool KdTree::Nearest(const Eigen::Vector3d& query, double max_distance_m, Neighb
 int KdTree::Knn(const Eigen::Vector3d& query, int k, Neighbor* out) const {
   if (k <= 0 || size() == 0) return 0;
   KnnResult result(k, out);
+  impl_->Search(query.data(), &result);
+  return result.count();
+}
+
+int KdTree::Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out) const {
+  if (k <= 0 || size() == 0 || !(max_distance_m >= 0.0)) return 0;
+  KnnResult result(k, out, max_distance_m * max_distance_m);
   impl_->Search(query.data(), &result);
   return result.count();
 }

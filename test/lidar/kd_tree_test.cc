@@ -59,6 +59,26 @@ void ExpectMatchesBruteForce(const Eigen::Matrix3Xd& points, const Eigen::Matrix
       }
     }
 
+    // Bounded k-NN: the k nearest among the points no farther than the bound (inclusive: a
+    // bound exactly at a neighbour's distance keeps it).
+    Neighbor bounded[16];
+    for (const size_t rank : {size_t{0}, size_t{3}, size_t{12}}) {
+      if (n == 0) break;
+      const double at_m = std::sqrt(brute[std::min(rank, brute.size() - 1)].first);
+      for (const double bound_m : {at_m, 0.999 * at_m, 1.001 * at_m + 1e-9}) {
+        const int expected = static_cast<int>(
+            std::min<size_t>(16, static_cast<size_t>(std::count_if(
+                                     brute.begin(), brute.end(), [&](const auto& e) {
+                                       return e.first <= bound_m * bound_m;
+                                     }))));
+        ASSERT_EQ(tree.Knn(query, 16, bound_m, bounded), expected) << "bound " << bound_m;
+        for (int r = 0; r < expected; ++r) {
+          ASSERT_EQ(bounded[r].index, brute[static_cast<size_t>(r)].second) << "bound " << bound_m;
+          ASSERT_EQ(bounded[r].squared_distance_m2, brute[static_cast<size_t>(r)].first);
+        }
+      }
+    }
+
     Neighbor nearest;
     if (n == 0) {
       EXPECT_FALSE(tree.Nearest(query, kInfinity, &nearest));

@@ -47,7 +47,6 @@ class PlaneMap {
   bool FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const;
 
   PlaneMapOptions options_;
-  double max_neighbor_squared_distance_m2_;
   lidar::KdTree tree_;
 };
 

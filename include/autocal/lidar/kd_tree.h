@@ -40,6 +40,10 @@ class KdTree {
   // out[0 .. returned count). out must have room for k entries. Returns min(k, size()).
   int Knn(const Eigen::Vector3d& query, int k, Neighbor* out) const;
   std::vector<Neighbor> Knn(const Eigen::Vector3d& query, int k) const;
+  // The same among the points no farther than max_distance_m: returns how many there are (at
+  // most k). The bound prunes the search: a query whose k-th neighbour lies beyond it ends
+  // early (the plane maps reject those anyway).
+  int Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out) const;
 
   // Every point strictly closer than radius_m, closest first (ties: lower index first).
   // `neighbors` is cleared first; reuse it across calls to avoid allocations.
