@@ -476,6 +476,15 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
 
 }  // namespace
 
+CalibrationInitializerOptions RefinedLaterInitializerOptions() {
+  CalibrationInitializerOptions o;
+  o.odometry.registration_voxel_m = 0.5;
+  o.odometry.icp.convergence.translation_m = 1e-3;
+  o.odometry.icp.convergence.rotation_rad = 1e-4;
+  o.gyro_deskew_pass = false;
+  return o;
+}
+
 CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
                                              const std::vector<lidar::LidarSweep>& sweeps,
                                              const CalibrationInitializerOptions& options) {

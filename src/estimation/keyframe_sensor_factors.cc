@@ -55,6 +55,19 @@ std::optional<Bracket> FindBracket(const std::vector<Sample>& samples, int64_t t
                  static_cast<double>(t_ns - samples[first].t_ns) / static_cast<double>(gap_ns)};
 }
 
+// The middle element of `values` (the upper one for an even count).
+double Median(std::vector<double> values) {
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+// Distances to a fit beyond this are outliers: a multiple of the median distance's robust
+// sigma (1.4826 * median for a Gaussian), never below a floor.
+double OutlierGate(double median_m, double min_distance_m, double mad_factor) {
+  return std::max(min_distance_m, mad_factor * 1.4826 * median_m);
+}
+
 int64_t GapNs(double gap_s, const std::string& name) {
   if (!std::isfinite(gap_s) || !(gap_s > 0.0)) {
     throw Error(name + " must be a positive number of seconds, got " + std::to_string(gap_s));
@@ -259,12 +272,8 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
   FitYawAndTranslation(a, g, inlier, options.min_horizontal_extent_m, &fit);
   for (int refit = 0; refit < options.max_refits; ++refit) {
     distances();
-    std::vector<double> sorted = distance_m;
-    const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-    std::nth_element(sorted.begin(), middle, sorted.end());
-    const double median_m = *middle;
-    const double gate_m =
-        std::max(options.min_outlier_distance_m, options.outlier_mad_factor * 1.4826 * median_m);
+    const double gate_m = OutlierGate(Median(distance_m), options.min_outlier_distance_m,
+                                      options.outlier_mad_factor);
     std::vector<bool> next(a.size());
     for (size_t k = 0; k < a.size(); ++k) next[k] = distance_m[k] <= gate_m;
     if (next == inlier) break;
@@ -307,10 +316,7 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
   std::vector<double> distance_m(n);
   const auto distances = [&](const Eigen::Matrix3d& coefficients) {
     for (size_t i = 0; i < n; ++i) distance_m[i] = (coefficients * basis(i) - p[i]).norm();
-    std::vector<double> sorted = distance_m;
-    const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(n / 2);
-    std::nth_element(sorted.begin(), middle, sorted.end());
-    return *middle;
+    return Median(distance_m);
   };
   const auto solve = [&](const std::vector<size_t>& rows, Eigen::Matrix3d* coefficients) {
     Eigen::Matrix3d A = Eigen::Matrix3d::Zero(), B = Eigen::Matrix3d::Zero();
@@ -346,7 +352,7 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
   double median_m = best_median;
   std::vector<size_t> inliers, previous;
   for (int fit = 0; fit <= o.max_refits; ++fit) {
-    const double gate_m = std::max(o.min_outlier_distance_m, o.outlier_mad_factor * 1.4826 * median_m);
+    const double gate_m = OutlierGate(median_m, o.min_outlier_distance_m, o.outlier_mad_factor);
     inliers.clear();
     int before = 0, after = 0;
     for (size_t i = 0; i < n; ++i) {

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/csv_files.h"
 #include "autocal/io/tum_trajectory.h"
@@ -105,12 +106,6 @@ std::string List(const Eigen::Vector3d& v) {
   return "[" + Number(v.x()) + ", " + Number(v.y()) + ", " + Number(v.z()) + "]";
 }
 
-std::string Fixed(double value, int decimals) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", decimals, value);
-  return buffer;
-}
-
 std::string PoseYaml(const char* name, const PoseError& error) {
   std::string out = std::string("  ") + name + ":\n";
   out += "    rotation_error_deg: " + Number(error.RotationAngleDeg()) + "\n";
@@ -149,12 +144,12 @@ std::string FormatEvaluationTable(const Evaluation& evaluation, const Thresholds
                 "per axis (x, y, z)", "limit", "verdict");
   std::string out = line;
   for (const Row& row : Rows(evaluation, thresholds)) {
-    const std::string value = row.measured ? Fixed(row.value, 4) : "n/a";
-    const std::string axes = row.axes
-                                 ? "(" + Fixed(row.axes->x(), 3) + ", " + Fixed(row.axes->y(), 3) +
-                                       ", " + Fixed(row.axes->z(), 3) + ")"
-                                 : "";
-    const std::string limit = row.limit ? Fixed(*row.limit, 4) : "-";
+    const std::string value = row.measured ? FormatFixed(row.value, 4) : "n/a";
+    const std::string axes = row.axes ? "(" + FormatFixed(row.axes->x(), 3) + ", " +
+                                            FormatFixed(row.axes->y(), 3) + ", " +
+                                            FormatFixed(row.axes->z(), 3) + ")"
+                                      : "";
+    const std::string limit = row.limit ? FormatFixed(*row.limit, 4) : "-";
     const char* verdict = !row.limit ? "-" : row.Exceeded() ? "EXCEEDED" : "ok";
     std::snprintf(line, sizeof(line), "%-22s %12s %-4s %-30s %10s  %s\n", row.metric, value.c_str(),
                   row.unit, axes.c_str(), limit.c_str(), verdict);

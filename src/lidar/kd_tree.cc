@@ -145,8 +145,7 @@ bool Closer(double d_a, int i_a, double d_b, int i_b) {
 class KnnResult {
  public:
   // Only points within max_squared_distance (inclusive) are kept.
-  KnnResult(int k, Neighbor* out,
-            double max_squared_distance = std::numeric_limits<double>::infinity())
+  KnnResult(int k, Neighbor* out, double max_squared_distance)
       : k_(k), out_(out), max_squared_distance_(max_squared_distance) {}
   int count() const { return count_; }
   // Cells farther than this cannot improve the result.
@@ -366,10 +365,7 @@ bool KdTree::Nearest(const Eigen::Vector3d& query, double max_distance_m, Neighb
 }
 
 int KdTree::Knn(const Eigen::Vector3d& query, int k, Neighbor* out) const {
-  if (k <= 0 || size() == 0) return 0;
-  KnnResult result(k, out);
-  impl_->Search(query.data(), &result);
-  return result.count();
+  return Knn(query, k, std::numeric_limits<double>::infinity(), out);
 }
 
 int KdTree::Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out) const {

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
@@ -247,12 +248,6 @@ void FillUncertainty(const std::vector<CalibrationBlock>& blocks, const BlockObs
       info->observable = flags[0];
     }
   }
-}
-
-std::string FormatFixed(double value, int decimals) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(decimals) << value;
-  return out.str();
 }
 
 // The initializer's keyframes are in a gravity-aligned frame of their own; GNSS brings them

@@ -134,11 +134,7 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
 TEST_F(OfflineCalibrationTest, ABadNominalGuessChangesNothingObservable) {
   io::Dataset dataset = io::ReadDataset(data_->directory);
   sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
-  const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
-  nominal.q_I_L = (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 / kRadToDeg, axis)))
-                      .normalized();
-  nominal.p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
-  nominal.time_offset_lidar_imu_s += 0.040;
+  test::SpoilNominalGuess(&nominal);
   const OfflineCalibrationResult result = CalibrateDataset(dataset, FullProblem());
   const sensors::Calibration& estimate = result.calibration.value;
   // The same goals as from the simulator's nominal guess.

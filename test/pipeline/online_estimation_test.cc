@@ -165,12 +165,7 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
 // q_I_L 2.61 -> 0.22 deg, p_I_L x, y within 1.6 cm, offset 0.93 ms, position 0.041 m rms).
 TEST_F(OnlineEstimationTest, ABadNominalGuessEndsWithinTheSameBounds) {
   io::Dataset dataset = io::ReadDataset(data_->directory);
-  sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
-  const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
-  nominal.q_I_L = (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 / kRadToDeg, axis)))
-                      .normalized();
-  nominal.p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
-  nominal.time_offset_lidar_imu_s += 0.040;
+  test::SpoilNominalGuess(&dataset.sensors.nominal_calibration);
   const OnlineEstimationResult result = EstimateDatasetOnline(dataset, FullProblem());
   ExpectOnlineGoals(ErrorsOf(result, dataset, data_->simulator.true_calibration()));
 }

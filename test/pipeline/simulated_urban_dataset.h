@@ -5,10 +5,13 @@
 // dataset once per test process. ctest runs each test in its own process, in parallel, so
 // each writes its own copy (the directory name carries the process id) and removes it.
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 
 #include <unistd.h>
+
+#include <Eigen/Geometry>
 
 #include "autocal/sim/simulator.h"
 #include "support/test_paths.h"
@@ -23,6 +26,17 @@ inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
   options.seed = 7;
   options.lidar.config.num_beams = 16;
   return options;
+}
+
+// The bad guess: the nominal LiDAR rotation turned by 20 deg, its translation moved
+// by 0.3 m and the time offset by 40 ms.
+inline void SpoilNominalGuess(sensors::Calibration* nominal) {
+  const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
+  nominal->q_I_L =
+      (nominal->q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * M_PI / 180.0, axis)))
+          .normalized();
+  nominal->p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
+  nominal->time_offset_lidar_imu_s += 0.040;
 }
 
 struct SimulatedUrbanDataset {

@@ -28,19 +28,9 @@ struct CalibrationProgress {
 struct OfflineCalibrationOptions {
   // Initializer settings; its IMU noise and the lever-arm prior are taken from the dataset.
   // The batch refines the initializer's rotation and offset (from a few degrees and, within
-  // the keyframe lead, milliseconds off), so the initializer runs its odometry once, without
-  // the gyro-deskewed repetition, registering each sweep on a 0.5 m grid of its points (the
-  // map keeps 0.25 m) and stopping its ICP at steps below 1 mm and 0.1 mrad. On the 60 s
-  // urban log this took the initialization from 27 s to 13 s and changed no final error by
-  // more than its noise.
-  estimation::CalibrationInitializerOptions initializer = [] {
-    estimation::CalibrationInitializerOptions o;
-    o.odometry.registration_voxel_m = 0.5;
-    o.odometry.icp.convergence.translation_m = 1e-3;
-    o.odometry.icp.convergence.rotation_rad = 1e-4;
-    o.gyro_deskew_pass = false;
-    return o;
-  }();
+  // the keyframe lead, milliseconds off), so the faster settings serve.
+  estimation::CalibrationInitializerOptions initializer =
+      estimation::RefinedLaterInitializerOptions();
   // The LiDAR odometry's keyframes are aligned to GNSS (yaw and shift); when they miss the
   // fixes by more than this RMS afterwards (or span too little to give the yaw), the odometry
   // did not follow the drive and the keyframes are rebuilt from GNSS and the IMU instead
