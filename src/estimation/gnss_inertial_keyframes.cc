@@ -6,10 +6,8 @@
 #include <ceres/ceres.h>
 
 #include "autocal/common/error.h"
-#include "autocal/factors/imu_factor.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
-#include "autocal/sensors/imu_preintegration.h"
 
 namespace autocal {
 namespace estimation {
@@ -53,18 +51,11 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
   ceres::Problem problem(problem_options);
   geometry::RightQuaternionManifold quaternion_manifold;
   for (Keyframe& kf : kfs) problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
-  sensors::PreintegrationOptions preintegration;
-  preintegration.gravity_m_s2 = options.gravity_m_s2;
-  for (size_t k = 0; k + 1 < kfs.size(); ++k) {
-    Keyframe& a = kfs[k];
-    Keyframe& b = kfs[k + 1];
-    sensors::ImuPreintegration pim(options.imu_noise, preintegration, a.b_g, a.b_a);
-    pim.Integrate(imu, a.t_ns, b.t_ns);
-    problem.AddResidualBlock(factors::ImuFactor::Create(pim), nullptr, a.q_W_I.coeffs().data(),
-                             a.p_W_I.data(), a.v_W_I.data(), a.b_g.data(), a.b_a.data(),
-                             b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
-                             b.b_g.data(), b.b_a.data());
-  }
+  KeyframeImuOptions imu_options;
+  imu_options.noise = options.imu_noise;
+  imu_options.gravity_m_s2 = options.gravity_m_s2;
+  imu_options.num_threads = options.num_threads;
+  AddImuFactors(&problem, imu, keyframes, imu_options);
   sensors::Calibration held = calibration;
   KeyframeGnssOptions gnss = options.gnss;
   gnss.estimate_lever_arm = false;

@@ -11,8 +11,11 @@
 #include <Eigen/Geometry>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
+#include "autocal/factors/imu_factor.h"
 #include "autocal/geometry/manifolds.h"
+#include "autocal/sensors/imu_preintegration.h"
 
 namespace autocal {
 namespace estimation {
@@ -153,6 +156,44 @@ double NonHolonomicSigmaScale(const std::vector<Keyframe>& keyframes, double tau
 }
 
 }  // namespace
+
+int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                  std::vector<Keyframe>* keyframes, const KeyframeImuOptions& options) {
+  std::vector<Keyframe>& kfs = *keyframes;
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    RequireQuaternionBlock(*problem, kfs[k].q_W_I, "keyframe q_W_I");
+    if (k > 0 && kfs[k].t_ns <= kfs[k - 1].t_ns) {
+      throw Error("AddImuFactors: keyframe times must increase (keyframe " + std::to_string(k) +
+                  ")");
+    }
+  }
+  if (kfs.size() < 2) return 0;
+  if (imu.empty() || imu.front().t_ns > kfs.front().t_ns || imu.back().t_ns < kfs.back().t_ns) {
+    throw Error("AddImuFactors: the IMU samples do not cover the keyframes");
+  }
+  const auto num_intervals = static_cast<int64_t>(kfs.size() - 1);
+  std::vector<std::unique_ptr<sensors::ImuPreintegration>> preintegrations(kfs.size() - 1);
+  sensors::PreintegrationOptions preintegration;
+  preintegration.gravity_m_s2 = options.gravity_m_s2;
+  ParallelFor(0, num_intervals, options.num_threads, [&](int64_t begin, int64_t end, int) {
+    for (int64_t k = begin; k < end; ++k) {
+      const Keyframe& a = kfs[static_cast<size_t>(k)];
+      auto pim = std::make_unique<sensors::ImuPreintegration>(options.noise, preintegration,
+                                                              a.b_g, a.b_a);
+      pim->Integrate(imu, a.t_ns, kfs[static_cast<size_t>(k + 1)].t_ns);
+      preintegrations[static_cast<size_t>(k)] = std::move(pim);
+    }
+  });
+  for (size_t k = 0; k + 1 < kfs.size(); ++k) {
+    Keyframe& a = kfs[k];
+    Keyframe& b = kfs[k + 1];
+    problem->AddResidualBlock(factors::ImuFactor::Create(*preintegrations[k]), nullptr,
+                              a.q_W_I.coeffs().data(), a.p_W_I.data(), a.v_W_I.data(),
+                              a.b_g.data(), a.b_a.data(), b.q_W_I.coeffs().data(), b.p_W_I.data(),
+                              b.v_W_I.data(), b.b_g.data(), b.b_a.data());
+  }
+  return static_cast<int>(num_intervals);
+}
 
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                     const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,

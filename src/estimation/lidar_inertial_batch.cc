@@ -1,5 +1,7 @@
 #include "autocal/estimation/lidar_inertial_batch.h"
 
+#include "autocal/estimation/keyframe_sensor_factors.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,14 +15,13 @@
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/imu_motion_table.h"
-#include "autocal/factors/imu_factor.h"
+#include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
-#include "autocal/sensors/imu_preintegration.h"
 #include "estimation/point_selection.h"
 
 namespace autocal {
@@ -245,20 +246,6 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
         associations[sweep].push_back({m, partner});
       }
     });
-    std::vector<std::unique_ptr<sensors::ImuPreintegration>> preintegrations(sweeps.size() - 1);
-    sensors::PreintegrationOptions preintegration_options;
-    preintegration_options.gravity_m_s2 = options.gravity_m_s2;
-    ParallelFor(0, num_sweeps - 1, options.num_threads, [&](int64_t begin, int64_t end, int) {
-      for (int64_t k = begin; k < end; ++k) {
-        const Keyframe& a = (*keyframes)[static_cast<size_t>(k)];
-        const Keyframe& b = (*keyframes)[static_cast<size_t>(k + 1)];
-        auto pim = std::make_unique<sensors::ImuPreintegration>(
-            options.imu_noise, preintegration_options, a.b_g, a.b_a);
-        pim->Integrate(imu, a.t_ns, b.t_ns);
-        preintegrations[static_cast<size_t>(k)] = std::move(pim);
-      }
-    });
-
     // 4. The problem: IMU factors between keyframes, point-to-plane factors per sweep.
     ceres::Problem::Options problem_options;
     problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -267,14 +254,11 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
     }
     problem.AddParameterBlock(calibration->q_I_L.coeffs().data(), 4, &quaternion_manifold);
-    for (size_t k = 0; k + 1 < keyframes->size(); ++k) {
-      Keyframe& a = (*keyframes)[k];
-      Keyframe& b = (*keyframes)[k + 1];
-      problem.AddResidualBlock(factors::ImuFactor::Create(*preintegrations[k]), nullptr, a.q_W_I.coeffs().data(),
-                               a.p_W_I.data(), a.v_W_I.data(), a.b_g.data(), a.b_a.data(),
-                               b.q_W_I.coeffs().data(), b.p_W_I.data(), b.v_W_I.data(),
-                               b.b_g.data(), b.b_a.data());
-    }
+    KeyframeImuOptions imu_options;
+    imu_options.noise = options.imu_noise;
+    imu_options.gravity_m_s2 = options.gravity_m_s2;
+    imu_options.num_threads = options.num_threads;
+    AddImuFactors(&problem, imu, keyframes, imu_options);
     // One residual block per pair of sweeps (Eq. P9): the points of sweep k on planes of
     // sweep j share every parameter block; the robust loss acts per point inside the factor.
     struct PointGroup {

@@ -31,10 +31,16 @@ Eigen::VectorXd TangentFromPrior(const CalibrationBlock& block) {
   return Eigen::Map<const Eigen::VectorXd>(block.data, block.size) - block.prior;
 }
 
-// Direction i of a block is excited when its posterior sigma is within both limits.
+// Direction i of a block is informed by the drive (not held at its prior) when its posterior
+// sigma is well below its prior's and within a few times its limit.
+bool Informed(const CalibrationBlock& block, int i, double posterior_sigma) {
+  return posterior_sigma <= block.max_posterior_to_prior_sigma * block.prior_sigma(i) &&
+         posterior_sigma <= block.max_kept_sigma_to_limit * block.max_observable_sigma;
+}
+
+// Direction i of a block is excited when it is informed and its sigma within the limit.
 bool Excited(const CalibrationBlock& block, int i, double posterior_sigma) {
-  return posterior_sigma <= block.max_observable_sigma &&
-         posterior_sigma <= block.max_posterior_to_prior_sigma * block.prior_sigma(i);
+  return Informed(block, i, posterior_sigma) && posterior_sigma <= block.max_observable_sigma;
 }
 
 void Step(const CalibrationBlock& block, const Eigen::VectorXd& step) {
@@ -136,8 +142,7 @@ BlockObservability HoldUnobservableDirections(const std::vector<CalibrationBlock
     difference.segment(first, blocks[b].size) = TangentFromPrior(blocks[b]);
     for (int i = 0; i < blocks[b].size; ++i) {
       const double sigma = std::sqrt(std::max(0.0, S(first + i, first + i)));
-      const bool informed = sigma <= blocks[b].max_posterior_to_prior_sigma * blocks[b].prior_sigma(i);
-      (informed ? observable : unobservable).push_back(first + i);
+      (Informed(blocks[b], i, sigma) ? observable : unobservable).push_back(first + i);
     }
   }
   Eigen::MatrixXd conditioned = S;

@@ -23,10 +23,12 @@ struct CalibrationBlock {
   bool rotation = false;    // a quaternion [x, y, z, w]; tangent = right perturbation (rad)
   Eigen::VectorXd prior;    // ambient value of the prior (the nominal calibration)
   Eigen::VectorXd prior_sigma;  // per tangent direction
-  // A direction whose posterior sigma exceeds this (tangent units), or this fraction of its
-  // prior sigma (the data added little to the prior), is unobservable.
+  // A direction whose posterior sigma exceeds this (tangent units) is unobservable.
   double max_observable_sigma = 0.0;
-  double max_posterior_to_prior_sigma = 0.2;
+  // It is held at its prior (unexcited) when its posterior sigma exceeds this fraction of its
+  // prior sigma (the data added little to the prior) or this multiple of max_observable_sigma.
+  double max_posterior_to_prior_sigma = 0.5;
+  double max_kept_sigma_to_limit = 4.0;
   std::vector<std::string> direction_names;  // physical words, one per tangent direction
   double display_scale = 1.0;                // tangent units to display units
   std::string display_unit;
@@ -55,7 +57,7 @@ std::vector<std::string> ImplausibleDirections(const std::vector<CalibrationBloc
                                                double max_sigmas);
 
 // Directions the drive left at their prior (posterior sigma above max_posterior_to_prior_sigma
-// of the prior's) are held (U): set to their prior value, and the others (O) conditioned on
+// of the prior's or above max_kept_sigma_to_limit times the limit) are held (U): set to their prior value, and the others (O) conditioned on
 // them with the prior's error carried along (docs/calibration.md, Eq. C1-C2):
 //   x_O <- x_O - K (x_U - x0_U),   S_OO <- S_OO - K S_UO + K P_U K^T,   K = S_OU S_UU^-1.
 // A direction of O whose sigma then exceeds its block's limit keeps its estimate and sigma

@@ -1,5 +1,6 @@
 #include "autocal/pipeline/offline_calibration.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -12,13 +13,19 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
+#include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/imu_factor.h"
+#include "autocal/factors/prior_factors.h"
+#include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/pipeline/report_html.h"
 #include "calibration_blocks.h"
+#include "problem_blocks.h"
 
 namespace autocal {
 namespace pipeline {
@@ -69,187 +76,6 @@ std::string Join(const std::vector<std::string>& parts, const std::string& separ
 }
 
 
-// Prior sigma per direction: the problem's for a block in prior mode, else the dataset's
-// nominal uncertainty when it states one, else the default.
-Eigen::VectorXd PriorSigma(io::BlockMode mode, const Eigen::VectorXd& problem_sigma,
-                           const std::optional<Eigen::VectorXd>& nominal_sigma,
-                           const Eigen::VectorXd& fallback) {
-  if (mode == io::BlockMode::kPrior) return problem_sigma;
-  if (nominal_sigma) return *nominal_sigma;
-  return fallback;
-}
-
-std::optional<Eigen::VectorXd> Optional(const std::optional<Eigen::Vector3d>& v, double scale = 1.0) {
-  if (!v) return std::nullopt;
-  return Eigen::VectorXd(*v * scale);
-}
-
-std::optional<Eigen::VectorXd> Optional(const std::optional<double>& v) {
-  if (!v) return std::nullopt;
-  return Eigen::VectorXd::Constant(1, *v);
-}
-
-// The blocks the solve estimates, with their priors and observability limits.
-std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
-                                              const io::SensorsConfig& sensors,
-                                              const OfflineCalibrationOptions& o, bool use_wheel,
-                                              bool use_gnss, sensors::Calibration* c) {
-  const io::ProblemCalibration& p = problem.calibration;
-  const sensors::Calibration& nominal = sensors.nominal_calibration;
-  const io::CalibrationUncertainty& u = sensors.nominal_uncertainty;
-  const double deg = 1.0 / kRadToDeg;
-  std::vector<CalibrationBlock> blocks;
-  const auto push = [&](CalibrationBlock b) {
-    b.max_posterior_to_prior_sigma = o.max_posterior_to_prior_sigma;
-    blocks.push_back(std::move(b));
-  };
-  auto rotation = [&](const std::string& name, const io::VectorBlockSetting& setting,
-                      const std::optional<Eigen::Vector3d>& nominal_sigma_deg,
-                      const Eigen::Quaterniond& q0, double* data, double max_sigma_deg,
-                      std::vector<std::string> directions) {
-    CalibrationBlock b;
-    b.name = name;
-    b.data = data;
-    b.size = 3;
-    b.rotation = true;
-    b.prior = q0.coeffs();
-    b.prior_sigma = PriorSigma(setting.mode, setting.prior_sigma * deg,
-                               Optional(nominal_sigma_deg, deg),
-                               Eigen::VectorXd::Constant(3, o.default_rotation_prior_sigma_deg * deg));
-    b.max_observable_sigma = max_sigma_deg * deg;
-    b.direction_names = std::move(directions);
-    b.display_scale = kRadToDeg;
-    b.display_unit = "deg";
-    push(b);
-  };
-  auto vector = [&](const std::string& name, const io::VectorBlockSetting& setting,
-                    const std::optional<Eigen::Vector3d>& nominal_sigma,
-                    const Eigen::Vector3d& x0, double* data, double limit,
-                    std::vector<std::string> directions) {
-    CalibrationBlock b;
-    b.name = name;
-    b.data = data;
-    b.size = 3;
-    b.prior = x0;
-    b.prior_sigma = PriorSigma(setting.mode, setting.prior_sigma, Optional(nominal_sigma),
-                               Eigen::VectorXd::Constant(3, o.default_translation_prior_sigma_m));
-    b.max_observable_sigma = limit;
-    b.direction_names = std::move(directions);
-    b.display_scale = 100.0;
-    b.display_unit = "cm";
-    push(b);
-  };
-  auto scalar = [&](const std::string& name, const io::ScalarBlockSetting& setting,
-                    const std::optional<double>& nominal_sigma, double x0, double* data,
-                    double fallback_sigma, double limit, double display_scale,
-                    const std::string& unit) {
-    CalibrationBlock b;
-    b.name = name;
-    b.data = data;
-    b.size = 1;
-    b.prior = Eigen::VectorXd::Constant(1, x0);
-    b.prior_sigma = PriorSigma(setting.mode, Eigen::VectorXd::Constant(1, setting.prior_sigma),
-                               Optional(nominal_sigma), Eigen::VectorXd::Constant(1, fallback_sigma));
-    b.max_observable_sigma = limit;
-    b.direction_names = {name};
-    b.display_scale = display_scale;
-    b.display_unit = unit;
-    push(b);
-  };
-  if (Estimated(p.T_I_L.rotation.mode)) {
-    rotation("T_I_L rotation", p.T_I_L.rotation, u.T_I_L.sigma_rot_deg, nominal.q_I_L,
-             c->q_I_L.coeffs().data(), o.max_observable_rotation_sigma_deg,
-             {"LiDAR rotation about the IMU x axis (roll)", "LiDAR rotation about the IMU y axis (pitch)",
-              "LiDAR rotation about the IMU z axis (yaw)"});
-  }
-  if (Estimated(p.T_I_L.translation.mode)) {
-    vector("T_I_L translation", p.T_I_L.translation, u.T_I_L.sigma_p_m, nominal.p_I_L,
-           c->p_I_L.data(), o.max_observable_translation_sigma_m,
-           {"LiDAR x translation (IMU frame)", "LiDAR y translation (IMU frame)",
-            "LiDAR z translation (IMU frame; planar driving rotates about it only)"});
-  }
-  if (Estimated(p.time_offset_lidar_imu_s.mode)) {
-    scalar("LiDAR-IMU time offset", p.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s.sigma,
-           nominal.time_offset_lidar_imu_s, &c->time_offset_lidar_imu_s,
-           o.default_time_offset_prior_sigma_s, o.max_observable_time_offset_sigma_s, 1e3, "ms");
-  }
-  if (use_wheel) {
-    const char* left = p.wheel_radius_shared ? "rear wheel radius (both wheels)" : "left rear wheel radius";
-    if (Estimated(p.wheel_radius_left_m.mode)) {
-      scalar(left, p.wheel_radius_left_m, u.wheel_radius_left_m.sigma, nominal.wheel_radius_left_m,
-             &c->wheel_radius_left_m, o.default_wheel_radius_prior_sigma_m,
-             o.max_observable_wheel_radius_sigma_m, 1e3, "mm");
-    }
-    if (!p.wheel_radius_shared && Estimated(p.wheel_radius_right_m.mode)) {
-      scalar("right rear wheel radius", p.wheel_radius_right_m, u.wheel_radius_right_m.sigma,
-             nominal.wheel_radius_right_m, &c->wheel_radius_right_m,
-             o.default_wheel_radius_prior_sigma_m, o.max_observable_wheel_radius_sigma_m, 1e3, "mm");
-    }
-    if (Estimated(p.track_width_m.mode)) {
-      scalar("track width", p.track_width_m, u.track_width_m.sigma, nominal.track_width_m,
-             &c->track_width_m, o.default_track_width_prior_sigma_m,
-             o.max_observable_track_width_sigma_m, 1e3, "mm");
-    }
-    if (Estimated(p.T_I_V.rotation.mode)) {
-      rotation("T_I_V rotation", p.T_I_V.rotation, u.T_I_V.sigma_rot_deg, nominal.q_I_V,
-               c->q_I_V.coeffs().data(), o.max_observable_vehicle_rotation_sigma_deg,
-               {"vehicle frame rotation about the IMU x axis (roll)",
-                "vehicle frame rotation about the IMU y axis (pitch)",
-                "vehicle frame rotation about the IMU z axis (yaw)"});
-    }
-    if (Estimated(p.T_I_V.translation.mode)) {
-      vector("T_I_V translation", p.T_I_V.translation, u.T_I_V.sigma_p_m, nominal.p_I_V,
-             c->p_I_V.data(), o.max_observable_vehicle_translation_sigma_m,
-             {"rear-axle x position (IMU frame)", "rear-axle y position (IMU frame)",
-              "rear-axle z position (IMU frame)"});
-    }
-  }
-  if (use_gnss && Estimated(p.p_I_A_m.mode)) {
-    vector("p_I_A", p.p_I_A_m, u.p_I_A_m.sigma, nominal.p_I_A, c->p_I_A.data(),
-           o.max_observable_lever_arm_sigma_m,
-           {"GNSS antenna x lever arm (IMU frame)", "GNSS antenna y lever arm (IMU frame)",
-            "GNSS antenna z lever arm (IMU frame)"});
-  }
-  return blocks;
-}
-
-// The result's uncertainty section from the observability analysis.
-void FillUncertainty(const std::vector<CalibrationBlock>& blocks, const BlockObservability& obs,
-                     io::CalibrationUncertainty* u) {
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    const std::string& name = blocks[i].name;
-    const Eigen::VectorXd& sigma = obs.sigma[i];
-    const std::vector<bool>& flags = obs.observable[i];
-    auto append = [](std::vector<bool>* out, const std::vector<bool>& f, size_t first) {
-      if (out->size() < 6) out->resize(6, true);
-      for (size_t k = 0; k < f.size(); ++k) (*out)[first + k] = f[k];
-    };
-    if (name == "T_I_L rotation") {
-      u->T_I_L.sigma_rot_deg = Eigen::Vector3d(sigma * kRadToDeg);
-      append(&u->T_I_L.observable, flags, 0);
-    } else if (name == "T_I_L translation") {
-      u->T_I_L.sigma_p_m = Eigen::Vector3d(sigma);
-      append(&u->T_I_L.observable, flags, 3);
-    } else if (name == "T_I_V rotation") {
-      u->T_I_V.sigma_rot_deg = Eigen::Vector3d(sigma * kRadToDeg);
-      append(&u->T_I_V.observable, flags, 0);
-    } else if (name == "T_I_V translation") {
-      u->T_I_V.sigma_p_m = Eigen::Vector3d(sigma);
-      append(&u->T_I_V.observable, flags, 3);
-    } else if (name == "p_I_A") {
-      u->p_I_A_m.sigma = Eigen::Vector3d(sigma);
-      u->p_I_A_m.observable = flags;
-    } else {
-      io::ScalarBlockInfo* info = name == "LiDAR-IMU time offset" ? &u->time_offset_lidar_imu_s
-                                  : name == "right rear wheel radius" ? &u->wheel_radius_right_m
-                                  : name == "track width"             ? &u->track_width_m
-                                                                      : &u->wheel_radius_left_m;
-      info->sigma = sigma(0);
-      info->observable = flags[0];
-    }
-  }
-}
-
 // The initializer's keyframes are in a gravity-aligned frame of their own; GNSS brings them
 // into ENU. Where the LiDAR odometry followed the drive, a 4-DoF alignment of its track does
 // (Eq. K3-K5) and true is returned. Where it did not (a featureless road, traffic moving with
@@ -291,17 +117,245 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   return false;
 }
 
+// The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
+// the priors of the estimated blocks.
+struct SensorFactors {
+  const io::Dataset* dataset = nullptr;
+  const io::Problem* problem = nullptr;
+  const sensors::Calibration* nominal = nullptr;
+  bool use_wheel = false;
+  bool use_gnss = false;
+  const sensors::EnuConverter* enu = nullptr;
+  const std::vector<CalibrationBlock>* blocks = nullptr;
+  geometry::RightQuaternionManifold* quaternion_manifold = nullptr;
+
+  void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
+           sensors::Calibration* c) const {
+    const io::ProblemCalibration& b = problem->calibration;
+    if (use_wheel) {
+      p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
+      estimation::KeyframeWheelOptions wheel;
+      wheel.factor = factors::WheelFactorOptions::FromEncoderNoise(
+          *dataset->sensors.wheel, nominal->wheel_radius_left_m, nominal->track_width_m);
+      wheel.factor.shared_radius = b.wheel_radius_shared;
+      wheel.loss = problem->loss.wheel;
+      wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
+      wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
+      wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
+      wheel.estimate_track_width = Estimated(b.track_width_m.mode);
+      estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
+    }
+    if (use_gnss) {
+      estimation::KeyframeGnssOptions gnss;
+      gnss.loss = problem->loss.gnss;
+      gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
+      estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
+    }
+    AddBlockPriors(*blocks, problem->loss.prior, p);
+  }
+};
+
+// Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,
+// by sensor, at the current parameter values.
+std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
+  std::vector<ceres::ResidualBlockId> all;
+  problem->GetResidualBlocks(&all);
+  std::map<std::string, std::vector<ceres::ResidualBlockId>> ids;
+  for (ceres::ResidualBlockId id : all) {
+    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
+    if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
+    if (dynamic_cast<const factors::WheelFactor*>(f)) ids["wheel"].push_back(id);
+    if (dynamic_cast<const factors::GnssFactor*>(f)) ids["gnss"].push_back(id);
+  }
+  std::map<std::string, std::vector<double>> out;
+  for (const auto& [sensor, blocks] : ids) {
+    ceres::Problem::EvaluateOptions evaluate;
+    evaluate.residual_blocks = blocks;
+    evaluate.apply_loss_function = false;
+    problem->Evaluate(evaluate, nullptr, &out[sensor], nullptr, nullptr);
+  }
+  return out;
+}
+
+// Observability and uncertainty (step 4): directions the drive did not excite are held at
+// their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
+// data point into it); then the result's calibration, trajectory and timings. Throws when the solve ended implausibly far from the priors.
+void Conclude(const io::Dataset& dataset, const io::Problem& problem,
+              const OfflineCalibrationOptions& options,
+              const std::vector<CalibrationBlock>& blocks_estimated,
+              const BlockCovariance& covariance,
+              const std::vector<estimation::Keyframe>& keyframes,
+              sensors::Calibration* calibration, std::chrono::steady_clock::time_point start,
+              OfflineCalibrationResult* result) {
+  io::CalibrationFile& file = result->calibration;
+  const std::vector<std::string> implausible =
+      ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);
+  if (!implausible.empty()) {
+    throw Error("dataset " + dataset.directory +
+                ": the calibration solve did not converge to a plausible result (" +
+                Join(implausible, "; ") +
+                "); nothing is written. The drive may not excite these blocks: fix them or "
+                "give them priors in the problem file");
+  }
+  if (covariance.ok) {
+    const BlockObservability observability =
+        HoldUnobservableDirections(blocks_estimated, covariance);
+    FillUncertainty(blocks_estimated, observability, &file.uncertainty);
+    result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
+                            observability.warnings.end());
+  } else {
+    result->warnings.push_back(
+        "the covariance of the calibration could not be computed; no sigma and no "
+        "observability are reported");
+  }
+  if (problem.calibration.wheel_radius_shared) {
+    calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
+  }
+  if (problem.sensors.wheel && dataset.wheel.empty()) {
+    result->warnings.push_back("the dataset has no wheel samples: wheel blocks keep their nominal value");
+  }
+  file.value = *calibration;
+  file.solver["keyframes"] = std::to_string(keyframes.size());
+  for (const estimation::Keyframe& kf : keyframes) {
+    io::TrajectorySample sample;
+    sample.t_ns = kf.t_ns;
+    sample.T_W_I = geometry::Pose3d(kf.q_W_I.normalized(), kf.p_W_I);
+    sample.v_W_I = kf.v_W_I;
+    result->trajectory.push_back(sample);
+  }
+  for (const auto& [sensor, residuals] : result->whitened_residuals) {
+    double sum = 0.0;
+    for (double r : residuals.after) sum += r * r;
+    if (!residuals.after.empty()) {
+      file.residuals[sensor]["whitened_rms"] =
+          std::sqrt(sum / static_cast<double>(residuals.after.size()));
+      file.residuals[sensor]["rows"] = static_cast<double>(residuals.after.size());
+    }
+  }
+  result->seconds_total = SecondsSince(start);
+  result->seconds_solve =
+      result->seconds_total - result->seconds_loading - result->seconds_initialization;
+  file.solver["seconds"] = std::to_string(result->seconds_total);
+  file.solver["seconds_loading"] = std::to_string(result->seconds_loading);
+  file.solver["seconds_initialization"] = std::to_string(result->seconds_initialization);
+  file.solver["seconds_solve"] = std::to_string(result->seconds_solve);
+}
+
+// Without the LiDAR (docs/calibration.md, "Without the LiDAR"): keyframes every
+// inertial_keyframe_period_s are placed on the GNSS track and refined with the IMU and the
+// wheels (estimation/gnss_inertial_keyframes.h), then one least-squares problem of IMU,
+// wheel and GNSS factors and the blocks' priors estimates the wheel blocks, T_I_V and the
+// lever arm with the keyframe states.
+OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
+                                               const io::Problem& problem,
+                                               const OfflineCalibrationOptions& options,
+                                               std::chrono::steady_clock::time_point start) {
+  if (!problem.sensors.gnss || dataset.gnss.empty()) {
+    throw Error("problem " + problem.path +
+                ": a calibration without the LiDAR needs GNSS (sensors.gnss and gnss.csv): the "
+                "keyframes are placed on the GNSS track");
+  }
+  OfflineCalibrationResult result;
+  result.nominal = dataset.sensors.nominal_calibration;
+  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
+  for (const sensors::GnssFix& fix : dataset.gnss) {
+    result.gnss_positions_W.push_back(enu.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
+  }
+
+  // 1. Keyframes over the span the IMU and the fixes share.
+  Report(options, "initializing", 0.0, 0.0, 0.0);
+  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
+  const int64_t last_ns = std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns);
+  const int64_t period_ns = SecondsToNs(options.inertial_keyframe_period_s);
+  if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
+  std::vector<estimation::Keyframe> keyframes;
+  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
+    estimation::Keyframe kf;
+    kf.t_ns = t;
+    keyframes.push_back(kf);
+  }
+  if (keyframes.size() < 2) {
+    throw Error("dataset " + dataset.directory +
+                ": the IMU and the GNSS fixes overlap too briefly for two keyframes");
+  }
+  sensors::Calibration calibration = result.nominal;
+  estimation::GnssInertialKeyframesOptions gnss_inertial;
+  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
+  gnss_inertial.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  gnss_inertial.num_threads = problem.solver.num_threads;
+  const estimation::GnssInertialKeyframes placed = estimation::KeyframesFromGnssAndImu(
+      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
+      enu, calibration, gnss_inertial);
+  result.seconds_initialization = SecondsSince(start);
+  Report(options, "initializing", 1.0, 0.0, 0.0);
+
+  // 2. The joint solve.
+  const std::vector<CalibrationBlock> blocks_estimated =
+      EstimatedBlocks(problem, dataset.sensors, options, use_wheel, true, &calibration);
+  geometry::RightQuaternionManifold quaternion_manifold;
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem p(problem_options);
+  for (estimation::Keyframe& kf : keyframes) {
+    p.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
+  }
+  estimation::KeyframeImuOptions imu;
+  imu.noise = dataset.sensors.imu.noise;
+  imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  imu.num_threads = problem.solver.num_threads;
+  estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
+  estimation::Keyframe& first = keyframes.front();
+  p.AddResidualBlock(new factors::VectorPriorFactor(
+                         Eigen::Vector3d::Zero(),
+                         Eigen::Matrix3d::Identity() / gnss_inertial.gyro_bias_prior_sigma_rad_s),
+                     nullptr, first.b_g.data());
+  p.AddResidualBlock(new factors::VectorPriorFactor(
+                         Eigen::Vector3d::Zero(),
+                         Eigen::Matrix3d::Identity() / gnss_inertial.accel_bias_prior_sigma_m_s2),
+                     nullptr, first.b_a.data());
+  SensorFactors sensor_factors{&dataset, &problem,   &result.nominal,    use_wheel, true,
+                               &enu,     &blocks_estimated, &quaternion_manifold};
+  sensor_factors.Add(&p, &keyframes, &calibration);
+  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
+    result.whitened_residuals[sensor].before = std::move(rows);
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = problem.solver.max_iterations * problem.solver.outer_iterations;
+  solver_options.num_threads = problem.solver.num_threads;
+  Report(options, "solving", 0.0, 0.0, 0.0);
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &p, &summary);
+  if (!summary.IsSolutionUsable()) {
+    throw Error("dataset " + dataset.directory + ": the calibration solve failed: " +
+                summary.message);
+  }
+  for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
+  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
+    result.whitened_residuals[sensor].after = std::move(rows);
+  }
+  const BlockCovariance covariance = ComputeBlockCovariance(blocks_estimated, &p);
+  result.batch.termination = summary.message;
+  result.batch.final_cost = summary.final_cost;
+  result.batch.calibration_per_iteration = {calibration};  // one solve
+  io::CalibrationFile& file = result.calibration;
+  file.solver["termination"] = summary.message;
+  file.solver["iterations"] = std::to_string(summary.iterations.size());
+  file.solver["final_cost"] = std::to_string(summary.final_cost);
+  file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
+  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
+           &result);
+  return result;
+}
+
 }  // namespace
 
 OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::Problem& problem,
                                           const OfflineCalibrationOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   io::ValidateProblemForDataset(problem, dataset);
-  if (!problem.sensors.lidar) {
-    throw Error("problem " + problem.path +
-                ": calibrations without the LiDAR (IMU, wheels and GNSS only) are not solved by "
-                "this version of autocal; use a problem with the LiDAR");
-  }
+  if (!problem.sensors.lidar) return CalibrateWithoutLidar(dataset, problem, options, start);
   OfflineCalibrationResult result;
   result.nominal = dataset.sensors.nominal_calibration;
 
@@ -398,91 +452,43 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   const std::vector<CalibrationBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, use_gnss, &calibration);
   geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
+  const SensorFactors sensor_factors{&dataset, &problem, &result.nominal,
+                                     use_wheel, use_gnss, enu ? &*enu : nullptr,
+                                     &blocks_estimated, &quaternion_manifold};
+  bool first_problem = true;
   batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
                                   sensors::Calibration* c) {
-    if (use_wheel) {
-      p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, &quaternion_manifold);
-      estimation::KeyframeWheelOptions wheel;
-      wheel.factor = factors::WheelFactorOptions::FromEncoderNoise(
-          *dataset.sensors.wheel, result.nominal.wheel_radius_left_m,
-          result.nominal.track_width_m);
-      wheel.factor.shared_radius = blocks.wheel_radius_shared;
-      wheel.loss = problem.loss.wheel;
-      wheel.estimate_vehicle_rotation = Estimated(blocks.T_I_V.rotation.mode);
-      wheel.estimate_vehicle_translation = Estimated(blocks.T_I_V.translation.mode);
-      wheel.estimate_radii = Estimated(blocks.wheel_radius_left_m.mode);
-      wheel.estimate_track_width = Estimated(blocks.track_width_m.mode);
-      estimation::AddWheelFactors(p, dataset.imu, dataset.wheel, kfs, c, wheel);
+    sensor_factors.Add(p, kfs, c);
+    if (!first_problem) return;
+    first_problem = false;
+    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
+      result.whitened_residuals[sensor].before = std::move(rows);
     }
-    if (use_gnss) {
-      estimation::KeyframeGnssOptions gnss;
-      gnss.loss = problem.loss.gnss;
-      gnss.estimate_lever_arm = Estimated(blocks.p_I_A_m.mode);
-      estimation::AddGnssFactors(p, dataset.gnss, *enu, kfs, c, gnss);
-    }
-    AddBlockPriors(blocks_estimated, problem.loss.prior, p);
   };
   BlockCovariance covariance;
   batch_options.compute_covariance = false;  // the joint one below covers every block
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
     covariance = ComputeBlockCovariance(blocks_estimated, p);
+    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
+      result.whitened_residuals[sensor].after = std::move(rows);
+    }
   };
   Report(options, "solving", 0.0, 0.0, 0.0);
   result.batch = estimation::SolveLidarInertialBatch(dataset.imu, keyframe_sweeps, &keyframes,
                                                      &calibration, batch_options);
 
-  // 4. Observability and uncertainty: directions the drive did not excite are held at their
-  //    prior value, the rest conditioned on it (Eq. C1).
-  io::CalibrationFile& file = result.calibration;
   const estimation::LidarInertialBatchReport& batch = result.batch;
-  const std::vector<std::string> implausible =
-      ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);
-  if (!implausible.empty()) {
-    throw Error("dataset " + dataset.directory +
-                ": the calibration solve did not converge to a plausible result (" +
-                Join(implausible, "; ") +
-                "); nothing is written. The drive may not excite these blocks: fix them or "
-                "give them priors in the problem file");
-  }
-  if (covariance.ok) {
-    const BlockObservability observability =
-        HoldUnobservableDirections(blocks_estimated, covariance);
-    FillUncertainty(blocks_estimated, observability, &file.uncertainty);
-    result.warnings.insert(result.warnings.end(), observability.warnings.begin(),
-                           observability.warnings.end());
-  } else {
-    result.warnings.push_back(
-        "the covariance of the calibration could not be computed; no sigma and no "
-        "observability are reported");
-  }
-  if (blocks.wheel_radius_shared) calibration.wheel_radius_right_m = calibration.wheel_radius_left_m;
-  if (problem.sensors.wheel && !use_wheel) {
-    result.warnings.push_back("the dataset has no wheel samples: wheel blocks keep their nominal value");
-  }
-  file.value = calibration;
-
+  io::CalibrationFile& file = result.calibration;
   file.solver["termination"] = batch.termination;
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
   file.solver["final_cost"] = std::to_string(batch.final_cost);
-  file.solver["keyframes"] = std::to_string(keyframes.size());
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
   file.residuals["lidar"]["associated_points"] = batch.associated_points;
-
-  for (const estimation::Keyframe& kf : keyframes) {
-    io::TrajectorySample sample;
-    sample.t_ns = kf.t_ns;
-    sample.T_W_I = geometry::Pose3d(kf.q_W_I.normalized(), kf.p_W_I);
-    sample.v_W_I = kf.v_W_I;
-    result.trajectory.push_back(sample);
-  }
-  result.seconds_total = SecondsSince(start);
-  result.seconds_solve = result.seconds_total - result.seconds_loading - result.seconds_initialization;
-  file.solver["seconds"] = std::to_string(result.seconds_total);
-  file.solver["seconds_loading"] = std::to_string(result.seconds_loading);
-  file.solver["seconds_initialization"] = std::to_string(result.seconds_initialization);
-  file.solver["seconds_solve"] = std::to_string(result.seconds_solve);
   file.solver["seconds_association"] = std::to_string(batch.seconds_association);
   file.solver["seconds_ceres"] = std::to_string(batch.seconds_solver);
+  // 4. Observability, uncertainty and the result.
+  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
+           &result);
   return result;
 }
 
@@ -494,12 +500,19 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
   io::WriteTumTrajectory(directory + "/trajectory.tum", result.trajectory);
   const std::string csv_path = directory + "/calibration_per_iteration.csv";
   std::ofstream csv(csv_path);
-  csv << "iteration,qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s\n" << std::setprecision(12);
+  csv << "iteration,qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s,wheel_radius_left_m,"
+         "wheel_radius_right_m,track_width_m,qv_x,qv_y,qv_z,qv_w,pv_x_m,pv_y_m,pv_z_m,pa_x_m,"
+         "pa_y_m,pa_z_m\n"
+      << std::setprecision(12);
   for (size_t i = 0; i < result.batch.calibration_per_iteration.size(); ++i) {
     const sensors::Calibration& c = result.batch.calibration_per_iteration[i];
     csv << i + 1 << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z() << ','
         << c.q_I_L.w() << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z() << ','
-        << c.time_offset_lidar_imu_s << '\n';
+        << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','
+        << c.wheel_radius_right_m << ',' << c.track_width_m << ',' << c.q_I_V.x() << ','
+        << c.q_I_V.y() << ',' << c.q_I_V.z() << ',' << c.q_I_V.w() << ',' << c.p_I_V.x() << ','
+        << c.p_I_V.y() << ',' << c.p_I_V.z() << ',' << c.p_I_A.x() << ',' << c.p_I_A.y() << ','
+        << c.p_I_A.z() << '\n';
   }
   csv.close();
   if (!csv) throw Error("cannot write " + csv_path);
@@ -515,23 +528,76 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
   std::ostringstream out;
   out << std::fixed;
-  const Eigen::Vector3d rpy_deg = geometry::Log(c.q_I_L) * kRadToDeg;
-  out << "T_I_L rotation (rotation vector, deg): " << std::setprecision(4) << rpy_deg.transpose();
-  if (u.T_I_L.sigma_rot_deg) out << "   sigma " << u.T_I_L.sigma_rot_deg->transpose();
-  out << "\nT_I_L translation (m):                " << c.p_I_L.transpose();
-  if (u.T_I_L.sigma_p_m) out << "   sigma " << u.T_I_L.sigma_p_m->transpose();
-  out << "\ntime offset lidar->imu (ms):          " << std::setprecision(3)
-      << c.time_offset_lidar_imu_s * 1e3;
-  if (u.time_offset_lidar_imu_s.sigma) {
-    out << "   sigma " << *u.time_offset_lidar_imu_s.sigma * 1e3;
+  // One line per estimated block (those with a sigma): value, sigma, observable per axis.
+  const auto flags = [](const std::vector<bool>& f, size_t first, size_t n) {
+    std::string text;
+    for (size_t i = 0; i < n; ++i) {
+      const bool yes = f.empty() ? true : f.size() == 1 ? f[0] : f[first + i];
+      text += yes ? " yes" : " no";
+    }
+    return text;
+  };
+  const auto line = [&](const std::string& name, const Eigen::VectorXd& value,
+                        const Eigen::VectorXd& sigma, const std::string& observable,
+                        int precision) {
+    out << std::left << std::setw(34) << name << std::right << std::setprecision(precision);
+    for (Eigen::Index i = 0; i < value.size(); ++i) out << ' ' << std::setw(9) << value(i);
+    out << "   sigma";
+    for (Eigen::Index i = 0; i < sigma.size(); ++i) out << ' ' << std::setw(7) << sigma(i);
+    out << "   observable" << observable << '\n';
+  };
+  const auto scalar = [&](const std::string& name, double value, const io::ScalarBlockInfo& info,
+                          double scale, int precision) {
+    if (!info.sigma) return;
+    line(name, Eigen::VectorXd::Constant(1, value * scale),
+         Eigen::VectorXd::Constant(1, *info.sigma * scale),
+         info.observable.value_or(true) ? " yes" : " no", precision);
+  };
+  if (u.T_I_L.sigma_rot_deg) {
+    line("T_I_L rotation vector (deg)", geometry::Log(c.q_I_L) * kRadToDeg, *u.T_I_L.sigma_rot_deg,
+         flags(u.T_I_L.observable, 0, 3), 4);
   }
-  out << "\nLiDAR residual RMS (m):               " << std::setprecision(4)
-      << result.batch.point_rms_m << " over " << result.batch.associated_points << " points\n";
-  out << "solver: " << result.batch.outer_iterations << " outer iterations; "
-      << std::setprecision(1) << result.seconds_total << " s (loading " << result.seconds_loading
-      << " s, initialization " << result.seconds_initialization << " s, solve "
-      << result.seconds_solve << " s: association " << result.batch.seconds_association
-      << " s, Ceres " << result.batch.seconds_solver << " s)\n";
+  if (u.T_I_L.sigma_p_m) {
+    line("T_I_L translation (mm)", c.p_I_L * 1e3, *u.T_I_L.sigma_p_m * 1e3,
+         flags(u.T_I_L.observable, 3, 3), 1);
+  }
+  scalar("time offset lidar->imu (ms)", c.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3, 3);
+  scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
+  scalar("right rear wheel radius (mm)", c.wheel_radius_right_m, u.wheel_radius_right_m, 1e3, 3);
+  scalar("track width (mm)", c.track_width_m, u.track_width_m, 1e3, 1);
+  if (u.T_I_V.sigma_rot_deg) {
+    line("T_I_V rotation vector (deg)", geometry::Log(c.q_I_V) * kRadToDeg, *u.T_I_V.sigma_rot_deg,
+         flags(u.T_I_V.observable, 0, 3), 3);
+  }
+  if (u.T_I_V.sigma_p_m) {
+    line("T_I_V translation (mm)", c.p_I_V * 1e3, *u.T_I_V.sigma_p_m * 1e3,
+         flags(u.T_I_V.observable, 3, 3), 1);
+  }
+  if (u.p_I_A_m.sigma) {
+    line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
+         flags(u.p_I_A_m.observable, 0, 3), 1);
+  }
+  const estimation::LidarInertialBatchReport& batch = result.batch;
+  if (batch.associated_points > 0) {
+    out << "LiDAR residual RMS (m): " << std::setprecision(4) << batch.point_rms_m << " over "
+        << batch.associated_points << " points\n";
+  }
+  for (const auto& [sensor, residuals] : result.whitened_residuals) {
+    double sum = 0.0;
+    for (double r : residuals.after) sum += r * r;
+    if (residuals.after.empty()) continue;
+    out << sensor << " whitened residual RMS: " << std::setprecision(3)
+        << std::sqrt(sum / static_cast<double>(residuals.after.size())) << " over "
+        << residuals.after.size() << " rows\n";
+  }
+  out << std::setprecision(1) << result.trajectory.size() << " keyframes; " << result.seconds_total
+      << " s (loading " << result.seconds_loading << " s, initialization "
+      << result.seconds_initialization << " s, solve " << result.seconds_solve << " s";
+  if (batch.outer_iterations > 0) {
+    out << ": " << batch.outer_iterations << " outer iterations, association "
+        << batch.seconds_association << " s, Ceres " << batch.seconds_solver << " s";
+  }
+  out << ")\n";
   for (const std::string& warning : result.warnings) out << "warning: " << warning << '\n';
   return out.str();
 }

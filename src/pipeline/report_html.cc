@@ -2,8 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iomanip>
+#include <map>
+#include <optional>
 #include <sstream>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/geometry/so3.h"
@@ -16,7 +21,19 @@ namespace {
 constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr int kWidth = 560;
 constexpr int kHeight = 260;
-constexpr int kMargin = 48;
+// Plot area inside the chart; the legend sits in the band above it (up to three lines).
+constexpr int kPlotLeft = 64;
+constexpr int kPlotRight = kWidth - 24;
+constexpr int kPlotTop = 48;
+constexpr int kPlotBottom = kHeight - 40;
+constexpr int kPlotWidth = kPlotRight - kPlotLeft;
+constexpr int kPlotHeight = kPlotBottom - kPlotTop;
+constexpr int kHistogramBins = 60;
+constexpr double kLidarHistogramRange_m = 0.3;
+constexpr double kWhitenedHistogramRange = 5.0;  // sigma
+// A block whose components never move by more than this (display units) between the outer
+// iterations was held, unless the result carries its sigma.
+constexpr double kUnchangedTolerance = 1e-9;
 
 std::string Escape(const std::string& text) {
   std::string out;
@@ -26,91 +43,121 @@ std::string Escape(const std::string& text) {
       case '>': out += "&gt;"; break;
       case '&': out += "&amp;"; break;
       case '"': out += "&quot;"; break;
+      case '\'': out += "&#39;"; break;
       default: out += c;
     }
   }
   return out;
 }
 
-struct Series {
-  std::string label;
-  std::string color;
-  std::vector<double> x, y;
-  bool dots = false;  // points instead of a line
-};
-
-// Maps data ranges onto the plot area (y up).
-struct Axes {
-  double x0, x1, y0, y1;
-  double X(double x) const {
-    return kMargin + (x - x0) / (x1 - x0) * (kWidth - 2 * kMargin);
-  }
-  double Y(double y) const {
-    return kHeight - kMargin + (y0 - y) / (y1 - y0) * (kHeight - 2 * kMargin);
-  }
-};
-
-Axes Fit(const std::vector<Series>& series, bool equal_scale) {
-  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-  for (const Series& s : series) {
-    for (double x : s.x) { x0 = std::min(x0, x); x1 = std::max(x1, x); }
-    for (double y : s.y) { y0 = std::min(y0, y); y1 = std::max(y1, y); }
-  }
-  if (!(x1 > x0)) { x0 -= 1.0; x1 += 1.0; }
-  if (!(y1 > y0)) { y0 -= 1.0; y1 += 1.0; }
-  if (equal_scale) {
-    const double sx = (x1 - x0) / (kWidth - 2 * kMargin);
-    const double sy = (y1 - y0) / (kHeight - 2 * kMargin);
-    const double s = std::max(sx, sy);
-    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1);
-    x0 = cx - 0.5 * s * (kWidth - 2 * kMargin);
-    x1 = cx + 0.5 * s * (kWidth - 2 * kMargin);
-    y0 = cy - 0.5 * s * (kHeight - 2 * kMargin);
-    y1 = cy + 0.5 * s * (kHeight - 2 * kMargin);
-  }
-  return {x0, x1, y0, y1};
-}
-
+// Four significant digits; "–" for a non-finite value, so that no "nan" or "inf" reaches the
+// page.
 std::string Number(double v) {
+  if (!std::isfinite(v)) return "–";
   std::ostringstream out;
   out << std::setprecision(4) << v;
   return out.str();
 }
 
-// A line chart with axis labels and a legend.
+std::string Percent(double fraction) { return Number(100.0 * fraction) + " %"; }
+
+// "1 keyframe", "2 keyframes".
+std::string Counted(size_t count, const std::string& noun) {
+  return std::to_string(count) + " " + noun + (count == 1 ? "" : "s");
+}
+
+struct Series {
+  std::string label;
+  std::string color;
+  std::vector<double> x, y;
+  bool dots = false;     // points instead of a line
+  bool markers = false;  // a line with a dot at each point (few, discrete samples)
+  bool dashed = false;   // a reference curve rather than data
+};
+
+// Maps data ranges onto the plot area (y up).
+struct Axes {
+  double x0, x1, y0, y1;
+  double X(double x) const { return kPlotLeft + (x - x0) / (x1 - x0) * kPlotWidth; }
+  double Y(double y) const { return kPlotBottom + (y0 - y) / (y1 - y0) * kPlotHeight; }
+};
+
+bool FinitePoint(const Series& s, size_t i) {
+  return std::isfinite(s.x[i]) && std::isfinite(s.y[i]);
+}
+
+// The range of the finite points; false when there are none.
+bool Fit(const std::vector<Series>& series, bool equal_scale, Axes* axes) {
+  double x0 = HUGE_VAL, x1 = -HUGE_VAL, y0 = HUGE_VAL, y1 = -HUGE_VAL;
+  for (const Series& s : series) {
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      if (!FinitePoint(s, i)) continue;
+      x0 = std::min(x0, s.x[i]);
+      x1 = std::max(x1, s.x[i]);
+      y0 = std::min(y0, s.y[i]);
+      y1 = std::max(y1, s.y[i]);
+    }
+  }
+  if (x0 > x1) return false;
+  if (!(x1 > x0)) { x0 -= 1.0; x1 += 1.0; }
+  if (!(y1 > y0)) { y0 -= 1.0; y1 += 1.0; }
+  if (equal_scale) {
+    const double sx = (x1 - x0) / kPlotWidth;
+    const double sy = (y1 - y0) / kPlotHeight;
+    const double s = std::max(sx, sy);
+    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1);
+    x0 = cx - 0.5 * s * kPlotWidth;
+    x1 = cx + 0.5 * s * kPlotWidth;
+    y0 = cy - 0.5 * s * kPlotHeight;
+    y1 = cy + 0.5 * s * kPlotHeight;
+  }
+  *axes = {x0, x1, y0, y1};
+  return true;
+}
+
+// A line chart with axis labels and a legend; empty when no series has a finite point.
 std::string LineChart(const std::string& title, const std::string& x_label,
                       const std::string& y_label, const std::vector<Series>& series,
                       bool equal_scale = false) {
-  const Axes a = Fit(series, equal_scale);
+  Axes a{};
+  if (!Fit(series, equal_scale, &a)) return "";
   std::ostringstream svg;
   svg << "<figure><figcaption>" << Escape(title) << "</figcaption><svg width='" << kWidth
       << "' height='" << kHeight << "' viewBox='0 0 " << kWidth << ' ' << kHeight << "'>"
-      << "<rect x='" << kMargin << "' y='" << kMargin << "' width='" << kWidth - 2 * kMargin
-      << "' height='" << kHeight - 2 * kMargin << "' fill='none' stroke='#999'/>";
-  svg << "<text x='" << kMargin << "' y='" << kHeight - kMargin + 16 << "'>" << Number(a.x0)
-      << "</text><text x='" << kWidth - kMargin << "' y='" << kHeight - kMargin + 16
-      << "' text-anchor='end'>" << Number(a.x1) << "</text><text x='" << kWidth / 2 << "' y='"
-      << kHeight - 8 << "' text-anchor='middle'>" << Escape(x_label) << "</text>";
-  svg << "<text x='" << kMargin - 4 << "' y='" << kHeight - kMargin
-      << "' text-anchor='end'>" << Number(a.y0) << "</text><text x='" << kMargin - 4
-      << "' y='" << kMargin + 10 << "' text-anchor='end'>" << Number(a.y1)
-      << "</text><text x='12' y='" << kHeight / 2 << "' transform='rotate(-90 12 " << kHeight / 2
-      << ")' text-anchor='middle'>" << Escape(y_label) << "</text>";
-  int legend_y = kMargin + 14;
+      << "<rect x='" << kPlotLeft << "' y='" << kPlotTop << "' width='" << kPlotWidth
+      << "' height='" << kPlotHeight << "' fill='none' stroke='#999'/>";
+  svg << "<text x='" << kPlotLeft << "' y='" << kPlotBottom + 14 << "'>" << Number(a.x0)
+      << "</text><text x='" << kPlotRight << "' y='" << kPlotBottom + 14
+      << "' text-anchor='end'>" << Number(a.x1) << "</text><text x='" << kPlotLeft + kPlotWidth / 2
+      << "' y='" << kHeight - 8 << "' text-anchor='middle'>" << Escape(x_label) << "</text>";
+  svg << "<text x='" << kPlotLeft - 4 << "' y='" << kPlotBottom << "' text-anchor='end'>"
+      << Number(a.y0) << "</text><text x='" << kPlotLeft - 4 << "' y='" << kPlotTop + 10
+      << "' text-anchor='end'>" << Number(a.y1)
+      << "</text><text x='12' y='" << kPlotTop + kPlotHeight / 2 << "' transform='rotate(-90 12 "
+      << kPlotTop + kPlotHeight / 2 << ")' text-anchor='middle'>" << Escape(y_label) << "</text>";
+  svg << std::fixed << std::setprecision(1);
+  if (a.y0 < 0.0 && a.y1 > 0.0) {
+    svg << "<line x1='" << kPlotLeft << "' x2='" << kPlotRight << "' y1='" << a.Y(0.0)
+        << "' y2='" << a.Y(0.0) << "' stroke='#ccc'/>";
+  }
+  int legend_y = 12;
   for (const Series& s : series) {
-    if (s.dots) {
+    if (s.dots || s.markers) {
       for (size_t i = 0; i < s.x.size(); ++i) {
-        svg << "<circle r='1.5' fill='" << s.color << "' cx='" << std::fixed
-            << std::setprecision(1) << a.X(s.x[i]) << "' cy='" << a.Y(s.y[i]) << "'/>";
+        if (!FinitePoint(s, i)) continue;
+        svg << "<circle r='" << (s.markers ? 2.5 : 1.5) << "' fill='" << s.color << "' cx='"
+            << a.X(s.x[i]) << "' cy='" << a.Y(s.y[i]) << "'/>";
       }
-    } else {
-      svg << "<polyline fill='none' stroke='" << s.color << "' stroke-width='1.5' points='";
+    }
+    if (!s.dots) {
+      svg << "<polyline fill='none' stroke='" << s.color << "' stroke-width='1.5'"
+          << (s.dashed ? " stroke-dasharray='4 3'" : "") << " points='";
       for (size_t i = 0; i < s.x.size(); ++i) {
-        svg << std::fixed << std::setprecision(1) << a.X(s.x[i]) << ',' << a.Y(s.y[i]) << ' ';
+        if (FinitePoint(s, i)) svg << a.X(s.x[i]) << ',' << a.Y(s.y[i]) << ' ';
       }
       svg << "'/>";
     }
-    svg << "<text x='" << kWidth - kMargin - 6 << "' y='" << legend_y
+    svg << "<text x='" << kPlotRight << "' y='" << legend_y
         << "' text-anchor='end' fill='" << s.color << "'>" << Escape(s.label) << "</text>";
     legend_y += 14;
   }
@@ -118,177 +165,381 @@ std::string LineChart(const std::string& title, const std::string& x_label,
   return svg.str();
 }
 
-// Histogram of values in [-range, range] as step lines, one per series (same bins).
-std::string Histogram(const std::string& title, const std::string& x_label, double range,
-                      const std::vector<std::pair<Series, std::vector<double>>>& inputs) {
-  constexpr int kBins = 60;
-  std::vector<Series> series;
-  for (const auto& [style, values] : inputs) {
-    Series s = style;
-    std::vector<double> counts(kBins, 0.0);
-    for (double v : values) {
-      const int bin = static_cast<int>(std::floor((v + range) / (2.0 * range) * kBins));
-      if (bin >= 0 && bin < kBins) counts[static_cast<size_t>(bin)] += 1.0;
-    }
-    const double total = std::max<double>(1.0, static_cast<double>(values.size()));
-    for (int b = 0; b < kBins; ++b) {
-      const double left = -range + 2.0 * range * b / kBins;
-      const double right = left + 2.0 * range / kBins;
-      s.x.push_back(left);
-      s.y.push_back(counts[static_cast<size_t>(b)] / total);
-      s.x.push_back(right);
-      s.y.push_back(counts[static_cast<size_t>(b)] / total);
-    }
-    series.push_back(s);
+// Statistics of one residual set over its finite values (docs/report.md, Eq. R1).
+struct ResidualStats {
+  size_t count = 0;           // finite values
+  double rms = 0.0;
+  double beyond_range = 0.0;  // share of the finite values with |r| > range
+};
+
+ResidualStats Statistics(const std::vector<double>& values, double range) {
+  ResidualStats stats;
+  double sum_sq = 0.0;
+  size_t beyond = 0;
+  for (double v : values) {
+    if (!std::isfinite(v)) continue;
+    ++stats.count;
+    sum_sq += v * v;
+    if (std::abs(v) > range) ++beyond;
   }
-  return LineChart(title, x_label, "fraction of points", series);
+  if (stats.count > 0) {
+    const double n = static_cast<double>(stats.count);
+    stats.rms = std::sqrt(sum_sq / n);
+    stats.beyond_range = static_cast<double>(beyond) / n;
+  }
+  return stats;
 }
 
-double Rms(const std::vector<double>& values) {
-  double sum = 0.0;
-  for (double v : values) sum += v * v;
-  return values.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(values.size()));
+// Step line of the share of values (percent) per bin of [-range, range], so that series of
+// different sizes compare.
+Series HistogramSeries(const std::string& label, const std::string& color,
+                       const std::vector<double>& values, double range, size_t count) {
+  std::vector<double> counts(kHistogramBins, 0.0);
+  for (double v : values) {
+    if (!std::isfinite(v)) continue;
+    const double bin = std::floor((v + range) / (2.0 * range) * kHistogramBins);
+    if (bin >= 0.0 && bin < kHistogramBins) counts[static_cast<size_t>(bin)] += 1.0;
+  }
+  Series s{label, color, {}, {}};
+  const double width = 2.0 * range / kHistogramBins;
+  for (int b = 0; b < kHistogramBins; ++b) {
+    const double share = 100.0 * counts[static_cast<size_t>(b)] / static_cast<double>(count);
+    s.x.insert(s.x.end(), {-range + width * b, -range + width * (b + 1)});
+    s.y.insert(s.y.end(), {share, share});
+  }
+  return s;
+}
+
+// The before/after histograms of one sensor's residuals, with RMS and the share outside the
+// range in the legend; empty when neither set has a finite value.
+std::string ResidualHistogram(const std::string& title, const std::string& x_label,
+                              const std::string& y_label, const std::string& unit, double range,
+                              const std::vector<double>& before, const std::vector<double>& after,
+                              bool standard_normal_reference) {
+  std::vector<Series> series;
+  const std::pair<const char*, const std::vector<double>*> sets[2] = {{"before", &before},
+                                                                      {"after", &after}};
+  const char* colors[2] = {"#c33", "#36c"};
+  for (int k = 0; k < 2; ++k) {
+    const ResidualStats stats = Statistics(*sets[k].second, range);
+    if (stats.count == 0) continue;
+    const std::string label = std::string(sets[k].first) + ": RMS " + Number(stats.rms) + " " +
+                              unit + ", " + Percent(stats.beyond_range) + " beyond ±" +
+                              Number(range) + " " + unit + " (n = " +
+                              std::to_string(stats.count) + ")";
+    series.push_back(HistogramSeries(label, colors[k], *sets[k].second, range, stats.count));
+  }
+  if (series.empty()) return "";
+  if (standard_normal_reference) {
+    // Share of N(0, 1) in a bin of width w around x: phi(x) w (Eq. R2), in percent.
+    Series normal{"standard normal", "#888", {}, {}};
+    normal.dashed = true;
+    const double width = 2.0 * range / kHistogramBins;
+    constexpr int kSamples = 121;
+    for (int i = 0; i < kSamples; ++i) {
+      const double x = -range + 2.0 * range * i / (kSamples - 1);
+      normal.x.push_back(x);
+      normal.y.push_back(100.0 * std::exp(-0.5 * x * x) / std::sqrt(2.0 * M_PI) * width);
+    }
+    series.push_back(normal);
+  }
+  return LineChart(title, x_label, y_label, series);
+}
+
+std::string SensorName(const std::string& key) {
+  if (key == "imu") return "IMU";
+  if (key == "wheel") return "Wheel odometry";
+  if (key == "gnss") return "GNSS";
+  return key;
+}
+
+// The whitened sensors in a fixed order (IMU, wheel, GNSS, then any other in name order),
+// those with at least one residual only.
+std::vector<std::string> SensorsWithResiduals(const std::map<std::string, SensorResiduals>& all) {
+  std::vector<std::string> keys;
+  for (const char* known : {"imu", "wheel", "gnss"}) {
+    if (all.count(known)) keys.push_back(known);
+  }
+  for (const auto& [key, residuals] : all) {
+    if (key != "imu" && key != "wheel" && key != "gnss") keys.push_back(key);
+  }
+  keys.erase(std::remove_if(keys.begin(), keys.end(),
+                            [&](const std::string& key) {
+                              const SensorResiduals& r = all.at(key);
+                              return r.before.empty() && r.after.empty();
+                            }),
+             keys.end());
+  return keys;
+}
+
+// One calibration block's convergence: the change of each component from the first outer
+// iteration, in display units (Eq. R3).
+struct BlockTrace {
+  std::string title;
+  std::string unit;
+  std::vector<std::string> components;
+  bool has_sigma = false;  // the result carries its uncertainty: it was estimated
+  std::function<std::vector<double>(const sensors::Calibration& first,
+                                    const sensors::Calibration& c)>
+      change;
+};
+
+std::vector<double> Components(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+std::vector<BlockTrace> CalibrationBlockTraces(const io::CalibrationUncertainty& u) {
+  using C = sensors::Calibration;
+  const std::vector<std::string> xyz = {"x", "y", "z"};
+  // Rotation change about the block's own axes (right perturbation): Log(q_1^-1 q_k).
+  const auto rotation_deg = [](const Eigen::Quaterniond& first, const Eigen::Quaterniond& q) {
+    return Components(geometry::Log(Eigen::Quaterniond(first.conjugate() * q)) * kRadToDeg);
+  };
+  return {
+      {"LiDAR–IMU rotation T_I_L", "deg", xyz, u.T_I_L.sigma_rot_deg.has_value(),
+       [=](const C& first, const C& c) { return rotation_deg(first.q_I_L, c.q_I_L); }},
+      {"LiDAR–IMU translation T_I_L", "cm", xyz, u.T_I_L.sigma_p_m.has_value(),
+       [](const C& first, const C& c) { return Components((c.p_I_L - first.p_I_L) * 100.0); }},
+      {"time offset LiDAR→IMU", "ms", {"offset"}, u.time_offset_lidar_imu_s.sigma.has_value(),
+       [](const C& first, const C& c) {
+         return std::vector<double>{(c.time_offset_lidar_imu_s - first.time_offset_lidar_imu_s) *
+                                    1e3};
+       }},
+      {"wheel radii, relative", "%", {"left", "right"},
+       u.wheel_radius_left_m.sigma.has_value() || u.wheel_radius_right_m.sigma.has_value(),
+       [](const C& first, const C& c) {
+         return std::vector<double>{
+             100.0 * (c.wheel_radius_left_m / first.wheel_radius_left_m - 1.0),
+             100.0 * (c.wheel_radius_right_m / first.wheel_radius_right_m - 1.0)};
+       }},
+      {"track width", "mm", {"track width"}, u.track_width_m.sigma.has_value(),
+       [](const C& first, const C& c) {
+         return std::vector<double>{(c.track_width_m - first.track_width_m) * 1e3};
+       }},
+      {"vehicle–IMU rotation T_I_V", "deg", xyz, u.T_I_V.sigma_rot_deg.has_value(),
+       [=](const C& first, const C& c) { return rotation_deg(first.q_I_V, c.q_I_V); }},
+      {"vehicle–IMU translation T_I_V", "cm", xyz, u.T_I_V.sigma_p_m.has_value(),
+       [](const C& first, const C& c) { return Components((c.p_I_V - first.p_I_V) * 100.0); }},
+      {"GNSS lever arm p_I_A", "cm", xyz, u.p_I_A_m.sigma.has_value(),
+       [](const C& first, const C& c) { return Components((c.p_I_A - first.p_I_A) * 100.0); }},
+  };
+}
+
+// The convergence section: one chart per estimated block, or a sentence saying why none.
+std::string ConvergenceSection(const OfflineCalibrationResult& result) {
+  const std::vector<sensors::Calibration>& history = result.batch.calibration_per_iteration;
+  std::ostringstream html;
+  html << "<h2>Convergence</h2>";
+  if (history.size() < 2) {
+    html << "<p>" << (history.empty() ? "No outer iteration was recorded"
+                                       : "Only one outer iteration was recorded")
+         << ": no convergence chart.</p>\n";
+    return html.str();
+  }
+  html << "<p>Change of each estimated block from the first outer iteration.</p>\n";
+  const char* colors[3] = {"#c33", "#3a3", "#36c"};
+  int charts = 0;
+  for (const BlockTrace& block : CalibrationBlockTraces(result.calibration.uncertainty)) {
+    std::vector<Series> series;
+    for (size_t j = 0; j < block.components.size(); ++j) {
+      Series s{block.components[j], colors[j % 3], {}, {}};
+      s.markers = true;
+      series.push_back(s);
+    }
+    bool changed = false;
+    for (size_t i = 0; i < history.size(); ++i) {
+      const std::vector<double> change = block.change(history.front(), history[i]);
+      for (size_t j = 0; j < change.size(); ++j) {
+        series[j].x.push_back(static_cast<double>(i + 1));
+        series[j].y.push_back(change[j]);
+        changed = changed || std::abs(change[j]) > kUnchangedTolerance;
+      }
+    }
+    if (!changed && !block.has_sigma) continue;
+    const std::string chart =
+        LineChart(block.title + " (" + block.unit + ")", "outer iteration",
+                  "change (" + block.unit + ")", series);
+    html << chart;
+    if (!chart.empty()) ++charts;
+  }
+  if (charts == 0) html << "<p>No calibration block was estimated.</p>\n";
+  return html.str();
 }
 
 std::string Sigma(const std::optional<Eigen::Vector3d>& sigma, double scale, int row) {
   return sigma ? Number((*sigma)(row) * scale) : "–";
 }
 
+// One flag for the whole block or one per component (io::PoseBlockInfo, VectorBlockInfo);
+// none means observable.
 std::string Observable(const std::vector<bool>& flags, size_t index) {
   if (flags.empty()) return "yes";
+  if (flags.size() != 1 && index >= flags.size()) return "–";
   const bool value = flags.size() == 1 ? flags[0] : flags[index];
   return value ? "yes" : "<b>no</b>";
 }
 
-}  // namespace
+// The LiDAR took part when the batch associated points with planes.
+bool LidarUsed(const estimation::LidarInertialBatchReport& batch) {
+  return batch.associated_points > 0 || !batch.initial_point_residuals_m.empty() ||
+         !batch.final_point_residuals_m.empty();
+}
 
-std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
+// The result table: value, sigma, nominal and observability of each reported block.
+std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used) {
   const sensors::Calibration& c = result.calibration.value;
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
-  std::ostringstream html;
-  html << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>autocal calibration report"
-          "</title><style>body{font-family:sans-serif;max-width:1180px;margin:auto}"
-          "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;"
-          "text-align:right}figure{display:inline-block;margin:8px}svg text{font-size:11px}"
-          ".warn{color:#a40}</style></head><body><h1>autocal calibration report</h1>\n";
-
-  // Summary.
-  html << "<h2>Result</h2><table><tr><th>parameter</th><th>estimate</th><th>σ</th>"
-          "<th>nominal</th><th>observable</th></tr>";
-  const Eigen::Vector3d rotation_deg = geometry::Log(c.q_I_L) * kRadToDeg;
-  const Eigen::Vector3d nominal_rotation_deg = geometry::Log(result.nominal.q_I_L) * kRadToDeg;
   const char* axes[3] = {"x", "y", "z"};
-  for (int i = 0; i < 3; ++i) {
-    html << "<tr><td>T_I_L rotation vector " << axes[i] << " (deg)</td><td>"
-         << Number(rotation_deg(i)) << "</td><td>" << Sigma(u.T_I_L.sigma_rot_deg, 1.0, i)
-         << "</td><td>" << Number(nominal_rotation_deg(i)) << "</td><td>"
-         << Observable(u.T_I_L.observable, static_cast<size_t>(i)) << "</td></tr>";
-  }
-  for (int i = 0; i < 3; ++i) {
-    html << "<tr><td>T_I_L translation " << axes[i] << " (m)</td><td>" << Number(c.p_I_L(i))
-         << "</td><td>" << Sigma(u.T_I_L.sigma_p_m, 1.0, i) << "</td><td>"
-         << Number(result.nominal.p_I_L(i)) << "</td><td>"
-         << Observable(u.T_I_L.observable, static_cast<size_t>(3 + i)) << "</td></tr>";
-  }
-  html << "<tr><td>time offset lidar→imu (ms)</td><td>" << Number(c.time_offset_lidar_imu_s * 1e3)
-       << "</td><td>"
-       << (u.time_offset_lidar_imu_s.sigma ? Number(*u.time_offset_lidar_imu_s.sigma * 1e3) : "–")
-       << "</td><td>" << Number(result.nominal.time_offset_lidar_imu_s * 1e3) << "</td><td>"
-       << (u.time_offset_lidar_imu_s.observable.value_or(true) ? "yes" : "<b>no</b>")
-       << "</td></tr>";
-  // Wheel and GNSS blocks: shown when the result carries their sigma (they were estimated).
+  std::ostringstream rows;
+  const auto pose_rows = [&](const std::string& name, const Eigen::Quaterniond& q,
+                             const Eigen::Vector3d& p, const Eigen::Quaterniond& q_nominal,
+                             const Eigen::Vector3d& p_nominal, const io::PoseBlockInfo& info) {
+    const Eigen::Vector3d rotation_deg = geometry::Log(q) * kRadToDeg;
+    const Eigen::Vector3d nominal_deg = geometry::Log(q_nominal) * kRadToDeg;
+    for (int i = 0; i < 3; ++i) {
+      rows << "<tr><td>" << name << " rotation vector " << axes[i] << " (deg)</td><td>"
+           << Number(rotation_deg(i)) << "</td><td>" << Sigma(info.sigma_rot_deg, 1.0, i)
+           << "</td><td>" << Number(nominal_deg(i)) << "</td><td>"
+           << Observable(info.observable, static_cast<size_t>(i)) << "</td></tr>";
+    }
+    for (int i = 0; i < 3; ++i) {
+      rows << "<tr><td>" << name << " translation " << axes[i] << " (m)</td><td>"
+           << Number(p(i)) << "</td><td>" << Sigma(info.sigma_p_m, 1.0, i) << "</td><td>"
+           << Number(p_nominal(i)) << "</td><td>"
+           << Observable(info.observable, static_cast<size_t>(3 + i)) << "</td></tr>";
+    }
+  };
   const auto scalar_row = [&](const std::string& label, double value, double nominal,
                               const io::ScalarBlockInfo& info, double scale) {
-    if (!info.sigma) return;
-    html << "<tr><td>" << label << "</td><td>" << Number(value * scale) << "</td><td>"
-         << Number(*info.sigma * scale) << "</td><td>" << Number(nominal * scale) << "</td><td>"
+    rows << "<tr><td>" << label << "</td><td>" << Number(value * scale) << "</td><td>"
+         << (info.sigma ? Number(*info.sigma * scale) : "–") << "</td><td>"
+         << Number(nominal * scale) << "</td><td>"
          << (info.observable.value_or(true) ? "yes" : "<b>no</b>") << "</td></tr>";
   };
-  scalar_row("wheel radius left (mm)", c.wheel_radius_left_m, result.nominal.wheel_radius_left_m,
-             u.wheel_radius_left_m, 1e3);
-  scalar_row("wheel radius right (mm)", c.wheel_radius_right_m,
-             result.nominal.wheel_radius_right_m, u.wheel_radius_right_m, 1e3);
-  scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m, u.track_width_m,
-             1e3);
+  // LiDAR blocks whenever the LiDAR took part; the others when the result carries their
+  // sigma (they were estimated).
+  if (lidar_used || u.T_I_L.sigma_rot_deg || u.T_I_L.sigma_p_m) {
+    pose_rows("T_I_L", c.q_I_L, c.p_I_L, result.nominal.q_I_L, result.nominal.p_I_L, u.T_I_L);
+  }
+  if (lidar_used || u.time_offset_lidar_imu_s.sigma) {
+    scalar_row("time offset lidar→imu (ms)", c.time_offset_lidar_imu_s,
+               result.nominal.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3);
+  }
+  if (u.wheel_radius_left_m.sigma) {
+    scalar_row("wheel radius left (mm)", c.wheel_radius_left_m,
+               result.nominal.wheel_radius_left_m, u.wheel_radius_left_m, 1e3);
+  }
+  if (u.wheel_radius_right_m.sigma) {
+    scalar_row("wheel radius right (mm)", c.wheel_radius_right_m,
+               result.nominal.wheel_radius_right_m, u.wheel_radius_right_m, 1e3);
+  }
+  if (u.track_width_m.sigma) {
+    scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m,
+               u.track_width_m, 1e3);
+  }
   if (u.p_I_A_m.sigma) {
     for (int i = 0; i < 3; ++i) {
-      html << "<tr><td>GNSS lever arm " << axes[i] << " (m)</td><td>" << Number(c.p_I_A(i))
+      rows << "<tr><td>GNSS lever arm " << axes[i] << " (m)</td><td>" << Number(c.p_I_A(i))
            << "</td><td>" << Number((*u.p_I_A_m.sigma)(i)) << "</td><td>"
            << Number(result.nominal.p_I_A(i)) << "</td><td>"
            << Observable(u.p_I_A_m.observable, static_cast<size_t>(i)) << "</td></tr>";
     }
   }
   if (u.T_I_V.sigma_rot_deg || u.T_I_V.sigma_p_m) {
-    const Eigen::Vector3d v_deg = geometry::Log(c.q_I_V) * kRadToDeg;
-    const Eigen::Vector3d v_nominal_deg = geometry::Log(result.nominal.q_I_V) * kRadToDeg;
-    for (int i = 0; i < 3; ++i) {
-      html << "<tr><td>T_I_V rotation vector " << axes[i] << " (deg)</td><td>"
-           << Number(v_deg(i)) << "</td><td>" << Sigma(u.T_I_V.sigma_rot_deg, 1.0, i)
-           << "</td><td>" << Number(v_nominal_deg(i)) << "</td><td>"
-           << Observable(u.T_I_V.observable, static_cast<size_t>(i)) << "</td></tr>";
-    }
-    for (int i = 0; i < 3; ++i) {
-      html << "<tr><td>T_I_V translation " << axes[i] << " (m)</td><td>" << Number(c.p_I_V(i))
-           << "</td><td>" << Sigma(u.T_I_V.sigma_p_m, 1.0, i) << "</td><td>"
-           << Number(result.nominal.p_I_V(i)) << "</td><td>"
-           << Observable(u.T_I_V.observable, static_cast<size_t>(3 + i)) << "</td></tr>";
-    }
+    pose_rows("T_I_V", c.q_I_V, c.p_I_V, result.nominal.q_I_V, result.nominal.p_I_V, u.T_I_V);
   }
-  html << "</table>\n";
-  html << "<p>" << result.batch.outer_iterations << " outer iterations, "
-       << result.trajectory.size() << " keyframes, " << result.batch.associated_points
-       << " LiDAR residuals, " << Number(result.seconds_total) << " s. Solver: "
-       << Escape(result.batch.termination) << "</p>\n";
-  if (!result.warnings.empty()) {
-    html << "<h2>Warnings</h2><ul>";
-    for (const std::string& w : result.warnings) html << "<li class='warn'>" << Escape(w) << "</li>";
-    html << "</ul>\n";
+  const std::string body = rows.str();
+  if (body.empty()) return "<h2>Result</h2><p>No calibration block was estimated.</p>\n";
+  return "<h2>Result</h2><table><tr><th>parameter</th><th>estimate</th><th>σ</th>"
+         "<th>nominal</th><th>observable</th></tr>" +
+         body + "</table>\n";
+}
+
+// One paragraph on the solve and one line per sensor: what took part and with how many
+// residuals.
+std::string RunSummary(const OfflineCalibrationResult& result, bool lidar_used,
+                       const std::vector<std::string>& whitened_sensors) {
+  std::vector<std::string> facts;
+  if (result.batch.outer_iterations > 0) {
+    facts.push_back(
+        Counted(static_cast<size_t>(result.batch.outer_iterations), "outer iteration"));
   }
-
-  // Residuals.
-  html << "<h2>LiDAR residuals</h2>";
-  Series before{"before (RMS " + Number(Rms(result.batch.initial_point_residuals_m)) + " m)",
-                "#c33", {}, {}};
-  Series after{"after (RMS " + Number(Rms(result.batch.final_point_residuals_m)) + " m)",
-               "#36c", {}, {}};
-  html << Histogram("point-to-plane distance, before and after the solve", "distance (m)", 0.3,
-                    {{before, result.batch.initial_point_residuals_m},
-                     {after, result.batch.final_point_residuals_m}});
-
-  // Convergence.
-  html << "<h2>Convergence</h2>";
-  Series rotation{"rotation change from start (deg)", "#c33", {}, {}};
-  Series translation{"translation change from start (cm)", "#3a3", {}, {}};
-  Series offset{"time offset (ms)", "#36c", {}, {}};
-  const std::vector<sensors::Calibration>& history = result.batch.calibration_per_iteration;
-  for (size_t i = 0; i < history.size(); ++i) {
-    const double x = static_cast<double>(i + 1);
-    rotation.x.push_back(x);
-    rotation.y.push_back(geometry::AngularDistance(history[i].q_I_L, history.front().q_I_L) *
-                         kRadToDeg);
-    translation.x.push_back(x);
-    translation.y.push_back((history[i].p_I_L - history.front().p_I_L).norm() * 100.0);
-    offset.x.push_back(x);
-    offset.y.push_back(history[i].time_offset_lidar_imu_s * 1e3);
+  facts.push_back(Counted(result.trajectory.size(), "keyframe"));
+  if (std::isfinite(result.seconds_total) && result.seconds_total > 0.0) {
+    facts.push_back(Number(result.seconds_total) + " s");
   }
-  html << LineChart("extrinsic per outer iteration", "outer iteration", "", {rotation, translation});
-  html << LineChart("time offset per outer iteration", "outer iteration", "ms", {offset});
-
-  // Time offset correlation.
-  const estimation::TimeOffsetEstimate& t = result.initialization.time_offset;
-  if (!t.candidate_offsets_s.empty()) {
-    Series curve{"correlation", "#36c", {}, {}};
-    for (size_t i = 0; i < t.candidate_offsets_s.size(); ++i) {
-      curve.x.push_back(t.candidate_offsets_s[i] * 1e3);
-      curve.y.push_back(t.correlation[i]);
-    }
-    html << "<h2>Time offset initialization</h2>"
-         << LineChart("LiDAR vs gyro angular-rate correlation (peak " +
-                          Number(t.offset_s * 1e3) + " ms)",
-                      "candidate offset (ms)", "correlation", {curve});
+  std::ostringstream html;
+  html << "<p>";
+  for (size_t i = 0; i < facts.size(); ++i) html << (i ? ", " : "") << facts[i];
+  html << '.';
+  if (!result.batch.termination.empty()) {
+    html << " Solver: " << Escape(result.batch.termination);
   }
+  html << "</p>\n<ul class='sensors'><li>LiDAR: ";
+  if (lidar_used) {
+    const size_t points = result.batch.associated_points > 0
+                              ? static_cast<size_t>(result.batch.associated_points)
+                              : result.batch.final_point_residuals_m.size();
+    html << Counted(points, "point residual") << " in the last iteration";
+  } else {
+    html << "not used";
+  }
+  html << "</li>";
+  for (const std::string& key : whitened_sensors) {
+    const SensorResiduals& r = result.whitened_residuals.at(key);
+    html << "<li>" << Escape(SensorName(key)) << ": "
+         << Counted(std::max(r.before.size(), r.after.size()), "whitened residual row")
+         << "</li>";
+  }
+  if (!result.gnss_positions_W.empty()) {
+    html << "<li>GNSS fixes: " << result.gnss_positions_W.size() << "</li>";
+  }
+  html << "</ul>\n";
+  return html.str();
+}
 
-  // Trajectory.
+// A heading and its chart, or nothing when the chart has no data.
+std::string Section(const std::string& heading, const std::string& chart) {
+  return chart.empty() ? "" : "<h2>" + Escape(heading) + "</h2>" + chart;
+}
+
+std::string ResidualSection(const OfflineCalibrationResult& result, bool lidar_used,
+                            const std::vector<std::string>& whitened_sensors) {
+  std::string html;
+  if (lidar_used) {
+    html += Section("LiDAR residuals",
+                    ResidualHistogram("point-to-plane distance, before and after the solve",
+                                      "distance (m)", "points per bin (%)", "m",
+                                      kLidarHistogramRange_m,
+                                      result.batch.initial_point_residuals_m,
+                                      result.batch.final_point_residuals_m, false));
+  }
+  for (const std::string& key : whitened_sensors) {
+    const SensorResiduals& r = result.whitened_residuals.at(key);
+    const std::string name = SensorName(key);
+    html += Section(name + " residuals",
+                    ResidualHistogram(name + " whitened residuals, before and after the solve",
+                                      "residual (σ)", "rows per bin (%)", "σ",
+                                      kWhitenedHistogramRange, r.before, r.after, true));
+  }
+  return html;
+}
+
+std::string TimeOffsetSection(const estimation::TimeOffsetEstimate& t) {
+  if (t.candidate_offsets_s.empty() || t.candidate_offsets_s.size() != t.correlation.size()) {
+    return "";
+  }
+  Series curve{"correlation", "#36c", {}, {}};
+  for (size_t i = 0; i < t.candidate_offsets_s.size(); ++i) {
+    curve.x.push_back(t.candidate_offsets_s[i] * 1e3);
+    curve.y.push_back(t.correlation[i]);
+  }
+  const std::string chart =
+      LineChart("LiDAR vs gyro angular-rate correlation (peak " + Number(t.offset_s * 1e3) +
+                    " ms)",
+                "candidate offset (ms)", "correlation", {curve});
+  return Section("Time offset initialization", chart);
+}
+
+std::string TrajectorySection(const OfflineCalibrationResult& result) {
   Series top{"keyframes", "#333", {}, {}};
   for (const io::TrajectorySample& s : result.trajectory) {
     top.x.push_back(s.T_W_I.p.x());
@@ -303,10 +554,35 @@ std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
     }
     trajectory.insert(trajectory.begin(), fixes);
   }
-  html << "<h2>Trajectory</h2>"
-       << LineChart(result.gnss_positions_W.empty() ? "IMU trajectory from above"
-                                                     : "IMU trajectory against GNSS (ENU)",
-                    "east (m)", "north (m)", trajectory, true);
+  const std::string chart =
+      LineChart(result.gnss_positions_W.empty() ? "IMU trajectory from above"
+                                                : "IMU trajectory against GNSS (ENU)",
+                "east (m)", "north (m)", trajectory, true);
+  return Section("Trajectory", chart);
+}
+
+}  // namespace
+
+std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
+  const bool lidar_used = LidarUsed(result.batch);
+  const std::vector<std::string> whitened_sensors =
+      SensorsWithResiduals(result.whitened_residuals);
+  std::ostringstream html;
+  html << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>autocal calibration report"
+          "</title><style>body{font-family:sans-serif;max-width:1180px;margin:auto}"
+          "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;"
+          "text-align:right}figure{display:inline-block;margin:8px}svg text{font-size:11px}"
+          ".warn{color:#a40}</style></head><body><h1>autocal calibration report</h1>\n";
+  html << SummaryTable(result, lidar_used) << RunSummary(result, lidar_used, whitened_sensors);
+  if (!result.warnings.empty()) {
+    html << "<h2>Warnings</h2><ul>";
+    for (const std::string& w : result.warnings) {
+      html << "<li class='warn'>" << Escape(w) << "</li>";
+    }
+    html << "</ul>\n";
+  }
+  html << ResidualSection(result, lidar_used, whitened_sensors) << ConvergenceSection(result)
+       << TimeOffsetSection(result.initialization.time_offset) << TrajectorySection(result);
   html << "</body></html>\n";
   return html.str();
 }

@@ -60,6 +60,14 @@ void Validate(const SimulationOptions& o) {
               o.true_calibration.wheel_radius_right_m > 0.05 &&
               o.true_calibration.track_width_m > 0.3,
           "wheel radii must exceed 0.05 m and the track width 0.3 m");
+  const NominalPerturbation& np = o.nominal_perturbation;
+  Require(np.rotation_deg >= 0.0 && np.translation_m >= 0.0 && np.time_offset_s >= 0.0,
+          "nominal_perturbation sigmas must be >= 0");
+  Require(!np.state_uncertainty ||
+              (np.rotation_deg > 0.0 && np.translation_m > 0.0 && np.time_offset_s > 0.0 &&
+               np.wheel_radius_sigma_m > 0.0 && np.track_width_sigma_m > 0.0),
+          "nominal_perturbation: a stated uncertainty needs every sigma > 0 "
+          "(or state_uncertainty = false)");
 }
 
 }  // namespace
@@ -165,6 +173,21 @@ io::SensorsConfig Simulator::sensors_config() const {
   if (options_.wheel.enabled) config.wheel = options_.wheel.config;
   if (options_.gnss.enabled) config.gnss = options_.gnss.config;
   config.nominal_calibration = nominal_;
+  const NominalPerturbation& np = options_.nominal_perturbation;
+  if (np.state_uncertainty) {
+    io::CalibrationUncertainty& u = config.nominal_uncertainty;
+    const Eigen::Vector3d rotation_deg = Eigen::Vector3d::Constant(np.rotation_deg);
+    const Eigen::Vector3d translation_m = Eigen::Vector3d::Constant(np.translation_m);
+    u.T_I_L.sigma_rot_deg = rotation_deg;
+    u.T_I_L.sigma_p_m = translation_m;
+    u.T_I_V.sigma_rot_deg = rotation_deg;
+    u.T_I_V.sigma_p_m = translation_m;
+    u.p_I_A_m.sigma = translation_m;
+    u.time_offset_lidar_imu_s.sigma = np.time_offset_s;
+    u.wheel_radius_left_m.sigma = np.wheel_radius_sigma_m;
+    u.wheel_radius_right_m.sigma = np.wheel_radius_sigma_m;
+    u.track_width_m.sigma = np.track_width_sigma_m;
+  }
   return config;
 }
 

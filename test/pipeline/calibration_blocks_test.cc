@@ -72,6 +72,24 @@ TEST(CalibrationBlocks, ADirectionTheDataDidNotNarrowIsUnobservable) {
   EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
 }
 
+// Under a weak prior (30 cm) a direction the data narrowed to 13 cm is still held: above four
+// times its 3 cm limit it is too weak to be worth more than the nominal value. At 11 cm it is
+// kept as partly determined.
+TEST(CalibrationBlocks, ADirectionFarAboveItsLimitIsHeldUnderAWeakPrior) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  const std::vector<CalibrationBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.03)};
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Vector3d(1e-6, 0.11 * 0.11, 0.13 * 0.13).asDiagonal();
+  const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, false, false));
+  ASSERT_EQ(result.warnings.size(), 2u);
+  EXPECT_THAT(result.warnings[0], ::testing::HasSubstr("y: only partly determined"));
+  EXPECT_THAT(result.warnings[1], ::testing::HasSubstr("z: not excited by the drive"));
+  EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);
+}
+
 TEST(CalibrationBlocks, NamesExcitedDirectionsFarFromTheirPrior) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
   std::vector<CalibrationBlock> blocks = {VectorBlock(p.data(), p, 0.05, 0.03)};

@@ -1,6 +1,6 @@
 #pragma once
 
-// Wheel and GNSS factors attached to batch keyframes (docs/keyframe_factors.md).
+// IMU, wheel and GNSS factors attached to batch keyframes (docs/keyframe_factors.md).
 //
 // A batch problem has one Keyframe per LiDAR sweep. Wheel and GNSS measurements do not fall
 // on keyframe instants, so each keyframe gets one factor from the measurements linearly
@@ -29,9 +29,24 @@
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sensor_config.h"
 
 namespace autocal {
 namespace estimation {
+
+struct KeyframeImuOptions {
+  sensors::ImuNoise noise;
+  double gravity_m_s2 = 9.80665;
+  int num_threads = 1;  // preintegration runs in parallel
+};
+
+// Adds one ImuFactor (Eq. F10) between each pair of consecutive keyframes, preintegrated
+// from the IMU samples at the first keyframe's biases. Returns the number added. Ownership as
+// AddWheelFactors. Throws autocal::Error when the samples do not cover the keyframes or the
+// keyframe times do not increase, or for a keyframe q_W_I missing from the problem or without
+// a manifold.
+int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                  std::vector<Keyframe>* keyframes, const KeyframeImuOptions& options);
 
 struct KeyframeWheelOptions {
   // Sigmas and rows of each factor. With factor.shared_radius the left radius block

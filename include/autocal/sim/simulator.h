@@ -77,11 +77,17 @@ struct GnssSimOptions {
 
 // How far sensors.yaml's nominal calibration is from the truth (per-axis 1-sigma of a
 // seeded Gaussian draw). Wheel radii and track width are nominal values by design (the
-// truth is ~1% off them, see DefaultTrueCalibration).
+// truth is ~1% off them, see DefaultTrueCalibration); their stated sigmas cover that.
+// With state_uncertainty, sensors.yaml states these sigmas as the nominal calibration's
+// uncertainty, as a calibration engineer would from the drawings and the mounting tolerance
+// (the offline calibration uses them as prior widths, docs/calibration.md).
 struct NominalPerturbation {
-  double rotation_deg = 1.5;
-  double translation_m = 0.03;
+  double rotation_deg = 1.5;    // T_I_L and T_I_V, per axis
+  double translation_m = 0.03;  // p_I_L, p_I_V and p_I_A, per axis
   double time_offset_s = 0.004;
+  double wheel_radius_sigma_m = 0.005;  // stated only; 0.33 m vs the true 0.3335 / 0.3326 m
+  double track_width_sigma_m = 0.03;    // stated only; 1.60 m vs the true 1.62 m
+  bool state_uncertainty = true;
 };
 
 // LiDAR 0.55 m above and 0.3 m ahead of the IMU, rotated (2, -3, 4) deg (roll, pitch, yaw);

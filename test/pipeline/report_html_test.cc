@@ -1,0 +1,315 @@
+#include "autocal/pipeline/report_html.h"
+
+#include <cmath>
+#include <iomanip>
+#include <limits>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+std::vector<double> Normal(int count, double sigma, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal(0.0, sigma);
+  std::vector<double> values;
+  for (int i = 0; i < count; ++i) values.push_back(normal(rng));
+  return values;
+}
+
+// Three outer iterations in which every block moves: the last one is the first turned and
+// shifted by the amounts in the comments (none of them 1 or 3, the x axis' end labels).
+std::vector<sensors::Calibration> History() {
+  sensors::Calibration first;
+  first.q_I_L = geometry::Exp(Eigen::Vector3d(0.0, 0.0, 90.0 * kDegToRad));
+  first.p_I_L = Eigen::Vector3d(0.1, 0.0, 0.5);
+  first.time_offset_lidar_imu_s = 0.010;
+  first.p_I_A = Eigen::Vector3d(0.0, 0.0, 1.2);
+  first.p_I_V = Eigen::Vector3d(-1.0, 0.0, -0.3);
+  std::vector<sensors::Calibration> history(3, first);
+  for (int i = 1; i < 3; ++i) {
+    sensors::Calibration& c = history[static_cast<size_t>(i)];
+    const double step = i / 2.0;  // half the way, then all of it
+    // 1.5 deg about z, 3.5 cm along x, ...
+    c.q_I_L = first.q_I_L * geometry::Exp(Eigen::Vector3d(0.0, 0.0, step * 1.5 * kDegToRad));
+    c.p_I_L.x() += step * 0.035;
+    c.time_offset_lidar_imu_s += step * 0.0025;    // 2.5 ms
+    c.wheel_radius_left_m *= 1.0 + step * 0.004;   // 0.4 %
+    c.wheel_radius_right_m *= 1.0 - step * 0.002;  // -0.2 %
+    c.track_width_m += step * 0.012;               // 12 mm
+    c.q_I_V = first.q_I_V * geometry::Exp(Eigen::Vector3d(step * 2.0 * kDegToRad, 0.0, 0.0));
+    c.p_I_V.y() += step * 0.05;  // 5 cm
+    c.p_I_A.z() -= step * 0.08;  // -8 cm
+  }
+  return history;
+}
+
+// A run with the LiDAR, the IMU, the wheels and GNSS, every block estimated.
+OfflineCalibrationResult FullResult() {
+  OfflineCalibrationResult result;
+  result.batch.calibration_per_iteration = History();
+  result.batch.outer_iterations = 3;
+  result.calibration.value = result.batch.calibration_per_iteration.back();
+  io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  u.T_I_L.sigma_rot_deg = Eigen::Vector3d(0.05, 0.05, 0.02);
+  u.T_I_L.sigma_p_m = Eigen::Vector3d(0.005, 0.006, 0.3);
+  u.T_I_L.observable = {true, true, true, true, true, false};
+  u.time_offset_lidar_imu_s.sigma = 0.0003;
+  u.wheel_radius_left_m.sigma = 0.0002;
+  u.wheel_radius_right_m.sigma = 0.0002;
+  u.track_width_m.sigma = 0.004;
+  u.p_I_A_m.sigma = Eigen::Vector3d(0.01, 0.01, 0.02);
+  u.T_I_V.sigma_rot_deg = Eigen::Vector3d(0.2, 0.2, 0.2);
+  u.T_I_V.sigma_p_m = Eigen::Vector3d(0.03, 0.03, 0.03);
+  result.batch.associated_points = 2000;
+  result.batch.initial_point_residuals_m = Normal(2000, 0.08, 1);
+  result.batch.final_point_residuals_m = Normal(2000, 0.02, 2);
+  result.batch.termination = "CONVERGENCE";
+  result.whitened_residuals["imu"] = {Normal(900, 2.0, 3), Normal(900, 1.0, 4)};
+  result.whitened_residuals["wheel"] = {Normal(500, 3.0, 5), Normal(500, 1.1, 6)};
+  result.whitened_residuals["gnss"] = {Normal(300, 4.0, 7), Normal(300, 0.9, 8)};
+  estimation::TimeOffsetEstimate& t = result.initialization.time_offset;
+  t.offset_s = 0.012;
+  for (int i = -20; i <= 20; ++i) {
+    t.candidate_offsets_s.push_back(0.001 * i);
+    t.correlation.push_back(std::exp(-0.5 * std::pow((0.001 * i - 0.012) / 0.01, 2)));
+  }
+  for (int i = 0; i < 50; ++i) {
+    io::TrajectorySample s;
+    s.t_ns = int64_t{100000000} * i;
+    s.T_W_I.p = Eigen::Vector3d(2.0 * i, 0.1 * i * i, 0.0);
+    result.trajectory.push_back(s);
+    result.gnss_positions_W.push_back(s.T_W_I.p + Eigen::Vector3d(0.05, -0.05, 0.0));
+  }
+  result.warnings = {"LiDAR z translation: not excited by the drive"};
+  result.seconds_total = 12.5;
+  return result;
+}
+
+// The IMU, wheel and GNSS run (problem imu_wheel_gnss.yaml): no point residuals, no
+// time-offset curve, a single outer iteration, no LiDAR uncertainty.
+OfflineCalibrationResult ResultWithoutLidar() {
+  OfflineCalibrationResult result = FullResult();
+  result.batch.associated_points = 0;
+  result.batch.initial_point_residuals_m.clear();
+  result.batch.final_point_residuals_m.clear();
+  result.batch.calibration_per_iteration.resize(1);
+  result.batch.outer_iterations = 1;
+  result.initialization = estimation::CalibrationInitialization();
+  result.calibration.uncertainty.T_I_L = io::PoseBlockInfo();
+  result.calibration.uncertainty.time_offset_lidar_imu_s = io::ScalarBlockInfo();
+  return result;
+}
+
+// The figure whose caption starts with `caption`, or "" when there is none.
+std::string Figure(const std::string& html, const std::string& caption) {
+  const size_t begin = html.find("<figcaption>" + caption);
+  if (begin == std::string::npos) return "";
+  return html.substr(begin, html.find("</figure>", begin) - begin);
+}
+
+int Count(const std::string& html, const std::string& what) {
+  int count = 0;
+  for (size_t at = html.find(what); at != std::string::npos; at = html.find(what, at + 1)) {
+    ++count;
+  }
+  return count;
+}
+
+// "nan" or "inf" as a word of their own (as a stream prints a non-finite double).
+bool HasNonFiniteText(const std::string& html) {
+  static const std::regex non_finite("(^|[^a-z])-?(nan|inf)([^a-z]|$)", std::regex::icase);
+  return std::regex_search(html, non_finite);
+}
+
+TEST(ReportHtml, HasResidualHistogramsForEverySensorWithData) {
+  const std::string html = CalibrationReportHtml(FullResult());
+  for (const char* heading : {"<h2>LiDAR residuals</h2>", "<h2>IMU residuals</h2>",
+                              "<h2>Wheel odometry residuals</h2>", "<h2>GNSS residuals</h2>"}) {
+    EXPECT_THAT(html, HasSubstr(heading));
+  }
+  // Whitened histograms carry the standard-normal reference; the LiDAR's (metres) does not.
+  EXPECT_EQ(Count(html, "standard normal"), 3);
+  EXPECT_THAT(Figure(html, "point-to-plane distance"), HasSubstr("before: RMS "));
+  EXPECT_THAT(Figure(html, "point-to-plane distance"), Not(HasSubstr("standard normal")));
+  EXPECT_THAT(html, HasSubstr("<li>LiDAR: 2000 point residuals in the last iteration</li>"));
+  EXPECT_THAT(html, HasSubstr("<li>IMU: 900 whitened residual rows</li>"));
+}
+
+TEST(ReportHtml, LeavesOutSensorsWithoutResiduals) {
+  OfflineCalibrationResult result = FullResult();
+  result.whitened_residuals.erase("gnss");
+  result.whitened_residuals["wheel"] = SensorResiduals();  // took part, nothing recorded
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  result.whitened_residuals["odometer"] = {{nan}, {nan, nan}};  // nothing finite to draw
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, HasSubstr("<h2>IMU residuals</h2>"));
+  EXPECT_THAT(html, Not(HasSubstr("GNSS residuals")));
+  EXPECT_THAT(html, Not(HasSubstr("Wheel odometry residuals")));
+  EXPECT_THAT(html, Not(HasSubstr("Wheel odometry:")));
+  EXPECT_THAT(html, Not(HasSubstr("odometer residuals")));
+  EXPECT_EQ(Count(html, "standard normal"), 1);
+}
+
+// RMS and the share beyond +-5 sigma over the values given (Eq. R1): sqrt((4 * 1 + 49) / 5)
+// and 1 of 5; a non-finite row is left out of both.
+TEST(ReportHtml, StatesRmsAndShareBeyondTheRange) {
+  OfflineCalibrationResult result = FullResult();
+  result.whitened_residuals["gnss"] = {
+      {0.5, -0.5}, {1.0, -1.0, 1.0, -1.0, 7.0, std::numeric_limits<double>::quiet_NaN()}};
+  const std::string figure = Figure(CalibrationReportHtml(result), "GNSS whitened residuals");
+  ASSERT_FALSE(figure.empty());
+  std::ostringstream rms;
+  rms << std::setprecision(4) << std::sqrt(53.0 / 5.0);
+  EXPECT_THAT(figure, HasSubstr("after: RMS " + rms.str() + " σ, 20 % beyond ±5 σ (n = 5)"));
+  EXPECT_THAT(figure, HasSubstr("before: RMS 0.5 σ, 0 % beyond ±5 σ (n = 2)"));
+}
+
+// One chart per estimated block; its y range is the change from the first iteration in the
+// block's display unit (the last iteration's change is the largest in magnitude).
+TEST(ReportHtml, ChartsTheConvergenceOfEveryEstimatedBlockInPhysicalUnits) {
+  const std::string html = CalibrationReportHtml(FullResult());
+  const struct {
+    const char* caption;
+    const char* extreme;  // the axis label at the far end of the change
+  } blocks[] = {
+      {"LiDAR–IMU rotation T_I_L (deg)", ">1.5</text>"},
+      {"LiDAR–IMU translation T_I_L (cm)", ">3.5</text>"},
+      {"time offset LiDAR→IMU (ms)", ">2.5</text>"},
+      {"wheel radii, relative (%)", ">0.4</text>"},
+      {"track width (mm)", ">12</text>"},
+      {"vehicle–IMU rotation T_I_V (deg)", ">2</text>"},
+      {"vehicle–IMU translation T_I_V (cm)", ">5</text>"},
+      {"GNSS lever arm p_I_A (cm)", ">-8</text>"},
+  };
+  for (const auto& block : blocks) {
+    const std::string figure = Figure(html, block.caption);
+    ASSERT_FALSE(figure.empty()) << block.caption;
+    EXPECT_THAT(figure, HasSubstr(block.extreme)) << block.caption;
+  }
+  EXPECT_THAT(Figure(html, "wheel radii"), HasSubstr(">-0.2</text>"));
+}
+
+// Estimated means: moved over the iterations, or its sigma is in the result.
+TEST(ReportHtml, SkipsConvergenceOfBlocksThatWereNotEstimated) {
+  OfflineCalibrationResult result = FullResult();
+  for (sensors::Calibration& c : result.batch.calibration_per_iteration) {
+    c.q_I_V = result.batch.calibration_per_iteration.front().q_I_V;
+    c.p_I_A = result.batch.calibration_per_iteration.front().p_I_A;
+  }
+  result.calibration.uncertainty.T_I_V = io::PoseBlockInfo();  // held, no sigma: no chart
+  result.calibration.uncertainty.track_width_m = io::ScalarBlockInfo();  // moved: a chart
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, Not(HasSubstr("vehicle–IMU rotation T_I_V")));
+  EXPECT_THAT(html, HasSubstr("<figcaption>GNSS lever arm p_I_A (cm)"));  // sigma, flat
+  EXPECT_THAT(html, HasSubstr("<figcaption>track width (mm)"));
+  EXPECT_THAT(html, Not(HasSubstr("<td>track width (mm)</td>")));  // not in the table
+}
+
+TEST(ReportHtml, SaysSoInsteadOfChartingASingleIteration) {
+  OfflineCalibrationResult result = FullResult();
+  result.batch.calibration_per_iteration.resize(1);
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, HasSubstr("Only one outer iteration was recorded: no convergence chart."));
+  EXPECT_THAT(html, Not(HasSubstr("outer iteration</text>")));
+}
+
+TEST(ReportHtml, RendersARunWithoutLidar) {
+  const std::string html = CalibrationReportHtml(ResultWithoutLidar());
+  EXPECT_THAT(html, HasSubstr("<li>LiDAR: not used</li>"));
+  EXPECT_THAT(html, Not(HasSubstr("LiDAR residuals")));
+  EXPECT_THAT(html, Not(HasSubstr("point residuals")));
+  EXPECT_THAT(html, Not(HasSubstr("point-to-plane")));
+  EXPECT_THAT(html, Not(HasSubstr("T_I_L rotation")));
+  EXPECT_THAT(html, Not(HasSubstr("time offset lidar")));
+  EXPECT_THAT(html, Not(HasSubstr("Time offset initialization")));
+  for (const char* heading :
+       {"<h2>IMU residuals</h2>", "<h2>Wheel odometry residuals</h2>", "<h2>GNSS residuals</h2>",
+        "<td>track width (mm)</td>", "IMU trajectory against GNSS"}) {
+    EXPECT_THAT(html, HasSubstr(heading));
+  }
+  EXPECT_THAT(html, HasSubstr("Only one outer iteration was recorded"));
+  EXPECT_THAT(html, Not(HasSubstr("points=''")));  // no empty chart
+  EXPECT_EQ(Count(html, "<figure>"), 4);  // three histograms and the trajectory
+  EXPECT_FALSE(HasNonFiniteText(html));
+}
+
+TEST(ReportHtml, IsSelfContained) {
+  for (const OfflineCalibrationResult& result : {FullResult(), ResultWithoutLidar()}) {
+    const std::string html = CalibrationReportHtml(result);
+    EXPECT_THAT(html, Not(HasSubstr("http://")));
+    EXPECT_THAT(html, Not(HasSubstr("https://")));
+    EXPECT_THAT(html, Not(HasSubstr("<script")));
+    EXPECT_THAT(html, Not(HasSubstr("<link")));
+    EXPECT_THAT(html, Not(HasSubstr("src=")));
+    EXPECT_THAT(html, Not(HasSubstr("url(")));
+    EXPECT_THAT(html, HasSubstr("</html>"));
+  }
+}
+
+TEST(ReportHtml, EscapesText) {
+  OfflineCalibrationResult result = FullResult();
+  result.warnings = {"radius <left> & 'right' \"both\""};
+  result.batch.termination = "<stop>";
+  result.whitened_residuals["<odd>"] = {{1.0}, {0.5}};
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, HasSubstr("radius &lt;left&gt; &amp; &#39;right&#39; &quot;both&quot;"));
+  EXPECT_THAT(html, Not(HasSubstr("<left>")));
+  EXPECT_THAT(html, HasSubstr("Solver: &lt;stop&gt;"));
+  EXPECT_THAT(html, HasSubstr("<h2>&lt;odd&gt; residuals</h2>"));
+  EXPECT_THAT(html, Not(HasSubstr("<odd>")));
+}
+
+TEST(ReportHtml, PrintsNoNonFiniteNumbers) {
+  // An empty result: every statistic over empty inputs.
+  const std::string empty = CalibrationReportHtml(OfflineCalibrationResult());
+  EXPECT_FALSE(HasNonFiniteText(empty)) << empty;
+  EXPECT_THAT(empty, Not(HasSubstr("<figure>")));
+  EXPECT_THAT(empty, HasSubstr("LiDAR: not used"));
+  EXPECT_THAT(empty, HasSubstr("No outer iteration was recorded"));
+  EXPECT_THAT(empty, Not(HasSubstr("Trajectory")));
+  // Non-finite inputs everywhere a number is printed or drawn.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  OfflineCalibrationResult result = FullResult();
+  result.batch.final_point_residuals_m.push_back(nan);
+  result.whitened_residuals["imu"].after = {inf, -inf, nan};
+  result.initialization.time_offset.correlation[3] = nan;
+  result.initialization.time_offset.offset_s = nan;
+  result.calibration.value.track_width_m = inf;
+  result.calibration.uncertainty.track_width_m.sigma = nan;
+  result.batch.calibration_per_iteration[1].wheel_radius_left_m = nan;
+  result.gnss_positions_W.push_back(Eigen::Vector3d::Constant(nan));
+  result.seconds_total = nan;
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_FALSE(HasNonFiniteText(html));
+  // The IMU kept its "before" histogram; its non-finite "after" rows are not counted.
+  EXPECT_THAT(Figure(html, "IMU whitened residuals"), HasSubstr("before: RMS"));
+  EXPECT_THAT(Figure(html, "IMU whitened residuals"), Not(HasSubstr("after: RMS")));
+}
+
+// The checker above must see what a stream prints for non-finite values.
+TEST(ReportHtml, NonFiniteCheckerFindsStreamedValues) {
+  EXPECT_TRUE(HasNonFiniteText("<td>nan</td>"));
+  EXPECT_TRUE(HasNonFiniteText("x='-inf'"));
+  EXPECT_TRUE(HasNonFiniteText("RMS NaN m"));
+  EXPECT_FALSE(HasNonFiniteText("initialization, information, finance"));
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal
