@@ -17,6 +17,7 @@
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/factors/prior_factors.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/se3.h"
@@ -28,6 +29,10 @@ namespace autocal {
 namespace estimation {
 
 namespace {
+
+// 1-sigma of the gauge prior on the first keyframe's yaw: a direction no factor informs, so
+// any weight fixes it without pulling on the data.
+constexpr double kGaugeYawSigmaRad = 1e-6;
 
 // The LiDAR pose of sweep j at its reference instant (point time 0) under the current
 // estimate: T_W_L = T_W_I(t) T_I_L with T_W_I(t) from Eq. (P1-P3) at delta = 0.
@@ -293,10 +298,18 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     // Other sensors' factors and priors, from the caller.
     if (options.add_factors) options.add_factors(&problem, keyframes, calibration);
 
-    // Gauge: position and yaw are unobservable from IMU and LiDAR alone.
+    // Gauge: position and yaw are unobservable from IMU and LiDAR alone; roll and pitch are
+    // not (gravity) and stay free, or the initializer's tilt error would be frozen in and
+    // leak gravity into every acceleration. The yaw is held by a prior on the first
+    // keyframe's rotation about z_W only: for the right perturbation phi, the rotation in W is
+    // R0 phi, so the prior's one nonzero row is z_W^T R0 / sigma.
     if (options.hold_first_pose) {
-      problem.SetParameterBlockConstant((*keyframes)[0].q_W_I.coeffs().data());
-      problem.SetParameterBlockConstant((*keyframes)[0].p_W_I.data());
+      Keyframe& first = (*keyframes)[0];
+      problem.SetParameterBlockConstant(first.p_W_I.data());
+      Eigen::Matrix3d yaw_only = Eigen::Matrix3d::Zero();
+      yaw_only.row(2) = first.q_W_I.normalized().toRotationMatrix().row(2) / kGaugeYawSigmaRad;
+      problem.AddResidualBlock(new factors::QuaternionPriorFactor(first.q_W_I, yaw_only), nullptr,
+                               first.q_W_I.coeffs().data());
     }
     if (!options.estimate_extrinsic_rotation) {
       problem.SetParameterBlockConstant(calibration->q_I_L.coeffs().data());

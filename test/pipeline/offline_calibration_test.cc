@@ -25,21 +25,17 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-// Every sensor, every block (problems/urban_full.yaml).
-io::Problem FullProblem() {
-  io::Problem problem;
-  problem.path = "urban_full (test)";
-  return problem;
+// A problem file shipped in problems/.
+io::Problem ShippedProblem(const std::string& name) {
+  return io::ReadProblemYaml(
+      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / name).string());
 }
 
-// A LiDAR-IMU problem built in code (problems/lidar_imu.yaml).
-io::Problem LidarImuProblem() {
-  io::Problem problem;
-  problem.path = "lidar_imu (test)";
-  problem.sensors.wheel = false;
-  problem.sensors.gnss = false;
-  return problem;
-}
+// Every sensor, every block.
+io::Problem FullProblem() { return ShippedProblem("urban_full.yaml"); }
+
+// The LiDAR and the IMU only.
+io::Problem LidarImuProblem() { return ShippedProblem("lidar_imu.yaml"); }
 
 // Errors of the LiDAR-IMU blocks against the truth.
 struct LidarImuErrors {
@@ -162,6 +158,32 @@ TEST_F(OfflineCalibrationTest, ABadNominalGuessChangesNothingObservable) {
   EXPECT_DOUBLE_EQ(estimate.p_I_L.z(), nominal.p_I_L.z());
 }
 
+// problems/lidar_imu.yaml: the LiDAR and the IMU alone. Without wheels and GNSS nothing but
+// the IMU ties the velocity, so the translation is known less well (sigma 7-8 mm on this 34 s
+// log, against 6 mm with every sensor); measured: 0.029 deg, x 4.4 mm, y 12.5 mm, 0.68 ms.
+// The rotation and offset goals hold; the translation is held to its reported sigma (3 sigma)
+// and to 2 cm. The wheel and GNSS blocks take no part and keep their nominal values.
+TEST_F(OfflineCalibrationTest, CalibratesTheLidarImuBlocksAlone) {
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, LidarImuProblem());
+  std::cout << FormatCalibrationSummary(result);
+  const sensors::Calibration& estimate = result.calibration.value;
+  const sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
+  const LidarImuErrors e = LidarImuErrorsOf(estimate, data_->simulator.true_calibration());
+  EXPECT_LT(e.rotation_deg, 0.1);
+  EXPECT_LT(e.offset_ms, 1.0);
+  const io::PoseBlockInfo& info = result.calibration.uncertainty.T_I_L;
+  ASSERT_TRUE(info.sigma_p_m.has_value());
+  for (int a = 0; a < 2; ++a) {
+    EXPECT_LT(std::abs(e.p_m(a)), 0.02) << "axis " << a;
+    EXPECT_LT(std::abs(e.p_m(a)), 3.0 * (*info.sigma_p_m)(a)) << "axis " << a;
+  }
+  EXPECT_EQ(estimate.wheel_radius_left_m, nominal.wheel_radius_left_m);
+  EXPECT_EQ(estimate.p_I_A, nominal.p_I_A);
+  EXPECT_FALSE(result.calibration.uncertainty.p_I_A_m.sigma.has_value());
+  EXPECT_EQ(result.whitened_residuals.count("gnss"), 0u);
+}
+
 // The log holds moving vehicles (LiDAR points on them break the static-world model) and GNSS
 // multipath (2 % of the fixes 3-15 m off). CalibratesEveryBlockFromAllSensors shows the
 // robust losses of the problem keep every goal; here the same log with plain least squares
@@ -211,8 +233,7 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
   std::filesystem::remove_all(directory);
   sim::WriteDataset(simulator, directory);
   const io::Dataset dataset = io::ReadDataset(directory);
-  const io::Problem problem = io::ReadProblemYaml(
-      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "highway.yaml").string());
+  const io::Problem problem = ShippedProblem("highway.yaml");
   const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
   std::filesystem::remove_all(directory);
   std::cout << FormatCalibrationSummary(result);
@@ -274,8 +295,7 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("wheel"));
   }
   // Without the LiDAR the keyframes come from the GNSS track: GNSS is required.
-  io::Problem no_lidar = io::ReadProblemYaml(
-      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
+  io::Problem no_lidar = ShippedProblem("imu_wheel_gnss.yaml");
   no_lidar.sensors.gnss = false;
   no_lidar.calibration.p_I_A_m.mode = io::BlockMode::kFixed;
   try {
@@ -291,8 +311,7 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
 // LiDAR blocks take no part and keep their nominal values.
 TEST_F(OfflineCalibrationTest, WithoutTheLidarFromImuWheelsAndGnss) {
   const io::Dataset dataset = io::ReadDataset(data_->directory);
-  const io::Problem problem = io::ReadProblemYaml(
-      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
+  const io::Problem problem = ShippedProblem("imu_wheel_gnss.yaml");
   const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
   std::cout << FormatCalibrationSummary(result);
   const sensors::Calibration& truth = data_->simulator.true_calibration();

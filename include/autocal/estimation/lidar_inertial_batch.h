@@ -93,8 +93,8 @@ struct LidarInertialBatchOptions {
   // keyframe and LiDAR-IMU calibration blocks are in it; may be empty. Quaternion blocks it
   // adds need a manifold that outlives the solve (the problem does not own manifolds).
   std::function<void(ceres::Problem*, std::vector<Keyframe>*, sensors::Calibration*)> add_factors;
-  // Holds the first keyframe's pose, which fixes the gauge (position and yaw). Factors that
-  // fix it themselves (GNSS) replace this.
+  // Holds the first keyframe's position and yaw, which fixes the gauge (roll and pitch stay
+  // free: gravity determines them). Factors that fix it themselves (GNSS) replace this.
   bool hold_first_pose = true;
   // Called with the final problem after the last solve (e.g. for the covariance of blocks
   // added by add_factors); may be empty.
@@ -134,8 +134,8 @@ struct LidarInertialBatchReport {
 // Refines `keyframes` (one per sweep, in sweep order) and the LiDAR-IMU part of
 // `calibration` (q_I_L, p_I_L, time_offset_lidar_imu_s, and whatever blocks the factors of
 // options.add_factors touch) in place. Unless options.hold_first_pose is off, the first
-// keyframe's pose fixes the gauge (position and yaw are unobservable from IMU and LiDAR
-// alone) and is held.
+// keyframe's position and yaw fix the gauge (they are unobservable from IMU and LiDAR alone)
+// and are held.
 // Throws autocal::Error when the inputs do not fit (sizes, IMU coverage).
 LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                                  const std::vector<lidar::LidarSweep>& sweeps,
