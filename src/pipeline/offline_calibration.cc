@@ -1,6 +1,5 @@
 #include "autocal/pipeline/offline_calibration.h"
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -13,18 +12,13 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
-#include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
-#include "autocal/estimation/keyframe_sensor_factors.h"
-#include "autocal/factors/gnss_factor.h"
-#include "autocal/factors/imu_factor.h"
-#include "autocal/factors/prior_factors.h"
-#include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/pipeline/report_html.h"
 #include "calibration_blocks.h"
+#include "calibration_steps.h"
 #include "problem_blocks.h"
 
 namespace autocal {
@@ -33,23 +27,6 @@ namespace pipeline {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-void Report(const OfflineCalibrationOptions& options, const std::string& stage, double fraction,
-            double cost, double seconds_left) {
-  if (!options.progress) return;
-  CalibrationProgress progress;
-  progress.stage = stage;
-  progress.fraction = fraction;
-  progress.cost = cost;
-  progress.seconds_left = seconds_left;
-  options.progress(progress);
-}
-
-bool Estimated(io::BlockMode mode) { return mode != io::BlockMode::kFixed; }
 
 // The batch solver's settings from the problem and the dataset.
 estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
@@ -68,13 +45,6 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
   batch.estimate_time_offset = Estimated(problem.calibration.time_offset_lidar_imu_s.mode);
   return batch;
 }
-
-std::string Join(const std::vector<std::string>& parts, const std::string& separator) {
-  std::string out;
-  for (size_t i = 0; i < parts.size(); ++i) out += (i == 0 ? "" : separator) + parts[i];
-  return out;
-}
-
 
 // The initializer's keyframes are in a gravity-aligned frame of their own; GNSS brings them
 // into ENU. Where the LiDAR odometry followed the drive, a 4-DoF alignment of its track does
@@ -115,238 +85,6 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
       " bridged), and the LiDAR rotation, translation and time offset start from their nominal "
       "values");
   return false;
-}
-
-// The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
-// the priors of the estimated blocks.
-struct SensorFactors {
-  const io::Dataset* dataset = nullptr;
-  const io::Problem* problem = nullptr;
-  const sensors::Calibration* nominal = nullptr;
-  bool use_wheel = false;
-  bool use_gnss = false;
-  const sensors::EnuConverter* enu = nullptr;
-  const std::vector<CalibrationBlock>* blocks = nullptr;
-  geometry::RightQuaternionManifold* quaternion_manifold = nullptr;
-
-  void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
-           sensors::Calibration* c) const {
-    const io::ProblemCalibration& b = problem->calibration;
-    if (use_wheel) {
-      p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
-      estimation::KeyframeWheelOptions wheel;
-      wheel.factor = factors::WheelFactorOptions::FromEncoderNoise(
-          *dataset->sensors.wheel, nominal->wheel_radius_left_m, nominal->track_width_m);
-      wheel.factor.shared_radius = b.wheel_radius_shared;
-      wheel.loss = problem->loss.wheel;
-      wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
-      wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
-      wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
-      wheel.estimate_track_width = Estimated(b.track_width_m.mode);
-      estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
-    }
-    if (use_gnss) {
-      estimation::KeyframeGnssOptions gnss;
-      gnss.loss = problem->loss.gnss;
-      gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
-      estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
-    }
-    AddBlockPriors(*blocks, problem->loss.prior, p);
-  }
-};
-
-// Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,
-// by sensor, at the current parameter values.
-std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
-  std::vector<ceres::ResidualBlockId> all;
-  problem->GetResidualBlocks(&all);
-  std::map<std::string, std::vector<ceres::ResidualBlockId>> ids;
-  for (ceres::ResidualBlockId id : all) {
-    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
-    if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
-    if (dynamic_cast<const factors::WheelFactor*>(f)) ids["wheel"].push_back(id);
-    if (dynamic_cast<const factors::GnssFactor*>(f)) ids["gnss"].push_back(id);
-  }
-  std::map<std::string, std::vector<double>> out;
-  for (const auto& [sensor, blocks] : ids) {
-    ceres::Problem::EvaluateOptions evaluate;
-    evaluate.residual_blocks = blocks;
-    evaluate.apply_loss_function = false;
-    problem->Evaluate(evaluate, nullptr, &out[sensor], nullptr, nullptr);
-  }
-  return out;
-}
-
-// Observability and uncertainty (step 4): directions the drive did not excite are held at
-// their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
-// data point into it); then the result's calibration, trajectory and timings. Throws when the solve ended implausibly far from the priors.
-void Conclude(const io::Dataset& dataset, const io::Problem& problem,
-              const OfflineCalibrationOptions& options,
-              const std::vector<CalibrationBlock>& blocks_estimated,
-              const BlockCovariance& covariance,
-              const std::vector<estimation::Keyframe>& keyframes,
-              sensors::Calibration* calibration, std::chrono::steady_clock::time_point start,
-              OfflineCalibrationResult* result) {
-  io::CalibrationFile& file = result->calibration;
-  const std::vector<std::string> implausible =
-      ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);
-  if (!implausible.empty()) {
-    throw Error("dataset " + dataset.directory +
-                ": the calibration solve did not converge to a plausible result (" +
-                Join(implausible, "; ") +
-                "); nothing is written. The drive may not excite these blocks: fix them or "
-                "give them priors in the problem file");
-  }
-  if (covariance.ok) {
-    const BlockObservability observability =
-        HoldUnobservableDirections(blocks_estimated, covariance);
-    FillUncertainty(blocks_estimated, observability, &file.uncertainty);
-    result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
-                            observability.warnings.end());
-  } else {
-    result->warnings.push_back(
-        "the covariance of the calibration could not be computed; no sigma and no "
-        "observability are reported");
-  }
-  if (problem.calibration.wheel_radius_shared) {
-    calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
-  }
-  if (problem.sensors.wheel && dataset.wheel.empty()) {
-    result->warnings.push_back("the dataset has no wheel samples: wheel blocks keep their nominal value");
-  }
-  file.value = *calibration;
-  file.solver["keyframes"] = std::to_string(keyframes.size());
-  for (const estimation::Keyframe& kf : keyframes) {
-    io::TrajectorySample sample;
-    sample.t_ns = kf.t_ns;
-    sample.T_W_I = geometry::Pose3d(kf.q_W_I.normalized(), kf.p_W_I);
-    sample.v_W_I = kf.v_W_I;
-    result->trajectory.push_back(sample);
-  }
-  for (const auto& [sensor, residuals] : result->whitened_residuals) {
-    double sum = 0.0;
-    for (double r : residuals.after) sum += r * r;
-    if (!residuals.after.empty()) {
-      file.residuals[sensor]["whitened_rms"] =
-          std::sqrt(sum / static_cast<double>(residuals.after.size()));
-      file.residuals[sensor]["rows"] = static_cast<double>(residuals.after.size());
-    }
-  }
-  result->seconds_total = SecondsSince(start);
-  result->seconds_solve =
-      result->seconds_total - result->seconds_loading - result->seconds_initialization;
-  file.solver["seconds"] = std::to_string(result->seconds_total);
-  file.solver["seconds_loading"] = std::to_string(result->seconds_loading);
-  file.solver["seconds_initialization"] = std::to_string(result->seconds_initialization);
-  file.solver["seconds_solve"] = std::to_string(result->seconds_solve);
-}
-
-// Without the LiDAR (docs/calibration.md, "Without the LiDAR"): keyframes every
-// inertial_keyframe_period_s are placed on the GNSS track and refined with the IMU and the
-// wheels (estimation/gnss_inertial_keyframes.h), then one least-squares problem of IMU,
-// wheel and GNSS factors and the blocks' priors estimates the wheel blocks, T_I_V and the
-// lever arm with the keyframe states.
-OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
-                                               const io::Problem& problem,
-                                               const OfflineCalibrationOptions& options,
-                                               std::chrono::steady_clock::time_point start) {
-  if (!problem.sensors.gnss || dataset.gnss.empty()) {
-    throw Error("problem " + problem.path +
-                ": a calibration without the LiDAR needs GNSS (sensors.gnss and gnss.csv): the "
-                "keyframes are placed on the GNSS track");
-  }
-  OfflineCalibrationResult result;
-  result.nominal = dataset.sensors.nominal_calibration;
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
-  const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-  for (const sensors::GnssFix& fix : dataset.gnss) {
-    result.gnss_positions_W.push_back(enu.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
-  }
-
-  // 1. Keyframes over the span the IMU and the fixes share.
-  Report(options, "initializing", 0.0, 0.0, 0.0);
-  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
-  const int64_t last_ns = std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns);
-  const int64_t period_ns = SecondsToNs(options.inertial_keyframe_period_s);
-  if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
-  std::vector<estimation::Keyframe> keyframes;
-  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
-    estimation::Keyframe kf;
-    kf.t_ns = t;
-    keyframes.push_back(kf);
-  }
-  if (keyframes.size() < 2) {
-    throw Error("dataset " + dataset.directory +
-                ": the IMU and the GNSS fixes overlap too briefly for two keyframes");
-  }
-  sensors::Calibration calibration = result.nominal;
-  estimation::GnssInertialKeyframesOptions gnss_inertial;
-  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
-  gnss_inertial.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  gnss_inertial.num_threads = problem.solver.num_threads;
-  const estimation::GnssInertialKeyframes placed = estimation::KeyframesFromGnssAndImu(
-      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
-      enu, calibration, gnss_inertial);
-  result.seconds_initialization = SecondsSince(start);
-  Report(options, "initializing", 1.0, 0.0, 0.0);
-
-  // 2. The joint solve.
-  const std::vector<CalibrationBlock> blocks_estimated =
-      EstimatedBlocks(problem, dataset.sensors, options, use_wheel, true, &calibration);
-  geometry::RightQuaternionManifold quaternion_manifold;
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem p(problem_options);
-  for (estimation::Keyframe& kf : keyframes) {
-    p.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
-  }
-  estimation::KeyframeImuOptions imu;
-  imu.noise = dataset.sensors.imu.noise;
-  imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  imu.num_threads = problem.solver.num_threads;
-  estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
-  estimation::Keyframe& first = keyframes.front();
-  p.AddResidualBlock(new factors::VectorPriorFactor(
-                         Eigen::Vector3d::Zero(),
-                         Eigen::Matrix3d::Identity() / gnss_inertial.gyro_bias_prior_sigma_rad_s),
-                     nullptr, first.b_g.data());
-  p.AddResidualBlock(new factors::VectorPriorFactor(
-                         Eigen::Vector3d::Zero(),
-                         Eigen::Matrix3d::Identity() / gnss_inertial.accel_bias_prior_sigma_m_s2),
-                     nullptr, first.b_a.data());
-  SensorFactors sensor_factors{&dataset, &problem,   &result.nominal,    use_wheel, true,
-                               &enu,     &blocks_estimated, &quaternion_manifold};
-  sensor_factors.Add(&p, &keyframes, &calibration);
-  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
-    result.whitened_residuals[sensor].before = std::move(rows);
-  }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = problem.solver.max_iterations * problem.solver.outer_iterations;
-  solver_options.num_threads = problem.solver.num_threads;
-  Report(options, "solving", 0.0, 0.0, 0.0);
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &p, &summary);
-  if (!summary.IsSolutionUsable()) {
-    throw Error("dataset " + dataset.directory + ": the calibration solve failed: " +
-                summary.message);
-  }
-  for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
-  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
-    result.whitened_residuals[sensor].after = std::move(rows);
-  }
-  const BlockCovariance covariance = ComputeBlockCovariance(blocks_estimated, &p);
-  result.batch.termination = summary.message;
-  result.batch.final_cost = summary.final_cost;
-  result.batch.calibration_per_iteration = {calibration};  // one solve
-  io::CalibrationFile& file = result.calibration;
-  file.solver["termination"] = summary.message;
-  file.solver["iterations"] = std::to_string(summary.iterations.size());
-  file.solver["final_cost"] = std::to_string(summary.final_cost);
-  file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
-  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
-           &result);
-  return result;
 }
 
 }  // namespace

@@ -3,14 +3,14 @@
 #include <optional>
 #include <utility>
 
+#include "calibration_steps.h"
+
 namespace autocal {
 namespace pipeline {
 
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
-
-bool Estimated(io::BlockMode mode) { return mode != io::BlockMode::kFixed; }
 
 // Prior sigma per direction: the problem's for a block in prior mode, else the dataset's
 // nominal uncertainty when it states one, else the default.

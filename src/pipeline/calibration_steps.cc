@@ -1,0 +1,146 @@
+#include "calibration_steps.h"
+
+#include <cmath>
+#include <utility>
+
+#include "autocal/common/error.h"
+#include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/imu_factor.h"
+#include "autocal/factors/wheel_factor.h"
+#include "problem_blocks.h"
+
+namespace autocal {
+namespace pipeline {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void Report(const OfflineCalibrationOptions& options, const std::string& stage, double fraction,
+            double cost, double seconds_left) {
+  if (!options.progress) return;
+  CalibrationProgress progress;
+  progress.stage = stage;
+  progress.fraction = fraction;
+  progress.cost = cost;
+  progress.seconds_left = seconds_left;
+  options.progress(progress);
+}
+
+bool Estimated(io::BlockMode mode) { return mode != io::BlockMode::kFixed; }
+
+std::string Join(const std::vector<std::string>& parts, const std::string& separator) {
+  std::string out;
+  for (size_t i = 0; i < parts.size(); ++i) out += (i == 0 ? "" : separator) + parts[i];
+  return out;
+}
+
+void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
+                        sensors::Calibration* c) const {
+  const io::ProblemCalibration& b = problem->calibration;
+  if (use_wheel) {
+    p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
+    estimation::KeyframeWheelOptions wheel;
+    wheel.factor = factors::WheelFactorOptions::FromEncoderNoise(
+        *dataset->sensors.wheel, nominal->wheel_radius_left_m, nominal->track_width_m);
+    wheel.factor.shared_radius = b.wheel_radius_shared;
+    wheel.loss = problem->loss.wheel;
+    wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
+    wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
+    wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
+    wheel.estimate_track_width = Estimated(b.track_width_m.mode);
+    estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
+  }
+  if (use_gnss) {
+    estimation::KeyframeGnssOptions gnss;
+    gnss.loss = problem->loss.gnss;
+    gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
+    estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
+  }
+  AddBlockPriors(*blocks, problem->loss.prior, p);
+}
+
+std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
+  std::vector<ceres::ResidualBlockId> all;
+  problem->GetResidualBlocks(&all);
+  std::map<std::string, std::vector<ceres::ResidualBlockId>> ids;
+  for (ceres::ResidualBlockId id : all) {
+    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
+    if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
+    if (dynamic_cast<const factors::WheelFactor*>(f)) ids["wheel"].push_back(id);
+    if (dynamic_cast<const factors::GnssFactor*>(f)) ids["gnss"].push_back(id);
+  }
+  std::map<std::string, std::vector<double>> out;
+  for (const auto& [sensor, blocks] : ids) {
+    ceres::Problem::EvaluateOptions evaluate;
+    evaluate.residual_blocks = blocks;
+    evaluate.apply_loss_function = false;
+    problem->Evaluate(evaluate, nullptr, &out[sensor], nullptr, nullptr);
+  }
+  return out;
+}
+
+void Conclude(const io::Dataset& dataset, const io::Problem& problem,
+              const OfflineCalibrationOptions& options,
+              const std::vector<CalibrationBlock>& blocks_estimated,
+              const BlockCovariance& covariance,
+              const std::vector<estimation::Keyframe>& keyframes,
+              sensors::Calibration* calibration, std::chrono::steady_clock::time_point start,
+              OfflineCalibrationResult* result) {
+  io::CalibrationFile& file = result->calibration;
+  const std::vector<std::string> implausible =
+      ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);
+  if (!implausible.empty()) {
+    throw Error("dataset " + dataset.directory +
+                ": the calibration solve did not converge to a plausible result (" +
+                Join(implausible, "; ") +
+                "); nothing is written. The drive may not excite these blocks: fix them or "
+                "give them priors in the problem file");
+  }
+  if (covariance.ok) {
+    const BlockObservability observability =
+        HoldUnobservableDirections(blocks_estimated, covariance);
+    FillUncertainty(blocks_estimated, observability, &file.uncertainty);
+    result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
+                            observability.warnings.end());
+  } else {
+    result->warnings.push_back(
+        "the covariance of the calibration could not be computed; no sigma and no "
+        "observability are reported");
+  }
+  if (problem.calibration.wheel_radius_shared) {
+    calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
+  }
+  if (problem.sensors.wheel && dataset.wheel.empty()) {
+    result->warnings.push_back("the dataset has no wheel samples: wheel blocks keep their nominal value");
+  }
+  file.value = *calibration;
+  file.solver["keyframes"] = std::to_string(keyframes.size());
+  for (const estimation::Keyframe& kf : keyframes) {
+    io::TrajectorySample sample;
+    sample.t_ns = kf.t_ns;
+    sample.T_W_I = geometry::Pose3d(kf.q_W_I.normalized(), kf.p_W_I);
+    sample.v_W_I = kf.v_W_I;
+    result->trajectory.push_back(sample);
+  }
+  for (const auto& [sensor, residuals] : result->whitened_residuals) {
+    double sum = 0.0;
+    for (double r : residuals.after) sum += r * r;
+    if (!residuals.after.empty()) {
+      file.residuals[sensor]["whitened_rms"] =
+          std::sqrt(sum / static_cast<double>(residuals.after.size()));
+      file.residuals[sensor]["rows"] = static_cast<double>(residuals.after.size());
+    }
+  }
+  result->seconds_total = SecondsSince(start);
+  result->seconds_solve =
+      result->seconds_total - result->seconds_loading - result->seconds_initialization;
+  file.solver["seconds"] = std::to_string(result->seconds_total);
+  file.solver["seconds_loading"] = std::to_string(result->seconds_loading);
+  file.solver["seconds_initialization"] = std::to_string(result->seconds_initialization);
+  file.solver["seconds_solve"] = std::to_string(result->seconds_solve);
+}
+
+}  // namespace pipeline
+}  // namespace autocal

@@ -1,0 +1,82 @@
+#pragma once
+
+// The steps both offline calibration paths share (docs/calibration.md): the wheel and GNSS
+// factors on the keyframes, the whitened residuals by sensor, and the conclusion (observability,
+// uncertainty, the result's calibration, trajectory and timings); and the path without the
+// LiDAR, which CalibrateDataset dispatches to.
+
+#include <chrono>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <ceres/ceres.h>
+
+#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/offline_calibration.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/gnss_enu.h"
+#include "calibration_blocks.h"
+
+namespace autocal {
+namespace pipeline {
+
+// Wall time since `start`.
+double SecondsSince(std::chrono::steady_clock::time_point start);
+
+// Passes one stage's progress to options.progress, when there is one.
+void Report(const OfflineCalibrationOptions& options, const std::string& stage, double fraction,
+            double cost, double seconds_left);
+
+// A block in estimate or prior mode is estimated; a fixed one is held at its initial guess.
+bool Estimated(io::BlockMode mode);
+
+// The parts with `separator` between them.
+std::string Join(const std::vector<std::string>& parts, const std::string& separator);
+
+// The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
+// the priors of the estimated blocks.
+struct SensorFactors {
+  const io::Dataset* dataset = nullptr;
+  const io::Problem* problem = nullptr;
+  const sensors::Calibration* nominal = nullptr;
+  bool use_wheel = false;
+  bool use_gnss = false;
+  const sensors::EnuConverter* enu = nullptr;
+  const std::vector<CalibrationBlock>* blocks = nullptr;
+  geometry::RightQuaternionManifold* quaternion_manifold = nullptr;
+
+  void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
+           sensors::Calibration* c) const;
+};
+
+// Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,
+// by sensor, at the current parameter values.
+std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem);
+
+// Observability and uncertainty (step 4): directions the drive did not excite are held at
+// their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
+// data point into it); then the result's calibration, trajectory and timings. Throws when the
+// solve ended implausibly far from the priors.
+void Conclude(const io::Dataset& dataset, const io::Problem& problem,
+              const OfflineCalibrationOptions& options,
+              const std::vector<CalibrationBlock>& blocks_estimated,
+              const BlockCovariance& covariance, const std::vector<estimation::Keyframe>& keyframes,
+              sensors::Calibration* calibration,
+              std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result);
+
+// Without the LiDAR (docs/calibration.md, "Without the LiDAR"): keyframes every
+// inertial_keyframe_period_s are placed on the GNSS track and refined with the IMU and the
+// wheels (estimation/gnss_inertial_keyframes.h), then one least-squares problem of IMU,
+// wheel and GNSS factors and the blocks' priors estimates the wheel blocks, T_I_V and the
+// lever arm with the keyframe states. `start` is when CalibrateDataset began.
+OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
+                                               const io::Problem& problem,
+                                               const OfflineCalibrationOptions& options,
+                                               std::chrono::steady_clock::time_point start);
+
+}  // namespace pipeline
+}  // namespace autocal
