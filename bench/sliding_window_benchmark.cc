@@ -1,9 +1,13 @@
 // The sliding-window estimator over a simulated urban drive (16 beams, all sensors): the
 // distribution of the per-update time (one update per LiDAR sweep) and of the time spent
 // marginalizing the oldest keyframe, as p50/p99 counters in milliseconds, with the median
-// split of an update (association, problem build, solve), its solver iterations and the
-// point-to-plane residuals in the window.
+// split of an update (association, problem build, solve), its solver iterations, plane
+// lookups and the point-to-plane residuals in the window; the thread CPU time of an update
+// (robust to other load on the machine) and the median step of the calibration per update.
+#include <time.h>
+
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <tuple>
 #include <vector>
@@ -12,6 +16,7 @@
 
 #include "autocal/common/time.h"
 #include "autocal/estimation/sliding_window.h"
+#include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
@@ -49,6 +54,14 @@ const Log& UrbanLog() {
   return *log;
 }
 
+// CPU time of the calling thread: the updates run on it (num_threads = 1), and unlike the
+// wall clock it does not count the time other processes on a shared machine take.
+double ThreadCpuSeconds() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
 double Percentile(std::vector<double> values, double q) {
   if (values.empty()) return 0.0;
   std::sort(values.begin(), values.end());
@@ -80,13 +93,16 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   initial.b_g = log.data.imu.gyro_bias.front();
   initial.b_a = log.data.imu.accel_bias.front();
 
-  std::vector<double> update_ms, association_ms, build_ms, solve_ms, marginalization_ms, points,
-      iterations;
+  std::vector<double> update_ms, update_cpu_ms, association_ms, build_ms, solve_ms,
+      marginalization_ms, points, iterations, lookups, rotation_step_deg, translation_step_mm,
+      offset_step_ms;
   for (auto _ : bench) {
     estimation::SlidingWindowEstimator estimator(options, log.simulator->nominal_calibration(),
                                                  initial);
     int64_t updates = 0;
+    sensors::Calibration previous = estimator.calibration();
     for (const auto& [t, kind, i] : log.events) {
+      const double cpu_start_s = ThreadCpuSeconds();
       switch (kind) {
         case 0: estimator.AddImu(log.data.imu.samples[i]); break;
         case 1: estimator.AddWheel(log.data.wheel[i]); break;
@@ -97,22 +113,37 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       updates = estimator.counters().updates;
       const estimation::SlidingWindowUpdateTiming& timing = estimator.last_update_timing();
       update_ms.push_back(1e3 * timing.total_s);
+      update_cpu_ms.push_back(1e3 * (ThreadCpuSeconds() - cpu_start_s));
+      const sensors::Calibration& c = estimator.calibration();
+      rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * 180.0 /
+                                  M_PI);
+      translation_step_mm.push_back(1e3 * (c.p_I_L - previous.p_I_L).norm());
+      offset_step_ms.push_back(1e3 * std::abs(c.time_offset_lidar_imu_s -
+                                              previous.time_offset_lidar_imu_s));
+      previous = c;
       association_ms.push_back(1e3 * timing.association_s);
       build_ms.push_back(1e3 * timing.build_s);
       solve_ms.push_back(1e3 * timing.solve_s);
       points.push_back(estimator.last_associated_points());
       iterations.push_back(timing.solver_iterations);
+      lookups.push_back(timing.plane_lookups);
       if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
     }
   }
   bench.counters["updates"] = static_cast<double>(update_ms.size());
   bench.counters["update_p50_ms"] = Percentile(update_ms, 0.5);
   bench.counters["update_p99_ms"] = Percentile(update_ms, 0.99);
+  bench.counters["update_cpu_p50_ms"] = Percentile(update_cpu_ms, 0.5);
+  bench.counters["update_cpu_p99_ms"] = Percentile(update_cpu_ms, 0.99);
+  bench.counters["rotation_step_p50_deg"] = Percentile(rotation_step_deg, 0.5);
+  bench.counters["translation_step_p50_mm"] = Percentile(translation_step_mm, 0.5);
+  bench.counters["offset_step_p50_ms"] = Percentile(offset_step_ms, 0.5);
   bench.counters["association_p50_ms"] = Percentile(association_ms, 0.5);
   bench.counters["build_p50_ms"] = Percentile(build_ms, 0.5);
   bench.counters["solve_p50_ms"] = Percentile(solve_ms, 0.5);
   bench.counters["points_p50"] = Percentile(points, 0.5);
   bench.counters["iterations_p50"] = Percentile(iterations, 0.5);
+  bench.counters["lookups_p50"] = Percentile(lookups, 0.5);
   bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
   bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);
 }

@@ -35,6 +35,9 @@ void CheckPositive(double value, const char* name) {
 
 void CheckOptions(const SlidingWindowOptions& o) {
   if (o.window_size < 2) throw Error("SlidingWindowOptions: window_size must be at least 2");
+  if (o.point_linearizations_per_update < 0) {
+    throw Error("SlidingWindowOptions: point_linearizations_per_update must be >= 0");
+  }
   if (o.solver_iterations < 1) {
     throw Error("SlidingWindowOptions: solver_iterations must be at least 1");
   }
@@ -316,7 +319,7 @@ void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
   timing_.build_s = SecondsSince(build_start);
 
   const auto solve_start = std::chrono::steady_clock::now();
-  Solve(build.get());
+  Solve(&build);
   timing_.solve_s = SecondsSince(solve_start);
 
   if (static_cast<int>(window_.size()) > options_.window_size) {
@@ -359,6 +362,10 @@ void SlidingWindowEstimator::AddKeyframe(const lidar::LidarSweep& sweep) {
       options_.max_residuals_per_sweep);
   kf->map_points =
       internal::OnePointPerVoxel(sweep.cloud, options_.map_voxel_m, options_.min_range_m);
+  for (int i : kf->residual_points) {
+    kf->residual_max_range_m =
+        std::max(kf->residual_max_range_m, sweep.cloud.points.col(i).norm());
+  }
   kf->sweep_duration_s = sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
   kf->sweep = sweep;
 
@@ -446,13 +453,11 @@ void SlidingWindowEstimator::DropOldest(std::unique_ptr<MarginalizationPrior> pr
   // Pairs with the dropped sweep are in the prior now.
   for (auto& kf : window_) {
     std::vector<internal::SweepPointGroup>& groups = kf->point_groups;
-    const size_t before = groups.size();
     groups.erase(std::remove_if(groups.begin(), groups.end(),
                                 [dropped_id](const internal::SweepPointGroup& g) {
                                   return g.partner_id == dropped_id;
                                 }),
                  groups.end());
-    if (groups.size() != before) kf->lost_partner = true;
   }
   window_.front()->imu_from_previous.reset();
   ++counters_.marginalizations;

@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "autocal/common/error.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
@@ -223,6 +224,69 @@ class CompressedPointGroup final : public ceres::CostFunction {
 
  private:
   const factors::PointToSweepPlaneGroupFactor* group_;
+};
+
+// A point group linearized once per update (docs/sliding_window.md, Eq. SW7): its compressed
+// rows (Eq. SW5) and their Jacobian R are evaluated at the parameters x0 it is built at, and
+// the solver sees the first-order model
+//   rho(x) = rho(x0) + R (x - x0)   (ambient coordinates; row 28 stays constant),
+// so that a Levenberg-Marquardt iteration costs a 29 x 28 product per group instead of the
+// group's n point Jacobians. The parameters must stay at x0's side of the quaternion sign.
+class LinearizedPointGroup final : public ceres::CostFunction {
+ public:
+  static constexpr int kAmbient = CompressedPointGroup::kAmbient;
+  static constexpr int kRows = CompressedPointGroup::kRows;
+
+  // Throws autocal::Error when the group cannot be evaluated at `parameters`.
+  LinearizedPointGroup(const factors::PointToSweepPlaneGroupFactor* group,
+                       const std::vector<double*>& parameters) {
+    set_num_residuals(kRows);
+    *mutable_parameter_block_sizes() = group->parameter_block_sizes();
+    const std::vector<int32_t>& sizes = parameter_block_sizes();
+    const CompressedPointGroup compressed(group);
+    std::vector<Eigen::Matrix<double, kRows, Eigen::Dynamic, Eigen::RowMajor>> blocks(
+        sizes.size());
+    std::vector<double*> jacobians(sizes.size());
+    for (size_t b = 0; b < sizes.size(); ++b) {
+      blocks[b].resize(kRows, sizes[b]);
+      jacobians[b] = blocks[b].data();
+    }
+    std::vector<const double*> values(parameters.begin(), parameters.end());
+    if (!compressed.Evaluate(values.data(), rho0_.data(), jacobians.data())) {
+      throw Error("LinearizedPointGroup: the point group cannot be evaluated");
+    }
+    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
+      const Eigen::Index c = static_cast<Eigen::Index>(column);
+      R_.middleCols(c, sizes[b]) = blocks[b];
+      x0_.segment(c, sizes[b]) = Eigen::Map<const Eigen::VectorXd>(parameters[b], sizes[b]);
+    }
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const std::vector<int32_t>& sizes = parameter_block_sizes();
+    Eigen::Matrix<double, kAmbient, 1> dx;
+    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
+      const Eigen::Index c = static_cast<Eigen::Index>(column);
+      dx.segment(c, sizes[b]) =
+          Eigen::Map<const Eigen::VectorXd>(parameters[b], sizes[b]) - x0_.segment(c, sizes[b]);
+    }
+    Eigen::Map<Eigen::Matrix<double, kRows, 1>> rho(residuals);
+    rho = rho0_ + R_ * dx;
+    if (jacobians == nullptr) return true;
+    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
+      if (jacobians[b] == nullptr) continue;
+      Eigen::Map<Eigen::Matrix<double, kRows, Eigen::Dynamic, Eigen::RowMajor>> out(
+          jacobians[b], kRows, sizes[b]);
+      out = R_.middleCols(static_cast<Eigen::Index>(column), sizes[b]);
+    }
+    return true;
+  }
+
+ private:
+  Eigen::Matrix<double, kRows, 1> rho0_;
+  Eigen::Matrix<double, kRows, kAmbient> R_;
+  Eigen::Matrix<double, kAmbient, 1> x0_;
 };
 
 }  // namespace internal

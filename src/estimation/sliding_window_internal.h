@@ -2,6 +2,8 @@
 
 // Private state of the sliding window shared by its source files (docs/sliding_window.md).
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -37,6 +39,70 @@ struct SweepPointGroup {
   }
 };
 
+// Counts of a sweep's map points in cubic cells of edge `cell_m`, to reject a plane lookup
+// before its k-NN search (docs/sliding_window.md, Eq. SW6). PlaneMap::FindPlane needs k
+// downsampled map points within R = max_neighbor_distance_m of the query; each is the
+// centroid of map points in a voxel of edge v = voxel_m, so the voxel holds a map point
+// within R + sqrt(3) v of the query, a different one for each. With cell_m >= R + sqrt(3) v
+// those map points lie in the 3 x 3 x 3 cells around the query's: fewer than k there and the
+// lookup fails. The test never rejects a lookup that could succeed; larger cells keep it so,
+// and a map spanning more than kMaxCells cells gets them (doubled until it fits).
+class MapOccupancy {
+ public:
+  static constexpr double kMaxCells = 1 << 20;
+
+  MapOccupancy(const Eigen::Matrix3Xd& points, double cell_m) {
+    if (points.cols() == 0) return;
+    origin_ = points.rowwise().minCoeff();
+    const Eigen::Vector3d extent = points.rowwise().maxCoeff() - origin_;
+    while (((extent / cell_m).array() + 1.0).prod() > kMaxCells) cell_m *= 2.0;
+    inverse_cell_ = 1.0 / cell_m;
+    for (int a = 0; a < 3; ++a) size_[a] = static_cast<int>(extent(a) * inverse_cell_) + 1;
+    counts_.assign(static_cast<size_t>(size_[0]) * static_cast<size_t>(size_[1]) *
+                       static_cast<size_t>(size_[2]),
+                   0);
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      const Eigen::Vector3d v = (points.col(i) - origin_) * inverse_cell_;
+      ++counts_[Index(static_cast<int>(v.x()), static_cast<int>(v.y()), static_cast<int>(v.z()))];
+    }
+  }
+
+  // False when fewer than `count` points lie in the 27 cells around p's.
+  bool MayHold(const Eigen::Vector3d& p, int count) const {
+    if (counts_.empty()) return false;
+    const Eigen::Vector3d v = (p - origin_) * inverse_cell_;
+    // Cells beyond the map by more than one hold nothing near p (also catches huge values).
+    for (int a = 0; a < 3; ++a) {
+      if (!(v(a) >= -1.0) || !(v(a) < size_[a] + 1.0)) return false;
+    }
+    const int cx = static_cast<int>(std::floor(v.x()));
+    const int cy = static_cast<int>(std::floor(v.y()));
+    const int cz = static_cast<int>(std::floor(v.z()));
+    int sum = 0;
+    for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size_[0] - 1); ++x) {
+      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size_[1] - 1); ++y) {
+        for (int z = std::max(cz - 1, 0); z <= std::min(cz + 1, size_[2] - 1); ++z) {
+          sum += counts_[Index(x, y, z)];
+          if (sum >= count) return true;
+        }
+      }
+    }
+    return false;
+  }
+
+ private:
+  size_t Index(int x, int y, int z) const {
+    return (static_cast<size_t>(x) * static_cast<size_t>(size_[1]) + static_cast<size_t>(y)) *
+               static_cast<size_t>(size_[2]) +
+           static_cast<size_t>(z);
+  }
+
+  double inverse_cell_ = 0.0;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
+  int size_[3] = {0, 0, 0};
+  std::vector<int> counts_;
+};
+
 }  // namespace internal
 
 struct SlidingWindowEstimator::WindowKeyframe {
@@ -56,15 +122,18 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
   // (docs/sliding_window.md, "Reuse between updates", Eq. SW4).
   std::unique_ptr<PlaneMap> plane_map;
+  std::optional<internal::MapOccupancy> map_occupancy;  // of the same points (Eq. SW6)
   geometry::Pose3d map_deskew_end;
   double map_max_range_m = 0.0;
-  // This keyframe's residual points paired with other window sweeps, one group per partner,
-  // the range of its farthest residual point, and whether they were paired yet.
+  // This keyframe's residual points paired with other window sweeps: per residual point the
+  // position in partner_keyframe_offsets of its partner (-1: none) and its measurement; the
+  // points grouped by partner; the range of its farthest residual point and the newest window
+  // keyframe when it was last paired.
+  std::vector<int> partner_position;
+  std::vector<factors::PointToSweepPlaneMeasurement> pairs;
   std::vector<internal::SweepPointGroup> point_groups;
   double residual_max_range_m = 0.0;
-  bool paired = false;
-  int newest_id_at_pairing = -1;  // the newest window keyframe then
-  bool lost_partner = false;      // a partner was marginalized since
+  int newest_id_at_pairing = -1;
 };
 
 // One window problem and the cost functions it alone uses (the problem owns nothing).

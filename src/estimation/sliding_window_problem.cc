@@ -82,13 +82,13 @@ double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& af
 // sweep j gets its IMU motion table from keyframe j at the current estimate and its LiDAR pose
 // at the reference instant (point time 0), T_W_Lj = T_W_I(t_j) T_I_L. Its plane map holds the
 // map points deskewed into L_j at that instant; it is rebuilt when the deskew moved a point by
-// more than map_rebuild_tolerance_m (Eq. SW4). A keyframe due for pairing (below) places each
-// residual point p_W in W at the current
-// estimate and tries the sweeps j = k + o for the offsets o of partner_keyframe_offsets
-// (starting at a different one for consecutive points): the first that holds a plane within
-// max_point_to_plane_m of T_Lj_W p_W is its partner. The plane is kept in L_j (Eq. SW3), so in
-// the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the time offset. The
-// points of keyframe k on planes of sweep j form one group factor (Eq. P9).
+// more than map_rebuild_tolerance_m (Eq. SW4). A residual point due for pairing (below) is
+// placed in W at the current estimate, p_W, and tries the sweeps j = k + o for the offsets o
+// of partner_keyframe_offsets (starting at a different one for consecutive points): the first
+// that holds a plane within max_point_to_plane_m of T_Lj_W p_W is its partner; a lookup that
+// cannot succeed is rejected by the map's occupancy first (Eq. SW6). The plane is kept in L_j
+// (Eq. SW3), so in the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the
+// time offset. The points of keyframe k on planes of sweep j form one group factor (Eq. P9).
 void SlidingWindowEstimator::AssociatePoints() {
   const sensors::Calibration& c = calibration_;
   const double offset_lin = c.time_offset_lidar_imu_s;
@@ -109,6 +109,9 @@ void SlidingWindowEstimator::AssociatePoints() {
     return s.table->At(s.kf->sweep->t_ns + SecondsToNs(point_time_s + offset_lin));
   };
 
+  // Eq. SW6: cells that hold every map point a plane lookup could use.
+  const double occupancy_cell_m =
+      options_.plane_map.max_neighbor_distance_m + std::sqrt(3.0) * options_.plane_map.voxel_m;
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t k = begin; k < end; ++k) {
       LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
@@ -131,6 +134,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       const Eigen::Matrix3Xd points_L =
           (s.T_Lj_W.q.toRotationMatrix() * points_W).colwise() + s.T_Lj_W.p;
       kf.plane_map = std::make_unique<PlaneMap>(points_L, options_.plane_map);
+      kf.map_occupancy.emplace(points_L, occupancy_cell_m);
       kf.map_deskew_end = deskew_end;
       kf.map_max_range_m = 0.0;
       for (int i : kf.map_points) {
@@ -139,81 +143,145 @@ void SlidingWindowEstimator::AssociatePoints() {
     }
   });
 
-  // A keyframe is due for pairing when it is new, when a sweep at one of its partner offsets
-  // entered the window or one of its partners left it since its last pairing (so that its
-  // pairs are those a fresh association would try), or when one of its partners moved
-  // relative to it by more than reassociation_tolerance_m at the range of its farthest
-  // residual point (Eq. SW4).
+  // Pairing (docs/sliding_window.md, "Association" and "Reuse between updates"). Residual
+  // point r of keyframe k tries the partner offsets in the order o_{(r + a) mod P},
+  // a = 0 .. P - 1, and keeps the first sweep k + o in the window that holds a plane for it.
+  // A keyframe is paired in full when it is new or when a partner moved relative to it by
+  // more than reassociation_tolerance_m at the range of its farthest residual point (Eq. SW4).
+  // Otherwise only what changed is tried: a point whose partner was marginalized goes on down
+  // its list after that partner, and a sweep that entered the window since the last update is
+  // tried by the points that rank it before their partner (or have none). The points of k on
+  // planes of sweep j form one group factor (Eq. P9); only the groups that changed are rebuilt.
   std::map<int, int> sweep_of_id;
   for (int k = 0; k < num_sweeps; ++k) sweep_of_id[sweeps[static_cast<size_t>(k)].kf->id] = k;
   const auto relative_pose = [&sweeps](int j, int k) {
     return sweeps[static_cast<size_t>(j)].T_Lj_W * sweeps[static_cast<size_t>(k)].T_W_Lj;
   };
-  std::vector<int> due;
-  for (int k = 0; k < num_sweeps; ++k) {
-    const WindowKeyframe& kf = *sweeps[static_cast<size_t>(k)].kf;
-    bool is_due = !kf.paired || kf.lost_partner;
-    for (int o : options_.partner_keyframe_offsets) {
-      const int partner_id = kf.id + o;
-      if (partner_id > kf.newest_id_at_pairing && partner_id <= window_.back()->id) {
-        is_due = true;
-      }
-    }
-    for (size_t g = 0; g < kf.point_groups.size() && !is_due; ++g) {
-      const internal::SweepPointGroup& group = kf.point_groups[g];
-      is_due = MaxPointMotion(group.T_Lj_Lk, relative_pose(sweep_of_id.at(group.partner_id), k),
-                              kf.residual_max_range_m) > options_.reassociation_tolerance_m;
-    }
-    if (is_due) due.push_back(k);
-  }
   const std::vector<int>& partners = options_.partner_keyframe_offsets;
-  ParallelFor(0, static_cast<int64_t>(due.size()), options_.num_threads,
-              [&](int64_t begin, int64_t end, int) {
-    for (int64_t d = begin; d < end; ++d) {
-      const int k = due[static_cast<size_t>(d)];
+  const int num_partners = static_cast<int>(partners.size());
+  const int newest_id = window_.back()->id;
+  std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
+  ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
+    for (int64_t kk = begin; kk < end; ++kk) {
+      const int k = static_cast<int>(kk);
       const LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
       WindowKeyframe& kf = *s.kf;
+      // The window position of the partner at list position q, or -1 when it is not there.
+      std::vector<int> partner_of(static_cast<size_t>(num_partners), -1);
+      std::vector<bool> entered(static_cast<size_t>(num_partners), false);
+      bool any_entered = false;
+      for (int q = 0; q < num_partners; ++q) {
+        const int id = kf.id + partners[static_cast<size_t>(q)];
+        const auto it = sweep_of_id.find(id);
+        if (it == sweep_of_id.end()) continue;
+        partner_of[static_cast<size_t>(q)] = it->second;
+        entered[static_cast<size_t>(q)] = id > kf.newest_id_at_pairing;
+        any_entered = any_entered || entered[static_cast<size_t>(q)];
+      }
+      bool full = kf.partner_position.empty();
+      for (size_t g = 0; g < kf.point_groups.size() && !full; ++g) {
+        const internal::SweepPointGroup& group = kf.point_groups[g];
+        full = MaxPointMotion(group.T_Lj_Lk,
+                              relative_pose(sweep_of_id.at(group.partner_id), k),
+                              kf.residual_max_range_m) > options_.reassociation_tolerance_m;
+      }
+      const size_t num_points = kf.residual_points.size();
+      if (full) {
+        kf.partner_position.assign(num_points, -1);
+        kf.pairs.resize(num_points);
+      }
+      std::vector<bool> changed(static_cast<size_t>(num_partners), full);
       SlidingWindowState& x = kf.state;
-      std::map<int, std::vector<factors::PointToSweepPlaneMeasurement>> by_partner;
-      size_t point_counter = 0;
-      for (int i : kf.residual_points) {
+      // Tries point r against the partners at ranks [from, to) of its list (the entered ones
+      // only, if so asked) and pairs it with the first that holds a plane.
+      const auto try_ranks = [&](size_t r, int from, int to, bool entered_only) {
+        const int first = static_cast<int>(r % static_cast<size_t>(num_partners));
         factors::PointToSweepPlaneMeasurement m;
-        m.p_L = kf.sweep->cloud.points.col(i);
-        m.motion = motion_at(s, kf.sweep->cloud.time_s(i));
-        const Eigen::Vector3d p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion,
-                                                          g_W_, c.q_I_L, c.p_I_L, m.p_L);
-        const size_t first = point_counter++;
-        int partner = -1;
-        for (size_t attempt = 0; attempt < partners.size() && partner < 0; ++attempt) {
-          const int j = k + partners[(first + attempt) % partners.size()];
-          if (j < 0 || j >= num_sweeps || j == k) continue;
+        Eigen::Vector3d p_W;
+        bool placed = false;
+        for (int a = from; a < to; ++a) {
+          const int q = (first + a) % num_partners;
+          const int j = partner_of[static_cast<size_t>(q)];
+          if (j < 0 || (entered_only && !entered[static_cast<size_t>(q)])) continue;
+          if (!placed) {
+            const int i = kf.residual_points[r];
+            m.p_L = kf.sweep->cloud.points.col(i);
+            m.motion = motion_at(s, kf.sweep->cloud.time_s(i));
+            p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion, g_W_, c.q_I_L,
+                                        c.p_I_L, m.p_L);
+            placed = true;
+          }
           const LidarKeyframe& other = sweeps[static_cast<size_t>(j)];
           const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
-          if (other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
-              std::abs(m.plane_L.SignedDistance(p_Lj)) <= options_.max_point_to_plane_m) {
-            partner = j;
+          if (!other.kf->map_occupancy->MayHold(p_Lj, options_.plane_map.num_neighbors)) continue;
+          ++lookups[static_cast<size_t>(k)];
+          if (!other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) ||
+              std::abs(m.plane_L.SignedDistance(p_Lj)) > options_.max_point_to_plane_m) {
+            continue;
           }
+          m.plane_motion = other.reference_motion;
+          m.sigma_m = options_.point_sigma_m;
+          m.offset_linearization_s = offset_lin;
+          const int before = kf.partner_position[r];
+          if (before >= 0) changed[static_cast<size_t>(before)] = true;
+          changed[static_cast<size_t>(q)] = true;
+          kf.partner_position[r] = q;
+          kf.pairs[r] = m;
+          return;
         }
-        if (partner < 0) continue;
-        m.plane_motion = sweeps[static_cast<size_t>(partner)].reference_motion;
-        m.sigma_m = options_.point_sigma_m;
-        m.offset_linearization_s = offset_lin;
-        by_partner[partner].push_back(m);
+      };
+      for (size_t r = 0; r < num_points; ++r) {
+        const int current = kf.partner_position[r];
+        const int first = static_cast<int>(r % static_cast<size_t>(num_partners));
+        const int rank =
+            current < 0 ? num_partners : (current - first + num_partners) % num_partners;
+        if (full) {
+          try_ranks(r, 0, num_partners, false);
+        } else if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
+          // Its partner was marginalized: on down the list.
+          changed[static_cast<size_t>(current)] = true;
+          kf.partner_position[r] = -1;
+          try_ranks(r, rank + 1, num_partners, false);
+        } else if (any_entered) {
+          try_ranks(r, 0, rank, true);
+        }
       }
-      kf.point_groups.clear();
-      kf.residual_max_range_m = 0.0;
-      for (int i : kf.residual_points) {
-        kf.residual_max_range_m =
-            std::max(kf.residual_max_range_m, kf.sweep->cloud.points.col(i).norm());
+      kf.newest_id_at_pairing = newest_id;
+      // Rebuild the groups of the partners whose points changed.
+      std::vector<std::vector<factors::PointToSweepPlaneMeasurement>> members(
+          static_cast<size_t>(num_partners));
+      for (size_t r = 0; r < num_points; ++r) {
+        const int q = kf.partner_position[r];
+        if (q >= 0 && changed[static_cast<size_t>(q)]) {
+          members[static_cast<size_t>(q)].push_back(kf.pairs[r]);
+        }
       }
-      for (const auto& [j, measurements] : by_partner) {
-        WindowKeyframe& other = *sweeps[static_cast<size_t>(j)].kf;
-        SlidingWindowState& y = other.state;
+      for (int q = 0; q < num_partners; ++q) {
+        if (!changed[static_cast<size_t>(q)]) continue;
+        const int partner_id = kf.id + partners[static_cast<size_t>(q)];
+        std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
+        // A group that only gained or lost points keeps the relative pose its first points
+        // were paired at, so that the test of Eq. SW4 bounds their motion since.
+        const auto kept = std::find_if(groups.begin(), groups.end(),
+                                       [partner_id](const internal::SweepPointGroup& g) {
+                                         return g.partner_id == partner_id;
+                                       });
+        const std::optional<geometry::Pose3d> paired_at =
+            !full && kept != groups.end() ? std::optional<geometry::Pose3d>(kept->T_Lj_Lk)
+                                          : std::nullopt;
+        groups.erase(std::remove_if(groups.begin(), groups.end(),
+                                    [partner_id](const internal::SweepPointGroup& g) {
+                                      return g.partner_id == partner_id;
+                                    }),
+                     groups.end());
+        const int j = partner_of[static_cast<size_t>(q)];
+        if (j < 0 || members[static_cast<size_t>(q)].empty()) continue;
+        SlidingWindowState& y = sweeps[static_cast<size_t>(j)].kf->state;
         internal::SweepPointGroup group;
-        group.partner_id = other.id;
-        group.T_Lj_Lk = relative_pose(j, k);
+        group.partner_id = partner_id;
+        group.T_Lj_Lk = paired_at ? *paired_at : relative_pose(j, k);
         group.factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
-            measurements, g_W_, options_.loss.lidar);
+            members[static_cast<size_t>(q)], g_W_, options_.loss.lidar);
         if (group.factor->num_residuals() > internal::CompressedPointGroup::kRows) {
           group.compressed = std::make_unique<internal::CompressedPointGroup>(group.factor.get());
         }
@@ -221,13 +289,11 @@ void SlidingWindowEstimator::AssociatePoints() {
                             y.q_W_I.coeffs().data(), y.p_W_I.data(), y.v_W_I.data(),
                             calibration_.q_I_L.coeffs().data(), calibration_.p_I_L.data(),
                             &calibration_.time_offset_lidar_imu_s};
-        kf.point_groups.push_back(std::move(group));
+        groups.push_back(std::move(group));
       }
-      kf.paired = true;
-      kf.newest_id_at_pairing = window_.back()->id;
-      kf.lost_partner = false;
     }
   });
+  for (int n : lookups) timing_.plane_lookups += n;
 }
 
 std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::BuildProblem() {
@@ -283,6 +349,12 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   // The point groups carry the LiDAR loss themselves (Eq. P9).
   for (const auto& kf : window_) {
     for (const internal::SweepPointGroup& g : kf->point_groups) {
+      if (options_.point_linearizations_per_update > 0) {
+        build->owned.push_back(
+            std::make_unique<internal::LinearizedPointGroup>(g.factor.get(), g.parameters));
+        problem.AddResidualBlock(build->owned.back().get(), nullptr, g.parameters);
+        continue;
+      }
       problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters);
     }
   }
@@ -302,19 +374,25 @@ std::vector<double> SlidingWindowEstimator::PointDistances() const {
   return distances;
 }
 
-void SlidingWindowEstimator::Solve(ProblemBuild* build) {
+// With the points linearized per pass (Eq. SW7) the solve runs point_linearizations_per_update
+// passes, each on the points relinearized at the estimate the previous pass reached.
+void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.max_num_iterations = options_.solver_iterations;
   solver_options.function_tolerance = options_.solver_function_tolerance;
   solver_options.num_threads = options_.num_threads;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, build->problem.get(), &summary);
-  if (!summary.IsSolutionUsable()) {
-    throw Error("SlidingWindowEstimator: the solver failed: " + summary.message);
+  timing_.solver_iterations = 0;
+  for (int pass = 0; pass < std::max(1, options_.point_linearizations_per_update); ++pass) {
+    if (pass > 0) *build = BuildProblem();
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options, (*build)->problem.get(), &summary);
+    if (!summary.IsSolutionUsable()) {
+      throw Error("SlidingWindowEstimator: the solver failed: " + summary.message);
+    }
+    timing_.solver_iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+    for (auto& kf : window_) kf->state.q_W_I.normalize();
   }
-  timing_.solver_iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
-  for (auto& kf : window_) kf->state.q_W_I.normalize();
 
   const std::vector<double> distances = PointDistances();
   last_associated_points_ = static_cast<int>(distances.size());

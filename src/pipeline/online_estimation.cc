@@ -13,6 +13,7 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/io/tum_trajectory.h"
+#include "calibration_steps.h"
 
 namespace autocal {
 namespace pipeline {
@@ -21,20 +22,12 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-bool Estimated(io::BlockMode mode) { return mode != io::BlockMode::kFixed; }
-
 // The window's priors are one sigma per block: a per-axis prior takes its widest axis.
 double PriorSigma(const io::VectorBlockSetting& s, double fallback) {
   return s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff() : fallback;
 }
 double PriorSigma(const io::ScalarBlockSetting& s, double fallback) {
   return s.mode == io::BlockMode::kPrior ? s.prior_sigma : fallback;
-}
-
-std::string Join(const std::vector<std::string>& parts, const std::string& separator) {
-  std::string out;
-  for (size_t i = 0; i < parts.size(); ++i) out += (i ? separator : "") + parts[i];
-  return out;
 }
 
 // The window options of a problem: what it estimates, its priors, losses and solver.
@@ -130,7 +123,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
       WindowOptions(dataset, problem, use_wheel, use_gnss, options);
   OnlineEstimationResult result;
 
-  // 1. The initial state: the initializer on the first seconds of the log.
+  // 1. The initial state: the initializer on the first seconds of the log. Its sweeps are
+  //    kept for the streaming, which would otherwise read them from disk again.
   std::vector<lidar::LidarSweep> sweeps;
   const int64_t init_end_ns = dataset.lidar_sweeps.front().t_ns +
                               SecondsToNs(options.initialization_duration_s);
@@ -144,7 +138,6 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   init_options.keyframe_lead_s = options.window.keyframe_lead_s;
   const estimation::CalibrationInitialization init =
       estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
-  sweeps.clear();
   result.seconds_initialization =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!init.ok || init.keyframes.empty()) {
@@ -219,7 +212,14 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
       case kImu: estimator.AddImu(dataset.imu[i]); break;
       case kWheel: estimator.AddWheel(dataset.wheel[i]); break;
       case kGnss: estimator.AddGnss(dataset.gnss[i]); break;
-      default: estimator.AddSweep(dataset.LoadSweep(i)); break;
+      default:
+        if (i < sweeps.size()) {
+          estimator.AddSweep(sweeps[i]);
+          sweeps[i] = lidar::LidarSweep();  // the estimator holds its own copy
+        } else {
+          estimator.AddSweep(dataset.LoadSweep(i));
+        }
+        break;
     }
     if (estimator.counters().updates == updates) continue;
     updates = estimator.counters().updates;

@@ -12,9 +12,10 @@
 //   3. pair the keyframes' residual points with planes of other window sweeps, one residual
 //      block per pair of sweeps; each sweep's plane map is kept in its LiDAR frame, so the
 //      planes move with that keyframe and the extrinsic. The new keyframe is paired at once,
-//      an older one when its partners changed or moved relative to it, a plane map is rebuilt
-//      only when its deskew moved (docs/sliding_window.md, "Reuse between updates"),
-//   4. solve,
+//      an older one in full when a partner moved relative to it, else only its points whose
+//      partner left and the sweeps that entered; a plane map is rebuilt only when its deskew
+//      moved (docs/sliding_window.md, "Reuse between updates"),
+//   4. solve, with the point groups linearized per pass (Eq. SW7),
 //   5. marginalize the oldest keyframe when the window holds more than N.
 
 #include <cstdint>
@@ -135,18 +136,25 @@ struct SlidingWindowOptions {
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;
   // Reuse between updates (docs/sliding_window.md, "Reuse between updates", Eq. SW4): a
-  // keyframe's points are paired when it enters the window, when a sweep at one of its
-  // partner offsets enters or leaves the window, and when one of its partner sweeps has moved
-  // relative to it by more than reassociation_tolerance_m at the range of its farthest point;
-  // a sweep's plane map is rebuilt when the deskew at the current estimate moves one of its
-  // points by more than map_rebuild_tolerance_m. 0 = at every update.
+  // keyframe's points are paired in full when it enters the window and when one of its
+  // partner sweeps has moved relative to it by more than reassociation_tolerance_m at the
+  // range of its farthest point; otherwise only the points whose partner left the window and
+  // the points that rank a sweep that entered it before their partner are tried. A sweep's
+  // plane map is rebuilt when the deskew at the current estimate moves one of its points by
+  // more than map_rebuild_tolerance_m. 0 = at every update.
   double reassociation_tolerance_m = 0.02;
   double map_rebuild_tolerance_m = 0.02;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
 
-  // Solver stop: at most solver_iterations Levenberg-Marquardt iterations, fewer once an
-  // iteration lowers the cost by less than this fraction of it (ceres function_tolerance).
+  // Point groups linearized per solve pass (docs/sliding_window.md, Eq. SW7): the solver
+  // iterates on their first-order model at the pass's start, so an iteration does not
+  // re-evaluate the point Jacobians; an update runs this many passes, each relinearizing at
+  // the estimate the previous one reached. 0: one pass evaluating the points at every
+  // iteration (Eq. SW5).
+  int point_linearizations_per_update = 2;
+  // Solver stop: at most solver_iterations Levenberg-Marquardt iterations per pass, fewer once
+  // an iteration lowers the cost by less than this fraction of it (ceres function_tolerance).
   // The window starts from the previous solution, so a few iterations usually suffice; the
   // cap matters while the calibration is still converging (docs/sliding_window.md, "Figures").
   int solver_iterations = 10;
@@ -184,10 +192,11 @@ struct SlidingWindowCounters {
 struct SlidingWindowUpdateTiming {
   double total_s = 0.0;
   double association_s = 0.0;  // plane maps and association
-  double build_s = 0.0;        // the window problem (factors and residual blocks)
+  double build_s = 0.0;        // the window problem (first pass; later passes are in solve_s)
   double solve_s = 0.0;
   double marginalization_s = 0.0;
-  int solver_iterations = 0;  // Levenberg-Marquardt steps taken
+  int solver_iterations = 0;  // Levenberg-Marquardt steps taken (all passes)
+  int plane_lookups = 0;      // k-NN plane lookups (those the occupancy test, Eq. SW6, let by)
 };
 
 // Covariance of the estimated calibration blocks in tangent coordinates (right-perturbed
@@ -262,7 +271,9 @@ class SlidingWindowEstimator {
   // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors and the
   // keyframes' point groups.
   std::unique_ptr<ProblemBuild> BuildProblem();
-  void Solve(ProblemBuild* build);
+  // Step 4; replaces *build with each pass's problem, relinearized where the previous pass
+  // ended (Eq. SW7).
+  void Solve(std::unique_ptr<ProblemBuild>* build);
   // Point-to-plane distances (metres, without the loss) of every point group at the current
   // estimate.
   std::vector<double> PointDistances() const;
