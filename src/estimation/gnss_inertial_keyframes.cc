@@ -76,15 +76,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
     wheel_options.estimate_track_width = false;
     result.wheel_factors = AddWheelFactors(&problem, imu, wheel, keyframes, &held, wheel_options);
   }
-  Keyframe& first = kfs.front();
-  problem.AddResidualBlock(
-      new factors::VectorPriorFactor(Eigen::Vector3d::Zero(),
-                                     Eigen::Matrix3d::Identity() / options.gyro_bias_prior_sigma_rad_s),
-      nullptr, first.b_g.data());
-  problem.AddResidualBlock(
-      new factors::VectorPriorFactor(Eigen::Vector3d::Zero(),
-                                     Eigen::Matrix3d::Identity() / options.accel_bias_prior_sigma_m_s2),
-      nullptr, first.b_a.data());
+  AddBiasPriors(&problem, &kfs.front(), options.gyro_bias_prior_sigma_rad_s,
+                options.accel_bias_prior_sigma_m_s2);
 
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;

@@ -14,6 +14,7 @@
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/factors/imu_factor.h"
+#include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/sensors/imu_preintegration.h"
 
@@ -193,6 +194,20 @@ int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                               b.v_W_I.data(), b.b_g.data(), b.b_a.data());
   }
   return static_cast<int>(num_intervals);
+}
+
+void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias_sigma_rad_s,
+                   double accel_bias_sigma_m_s2) {
+  problem->AddResidualBlock(
+      new factors::VectorPriorFactor(Eigen::Vector3d::Zero(),
+                                     factors::SqrtInformationFromSigmas(
+                                         Eigen::Vector3d::Constant(gyro_bias_sigma_rad_s))),
+      nullptr, keyframe->b_g.data());
+  problem->AddResidualBlock(
+      new factors::VectorPriorFactor(Eigen::Vector3d::Zero(),
+                                     factors::SqrtInformationFromSigmas(
+                                         Eigen::Vector3d::Constant(accel_bias_sigma_m_s2))),
+      nullptr, keyframe->b_a.data());
 }
 
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,

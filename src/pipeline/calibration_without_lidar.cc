@@ -7,7 +7,6 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
-#include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "problem_blocks.h"
 
@@ -73,15 +72,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
   imu.num_threads = problem.solver.num_threads;
   estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
-  estimation::Keyframe& first = keyframes.front();
-  p.AddResidualBlock(new factors::VectorPriorFactor(
-                         Eigen::Vector3d::Zero(),
-                         Eigen::Matrix3d::Identity() / gnss_inertial.gyro_bias_prior_sigma_rad_s),
-                     nullptr, first.b_g.data());
-  p.AddResidualBlock(new factors::VectorPriorFactor(
-                         Eigen::Vector3d::Zero(),
-                         Eigen::Matrix3d::Identity() / gnss_inertial.accel_bias_prior_sigma_m_s2),
-                     nullptr, first.b_a.data());
+  estimation::AddBiasPriors(&p, &keyframes.front(), gnss_inertial.gyro_bias_prior_sigma_rad_s,
+                            gnss_inertial.accel_bias_prior_sigma_m_s2);
   SensorFactors sensor_factors{&dataset, &problem,   &result.nominal,    use_wheel, true,
                                &enu,     &blocks_estimated, &quaternion_manifold};
   sensor_factors.Add(&p, &keyframes, &calibration);

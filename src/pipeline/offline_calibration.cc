@@ -291,26 +291,24 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
          Eigen::VectorXd::Constant(1, *info.sigma * scale),
          info.observable.value_or(true) ? " yes" : " no", precision);
   };
-  if (u.T_I_L.sigma_rot_deg) {
-    line("T_I_L rotation vector (deg)", geometry::Log(c.q_I_L) * kRadToDeg, *u.T_I_L.sigma_rot_deg,
-         flags(u.T_I_L.observable, 0, 3), 4);
-  }
-  if (u.T_I_L.sigma_p_m) {
-    line("T_I_L translation (mm)", c.p_I_L * 1e3, *u.T_I_L.sigma_p_m * 1e3,
-         flags(u.T_I_L.observable, 3, 3), 1);
-  }
+  const auto pose = [&](const std::string& name, const Eigen::Quaterniond& q,
+                        const Eigen::Vector3d& p, const io::PoseBlockInfo& info,
+                        int rotation_precision) {
+    if (info.sigma_rot_deg) {
+      line(name + " rotation vector (deg)", geometry::Log(q) * kRadToDeg, *info.sigma_rot_deg,
+           flags(info.observable, 0, 3), rotation_precision);
+    }
+    if (info.sigma_p_m) {
+      line(name + " translation (mm)", p * 1e3, *info.sigma_p_m * 1e3, flags(info.observable, 3, 3),
+           1);
+    }
+  };
+  pose("T_I_L", c.q_I_L, c.p_I_L, u.T_I_L, 4);
   scalar("time offset lidar->imu (ms)", c.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3, 3);
   scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
   scalar("right rear wheel radius (mm)", c.wheel_radius_right_m, u.wheel_radius_right_m, 1e3, 3);
   scalar("track width (mm)", c.track_width_m, u.track_width_m, 1e3, 1);
-  if (u.T_I_V.sigma_rot_deg) {
-    line("T_I_V rotation vector (deg)", geometry::Log(c.q_I_V) * kRadToDeg, *u.T_I_V.sigma_rot_deg,
-         flags(u.T_I_V.observable, 0, 3), 3);
-  }
-  if (u.T_I_V.sigma_p_m) {
-    line("T_I_V translation (mm)", c.p_I_V * 1e3, *u.T_I_V.sigma_p_m * 1e3,
-         flags(u.T_I_V.observable, 3, 3), 1);
-  }
+  pose("T_I_V", c.q_I_V, c.p_I_V, u.T_I_V, 3);
   if (u.p_I_A_m.sigma) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
          flags(u.p_I_A_m.observable, 0, 3), 1);
@@ -320,13 +318,13 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
     out << "LiDAR residual RMS (m): " << std::setprecision(4) << batch.point_rms_m << " over "
         << batch.associated_points << " points\n";
   }
-  for (const auto& [sensor, residuals] : result.whitened_residuals) {
-    double sum = 0.0;
-    for (double r : residuals.after) sum += r * r;
-    if (residuals.after.empty()) continue;
-    out << sensor << " whitened residual RMS: " << std::setprecision(3)
-        << std::sqrt(sum / static_cast<double>(residuals.after.size())) << " over "
-        << residuals.after.size() << " rows\n";
+  // The whitened RMS per sensor, as Conclude put it into the result's residual statistics.
+  for (const auto& [sensor, statistics] : result.calibration.residuals) {
+    const auto rms = statistics.find("whitened_rms");
+    const auto rows = statistics.find("rows");
+    if (rms == statistics.end() || rows == statistics.end()) continue;
+    out << sensor << " whitened residual RMS: " << std::setprecision(3) << rms->second << " over "
+        << std::setprecision(0) << rows->second << " rows\n";
   }
   out << std::setprecision(1) << result.trajectory.size() << " keyframes; " << result.seconds_total
       << " s (loading " << result.seconds_loading << " s, initialization "

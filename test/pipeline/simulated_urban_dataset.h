@@ -30,22 +30,18 @@ inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
 }
 
 // The bad guess: the nominal LiDAR rotation turned by 20 deg, its translation moved
-// by 0.3 m and the time offset by 40 ms.
-inline void SpoilNominalGuess(sensors::Calibration* nominal) {
+// by 0.3 m and the time offset by 40 ms. A guess that bad comes with no stated uncertainty
+// (the simulator states 1.5 deg, 3 cm and 4 ms), so the spoiled blocks' sigmas are dropped.
+inline void SpoilNominalGuess(io::SensorsConfig* config) {
+  sensors::Calibration& nominal = config->nominal_calibration;
   const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
-  nominal->q_I_L =
-      (nominal->q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * M_PI / 180.0, axis)))
+  nominal.q_I_L =
+      (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * M_PI / 180.0, axis)))
           .normalized();
-  nominal->p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
-  nominal->time_offset_lidar_imu_s += 0.040;
-}
-
-// The same in sensors.yaml's terms: a guess that bad comes with no stated uncertainty (the
-// simulator states 1.5 deg, 3 cm and 4 ms), so the spoiled blocks' sigmas are dropped.
-inline void SpoilNominalGuess(io::SensorsConfig* sensors) {
-  SpoilNominalGuess(&sensors->nominal_calibration);
-  sensors->nominal_uncertainty.T_I_L = io::PoseBlockInfo();
-  sensors->nominal_uncertainty.time_offset_lidar_imu_s = io::ScalarBlockInfo();
+  nominal.p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
+  nominal.time_offset_lidar_imu_s += 0.040;
+  config->nominal_uncertainty.T_I_L = io::PoseBlockInfo();
+  config->nominal_uncertainty.time_offset_lidar_imu_s = io::ScalarBlockInfo();
 }
 
 struct SimulatedUrbanDataset {

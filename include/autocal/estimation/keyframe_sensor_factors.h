@@ -48,6 +48,12 @@ struct KeyframeImuOptions {
 int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                   std::vector<Keyframe>* keyframes, const KeyframeImuOptions& options);
 
+// Adds a prior at zero on the keyframe's gyro and accelerometer biases (Eq. F41, 1-sigma
+// per axis), as a problem without other bias information needs on its first keyframe.
+// Ownership as AddWheelFactors.
+void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias_sigma_rad_s,
+                   double accel_bias_sigma_m_s2);
+
 struct KeyframeWheelOptions {
   // Sigmas and rows of each factor. With factor.shared_radius the left radius block
   // (Calibration::wheel_radius_left_m) stands for both wheels; the right one is not touched.
