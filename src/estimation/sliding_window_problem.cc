@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <optional>
 #include <string>
@@ -379,6 +380,13 @@ std::vector<double> SlidingWindowEstimator::PointDistances() const {
 void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  if (const char* e = std::getenv("H13_LS")) {
+    const std::string v(e);
+    if (v == "dnc") solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+    if (v == "dqr") solver_options.linear_solver_type = ceres::DENSE_QR;
+    if (v == "eigen") solver_options.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+    if (v == "dschur") solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+  }
   solver_options.max_num_iterations = options_.solver_iterations;
   solver_options.function_tolerance = options_.solver_function_tolerance;
   solver_options.num_threads = options_.num_threads;

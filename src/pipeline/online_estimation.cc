@@ -11,7 +11,10 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/factors/wheel_factor.h"
+#include "autocal/geometry/so3.h"
 #include "autocal/io/tum_trajectory.h"
 #include "calibration_steps.h"
 
@@ -22,12 +25,18 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-// The window's priors are one sigma per block: a per-axis prior takes its widest axis.
-double PriorSigma(const io::VectorBlockSetting& s, double fallback) {
-  return s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff() : fallback;
+// The window's priors are one sigma per block: the problem's in prior mode, else the sigma
+// the dataset states for its nominal value, else the window's default; a per-axis sigma takes
+// its widest axis (as the offline calibration, src/pipeline/problem_blocks.cc, minus the axes).
+double PriorSigma(const io::VectorBlockSetting& s, const std::optional<Eigen::Vector3d>& stated,
+                  double fallback) {
+  if (s.mode == io::BlockMode::kPrior) return s.prior_sigma.maxCoeff();
+  return stated ? stated->maxCoeff() : fallback;
 }
-double PriorSigma(const io::ScalarBlockSetting& s, double fallback) {
-  return s.mode == io::BlockMode::kPrior ? s.prior_sigma : fallback;
+double PriorSigma(const io::ScalarBlockSetting& s, const std::optional<double>& stated,
+                  double fallback) {
+  if (s.mode == io::BlockMode::kPrior) return s.prior_sigma;
+  return stated ? *stated : fallback;
 }
 
 // The window options of a problem: what it estimates, its priors, losses and solver.
@@ -55,6 +64,25 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   w.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
   w.residual_voxel_m = problem.lidar.voxel_m;
   w.initial_state_sigmas = options.initial_state_sigmas;
+  if (use_wheel) {
+    // The rear axle's lateral and vertical speed rows, weighted as the offline calibration's
+    // (Eq. K6: a model error correlated over tau seen every dt carries ~T / 2 tau samples, not
+    // T / dt). Without them the wheel speeds see the vehicle frame's pitch and yaw only through
+    // the cosine that scales the speed along x_V, as the radii do: on the 60 s urban log the
+    // window drifted along that valley to 5.7 deg and -0.47 % (docs/sliding_window.md).
+    const double sweep_period_s =
+        dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
+    const double wheel_period_s =
+        dataset.sensors.wheel ? 1.0 / dataset.sensors.wheel->rate_hz : 0.01;
+    const double spacing_s =
+        w.max_wheel_samples_per_interval > 0
+            ? std::max(wheel_period_s, sweep_period_s / w.max_wheel_samples_per_interval)
+            : wheel_period_s;
+    const double tau_s = estimation::KeyframeWheelOptions().non_holonomic_correlation_s;
+    w.wheel_non_holonomic = true;
+    w.wheel_non_holonomic_sigma_m_s = factors::WheelFactorOptions().lateral_sigma_m_s *
+                                      std::sqrt(std::max(1.0, 2.0 * tau_s / spacing_s));
+  }
 
   estimation::SlidingWindowEstimatedBlocks& e = w.estimate;
   e.extrinsic_rotation = Estimated(b.T_I_L.rotation.mode);
@@ -67,15 +95,22 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   e.gnss_lever_arm = use_gnss && Estimated(b.p_I_A_m.mode);
 
   estimation::SlidingWindowCalibrationPrior& p = w.calibration_prior;
-  p.extrinsic_rotation_deg = PriorSigma(b.T_I_L.rotation, p.extrinsic_rotation_deg);
-  p.extrinsic_translation_m = PriorSigma(b.T_I_L.translation, p.extrinsic_translation_m);
-  p.time_offset_s = PriorSigma(b.time_offset_lidar_imu_s, p.time_offset_s);
-  p.wheel_radius_m = std::max(PriorSigma(b.wheel_radius_left_m, p.wheel_radius_m),
-                              PriorSigma(b.wheel_radius_right_m, p.wheel_radius_m));
-  p.track_width_m = PriorSigma(b.track_width_m, p.track_width_m);
-  p.vehicle_rotation_deg = PriorSigma(b.T_I_V.rotation, p.vehicle_rotation_deg);
-  p.vehicle_translation_m = PriorSigma(b.T_I_V.translation, p.vehicle_translation_m);
-  p.gnss_lever_arm_m = PriorSigma(b.p_I_A_m, p.gnss_lever_arm_m);
+  const io::CalibrationUncertainty& u = dataset.sensors.nominal_uncertainty;
+  p.extrinsic_rotation_deg =
+      PriorSigma(b.T_I_L.rotation, u.T_I_L.sigma_rot_deg, p.extrinsic_rotation_deg);
+  p.extrinsic_translation_m =
+      PriorSigma(b.T_I_L.translation, u.T_I_L.sigma_p_m, p.extrinsic_translation_m);
+  p.time_offset_s =
+      PriorSigma(b.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s.sigma, p.time_offset_s);
+  p.wheel_radius_m = std::max(
+      PriorSigma(b.wheel_radius_left_m, u.wheel_radius_left_m.sigma, p.wheel_radius_m),
+      PriorSigma(b.wheel_radius_right_m, u.wheel_radius_right_m.sigma, p.wheel_radius_m));
+  p.track_width_m = PriorSigma(b.track_width_m, u.track_width_m.sigma, p.track_width_m);
+  p.vehicle_rotation_deg =
+      PriorSigma(b.T_I_V.rotation, u.T_I_V.sigma_rot_deg, p.vehicle_rotation_deg);
+  p.vehicle_translation_m =
+      PriorSigma(b.T_I_V.translation, u.T_I_V.sigma_p_m, p.vehicle_translation_m);
+  p.gnss_lever_arm_m = PriorSigma(b.p_I_A_m, u.p_I_A_m.sigma, p.gnss_lever_arm_m);
   return w;
 }
 
@@ -99,6 +134,45 @@ void FillUncertainty(const estimation::CalibrationCovariance& covariance,
     if (name == "wheel_radius_right_m") u->wheel_radius_right_m.sigma = sigma(0);
     if (name == "track_width_m") u->track_width_m.sigma = sigma(0);
   }
+}
+
+// With GNSS, the start the window is given (docs/sliding_window.md, "Streaming a dataset",
+// Eq. SW8). The initializer's IMU orientations are its LiDAR odometry's turned by its q_I_L,
+// whose rotation about the vertical planar driving hardly determines (1.0 deg off on the
+// 60 s urban log): every aligned keyframe's yaw was off by 1.4 deg, and the window's first
+// keyframes kept that. The GNSS-inertial solve over the same keyframes (IMU, fixes, wheels)
+// gives each IMU orientation from gravity and the track's accelerations instead (0.17 deg at
+// the start of that log, 0.05 deg later). Returns that solve's first keyframe and, in *q_I_L,
+// the extrinsic turned about the IMU's vertical by the median of
+//   phi_k = u_k . Log(R_W_I,gnss_k^T R_W_I,aligned_k),  u_k = R_W_I,gnss_k^T z_W,
+// so that the LiDAR keeps the orientation its odometry gave it: R_W_L = R_W_I R_I_L with
+// R_I_L <- Exp(phi u) R_I_L, where the aligned keyframes' R_W_I = R_W_L R_I_L^T.
+estimation::Keyframe StartFromGnssAndImu(const io::Dataset& dataset,
+                                         const sensors::WheelSamples& wheel,
+                                         const sensors::EnuConverter& enu,
+                                         const std::vector<estimation::Keyframe>& aligned,
+                                         bool estimate_q_I_L, const sensors::Calibration& calibration,
+                                         Eigen::Quaterniond* q_I_L) {
+  std::vector<estimation::Keyframe> refined = aligned;
+  estimation::GnssInertialKeyframesOptions options;
+  options.imu_noise = dataset.sensors.imu.noise;
+  options.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  estimation::KeyframesFromGnssAndImu(&refined, dataset.imu, wheel, dataset.gnss, enu,
+                                      calibration, options);
+  if (estimate_q_I_L) {
+    std::vector<double> phi;
+    Eigen::Vector3d up_I = Eigen::Vector3d::Zero();
+    for (size_t k = 0; k < refined.size(); ++k) {
+      const Eigen::Vector3d u = refined[k].q_W_I.conjugate() * Eigen::Vector3d::UnitZ();
+      phi.push_back(u.dot(geometry::Log(refined[k].q_W_I.conjugate() * aligned[k].q_W_I)));
+      up_I += u;
+    }
+    std::nth_element(phi.begin(), phi.begin() + phi.size() / 2, phi.end());
+    const Eigen::Quaterniond turn(
+        Eigen::AngleAxisd(phi[phi.size() / 2], up_I.normalized()));
+    *q_I_L = (turn * calibration.q_I_L).normalized();
+  }
+  return refined.front();
 }
 
 }  // namespace
@@ -158,6 +232,9 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     // moved there by the 4-DoF alignment.
     const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, enu, calibration.p_I_A);
+    keyframes.front() = StartFromGnssAndImu(
+        dataset, use_wheel ? dataset.wheel : sensors::WheelSamples(), enu, keyframes,
+        Estimated(blocks.T_I_L.rotation.mode), calibration, &calibration.q_I_L);
     window_options.enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
     window_options.initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
   }
