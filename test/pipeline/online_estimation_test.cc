@@ -88,8 +88,11 @@ OnlineErrors ErrorsOf(const OnlineEstimationResult& result, const io::Dataset& d
   return e;
 }
 
-// Measured from the simulator's nominal guess: 0.117 m max, 0.045 m rms; q_I_L 2.68 -> 0.23
-// deg (initializer -> window), p_I_L (1.0, 0.5, 1.4) cm, offset 0.82 ms.
+// Measured from the simulator's nominal guess: 0.052 m max, 0.029 m rms; q_I_L 2.33 -> 0.21
+// deg (initializer, turned about the vertical by the GNSS-inertial start -> window), p_I_L
+// (0.2, 0.2, 0.9) cm, offset 0.83 ms. This 30 s drive with 250 points per sweep leaves the
+// window short of the goals, which test/accuracy/online_estimation_urban_test.cc
+// checks on a 60 s log.
 void ExpectOnlineGoals(const OnlineErrors& e) {
   EXPECT_LT(e.max_position_m, 0.25);
   EXPECT_LT(e.rms_position_m, 0.1);
