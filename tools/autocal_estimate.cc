@@ -26,6 +26,8 @@ DEFINE_string(output, "", "result directory (created): trajectory.tum, "
               "calibration_over_time.csv, calibration.yaml; required");
 DEFINE_double(init_duration_s, 30.0, "seconds of the log (from its first sweep) given to the "
               "initializer that starts the window; > 0");
+DEFINE_int32(init_sweep_stride, 2, "every n-th sweep of those seconds goes to the initializer; "
+             ">= 1");
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
 
 int main(int argc, char** argv) {
@@ -43,6 +45,7 @@ int main(int argc, char** argv) {
     const autocal::io::Dataset dataset = autocal::io::ReadDataset(FLAGS_dataset);
     autocal::pipeline::OnlineEstimationOptions options;
     options.initialization_duration_s = FLAGS_init_duration_s;
+    options.initializer_sweep_stride = FLAGS_init_sweep_stride;
     if (FLAGS_progress_every > 0) {
       options.progress = [](const autocal::pipeline::OnlineEstimationProgress& p) {
         if (p.updates % FLAGS_progress_every != 0) return;

@@ -187,9 +187,11 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
                 "keyframes are the sweeps)");
   }
   if (!(options.initialization_duration_s > 0.0) ||
-      !(options.initial_position_sigma_with_gnss_m > 0.0)) {
-    throw Error("OnlineEstimationOptions: initialization_duration_s and "
-                "initial_position_sigma_with_gnss_m must be positive");
+      !(options.initial_position_sigma_with_gnss_m > 0.0) ||
+      options.initializer_sweep_stride < 1) {
+    throw Error("OnlineEstimationOptions: initialization_duration_s, "
+                "initial_position_sigma_with_gnss_m and initializer_sweep_stride must be "
+                "positive");
   }
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
@@ -210,8 +212,12 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   init_options.imu_noise = dataset.sensors.imu.noise;
   init_options.p_I_L_prior = dataset.sensors.nominal_calibration.p_I_L;
   init_options.keyframe_lead_s = options.window.keyframe_lead_s;
+  std::vector<lidar::LidarSweep> init_sweeps;
+  for (size_t i = 0; i < sweeps.size(); i += static_cast<size_t>(options.initializer_sweep_stride)) {
+    init_sweeps.push_back(sweeps[i]);
+  }
   const estimation::CalibrationInitialization init =
-      estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
+      estimation::InitializeLidarImu(dataset.imu, init_sweeps, init_options);
   result.seconds_initialization =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!init.ok || init.keyframes.empty()) {
