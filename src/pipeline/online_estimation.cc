@@ -188,10 +188,11 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   }
   if (!(options.initialization_duration_s > 0.0) ||
       !(options.initial_position_sigma_with_gnss_m > 0.0) ||
+      !(options.initial_accel_bias_sigma_with_gnss_m_s2 > 0.0) ||
       options.initializer_sweep_stride < 1) {
     throw Error("OnlineEstimationOptions: initialization_duration_s, "
-                "initial_position_sigma_with_gnss_m and initializer_sweep_stride must be "
-                "positive");
+                "initial_position_sigma_with_gnss_m, initial_accel_bias_sigma_with_gnss_m_s2 "
+                "and initializer_sweep_stride must be positive");
   }
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
@@ -243,6 +244,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
         Estimated(blocks.T_I_L.rotation.mode), calibration, &calibration.q_I_L);
     window_options.enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
     window_options.initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
+    window_options.initial_state_sigmas.accel_bias_m_s2 =
+        options.initial_accel_bias_sigma_with_gnss_m_s2;
   }
   // The initializer's keyframes use its time offset; the window's keyframe time rule
   // (KeyframeTimeOf) uses the calibration's, which is the same value or the nominal one.
