@@ -50,7 +50,20 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const 
 bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const {
   const Eigen::Vector3d centroid = local.rowwise().mean();
   const Neighborhood centered = local.colwise() - centroid;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(centered * centered.transpose());
+  const Eigen::Matrix3d scatter = centered * centered.transpose();
+  // Most rejected neighbourhoods are lines (points of one scan ring). The closed-form
+  // eigenvalues reject those, and blobs, without the iterative solver; a neighbourhood within
+  // kGateMargin of the largest eigenvalue of a gate goes on to the solver, so that the
+  // decision is the solver's.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> direct;
+  direct.computeDirect(scatter, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d e = direct.eigenvalues();  // ascending
+  const double margin = kGateMargin * e(2);
+  if (e(2) > 0.0 && (e(1) + margin < options_.min_spread_ratio * e(2) ||
+                     (e(1) - e(0)) + margin < options_.min_flatness * e(1))) {
+    return false;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
   const Eigen::Vector3d l = solver.eigenvalues();  // ascending
   if (l(2) <= 0.0 || l(1) < options_.min_spread_ratio * l(2)) return false;  // a line
   if ((l(1) - l(0)) < options_.min_flatness * l(1)) return false;            // a blob

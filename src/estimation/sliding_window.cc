@@ -323,6 +323,8 @@ void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
   timing_.solve_s = SecondsSince(solve_start);
 
   if (static_cast<int>(window_.size()) > options_.window_size) {
+    // The point groups the marginalization drops still count in this update's point RMS.
+    dropped_point_squared_m2_ = SquaredPointDistances(true);
     const auto marginalization_start = std::chrono::steady_clock::now();
     std::unique_ptr<MarginalizationPrior> prior = MarginalizeOldest(build.get());
     build.reset();  // the problem refers to the factors about to be dropped

@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <map>
 #include <optional>
 #include <string>
@@ -362,17 +361,30 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   return build;
 }
 
-std::vector<double> SlidingWindowEstimator::PointDistances() const {
+double SlidingWindowEstimator::SquaredPointDistances(bool oldest_only) const {
+  const int oldest_id = window_.front()->id;
+  double sum = 0.0;
   std::vector<double> distances;
   for (const auto& kf : window_) {
     for (const internal::SweepPointGroup& g : kf->point_groups) {
-      const size_t first = distances.size();
-      distances.resize(first + static_cast<size_t>(g.factor->num_points()));
-      g.factor->WhitenedDistances(g.parameters.data(), distances.data() + first);
+      if (oldest_only && kf->id != oldest_id && g.partner_id != oldest_id) continue;
+      distances.resize(static_cast<size_t>(g.factor->num_points()));
+      g.factor->WhitenedDistances(g.parameters.data(), distances.data());
+      for (double r : distances) sum += r * r;
     }
   }
-  for (double& r : distances) r *= options_.point_sigma_m;
-  return distances;
+  return sum * options_.point_sigma_m * options_.point_sigma_m;
+}
+
+double SlidingWindowEstimator::last_point_rms_m() const {
+  if (!last_point_rms_m_) {
+    last_point_rms_m_ =
+        last_associated_points_ == 0
+            ? 0.0
+            : std::sqrt((dropped_point_squared_m2_ + SquaredPointDistances(false)) /
+                        static_cast<double>(last_associated_points_));
+  }
+  return *last_point_rms_m_;
 }
 
 // With the points linearized per pass (Eq. SW7) the solve runs point_linearizations_per_update
@@ -380,13 +392,6 @@ std::vector<double> SlidingWindowEstimator::PointDistances() const {
 void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  if (const char* e = std::getenv("H13_LS")) {
-    const std::string v(e);
-    if (v == "dnc") solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-    if (v == "dqr") solver_options.linear_solver_type = ceres::DENSE_QR;
-    if (v == "eigen") solver_options.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
-    if (v == "dschur") solver_options.linear_solver_type = ceres::DENSE_SCHUR;
-  }
   solver_options.max_num_iterations = options_.solver_iterations;
   solver_options.function_tolerance = options_.solver_function_tolerance;
   solver_options.num_threads = options_.num_threads;
@@ -402,13 +407,15 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
     for (auto& kf : window_) kf->state.q_W_I.normalize();
   }
 
-  const std::vector<double> distances = PointDistances();
-  last_associated_points_ = static_cast<int>(distances.size());
-  last_point_rms_m_ = 0.0;
-  if (distances.empty()) return;
-  double sum_sq = 0.0;
-  for (double r : distances) sum_sq += r * r;
-  last_point_rms_m_ = std::sqrt(sum_sq / static_cast<double>(distances.size()));
+  // The RMS of the distances is evaluated when asked for (last_point_rms_m).
+  last_associated_points_ = 0;
+  for (const auto& kf : window_) {
+    for (const internal::SweepPointGroup& g : kf->point_groups) {
+      last_associated_points_ += g.factor->num_points();
+    }
+  }
+  dropped_point_squared_m2_ = 0.0;
+  last_point_rms_m_.reset();
 }
 
 // Eq. M1-M3 over every factor touching the oldest keyframe: its prior or the previous

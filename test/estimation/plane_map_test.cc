@@ -1,5 +1,6 @@
 #include "autocal/estimation/plane_map.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -109,6 +110,97 @@ TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
     }
     EXPECT_GT(found, 200) << "k " << k;  // the comparison must cover accepted planes
   }
+}
+
+// Rings of a 30-beam scanner (0.7 deg apart) over the ground and a wall: far from the sensor
+// the nearest map points of a query lie on one ring, a line that FitLocalPlane rejects before its iterative
+// solver (PlaneMap::kGateMargin). The decisions and planes must stay the reference's.
+TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<Eigen::Vector3d> points;
+  for (int beam = 0; beam < 30; ++beam) {
+    const double elevation = (-15.0 + 0.7 * beam) * M_PI / 180.0;
+    for (double azimuth = -M_PI; azimuth < M_PI; azimuth += 0.2 * M_PI / 180.0) {
+      const Eigen::Vector3d ray(std::cos(elevation) * std::cos(azimuth),
+                                std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+      // The ground 1.8 m below the sensor, a wall at x = 25 m, else nothing.
+      double range = ray.z() < 0.0 ? -1.8 / ray.z() : 1e9;
+      if (ray.x() > 0.0) range = std::min(range, 25.0 / ray.x());
+      if (range > 80.0) continue;
+      points.push_back(range * ray + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    }
+  }
+  Eigen::Matrix3Xd scene(3, static_cast<Eigen::Index>(points.size()));
+  for (size_t i = 0; i < points.size(); ++i) scene.col(static_cast<Eigen::Index>(i)) = points[i];
+  lidar::PointCloud cloud;
+  cloud.points = scene;
+  const PlaneMapOptions options;
+  const lidar::KdTree tree(lidar::VoxelDownsample(cloud, options.voxel_m).points);
+  const PlaneMap map(scene, options);
+  // Queries near the scene's points.
+  std::uniform_int_distribution<Eigen::Index> pick(0, scene.cols() - 1);
+  std::normal_distribution<double> offset(0.0, 0.05);
+  int found = 0, lines = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const Eigen::Vector3d q =
+        scene.col(pick(rng)) + Eigen::Vector3d(offset(rng), offset(rng), offset(rng));
+    lidar::Plane plane, reference;
+    const bool ok = map.FindPlane(q, &plane);
+    ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference)) << "at " << q.transpose();
+    if (ok) {
+      ++found;
+      EXPECT_NEAR(plane.normal.dot(reference.normal), 1.0, 1e-12);
+      EXPECT_NEAR(plane.d, reference.d, 1e-12);
+      continue;
+    }
+    // A rejected neighbourhood of k points within reach: count the lines among them.
+    const std::vector<lidar::Neighbor> nn = tree.Knn(q, options.num_neighbors);
+    if (nn.back().squared_distance_m2 > options.max_neighbor_distance_m *
+                                            options.max_neighbor_distance_m) {
+      continue;
+    }
+    Eigen::Matrix3Xd local(3, options.num_neighbors);
+    for (int i = 0; i < options.num_neighbors; ++i) {
+      local.col(i) = tree.points().col(nn[static_cast<size_t>(i)].index);
+    }
+    const Eigen::Matrix3Xd centered = local.colwise() - local.rowwise().mean();
+    const Eigen::Vector3d l =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centered * centered.transpose())
+            .eigenvalues();
+    if (l(1) < options.min_spread_ratio * l(2)) ++lines;
+  }
+  // Both kinds of answer must be covered.
+  EXPECT_GT(found, 200);
+  EXPECT_GT(lines, 200);
+}
+
+// The closed-form eigenvalues that reject before the iterative solver are within a small
+// fraction of kGateMargin of the solver's, also for lines, blobs and nearly equal eigenvalues.
+TEST(PlaneMap, ClosedFormEigenvaluesAreWithinTheGateMargin) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, 1.0);
+  double worst = 0.0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    // Five points with axis scales from 1e-4 (a line, a plane) to 1 (a blob), random rotation.
+    const Eigen::Vector3d scale(std::pow(10.0, -4.0 * (trial % 5) / 4.0),
+                                std::pow(10.0, -4.0 * (trial % 3) / 2.0), 1.0);
+    const Eigen::Matrix3d rotation =
+        Eigen::Quaterniond(Eigen::Vector4d(n(rng), n(rng), n(rng), n(rng))).normalized()
+            .toRotationMatrix();
+    Eigen::Matrix3Xd local(3, 5);
+    for (int i = 0; i < 5; ++i) {
+      local.col(i) = 30.0 * Eigen::Vector3d::Ones() +
+                     rotation * scale.cwiseProduct(Eigen::Vector3d(n(rng), n(rng), n(rng)));
+    }
+    const Eigen::Matrix3Xd centered = local.colwise() - local.rowwise().mean();
+    const Eigen::Matrix3d scatter = centered * centered.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> direct;
+    direct.computeDirect(scatter, Eigen::EigenvaluesOnly);
+    const Eigen::Vector3d l = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues();
+    worst = std::max(worst, (direct.eigenvalues() - l).cwiseAbs().maxCoeff() / l(2));
+  }
+  EXPECT_LT(worst, 1e-2 * PlaneMap::kGateMargin);
 }
 
 TEST(PlaneMap, RejectsNeighbourCountsOutsideTheBuffer) {

@@ -31,6 +31,10 @@ class PlaneMap {
  public:
   // The neighbourhood lives in fixed-size buffers on the stack: a query allocates nothing.
   static constexpr int kMaxNeighbors = 32;
+  // A neighbourhood whose closed-form covariance eigenvalues fail a gate (line, blob) by more
+  // than this fraction of the largest is rejected without the iterative eigen-solver; nearer
+  // the gate the solver decides. Far above the closed-form error (plane_map_test.cc).
+  static constexpr double kGateMargin = 1e-5;
 
   // Voxel-downsamples the points (options.voxel_m) into a map. Throws autocal::Error when
   // options.num_neighbors is outside [3, kMaxNeighbors].

@@ -250,9 +250,10 @@ class SlidingWindowEstimator {
   const SlidingWindowCounters& counters() const { return counters_; }
   const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
   // Point-to-plane residuals of the last update and their RMS after its solve (metres,
-  // without the loss).
+  // without the loss). The RMS is evaluated on the first call after an update (the estimate
+  // does not change in between), not by every update.
   int last_associated_points() const { return last_associated_points_; }
-  double last_point_rms_m() const { return last_point_rms_m_; }
+  double last_point_rms_m() const;
 
  private:
   struct WindowKeyframe;
@@ -274,9 +275,10 @@ class SlidingWindowEstimator {
   // Step 4; replaces *build with each pass's problem, relinearized where the previous pass
   // ended (Eq. SW7).
   void Solve(std::unique_ptr<ProblemBuild>* build);
-  // Point-to-plane distances (metres, without the loss) of every point group at the current
-  // estimate.
-  std::vector<double> PointDistances() const;
+  // Sum of the squared point-to-plane distances (m^2, without the loss) at the current
+  // estimate of the point groups of the window (only those that pair a sweep with the oldest
+  // keyframe's, either way round, if so asked).
+  double SquaredPointDistances(bool oldest_only) const;
   std::unique_ptr<MarginalizationPrior> MarginalizeOldest(ProblemBuild* build);
   void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
   void TrimImuBuffer();
@@ -310,7 +312,10 @@ class SlidingWindowEstimator {
   SlidingWindowCounters counters_;
   SlidingWindowUpdateTiming timing_;
   int last_associated_points_ = 0;
-  double last_point_rms_m_ = 0.0;
+  // Squared distances of the groups the last update's marginalization dropped; the RMS once
+  // evaluated.
+  double dropped_point_squared_m2_ = 0.0;
+  mutable std::optional<double> last_point_rms_m_ = 0.0;
 };
 
 }  // namespace estimation
