@@ -62,6 +62,9 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPositive(o.wheel_non_holonomic_sigma_m_s, "wheel_non_holonomic_sigma_m_s");
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
+  if (!(o.wheel_gyro_mean_span_s >= 0.0) || !std::isfinite(o.wheel_gyro_mean_span_s)) {
+    throw Error("SlidingWindowOptions: wheel_gyro_mean_span_s must be finite and >= 0");
+  }
   if (o.keyframe_lead_s < 0.0 || o.imu_coverage_margin_s < 0.0) {
     throw Error("SlidingWindowOptions: keyframe_lead_s and imu_coverage_margin_s must be >= 0");
   }
@@ -405,10 +408,23 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
     factors::WheelMeasurement m;
     m.left_rad_s = w.left_rad_s;
     m.right_rad_s = w.right_rad_s;
-    m.gyro_rad_s = sensors::InterpolateImu(imu_, w.t_ns).gyro_rad_s;
+    // Eq. SW10: the mean gyro over the span around the wheel sample.
+    const int64_t half_span_ns = SecondsToNs(0.5 * options_.wheel_gyro_mean_span_s);
+    const auto first = std::lower_bound(
+        imu_.begin(), imu_.end(), w.t_ns - half_span_ns,
+        [](const sensors::ImuSample& a, int64_t t) { return a.t_ns < t; });
+    Eigen::Vector3d gyro_sum = Eigen::Vector3d::Zero();
+    int gyro_samples = 0;
+    for (auto it = first; it != imu_.end() && it->t_ns <= w.t_ns + half_span_ns; ++it) {
+      gyro_sum += it->gyro_rad_s;
+      ++gyro_samples;
+    }
+    m.gyro_rad_s = gyro_samples > 0 ? Eigen::Vector3d(gyro_sum / gyro_samples)
+                                    : sensors::InterpolateImu(imu_, w.t_ns).gyro_rad_s;
     AttachedFactor f;
     f.cost.reset(internal::PropagatedWheelResidual::Create(
-        pim, m, wheel_options, options_.wheel.noise_rad_s, gyro_sample_sigma_rad_s));
+        pim, m, wheel_options, options_.wheel.noise_rad_s,
+        gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro_samples))));
     f.loss = wheel_loss_.get();
     f.blocks = StateBlocks(&s);
     for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,

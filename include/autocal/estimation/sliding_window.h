@@ -106,6 +106,14 @@ struct SlidingWindowOptions {
   bool wheel_non_holonomic = false;
   double wheel_non_holonomic_sigma_m_s = 0.05;
   int max_wheel_samples_per_interval = 5;
+  // The angular rate the wheel rows take (in the rear axle's lever-arm speed w x p_I_V and the
+  // yaw-rate row, Eq. F22): the mean gyro over this span centred on the wheel sample, its
+  // sample noise divided by sqrt(n) in the yaw-rate whitening (0: the gyro interpolated at the
+  // sample). One sample's noise, times the rear axle's 1.2 m lever, is noise in a regressor of
+  // p_I_V, which least squares shrinks towards the IMU (errors in variables): on the 60 s
+  // urban logs the rear axle's height ended 38-40 cm off, and p_I_L's height 4-10 cm with it.
+  // 50 ms (11 samples at 200 Hz) left 3-6 cm and 0.5-4 cm (docs/sliding_window.md, Eq. SW10).
+  double wheel_gyro_mean_span_s = 0.05;
 
   // GNSS: origin of W for AddGnss(GnssFix) (WGS84 latitude, longitude, ellipsoidal height).
   // Unset: W is the ENU frame at the first fix received (docs/design.md), so the initial
