@@ -47,21 +47,25 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
             << " mm; T_I_V " << c.T_I_V.rotation_deg.transpose() << " deg; ATE "
             << t.ate_translation_rmse_m << " m / " << t.ate_rotation_rmse_deg << " deg\n";
 
-  // Measured: 0.054 deg; x 8.4, y -6.7 mm (z, which planar driving does not excite, 46 mm);
-  // offset -0.21 ms; radii 0.002 %; lever arm (12.6, -7.5, -11.4) mm; T_I_V 0.60 deg;
-  // ATE 2.4 cm / 0.15 deg.
+  // Measured: 0.061 deg; x 8.4, y -7.0 mm (z, which planar driving does not excite, 4.9 mm);
+  // offset -0.28 ms; radii 0.003 %; lever arm (11.4, -7.6, -10.2) mm; T_I_V 0.28 deg;
+  // ATE 2.4 cm / 0.13 deg. Seeds 2 and 3: 0.045 / 0.055 deg, x and y within 4.8 / 9.6 mm,
+  // 0.08 / 0.03 ms, lever arm 11.6 / 15.2 mm, ATE 4.1 / 3.4 cm and 0.16 / 0.12 deg.
   EXPECT_LT(c.T_I_L.RotationAngleDeg(), 0.1);
-  // Goal 1 cm on the excited axes: 10.7 mm here (4.7 and 10.2 mm on seeds 2 and 3).
-  EXPECT_LT(c.T_I_L.translation_mm.head<2>().norm(), 15.0);
+  EXPECT_LT(std::abs(c.T_I_L.translation_mm.x()), 10.0);  // the excited axes
+  EXPECT_LT(std::abs(c.T_I_L.translation_mm.y()), 10.0);
   EXPECT_LT(std::abs(c.time_offset_ms), 0.5);
   EXPECT_LT(std::abs(c.wheel_radius_left_percent), 0.1);
   EXPECT_LT(std::abs(c.wheel_radius_right_percent), 0.1);
   EXPECT_LT(c.p_I_A_mm.norm(), 20.0);
   EXPECT_LT(c.T_I_V.RotationAngleDeg(), 1.0);
+  // One gyro sample per wheel row put the rear axle 40 cm too high (Eq. SW10).
+  EXPECT_LT(c.T_I_V.translation_mm.norm(), 100.0);
   EXPECT_EQ(t.unmatched_poses, 0);
   EXPECT_LT(t.ate_translation_rmse_m, 0.05);
-  // Goal 0.1 deg: the window's roll wanders by up to 0.3 deg in the first 20 s, while the
-  // accelerometer bias and gravity are still being told apart (0.13-0.19 deg on seeds 1-3).
+  // Goal 0.1 deg, not met: the start's yaw (0.08-0.19 deg off from the GNSS-inertial solve),
+  // the roll while the accelerometer bias and gravity are still being told apart in the first
+  // 20 s, and the pitch at stops (docs/sliding_window.md, "Status").
   EXPECT_LT(t.ate_rotation_rmse_deg, 0.2);
 }
 

@@ -119,6 +119,9 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   options = SlidingWindowOptions();
   options.max_point_to_plane_m = 0.0;
   EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
+  options = SlidingWindowOptions();
+  options.wheel_gyro_mean_span_s = -0.01;
+  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
 }
 
 TEST(SlidingWindowStreaming, BuffersSweepUntilImuCoversIt) {

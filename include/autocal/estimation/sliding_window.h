@@ -103,6 +103,8 @@ struct SlidingWindowOptions {
   // or vertical speed of the rear axle) are off by default: the simulated rear axle moves
   // sideways and vertically by up to 0.14 m/s, and with the LiDAR pairs moving with the
   // extrinsic the rows pulled p_I_L up to 0.7 m forward (docs/sliding_window.md, "Figures").
+  // Weighted for their correlated model error (Eq. K6, sigma ~0.7 m/s) they keep the vehicle
+  // frame and the radii out of their cosine valley; pipeline::EstimateDatasetOnline does so.
   bool wheel_non_holonomic = false;
   double wheel_non_holonomic_sigma_m_s = 0.05;
   int max_wheel_samples_per_interval = 5;
