@@ -45,12 +45,8 @@ geometry::Pose3d PoseAt(const std::vector<lidar::OdometryFrame>& frames, int64_t
 // falls inside.
 Eigen::Vector3d MeanRate(const sensors::ImuSamples& imu, const Eigen::Vector3d& bias, int64_t t0_ns,
                          int64_t t1_ns) {
-  auto it = std::lower_bound(imu.begin(), imu.end(), t0_ns,
-                             [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  int count = 0;
-  for (; it != imu.end() && it->t_ns <= t1_ns; ++it, ++count) sum += it->gyro_rad_s;
-  return count == 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(sum / count - bias);
+  const sensors::GyroMean mean = sensors::MeanGyro(imu, t0_ns, t1_ns);
+  return mean.samples == 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(mean.rate_rad_s - bias);
 }
 
 // Step 1 (and its repetition). With `gyro` set, each sweep is deskewed with the gyro rate

@@ -145,18 +145,19 @@ void FitYawAndTranslation(const std::vector<Eigen::Vector3d>& a,
   fit->num_inliers = n;
 }
 
-// Eq. K6: a model error correlated over tau seen at keyframes dt apart carries the
-// information of about T / (2 tau) independent samples, not T / dt; scaling each row's sigma
-// by sqrt(2 tau / dt) (never below 1) leaves the information of the whole drive at the former.
-double NonHolonomicSigmaScale(const std::vector<Keyframe>& keyframes, double tau_s) {
-  if (keyframes.size() < 2 || tau_s == 0.0) return 1.0;
-  const double dt_s = NsToSeconds(keyframes.back().t_ns - keyframes.front().t_ns) /
-                      static_cast<double>(keyframes.size() - 1);
-  if (!(dt_s > 0.0)) return 1.0;
-  return std::sqrt(std::max(1.0, 2.0 * tau_s / dt_s));
+// Eq. K6 at the keyframes' mean spacing.
+double KeyframeNonHolonomicSigmaScale(const std::vector<Keyframe>& keyframes, double tau_s) {
+  if (keyframes.size() < 2) return 1.0;
+  return NonHolonomicSigmaScale(tau_s, NsToSeconds(keyframes.back().t_ns - keyframes.front().t_ns) /
+                                           static_cast<double>(keyframes.size() - 1));
 }
 
 }  // namespace
+
+double NonHolonomicSigmaScale(double tau_s, double dt_s) {
+  if (tau_s == 0.0 || !(dt_s > 0.0)) return 1.0;
+  return std::sqrt(std::max(1.0, 2.0 * tau_s / dt_s));
+}
 
 int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                   std::vector<Keyframe>* keyframes, const KeyframeImuOptions& options) {
@@ -232,7 +233,8 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
     throw Error("AddWheelFactors: non_holonomic_correlation_s must be finite and >= 0");
   }
   factors::WheelFactorOptions factor_options = options.factor;
-  const double scale = NonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
+  const double scale =
+      KeyframeNonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
   factor_options.lateral_sigma_m_s *= scale;
   factor_options.vertical_sigma_m_s *= scale;
   int added = 0;

@@ -8,6 +8,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/prior_factors.h"
 #include "estimation/point_selection.h"
 #include "estimation/sliding_window_internal.h"
@@ -60,6 +61,10 @@ void CheckOptions(const SlidingWindowOptions& o) {
     throw Error("SlidingWindowOptions: partner_keyframe_offsets must be non-empty and non-zero");
   }
   CheckPositive(o.wheel_non_holonomic_sigma_m_s, "wheel_non_holonomic_sigma_m_s");
+  if (!(o.wheel_non_holonomic_correlation_s >= 0.0) ||
+      !std::isfinite(o.wheel_non_holonomic_correlation_s)) {
+    throw Error("SlidingWindowOptions: wheel_non_holonomic_correlation_s must be finite and >= 0");
+  }
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
   if (!(o.wheel_gyro_mean_span_s >= 0.0) || !std::isfinite(o.wheel_gyro_mean_span_s)) {
@@ -396,12 +401,20 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
       options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m);
   const double gyro_sample_sigma_rad_s =
       options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
+  const std::vector<int> used = internal::Thin(all, options_.max_wheel_samples_per_interval);
+  // Eq. K6 at the spacing of the samples used.
+  const double non_holonomic_sigma_m_s =
+      options_.wheel_non_holonomic_sigma_m_s *
+      NonHolonomicSigmaScale(options_.wheel_non_holonomic_correlation_s,
+                             used.empty() ? 0.0
+                                          : NsToSeconds(t_end_ns - s.t_ns) /
+                                                static_cast<double>(used.size()));
   wheel_options.non_holonomic = options_.wheel_non_holonomic;
-  wheel_options.lateral_sigma_m_s = options_.wheel_non_holonomic_sigma_m_s;
-  wheel_options.vertical_sigma_m_s = options_.wheel_non_holonomic_sigma_m_s;
+  wheel_options.lateral_sigma_m_s = non_holonomic_sigma_m_s;
+  wheel_options.vertical_sigma_m_s = non_holonomic_sigma_m_s;
   sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
   int64_t integrated_to_ns = s.t_ns;
-  for (int i : internal::Thin(all, options_.max_wheel_samples_per_interval)) {
+  for (int i : used) {
     const sensors::WheelSample& w = wheel[static_cast<size_t>(i)];
     pim.Integrate(imu_, integrated_to_ns, w.t_ns);
     integrated_to_ns = w.t_ns;
@@ -410,21 +423,14 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
     m.right_rad_s = w.right_rad_s;
     // Eq. SW10: the mean gyro over the span around the wheel sample.
     const int64_t half_span_ns = SecondsToNs(0.5 * options_.wheel_gyro_mean_span_s);
-    const auto first = std::lower_bound(
-        imu_.begin(), imu_.end(), w.t_ns - half_span_ns,
-        [](const sensors::ImuSample& a, int64_t t) { return a.t_ns < t; });
-    Eigen::Vector3d gyro_sum = Eigen::Vector3d::Zero();
-    int gyro_samples = 0;
-    for (auto it = first; it != imu_.end() && it->t_ns <= w.t_ns + half_span_ns; ++it) {
-      gyro_sum += it->gyro_rad_s;
-      ++gyro_samples;
-    }
-    m.gyro_rad_s = gyro_samples > 0 ? Eigen::Vector3d(gyro_sum / gyro_samples)
+    const sensors::GyroMean gyro =
+        sensors::MeanGyro(imu_, w.t_ns - half_span_ns, w.t_ns + half_span_ns);
+    m.gyro_rad_s = gyro.samples > 0 ? gyro.rate_rad_s
                                     : sensors::InterpolateImu(imu_, w.t_ns).gyro_rad_s;
     AttachedFactor f;
     f.cost.reset(internal::PropagatedWheelResidual::Create(
         pim, m, wheel_options, options_.wheel.noise_rad_s,
-        gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro_samples))));
+        gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples))));
     f.loss = wheel_loss_.get();
     f.blocks = StateBlocks(&s);
     for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,

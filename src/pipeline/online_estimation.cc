@@ -13,7 +13,6 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
-#include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/tum_trajectory.h"
 #include "calibration_steps.h"
@@ -64,25 +63,12 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   w.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
   w.residual_voxel_m = problem.lidar.voxel_m;
   w.initial_state_sigmas = options.initial_state_sigmas;
-  if (use_wheel) {
-    // The rear axle's lateral and vertical speed rows, weighted as the offline calibration's
-    // (Eq. K6: a model error correlated over tau seen every dt carries ~T / 2 tau samples, not
-    // T / dt). Without them the wheel speeds see the vehicle frame's pitch and yaw only through
-    // the cosine that scales the speed along x_V, as the radii do: on the 60 s urban log the
-    // window drifted along that valley to 5.7 deg and -0.47 % (docs/sliding_window.md).
-    const double sweep_period_s =
-        dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
-    const double wheel_period_s =
-        dataset.sensors.wheel ? 1.0 / dataset.sensors.wheel->rate_hz : 0.01;
-    const double spacing_s =
-        w.max_wheel_samples_per_interval > 0
-            ? std::max(wheel_period_s, sweep_period_s / w.max_wheel_samples_per_interval)
-            : wheel_period_s;
-    const double tau_s = estimation::KeyframeWheelOptions().non_holonomic_correlation_s;
-    w.wheel_non_holonomic = true;
-    w.wheel_non_holonomic_sigma_m_s = factors::WheelFactorOptions().lateral_sigma_m_s *
-                                      std::sqrt(std::max(1.0, 2.0 * tau_s / spacing_s));
-  }
+  // The rear axle's lateral and vertical speed rows, weighted for their correlated model error
+  // (Eq. K6, as in the offline calibration). Without them the wheel speeds see the vehicle
+  // frame's pitch and yaw only through the cosine that scales the speed along x_V, as the radii
+  // do: on the 60 s urban log the window drifted along that valley to 5.7 deg and -0.47 %
+  // (docs/sliding_window.md).
+  w.wheel_non_holonomic = use_wheel;
 
   estimation::SlidingWindowEstimatedBlocks& e = w.estimate;
   e.extrinsic_rotation = Estimated(b.T_I_L.rotation.mode);
@@ -151,7 +137,8 @@ estimation::Keyframe StartFromGnssAndImu(const io::Dataset& dataset,
                                          const sensors::WheelSamples& wheel,
                                          const sensors::EnuConverter& enu,
                                          const std::vector<estimation::Keyframe>& aligned,
-                                         bool estimate_q_I_L, const sensors::Calibration& calibration,
+                                         bool estimate_q_I_L,
+                                         const sensors::Calibration& calibration,
                                          Eigen::Quaterniond* q_I_L) {
   std::vector<estimation::Keyframe> refined = aligned;
   estimation::GnssInertialKeyframesOptions options;
@@ -213,12 +200,13 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   init_options.imu_noise = dataset.sensors.imu.noise;
   init_options.p_I_L_prior = dataset.sensors.nominal_calibration.p_I_L;
   init_options.keyframe_lead_s = options.window.keyframe_lead_s;
+  // Every initializer_sweep_stride-th sweep is lent to the initializer (moved there and back).
+  const size_t stride = static_cast<size_t>(options.initializer_sweep_stride);
   std::vector<lidar::LidarSweep> init_sweeps;
-  for (size_t i = 0; i < sweeps.size(); i += static_cast<size_t>(options.initializer_sweep_stride)) {
-    init_sweeps.push_back(sweeps[i]);
-  }
+  for (size_t i = 0; i < sweeps.size(); i += stride) init_sweeps.push_back(std::move(sweeps[i]));
   const estimation::CalibrationInitialization init =
       estimation::InitializeLidarImu(dataset.imu, init_sweeps, init_options);
+  for (size_t k = 0; k < init_sweeps.size(); ++k) sweeps[k * stride] = std::move(init_sweeps[k]);
   result.seconds_initialization =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!init.ok || init.keyframes.empty()) {

@@ -207,6 +207,17 @@ ImuSample InterpolateImu(const ImuSamples& samples, int64_t t_ns) {
   return Lerp(samples[k], samples[k + 1], t_ns);
 }
 
+GyroMean MeanGyro(const ImuSamples& samples, int64_t t0_ns, int64_t t1_ns) {
+  auto it = std::lower_bound(samples.begin(), samples.end(), t0_ns,
+                             [](const ImuSample& s, int64_t t) { return s.t_ns < t; });
+  GyroMean mean;
+  for (; it != samples.end() && it->t_ns <= t1_ns; ++it, ++mean.samples) {
+    mean.rate_rad_s += it->gyro_rad_s;
+  }
+  if (mean.samples > 0) mean.rate_rad_s /= mean.samples;
+  return mean;
+}
+
 ImuPreintegration::ImuPreintegration(const ImuNoise& noise, const PreintegrationOptions& options,
                                      const Eigen::Vector3d& b_g_lin, const Eigen::Vector3d& b_a_lin)
     : noise_(noise), options_(options), b_g_lin_(b_g_lin), b_a_lin_(b_a_lin) {

@@ -46,7 +46,10 @@ inline void SpoilNominalGuess(io::SensorsConfig* config) {
 
 struct SimulatedUrbanDataset {
   SimulatedUrbanDataset(double duration_s, const std::string& name)
-      : simulator(UrbanDriveOptions(duration_s)),
+      : SimulatedUrbanDataset(UrbanDriveOptions(duration_s), name) {}
+  // Any other drive, written and removed the same way.
+  SimulatedUrbanDataset(const sim::SimulationOptions& options, const std::string& name)
+      : simulator(options),
         directory(OutputDir(name + "_" + std::to_string(static_cast<long>(getpid()))).string()) {
     std::filesystem::remove_all(directory);
     summary = sim::WriteDataset(simulator, directory);

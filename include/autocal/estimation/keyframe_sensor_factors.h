@@ -54,6 +54,12 @@ int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
 void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias_sigma_rad_s,
                    double accel_bias_sigma_m_s2);
 
+// Eq. K6 (docs/keyframe_factors.md): a model error correlated over tau_s seen every dt_s
+// carries the information of about T / (2 tau) independent samples, not T / dt; the factor
+// sqrt(max(1, 2 tau / dt)) on each row's sigma leaves the information of a drive at the former.
+// 1 for tau_s = 0 (white rows) or a non-positive dt_s.
+double NonHolonomicSigmaScale(double tau_s, double dt_s);
+
 struct KeyframeWheelOptions {
   // Sigmas and rows of each factor. With factor.shared_radius the left radius block
   // (Calibration::wheel_radius_left_m) stands for both wheels; the right one is not touched.

@@ -102,11 +102,15 @@ struct SlidingWindowOptions {
   // keyframe interval are used (evenly spread; 0 = all). The non-holonomic rows (no lateral
   // or vertical speed of the rear axle) are off by default: the simulated rear axle moves
   // sideways and vertically by up to 0.14 m/s, and with the LiDAR pairs moving with the
-  // extrinsic the rows pulled p_I_L up to 0.7 m forward (docs/sliding_window.md, "Figures").
-  // Weighted for their correlated model error (Eq. K6, sigma ~0.7 m/s) they keep the vehicle
-  // frame and the radii out of their cosine valley; pipeline::EstimateDatasetOnline does so.
+  // extrinsic the rows pulled p_I_L up to 0.7 m forward (docs/sliding_window.md, "Figures"),
+  // as white rows. Their sigma is scaled for the model error's correlation time as the
+  // offline calibration's (Eq. K6, estimation::NonHolonomicSigmaScale), dt the spacing of the
+  // interval's wheel samples used: 2 s at 5 samples per 0.1 s makes 0.05 m/s 0.71 m/s, and so
+  // weighted they keep the vehicle frame and the radii out of their cosine valley
+  // (pipeline::EstimateDatasetOnline turns them on). 0 keeps the rows white.
   bool wheel_non_holonomic = false;
   double wheel_non_holonomic_sigma_m_s = 0.05;
+  double wheel_non_holonomic_correlation_s = 2.0;
   int max_wheel_samples_per_interval = 5;
   // The angular rate the wheel rows take (in the rear axle's lever-arm speed w x p_I_V and the
   // yaw-rate row, Eq. F22): the mean gyro over this span centred on the wheel sample, its

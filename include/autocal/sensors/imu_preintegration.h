@@ -164,6 +164,14 @@ class ImuPreintegration {
 // Throws autocal::Error outside the samples' time span.
 ImuSample InterpolateImu(const ImuSamples& samples, int64_t t_ns);
 
+// The mean of the gyro samples stamped in [t0_ns, t1_ns] (samples sorted by time), and how many
+// there were; zero and 0 when none.
+struct GyroMean {
+  Eigen::Vector3d rate_rad_s = Eigen::Vector3d::Zero();
+  int samples = 0;
+};
+GyroMean MeanGyro(const ImuSamples& samples, int64_t t0_ns, int64_t t1_ns);
+
 template <typename T>
 NavState<T> ImuPreintegration::Predict(const NavState<T>& state_i, const geometry::Vector3<T>& b_g,
                                        const geometry::Vector3<T>& b_a) const {
