@@ -162,6 +162,36 @@ estimation::Keyframe StartFromGnssAndImu(const io::Dataset& dataset,
   return refined.front();
 }
 
+// Seconds with all nine decimals (a double holds only ~16 digits of a Unix stamp).
+void WriteStampS(std::ostream& out, int64_t t_ns) {
+  const char fill = out.fill('0');
+  out << t_ns / kNanosecondsPerSecond << '.' << std::setw(9) << t_ns % kNanosecondsPerSecond;
+  out.fill(fill);
+}
+
+void WriteStatesCsv(const std::string& path,
+                    const std::vector<estimation::SlidingWindowState>& states) {
+  std::ofstream csv(path);
+  csv << "t_s,p_W_I_x_m,p_W_I_y_m,p_W_I_z_m,q_W_I_x,q_W_I_y,q_W_I_z,q_W_I_w,"
+         "v_W_I_x_m_s,v_W_I_y_m_s,v_W_I_z_m_s,b_g_x_rad_s,b_g_y_rad_s,b_g_z_rad_s,"
+         "b_a_x_m_s2,b_a_y_m_s2,b_a_z_m_s2\n";
+  csv << std::setprecision(12);
+  for (const estimation::SlidingWindowState& x : states) {
+    WriteStampS(csv, x.t_ns);
+    const auto row = [&csv](const auto& v) {
+      for (int i = 0; i < v.size(); ++i) csv << ',' << v[i];
+    };
+    row(x.p_W_I);
+    row(x.q_W_I.coeffs());
+    row(x.v_W_I);
+    row(x.b_g);
+    row(x.b_a);
+    csv << '\n';
+  }
+  csv.close();
+  if (!csv) throw Error("cannot write " + path);
+}
+
 }  // namespace
 
 OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
@@ -323,6 +353,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     s.T_W_I = geometry::Pose3d(x.q_W_I, x.p_W_I);
     s.v_W_I = x.v_W_I;
     result.trajectory.push_back(s);
+    result.states.push_back(x);
   }
   result.counters = estimator.counters();
   result.calibration.value = estimator.calibration();
@@ -346,18 +377,17 @@ void WriteOnlineEstimationResult(const std::string& directory,
   if (error) throw Error("cannot create " + directory + ": " + error.message());
   io::WriteCalibrationYaml(directory + "/calibration.yaml", result.calibration);
   io::WriteTumTrajectory(directory + "/trajectory.tum", result.trajectory);
+  WriteStatesCsv(directory + "/states.csv", result.states);
   const std::string csv_path = directory + "/calibration_over_time.csv";
   std::ofstream csv(csv_path);
   csv << "t_s,q_I_L_x,q_I_L_y,q_I_L_z,q_I_L_w,p_I_L_x_m,p_I_L_y_m,p_I_L_z_m,"
          "time_offset_lidar_imu_s,wheel_radius_left_m,wheel_radius_right_m,track_width_m,"
          "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m\n";
   csv << std::setprecision(12);
-  csv.fill('0');
   for (const CalibrationSample& s : result.calibration_over_time) {
     const sensors::Calibration& c = s.calibration;
-    // Seconds with all nine decimals (a double holds only ~16 digits of a Unix stamp).
-    csv << s.t_ns / kNanosecondsPerSecond << '.' << std::setw(9) << s.t_ns % kNanosecondsPerSecond
-        << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z()
+    WriteStampS(csv, s.t_ns);
+    csv << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z()
         << ',' << c.q_I_L.w() << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z()
         << ',' << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','
         << c.wheel_radius_right_m << ',' << c.track_width_m << ',' << c.p_I_A.x() << ','

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -161,6 +162,28 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
   EXPECT_THAT(last, ::testing::StartsWith(std::to_string(t_last / 1'000'000'000) + "." +
                                           std::to_string(t_last % 1'000'000'000 + 1'000'000'000)
                                               .substr(1)));
+
+  // states.csv: one row per keyframe, its last one the final state with its biases.
+  std::ifstream states(out + "/states.csv");
+  ASSERT_TRUE(std::getline(states, line));
+  EXPECT_THAT(line, ::testing::StartsWith("t_s,p_W_I_x_m"));
+  EXPECT_THAT(line, ::testing::EndsWith("b_a_z_m_s2"));
+  rows = 0;
+  while (std::getline(states, line)) {
+    ++rows;
+    last = line;
+  }
+  ASSERT_EQ(rows, static_cast<int>(result.states.size()));
+  ASSERT_EQ(result.states.size(), result.trajectory.size());
+  std::vector<double> fields;
+  std::stringstream row(last.substr(last.find(',') + 1));
+  for (std::string field; std::getline(row, field, ',');) fields.push_back(std::stod(field));
+  ASSERT_EQ(fields.size(), 16u);
+  const estimation::SlidingWindowState& final_state = result.states.back();
+  EXPECT_NEAR(fields[0], final_state.p_W_I.x(), 1e-6);
+  EXPECT_NEAR(fields[6], final_state.q_W_I.w(), 1e-9);
+  EXPECT_NEAR(fields[10], final_state.b_g.x(), 1e-12);
+  EXPECT_NEAR(fields[15], final_state.b_a.z(), 1e-12);
 }
 
 // The window starts from the initializer, which takes no guess: a nominal calibration off by

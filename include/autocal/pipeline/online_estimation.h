@@ -84,6 +84,8 @@ struct OnlineEstimationResult {
   // holds carry no sigma. solver: counters of the run; residuals["lidar"]: the last update's.
   io::CalibrationFile calibration;
   io::Trajectory trajectory;  // every keyframe, marginalized ones as last estimated
+  // The same keyframes' full states: pose, velocity and the IMU biases.
+  std::vector<estimation::SlidingWindowState> states;
   std::vector<CalibrationSample> calibration_over_time;
   estimation::SlidingWindowCounters counters;
   sensors::Calibration initial;  // the calibration the window started from
@@ -99,9 +101,11 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
                                              const io::Problem& problem,
                                              const OnlineEstimationOptions& options = {});
 
-// Writes trajectory.tum, calibration_over_time.csv and calibration.yaml into `directory`
-// (created). calibration_over_time.csv columns: t_s (IMU clock, seconds), q_I_L (qx qy qz qw),
-// p_I_L (m), time_offset_lidar_imu_s, wheel radii (m), track_width_m, p_I_A (m).
+// Writes trajectory.tum, states.csv, calibration_over_time.csv and calibration.yaml into
+// `directory` (created). calibration_over_time.csv columns: t_s (IMU clock, seconds), q_I_L
+// (qx qy qz qw), p_I_L (m), time_offset_lidar_imu_s, wheel radii (m), track_width_m, p_I_A (m).
+// states.csv columns: t_s, p_W_I (m), q_W_I (qx qy qz qw), v_W_I (m/s), b_g (rad/s),
+// b_a (m/s^2).
 // Throws autocal::Error on I/O failure.
 void WriteOnlineEstimationResult(const std::string& directory,
                                  const OnlineEstimationResult& result);
