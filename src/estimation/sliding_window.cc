@@ -70,8 +70,10 @@ void CheckOptions(const SlidingWindowOptions& o) {
   if (!(o.wheel_gyro_mean_span_s >= 0.0) || !std::isfinite(o.wheel_gyro_mean_span_s)) {
     throw Error("SlidingWindowOptions: wheel_gyro_mean_span_s must be finite and >= 0");
   }
-  if (o.keyframe_lead_s < 0.0 || o.imu_coverage_margin_s < 0.0) {
-    throw Error("SlidingWindowOptions: keyframe_lead_s and imu_coverage_margin_s must be >= 0");
+  if (o.keyframe_lead_s < 0.0 || o.imu_coverage_margin_s < 0.0 ||
+      o.min_keyframe_interval_s < 0.0) {
+    throw Error("SlidingWindowOptions: keyframe_lead_s, imu_coverage_margin_s and "
+                "min_keyframe_interval_s must be >= 0");
   }
   const SlidingWindowCalibrationPrior& c = o.calibration_prior;
   for (double s : {c.extrinsic_rotation_deg, c.extrinsic_translation_m, c.time_offset_s,
@@ -277,7 +279,7 @@ bool SlidingWindowEstimator::AddSweep(const lidar::LidarSweep& sweep) {
     return false;
   }
   newest_sweep_ns_ = sweep.t_ns;
-  if (KeyframeTimeOf(sweep) <= latest_state().t_ns) {
+  if (TooCloseToNewestKeyframe(sweep)) {
     ++counters_.late;
     return false;
   }
@@ -291,6 +293,11 @@ int64_t SlidingWindowEstimator::KeyframeTimeOf(const lidar::LidarSweep& sweep) c
   return sweep.t_ns + SecondsToNs(calibration_.time_offset_lidar_imu_s - options_.keyframe_lead_s);
 }
 
+bool SlidingWindowEstimator::TooCloseToNewestKeyframe(const lidar::LidarSweep& sweep) const {
+  return KeyframeTimeOf(sweep) - latest_state().t_ns <
+         std::max<int64_t>(1, SecondsToNs(options_.min_keyframe_interval_s));
+}
+
 void SlidingWindowEstimator::ProcessCoveredSweeps() {
   while (!pending_sweeps_.empty() && !imu_.empty()) {
     const lidar::LidarSweep& sweep = pending_sweeps_.front();
@@ -300,7 +307,7 @@ void SlidingWindowEstimator::ProcessCoveredSweeps() {
                                  options_.imu_coverage_margin_s);
     if (imu_.back().t_ns < needed_ns) return;
     // The offset estimate may have moved since the sweep arrived.
-    if (KeyframeTimeOf(sweep) <= latest_state().t_ns) {
+    if (TooCloseToNewestKeyframe(sweep)) {
       ++counters_.late;
     } else {
       Update(sweep);

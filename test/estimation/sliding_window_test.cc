@@ -95,6 +95,28 @@ TEST(SlidingWindowStreaming, DropsOutOfOrderAndLateSamples) {
   EXPECT_EQ(estimator.counters().sweeps_accepted, 1);
 }
 
+// A sweep whose keyframe would land just after the newest keyframe (here the initial state,
+// as when the window starts at a state the initializer placed with another time offset) is
+// dropped as late; before, the IMU factor over that one sample threw on its singular
+// covariance.
+TEST(SlidingWindowStreaming, DropsASweepTooCloseToTheNewestKeyframe) {
+  const SlidingWindowOptions options = FastOptions();
+  SlidingWindowEstimator estimator(options, sensors::Calibration(), StillState());
+  const int64_t lead_ns = SecondsToNs(options.keyframe_lead_s);
+  int64_t t = kStart;
+  estimator.AddImu(StillImu(t));
+  // Keyframe 0.5 ms after the initial state, then one a sweep period later.
+  const lidar::LidarSweep close = SmallSweep(kStart + lead_ns + 500'000);
+  const lidar::LidarSweep next = SmallSweep(close.t_ns + 100'000'000);
+  while (t < next.t_ns + 200'000'000) estimator.AddImu(StillImu(t += kImuStep));
+  EXPECT_FALSE(estimator.AddSweep(close));
+  EXPECT_EQ(estimator.counters().late, 1);
+  EXPECT_EQ(estimator.window_size(), 1);
+  EXPECT_TRUE(estimator.AddSweep(next));
+  EXPECT_EQ(estimator.window_size(), 2);
+  EXPECT_EQ(estimator.latest_state().t_ns, next.t_ns - lead_ns);
+}
+
 TEST(SlidingWindowStreaming, RejectsInvalidData) {
   SlidingWindowEstimator estimator(FastOptions(), sensors::Calibration(), StillState());
   EXPECT_THROW(estimator.AddImu(StillImu(kStart + kImuStep)), Error);  // starts after the state
@@ -121,6 +143,9 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
   options = SlidingWindowOptions();
   options.wheel_gyro_mean_span_s = -0.01;
+  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
+  options = SlidingWindowOptions();
+  options.min_keyframe_interval_s = -0.01;
   EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
 }
 

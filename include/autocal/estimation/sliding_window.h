@@ -132,6 +132,10 @@ struct SlidingWindowOptions {
   // A sweep is processed when the IMU covers its last point at the current offset plus this
   // margin (room for the offset estimate to grow).
   double imu_coverage_margin_s = 0.02;
+  // A sweep whose keyframe would follow the newest keyframe by less than this is dropped as
+  // late: an IMU factor over less than two IMU samples has a singular covariance (the
+  // position error of one sampled step is a fixed multiple of its velocity error).
+  double min_keyframe_interval_s = 0.02;
   // Residual points of each sweep: one per voxel of this size (in L), then at most this many.
   double residual_voxel_m = 0.6;
   int max_residuals_per_sweep = 2000;
@@ -274,6 +278,8 @@ class SlidingWindowEstimator {
   struct ProblemBuild;
 
   int64_t KeyframeTimeOf(const lidar::LidarSweep& sweep) const;
+  // Its keyframe would not follow the newest one by min_keyframe_interval_s (dropped as late).
+  bool TooCloseToNewestKeyframe(const lidar::LidarSweep& sweep) const;
   void ProcessCoveredSweeps();
   // One window update for a covered sweep (steps 1-5 above).
   void Update(const lidar::LidarSweep& sweep);
