@@ -493,8 +493,8 @@ TEST_F(SlidingWindowUrban, TracksTruthFromTrueCalibration) {
   EXPECT_EQ(run.max_window, options.window_size);
   EXPECT_GT(run.trajectory.size(), 190u);
   EXPECT_EQ(run.counters.late, 0);
-  // Measured: 0.11 m max, 0.061 m rms, 0.08 deg; q_I_L 0.20 deg, p_I_L 4.1 cm, offset
-  // 0.65 ms, radii 0.04 mm, track 1.7 mm, lever arm 6.1 cm.
+  // Measured: 0.076 m max, 0.043 m rms, 0.069 deg; q_I_L 0.13 deg, p_I_L 4.0 cm, offset
+  // 0.62 ms, radii 0.04 mm, track 1.6 mm, lever arm 3.7 cm.
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.15);
@@ -516,9 +516,9 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   const Run run = Estimate(nominal, Options());
   const CalibrationErrors before = ErrorsOf(nominal, truth);
   const CalibrationErrors after = ErrorsOf(run.calibration, truth);
-  // Measured: 0.11 m max, 0.058 m rms, 0.11 deg; q_I_L 3.6 -> 0.20 deg, p_I_L 1.9 -> 4.5 cm
-  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.92 ms, radii
-  // 3.5 / 2.6 -> 0.35 / 0.34 mm, track 20 -> 3.2 mm, lever arm 4.6 -> 5.5 cm.
+  // Measured: 0.067 m max, 0.039 m rms, 0.22 deg; q_I_L 3.6 -> 0.12 deg, p_I_L 1.9 -> 4.9 cm
+  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.81 ms, radii
+  // 3.5 / 2.6 -> 0.35 / 0.34 mm, track 20 -> 2.8 mm, lever arm 4.6 -> 2.3 cm.
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.4);
