@@ -148,18 +148,8 @@ struct SlidingWindowOptions {
   // sweeps apart have moved relative to the point's sweep, which makes the extrinsic and time
   // offset observable; they must still overlap it, and lie in the window.
   std::vector<int> partner_keyframe_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
-  // Local plane fitting in each sweep's map. The line gate is five times PlaneMap's default
-  // (docs/sliding_window.md, "Planes across scan rings"): a single sweep's map is its scan
-  // rings, and a plane fitted to a narrow strip of one or two rings tilts with the curvature
-  // of the road it extrapolates over. When the body pitches as the car pulls away, the rings
-  // move over the road and the tilt with them, which the window took for a pitch (0.066 ->
-  // 0.043 deg RMS on a noise-free 60 s log started at the truth; 0.2 gave 0.024 but lost the
-  // 16-beam drive started 3.6 deg off).
-  PlaneMapOptions plane_map = [] {
-    PlaneMapOptions o;
-    o.min_spread_ratio = 0.1;
-    return o;
-  }();
+  // Local plane fitting in each sweep's map.
+  PlaneMapOptions plane_map;
   // Outlier gate: a point farther than this from the plane found for it is not associated
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;
