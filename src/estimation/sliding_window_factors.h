@@ -59,8 +59,8 @@ sensors::NavState<T> PropagatedState(const sensors::ImuPreintegration& pim, cons
 // Row 0 is whitened by s_v = s_w sqrt(r_l^2 + r_r^2) / 2; row 1 is taken in wheel-speed units,
 // (w_z b - (w_r r_r - w_l r_l)), and whitened by sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2), the
 // Deming-regression weighting that stays unbiased with noise on both sides.
-// Parameter blocks: q_W_I, p_W_I, v_W_I, b_g, b_a of the keyframe, then q_I_V, p_I_V, r_l, r_r,
-// track width.
+// Parameter blocks: q_W_I, v_W_I, b_g, b_a of the keyframe (its position does not enter the
+// wheel rows), then q_I_V, p_I_V, r_l, r_r, track width.
 class PropagatedWheelResidual {
  public:
   PropagatedWheelResidual(sensors::ImuPreintegration pim,
@@ -81,16 +81,17 @@ class PropagatedWheelResidual {
                                      const factors::WheelFactorOptions& options,
                                      double encoder_sigma_rad_s, double gyro_sigma_rad_s) {
     return new ceres::AutoDiffCostFunction<PropagatedWheelResidual, ceres::DYNAMIC, 4, 3, 3, 3,
-                                           3, 4, 3, 1, 1, 1>(
+                                           4, 3, 1, 1, 1>(
         new PropagatedWheelResidual(std::move(pim), measurement, options, encoder_sigma_rad_s,
                                     gyro_sigma_rad_s),
         options.non_holonomic ? 4 : 2);
   }
 
   template <typename T>
-  bool operator()(const T* q, const T* p, const T* v, const T* b_g, const T* b_a, const T* q_I_V,
+  bool operator()(const T* q, const T* v, const T* b_g, const T* b_a, const T* q_I_V,
                   const T* p_I_V, const T* r_l, const T* r_r, const T* track_width,
                   T* residual) const {
+    const T p[3] = {T(0.0), T(0.0), T(0.0)};
     const sensors::NavState<T> x = PropagatedState(pim_, q, p, v, b_g, b_a);
     if (!wheel_(x.q_W_I.coeffs().data(), x.v_W_I.data(), b_g, q_I_V, p_I_V, r_l, r_r,
                 track_width, residual)) {
