@@ -439,6 +439,7 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
         pim, m, wheel_options, options_.wheel.noise_rad_s,
         gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples))));
     f.loss = wheel_loss_.get();
+    f.linearized_per_pass = "a wheel factor";
     f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};
     for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
                       &c.wheel_radius_right_m, &c.track_width_m}) {
@@ -461,6 +462,7 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
     AttachedFactor f;
     f.cost.reset(internal::PropagatedGnssResidual::Create(gnss_pim, m));
     f.loss = gnss_loss_.get();
+    f.linearized_per_pass = "a GNSS factor";
     f.blocks = StateBlocks(&s);
     f.blocks.push_back(c.p_I_A.data());
     from->factors.push_back(std::move(f));

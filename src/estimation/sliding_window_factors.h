@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -34,6 +35,9 @@ struct AttachedFactor {
   std::unique_ptr<ceres::CostFunction> cost;
   ceres::LossFunction* loss = nullptr;
   std::vector<double*> blocks;
+  // Given to the solver linearized at the start of each pass (LinearizedCost, Eq. SW7) when
+  // the points are; what it names on an evaluation failure.
+  const char* linearized_per_pass = nullptr;
 };
 
 // The state at the sample's instant, x(t) = Predict(x_k, b_g_k, b_a_k) (Eq. F8) with the
@@ -227,38 +231,42 @@ class CompressedPointGroup final : public ceres::CostFunction {
   const factors::PointToSweepPlaneGroupFactor* group_;
 };
 
-// A point group linearized once per update (docs/sliding_window.md, Eq. SW7): its compressed
-// rows (Eq. SW5) and their Jacobian R are evaluated at the parameters x0 it is built at, and
-// the solver sees the first-order model
-//   rho(x) = rho(x0) + R (x - x0)   (ambient coordinates; row 28 stays constant),
-// so that a Levenberg-Marquardt iteration costs a 29 x 28 product per group instead of the
-// group's n point Jacobians. The parameters must stay at x0's side of the quaternion sign.
-class LinearizedPointGroup final : public ceres::CostFunction {
+// A cost function linearized once per solve pass (docs/sliding_window.md, Eq. SW7): its rows
+// r and Jacobian J (ambient coordinates of its blocks) are evaluated at the parameters x0 it is
+// built at, and the solver sees the first-order model
+//   r(x) = r(x0) + J (x - x0),
+// so that a Levenberg-Marquardt iteration costs one product instead of an evaluation of the
+// cost function. The parameters must stay at x0's side of the quaternion sign. kRows and
+// kAmbient are the sizes when known at compile time.
+template <int kRows = Eigen::Dynamic, int kAmbient = Eigen::Dynamic>
+class LinearizedCost final : public ceres::CostFunction {
  public:
-  static constexpr int kAmbient = CompressedPointGroup::kAmbient;
-  static constexpr int kRows = CompressedPointGroup::kRows;
-
-  // Throws autocal::Error when the group cannot be evaluated at `parameters`.
-  LinearizedPointGroup(const factors::PointToSweepPlaneGroupFactor* group,
-                       const std::vector<double*>& parameters) {
-    set_num_residuals(kRows);
-    *mutable_parameter_block_sizes() = group->parameter_block_sizes();
+  // Throws autocal::Error naming `what` when `cost` cannot be evaluated at `parameters`.
+  LinearizedCost(const ceres::CostFunction& cost, const std::vector<double*>& parameters,
+                 const char* what) {
+    set_num_residuals(cost.num_residuals());
+    *mutable_parameter_block_sizes() = cost.parameter_block_sizes();
     const std::vector<int32_t>& sizes = parameter_block_sizes();
-    const CompressedPointGroup compressed(group);
+    const int rows = cost.num_residuals();
+    int ambient = 0;
+    for (int32_t size : sizes) ambient += size;
+    r0_.resize(rows);
+    J_.resize(rows, ambient);
+    x0_.resize(ambient);
     std::vector<Eigen::Matrix<double, kRows, Eigen::Dynamic, Eigen::RowMajor>> blocks(
         sizes.size());
     std::vector<double*> jacobians(sizes.size());
     for (size_t b = 0; b < sizes.size(); ++b) {
-      blocks[b].resize(kRows, sizes[b]);
+      blocks[b].resize(rows, sizes[b]);
       jacobians[b] = blocks[b].data();
     }
     std::vector<const double*> values(parameters.begin(), parameters.end());
-    if (!compressed.Evaluate(values.data(), rho0_.data(), jacobians.data())) {
-      throw Error("LinearizedPointGroup: the point group cannot be evaluated");
+    if (!cost.Evaluate(values.data(), r0_.data(), jacobians.data())) {
+      throw Error(std::string("SlidingWindowEstimator: ") + what + " cannot be evaluated");
     }
     for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
       const Eigen::Index c = static_cast<Eigen::Index>(column);
-      R_.middleCols(c, sizes[b]) = blocks[b];
+      J_.middleCols(c, sizes[b]) = blocks[b];
       x0_.segment(c, sizes[b]) = Eigen::Map<const Eigen::VectorXd>(parameters[b], sizes[b]);
     }
   }
@@ -266,29 +274,41 @@ class LinearizedPointGroup final : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     const std::vector<int32_t>& sizes = parameter_block_sizes();
-    Eigen::Matrix<double, kAmbient, 1> dx;
+    Eigen::Matrix<double, kAmbient, 1> dx(x0_.size());
     for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
       const Eigen::Index c = static_cast<Eigen::Index>(column);
       dx.segment(c, sizes[b]) =
           Eigen::Map<const Eigen::VectorXd>(parameters[b], sizes[b]) - x0_.segment(c, sizes[b]);
     }
-    Eigen::Map<Eigen::Matrix<double, kRows, 1>> rho(residuals);
-    rho = rho0_ + R_ * dx;
+    Eigen::Map<Eigen::Matrix<double, kRows, 1>> r(residuals, r0_.size());
+    r = r0_ + J_ * dx;
     if (jacobians == nullptr) return true;
     for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
       if (jacobians[b] == nullptr) continue;
       Eigen::Map<Eigen::Matrix<double, kRows, Eigen::Dynamic, Eigen::RowMajor>> out(
-          jacobians[b], kRows, sizes[b]);
-      out = R_.middleCols(static_cast<Eigen::Index>(column), sizes[b]);
+          jacobians[b], r0_.size(), sizes[b]);
+      out = J_.middleCols(static_cast<Eigen::Index>(column), sizes[b]);
     }
     return true;
   }
 
  private:
-  Eigen::Matrix<double, kRows, 1> rho0_;
-  Eigen::Matrix<double, kRows, kAmbient> R_;
+  Eigen::Matrix<double, kRows, 1> r0_;
+  Eigen::Matrix<double, kRows, kAmbient> J_;
   Eigen::Matrix<double, kAmbient, 1> x0_;
 };
+
+// A point group linearized per pass: its compressed rows (Eq. SW5, a 29 x 28 product per group
+// instead of the group's n point Jacobians and their compression at every iteration; row 28
+// stays constant).
+using LinearizedPointGroup =
+    LinearizedCost<CompressedPointGroup::kRows, CompressedPointGroup::kAmbient>;
+
+inline std::unique_ptr<ceres::CostFunction> LinearizePointGroup(
+    const factors::PointToSweepPlaneGroupFactor* group, const std::vector<double*>& parameters) {
+  return std::make_unique<LinearizedPointGroup>(CompressedPointGroup(group), parameters,
+                                                "a point group");
+}
 
 }  // namespace internal
 }  // namespace estimation

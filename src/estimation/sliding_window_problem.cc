@@ -332,7 +332,14 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
     if (!estimated) problem.SetParameterBlockConstant(block);
   }
 
-  const auto add = [&problem](const AttachedFactor& f) {
+  const bool linearize = options_.point_linearizations_per_update > 0;
+  const auto add = [&problem, &build, linearize](const AttachedFactor& f) {
+    if (linearize && f.linearized_per_pass != nullptr) {
+      build->owned.push_back(
+          std::make_unique<internal::LinearizedCost<>>(*f.cost, f.blocks, f.linearized_per_pass));
+      problem.AddResidualBlock(build->owned.back().get(), f.loss, f.blocks);
+      return;
+    }
     problem.AddResidualBlock(f.cost.get(), f.loss, f.blocks);
   };
   for (const AttachedFactor& f : calibration_priors_) add(f);
@@ -349,9 +356,8 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   // The point groups carry the LiDAR loss themselves (Eq. P9).
   for (const auto& kf : window_) {
     for (const internal::SweepPointGroup& g : kf->point_groups) {
-      if (options_.point_linearizations_per_update > 0) {
-        build->owned.push_back(
-            std::make_unique<internal::LinearizedPointGroup>(g.factor.get(), g.parameters));
+      if (linearize) {
+        build->owned.push_back(internal::LinearizePointGroup(g.factor.get(), g.parameters));
         problem.AddResidualBlock(build->owned.back().get(), nullptr, g.parameters);
         continue;
       }

@@ -329,6 +329,88 @@ TEST(SlidingWindowCompressedPointGroup, KeepsCostGradientAndGaussNewtonMatrix) {
   EXPECT_NEAR(cost_rows.squaredNorm(), r.squaredNorm(), 1e-9 * r.squaredNorm());
 }
 
+// r(q, x) = R(q) a + x - b: a rotation block and a vector block, as the wheel and GNSS rows.
+struct RotatedOffset {
+  template <typename T>
+  bool operator()(const T* q, const T* x, T* r) const {
+    const Eigen::Quaternion<T> rotation = Eigen::Map<const Eigen::Quaternion<T>>(q);
+    Eigen::Map<geometry::Vector3<T>> residual(r);
+    residual = rotation * Eigen::Vector3d(1.0, -2.0, 0.5).cast<T>() +
+        Eigen::Map<const geometry::Vector3<T>>(x) - Eigen::Vector3d(0.3, 0.1, -0.2).cast<T>();
+    return true;
+  }
+};
+
+struct NeverEvaluates {
+  template <typename T>
+  bool operator()(const T*, T*) const {
+    return false;
+  }
+};
+
+// Eq. SW7 for any cost function: at the parameters it is built at it returns the cost
+// function's rows and Jacobians; elsewhere the first-order model, which agrees with the cost
+// function to second order.
+TEST(SlidingWindowLinearizedCost, IsTheFirstOrderModelAtItsParameters) {
+  ceres::AutoDiffCostFunction<RotatedOffset, 3, 4, 3> cost(new RotatedOffset);
+  Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3)
+                                                                       .normalized()));
+  Eigen::Vector3d x(0.4, -0.3, 1.2);
+  const std::vector<double*> blocks = {q.coeffs().data(), x.data()};
+  const internal::LinearizedCost<> linearized(cost, blocks, "the test cost");
+  EXPECT_EQ(linearized.num_residuals(), 3);
+  EXPECT_EQ(linearized.parameter_block_sizes(), cost.parameter_block_sizes());
+
+  using Jacobian = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor>;
+  const auto evaluate = [&blocks](const ceres::CostFunction& f, Eigen::Vector3d* r, Jacobian* Jq,
+                                  Jacobian* Jx) {
+    Jq->resize(3, 4);
+    Jx->resize(3, 3);
+    double* jacobians[] = {Jq->data(), Jx->data()};
+    return f.Evaluate(blocks.data(), r->data(), jacobians);
+  };
+  Eigen::Vector3d r0, r0_lin;
+  Jacobian Jq, Jx, Jq_lin, Jx_lin;
+  ASSERT_TRUE(evaluate(cost, &r0, &Jq, &Jx));
+  ASSERT_TRUE(evaluate(linearized, &r0_lin, &Jq_lin, &Jx_lin));
+  EXPECT_LT((r0_lin - r0).norm(), 1e-15);
+  EXPECT_LT((Jq_lin - Jq).norm(), 1e-15);
+  EXPECT_LT((Jx_lin - Jx).norm(), 1e-15);
+
+  // A step dx in the ambient coordinates: the model is r0 + J dx exactly, and it misses the
+  // cost function by second-order terms only (half the step, a quarter of the miss).
+  const Eigen::Vector4d q0 = q.coeffs();
+  const Eigen::Vector3d x0 = x;
+  const Eigen::Vector4d dq(1e-3, -1e-3, 2e-3, -1e-3);
+  const Eigen::Vector3d dx(1e-3, 2e-3, -1e-3);
+  const auto miss = [&](double step) {
+    q.coeffs() = q0 + step * dq;
+    x = x0 + step * dx;
+    Eigen::Vector3d r, r_lin;
+    Jacobian Jq_at, Jx_at;
+    EXPECT_TRUE(evaluate(cost, &r, &Jq_at, &Jx_at));
+    EXPECT_TRUE(evaluate(linearized, &r_lin, &Jq_lin, &Jx_lin));
+    EXPECT_LT((r_lin - (r0 + step * (Jq * dq + Jx * dx))).norm(), 1e-15);
+    EXPECT_LT((Jq_lin - Jq).norm(), 1e-15);  // the Jacobian of x0
+    return (r_lin - r).norm();
+  };
+  const double full = miss(1.0);
+  const double half = miss(0.5);
+  EXPECT_GT(full, 1e-7);  // not the cost function itself
+  EXPECT_NEAR(full / half, 4.0, 0.2);
+  q.coeffs() = q0;
+  x = x0;
+
+  ceres::AutoDiffCostFunction<NeverEvaluates, 1, 3> failing(new NeverEvaluates);
+  std::vector<double*> x_only = {x.data()};
+  try {
+    internal::LinearizedCost<>(failing, x_only, "a wheel factor");
+    FAIL() << "expected autocal::Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("a wheel factor cannot be evaluated"), std::string::npos);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // A simulated urban drive.
 

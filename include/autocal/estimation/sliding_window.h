@@ -165,11 +165,12 @@ struct SlidingWindowOptions {
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
 
-  // Point groups linearized per solve pass (docs/sliding_window.md, Eq. SW7): the solver
-  // iterates on their first-order model at the pass's start, so an iteration does not
-  // re-evaluate the point Jacobians; an update runs this many passes, each relinearizing at
-  // the estimate the previous one reached. 0: one pass evaluating the points at every
-  // iteration (Eq. SW5).
+  // Point groups, wheel and GNSS rows linearized per solve pass (docs/sliding_window.md,
+  // Eq. SW7): the solver iterates on their first-order model at the pass's start, so an
+  // iteration does not re-evaluate their Jacobians (the point groups' and the wheel and GNSS
+  // rows' automatic derivatives through the IMU propagation); an update runs this many passes,
+  // each relinearizing at the estimate the previous one reached. 0: one pass evaluating them
+  // at every iteration (Eq. SW5).
   int point_linearizations_per_update = 2;
   // Solver stop: at most solver_iterations Levenberg-Marquardt iterations per pass, fewer once
   // an iteration lowers the cost by less than this fraction of it (ceres function_tolerance).
