@@ -403,7 +403,11 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   solver_options.linear_solver_type = ceres::DENSE_SCHUR;
   solver_options.max_num_iterations = options_.solver_iterations;
   solver_options.function_tolerance = options_.solver_function_tolerance;
-  solver_options.num_threads = options_.num_threads;
+  // One solver thread whatever num_threads says (the association uses them): on a problem
+  // this small the threads' hand-offs cost more than they save, and the threaded Schur
+  // elimination's varying summation order made runs of the same log differ (docs/
+  // sliding_window.md, "Solver: threads").
+  solver_options.num_threads = 1;
   timing_.solver_iterations = 0;
   for (int pass = 0; pass < std::max(1, options_.point_linearizations_per_update); ++pass) {
     if (pass > 0) *build = BuildProblem();
