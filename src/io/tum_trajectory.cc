@@ -61,17 +61,6 @@ bool ParseSecondsToNs(std::string_view text, int64_t* t_ns, std::string* why) {
   return true;
 }
 
-std::string FormatSeconds(int64_t t_ns) {
-  const bool negative = t_ns < 0;
-  const uint64_t magnitude =
-      negative ? 0 - static_cast<uint64_t>(t_ns) : static_cast<uint64_t>(t_ns);
-  char buffer[48];
-  std::snprintf(buffer, sizeof(buffer), "%s%llu.%09llu", negative ? "-" : "",
-                static_cast<unsigned long long>(magnitude / 1000000000ULL),
-                static_cast<unsigned long long>(magnitude % 1000000000ULL));
-  return buffer;
-}
-
 }  // namespace
 
 void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {

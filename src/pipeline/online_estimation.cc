@@ -162,13 +162,6 @@ estimation::Keyframe StartFromGnssAndImu(const io::Dataset& dataset,
   return refined.front();
 }
 
-// Seconds with all nine decimals (a double holds only ~16 digits of a Unix stamp).
-void WriteStampS(std::ostream& out, int64_t t_ns) {
-  const char fill = out.fill('0');
-  out << t_ns / kNanosecondsPerSecond << '.' << std::setw(9) << t_ns % kNanosecondsPerSecond;
-  out.fill(fill);
-}
-
 void WriteStatesCsv(const std::string& path,
                     const std::vector<estimation::SlidingWindowState>& states) {
   std::ofstream csv(path);
@@ -177,7 +170,7 @@ void WriteStatesCsv(const std::string& path,
          "b_a_x_m_s2,b_a_y_m_s2,b_a_z_m_s2\n";
   csv << std::setprecision(12);
   for (const estimation::SlidingWindowState& x : states) {
-    WriteStampS(csv, x.t_ns);
+    csv << FormatSeconds(x.t_ns);
     const auto row = [&csv](const auto& v) {
       for (int i = 0; i < v.size(); ++i) csv << ',' << v[i];
     };
@@ -386,7 +379,7 @@ void WriteOnlineEstimationResult(const std::string& directory,
   csv << std::setprecision(12);
   for (const CalibrationSample& s : result.calibration_over_time) {
     const sensors::Calibration& c = s.calibration;
-    WriteStampS(csv, s.t_ns);
+    csv << FormatSeconds(s.t_ns);
     csv << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z()
         << ',' << c.q_I_L.w() << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z()
         << ',' << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','

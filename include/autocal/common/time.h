@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <string>
 
 namespace autocal {
 
@@ -20,5 +22,18 @@ constexpr double SecondsBetween(int64_t from_ns, int64_t to_ns) {
 }
 
 inline int64_t SecondsToNs(double t_s) { return static_cast<int64_t>(std::llround(t_s * 1e9)); }
+
+// A stamp as seconds with all nine decimals ("1700000000.123456789", "-0.000000001"), so that
+// it reads back to the same nanosecond (a double holds only ~16 digits of an epoch stamp).
+inline std::string FormatSeconds(int64_t t_ns) {
+  const bool negative = t_ns < 0;
+  const uint64_t magnitude =
+      negative ? 0 - static_cast<uint64_t>(t_ns) : static_cast<uint64_t>(t_ns);
+  char buffer[48];
+  std::snprintf(buffer, sizeof(buffer), "%s%llu.%09llu", negative ? "-" : "",
+                static_cast<unsigned long long>(magnitude / 1000000000ULL),
+                static_cast<unsigned long long>(magnitude % 1000000000ULL));
+  return buffer;
+}
 
 }  // namespace autocal

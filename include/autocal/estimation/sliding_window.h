@@ -178,6 +178,8 @@ struct SlidingWindowOptions {
   // cap matters while the calibration is still converging (docs/sliding_window.md, "Figures").
   int solver_iterations = 10;
   double solver_function_tolerance = 1e-6;
+  // Threads of the association's per-sweep loops and of the covariance; the solve itself runs
+  // on one (docs/sliding_window.md, "Solver: threads").
   int num_threads = 1;
   MarginalizationOptions marginalization;
 };
