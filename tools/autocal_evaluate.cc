@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,6 +26,9 @@ DEFINE_string(dataset, "",
 DEFINE_string(result, "",
               "result directory: reads calibration.yaml and, when present, trajectory.tum (TUM "
               "format, T_W_I on the IMU clock); writes evaluation.yaml (required)");
+DEFINE_string(trajectory, "trajectory.tum",
+              "trajectory file of RESULT to evaluate (e.g. trajectory_smoothed.tum, written by "
+              "autocal_estimate beside the filtered trajectory.tum)");
 DEFINE_string(max_rotation_deg, "",
               "limit (unset: not checked) on the T_I_L rotation error angle, degrees");
 DEFINE_string(max_translation_mm, "",
@@ -122,7 +126,9 @@ int Run() {
   const double max_gap_s =
       NonNegativeNumber("max_interpolation_gap_s", FLAGS_max_interpolation_gap_s);
   const evaluation::Thresholds thresholds = ThresholdsFromFlags();
-  const evaluation::ResultPaths paths = evaluation::ResultPaths::For(FLAGS_dataset, FLAGS_result);
+  if (FLAGS_trajectory.empty()) throw Error("--trajectory must name a file of RESULT");
+  evaluation::ResultPaths paths = evaluation::ResultPaths::For(FLAGS_dataset, FLAGS_result);
+  paths.result_trajectory = (std::filesystem::path(FLAGS_result) / FLAGS_trajectory).string();
   evaluation::TrajectoryErrorOptions options;
   options.max_interpolation_gap_s = max_gap_s;
   const evaluation::Evaluation result = evaluation::EvaluateResult(paths, options);
@@ -153,10 +159,10 @@ int main(int argc, char** argv) {
       "compares a calibration result with a dataset's ground truth\n"
       "  autocal_evaluate --dataset=DIR --result=DIR [--max_rotation_deg=0.5 ...]\n"
       "Prints the error of every calibration block (T_I_L, time offset, wheel radii, track\n"
-      "width, lever arm, T_I_V) and, when RESULT/trajectory.tum exists, the ATE after a 4-DoF\n"
-      "(yaw + translation) alignment; writes RESULT/evaluation.yaml. A --max_* limit is\n"
-      "checked only when given. Exit status: 0 every given limit holds, 1 some limit is\n"
-      "exceeded (each is named), 2 bad input (flags, missing or malformed files).");
+      "width, lever arm, T_I_V) and, when RESULT/trajectory.tum (or --trajectory) exists, the\n"
+      "ATE after a 4-DoF (yaw + translation) alignment; writes RESULT/evaluation.yaml. A\n"
+      "--max_* limit is checked only when given. Exit status: 0 every given limit holds, 1 some\n"
+      "limit is exceeded (each is named), 2 bad input (flags, missing or malformed files).");
   const std::string unknown = UnknownFlag(argc, argv);
   if (!unknown.empty()) {
     std::fprintf(stderr, "autocal_evaluate: unknown flag '%s' (see --help)\n", unknown.c_str());

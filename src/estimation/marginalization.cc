@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <map>
 #include <set>
+#include <string>
 #include <utility>
 
 #include <Eigen/Eigenvalues>
@@ -117,9 +118,71 @@ bool MarginalizationPrior::Evaluate(double const* const* parameters, double* res
   return true;
 }
 
+MarginalConditional::MarginalConditional(std::vector<PriorBlock> marginalized,
+                                         std::vector<PriorBlock> kept, Eigen::VectorXd offset,
+                                         Eigen::MatrixXd gain)
+    : marginalized_(std::move(marginalized)),
+      kept_(std::move(kept)),
+      offset_(std::move(offset)),
+      gain_(std::move(gain)) {
+  int m = 0;
+  for (const PriorBlock& block : marginalized_) {
+    CheckSupported(block);
+    marginalized_x0_.emplace_back(
+        Eigen::Map<const Eigen::VectorXd>(block.values, block.ambient_size));
+    m += block.tangent_size;
+  }
+  int k = 0;
+  for (const PriorBlock& block : kept_) {
+    CheckSupported(block);
+    kept_x0_.emplace_back(Eigen::Map<const Eigen::VectorXd>(block.values, block.ambient_size));
+    k += block.tangent_size;
+  }
+  if (offset_.size() != m || gain_.rows() != m || gain_.cols() != k) {
+    throw Error("marginal conditional: offset and gain sizes do not match the blocks");
+  }
+}
+
+void MarginalConditional::Apply(const std::vector<const double*>& kept_values,
+                                const std::vector<double*>& marginalized_out) const {
+  if (kept_values.size() != kept_.size() || marginalized_out.size() != marginalized_.size()) {
+    throw Error("marginal conditional: given " + std::to_string(kept_values.size()) + " kept and " +
+                std::to_string(marginalized_out.size()) + " marginalized blocks, expected " +
+                std::to_string(kept_.size()) + " and " + std::to_string(marginalized_.size()));
+  }
+  Eigen::VectorXd dk(gain_.cols());
+  int offset = 0;
+  for (size_t i = 0; i < kept_.size(); ++i) {
+    const PriorBlock& block = kept_[i];
+    if (block.manifold == nullptr) {
+      dk.segment(offset, block.tangent_size) =
+          Eigen::Map<const Eigen::VectorXd>(kept_values[i], block.ambient_size) - kept_x0_[i];
+    } else {
+      block.manifold->Minus(kept_values[i], kept_x0_[i].data(), dk.data() + offset);
+    }
+    offset += block.tangent_size;
+  }
+  const Eigen::VectorXd dm = offset_ + gain_ * dk;  // Eq. (M4)
+  if (!dm.allFinite()) {
+    throw Error("marginal conditional: non-finite step (non-finite kept values?)");
+  }
+  offset = 0;
+  for (size_t j = 0; j < marginalized_.size(); ++j) {
+    const PriorBlock& block = marginalized_[j];
+    if (block.manifold == nullptr) {
+      Eigen::Map<Eigen::VectorXd>(marginalized_out[j], block.ambient_size) =
+          marginalized_x0_[j] + dm.segment(offset, block.tangent_size);
+    } else {
+      block.manifold->Plus(marginalized_x0_[j].data(), dm.data() + offset, marginalized_out[j]);
+    }
+    offset += block.tangent_size;
+  }
+}
+
 std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
                                                   const std::vector<double*>& to_marginalize,
-                                                  const MarginalizationOptions& options) {
+                                                  const MarginalizationOptions& options,
+                                                  MarginalConditional* conditional) {
   // 1. The residual blocks touching the blocks to drop, and every variable block they touch:
   //    marginalized ones first, then the kept ones in order of appearance.
   std::set<double*> dropped(to_marginalize.begin(), to_marginalize.end());
@@ -214,11 +277,28 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
 
   // 3. Schur complement onto the kept blocks (Eq. M1), pseudo-inverting H_mm.
   const int k = n - m;
-  if (k == 0) return nullptr;
   const Eigenspace mm = SignificantEigenspace(H.topLeftCorner(m, m), options);
   const Eigen::MatrixXd H_mm_pinv =
       mm.vectors * mm.values.cwiseInverse().asDiagonal() * mm.vectors.transpose();
   const Eigen::MatrixXd H_km = H.bottomLeftCorner(k, m);
+  std::vector<PriorBlock> kept;
+  for (size_t i = 0; i < order.size(); ++i) {
+    PriorBlock block;
+    block.values = order[i];
+    block.ambient_size = problem->ParameterBlockSize(order[i]);
+    block.tangent_size = problem->ParameterBlockTangentSize(order[i]);
+    block.manifold = problem->GetManifold(order[i]);
+    kept.push_back(block);
+  }
+  if (conditional != nullptr) {  // Eq. (M4)
+    std::vector<PriorBlock> marginalized(kept.begin(), kept.begin() + num_marginalized_blocks);
+    *conditional = MarginalConditional(
+        std::move(marginalized),
+        std::vector<PriorBlock>(kept.begin() + num_marginalized_blocks, kept.end()),
+        -(H_mm_pinv * b.head(m)), -(H_mm_pinv * H_km.transpose()));
+  }
+  kept.erase(kept.begin(), kept.begin() + num_marginalized_blocks);
+  if (k == 0) return nullptr;
   const Eigen::MatrixXd H_star = H.bottomRightCorner(k, k) - H_km * H_mm_pinv * H_km.transpose();
   const Eigen::VectorXd b_star = b.tail(k) - H_km * (H_mm_pinv * b.head(m));
 
@@ -230,15 +310,6 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
   const Eigen::VectorXd r0 =
       star.values.cwiseSqrt().cwiseInverse().asDiagonal() * (star.vectors.transpose() * b_star);
 
-  std::vector<PriorBlock> kept;
-  for (size_t i = num_marginalized_blocks; i < order.size(); ++i) {
-    PriorBlock block;
-    block.values = order[i];
-    block.ambient_size = problem->ParameterBlockSize(order[i]);
-    block.tangent_size = problem->ParameterBlockTangentSize(order[i]);
-    block.manifold = problem->GetManifold(order[i]);
-    kept.push_back(block);
-  }
   return std::make_unique<MarginalizationPrior>(std::move(kept), S, r0);
 }
 

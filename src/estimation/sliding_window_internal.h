@@ -136,6 +136,21 @@ struct SlidingWindowEstimator::WindowKeyframe {
   int newest_id_at_pairing = -1;
 };
 
+// A marginalized keyframe's conditional (Eq. M4) and what its kept blocks were: a block of
+// a keyframe (by id, and index in StateBlocks) or a calibration block (its address in the
+// estimator's calibration, keyframe_id -1).
+struct SlidingWindowEstimator::SmoothingStep {
+  struct BlockRef {
+    int keyframe_id = -1;
+    int state_block = 0;
+    const double* calibration = nullptr;
+  };
+  int keyframe_id = 0;
+  MarginalConditional conditional;
+  std::vector<int> marginalized;  // index in StateBlocks of each conditional's marginalized block
+  std::vector<BlockRef> kept;
+};
+
 // One window problem and the cost functions it alone uses (the problem owns nothing).
 struct SlidingWindowEstimator::ProblemBuild {
   std::vector<std::unique_ptr<ceres::CostFunction>> owned;

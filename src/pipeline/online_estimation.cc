@@ -39,6 +39,14 @@ double PriorSigma(const io::ScalarBlockSetting& s, const std::optional<double>& 
 }
 
 // The window options of a problem: what it estimates, its priors, losses and solver.
+io::TrajectorySample TrajectorySampleOf(const estimation::SlidingWindowState& x) {
+  io::TrajectorySample s;
+  s.t_ns = x.t_ns;
+  s.T_W_I = geometry::Pose3d(x.q_W_I, x.p_W_I);
+  s.v_W_I = x.v_W_I;
+  return s;
+}
+
 estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
                                                const io::Problem& problem, bool use_wheel,
                                                bool use_gnss,
@@ -341,12 +349,13 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
 
   // 3. The result.
   for (const estimation::SlidingWindowState& x : estimator.Trajectory()) {
-    io::TrajectorySample s;
-    s.t_ns = x.t_ns;
-    s.T_W_I = geometry::Pose3d(x.q_W_I, x.p_W_I);
-    s.v_W_I = x.v_W_I;
-    result.trajectory.push_back(s);
+    result.trajectory.push_back(TrajectorySampleOf(x));
     result.states.push_back(x);
+  }
+  if (window_options.smoothing) {
+    for (const estimation::SlidingWindowState& x : estimator.SmoothedTrajectory()) {
+      result.smoothed_trajectory.push_back(TrajectorySampleOf(x));
+    }
   }
   result.counters = estimator.counters();
   result.calibration.value = estimator.calibration();
@@ -370,6 +379,9 @@ void WriteOnlineEstimationResult(const std::string& directory,
   if (error) throw Error("cannot create " + directory + ": " + error.message());
   io::WriteCalibrationYaml(directory + "/calibration.yaml", result.calibration);
   io::WriteTumTrajectory(directory + "/trajectory.tum", result.trajectory);
+  if (!result.smoothed_trajectory.empty()) {
+    io::WriteTumTrajectory(directory + "/trajectory_smoothed.tum", result.smoothed_trajectory);
+  }
   WriteStatesCsv(directory + "/states.csv", result.states);
   const std::string csv_path = directory + "/calibration_over_time.csv";
   std::ofstream csv(csv_path);

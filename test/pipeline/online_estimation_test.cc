@@ -146,6 +146,15 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
   const io::CalibrationFile read_back = io::ReadCalibrationYaml(out + "/calibration.yaml");
   EXPECT_TRUE(read_back.value.q_I_L.isApprox(estimate.q_I_L, 1e-12));
   EXPECT_EQ(io::ReadTumTrajectory(out + "/trajectory.tum").size(), result.trajectory.size());
+  // The smoothed trajectory: the same stamps, the newest keyframe (still in the window) as
+  // filtered.
+  ASSERT_EQ(result.smoothed_trajectory.size(), result.trajectory.size());
+  const io::Trajectory smoothed = io::ReadTumTrajectory(out + "/trajectory_smoothed.tum");
+  ASSERT_EQ(smoothed.size(), result.trajectory.size());
+  for (size_t i = 0; i < smoothed.size(); ++i) {
+    ASSERT_EQ(smoothed[i].t_ns, result.trajectory[i].t_ns);
+  }
+  EXPECT_LT((smoothed.back().T_W_I.p - result.trajectory.back().T_W_I.p).norm(), 1e-6);
   std::ifstream csv(out + "/calibration_over_time.csv");
   std::string line;
   ASSERT_TRUE(std::getline(csv, line));

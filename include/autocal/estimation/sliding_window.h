@@ -182,6 +182,12 @@ struct SlidingWindowOptions {
   // on one (docs/sliding_window.md, "Solver: threads").
   int num_threads = 1;
   MarginalizationOptions marginalization;
+  // Keep, for every marginalized keyframe, its state given the blocks it was marginalized
+  // onto (Eq. M4: a 15-row gain over the next keyframe, the point pairs' partners and the
+  // calibration, about 20 KB per keyframe with the default partners), so that
+  // SmoothedTrajectory() can carry the final window's estimate back to every keyframe
+  // (docs/sliding_window.md, "Smoothing"). Memory grows with the log: for offline runs.
+  bool smoothing = false;
 };
 
 // One keyframe's state with its time (IMU clock) — the same fields as the batch solver's.
@@ -255,6 +261,12 @@ class SlidingWindowEstimator {
   // Every keyframe so far in time order: marginalized ones as last estimated in the window,
   // the window's at their current estimate.
   std::vector<SlidingWindowState> Trajectory() const;
+  // The same keyframes smoothed (a Rauch-Tung-Striebel pass over the marginalizations,
+  // docs/sliding_window.md, "Smoothing"): the window's at their current estimate, each
+  // marginalized one, newest first, from its conditional (Eq. M4) at the smoothed values of
+  // the blocks it was marginalized onto and the current calibration. Needs
+  // SlidingWindowOptions::smoothing (throws autocal::Error otherwise).
+  std::vector<SlidingWindowState> SmoothedTrajectory() const;
   const sensors::Calibration& calibration() const { return calibration_; }
   // Covariance of the estimated calibration blocks given the window problem (its factors,
   // the calibration priors and the marginalization prior, points re-associated at the
@@ -279,6 +291,7 @@ class SlidingWindowEstimator {
  private:
   struct WindowKeyframe;
   struct ProblemBuild;
+  struct SmoothingStep;
 
   int64_t KeyframeTimeOf(const lidar::LidarSweep& sweep) const;
   // Its keyframe would not follow the newest one by min_keyframe_interval_s (dropped as late).
@@ -328,6 +341,7 @@ class SlidingWindowEstimator {
   std::deque<std::unique_ptr<WindowKeyframe>> window_;
   int next_keyframe_id_ = 0;
   std::vector<SlidingWindowState> marginalized_;
+  std::vector<SmoothingStep> smoothing_;  // one per marginalized_, with options_.smoothing
   // Prior of the marginalized keyframes; replaced by every marginalization.
   std::unique_ptr<MarginalizationPrior> prior_;
   std::vector<internal::AttachedFactor> calibration_priors_;

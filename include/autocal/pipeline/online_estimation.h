@@ -46,8 +46,13 @@ struct OnlineEstimationOptions {
       estimation::RefinedLaterInitializerOptions();
   // Window settings that the problem file does not set (noise, association, keyframes...).
   // window_size, solver iterations and threads, losses, residual points and the estimated
-  // blocks come from the problem; IMU and wheel noise from the dataset.
-  estimation::SlidingWindowOptions window;
+  // blocks come from the problem; IMU and wheel noise from the dataset. Smoothing is on: the
+  // result holds the smoothed trajectory beside the filtered one.
+  estimation::SlidingWindowOptions window = [] {
+    estimation::SlidingWindowOptions w;
+    w.smoothing = true;
+    return w;
+  }();
   // 1-sigma of the prior on the initial state: the initializer's first keyframe is good to a
   // few centimetres and tenths of a degree, not to the window's defaults (meant for a known
   // start).
@@ -84,6 +89,9 @@ struct OnlineEstimationResult {
   // holds carry no sigma. solver: counters of the run; residuals["lidar"]: the last update's.
   io::CalibrationFile calibration;
   io::Trajectory trajectory;  // every keyframe, marginalized ones as last estimated
+  // The same keyframes smoothed from the final window (SlidingWindowEstimator::
+  // SmoothedTrajectory); empty when window.smoothing is off.
+  io::Trajectory smoothed_trajectory;
   // The same keyframes' full states: pose, velocity and the IMU biases.
   std::vector<estimation::SlidingWindowState> states;
   std::vector<CalibrationSample> calibration_over_time;
@@ -101,12 +109,12 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
                                              const io::Problem& problem,
                                              const OnlineEstimationOptions& options = {});
 
-// Writes trajectory.tum, states.csv, calibration_over_time.csv and calibration.yaml into
-// `directory` (created). calibration_over_time.csv columns: t_s (IMU clock, seconds), q_I_L
-// (qx qy qz qw), p_I_L (m), time_offset_lidar_imu_s, wheel radii (m), track_width_m, p_I_A (m).
-// states.csv columns: t_s, p_W_I (m), q_W_I (qx qy qz qw), v_W_I (m/s), b_g (rad/s),
-// b_a (m/s^2).
-// Throws autocal::Error on I/O failure.
+// Writes trajectory.tum, trajectory_smoothed.tum (when smoothed), states.csv,
+// calibration_over_time.csv and calibration.yaml into `directory` (created).
+// calibration_over_time.csv columns: t_s (IMU clock, seconds), q_I_L (qx qy qz qw), p_I_L (m),
+// time_offset_lidar_imu_s, wheel radii (m), track_width_m, p_I_A (m). states.csv columns: t_s,
+// p_W_I (m), q_W_I (qx qy qz qw), v_W_I (m/s), b_g (rad/s), b_a (m/s^2). Throws autocal::Error on
+// I/O failure.
 void WriteOnlineEstimationResult(const std::string& directory,
                                  const OnlineEstimationResult& result);
 
