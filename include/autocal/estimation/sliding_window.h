@@ -184,7 +184,7 @@ struct SlidingWindowOptions {
   MarginalizationOptions marginalization;
   // Keep, for every marginalized keyframe, its state given the blocks it was marginalized
   // onto (Eq. M4: a 15-row gain over the next keyframe, the point pairs' partners and the
-  // calibration, about 20 KB per keyframe with the default partners), so that
+  // calibration, about 12 KB per keyframe with the defaults), so that
   // SmoothedTrajectory() can carry the final window's estimate back to every keyframe
   // (docs/sliding_window.md, "Smoothing"). Memory grows with the log: for offline runs.
   bool smoothing = false;
