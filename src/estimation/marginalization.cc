@@ -1,7 +1,6 @@
 #include "autocal/estimation/marginalization.h"
 
 #include <algorithm>
-#include <map>
 #include <set>
 #include <string>
 #include <utility>
@@ -11,6 +10,7 @@
 #include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/normal_equations.h"
 
 namespace autocal {
 namespace estimation {
@@ -210,7 +210,7 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
       order.push_back(p);
     }
   }
-  std::map<double*, int> offset_of;
+  internal::BlockOffsets offset_of;
   int n = 0;
   int m = 0;
   for (size_t i = 0; i < order.size(); ++i) {
@@ -220,60 +220,11 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
   }
 
   // 2. Gauss-Newton system of those residuals at the current values, in tangent coordinates.
-  //    Buffers are reused across residual blocks.
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
   Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-  std::vector<double*> params;
-  std::vector<RowMajorMatrix> tangent;
-  std::vector<double*> jacobian_ptrs;
-  Eigen::VectorXd residual;
-  struct TouchedBlock {
-    int offset;
-    const RowMajorMatrix* jacobian;
-  };
-  std::vector<TouchedBlock> touched;
-  for (ceres::ResidualBlockId id : residual_blocks) {
-    problem->GetParameterBlocksForResidualBlock(id, &params);
-    const int num_residuals = problem->GetCostFunctionForResidualBlock(id)->num_residuals();
-    // Ceres returns these Jacobians already in tangent coordinates (manifolds applied).
-    // Only the block pairs this residual touches are accumulated (a point residual touches
-    // a few small blocks of a much larger system).
-    tangent.resize(params.size());
-    jacobian_ptrs.assign(params.size(), nullptr);
-    touched.clear();
-    for (size_t k = 0; k < params.size(); ++k) {
-      const auto offset = offset_of.find(params[k]);
-      if (offset == offset_of.end()) continue;  // constant block
-      tangent[k].resize(num_residuals, problem->ParameterBlockTangentSize(params[k]));
-      jacobian_ptrs[k] = tangent[k].data();
-      touched.push_back({offset->second, &tangent[k]});
-    }
-    residual.resize(num_residuals);
-    double cost = 0.0;
-    if (!problem->EvaluateResidualBlock(id, /*apply_loss_function=*/true, &cost, residual.data(),
-                                        jacobian_ptrs.data())) {
-      throw Error("marginalization: a residual block failed to evaluate");
-    }
-    for (size_t x = 0; x < touched.size(); ++x) {
-      const RowMajorMatrix& J_x = *touched[x].jacobian;
-      const int gx = touched[x].offset;
-      b.segment(gx, J_x.cols()).noalias() += J_x.transpose().lazyProduct(residual);
-      for (size_t y = 0; y <= x; ++y) {
-        // Only the block below the diagonal (or on it) is accumulated; mirrored at the end.
-        const bool x_below = gx >= touched[y].offset;
-        const RowMajorMatrix& J_lo = x_below ? *touched[y].jacobian : J_x;
-        const RowMajorMatrix& J_hi = x_below ? J_x : *touched[y].jacobian;
-        const int g_hi = std::max(gx, touched[y].offset);
-        const int g_lo = std::min(gx, touched[y].offset);
-        H.block(g_hi, g_lo, J_hi.cols(), J_lo.cols()).noalias() +=
-            J_hi.transpose().lazyProduct(J_lo);
-      }
-    }
-  }
+  internal::AccumulateNormalEquations(problem, residual_blocks, offset_of, &H, &b,
+                                      "marginalization");
   H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
-  if (!H.allFinite() || !b.allFinite()) {
-    throw Error("marginalization: non-finite Jacobians or residuals");
-  }
 
   // 3. Schur complement onto the kept blocks (Eq. M1), pseudo-inverting H_mm.
   const int k = n - m;

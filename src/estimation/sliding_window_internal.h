@@ -155,6 +155,9 @@ struct SlidingWindowEstimator::SmoothingStep {
 struct SlidingWindowEstimator::ProblemBuild {
   std::vector<std::unique_ptr<ceres::CostFunction>> owned;
   std::unique_ptr<ceres::Problem> problem;
+  // The rows the solver evaluates at every iteration (Eq. SW11): the IMU factors, the rows
+  // with a robust loss and, without linearization per pass, every row.
+  std::vector<ceres::ResidualBlockId> relinearized;
 };
 
 namespace internal {

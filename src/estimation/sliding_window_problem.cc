@@ -20,6 +20,7 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/sliding_window_internal.h"
+#include "estimation/window_solver.h"
 
 namespace autocal {
 namespace estimation {
@@ -333,14 +334,18 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   }
 
   const bool linearize = options_.point_linearizations_per_update > 0;
-  const auto add = [&problem, &build, linearize](const AttachedFactor& f) {
+  const auto relinearized = [&build, linearize](ceres::ResidualBlockId id, bool always) {
+    if (always || !linearize) build->relinearized.push_back(id);
+  };
+  const auto add = [&problem, &build, linearize, &relinearized](const AttachedFactor& f) {
     if (linearize && f.linearized_per_pass != nullptr) {
       build->owned.push_back(
           std::make_unique<internal::LinearizedCost<>>(*f.cost, f.blocks, f.linearized_per_pass));
-      problem.AddResidualBlock(build->owned.back().get(), f.loss, f.blocks);
+      relinearized(problem.AddResidualBlock(build->owned.back().get(), f.loss, f.blocks),
+                   f.loss != nullptr);
       return;
     }
-    problem.AddResidualBlock(f.cost.get(), f.loss, f.blocks);
+    relinearized(problem.AddResidualBlock(f.cost.get(), f.loss, f.blocks), f.loss != nullptr);
   };
   for (const AttachedFactor& f : calibration_priors_) add(f);
   for (size_t k = 0; k < window_.size(); ++k) {
@@ -350,9 +355,13 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
     build->owned.emplace_back(factors::ImuFactor::Create(*kf.imu_from_previous));
     std::vector<double*> blocks = StateBlocks(&window_[k - 1]->state);
     for (double* b : StateBlocks(&kf.state)) blocks.push_back(b);
-    problem.AddResidualBlock(build->owned.back().get(), imu_loss_.get(), blocks);
+    relinearized(problem.AddResidualBlock(build->owned.back().get(), imu_loss_.get(), blocks),
+                 true);
   }
-  if (prior_) problem.AddResidualBlock(prior_.get(), nullptr, prior_->parameter_pointers());
+  if (prior_) {
+    relinearized(problem.AddResidualBlock(prior_.get(), nullptr, prior_->parameter_pointers()),
+                 false);
+  }
   // The point groups carry the LiDAR loss themselves (Eq. P9).
   for (const auto& kf : window_) {
     for (const internal::SweepPointGroup& g : kf->point_groups) {
@@ -361,7 +370,7 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
         problem.AddResidualBlock(build->owned.back().get(), nullptr, g.parameters);
         continue;
       }
-      problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters);
+      relinearized(problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters), false);
     }
   }
   return build;
@@ -396,27 +405,19 @@ double SlidingWindowEstimator::last_point_rms_m() const {
 // With the points linearized per pass (Eq. SW7) the solve runs point_linearizations_per_update
 // passes, each on the points relinearized at the estimate the previous pass reached.
 void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
-  ceres::Solver::Options solver_options;
-  // The window is small: Ceres' dense Schur complement (it eliminates an independent set of
-  // blocks and factors the rest densely) solved in 17 ms where the sparse normal equations
-  // took 21 ms (2000 points per sweep, benchmark medians; docs/sliding_window.md, "Figures").
-  solver_options.linear_solver_type = ceres::DENSE_SCHUR;
-  solver_options.max_num_iterations = options_.solver_iterations;
+  // The window's own Levenberg-Marquardt (Eq. SW11): the rows fixed for the pass enter by
+  // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
+  // with a loss and factors the dense system. It runs on one thread (docs/sliding_window.md,
+  // "Solver: threads").
+  internal::WindowSolverOptions solver_options;
+  solver_options.max_iterations = options_.solver_iterations;
   solver_options.function_tolerance = options_.solver_function_tolerance;
-  // One solver thread whatever num_threads says (the association uses them): on a problem
-  // this small the threads' hand-offs cost more than they save, and the threaded Schur
-  // elimination's varying summation order made runs of the same log differ (docs/
-  // sliding_window.md, "Solver: threads").
-  solver_options.num_threads = 1;
   timing_.solver_iterations = 0;
   for (int pass = 0; pass < std::max(1, options_.point_linearizations_per_update); ++pass) {
     if (pass > 0) *build = BuildProblem();
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver_options, (*build)->problem.get(), &summary);
-    if (!summary.IsSolutionUsable()) {
-      throw Error("SlidingWindowEstimator: the solver failed: " + summary.message);
-    }
-    timing_.solver_iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+    const internal::WindowSolverSummary summary =
+        internal::SolveWindowPass((*build)->problem.get(), (*build)->relinearized, solver_options);
+    timing_.solver_iterations += summary.iterations;
     for (auto& kf : window_) kf->state.q_W_I.normalize();
   }
 

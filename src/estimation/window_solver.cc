@@ -1,0 +1,190 @@
+#include "estimation/window_solver.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <unordered_map>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include "autocal/common/error.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/geometry/so3.h"
+#include "estimation/normal_equations.h"
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+
+namespace {
+
+struct VariableBlock {
+  double* values = nullptr;
+  int ambient_size = 0;
+  int tangent_size = 0;
+  int offset = 0;
+  const ceres::Manifold* manifold = nullptr;  // nullptr or a RightQuaternionManifold
+  Eigen::VectorXd x0;
+};
+
+// The relinearized rows at delta: their cost, and their normal equations in delta coordinates
+// (H lower triangle mirrored).
+struct Relinearized {
+  double cost = 0.0;
+  Eigen::MatrixXd H;
+  Eigen::VectorXd b;
+};
+
+}  // namespace
+
+WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
+                                    const std::vector<ceres::ResidualBlockId>& relinearized,
+                                    const WindowSolverOptions& options) {
+  // 1. The variable blocks and their values at the pass's start, in the order the residual
+  //    blocks first name them (Problem::GetParameterBlocks orders them by address, which
+  //    differs from run to run and with it the rounding of the solve).
+  std::vector<ceres::ResidualBlockId> all_rows;
+  problem->GetResidualBlocks(&all_rows);
+  std::vector<VariableBlock> blocks;
+  BlockOffsets offsets;
+  std::unordered_map<const double*, size_t> index_of;
+  int n = 0;
+  std::vector<double*> row_blocks;
+  std::vector<double*> parameter_blocks;
+  for (ceres::ResidualBlockId id : all_rows) {
+    problem->GetParameterBlocksForResidualBlock(id, &row_blocks);
+    for (double* p : row_blocks) {
+      if (offsets.count(p) != 0 || problem->IsParameterBlockConstant(p)) continue;
+      offsets[p] = -1;
+      parameter_blocks.push_back(p);
+    }
+  }
+  for (double* p : parameter_blocks) {
+    VariableBlock block;
+    block.values = p;
+    block.ambient_size = problem->ParameterBlockSize(p);
+    block.tangent_size = problem->ParameterBlockTangentSize(p);
+    block.manifold = problem->GetManifold(p);
+    block.offset = n;
+    block.x0 = Eigen::Map<const Eigen::VectorXd>(p, block.ambient_size);
+    if (block.manifold != nullptr &&
+        dynamic_cast<const geometry::RightQuaternionManifold*>(block.manifold) == nullptr) {
+      throw Error("window solver: supports Euclidean and RightQuaternionManifold blocks only");
+    }
+    offsets[p] = n;
+    index_of[p] = blocks.size();
+    n += block.tangent_size;
+    blocks.push_back(std::move(block));
+  }
+  WindowSolverSummary summary;
+  if (n == 0) return summary;
+
+  const auto set_values = [&blocks](const Eigen::VectorXd& delta) {
+    for (const VariableBlock& block : blocks) {
+      if (block.manifold == nullptr) {
+        Eigen::Map<Eigen::VectorXd>(block.values, block.ambient_size) =
+            block.x0 + delta.segment(block.offset, block.tangent_size);
+      } else {
+        block.manifold->Plus(block.x0.data(), delta.data() + block.offset, block.values);
+      }
+    }
+  };
+
+  // 2. The first-order model of the rows fixed for the pass (Eq. SW11):
+  //    cost(delta) = c0 + b0^T delta + 1/2 delta^T H0 delta.
+  const std::set<ceres::ResidualBlockId> relinearized_set(relinearized.begin(),
+                                                           relinearized.end());
+  std::vector<ceres::ResidualBlockId> fixed_rows;
+  for (ceres::ResidualBlockId id : all_rows) {
+    if (relinearized_set.count(id) == 0) fixed_rows.push_back(id);
+  }
+  Eigen::MatrixXd H0 = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd b0 = Eigen::VectorXd::Zero(n);
+  const double c0 =
+      AccumulateNormalEquations(problem, fixed_rows, offsets, &H0, &b0, "window solver");
+  H0.triangularView<Eigen::StrictlyUpper>() = H0.transpose();
+  const auto model_cost = [&](const Eigen::VectorXd& delta) {
+    return c0 + b0.dot(delta) + 0.5 * delta.dot(H0 * delta);
+  };
+
+  // 3. The relinearized rows at delta, their Jacobians taken to delta coordinates: with
+  //    x = x0 Exp(delta), x0 Exp(delta + e) = x Exp(Jr(delta) e).
+  const auto relinearize = [&](const Eigen::VectorXd& delta, Relinearized* out) {
+    out->H.setZero(n, n);
+    out->b.setZero(n);
+    out->cost = AccumulateNormalEquations(
+        problem, relinearized, offsets, &out->H, &out->b, "window solver",
+        [&](const double* block, RowMajorMatrix* jacobian) {
+          const VariableBlock& v = blocks[index_of.at(block)];
+          if (v.manifold == nullptr) return;
+          const Eigen::Vector3d d = delta.segment<3>(v.offset);
+          *jacobian = *jacobian * geometry::RightJacobian(d);
+        });
+    out->H.triangularView<Eigen::StrictlyUpper>() = out->H.transpose();
+  };
+
+  Eigen::VectorXd delta = Eigen::VectorXd::Zero(n);
+  Relinearized current;
+  relinearize(delta, &current);
+  double cost = c0 + current.cost;
+  summary.initial_cost = cost;
+
+  // 4. Levenberg-Marquardt on delta.
+  double radius = options.initial_trust_region_radius;
+  double decrease_factor = 2.0;
+  Relinearized trial;
+  Eigen::MatrixXd A(n, n);
+  while (summary.iterations < options.max_iterations) {
+    const Eigen::MatrixXd H = H0 + current.H;
+    const Eigen::VectorXd g = b0 + H0 * delta + current.b;
+    if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
+    A = H;
+    A.diagonal() += H.diagonal().cwiseMax(1e-6).cwiseMin(1e32) / radius;
+    const Eigen::LLT<Eigen::MatrixXd> llt(A);
+    ++summary.iterations;
+    if (llt.info() != Eigen::Success) {
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+      continue;
+    }
+    const Eigen::VectorXd step = -llt.solve(g);
+    if (step.norm() <=
+        options.parameter_tolerance * (delta.norm() + options.parameter_tolerance)) {
+      break;
+    }
+    const double model_decrease = -(g.dot(step) + 0.5 * step.dot(H * step));
+    const Eigen::VectorXd delta_trial = delta + step;
+    set_values(delta_trial);
+    double trial_cost = std::numeric_limits<double>::infinity();
+    try {
+      relinearize(delta_trial, &trial);
+      trial_cost = model_cost(delta_trial) + trial.cost;
+    } catch (const Error&) {
+      // A step to where a factor cannot be evaluated is rejected.
+    }
+    const double rho = (cost - trial_cost) / model_decrease;
+    if (model_decrease > 0.0 && std::isfinite(trial_cost) && rho > 1e-3) {
+      const double relative_decrease = (cost - trial_cost) / cost;
+      delta = delta_trial;
+      std::swap(current, trial);
+      cost = trial_cost;
+      ++summary.successful_steps;
+      radius = std::min(1e16, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
+      decrease_factor = 2.0;
+      if (relative_decrease <= options.function_tolerance) break;
+    } else {
+      set_values(delta);
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+    }
+  }
+  set_values(delta);
+  summary.final_cost = cost;
+  return summary;
+}
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal

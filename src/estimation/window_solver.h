@@ -1,0 +1,52 @@
+#pragma once
+
+// The window's Levenberg-Marquardt solve of one pass (docs/sliding_window.md, "Solver: the
+// window's own", Eq. SW11). Within a pass most rows are first-order models fixed at the pass's
+// start (Eq. SW7): their normal equations are formed once per pass, and an iteration only
+// evaluates the rows that are relinearized (the IMU factors, rows with a robust loss) and
+// solves the dense system.
+
+#include <vector>
+
+#include <ceres/ceres.h>
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+
+struct WindowSolverOptions {
+  // Iterations (accepted and rejected steps) at most.
+  int max_iterations = 10;
+  // Stop once an accepted step lowers the cost by less than this fraction of it.
+  double function_tolerance = 1e-6;
+  // Stop when the largest gradient entry is below this, or the step below this fraction of
+  // |delta|.
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-8;
+  // Levenberg-Marquardt damping: (H + diag(H) / radius) step = -g.
+  double initial_trust_region_radius = 1e4;
+};
+
+struct WindowSolverSummary {
+  int iterations = 0;  // accepted + rejected steps
+  int successful_steps = 0;
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+};
+
+// Minimizes the cost of `problem` over its variable blocks, leaving the solution in them.
+// Coordinates are delta = x [-] x0 from the values x0 the pass starts at, x = x0 [+] delta.
+// Every residual block not in `relinearized` is evaluated once, at x0, and enters as its
+// first-order model r0 + J0 delta; those in `relinearized` are evaluated at every iteration,
+// their Jacobians carried into delta coordinates (J Jr(delta) for a RightQuaternionManifold
+// block). Blocks with a robust loss belong in `relinearized` (the model of the others keeps
+// the loss's weights from x0). Supported manifolds: none and geometry::RightQuaternionManifold.
+// Throws autocal::Error when a residual block cannot be evaluated at x0 or the system has a
+// direction without information that the damping cannot make solvable.
+WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
+                                    const std::vector<ceres::ResidualBlockId>& relinearized,
+                                    const WindowSolverOptions& options);
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
