@@ -4,8 +4,10 @@
 //
 // Initializes the state and LiDAR-IMU calibration from the first seconds of the log, then
 // streams the IMU, wheel, GNSS and LiDAR data in arrival order through the sliding-window
-// estimator, and writes trajectory.tum, states.csv (every keyframe's pose, velocity and
-// biases), calibration_over_time.csv (the estimate after every keyframe) and calibration.yaml (final values with sigma) into --output
+// estimator, and writes trajectory.tum (every keyframe as it left the window),
+// trajectory_smoothed.tum (the same keyframes smoothed from the final window), states.csv
+// (every keyframe's pose, velocity and biases), calibration_over_time.csv (the estimate after
+// every keyframe) and calibration.yaml (final values with sigma) into --output
 // (docs/sliding_window.md, "Streaming a dataset").
 
 #include <gflags/gflags.h>
@@ -22,8 +24,9 @@
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses, window "
               "size, solver, LiDAR points); required");
-DEFINE_string(output, "", "result directory (created): trajectory.tum, states.csv, "
-              "calibration_over_time.csv, calibration.yaml; required");
+DEFINE_string(output, "",
+              "result directory (created): trajectory.tum, trajectory_smoothed.tum, "
+              "states.csv, calibration_over_time.csv, calibration.yaml; required");
 DEFINE_double(init_duration_s, 30.0, "seconds of the log (from its first sweep) given to the "
               "initializer that starts the window; > 0");
 DEFINE_int32(init_sweep_stride, 2, "every n-th sweep of those seconds goes to the initializer; "
@@ -70,7 +73,8 @@ int main(int argc, char** argv) {
               << "q_I_L (xyzw) " << c.q_I_L.coeffs().transpose() << "\np_I_L (m)    "
               << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
               << " ms\nwritten: " << FLAGS_output
-              << "/trajectory.tum, states.csv, calibration_over_time.csv, calibration.yaml\n";
+              << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
+                 "calibration.yaml\n";
   } catch (const autocal::Error& e) {
     std::cerr << "\nautocal_estimate: " << e.what() << "\n";
     return 1;
