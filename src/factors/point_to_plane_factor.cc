@@ -34,11 +34,10 @@ bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* resid
   //   r = m . (dR x_I + delta dR Hat(omega) x_I + dp + delta dv)
   //     + n . (p_k + (dt + delta) v_k + 1/2 g dt^2 + delta g dt) / sigma + d / sigma.
   const Eigen::Vector3d m = q_W_I.conjugate() * n_W_over_sigma_;
-  const Eigen::Matrix3d R_I_L = q_I_L.toRotationMatrix();
-  const Eigen::Vector3d x_I = R_I_L * p_L_ + p_I_L;  // the point in I(t)
-  const Eigen::Vector3d rotated_x = delta_R_ * x_I;
-  const Eigen::Vector3d spun_x = delta_R_omega_hat_ * x_I;
-  const Eigen::Vector3d lever = rotated_x + delta * spun_x + delta_p_ + delta * delta_v_;
+  const Eigen::Vector3d x_I = q_I_L * p_L_ + p_I_L;  // the point in I(t)
+  // The motion to the point's instant at this offset: dR + delta dR Hat(omega).
+  const Eigen::Matrix3d motion = delta_R_ + delta * delta_R_omega_hat_;
+  const Eigen::Vector3d lever = motion * x_I + delta_p_ + delta * delta_v_;
   // n . v_k / sigma enters the residual and the offset Jacobian.
   const double n_v = n_W_over_sigma_.dot(v_W_I);
   residuals[0] = m.dot(lever) + n_W_over_sigma_.dot(p_W_I) + (dt_s_ + delta) * n_v +
@@ -59,10 +58,10 @@ bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* resid
   }
   if (jacobians[3] != nullptr || jacobians[4] != nullptr) {
     // d r / d x_I = m^T (dR + delta dR Hat(omega)).
-    const Eigen::Vector3d m_x = delta_R_.transpose() * m + delta * (delta_R_omega_hat_.transpose() * m);
+    const Eigen::Vector3d m_x = motion.transpose() * m;
     if (jacobians[3] != nullptr) {
       // d x_I / d theta_IL = -R_I_L Hat(p_L).
-      geometry::LiftTangentRow(p_L_.cross(R_I_L.transpose() * m_x).transpose(), parameters[3],
+      geometry::LiftTangentRow(p_L_.cross(q_I_L.conjugate() * m_x).transpose(), parameters[3],
                                jacobians[3]);
     }
     if (jacobians[4] != nullptr) {
@@ -71,7 +70,7 @@ bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* resid
     }
   }
   if (jacobians[5] != nullptr) {
-    jacobians[5][0] = m.dot(spun_x + delta_v_) + n_v + n_gravity_velocity_;
+    jacobians[5][0] = m.dot(delta_R_omega_hat_ * x_I + delta_v_) + n_v + n_gravity_velocity_;
   }
   return true;
 }
