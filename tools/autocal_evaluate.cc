@@ -132,6 +132,11 @@ int Run() {
   evaluation::TrajectoryErrorOptions options;
   options.max_interpolation_gap_s = max_gap_s;
   const evaluation::Evaluation result = evaluation::EvaluateResult(paths, options);
+  gflags::CommandLineFlagInfo trajectory_flag;
+  if (!result.trajectory && gflags::GetCommandLineFlagInfo("trajectory", &trajectory_flag) &&
+      !trajectory_flag.is_default) {
+    throw Error("--trajectory: '" + paths.result_trajectory + "' does not exist");
+  }
   if (!result.trajectory && (thresholds.max_ate_m || thresholds.max_ate_deg)) {
     throw Error("--max_ate_m/--max_ate_deg need an estimated trajectory, but '" +
                 paths.result_trajectory + "' does not exist");

@@ -17,7 +17,7 @@ namespace estimation {
 
 namespace {
 
-using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using internal::RowMajorMatrix;
 
 bool IsRightQuaternion(const ceres::Manifold* manifold) {
   return dynamic_cast<const geometry::RightQuaternionManifold*>(manifold) != nullptr;

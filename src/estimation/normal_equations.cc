@@ -1,6 +1,7 @@
 #include "estimation/normal_equations.h"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "autocal/common/error.h"

@@ -21,8 +21,9 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 using BlockOffsets = std::map<double*, int>;
 
 // Adds J^T J of the residual blocks `ids`, evaluated at their blocks' current values (robust
-// losses applied through Ceres' corrector, Jacobians in tangent coordinates), to the lower
-// triangle of *H (the strictly upper triangle is not touched) and J^T r to *b. Blocks missing
+// losses applied through Ceres' corrector, Jacobians in tangent coordinates), to the blocks of
+// *H on or below its block diagonal (the blocks above it are not touched; the caller mirrors)
+// and J^T r to *b. Blocks missing
 // from `offsets` (constant ones) get no Jacobian. `transform`, when set, is applied to every
 // block's tangent Jacobian first. Returns the residual blocks' cost (1/2 sum of rho). Throws
 // autocal::Error, starting with `what`, when a residual block fails to evaluate or is not

@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 #include <utility>
 
 #include "autocal/common/error.h"
@@ -519,35 +518,6 @@ int SlidingWindowEstimator::window_size() const { return static_cast<int>(window
 std::vector<SlidingWindowState> SlidingWindowEstimator::Trajectory() const {
   std::vector<SlidingWindowState> out = marginalized_;
   for (const auto& kf : window_) out.push_back(kf->state);
-  return out;
-}
-
-// Eq. M4 backwards (docs/sliding_window.md, "Smoothing").
-std::vector<SlidingWindowState> SlidingWindowEstimator::SmoothedTrajectory() const {
-  if (!options_.smoothing) {
-    throw Error("SlidingWindowEstimator::SmoothedTrajectory needs SlidingWindowOptions::smoothing");
-  }
-  std::vector<SlidingWindowState> out = Trajectory();
-  std::unordered_map<int, size_t> index_of_id;
-  for (size_t i = 0; i < smoothing_.size(); ++i) index_of_id[smoothing_[i].keyframe_id] = i;
-  for (size_t j = 0; j < window_.size(); ++j) {
-    index_of_id[window_[j]->id] = smoothing_.size() + j;
-  }
-  std::vector<const double*> kept;
-  std::vector<double*> marginalized;
-  for (size_t i = smoothing_.size(); i-- > 0;) {
-    const SmoothingStep& step = smoothing_[i];
-    kept.clear();
-    for (const SmoothingStep::BlockRef& ref : step.kept) {
-      kept.push_back(ref.keyframe_id < 0
-                         ? ref.calibration
-                         : StateBlocks(&out[index_of_id.at(ref.keyframe_id)])[ref.state_block]);
-    }
-    const std::vector<double*> blocks = StateBlocks(&out[i]);
-    marginalized.clear();
-    for (int b : step.marginalized) marginalized.push_back(blocks[b]);
-    step.conditional.Apply(kept, marginalized);
-  }
   return out;
 }
 

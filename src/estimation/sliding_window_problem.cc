@@ -449,43 +449,10 @@ std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::MarginalizeOldest(
   if (!options_.smoothing) {
     return Marginalize(build->problem.get(), blocks, options_.marginalization);
   }
-  SmoothingStep step;
-  step.keyframe_id = window_.front()->id;
+  MarginalConditional conditional;
   std::unique_ptr<MarginalizationPrior> prior =
-      Marginalize(build->problem.get(), blocks, options_.marginalization, &step.conditional);
-  const auto index_in = [](const std::vector<double*>& list, const double* p) {
-    return static_cast<int>(std::find(list.begin(), list.end(), p) - list.begin());
-  };
-  for (const PriorBlock& b : step.conditional.marginalized_blocks()) {
-    step.marginalized.push_back(index_in(blocks, b.values));
-  }
-  sensors::Calibration& c = calibration_;
-  const std::vector<double*> calibration_blocks = {
-      c.q_I_L.coeffs().data(), c.p_I_L.data(),          &c.time_offset_lidar_imu_s,
-      &c.wheel_radius_left_m,  &c.wheel_radius_right_m, &c.track_width_m,
-      c.q_I_V.coeffs().data(), c.p_I_V.data(),          c.p_I_A.data()};
-  for (const PriorBlock& b : step.conditional.kept_blocks()) {
-    SmoothingStep::BlockRef ref;
-    if (index_in(calibration_blocks, b.values) < static_cast<int>(calibration_blocks.size())) {
-      ref.calibration = b.values;
-    } else {
-      for (const auto& kf : window_) {
-        const int i = index_in(StateBlocks(&kf->state), b.values);
-        if (i < 5) {
-          ref.keyframe_id = kf->id;
-          ref.state_block = i;
-          break;
-        }
-      }
-      if (ref.keyframe_id < 0) {
-        throw Error(
-            "SlidingWindowEstimator: a block the oldest keyframe is marginalized onto "
-            "is neither a window keyframe's nor a calibration block");
-      }
-    }
-    step.kept.push_back(ref);
-  }
-  smoothing_.push_back(std::move(step));
+      Marginalize(build->problem.get(), blocks, options_.marginalization, &conditional);
+  RecordSmoothingStep(std::move(conditional));
   return prior;
 }
 

@@ -5,6 +5,7 @@
 #include <limits>
 #include <set>
 #include <unordered_map>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -111,7 +112,7 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
 
   // 3. The relinearized rows at delta, their Jacobians taken to delta coordinates: with
   //    x = x0 Exp(delta), x0 Exp(delta + e) = x Exp(Jr(delta) e).
-  const auto relinearize = [&](const Eigen::VectorXd& delta, Relinearized* out) {
+  const auto relinearize = [&](const Eigen::VectorXd& at, Relinearized* out) {
     out->H.setZero(n, n);
     out->b.setZero(n);
     out->cost = AccumulateNormalEquations(
@@ -119,7 +120,7 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
         [&](const double* block, RowMajorMatrix* jacobian) {
           const VariableBlock& v = blocks[index_of.at(block)];
           if (v.manifold == nullptr) return;
-          const Eigen::Vector3d d = delta.segment<3>(v.offset);
+          const Eigen::Vector3d d = at.segment<3>(v.offset);
           *jacobian = *jacobian * geometry::RightJacobian(d);
         });
     out->H.triangularView<Eigen::StrictlyUpper>() = out->H.transpose();

@@ -41,8 +41,10 @@ struct WindowSolverSummary {
 // their Jacobians carried into delta coordinates (J Jr(delta) for a RightQuaternionManifold
 // block). Blocks with a robust loss belong in `relinearized` (the model of the others keeps
 // the loss's weights from x0). Supported manifolds: none and geometry::RightQuaternionManifold.
-// Throws autocal::Error when a residual block cannot be evaluated at x0 or the system has a
-// direction without information that the damping cannot make solvable.
+// A trial step whose rows cannot be evaluated, or that does not lower the cost by at least
+// 1e-3 of the model's decrease, is rejected (the values return to the accepted point and the
+// damping grows), as is a step whose damped system cannot be factored. Throws autocal::Error
+// when a residual block cannot be evaluated at x0.
 WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
                                     const std::vector<ceres::ResidualBlockId>& relinearized,
                                     const WindowSolverOptions& options);

@@ -187,6 +187,7 @@ std::string EvaluationYamlText(const Evaluation& evaluation, const Thresholds& t
   if (evaluation.trajectory) {
     const TrajectoryErrors& t = *evaluation.trajectory;
     out += "trajectory:\n";
+    out += "  file: \"" + evaluation.trajectory_file + "\"\n";
     out += "  matched_poses: " + std::to_string(t.matched_poses) + "\n";
     out += "  exact_matches: " + std::to_string(t.exact_matches) + "\n";
     out += "  unmatched_poses: " + std::to_string(t.unmatched_poses) + "\n";
@@ -262,6 +263,7 @@ Evaluation EvaluateResult(const ResultPaths& paths, const TrajectoryErrorOptions
     evaluation.trajectory =
         CompareTrajectory(io::ReadTumTrajectory(paths.result_trajectory),
                           io::ReadTrajectoryCsv(paths.truth_trajectory), options);
+    evaluation.trajectory_file = paths.result_trajectory;
   }
   return evaluation;
 }

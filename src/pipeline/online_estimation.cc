@@ -38,7 +38,7 @@ double PriorSigma(const io::ScalarBlockSetting& s, const std::optional<double>& 
   return stated ? *stated : fallback;
 }
 
-// The window options of a problem: what it estimates, its priors, losses and solver.
+// A keyframe as a trajectory sample (pose and velocity).
 io::TrajectorySample TrajectorySampleOf(const estimation::SlidingWindowState& x) {
   io::TrajectorySample s;
   s.t_ns = x.t_ns;
@@ -47,6 +47,7 @@ io::TrajectorySample TrajectorySampleOf(const estimation::SlidingWindowState& x)
   return s;
 }
 
+// The window options of a problem: what it estimates, its priors, losses and solver.
 estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
                                                const io::Problem& problem, bool use_wheel,
                                                bool use_gnss,

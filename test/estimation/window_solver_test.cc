@@ -1,5 +1,6 @@
 #include "estimation/window_solver.h"
 
+#include <limits>
 #include <vector>
 
 #include <ceres/ceres.h>
@@ -161,8 +162,54 @@ TEST(WindowSolver, OnePassEndsAtAStationaryPointOfItsModel) {
   }
 }
 
-// A rejected step leaves no trace: with a tiny trust region and one iteration the solver may
-// only move downhill or stay; a cap of zero iterations leaves every block at its value.
+// r = x^2 - 4 (minimum at x = 2) and r = x - 10 behind a wall: no evaluation beyond x = 3.
+class Scalar final : public ceres::SizedCostFunction<1, 1> {
+ public:
+  explicit Scalar(bool wall) : wall_(wall) {}
+  bool Evaluate(double const* const* x, double* r, double** jacobians) const override {
+    if (wall_ && x[0][0] > 3.0) return false;
+    r[0] = wall_ ? x[0][0] - 10.0 : x[0][0] * x[0][0] - 4.0;
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      jacobians[0][0] = wall_ ? 1.0 : 2.0 * x[0][0];
+    }
+    return true;
+  }
+
+ private:
+  bool wall_;
+};
+
+// After any number of iterations the block holds an accepted point and the summary's cost is
+// its cost: the first Gauss-Newton steps (to x = 20, and to 10 behind the wall) raise the
+// cost or cannot be evaluated, are rejected and leave no trace; the cost never rises.
+TEST(WindowSolver, RejectedStepsLeaveTheAcceptedPoint) {
+  for (const bool wall : {false, true}) {
+    double previous_cost = std::numeric_limits<double>::infinity();
+    for (int iterations = 1; iterations <= 30; ++iterations) {
+      double x = 0.1;
+      ceres::Problem problem;
+      const ceres::ResidualBlockId id = problem.AddResidualBlock(new Scalar(wall), nullptr, &x);
+      WindowSolverOptions options = Tight();
+      options.max_iterations = iterations;
+      const WindowSolverSummary summary = SolveWindowPass(&problem, {id}, options);
+      double cost = 0.0;
+      ASSERT_TRUE(problem.EvaluateResidualBlock(id, false, &cost, nullptr, nullptr))
+          << "left at x = " << x << " after " << iterations << " iterations";
+      EXPECT_DOUBLE_EQ(cost, summary.final_cost) << "wall " << wall << ", " << iterations;
+      EXPECT_LE(summary.final_cost, summary.initial_cost);
+      EXPECT_LE(summary.final_cost, previous_cost) << "wall " << wall << ", " << iterations;
+      previous_cost = summary.final_cost;
+      if (iterations == 1) {
+        EXPECT_EQ(summary.successful_steps, 0) << "wall " << wall;
+      }
+      if (iterations == 30) {  // at the minimum, or at the wall
+        EXPECT_NEAR(x, wall ? 2.995 : 2.0, wall ? 5e-3 : 1e-6) << "wall " << wall;
+      }
+    }
+  }
+}
+
+// A cap of zero iterations leaves every block at its value.
 TEST(WindowSolver, ZeroIterationsLeaveTheValuesAlone) {
   const PoseChainProblem chain(4);
   PoseChain x = chain.initial_values();

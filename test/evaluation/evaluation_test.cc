@@ -361,6 +361,9 @@ TEST(EvaluateResultTest, ReadsTheDatasetTruthAndTheResultDirectory) {
   io::WriteTrajectoryCsv(paths.truth_trajectory, trajectory);
   const Evaluation with_trajectory = EvaluateResult(paths);
   ASSERT_TRUE(with_trajectory.trajectory.has_value());
+  EXPECT_EQ(with_trajectory.trajectory_file, paths.result_trajectory);
+  EXPECT_THAT(EvaluationYamlText(with_trajectory, Thresholds()),
+              HasSubstr("  file: \"" + paths.result_trajectory + "\"\n"));
   EXPECT_EQ(with_trajectory.trajectory->matched_poses, static_cast<int>(trajectory.size()));
   // TUM stores the pose with shortest round-trip decimals: the ATE is rounding only.
   EXPECT_LT(with_trajectory.trajectory->ate_translation_rmse_m, 1e-9);

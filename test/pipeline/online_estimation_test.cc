@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
+#include "autocal/evaluation/trajectory_errors.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/tum_trajectory.h"
@@ -146,15 +147,23 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
   const io::CalibrationFile read_back = io::ReadCalibrationYaml(out + "/calibration.yaml");
   EXPECT_TRUE(read_back.value.q_I_L.isApprox(estimate.q_I_L, 1e-12));
   EXPECT_EQ(io::ReadTumTrajectory(out + "/trajectory.tum").size(), result.trajectory.size());
-  // The smoothed trajectory: the same stamps, the newest keyframe (still in the window) as
-  // filtered.
+  // The smoothed trajectory: the same stamps, closer to the truth (measured: ATE 2.6 -> 1.2 cm,
+  // 0.33 -> 0.087 deg).
   ASSERT_EQ(result.smoothed_trajectory.size(), result.trajectory.size());
   const io::Trajectory smoothed = io::ReadTumTrajectory(out + "/trajectory_smoothed.tum");
   ASSERT_EQ(smoothed.size(), result.trajectory.size());
   for (size_t i = 0; i < smoothed.size(); ++i) {
     ASSERT_EQ(smoothed[i].t_ns, result.trajectory[i].t_ns);
   }
-  EXPECT_LT((smoothed.back().T_W_I.p - result.trajectory.back().T_W_I.p).norm(), 1e-6);
+  const evaluation::TrajectoryErrors filtered_ate =
+      evaluation::CompareTrajectory(result.trajectory, dataset.groundtruth_trajectory);
+  const evaluation::TrajectoryErrors smoothed_ate =
+      evaluation::CompareTrajectory(smoothed, dataset.groundtruth_trajectory);
+  std::cout << "ATE filtered " << filtered_ate.ate_translation_rmse_m << " m / "
+            << filtered_ate.ate_rotation_rmse_deg << " deg, smoothed "
+            << smoothed_ate.ate_translation_rmse_m << " m / " << smoothed_ate.ate_rotation_rmse_deg
+            << " deg\n";
+  EXPECT_LT(smoothed_ate.ate_rotation_rmse_deg, 0.5 * filtered_ate.ate_rotation_rmse_deg);
   std::ifstream csv(out + "/calibration_over_time.csv");
   std::string line;
   ASSERT_TRUE(std::getline(csv, line));

@@ -316,6 +316,9 @@ class SlidingWindowEstimator {
   // keyframe's, either way round, if so asked).
   double SquaredPointDistances(bool oldest_only) const;
   std::unique_ptr<MarginalizationPrior> MarginalizeOldest(ProblemBuild* build);
+  // With options_.smoothing: keeps the oldest keyframe's conditional (Eq. M4) for
+  // SmoothedTrajectory().
+  void RecordSmoothingStep(MarginalConditional conditional);
   void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
   void TrimImuBuffer();
 

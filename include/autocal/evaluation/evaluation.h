@@ -16,8 +16,9 @@ namespace evaluation {
 
 struct Evaluation {
   CalibrationErrors calibration;
-  // Present when an estimated trajectory was evaluated.
+  // Present when an estimated trajectory was evaluated, with the file it was read from.
   std::optional<TrajectoryErrors> trajectory;
+  std::string trajectory_file;
 };
 
 // Limits on the magnitude of each error. Every limit is optional; an unset limit is not

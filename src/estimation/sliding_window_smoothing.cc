@@ -1,0 +1,95 @@
+// The sliding window's smoother (docs/sliding_window.md, "Smoothing"): the conditional kept at
+// every marginalization (Eq. M4) and the backward pass over them.
+#include <algorithm>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "autocal/estimation/sliding_window.h"
+#include "estimation/sliding_window_internal.h"
+
+namespace autocal {
+namespace estimation {
+
+using internal::StateBlocks;
+
+// The conditional of the keyframe being marginalized (the window's oldest), each of its kept
+// blocks named by keyframe id and state block, or as a calibration block.
+void SlidingWindowEstimator::RecordSmoothingStep(MarginalConditional conditional) {
+  SmoothingStep step;
+  step.keyframe_id = window_.front()->id;
+  step.conditional = std::move(conditional);
+  const auto index_in = [](const std::vector<double*>& list, const double* p) {
+    return static_cast<int>(std::find(list.begin(), list.end(), p) - list.begin());
+  };
+  const std::vector<double*> oldest = StateBlocks(&window_.front()->state);
+  for (const PriorBlock& b : step.conditional.marginalized_blocks()) {
+    step.marginalized.push_back(index_in(oldest, b.values));
+  }
+  sensors::Calibration& c = calibration_;
+  const std::vector<double*> calibration_blocks = {
+      c.q_I_L.coeffs().data(), c.p_I_L.data(),          &c.time_offset_lidar_imu_s,
+      &c.wheel_radius_left_m,  &c.wheel_radius_right_m, &c.track_width_m,
+      c.q_I_V.coeffs().data(), c.p_I_V.data(),          c.p_I_A.data()};
+  for (const PriorBlock& b : step.conditional.kept_blocks()) {
+    SmoothingStep::BlockRef ref;
+    if (index_in(calibration_blocks, b.values) < static_cast<int>(calibration_blocks.size())) {
+      ref.calibration = b.values;
+    } else {
+      for (const auto& kf : window_) {
+        const int i = index_in(StateBlocks(&kf->state), b.values);
+        if (i < 5) {
+          ref.keyframe_id = kf->id;
+          ref.state_block = i;
+          break;
+        }
+      }
+      if (ref.keyframe_id < 0) {
+        throw Error(
+            "SlidingWindowEstimator: a block the oldest keyframe is marginalized onto "
+            "is neither a window keyframe's nor a calibration block");
+      }
+    }
+    step.kept.push_back(ref);
+  }
+  smoothing_.push_back(std::move(step));
+}
+
+// The Rauch-Tung-Striebel pass: Eq. M4 backwards.
+std::vector<SlidingWindowState> SlidingWindowEstimator::SmoothedTrajectory() const {
+  if (!options_.smoothing) {
+    throw Error("SlidingWindowEstimator::SmoothedTrajectory needs SlidingWindowOptions::smoothing");
+  }
+  if (smoothing_.size() != marginalized_.size()) {
+    throw Error("SlidingWindowEstimator: " + std::to_string(smoothing_.size()) +
+                " smoothing steps for " + std::to_string(marginalized_.size()) +
+                " marginalized keyframes");
+  }
+  std::vector<SlidingWindowState> out = Trajectory();
+  std::unordered_map<int, size_t> index_of_id;
+  for (size_t i = 0; i < smoothing_.size(); ++i) index_of_id[smoothing_[i].keyframe_id] = i;
+  for (size_t j = 0; j < window_.size(); ++j) {
+    index_of_id[window_[j]->id] = smoothing_.size() + j;
+  }
+  std::vector<const double*> kept;
+  std::vector<double*> marginalized;
+  for (size_t i = smoothing_.size(); i-- > 0;) {
+    const SmoothingStep& step = smoothing_[i];
+    kept.clear();
+    for (const SmoothingStep::BlockRef& ref : step.kept) {
+      kept.push_back(ref.keyframe_id < 0
+                         ? ref.calibration
+                         : StateBlocks(&out[index_of_id.at(ref.keyframe_id)])[ref.state_block]);
+    }
+    const std::vector<double*> blocks = StateBlocks(&out[i]);
+    marginalized.clear();
+    for (int b : step.marginalized) marginalized.push_back(blocks[b]);
+    step.conditional.Apply(kept, marginalized);
+  }
+  return out;
+}
+
+}  // namespace estimation
+}  // namespace autocal
