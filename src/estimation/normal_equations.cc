@@ -10,6 +10,55 @@ namespace autocal {
 namespace estimation {
 namespace internal {
 
+namespace {
+
+struct TouchedBlock {
+  int offset;  // in H
+  const RowMajorMatrix* jacobian;
+};
+
+// A residual block with this many rows and blocks (a marginalization prior) is accumulated by
+// one dense product J^T J of its stacked Jacobian (a blocked matrix product) instead of one
+// small product per pair of blocks.
+constexpr int kDenseRows = 32;
+constexpr size_t kDenseBlocks = 4;
+
+void AccumulateDense(const std::vector<TouchedBlock>& touched, const Eigen::VectorXd& residual,
+                     Eigen::MatrixXd* H, Eigen::VectorXd* b, Eigen::MatrixXd* stacked,
+                     Eigen::MatrixXd* gram) {
+  std::vector<int> column(touched.size() + 1, 0);
+  for (size_t x = 0; x < touched.size(); ++x) {
+    column[x + 1] = column[x] + static_cast<int>(touched[x].jacobian->cols());
+  }
+  stacked->resize(residual.size(), column.back());
+  for (size_t x = 0; x < touched.size(); ++x) {
+    stacked->middleCols(column[x], column[x + 1] - column[x]) = *touched[x].jacobian;
+  }
+  gram->setZero(column.back(), column.back());
+  gram->selfadjointView<Eigen::Lower>().rankUpdate(stacked->transpose());
+  const Eigen::VectorXd gradient = stacked->transpose() * residual;
+  for (size_t x = 0; x < touched.size(); ++x) {
+    const int gx = touched[x].offset;
+    const int cx = column[x];
+    const int nx = column[x + 1] - cx;
+    b->segment(gx, nx) += gradient.segment(cx, nx);
+    for (size_t y = 0; y <= x; ++y) {
+      const int gy = touched[y].offset;
+      const int cy = column[y];
+      const int ny = column[y + 1] - cy;
+      // gram holds (x, y) for x >= y in its lower triangle; H takes the block below its
+      // diagonal.
+      if (gx >= gy) {
+        H->block(gx, gy, nx, ny) += gram->block(cx, cy, nx, ny);
+      } else {
+        H->block(gy, gx, ny, nx) += gram->block(cx, cy, nx, ny).transpose();
+      }
+    }
+  }
+}
+
+}  // namespace
+
 double AccumulateNormalEquations(
     ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
     const BlockOffsets& offsets, Eigen::MatrixXd* H, Eigen::VectorXd* b, const char* what,
@@ -19,11 +68,9 @@ double AccumulateNormalEquations(
   std::vector<RowMajorMatrix> tangent;
   std::vector<double*> jacobian_ptrs;
   Eigen::VectorXd residual;
-  struct TouchedBlock {
-    int offset;
-    const RowMajorMatrix* jacobian;
-  };
   std::vector<TouchedBlock> touched;
+  Eigen::MatrixXd stacked;
+  Eigen::MatrixXd gram;
   double total_cost = 0.0;
   for (ceres::ResidualBlockId id : ids) {
     problem->GetParameterBlocksForResidualBlock(id, &params);
@@ -57,6 +104,10 @@ double AccumulateNormalEquations(
         throw Error(std::string(what) + ": non-finite Jacobians or residuals");
       }
       if (transform) transform(params[k], &tangent[k]);
+    }
+    if (num_residuals >= kDenseRows && touched.size() >= kDenseBlocks) {
+      AccumulateDense(touched, residual, H, b, &stacked, &gram);
+      continue;
     }
     for (size_t x = 0; x < touched.size(); ++x) {
       const RowMajorMatrix& J_x = *touched[x].jacobian;

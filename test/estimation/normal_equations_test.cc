@@ -1,0 +1,140 @@
+#include "estimation/normal_equations.h"
+
+#include <random>
+#include <utility>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
+
+#include "autocal/geometry/manifolds.h"
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+namespace {
+
+// r = A x + c over the blocks' ambient values (a quaternion block's rows see its tangent through
+// Ceres' manifold).
+class LinearRows final : public ceres::CostFunction {
+ public:
+  LinearRows(Eigen::MatrixXd A, Eigen::VectorXd c, const std::vector<int>& sizes)
+      : A_(std::move(A)), c_(std::move(c)) {
+    set_num_residuals(static_cast<int>(A_.rows()));
+    for (int size : sizes) mutable_parameter_block_sizes()->push_back(size);
+  }
+  bool Evaluate(double const* const* x, double* r, double** jacobians) const override {
+    Eigen::VectorXd all(A_.cols());
+    int column = 0;
+    for (size_t k = 0; k < parameter_block_sizes().size(); ++k) {
+      const int size = parameter_block_sizes()[k];
+      all.segment(column, size) = Eigen::Map<const Eigen::VectorXd>(x[k], size);
+      column += size;
+    }
+    Eigen::Map<Eigen::VectorXd>(r, num_residuals()) = A_ * all + c_;
+    if (jacobians == nullptr) return true;
+    column = 0;
+    for (size_t k = 0; k < parameter_block_sizes().size(); ++k) {
+      const int size = parameter_block_sizes()[k];
+      if (jacobians[k] != nullptr) {
+        Eigen::Map<RowMajorMatrix>(jacobians[k], num_residuals(), size) =
+            A_.middleCols(column, size);
+      }
+      column += size;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd A_;
+  Eigen::VectorXd c_;
+};
+
+// Rows over blocks of sizes 4 (a quaternion), 3, 1, 3, 4 (a quaternion), 3; a constant block.
+// Few rows take the pairwise products, many rows (a prior) the stacked product: both must
+// give J^T J and J^T r of the tangent Jacobian, on and below the block diagonal, in any order
+// of the blocks in H.
+void ExpectNormalEquations(int rows) {
+  std::mt19937 rng(static_cast<uint32_t>(rows));
+  std::normal_distribution<double> n(0.0, 1.0);
+  const std::vector<int> sizes = {4, 3, 1, 3, 4, 3};
+  std::vector<Eigen::VectorXd> values;
+  for (int size : sizes) {
+    Eigen::VectorXd v(size);
+    for (int i = 0; i < size; ++i) v(i) = n(rng);
+    if (size == 4) v.normalize();
+    values.push_back(v);
+  }
+  int ambient = 0;
+  for (int size : sizes) ambient += size;
+  Eigen::MatrixXd A(rows, ambient);
+  for (int i = 0; i < A.size(); ++i) A(i) = n(rng);
+  Eigen::VectorXd c(rows);
+  for (int i = 0; i < rows; ++i) c(i) = n(rng);
+
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  geometry::RightQuaternionManifold quaternion;
+  std::vector<double*> blocks;
+  for (size_t k = 0; k < sizes.size(); ++k) {
+    blocks.push_back(values[k].data());
+    problem.AddParameterBlock(blocks.back(), sizes[k], sizes[k] == 4 ? &quaternion : nullptr);
+  }
+  problem.SetParameterBlockConstant(blocks[2]);
+  const ceres::ResidualBlockId id =
+      problem.AddResidualBlock(new LinearRows(A, c, sizes), nullptr, blocks);
+
+  // Tangent offsets in H, not in the order of the residual's blocks.
+  BlockOffsets offsets;
+  offsets[blocks[5]] = 0;   // 3
+  offsets[blocks[0]] = 3;   // 3 (tangent of 4)
+  offsets[blocks[3]] = 6;   // 3
+  offsets[blocks[1]] = 9;   // 3
+  offsets[blocks[4]] = 12;  // 3
+  const int size = 15;
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(size, size);
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(size);
+  const double cost = AccumulateNormalEquations(&problem, {id}, offsets, &H, &b, "test");
+
+  // Expected: the tangent Jacobian in H's order.
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(rows, size);
+  int column = 0;
+  for (size_t k = 0; k < sizes.size(); ++k) {
+    const auto block = A.middleCols(column, sizes[k]);
+    column += sizes[k];
+    if (k == 2) continue;
+    const int at = offsets.at(blocks[k]);
+    if (sizes[k] == 4) {
+      Eigen::Matrix<double, 4, 3, Eigen::RowMajor> plus;
+      quaternion.PlusJacobian(values[k].data(), plus.data());
+      J.middleCols(at, 3) = block * plus;
+    } else {
+      J.middleCols(at, 3) = block;
+    }
+  }
+  Eigen::VectorXd all(ambient);
+  column = 0;
+  for (size_t k = 0; k < sizes.size(); ++k) {
+    all.segment(column, sizes[k]) = values[k];
+    column += sizes[k];
+  }
+  const Eigen::VectorXd r = A * all + c;
+  const Eigen::MatrixXd expected = J.transpose() * J;
+  H.triangularView<Eigen::StrictlyUpper>() = H.transpose();
+  EXPECT_LT((H - expected).norm(), 1e-10 * expected.norm()) << rows << " rows\n" << H - expected;
+  EXPECT_LT((b - J.transpose() * r).norm(), 1e-10 * b.norm()) << rows << " rows";
+  EXPECT_NEAR(cost, 0.5 * r.squaredNorm(), 1e-10 * cost);
+}
+
+TEST(AccumulateNormalEquations, PairwiseProductsForFewRows) { ExpectNormalEquations(6); }
+
+TEST(AccumulateNormalEquations, OneStackedProductForManyRows) { ExpectNormalEquations(40); }
+
+}  // namespace
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
