@@ -232,6 +232,7 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
   const Eigen::MatrixXd H_mm_pinv =
       mm.vectors * mm.values.cwiseInverse().asDiagonal() * mm.vectors.transpose();
   const Eigen::MatrixXd H_km = H.bottomLeftCorner(k, m);
+  std::vector<PriorBlock> marginalized;
   std::vector<PriorBlock> kept;
   for (size_t i = 0; i < order.size(); ++i) {
     PriorBlock block;
@@ -239,16 +240,12 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
     block.ambient_size = problem->ParameterBlockSize(order[i]);
     block.tangent_size = problem->ParameterBlockTangentSize(order[i]);
     block.manifold = problem->GetManifold(order[i]);
-    kept.push_back(block);
+    (i < num_marginalized_blocks ? marginalized : kept).push_back(block);
   }
   if (conditional != nullptr) {  // Eq. (M4)
-    std::vector<PriorBlock> marginalized(kept.begin(), kept.begin() + num_marginalized_blocks);
-    *conditional = MarginalConditional(
-        std::move(marginalized),
-        std::vector<PriorBlock>(kept.begin() + num_marginalized_blocks, kept.end()),
-        -(H_mm_pinv * b.head(m)), -(H_mm_pinv * H_km.transpose()));
+    *conditional = MarginalConditional(std::move(marginalized), kept, -(H_mm_pinv * b.head(m)),
+                                       -(H_mm_pinv * H_km.transpose()));
   }
-  kept.erase(kept.begin(), kept.begin() + num_marginalized_blocks);
   if (k == 0) return nullptr;
   const Eigen::MatrixXd H_star = H.bottomRightCorner(k, k) - H_km * H_mm_pinv * H_km.transpose();
   const Eigen::VectorXd b_star = b.tail(k) - H_km * (H_mm_pinv * b.head(m));

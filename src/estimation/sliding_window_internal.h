@@ -162,6 +162,30 @@ struct SlidingWindowEstimator::ProblemBuild {
 
 namespace internal {
 
+// One calibration block as the window problem holds it: a quaternion (ambient 4, tangent 3,
+// RightQuaternionManifold) or a Euclidean block.
+struct CalibrationBlock {
+  const char* name;  // as in CalibrationCovariance::names
+  double* values;
+  int ambient_size;
+  int tangent_size;
+  bool estimated;
+};
+
+// The calibration's blocks in the order of CalibrationCovariance.
+inline std::vector<CalibrationBlock> CalibrationBlocks(sensors::Calibration* c,
+                                                       const SlidingWindowEstimatedBlocks& e) {
+  return {{"q_I_L", c->q_I_L.coeffs().data(), 4, 3, e.extrinsic_rotation},
+          {"p_I_L", c->p_I_L.data(), 3, 3, e.extrinsic_translation},
+          {"time_offset_lidar_imu_s", &c->time_offset_lidar_imu_s, 1, 1, e.time_offset},
+          {"wheel_radius_left_m", &c->wheel_radius_left_m, 1, 1, e.wheel_radii},
+          {"wheel_radius_right_m", &c->wheel_radius_right_m, 1, 1, e.wheel_radii},
+          {"track_width_m", &c->track_width_m, 1, 1, e.track_width},
+          {"q_I_V", c->q_I_V.coeffs().data(), 4, 3, e.vehicle_frame},
+          {"p_I_V", c->p_I_V.data(), 3, 3, e.vehicle_frame},
+          {"p_I_A", c->p_I_A.data(), 3, 3, e.gnss_lever_arm}};
+}
+
 // The five state blocks of a keyframe, in the order the IMU factor and the priors take them.
 inline std::vector<double*> StateBlocks(SlidingWindowState* s) {
   return {s->q_W_I.coeffs().data(), s->p_W_I.data(), s->v_W_I.data(), s->b_g.data(),

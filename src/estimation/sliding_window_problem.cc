@@ -306,31 +306,17 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   build->problem = std::make_unique<ceres::Problem>(problem_options);
   ceres::Problem& problem = *build->problem;
   geometry::RightQuaternionManifold* manifold = &quaternion_manifold_;
-  sensors::Calibration& c = calibration_;
 
   for (const auto& kf : window_) {
     std::vector<double*> blocks = StateBlocks(&kf->state);
     problem.AddParameterBlock(blocks[0], 4, manifold);
     for (size_t i = 1; i < blocks.size(); ++i) problem.AddParameterBlock(blocks[i], 3);
   }
-  const SlidingWindowEstimatedBlocks& e = options_.estimate;
-  const std::vector<std::pair<double*, bool>> calibration_blocks = {
-      {c.q_I_L.coeffs().data(), e.extrinsic_rotation}, {c.p_I_L.data(), e.extrinsic_translation},
-      {&c.time_offset_lidar_imu_s, e.time_offset},     {&c.wheel_radius_left_m, e.wheel_radii},
-      {&c.wheel_radius_right_m, e.wheel_radii},         {&c.track_width_m, e.track_width},
-      {c.q_I_V.coeffs().data(), e.vehicle_frame},       {c.p_I_V.data(), e.vehicle_frame},
-      {c.p_I_A.data(), e.gnss_lever_arm}};
-  problem.AddParameterBlock(c.q_I_L.coeffs().data(), 4, manifold);
-  problem.AddParameterBlock(c.q_I_V.coeffs().data(), 4, manifold);
-  problem.AddParameterBlock(c.p_I_L.data(), 3);
-  problem.AddParameterBlock(c.p_I_V.data(), 3);
-  problem.AddParameterBlock(c.p_I_A.data(), 3);
-  for (double* scalar : {&c.time_offset_lidar_imu_s, &c.wheel_radius_left_m,
-                         &c.wheel_radius_right_m, &c.track_width_m}) {
-    problem.AddParameterBlock(scalar, 1);
-  }
-  for (const auto& [block, estimated] : calibration_blocks) {
-    if (!estimated) problem.SetParameterBlockConstant(block);
+  for (const internal::CalibrationBlock& b :
+       internal::CalibrationBlocks(&calibration_, options_.estimate)) {
+    problem.AddParameterBlock(b.values, b.ambient_size,
+                              b.ambient_size != b.tangent_size ? manifold : nullptr);
+    if (!b.estimated) problem.SetParameterBlockConstant(b.values);
   }
 
   const bool linearize = options_.point_linearizations_per_update > 0;
@@ -459,28 +445,11 @@ std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::MarginalizeOldest(
 CalibrationCovariance SlidingWindowEstimator::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
   const std::unique_ptr<ProblemBuild> build = BuildProblem();
-  sensors::Calibration& c = calibration_;
-  const SlidingWindowEstimatedBlocks& e = options_.estimate;
-  struct Block {
-    const char* name;
-    const double* values;
-    int tangent_size;
-    bool estimated;
-  };
-  const Block all[] = {
-      {"q_I_L", c.q_I_L.coeffs().data(), 3, e.extrinsic_rotation},
-      {"p_I_L", c.p_I_L.data(), 3, e.extrinsic_translation},
-      {"time_offset_lidar_imu_s", &c.time_offset_lidar_imu_s, 1, e.time_offset},
-      {"wheel_radius_left_m", &c.wheel_radius_left_m, 1, e.wheel_radii},
-      {"wheel_radius_right_m", &c.wheel_radius_right_m, 1, e.wheel_radii},
-      {"track_width_m", &c.track_width_m, 1, e.track_width},
-      {"q_I_V", c.q_I_V.coeffs().data(), 3, e.vehicle_frame},
-      {"p_I_V", c.p_I_V.data(), 3, e.vehicle_frame},
-      {"p_I_A", c.p_I_A.data(), 3, e.gnss_lever_arm}};
   CalibrationCovariance out;
   std::vector<const double*> blocks;
   int size = 0;
-  for (const Block& b : all) {
+  for (const internal::CalibrationBlock& b :
+       internal::CalibrationBlocks(&calibration_, options_.estimate)) {
     if (!b.estimated) continue;
     out.names.push_back(b.name);
     out.offsets.push_back(size);

@@ -28,14 +28,12 @@ void SlidingWindowEstimator::RecordSmoothingStep(MarginalConditional conditional
   for (const PriorBlock& b : step.conditional.marginalized_blocks()) {
     step.marginalized.push_back(index_in(oldest, b.values));
   }
-  sensors::Calibration& c = calibration_;
-  const std::vector<double*> calibration_blocks = {
-      c.q_I_L.coeffs().data(), c.p_I_L.data(),          &c.time_offset_lidar_imu_s,
-      &c.wheel_radius_left_m,  &c.wheel_radius_right_m, &c.track_width_m,
-      c.q_I_V.coeffs().data(), c.p_I_V.data(),          c.p_I_A.data()};
+  const std::vector<internal::CalibrationBlock> calibration =
+      internal::CalibrationBlocks(&calibration_, options_.estimate);
   for (const PriorBlock& b : step.conditional.kept_blocks()) {
     SmoothingStep::BlockRef ref;
-    if (index_in(calibration_blocks, b.values) < static_cast<int>(calibration_blocks.size())) {
+    if (std::any_of(calibration.begin(), calibration.end(),
+                    [&b](const internal::CalibrationBlock& c) { return c.values == b.values; })) {
       ref.calibration = b.values;
     } else {
       for (const auto& kf : window_) {

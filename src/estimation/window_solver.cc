@@ -53,31 +53,26 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
   std::unordered_map<const double*, size_t> index_of;
   int n = 0;
   std::vector<double*> row_blocks;
-  std::vector<double*> parameter_blocks;
   for (ceres::ResidualBlockId id : all_rows) {
     problem->GetParameterBlocksForResidualBlock(id, &row_blocks);
     for (double* p : row_blocks) {
       if (offsets.count(p) != 0 || problem->IsParameterBlockConstant(p)) continue;
-      offsets[p] = -1;
-      parameter_blocks.push_back(p);
+      VariableBlock block;
+      block.values = p;
+      block.ambient_size = problem->ParameterBlockSize(p);
+      block.tangent_size = problem->ParameterBlockTangentSize(p);
+      block.manifold = problem->GetManifold(p);
+      block.offset = n;
+      block.x0 = Eigen::Map<const Eigen::VectorXd>(p, block.ambient_size);
+      if (block.manifold != nullptr &&
+          dynamic_cast<const geometry::RightQuaternionManifold*>(block.manifold) == nullptr) {
+        throw Error("window solver: supports Euclidean and RightQuaternionManifold blocks only");
+      }
+      offsets[p] = n;
+      index_of[p] = blocks.size();
+      n += block.tangent_size;
+      blocks.push_back(std::move(block));
     }
-  }
-  for (double* p : parameter_blocks) {
-    VariableBlock block;
-    block.values = p;
-    block.ambient_size = problem->ParameterBlockSize(p);
-    block.tangent_size = problem->ParameterBlockTangentSize(p);
-    block.manifold = problem->GetManifold(p);
-    block.offset = n;
-    block.x0 = Eigen::Map<const Eigen::VectorXd>(p, block.ambient_size);
-    if (block.manifold != nullptr &&
-        dynamic_cast<const geometry::RightQuaternionManifold*>(block.manifold) == nullptr) {
-      throw Error("window solver: supports Euclidean and RightQuaternionManifold blocks only");
-    }
-    offsets[p] = n;
-    index_of[p] = blocks.size();
-    n += block.tangent_size;
-    blocks.push_back(std::move(block));
   }
   WindowSolverSummary summary;
   if (n == 0) return summary;

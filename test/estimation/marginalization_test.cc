@@ -146,6 +146,16 @@ LinearChain RandomLinearValues() {
   return v;
 }
 
+// States first_state... and c of `estimate` equal the batch solution's to 1e-8.
+void ExpectSameLinearChain(const LinearChain& estimate, const LinearChain& batch, int first_state) {
+  for (int i = first_state; i < LinearChain::kStates; ++i) {
+    EXPECT_LT((estimate.x[i] - batch.x[i]).norm(), 1e-8)
+        << "state " << i << " estimate " << estimate.x[i].transpose() << " batch "
+        << batch.x[i].transpose();
+  }
+  EXPECT_LT((estimate.c - batch.c).norm(), 1e-8);
+}
+
 void ExpectLinearWindowMatchesBatch(int first_rows) {
   LinearChain batch = RandomLinearValues();
   ceres::Problem batch_problem;
@@ -163,12 +173,7 @@ void ExpectLinearWindowMatchesBatch(int first_rows) {
   window_problem.AddResidualBlock(prior.release(), nullptr, kept);
   SolveTightly(&window_problem);
 
-  for (int i = 1; i < LinearChain::kStates; ++i) {
-    EXPECT_LT((window.x[i] - batch.x[i]).norm(), 1e-8)
-        << "state " << i << " window " << window.x[i].transpose() << " batch "
-        << batch.x[i].transpose();
-  }
-  EXPECT_LT((window.c - batch.c).norm(), 1e-8);
+  ExpectSameLinearChain(window, batch, 1);
 }
 
 TEST(Marginalization, ExactForLinearProblemsAtAnyLinearizationPoint) {
@@ -225,12 +230,7 @@ TEST(Marginalization, ConditionalsSmoothALinearChainToTheBatchSolution) {
   }
   SolveTightly(&window_problem);
   SmoothBackwards(conditionals);
-  for (int i = 0; i < LinearChain::kStates; ++i) {
-    EXPECT_LT((window.x[i] - batch.x[i]).norm(), 1e-8)
-        << "state " << i << " smoothed " << window.x[i].transpose() << " batch "
-        << batch.x[i].transpose();
-  }
-  EXPECT_LT((window.c - batch.c).norm(), 1e-8);
+  ExpectSameLinearChain(window, batch, 0);
 }
 
 // The nonlinear pose chain as a window of two poses that grows with time: solve, marginalize

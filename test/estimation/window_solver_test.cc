@@ -30,6 +30,25 @@ WindowSolverOptions Tight() {
   return options;
 }
 
+// The chain's rows in `problem` (built at *x): all of them, and split into those with the
+// (Huber) loss, the antenna rows, and those without.
+struct ChainRows {
+  std::vector<ceres::ResidualBlockId> all;
+  std::vector<ceres::ResidualBlockId> with_loss;
+  std::vector<ceres::ResidualBlockId> without_loss;
+};
+
+ChainRows BuildChain(const PoseChainProblem& chain, PoseChain* x, ceres::Problem* problem) {
+  chain.Build(problem, x, false);
+  ChainRows rows;
+  problem->GetResidualBlocks(&rows.all);
+  for (ceres::ResidualBlockId id : rows.all) {
+    (problem->GetLossFunctionForResidualBlock(id) != nullptr ? rows.with_loss : rows.without_loss)
+        .push_back(id);
+  }
+  return rows;
+}
+
 PoseChain CeresOptimum(const PoseChainProblem& chain) {
   PoseChain x = chain.initial_values();
   ceres::Problem problem;
@@ -54,10 +73,8 @@ TEST(WindowSolver, WithEveryRowRelinearizedFindsTheCeresOptimum) {
     const PoseChain expected = CeresOptimum(chain);
     PoseChain x = chain.initial_values();
     ceres::Problem problem;
-    chain.Build(&problem, &x, false);
-    std::vector<ceres::ResidualBlockId> rows;
-    problem.GetResidualBlocks(&rows);
-    const WindowSolverSummary summary = SolveWindowPass(&problem, rows, Tight());
+    const ChainRows rows = BuildChain(chain, &x, &problem);
+    const WindowSolverSummary summary = SolveWindowPass(&problem, rows.all, Tight());
     EXPECT_GT(summary.successful_steps, 2);
     EXPECT_LT(summary.final_cost, summary.initial_cost);
     ExpectSameChain(x, expected, 1e-7);
@@ -75,13 +92,7 @@ TEST(WindowSolver, PassesOnFixedFirstOrderRowsConvergeToTheOptimum) {
     const PoseChain expected = CeresOptimum(chain);
     PoseChain x = chain.initial_values();
     ceres::Problem problem;
-    chain.Build(&problem, &x, false);
-    std::vector<ceres::ResidualBlockId> rows;
-    problem.GetResidualBlocks(&rows);
-    std::vector<ceres::ResidualBlockId> with_loss;
-    for (ceres::ResidualBlockId id : rows) {
-      if (problem.GetLossFunctionForResidualBlock(id) != nullptr) with_loss.push_back(id);
-    }
+    const std::vector<ceres::ResidualBlockId> with_loss = BuildChain(chain, &x, &problem).with_loss;
     ASSERT_EQ(with_loss.size(), static_cast<size_t>(kPoses));
     double first_pass_error = 0.0;
     for (int pass = 0; pass < 12; ++pass) {
@@ -102,12 +113,9 @@ TEST(WindowSolver, OnePassEndsAtAStationaryPointOfItsModel) {
     PoseChain x = chain.initial_values();
     const PoseChain x0 = x;
     ceres::Problem problem;
-    chain.Build(&problem, &x, false);
-    std::vector<ceres::ResidualBlockId> rows, with_loss, fixed;
-    problem.GetResidualBlocks(&rows);
-    for (ceres::ResidualBlockId id : rows) {
-      (problem.GetLossFunctionForResidualBlock(id) != nullptr ? with_loss : fixed).push_back(id);
-    }
+    const ChainRows rows = BuildChain(chain, &x, &problem);
+    const std::vector<ceres::ResidualBlockId>& with_loss = rows.with_loss;
+    const std::vector<ceres::ResidualBlockId>& fixed = rows.without_loss;
     // delta: q_i, p_i for every pose, then the lever arm.
     BlockOffsets offsets;
     for (int i = 0; i < kPoses; ++i) {
