@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <numeric>
 #include <tuple>
 #include <vector>
 
@@ -94,7 +95,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   initial.b_a = log.data.imu.accel_bias.front();
 
   std::vector<double> update_ms, update_cpu_ms, association_ms, build_ms, solve_ms,
-      marginalization_ms, points, iterations, lookups, rotation_step_deg, translation_step_mm,
+      marginalization_ms, points, iterations, passes, lookups, rotation_step_deg, translation_step_mm,
       offset_step_ms;
   for (auto _ : bench) {
     estimation::SlidingWindowEstimator estimator(options, log.simulator->nominal_calibration(),
@@ -126,6 +127,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       solve_ms.push_back(1e3 * timing.solve_s);
       points.push_back(estimator.last_associated_points());
       iterations.push_back(timing.solver_iterations);
+      passes.push_back(timing.solver_passes);
       lookups.push_back(timing.plane_lookups);
       if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
     }
@@ -143,6 +145,8 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   bench.counters["solve_p50_ms"] = Percentile(solve_ms, 0.5);
   bench.counters["points_p50"] = Percentile(points, 0.5);
   bench.counters["iterations_p50"] = Percentile(iterations, 0.5);
+  bench.counters["passes_mean"] =
+      passes.empty() ? 0.0 : std::accumulate(passes.begin(), passes.end(), 0.0) / passes.size();
   bench.counters["lookups_p50"] = Percentile(lookups, 0.5);
   bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
   bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);

@@ -50,10 +50,11 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPositive(o.point_sigma_m, "point_sigma_m");
   CheckPositive(o.solver_function_tolerance, "solver_function_tolerance");
   CheckPositive(o.max_point_to_plane_m, "max_point_to_plane_m");
-  for (double tolerance : {o.reassociation_tolerance_m, o.map_rebuild_tolerance_m}) {
+  for (double tolerance : {o.reassociation_tolerance_m, o.map_rebuild_tolerance_m,
+                           o.relinearization_tolerance_m}) {
     if (!(tolerance >= 0.0) || !std::isfinite(tolerance)) {
-      throw Error("SlidingWindowOptions: reassociation_tolerance_m and map_rebuild_tolerance_m "
-                  "must be finite and >= 0");
+      throw Error("SlidingWindowOptions: reassociation_tolerance_m, map_rebuild_tolerance_m and "
+                  "relinearization_tolerance_m must be finite and >= 0");
     }
   }
   if (o.partner_keyframe_offsets.empty() ||

@@ -27,8 +27,6 @@ namespace internal {
 // residual block (Eq. P9) over both keyframes' q, p, v and q_I_L, p_I_L, time offset.
 struct SweepPointGroup {
   int partner_id = 0;  // the partner keyframe's id
-  // T_Lj_Lk between the two sweeps' reference instants when the points were paired.
-  geometry::Pose3d T_Lj_Lk;
   std::unique_ptr<factors::PointToSweepPlaneGroupFactor> factor;
   // The block the solver sees: `factor` compressed (Eq. SW5) when it has more rows than that.
   std::unique_ptr<CompressedPointGroup> compressed;
@@ -125,15 +123,25 @@ struct SlidingWindowEstimator::WindowKeyframe {
   std::optional<internal::MapOccupancy> map_occupancy;  // of the same points (Eq. SW6)
   geometry::Pose3d map_deskew_end;
   double map_max_range_m = 0.0;
+  int map_generation = 0;  // counts the map's builds
   // This keyframe's residual points paired with other window sweeps: per residual point the
   // position in partner_keyframe_offsets of its partner (-1: none) and its measurement; the
-  // points grouped by partner; the range of its farthest residual point and the newest window
-  // keyframe when it was last paired.
+  // points grouped by partner; the range of its farthest residual point.
   std::vector<int> partner_position;
   std::vector<factors::PointToSweepPlaneMeasurement> pairs;
   std::vector<internal::SweepPointGroup> point_groups;
   double residual_max_range_m = 0.0;
-  int newest_id_at_pairing = -1;
+  // The tries of the pairing ("Reuse between updates"): per partner position q the relative
+  // poses T_Lj_Lk the points were tried at, with the generations of both sweeps' maps then,
+  // and per residual point r and q the index in tries[q] of its last try, tried_at[r * P + q]
+  // (-1: not tried since it last mattered).
+  struct Try {
+    geometry::Pose3d T_Lj_Lk;
+    int map_generation = 0;
+    int partner_map_generation = 0;
+  };
+  std::vector<std::vector<Try>> tries;
+  std::vector<int> tried_at;
 };
 
 // A marginalized keyframe's conditional (Eq. M4) and what its kept blocks were: a block of

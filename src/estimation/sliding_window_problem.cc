@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -137,6 +138,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       kf.plane_map = std::make_unique<PlaneMap>(points_L, options_.plane_map);
       kf.map_occupancy.emplace(points_L, occupancy_cell_m);
       kf.map_deskew_end = deskew_end;
+      ++kf.map_generation;
       kf.map_max_range_m = 0.0;
       for (int i : kf.map_points) {
         kf.map_max_range_m = std::max(kf.map_max_range_m, kf.sweep->cloud.points.col(i).norm());
@@ -146,143 +148,147 @@ void SlidingWindowEstimator::AssociatePoints() {
 
   // Pairing (docs/sliding_window.md, "Association" and "Reuse between updates"). Residual
   // point r of keyframe k tries the partner offsets in the order o_{(r + a) mod P},
-  // a = 0 .. P - 1, and keeps the first sweep k + o in the window that holds a plane for it.
-  // A keyframe is paired in full when it is new or when a partner moved relative to it by
-  // more than reassociation_tolerance_m at the range of its farthest residual point (Eq. SW4).
-  // Otherwise only what changed is tried: a point whose partner was marginalized goes on down
-  // its list after that partner, and a sweep that entered the window since the last update is
-  // tried by the points that rank it before their partner (or have none). The points of k on
-  // planes of sweep j form one group factor (Eq. P9); only the groups that changed are rebuilt.
+  // a = 0 .. P - 1, and is paired with the first sweep k + o in the window that holds a plane
+  // for it. What a try found (a plane, or none) is kept with the relative pose T_Lj_Lk it was
+  // made at, and holds while that pose has moved by at most reassociation_tolerance_m at the
+  // point's range (Eq. SW4); only tries that are missing (a sweep that entered the window, a
+  // partner that left it) or stale are made again. The points of k on planes of sweep j form
+  // one group factor (Eq. P9); only the groups that changed are rebuilt.
   std::map<int, int> sweep_of_id;
   for (int k = 0; k < num_sweeps; ++k) sweep_of_id[sweeps[static_cast<size_t>(k)].kf->id] = k;
-  const auto relative_pose = [&sweeps](int j, int k) {
-    return sweeps[static_cast<size_t>(j)].T_Lj_W * sweeps[static_cast<size_t>(k)].T_W_Lj;
-  };
   const std::vector<int>& partners = options_.partner_keyframe_offsets;
   const int num_partners = static_cast<int>(partners.size());
-  const int newest_id = window_.back()->id;
+  const double tolerance_m = options_.reassociation_tolerance_m;
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t kk = begin; kk < end; ++kk) {
       const int k = static_cast<int>(kk);
       const LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
       WindowKeyframe& kf = *s.kf;
-      // The window position of the partner at list position q, or -1 when it is not there.
-      std::vector<int> partner_of(static_cast<size_t>(num_partners), -1);
-      std::vector<bool> entered(static_cast<size_t>(num_partners), false);
-      bool any_entered = false;
-      for (int q = 0; q < num_partners; ++q) {
-        const int id = kf.id + partners[static_cast<size_t>(q)];
-        const auto it = sweep_of_id.find(id);
-        if (it == sweep_of_id.end()) continue;
-        partner_of[static_cast<size_t>(q)] = it->second;
-        entered[static_cast<size_t>(q)] = id > kf.newest_id_at_pairing;
-        any_entered = any_entered || entered[static_cast<size_t>(q)];
-      }
-      bool full = kf.partner_position.empty();
-      for (size_t g = 0; g < kf.point_groups.size() && !full; ++g) {
-        const internal::SweepPointGroup& group = kf.point_groups[g];
-        full = MaxPointMotion(group.T_Lj_Lk,
-                              relative_pose(sweep_of_id.at(group.partner_id), k),
-                              kf.residual_max_range_m) > options_.reassociation_tolerance_m;
-      }
       const size_t num_points = kf.residual_points.size();
-      if (full) {
+      const size_t P = static_cast<size_t>(num_partners);
+      if (kf.partner_position.empty()) {
         kf.partner_position.assign(num_points, -1);
         kf.pairs.resize(num_points);
+        kf.tried_at.assign(num_points * P, -1);
+        kf.tries.assign(P, {});
       }
-      std::vector<bool> changed(static_cast<size_t>(num_partners), full);
+      // Per partner position q: its window position (-1: not in the window), the relative
+      // pose now, and per earlier try the change to now, (|dp|, angle) of Eq. SW4 (infinite
+      // when either sweep's map was rebuilt since: the deskew moved).
+      std::vector<int> partner_of(P, -1);
+      std::vector<geometry::Pose3d> T_Lj_Lk(P);
+      std::vector<std::vector<std::pair<double, double>>> change(P);
+      std::vector<int> epoch_now(P, -1);  // index of this update's try in tries[q], once made
+      for (size_t q = 0; q < P; ++q) {
+        const auto it = sweep_of_id.find(kf.id + partners[q]);
+        if (it == sweep_of_id.end()) continue;
+        partner_of[q] = it->second;
+        T_Lj_Lk[q] = sweeps[static_cast<size_t>(it->second)].T_Lj_W * s.T_W_Lj;
+        const WindowKeyframe& partner = *sweeps[static_cast<size_t>(it->second)].kf;
+        for (const WindowKeyframe::Try& t : kf.tries[q]) {
+          if (t.map_generation != kf.map_generation ||
+              t.partner_map_generation != partner.map_generation) {
+            change[q].emplace_back(std::numeric_limits<double>::infinity(), 0.0);
+            continue;
+          }
+          const geometry::Pose3d d = t.T_Lj_Lk.Inverse() * T_Lj_Lk[q];
+          change[q].emplace_back(d.p.norm(),
+                                 geometry::AngularDistance(d.q, Eigen::Quaterniond::Identity()));
+        }
+      }
+      std::vector<bool> changed(P, false);
       SlidingWindowState& x = kf.state;
-      // Tries point r against the partners at ranks [from, to) of its list (the entered ones
-      // only, if so asked) and pairs it with the first that holds a plane.
-      const auto try_ranks = [&](size_t r, int from, int to, bool entered_only) {
-        const int first = static_cast<int>(r % static_cast<size_t>(num_partners));
+      for (size_t r = 0; r < num_points; ++r) {
+        const int i = kf.residual_points[r];
+        int current = kf.partner_position[r];
+        if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
+          // Its partner was marginalized (the old pair's information is in the prior).
+          changed[static_cast<size_t>(current)] = true;
+          kf.partner_position[r] = current = -1;
+        }
+        int* tried = &kf.tried_at[r * P];
+        const double range_m = kf.sweep->cloud.points.col(i).norm();
         factors::PointToSweepPlaneMeasurement m;
         Eigen::Vector3d p_W;
         bool placed = false;
-        for (int a = from; a < to; ++a) {
-          const int q = (first + a) % num_partners;
-          const int j = partner_of[static_cast<size_t>(q)];
-          if (j < 0 || (entered_only && !entered[static_cast<size_t>(q)])) continue;
+        const size_t first = r % P;
+        for (size_t a = 0; a < P; ++a) {
+          const size_t q = (first + a) % P;
+          const int j = partner_of[q];
+          if (j < 0) continue;
+          if (tried[q] >= 0 && tolerance_m > 0.0) {
+            const std::pair<double, double>& d = change[q][static_cast<size_t>(tried[q])];
+            if (d.first + d.second * range_m <= tolerance_m) {
+              if (current == static_cast<int>(q)) break;  // its pair holds
+              continue;                                   // still no plane there
+            }
+          }
+          const LidarKeyframe& other = sweeps[static_cast<size_t>(j)];
+          if (epoch_now[q] < 0) {
+            kf.tries[q].push_back({T_Lj_Lk[q], kf.map_generation, other.kf->map_generation});
+            change[q].emplace_back(0.0, 0.0);
+            epoch_now[q] = static_cast<int>(kf.tries[q].size()) - 1;
+          }
+          tried[q] = epoch_now[q];
           if (!placed) {
-            const int i = kf.residual_points[r];
             m.p_L = kf.sweep->cloud.points.col(i);
             m.motion = motion_at(s, kf.sweep->cloud.time_s(i));
             p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion, g_W_, c.q_I_L,
                                         c.p_I_L, m.p_L);
             placed = true;
           }
-          const LidarKeyframe& other = sweeps[static_cast<size_t>(j)];
           const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
-          if (!other.kf->map_occupancy->MayHold(p_Lj, options_.plane_map.num_neighbors)) continue;
-          ++lookups[static_cast<size_t>(k)];
-          if (!other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) ||
-              std::abs(m.plane_L.SignedDistance(p_Lj)) > options_.max_point_to_plane_m) {
+          bool found = false;
+          if (other.kf->map_occupancy->MayHold(p_Lj, options_.plane_map.num_neighbors)) {
+            ++lookups[static_cast<size_t>(k)];
+            found = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
+                    std::abs(m.plane_L.SignedDistance(p_Lj)) <= options_.max_point_to_plane_m;
+          }
+          if (!found) {
+            if (current == static_cast<int>(q)) {
+              changed[q] = true;
+              kf.partner_position[r] = current = -1;
+            }
             continue;
           }
           m.plane_motion = other.reference_motion;
           m.sigma_m = options_.point_sigma_m;
           m.offset_linearization_s = offset_lin;
-          const int before = kf.partner_position[r];
-          if (before >= 0) changed[static_cast<size_t>(before)] = true;
-          changed[static_cast<size_t>(q)] = true;
-          kf.partner_position[r] = q;
+          if (current >= 0) changed[static_cast<size_t>(current)] = true;
+          changed[q] = true;
+          kf.partner_position[r] = static_cast<int>(q);
           kf.pairs[r] = m;
-          return;
-        }
-      };
-      for (size_t r = 0; r < num_points; ++r) {
-        const int current = kf.partner_position[r];
-        const int first = static_cast<int>(r % static_cast<size_t>(num_partners));
-        const int rank =
-            current < 0 ? num_partners : (current - first + num_partners) % num_partners;
-        if (full) {
-          try_ranks(r, 0, num_partners, false);
-        } else if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
-          // Its partner was marginalized: on down the list.
-          changed[static_cast<size_t>(current)] = true;
-          kf.partner_position[r] = -1;
-          try_ranks(r, rank + 1, num_partners, false);
-        } else if (any_entered) {
-          try_ranks(r, 0, rank, true);
+          // The partners after it in its list are tried again if this pair fails.
+          for (size_t b = a + 1; b < P; ++b) tried[(first + b) % P] = -1;
+          break;
         }
       }
-      kf.newest_id_at_pairing = newest_id;
       // Rebuild the groups of the partners whose points changed.
-      std::vector<std::vector<factors::PointToSweepPlaneMeasurement>> members(
-          static_cast<size_t>(num_partners));
+      std::vector<std::vector<factors::PointToSweepPlaneMeasurement>> members(P);
       for (size_t r = 0; r < num_points; ++r) {
         const int q = kf.partner_position[r];
         if (q >= 0 && changed[static_cast<size_t>(q)]) {
           members[static_cast<size_t>(q)].push_back(kf.pairs[r]);
         }
       }
-      for (int q = 0; q < num_partners; ++q) {
-        if (!changed[static_cast<size_t>(q)]) continue;
-        const int partner_id = kf.id + partners[static_cast<size_t>(q)];
-        std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
-        // A group that only gained or lost points keeps the relative pose its first points
-        // were paired at, so that the test of Eq. SW4 bounds their motion since.
-        const auto kept = std::find_if(groups.begin(), groups.end(),
-                                       [partner_id](const internal::SweepPointGroup& g) {
-                                         return g.partner_id == partner_id;
-                                       });
-        const std::optional<geometry::Pose3d> paired_at =
-            !full && kept != groups.end() ? std::optional<geometry::Pose3d>(kept->T_Lj_Lk)
-                                          : std::nullopt;
+      std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
+      for (size_t q = 0; q < P; ++q) {
+        const int partner_id = kf.id + partners[q];
+        if (!changed[q] && partner_of[q] >= 0) continue;
         groups.erase(std::remove_if(groups.begin(), groups.end(),
                                     [partner_id](const internal::SweepPointGroup& g) {
                                       return g.partner_id == partner_id;
                                     }),
                      groups.end());
-        const int j = partner_of[static_cast<size_t>(q)];
-        if (j < 0 || members[static_cast<size_t>(q)].empty()) continue;
+        const int j = partner_of[q];
+        if (partner_of[q] < 0) kf.tries[q].clear();
+        if (j < 0 || members[q].empty()) continue;
         SlidingWindowState& y = sweeps[static_cast<size_t>(j)].kf->state;
         internal::SweepPointGroup group;
         group.partner_id = partner_id;
-        group.T_Lj_Lk = paired_at ? *paired_at : relative_pose(j, k);
         group.factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
-            members[static_cast<size_t>(q)], g_W_, options_.loss.lidar);
+            members[q], g_W_, options_.loss.lidar);
         if (group.factor->num_residuals() > internal::CompressedPointGroup::kRows) {
           group.compressed = std::make_unique<internal::CompressedPointGroup>(group.factor.get());
         }
@@ -388,8 +394,60 @@ double SlidingWindowEstimator::last_point_rms_m() const {
   return *last_point_rms_m_;
 }
 
-// With the points linearized per pass (Eq. SW7) the solve runs point_linearizations_per_update
-// passes, each on the points relinearized at the estimate the previous pass reached.
+std::vector<SlidingWindowState> SlidingWindowEstimator::PassStart() const {
+  std::vector<SlidingWindowState> states;
+  states.reserve(window_.size());
+  for (const auto& kf : window_) states.push_back(kf->state);
+  return states;
+}
+
+// Eq. SW12: the sweep pairs' relative LiDAR motion since `start`, bounded as in Eq. SW4 at the
+// range of the pair's farthest residual point. A keyframe's LiDAR pose is taken at its state,
+// T_W_I T_I_L, moved by the change of the time offset at the keyframe's velocity and at the
+// mean angular rate of its interval to a neighbour keyframe; the calibration of `start` is the
+// current one with the offset `start_offset_s` (the pass moved the extrinsic too, but a
+// common change of T_I_L moves a pair only as far as the pair's own rotation turns it, which
+// the relative pose below shows).
+double SlidingWindowEstimator::MaxGroupMotion(const std::vector<SlidingWindowState>& start,
+                                              double start_offset_s) const {
+  const size_t n = window_.size();
+  if (start.size() != n || n < 2) return 0.0;
+  const sensors::Calibration& c = calibration_;
+  const double offset_change_s = c.time_offset_lidar_imu_s - start_offset_s;
+  std::vector<geometry::Pose3d> before(n), after(n);
+  std::map<int, size_t> position_of_id;
+  for (size_t k = 0; k < n; ++k) {
+    const SlidingWindowState& x = window_[k]->state;
+    const size_t a = k > 0 ? k - 1 : 1;  // the neighbour the angular rate is taken over
+    const SlidingWindowState& y = window_[a]->state;
+    const double dt_s = NsToSeconds(x.t_ns - y.t_ns);
+    const Eigen::Vector3d w_I = dt_s != 0.0 ? Eigen::Vector3d(
+                                                  geometry::Log(y.q_W_I.conjugate() * x.q_W_I) /
+                                                  dt_s)
+                                            : Eigen::Vector3d::Zero();
+    const Eigen::Quaterniond q_W_I = x.q_W_I * geometry::Exp(Eigen::Vector3d(w_I * offset_change_s));
+    after[k] = geometry::Pose3d(q_W_I * c.q_I_L,
+                                x.p_W_I + x.v_W_I * offset_change_s + q_W_I * c.p_I_L);
+    const SlidingWindowState& s = start[k];
+    before[k] = geometry::Pose3d(s.q_W_I * c.q_I_L, s.p_W_I + s.q_W_I * c.p_I_L);
+    position_of_id[window_[k]->id] = k;
+  }
+  double motion_m = 0.0;
+  for (size_t k = 0; k < n; ++k) {
+    for (const internal::SweepPointGroup& g : window_[k]->point_groups) {
+      const size_t j = position_of_id.at(g.partner_id);
+      motion_m = std::max(motion_m, MaxPointMotion(before[j].Inverse() * before[k],
+                                                   after[j].Inverse() * after[k],
+                                                   window_[k]->residual_max_range_m));
+    }
+  }
+  return motion_m;
+}
+
+// With the points linearized per pass (Eq. SW7) the solve runs up to
+// point_linearizations_per_update passes, each on the points relinearized at the estimate the
+// previous pass reached, and stops early once a pass moved no sweep pair by more than
+// relinearization_tolerance_m (Eq. SW12).
 void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   // The window's own Levenberg-Marquardt (Eq. SW11): the rows fixed for the pass enter by
   // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
@@ -399,12 +457,21 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   solver_options.max_iterations = options_.solver_iterations;
   solver_options.function_tolerance = options_.solver_function_tolerance;
   timing_.solver_iterations = 0;
-  for (int pass = 0; pass < std::max(1, options_.point_linearizations_per_update); ++pass) {
+  timing_.solver_passes = 0;
+  const int max_passes = std::max(1, options_.point_linearizations_per_update);
+  for (int pass = 0; pass < max_passes; ++pass) {
     if (pass > 0) *build = BuildProblem();
+    const std::vector<SlidingWindowState> start = PassStart();
+    const double start_offset_s = calibration_.time_offset_lidar_imu_s;
     const internal::WindowSolverSummary summary =
         internal::SolveWindowPass((*build)->problem.get(), (*build)->relinearized, solver_options);
     timing_.solver_iterations += summary.iterations;
+    ++timing_.solver_passes;
     for (auto& kf : window_) kf->state.q_W_I.normalize();
+    if (pass + 1 < max_passes && options_.relinearization_tolerance_m > 0.0 &&
+        MaxGroupMotion(start, start_offset_s) <= options_.relinearization_tolerance_m) {
+      break;
+    }
   }
 
   // The RMS of the distances is evaluated when asked for (last_point_rms_m).

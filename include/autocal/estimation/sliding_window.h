@@ -172,6 +172,11 @@ struct SlidingWindowOptions {
   // each relinearizing at the estimate the previous one reached. 0: one pass evaluating them
   // at every iteration (Eq. SW5).
   int point_linearizations_per_update = 2;
+  // A further pass runs only when the last one moved the LiDAR poses of some point group's two
+  // sweeps relative to each other by more than this at the range of its farthest residual
+  // point (docs/sliding_window.md, Eq. SW12); the points' linearization and their loss weights
+  // hold until then. 0 = always point_linearizations_per_update passes.
+  double relinearization_tolerance_m = 0.01;
   // Solver stop: at most solver_iterations Levenberg-Marquardt iterations per pass, fewer once
   // an iteration lowers the cost by less than this fraction of it (ceres function_tolerance).
   // The window starts from the previous solution, so a few iterations usually suffice; the
@@ -223,6 +228,7 @@ struct SlidingWindowUpdateTiming {
   double solve_s = 0.0;
   double marginalization_s = 0.0;
   int solver_iterations = 0;  // Levenberg-Marquardt steps taken (all passes)
+  int solver_passes = 0;      // linearizations of the points (Eq. SW12)
   int plane_lookups = 0;      // k-NN plane lookups (those the occupancy test, Eq. SW6, let by)
 };
 
@@ -311,6 +317,11 @@ class SlidingWindowEstimator {
   // Step 4; replaces *build with each pass's problem, relinearized where the previous pass
   // ended (Eq. SW7).
   void Solve(std::unique_ptr<ProblemBuild>* build);
+  // The keyframe states at the start of a solve pass.
+  std::vector<SlidingWindowState> PassStart() const;
+  // The largest relative motion of a point group's sweeps since `start` (Eq. SW12).
+  double MaxGroupMotion(const std::vector<SlidingWindowState>& start,
+                        double start_offset_s) const;
   // Sum of the squared point-to-plane distances (m^2, without the loss) at the current
   // estimate of the point groups of the window (only those that pair a sweep with the oldest
   // keyframe's, either way round, if so asked).
