@@ -154,12 +154,11 @@ struct SlidingWindowOptions {
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;
   // Reuse between updates (docs/sliding_window.md, "Reuse between updates", Eq. SW4): a
-  // keyframe's points are paired in full when it enters the window and when one of its
-  // partner sweeps has moved relative to it by more than reassociation_tolerance_m at the
-  // range of its farthest point; otherwise only the points whose partner left the window and
-  // the points that rank a sweep that entered it before their partner are tried. A sweep's
-  // plane map is rebuilt when the deskew at the current estimate moves one of its points by
-  // more than map_rebuild_tolerance_m. 0 = at every update.
+  // point's try against a partner sweep (a plane found or none) holds while both sweeps' maps
+  // are unchanged and their relative pose has moved by at most reassociation_tolerance_m at
+  // the point's range; only missing and stale tries are made again. A sweep's plane map is
+  // rebuilt when the deskew at the current estimate moves one of its points by more than
+  // map_rebuild_tolerance_m. 0 = at every update.
   double reassociation_tolerance_m = 0.02;
   double map_rebuild_tolerance_m = 0.02;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
