@@ -331,7 +331,7 @@ void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
   timing_.association_s = SecondsSince(association_start);
 
   const auto build_start = std::chrono::steady_clock::now();
-  std::unique_ptr<ProblemBuild> build = BuildProblem();
+  std::unique_ptr<ProblemBuild> build = BuildProblem(PointLinearization::kAll);
   timing_.build_s = SecondsSince(build_start);
 
   const auto solve_start = std::chrono::steady_clock::now();
@@ -381,8 +381,8 @@ void SlidingWindowEstimator::AddKeyframe(const lidar::LidarSweep& sweep) {
   kf->map_points =
       internal::OnePointPerVoxel(sweep.cloud, options_.map_voxel_m, options_.min_range_m);
   for (int i : kf->residual_points) {
-    kf->residual_max_range_m =
-        std::max(kf->residual_max_range_m, sweep.cloud.points.col(i).norm());
+    kf->residual_ranges_m.push_back(sweep.cloud.points.col(i).norm());
+    kf->residual_max_range_m = std::max(kf->residual_max_range_m, kf->residual_ranges_m.back());
   }
   kf->sweep_duration_s = sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
   kf->sweep = sweep;

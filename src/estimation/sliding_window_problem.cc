@@ -78,6 +78,14 @@ double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& af
          geometry::AngularDistance(change.q, Eigen::Quaterniond::Identity()) * range_m;
 }
 
+// A keyframe's LiDAR pose T_W_I T_I_L, its IMU pose moved by dt_s at its velocity and at the
+// angular rate w_I (Eq. SW12).
+geometry::Pose3d LidarPose(const SlidingWindowState& x, const sensors::Calibration& c,
+                           const Eigen::Vector3d& w_I, double dt_s) {
+  const Eigen::Quaterniond q_W_I = x.q_W_I * geometry::Exp(Eigen::Vector3d(w_I * dt_s));
+  return geometry::Pose3d(q_W_I * c.q_I_L, x.p_W_I + x.v_W_I * dt_s + q_W_I * c.p_I_L);
+}
+
 }  // namespace
 
 // Step 3 (docs/sliding_window.md, "Association" and "Reuse between updates"). Every window
@@ -208,7 +216,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           kf.partner_position[r] = current = -1;
         }
         int* tried = &kf.tried_at[r * P];
-        const double range_m = kf.sweep->cloud.points.col(i).norm();
+        const double range_m = kf.residual_ranges_m[r];
         factors::PointToSweepPlaneMeasurement m;
         Eigen::Vector3d p_W;
         bool placed = false;
@@ -303,7 +311,8 @@ void SlidingWindowEstimator::AssociatePoints() {
   for (int n : lookups) timing_.plane_lookups += n;
 }
 
-std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::BuildProblem() {
+std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::BuildProblem(
+    PointLinearization points) {
   auto build = std::make_unique<ProblemBuild>();
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -354,15 +363,31 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
     relinearized(problem.AddResidualBlock(prior_.get(), nullptr, prior_->parameter_pointers()),
                  false);
   }
-  // The point groups carry the LiDAR loss themselves (Eq. P9).
+  // The point groups carry the LiDAR loss themselves (Eq. P9); in a later pass each keeps its
+  // linearization while its sweeps stay within relinearization_tolerance_m of it (Eq. SW12).
+  const std::vector<double> motions = linearize && points == PointLinearization::kMoved
+                                          ? PointGroupMotions()
+                                          : std::vector<double>();
+  std::map<int, const WindowKeyframe*> keyframe_of_id;
+  for (const auto& kf : window_) keyframe_of_id[kf->id] = kf.get();
+  size_t index = 0;
   for (const auto& kf : window_) {
-    for (const internal::SweepPointGroup& g : kf->point_groups) {
-      if (linearize) {
-        build->owned.push_back(internal::LinearizePointGroup(g.factor.get(), g.parameters));
-        problem.AddResidualBlock(build->owned.back().get(), nullptr, g.parameters);
+    for (internal::SweepPointGroup& g : kf->point_groups) {
+      if (!linearize) {
+        relinearized(problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters), false);
         continue;
       }
-      relinearized(problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters), false);
+      const bool moved = motions.empty() ||
+                         !(motions[index++] <= options_.relinearization_tolerance_m) ||
+                         options_.relinearization_tolerance_m == 0.0;
+      if (moved) {
+        g.linearized = internal::LinearizePointGroup(g.factor.get(), g.parameters);
+        g.T_W_Lk_linearized = LidarPose(kf->state, calibration_, Eigen::Vector3d::Zero(), 0.0);
+        g.T_W_Lj_linearized = LidarPose(keyframe_of_id.at(g.partner_id)->state, calibration_,
+                                        Eigen::Vector3d::Zero(), 0.0);
+        g.offset_linearized_s = calibration_.time_offset_lidar_imu_s;
+      }
+      problem.AddResidualBlock(g.linearized.get(), nullptr, g.parameters);
     }
   }
   return build;
@@ -394,60 +419,46 @@ double SlidingWindowEstimator::last_point_rms_m() const {
   return *last_point_rms_m_;
 }
 
-std::vector<SlidingWindowState> SlidingWindowEstimator::PassStart() const {
-  std::vector<SlidingWindowState> states;
-  states.reserve(window_.size());
-  for (const auto& kf : window_) states.push_back(kf->state);
-  return states;
-}
-
-// Eq. SW12: the sweep pairs' relative LiDAR motion since `start`, bounded as in Eq. SW4 at the
-// range of the pair's farthest residual point. A keyframe's LiDAR pose is taken at its state,
-// T_W_I T_I_L, moved by the change of the time offset at the keyframe's velocity and at the
-// mean angular rate of its interval to a neighbour keyframe; the calibration of `start` is the
-// current one with the offset `start_offset_s` (the pass moved the extrinsic too, but a
-// common change of T_I_L moves a pair only as far as the pair's own rotation turns it, which
-// the relative pose below shows).
-double SlidingWindowEstimator::MaxGroupMotion(const std::vector<SlidingWindowState>& start,
-                                              double start_offset_s) const {
+// Eq. SW12: how far each point group's two sweeps moved relative to each other since the
+// group was linearized, bounded as in Eq. SW4 at the range of the group's farthest residual
+// point. A sweep's LiDAR pose is T_W_I T_I_L at its keyframe, moved by the change of the time
+// offset since at the keyframe's velocity and at its mean angular rate over the interval from
+// the previous keyframe (to the next, for the oldest).
+std::vector<double> SlidingWindowEstimator::PointGroupMotions() const {
   const size_t n = window_.size();
-  if (start.size() != n || n < 2) return 0.0;
-  const sensors::Calibration& c = calibration_;
-  const double offset_change_s = c.time_offset_lidar_imu_s - start_offset_s;
-  std::vector<geometry::Pose3d> before(n), after(n);
+  std::vector<Eigen::Vector3d> rates_I(n, Eigen::Vector3d::Zero());
   std::map<int, size_t> position_of_id;
   for (size_t k = 0; k < n; ++k) {
-    const SlidingWindowState& x = window_[k]->state;
-    const size_t a = k > 0 ? k - 1 : 1;  // the neighbour the angular rate is taken over
-    const SlidingWindowState& y = window_[a]->state;
-    const double dt_s = NsToSeconds(x.t_ns - y.t_ns);
-    const Eigen::Vector3d w_I = dt_s != 0.0 ? Eigen::Vector3d(
-                                                  geometry::Log(y.q_W_I.conjugate() * x.q_W_I) /
-                                                  dt_s)
-                                            : Eigen::Vector3d::Zero();
-    const Eigen::Quaterniond q_W_I = x.q_W_I * geometry::Exp(Eigen::Vector3d(w_I * offset_change_s));
-    after[k] = geometry::Pose3d(q_W_I * c.q_I_L,
-                                x.p_W_I + x.v_W_I * offset_change_s + q_W_I * c.p_I_L);
-    const SlidingWindowState& s = start[k];
-    before[k] = geometry::Pose3d(s.q_W_I * c.q_I_L, s.p_W_I + s.q_W_I * c.p_I_L);
     position_of_id[window_[k]->id] = k;
+    if (n < 2) continue;
+    const SlidingWindowState& x = window_[k]->state;
+    const SlidingWindowState& y = window_[k > 0 ? k - 1 : 1]->state;
+    const double dt_s = NsToSeconds(x.t_ns - y.t_ns);
+    if (dt_s != 0.0) rates_I[k] = geometry::Log(y.q_W_I.conjugate() * x.q_W_I) / dt_s;
   }
-  double motion_m = 0.0;
+  std::vector<double> motions;
   for (size_t k = 0; k < n; ++k) {
-    for (const internal::SweepPointGroup& g : window_[k]->point_groups) {
+    const WindowKeyframe& kf = *window_[k];
+    for (const internal::SweepPointGroup& g : kf.point_groups) {
+      if (!g.linearized) {
+        motions.push_back(std::numeric_limits<double>::infinity());
+        continue;
+      }
       const size_t j = position_of_id.at(g.partner_id);
-      motion_m = std::max(motion_m, MaxPointMotion(before[j].Inverse() * before[k],
-                                                   after[j].Inverse() * after[k],
-                                                   window_[k]->residual_max_range_m));
+      const double dt_s = calibration_.time_offset_lidar_imu_s - g.offset_linearized_s;
+      const geometry::Pose3d T_W_Lk = LidarPose(kf.state, calibration_, rates_I[k], dt_s);
+      const geometry::Pose3d T_W_Lj = LidarPose(window_[j]->state, calibration_, rates_I[j], dt_s);
+      motions.push_back(MaxPointMotion(g.T_W_Lj_linearized.Inverse() * g.T_W_Lk_linearized,
+                                       T_W_Lj.Inverse() * T_W_Lk, kf.residual_max_range_m));
     }
   }
-  return motion_m;
+  return motions;
 }
 
 // With the points linearized per pass (Eq. SW7) the solve runs up to
-// point_linearizations_per_update passes, each on the points relinearized at the estimate the
-// previous pass reached, and stops early once a pass moved no sweep pair by more than
-// relinearization_tolerance_m (Eq. SW12).
+// point_linearizations_per_update passes, each on the point groups relinearized where the
+// previous pass ended, and stops early once no group's sweeps moved by more than
+// relinearization_tolerance_m since its linearization (Eq. SW12).
 void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   // The window's own Levenberg-Marquardt (Eq. SW11): the rows fixed for the pass enter by
   // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
@@ -460,17 +471,18 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   timing_.solver_passes = 0;
   const int max_passes = std::max(1, options_.point_linearizations_per_update);
   for (int pass = 0; pass < max_passes; ++pass) {
-    if (pass > 0) *build = BuildProblem();
-    const std::vector<SlidingWindowState> start = PassStart();
-    const double start_offset_s = calibration_.time_offset_lidar_imu_s;
+    if (pass > 0) *build = BuildProblem(PointLinearization::kMoved);
     const internal::WindowSolverSummary summary =
         internal::SolveWindowPass((*build)->problem.get(), (*build)->relinearized, solver_options);
     timing_.solver_iterations += summary.iterations;
     ++timing_.solver_passes;
     for (auto& kf : window_) kf->state.q_W_I.normalize();
-    if (pass + 1 < max_passes && options_.relinearization_tolerance_m > 0.0 &&
-        MaxGroupMotion(start, start_offset_s) <= options_.relinearization_tolerance_m) {
-      break;
+    if (pass + 1 < max_passes && options_.relinearization_tolerance_m > 0.0) {
+      const std::vector<double> motions = PointGroupMotions();
+      if (std::all_of(motions.begin(), motions.end(),
+                      [this](double m) { return m <= options_.relinearization_tolerance_m; })) {
+        break;
+      }
     }
   }
 
@@ -511,7 +523,7 @@ std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::MarginalizeOldest(
 
 CalibrationCovariance SlidingWindowEstimator::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
-  const std::unique_ptr<ProblemBuild> build = BuildProblem();
+  const std::unique_ptr<ProblemBuild> build = BuildProblem(PointLinearization::kAll);
   CalibrationCovariance out;
   std::vector<const double*> blocks;
   int size = 0;

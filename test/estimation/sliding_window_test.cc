@@ -607,8 +607,8 @@ TEST_F(SlidingWindowUrban, TracksTruthFromTrueCalibration) {
   EXPECT_EQ(run.max_window, options.window_size);
   EXPECT_GT(run.trajectory.size(), 190u);
   EXPECT_EQ(run.counters.late, 0);
-  // Measured: 0.078 m max, 0.045 m rms, 0.070 deg; q_I_L 0.14 deg, p_I_L 4.8 cm, offset
-  // 0.59 ms, radii 0.03 mm, track 1.5 mm, lever arm 3.7 cm.
+  // Measured: 0.078 m max, 0.045 m rms, 0.069 deg; q_I_L 0.14 deg, p_I_L 4.4 cm, offset
+  // 0.57 ms, radii 0.04 mm, track 1.5 mm, lever arm 3.8 cm.
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.15);
@@ -632,9 +632,9 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   const Run run = Estimate(nominal, options);
   const CalibrationErrors before = ErrorsOf(nominal, truth);
   const CalibrationErrors after = ErrorsOf(run.calibration, truth);
-  // Measured: 0.127 m max, 0.054 m rms, 0.19 deg; q_I_L 3.6 -> 0.10 deg, p_I_L 1.9 -> 4.3 cm
-  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.76 ms, radii
-  // 3.5 / 2.6 -> 0.34 / 0.33 mm, track 20 -> 2.9 mm, lever arm 4.6 -> 1.5 cm.
+  // Measured: 0.115 m max, 0.050 m rms, 0.17 deg; q_I_L 3.6 -> 0.095 deg, p_I_L 1.9 -> 4.1 cm
+  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.71 ms, radii
+  // 3.5 / 2.6 -> 0.34 / 0.33 mm, track 20 -> 2.9 mm, lever arm 4.6 -> 1.8 cm.
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.4);
@@ -651,8 +651,8 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   // The smoothed trajectory (docs/sliding_window.md, "Smoothing"): the same keyframes, the
   // window's unchanged, the marginalized ones carried back from the final window (the
   // calibration 3.6 deg off when the first were marginalized). Measured: position rms
-  // 5.4 -> 2.7 cm, rotation rms 0.145 -> 0.069 deg (max 0.192 -> 0.094 deg). The position
-  // keeps the lever arm's error (1.5 cm), which no smoothing of the states removes.
+  // 5.0 -> 2.8 cm, rotation rms 0.130 -> 0.064 deg (max 0.175 -> 0.089 deg). The position
+  // keeps the lever arm's error (1.8 cm), which no smoothing of the states removes.
   ASSERT_EQ(run.smoothed.size(), run.trajectory.size());
   for (size_t i = 0; i < run.smoothed.size(); ++i) {
     ASSERT_EQ(run.smoothed[i].t_ns, run.trajectory[i].t_ns);
@@ -674,7 +674,7 @@ double Mean(const std::vector<int>& values, size_t begin, size_t end) {
 // Eq. SW12 (docs/sliding_window.md, "Solver: a second pass only when needed"): from the
 // nominal calibration, with the tolerance 0 every update takes both passes; with the default
 // some do and some do not, and more of them while the extrinsic converges than at the end.
-// Measured: all 2; 1.22 passes per update, 1.82 over the first quarter, 1.02 over the last.
+// Measured: all 2; 1.29 passes per update, 1.71 over the first quarter, 1.08 over the last.
 TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions options = Options();

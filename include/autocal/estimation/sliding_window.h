@@ -312,15 +312,17 @@ class SlidingWindowEstimator {
   void AssociatePoints();
   // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors and the
   // keyframes' point groups.
-  std::unique_ptr<ProblemBuild> BuildProblem();
+  // The point groups are linearized afresh, or (later passes of an update) only those whose
+  // sweeps moved by more than relinearization_tolerance_m since their linearization (Eq. SW12).
+  enum class PointLinearization { kAll, kMoved };
+  std::unique_ptr<ProblemBuild> BuildProblem(PointLinearization points);
   // Step 4; replaces *build with each pass's problem, relinearized where the previous pass
   // ended (Eq. SW7).
   void Solve(std::unique_ptr<ProblemBuild>* build);
-  // The keyframe states at the start of a solve pass.
-  std::vector<SlidingWindowState> PassStart() const;
-  // The largest relative motion of a point group's sweeps since `start` (Eq. SW12).
-  double MaxGroupMotion(const std::vector<SlidingWindowState>& start,
-                        double start_offset_s) const;
+  // Per point group of the window, in the order of the keyframes and their groups: how far
+  // its two sweeps moved relative to each other since its linearization (Eq. SW12; infinite
+  // when it has none).
+  std::vector<double> PointGroupMotions() const;
   // Sum of the squared point-to-plane distances (m^2, without the loss) at the current
   // estimate of the point groups of the window (only those that pair a sweep with the oldest
   // keyframe's, either way round, if so asked).
