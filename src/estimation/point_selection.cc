@@ -2,7 +2,7 @@
 
 #include <cmath>
 #include <cstdint>
-#include <unordered_set>
+#include <vector>
 
 namespace autocal {
 namespace estimation {
@@ -10,20 +10,32 @@ namespace internal {
 
 std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
                                   double min_range_m) {
-  // 21 bits per axis: +-2^20 voxels around the sensor, far beyond any LiDAR's range.
+  // 21 bits per axis: +-2^20 voxels around the sensor, far beyond any LiDAR's range. The keys
+  // use 63 bits, so ~0 marks an empty slot.
   constexpr int64_t kHalfRange = int64_t{1} << 20;
+  constexpr uint64_t kEmpty = ~uint64_t{0};
   const double inv = 1.0 / voxel_m;
   const auto cell = [inv](double x) {
     return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x * inv)) + kHalfRange) &
            0x1FFFFF;
   };
-  std::unordered_set<uint64_t> occupied;
+  // The occupied voxels in an open-addressing table at most half full (linear probing,
+  // Fibonacci hashing): a sweep's tens of thousands of points without a node allocation each.
+  int bits = 4;
+  while ((int64_t{1} << bits) < 2 * cloud.size()) ++bits;
+  const uint64_t mask = (uint64_t{1} << bits) - 1;
+  std::vector<uint64_t> table(static_cast<size_t>(mask + 1), kEmpty);
   std::vector<int> out;
   for (int64_t i = 0; i < cloud.size(); ++i) {
     const Eigen::Vector3d p = cloud.points.col(i);
     if (p.squaredNorm() < min_range_m * min_range_m) continue;
     const uint64_t key = (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
-    if (occupied.insert(key).second) out.push_back(static_cast<int>(i));
+    uint64_t slot = (key * 0x9E3779B97F4A7C15ull) >> (64 - bits);
+    while (table[slot] != kEmpty && table[slot] != key) slot = (slot + 1) & mask;
+    if (table[slot] == kEmpty) {
+      table[slot] = key;
+      out.push_back(static_cast<int>(i));
+    }
   }
   return out;
 }

@@ -58,6 +58,7 @@ void CheckPointCloud(const PointCloud& cloud, const std::string& what) {
     throw Error(what + ": " + std::to_string(cloud.time_s.size()) + " time values for " +
                 std::to_string(n) + " points");
   }
+  if (cloud.points.allFinite()) return;  // one vectorized pass; the loop names the point
   for (int64_t i = 0; i < n; ++i) {
     if (!cloud.points.col(i).allFinite()) {
       throw Error(what + ": point " + std::to_string(i) + " has a non-finite coordinate");

@@ -1,0 +1,74 @@
+#include "estimation/point_selection.h"
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <set>
+#include <tuple>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+namespace {
+
+// The definition, spelled out: the first point (in cloud order) of each occupied voxel,
+// points nearer than the minimum range skipped. A point on a voxel face belongs to the voxel
+// floor(x / v) takes as x * (1 / v), rounding and all.
+std::vector<int> FirstPointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
+                                    double min_range_m) {
+  const double inv = 1.0 / voxel_m;
+  std::set<std::tuple<int64_t, int64_t, int64_t>> seen;
+  std::vector<int> out;
+  for (int64_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d p = cloud.points.col(i);
+    if (p.norm() < min_range_m) continue;
+    const auto voxel = std::make_tuple(static_cast<int64_t>(std::floor(p.x() * inv)),
+                                       static_cast<int64_t>(std::floor(p.y() * inv)),
+                                       static_cast<int64_t>(std::floor(p.z() * inv)));
+    if (seen.insert(voxel).second) out.push_back(static_cast<int>(i));
+  }
+  return out;
+}
+
+// Clouds with many points per voxel, negative coordinates, points on voxel faces and a
+// spread of sizes (the table's growth): the same indices as the definition.
+TEST(OnePointPerVoxel, KeepsTheFirstPointOfEachVoxel) {
+  std::mt19937 rng(5);
+  for (int n : {0, 1, 7, 100, 5000, 40000}) {
+    std::uniform_real_distribution<double> coordinate(-30.0, 30.0);
+    std::uniform_int_distribution<int> grid(-150, 150);
+    lidar::PointCloud cloud;
+    cloud.points.resize(3, n);
+    for (int i = 0; i < n; ++i) {
+      // Every third point on the 0.2 m grid itself (a voxel's face).
+      cloud.points.col(i) = i % 3 == 0
+                                ? Eigen::Vector3d(0.2 * grid(rng), 0.2 * grid(rng), 0.2 * grid(rng))
+                                : Eigen::Vector3d(coordinate(rng), coordinate(rng),
+                                                  0.1 * coordinate(rng));
+    }
+    for (double voxel_m : {0.2, 0.6, 3.0}) {
+      const std::vector<int> expected = FirstPointPerVoxel(cloud, voxel_m, 2.0);
+      EXPECT_EQ(OnePointPerVoxel(cloud, voxel_m, 2.0), expected) << n << " points, " << voxel_m;
+      if (n >= 5000) {
+        EXPECT_LT(expected.size(), static_cast<size_t>(n));  // voxels with several points
+      }
+    }
+  }
+}
+
+TEST(Thin, SpreadsAtMostTheCount) {
+  std::vector<int> indices(10);
+  for (int i = 0; i < 10; ++i) indices[static_cast<size_t>(i)] = 3 * i;
+  EXPECT_EQ(Thin(indices, 0), indices);
+  EXPECT_EQ(Thin(indices, 20), indices);
+  EXPECT_EQ(Thin(indices, 5), (std::vector<int>{0, 6, 12, 18, 24}));
+  EXPECT_EQ(Thin(indices, 3), (std::vector<int>{0, 9, 18}));
+}
+
+}  // namespace
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
