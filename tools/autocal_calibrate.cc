@@ -15,6 +15,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
+#include "keep_freed_memory.h"
 
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses); required");
@@ -26,6 +27,7 @@ int main(int argc, char** argv) {
       "autocal_calibrate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
       "Calibrates the LiDAR-IMU extrinsic and time offset of a recorded log.");
   gflags::ParseCommandLineFlags(&argc, &argv, true);
+  autocal::tools::KeepFreedMemory();
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_dataset.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {

@@ -20,6 +20,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/online_estimation.h"
+#include "keep_freed_memory.h"
 
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses, window "
@@ -38,6 +39,7 @@ int main(int argc, char** argv) {
       "autocal_estimate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
       "Streams a recorded log through the online sliding-window estimator.");
   gflags::ParseCommandLineFlags(&argc, &argv, true);
+  autocal::tools::KeepFreedMemory();
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_dataset.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {

@@ -3,6 +3,7 @@
 // `vertex` element is read; elements before it are parsed to be skipped, elements after it
 // (faces, ...) are ignored.
 
+#include <algorithm>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -380,9 +381,42 @@ class PlyParser {
   }
 
   lidar::PointCloud ReadBinaryVertices(const PlyElement& vertex) {
-    CheckPointCount(vertex, MinBinarySize(vertex));
+    const size_t record_size = MinBinarySize(vertex);
+    CheckPointCount(vertex, record_size);
     PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
                               options_.drop_non_finite_points);
+    const bool fixed_size =
+        std::none_of(vertex.properties.begin(), vertex.properties.end(),
+                     [](const PlyProperty& property) { return property.is_list; });
+    if (fixed_size) {
+      // Records of one size, all present (CheckPointCount): each value is decoded at its
+      // offset in the record, without a bounds check per value.
+      struct Field {
+        size_t offset;
+        ScalarType type;
+        int role;
+      };
+      std::vector<Field> fields;
+      size_t offset = 0;
+      for (size_t p = 0; p < vertex.properties.size(); ++p) {
+        const PlyProperty& property = vertex.properties[p];
+        if (roles_[p] >= 0) fields.push_back({offset, property.type, roles_[p]});
+        offset += ScalarSize(property.type);
+      }
+      const size_t begin = source_.pos();
+      const char* data = source_.bytes().data() + begin;
+      for (int64_t i = 0; i < vertex.count; ++i) {
+        const size_t record = static_cast<size_t>(i) * record_size;
+        double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
+        for (const Field& field : fields) {
+          values[field.role] =
+              DecodeScalar(data + record + field.offset, field.type, LittleEndian());
+        }
+        AddPoint(&builder, values, i, 0, begin + record);
+      }
+      source_.Advance(static_cast<size_t>(vertex.count) * record_size);
+      return builder.Finish();
+    }
     for (int64_t i = 0; i < vertex.count; ++i) {
       const size_t vertex_offset = source_.pos();
       double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};

@@ -10,12 +10,14 @@
 #include <tuple>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/tum_trajectory.h"
 #include "calibration_steps.h"
+#include "sweep_reader.h"
 
 namespace autocal {
 namespace pipeline {
@@ -221,13 +223,20 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
 
   // 1. The initial state: the initializer on the first seconds of the log. Its sweeps are
   //    kept for the streaming, which would otherwise read them from disk again.
-  std::vector<lidar::LidarSweep> sweeps;
   const int64_t init_end_ns = dataset.lidar_sweeps.front().t_ns +
                               SecondsToNs(options.initialization_duration_s);
-  for (size_t i = 0; i < dataset.lidar_sweeps.size() && dataset.lidar_sweeps[i].t_ns < init_end_ns;
-       ++i) {
-    sweeps.push_back(dataset.LoadSweep(i));
+  size_t num_init_sweeps = 0;
+  while (num_init_sweeps < dataset.lidar_sweeps.size() &&
+         dataset.lidar_sweeps[num_init_sweeps].t_ns < init_end_ns) {
+    ++num_init_sweeps;
   }
+  std::vector<lidar::LidarSweep> sweeps(num_init_sweeps);
+  ParallelFor(0, static_cast<int64_t>(num_init_sweeps), problem.solver.num_threads,
+              [&](int64_t begin, int64_t end, int) {
+                for (int64_t i = begin; i < end; ++i) {
+                  sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i));
+                }
+              });
   estimation::CalibrationInitializerOptions init_options = options.initializer;
   init_options.imu_noise = dataset.sensors.imu.noise;
   init_options.p_I_L_prior = dataset.sensors.nominal_calibration.p_I_L;
@@ -313,6 +322,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   const int64_t log_begin_ns = events.empty() ? t0 : std::get<0>(events.front());
   const int64_t log_end_ns = events.empty() ? t0 : std::get<0>(events.back());
   int64_t updates = 0;
+  // The streamed sweeps are read one ahead when there is a second thread.
+  internal::SweepReader reader(dataset, problem.solver.num_threads > 1);
   for (const auto& [t, kind, i] : events) {
     switch (kind) {
       case kImu: estimator.AddImu(dataset.imu[i]); break;
@@ -323,7 +334,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
           estimator.AddSweep(sweeps[i]);
           sweeps[i] = lidar::LidarSweep();  // the estimator holds its own copy
         } else {
-          estimator.AddSweep(dataset.LoadSweep(i));
+          estimator.AddSweep(reader.Take(i));
         }
         break;
     }

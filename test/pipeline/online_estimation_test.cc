@@ -214,6 +214,25 @@ TEST_F(OnlineEstimationTest, ABadNominalGuessEndsWithinTheSameBounds) {
   ExpectOnlineGoals(ErrorsOf(result, dataset, data_->simulator.true_calibration()));
 }
 
+// A missing sweep file among the initializer's (read on num_threads threads) fails with its
+// path before anything is estimated; the streamed sweeps: sweep_reader_test.cc.
+TEST_F(OnlineEstimationTest, AMissingSweepFileFailsWithItsPath) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  ASSERT_GT(dataset.lidar_sweeps.size(), 250u);
+  dataset.lidar_sweeps[40].file = "missing.ply";
+  dataset.lidar_sweeps[200].file = "also_missing.ply";
+  io::Problem problem = FullProblem();
+  problem.solver.num_threads = 2;
+  try {
+    EstimateDatasetOnline(dataset, problem);
+    FAIL() << "the missing sweep was not missed";
+  } catch (const ParseError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("missing.ply"));  // the first, as read in order
+    EXPECT_THAT(e.what(), ::testing::Not(::testing::HasSubstr("also_missing.ply")));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("sweep file not found"));
+  }
+}
+
 TEST_F(OnlineEstimationTest, RefusesWhatItCannotDo) {
   const io::Dataset full = io::ReadDataset(data_->directory);
   io::Dataset no_wheel = full;
