@@ -30,7 +30,7 @@ DEFINE_string(output, "",
               "states.csv, calibration_over_time.csv, calibration.yaml; required");
 DEFINE_double(init_duration_s, 30.0, "seconds of the log (from its first sweep) given to the "
               "initializer that starts the window; > 0");
-DEFINE_int32(init_sweep_stride, 2, "every n-th sweep of those seconds goes to the initializer; "
+DEFINE_int32(init_sweep_stride, 3, "every n-th sweep of those seconds goes to the initializer; "
              ">= 1");
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
 
