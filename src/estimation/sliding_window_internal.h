@@ -34,12 +34,18 @@ struct SweepPointGroup {
   std::unique_ptr<CompressedPointGroup> compressed;
   std::vector<double*> parameters;
   // Its linearization (Eq. SW7), made at an update's first pass and kept by later ones while
-  // the two sweeps moved relative to each other by at most relinearization_tolerance_m
-  // (Eq. SW12), and the LiDAR poses of both sweeps and the time offset it was made at.
-  std::unique_ptr<ceres::CostFunction> linearized;
-  geometry::Pose3d T_W_Lk_linearized;
-  geometry::Pose3d T_W_Lj_linearized;
-  double offset_linearized_s = 0.0;
+  // its points moved by at most relinearization_tolerance_m since (Eq. SW12), with what that
+  // bound compares: both sweeps' LiDAR poses and velocities and the time offset then. A
+  // problem that holds `cost` must be dropped before the next BuildProblem replaces it.
+  struct Linearization {
+    std::unique_ptr<ceres::CostFunction> cost;
+    geometry::Pose3d T_W_Lk;
+    geometry::Pose3d T_W_Lj;
+    Eigen::Vector3d v_W_Ik = Eigen::Vector3d::Zero();
+    Eigen::Vector3d v_W_Ij = Eigen::Vector3d::Zero();
+    double offset_s = 0.0;
+  };
+  std::optional<Linearization> linearization;
 
   ceres::CostFunction* solver_cost() const {
     return compressed ? static_cast<ceres::CostFunction*>(compressed.get()) : factor.get();
@@ -56,6 +62,8 @@ struct SweepPointGroup {
 // and a map spanning more than kMaxCells cells gets them (doubled until it fits).
 class MapOccupancy {
  public:
+  // Counts are kept as bytes, saturated: a test never asks for more.
+  static_assert(PlaneMap::kMaxNeighbors <= 255, "MapOccupancy counts are bytes");
   static constexpr double kMaxCells = 1 << 20;
 
   MapOccupancy(const Eigen::Matrix3Xd& points, double cell_m) {

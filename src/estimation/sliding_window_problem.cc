@@ -290,7 +290,10 @@ void SlidingWindowEstimator::AssociatePoints() {
                                     }),
                      groups.end());
         const int j = partner_of[q];
-        if (partner_of[q] < 0) kf.tries[q].clear();
+        if (partner_of[q] < 0 && !kf.tries[q].empty()) {  // it left the window for good
+          kf.tries[q].clear();
+          for (size_t r = 0; r < num_points; ++r) kf.tried_at[r * P + q] = -1;
+        }
         if (j < 0 || members[q].empty()) continue;
         SlidingWindowState& y = sweeps[static_cast<size_t>(j)].kf->state;
         internal::SweepPointGroup group;
@@ -381,13 +384,16 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
                          !(motions[index++] <= options_.relinearization_tolerance_m) ||
                          options_.relinearization_tolerance_m == 0.0;
       if (moved) {
-        g.linearized = internal::LinearizePointGroup(g.factor.get(), g.parameters);
-        g.T_W_Lk_linearized = LidarPose(kf->state, calibration_, Eigen::Vector3d::Zero(), 0.0);
-        g.T_W_Lj_linearized = LidarPose(keyframe_of_id.at(g.partner_id)->state, calibration_,
-                                        Eigen::Vector3d::Zero(), 0.0);
-        g.offset_linearized_s = calibration_.time_offset_lidar_imu_s;
+        const SlidingWindowState& y = keyframe_of_id.at(g.partner_id)->state;
+        internal::SweepPointGroup::Linearization& l = g.linearization.emplace();
+        l.cost = internal::LinearizePointGroup(g.factor.get(), g.parameters);
+        l.T_W_Lk = LidarPose(kf->state, calibration_, Eigen::Vector3d::Zero(), 0.0);
+        l.T_W_Lj = LidarPose(y, calibration_, Eigen::Vector3d::Zero(), 0.0);
+        l.v_W_Ik = kf->state.v_W_I;
+        l.v_W_Ij = y.v_W_I;
+        l.offset_s = calibration_.time_offset_lidar_imu_s;
       }
-      problem.AddResidualBlock(g.linearized.get(), nullptr, g.parameters);
+      problem.AddResidualBlock(g.linearization->cost.get(), nullptr, g.parameters);
     }
   }
   return build;
@@ -419,11 +425,12 @@ double SlidingWindowEstimator::last_point_rms_m() const {
   return *last_point_rms_m_;
 }
 
-// Eq. SW12: how far each point group's two sweeps moved relative to each other since the
-// group was linearized, bounded as in Eq. SW4 at the range of the group's farthest residual
-// point. A sweep's LiDAR pose is T_W_I T_I_L at its keyframe, moved by the change of the time
-// offset since at the keyframe's velocity and at its mean angular rate over the interval from
-// the previous keyframe (to the next, for the oldest).
+// Eq. SW12: how far each point group's points moved since the group was linearized: its two
+// sweeps' relative motion, bounded as in Eq. SW4 at the range of the keyframe's farthest
+// residual point, plus the change of each sweep's deskew (its velocity's change times its
+// duration). A sweep's LiDAR pose is T_W_I T_I_L at its keyframe, moved by the change of the
+// time offset since at the keyframe's velocity and at its mean angular rate over the interval
+// from the previous keyframe (to the next, for the oldest).
 std::vector<double> SlidingWindowEstimator::PointGroupMotions() const {
   const size_t n = window_.size();
   std::vector<Eigen::Vector3d> rates_I(n, Eigen::Vector3d::Zero());
@@ -440,16 +447,23 @@ std::vector<double> SlidingWindowEstimator::PointGroupMotions() const {
   for (size_t k = 0; k < n; ++k) {
     const WindowKeyframe& kf = *window_[k];
     for (const internal::SweepPointGroup& g : kf.point_groups) {
-      if (!g.linearized) {
+      if (!g.linearization) {
         motions.push_back(std::numeric_limits<double>::infinity());
         continue;
       }
+      const internal::SweepPointGroup::Linearization& l = *g.linearization;
+      const WindowKeyframe& partner = *window_[position_of_id.at(g.partner_id)];
       const size_t j = position_of_id.at(g.partner_id);
-      const double dt_s = calibration_.time_offset_lidar_imu_s - g.offset_linearized_s;
+      const double dt_s = calibration_.time_offset_lidar_imu_s - l.offset_s;
       const geometry::Pose3d T_W_Lk = LidarPose(kf.state, calibration_, rates_I[k], dt_s);
-      const geometry::Pose3d T_W_Lj = LidarPose(window_[j]->state, calibration_, rates_I[j], dt_s);
-      motions.push_back(MaxPointMotion(g.T_W_Lj_linearized.Inverse() * g.T_W_Lk_linearized,
-                                       T_W_Lj.Inverse() * T_W_Lk, kf.residual_max_range_m));
+      const geometry::Pose3d T_W_Lj = LidarPose(partner.state, calibration_, rates_I[j], dt_s);
+      // The deskew within each sweep moves a point by at most its velocity's change times the
+      // sweep's duration.
+      const double deskew_m = (kf.state.v_W_I - l.v_W_Ik).norm() * kf.sweep_duration_s +
+                              (partner.state.v_W_I - l.v_W_Ij).norm() * partner.sweep_duration_s;
+      motions.push_back(MaxPointMotion(l.T_W_Lj.Inverse() * l.T_W_Lk, T_W_Lj.Inverse() * T_W_Lk,
+                                       kf.residual_max_range_m) +
+                        deskew_m);
     }
   }
   return motions;
@@ -471,7 +485,10 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   timing_.solver_passes = 0;
   const int max_passes = std::max(1, options_.point_linearizations_per_update);
   for (int pass = 0; pass < max_passes; ++pass) {
-    if (pass > 0) *build = BuildProblem(PointLinearization::kMoved);
+    if (pass > 0) {
+      build->reset();  // it holds the linearizations the next build may replace
+      *build = BuildProblem(PointLinearization::kMoved);
+    }
     const internal::WindowSolverSummary summary =
         internal::SolveWindowPass((*build)->problem.get(), (*build)->relinearized, solver_options);
     timing_.solver_iterations += summary.iterations;

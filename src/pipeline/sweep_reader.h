@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <future>
+#include <system_error>
 
 #include "autocal/io/dataset.h"
 #include "autocal/lidar/point_cloud.h"
@@ -20,6 +21,8 @@ class SweepReader {
  public:
   SweepReader(const io::Dataset& dataset, bool read_ahead)
       : dataset_(dataset), read_ahead_(read_ahead) {}
+  SweepReader(const SweepReader&) = delete;  // a read under way refers to this reader
+  SweepReader& operator=(const SweepReader&) = delete;
 
   lidar::LidarSweep Take(size_t index) {
     lidar::LidarSweep sweep = next_.valid() && next_index_ == index ? next_.get()
@@ -28,15 +31,19 @@ class SweepReader {
     next_ = std::future<lidar::LidarSweep>();
     if (read_ahead_ && index + 1 < dataset_.lidar_sweeps.size()) {
       next_index_ = index + 1;
-      next_ = std::async(std::launch::async,
-                         [this, index] { return dataset_.LoadSweep(index + 1); });
+      try {
+        next_ = std::async(std::launch::async,
+                           [this, index] { return dataset_.LoadSweep(index + 1); });
+      } catch (const std::system_error&) {
+        read_ahead_ = false;  // no thread to be had: read when due, as without read-ahead
+      }
     }
     return sweep;
   }
 
  private:
   const io::Dataset& dataset_;
-  const bool read_ahead_;
+  bool read_ahead_;
   size_t next_index_ = 0;
   std::future<lidar::LidarSweep> next_;
 };

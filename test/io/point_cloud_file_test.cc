@@ -111,9 +111,10 @@ std::vector<double> TypeSafeValues(const TypeSpec& type, int n, int axis) {
 }
 
 // format: "ascii", "binary_little_endian" or "binary_big_endian". The vertex element has
-// an ignored uchar property before x, a list property after z, then intensity; a face
-// element follows.
-std::string ComposePly(const std::string& format, const TypeSpec& type, int n) {
+// an ignored uchar property before x, a list property after z (unless vertex_list is false:
+// the reader's path for records of one size), then intensity; a face element follows.
+std::string ComposePly(const std::string& format, const TypeSpec& type, int n,
+                       bool vertex_list = true) {
   const bool ascii = format == "ascii";
   const bool big = format == "binary_big_endian";
   std::ostringstream header;
@@ -122,7 +123,7 @@ std::string ComposePly(const std::string& format, const TypeSpec& type, int n) {
          << "property uchar flags\n"
          << "property " << type.name << " x\nproperty " << type.name << " y\nproperty " << type.name
          << " z\n"
-         << "property list uchar int extra\n"
+         << (vertex_list ? "property list uchar int extra\n" : "")
          << "property " << type.name << " intensity\n"
          << "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   std::string out = header.str();
@@ -135,16 +136,20 @@ std::string ComposePly(const std::string& format, const TypeSpec& type, int n) {
     if (ascii) {
       std::ostringstream line;
       line.precision(17);
-      line << (i % 7) << ' ' << axes[0][i] << ' ' << axes[1][i] << ' ' << axes[2][i] << ' '
-           << list_length;
-      for (int k = 0; k < list_length; ++k) line << ' ' << k;
+      line << (i % 7) << ' ' << axes[0][i] << ' ' << axes[1][i] << ' ' << axes[2][i];
+      if (vertex_list) {
+        line << ' ' << list_length;
+        for (int k = 0; k < list_length; ++k) line << ' ' << k;
+      }
       line << ' ' << axes[3][i] << '\n';
       out += line.str();
     } else {
       AppendValue(uchar, i % 7, big, &out);
       for (int a = 0; a < 3; ++a) AppendValue(type, axes[a][i], big, &out);
-      AppendValue(uchar, list_length, big, &out);
-      for (int k = 0; k < list_length; ++k) AppendValue(int32, k, big, &out);
+      if (vertex_list) {
+        AppendValue(uchar, list_length, big, &out);
+        for (int k = 0; k < list_length; ++k) AppendValue(int32, k, big, &out);
+      }
       AppendValue(type, axes[3][i], big, &out);
     }
   }
@@ -193,15 +198,18 @@ TEST(PointCloudFileTest, WritePlyRejectsNonFinitePoints) {
 }
 
 class PlyFormatTypeTest
-    : public ::testing::TestWithParam<std::tuple<std::string, int /*index in kPlyTypes*/>> {};
+    : public ::testing::TestWithParam<
+          std::tuple<std::string, int /*index in kPlyTypes*/, bool /*vertex list*/>> {};
 
 TEST_P(PlyFormatTypeTest, ReadsComposedFile) {
   ASSERT_TRUE(HostIsLittleEndian()) << "the PLY composer assumes a little-endian host";
   const std::string format = std::get<0>(GetParam());
   const TypeSpec& type = kPlyTypes[std::get<1>(GetParam())];
+  const bool vertex_list = std::get<2>(GetParam());
   const int n = 57;
-  const std::string path = OutPath(format + "_" + type.name + ".ply");
-  WriteBytes(path, ComposePly(format, type, n));
+  const std::string path =
+      OutPath(format + "_" + type.name + (vertex_list ? "_list" : "") + ".ply");
+  WriteBytes(path, ComposePly(format, type, n, vertex_list));
   const lidar::PointCloud cloud = ReadPointCloudFile(path);
   ASSERT_EQ(cloud.size(), n);
   ASSERT_TRUE(cloud.has_intensity());
@@ -220,9 +228,11 @@ TEST_P(PlyFormatTypeTest, ReadsComposedFile) {
 INSTANTIATE_TEST_SUITE_P(
     AllFormatsAndTypes, PlyFormatTypeTest,
     ::testing::Combine(::testing::Values("ascii", "binary_little_endian", "binary_big_endian"),
-                       ::testing::Range(0, static_cast<int>(std::size(kPlyTypes)))),
+                       ::testing::Range(0, static_cast<int>(std::size(kPlyTypes))),
+                       ::testing::Bool()),
     [](const ::testing::TestParamInfo<PlyFormatTypeTest::ParamType>& info) {
-      return std::get<0>(info.param) + "_" + kPlyTypes[std::get<1>(info.param)].name;
+      return std::get<0>(info.param) + "_" + kPlyTypes[std::get<1>(info.param)].name +
+             (std::get<2>(info.param) ? "_list" : "");
     });
 
 TEST(PointCloudFileTest, PlyTimeAndScalarIntensityAliases) {
@@ -373,23 +383,25 @@ TEST(PointCloudFileTest, TruncatedAsciiPlyBody) {
 // prefix cut inside the last number still reads as numbers, so there only "no crash, a
 // ParseError or all six points" holds. Parsed from memory to keep the test fast.
 TEST(PointCloudFileTest, EveryTruncationIsAParseError) {
-  for (const std::string format : {"binary_little_endian", "binary_big_endian", "ascii"}) {
-    const bool ascii = format == "ascii";
-    const std::string full = ComposePly(format, kPlyTypes[7], 6);
-    const size_t header_end = full.find("end_header\n") + 11;
-    const size_t face_start = ascii ? full.rfind("3 0 1 2") : full.size() - 13;
-    for (size_t length = 0; length < full.size(); ++length) {
-      try {
-        const lidar::PointCloud cloud =
-            internal::ParsePly("prefix.ply", full.substr(0, length), {});
-        if (!ascii) {
-          EXPECT_GE(length, face_start) << format << " length " << length;
-        }
-        EXPECT_EQ(cloud.size(), 6) << format << " length " << length;
-      } catch (const ParseError& e) {
-        EXPECT_LT(length, face_start) << format << " length " << length << ": " << e.what();
-        if (!ascii && length >= header_end) {
-          EXPECT_EQ(e.location().byte_offset, static_cast<int64_t>(length)) << e.what();
+  for (const bool vertex_list : {true, false}) {
+    for (const std::string format : {"binary_little_endian", "binary_big_endian", "ascii"}) {
+      const bool ascii = format == "ascii";
+      const std::string full = ComposePly(format, kPlyTypes[7], 6, vertex_list);
+      const size_t header_end = full.find("end_header\n") + 11;
+      const size_t face_start = ascii ? full.rfind("3 0 1 2") : full.size() - 13;
+      for (size_t length = 0; length < full.size(); ++length) {
+        try {
+          const lidar::PointCloud cloud =
+              internal::ParsePly("prefix.ply", full.substr(0, length), {});
+          if (!ascii) {
+            EXPECT_GE(length, face_start) << format << " length " << length;
+          }
+          EXPECT_EQ(cloud.size(), 6) << format << " length " << length;
+        } catch (const ParseError& e) {
+          EXPECT_LT(length, face_start) << format << " length " << length << ": " << e.what();
+          if (!ascii && length >= header_end) {
+            EXPECT_EQ(e.location().byte_offset, static_cast<int64_t>(length)) << e.what();
+          }
         }
       }
     }

@@ -167,14 +167,17 @@ struct SlidingWindowOptions {
   // Point groups, wheel and GNSS rows linearized per solve pass (docs/sliding_window.md,
   // Eq. SW7): the solver iterates on their first-order model at the pass's start, so an
   // iteration does not re-evaluate their Jacobians (the point groups' and the wheel and GNSS
-  // rows' automatic derivatives through the IMU propagation); an update runs this many passes,
-  // each relinearizing at the estimate the previous one reached. 0: one pass evaluating them
-  // at every iteration (Eq. SW5).
+  // rows' automatic derivatives through the IMU propagation); an update runs up to this many
+  // passes, the first on every row linearized afresh, a later one (Eq. SW12, below) on the
+  // point groups that moved relinearized where the previous pass ended. 0: one pass
+  // evaluating them at every iteration (Eq. SW5).
   int point_linearizations_per_update = 2;
-  // A further pass runs only when the last one moved the LiDAR poses of some point group's two
-  // sweeps relative to each other by more than this at the range of its farthest residual
-  // point (docs/sliding_window.md, Eq. SW12); the points' linearization and their loss weights
-  // hold until then. 0 = always point_linearizations_per_update passes.
+  // A further pass runs only when some point group's points moved by more than this since its
+  // linearization: its two sweeps' relative motion at the range of the keyframe's farthest
+  // residual point, plus the change of their deskew (docs/sliding_window.md, Eq. SW12); it
+  // relinearizes those groups, whose linearization and loss weights hold until then. The
+  // wheel and GNSS rows are relinearized only by a further pass. 0 = always
+  // point_linearizations_per_update passes, every group relinearized.
   double relinearization_tolerance_m = 0.01;
   // Solver stop: at most solver_iterations Levenberg-Marquardt iterations per pass, fewer once
   // an iteration lowers the cost by less than this fraction of it (ceres function_tolerance).
@@ -279,7 +282,8 @@ class SlidingWindowEstimator {
   // pseudo-inverse (null_space_rank = -1: singular values below
   // min_reciprocal_condition_number times the largest are dropped), so unobservable
   // directions get zero variance instead of failing. Not const: Ceres evaluates through the
-  // estimator's blocks (their values are not changed). Throws autocal::Error when Ceres fails.
+  // estimator's blocks (their values are not changed; the point groups are linearized afresh
+  // at them). Throws autocal::Error when Ceres fails.
   CalibrationCovariance ComputeCalibrationCovariance(double min_reciprocal_condition_number = 1e-12);
 
   int window_size() const;  // keyframes currently in the window
@@ -308,7 +312,8 @@ class SlidingWindowEstimator {
   // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
   void RelinearizeImuFactors();
-  // Step 3: refreshes the plane maps that moved and re-pairs the keyframes that are due.
+  // Step 3: refreshes the plane maps that moved and makes the pairing tries that are missing
+  // or stale ("Reuse between updates").
   void AssociatePoints();
   // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors and the
   // keyframes' point groups.
@@ -316,8 +321,8 @@ class SlidingWindowEstimator {
   // sweeps moved by more than relinearization_tolerance_m since their linearization (Eq. SW12).
   enum class PointLinearization { kAll, kMoved };
   std::unique_ptr<ProblemBuild> BuildProblem(PointLinearization points);
-  // Step 4; replaces *build with each pass's problem, relinearized where the previous pass
-  // ended (Eq. SW7).
+  // Step 4; replaces *build with each later pass's problem, the point groups that moved
+  // relinearized where the previous pass ended (Eq. SW7, SW12).
   void Solve(std::unique_ptr<ProblemBuild>* build);
   // Per point group of the window, in the order of the keyframes and their groups: how far
   // its two sweeps moved relative to each other since its linearization (Eq. SW12; infinite
