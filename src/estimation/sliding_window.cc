@@ -331,7 +331,7 @@ void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
   timing_.association_s = SecondsSince(association_start);
 
   const auto build_start = std::chrono::steady_clock::now();
-  std::unique_ptr<ProblemBuild> build = BuildProblem(PointLinearization::kAll);
+  std::unique_ptr<ProblemBuild> build = BuildProblem();
   timing_.build_s = SecondsSince(build_start);
 
   const auto solve_start = std::chrono::steady_clock::now();

@@ -290,7 +290,7 @@ void SlidingWindowEstimator::AssociatePoints() {
                                     }),
                      groups.end());
         const int j = partner_of[q];
-        if (partner_of[q] < 0 && !kf.tries[q].empty()) {  // it left the window for good
+        if (j < 0 && !kf.tries[q].empty()) {  // it left the window for good
           kf.tries[q].clear();
           for (size_t r = 0; r < num_points; ++r) kf.tried_at[r * P + q] = -1;
         }
@@ -315,7 +315,7 @@ void SlidingWindowEstimator::AssociatePoints() {
 }
 
 std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::BuildProblem(
-    PointLinearization points) {
+    const std::vector<double>* group_motions) {
   auto build = std::make_unique<ProblemBuild>();
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -368,9 +368,6 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   }
   // The point groups carry the LiDAR loss themselves (Eq. P9); in a later pass each keeps its
   // linearization while its sweeps stay within relinearization_tolerance_m of it (Eq. SW12).
-  const std::vector<double> motions = linearize && points == PointLinearization::kMoved
-                                          ? PointGroupMotions()
-                                          : std::vector<double>();
   std::map<int, const WindowKeyframe*> keyframe_of_id;
   for (const auto& kf : window_) keyframe_of_id[kf->id] = kf.get();
   size_t index = 0;
@@ -380,9 +377,8 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
         relinearized(problem.AddResidualBlock(g.solver_cost(), nullptr, g.parameters), false);
         continue;
       }
-      const bool moved = motions.empty() ||
-                         !(motions[index++] <= options_.relinearization_tolerance_m) ||
-                         options_.relinearization_tolerance_m == 0.0;
+      const bool moved = group_motions == nullptr ||
+                         !((*group_motions)[index++] <= options_.relinearization_tolerance_m);
       if (moved) {
         const SlidingWindowState& y = keyframe_of_id.at(g.partner_id)->state;
         internal::SweepPointGroup::Linearization& l = g.linearization.emplace();
@@ -452,8 +448,8 @@ std::vector<double> SlidingWindowEstimator::PointGroupMotions() const {
         continue;
       }
       const internal::SweepPointGroup::Linearization& l = *g.linearization;
-      const WindowKeyframe& partner = *window_[position_of_id.at(g.partner_id)];
       const size_t j = position_of_id.at(g.partner_id);
+      const WindowKeyframe& partner = *window_[j];
       const double dt_s = calibration_.time_offset_lidar_imu_s - l.offset_s;
       const geometry::Pose3d T_W_Lk = LidarPose(kf.state, calibration_, rates_I[k], dt_s);
       const geometry::Pose3d T_W_Lj = LidarPose(partner.state, calibration_, rates_I[j], dt_s);
@@ -485,22 +481,23 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   timing_.solver_passes = 0;
   const int max_passes = std::max(1, options_.point_linearizations_per_update);
   for (int pass = 0; pass < max_passes; ++pass) {
-    if (pass > 0) {
-      build->reset();  // it holds the linearizations the next build may replace
-      *build = BuildProblem(PointLinearization::kMoved);
-    }
     const internal::WindowSolverSummary summary =
         internal::SolveWindowPass((*build)->problem.get(), (*build)->relinearized, solver_options);
     timing_.solver_iterations += summary.iterations;
     ++timing_.solver_passes;
     for (auto& kf : window_) kf->state.q_W_I.normalize();
-    if (pass + 1 < max_passes && options_.relinearization_tolerance_m > 0.0) {
-      const std::vector<double> motions = PointGroupMotions();
-      if (std::all_of(motions.begin(), motions.end(),
+    if (pass + 1 == max_passes) break;
+    // Tolerance 0: every group relinearized by every pass.
+    std::optional<std::vector<double>> motions;
+    if (options_.relinearization_tolerance_m > 0.0) {
+      motions = PointGroupMotions();
+      if (std::all_of(motions->begin(), motions->end(),
                       [this](double m) { return m <= options_.relinearization_tolerance_m; })) {
         break;
       }
     }
+    build->reset();  // it holds the linearizations the next build may replace
+    *build = BuildProblem(motions ? &*motions : nullptr);
   }
 
   // The RMS of the distances is evaluated when asked for (last_point_rms_m).
@@ -540,7 +537,7 @@ std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::MarginalizeOldest(
 
 CalibrationCovariance SlidingWindowEstimator::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
-  const std::unique_ptr<ProblemBuild> build = BuildProblem(PointLinearization::kAll);
+  const std::unique_ptr<ProblemBuild> build = BuildProblem();
   CalibrationCovariance out;
   std::vector<const double*> blocks;
   int size = 0;

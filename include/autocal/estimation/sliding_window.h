@@ -316,11 +316,10 @@ class SlidingWindowEstimator {
   // or stale ("Reuse between updates").
   void AssociatePoints();
   // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors and the
-  // keyframes' point groups.
-  // The point groups are linearized afresh, or (later passes of an update) only those whose
-  // sweeps moved by more than relinearization_tolerance_m since their linearization (Eq. SW12).
-  enum class PointLinearization { kAll, kMoved };
-  std::unique_ptr<ProblemBuild> BuildProblem(PointLinearization points);
+  // keyframes' point groups. The point groups are linearized afresh, or, given their motions
+  // (PointGroupMotions, in its order; a later pass of an update), only those that moved by
+  // more than relinearization_tolerance_m since their linearization (Eq. SW12).
+  std::unique_ptr<ProblemBuild> BuildProblem(const std::vector<double>* group_motions = nullptr);
   // Step 4; replaces *build with each later pass's problem, the point groups that moved
   // relinearized where the previous pass ended (Eq. SW7, SW12).
   void Solve(std::unique_ptr<ProblemBuild>* build);
