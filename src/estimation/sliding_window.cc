@@ -12,6 +12,7 @@
 #include "autocal/factors/prior_factors.h"
 #include "estimation/point_selection.h"
 #include "estimation/sliding_window_internal.h"
+#include "estimation/window_solver.h"
 
 namespace autocal {
 namespace estimation {

@@ -480,9 +480,10 @@ void SlidingWindowEstimator::Solve(std::unique_ptr<ProblemBuild>* build) {
   timing_.solver_iterations = 0;
   timing_.solver_passes = 0;
   const int max_passes = std::max(1, options_.point_linearizations_per_update);
+  if (!solver_workspace_) solver_workspace_ = std::make_unique<internal::WindowSolverWorkspace>();
   for (int pass = 0; pass < max_passes; ++pass) {
-    const internal::WindowSolverSummary summary =
-        internal::SolveWindowPass((*build)->problem.get(), (*build)->relinearized, solver_options);
+    const internal::WindowSolverSummary summary = internal::SolveWindowPass(
+        (*build)->problem.get(), (*build)->relinearized, solver_options, solver_workspace_.get());
     timing_.solver_iterations += summary.iterations;
     ++timing_.solver_passes;
     for (auto& kf : window_) kf->state.q_W_I.normalize();

@@ -30,19 +30,14 @@ struct VariableBlock {
   Eigen::VectorXd x0;
 };
 
-// The relinearized rows at delta: their cost, and their normal equations in delta coordinates
-// (H lower triangle mirrored).
-struct Relinearized {
-  double cost = 0.0;
-  Eigen::MatrixXd H;
-  Eigen::VectorXd b;
-};
-
 }  // namespace
 
 WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
                                     const std::vector<ceres::ResidualBlockId>& relinearized,
-                                    const WindowSolverOptions& options) {
+                                    const WindowSolverOptions& options,
+                                    WindowSolverWorkspace* workspace) {
+  WindowSolverWorkspace local;
+  WindowSolverWorkspace& ws = workspace != nullptr ? *workspace : local;
   // 1. The variable blocks and their values at the pass's start, in the order the residual
   //    blocks first name them (Problem::GetParameterBlocks orders them by address, which
   //    differs from run to run and with it the rounding of the solve).
@@ -96,8 +91,10 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
   for (ceres::ResidualBlockId id : all_rows) {
     if (relinearized_set.count(id) == 0) fixed_rows.push_back(id);
   }
-  Eigen::MatrixXd H0 = Eigen::MatrixXd::Zero(n, n);
-  Eigen::VectorXd b0 = Eigen::VectorXd::Zero(n);
+  Eigen::MatrixXd& H0 = ws.H0;
+  Eigen::VectorXd& b0 = ws.b0;
+  H0.setZero(n, n);
+  b0.setZero(n);
   const double c0 =
       AccumulateNormalEquations(problem, fixed_rows, offsets, &H0, &b0, "window solver");
   H0.triangularView<Eigen::StrictlyUpper>() = H0.transpose();
@@ -105,8 +102,10 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
     return c0 + b0.dot(delta) + 0.5 * delta.dot(H0 * delta);
   };
 
-  // 3. The relinearized rows at delta, their Jacobians taken to delta coordinates: with
-  //    x = x0 Exp(delta), x0 Exp(delta + e) = x Exp(Jr(delta) e).
+  // 3. The relinearized rows at delta, their Jacobians taken to delta coordinates (with
+  //    x = x0 Exp(delta), x0 Exp(delta + e) = x Exp(Jr(delta) e)): their cost, and their
+  //    normal equations in delta coordinates (H's lower triangle mirrored).
+  using Relinearized = WindowSolverWorkspace::Relinearized;
   const auto relinearize = [&](const Eigen::VectorXd& at, Relinearized* out) {
     out->H.setZero(n, n);
     out->b.setZero(n);
@@ -122,7 +121,8 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
   };
 
   Eigen::VectorXd delta = Eigen::VectorXd::Zero(n);
-  Relinearized current;
+  Relinearized& current = ws.current;
+  Relinearized& trial = ws.trial;
   relinearize(delta, &current);
   double cost = c0 + current.cost;
   summary.initial_cost = cost;
@@ -130,15 +130,16 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
   // 4. Levenberg-Marquardt on delta.
   double radius = options.initial_trust_region_radius;
   double decrease_factor = 2.0;
-  Relinearized trial;
-  Eigen::MatrixXd A(n, n);
+  Eigen::MatrixXd& H = ws.H;
+  Eigen::MatrixXd& A = ws.A;
+  Eigen::LLT<Eigen::MatrixXd>& llt = ws.llt;
   while (summary.iterations < options.max_iterations) {
-    const Eigen::MatrixXd H = H0 + current.H;
+    H = H0 + current.H;
     const Eigen::VectorXd g = b0 + H0 * delta + current.b;
     if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
     A = H;
     A.diagonal() += H.diagonal().cwiseMax(1e-6).cwiseMin(1e32) / radius;
-    const Eigen::LLT<Eigen::MatrixXd> llt(A);
+    llt.compute(A);
     ++summary.iterations;
     if (llt.info() != Eigen::Success) {
       radius /= decrease_factor;

@@ -10,6 +10,9 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
 namespace autocal {
 namespace estimation {
 namespace internal {
@@ -34,6 +37,21 @@ struct WindowSolverSummary {
   double final_cost = 0.0;
 };
 
+// The dense buffers of a solve (about 8 n^2 doubles for n tangent coordinates). Kept by the
+// caller across passes, they are allocated once instead of at every pass and iteration: a
+// fresh n x n buffer is a fresh page of memory at every touch when the allocator returned the
+// last one to the system.
+struct WindowSolverWorkspace {
+  Eigen::MatrixXd H0, H, A;  // fixed rows' H; H0 + relinearized rows' H; damped H
+  Eigen::VectorXd b0;
+  struct Relinearized {
+    double cost = 0.0;
+    Eigen::MatrixXd H;
+    Eigen::VectorXd b;
+  } current, trial;  // the relinearized rows at the accepted point and at the trial
+  Eigen::LLT<Eigen::MatrixXd> llt;
+};
+
 // Minimizes the cost of `problem` over its variable blocks, leaving the solution in them.
 // Coordinates are delta = x [-] x0 from the values x0 the pass starts at, x = x0 [+] delta.
 // Every residual block not in `relinearized` is evaluated once, at x0, and enters as its
@@ -45,9 +63,11 @@ struct WindowSolverSummary {
 // 1e-3 of the model's decrease, is rejected (the values return to the accepted point and the
 // damping grows), as is a step whose damped system cannot be factored. Throws autocal::Error
 // when a residual block cannot be evaluated at x0.
+// `workspace` may be nullptr (a local one is used) and holds nothing the result depends on.
 WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
                                     const std::vector<ceres::ResidualBlockId>& relinearized,
-                                    const WindowSolverOptions& options);
+                                    const WindowSolverOptions& options,
+                                    WindowSolverWorkspace* workspace = nullptr);
 
 }  // namespace internal
 }  // namespace estimation

@@ -39,7 +39,7 @@ PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters)
       lift_j(Lift(parameters[3])),
       lift_I_L(Lift(parameters[6])) {}
 
-PointToSweepPlaneFactor::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
+PointToSweepPlaneFactor::Terms::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
     : delta_R(motion.delta_q.toRotationMatrix()),
       omega_rad_s(motion.omega_rad_s),
       delta_v(motion.delta_v),
@@ -48,8 +48,8 @@ PointToSweepPlaneFactor::Side::Side(const PointMotion& motion, const Eigen::Vect
       gravity_position(0.5 * g_W * motion.dt_s * motion.dt_s),
       dt_s(motion.dt_s) {}
 
-PointToSweepPlaneFactor::PointToSweepPlaneFactor(const PointToSweepPlaneMeasurement& measurement,
-                                                 const Eigen::Vector3d& g_W)
+PointToSweepPlaneFactor::Terms::Terms(const PointToSweepPlaneMeasurement& measurement,
+                                      const Eigen::Vector3d& g_W)
     : point_(measurement.motion, g_W),
       plane_(measurement.plane_motion, g_W),
       p_L_(measurement.p_L),
@@ -60,12 +60,12 @@ PointToSweepPlaneFactor::PointToSweepPlaneFactor(const PointToSweepPlaneMeasurem
 
 bool PointToSweepPlaneFactor::Evaluate(double const* const* parameters, double* residuals,
                                        double** jacobians) const {
-  Evaluate(Frame(parameters), residuals, jacobians);
+  terms_.Evaluate(Frame(parameters), residuals, jacobians);
   return true;
 }
 
-void PointToSweepPlaneFactor::Evaluate(const Frame& f, double* residual,
-                                       double** jacobians) const {
+void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
+                                              double** jacobians) const {
   const double delta = f.time_offset_s - offset_linearization_s_;
 
   // Point side (Eq. P1-P3) with dR (I + delta Hat(omega)) applied as dR (x + delta omega x x):

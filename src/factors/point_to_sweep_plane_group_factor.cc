@@ -20,7 +20,7 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
   if (points.empty()) throw Error("PointToSweepPlaneGroupFactor: no points");
   points_.reserve(points.size());
   for (const PointToSweepPlaneMeasurement& m : points) {
-    points_.push_back(std::make_unique<PointToSweepPlaneFactor>(m, g_W));
+    points_.emplace_back(m, g_W);
   }
   set_num_residuals(static_cast<int>(points.size()));
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
@@ -42,7 +42,7 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
       }
       point_jacobians = row_jacobians.data();
     }
-    points_[i]->Evaluate(frame, &residuals[i], point_jacobians);
+    points_[i].Evaluate(frame, &residuals[i], point_jacobians);
     if (!loss_) continue;
     // Eq. P9.
     const double r = residuals[i];
@@ -64,7 +64,7 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,
                                                      double* distances) const {
   const PointToSweepPlaneFactor::Frame frame(parameters);
-  for (size_t i = 0; i < points_.size(); ++i) points_[i]->Evaluate(frame, &distances[i], nullptr);
+  for (size_t i = 0; i < points_.size(); ++i) points_[i].Evaluate(frame, &distances[i], nullptr);
 }
 
 }  // namespace factors

@@ -45,6 +45,7 @@ namespace estimation {
 
 namespace internal {
 struct AttachedFactor;
+struct WindowSolverWorkspace;
 }  // namespace internal
 
 // Which calibration blocks the window estimates; the others are held at their initial value.
@@ -364,6 +365,8 @@ class SlidingWindowEstimator {
   // Prior of the marginalized keyframes; replaced by every marginalization.
   std::unique_ptr<MarginalizationPrior> prior_;
   std::vector<internal::AttachedFactor> calibration_priors_;
+  // The solver's dense buffers, kept from update to update.
+  std::unique_ptr<internal::WindowSolverWorkspace> solver_workspace_;
 
   SlidingWindowCounters counters_;
   SlidingWindowUpdateTiming timing_;

@@ -57,33 +57,48 @@ class PointToSweepPlaneFactor final
     Eigen::Matrix<double, 3, 4> lift_I_L;
   };
 
+  // One point's terms of Eq. P1-P7 that the parameters do not change, evaluated against a
+  // Frame. Plain data: a group keeps its points in one array.
+  class Terms {
+   public:
+    Terms(const PointToSweepPlaneMeasurement& measurement, const Eigen::Vector3d& g_W);
+    // jacobians as in PointToSweepPlaneFactor::Evaluate.
+    void Evaluate(const Frame& frame, double* residual, double** jacobians) const;
+
+   private:
+    // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
+    struct Side {
+      Side(const PointMotion& motion, const Eigen::Vector3d& g_W);
+      Eigen::Matrix3d delta_R;
+      Eigen::Vector3d omega_rad_s;
+      Eigen::Vector3d delta_v;
+      Eigen::Vector3d delta_p;
+      Eigen::Vector3d gravity_velocity;   // g_W dt
+      Eigen::Vector3d gravity_position;   // g_W dt^2 / 2
+      double dt_s;
+    };
+    Side point_;
+    Side plane_;
+    Eigen::Vector3d p_L_;
+    Eigen::Vector3d n_L_;
+    double d_L_;
+    double inv_sigma_;
+    double offset_linearization_s_;
+  };
+
   PointToSweepPlaneFactor(const PointToSweepPlaneMeasurement& measurement,
-                          const Eigen::Vector3d& g_W);
+                          const Eigen::Vector3d& g_W)
+      : terms_(measurement, g_W) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
   // The same with the shared quantities given; jacobians as in Evaluate.
-  void Evaluate(const Frame& frame, double* residual, double** jacobians) const;
+  void Evaluate(const Frame& frame, double* residual, double** jacobians) const {
+    terms_.Evaluate(frame, residual, jacobians);
+  }
 
  private:
-  // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
-  struct Side {
-    Side(const PointMotion& motion, const Eigen::Vector3d& g_W);
-    Eigen::Matrix3d delta_R;
-    Eigen::Vector3d omega_rad_s;
-    Eigen::Vector3d delta_v;
-    Eigen::Vector3d delta_p;
-    Eigen::Vector3d gravity_velocity;   // g_W dt
-    Eigen::Vector3d gravity_position;   // g_W dt^2 / 2
-    double dt_s;
-  };
-  Side point_;
-  Side plane_;
-  Eigen::Vector3d p_L_;
-  Eigen::Vector3d n_L_;
-  double d_L_;
-  double inv_sigma_;
-  double offset_linearization_s_;
+  Terms terms_;
 };
 
 // Autodiff twin (Eq. P6 written literally); the test oracle.

@@ -39,7 +39,7 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
  private:
-  std::vector<std::unique_ptr<PointToSweepPlaneFactor>> points_;  // cost functions do not copy
+  std::vector<PointToSweepPlaneFactor::Terms> points_;
   std::unique_ptr<ceres::LossFunction> loss_;  // null for plain least squares
 };
 
