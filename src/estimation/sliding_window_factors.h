@@ -35,8 +35,9 @@ struct AttachedFactor {
   std::unique_ptr<ceres::CostFunction> cost;
   ceres::LossFunction* loss = nullptr;
   std::vector<double*> blocks;
-  // Given to the solver linearized at the start of each pass (LinearizedCost, Eq. SW7) when
-  // the points are; what it names on an evaluation failure.
+  // Given to the solver linearized at the start of each pass (LinearizedCost, Eq. SW7), with
+  // its loss's weight held for the pass (Eq. SW13), when the points are; what it names on an
+  // evaluation failure.
   const char* linearized_per_pass = nullptr;
 };
 
@@ -236,14 +237,18 @@ class CompressedPointGroup final : public ceres::CostFunction {
 // built at, and the solver sees the first-order model
 //   r(x) = r(x0) + J (x - x0),
 // so that a Levenberg-Marquardt iteration costs one product instead of an evaluation of the
-// cost function. The parameters must stay at x0's side of the quaternion sign. kRows and
-// kAmbient are the sizes when known at compile time.
+// cost function. Given a robust loss rho, the rows are weighted as at x0 (Eq. SW13):
+//   r(x) = sqrt(rho'(|r0|^2)) (r0 + J (x - x0)),
+// the loss's weight held for the pass as the point groups' is (Ceres' correction of a row
+// block for a loss with rho'' <= 0, as Huber and Cauchy, is this weight). The parameters must
+// stay at x0's side of the quaternion sign. kRows and kAmbient are the sizes when known at
+// compile time.
 template <int kRows = Eigen::Dynamic, int kAmbient = Eigen::Dynamic>
 class LinearizedCost final : public ceres::CostFunction {
  public:
   // Throws autocal::Error naming `what` when `cost` cannot be evaluated at `parameters`.
   LinearizedCost(const ceres::CostFunction& cost, const std::vector<double*>& parameters,
-                 const char* what) {
+                 const char* what, const ceres::LossFunction* loss = nullptr) {
     set_num_residuals(cost.num_residuals());
     *mutable_parameter_block_sizes() = cost.parameter_block_sizes();
     const std::vector<int32_t>& sizes = parameter_block_sizes();
@@ -268,6 +273,13 @@ class LinearizedCost final : public ceres::CostFunction {
       const Eigen::Index c = static_cast<Eigen::Index>(column);
       J_.middleCols(c, sizes[b]) = blocks[b];
       x0_.segment(c, sizes[b]) = Eigen::Map<const Eigen::VectorXd>(parameters[b], sizes[b]);
+    }
+    if (loss != nullptr) {
+      double rho[3];
+      loss->Evaluate(r0_.squaredNorm(), rho);
+      const double weight = std::sqrt(std::max(rho[1], 0.0));
+      r0_ *= weight;
+      J_ *= weight;
     }
   }
 

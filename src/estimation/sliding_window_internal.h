@@ -92,9 +92,14 @@ class MapOccupancy {
     for (int a = 0; a < 3; ++a) {
       if (!(v(a) >= -1.0) || !(v(a) < size_[a] + 1.0)) return false;
     }
-    const int cx = static_cast<int>(std::floor(v.x()));
-    const int cy = static_cast<int>(std::floor(v.y()));
-    const int cz = static_cast<int>(std::floor(v.z()));
+    // floor() by truncation, one down for negative fractions (no call to floor()).
+    const auto floor = [](double x) {
+      const int truncated = static_cast<int>(x);
+      return truncated - (static_cast<double>(truncated) > x);
+    };
+    const int cx = floor(v.x());
+    const int cy = floor(v.y());
+    const int cz = floor(v.z());
     int sum = 0;
     for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size_[0] - 1); ++x) {
       for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size_[1] - 1); ++y) {

@@ -343,10 +343,10 @@ std::unique_ptr<SlidingWindowEstimator::ProblemBuild> SlidingWindowEstimator::Bu
   };
   const auto add = [&problem, &build, linearize, &relinearized](const AttachedFactor& f) {
     if (linearize && f.linearized_per_pass != nullptr) {
-      build->owned.push_back(
-          std::make_unique<internal::LinearizedCost<>>(*f.cost, f.blocks, f.linearized_per_pass));
-      relinearized(problem.AddResidualBlock(build->owned.back().get(), f.loss, f.blocks),
-                   f.loss != nullptr);
+      // Its loss's weight is held for the pass (Eq. SW13).
+      build->owned.push_back(std::make_unique<internal::LinearizedCost<>>(
+          *f.cost, f.blocks, f.linearized_per_pass, f.loss));
+      relinearized(problem.AddResidualBlock(build->owned.back().get(), nullptr, f.blocks), false);
       return;
     }
     relinearized(problem.AddResidualBlock(f.cost.get(), f.loss, f.blocks), f.loss != nullptr);

@@ -91,23 +91,22 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
   for (ceres::ResidualBlockId id : all_rows) {
     if (relinearized_set.count(id) == 0) fixed_rows.push_back(id);
   }
+  // Only the lower triangles of the normal equations are formed and read (Cholesky and the
+  // symmetric products need no more).
   Eigen::MatrixXd& H0 = ws.H0;
   Eigen::VectorXd& b0 = ws.b0;
   H0.setZero(n, n);
   b0.setZero(n);
   const double c0 =
       AccumulateNormalEquations(problem, fixed_rows, offsets, &H0, &b0, "window solver");
-  H0.triangularView<Eigen::StrictlyUpper>() = H0.transpose();
-  const auto model_cost = [&](const Eigen::VectorXd& delta) {
-    return c0 + b0.dot(delta) + 0.5 * delta.dot(H0 * delta);
-  };
 
   // 3. The relinearized rows at delta, their Jacobians taken to delta coordinates (with
   //    x = x0 Exp(delta), x0 Exp(delta + e) = x Exp(Jr(delta) e)): their cost, and their
-  //    normal equations in delta coordinates (H's lower triangle mirrored).
+  //    normal equations in delta coordinates.
   using Relinearized = WindowSolverWorkspace::Relinearized;
   const auto relinearize = [&](const Eigen::VectorXd& at, Relinearized* out) {
-    out->H.setZero(n, n);
+    if (out->H.rows() != n) out->H.setZero(n, n);
+    out->H.triangularView<Eigen::Lower>().setZero();
     out->b.setZero(n);
     out->cost = AccumulateNormalEquations(
         problem, relinearized, offsets, &out->H, &out->b, "window solver",
@@ -117,28 +116,29 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
           const Eigen::Vector3d d = at.segment<3>(v.offset);
           *jacobian = *jacobian * geometry::RightJacobian(d);
         });
-    out->H.triangularView<Eigen::StrictlyUpper>() = out->H.transpose();
   };
 
   Eigen::VectorXd delta = Eigen::VectorXd::Zero(n);
+  Eigen::VectorXd H0_delta = Eigen::VectorXd::Zero(n);  // H0 delta
   Relinearized& current = ws.current;
   Relinearized& trial = ws.trial;
   relinearize(delta, &current);
   double cost = c0 + current.cost;
   summary.initial_cost = cost;
 
-  // 4. Levenberg-Marquardt on delta.
+  // 4. Levenberg-Marquardt on delta. A = H + D, the damped H = H0 + H(delta) (lower triangle;
+  //    its upper one stays zero).
   double radius = options.initial_trust_region_radius;
   double decrease_factor = 2.0;
-  Eigen::MatrixXd& H = ws.H;
   Eigen::MatrixXd& A = ws.A;
+  if (A.rows() != n) A.setZero(n, n);
   Eigen::LLT<Eigen::MatrixXd>& llt = ws.llt;
   while (summary.iterations < options.max_iterations) {
-    H = H0 + current.H;
-    const Eigen::VectorXd g = b0 + H0 * delta + current.b;
+    const Eigen::VectorXd g = b0 + H0_delta + current.b;
     if (g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance) break;
-    A = H;
-    A.diagonal() += H.diagonal().cwiseMax(1e-6).cwiseMin(1e32) / radius;
+    A.triangularView<Eigen::Lower>() = H0 + current.H;
+    const Eigen::VectorXd damping = A.diagonal().cwiseMax(1e-6).cwiseMin(1e32) / radius;
+    A.diagonal() += damping;
     llt.compute(A);
     ++summary.iterations;
     if (llt.info() != Eigen::Success) {
@@ -151,13 +151,17 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
         options.parameter_tolerance * (delta.norm() + options.parameter_tolerance)) {
       break;
     }
-    const double model_decrease = -(g.dot(step) + 0.5 * step.dot(H * step));
+    const Eigen::VectorXd H_step =
+        A.selfadjointView<Eigen::Lower>() * step - damping.cwiseProduct(step);
+    const double model_decrease = -(g.dot(step) + 0.5 * step.dot(H_step));
     const Eigen::VectorXd delta_trial = delta + step;
+    const Eigen::VectorXd H0_delta_trial = H0.selfadjointView<Eigen::Lower>() * delta_trial;
     set_values(delta_trial);
     double trial_cost = std::numeric_limits<double>::infinity();
     try {
       relinearize(delta_trial, &trial);
-      trial_cost = model_cost(delta_trial) + trial.cost;
+      // The fixed rows' first-order model: c0 + b0^T delta + 1/2 delta^T H0 delta.
+      trial_cost = c0 + b0.dot(delta_trial) + 0.5 * delta_trial.dot(H0_delta_trial) + trial.cost;
     } catch (const Error&) {
       // A step to where a factor cannot be evaluated is rejected.
     }
@@ -165,6 +169,7 @@ WindowSolverSummary SolveWindowPass(ceres::Problem* problem,
     if (model_decrease > 0.0 && std::isfinite(trial_cost) && rho > 1e-3) {
       const double relative_decrease = (cost - trial_cost) / cost;
       delta = delta_trial;
+      H0_delta = H0_delta_trial;
       std::swap(current, trial);
       cost = trial_cost;
       ++summary.successful_steps;

@@ -37,12 +37,12 @@ struct WindowSolverSummary {
   double final_cost = 0.0;
 };
 
-// The dense buffers of a solve (about 8 n^2 doubles for n tangent coordinates). Kept by the
+// The dense buffers of a solve (about 5 n^2 doubles for n tangent coordinates). Kept by the
 // caller across passes, they are allocated once instead of at every pass and iteration: a
 // fresh n x n buffer is a fresh page of memory at every touch when the allocator returned the
 // last one to the system.
 struct WindowSolverWorkspace {
-  Eigen::MatrixXd H0, H, A;  // fixed rows' H; H0 + relinearized rows' H; damped H
+  Eigen::MatrixXd H0, A;  // the fixed rows' H; the damped H0 + H(delta)
   Eigen::VectorXd b0;
   struct Relinearized {
     double cost = 0.0;
