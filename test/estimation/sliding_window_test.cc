@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <tuple>
 
@@ -13,6 +14,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/factors/loss.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/sliding_window_factors.h"
@@ -407,6 +409,58 @@ TEST(SlidingWindowLinearizedCost, IsTheFirstOrderModelAtItsParameters) {
     FAIL() << "expected autocal::Error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("a wheel factor cannot be evaluated"), std::string::npos);
+  }
+}
+
+// Eq. SW13: with a loss, the rows and Jacobian at x0 are those Ceres gives the solver for the
+// block with that loss (its correction for rho'' <= 0), so the cost's gradient and Gauss-Newton
+// matrix at x0 are the robust ones; away from x0 the weight stays the one at x0.
+TEST(SlidingWindowLinearizedCost, HoldsTheLossWeightOfItsParameters) {
+  ceres::AutoDiffCostFunction<RotatedOffset, 3, 4, 3> cost(new RotatedOffset);
+  Eigen::Quaterniond q(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
+  Eigen::Vector3d x(0.4, -0.3, 1.2);
+  const std::vector<double*> blocks = {q.coeffs().data(), x.data()};
+  for (const std::string name : {"huber:0.5", "cauchy:0.5", "huber:100"}) {
+    SCOPED_TRACE(name);
+    const std::unique_ptr<ceres::LossFunction> loss(
+        factors::MakeLossFunction(factors::ParseLossOptions(name)));
+    const internal::LinearizedCost<> linearized(cost, blocks, "the test cost", loss.get());
+
+    // What Ceres' solver sees for the block with the loss at x0.
+    ceres::Problem::Options options;
+    options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(options);
+    const ceres::ResidualBlockId id = problem.AddResidualBlock(&cost, loss.get(), blocks);
+    Eigen::Vector3d r_ceres, r_held;
+    Eigen::Matrix<double, 3, 4, Eigen::RowMajor> Jq_ceres, Jq_held;
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> Jx_ceres, Jx_held;
+    double* ceres_jacobians[] = {Jq_ceres.data(), Jx_ceres.data()};
+    double* held_jacobians[] = {Jq_held.data(), Jx_held.data()};
+    double robust_cost = 0.0;
+    ASSERT_TRUE(problem.EvaluateResidualBlock(id, true, &robust_cost, r_ceres.data(),
+                                              ceres_jacobians));
+    ASSERT_TRUE(linearized.Evaluate(blocks.data(), r_held.data(), held_jacobians));
+    EXPECT_LT((r_held - r_ceres).norm(), 1e-14);
+    EXPECT_LT((Jq_held - Jq_ceres).norm(), 1e-14);
+    EXPECT_LT((Jx_held - Jx_ceres).norm(), 1e-14);
+
+    // The weight sqrt(rho'(|r0|^2)) of the plain rows: below 1 where the loss bites.
+    Eigen::Vector3d r0;
+    ASSERT_TRUE(cost.Evaluate(blocks.data(), r0.data(), nullptr));
+    const double weight = r_held.norm() / r0.norm();
+    if (name == "huber:100") {
+      EXPECT_NEAR(weight, 1.0, 1e-15);
+    } else {
+      EXPECT_LT(weight, 0.9);
+    }
+    // Away from x0 the model keeps that weight: r = w (r0 + J dx).
+    const Eigen::Vector3d x0 = x;
+    x += Eigen::Vector3d(0.2, -0.1, 0.3);
+    Eigen::Vector3d r_far;
+    ASSERT_TRUE(linearized.Evaluate(blocks.data(), r_far.data(), nullptr));
+    EXPECT_LT((r_far - weight * (r0 + Eigen::Vector3d(0.2, -0.1, 0.3))).norm(), 1e-14);
+    x = x0;
   }
 }
 
