@@ -270,7 +270,7 @@ bool SlidingWindowEstimator::AddGnss(const GnssPosition& position) {
   return true;
 }
 
-bool SlidingWindowEstimator::AddSweep(const lidar::LidarSweep& sweep) {
+bool SlidingWindowEstimator::AddSweep(lidar::LidarSweep sweep) {
   lidar::CheckPointCloud(sweep.cloud, "SlidingWindowEstimator::AddSweep: sweep");
   if (!sweep.cloud.empty() && !sweep.cloud.has_time()) {
     throw Error("SlidingWindowEstimator::AddSweep: the sweep at t_ns " +
@@ -285,7 +285,7 @@ bool SlidingWindowEstimator::AddSweep(const lidar::LidarSweep& sweep) {
     ++counters_.late;
     return false;
   }
-  pending_sweeps_.push_back(sweep);
+  pending_sweeps_.push_back(std::move(sweep));
   ++counters_.sweeps_accepted;
   ProcessCoveredSweeps();
   return true;
@@ -308,23 +308,24 @@ void SlidingWindowEstimator::ProcessCoveredSweeps() {
         sweep.t_ns + SecondsToNs(duration_s + calibration_.time_offset_lidar_imu_s +
                                  options_.imu_coverage_margin_s);
     if (imu_.back().t_ns < needed_ns) return;
+    lidar::LidarSweep covered = std::move(pending_sweeps_.front());
+    pending_sweeps_.pop_front();
     // The offset estimate may have moved since the sweep arrived.
-    if (TooCloseToNewestKeyframe(sweep)) {
+    if (TooCloseToNewestKeyframe(covered)) {
       ++counters_.late;
     } else {
-      Update(sweep);
+      Update(std::move(covered));
     }
-    pending_sweeps_.pop_front();
   }
 }
 
 // ---------------------------------------------------------------------------------------------
 // One window update.
 
-void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
+void SlidingWindowEstimator::Update(lidar::LidarSweep sweep) {
   const auto start = std::chrono::steady_clock::now();
   timing_ = SlidingWindowUpdateTiming();
-  AddKeyframe(sweep);
+  AddKeyframe(std::move(sweep));
   RelinearizeImuFactors();
 
   const auto association_start = std::chrono::steady_clock::now();
@@ -353,7 +354,7 @@ void SlidingWindowEstimator::Update(const lidar::LidarSweep& sweep) {
   timing_.total_s = SecondsSince(start);
 }
 
-void SlidingWindowEstimator::AddKeyframe(const lidar::LidarSweep& sweep) {
+void SlidingWindowEstimator::AddKeyframe(lidar::LidarSweep sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
   kf->id = next_keyframe_id_++;
@@ -381,12 +382,19 @@ void SlidingWindowEstimator::AddKeyframe(const lidar::LidarSweep& sweep) {
       options_.max_residuals_per_sweep);
   kf->map_points =
       internal::OnePointPerVoxel(sweep.cloud, options_.map_voxel_m, options_.min_range_m);
-  for (int i : kf->residual_points) {
-    kf->residual_ranges_m.push_back(sweep.cloud.points.col(i).norm());
-    kf->residual_max_range_m = std::max(kf->residual_max_range_m, kf->residual_ranges_m.back());
+  const size_t num_residuals = kf->residual_points.size();
+  kf->residual_p_L.resize(3, static_cast<Eigen::Index>(num_residuals));
+  kf->residual_time_s.resize(num_residuals);
+  kf->residual_ranges_m.resize(num_residuals);
+  for (size_t r = 0; r < num_residuals; ++r) {
+    const int i = kf->residual_points[r];
+    kf->residual_p_L.col(static_cast<Eigen::Index>(r)) = sweep.cloud.points.col(i);
+    kf->residual_time_s[r] = sweep.cloud.time_s(i);
+    kf->residual_ranges_m[r] = sweep.cloud.points.col(i).norm();
+    kf->residual_max_range_m = std::max(kf->residual_max_range_m, kf->residual_ranges_m[r]);
   }
   kf->sweep_duration_s = sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
-  kf->sweep = sweep;
+  kf->sweep = std::move(sweep);
 
   AttachIntervalMeasurements(&previous, kf->state.t_ns);
   window_.push_back(std::move(kf));

@@ -66,7 +66,12 @@ class MapOccupancy {
   static_assert(PlaneMap::kMaxNeighbors <= 255, "MapOccupancy counts are bytes");
   static constexpr double kMaxCells = 1 << 20;
 
-  MapOccupancy(const Eigen::Matrix3Xd& points, double cell_m) {
+  MapOccupancy() = default;
+  MapOccupancy(const Eigen::Matrix3Xd& points, double cell_m) { Rebuild(points, cell_m); }
+
+  // Counts `points` afresh, in the memory of the last counts where it suffices.
+  void Rebuild(const Eigen::Matrix3Xd& points, double cell_m) {
+    counts_.clear();
     if (points.cols() == 0) return;
     origin_ = points.rowwise().minCoeff();
     const Eigen::Vector3d extent = points.rowwise().maxCoeff() - origin_;
@@ -136,7 +141,11 @@ struct SlidingWindowEstimator::WindowKeyframe {
   std::optional<lidar::LidarSweep> sweep;
   double sweep_duration_s = 0.0;
   std::vector<int> residual_points;
-  std::vector<double> residual_ranges_m;  // of the residual points, in their order
+  // The residual points' coordinates, times and ranges, in their order (contiguous for the
+  // pairing, which visits them in turn).
+  Eigen::Matrix3Xd residual_p_L;
+  std::vector<double> residual_time_s;
+  std::vector<double> residual_ranges_m;
   std::vector<int> map_points;
   // Preintegration from the previous keyframe (none for the oldest in the window).
   std::unique_ptr<sensors::ImuPreintegration> imu_from_previous;
@@ -147,7 +156,7 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
   // (docs/sliding_window.md, "Reuse between updates", Eq. SW4).
   std::unique_ptr<PlaneMap> plane_map;
-  std::optional<internal::MapOccupancy> map_occupancy;  // of the same points (Eq. SW6)
+  internal::MapOccupancy map_occupancy;  // of the same points (Eq. SW6)
   geometry::Pose3d map_deskew_end;
   double map_max_range_m = 0.0;
   int map_generation = 0;  // counts the map's builds

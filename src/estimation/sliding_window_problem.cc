@@ -144,7 +144,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       const Eigen::Matrix3Xd points_L =
           (s.T_Lj_W.q.toRotationMatrix() * points_W).colwise() + s.T_Lj_W.p;
       kf.plane_map = std::make_unique<PlaneMap>(points_L, options_.plane_map);
-      kf.map_occupancy.emplace(points_L, occupancy_cell_m);
+      kf.map_occupancy.Rebuild(points_L, occupancy_cell_m);
       kf.map_deskew_end = deskew_end;
       ++kf.map_generation;
       kf.map_max_range_m = 0.0;
@@ -208,7 +208,6 @@ void SlidingWindowEstimator::AssociatePoints() {
       std::vector<bool> changed(P, false);
       SlidingWindowState& x = kf.state;
       for (size_t r = 0; r < num_points; ++r) {
-        const int i = kf.residual_points[r];
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
           // Its partner was marginalized (the old pair's information is in the prior).
@@ -240,15 +239,15 @@ void SlidingWindowEstimator::AssociatePoints() {
           }
           tried[q] = epoch_now[q];
           if (!placed) {
-            m.p_L = kf.sweep->cloud.points.col(i);
-            m.motion = motion_at(s, kf.sweep->cloud.time_s(i));
+            m.p_L = kf.residual_p_L.col(static_cast<Eigen::Index>(r));
+            m.motion = motion_at(s, kf.residual_time_s[r]);
             p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion, g_W_, c.q_I_L,
                                         c.p_I_L, m.p_L);
             placed = true;
           }
           const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
           bool found = false;
-          if (other.kf->map_occupancy->MayHold(p_Lj, options_.plane_map.num_neighbors)) {
+          if (other.kf->map_occupancy.MayHold(p_Lj, options_.plane_map.num_neighbors)) {
             ++lookups[static_cast<size_t>(k)];
             found = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
                     std::abs(m.plane_L.SignedDistance(p_Lj)) <= options_.max_point_to_plane_m;

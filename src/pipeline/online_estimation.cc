@@ -8,6 +8,7 @@
 #include <iomanip>
 #include <optional>
 #include <tuple>
+#include <utility>
 
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
@@ -331,8 +332,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
       case kGnss: estimator.AddGnss(dataset.gnss[i]); break;
       default:
         if (i < sweeps.size()) {
-          estimator.AddSweep(sweeps[i]);
-          sweeps[i] = lidar::LidarSweep();  // the estimator holds its own copy
+          estimator.AddSweep(std::move(sweeps[i]));
         } else {
           estimator.AddSweep(reader.Take(i));
         }

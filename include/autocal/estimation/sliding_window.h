@@ -264,7 +264,8 @@ class SlidingWindowEstimator {
   bool AddWheel(const sensors::WheelSample& sample);
   bool AddGnss(const sensors::GnssFix& fix);
   bool AddGnss(const GnssPosition& position);
-  bool AddSweep(const lidar::LidarSweep& sweep);
+  // A sweep passed as an rvalue is moved into the window, not copied.
+  bool AddSweep(lidar::LidarSweep sweep);
 
   const SlidingWindowState& latest_state() const;
   // Every keyframe so far in time order: marginalized ones as last estimated in the window,
@@ -308,8 +309,8 @@ class SlidingWindowEstimator {
   bool TooCloseToNewestKeyframe(const lidar::LidarSweep& sweep) const;
   void ProcessCoveredSweeps();
   // One window update for a covered sweep (steps 1-5 above).
-  void Update(const lidar::LidarSweep& sweep);
-  void AddKeyframe(const lidar::LidarSweep& sweep);
+  void Update(lidar::LidarSweep sweep);
+  void AddKeyframe(lidar::LidarSweep sweep);
   // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
   void RelinearizeImuFactors();
