@@ -177,6 +177,8 @@ class CompressedPointGroup final : public ceres::CostFunction {
     using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int n = group_->num_residuals();
     const std::vector<int32_t>& sizes = parameter_block_sizes();
+    static_assert(kAmbient == factors::PointToSweepPlaneGroupFactor::kAmbientSize,
+                  "the group's stacked Jacobian is the compressed block's");
     Eigen::VectorXd r(n);
     Eigen::Map<Vector> rho(residuals);
     if (jacobians == nullptr) {
@@ -186,17 +188,14 @@ class CompressedPointGroup final : public ceres::CostFunction {
       residuals[kAmbient] = r.norm();
       return true;
     }
-    std::vector<RowMajor> block_jacobians(sizes.size());
-    std::vector<double*> pointers(sizes.size());
-    for (size_t b = 0; b < sizes.size(); ++b) {
-      block_jacobians[b].resize(n, sizes[b]);
-      pointers[b] = block_jacobians[b].data();
-    }
-    if (!group_->Evaluate(parameters, r.data(), pointers.data())) return false;
-    Eigen::Matrix<double, Eigen::Dynamic, kAmbient> J(n, kAmbient);
-    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
-      J.middleCols(static_cast<Eigen::Index>(column), sizes[b]) = block_jacobians[b];
-    }
+    // The group writes its n x 28 Jacobian in one row-major matrix (row i of every block's
+    // Jacobian a slice of row i; PointToSweepPlaneGroupFactor::EvaluateStacked). J^T J and
+    // J^T r are formed from a column-major copy: their sums in that order, whose rounding the
+    // 16-beam drive from the nominal calibration is sensitive to (docs/sliding_window.md,
+    // "Status and known limitations").
+    Eigen::Matrix<double, Eigen::Dynamic, kAmbient, Eigen::RowMajor> stacked(n, kAmbient);
+    if (!group_->EvaluateStacked(parameters, r.data(), stacked.data())) return false;
+    const Eigen::Matrix<double, Eigen::Dynamic, kAmbient> J = stacked;
     Square A = Square::Zero();
     A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
     A.triangularView<Eigen::StrictlyUpper>() = A.transpose();

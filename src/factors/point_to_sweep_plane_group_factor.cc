@@ -10,6 +10,10 @@ namespace factors {
 namespace {
 
 constexpr std::array<int, 9> kBlockSizes = {4, 3, 3, 4, 3, 3, 4, 3, 1};
+// First column of each block in the stacked Jacobian.
+constexpr std::array<int, 9> kBlockColumns = {0, 4, 7, 10, 14, 17, 20, 24, 27};
+static_assert(kBlockColumns[8] + kBlockSizes[8] == PointToSweepPlaneGroupFactor::kAmbientSize,
+              "the stacked Jacobian has every block's columns");
 
 }  // namespace
 
@@ -26,20 +30,17 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
 }
 
-bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
-                                            double** jacobians) const {
+template <typename RowOf>
+bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters,
+                                                double* residuals, const RowOf& row_of,
+                                                bool with_jacobians) const {
   // The rotations and lifts every point shares, once per evaluation (Eq. P8).
   const PointToSweepPlaneFactor::Frame frame(parameters);
   std::array<double*, kBlockSizes.size()> row_jacobians;
   for (size_t i = 0; i < points_.size(); ++i) {
-    // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
     double** point_jacobians = nullptr;
-    if (jacobians != nullptr) {
-      for (size_t b = 0; b < kBlockSizes.size(); ++b) {
-        row_jacobians[b] =
-            jacobians[b] != nullptr ? jacobians[b] + i * static_cast<size_t>(kBlockSizes[b])
-                                    : nullptr;
-      }
+    if (with_jacobians) {
+      for (size_t b = 0; b < kBlockSizes.size(); ++b) row_jacobians[b] = row_of(i, b);
       point_jacobians = row_jacobians.data();
     }
     points_[i].Evaluate(frame, &residuals[i], point_jacobians);
@@ -59,6 +60,23 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
     }
   }
   return true;
+}
+
+bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
+                                            double** jacobians) const {
+  // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
+  return EvaluateRows(parameters, residuals, [jacobians](size_t i, size_t b) -> double* {
+    if (jacobians == nullptr || jacobians[b] == nullptr) return nullptr;
+    return jacobians[b] + i * static_cast<size_t>(kBlockSizes[b]);
+  }, jacobians != nullptr);
+}
+
+bool PointToSweepPlaneGroupFactor::EvaluateStacked(double const* const* parameters,
+                                                   double* residuals, double* jacobian) const {
+  // Row i of the stacked Jacobian holds the nine one-row Jacobians of point i side by side.
+  return EvaluateRows(parameters, residuals, [jacobian](size_t i, size_t b) -> double* {
+    return jacobian + i * kAmbientSize + kBlockColumns[b];
+  }, true);
 }
 
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,

@@ -688,9 +688,9 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   const Run run = Estimate(nominal, options);
   const CalibrationErrors before = ErrorsOf(nominal, truth);
   const CalibrationErrors after = ErrorsOf(run.calibration, truth);
-  // Measured: 0.122 m max, 0.053 m rms, 0.19 deg; q_I_L 3.6 -> 0.099 deg, p_I_L 1.9 -> 4.2 cm
-  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.76 ms, radii
-  // 3.5 / 2.6 -> 0.34 / 0.33 mm, track 20 -> 2.9 mm, lever arm 4.6 -> 1.5 cm.
+  // Measured: 0.151 m max, 0.057 m rms, 0.24 deg; q_I_L 3.6 -> 0.11 deg, p_I_L 1.9 -> 4.6 cm
+  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.73 ms, radii
+  // 3.5 / 2.6 -> 0.34 / 0.33 mm, track 20 -> 2.9 mm, lever arm 4.6 -> 1.3 cm.
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.4);
@@ -707,8 +707,8 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   // The smoothed trajectory (docs/sliding_window.md, "Smoothing"): the same keyframes, the
   // window's unchanged, the marginalized ones carried back from the final window (the
   // calibration 3.6 deg off when the first were marginalized). Measured: position rms
-  // 5.3 -> 2.7 cm, rotation rms 0.138 -> 0.067 deg (max 0.187 -> 0.092 deg). The position
-  // keeps the lever arm's error (1.5 cm), which no smoothing of the states removes.
+  // 5.7 -> 2.7 cm, rotation rms 0.174 -> 0.075 deg (max 0.242 -> 0.097 deg). The position
+  // keeps the lever arm's error (1.3 cm), which no smoothing of the states removes.
   ASSERT_EQ(run.smoothed.size(), run.trajectory.size());
   for (size_t i = 0; i < run.smoothed.size(); ++i) {
     ASSERT_EQ(run.smoothed[i].t_ns, run.trajectory[i].t_ns);
@@ -730,7 +730,7 @@ double Mean(const std::vector<int>& values, size_t begin, size_t end) {
 // Eq. SW12 (docs/sliding_window.md, "Solver: a second pass only when needed"): from the
 // nominal calibration, with the tolerance 0 every update takes both passes; with the default
 // some do and some do not, and more of them while the extrinsic converges than at the end.
-// Measured: all 2; 1.33 passes per update, 1.78 over the first quarter, 1.08 over the last.
+// Measured: all 2; 1.34 passes per update, 1.84 over the first quarter, 1.08 over the last.
 TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions options = Options();

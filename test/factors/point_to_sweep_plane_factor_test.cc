@@ -254,6 +254,31 @@ TEST(PointToSweepPlaneGroupFactor, RobustRowsCarryTheRobustCostAndExactJacobians
   }
 }
 
+// EvaluateStacked: the same rows, and the nine block Jacobians side by side in one row-major
+// n x 28 matrix, with and without a loss.
+TEST(PointToSweepPlaneGroupFactor, StackedJacobianIsTheBlocksSideBySide) {
+  std::mt19937 rng(7);
+  for (const LossOptions& loss : {LossOptions(), LossOptions{lidar::RobustLoss::kHuber, 1.0}}) {
+    const std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(6, &rng);
+    const PointToSweepPlaneGroupFactor group(points, kGravity, loss);
+    State state = RandomState(&rng);
+    const test::Evaluation blocks = test::Evaluate(group, state.Blocks());
+    Eigen::VectorXd residuals(6);
+    Eigen::Matrix<double, Eigen::Dynamic, PointToSweepPlaneGroupFactor::kAmbientSize,
+                  Eigen::RowMajor>
+        stacked(6, PointToSweepPlaneGroupFactor::kAmbientSize);
+    stacked.setConstant(std::nan(""));
+    ASSERT_TRUE(group.EvaluateStacked(state.Blocks().data(), residuals.data(), stacked.data()));
+    EXPECT_EQ(residuals, blocks.residual);
+    Eigen::Index column = 0;
+    for (const auto& jacobian : blocks.jacobians) {
+      EXPECT_EQ(stacked.middleCols(column, jacobian.cols()), jacobian);
+      column += jacobian.cols();
+    }
+    EXPECT_EQ(column, PointToSweepPlaneGroupFactor::kAmbientSize);
+  }
+}
+
 TEST(PointToSweepPlaneGroupFactor, AnEmptyGroupIsRefused) {
   EXPECT_THROW(PointToSweepPlaneGroupFactor({}, kGravity, LossOptions()), Error);
 }

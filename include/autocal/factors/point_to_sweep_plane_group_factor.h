@@ -32,6 +32,11 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
+  // The same with the Jacobians of the nine blocks side by side: `jacobian` is row-major,
+  // num_residuals() x kAmbientSize (columns in the order of the blocks).
+  static constexpr int kAmbientSize = 28;
+  bool EvaluateStacked(double const* const* parameters, double* residuals,
+                       double* jacobian) const;
 
   int num_points() const { return static_cast<int>(points_.size()); }
 
@@ -39,6 +44,12 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
  private:
+  // Every point's row; row_of(i, b) is where point i's Jacobian of block b goes (nullptr: not
+  // wanted), asked only with_jacobians.
+  template <typename RowOf>
+  bool EvaluateRows(double const* const* parameters, double* residuals, const RowOf& row_of,
+                    bool with_jacobians) const;
+
   std::vector<PointToSweepPlaneFactor::Terms> points_;
   std::unique_ptr<ceres::LossFunction> loss_;  // null for plain least squares
 };
