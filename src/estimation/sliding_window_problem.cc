@@ -272,7 +272,13 @@ void SlidingWindowEstimator::AssociatePoints() {
         }
       }
       // Rebuild the groups of the partners whose points changed.
+      std::vector<size_t> member_count(P, 0);
+      for (size_t r = 0; r < num_points; ++r) {
+        const int q = kf.partner_position[r];
+        if (q >= 0 && changed[static_cast<size_t>(q)]) ++member_count[static_cast<size_t>(q)];
+      }
       std::vector<std::vector<factors::PointToSweepPlaneMeasurement>> members(P);
+      for (size_t q = 0; q < P; ++q) members[q].reserve(member_count[q]);
       for (size_t r = 0; r < num_points; ++r) {
         const int q = kf.partner_position[r];
         if (q >= 0 && changed[static_cast<size_t>(q)]) {
