@@ -35,6 +35,12 @@ void CheckPositive(double value, const char* name) {
   }
 }
 
+void CheckNonNegative(double value, const char* name) {
+  if (!(value >= 0.0) || !std::isfinite(value)) {
+    throw Error(std::string("SlidingWindowOptions: ") + name + " must be non-negative and finite");
+  }
+}
+
 void CheckOptions(const SlidingWindowOptions& o) {
   if (o.window_size < 2) throw Error("SlidingWindowOptions: window_size must be at least 2");
   if (o.point_linearizations_per_update < 0) {
@@ -51,6 +57,8 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPositive(o.point_sigma_m, "point_sigma_m");
   CheckPositive(o.solver_function_tolerance, "solver_function_tolerance");
   CheckPositive(o.max_point_to_plane_m, "max_point_to_plane_m");
+  CheckNonNegative(o.gate_extrinsic_factor, "gate_extrinsic_factor");
+  CheckNonNegative(o.gate_extrinsic_free_deg, "gate_extrinsic_free_deg");
   for (double tolerance : {o.reassociation_tolerance_m, o.map_rebuild_tolerance_m,
                            o.relinearization_tolerance_m}) {
     if (!(tolerance >= 0.0) || !std::isfinite(tolerance)) {
@@ -350,6 +358,8 @@ void SlidingWindowEstimator::Update(lidar::LidarSweep sweep) {
     timing_.marginalization_s = SecondsSince(marginalization_start);
   }
   TrimImuBuffer();
+  recent_q_I_L_.push_back(calibration_.q_I_L);
+  while (static_cast<int>(recent_q_I_L_.size()) > options_.window_size) recent_q_I_L_.pop_front();
   ++counters_.updates;
   timing_.total_s = SecondsSince(start);
 }

@@ -190,9 +190,8 @@ class CompressedPointGroup final : public ceres::CostFunction {
     }
     // The group writes its n x 28 Jacobian in one row-major matrix (row i of every block's
     // Jacobian a slice of row i; PointToSweepPlaneGroupFactor::EvaluateStacked). J^T J and
-    // J^T r are formed from a column-major copy: their sums in that order, whose rounding the
-    // 16-beam drive from the nominal calibration is sensitive to (docs/sliding_window.md,
-    // "Status and known limitations").
+    // J^T r are formed from a column-major copy: their sums in that order (docs/
+    // sliding_window.md, "Memory kept, copies avoided").
     Eigen::Matrix<double, Eigen::Dynamic, kAmbient, Eigen::RowMajor> stacked(n, kAmbient);
     if (!group_->EvaluateStacked(parameters, r.data(), stacked.data())) return false;
     const Eigen::Matrix<double, Eigen::Dynamic, kAmbient> J = stacked;

@@ -167,6 +167,13 @@ void SlidingWindowEstimator::AssociatePoints() {
   const std::vector<int>& partners = options_.partner_keyframe_offsets;
   const int num_partners = static_cast<int>(partners.size());
   const double tolerance_m = options_.reassociation_tolerance_m;
+  // Eq. SW14: the gate widens while the extrinsic rotation moves.
+  const double gate_per_range =
+      recent_q_I_L_.empty()
+          ? 0.0
+          : options_.gate_extrinsic_factor *
+                std::max(0.0, geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L) -
+                                  options_.gate_extrinsic_free_deg * M_PI / 180.0);
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t kk = begin; kk < end; ++kk) {
@@ -250,7 +257,8 @@ void SlidingWindowEstimator::AssociatePoints() {
           if (other.kf->map_occupancy.MayHold(p_Lj, options_.plane_map.num_neighbors)) {
             ++lookups[static_cast<size_t>(k)];
             found = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
-                    std::abs(m.plane_L.SignedDistance(p_Lj)) <= options_.max_point_to_plane_m;
+                    std::abs(m.plane_L.SignedDistance(p_Lj)) <=
+                        options_.max_point_to_plane_m + gate_per_range * range_m;
           }
           if (!found) {
             if (current == static_cast<int>(q)) {

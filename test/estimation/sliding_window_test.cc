@@ -149,6 +149,15 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   options = SlidingWindowOptions();
   options.min_keyframe_interval_s = -0.01;
   EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
+  options = SlidingWindowOptions();
+  options.gate_extrinsic_factor = -0.25;
+  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
+  options = SlidingWindowOptions();
+  options.gate_extrinsic_free_deg = std::nan("");
+  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
+  options = SlidingWindowOptions();
+  options.gate_extrinsic_factor = 0.0;  // a fixed gate
+  EXPECT_NO_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()));
 }
 
 TEST(SlidingWindowStreaming, BuffersSweepUntilImuCoversIt) {
@@ -663,8 +672,8 @@ TEST_F(SlidingWindowUrban, TracksTruthFromTrueCalibration) {
   EXPECT_EQ(run.max_window, options.window_size);
   EXPECT_GT(run.trajectory.size(), 190u);
   EXPECT_EQ(run.counters.late, 0);
-  // Measured: 0.080 m max, 0.045 m rms, 0.069 deg; q_I_L 0.14 deg, p_I_L 4.8 cm, offset
-  // 0.59 ms, radii 0.03 mm, track 1.5 mm, lever arm 3.7 cm.
+  // Measured: 0.080 m max, 0.046 m rms, 0.069 deg; q_I_L 0.12 deg, p_I_L 4.5 cm, offset
+  // 0.60 ms, radii 0.04 mm, track 1.7 mm, lever arm 4.0 cm.
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.15);
@@ -688,9 +697,11 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   const Run run = Estimate(nominal, options);
   const CalibrationErrors before = ErrorsOf(nominal, truth);
   const CalibrationErrors after = ErrorsOf(run.calibration, truth);
-  // Measured: 0.151 m max, 0.057 m rms, 0.24 deg; q_I_L 3.6 -> 0.11 deg, p_I_L 1.9 -> 4.6 cm
-  // (mostly the height, which planar driving does not excite), offset 2.8 -> 0.73 ms, radii
-  // 3.5 / 2.6 -> 0.34 / 0.33 mm, track 20 -> 2.9 mm, lever arm 4.6 -> 1.3 cm.
+  // Measured: 0.083 m max, 0.049 m rms, 0.070 deg (from the true calibration 0.080 m, 0.046 m,
+  // 0.069 deg); q_I_L 3.6 -> 0.079 deg, p_I_L 1.9 -> 4.6 cm (mostly the height, which planar
+  // driving does not excite), offset 2.8 -> 0.85 ms, radii 3.5 / 2.6 -> 0.32 / 0.33 mm, track
+  // 20 -> 2.6 mm, lever arm 4.6 -> 4.3 cm (4.0 cm from the true calibration: 30 s of this
+  // drive barely observe it).
   EXPECT_LT(run.max_position_error_m, 0.2);
   EXPECT_LT(run.rms_position_error_m, 0.1);
   EXPECT_LT(run.max_rotation_error_deg, 0.4);
@@ -705,10 +716,13 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   ExpectValidCovariance(run.covariance);
 
   // The smoothed trajectory (docs/sliding_window.md, "Smoothing"): the same keyframes, the
-  // window's unchanged, the marginalized ones carried back from the final window (the
-  // calibration 3.6 deg off when the first were marginalized). Measured: position rms
-  // 5.7 -> 2.7 cm, rotation rms 0.174 -> 0.075 deg (max 0.242 -> 0.097 deg). The position
-  // keeps the lever arm's error (1.3 cm), which no smoothing of the states removes.
+  // window's unchanged, the marginalized ones carried back from the final window. With the
+  // gate of Eq. SW14 the filtered trajectory from the nominal start is as close to the truth
+  // as from the true calibration, and the smoother has little left to remove: measured
+  // position rms 4.89 -> 4.78 cm, rotation rms 0.0326 -> 0.0315 deg. Its conditionals were
+  // formed while the calibration was still degrees off, and with other residual counts the
+  // smoothed position came out up to 10 % worse than the filtered one (docs, "Status and
+  // known limitations"); the check is that it stays within that.
   ASSERT_EQ(run.smoothed.size(), run.trajectory.size());
   for (size_t i = 0; i < run.smoothed.size(); ++i) {
     ASSERT_EQ(run.smoothed[i].t_ns, run.trajectory[i].t_ns);
@@ -717,8 +731,29 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
     EXPECT_EQ(run.smoothed[i].p_W_I, run.trajectory[i].p_W_I);
     EXPECT_EQ(run.smoothed[i].q_W_I.coeffs(), run.trajectory[i].q_W_I.coeffs());
   }
-  EXPECT_LT(run.smoothed_errors.rms_position_error_m, 0.85 * run.rms_position_error_m);
-  EXPECT_LT(run.smoothed_errors.rms_rotation_error_deg, 0.6 * run.rms_rotation_error_deg);
+  EXPECT_LT(run.smoothed_errors.rms_position_error_m, 1.1 * run.rms_position_error_m);
+  EXPECT_LT(run.smoothed_errors.rms_rotation_error_deg, 1.1 * run.rms_rotation_error_deg);
+  EXPECT_LT(run.smoothed_errors.rms_rotation_error_deg, 0.1);
+}
+
+// Eq. SW14 (docs/sliding_window.md, "Association"): from the nominal calibration the window
+// converges whatever the residual count. With the gate fixed at max_point_to_plane_m the
+// outcome was chance: 370 and 430 residual points per sweep ended 1.49 and 1.55 m rms from
+// the truth, with q_I_L still 2-2.6 deg off. Measured: 0.048 / 0.062 m rms, q_I_L 0.045 /
+// 0.076 deg.
+TEST_F(SlidingWindowUrban, ConvergesFromNominalWhateverTheResidualCount) {
+  const sensors::Calibration& truth = simulator_->true_calibration();
+  for (int residuals : {370, 430}) {
+    SCOPED_TRACE(residuals);
+    SlidingWindowOptions options = Options();
+    options.max_residuals_per_sweep = residuals;
+    const Run run = Estimate(simulator_->nominal_calibration(), options);
+    const CalibrationErrors after = ErrorsOf(run.calibration, truth);
+    EXPECT_LT(run.max_position_error_m, 0.2);
+    EXPECT_LT(run.rms_position_error_m, 0.1);
+    EXPECT_LT(run.max_rotation_error_deg, 0.4);
+    EXPECT_LT(after.rotation_deg, 0.3);
+  }
 }
 
 double Mean(const std::vector<int>& values, size_t begin, size_t end) {
@@ -730,7 +765,7 @@ double Mean(const std::vector<int>& values, size_t begin, size_t end) {
 // Eq. SW12 (docs/sliding_window.md, "Solver: a second pass only when needed"): from the
 // nominal calibration, with the tolerance 0 every update takes both passes; with the default
 // some do and some do not, and more of them while the extrinsic converges than at the end.
-// Measured: all 2; 1.34 passes per update, 1.84 over the first quarter, 1.08 over the last.
+// Measured: all 2; 1.23 passes per update, 1.45 over the first quarter, 1.10 over the last.
 TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions options = Options();
@@ -756,8 +791,8 @@ TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
 // Kept tries ("Reuse between updates"): against a fresh association at every update (both
 // tolerances 0) the window pairs as many points, with a fraction of the lookups, and tracks
 // the truth as well. (The maps' generations in a try matter from the nominal calibration:
-// without them TracksTruthAndCalibratesFromNominal ended with q_I_L 0.95 deg.) Measured (from the second quarter on): 1505 against 1506 points per
-// update, 2.3k against 13.3k lookups; position rms 0.045 against 0.046 m.
+// without them TracksTruthAndCalibratesFromNominal ended with q_I_L 0.95 deg.) Measured (from the second quarter on): 1507 against 1507 points per
+// update, 2.3k against 13.3k lookups; position rms 0.046 against 0.046 m.
 TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions fresh_options = Options();

@@ -154,6 +154,15 @@ struct SlidingWindowOptions {
   // Outlier gate: a point farther than this from the plane found for it is not associated
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;
+  // While the extrinsic rotation is still converging the gate widens with it (docs/
+  // sliding_window.md, Eq. SW14): a point at range r is associated within
+  //   max_point_to_plane_m + gate_extrinsic_factor * max(0, angle - gate_extrinsic_free_deg) * r
+  // of its plane, `angle` the rotation of q_I_L over the last window_size updates. A gate
+  // fixed at a decimetre keeps only the points that a wrong extrinsic happens to place near
+  // their planes, and the window can then drive the extrinsic the wrong way.
+  // gate_extrinsic_factor 0: a fixed gate.
+  double gate_extrinsic_factor = 0.25;
+  double gate_extrinsic_free_deg = 0.5;
   // Reuse between updates (docs/sliding_window.md, "Reuse between updates", Eq. SW4): a
   // point's try against a partner sweep (a plane found or none) holds while both sweeps' maps
   // are unchanged and their relative pose has moved by at most reassociation_tolerance_m at
@@ -371,6 +380,8 @@ class SlidingWindowEstimator {
 
   SlidingWindowCounters counters_;
   SlidingWindowUpdateTiming timing_;
+  // q_I_L after each of the last window_size updates (the association gate, Eq. SW14).
+  std::deque<Eigen::Quaterniond> recent_q_I_L_;
   int last_associated_points_ = 0;
   // Squared distances of the groups the last update's marginalization dropped; the RMS once
   // evaluated.
