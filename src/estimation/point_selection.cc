@@ -1,6 +1,5 @@
 #include "estimation/point_selection.h"
 
-#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -16,11 +15,7 @@ std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m
   constexpr uint64_t kEmpty = ~uint64_t{0};
   const double inv = 1.0 / voxel_m;
   const auto cell = [inv](double x) {
-    // floor(x inv) without a call to floor(): truncation, one down for negative fractions.
-    const double scaled = x * inv;
-    const int64_t truncated = static_cast<int64_t>(scaled);
-    const int64_t floored = truncated - (static_cast<double>(truncated) > scaled);
-    return static_cast<uint64_t>(floored + kHalfRange) & 0x1FFFFF;
+    return static_cast<uint64_t>(FloorToInt(x * inv) + kHalfRange) & 0x1FFFFF;
   };
   // The occupied voxels in an open-addressing table at most half full (linear probing,
   // Fibonacci hashing): a sweep's tens of thousands of points without a node allocation each.

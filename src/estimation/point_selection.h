@@ -3,6 +3,7 @@
 // Choice of a sweep's residual and map points, shared by the batch solver and the sliding
 // window (docs/estimation.md, "Batch LiDAR-inertial solve"; docs/sliding_window.md).
 
+#include <cstdint>
 #include <vector>
 
 #include "autocal/lidar/point_cloud.h"
@@ -10,6 +11,13 @@
 namespace autocal {
 namespace estimation {
 namespace internal {
+
+// floor(x) as an integer without a call to floor() (the portable build has no SSE4.1 rounding
+// instruction): truncation, one down for negative fractions. x within the range of int64_t.
+inline int64_t FloorToInt(double x) {
+  const int64_t truncated = static_cast<int64_t>(x);
+  return truncated - (static_cast<double>(truncated) > x);
+}
 
 // Indices of one point per occupied voxel of edge voxel_m (the first met, so a representative
 // keeps its exact coordinates and time), points closer than min_range_m dropped.

@@ -18,6 +18,7 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/imu_preintegration.h"
+#include "estimation/point_selection.h"
 #include "estimation/sliding_window_factors.h"
 
 namespace autocal {
@@ -97,14 +98,9 @@ class MapOccupancy {
     for (int a = 0; a < 3; ++a) {
       if (!(v(a) >= -1.0) || !(v(a) < size_[a] + 1.0)) return false;
     }
-    // floor() by truncation, one down for negative fractions (no call to floor()).
-    const auto floor = [](double x) {
-      const int truncated = static_cast<int>(x);
-      return truncated - (static_cast<double>(truncated) > x);
-    };
-    const int cx = floor(v.x());
-    const int cy = floor(v.y());
-    const int cz = floor(v.z());
+    const int cx = static_cast<int>(FloorToInt(v.x()));
+    const int cy = static_cast<int>(FloorToInt(v.y()));
+    const int cz = static_cast<int>(FloorToInt(v.z()));
     int sum = 0;
     for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size_[0] - 1); ++x) {
       for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size_[1] - 1); ++y) {

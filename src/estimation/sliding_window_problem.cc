@@ -31,6 +31,8 @@ using internal::StateBlocks;
 
 namespace {
 
+constexpr double kDegToRad = M_PI / 180.0;
+
 // The LiDAR pose of a sweep at its reference instant (point time 0) under the current
 // estimate: T_W_L = T_W_I(t) T_I_L, T_W_I(t) from Eq. P1-P3 at delta = 0.
 geometry::Pose3d SweepLidarPose(const SlidingWindowState& kf, const factors::PointMotion& m,
@@ -173,7 +175,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           ? 0.0
           : options_.gate_extrinsic_factor *
                 std::max(0.0, geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L) -
-                                  options_.gate_extrinsic_free_deg * M_PI / 180.0);
+                                  options_.gate_extrinsic_free_deg * kDegToRad);
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t kk = begin; kk < end; ++kk) {

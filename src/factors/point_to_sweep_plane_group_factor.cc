@@ -10,8 +10,12 @@ namespace factors {
 namespace {
 
 constexpr std::array<int, 9> kBlockSizes = {4, 3, 3, 4, 3, 3, 4, 3, 1};
-// First column of each block in the stacked Jacobian.
-constexpr std::array<int, 9> kBlockColumns = {0, 4, 7, 10, 14, 17, 20, 24, 27};
+// First column of each block in the stacked Jacobian: the sizes of the blocks before it.
+constexpr std::array<int, 9> kBlockColumns = [] {
+  std::array<int, 9> columns{};
+  for (size_t b = 1; b < columns.size(); ++b) columns[b] = columns[b - 1] + kBlockSizes[b - 1];
+  return columns;
+}();
 static_assert(kBlockColumns[8] + kBlockSizes[8] == PointToSweepPlaneGroupFactor::kAmbientSize,
               "the stacked Jacobian has every block's columns");
 

@@ -92,10 +92,6 @@ class PointToSweepPlaneFactor final
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
-  // The same with the shared quantities given; jacobians as in Evaluate.
-  void Evaluate(const Frame& frame, double* residual, double** jacobians) const {
-    terms_.Evaluate(frame, residual, jacobians);
-  }
 
  private:
   Terms terms_;
