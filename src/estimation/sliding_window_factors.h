@@ -205,7 +205,9 @@ class CompressedPointGroup final : public ceres::CostFunction {
     const double threshold = kRelativePivot * std::max(d.maxCoeff(), 0.0);
     Vector y = ldlt.transpositionsP() * g;
     ldlt.matrixL().solveInPlace(y);
-    Square R = ldlt.matrixU() * Square(ldlt.transpositionsP() * Square::Identity());
+    // R = U (P I): U with its columns moved, no matrix product (Eigen's product with the
+    // transpositions' transpose moves the columns as the permutation matrix P I does).
+    Square R = Square(ldlt.matrixU()) * ldlt.transpositionsP().transpose();
     for (int i = 0; i < kAmbient; ++i) {
       if (d(i) > threshold) {
         const double root = std::sqrt(d(i));
