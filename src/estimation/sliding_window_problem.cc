@@ -61,9 +61,15 @@ Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const SlidingWi
                                     const sensors::Calibration& c) {
   Eigen::Matrix3Xd points_W(3, static_cast<Eigen::Index>(indices.size()));
   Eigen::Index column = 0;
+  // The points of one firing share their time, and with it their motion.
+  double motion_time_s = std::numeric_limits<double>::quiet_NaN();
+  factors::PointMotion m;
   for (int i : indices) {
-    const factors::PointMotion m =
-        table.At(sweep.t_ns + SecondsToNs(sweep.cloud.time_s(i) + c.time_offset_lidar_imu_s));
+    const double time_s = sweep.cloud.time_s(i);
+    if (!(time_s == motion_time_s)) {
+      m = table.At(sweep.t_ns + SecondsToNs(time_s + c.time_offset_lidar_imu_s));
+      motion_time_s = time_s;
+    }
     points_W.col(column++) = factors::PointInWorld(kf.q_W_I, kf.p_W_I, kf.v_W_I, m, g_W, c.q_I_L,
                                                    c.p_I_L, sweep.cloud.points.col(i));
   }
@@ -216,6 +222,9 @@ void SlidingWindowEstimator::AssociatePoints() {
       }
       std::vector<bool> changed(P, false);
       SlidingWindowState& x = kf.state;
+      // Residual points of one firing share their time, and with it their motion.
+      double motion_time_s = std::numeric_limits<double>::quiet_NaN();
+      factors::PointMotion motion;
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -249,7 +258,11 @@ void SlidingWindowEstimator::AssociatePoints() {
           tried[q] = epoch_now[q];
           if (!placed) {
             m.p_L = kf.residual_p_L.col(static_cast<Eigen::Index>(r));
-            m.motion = motion_at(s, kf.residual_time_s[r]);
+            if (!(kf.residual_time_s[r] == motion_time_s)) {
+              motion = motion_at(s, kf.residual_time_s[r]);
+              motion_time_s = kf.residual_time_s[r];
+            }
+            m.motion = motion;
             p_W = factors::PointInWorld(x.q_W_I, x.p_W_I, x.v_W_I, m.motion, g_W_, c.q_I_L,
                                         c.p_I_L, m.p_L);
             placed = true;
