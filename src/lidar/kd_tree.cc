@@ -141,37 +141,43 @@ bool Closer(double d_a, int i_a, double d_b, int i_b) {
   return d_a < d_b || (d_a == d_b && i_a < i_b);
 }
 
-// The k closest so far, sorted by Closer, in the caller's out[0 .. count).
+// The k closest so far, sorted by Closer, in the caller's out[0 .. count), and with
+// kWithPoints their tree points in points_[0 .. count) (the caller's, k entries).
+template <bool kWithPoints>
 class KnnResult {
  public:
   // Only points within max_squared_distance (inclusive) are kept.
-  KnnResult(int k, Neighbor* out, double max_squared_distance)
-      : k_(k), out_(out), max_squared_distance_(max_squared_distance) {}
+  KnnResult(int k, Neighbor* out, double max_squared_distance,
+            const TreePoint** points = nullptr)
+      : k_(k), out_(out), points_(points), max_squared_distance_(max_squared_distance) {}
   int count() const { return count_; }
   // Cells farther than this cannot improve the result.
   double bound() const {
     return count_ < k_ ? max_squared_distance_ : out_[k_ - 1].squared_distance_m2;
   }
-  void Offer(double d, int index) {
+  void Offer(double d, const TreePoint& p) {
     if (d > max_squared_distance_) return;
     int i;
     if (count_ < k_) {
       i = count_++;
-    } else if (Closer(d, index, out_[k_ - 1].squared_distance_m2, out_[k_ - 1].index)) {
+    } else if (Closer(d, p.index, out_[k_ - 1].squared_distance_m2, out_[k_ - 1].index)) {
       i = k_ - 1;
     } else {
       return;
     }
-    while (i > 0 && Closer(d, index, out_[i - 1].squared_distance_m2, out_[i - 1].index)) {
+    while (i > 0 && Closer(d, p.index, out_[i - 1].squared_distance_m2, out_[i - 1].index)) {
       out_[i] = out_[i - 1];
+      if (kWithPoints) points_[i] = points_[i - 1];
       --i;
     }
-    out_[i] = Neighbor{index, d};
+    out_[i] = Neighbor{p.index, d};
+    if (kWithPoints) points_[i] = &p;
   }
 
  private:
   int k_;
   Neighbor* out_;
+  const TreePoint** points_;
   double max_squared_distance_;
   int count_ = 0;
 };
@@ -182,10 +188,10 @@ class NearestResult {
   explicit NearestResult(double max_squared_distance) : bound_(max_squared_distance) {}
   int index() const { return index_; }
   double bound() const { return bound_; }
-  void Offer(double d, int index) {
-    if (d < bound_ || (d == bound_ && index_ >= 0 && index < index_)) {
+  void Offer(double d, const TreePoint& p) {
+    if (d < bound_ || (d == bound_ && index_ >= 0 && p.index < index_)) {
       bound_ = d;
-      index_ = index;
+      index_ = p.index;
     }
   }
 
@@ -200,8 +206,8 @@ class RadiusResult {
   RadiusResult(double squared_radius, std::vector<Neighbor>* out)
       : squared_radius_(squared_radius), out_(out) {}
   double bound() const { return squared_radius_; }
-  void Offer(double d, int index) {
-    if (d < squared_radius_) out_->push_back(Neighbor{index, d});
+  void Offer(double d, const TreePoint& p) {
+    if (d < squared_radius_) out_->push_back(Neighbor{p.index, d});
   }
 
  private:
@@ -298,7 +304,7 @@ struct KdTree::Impl {
     if (node.dim < 0) {
       for (int i = node.right_or_begin; i < node.end; ++i) {
         const TreePoint& p = tree_points[static_cast<size_t>(i)];
-        result->Offer(SquaredDistance(query, p.xyz), p.index);
+        result->Offer(SquaredDistance(query, p.xyz), p);
       }
       return;
     }
@@ -370,8 +376,29 @@ int KdTree::Knn(const Eigen::Vector3d& query, int k, Neighbor* out) const {
 
 int KdTree::Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out) const {
   if (k <= 0 || size() == 0 || !(max_distance_m >= 0.0)) return 0;
-  KnnResult result(k, out, max_distance_m * max_distance_m);
+  KnnResult<false> result(k, out, max_distance_m * max_distance_m);
   impl_->Search(query.data(), &result);
+  return result.count();
+}
+
+int KdTree::Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out,
+                double* points) const {
+  if (k <= 0 || size() == 0 || !(max_distance_m >= 0.0)) return 0;
+  // The tree's own copies of the points, which the search has just read: reading points()
+  // by index instead would miss the cache.
+  constexpr int kStackPoints = 32;
+  std::array<const TreePoint*, kStackPoints> stack_found;
+  std::vector<const TreePoint*> heap_found;
+  const TreePoint** found = stack_found.data();
+  if (k > kStackPoints) {
+    heap_found.resize(static_cast<size_t>(k));
+    found = heap_found.data();
+  }
+  KnnResult<true> result(k, out, max_distance_m * max_distance_m, found);
+  impl_->Search(query.data(), &result);
+  for (int i = 0; i < result.count(); ++i) {
+    std::copy(found[i]->xyz.begin(), found[i]->xyz.end(), points + 3 * i);
+  }
   return result.count();
 }
 

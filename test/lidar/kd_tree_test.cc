@@ -78,6 +78,23 @@ void ExpectMatchesBruteForce(const Eigen::Matrix3Xd& points, const Eigen::Matrix
         }
       }
     }
+    // With the coordinates: the same neighbours, each with its point's exact coordinates; also
+    // for more neighbours than the search keeps on its stack.
+    for (const int k : {5, 40}) {
+      if (n == 0) break;
+      const double bound_m = std::sqrt(brute[std::min<size_t>(20, brute.size() - 1)].first);
+      std::vector<Neighbor> plain(static_cast<size_t>(k)), with_points(static_cast<size_t>(k));
+      Eigen::Matrix3Xd coordinates = Eigen::Matrix3Xd::Constant(3, k, kInfinity);
+      const int count = tree.Knn(query, k, bound_m, plain.data());
+      ASSERT_EQ(tree.Knn(query, k, bound_m, with_points.data(), coordinates.data()), count);
+      for (int r = 0; r < count; ++r) {
+        const size_t i = static_cast<size_t>(r);
+        ASSERT_EQ(with_points[i].index, plain[i].index) << "k " << k << " rank " << r;
+        ASSERT_EQ(with_points[i].squared_distance_m2, plain[i].squared_distance_m2);
+        ASSERT_TRUE((coordinates.col(r).array() == points.col(plain[i].index).array()).all())
+            << "k " << k << " rank " << r;
+      }
+    }
 
     Neighbor nearest;
     if (n == 0) {

@@ -44,6 +44,11 @@ class KdTree {
   // most k). The bound prunes the search: a query whose k-th neighbour lies beyond it ends
   // early (the plane maps reject those anyway).
   int Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out) const;
+  // The same, and the neighbours' coordinates: out[i]'s point into points[3 i .. 3 i + 3)
+  // (room for 3 k doubles; a 3 x k column-major matrix). Faster than reading points() by
+  // index, which misses the cache where the search has just read the tree's own copy.
+  int Knn(const Eigen::Vector3d& query, int k, double max_distance_m, Neighbor* out,
+          double* points) const;
 
   // Every point strictly closer than radius_m, closest first (ties: lower index first).
   // `neighbors` is cleared first; reuse it across calls to avoid allocations.
