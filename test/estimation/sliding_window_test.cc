@@ -234,6 +234,20 @@ TEST(SlidingWindowMapOccupancy, RejectsOnlyLookupsThatCannotSucceed) {
   const PlaneMap map(points, plane_options);
   const internal::MapOccupancy occupancy(
       points, plane_options.max_neighbor_distance_m + std::sqrt(3.0) * plane_options.voxel_m);
+  // The count it tests, counted point by point: the map points whose cell is within one of
+  // the query's along every axis.
+  const double cell_m = plane_options.max_neighbor_distance_m + std::sqrt(3.0) * plane_options.voxel_m;
+  const Eigen::Vector3d origin = points.rowwise().minCoeff();
+  const auto cell_of = [&](const Eigen::Vector3d& p) {
+    return Eigen::Vector3d(((p - origin) * (1.0 / cell_m)).array().floor());
+  };
+  const auto points_around = [&](const Eigen::Vector3d& query) {
+    int n = 0;
+    for (Eigen::Index i = 0; i < points.cols(); ++i) {
+      n += (cell_of(points.col(i)) - cell_of(query)).cwiseAbs().maxCoeff() <= 1.0;
+    }
+    return n;
+  };
   int found = 0, rejected = 0;
   for (int i = 0; i < 24000; ++i) {
     // Half near the floor and the wall, half anywhere.
@@ -248,6 +262,13 @@ TEST(SlidingWindowMapOccupancy, RejectsOnlyLookupsThatCannotSucceed) {
     rejected += !may_hold;
     if (has_plane) {
       EXPECT_TRUE(may_hold) << query.transpose();
+    }
+    if (i % 8 < 2) {
+      const int around = points_around(query);
+      for (int count : {1, plane_options.num_neighbors, 40}) {
+        EXPECT_EQ(occupancy.MayHold(query, count), around >= count)
+            << query.transpose() << ", " << around << " points around";
+      }
     }
   }
   // Enough lookups of each kind for the check above to mean something.
