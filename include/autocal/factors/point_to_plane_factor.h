@@ -131,6 +131,10 @@ Eigen::Vector3d PointInWorld(const Eigen::Quaterniond& q_W_I, const Eigen::Vecto
                              const Eigen::Vector3d& v_W_I, const PointMotion& motion,
                              const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
                              const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L);
+// The same from the IMU pose at the point's instant, PropagateKeyframe(q_W_I, p_W_I, v_W_I,
+// 0, motion, g_W): the points of one firing share it.
+Eigen::Vector3d PointInWorld(const PropagatedPose<double>& pose, const Eigen::Quaterniond& q_I_L,
+                             const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L);
 
 }  // namespace factors
 }  // namespace autocal
