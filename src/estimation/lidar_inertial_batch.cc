@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -182,10 +183,18 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       Eigen::Matrix3Xd& points = map_points_W[j];
       points.resize(3, static_cast<Eigen::Index>(selection[j].map_points.size()));
       Eigen::Index column = 0;
+      // The points of one firing share their time, and with it their IMU pose.
+      const Keyframe& kf = (*keyframes)[j];
+      double pose_time_s = std::numeric_limits<double>::quiet_NaN();
+      factors::PropagatedPose<double> pose;
       for (int i : selection[j].map_points) {
-        points.col(column++) = PointInWorld((*keyframes)[j], motion_of(j, i), g_W,
-                                            calibration->q_I_L, calibration->p_I_L,
-                                            sweeps[j].cloud.points.col(i));
+        if (!(sweeps[j].cloud.time_s(i) == pose_time_s)) {
+          pose = factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, motion_of(j, i),
+                                            g_W);
+          pose_time_s = sweeps[j].cloud.time_s(i);
+        }
+        points.col(column++) = factors::PointInWorld(pose, calibration->q_I_L, calibration->p_I_L,
+                                                     sweeps[j].cloud.points.col(i));
       }
       reference_motion[j] = tables[j]->At(sweeps[j].t_ns + SecondsToNs(offset_lin));
       T_W_L[j] = SweepLidarPose((*keyframes)[j], reference_motion[j], g_W, calibration->q_I_L,
