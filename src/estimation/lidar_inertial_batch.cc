@@ -46,12 +46,6 @@ geometry::Pose3d SweepLidarPose(const Keyframe& kf, const factors::PointMotion& 
   return geometry::Pose3d(q_W_I * q_I_L, q_W_I * p_I_L + pose.p_W_I);
 }
 
-Eigen::Vector3d PointInWorld(const Keyframe& kf, const factors::PointMotion& m,
-                             const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
-                             const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L) {
-  return factors::PointInWorld(kf.q_W_I, kf.p_W_I, kf.v_W_I, m, g_W, q_I_L, p_I_L, p_L);
-}
-
 struct SweepSelection {
   std::vector<int> residual_points;
   std::vector<int> map_points;
@@ -233,12 +227,21 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       const int k = static_cast<int>(sweep);
       const Keyframe& kf = (*keyframes)[sweep];
       int point_counter = 0;
+      // Residual points of one firing share their time, and with it their motion and IMU pose.
+      double pose_time_s = std::numeric_limits<double>::quiet_NaN();
+      factors::PointMotion motion;
+      factors::PropagatedPose<double> pose;
       for (int i : selection[sweep].residual_points) {
+        if (!(sweeps[sweep].cloud.time_s(i) == pose_time_s)) {
+          motion = motion_of(sweep, i);
+          pose = factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, motion, g_W);
+          pose_time_s = sweeps[sweep].cloud.time_s(i);
+        }
         factors::PointToSweepPlaneMeasurement m;
         m.p_L = sweeps[sweep].cloud.points.col(i);
-        m.motion = motion_of(sweep, i);
+        m.motion = motion;
         const Eigen::Vector3d p_W =
-            PointInWorld(kf, m.motion, g_W, calibration->q_I_L, calibration->p_I_L, m.p_L);
+            factors::PointInWorld(pose, calibration->q_I_L, calibration->p_I_L, m.p_L);
         const int first = point_counter++;
         int partner = -1;
         lidar::Plane plane_W;
