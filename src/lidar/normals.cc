@@ -57,22 +57,20 @@ void RequireNeighbors(const NormalEstimationSetting& setting) {
   }
 }
 
-// EstimateNormal with the caller's scratch space for the neighbours and their coordinates
-// (3 num_neighbors doubles).
+// EstimateNormal with the caller's scratch space for the neighbours.
 bool NormalOfPoint(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
-                   Neighbor* neighbors, double* coordinates, Eigen::Vector3d* normal,
-                   double* planarity) {
+                   Neighbor* neighbors, Eigen::Vector3d* normal, double* planarity) {
+  const Eigen::Matrix3Xd& points = tree.points();
   const double max_sq = setting.max_radius_m > 0.0 ? setting.max_radius_m * setting.max_radius_m
                                                    : std::numeric_limits<double>::infinity();
-  const Eigen::Vector3d p = tree.points().col(index);
-  const int found = tree.Knn(p, setting.num_neighbors, std::numeric_limits<double>::infinity(),
-                             neighbors, coordinates);
+  const Eigen::Vector3d p = points.col(index);
+  const int found = tree.Knn(p, setting.num_neighbors, neighbors);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
   int count = 0;
   for (int j = 0; j < found; ++j) {
     if (neighbors[j].squared_distance_m2 > max_sq) break;  // sorted, closest first
-    const Eigen::Vector3d q = Eigen::Map<const Eigen::Vector3d>(coordinates + 3 * j) - p;
+    const Eigen::Vector3d q = points.col(neighbors[j].index) - p;
     sum += q;
     sum_outer.noalias() += q * q.transpose();
     ++count;
@@ -90,14 +88,10 @@ bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationSet
   constexpr int kStackNeighbors = 32;
   if (setting.num_neighbors <= kStackNeighbors) {
     std::array<Neighbor, kStackNeighbors> neighbors;
-    std::array<double, 3 * kStackNeighbors> coordinates;
-    return NormalOfPoint(tree, index, setting, neighbors.data(), coordinates.data(), normal,
-                         planarity);
+    return NormalOfPoint(tree, index, setting, neighbors.data(), normal, planarity);
   }
   std::vector<Neighbor> neighbors(static_cast<size_t>(setting.num_neighbors));
-  std::vector<double> coordinates(3 * static_cast<size_t>(setting.num_neighbors));
-  return NormalOfPoint(tree, index, setting, neighbors.data(), coordinates.data(), normal,
-                       planarity);
+  return NormalOfPoint(tree, index, setting, neighbors.data(), normal, planarity);
 }
 
 SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting,
@@ -109,14 +103,10 @@ SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting
   out.planarity.setZero(n);
   ParallelFor(0, n, num_threads, [&](int64_t begin, int64_t end, int /*chunk*/) {
     std::vector<Neighbor> neighbors(static_cast<size_t>(setting.num_neighbors));
-    std::vector<double> coordinates(3 * static_cast<size_t>(setting.num_neighbors));
     Eigen::Vector3d normal;
     double planarity = 0.0;
     for (int64_t i = begin; i < end; ++i) {
-      if (!NormalOfPoint(tree, i, setting, neighbors.data(), coordinates.data(), &normal,
-                         &planarity)) {
-        continue;
-      }
+      if (!NormalOfPoint(tree, i, setting, neighbors.data(), &normal, &planarity)) continue;
       out.normals.col(i) = normal;
       out.planarity(i) = planarity;
     }
