@@ -102,23 +102,35 @@ struct NormalEquations {
 // perturbation, dr/d[rho; phi] = [n; (T p) x n]. Correspondences are searched first, then
 // the target's normals for them are prepared, then the equations are summed per chunk and
 // combined in chunk order.
+//
+// `matches` holds each source point's match of the previous iteration (-1: none; empty on the
+// first) and returns this one's. The nearest target point is no farther than the previous
+// match, so the search starts with that distance as its bound, just above it so that the
+// previous match itself still counts: the same match as with max_correspondence_m, found
+// with less of the tree searched.
 NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                                      const geometry::Pose3d& T, const IcpSetting& setting) {
+                                      const geometry::Pose3d& T, const IcpSetting& setting,
+                                      std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   const Eigen::Index n = source.cols();
-  std::vector<int> matches(static_cast<size_t>(n), -1);
+  std::vector<int>& matches = *matches_io;
+  if (matches.size() != static_cast<size_t>(n)) matches.assign(static_cast<size_t>(n), -1);
+  const Eigen::Matrix3Xd& target_points = target.points();
   ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int /*chunk*/) {
     Neighbor nearest;
     for (int64_t i = begin; i < end; ++i) {
       const Eigen::Vector3d p = R * source.col(i) + T.p;
-      if (target.tree().Nearest(p, setting.max_correspondence_m, &nearest)) {
-        matches[static_cast<size_t>(i)] = nearest.index;
+      int& match = matches[static_cast<size_t>(i)];
+      double bound_m = setting.max_correspondence_m;
+      if (match >= 0) {
+        const double previous_m = (p - target_points.col(match)).norm();
+        bound_m = std::min(bound_m, previous_m * (1.0 + 1e-9) + 1e-12);
       }
+      match = target.tree().Nearest(p, bound_m, &nearest) ? nearest.index : -1;
     }
   });
   target.PrepareNormals(matches, setting.num_threads);
 
-  const Eigen::Matrix3Xd& target_points = target.points();
   const Eigen::Matrix3Xd& normals = target.normals().normals;
   const Eigen::VectorXd& planarity = target.normals().planarity;
   std::vector<NormalEquations> partial(
@@ -348,6 +360,7 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   geometry::Pose3d T = T_target_source_guess;
   T.q.normalize();
   NormalEquations last;
+  std::vector<int> matches;  // of the last point-to-plane iteration
   std::vector<WeightedPair> pairs;
   if (!point_to_plane) pairs.reserve(static_cast<size_t>(source.cols()));
 
@@ -356,7 +369,7 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
     double step_translation_m = 0.0;
     double step_rotation_rad = 0.0;
     if (point_to_plane) {
-      last = LinearizePointToPlane(source, target, T, setting);
+      last = LinearizePointToPlane(source, target, T, setting, &matches);
       RequireEnough(last.count, setting, source.cols());
       RequireConstrained(last);
       // Gauss-Newton step of eq. (4.11); LDLT on the 6x6 system, no explicit inverse.
