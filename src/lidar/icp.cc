@@ -103,8 +103,8 @@ struct NormalEquations {
 // the target's normals for them are prepared, then the equations are summed per chunk and
 // combined in chunk order.
 //
-// `matches` holds each source point's match of the previous iteration (-1: none; empty on the
-// first) and returns this one's. The nearest target point is no farther than the previous
+// `matches_io` holds each source point's match of the previous iteration (-1: none; empty on
+// the first) and returns this one's. The nearest target point is no farther than the previous
 // match, so the search starts with that distance as its bound, just above it so that the
 // previous match itself still counts: the same match as with max_correspondence_m, found
 // with less of the tree searched.
