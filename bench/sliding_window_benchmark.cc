@@ -4,6 +4,7 @@
 // split of an update (association, problem build, solve), its solver iterations, plane
 // lookups and the point-to-plane residuals in the window; the thread CPU time of an update
 // (robust to other load on the machine) and the median step of the calibration per update.
+// BM_PlaneLookup times the association's inner step, a plane lookup, on its own.
 #include <time.h>
 
 #include <algorithm>
@@ -16,8 +17,10 @@
 #include <benchmark/benchmark.h>
 
 #include "autocal/common/time.h"
+#include "autocal/estimation/plane_map.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/lidar/voxel_grid.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
@@ -160,6 +163,48 @@ BENCHMARK(BM_SlidingWindowUrban)
     ->Args({2000, 1})
     ->Iterations(1)
     ->Unit(benchmark::kSecond);
+
+// The association's inner step alone: the residual points of one sweep looked up in the plane
+// map of another (PlaneMap::FindPlane), placed with the true relative pose of the two sweeps'
+// first points (the motion within the sweeps left out: the mix of planes and failures is what
+// matters here). Time per lookup, with the share that finds a plane. Arguments: the second
+// sweep's offset from the first, in sweeps.
+void BM_PlaneLookup(benchmark::State& bench) {
+  const Log& log = UrbanLog();
+  const sim::Simulator& simulator = *log.simulator;
+  const sensors::Calibration& c = simulator.true_calibration();
+  const geometry::Pose3d T_I_L(c.q_I_L, c.p_I_L);
+  const auto T_W_L = [&](const lidar::LidarSweep& sweep) {
+    return simulator.ImuPoseAt(simulator.TimeOf(sweep.t_ns) + c.time_offset_lidar_imu_s) * T_I_L;
+  };
+  // The window's defaults: residual points one per 0.6 m voxel (at most 2000, evenly
+  // spread), map points one per 0.3 m voxel, in a map of the default options.
+  const lidar::LidarSweep& residual_sweep = log.data.sweeps[100];
+  const lidar::LidarSweep& map_sweep =
+      log.data.sweeps[static_cast<size_t>(100 + bench.range(0))];
+  const estimation::PlaneMap map(lidar::VoxelDownsample(map_sweep.cloud, 0.3).points);
+  const Eigen::Matrix3Xd residual = lidar::VoxelDownsample(residual_sweep.cloud, 0.6).points;
+  const geometry::Pose3d T_Lj_Lk = T_W_L(map_sweep).Inverse() * T_W_L(residual_sweep);
+  const Eigen::Index count = std::min<Eigen::Index>(2000, residual.cols());
+  Eigen::Matrix3Xd queries(3, count);
+  for (Eigen::Index i = 0; i < count; ++i) {
+    queries.col(i) = T_Lj_Lk * Eigen::Vector3d(residual.col(i * residual.cols() / count));
+  }
+  int64_t found = 0;
+  for (auto _ : bench) {
+    found = 0;
+    lidar::Plane plane;
+    for (Eigen::Index i = 0; i < count; ++i) found += map.FindPlane(queries.col(i), &plane);
+    benchmark::DoNotOptimize(found);
+  }
+  bench.SetItemsProcessed(bench.iterations() * count);
+  bench.counters["ns_per_lookup"] = benchmark::Counter(
+      static_cast<double>(bench.iterations() * count), benchmark::Counter::kIsRate |
+                                                           benchmark::Counter::kInvert);
+  bench.counters["found_share"] = static_cast<double>(found) / static_cast<double>(count);
+  bench.counters["map_points"] = static_cast<double>(map.size());
+}
+BENCHMARK(BM_PlaneLookup)->ArgName("offset")->Arg(-5)->Arg(5)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace autocal
