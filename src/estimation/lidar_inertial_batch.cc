@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
-#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -24,6 +23,7 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/firing_poses.h"
 #include "estimation/point_selection.h"
 
 namespace autocal {
@@ -177,16 +177,11 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       Eigen::Matrix3Xd& points = map_points_W[j];
       points.resize(3, static_cast<Eigen::Index>(selection[j].map_points.size()));
       Eigen::Index column = 0;
-      // The points of one firing share their time, and with it their IMU pose.
       const Keyframe& kf = (*keyframes)[j];
-      double pose_time_s = std::numeric_limits<double>::quiet_NaN();
-      factors::PropagatedPose<double> pose;
+      internal::FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, g_W);
       for (int i : selection[j].map_points) {
-        if (!(sweeps[j].cloud.time_s(i) == pose_time_s)) {
-          pose = factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, motion_of(j, i),
-                                            g_W);
-          pose_time_s = sweeps[j].cloud.time_s(i);
-        }
+        const factors::PropagatedPose<double>& pose =
+            poses.At(sweeps[j].cloud.time_s(i), [&] { return motion_of(j, i); });
         points.col(column++) = factors::PointInWorld(pose, calibration->q_I_L, calibration->p_I_L,
                                                      sweeps[j].cloud.points.col(i));
       }
@@ -227,19 +222,13 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
       const int k = static_cast<int>(sweep);
       const Keyframe& kf = (*keyframes)[sweep];
       int point_counter = 0;
-      // Residual points of one firing share their time, and with it their motion and IMU pose.
-      double pose_time_s = std::numeric_limits<double>::quiet_NaN();
-      factors::PointMotion motion;
-      factors::PropagatedPose<double> pose;
+      internal::FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, g_W);
       for (int i : selection[sweep].residual_points) {
-        if (!(sweeps[sweep].cloud.time_s(i) == pose_time_s)) {
-          motion = motion_of(sweep, i);
-          pose = factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, motion, g_W);
-          pose_time_s = sweeps[sweep].cloud.time_s(i);
-        }
+        const factors::PropagatedPose<double>& pose =
+            poses.At(sweeps[sweep].cloud.time_s(i), [&] { return motion_of(sweep, i); });
         factors::PointToSweepPlaneMeasurement m;
         m.p_L = sweeps[sweep].cloud.points.col(i);
-        m.motion = motion;
+        m.motion = poses.motion();
         const Eigen::Vector3d p_W =
             factors::PointInWorld(pose, calibration->q_I_L, calibration->p_I_L, m.p_L);
         const int first = point_counter++;

@@ -42,16 +42,16 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const 
   // kMaxNeighbors entries of the larger one took a fifth of a lookup's own time.
   constexpr int kUsualNeighbors = 8;
   Neighborhood local(3, k);
+  const auto fit = [&](lidar::Neighbor* neighbors) {
+    return tree_.Knn(p_W, k, options_.max_neighbor_distance_m, neighbors, local.data()) == k &&
+           FitLocalPlane(local, plane);
+  };
   if (k <= kUsualNeighbors) {
     std::array<lidar::Neighbor, kUsualNeighbors> neighbors;
-    return tree_.Knn(p_W, k, options_.max_neighbor_distance_m, neighbors.data(), local.data()) ==
-               k &&
-           FitLocalPlane(local, plane);
+    return fit(neighbors.data());
   }
   std::array<lidar::Neighbor, kMaxNeighbors> neighbors;
-  return tree_.Knn(p_W, k, options_.max_neighbor_distance_m, neighbors.data(), local.data()) ==
-             k &&
-         FitLocalPlane(local, plane);
+  return fit(neighbors.data());
 }
 
 bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const {

@@ -20,6 +20,7 @@
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/firing_poses.h"
 #include "estimation/sliding_window_internal.h"
 #include "estimation/window_solver.h"
 
@@ -61,17 +62,12 @@ Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const SlidingWi
                                     const sensors::Calibration& c) {
   Eigen::Matrix3Xd points_W(3, static_cast<Eigen::Index>(indices.size()));
   Eigen::Index column = 0;
-  // The points of one firing share their time, and with it their motion and IMU pose.
-  double pose_time_s = std::numeric_limits<double>::quiet_NaN();
-  factors::PropagatedPose<double> pose;
+  internal::FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, g_W);
   for (int i : indices) {
     const double time_s = sweep.cloud.time_s(i);
-    if (!(time_s == pose_time_s)) {
-      const factors::PointMotion m =
-          table.At(sweep.t_ns + SecondsToNs(time_s + c.time_offset_lidar_imu_s));
-      pose = factors::PropagateKeyframe(kf.q_W_I, kf.p_W_I, kf.v_W_I, 0.0, m, g_W);
-      pose_time_s = time_s;
-    }
+    const factors::PropagatedPose<double>& pose = poses.At(time_s, [&] {
+      return table.At(sweep.t_ns + SecondsToNs(time_s + c.time_offset_lidar_imu_s));
+    });
     points_W.col(column++) =
         factors::PointInWorld(pose, c.q_I_L, c.p_I_L, sweep.cloud.points.col(i));
   }
@@ -224,10 +220,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       }
       std::vector<bool> changed(P, false);
       SlidingWindowState& x = kf.state;
-      // Residual points of one firing share their time, and with it their motion and IMU pose.
-      double motion_time_s = std::numeric_limits<double>::quiet_NaN();
-      factors::PointMotion motion;
-      factors::PropagatedPose<double> pose;
+      internal::FiringPoses poses(x.q_W_I, x.p_W_I, x.v_W_I, g_W_);
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -261,12 +254,10 @@ void SlidingWindowEstimator::AssociatePoints() {
           tried[q] = epoch_now[q];
           if (!placed) {
             m.p_L = kf.residual_p_L.col(static_cast<Eigen::Index>(r));
-            if (!(kf.residual_time_s[r] == motion_time_s)) {
-              motion = motion_at(s, kf.residual_time_s[r]);
-              pose = factors::PropagateKeyframe(x.q_W_I, x.p_W_I, x.v_W_I, 0.0, motion, g_W_);
-              motion_time_s = kf.residual_time_s[r];
-            }
-            m.motion = motion;
+            const double time_s = kf.residual_time_s[r];
+            const factors::PropagatedPose<double>& pose =
+                poses.At(time_s, [&] { return motion_at(s, time_s); });
+            m.motion = poses.motion();
             p_W = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, m.p_L);
             placed = true;
           }

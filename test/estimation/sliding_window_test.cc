@@ -232,11 +232,11 @@ TEST(SlidingWindowMapOccupancy, RejectsOnlyLookupsThatCannotSucceed) {
   }
   PlaneMapOptions plane_options;
   const PlaneMap map(points, plane_options);
-  const internal::MapOccupancy occupancy(
-      points, plane_options.max_neighbor_distance_m + std::sqrt(3.0) * plane_options.voxel_m);
+  const double cell_m =
+      plane_options.max_neighbor_distance_m + std::sqrt(3.0) * plane_options.voxel_m;
+  const internal::MapOccupancy occupancy(points, cell_m);
   // The count it tests, counted point by point: the map points whose cell is within one of
   // the query's along every axis.
-  const double cell_m = plane_options.max_neighbor_distance_m + std::sqrt(3.0) * plane_options.voxel_m;
   const Eigen::Vector3d origin = points.rowwise().minCoeff();
   const auto cell_of = [&](const Eigen::Vector3d& p) {
     return Eigen::Vector3d(((p - origin) * (1.0 / cell_m)).array().floor());
