@@ -100,6 +100,11 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   std::vector<double> update_ms, update_cpu_ms, association_ms, build_ms, solve_ms,
       marginalization_ms, points, iterations, passes, lookups, rotation_step_deg, translation_step_mm,
       offset_step_ms;
+  // The updates whose extrinsic had settled (Eq. SW15: points try settled_partner_count
+  // partners).
+  std::vector<double> settled_update_ms, settled_association_ms, settled_build_ms,
+      settled_solve_ms, settled_lookups;
+  double q_I_L_error_deg = 0.0;
   for (auto _ : bench) {
     estimation::SlidingWindowEstimator estimator(options, log.simulator->nominal_calibration(),
                                                  initial);
@@ -132,8 +137,18 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       iterations.push_back(timing.solver_iterations);
       passes.push_back(timing.solver_passes);
       lookups.push_back(timing.plane_lookups);
+      if (timing.extrinsic_settled) {
+        settled_update_ms.push_back(update_ms.back());
+        settled_association_ms.push_back(association_ms.back());
+        settled_build_ms.push_back(build_ms.back());
+        settled_solve_ms.push_back(solve_ms.back());
+        settled_lookups.push_back(lookups.back());
+      }
       if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
     }
+    q_I_L_error_deg = geometry::AngularDistance(estimator.calibration().q_I_L,
+                                                log.simulator->true_calibration().q_I_L) *
+                      180.0 / M_PI;
   }
   bench.counters["updates"] = static_cast<double>(update_ms.size());
   bench.counters["update_p50_ms"] = Percentile(update_ms, 0.5);
@@ -153,6 +168,15 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   bench.counters["lookups_p50"] = Percentile(lookups, 0.5);
   bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
   bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);
+  bench.counters["settled_share"] =
+      static_cast<double>(settled_update_ms.size()) / static_cast<double>(update_ms.size());
+  bench.counters["settled_update_p50_ms"] = Percentile(settled_update_ms, 0.5);
+  bench.counters["settled_update_p99_ms"] = Percentile(settled_update_ms, 0.99);
+  bench.counters["settled_association_p50_ms"] = Percentile(settled_association_ms, 0.5);
+  bench.counters["settled_build_p50_ms"] = Percentile(settled_build_ms, 0.5);
+  bench.counters["settled_solve_p50_ms"] = Percentile(settled_solve_ms, 0.5);
+  bench.counters["settled_lookups_p50"] = Percentile(settled_lookups, 0.5);
+  bench.counters["q_I_L_error_end_deg"] = q_I_L_error_deg;
 }
 // Arguments: residual points per sweep; reuse between updates (1: the default tolerances,
 // 0: every keyframe re-paired and every plane map rebuilt at every update).

@@ -70,6 +70,9 @@ void CheckOptions(const SlidingWindowOptions& o) {
       std::count(o.partner_keyframe_offsets.begin(), o.partner_keyframe_offsets.end(), 0) > 0) {
     throw Error("SlidingWindowOptions: partner_keyframe_offsets must be non-empty and non-zero");
   }
+  if (o.settled_partner_count < 1) {
+    throw Error("SlidingWindowOptions: settled_partner_count must be >= 1");
+  }
   CheckPositive(o.wheel_non_holonomic_sigma_m_s, "wheel_non_holonomic_sigma_m_s");
   if (!(o.wheel_non_holonomic_correlation_s >= 0.0) ||
       !std::isfinite(o.wheel_non_holonomic_correlation_s)) {

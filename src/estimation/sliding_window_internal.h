@@ -160,6 +160,9 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // position in partner_keyframe_offsets of its partner (-1: none) and its measurement; the
   // points grouped by partner; the range of its farthest residual point.
   std::vector<int> partner_position;
+  // How many partner positions its points try (Eq. SW15): all when the extrinsic was still
+  // converging at its first pairing, settled_partner_count when it had settled.
+  size_t partner_walk = 0;
   std::vector<factors::PointToSweepPlaneMeasurement> pairs;
   std::vector<internal::SweepPointGroup> point_groups;
   double residual_max_range_m = 0.0;

@@ -100,7 +100,8 @@ geometry::Pose3d LidarPose(const SlidingWindowState& x, const sensors::Calibrati
 // map points deskewed into L_j at that instant; it is rebuilt when the deskew moved a point by
 // more than map_rebuild_tolerance_m (Eq. SW4). A residual point due for pairing (below) is
 // placed in W at the current estimate, p_W, and tries the sweeps j = k + o for the offsets o
-// of partner_keyframe_offsets (starting at a different one for consecutive points): the first
+// of partner_keyframe_offsets (starting at a different one for consecutive points; only the
+// first settled_partner_count once the extrinsic has settled, Eq. SW15): the first
 // that holds a plane within max_point_to_plane_m of T_Lj_W p_W is its partner; a lookup that
 // cannot succeed is rejected by the map's occupancy first (Eq. SW6). The plane is kept in L_j
 // (Eq. SW3), so in the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the
@@ -161,9 +162,10 @@ void SlidingWindowEstimator::AssociatePoints() {
   });
 
   // Pairing (docs/sliding_window.md, "Association" and "Reuse between updates"). Residual
-  // point r of keyframe k tries the partner offsets in the order o_{(r + a) mod P},
-  // a = 0 .. P - 1, and is paired with the first sweep k + o in the window that holds a plane
-  // for it. What a try found (a plane, or none) is kept with the relative pose T_Lj_Lk it was
+  // point r of keyframe k tries the first S = settled_partner_count partner offsets in the
+  // order o_{(r + a) mod S}, a = 0 .. S - 1, then (unless the extrinsic had settled when k was
+  // first paired, Eq. SW15) the other P - S likewise, and is paired with the first sweep
+  // k + o in the window that holds a plane for it. What a try found (a plane, or none) is kept with the relative pose T_Lj_Lk it was
   // made at, and holds while that pose has moved by at most reassociation_tolerance_m at the
   // point's range (Eq. SW4); only tries that are missing (a sweep that entered the window, a
   // partner that left it) or stale are made again. The points of k on planes of sweep j form
@@ -174,12 +176,18 @@ void SlidingWindowEstimator::AssociatePoints() {
   const int num_partners = static_cast<int>(partners.size());
   const double tolerance_m = options_.reassociation_tolerance_m;
   // Eq. SW14: the gate widens while the extrinsic rotation moves.
-  const double gate_per_range =
+  const double excess_rotation_rad =
       recent_q_I_L_.empty()
           ? 0.0
-          : options_.gate_extrinsic_factor *
-                std::max(0.0, geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L) -
-                                  options_.gate_extrinsic_free_deg * kDegToRad);
+          : std::max(0.0, geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L) -
+                              options_.gate_extrinsic_free_deg * kDegToRad);
+  const double gate_per_range = options_.gate_extrinsic_factor * excess_rotation_rad;
+  // Eq. SW15: the points try partner positions [0, S) first, the others after them; the points
+  // of a keyframe first paired once the extrinsic rotation has settled only [0, S).
+  const size_t S = std::min(static_cast<size_t>(options_.settled_partner_count),
+                            static_cast<size_t>(num_partners));
+  timing_.extrinsic_settled =
+      static_cast<int>(recent_q_I_L_.size()) >= options_.window_size && excess_rotation_rad == 0.0;
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t kk = begin; kk < end; ++kk) {
@@ -193,7 +201,9 @@ void SlidingWindowEstimator::AssociatePoints() {
         kf.pairs.resize(num_points);
         kf.tried_at.assign(num_points * P, -1);
         kf.tries.assign(P, {});
+        kf.partner_walk = timing_.extrinsic_settled ? S : P;
       }
+      const size_t walk = kf.partner_walk;
       // Per partner position q: its window position (-1: not in the window), the relative
       // pose now, and per earlier try the change to now, (|dp|, angle) of Eq. SW4 (infinite
       // when either sweep's map was rebuilt since: the deskew moved).
@@ -221,6 +231,10 @@ void SlidingWindowEstimator::AssociatePoints() {
       std::vector<bool> changed(P, false);
       SlidingWindowState& x = kf.state;
       internal::FiringPoses poses(x.q_W_I, x.p_W_I, x.v_W_I, g_W_);
+      // The a-th partner position point r tries (Eq. SW15).
+      const auto position = [S, P](size_t r, size_t a) {
+        return a < S ? (r + a) % S : S + (r + a - S) % (P - S);
+      };
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -233,9 +247,8 @@ void SlidingWindowEstimator::AssociatePoints() {
         factors::PointToSweepPlaneMeasurement m;
         Eigen::Vector3d p_W;
         bool placed = false;
-        const size_t first = r % P;
-        for (size_t a = 0; a < P; ++a) {
-          const size_t q = (first + a) % P;
+        for (size_t a = 0; a < walk; ++a) {
+          const size_t q = position(r, a);
           const int j = partner_of[q];
           if (j < 0) continue;
           if (tried[q] >= 0 && tolerance_m > 0.0) {
@@ -284,7 +297,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           kf.partner_position[r] = static_cast<int>(q);
           kf.pairs[r] = m;
           // The partners after it in its list are tried again if this pair fails.
-          for (size_t b = a + 1; b < P; ++b) tried[(first + b) % P] = -1;
+          for (size_t b = a + 1; b < P; ++b) tried[position(r, b)] = -1;
           break;
         }
       }

@@ -148,7 +148,16 @@ struct SlidingWindowOptions {
   // tried in this order, starting at a different one for consecutive points. Partners a few
   // sweeps apart have moved relative to the point's sweep, which makes the extrinsic and time
   // offset observable; they must still overlap it, and lie in the window.
+  // A point tries the first settled_partner_count offsets first (starting at a different one
+  // for consecutive points), then the others (likewise); once the extrinsic rotation has
+  // settled only the first settled_partner_count (Eq. SW15). Settled: window_size updates have
+  // been made and q_I_L moved by at most gate_extrinsic_free_deg over the last window_size.
+  // While the extrinsic is degrees off, sweeps far apart disagree by more, and points that
+  // find no plane there find one in nearer sweeps; once it has settled, the pairs five sweeps
+  // apart determine it as well as all of them (docs/sliding_window.md, Eq. SW15), at a third
+  // of the plane lookups.
   std::vector<int> partner_keyframe_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
+  int settled_partner_count = 2;
   // Local plane fitting in each sweep's map.
   PlaneMapOptions plane_map;
   // Outlier gate: a point farther than this from the plane found for it is not associated
@@ -242,6 +251,7 @@ struct SlidingWindowUpdateTiming {
   int solver_iterations = 0;  // Levenberg-Marquardt steps taken (all passes)
   int solver_passes = 0;      // linearizations of the points (Eq. SW12)
   int plane_lookups = 0;      // k-NN plane lookups (those the occupancy test, Eq. SW6, let by)
+  bool extrinsic_settled = false;  // points tried settled_partner_count partners (Eq. SW15)
 };
 
 // Covariance of the estimated calibration blocks in tangent coordinates (right-perturbed
