@@ -59,6 +59,7 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPositive(o.max_point_to_plane_m, "max_point_to_plane_m");
   CheckNonNegative(o.gate_extrinsic_factor, "gate_extrinsic_factor");
   CheckNonNegative(o.gate_extrinsic_free_deg, "gate_extrinsic_free_deg");
+  CheckNonNegative(o.settled_extrinsic_deg, "settled_extrinsic_deg");
   for (double tolerance : {o.reassociation_tolerance_m, o.map_rebuild_tolerance_m,
                            o.relinearization_tolerance_m}) {
     if (!(tolerance >= 0.0) || !std::isfinite(tolerance)) {

@@ -176,18 +176,17 @@ void SlidingWindowEstimator::AssociatePoints() {
   const int num_partners = static_cast<int>(partners.size());
   const double tolerance_m = options_.reassociation_tolerance_m;
   // Eq. SW14: the gate widens while the extrinsic rotation moves.
-  const double excess_rotation_rad =
-      recent_q_I_L_.empty()
-          ? 0.0
-          : std::max(0.0, geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L) -
-                              options_.gate_extrinsic_free_deg * kDegToRad);
-  const double gate_per_range = options_.gate_extrinsic_factor * excess_rotation_rad;
+  const double recent_rotation_rad =
+      recent_q_I_L_.empty() ? 0.0 : geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L);
+  const double gate_per_range =
+      options_.gate_extrinsic_factor *
+      std::max(0.0, recent_rotation_rad - options_.gate_extrinsic_free_deg * kDegToRad);
   // Eq. SW15: the points try partner positions [0, S) first, the others after them; the points
   // of a keyframe first paired once the extrinsic rotation has settled only [0, S).
   const size_t S = std::min(static_cast<size_t>(options_.settled_partner_count),
                             static_cast<size_t>(num_partners));
-  timing_.extrinsic_settled =
-      static_cast<int>(recent_q_I_L_.size()) >= options_.window_size && excess_rotation_rad == 0.0;
+  timing_.extrinsic_settled = static_cast<int>(recent_q_I_L_.size()) >= options_.window_size &&
+                              recent_rotation_rad <= options_.settled_extrinsic_deg * kDegToRad;
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t kk = begin; kk < end; ++kk) {
