@@ -165,11 +165,12 @@ void SlidingWindowEstimator::AssociatePoints() {
   // point r of keyframe k tries the first S = settled_partner_count partner offsets in the
   // order o_{(r + a) mod S}, a = 0 .. S - 1, then (unless the extrinsic had settled when k was
   // first paired, Eq. SW15) the other P - S likewise, and is paired with the first sweep
-  // k + o in the window that holds a plane for it. What a try found (a plane, or none) is kept with the relative pose T_Lj_Lk it was
-  // made at, and holds while that pose has moved by at most reassociation_tolerance_m at the
-  // point's range (Eq. SW4); only tries that are missing (a sweep that entered the window, a
-  // partner that left it) or stale are made again. The points of k on planes of sweep j form
-  // one group factor (Eq. P9); only the groups that changed are rebuilt.
+  // k + o in the window that holds a plane for it. What a try found (a plane, or none) is
+  // kept with the relative pose T_Lj_Lk it was made at, and holds while that pose has moved
+  // by at most reassociation_tolerance_m at the point's range (Eq. SW4); only tries that are
+  // missing (a sweep that entered the window, a partner that left it) or stale are made
+  // again. The points of k on planes of sweep j form one group factor (Eq. P9); only the
+  // groups that changed are rebuilt.
   std::map<int, int> sweep_of_id;
   for (int k = 0; k < num_sweeps; ++k) sweep_of_id[sweeps[static_cast<size_t>(k)].kf->id] = k;
   const std::vector<int>& partners = options_.partner_keyframe_offsets;

@@ -144,18 +144,17 @@ struct SlidingWindowOptions {
   double map_voxel_m = 0.3;
   double min_range_m = 2.0;  // closer points (the car itself) are ignored
   // Association (docs/sliding_window.md, "Association"): a residual point of window keyframe
-  // k is paired with a plane of the sweep of keyframe k + o, the offsets o (in keyframes)
-  // tried in this order, starting at a different one for consecutive points. Partners a few
-  // sweeps apart have moved relative to the point's sweep, which makes the extrinsic and time
-  // offset observable; they must still overlap it, and lie in the window.
-  // A point tries the first settled_partner_count offsets first (starting at a different one
-  // for consecutive points), then the others (likewise); once the extrinsic rotation has
-  // settled only the first settled_partner_count (Eq. SW15). Settled: window_size updates have
-  // been made and q_I_L moved by at most settled_extrinsic_deg over the last window_size.
-  // While the extrinsic is degrees off, sweeps far apart disagree by more, and points that
-  // find no plane there find one in nearer sweeps; once it has settled, the pairs five sweeps
-  // apart determine it as well as all of them (docs/sliding_window.md, Eq. SW15), at a third
-  // of the plane lookups.
+  // k is paired with a plane of the sweep of keyframe k + o, for the first offset o (in
+  // keyframes) that gives one. Partners a few sweeps apart have moved relative to the point's
+  // sweep, which makes the extrinsic and time offset observable; they must still overlap it,
+  // and lie in the window. A point tries the first settled_partner_count offsets, starting at
+  // a different one for consecutive points, then the others likewise; the points of a
+  // keyframe first paired once the extrinsic rotation had settled try only the first
+  // settled_partner_count (Eq. SW15). Settled: window_size updates have been made and q_I_L
+  // moved by at most settled_extrinsic_deg over the last window_size. While the extrinsic is
+  // degrees off, a wrong extrinsic places the points of distant sweeps too far off for their
+  // planes and nearer sweeps pair them; once it has settled, the pairs five sweeps apart
+  // determine it as well as all of them, at a third of the plane lookups.
   std::vector<int> partner_keyframe_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
   int settled_partner_count = 2;
   double settled_extrinsic_deg = 0.5;
