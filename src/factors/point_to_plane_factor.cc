@@ -81,14 +81,6 @@ ceres::CostFunction* CreatePointToPlaneAutoDiff(const PointToPlaneMeasurement& m
       new PointToPlaneResidual(measurement, g_W));
 }
 
-Eigen::Vector3d PointInWorld(const Eigen::Quaterniond& q_W_I, const Eigen::Vector3d& p_W_I,
-                             const Eigen::Vector3d& v_W_I, const PointMotion& motion,
-                             const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
-                             const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L) {
-  return PointInWorld(PropagateKeyframe(q_W_I, p_W_I, v_W_I, 0.0, motion, g_W), q_I_L, p_I_L,
-                      p_L);
-}
-
 Eigen::Vector3d PointInWorld(const PropagatedPose<double>& pose, const Eigen::Quaterniond& q_I_L,
                              const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L) {
   return pose.R_W_I * (q_I_L * p_L + p_I_L) + pose.p_W_I;

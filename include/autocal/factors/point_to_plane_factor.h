@@ -126,13 +126,9 @@ struct PointToPlaneResidual {
 ceres::CostFunction* CreatePointToPlaneAutoDiff(const PointToPlaneMeasurement& measurement,
                                                 const Eigen::Vector3d& g_W);
 
-// A point measured by the LiDAR in W under the current estimate (Eq. P1-P3 at delta = 0).
-Eigen::Vector3d PointInWorld(const Eigen::Quaterniond& q_W_I, const Eigen::Vector3d& p_W_I,
-                             const Eigen::Vector3d& v_W_I, const PointMotion& motion,
-                             const Eigen::Vector3d& g_W, const Eigen::Quaterniond& q_I_L,
-                             const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L);
-// The same from the IMU pose at the point's instant, PropagateKeyframe(q_W_I, p_W_I, v_W_I,
-// 0, motion, g_W): the points of one firing share it.
+// A point measured by the LiDAR in W under the current estimate (Eq. P1-P3 at delta = 0),
+// from the IMU pose at the point's instant, PropagateKeyframe(q_W_I, p_W_I, v_W_I, 0, motion,
+// g_W): the points of one firing share it.
 Eigen::Vector3d PointInWorld(const PropagatedPose<double>& pose, const Eigen::Quaterniond& q_I_L,
                              const Eigen::Vector3d& p_I_L, const Eigen::Vector3d& p_L);
 
