@@ -11,6 +11,7 @@
 #include <cmath>
 #include <memory>
 #include <numeric>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -73,6 +74,29 @@ double Percentile(std::vector<double> values, double q) {
   return values[i];
 }
 
+// The split of a set of updates: total, association, build and solve (ms), plane lookups.
+struct UpdateSplit {
+  std::vector<double> update_ms, association_ms, build_ms, solve_ms, lookups;
+
+  void Add(const estimation::SlidingWindowUpdateTiming& timing) {
+    update_ms.push_back(1e3 * timing.total_s);
+    association_ms.push_back(1e3 * timing.association_s);
+    build_ms.push_back(1e3 * timing.build_s);
+    solve_ms.push_back(1e3 * timing.solve_s);
+    lookups.push_back(timing.plane_lookups);
+  }
+  // Counters `prefix`update_p50_ms, ..._p99_ms, association_p50_ms, build_p50_ms,
+  // solve_p50_ms and lookups_p50.
+  void Report(const std::string& prefix, benchmark::State* bench) const {
+    bench->counters[prefix + "update_p50_ms"] = Percentile(update_ms, 0.5);
+    bench->counters[prefix + "update_p99_ms"] = Percentile(update_ms, 0.99);
+    bench->counters[prefix + "association_p50_ms"] = Percentile(association_ms, 0.5);
+    bench->counters[prefix + "build_p50_ms"] = Percentile(build_ms, 0.5);
+    bench->counters[prefix + "solve_p50_ms"] = Percentile(solve_ms, 0.5);
+    bench->counters[prefix + "lookups_p50"] = Percentile(lookups, 0.5);
+  }
+};
+
 void BM_SlidingWindowUrban(benchmark::State& bench) {
   const Log& log = UrbanLog();
   const io::SensorsConfig config = log.simulator->sensors_config();
@@ -98,13 +122,11 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   initial.b_g = log.data.imu.gyro_bias.front();
   initial.b_a = log.data.imu.accel_bias.front();
 
-  std::vector<double> update_ms, update_cpu_ms, association_ms, build_ms, solve_ms,
-      marginalization_ms, points, iterations, passes, lookups, rotation_step_deg, translation_step_mm,
-      offset_step_ms;
-  // The updates whose extrinsic had settled (Eq. SW15: points try settled_partner_count
-  // partners).
-  std::vector<double> settled_update_ms, settled_association_ms, settled_build_ms,
-      settled_solve_ms, settled_lookups;
+  std::vector<double> update_cpu_ms, marginalization_ms, points, iterations, passes,
+      rotation_step_deg, translation_step_mm, offset_step_ms;
+  // Every update, and those whose extrinsic had settled (Eq. SW15: points try
+  // settled_partner_count partners).
+  UpdateSplit all, settled;
   double q_I_L_error_deg = 0.0;
   for (auto _ : bench) {
     estimation::SlidingWindowEstimator estimator(options, log.simulator->nominal_calibration(),
@@ -122,7 +144,8 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       if (estimator.counters().updates == updates) continue;
       updates = estimator.counters().updates;
       const estimation::SlidingWindowUpdateTiming& timing = estimator.last_update_timing();
-      update_ms.push_back(1e3 * timing.total_s);
+      all.Add(timing);
+      if (timing.extrinsic_settled) settled.Add(timing);
       update_cpu_ms.push_back(1e3 * (ThreadCpuSeconds() - cpu_start_s));
       const sensors::Calibration& c = estimator.calibration();
       rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * 180.0 /
@@ -131,53 +154,32 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       offset_step_ms.push_back(1e3 * std::abs(c.time_offset_lidar_imu_s -
                                               previous.time_offset_lidar_imu_s));
       previous = c;
-      association_ms.push_back(1e3 * timing.association_s);
-      build_ms.push_back(1e3 * timing.build_s);
-      solve_ms.push_back(1e3 * timing.solve_s);
       points.push_back(estimator.last_associated_points());
       iterations.push_back(timing.solver_iterations);
       passes.push_back(timing.solver_passes);
-      lookups.push_back(timing.plane_lookups);
-      if (timing.extrinsic_settled) {
-        settled_update_ms.push_back(update_ms.back());
-        settled_association_ms.push_back(association_ms.back());
-        settled_build_ms.push_back(build_ms.back());
-        settled_solve_ms.push_back(solve_ms.back());
-        settled_lookups.push_back(lookups.back());
-      }
       if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
     }
     q_I_L_error_deg = geometry::AngularDistance(estimator.calibration().q_I_L,
                                                 log.simulator->true_calibration().q_I_L) *
                       180.0 / M_PI;
   }
-  bench.counters["updates"] = static_cast<double>(update_ms.size());
-  bench.counters["update_p50_ms"] = Percentile(update_ms, 0.5);
-  bench.counters["update_p99_ms"] = Percentile(update_ms, 0.99);
+  bench.counters["updates"] = static_cast<double>(all.update_ms.size());
+  all.Report("", &bench);
   bench.counters["update_cpu_p50_ms"] = Percentile(update_cpu_ms, 0.5);
   bench.counters["update_cpu_p99_ms"] = Percentile(update_cpu_ms, 0.99);
   bench.counters["rotation_step_p50_deg"] = Percentile(rotation_step_deg, 0.5);
   bench.counters["translation_step_p50_mm"] = Percentile(translation_step_mm, 0.5);
   bench.counters["offset_step_p50_ms"] = Percentile(offset_step_ms, 0.5);
-  bench.counters["association_p50_ms"] = Percentile(association_ms, 0.5);
-  bench.counters["build_p50_ms"] = Percentile(build_ms, 0.5);
-  bench.counters["solve_p50_ms"] = Percentile(solve_ms, 0.5);
   bench.counters["points_p50"] = Percentile(points, 0.5);  // paired residual points, window
   bench.counters["points_per_sweep_p50"] = Percentile(points, 0.5) / options.window_size;
   bench.counters["iterations_p50"] = Percentile(iterations, 0.5);
   bench.counters["passes_mean"] =
       passes.empty() ? 0.0 : std::accumulate(passes.begin(), passes.end(), 0.0) / passes.size();
-  bench.counters["lookups_p50"] = Percentile(lookups, 0.5);
   bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
   bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);
-  bench.counters["settled_share"] =
-      static_cast<double>(settled_update_ms.size()) / static_cast<double>(update_ms.size());
-  bench.counters["settled_update_p50_ms"] = Percentile(settled_update_ms, 0.5);
-  bench.counters["settled_update_p99_ms"] = Percentile(settled_update_ms, 0.99);
-  bench.counters["settled_association_p50_ms"] = Percentile(settled_association_ms, 0.5);
-  bench.counters["settled_build_p50_ms"] = Percentile(settled_build_ms, 0.5);
-  bench.counters["settled_solve_p50_ms"] = Percentile(settled_solve_ms, 0.5);
-  bench.counters["settled_lookups_p50"] = Percentile(settled_lookups, 0.5);
+  bench.counters["settled_share"] = static_cast<double>(settled.update_ms.size()) /
+                                   static_cast<double>(all.update_ms.size());
+  settled.Report("settled_", &bench);
   bench.counters["q_I_L_error_end_deg"] = q_I_L_error_deg;
 }
 // Arguments: residual points per sweep (candidates: about a third to a half pair with a
