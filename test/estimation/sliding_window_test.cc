@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -132,36 +133,33 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   lidar::LidarSweep no_time = SmallSweep(kStart + 100'000'000);
   no_time.cloud.time_s.resize(0);
   EXPECT_THROW(estimator.AddSweep(no_time), Error);
+  // Options that the constructor refuses, each changed from the defaults.
+  const auto expect_rejected = [](const char* what,
+                                  const std::function<void(SlidingWindowOptions*)>& change) {
+    SCOPED_TRACE(what);
+    SlidingWindowOptions options;
+    change(&options);
+    EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
+  };
+  expect_rejected("window_size 1", [](SlidingWindowOptions* o) { o->window_size = 1; });
+  expect_rejected("a sweep paired with itself",
+                  [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {-5, 0}; });
+  expect_rejected("no partners", [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {}; });
+  expect_rejected("settled_partner_count 0",
+                  [](SlidingWindowOptions* o) { o->settled_partner_count = 0; });
+  expect_rejected("settled_extrinsic_deg < 0",
+                  [](SlidingWindowOptions* o) { o->settled_extrinsic_deg = -0.1; });
+  expect_rejected("max_point_to_plane_m 0",
+                  [](SlidingWindowOptions* o) { o->max_point_to_plane_m = 0.0; });
+  expect_rejected("wheel_gyro_mean_span_s < 0",
+                  [](SlidingWindowOptions* o) { o->wheel_gyro_mean_span_s = -0.01; });
+  expect_rejected("min_keyframe_interval_s < 0",
+                  [](SlidingWindowOptions* o) { o->min_keyframe_interval_s = -0.01; });
+  expect_rejected("gate_extrinsic_factor < 0",
+                  [](SlidingWindowOptions* o) { o->gate_extrinsic_factor = -0.25; });
+  expect_rejected("gate_extrinsic_free_deg NaN",
+                  [](SlidingWindowOptions* o) { o->gate_extrinsic_free_deg = std::nan(""); });
   SlidingWindowOptions options;
-  options.window_size = 1;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.partner_keyframe_offsets = {-5, 0};  // a sweep paired with itself
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options.partner_keyframe_offsets.clear();
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.settled_partner_count = 0;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.settled_extrinsic_deg = -0.1;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.max_point_to_plane_m = 0.0;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.wheel_gyro_mean_span_s = -0.01;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.min_keyframe_interval_s = -0.01;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.gate_extrinsic_factor = -0.25;
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
-  options.gate_extrinsic_free_deg = std::nan("");
-  EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
-  options = SlidingWindowOptions();
   options.gate_extrinsic_factor = 0.0;  // a fixed gate
   EXPECT_NO_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()));
 }
