@@ -92,7 +92,10 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
       use_wheel && (Estimated(b.T_I_V.rotation.mode) || Estimated(b.T_I_V.translation.mode));
   e.gnss_lever_arm = use_gnss && Estimated(b.p_I_A_m.mode);
 
+  // The priors are the nominal calibration's, as in the offline calibration: the initializer's
+  // values only start the window.
   estimation::SlidingWindowCalibrationPrior& p = w.calibration_prior;
+  p.mean = dataset.sensors.nominal_calibration;
   const io::CalibrationUncertainty& u = dataset.sensors.nominal_uncertainty;
   p.extrinsic_rotation_deg =
       PriorSigma(b.T_I_L.rotation, u.T_I_L.sigma_rot_deg, p.extrinsic_rotation_deg);

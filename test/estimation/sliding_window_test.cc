@@ -159,9 +159,45 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
                   [](SlidingWindowOptions* o) { o->gate_extrinsic_factor = -0.25; });
   expect_rejected("gate_extrinsic_free_deg NaN",
                   [](SlidingWindowOptions* o) { o->gate_extrinsic_free_deg = std::nan(""); });
+  expect_rejected("calibration_prior.mean with a NaN", [](SlidingWindowOptions* o) {
+    o->calibration_prior.mean = sensors::Calibration();
+    o->calibration_prior.mean->p_I_L.y() = std::nan("");
+  });
+  expect_rejected("calibration_prior.mean with a zero quaternion", [](SlidingWindowOptions* o) {
+    o->calibration_prior.mean = sensors::Calibration();
+    o->calibration_prior.mean->q_I_V.coeffs().setZero();
+  });
   SlidingWindowOptions options;
   options.gate_extrinsic_factor = 0.0;  // a fixed gate
   EXPECT_NO_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()));
+}
+
+// The calibration priors sit at calibration_prior.mean when it is set, else at the initial
+// calibration. At rest the lever arm and the time offset are not observed, so the priors alone
+// place them.
+TEST(SlidingWindowStreaming, CentresTheCalibrationPriorsAtTheirMean) {
+  const sensors::Calibration initial;
+  sensors::Calibration mean = initial;
+  mean.p_I_L += Eigen::Vector3d(0.05, -0.02, 0.01);
+  mean.time_offset_lidar_imu_s += 0.003;
+  for (const bool with_mean : {false, true}) {
+    SCOPED_TRACE(with_mean ? "with a mean" : "without");
+    SlidingWindowOptions options = FastOptions();
+    if (with_mean) options.calibration_prior.mean = mean;
+    SlidingWindowEstimator estimator(options, initial, StillState());
+    int64_t t = kStart - kImuStep;
+    estimator.AddImu(StillImu(t));
+    for (int k = 1; k <= 4; ++k) {
+      const int64_t t_sweep = kStart + k * 100'000'000;
+      estimator.AddSweep(SmallSweep(t_sweep));
+      while (t < t_sweep + 200'000'000) estimator.AddImu(StillImu(t += kImuStep));
+    }
+    ASSERT_EQ(estimator.counters().updates, 4);
+    const sensors::Calibration& expected = with_mean ? mean : initial;
+    EXPECT_LT((estimator.calibration().p_I_L - expected.p_I_L).norm(), 1e-4);
+    EXPECT_NEAR(estimator.calibration().time_offset_lidar_imu_s,
+                expected.time_offset_lidar_imu_s, 1e-5);
+  }
 }
 
 TEST(SlidingWindowStreaming, BuffersSweepUntilImuCoversIt) {

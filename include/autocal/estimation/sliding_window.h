@@ -59,10 +59,16 @@ struct SlidingWindowEstimatedBlocks {
   bool gnss_lever_arm = true;         // p_I_A
 };
 
-// 1-sigma of the priors that tie each estimated calibration block to its initial value.
+// The priors that tie each estimated calibration block to a prior value, with these 1-sigma.
 // They are added once and never marginalized, so they regularize directions the first
 // seconds of driving do not excite.
 struct SlidingWindowCalibrationPrior {
+  // The value the priors are centred at: the calibration the sigmas belong to, such as a
+  // hand-measured nominal one. Unset: the estimator's initial calibration. A starting value
+  // estimated from the same log (the initializer's) is no prior: centred there, the sigmas
+  // would count its data twice and hold on to its error (docs/sliding_window.md, "Calibration
+  // priors").
+  std::optional<sensors::Calibration> mean;
   double extrinsic_rotation_deg = 3.0;
   double extrinsic_translation_m = 0.1;
   double time_offset_s = 0.01;
