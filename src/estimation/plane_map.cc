@@ -58,28 +58,34 @@ bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) con
   const Eigen::Vector3d centroid = local.rowwise().mean();
   const Neighborhood centered = local.colwise() - centroid;
   const Eigen::Matrix3d scatter = centered * centered.transpose();
-  // Most rejected neighbourhoods are lines (points of one scan ring). The closed-form
-  // eigenvalues reject those, and blobs, without the iterative solver; a neighbourhood within
-  // kGateMargin of the largest eigenvalue of a gate goes on to the solver, so that the
-  // decision is the solver's.
+  // The closed-form eigen-decomposition decides the gates (line, blob) and gives the normal
+  // when both pass or fail by more than kGateMargin of the largest eigenvalue; a neighbourhood
+  // nearer a gate goes on to the iterative solver, so that the decision is the solver's. The
+  // flatness gate keeps l0 apart from l1 (l1 - l0 >= min_flatness l1), which is what makes the
+  // closed form's eigenvector of l0 accurate (plane_map_test.cc).
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> direct;
-  direct.computeDirect(scatter, Eigen::EigenvaluesOnly);
+  direct.computeDirect(scatter, Eigen::ComputeEigenvectors);
   const Eigen::Vector3d e = direct.eigenvalues();  // ascending
   const double margin = kGateMargin * e(2);
-  if (e(2) > 0.0 && (e(1) + margin < options_.min_spread_ratio * e(2) ||
-                     (e(1) - e(0)) + margin < options_.min_flatness * e(1))) {
-    return false;
+  const double spread = e(1) - options_.min_spread_ratio * e(2);
+  const double flatness = (e(1) - e(0)) - options_.min_flatness * e(1);
+  if (e(2) > 0.0 && (spread + margin < 0.0 || flatness + margin < 0.0)) return false;
+  Eigen::Vector3d normal;
+  if (e(0) >= 0.0 && spread > margin && flatness > margin) {
+    normal = direct.eigenvectors().col(0);
+  } else {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
+    const Eigen::Vector3d l = solver.eigenvalues();  // ascending
+    if (l(2) <= 0.0 || l(1) < options_.min_spread_ratio * l(2)) return false;  // a line
+    if ((l(1) - l(0)) < options_.min_flatness * l(1)) return false;            // a blob
+    normal = solver.eigenvectors().col(0);
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
-  const Eigen::Vector3d l = solver.eigenvalues();  // ascending
-  if (l(2) <= 0.0 || l(1) < options_.min_spread_ratio * l(2)) return false;  // a line
-  if ((l(1) - l(0)) < options_.min_flatness * l(1)) return false;            // a blob
-  const Eigen::Vector3d normal = solver.eigenvectors().col(0);
   for (Eigen::Index i = 0; i < centered.cols(); ++i) {
     if (std::abs(normal.dot(centered.col(i))) > options_.max_plane_thickness_m) return false;
   }
-  plane->normal = normal;
-  plane->d = -normal.dot(centroid);
+  // Either solver's sign is arbitrary: the normal is turned to face the map frame's origin.
+  plane->normal = normal.dot(centroid) > 0.0 ? Eigen::Vector3d(-normal) : normal;
+  plane->d = -plane->normal.dot(centroid);
   return true;
 }
 

@@ -59,7 +59,8 @@ TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
 }
 
 // The TLS plane of the k nearest map points computed the plain way, with heap-allocated
-// neighbourhoods: the reference the stack-buffered FindPlane must reproduce.
+// neighbourhoods and the iterative eigen-solver, its normal facing the origin: the reference
+// the stack-buffered FindPlane, which mostly takes the closed-form solution, must reproduce.
 bool ReferencePlane(const lidar::KdTree& tree, const PlaneMapOptions& o, const Eigen::Vector3d& q,
                     lidar::Plane* plane) {
   const std::vector<lidar::Neighbor> nn = tree.Knn(q, o.num_neighbors);
@@ -81,6 +82,7 @@ bool ReferencePlane(const lidar::KdTree& tree, const PlaneMapOptions& o, const E
   if ((plane->normal.transpose() * centered).cwiseAbs().maxCoeff() > o.max_plane_thickness_m) {
     return false;
   }
+  if (plane->normal.dot(centroid) > 0.0) plane->normal = -plane->normal;
   plane->d = -plane->normal.dot(centroid);
   return true;
 }

@@ -45,8 +45,9 @@ class PlaneMap {
   // Voxel-downsamples the points (options.voxel_m) into a map. Throws autocal::Error when
   // options.num_neighbors is outside [3, kMaxNeighbors].
   PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options = {});
-  // The local plane around p_W, or false when the neighbourhood is not a clean plane.
-  // Safe to call from several threads at once.
+  // The local plane around p_W, or false when the neighbourhood is not a clean plane. Its
+  // normal faces the map frame's origin (plane->d >= 0). Safe to call from several threads
+  // at once.
   bool FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const;
 
   int64_t size() const { return tree_.size(); }
