@@ -177,6 +177,10 @@ struct SlidingWindowEstimator::WindowKeyframe {
   };
   std::vector<std::vector<Try>> tries;
   std::vector<int> tried_at;
+  // Per partner position q < partner_walk, whether its sweep was in the window at the last
+  // pairing, and which of tries[q] some point referred to then.
+  std::vector<bool> partner_present;
+  std::vector<std::vector<bool>> tries_in_use;
 };
 
 // A marginalized keyframe's conditional (Eq. M4) and what its kept blocks were: a block of

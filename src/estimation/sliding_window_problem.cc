@@ -228,6 +228,29 @@ void SlidingWindowEstimator::AssociatePoints() {
                                  geometry::AngularDistance(d.q, Eigen::Quaterniond::Identity()));
         }
       }
+      // Nothing to do when the partners its points walk, positions [0, walk), are in the
+      // window as at the last pairing and every try a point refers to holds at the farthest
+      // residual point's range: each point then keeps its pair or stays without one (the walk
+      // below would make no lookup and change nothing; the positions beyond the walk are never
+      // tried).
+      std::vector<bool> present(walk);
+      for (size_t q = 0; q < walk; ++q) present[q] = partner_of[q] >= 0;
+      if (options_.skip_unchanged_keyframes && tolerance_m > 0.0 &&
+          present == kf.partner_present) {
+        bool all_hold = true;
+        for (size_t q = 0; q < walk && all_hold; ++q) {
+          for (size_t e = 0; e < change[q].size(); ++e) {
+            const std::pair<double, double>& d = change[q][e];
+            if (kf.tries_in_use[q][e] &&
+                !(d.first + d.second * kf.residual_max_range_m <= tolerance_m)) {
+              all_hold = false;
+              break;
+            }
+          }
+        }
+        if (all_hold) continue;
+      }
+      kf.partner_present = std::move(present);
       std::vector<bool> changed(P, false);
       SlidingWindowState& x = kf.state;
       internal::FiringPoses poses(x.q_W_I, x.p_W_I, x.v_W_I, g_W_);
@@ -343,6 +366,15 @@ void SlidingWindowEstimator::AssociatePoints() {
                             calibration_.q_I_L.coeffs().data(), calibration_.p_I_L.data(),
                             &calibration_.time_offset_lidar_imu_s};
         groups.push_back(std::move(group));
+      }
+      // The tries some point refers to (the skip above).
+      kf.tries_in_use.resize(walk);
+      for (size_t q = 0; q < walk; ++q) kf.tries_in_use[q].assign(kf.tries[q].size(), false);
+      for (size_t r = 0; r < num_points; ++r) {
+        for (size_t q = 0; q < walk; ++q) {
+          const int t = kf.tried_at[r * P + q];
+          if (t >= 0) kf.tries_in_use[q][static_cast<size_t>(t)] = true;
+        }
       }
     }
   });

@@ -879,6 +879,25 @@ TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
   EXPECT_LT(kept.max_rotation_error_deg, 1.2 * fresh.max_rotation_error_deg);
 }
 
+// A keyframe with nothing to re-pair is skipped (skip_unchanged_keyframes); walking it
+// instead changes nothing: the same lookups, points and estimates at every update, from the
+// nominal calibration, with a tolerance of 5 mm so that tries go stale often.
+TEST_F(SlidingWindowUrban, SkipsOnlyKeyframesWithNothingToRepair) {
+  SlidingWindowOptions skip = Options();
+  skip.reassociation_tolerance_m = 0.005;
+  SlidingWindowOptions walk_all = skip;
+  walk_all.skip_unchanged_keyframes = false;
+  const sensors::Calibration& nominal = simulator_->nominal_calibration();
+  const Run walked = Estimate(nominal, walk_all);
+  const Run skipped = Estimate(nominal, skip);
+  EXPECT_EQ(skipped.lookups, walked.lookups);
+  EXPECT_EQ(skipped.points, walked.points);
+  EXPECT_EQ(skipped.passes, walked.passes);
+  ASSERT_EQ(skipped.trajectory.size(), walked.trajectory.size());
+  EXPECT_EQ(skipped.trajectory.back().p_W_I, walked.trajectory.back().p_W_I);
+  EXPECT_EQ(skipped.calibration.q_I_L.coeffs(), walked.calibration.q_I_L.coeffs());
+}
+
 // Eq. SW15 (docs/sliding_window.md): once the extrinsic rotation has settled, a new
 // keyframe's points try only the first settled_partner_count partner offsets (five sweeps
 // back and ahead). From the true calibration the window settles once it is full and stays so;

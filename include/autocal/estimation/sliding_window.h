@@ -186,6 +186,11 @@ struct SlidingWindowOptions {
   // map_rebuild_tolerance_m. 0 = at every update.
   double reassociation_tolerance_m = 0.02;
   double map_rebuild_tolerance_m = 0.02;
+  // A keyframe whose walked partners are in the window as at its last pairing, with every try
+  // holding at its farthest residual point's range, is not walked again: its pairs stay (the
+  // walk would make no lookup and change nothing). false walks every keyframe (the same pairs,
+  // for tests).
+  bool skip_unchanged_keyframes = true;
   // 1-sigma of a point-to-plane distance (range noise and plane fit).
   double point_sigma_m = 0.03;
 
