@@ -23,6 +23,7 @@
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
+#include "autocal/geometry/manifolds.h"
 #include "autocal/sensors/imu_preintegration.h"
 
 namespace autocal {
@@ -148,19 +149,24 @@ class PropagatedGnssResidual {
 };
 
 // A point group (factors::PointToSweepPlaneGroupFactor, n rows) compressed to kRows rows with
-// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. SW5). With the
-// group's residual r and Jacobian J (n x 28, ambient coordinates of its nine blocks) and the
-// pivoted factorization J^T J = P^T L D L^T P, the block returns
-//   rows 0-27: rho = D^-1/2 L^-1 P J^T r,   Jacobian R = D^1/2 L^T P,
-//   row 28:    sqrt(|r|^2 - |rho|^2),       Jacobian 0,
-// (pivots D_i below kRelativePivot max D count as zero: their rows are 0), so R^T R = J^T J,
-// R^T rho = J^T r and |rho|^2 + row_28^2 = |r|^2. The solver's cost, gradient, linear model
-// and Jacobian scaling are those of the n-row block (the manifolds act on R as on J), but its
-// normal equations are formed from 29 rows instead of n. Worth it for n > kRows.
+// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. SW5, SW16). The
+// group's Jacobian has 22 independent columns, T: the tangents of its three quaternions, p_k,
+// v_k, v_j, p_I_L and the offset (its p_j columns are minus its p_k columns). With its residual
+// r and Jacobian J_T (n x 22) in those columns and the pivoted factorization
+// J_T^T J_T = P^T L D L^T P, the block returns
+//   rows 0-21: rho = D^-1/2 L^-1 P J_T^T r,   Jacobian R_T M, R_T = D^1/2 L^T P,
+//   row 22:    sqrt(|r|^2 - |rho|^2),         Jacobian 0,
+// M (22 x 28) mapping T to the ambient coordinates of the nine blocks (the quaternions'
+// QuaternionMinusJacobian, -I for p_j); pivots D_i below kRelativePivot max D count as zero
+// (their rows are 0). So (R_T M)^T R_T M = M^T J_T^T J_T M = J^T J, likewise for the gradient,
+// and |rho|^2 + row_22^2 = |r|^2. The solver's cost, gradient, linear model and Jacobian
+// scaling are those of the n-row block (the manifolds act on R_T M as on J), but its normal
+// equations are formed from 23 rows instead of n. Worth it for n > kRows.
 class CompressedPointGroup final : public ceres::CostFunction {
  public:
   static constexpr int kAmbient = 28;  // 4 + 3 + 3 + 4 + 3 + 3 + 4 + 3 + 1
-  static constexpr int kRows = kAmbient + 1;
+  static constexpr int kIndependent = 22;
+  static constexpr int kRows = kIndependent + 1;
   static constexpr double kRelativePivot = 1e-12;
 
   // `group` must outlive this cost function.
@@ -172,11 +178,10 @@ class CompressedPointGroup final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    using Square = Eigen::Matrix<double, kAmbient, kAmbient>;
-    using Vector = Eigen::Matrix<double, kAmbient, 1>;
+    using Square = Eigen::Matrix<double, kIndependent, kIndependent>;
+    using Vector = Eigen::Matrix<double, kIndependent, 1>;
     using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int n = group_->num_residuals();
-    const std::vector<int32_t>& sizes = parameter_block_sizes();
     static_assert(kAmbient == factors::PointToSweepPlaneGroupFactor::kAmbientSize,
                   "the group's stacked Jacobian is the compressed block's");
     Eigen::VectorXd r(n);
@@ -185,16 +190,17 @@ class CompressedPointGroup final : public ceres::CostFunction {
       // Only the cost is asked for: any rows with the same norm will do.
       if (!group_->Evaluate(parameters, r.data(), nullptr)) return false;
       rho.setZero();
-      residuals[kAmbient] = r.norm();
+      residuals[kIndependent] = r.norm();
       return true;
     }
-    // The group writes its n x 28 Jacobian in one row-major matrix (row i of every block's
-    // Jacobian a slice of row i; PointToSweepPlaneGroupFactor::EvaluateStacked). J^T J and
-    // J^T r are formed from a column-major copy: their sums in that order (docs/
+    // The group writes its n x 28 Jacobian, tangent in the quaternion blocks, in one row-major
+    // matrix (PointToSweepPlaneGroupFactor::EvaluateStacked). J_T^T J_T and J_T^T r are formed
+    // from a column-major copy of its 22 independent columns: their sums in that order (docs/
     // sliding_window.md, "Memory kept, copies avoided").
     Eigen::Matrix<double, Eigen::Dynamic, kAmbient, Eigen::RowMajor> stacked(n, kAmbient);
-    if (!group_->EvaluateStacked(parameters, r.data(), stacked.data())) return false;
-    const Eigen::Matrix<double, Eigen::Dynamic, kAmbient> J = stacked;
+    if (!group_->EvaluateStacked(parameters, r.data(), stacked.data(), true)) return false;
+    Eigen::Matrix<double, Eigen::Dynamic, kIndependent> J(n, kIndependent);
+    for (int c = 0; c < kIndependent; ++c) J.col(c) = stacked.col(kStackedColumn[c]);
     Square A = Square::Zero();
     A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
     A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
@@ -205,10 +211,10 @@ class CompressedPointGroup final : public ceres::CostFunction {
     const double threshold = kRelativePivot * std::max(d.maxCoeff(), 0.0);
     Vector y = ldlt.transpositionsP() * g;
     ldlt.matrixL().solveInPlace(y);
-    // R = U (P I): U with its columns moved, no matrix product (Eigen's product with the
+    // R_T = U (P I): U with its columns moved, no matrix product (Eigen's product with the
     // transpositions' transpose moves the columns as the permutation matrix P I does).
     Square R = Square(ldlt.matrixU()) * ldlt.transpositionsP().transpose();
-    for (int i = 0; i < kAmbient; ++i) {
+    for (int i = 0; i < kIndependent; ++i) {
       if (d(i) > threshold) {
         const double root = std::sqrt(d(i));
         rho(i) = y(i) / root;
@@ -218,17 +224,33 @@ class CompressedPointGroup final : public ceres::CostFunction {
         R.row(i).setZero();
       }
     }
-    residuals[kAmbient] = std::sqrt(std::max(0.0, r.squaredNorm() - rho.squaredNorm()));
-    for (size_t b = 0, column = 0; b < sizes.size(); column += static_cast<size_t>(sizes[b++])) {
+    residuals[kIndependent] = std::sqrt(std::max(0.0, r.squaredNorm() - rho.squaredNorm()));
+    // R_T M, block by block.
+    const std::vector<int32_t>& sizes = parameter_block_sizes();
+    for (size_t b = 0; b < sizes.size(); ++b) {
       if (jacobians[b] == nullptr) continue;
       Eigen::Map<RowMajor> out(jacobians[b], kRows, sizes[b]);
-      out.topRows(kAmbient) = R.middleCols(static_cast<Eigen::Index>(column), sizes[b]);
-      out.row(kAmbient).setZero();
+      const auto columns = R.middleCols(kIndependentColumn[b], sizes[b] == 4 ? 3 : sizes[b]);
+      if (sizes[b] == 4) {
+        out.topRows(kIndependent) = columns * geometry::QuaternionMinusJacobian(parameters[b]);
+      } else if (b == kPositionJ) {
+        out.topRows(kIndependent) = -columns;
+      } else {
+        out.topRows(kIndependent) = columns;
+      }
+      out.row(kIndependent).setZero();
     }
     return true;
   }
 
  private:
+  // Column c of J_T in the stacked Jacobian; the first column of block b in J_T (p_j: p_k's).
+  static constexpr int kStackedColumn[kIndependent] = {0,  1,  2,  4,  5,  6,  7,  8,
+                                                       9,  10, 11, 12, 17, 18, 19, 20,
+                                                       21, 22, 24, 25, 26, 27};
+  static constexpr int kIndependentColumn[9] = {0, 3, 6, 9, 3, 12, 15, 18, 21};
+  static constexpr size_t kPositionJ = 4;
+
   const factors::PointToSweepPlaneGroupFactor* group_;
 };
 

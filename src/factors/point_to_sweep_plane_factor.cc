@@ -8,10 +8,14 @@ namespace factors {
 namespace {
 
 // The ambient row of a tangent row a at q: a^T lift = LiftTangentRow(a, q), i.e.
-// 2 (w a + v x a) for the vector part and -2 v . a for the scalar part.
-Eigen::Matrix<double, 3, 4> Lift(const double* q_xyzw) {
-  const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
+// 2 (w a + v x a) for the vector part and -2 v . a for the scalar part; [I 0] for `tangent`.
+Eigen::Matrix<double, 3, 4> Lift(const double* q_xyzw, bool tangent) {
   Eigen::Matrix<double, 3, 4> lift;
+  if (tangent) {
+    lift << Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero();
+    return lift;
+  }
+  const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
   lift.leftCols<3>() = 2.0 * (q_xyzw[3] * Eigen::Matrix3d::Identity() - geometry::Hat(v));
   lift.col(3) = -2.0 * v;
   return lift;
@@ -25,7 +29,7 @@ Eigen::Map<Eigen::Matrix<double, 1, N>> Row(double* jacobian) {
 
 }  // namespace
 
-PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters)
+PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters, bool tangent)
     : R_k(Eigen::Map<const Eigen::Quaterniond>(parameters[0]).toRotationMatrix()),
       p_k(parameters[1]),
       v_k(parameters[2]),
@@ -35,9 +39,9 @@ PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters)
       R_I_L(Eigen::Map<const Eigen::Quaterniond>(parameters[6]).toRotationMatrix()),
       p_I_L(parameters[7]),
       time_offset_s(parameters[8][0]),
-      lift_k(Lift(parameters[0])),
-      lift_j(Lift(parameters[3])),
-      lift_I_L(Lift(parameters[6])) {}
+      lift_k(Lift(parameters[0], tangent)),
+      lift_j(Lift(parameters[3], tangent)),
+      lift_I_L(Lift(parameters[6], tangent)) {}
 
 PointToSweepPlaneFactor::Terms::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
     : delta_R(motion.delta_q.toRotationMatrix()),

@@ -37,9 +37,9 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
 template <typename RowOf>
 bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters,
                                                 double* residuals, const RowOf& row_of,
-                                                bool with_jacobians) const {
+                                                bool tangent, bool with_jacobians) const {
   // The rotations and lifts every point shares, once per evaluation (Eq. P8).
-  const PointToSweepPlaneFactor::Frame frame(parameters);
+  const PointToSweepPlaneFactor::Frame frame(parameters, tangent);
   std::array<double*, kBlockSizes.size()> row_jacobians;
   for (size_t i = 0; i < points_.size(); ++i) {
     double** point_jacobians = nullptr;
@@ -72,15 +72,16 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
   return EvaluateRows(parameters, residuals, [jacobians](size_t i, size_t b) -> double* {
     if (jacobians == nullptr || jacobians[b] == nullptr) return nullptr;
     return jacobians[b] + i * static_cast<size_t>(kBlockSizes[b]);
-  }, jacobians != nullptr);
+  }, false, jacobians != nullptr);
 }
 
 bool PointToSweepPlaneGroupFactor::EvaluateStacked(double const* const* parameters,
-                                                   double* residuals, double* jacobian) const {
+                                                   double* residuals, double* jacobian,
+                                                   bool tangent) const {
   // Row i of the stacked Jacobian holds the nine one-row Jacobians of point i side by side.
   return EvaluateRows(parameters, residuals, [jacobian](size_t i, size_t b) -> double* {
     return jacobian + i * kAmbientSize + kBlockColumns[b];
-  }, true);
+  }, tangent, true);
 }
 
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,

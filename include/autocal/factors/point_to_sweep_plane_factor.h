@@ -40,9 +40,10 @@ class PointToSweepPlaneFactor final
  public:
   // What every point of a pair of sweeps shares: the parameter blocks as rotation matrices
   // and the quaternion lifts of the tangent Jacobians (a tangent row a maps to the ambient
-  // row a^T lift), computed once per evaluation of a group (Eq. P8).
+  // row a^T lift), computed once per evaluation of a group (Eq. P8). With `tangent` the lifts
+  // are [I 0]: a quaternion block's row holds its tangent row a, then 0.
   struct Frame {
-    explicit Frame(double const* const* parameters);
+    explicit Frame(double const* const* parameters, bool tangent = false);
     Eigen::Matrix3d R_k;
     Eigen::Vector3d p_k;
     Eigen::Vector3d v_k;

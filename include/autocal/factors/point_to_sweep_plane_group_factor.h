@@ -33,10 +33,12 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
   // The same with the Jacobians of the nine blocks side by side: `jacobian` is row-major,
-  // num_residuals() x kAmbientSize (columns in the order of the blocks).
+  // num_residuals() x kAmbientSize (columns in the order of the blocks). With `tangent` each
+  // quaternion block's four columns hold its tangent Jacobian (right perturbation) and 0; the
+  // ambient one is that times geometry::QuaternionMinusJacobian(q).
   static constexpr int kAmbientSize = 28;
-  bool EvaluateStacked(double const* const* parameters, double* residuals,
-                       double* jacobian) const;
+  bool EvaluateStacked(double const* const* parameters, double* residuals, double* jacobian,
+                       bool tangent = false) const;
 
   int num_points() const { return static_cast<int>(points_.size()); }
 
@@ -48,6 +50,7 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   // wanted), asked only with_jacobians.
   template <typename RowOf>
   bool EvaluateRows(double const* const* parameters, double* residuals, const RowOf& row_of,
+                    bool tangent,
                     bool with_jacobians) const;
 
   std::vector<PointToSweepPlaneFactor::Terms> points_;
