@@ -58,13 +58,14 @@ bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) con
   const Eigen::Vector3d centroid = local.rowwise().mean();
   const Neighborhood centered = local.colwise() - centroid;
   const Eigen::Matrix3d scatter = centered * centered.transpose();
-  // The closed-form eigen-decomposition decides the gates (line, blob) and gives the normal
-  // when both pass or fail by more than kGateMargin of the largest eigenvalue; a neighbourhood
-  // nearer a gate goes on to the iterative solver, so that the decision is the solver's. The
-  // flatness gate keeps l0 apart from l1 (l1 - l0 >= min_flatness l1), which is what makes the
-  // closed form's eigenvector of l0 accurate (plane_map_test.cc).
+  // The closed-form eigenvalues decide the gates (line, blob) when both pass or fail by more
+  // than kGateMargin of the largest; a neighbourhood nearer a gate goes on to the iterative
+  // solver, so that the decision is the solver's. Past both gates the normal is the kernel of
+  // S - l0 I: l0 is simple (l1 - l0 >= min_flatness l1), so the rows of S - l0 I span the plane
+  // orthogonal to the normal and their largest cross product lies along it, accurate to the
+  // rounding times l2 / (l1 - l0) (plane_map_test.cc).
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> direct;
-  direct.computeDirect(scatter, Eigen::ComputeEigenvectors);
+  direct.computeDirect(scatter, Eigen::EigenvaluesOnly);
   const Eigen::Vector3d e = direct.eigenvalues();  // ascending
   const double margin = kGateMargin * e(2);
   const double spread = e(1) - options_.min_spread_ratio * e(2);
@@ -72,7 +73,19 @@ bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) con
   if (e(2) > 0.0 && (spread + margin < 0.0 || flatness + margin < 0.0)) return false;
   Eigen::Vector3d normal;
   if (e(0) >= 0.0 && spread > margin && flatness > margin) {
-    normal = direct.eigenvectors().col(0);
+    Eigen::Matrix3d shifted = scatter;
+    shifted.diagonal().array() -= e(0);
+    const Eigen::Vector3d c01 = shifted.row(0).cross(shifted.row(1));
+    const Eigen::Vector3d c02 = shifted.row(0).cross(shifted.row(2));
+    const Eigen::Vector3d c12 = shifted.row(1).cross(shifted.row(2));
+    const double n01 = c01.squaredNorm(), n02 = c02.squaredNorm(), n12 = c12.squaredNorm();
+    if (n01 >= n02 && n01 >= n12) {
+      normal = c01 / std::sqrt(n01);
+    } else if (n02 >= n12) {
+      normal = c02 / std::sqrt(n02);
+    } else {
+      normal = c12 / std::sqrt(n12);
+    }
   } else {
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
     const Eigen::Vector3d l = solver.eigenvalues();  // ascending
