@@ -180,7 +180,7 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // Per partner position q < partner_walk, whether its sweep was in the window at the last
   // pairing, and which of tries[q] some point referred to then.
   std::vector<bool> partner_present;
-  std::vector<std::vector<bool>> tries_in_use;
+  std::vector<std::vector<uint8_t>> tries_in_use;
 };
 
 // A marginalized keyframe's conditional (Eq. M4) and what its kept blocks were: a block of

@@ -258,6 +258,9 @@ void SlidingWindowEstimator::AssociatePoints() {
       const auto position = [S, P](size_t r, size_t a) {
         return a < S ? (r + a) % S : S + (r + a - S) % (P - S);
       };
+      // Every field of m a pair uses is set for its point below (p_L and motion when placed,
+      // the plane's when paired), so one measurement serves the whole walk.
+      factors::PointToSweepPlaneMeasurement m;
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -267,7 +270,6 @@ void SlidingWindowEstimator::AssociatePoints() {
         }
         int* tried = &kf.tried_at[r * P];
         const double range_m = kf.residual_ranges_m[r];
-        factors::PointToSweepPlaneMeasurement m;
         Eigen::Vector3d p_W;
         bool placed = false;
         for (size_t a = 0; a < walk; ++a) {
@@ -369,11 +371,11 @@ void SlidingWindowEstimator::AssociatePoints() {
       }
       // The tries some point refers to (the skip above).
       kf.tries_in_use.resize(walk);
-      for (size_t q = 0; q < walk; ++q) kf.tries_in_use[q].assign(kf.tries[q].size(), false);
+      for (size_t q = 0; q < walk; ++q) kf.tries_in_use[q].assign(kf.tries[q].size(), 0);
       for (size_t r = 0; r < num_points; ++r) {
         for (size_t q = 0; q < walk; ++q) {
           const int t = kf.tried_at[r * P + q];
-          if (t >= 0) kf.tries_in_use[q][static_cast<size_t>(t)] = true;
+          if (t >= 0) kf.tries_in_use[q][static_cast<size_t>(t)] = 1;
         }
       }
     }
