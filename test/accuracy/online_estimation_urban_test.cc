@@ -63,11 +63,11 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
   const evaluation::TrajectoryErrors& t = run.t;
   const evaluation::TrajectoryErrors& smoothed = run.smoothed;
 
-  // Measured (reproducible: docs/sliding_window.md, "Solver: threads"): 0.044 deg; x -12.1,
-  // y 6.4 mm with sigma 6.1 / 5.1 mm (z, which planar driving does not excite, -6.0 mm);
-  // offset -0.28 ms; radii 0.001 %; lever arm 12.2 mm; T_I_V 0.76 deg (its roll all but
-  // unobserved). Seeds 2 and 3: 0.041 / 0.037 deg, x and y within 4.8 / 1.5 mm, -0.00 /
-  // -0.06 ms, lever arm 10.9 / 6.1 mm.
+  // Measured (reproducible: docs/sliding_window.md, "Solver: threads"): 0.044 deg; x -12.4,
+  // y 6.5 mm with sigma 6.1 / 5.1 mm (z, which planar driving does not excite, -6.3 mm);
+  // offset -0.23 ms; radii 0.001 %; lever arm 13.0 mm; T_I_V 0.68 deg (its roll all but
+  // unobserved). Seeds 2 and 3: 0.041 / 0.037 deg, x and y within 4.7 / 1.6 mm, -0.01 /
+  // -0.07 ms, lever arm 10.7 / 5.9 mm.
   EXPECT_LT(c.T_I_L.RotationAngleDeg(), 0.1);
   // The excited axes of the translation. 60 s of this drive determine them to about 6 mm (the
   // batch solution on this log: x -12.7 mm), too little for the 1 cm goal, which the 120 s
@@ -85,22 +85,22 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
   EXPECT_LT(c.T_I_V.translation_mm.norm(), 100.0);
   EXPECT_EQ(t.unmatched_poses, 0);
   // The trajectory goals hold for the smoothed trajectory (docs/sliding_window.md,
-  // "Smoothing"). Measured: 0.9 cm / 0.074 deg (seeds 2 and 3: 0.7 / 0.8 cm, 0.087 / 0.050
-  // deg); what remains is mostly a constant yaw (0.06 deg) that the batch solution shares.
+  // "Smoothing"). Measured: 1.0 cm / 0.059 deg (seeds 2 and 3: 0.6 / 0.8 cm, 0.088 / 0.053
+  // deg); what remains is mostly a constant yaw that the batch solution shares.
   EXPECT_EQ(smoothed.unmatched_poses, 0);
   EXPECT_LT(smoothed.ate_translation_rmse_m, 0.05);
   EXPECT_LT(smoothed.ate_rotation_rmse_deg, 0.1);
   // The filtered trajectory (each keyframe as it left the window) has seen no later data:
   // the roll while the accelerometer bias and gravity are still being told apart before the
-  // first turn, and the yaw. Measured 2.1 cm / 0.124 deg (seeds 2 and 3: 4.1 / 2.6 cm,
-  // 0.163 / 0.111 deg).
+  // first turn, and the yaw. Measured 1.9 cm / 0.112 deg (seeds 2 and 3: 4.2 / 2.6 cm,
+  // 0.155 / 0.114 deg).
   EXPECT_LT(t.ate_translation_rmse_m, 0.05);
   EXPECT_LT(t.ate_rotation_rmse_deg, 0.2);
 }
 
-// The extrinsic's goals on twice the drive: its translation sigma halves in variance (3.8 /
-// 3.4 mm). Measured: x -7.2, y 1.6 mm; 0.035 deg; offset -0.13 ms. Seeds 2-5: x and y within
-// 5.8 / 3.4 mm, 0.025-0.050 deg.
+// The extrinsic's goals on twice the drive: its translation's variance halves (sigma 3.8 /
+// 3.4 mm). Measured: x -7.1, y 1.6 mm; 0.035 deg; offset -0.14 ms; smoothed ATE 0.9 cm /
+// 0.047 deg. Seeds 2-5: x and y within 6.1 / 3.4 mm, 0.015-0.050 deg.
 TEST(OnlineEstimationUrban120s, MeetsTheExtrinsicAndTimeOffsetGoals) {
   const UrbanRun run(120.0);
   const evaluation::CalibrationErrors& c = run.c;
