@@ -97,14 +97,15 @@ void CheckOptions(const SlidingWindowOptions& o) {
   }
   if (c.mean) {
     const sensors::Calibration& m = *c.mean;
-    const bool finite =
-        m.q_I_L.coeffs().allFinite() && m.p_I_L.allFinite() && m.q_I_V.coeffs().allFinite() &&
-        m.p_I_V.allFinite() && m.p_I_A.allFinite() && std::isfinite(m.time_offset_lidar_imu_s) &&
-        std::isfinite(m.wheel_radius_left_m) && std::isfinite(m.wheel_radius_right_m) &&
-        std::isfinite(m.track_width_m);
+    const bool finite = m.q_I_L.coeffs().allFinite() && m.p_I_L.allFinite() &&
+                        m.q_I_V.coeffs().allFinite() && m.p_I_V.allFinite() &&
+                        m.p_I_A.allFinite() && std::isfinite(m.time_offset_lidar_imu_s) &&
+                        std::isfinite(m.wheel_radius_left_m) &&
+                        std::isfinite(m.wheel_radius_right_m) && std::isfinite(m.track_width_m);
     if (!finite || m.q_I_L.norm() < 0.5 || m.q_I_V.norm() < 0.5) {
-      throw Error("SlidingWindowOptions: calibration_prior.mean must be finite with unit "
-                  "quaternions");
+      throw Error(
+          "SlidingWindowOptions: calibration_prior.mean must be finite with unit "
+          "quaternions");
     }
   }
   const SlidingWindowInitialStateSigmas& x = o.initial_state_sigmas;
@@ -113,7 +114,6 @@ void CheckOptions(const SlidingWindowOptions& o) {
     CheckPositive(s, "initial_state_sigmas");
   }
 }
-
 
 AttachedFactor QuaternionPrior(Eigen::Quaterniond* q, const Eigen::Quaterniond& mean,
                                double sigma_rad, ceres::LossFunction* loss) {
@@ -129,13 +129,11 @@ AttachedFactor VectorPrior(double* x, const double* mean, int size, double sigma
                            ceres::LossFunction* loss) {
   AttachedFactor f;
   f.cost = std::make_unique<factors::VectorPriorFactor>(
-      Eigen::Map<const Eigen::VectorXd>(mean, size),
-      Eigen::MatrixXd::Identity(size, size) / sigma);
+      Eigen::Map<const Eigen::VectorXd>(mean, size), Eigen::MatrixXd::Identity(size, size) / sigma);
   f.loss = loss;
   f.blocks = {x};
   return f;
 }
-
 
 bool AllFinite(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return a.allFinite() && b.allFinite();
@@ -201,25 +199,32 @@ SlidingWindowEstimator::SlidingWindowEstimator(const SlidingWindowOptions& optio
         QuaternionPrior(&x.q_I_L, m.q_I_L, c.extrinsic_rotation_deg * kDegToRad, loss));
   }
   if (e.extrinsic_translation) {
-    calibration_priors_.push_back(VectorPrior(x.p_I_L.data(), m.p_I_L.data(), 3, c.extrinsic_translation_m, loss));
+    calibration_priors_.push_back(
+        VectorPrior(x.p_I_L.data(), m.p_I_L.data(), 3, c.extrinsic_translation_m, loss));
   }
   if (e.time_offset) {
-    calibration_priors_.push_back(VectorPrior(&x.time_offset_lidar_imu_s, &m.time_offset_lidar_imu_s, 1, c.time_offset_s, loss));
+    calibration_priors_.push_back(VectorPrior(
+        &x.time_offset_lidar_imu_s, &m.time_offset_lidar_imu_s, 1, c.time_offset_s, loss));
   }
   if (e.wheel_radii) {
-    calibration_priors_.push_back(VectorPrior(&x.wheel_radius_left_m, &m.wheel_radius_left_m, 1, c.wheel_radius_m, loss));
-    calibration_priors_.push_back(VectorPrior(&x.wheel_radius_right_m, &m.wheel_radius_right_m, 1, c.wheel_radius_m, loss));
+    calibration_priors_.push_back(
+        VectorPrior(&x.wheel_radius_left_m, &m.wheel_radius_left_m, 1, c.wheel_radius_m, loss));
+    calibration_priors_.push_back(
+        VectorPrior(&x.wheel_radius_right_m, &m.wheel_radius_right_m, 1, c.wheel_radius_m, loss));
   }
   if (e.track_width) {
-    calibration_priors_.push_back(VectorPrior(&x.track_width_m, &m.track_width_m, 1, c.track_width_m, loss));
+    calibration_priors_.push_back(
+        VectorPrior(&x.track_width_m, &m.track_width_m, 1, c.track_width_m, loss));
   }
   if (e.vehicle_frame) {
     calibration_priors_.push_back(
         QuaternionPrior(&x.q_I_V, m.q_I_V, c.vehicle_rotation_deg * kDegToRad, loss));
-    calibration_priors_.push_back(VectorPrior(x.p_I_V.data(), m.p_I_V.data(), 3, c.vehicle_translation_m, loss));
+    calibration_priors_.push_back(
+        VectorPrior(x.p_I_V.data(), m.p_I_V.data(), 3, c.vehicle_translation_m, loss));
   }
   if (e.gnss_lever_arm) {
-    calibration_priors_.push_back(VectorPrior(x.p_I_A.data(), m.p_I_A.data(), 3, c.gnss_lever_arm_m, loss));
+    calibration_priors_.push_back(
+        VectorPrior(x.p_I_A.data(), m.p_I_A.data(), 3, c.gnss_lever_arm_m, loss));
   }
 }
 

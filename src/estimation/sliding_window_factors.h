@@ -149,7 +149,7 @@ class PropagatedGnssResidual {
 };
 
 // A point group (factors::PointToSweepPlaneGroupFactor, n rows) compressed to kRows rows with
-// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. SW5, SW16). The
+// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. SW5). The
 // group's Jacobian has 22 independent columns, T: the tangents of its three quaternions, p_k,
 // v_k, v_j, p_I_L and the offset (its p_j columns are minus its p_k columns). With its residual
 // r and Jacobian J_T (n x 22) in those columns and the pivoted factorization
@@ -245,9 +245,8 @@ class CompressedPointGroup final : public ceres::CostFunction {
 
  private:
   // Column c of J_T in the stacked Jacobian; the first column of block b in J_T (p_j: p_k's).
-  static constexpr int kStackedColumn[kIndependent] = {0,  1,  2,  4,  5,  6,  7,  8,
-                                                       9,  10, 11, 12, 17, 18, 19, 20,
-                                                       21, 22, 24, 25, 26, 27};
+  static constexpr int kStackedColumn[kIndependent] = {0,  1,  2,  4,  5,  6,  7,  8,  9,  10, 11,
+                                                       12, 17, 18, 19, 20, 21, 22, 24, 25, 26, 27};
   static constexpr int kIndependentColumn[9] = {0, 3, 6, 9, 3, 12, 15, 18, 21};
   static constexpr size_t kPositionJ = 4;
 

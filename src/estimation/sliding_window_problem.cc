@@ -235,8 +235,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       // tried).
       std::vector<bool> present(walk);
       for (size_t q = 0; q < walk; ++q) present[q] = partner_of[q] >= 0;
-      if (options_.skip_unchanged_keyframes && tolerance_m > 0.0 &&
-          present == kf.partner_present) {
+      if (options_.skip_unchanged_keyframes && tolerance_m > 0.0 && present == kf.partner_present) {
         bool all_hold = true;
         for (size_t q = 0; q < walk && all_hold; ++q) {
           for (size_t e = 0; e < change[q].size(); ++e) {

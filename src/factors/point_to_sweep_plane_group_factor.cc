@@ -35,9 +35,9 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
 }
 
 template <typename RowOf>
-bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters,
-                                                double* residuals, const RowOf& row_of,
-                                                bool tangent, bool with_jacobians) const {
+bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters, double* residuals,
+                                                const RowOf& row_of, bool tangent,
+                                                bool with_jacobians) const {
   // The rotations and lifts every point shares, once per evaluation (Eq. P8).
   const PointToSweepPlaneFactor::Frame frame(parameters, tangent);
   std::array<double*, kBlockSizes.size()> row_jacobians;
@@ -69,19 +69,25 @@ bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters,
 bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
                                             double** jacobians) const {
   // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
-  return EvaluateRows(parameters, residuals, [jacobians](size_t i, size_t b) -> double* {
-    if (jacobians == nullptr || jacobians[b] == nullptr) return nullptr;
-    return jacobians[b] + i * static_cast<size_t>(kBlockSizes[b]);
-  }, false, jacobians != nullptr);
+  return EvaluateRows(
+      parameters, residuals,
+      [jacobians](size_t i, size_t b) -> double* {
+        if (jacobians == nullptr || jacobians[b] == nullptr) return nullptr;
+        return jacobians[b] + i * static_cast<size_t>(kBlockSizes[b]);
+      },
+      false, jacobians != nullptr);
 }
 
 bool PointToSweepPlaneGroupFactor::EvaluateStacked(double const* const* parameters,
                                                    double* residuals, double* jacobian,
                                                    bool tangent) const {
   // Row i of the stacked Jacobian holds the nine one-row Jacobians of point i side by side.
-  return EvaluateRows(parameters, residuals, [jacobian](size_t i, size_t b) -> double* {
-    return jacobian + i * kAmbientSize + kBlockColumns[b];
-  }, tangent, true);
+  return EvaluateRows(
+      parameters, residuals,
+      [jacobian](size_t i, size_t b) -> double* {
+        return jacobian + i * kAmbientSize + kBlockColumns[b];
+      },
+      tangent, true);
 }
 
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,

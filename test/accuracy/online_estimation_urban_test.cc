@@ -35,16 +35,15 @@ struct UrbanRun {
     result = pipeline::EstimateDatasetOnline(dataset, problem);
     c = evaluation::CompareCalibration(result.calibration.value, data.simulator.true_calibration());
     t = evaluation::CompareTrajectory(result.trajectory, dataset.groundtruth_trajectory);
-    smoothed = evaluation::CompareTrajectory(result.smoothed_trajectory,
-                                             dataset.groundtruth_trajectory);
+    smoothed =
+        evaluation::CompareTrajectory(result.smoothed_trajectory, dataset.groundtruth_trajectory);
     sigma_p_I_L_mm = 1e3 * result.calibration.uncertainty.T_I_L.sigma_p_m.value_or(
                                Eigen::Vector3d::Constant(std::nan("")));
     std::cout << result.trajectory.size() << " keyframes in " << result.seconds_total
               << " s; T_I_L " << c.T_I_L.rotation_deg.transpose() << " deg, "
-              << c.T_I_L.translation_mm.transpose() << " mm (sigma "
-              << sigma_p_I_L_mm.transpose() << " mm); offset " << c.time_offset_ms
-              << " ms; radii " << c.wheel_radius_left_percent << " / "
-              << c.wheel_radius_right_percent << " %; lever arm " << c.p_I_A_mm.transpose()
+              << c.T_I_L.translation_mm.transpose() << " mm (sigma " << sigma_p_I_L_mm.transpose()
+              << " mm); offset " << c.time_offset_ms << " ms; radii " << c.wheel_radius_left_percent
+              << " / " << c.wheel_radius_right_percent << " %; lever arm " << c.p_I_A_mm.transpose()
               << " mm; T_I_V " << c.T_I_V.rotation_deg.transpose() << " deg; ATE "
               << t.ate_translation_rmse_m << " m / " << t.ate_rotation_rmse_deg << " deg; smoothed "
               << smoothed.ate_translation_rmse_m << " m / " << smoothed.ate_rotation_rmse_deg

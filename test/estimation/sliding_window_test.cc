@@ -195,8 +195,8 @@ TEST(SlidingWindowStreaming, CentresTheCalibrationPriorsAtTheirMean) {
     ASSERT_EQ(estimator.counters().updates, 4);
     const sensors::Calibration& expected = with_mean ? mean : initial;
     EXPECT_LT((estimator.calibration().p_I_L - expected.p_I_L).norm(), 1e-4);
-    EXPECT_NEAR(estimator.calibration().time_offset_lidar_imu_s,
-                expected.time_offset_lidar_imu_s, 1e-5);
+    EXPECT_NEAR(estimator.calibration().time_offset_lidar_imu_s, expected.time_offset_lidar_imu_s,
+                1e-5);
   }
 }
 

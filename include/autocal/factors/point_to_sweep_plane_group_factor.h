@@ -50,8 +50,7 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   // wanted), asked only with_jacobians.
   template <typename RowOf>
   bool EvaluateRows(double const* const* parameters, double* residuals, const RowOf& row_of,
-                    bool tangent,
-                    bool with_jacobians) const;
+                    bool tangent, bool with_jacobians) const;
 
   std::vector<PointToSweepPlaneFactor::Terms> points_;
   std::unique_ptr<ceres::LossFunction> loss_;  // null for plain least squares
