@@ -176,6 +176,11 @@ void SlidingWindowEstimator::AssociatePoints() {
   const std::vector<int>& partners = options_.partner_keyframe_offsets;
   const int num_partners = static_cast<int>(partners.size());
   const double tolerance_m = options_.reassociation_tolerance_m;
+  // Whether a try still holds for a point at range_m: its pose change (|dp|, angle) moves the
+  // point by at most the tolerance (Eq. SW4).
+  const auto try_holds = [tolerance_m](const std::pair<double, double>& d, double range_m) {
+    return tolerance_m > 0.0 && d.first + d.second * range_m <= tolerance_m;
+  };
   // Eq. SW14: the gate widens while the extrinsic rotation moves.
   const double recent_rotation_rad =
       recent_q_I_L_.empty() ? 0.0 : geometry::AngularDistance(recent_q_I_L_.front(), c.q_I_L);
@@ -239,9 +244,7 @@ void SlidingWindowEstimator::AssociatePoints() {
         bool all_hold = true;
         for (size_t q = 0; q < walk && all_hold; ++q) {
           for (size_t e = 0; e < change[q].size(); ++e) {
-            const std::pair<double, double>& d = change[q][e];
-            if (kf.tries_in_use[q][e] &&
-                !(d.first + d.second * kf.residual_max_range_m <= tolerance_m)) {
+            if (kf.tries_in_use[q][e] && !try_holds(change[q][e], kf.residual_max_range_m)) {
               all_hold = false;
               break;
             }
@@ -275,12 +278,9 @@ void SlidingWindowEstimator::AssociatePoints() {
           const size_t q = position(r, a);
           const int j = partner_of[q];
           if (j < 0) continue;
-          if (tried[q] >= 0 && tolerance_m > 0.0) {
-            const std::pair<double, double>& d = change[q][static_cast<size_t>(tried[q])];
-            if (d.first + d.second * range_m <= tolerance_m) {
-              if (current == static_cast<int>(q)) break;  // its pair holds
-              continue;                                   // still no plane there
-            }
+          if (tried[q] >= 0 && try_holds(change[q][static_cast<size_t>(tried[q])], range_m)) {
+            if (current == static_cast<int>(q)) break;  // its pair holds
+            continue;                                   // still no plane there
           }
           const LidarKeyframe& other = sweeps[static_cast<size_t>(j)];
           if (epoch_now[q] < 0) {
