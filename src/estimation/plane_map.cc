@@ -21,6 +21,10 @@ const PlaneMapOptions& Checked(const PlaneMapOptions& options) {
                 std::to_string(PlaneMap::kMaxNeighbors) + "], got " +
                 std::to_string(options.num_neighbors));
   }
+  if (!(options.max_neighbor_distance_m > 0.0) || !std::isfinite(options.max_neighbor_distance_m)) {
+    throw Error("PlaneMap: max_neighbor_distance_m must be positive and finite, got " +
+                std::to_string(options.max_neighbor_distance_m));
+  }
   return options;
 }
 
@@ -34,7 +38,7 @@ Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
 
 PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options)
     : options_(Checked(options)),
-      tree_(Downsample(points_W, options.voxel_m)) {}
+      grid_(Downsample(points_W, options.voxel_m), options.max_neighbor_distance_m) {}
 
 bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const {
   const int k = options_.num_neighbors;
@@ -43,7 +47,7 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const 
   constexpr int kUsualNeighbors = 8;
   Neighborhood local(3, k);
   const auto fit = [&](lidar::Neighbor* neighbors) {
-    return tree_.Knn(p_W, k, options_.max_neighbor_distance_m, neighbors, local.data()) == k &&
+    return grid_.Knn(p_W, k, neighbors, local.data()) == k &&
            FitLocalPlane(local, plane);
   };
   if (k <= kUsualNeighbors) {

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -53,81 +52,6 @@ struct SweepPointGroup {
   }
 };
 
-// Counts of a sweep's map points in cubic cells of edge `cell_m`, to reject a plane lookup
-// before its k-NN search (docs/sliding_window.md, Eq. SW6). PlaneMap::FindPlane needs k
-// downsampled map points within R = max_neighbor_distance_m of the query; each is the
-// centroid of map points in a voxel of edge v = voxel_m, so the voxel holds a map point
-// within R + sqrt(3) v of the query, a different one for each. With cell_m >= R + sqrt(3) v
-// those map points lie in the 3 x 3 x 3 cells around the query's: fewer than k there and the
-// lookup fails. The test never rejects a lookup that could succeed; larger cells keep it so,
-// and a map spanning more than kMaxCells cells gets them (doubled until it fits).
-class MapOccupancy {
- public:
-  // Counts are kept as bytes, saturated: a test never asks for more.
-  static_assert(PlaneMap::kMaxNeighbors <= 255, "MapOccupancy counts are bytes");
-  static constexpr double kMaxCells = 1 << 20;
-
-  MapOccupancy() = default;
-  MapOccupancy(const Eigen::Matrix3Xd& points, double cell_m) { Rebuild(points, cell_m); }
-
-  // Counts `points` afresh, in the memory of the last counts where it suffices.
-  void Rebuild(const Eigen::Matrix3Xd& points, double cell_m) {
-    counts_.clear();
-    if (points.cols() == 0) return;
-    origin_ = points.rowwise().minCoeff();
-    const Eigen::Vector3d extent = points.rowwise().maxCoeff() - origin_;
-    while (((extent / cell_m).array() + 1.0).prod() > kMaxCells) cell_m *= 2.0;
-    inverse_cell_ = 1.0 / cell_m;
-    for (int a = 0; a < 3; ++a) size_[a] = static_cast<int>(extent(a) * inverse_cell_) + 1;
-    counts_.assign(static_cast<size_t>(size_[0]) * static_cast<size_t>(size_[1]) *
-                       static_cast<size_t>(size_[2]),
-                   0);
-    for (Eigen::Index i = 0; i < points.cols(); ++i) {
-      const Eigen::Vector3d v = (points.col(i) - origin_) * inverse_cell_;
-      uint8_t& n =
-          counts_[Index(static_cast<int>(v.x()), static_cast<int>(v.y()), static_cast<int>(v.z()))];
-      if (n < std::numeric_limits<uint8_t>::max()) ++n;
-    }
-  }
-
-  // False when fewer than `count` points lie in the 27 cells around p's.
-  bool MayHold(const Eigen::Vector3d& p, int count) const {
-    if (counts_.empty()) return false;
-    const Eigen::Vector3d v = (p - origin_) * inverse_cell_;
-    // Cells beyond the map by more than one hold nothing near p (also catches huge values).
-    for (int a = 0; a < 3; ++a) {
-      if (!(v(a) >= -1.0) || !(v(a) < size_[a] + 1.0)) return false;
-    }
-    const int cx = static_cast<int>(FloorToInt(v.x()));
-    const int cy = static_cast<int>(FloorToInt(v.y()));
-    const int cz = static_cast<int>(FloorToInt(v.z()));
-    int sum = 0;
-    for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, size_[0] - 1); ++x) {
-      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, size_[1] - 1); ++y) {
-        for (int z = std::max(cz - 1, 0); z <= std::min(cz + 1, size_[2] - 1); ++z) {
-          sum += counts_[Index(x, y, z)];
-          if (sum >= count) return true;
-        }
-      }
-    }
-    return false;
-  }
-
- private:
-  size_t Index(int x, int y, int z) const {
-    return (static_cast<size_t>(x) * static_cast<size_t>(size_[1]) + static_cast<size_t>(y)) *
-               static_cast<size_t>(size_[2]) +
-           static_cast<size_t>(z);
-  }
-
-  double inverse_cell_ = 0.0;
-  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
-  int size_[3] = {0, 0, 0};
-  // Saturated at 255: a test asks for far fewer, and a quarter of the memory of int counts
-  // keeps more of the grid in cache.
-  std::vector<uint8_t> counts_;
-};
-
 }  // namespace internal
 
 struct SlidingWindowEstimator::WindowKeyframe {
@@ -152,7 +76,6 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
   // (docs/sliding_window.md, "Reuse between updates", Eq. SW4).
   std::unique_ptr<PlaneMap> plane_map;
-  internal::MapOccupancy map_occupancy;  // of the same points (Eq. SW6)
   geometry::Pose3d map_deskew_end;
   double map_max_range_m = 0.0;
   int map_generation = 0;  // counts the map's builds

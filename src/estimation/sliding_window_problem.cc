@@ -102,8 +102,7 @@ geometry::Pose3d LidarPose(const SlidingWindowState& x, const sensors::Calibrati
 // placed in W at the current estimate, p_W, and tries the sweeps j = k + o for the offsets o
 // of partner_keyframe_offsets (starting at a different one for consecutive points; only the
 // first settled_partner_count once the extrinsic has settled, Eq. SW15): the first
-// that holds a plane within max_point_to_plane_m of T_Lj_W p_W is its partner; a lookup that
-// cannot succeed is rejected by the map's occupancy first (Eq. SW6). The plane is kept in L_j
+// that holds a plane within max_point_to_plane_m of T_Lj_W p_W is its partner. The plane is kept in L_j
 // (Eq. SW3), so in the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the
 // time offset. The points of keyframe k on planes of sweep j form one group factor (Eq. P9).
 void SlidingWindowEstimator::AssociatePoints() {
@@ -126,9 +125,6 @@ void SlidingWindowEstimator::AssociatePoints() {
     return s.table->At(s.kf->sweep->t_ns + SecondsToNs(point_time_s + offset_lin));
   };
 
-  // Eq. SW6: cells that hold every map point a plane lookup could use.
-  const double occupancy_cell_m =
-      options_.plane_map.max_neighbor_distance_m + std::sqrt(3.0) * options_.plane_map.voxel_m;
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t k = begin; k < end; ++k) {
       LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
@@ -151,7 +147,6 @@ void SlidingWindowEstimator::AssociatePoints() {
       const Eigen::Matrix3Xd points_L =
           (s.T_Lj_W.q.toRotationMatrix() * points_W).colwise() + s.T_Lj_W.p;
       kf.plane_map = std::make_unique<PlaneMap>(points_L, options_.plane_map);
-      kf.map_occupancy.Rebuild(points_L, occupancy_cell_m);
       kf.map_deskew_end = deskew_end;
       ++kf.map_generation;
       kf.map_max_range_m = 0.0;
@@ -299,13 +294,10 @@ void SlidingWindowEstimator::AssociatePoints() {
             placed = true;
           }
           const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
-          bool found = false;
-          if (other.kf->map_occupancy.MayHold(p_Lj, options_.plane_map.num_neighbors)) {
-            ++lookups[static_cast<size_t>(k)];
-            found = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
-                    std::abs(m.plane_L.SignedDistance(p_Lj)) <=
-                        options_.max_point_to_plane_m + gate_per_range * range_m;
-          }
+          ++lookups[static_cast<size_t>(k)];
+          const bool found = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
+                             std::abs(m.plane_L.SignedDistance(p_Lj)) <=
+                                 options_.max_point_to_plane_m + gate_per_range * range_m;
           if (!found) {
             if (current == static_cast<int>(q)) {
               changed[q] = true;

@@ -2,14 +2,14 @@
 
 // A map of local planes in the world frame for point-to-plane association
 // (docs/estimation.md, "Local map and association"): the map points are voxel-downsampled
-// and indexed by a k-d tree; a query point is associated with the total-least-squares plane
+// and indexed by a grid of columns as wide as the neighbour radius; a query point is associated with the total-least-squares plane
 // of its k nearest map points when those points are close, flat and thin enough.
 
 #include <cstdint>
 
 #include <Eigen/Core>
 
-#include "autocal/lidar/kd_tree.h"
+#include "autocal/lidar/neighbor_grid.h"
 #include "autocal/lidar/plane_fitting.h"
 
 namespace autocal {
@@ -43,14 +43,15 @@ class PlaneMap {
   static constexpr double kGateMargin = 1e-5;
 
   // Voxel-downsamples the points (options.voxel_m) into a map. Throws autocal::Error when
-  // options.num_neighbors is outside [3, kMaxNeighbors].
+  // options.num_neighbors is outside [3, kMaxNeighbors] or max_neighbor_distance_m is not
+  // positive and finite.
   PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& options = {});
   // The local plane around p_W, or false when the neighbourhood is not a clean plane. Its
   // normal faces the map frame's origin (plane->d >= 0). Safe to call from several threads
   // at once.
   bool FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const;
 
-  int64_t size() const { return tree_.size(); }
+  int64_t size() const { return grid_.size(); }
 
  private:
   using Neighborhood =
@@ -58,7 +59,7 @@ class PlaneMap {
   bool FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const;
 
   PlaneMapOptions options_;
-  lidar::KdTree tree_;
+  lidar::NeighborGrid grid_;
 };
 
 }  // namespace estimation

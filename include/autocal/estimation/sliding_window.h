@@ -263,7 +263,7 @@ struct SlidingWindowUpdateTiming {
   double marginalization_s = 0.0;
   int solver_iterations = 0;  // Levenberg-Marquardt steps taken (all passes)
   int solver_passes = 0;      // linearizations of the points (Eq. SW12)
-  int plane_lookups = 0;      // k-NN plane lookups (those the occupancy test, Eq. SW6, let by)
+  int plane_lookups = 0;      // k-NN plane lookups
   bool extrinsic_settled = false;  // points tried settled_partner_count partners (Eq. SW15)
 };
 

@@ -9,13 +9,10 @@
 #include <memory>
 #include <vector>
 
+#include "autocal/lidar/neighbor.h"
+
 namespace autocal {
 namespace lidar {
-
-struct Neighbor {
-  int index = -1;  // column in KdTree::points()
-  double squared_distance_m2 = 0.0;
-};
 
 class KdTree {
  public:
