@@ -102,38 +102,51 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
   }
   const double qx = query.x(), qy = query.y(), qz = query.z();
   const double radius2 = radius_m_ * radius_m_;
-  double bound = radius2;  // the k-th distance once k are found
+  constexpr int kChunk = 64;
+  std::array<double, kChunk> candidate_d;
+  std::array<int, kChunk> candidate_slot;
   int count = 0;
   for (int x = x_begin; x <= x_end; ++x) {
     const size_t row = static_cast<size_t>(x) * static_cast<size_t>(columns_y_);
     const int begin = column_begin_[row + static_cast<size_t>(y_begin)];
     const int end = column_begin_[row + static_cast<size_t>(y_end) + 1];
-    for (int s = begin; s < end; ++s) {
-      const size_t u = static_cast<size_t>(s);
-      const double dx = qx - x_[u];
-      const double dy = qy - y_[u];
-      const double dz = qz - z_[u];
-      const double d = dx * dx + dy * dy + dz * dz;
-      if (d > bound) continue;
-      const int index = index_[u];
-      int i;
-      if (count < k) {
-        i = count++;
-      } else if (d < out[k - 1].squared_distance_m2 ||
-                 (d == out[k - 1].squared_distance_m2 && index < out[k - 1].index)) {
-        i = k - 1;
-      } else {
-        continue;
+    for (int chunk = begin; chunk < end; chunk += kChunk) {
+      // The points of a chunk within the radius, gathered without a branch per point: about a
+      // sixth of the points scanned pass, in no predictable pattern.
+      const int chunk_end = std::min(chunk + kChunk, end);
+      int within = 0;
+      for (int s = chunk; s < chunk_end; ++s) {
+        const size_t u = static_cast<size_t>(s);
+        const double dx = qx - x_[u];
+        const double dy = qy - y_[u];
+        const double dz = qz - z_[u];
+        const double d = dx * dx + dy * dy + dz * dz;
+        candidate_d[static_cast<size_t>(within)] = d;
+        candidate_slot[static_cast<size_t>(within)] = s;
+        within += d <= radius2;
       }
-      while (i > 0 && (d < out[i - 1].squared_distance_m2 ||
-                       (d == out[i - 1].squared_distance_m2 && index < out[i - 1].index))) {
-        out[i] = out[i - 1];
-        slots[i] = slots[i - 1];
-        --i;
+      for (int c = 0; c < within; ++c) {
+        const double d = candidate_d[static_cast<size_t>(c)];
+        const int s = candidate_slot[static_cast<size_t>(c)];
+        const int index = index_[static_cast<size_t>(s)];
+        int i;
+        if (count < k) {
+          i = count++;
+        } else if (d < out[k - 1].squared_distance_m2 ||
+                   (d == out[k - 1].squared_distance_m2 && index < out[k - 1].index)) {
+          i = k - 1;
+        } else {
+          continue;
+        }
+        while (i > 0 && (d < out[i - 1].squared_distance_m2 ||
+                         (d == out[i - 1].squared_distance_m2 && index < out[i - 1].index))) {
+          out[i] = out[i - 1];
+          slots[i] = slots[i - 1];
+          --i;
+        }
+        out[i] = Neighbor{index, d};
+        slots[i] = s;
       }
-      out[i] = Neighbor{index, d};
-      slots[i] = s;
-      if (count == k) bound = out[k - 1].squared_distance_m2;
     }
   }
   if (points != nullptr) {
