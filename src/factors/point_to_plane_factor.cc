@@ -60,9 +60,9 @@ bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* resid
     // d r / d x_I = m^T (dR + delta dR Hat(omega)).
     const Eigen::Vector3d m_x = motion.transpose() * m;
     if (jacobians[3] != nullptr) {
-      // d x_I / d theta_IL = -R_I_L Hat(p_L).
-      geometry::LiftTangentRow(p_L_.cross(q_I_L.conjugate() * m_x).transpose(), parameters[3],
-                               jacobians[3]);
+      // d x_I / d theta_IL = -R_I_L Hat(p_L), so the tangent row is p_L x R_I_L^T m_x
+      // = R_I_L^T (R_I_L p_L x m_x), with R_I_L p_L = x_I - p_I_L.
+      geometry::LiftRotatedTangentRow((x_I - p_I_L).cross(m_x), parameters[3], jacobians[3]);
     }
     if (jacobians[4] != nullptr) {
       Eigen::Map<Eigen::RowVector3d> j(jacobians[4]);

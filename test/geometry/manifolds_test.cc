@@ -100,6 +100,24 @@ TEST(LiftTangentJacobian, PassesGradientChecker) {
   }
 }
 
+// The single-row lifts equal the matrix one: LiftTangentRow for a row a, LiftRotatedTangentRow
+// for a = (R(q)^T b)^T given b.
+TEST(LiftTangentRow, MatchesTheMatrixLift) {
+  std::mt19937 rng(17);
+  for (int trial = 0; trial < 50; ++trial) {
+    const Eigen::Quaterniond q(Eigen::Quaterniond::UnitRandom());
+    const Eigen::Vector3d b = RandomVector(&rng, 4.0);
+    const Eigen::Vector3d a = q.conjugate() * b;
+    const Eigen::Matrix<double, 1, 4> expected =
+        LiftTangentJacobian<1>(a.transpose(), q.coeffs().data());
+    Eigen::Matrix<double, 1, 4> row, rotated;
+    LiftTangentRow(a.transpose(), q.coeffs().data(), row.data());
+    LiftRotatedTangentRow(b, q.coeffs().data(), rotated.data());
+    EXPECT_LT((row - expected).norm(), 1e-12 * expected.norm()) << trial;
+    EXPECT_LT((rotated - expected).norm(), 1e-12 * expected.norm()) << trial;
+  }
+}
+
 }  // namespace
 }  // namespace geometry
 }  // namespace autocal

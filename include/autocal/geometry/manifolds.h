@@ -56,5 +56,19 @@ inline void LiftTangentRow(const Eigen::RowVector3d& a, const double* q_xyzw, do
   ambient[3] = -2.0 * a.dot(v.transpose());
 }
 
+// The same for a right-tangent row given rotated, a = (R(q)^T b)^T, without the rotation:
+// R(q)^T b is b in the left tangent (q Exp(R^T b) = Exp(b) q), and
+// a * MinusJacobian(q) = 2 [w b - v x b, -b . v].
+inline void LiftRotatedTangentRow(const Eigen::Vector3d& b, const double* q_xyzw,
+                                  double* ambient) {
+  const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
+  const double w = q_xyzw[3];
+  const Eigen::Vector3d head = 2.0 * (w * b - v.cross(b));
+  ambient[0] = head.x();
+  ambient[1] = head.y();
+  ambient[2] = head.z();
+  ambient[3] = -2.0 * b.dot(v);
+}
+
 }  // namespace geometry
 }  // namespace autocal
