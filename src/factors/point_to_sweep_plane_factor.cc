@@ -41,7 +41,7 @@ PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters, bool tang
       time_offset_s(parameters[8][0]),
       lift_k(Lift(parameters[0], tangent)),
       lift_j(Lift(parameters[3], tangent)),
-      lift_I_L(Lift(parameters[6], tangent)) {}
+      lift_I_L_left(R_I_L * Lift(parameters[6], tangent)) {}
 
 PointToSweepPlaneFactor::Terms::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
     : delta_R(motion.delta_q.toRotationMatrix()),
@@ -129,11 +129,11 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
   const Eigen::Vector3d t = plane_.delta_R.transpose() * z_minus_b;
   if (jacobians[6] != nullptr) {
     // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
-    // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both share one R_I_L^T.
+    // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both share one R_I_L^T,
+    // which lift_I_L_left holds: the gradient below is the left tangent's.
     const Eigen::Vector3d e = t + delta * t.cross(plane_.omega_rad_s);
-    const Eigen::Vector3d gradient =
-        f.R_I_L.transpose() * ((x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e));
-    Row<4>(jacobians[6]) = gradient.transpose() * f.lift_I_L;
+    const Eigen::Vector3d gradient = (x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e);
+    Row<4>(jacobians[6]) = gradient.transpose() * f.lift_I_L_left;
   }
   if (jacobians[7] != nullptr) {
     // B^T a = alpha + delta alpha x omega_j.

@@ -55,7 +55,9 @@ class PointToSweepPlaneFactor final
     double time_offset_s;
     Eigen::Matrix<double, 3, 4> lift_k;
     Eigen::Matrix<double, 3, 4> lift_j;
-    Eigen::Matrix<double, 3, 4> lift_I_L;
+    // R_I_L times the lift: takes a row in q_I_L's left tangent (Exp(phi) q) to the block's
+    // coordinates, phi = R_I_L theta.
+    Eigen::Matrix<double, 3, 4> lift_I_L_left;
   };
 
   // One point's terms of Eq. P1-P7 that the parameters do not change, evaluated against a
