@@ -151,6 +151,26 @@ void BM_PointToSweepPlaneGroupEvaluate(benchmark::State& state) {
 
 BENCHMARK(BM_PointToSweepPlaneGroupEvaluate)->Name("PointToSweepPlaneGroup/analytic");
 
+// The same group in its 22 tangent columns, column-major, as the sliding window's compressed
+// point groups linearize it (PointToSweepPlaneGroupFactor::EvaluateTangent).
+void BM_PointToSweepPlaneGroupTangent(benchmark::State& state) {
+  const factors::PointToSweepPlaneGroupFactor group(
+      RandomSweepMeasurements(), Eigen::Vector3d(0.0, 0.0, -9.80665), factors::LossOptions());
+  const SweepPairState x;
+  const std::vector<const double*> params = x.Blocks();
+  std::vector<double> jacobian(
+      static_cast<size_t>(factors::PointToSweepPlaneGroupFactor::kTangentColumns * kPoints));
+  std::vector<double> residuals(kPoints);
+  for (auto _ : state) {
+    group.EvaluateTangent(params.data(), residuals.data(), jacobian.data());
+    benchmark::DoNotOptimize(residuals.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * kPoints);
+}
+
+BENCHMARK(BM_PointToSweepPlaneGroupTangent)->Name("PointToSweepPlaneGroup/tangent");
+
 }  // namespace
 }  // namespace autocal
 

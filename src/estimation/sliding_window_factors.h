@@ -183,7 +183,7 @@ class CompressedPointGroup final : public ceres::CostFunction {
     using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     const int n = group_->num_residuals();
     static_assert(kAmbient == factors::PointToSweepPlaneGroupFactor::kAmbientSize,
-                  "the group's stacked Jacobian is the compressed block's");
+                  "the group's blocks are the compressed block's");
     Eigen::VectorXd r(n);
     Eigen::Map<Vector> rho(residuals);
     if (jacobians == nullptr) {
@@ -193,14 +193,13 @@ class CompressedPointGroup final : public ceres::CostFunction {
       residuals[kIndependent] = r.norm();
       return true;
     }
-    // The group writes its n x 28 Jacobian, tangent in the quaternion blocks, in one row-major
-    // matrix (PointToSweepPlaneGroupFactor::EvaluateStacked). J_T^T J_T and J_T^T r are formed
-    // from a column-major copy of its 22 independent columns: their sums in that order (docs/
-    // sliding_window.md, "Memory kept, copies avoided").
-    Eigen::Matrix<double, Eigen::Dynamic, kAmbient, Eigen::RowMajor> stacked(n, kAmbient);
-    if (!group_->EvaluateStacked(parameters, r.data(), stacked.data(), true)) return false;
+    // The group writes J_T column-major (PointToSweepPlaneGroupFactor::EvaluateTangent), the
+    // layout J_T^T J_T and J_T^T r are formed fastest from (docs/sliding_window.md, "Memory
+    // kept, copies avoided").
+    static_assert(kIndependent == factors::PointToSweepPlaneGroupFactor::kTangentColumns,
+                  "the group's tangent columns are the compressed block's");
     Eigen::Matrix<double, Eigen::Dynamic, kIndependent> J(n, kIndependent);
-    for (int c = 0; c < kIndependent; ++c) J.col(c) = stacked.col(kStackedColumn[c]);
+    if (!group_->EvaluateTangent(parameters, r.data(), J.data())) return false;
     Square A = Square::Zero();
     A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
     A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
@@ -244,9 +243,7 @@ class CompressedPointGroup final : public ceres::CostFunction {
   }
 
  private:
-  // Column c of J_T in the stacked Jacobian; the first column of block b in J_T (p_j: p_k's).
-  static constexpr int kStackedColumn[kIndependent] = {0,  1,  2,  4,  5,  6,  7,  8,  9,  10, 11,
-                                                       12, 17, 18, 19, 20, 21, 22, 24, 25, 26, 27};
+  // The first column of block b in J_T (p_j: p_k's).
   static constexpr int kIndependentColumn[9] = {0, 3, 6, 9, 3, 12, 15, 18, 21};
   static constexpr size_t kPositionJ = 4;
 

@@ -8,13 +8,9 @@ namespace factors {
 namespace {
 
 // The ambient row of a tangent row a at q: a^T lift = LiftTangentRow(a, q), i.e.
-// 2 (w a + v x a) for the vector part and -2 v . a for the scalar part; [I 0] for `tangent`.
-Eigen::Matrix<double, 3, 4> Lift(const double* q_xyzw, bool tangent) {
+// 2 (w a + v x a) for the vector part and -2 v . a for the scalar part.
+Eigen::Matrix<double, 3, 4> Lift(const double* q_xyzw) {
   Eigen::Matrix<double, 3, 4> lift;
-  if (tangent) {
-    lift << Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero();
-    return lift;
-  }
   const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
   lift.leftCols<3>() = 2.0 * (q_xyzw[3] * Eigen::Matrix3d::Identity() - geometry::Hat(v));
   lift.col(3) = -2.0 * v;
@@ -29,7 +25,7 @@ Eigen::Map<Eigen::Matrix<double, 1, N>> Row(double* jacobian) {
 
 }  // namespace
 
-PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters, bool tangent)
+PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters)
     : R_k(Eigen::Map<const Eigen::Quaterniond>(parameters[0]).toRotationMatrix()),
       p_k(parameters[1]),
       v_k(parameters[2]),
@@ -39,9 +35,9 @@ PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters, bool tang
       R_I_L(Eigen::Map<const Eigen::Quaterniond>(parameters[6]).toRotationMatrix()),
       p_I_L(parameters[7]),
       time_offset_s(parameters[8][0]),
-      lift_k(Lift(parameters[0], tangent)),
-      lift_j(Lift(parameters[3], tangent)),
-      lift_I_L_left(R_I_L * Lift(parameters[6], tangent)) {}
+      lift_k(Lift(parameters[0])),
+      lift_j(Lift(parameters[3])),
+      lift_I_L_left(R_I_L * Lift(parameters[6])) {}
 
 PointToSweepPlaneFactor::Terms::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
     : delta_R(motion.delta_q.toRotationMatrix()),
@@ -68,8 +64,7 @@ bool PointToSweepPlaneFactor::Evaluate(double const* const* parameters, double* 
   return true;
 }
 
-void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
-                                              double** jacobians) const {
+double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows) const {
   const double delta = f.time_offset_s - offset_linearization_s_;
 
   // Point side (Eq. P1-P3) with dR (I + delta Hat(omega)) applied as dR (x + delta omega x x):
@@ -98,8 +93,8 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
                             plane_.gravity_position - delta * plane_.gravity_velocity;
   const Eigen::Vector3d z = f.R_j.transpose() * w;
   const Eigen::Vector3d z_minus_b = z - b;
-  residual[0] = (a.dot(z_minus_b) + d_L_) * inv_sigma_;
-  if (jacobians == nullptr) return;
+  const double residual = (a.dot(z_minus_b) + d_L_) * inv_sigma_;
+  if (rows == nullptr) return residual;
 
   // The point side enters through n_W . p_W with n_W = R_j a: the Jacobians of Eq. (P5)
   // with that normal; m = R_k^T n_W / sigma and m_x = (I + delta Hat(omega_k))^T dR^T m, the
@@ -108,49 +103,67 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
   const Eigen::Vector3d m = f.R_k.transpose() * n_W;
   const Eigen::Vector3d u = point_.delta_R.transpose() * m;
   const Eigen::Vector3d m_x = u + delta * u.cross(point_.omega_rad_s);
-  if (jacobians[0] != nullptr) {
-    Row<4>(jacobians[0]) = lever.cross(m).transpose() * f.lift_k;
-  }
-  if (jacobians[1] != nullptr) Row<3>(jacobians[1]) = n_W.transpose();
-  if (jacobians[2] != nullptr) {
-    Row<3>(jacobians[2]) = (point_.dt_s + delta) * n_W.transpose();
-  }
+  rows->theta_k = lever.cross(m);
+  rows->p_k = n_W;
+  rows->v_k = (point_.dt_s + delta) * n_W;
   // Plane side: d/dtheta_j of a . R_j^T w is (a x z)^T (Eq. P8).
-  if (jacobians[3] != nullptr) {
-    Row<4>(jacobians[3]) =
-        (inv_sigma_ * a.cross(z)).transpose() * f.lift_j;
-  }
-  if (jacobians[4] != nullptr) Row<3>(jacobians[4]) = -n_W.transpose();
-  if (jacobians[5] != nullptr) {
-    Row<3>(jacobians[5]) = -(plane_.dt_s + delta) * n_W.transpose();
-  }
-  if (jacobians[6] == nullptr && jacobians[7] == nullptr && jacobians[8] == nullptr) return;
+  rows->theta_j = inv_sigma_ * a.cross(z);
+  rows->v_j = -(plane_.dt_s + delta) * n_W;
   // t = dR_j^T (z - b); B^T (z - b) = (I - delta Hat(omega_j)) t = t + delta t x omega_j.
   const Eigen::Vector3d t = plane_.delta_R.transpose() * z_minus_b;
+  // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
+  // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both are R_I_L^T times the
+  // left tangent's row below.
+  const Eigen::Vector3d e = t + delta * t.cross(plane_.omega_rad_s);
+  rows->phi_I_L = (x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e);
+  // B^T a = alpha + delta alpha x omega_j.
+  const Eigen::Vector3d B_t_a = alpha + delta * alpha.cross(plane_.omega_rad_s);
+  rows->p_I_L = m_x - inv_sigma_ * B_t_a;
+  // Point side: Eq. (P5) with n_W, m . dR Hat(omega) x_I = u . spun_x. Plane side:
+  // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j spun_p + dv_j,
+  // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W.
+  const double point_side =
+      u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
+  const double plane_side = inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) -
+                                          a.dot(plane_.delta_v)) -
+                            n_W.dot(f.v_j + plane_.gravity_velocity);
+  rows->offset = point_side + plane_side;
+  return residual;
+}
+
+void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
+                                              double** jacobians) const {
+  if (jacobians == nullptr) {
+    residual[0] = Core(f, nullptr);
+    return;
+  }
+  Rows rows;
+  residual[0] = Core(f, &rows);
+  if (jacobians[0] != nullptr) Row<4>(jacobians[0]) = rows.theta_k.transpose() * f.lift_k;
+  if (jacobians[1] != nullptr) Row<3>(jacobians[1]) = rows.p_k.transpose();
+  if (jacobians[2] != nullptr) Row<3>(jacobians[2]) = rows.v_k.transpose();
+  if (jacobians[3] != nullptr) Row<4>(jacobians[3]) = rows.theta_j.transpose() * f.lift_j;
+  if (jacobians[4] != nullptr) Row<3>(jacobians[4]) = -rows.p_k.transpose();
+  if (jacobians[5] != nullptr) Row<3>(jacobians[5]) = rows.v_j.transpose();
   if (jacobians[6] != nullptr) {
-    // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
-    // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both share one R_I_L^T,
-    // which lift_I_L_left holds: the gradient below is the left tangent's.
-    const Eigen::Vector3d e = t + delta * t.cross(plane_.omega_rad_s);
-    const Eigen::Vector3d gradient = (x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e);
-    Row<4>(jacobians[6]) = gradient.transpose() * f.lift_I_L_left;
+    Row<4>(jacobians[6]) = rows.phi_I_L.transpose() * f.lift_I_L_left;
   }
-  if (jacobians[7] != nullptr) {
-    // B^T a = alpha + delta alpha x omega_j.
-    const Eigen::Vector3d B_t_a = alpha + delta * alpha.cross(plane_.omega_rad_s);
-    Row<3>(jacobians[7]) = (m_x - inv_sigma_ * B_t_a).transpose();
+  if (jacobians[7] != nullptr) Row<3>(jacobians[7]) = rows.p_I_L.transpose();
+  if (jacobians[8] != nullptr) jacobians[8][0] = rows.offset;
+}
+
+void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, double* residual,
+                                                     double* row, size_t stride) const {
+  Rows rows;
+  residual[0] = Core(f, &rows);
+  const Eigen::Vector3d theta_I_L = f.R_I_L.transpose() * rows.phi_I_L;
+  const Eigen::Vector3d* blocks[] = {&rows.theta_k, &rows.p_k, &rows.v_k, &rows.theta_j,
+                                     &rows.v_j,     &theta_I_L, &rows.p_I_L};
+  double* out = row;
+  for (const Eigen::Vector3d* block : blocks) {
+    for (int c = 0; c < 3; ++c, out += stride) *out = (*block)(c);
   }
-  if (jacobians[8] != nullptr) {
-    // Point side: Eq. (P5) with n_W, m . dR Hat(omega) x_I = u . spun_x. Plane side:
-    // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j spun_p + dv_j,
-    // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W.
-    const double point_side =
-        u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
-    const double plane_side = inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) -
-                                            a.dot(plane_.delta_v)) -
-                              n_W.dot(f.v_j + plane_.gravity_velocity);
-    jacobians[8][0] = point_side + plane_side;
-  }
+  *out = rows.offset;
 }
 
 ceres::CostFunction* CreatePointToSweepPlaneAutoDiff(

@@ -10,14 +10,8 @@ namespace factors {
 namespace {
 
 constexpr std::array<int, 9> kBlockSizes = {4, 3, 3, 4, 3, 3, 4, 3, 1};
-// First column of each block in the stacked Jacobian: the sizes of the blocks before it.
-constexpr std::array<int, 9> kBlockColumns = [] {
-  std::array<int, 9> columns{};
-  for (size_t b = 1; b < columns.size(); ++b) columns[b] = columns[b - 1] + kBlockSizes[b - 1];
-  return columns;
-}();
-static_assert(kBlockColumns[8] + kBlockSizes[8] == PointToSweepPlaneGroupFactor::kAmbientSize,
-              "the stacked Jacobian has every block's columns");
+static_assert(4 + 3 + 3 + 4 + 3 + 3 + 4 + 3 + 1 == PointToSweepPlaneGroupFactor::kAmbientSize,
+              "kAmbientSize is the blocks' sizes");
 
 }  // namespace
 
@@ -34,30 +28,41 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
 }
 
-template <typename RowOf>
-bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters, double* residuals,
-                                                const RowOf& row_of, bool tangent,
-                                                bool with_jacobians) const {
+namespace {
+
+// Eq. P9: row r of a point becomes sign(r) sqrt(rho(r^2)); returns the factor d r~/dr for its
+// Jacobian, rho' |r| / sqrt(rho), which tends to rho'(0) = 1 as r -> 0.
+double ApplyLoss(const ceres::LossFunction& loss, double* residual) {
+  const double r = *residual;
+  double rho[3];
+  loss.Evaluate(r * r, rho);
+  const double root = std::sqrt(rho[0]);
+  *residual = std::copysign(root, r);
+  return root > 0.0 ? rho[1] * std::abs(r) / root : rho[1];
+}
+
+}  // namespace
+
+bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
+                                            double** jacobians) const {
   // The rotations and lifts every point shares, once per evaluation (Eq. P8).
-  const PointToSweepPlaneFactor::Frame frame(parameters, tangent);
+  const PointToSweepPlaneFactor::Frame frame(parameters);
+  // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
   std::array<double*, kBlockSizes.size()> row_jacobians;
   for (size_t i = 0; i < points_.size(); ++i) {
     double** point_jacobians = nullptr;
-    if (with_jacobians) {
-      for (size_t b = 0; b < kBlockSizes.size(); ++b) row_jacobians[b] = row_of(i, b);
+    if (jacobians != nullptr) {
+      for (size_t b = 0; b < kBlockSizes.size(); ++b) {
+        row_jacobians[b] = jacobians[b] == nullptr
+                               ? nullptr
+                               : jacobians[b] + i * static_cast<size_t>(kBlockSizes[b]);
+      }
       point_jacobians = row_jacobians.data();
     }
     points_[i].Evaluate(frame, &residuals[i], point_jacobians);
     if (!loss_) continue;
-    // Eq. P9.
-    const double r = residuals[i];
-    double rho[3];
-    loss_->Evaluate(r * r, rho);
-    const double root = std::sqrt(rho[0]);
-    residuals[i] = std::copysign(root, r);
+    const double scale = ApplyLoss(*loss_, &residuals[i]);
     if (point_jacobians == nullptr) continue;
-    // d r~/dr = rho' |r| / sqrt(rho), which tends to rho'(0) = 1 as r -> 0.
-    const double scale = root > 0.0 ? rho[1] * std::abs(r) / root : rho[1];
     for (size_t b = 0; b < kBlockSizes.size(); ++b) {
       if (point_jacobians[b] == nullptr) continue;
       for (int c = 0; c < kBlockSizes[b]; ++c) point_jacobians[b][c] *= scale;
@@ -66,28 +71,18 @@ bool PointToSweepPlaneGroupFactor::EvaluateRows(double const* const* parameters,
   return true;
 }
 
-bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, double* residuals,
-                                            double** jacobians) const {
-  // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
-  return EvaluateRows(
-      parameters, residuals,
-      [jacobians](size_t i, size_t b) -> double* {
-        if (jacobians == nullptr || jacobians[b] == nullptr) return nullptr;
-        return jacobians[b] + i * static_cast<size_t>(kBlockSizes[b]);
-      },
-      false, jacobians != nullptr);
-}
-
-bool PointToSweepPlaneGroupFactor::EvaluateStacked(double const* const* parameters,
-                                                   double* residuals, double* jacobian,
-                                                   bool tangent) const {
-  // Row i of the stacked Jacobian holds the nine one-row Jacobians of point i side by side.
-  return EvaluateRows(
-      parameters, residuals,
-      [jacobian](size_t i, size_t b) -> double* {
-        return jacobian + i * kAmbientSize + kBlockColumns[b];
-      },
-      tangent, true);
+bool PointToSweepPlaneGroupFactor::EvaluateTangent(double const* const* parameters,
+                                                   double* residuals, double* jacobian) const {
+  const PointToSweepPlaneFactor::Frame frame(parameters);
+  const size_t n = points_.size();
+  for (size_t i = 0; i < n; ++i) {
+    double* row = jacobian + i;
+    points_[i].EvaluateTangent(frame, &residuals[i], row, n);
+    if (!loss_) continue;
+    const double scale = ApplyLoss(*loss_, &residuals[i]);
+    for (int c = 0; c < kTangentColumns; ++c) row[static_cast<size_t>(c) * n] *= scale;
+  }
+  return true;
 }
 
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,

@@ -254,28 +254,38 @@ TEST(PointToSweepPlaneGroupFactor, RobustRowsCarryTheRobustCostAndExactJacobians
   }
 }
 
-// EvaluateStacked: the same rows, and the nine block Jacobians side by side in one row-major
-// n x 28 matrix, with and without a loss.
-TEST(PointToSweepPlaneGroupFactor, StackedJacobianIsTheBlocksSideBySide) {
+// EvaluateTangent: the same rows, and the Jacobian in 22 tangent columns (column-major) that
+// lift to the nine blocks' Jacobians: a quaternion's three columns times its
+// QuaternionMinusJacobian, p_j's minus p_k's; with and without a loss.
+TEST(PointToSweepPlaneGroupFactor, TangentJacobianLiftsToTheBlocks) {
   std::mt19937 rng(7);
+  constexpr int kTangent = PointToSweepPlaneGroupFactor::kTangentColumns;
+  // Each block's first column in the tangent columns (p_j: p_k's), and its sign.
+  const int first_column[9] = {0, 3, 6, 9, 3, 12, 15, 18, 21};
   for (const LossOptions& loss : {LossOptions(), LossOptions{lidar::RobustLoss::kHuber, 1.0}}) {
     const std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(6, &rng);
     const PointToSweepPlaneGroupFactor group(points, kGravity, loss);
     State state = RandomState(&rng);
-    const test::Evaluation blocks = test::Evaluate(group, state.Blocks());
+    const std::vector<double*> values = state.Blocks();
+    const test::Evaluation blocks = test::Evaluate(group, values);
     Eigen::VectorXd residuals(6);
-    Eigen::Matrix<double, Eigen::Dynamic, PointToSweepPlaneGroupFactor::kAmbientSize,
-                  Eigen::RowMajor>
-        stacked(6, PointToSweepPlaneGroupFactor::kAmbientSize);
-    stacked.setConstant(std::nan(""));
-    ASSERT_TRUE(group.EvaluateStacked(state.Blocks().data(), residuals.data(), stacked.data()));
+    Eigen::Matrix<double, Eigen::Dynamic, kTangent> tangent(6, kTangent);
+    tangent.setConstant(std::nan(""));
+    ASSERT_TRUE(group.EvaluateTangent(values.data(), residuals.data(), tangent.data()));
     EXPECT_EQ(residuals, blocks.residual);
-    Eigen::Index column = 0;
-    for (const auto& jacobian : blocks.jacobians) {
-      EXPECT_EQ(stacked.middleCols(column, jacobian.cols()), jacobian);
-      column += jacobian.cols();
+    ASSERT_EQ(blocks.jacobians.size(), 9u);
+    for (size_t b = 0; b < 9; ++b) {
+      const Eigen::MatrixXd& expected = blocks.jacobians[b];
+      Eigen::MatrixXd lifted;
+      if (expected.cols() == 4) {
+        lifted = tangent.middleCols<3>(first_column[b]) *
+                 geometry::QuaternionMinusJacobian(values[b]);
+      } else {
+        lifted = tangent.middleCols(first_column[b], expected.cols());
+        if (b == 4) lifted = -lifted;
+      }
+      EXPECT_LT((lifted - expected).norm(), 1e-12 * (1.0 + expected.norm())) << "block " << b;
     }
-    EXPECT_EQ(column, PointToSweepPlaneGroupFactor::kAmbientSize);
   }
 }
 

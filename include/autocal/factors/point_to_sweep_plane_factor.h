@@ -40,10 +40,9 @@ class PointToSweepPlaneFactor final
  public:
   // What every point of a pair of sweeps shares: the parameter blocks as rotation matrices
   // and the quaternion lifts of the tangent Jacobians (a tangent row a maps to the ambient
-  // row a^T lift), computed once per evaluation of a group (Eq. P8). With `tangent` the lifts
-  // are [I 0]: a quaternion block's row holds its tangent row a, then 0.
+  // row a^T lift), computed once per evaluation of a group (Eq. P8).
   struct Frame {
-    explicit Frame(double const* const* parameters, bool tangent = false);
+    explicit Frame(double const* const* parameters);
     Eigen::Matrix3d R_k;
     Eigen::Vector3d p_k;
     Eigen::Vector3d v_k;
@@ -67,8 +66,23 @@ class PointToSweepPlaneFactor final
     Terms(const PointToSweepPlaneMeasurement& measurement, const Eigen::Vector3d& g_W);
     // jacobians as in PointToSweepPlaneFactor::Evaluate.
     void Evaluate(const Frame& frame, double* residual, double** jacobians) const;
+    // The Jacobian in the kTangentColumns independent tangent columns, column c into
+    // row[c * stride]: theta_k (right tangent of q_W_I k), p_k, v_k, theta_j, v_j, theta_I_L
+    // (right tangent), p_I_L, the offset. The p_j columns are minus p_k's.
+    static constexpr int kTangentColumns = 22;
+    void EvaluateTangent(const Frame& frame, double* residual, double* row,
+                         size_t stride) const;
 
    private:
+    // The Jacobian's rows before any lift: the quaternion blocks' right tangents, except
+    // q_I_L's, given in its left tangent (Exp(phi) q); p_j's is minus p_k's.
+    struct Rows {
+      Eigen::Vector3d theta_k, p_k, v_k, theta_j, v_j, phi_I_L, p_I_L;
+      double offset;
+    };
+    // The residual, and the rows when `rows` is not null.
+    double Core(const Frame& frame, Rows* rows) const;
+
     // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
     struct Side {
       Side(const PointMotion& motion, const Eigen::Vector3d& g_W);

@@ -32,13 +32,15 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
-  // The same with the Jacobians of the nine blocks side by side: `jacobian` is row-major,
-  // num_residuals() x kAmbientSize (columns in the order of the blocks). With `tangent` each
-  // quaternion block's four columns hold its tangent Jacobian (right perturbation) and 0; the
-  // ambient one is that times geometry::QuaternionMinusJacobian(q).
-  static constexpr int kAmbientSize = 28;
-  bool EvaluateStacked(double const* const* parameters, double* residuals, double* jacobian,
-                       bool tangent = false) const;
+  static constexpr int kAmbientSize = 28;  // the nine blocks' sizes
+  // The same in the kTangentColumns independent tangent columns of
+  // PointToSweepPlaneFactor::Terms::EvaluateTangent (the quaternions' right tangents; p_j's
+  // columns are minus p_k's): `jacobian` is column-major, num_residuals() x kTangentColumns,
+  // the layout in which J^T J is formed fastest. The ambient Jacobian of a quaternion block is
+  // its columns times geometry::QuaternionMinusJacobian(q).
+  static constexpr int kTangentColumns = PointToSweepPlaneFactor::Terms::kTangentColumns;
+  bool EvaluateTangent(double const* const* parameters, double* residuals,
+                       double* jacobian) const;
 
   int num_points() const { return static_cast<int>(points_.size()); }
 
@@ -46,12 +48,6 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
  private:
-  // Every point's row; row_of(i, b) is where point i's Jacobian of block b goes (nullptr: not
-  // wanted), asked only with_jacobians.
-  template <typename RowOf>
-  bool EvaluateRows(double const* const* parameters, double* residuals, const RowOf& row_of,
-                    bool tangent, bool with_jacobians) const;
-
   std::vector<PointToSweepPlaneFactor::Terms> points_;
   std::unique_ptr<ceres::LossFunction> loss_;  // null for plain least squares
 };
