@@ -255,6 +255,64 @@ TEST(SlidingWindowMarginalization, KeepsAtMostNKeyframesAndAPrior) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// The window's wheel rows (Eq. SW1-SW2) are the wheel factor's rows (Eq. F22) at the state
+// ImuPreintegration::Predict gives, whitened at the current radii and track width.
+
+TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState) {
+  std::srand(9);
+  sensors::ImuNoise noise;
+  sensors::PreintegrationOptions options;
+  const Eigen::Vector3d b_g_lin(0.002, -0.001, 0.003), b_a_lin(0.05, -0.02, 0.01);
+  sensors::ImuPreintegration pim(noise, options, b_g_lin, b_a_lin);
+  for (int i = 0; i < 20; ++i) {
+    pim.IntegrateStep(Eigen::Vector3d(0.05, -0.02, 0.3) + 0.1 * Eigen::Vector3d::Random(),
+                      Eigen::Vector3d(0.8, 0.1, kGravity) + 0.3 * Eigen::Vector3d::Random(),
+                      0.005);
+  }
+  factors::WheelMeasurement m;
+  m.left_rad_s = 24.0;
+  m.right_rad_s = 25.5;
+  m.gyro_rad_s = Eigen::Vector3d(0.01, 0.02, 0.31);
+  const factors::WheelFactorOptions wheel_options;
+  const double encoder_sigma = 0.05, gyro_sigma = 0.003;
+  const std::unique_ptr<ceres::CostFunction> propagated(internal::PropagatedWheelResidual::Create(
+      pim, m, wheel_options, encoder_sigma, gyro_sigma));
+  const factors::WheelResidual wheel(m, wheel_options);
+  for (int trial = 0; trial < 10; ++trial) {
+    Eigen::Quaterniond q(Eigen::Quaterniond::UnitRandom());
+    Eigen::Vector3d p = 10.0 * Eigen::Vector3d::Random(), v = 8.0 * Eigen::Vector3d::Random();
+    Eigen::Vector3d b_g = b_g_lin + 0.002 * Eigen::Vector3d::Random();
+    Eigen::Vector3d b_a = b_a_lin + 0.05 * Eigen::Vector3d::Random();
+    Eigen::Quaterniond q_I_V(Eigen::AngleAxisd(0.02 * trial, Eigen::Vector3d::UnitX()) *
+                             Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()));
+    Eigen::Vector3d p_I_V(-1.2, 0.1, -0.4);
+    double r_l = 0.33, r_r = 0.335, track = 1.6 + 0.01 * trial;
+    const double* blocks[] = {q.coeffs().data(), v.data(), b_g.data(), b_a.data(),
+                              q_I_V.coeffs().data(), p_I_V.data(), &r_l, &r_r, &track};
+    Eigen::Vector4d got;
+    ASSERT_TRUE(propagated->Evaluate(blocks, got.data(), nullptr));
+
+    sensors::NavState<double> x;
+    x.q_W_I = q;
+    x.p_W_I = p;
+    x.v_W_I = v;
+    const sensors::NavState<double> at = pim.Predict(x, b_g, b_a);
+    Eigen::Vector4d expected;
+    ASSERT_TRUE(wheel(at.q_W_I.coeffs().data(), at.v_W_I.data(), b_g.data(),
+                      q_I_V.coeffs().data(), p_I_V.data(), &r_l, &r_r, &track, expected.data()));
+    const double radius_sq = r_l * r_l + r_r * r_r;
+    expected(0) *= 2.0 * wheel_options.speed_sigma_m_s / (encoder_sigma * std::sqrt(radius_sq));
+    expected(1) *= wheel_options.yaw_rate_sigma_rad_s * track /
+                   std::sqrt(encoder_sigma * encoder_sigma * radius_sq +
+                             track * track * gyro_sigma * gyro_sigma);
+    EXPECT_LT((got - expected).norm(), 1e-9 * (1.0 + expected.norm()))
+        << "trial " << trial << ": " << got.transpose() << " vs " << expected.transpose();
+    // Off the measured wheel rates the rows are far from zero: the check is not vacuous.
+    EXPECT_GT(expected.norm(), 1.0);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // The compressed point group (Eq. SW5) against the group it compresses.
 
 TEST(SlidingWindowCompressedPointGroup, KeepsCostGradientAndGaussNewtonMatrix) {
