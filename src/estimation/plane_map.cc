@@ -47,8 +47,7 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const 
   constexpr int kUsualNeighbors = 8;
   Neighborhood local(3, k);
   const auto fit = [&](lidar::Neighbor* neighbors) {
-    return grid_.Knn(p_W, k, neighbors, local.data()) == k &&
-           FitLocalPlane(local, plane);
+    return grid_.Knn(p_W, k, neighbors, local.data()) == k && FitLocalPlane(local, plane);
   };
   if (k <= kUsualNeighbors) {
     std::array<lidar::Neighbor, kUsualNeighbors> neighbors;

@@ -71,8 +71,8 @@ class PropagatedWheelResidual {
  public:
   PropagatedWheelResidual(const sensors::ImuPreintegration& pim,
                           const factors::WheelMeasurement& measurement,
-                          const factors::WheelFactorOptions& options,
-                          double encoder_sigma_rad_s, double gyro_sigma_rad_s)
+                          const factors::WheelFactorOptions& options, double encoder_sigma_rad_s,
+                          double gyro_sigma_rad_s)
       : delta_q_(pim.delta_q()),
         delta_v_(pim.delta_v()),
         d_R_d_bg_(pim.d_R_d_bg()),
@@ -93,8 +93,8 @@ class PropagatedWheelResidual {
                                      const factors::WheelMeasurement& measurement,
                                      const factors::WheelFactorOptions& options,
                                      double encoder_sigma_rad_s, double gyro_sigma_rad_s) {
-    return new ceres::AutoDiffCostFunction<PropagatedWheelResidual, ceres::DYNAMIC, 4, 3, 3, 3,
-                                           4, 3, 1, 1, 1>(
+    return new ceres::AutoDiffCostFunction<PropagatedWheelResidual, ceres::DYNAMIC, 4, 3, 3, 3, 4,
+                                           3, 1, 1, 1>(
         new PropagatedWheelResidual(pim, measurement, options, encoder_sigma_rad_s,
                                     gyro_sigma_rad_s),
         options.non_holonomic ? 4 : 2);

@@ -102,8 +102,8 @@ geometry::Pose3d LidarPose(const SlidingWindowState& x, const sensors::Calibrati
 // placed in W at the current estimate, p_W, and tries the sweeps j = k + o for the offsets o
 // of partner_keyframe_offsets (starting at a different one for consecutive points; only the
 // first settled_partner_count once the extrinsic has settled, Eq. SW15): the first
-// that holds a plane within max_point_to_plane_m of T_Lj_W p_W is its partner. The plane is kept in L_j
-// (Eq. SW3), so in the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the
+// that holds a plane within max_point_to_plane_m of T_Lj_W p_W is its partner. The plane is kept in
+// L_j (Eq. SW3), so in the solve it moves with keyframe j's q, p, v and with q_I_L, p_I_L and the
 // time offset. The points of keyframe k on planes of sweep j form one group factor (Eq. P9).
 void SlidingWindowEstimator::AssociatePoints() {
   const sensors::Calibration& c = calibration_;

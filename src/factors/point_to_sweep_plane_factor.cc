@@ -124,9 +124,9 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows) const {
   // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W.
   const double point_side =
       u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
-  const double plane_side = inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) -
-                                          a.dot(plane_.delta_v)) -
-                            n_W.dot(f.v_j + plane_.gravity_velocity);
+  const double plane_side =
+      inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) - a.dot(plane_.delta_v)) -
+      n_W.dot(f.v_j + plane_.gravity_velocity);
   rows->offset = point_side + plane_side;
   return residual;
 }
@@ -152,12 +152,12 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
   if (jacobians[8] != nullptr) jacobians[8][0] = rows.offset;
 }
 
-void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, double* residual,
-                                                     double* row, size_t stride) const {
+void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, double* residual, double* row,
+                                                     size_t stride) const {
   Rows rows;
   residual[0] = Core(f, &rows);
   const Eigen::Vector3d theta_I_L = f.R_I_L.transpose() * rows.phi_I_L;
-  const Eigen::Vector3d* blocks[] = {&rows.theta_k, &rows.p_k, &rows.v_k, &rows.theta_j,
+  const Eigen::Vector3d* blocks[] = {&rows.theta_k, &rows.p_k,  &rows.v_k,  &rows.theta_j,
                                      &rows.v_j,     &theta_I_L, &rows.p_I_L};
   double* out = row;
   for (const Eigen::Vector3d* block : blocks) {

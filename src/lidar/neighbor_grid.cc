@@ -49,10 +49,10 @@ NeighborGrid::NeighborGrid(const Eigen::Matrix3Xd& points, double radius_m) {
   std::vector<int> column_of(static_cast<size_t>(n));
   column_begin_.assign(static_cast<size_t>(columns_x_) * static_cast<size_t>(columns_y_) + 1, 0);
   for (int i = 0; i < n; ++i) {
-    const int ix = std::min(static_cast<int>((points(0, i) - origin_x_) * inverse_edge_),
-                            columns_x_ - 1);
-    const int iy = std::min(static_cast<int>((points(1, i) - origin_y_) * inverse_edge_),
-                            columns_y_ - 1);
+    const int ix =
+        std::min(static_cast<int>((points(0, i) - origin_x_) * inverse_edge_), columns_x_ - 1);
+    const int iy =
+        std::min(static_cast<int>((points(1, i) - origin_y_) * inverse_edge_), columns_y_ - 1);
     const int c = ix * columns_y_ + iy;
     column_of[static_cast<size_t>(i)] = c;
     ++column_begin_[static_cast<size_t>(c) + 1];

@@ -266,8 +266,7 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
   sensors::ImuPreintegration pim(noise, options, b_g_lin, b_a_lin);
   for (int i = 0; i < 20; ++i) {
     pim.IntegrateStep(Eigen::Vector3d(0.05, -0.02, 0.3) + 0.1 * Eigen::Vector3d::Random(),
-                      Eigen::Vector3d(0.8, 0.1, kGravity) + 0.3 * Eigen::Vector3d::Random(),
-                      0.005);
+                      Eigen::Vector3d(0.8, 0.1, kGravity) + 0.3 * Eigen::Vector3d::Random(), 0.005);
   }
   factors::WheelMeasurement m;
   m.left_rad_s = 24.0;
@@ -275,8 +274,8 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
   m.gyro_rad_s = Eigen::Vector3d(0.01, 0.02, 0.31);
   const factors::WheelFactorOptions wheel_options;
   const double encoder_sigma = 0.05, gyro_sigma = 0.003;
-  const std::unique_ptr<ceres::CostFunction> propagated(internal::PropagatedWheelResidual::Create(
-      pim, m, wheel_options, encoder_sigma, gyro_sigma));
+  const std::unique_ptr<ceres::CostFunction> propagated(
+      internal::PropagatedWheelResidual::Create(pim, m, wheel_options, encoder_sigma, gyro_sigma));
   const factors::WheelResidual wheel(m, wheel_options);
   for (int trial = 0; trial < 10; ++trial) {
     Eigen::Quaterniond q(Eigen::Quaterniond::UnitRandom());
@@ -287,8 +286,9 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
                              Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()));
     Eigen::Vector3d p_I_V(-1.2, 0.1, -0.4);
     double r_l = 0.33, r_r = 0.335, track = 1.6 + 0.01 * trial;
-    const double* blocks[] = {q.coeffs().data(), v.data(), b_g.data(), b_a.data(),
-                              q_I_V.coeffs().data(), p_I_V.data(), &r_l, &r_r, &track};
+    const double* blocks[] = {
+        q.coeffs().data(), v.data(), b_g.data(), b_a.data(), q_I_V.coeffs().data(),
+        p_I_V.data(),      &r_l,     &r_r,       &track};
     Eigen::Vector4d got;
     ASSERT_TRUE(propagated->Evaluate(blocks, got.data(), nullptr));
 
@@ -298,8 +298,8 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
     x.v_W_I = v;
     const sensors::NavState<double> at = pim.Predict(x, b_g, b_a);
     Eigen::Vector4d expected;
-    ASSERT_TRUE(wheel(at.q_W_I.coeffs().data(), at.v_W_I.data(), b_g.data(),
-                      q_I_V.coeffs().data(), p_I_V.data(), &r_l, &r_r, &track, expected.data()));
+    ASSERT_TRUE(wheel(at.q_W_I.coeffs().data(), at.v_W_I.data(), b_g.data(), q_I_V.coeffs().data(),
+                      p_I_V.data(), &r_l, &r_r, &track, expected.data()));
     const double radius_sq = r_l * r_l + r_r * r_r;
     expected(0) *= 2.0 * wheel_options.speed_sigma_m_s / (encoder_sigma * std::sqrt(radius_sq));
     expected(1) *= wheel_options.yaw_rate_sigma_rad_s * track /

@@ -278,8 +278,8 @@ TEST(PointToSweepPlaneGroupFactor, TangentJacobianLiftsToTheBlocks) {
       const Eigen::MatrixXd& expected = blocks.jacobians[b];
       Eigen::MatrixXd lifted;
       if (expected.cols() == 4) {
-        lifted = tangent.middleCols<3>(first_column[b]) *
-                 geometry::QuaternionMinusJacobian(values[b]);
+        lifted =
+            tangent.middleCols<3>(first_column[b]) * geometry::QuaternionMinusJacobian(values[b]);
       } else {
         lifted = tangent.middleCols(first_column[b], expected.cols());
         if (b == 4) lifted = -lifted;

@@ -2,8 +2,9 @@
 
 // A map of local planes in the world frame for point-to-plane association
 // (docs/estimation.md, "Local map and association"): the map points are voxel-downsampled
-// and indexed by a grid of columns as wide as the neighbour radius; a query point is associated with the total-least-squares plane
-// of its k nearest map points when those points are close, flat and thin enough.
+// and indexed by a grid of columns as wide as the neighbour radius; a query point is
+// associated with the total-least-squares plane of its k nearest map points when those points
+// are close, flat and thin enough.
 
 #include <cstdint>
 

@@ -70,8 +70,7 @@ class PointToSweepPlaneFactor final
     // row[c * stride]: theta_k (right tangent of q_W_I k), p_k, v_k, theta_j, v_j, theta_I_L
     // (right tangent), p_I_L, the offset. The p_j columns are minus p_k's.
     static constexpr int kTangentColumns = 22;
-    void EvaluateTangent(const Frame& frame, double* residual, double* row,
-                         size_t stride) const;
+    void EvaluateTangent(const Frame& frame, double* residual, double* row, size_t stride) const;
 
    private:
     // The Jacobian's rows before any lift: the quaternion blocks' right tangents, except

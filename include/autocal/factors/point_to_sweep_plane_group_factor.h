@@ -39,8 +39,7 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   // the layout in which J^T J is formed fastest. The ambient Jacobian of a quaternion block is
   // its columns times geometry::QuaternionMinusJacobian(q).
   static constexpr int kTangentColumns = PointToSweepPlaneFactor::Terms::kTangentColumns;
-  bool EvaluateTangent(double const* const* parameters, double* residuals,
-                       double* jacobian) const;
+  bool EvaluateTangent(double const* const* parameters, double* residuals, double* jacobian) const;
 
   int num_points() const { return static_cast<int>(points_.size()); }
 

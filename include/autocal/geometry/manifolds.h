@@ -59,8 +59,7 @@ inline void LiftTangentRow(const Eigen::RowVector3d& a, const double* q_xyzw, do
 // The same for a right-tangent row given rotated, a = (R(q)^T b)^T, without the rotation:
 // R(q)^T b is b in the left tangent (q Exp(R^T b) = Exp(b) q), and
 // a * MinusJacobian(q) = 2 [w b - v x b, -b . v].
-inline void LiftRotatedTangentRow(const Eigen::Vector3d& b, const double* q_xyzw,
-                                  double* ambient) {
+inline void LiftRotatedTangentRow(const Eigen::Vector3d& b, const double* q_xyzw, double* ambient) {
   const Eigen::Map<const Eigen::Vector3d> v(q_xyzw);
   const double w = q_xyzw[3];
   const Eigen::Vector3d head = 2.0 * (w * b - v.cross(b));

@@ -46,7 +46,7 @@ class NeighborGrid {
   double origin_x_ = 0.0, origin_y_ = 0.0;
   int columns_x_ = 0, columns_y_ = 0;
   // Points of column c = ix * columns_y_ + iy at [column_begin_[c], column_begin_[c + 1]),
-  // coordinates apart so that the distances of a run are computed side by side.
+  // coordinates in separate arrays.
   std::vector<int> column_begin_;
   std::vector<double> x_, y_, z_;
   std::vector<int> index_;  // the point's column in the constructor's matrix
