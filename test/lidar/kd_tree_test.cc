@@ -12,6 +12,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/io/point_cloud_file.h"
+#include "lidar/neighbor_search_clouds.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -134,16 +135,6 @@ void ExpectMatchesBruteForce(const Eigen::Matrix3Xd& points, const Eigen::Matrix
   }
 }
 
-Eigen::Matrix3Xd UniformPoints(int n, uint64_t seed, const Eigen::Vector3d& extent_m) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  Eigen::Matrix3Xd points(3, n);
-  for (int i = 0; i < n; ++i) {
-    points.col(i) = Eigen::Vector3d(u(rng), u(rng), u(rng)).cwiseProduct(extent_m);
-  }
-  return points;
-}
-
 // Queries in and around the cloud, plus some of its own points (distance 0, and ties when
 // the cloud has duplicates).
 Eigen::Matrix3Xd QueriesFor(const Eigen::Matrix3Xd& points, uint64_t seed) {
@@ -155,7 +146,7 @@ Eigen::Matrix3Xd QueriesFor(const Eigen::Matrix3Xd& points, uint64_t seed) {
     center = 0.5 * (points.rowwise().minCoeff() + points.rowwise().maxCoeff());
     half_extent = (0.5 * (points.rowwise().maxCoeff() - points.rowwise().minCoeff())).cwiseMax(1.0);
   }
-  Eigen::Matrix3Xd queries = UniformPoints(kRandom + kOwn, seed, 1.3 * half_extent);
+  Eigen::Matrix3Xd queries = test::UniformPoints(kRandom + kOwn, seed, 1.3 * half_extent);
   queries.colwise() += center;
   std::mt19937_64 rng(seed + 1);
   for (int i = 0; i < kOwn && points.cols() > 0; ++i) {
@@ -165,24 +156,15 @@ Eigen::Matrix3Xd QueriesFor(const Eigen::Matrix3Xd& points, uint64_t seed) {
 }
 
 TEST(KdTreeTest, RandomCloudsMatchBruteForce) {
-  const Eigen::Matrix3Xd flat = UniformPoints(3000, 5, Eigen::Vector3d(20.0, 20.0, 4.0));
+  const Eigen::Matrix3Xd flat = test::UniformPoints(3000, 5, Eigen::Vector3d(20.0, 20.0, 4.0));
   ExpectMatchesBruteForce(flat, QueriesFor(flat, 6), "uniform");
   // Scan-like density: most points near the origin, a few far away (uneven cells).
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  Eigen::Matrix3Xd scan(3, 4000);
-  for (int i = 0; i < scan.cols(); ++i) {
-    const Eigen::Vector3d direction(gauss(rng), gauss(rng), 0.1 * gauss(rng));
-    scan.col(i) = std::exp(3.0 * std::abs(gauss(rng))) * direction.normalized();
-  }
+  const Eigen::Matrix3Xd scan = test::ScanLikePoints(4000, 7);
   ExpectMatchesBruteForce(scan, QueriesFor(scan, 8), "scan-like");
 }
 
 TEST(KdTreeTest, DegenerateCloudsMatchBruteForce) {
-  // Duplicates: 40 distinct points repeated 50 times each, so distances tie.
-  const Eigen::Matrix3Xd distinct = UniformPoints(40, 11, Eigen::Vector3d(5.0, 5.0, 5.0));
-  Eigen::Matrix3Xd duplicates(3, 2000);
-  for (int i = 0; i < duplicates.cols(); ++i) duplicates.col(i) = distinct.col((7 * i) % 40);
+  const Eigen::Matrix3Xd duplicates = test::DuplicatedPoints();
   ExpectMatchesBruteForce(duplicates, QueriesFor(duplicates, 12), "duplicates");
 
   const Eigen::Matrix3Xd all_equal = Eigen::Vector3d(1.0, -2.0, 3.0).replicate(1, 300);
@@ -194,8 +176,7 @@ TEST(KdTreeTest, DegenerateCloudsMatchBruteForce) {
   ExpectMatchesBruteForce(line, QueriesFor(line, 14), "collinear");
 
   // A planar integer grid: queries at grid points tie with up to 4 or 8 neighbours.
-  Eigen::Matrix3Xd grid(3, 1600);
-  for (int i = 0; i < grid.cols(); ++i) grid.col(i) = Eigen::Vector3d(i % 40, i / 40, 0.0);
+  const Eigen::Matrix3Xd grid = test::IntegerLattice();
   Eigen::Matrix3Xd grid_queries = QueriesFor(grid, 15);
   for (int i = 0; i < 20; ++i) grid_queries.col(i) = Eigen::Vector3d(3 + i, 17 - i % 5, 0.0);
   ExpectMatchesBruteForce(grid, grid_queries, "planar grid");
@@ -220,7 +201,7 @@ TEST(KdTreeTest, RealScanMatchesBruteForce) {
 
 TEST(KdTreeTest, EdgeCasesAndErrors) {
   EXPECT_THROW(KdTree(Eigen::Matrix3Xd::Constant(3, 4, std::nan(""))), Error);
-  Eigen::Matrix3Xd points = UniformPoints(100, 21, Eigen::Vector3d::Ones());
+  Eigen::Matrix3Xd points = test::UniformPoints(100, 21, Eigen::Vector3d::Ones());
   points(1, 57) = kInfinity;
   EXPECT_THROW(KdTree{points}, Error);
   points(1, 57) = 0.0;

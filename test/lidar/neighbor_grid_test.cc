@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "lidar/neighbor_search_clouds.h"
 
 namespace autocal {
 namespace lidar {
@@ -66,16 +67,6 @@ void ExpectMatchesBruteForce(const Eigen::Matrix3Xd& points, const Eigen::Matrix
   EXPECT_GT(nonempty, queries.cols() / 4) << name;
 }
 
-Eigen::Matrix3Xd UniformPoints(int n, uint64_t seed, const Eigen::Vector3d& extent_m) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  Eigen::Matrix3Xd points(3, n);
-  for (int i = 0; i < n; ++i) {
-    points.col(i) = Eigen::Vector3d(u(rng), u(rng), u(rng)).cwiseProduct(extent_m);
-  }
-  return points;
-}
-
 // Queries near random points of the cloud (within twice the radius), some exactly on points,
 // and some around and beyond the cloud's bounds.
 Eigen::Matrix3Xd QueriesFor(const Eigen::Matrix3Xd& points, double radius_m, uint64_t seed) {
@@ -99,35 +90,25 @@ Eigen::Matrix3Xd QueriesFor(const Eigen::Matrix3Xd& points, double radius_m, uin
 }
 
 TEST(NeighborGridTest, RandomCloudsMatchBruteForce) {
-  const Eigen::Matrix3Xd flat = UniformPoints(3000, 5, Eigen::Vector3d(20.0, 20.0, 4.0));
+  const Eigen::Matrix3Xd flat = test::UniformPoints(3000, 5, Eigen::Vector3d(20.0, 20.0, 4.0));
   for (const double radius_m : {0.3, 1.0, 2.7}) {
     ExpectMatchesBruteForce(flat, QueriesFor(flat, radius_m, 6), radius_m,
                             "uniform, radius " + std::to_string(radius_m));
   }
   // Scan-like density: most points near the origin, a few far away; a tall column of points
   // (a pole) shares its grid column with everything below it.
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  Eigen::Matrix3Xd scan(3, 4000);
-  for (int i = 0; i < scan.cols(); ++i) {
-    const Eigen::Vector3d direction(gauss(rng), gauss(rng), 0.1 * gauss(rng));
-    scan.col(i) = std::exp(3.0 * std::abs(gauss(rng))) * direction.normalized();
-  }
+  Eigen::Matrix3Xd scan = test::ScanLikePoints(4000, 7);
   for (int i = 0; i < 300; ++i) scan.col(i) = Eigen::Vector3d(2.0, -1.0, 0.05 * i);
   ExpectMatchesBruteForce(scan, QueriesFor(scan, 1.0, 8), 1.0, "scan-like");
 }
 
 TEST(NeighborGridTest, TiesAndBoundsMatchBruteForce) {
-  // Duplicates: 40 distinct points repeated 50 times each, so distances tie.
-  const Eigen::Matrix3Xd distinct = UniformPoints(40, 11, Eigen::Vector3d(5.0, 5.0, 5.0));
-  Eigen::Matrix3Xd duplicates(3, 2000);
-  for (int i = 0; i < duplicates.cols(); ++i) duplicates.col(i) = distinct.col((7 * i) % 40);
+  const Eigen::Matrix3Xd duplicates = test::DuplicatedPoints();
   ExpectMatchesBruteForce(duplicates, QueriesFor(duplicates, 2.0, 12), 2.0, "duplicates");
 
   // A planar integer grid, with the radius an exact neighbour distance: queries at grid points
   // tie with 4 neighbours at exactly the radius, which counts.
-  Eigen::Matrix3Xd lattice(3, 1600);
-  for (int i = 0; i < lattice.cols(); ++i) lattice.col(i) = Eigen::Vector3d(i % 40, i / 40, 0.0);
+  const Eigen::Matrix3Xd lattice = test::IntegerLattice();
   Eigen::Matrix3Xd queries = QueriesFor(lattice, 1.0, 15);
   for (int i = 0; i < 40; ++i) queries.col(16 + i) = Eigen::Vector3d(3 + i % 30, 17 - i % 5, 0.0);
   ExpectMatchesBruteForce(lattice, queries, 1.0, "lattice");
@@ -147,8 +128,8 @@ TEST(NeighborGridTest, TiesAndBoundsMatchBruteForce) {
 
 TEST(NeighborGridTest, CoarsensAGridTooLargeAndStaysExact) {
   // 1e4 km across at a 1 m radius: 1e14 columns, coarsened below the cap.
-  Eigen::Matrix3Xd spread = UniformPoints(2000, 21, Eigen::Vector3d(2.0, 2.0, 2.0));
-  spread.leftCols(1000) = UniformPoints(1000, 22, Eigen::Vector3d(5e6, 5e6, 1.0));
+  Eigen::Matrix3Xd spread = test::UniformPoints(2000, 21, Eigen::Vector3d(2.0, 2.0, 2.0));
+  spread.leftCols(1000) = test::UniformPoints(1000, 22, Eigen::Vector3d(5e6, 5e6, 1.0));
   const NeighborGrid grid(spread, 1.0);
   EXPECT_GT(grid.column_edge_m(), 1.0);
   const double columns = std::pow(std::ceil(1e7 / grid.column_edge_m()) + 1.0, 2.0);
@@ -163,7 +144,7 @@ TEST(NeighborGridTest, EmptyAndOutOfReachQueriesFindNothing) {
   EXPECT_EQ(empty.size(), 0);
   EXPECT_EQ(empty.Knn(Eigen::Vector3d::Zero(), 5, found.data()), 0);
 
-  const Eigen::Matrix3Xd points = UniformPoints(500, 31, Eigen::Vector3d(3.0, 3.0, 3.0));
+  const Eigen::Matrix3Xd points = test::UniformPoints(500, 31, Eigen::Vector3d(3.0, 3.0, 3.0));
   const NeighborGrid grid(points, 1.0);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
@@ -179,7 +160,7 @@ TEST(NeighborGridTest, EmptyAndOutOfReachQueriesFindNothing) {
 }
 
 TEST(NeighborGridTest, RejectsInvalidInput) {
-  const Eigen::Matrix3Xd points = UniformPoints(10, 41, Eigen::Vector3d(1.0, 1.0, 1.0));
+  const Eigen::Matrix3Xd points = test::UniformPoints(10, 41, Eigen::Vector3d(1.0, 1.0, 1.0));
   for (const double radius_m : {0.0, -1.0, std::numeric_limits<double>::infinity(),
                                 std::numeric_limits<double>::quiet_NaN()}) {
     EXPECT_THROW(NeighborGrid(points, radius_m), Error) << radius_m;
