@@ -69,18 +69,11 @@ sensors::NavState<T> PropagatedState(const sensors::ImuPreintegration& pim, cons
 // wheel rows), then q_I_V, p_I_V, r_l, r_r, track width.
 class PropagatedWheelResidual {
  public:
-  PropagatedWheelResidual(const sensors::ImuPreintegration& pim,
+  PropagatedWheelResidual(sensors::ImuPreintegration pim,
                           const factors::WheelMeasurement& measurement,
                           const factors::WheelFactorOptions& options, double encoder_sigma_rad_s,
                           double gyro_sigma_rad_s)
-      : delta_q_(pim.delta_q()),
-        delta_v_(pim.delta_v()),
-        d_R_d_bg_(pim.d_R_d_bg()),
-        d_v_d_bg_(pim.d_v_d_bg()),
-        d_v_d_ba_(pim.d_v_d_ba()),
-        b_g_lin_(pim.b_g_lin()),
-        b_a_lin_(pim.b_a_lin()),
-        gravity_dt_(pim.gravity_W() * pim.dt_s()),
+      : pim_(std::move(pim)),
         wheel_(measurement, options),
         speed_sigma_m_s_(options.speed_sigma_m_s),
         yaw_rate_sigma_rad_s_(options.yaw_rate_sigma_rad_s),
@@ -89,13 +82,13 @@ class PropagatedWheelResidual {
 
   // encoder_sigma_rad_s: 1-sigma of each wheel rate; gyro_sigma_rad_s: 1-sigma of one gyro
   // sample (noise density times the square root of the IMU rate).
-  static ceres::CostFunction* Create(const sensors::ImuPreintegration& pim,
+  static ceres::CostFunction* Create(sensors::ImuPreintegration pim,
                                      const factors::WheelMeasurement& measurement,
                                      const factors::WheelFactorOptions& options,
                                      double encoder_sigma_rad_s, double gyro_sigma_rad_s) {
     return new ceres::AutoDiffCostFunction<PropagatedWheelResidual, ceres::DYNAMIC, 4, 3, 3, 3, 4,
                                            3, 1, 1, 1>(
-        new PropagatedWheelResidual(pim, measurement, options, encoder_sigma_rad_s,
+        new PropagatedWheelResidual(std::move(pim), measurement, options, encoder_sigma_rad_s,
                                     gyro_sigma_rad_s),
         options.non_holonomic ? 4 : 2);
   }
@@ -110,14 +103,13 @@ class PropagatedWheelResidual {
     // R_t = R_k dR and v_t = v_k + g dt + R_k dv, which is dR^T (R_k^T (v_k + g dt) + dv).
     // So the wheel residual is given dR for the attitude and R_k^T (v_k + g dt) + dv for the
     // velocity: no product R_k dR, and no position.
-    const Vec3 dbg = Eigen::Map<const Vec3>(b_g) - b_g_lin_.cast<T>();
-    const Vec3 dba = Eigen::Map<const Vec3>(b_a) - b_a_lin_.cast<T>();
-    const Eigen::Quaternion<T> dq =
-        delta_q_.cast<T>() * geometry::Exp(Vec3(d_R_d_bg_.cast<T>() * dbg));
-    const Vec3 dv = delta_v_.cast<T>() + d_v_d_bg_.cast<T>() * dbg + d_v_d_ba_.cast<T>() * dba;
+    Eigen::Quaternion<T> dq;
+    Vec3 dv;
+    pim_.CorrectedDeltas<T>(Eigen::Map<const Vec3>(b_g), Eigen::Map<const Vec3>(b_a), &dq, &dv,
+                            nullptr);
+    const Vec3 g_dt = (pim_.gravity_W() * pim_.dt_s()).cast<T>();
     const Eigen::Map<const Eigen::Quaternion<T>> q_k(q);
-    const Vec3 v_in_k =
-        q_k.conjugate() * Vec3(Eigen::Map<const Vec3>(v) + gravity_dt_.cast<T>()) + dv;
+    const Vec3 v_in_k = q_k.conjugate() * Vec3(Eigen::Map<const Vec3>(v) + g_dt) + dv;
     if (!wheel_(dq.coeffs().data(), v_in_k.data(), b_g, q_I_V, p_I_V, r_l, r_r, track_width,
                 residual)) {
       return false;
@@ -134,15 +126,7 @@ class PropagatedWheelResidual {
   }
 
  private:
-  // The preintegration's deltas and bias Jacobians (Eq. F6-F7).
-  Eigen::Quaterniond delta_q_;
-  Eigen::Vector3d delta_v_;
-  Eigen::Matrix3d d_R_d_bg_;  // right
-  Eigen::Matrix3d d_v_d_bg_;
-  Eigen::Matrix3d d_v_d_ba_;
-  Eigen::Vector3d b_g_lin_;
-  Eigen::Vector3d b_a_lin_;
-  Eigen::Vector3d gravity_dt_;  // g_W dt
+  sensors::ImuPreintegration pim_;
   factors::WheelResidual wheel_;
   double speed_sigma_m_s_;       // the sigmas wheel_ whitens with
   double yaw_rate_sigma_rad_s_;

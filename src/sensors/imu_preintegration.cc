@@ -493,11 +493,7 @@ Matrix15d ImuPreintegration::SqrtInformation() const {
 void ImuPreintegration::Corrected(const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a,
                                   Eigen::Quaterniond* dq, Eigen::Vector3d* dv,
                                   Eigen::Vector3d* dp) const {
-  const Eigen::Vector3d dbg = b_g - b_g_lin_;
-  const Eigen::Vector3d dba = b_a - b_a_lin_;
-  *dq = delta_q_ * geometry::Exp(Eigen::Vector3d(d_R_d_bg() * dbg));
-  *dv = delta_v_ + d_v_d_bg_ * dbg + d_v_d_ba_ * dba;
-  *dp = delta_p_ + d_p_d_bg_ * dbg + d_p_d_ba_ * dba;
+  CorrectedDeltas<double>(b_g, b_a, dq, dv, dp);
 }
 
 }  // namespace sensors

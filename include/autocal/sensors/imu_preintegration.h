@@ -98,6 +98,12 @@ class ImuPreintegration {
   // Deltas corrected to first order for biases (b_g, b_a) (Eq. F7).
   void Corrected(const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a, Eigen::Quaterniond* dq,
                  Eigen::Vector3d* dv, Eigen::Vector3d* dp) const;
+  // The same for any scalar (Jets through Predict and the factors that attach through it);
+  // dp may be null when the position is not wanted.
+  template <typename T>
+  void CorrectedDeltas(const geometry::Vector3<T>& b_g, const geometry::Vector3<T>& b_a,
+                       Eigen::Quaternion<T>* dq, geometry::Vector3<T>* dv,
+                       geometry::Vector3<T>* dp) const;
 
   // The state at t_i + dt_s() from the state at t_i (Eq. F8). Templated so that residuals
   // of later factors (LiDAR points inside a sweep, GNSS, wheel between keyframes) can
@@ -173,17 +179,24 @@ struct GyroMean {
 GyroMean MeanGyro(const ImuSamples& samples, int64_t t0_ns, int64_t t1_ns);
 
 template <typename T>
-NavState<T> ImuPreintegration::Predict(const NavState<T>& state_i, const geometry::Vector3<T>& b_g,
-                                       const geometry::Vector3<T>& b_a) const {
+void ImuPreintegration::CorrectedDeltas(const geometry::Vector3<T>& b_g,
+                                        const geometry::Vector3<T>& b_a, Eigen::Quaternion<T>* dq,
+                                        geometry::Vector3<T>* dv, geometry::Vector3<T>* dp) const {
   const geometry::Vector3<T> dbg = b_g - b_g_lin_.cast<T>();
   const geometry::Vector3<T> dba = b_a - b_a_lin_.cast<T>();
   const Eigen::Matrix3d d_R_d_bg_right = d_R_d_bg();
   const geometry::Vector3<T> dphi = d_R_d_bg_right.cast<T>() * dbg;
-  const Eigen::Quaternion<T> dq = delta_q_.cast<T>() * geometry::Exp(dphi);
-  const geometry::Vector3<T> dv =
-      delta_v_.cast<T>() + d_v_d_bg_.cast<T>() * dbg + d_v_d_ba_.cast<T>() * dba;
-  const geometry::Vector3<T> dp =
-      delta_p_.cast<T>() + d_p_d_bg_.cast<T>() * dbg + d_p_d_ba_.cast<T>() * dba;
+  *dq = delta_q_.cast<T>() * geometry::Exp(dphi);
+  *dv = delta_v_.cast<T>() + d_v_d_bg_.cast<T>() * dbg + d_v_d_ba_.cast<T>() * dba;
+  if (dp != nullptr) *dp = delta_p_.cast<T>() + d_p_d_bg_.cast<T>() * dbg + d_p_d_ba_.cast<T>() * dba;
+}
+
+template <typename T>
+NavState<T> ImuPreintegration::Predict(const NavState<T>& state_i, const geometry::Vector3<T>& b_g,
+                                       const geometry::Vector3<T>& b_a) const {
+  Eigen::Quaternion<T> dq;
+  geometry::Vector3<T> dv, dp;
+  CorrectedDeltas(b_g, b_a, &dq, &dv, &dp);
   const T dt(dt_s_);
   const geometry::Vector3<T> g = gravity_W().cast<T>();
   NavState<T> out;
