@@ -64,7 +64,8 @@ bool PointToSweepPlaneFactor::Evaluate(double const* const* parameters, double* 
   return true;
 }
 
-double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows) const {
+double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows,
+                                            bool calibration_rows) const {
   const double delta = f.time_offset_s - offset_linearization_s_;
 
   // Point side (Eq. P1-P3) with dR (I + delta Hat(omega)) applied as dR (x + delta omega x x):
@@ -109,6 +110,7 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows) const {
   // Plane side: d/dtheta_j of a . R_j^T w is (a x z)^T (Eq. P8).
   rows->theta_j = inv_sigma_ * a.cross(z);
   rows->v_j = -(plane_.dt_s + delta) * n_W;
+  if (!calibration_rows) return residual;
   // t = dR_j^T (z - b); B^T (z - b) = (I - delta Hat(omega_j)) t = t + delta t x omega_j.
   const Eigen::Vector3d t = plane_.delta_R.transpose() * z_minus_b;
   // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
@@ -134,11 +136,15 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows) const {
 void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
                                               double** jacobians) const {
   if (jacobians == nullptr) {
-    residual[0] = Core(f, nullptr);
+    residual[0] = Core(f, nullptr, false);
     return;
   }
+  // The calibration's rows only when asked for (a batch solve with the calibration held fixed
+  // asks for none of them).
+  const bool calibration_rows =
+      jacobians[6] != nullptr || jacobians[7] != nullptr || jacobians[8] != nullptr;
   Rows rows;
-  residual[0] = Core(f, &rows);
+  residual[0] = Core(f, &rows, calibration_rows);
   if (jacobians[0] != nullptr) Row<4>(jacobians[0]) = rows.theta_k.transpose() * f.lift_k;
   if (jacobians[1] != nullptr) Row<3>(jacobians[1]) = rows.p_k.transpose();
   if (jacobians[2] != nullptr) Row<3>(jacobians[2]) = rows.v_k.transpose();
@@ -155,7 +161,7 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
 void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, double* residual, double* row,
                                                      size_t stride) const {
   Rows rows;
-  residual[0] = Core(f, &rows);
+  residual[0] = Core(f, &rows, true);
   const Eigen::Vector3d theta_I_L = f.R_I_L.transpose() * rows.phi_I_L;
   const Eigen::Vector3d* blocks[] = {&rows.theta_k, &rows.p_k,  &rows.v_k,  &rows.theta_j,
                                      &rows.v_j,     &theta_I_L, &rows.p_I_L};

@@ -200,6 +200,34 @@ TEST(PointToSweepPlaneFactor, AnalyticMatchesAutodiffTwin) {
   }
 }
 
+// Blocks asked for without others (a solve holding the calibration fixed asks for no q_I_L,
+// p_I_L, offset rows) get the rows they get when every block is asked for.
+TEST(PointToSweepPlaneFactor, AnyBlocksAskedForGetTheirFullRows) {
+  std::mt19937 rng(8);
+  for (int trial = 0; trial < 10; ++trial) {
+    const PointToSweepPlaneFactor factor(RandomMeasurement(&rng), kGravity);
+    State state = RandomState(&rng);
+    const std::vector<double*> values = state.Blocks();
+    const test::Evaluation all = test::Evaluate(factor, values);
+    for (const std::vector<size_t>& asked :
+         {std::vector<size_t>{0, 1, 2, 3, 4, 5}, std::vector<size_t>{6, 7, 8},
+          std::vector<size_t>{8}, std::vector<size_t>{}}) {
+      std::vector<std::array<double, 4>> rows(9);
+      std::vector<double*> jacobians(9, nullptr);
+      for (size_t b : asked) jacobians[b] = rows[b].data();
+      double residual = 0.0;
+      ASSERT_TRUE(factor.Evaluate(values.data(), &residual, jacobians.data()));
+      EXPECT_EQ(residual, all.residual(0));
+      for (size_t b : asked) {
+        for (Eigen::Index c = 0; c < all.jacobians[b].cols(); ++c) {
+          EXPECT_EQ(rows[b][static_cast<size_t>(c)], all.jacobians[b](0, c))
+              << "trial " << trial << ", block " << b;
+        }
+      }
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------
 // Groups (Eq. P9).
 

@@ -79,8 +79,9 @@ class PointToSweepPlaneFactor final
       Eigen::Vector3d theta_k, p_k, v_k, theta_j, v_j, phi_I_L, p_I_L;
       double offset;
     };
-    // The residual, and the rows when `rows` is not null.
-    double Core(const Frame& frame, Rows* rows) const;
+    // The residual, and the rows when `rows` is not null: those of q_I_L, p_I_L and the offset
+    // only with `calibration_rows`.
+    double Core(const Frame& frame, Rows* rows, bool calibration_rows) const;
 
     // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
     struct Side {
