@@ -7,6 +7,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "lidar/nearest_list.h"
 
 namespace autocal {
 namespace lidar {
@@ -135,12 +136,6 @@ struct Offsets {
   double Sum() const { return squared[0] + squared[1] + squared[2]; }
 };
 
-// (distance, index) in lexicographic order: ties in distance go to the lower index, so every
-// query's result is exactly the brute-force sort of (distance, index).
-bool Closer(double d_a, int i_a, double d_b, int i_b) {
-  return d_a < d_b || (d_a == d_b && i_a < i_b);
-}
-
 // The k closest so far, sorted by Closer, in the caller's out[0 .. count), and with
 // kWithPoints their tree points in points_[0 .. count) (the caller's, k entries).
 template <bool kWithPoints>
@@ -157,21 +152,8 @@ class KnnResult {
   }
   void Offer(double d, const TreePoint& p) {
     if (d > max_squared_distance_) return;
-    int i;
-    if (count_ < k_) {
-      i = count_++;
-    } else if (Closer(d, p.index, out_[k_ - 1].squared_distance_m2, out_[k_ - 1].index)) {
-      i = k_ - 1;
-    } else {
-      return;
-    }
-    while (i > 0 && Closer(d, p.index, out_[i - 1].squared_distance_m2, out_[i - 1].index)) {
-      out_[i] = out_[i - 1];
-      if (kWithPoints) points_[i] = points_[i - 1];
-      --i;
-    }
-    out_[i] = Neighbor{p.index, d};
-    if (kWithPoints) points_[i] = &p;
+    internal::OfferNearest<const TreePoint*>(k_, d, p.index, &p, out_,
+                                             kWithPoints ? points_ : nullptr, &count_);
   }
 
  private:

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "lidar/nearest_list.h"
 
 namespace autocal {
 namespace lidar {
@@ -128,24 +129,7 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
       for (int c = 0; c < within; ++c) {
         const double d = candidate_d[static_cast<size_t>(c)];
         const int s = candidate_slot[static_cast<size_t>(c)];
-        const int index = index_[static_cast<size_t>(s)];
-        int i;
-        if (count < k) {
-          i = count++;
-        } else if (d < out[k - 1].squared_distance_m2 ||
-                   (d == out[k - 1].squared_distance_m2 && index < out[k - 1].index)) {
-          i = k - 1;
-        } else {
-          continue;
-        }
-        while (i > 0 && (d < out[i - 1].squared_distance_m2 ||
-                         (d == out[i - 1].squared_distance_m2 && index < out[i - 1].index))) {
-          out[i] = out[i - 1];
-          slots[i] = slots[i - 1];
-          --i;
-        }
-        out[i] = Neighbor{index, d};
-        slots[i] = s;
+        internal::OfferNearest(k, d, index_[static_cast<size_t>(s)], s, out, slots, &count);
       }
     }
   }
