@@ -390,6 +390,10 @@ void SlidingWindowEstimator::Update(lidar::LidarSweep sweep) {
 void SlidingWindowEstimator::AddKeyframe(lidar::LidarSweep sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
+  if (dropped_keyframe_) {
+    kf->TakeBuffersOf(dropped_keyframe_.get());
+    dropped_keyframe_.reset();
+  }
   kf->id = next_keyframe_id_++;
   kf->state.t_ns = KeyframeTimeOf(sweep);
 
@@ -525,15 +529,16 @@ void SlidingWindowEstimator::DropOldest(std::unique_ptr<MarginalizationPrior> pr
   prior_ = std::move(prior);
   marginalized_.push_back(window_.front()->state);
   const int dropped_id = window_.front()->id;
+  dropped_keyframe_ = std::move(window_.front());
   window_.pop_front();
   // Pairs with the dropped sweep are in the prior now.
   for (auto& kf : window_) {
     std::vector<internal::SweepPointGroup>& groups = kf->point_groups;
-    groups.erase(std::remove_if(groups.begin(), groups.end(),
-                                [dropped_id](const internal::SweepPointGroup& g) {
-                                  return g.partner_id == dropped_id;
-                                }),
-                 groups.end());
+    const auto dropped = std::stable_partition(
+        groups.begin(), groups.end(),
+        [dropped_id](const internal::SweepPointGroup& g) { return g.partner_id != dropped_id; });
+    for (auto g = dropped; g != groups.end(); ++g) kf->Retire(&*g);
+    groups.erase(dropped, groups.end());
   }
   window_.front()->imu_from_previous.reset();
   ++counters_.marginalizations;

@@ -88,6 +88,42 @@ struct SlidingWindowEstimator::WindowKeyframe {
   size_t partner_walk = 0;
   std::vector<factors::PointToSweepPlaneMeasurement> pairs;
   std::vector<internal::SweepPointGroup> point_groups;
+  // Emptied point storage of groups since dropped, for the next groups this keyframe forms
+  // (PointToSweepPlaneGroupFactor::ReleaseStorage), at most kMaxSpareStorage.
+  static constexpr size_t kMaxSpareStorage = 2;
+  std::vector<std::vector<factors::PointToSweepPlaneFactor::Terms>> spare_storage;
+  // Drops `group`'s factor, keeping its storage among the kMaxSpareStorage largest.
+  void Retire(internal::SweepPointGroup* group) {
+    group->compressed.reset();  // it refers to the factor
+    std::vector<factors::PointToSweepPlaneFactor::Terms> storage =
+        factors::PointToSweepPlaneGroupFactor::ReleaseStorage(std::move(group->factor));
+    if (spare_storage.size() < kMaxSpareStorage) {
+      spare_storage.push_back(std::move(storage));
+      return;
+    }
+    auto smallest =
+        std::min_element(spare_storage.begin(), spare_storage.end(),
+                         [](const auto& a, const auto& b) { return a.capacity() < b.capacity(); });
+    if (storage.capacity() > smallest->capacity()) *smallest = std::move(storage);
+  }
+  // Takes over the pairing buffers and the point storage of a keyframe that left the window
+  // (their stale contents are never read: a pair is read only once written).
+  void TakeBuffersOf(WindowKeyframe* old) {
+    pairs = std::move(old->pairs);
+    tried_at = std::move(old->tried_at);
+    spare_storage = std::move(old->spare_storage);
+    for (internal::SweepPointGroup& group : old->point_groups) Retire(&group);
+  }
+  // Storage for n terms: a spare one when kept, else a new one.
+  std::vector<factors::PointToSweepPlaneFactor::Terms> TermsStorage(size_t n) {
+    std::vector<factors::PointToSweepPlaneFactor::Terms> storage;
+    if (!spare_storage.empty()) {
+      storage = std::move(spare_storage.back());
+      spare_storage.pop_back();
+    }
+    storage.reserve(n);
+    return storage;
+  }
   double residual_max_range_m = 0.0;
   // The tries of the pairing ("Reuse between updates"): per partner position q the relative
   // poses T_Lj_Lk the points were tried at, with the generations of both sweeps' maps then,

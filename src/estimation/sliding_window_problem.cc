@@ -323,23 +323,32 @@ void SlidingWindowEstimator::AssociatePoints() {
         const int q = kf.partner_position[r];
         if (q >= 0 && changed[static_cast<size_t>(q)]) ++member_count[static_cast<size_t>(q)];
       }
-      std::vector<std::vector<factors::PointToSweepPlaneMeasurement>> members(P);
-      for (size_t q = 0; q < P; ++q) members[q].reserve(member_count[q]);
+      // The groups to rebuild are dropped first: their storage serves the new ones.
+      const auto rebuilt = [&](size_t q) { return changed[q] || partner_of[q] < 0; };
+      std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
+      for (size_t q = 0; q < P; ++q) {
+        if (!rebuilt(q)) continue;
+        const int partner_id = kf.id + partners[q];
+        const auto dropped = std::stable_partition(
+            groups.begin(), groups.end(), [partner_id](const internal::SweepPointGroup& g) {
+              return g.partner_id != partner_id;
+            });
+        for (auto g = dropped; g != groups.end(); ++g) kf.Retire(&*g);
+        groups.erase(dropped, groups.end());
+      }
+      std::vector<std::vector<factors::PointToSweepPlaneFactor::Terms>> members(P);
+      for (size_t q = 0; q < P; ++q) {
+        if (member_count[q] > 0) members[q] = kf.TermsStorage(member_count[q]);
+      }
       for (size_t r = 0; r < num_points; ++r) {
         const int q = kf.partner_position[r];
         if (q >= 0 && changed[static_cast<size_t>(q)]) {
-          members[static_cast<size_t>(q)].push_back(kf.pairs[r]);
+          members[static_cast<size_t>(q)].emplace_back(kf.pairs[r], g_W_);
         }
       }
-      std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
       for (size_t q = 0; q < P; ++q) {
+        if (!rebuilt(q)) continue;
         const int partner_id = kf.id + partners[q];
-        if (!changed[q] && partner_of[q] >= 0) continue;
-        groups.erase(std::remove_if(groups.begin(), groups.end(),
-                                    [partner_id](const internal::SweepPointGroup& g) {
-                                      return g.partner_id == partner_id;
-                                    }),
-                     groups.end());
         const int j = partner_of[q];
         if (j < 0 && !kf.tries[q].empty()) {  // it left the window for good
           kf.tries[q].clear();
@@ -350,7 +359,7 @@ void SlidingWindowEstimator::AssociatePoints() {
         internal::SweepPointGroup group;
         group.partner_id = partner_id;
         group.factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
-            members[q], g_W_, options_.loss.lidar);
+            std::move(members[q]), options_.loss.lidar);
         if (group.factor->num_residuals() > internal::CompressedPointGroup::kRows) {
           group.compressed = std::make_unique<internal::CompressedPointGroup>(group.factor.get());
         }

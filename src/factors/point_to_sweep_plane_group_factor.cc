@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include "autocal/common/error.h"
 
@@ -15,17 +16,37 @@ static_assert(4 + 3 + 3 + 4 + 3 + 3 + 4 + 3 + 1 == PointToSweepPlaneGroupFactor:
 
 }  // namespace
 
+namespace {
+
+std::vector<PointToSweepPlaneFactor::Terms> TermsOf(
+    const std::vector<PointToSweepPlaneMeasurement>& points, const Eigen::Vector3d& g_W) {
+  std::vector<PointToSweepPlaneFactor::Terms> terms;
+  terms.reserve(points.size());
+  for (const PointToSweepPlaneMeasurement& m : points) terms.emplace_back(m, g_W);
+  return terms;
+}
+
+}  // namespace
+
 PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
     const std::vector<PointToSweepPlaneMeasurement>& points, const Eigen::Vector3d& g_W,
     const LossOptions& loss)
-    : loss_(MakeLossFunction(loss)) {
-  if (points.empty()) throw Error("PointToSweepPlaneGroupFactor: no points");
-  points_.reserve(points.size());
-  for (const PointToSweepPlaneMeasurement& m : points) {
-    points_.emplace_back(m, g_W);
-  }
-  set_num_residuals(static_cast<int>(points.size()));
+    : PointToSweepPlaneGroupFactor(TermsOf(points, g_W), loss) {}
+
+PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
+    std::vector<PointToSweepPlaneFactor::Terms> points, const LossOptions& loss)
+    : points_(std::move(points)), loss_(MakeLossFunction(loss)) {
+  if (points_.empty()) throw Error("PointToSweepPlaneGroupFactor: no points");
+  set_num_residuals(static_cast<int>(points_.size()));
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
+}
+
+std::vector<PointToSweepPlaneFactor::Terms> PointToSweepPlaneGroupFactor::ReleaseStorage(
+    std::unique_ptr<PointToSweepPlaneGroupFactor> factor) {
+  std::vector<PointToSweepPlaneFactor::Terms> storage;
+  if (factor != nullptr) storage = std::move(factor->points_);
+  storage.clear();
+  return storage;
 }
 
 namespace {

@@ -337,6 +337,35 @@ TEST(PointToSweepPlaneGroupFactor, TangentJacobianLiftsToTheBlocks) {
 
 TEST(PointToSweepPlaneGroupFactor, AnEmptyGroupIsRefused) {
   EXPECT_THROW(PointToSweepPlaneGroupFactor({}, kGravity, LossOptions()), Error);
+  EXPECT_THROW(
+      PointToSweepPlaneGroupFactor(std::vector<PointToSweepPlaneFactor::Terms>(), LossOptions()),
+      Error);
+}
+
+// A group built from its points' terms in released storage is the group built from the
+// measurements: the storage carries nothing over.
+TEST(PointToSweepPlaneGroupFactor, ReleasedStorageServesANewGroup) {
+  std::mt19937 rng(9);
+  const LossOptions loss{lidar::RobustLoss::kHuber, 1.0};
+  const std::vector<PointToSweepPlaneMeasurement> first = RandomGroup(40, &rng);
+  const std::vector<PointToSweepPlaneMeasurement> second = RandomGroup(25, &rng);
+  auto old = std::make_unique<PointToSweepPlaneGroupFactor>(first, kGravity, loss);
+  std::vector<PointToSweepPlaneFactor::Terms> storage =
+      PointToSweepPlaneGroupFactor::ReleaseStorage(std::move(old));
+  EXPECT_TRUE(storage.empty());
+  EXPECT_GE(storage.capacity(), first.size());
+  const PointToSweepPlaneFactor::Terms* const reused = storage.data();
+  for (const PointToSweepPlaneMeasurement& m : second) storage.emplace_back(m, kGravity);
+  EXPECT_EQ(storage.data(), reused);
+  const PointToSweepPlaneGroupFactor from_terms(std::move(storage), loss);
+  const PointToSweepPlaneGroupFactor from_measurements(second, kGravity, loss);
+  ASSERT_EQ(from_terms.num_residuals(), 25);
+  State state = RandomState(&rng);
+  const test::Evaluation a = test::Evaluate(from_terms, state.Blocks());
+  const test::Evaluation b = test::Evaluate(from_measurements, state.Blocks());
+  EXPECT_EQ(a.residual, b.residual);
+  for (size_t k = 0; k < a.jacobians.size(); ++k) EXPECT_EQ(a.jacobians[k], b.jacobians[k]);
+  EXPECT_TRUE(PointToSweepPlaneGroupFactor::ReleaseStorage(nullptr).empty());
 }
 
 }  // namespace

@@ -392,6 +392,10 @@ class SlidingWindowEstimator {
   int64_t newest_sweep_ns_;
 
   std::deque<std::unique_ptr<WindowKeyframe>> window_;
+  // The keyframe last marginalized: the next keyframe takes over its pairing buffers (a
+  // measurement per candidate point, megabytes at thousands of points) instead of allocating
+  // and clearing them afresh.
+  std::unique_ptr<WindowKeyframe> dropped_keyframe_;
   int next_keyframe_id_ = 0;
   std::vector<SlidingWindowState> marginalized_;
   std::vector<SmoothingStep> smoothing_;  // one per marginalized_, with options_.smoothing

@@ -29,6 +29,9 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   // p_I_L, time offset. Throws autocal::Error for an empty group or a bad loss scale.
   PointToSweepPlaneGroupFactor(const std::vector<PointToSweepPlaneMeasurement>& points,
                                const Eigen::Vector3d& g_W, const LossOptions& loss);
+  // The same from the points' terms, formed by the caller (no copy of the measurements).
+  PointToSweepPlaneGroupFactor(std::vector<PointToSweepPlaneFactor::Terms> points,
+                               const LossOptions& loss);
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
@@ -42,6 +45,12 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   bool EvaluateTangent(double const* const* parameters, double* residuals, double* jacobian) const;
 
   int num_points() const { return static_cast<int>(points_.size()); }
+
+  // Consumes a factor no longer needed and returns its points' storage, emptied, for another
+  // group's terms: a group of a few thousand points is a megabyte, which the allocator may
+  // hand back to the system when freed, so that its next use pays a page fault per 4 kB.
+  static std::vector<PointToSweepPlaneFactor::Terms> ReleaseStorage(
+      std::unique_ptr<PointToSweepPlaneGroupFactor> factor);
 
   // The whitened point-to-plane distances r_i (no loss), one per point.
   void WhitenedDistances(double const* const* parameters, double* distances) const;
