@@ -25,6 +25,7 @@
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/sensors/imu_preintegration.h"
+#include "estimation/lower_gram.h"
 
 namespace autocal {
 namespace estimation {
@@ -211,10 +212,10 @@ class CompressedPointGroup final : public ceres::CostFunction {
                   "the group's tangent columns are the compressed block's");
     Eigen::Matrix<double, Eigen::Dynamic, kIndependent> J(n, kIndependent);
     if (!group_->EvaluateTangent(parameters, r.data(), J.data())) return false;
-    Square A = Square::Zero();
-    A.selfadjointView<Eigen::Lower>().rankUpdate(J.transpose());
+    Square A;
+    Vector g;
+    LowerGramAndGradient(J.data(), n, kIndependent, r.data(), A.data(), g.data());
     A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
-    const Vector g = J.transpose() * r;
 
     const Eigen::LDLT<Square> ldlt(A);
     const Vector d = ldlt.vectorD();
