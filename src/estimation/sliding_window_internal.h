@@ -30,6 +30,8 @@ namespace internal {
 struct SweepPointGroup {
   int partner_id = 0;  // the partner keyframe's id
   std::unique_ptr<factors::PointToSweepPlaneGroupFactor> factor;
+  // The residual point (index in its keyframe's residual_points) of each of factor's points.
+  std::vector<int> point_index;
   // The block the solver sees: `factor` compressed (Eq. SW5) when it has more rows than that.
   std::unique_ptr<CompressedPointGroup> compressed;
   std::vector<double*> parameters;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <optional>
@@ -258,6 +259,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       // Every field of m a pair uses is set for its point below (p_L and motion when placed,
       // the plane's when paired), so one measurement serves the whole walk.
       factors::PointToSweepPlaneMeasurement m;
+      std::vector<uint8_t> repaired(num_points, 0);  // paired anew by this walk
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -312,6 +314,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           changed[q] = true;
           kf.partner_position[r] = static_cast<int>(q);
           kf.pairs[r] = m;
+          repaired[r] = 1;
           // The partners after it in its list are tried again if this pair fails.
           for (size_t b = a + 1; b < P; ++b) tried[position(r, b)] = -1;
           break;
@@ -323,9 +326,44 @@ void SlidingWindowEstimator::AssociatePoints() {
         const int q = kf.partner_position[r];
         if (q >= 0 && changed[static_cast<size_t>(q)]) ++member_count[static_cast<size_t>(q)];
       }
-      // The groups to rebuild are dropped first: their storage serves the new ones.
+      // A rebuilt group takes the terms of the points it kept from the group it replaces (the
+      // same pair, so the same terms) and forms those of the points paired anew; the groups it
+      // replaces are dropped after, their storage kept for later groups.
       const auto rebuilt = [&](size_t q) { return changed[q] || partner_of[q] < 0; };
       std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
+      std::vector<const internal::SweepPointGroup*> replaced(P, nullptr);
+      for (const internal::SweepPointGroup& g : groups) {
+        for (size_t q = 0; q < P; ++q) {
+          if (g.partner_id == kf.id + partners[q] && rebuilt(q)) replaced[q] = &g;
+        }
+      }
+      std::vector<std::vector<factors::PointToSweepPlaneFactor::Terms>> members(P);
+      std::vector<std::vector<int>> member_index(P);
+      for (size_t q = 0; q < P; ++q) {
+        if (member_count[q] == 0) continue;
+        members[q] = kf.TermsStorage(member_count[q]);
+        member_index[q].reserve(member_count[q]);
+      }
+      std::vector<size_t> cursor(P, 0);  // in the replaced group's points, which are in order
+      for (size_t r = 0; r < num_points; ++r) {
+        const int position_r = kf.partner_position[r];
+        if (position_r < 0 || !changed[static_cast<size_t>(position_r)]) continue;
+        const size_t q = static_cast<size_t>(position_r);
+        const internal::SweepPointGroup* old = replaced[q];
+        bool kept = false;
+        if (old != nullptr && !repaired[r]) {
+          const std::vector<int>& old_index = old->point_index;
+          size_t& c = cursor[q];
+          while (c < old_index.size() && old_index[c] < static_cast<int>(r)) ++c;
+          kept = c < old_index.size() && old_index[c] == static_cast<int>(r);
+        }
+        if (kept) {
+          members[q].push_back(old->factor->points()[cursor[q]]);
+        } else {
+          members[q].emplace_back(kf.pairs[r], g_W_);
+        }
+        member_index[q].push_back(static_cast<int>(r));
+      }
       for (size_t q = 0; q < P; ++q) {
         if (!rebuilt(q)) continue;
         const int partner_id = kf.id + partners[q];
@@ -335,16 +373,6 @@ void SlidingWindowEstimator::AssociatePoints() {
             });
         for (auto g = dropped; g != groups.end(); ++g) kf.Retire(&*g);
         groups.erase(dropped, groups.end());
-      }
-      std::vector<std::vector<factors::PointToSweepPlaneFactor::Terms>> members(P);
-      for (size_t q = 0; q < P; ++q) {
-        if (member_count[q] > 0) members[q] = kf.TermsStorage(member_count[q]);
-      }
-      for (size_t r = 0; r < num_points; ++r) {
-        const int q = kf.partner_position[r];
-        if (q >= 0 && changed[static_cast<size_t>(q)]) {
-          members[static_cast<size_t>(q)].emplace_back(kf.pairs[r], g_W_);
-        }
       }
       for (size_t q = 0; q < P; ++q) {
         if (!rebuilt(q)) continue;
@@ -360,6 +388,7 @@ void SlidingWindowEstimator::AssociatePoints() {
         group.partner_id = partner_id;
         group.factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
             std::move(members[q]), options_.loss.lidar);
+        group.point_index = std::move(member_index[q]);
         if (group.factor->num_residuals() > internal::CompressedPointGroup::kRows) {
           group.compressed = std::make_unique<internal::CompressedPointGroup>(group.factor.get());
         }

@@ -45,6 +45,7 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   bool EvaluateTangent(double const* const* parameters, double* residuals, double* jacobian) const;
 
   int num_points() const { return static_cast<int>(points_.size()); }
+  const std::vector<PointToSweepPlaneFactor::Terms>& points() const { return points_; }
 
   // Consumes a factor no longer needed and returns its points' storage, emptied, for another
   // group's terms: a group of a few thousand points is a megabyte, which the allocator may
