@@ -82,14 +82,16 @@ struct SlidingWindowEstimator::WindowKeyframe {
   double map_max_range_m = 0.0;
   int map_generation = 0;  // counts the map's builds
   // This keyframe's residual points paired with other window sweeps: per residual point the
-  // position in partner_keyframe_offsets of its partner (-1: none) and its measurement; the
-  // points grouped by partner; the range of its farthest residual point.
+  // position in partner_keyframe_offsets of its partner (-1: none); the points grouped by
+  // partner (a group keeps each point's terms); the range of its farthest residual point.
   std::vector<int> partner_position;
   // How many partner positions its points try (Eq. SW15): all when the extrinsic was still
   // converging at its first pairing, settled_partner_count when it had settled.
   size_t partner_walk = 0;
-  std::vector<factors::PointToSweepPlaneMeasurement> pairs;
   std::vector<internal::SweepPointGroup> point_groups;
+  // The terms of the points a walk paired anew, in their order, until the groups take them
+  // (the buffer kept from walk to walk).
+  std::vector<factors::PointToSweepPlaneFactor::Terms> fresh_terms;
   // Emptied point storage of groups since dropped, for the next groups this keyframe forms
   // (PointToSweepPlaneGroupFactor::ReleaseStorage), at most kMaxSpareStorage.
   static constexpr size_t kMaxSpareStorage = 2;
@@ -109,9 +111,9 @@ struct SlidingWindowEstimator::WindowKeyframe {
     if (storage.capacity() > smallest->capacity()) *smallest = std::move(storage);
   }
   // Takes over the pairing buffers and the point storage of a keyframe that left the window
-  // (their stale contents are never read: a pair is read only once written).
+  // (their contents are never read: each is cleared or overwritten before use).
   void TakeBuffersOf(WindowKeyframe* old) {
-    pairs = std::move(old->pairs);
+    fresh_terms = std::move(old->fresh_terms);
     tried_at = std::move(old->tried_at);
     spare_storage = std::move(old->spare_storage);
     for (internal::SweepPointGroup& group : old->point_groups) Retire(&group);

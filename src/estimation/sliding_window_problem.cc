@@ -199,7 +199,6 @@ void SlidingWindowEstimator::AssociatePoints() {
       const size_t P = static_cast<size_t>(num_partners);
       if (kf.partner_position.empty()) {
         kf.partner_position.assign(num_points, -1);
-        kf.pairs.resize(num_points);
         kf.tried_at.assign(num_points * P, -1);
         kf.tries.assign(P, {});
         kf.partner_walk = timing_.extrinsic_settled ? S : P;
@@ -260,6 +259,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       // the plane's when paired), so one measurement serves the whole walk.
       factors::PointToSweepPlaneMeasurement m;
       std::vector<uint8_t> repaired(num_points, 0);  // paired anew by this walk
+      kf.fresh_terms.clear();
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -313,7 +313,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           if (current >= 0) changed[static_cast<size_t>(current)] = true;
           changed[q] = true;
           kf.partner_position[r] = static_cast<int>(q);
-          kf.pairs[r] = m;
+          kf.fresh_terms.emplace_back(m, g_W_);
           repaired[r] = 1;
           // The partners after it in its list are tried again if this pair fails.
           for (size_t b = a + 1; b < P; ++b) tried[position(r, b)] = -1;
@@ -326,9 +326,9 @@ void SlidingWindowEstimator::AssociatePoints() {
         const int q = kf.partner_position[r];
         if (q >= 0 && changed[static_cast<size_t>(q)]) ++member_count[static_cast<size_t>(q)];
       }
-      // A rebuilt group takes the terms of the points it kept from the group it replaces (the
-      // same pair, so the same terms) and forms those of the points paired anew; the groups it
-      // replaces are dropped after, their storage kept for later groups.
+      // A rebuilt group takes the terms of the points paired anew from fresh_terms and those of
+      // the points it kept from the group it replaces (the same pair, so the same terms); the
+      // groups it replaces are dropped after, their storage kept for later groups.
       const auto rebuilt = [&](size_t q) { return changed[q] || partner_of[q] < 0; };
       std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
       std::vector<const internal::SweepPointGroup*> replaced(P, nullptr);
@@ -345,22 +345,27 @@ void SlidingWindowEstimator::AssociatePoints() {
         member_index[q].reserve(member_count[q]);
       }
       std::vector<size_t> cursor(P, 0);  // in the replaced group's points, which are in order
+      size_t fresh = 0;                  // in fresh_terms, also in the points' order
       for (size_t r = 0; r < num_points; ++r) {
         const int position_r = kf.partner_position[r];
         if (position_r < 0 || !changed[static_cast<size_t>(position_r)]) continue;
         const size_t q = static_cast<size_t>(position_r);
-        const internal::SweepPointGroup* old = replaced[q];
-        bool kept = false;
-        if (old != nullptr && !repaired[r]) {
-          const std::vector<int>& old_index = old->point_index;
-          size_t& c = cursor[q];
-          while (c < old_index.size() && old_index[c] < static_cast<int>(r)) ++c;
-          kept = c < old_index.size() && old_index[c] == static_cast<int>(r);
-        }
-        if (kept) {
-          members[q].push_back(old->factor->points()[cursor[q]]);
+        if (repaired[r]) {
+          members[q].push_back(kf.fresh_terms[fresh++]);
         } else {
-          members[q].emplace_back(kf.pairs[r], g_W_);
+          // A pair that held is in the group of its partner, which every change rebuilds.
+          const internal::SweepPointGroup* old = replaced[q];
+          size_t& c = cursor[q];
+          if (old != nullptr) {
+            while (c < old->point_index.size() && old->point_index[c] < static_cast<int>(r)) ++c;
+          }
+          if (old == nullptr || c == old->point_index.size() ||
+              old->point_index[c] != static_cast<int>(r)) {
+            throw Error("SlidingWindowEstimator: residual point " + std::to_string(r) +
+                        " of keyframe " + std::to_string(kf.id) +
+                        " kept a pair that no point group holds");
+          }
+          members[q].push_back(old->factor->points()[c]);
         }
         member_index[q].push_back(static_cast<int>(r));
       }
