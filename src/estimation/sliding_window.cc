@@ -149,7 +149,8 @@ SlidingWindowEstimator::SlidingWindowEstimator(const SlidingWindowOptions& optio
       calibration_(initial_calibration),
       newest_wheel_ns_(kNoStamp),
       newest_gnss_ns_(kNoStamp),
-      newest_sweep_ns_(kNoStamp) {
+      newest_sweep_ns_(kNoStamp),
+      terms_pool_(std::make_unique<TermsPool>()) {
   CheckOptions(options_);
   if (options_.enu_origin_lla) {
     const Eigen::Vector3d& o = *options_.enu_origin_lla;
@@ -391,7 +392,7 @@ void SlidingWindowEstimator::AddKeyframe(lidar::LidarSweep sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
   if (dropped_keyframe_) {
-    kf->TakeBuffersOf(dropped_keyframe_.get());
+    kf->TakeBuffersOf(dropped_keyframe_.get(), terms_pool_.get());
     dropped_keyframe_.reset();
   }
   kf->id = next_keyframe_id_++;
@@ -537,7 +538,7 @@ void SlidingWindowEstimator::DropOldest(std::unique_ptr<MarginalizationPrior> pr
     const auto dropped = std::stable_partition(
         groups.begin(), groups.end(),
         [dropped_id](const internal::SweepPointGroup& g) { return g.partner_id != dropped_id; });
-    for (auto g = dropped; g != groups.end(); ++g) kf->Retire(&*g);
+    for (auto g = dropped; g != groups.end(); ++g) terms_pool_->Retire(&*g);
     groups.erase(dropped, groups.end());
   }
   window_.front()->imu_from_previous.reset();

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -56,6 +57,64 @@ struct SweepPointGroup {
 
 }  // namespace internal
 
+// The emptied point storage of dropped point groups, for the next groups formed: a group of a
+// few thousand points is a megabyte, which the allocator may hand back to the system when
+// freed, so that its next use pays a page fault per 4 kB (in a virtual machine, microseconds
+// each). Shared by the window's keyframes; safe to use from the association's threads.
+class SlidingWindowEstimator::TermsPool {
+ public:
+  using Storage = std::vector<factors::PointToSweepPlaneFactor::Terms>;
+  static constexpr size_t kMaxKept = 32;
+
+  // Drops `group`'s factor (and its compressed form), keeping its storage among the kMaxKept
+  // largest.
+  void Retire(internal::SweepPointGroup* group) {
+    group->compressed.reset();  // it refers to the factor
+    Storage storage =
+        factors::PointToSweepPlaneGroupFactor::ReleaseStorage(std::move(group->factor));
+    if (storage.capacity() == 0) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (kept_.size() < kMaxKept) {
+      kept_.push_back(std::move(storage));
+      return;
+    }
+    auto smallest = std::min_element(kept_.begin(), kept_.end(), [](const auto& a, const auto& b) {
+      return a.capacity() < b.capacity();
+    });
+    if (storage.capacity() > smallest->capacity()) *smallest = std::move(storage);
+  }
+  // Empty storage for n terms: the smallest kept one that holds them, else the largest kept
+  // one grown (by an eighth more than asked, so that it fits the next similar group), else a
+  // new one.
+  Storage Take(size_t n) {
+    Storage storage;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      auto best = kept_.end();
+      for (auto it = kept_.begin(); it != kept_.end(); ++it) {
+        const bool fits = it->capacity() >= n;
+        if (best == kept_.end()) {
+          best = it;
+        } else if (fits && (best->capacity() < n || it->capacity() < best->capacity())) {
+          best = it;
+        } else if (!fits && best->capacity() < n && it->capacity() > best->capacity()) {
+          best = it;
+        }
+      }
+      if (best != kept_.end()) {
+        storage = std::move(*best);
+        kept_.erase(best);
+      }
+    }
+    if (storage.capacity() < n) storage.reserve(n + n / 8);
+    return storage;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<Storage> kept_;
+};
+
 struct SlidingWindowEstimator::WindowKeyframe {
   int id = 0;
   SlidingWindowState state;
@@ -92,41 +151,13 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // The terms of the points a walk paired anew, in their order, until the groups take them
   // (the buffer kept from walk to walk).
   std::vector<factors::PointToSweepPlaneFactor::Terms> fresh_terms;
-  // Emptied point storage of groups since dropped, for the next groups this keyframe forms
-  // (PointToSweepPlaneGroupFactor::ReleaseStorage), at most kMaxSpareStorage.
-  static constexpr size_t kMaxSpareStorage = 2;
-  std::vector<std::vector<factors::PointToSweepPlaneFactor::Terms>> spare_storage;
-  // Drops `group`'s factor, keeping its storage among the kMaxSpareStorage largest.
-  void Retire(internal::SweepPointGroup* group) {
-    group->compressed.reset();  // it refers to the factor
-    std::vector<factors::PointToSweepPlaneFactor::Terms> storage =
-        factors::PointToSweepPlaneGroupFactor::ReleaseStorage(std::move(group->factor));
-    if (spare_storage.size() < kMaxSpareStorage) {
-      spare_storage.push_back(std::move(storage));
-      return;
-    }
-    auto smallest =
-        std::min_element(spare_storage.begin(), spare_storage.end(),
-                         [](const auto& a, const auto& b) { return a.capacity() < b.capacity(); });
-    if (storage.capacity() > smallest->capacity()) *smallest = std::move(storage);
-  }
-  // Takes over the pairing buffers and the point storage of a keyframe that left the window
-  // (their contents are never read: each is cleared or overwritten before use).
-  void TakeBuffersOf(WindowKeyframe* old) {
+  // Takes over the pairing buffers of a keyframe that left the window (their contents are
+  // never read: each is cleared or overwritten before use) and hands its point groups'
+  // storage to `pool`.
+  void TakeBuffersOf(WindowKeyframe* old, TermsPool* pool) {
     fresh_terms = std::move(old->fresh_terms);
     tried_at = std::move(old->tried_at);
-    spare_storage = std::move(old->spare_storage);
-    for (internal::SweepPointGroup& group : old->point_groups) Retire(&group);
-  }
-  // Storage for n terms: a spare one when kept, else a new one.
-  std::vector<factors::PointToSweepPlaneFactor::Terms> TermsStorage(size_t n) {
-    std::vector<factors::PointToSweepPlaneFactor::Terms> storage;
-    if (!spare_storage.empty()) {
-      storage = std::move(spare_storage.back());
-      spare_storage.pop_back();
-    }
-    storage.reserve(n);
-    return storage;
+    for (internal::SweepPointGroup& group : old->point_groups) pool->Retire(&group);
   }
   double residual_max_range_m = 0.0;
   // The tries of the pairing ("Reuse between updates"): per partner position q the relative

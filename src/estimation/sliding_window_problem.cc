@@ -341,7 +341,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       std::vector<std::vector<int>> member_index(P);
       for (size_t q = 0; q < P; ++q) {
         if (member_count[q] == 0) continue;
-        members[q] = kf.TermsStorage(member_count[q]);
+        members[q] = terms_pool_->Take(member_count[q]);
         member_index[q].reserve(member_count[q]);
       }
       std::vector<size_t> cursor(P, 0);  // in the replaced group's points, which are in order
@@ -376,7 +376,7 @@ void SlidingWindowEstimator::AssociatePoints() {
             groups.begin(), groups.end(), [partner_id](const internal::SweepPointGroup& g) {
               return g.partner_id != partner_id;
             });
-        for (auto g = dropped; g != groups.end(); ++g) kf.Retire(&*g);
+        for (auto g = dropped; g != groups.end(); ++g) terms_pool_->Retire(&*g);
         groups.erase(dropped, groups.end());
       }
       for (size_t q = 0; q < P; ++q) {

@@ -392,9 +392,9 @@ class SlidingWindowEstimator {
   int64_t newest_sweep_ns_;
 
   std::deque<std::unique_ptr<WindowKeyframe>> window_;
-  // The keyframe last marginalized: the next keyframe takes over its pairing buffers (a
-  // measurement per candidate point, megabytes at thousands of points) instead of allocating
-  // and clearing them afresh.
+  // The keyframe last marginalized: the next keyframe takes over its pairing buffers and the
+  // pool its point groups' storage (megabytes at thousands of points) instead of allocating
+  // them afresh.
   std::unique_ptr<WindowKeyframe> dropped_keyframe_;
   int next_keyframe_id_ = 0;
   std::vector<SlidingWindowState> marginalized_;
@@ -404,6 +404,9 @@ class SlidingWindowEstimator {
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.
   std::unique_ptr<internal::WindowSolverWorkspace> solver_workspace_;
+  // The emptied storage of dropped point groups, reused by new ones.
+  class TermsPool;
+  std::unique_ptr<TermsPool> terms_pool_;
 
   SlidingWindowCounters counters_;
   SlidingWindowUpdateTiming timing_;
