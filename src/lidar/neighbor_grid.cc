@@ -9,8 +9,94 @@
 #include "autocal/common/error.h"
 #include "lidar/nearest_list.h"
 
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
+
 namespace autocal {
 namespace lidar {
+
+namespace {
+
+// Squared distances from q of the points [begin, end) of the sorted arrays, (dx^2 + dy^2) + dz^2
+// in that order; those within radius2 (not NaN) are written, in slot order, to d and slot from
+// their start. Returns how many. d and slot hold end - begin + 3 entries.
+int GatherWithinPlain(const double* x, const double* y, const double* z, int begin, int end,
+                      double qx, double qy, double qz, double radius2, double* d, int* slot) {
+  int within = 0;
+  for (int s = begin; s < end; ++s) {
+    const size_t u = static_cast<size_t>(s);
+    const double dx = qx - x[u];
+    const double dy = qy - y[u];
+    const double dz = qz - z[u];
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    d[within] = d2;
+    slot[within] = s;
+    within += d2 <= radius2;
+  }
+  return within;
+}
+
+#if defined(__x86_64__) || defined(__i386__)
+// The same, four points at a time: the passing lanes are packed to the front by a permutation
+// chosen by their mask (the same operations in the same order, so the same bits).
+__attribute__((target("avx2,popcnt"))) int GatherWithinAvx2(const double* x, const double* y,
+                                                           const double* z, int begin, int end,
+                                                           double qx, double qy, double qz,
+                                                           double radius2, double* d,
+                                                           int* slot) {
+  // Per mask, the float pairs (one double each) of the passing lanes first.
+  alignas(32) static const int kPack[16][8] = {
+      {0, 1, 2, 3, 4, 5, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {2, 3, 0, 1, 4, 5, 6, 7},
+      {0, 1, 2, 3, 4, 5, 6, 7}, {4, 5, 0, 1, 2, 3, 6, 7}, {0, 1, 4, 5, 2, 3, 6, 7},
+      {2, 3, 4, 5, 0, 1, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {6, 7, 0, 1, 2, 3, 4, 5},
+      {0, 1, 6, 7, 2, 3, 4, 5}, {2, 3, 6, 7, 0, 1, 4, 5}, {0, 1, 2, 3, 6, 7, 4, 5},
+      {4, 5, 6, 7, 0, 1, 2, 3}, {0, 1, 4, 5, 6, 7, 2, 3}, {2, 3, 4, 5, 6, 7, 0, 1},
+      {0, 1, 2, 3, 4, 5, 6, 7}};
+  // The lanes' order by the same permutation, as offsets of their slots.
+  alignas(16) static const int kLane[16][4] = {
+      {0, 1, 2, 3}, {0, 1, 2, 3}, {1, 0, 2, 3}, {0, 1, 2, 3}, {2, 0, 1, 3}, {0, 2, 1, 3},
+      {1, 2, 0, 3}, {0, 1, 2, 3}, {3, 0, 1, 2}, {0, 3, 1, 2}, {1, 3, 0, 2}, {0, 1, 3, 2},
+      {2, 3, 0, 1}, {0, 2, 3, 1}, {1, 2, 3, 0}, {0, 1, 2, 3}};
+  const __m256d vx = _mm256_set1_pd(qx), vy = _mm256_set1_pd(qy), vz = _mm256_set1_pd(qz);
+  const __m256d r2 = _mm256_set1_pd(radius2);
+  int within = 0;
+  int s = begin;
+  for (; s + 4 <= end; s += 4) {
+    const __m256d dx = _mm256_sub_pd(vx, _mm256_loadu_pd(x + s));
+    const __m256d dy = _mm256_sub_pd(vy, _mm256_loadu_pd(y + s));
+    const __m256d dz = _mm256_sub_pd(vz, _mm256_loadu_pd(z + s));
+    const __m256d d2 = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+    const int mask = _mm256_movemask_pd(_mm256_cmp_pd(d2, r2, _CMP_LE_OQ));
+    const __m256i pack = _mm256_load_si256(reinterpret_cast<const __m256i*>(kPack[mask]));
+    _mm256_storeu_pd(d + within, _mm256_castps_pd(_mm256_permutevar8x32_ps(
+                                     _mm256_castpd_ps(d2), pack)));
+    const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kLane[mask]));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(slot + within),
+                     _mm_add_epi32(lanes, _mm_set1_epi32(s)));
+    within += __builtin_popcount(static_cast<unsigned>(mask));
+  }
+  return within + GatherWithinPlain(x, y, z, s, end, qx, qy, qz, radius2, d + within,
+                                    slot + within);
+}
+
+bool HasAvx2() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt");
+}
+#endif
+
+int GatherWithin(const double* x, const double* y, const double* z, int begin, int end,
+                 double qx, double qy, double qz, double radius2, double* d, int* slot) {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool avx2 = HasAvx2();
+  if (avx2) return GatherWithinAvx2(x, y, z, begin, end, qx, qy, qz, radius2, d, slot);
+#endif
+  return GatherWithinPlain(x, y, z, begin, end, qx, qy, qz, radius2, d, slot);
+}
+
+}  // namespace
 
 NeighborGrid::NeighborGrid(const Eigen::Matrix3Xd& points, double radius_m) {
   if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
@@ -104,8 +190,8 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
   const double qx = query.x(), qy = query.y(), qz = query.z();
   const double radius2 = radius_m_ * radius_m_;
   constexpr int kChunk = 64;
-  std::array<double, kChunk> candidate_d;
-  std::array<int, kChunk> candidate_slot;
+  std::array<double, kChunk + 3> candidate_d;
+  std::array<int, kChunk + 3> candidate_slot;
   int count = 0;
   for (int x = x_begin; x <= x_end; ++x) {
     const size_t row = static_cast<size_t>(x) * static_cast<size_t>(columns_y_);
@@ -114,18 +200,9 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
     for (int chunk = begin; chunk < end; chunk += kChunk) {
       // The points of a chunk within the radius, gathered without a branch per point: about a
       // sixth of the points scanned pass, in no predictable pattern.
-      const int chunk_end = std::min(chunk + kChunk, end);
-      int within = 0;
-      for (int s = chunk; s < chunk_end; ++s) {
-        const size_t u = static_cast<size_t>(s);
-        const double dx = qx - x_[u];
-        const double dy = qy - y_[u];
-        const double dz = qz - z_[u];
-        const double d = dx * dx + dy * dy + dz * dz;
-        candidate_d[static_cast<size_t>(within)] = d;
-        candidate_slot[static_cast<size_t>(within)] = s;
-        within += d <= radius2;
-      }
+      const int within = GatherWithin(x_.data(), y_.data(), z_.data(), chunk,
+                                      std::min(chunk + kChunk, end), qx, qy, qz, radius2,
+                                      candidate_d.data(), candidate_slot.data());
       for (int c = 0; c < within; ++c) {
         const double d = candidate_d[static_cast<size_t>(c)];
         const int s = candidate_slot[static_cast<size_t>(c)];
