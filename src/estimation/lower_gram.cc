@@ -5,6 +5,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "common/cpu_features.h"
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -81,10 +82,6 @@ __attribute__((target("avx2"))) void LaneSumsAvx2(const double* J, int n, int n4
   }
 }
 
-bool HasAvx2() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2");
-}
 #endif
 
 double Total(const Lanes& s) { return (s[0] + s[1]) + (s[2] + s[3]); }
@@ -101,8 +98,7 @@ void LowerGramAndGradient(const double* J, int n, int c, const double* r, double
   std::array<Lanes, kMaxLowerGramColumns> gradient_sums;
   const int n4 = n - n % 4;
 #ifdef AUTOCAL_LOWER_GRAM_AVX2
-  static const bool avx2 = HasAvx2();
-  if (simd && avx2) {
+  if (simd && autocal::internal::CpuHasAvx2()) {
     LaneSumsAvx2(J, n, n4, c, r, sums.data(), gradient_sums.data());
   } else {
     LaneSumsPlain(J, n, n4, c, r, sums.data(), gradient_sums.data());

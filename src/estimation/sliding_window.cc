@@ -392,7 +392,7 @@ void SlidingWindowEstimator::AddKeyframe(lidar::LidarSweep sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
   if (dropped_keyframe_) {
-    kf->TakeBuffersOf(dropped_keyframe_.get(), terms_pool_.get());
+    kf->TakeBuffersOf(dropped_keyframe_.get());
     dropped_keyframe_.reset();
   }
   kf->id = next_keyframe_id_++;
@@ -532,15 +532,12 @@ void SlidingWindowEstimator::DropOldest(std::unique_ptr<MarginalizationPrior> pr
   const int dropped_id = window_.front()->id;
   dropped_keyframe_ = std::move(window_.front());
   window_.pop_front();
-  // Pairs with the dropped sweep are in the prior now.
-  for (auto& kf : window_) {
-    std::vector<internal::SweepPointGroup>& groups = kf->point_groups;
-    const auto dropped = std::stable_partition(
-        groups.begin(), groups.end(),
-        [dropped_id](const internal::SweepPointGroup& g) { return g.partner_id != dropped_id; });
-    for (auto g = dropped; g != groups.end(); ++g) terms_pool_->Retire(&*g);
-    groups.erase(dropped, groups.end());
+  // Pairs with the dropped sweep are in the prior now, as are the dropped sweep's own.
+  for (internal::SweepPointGroup& group : dropped_keyframe_->point_groups) {
+    terms_pool_->Retire(&group);
   }
+  dropped_keyframe_->point_groups.clear();
+  for (auto& kf : window_) terms_pool_->RetireGroupsOf(&kf->point_groups, dropped_id);
   window_.front()->imu_from_previous.reset();
   ++counters_.marginalizations;
 }

@@ -83,6 +83,15 @@ class SlidingWindowEstimator::TermsPool {
     });
     if (storage.capacity() > smallest->capacity()) *smallest = std::move(storage);
   }
+  // Retires the groups of `groups` paired with keyframe `partner_id`; the others keep their
+  // order.
+  void RetireGroupsOf(std::vector<internal::SweepPointGroup>* groups, int partner_id) {
+    const auto dropped = std::stable_partition(
+        groups->begin(), groups->end(),
+        [partner_id](const internal::SweepPointGroup& g) { return g.partner_id != partner_id; });
+    for (auto g = dropped; g != groups->end(); ++g) Retire(&*g);
+    groups->erase(dropped, groups->end());
+  }
   // Empty storage for n terms: the smallest kept one that holds them, else the largest kept
   // one grown (by an eighth more than asked, so that it fits the next similar group), else a
   // new one.
@@ -90,17 +99,14 @@ class SlidingWindowEstimator::TermsPool {
     Storage storage;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      auto best = kept_.end();
-      for (auto it = kept_.begin(); it != kept_.end(); ++it) {
-        const bool fits = it->capacity() >= n;
-        if (best == kept_.end()) {
-          best = it;
-        } else if (fits && (best->capacity() < n || it->capacity() < best->capacity())) {
-          best = it;
-        } else if (!fits && best->capacity() < n && it->capacity() > best->capacity()) {
-          best = it;
-        }
-      }
+      // a before b: holding n first; among those that hold it the smaller, among the others
+      // the larger.
+      const auto before = [n](const Storage& a, const Storage& b) {
+        const bool a_fits = a.capacity() >= n, b_fits = b.capacity() >= n;
+        if (a_fits != b_fits) return a_fits;
+        return a_fits ? a.capacity() < b.capacity() : a.capacity() > b.capacity();
+      };
+      const auto best = std::min_element(kept_.begin(), kept_.end(), before);
       if (best != kept_.end()) {
         storage = std::move(*best);
         kept_.erase(best);
@@ -152,12 +158,10 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // (the buffer kept from walk to walk).
   std::vector<factors::PointToSweepPlaneFactor::Terms> fresh_terms;
   // Takes over the pairing buffers of a keyframe that left the window (their contents are
-  // never read: each is cleared or overwritten before use) and hands its point groups'
-  // storage to `pool`.
-  void TakeBuffersOf(WindowKeyframe* old, TermsPool* pool) {
+  // never read: each is cleared or overwritten before use).
+  void TakeBuffersOf(WindowKeyframe* old) {
     fresh_terms = std::move(old->fresh_terms);
     tried_at = std::move(old->tried_at);
-    for (internal::SweepPointGroup& group : old->point_groups) pool->Retire(&group);
   }
   double residual_max_range_m = 0.0;
   // The tries of the pairing ("Reuse between updates"): per partner position q the relative

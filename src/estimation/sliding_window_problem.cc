@@ -370,14 +370,7 @@ void SlidingWindowEstimator::AssociatePoints() {
         member_index[q].push_back(static_cast<int>(r));
       }
       for (size_t q = 0; q < P; ++q) {
-        if (!rebuilt(q)) continue;
-        const int partner_id = kf.id + partners[q];
-        const auto dropped = std::stable_partition(
-            groups.begin(), groups.end(), [partner_id](const internal::SweepPointGroup& g) {
-              return g.partner_id != partner_id;
-            });
-        for (auto g = dropped; g != groups.end(); ++g) terms_pool_->Retire(&*g);
-        groups.erase(dropped, groups.end());
+        if (rebuilt(q)) terms_pool_->RetireGroupsOf(&groups, kf.id + partners[q]);
       }
       for (size_t q = 0; q < P; ++q) {
         if (!rebuilt(q)) continue;

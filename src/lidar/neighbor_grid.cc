@@ -7,6 +7,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "common/cpu_features.h"
 #include "lidar/nearest_list.h"
 
 #if defined(__x86_64__) || defined(__i386__)
@@ -80,18 +81,14 @@ __attribute__((target("avx2,popcnt"))) int GatherWithinAvx2(const double* x, con
   return within + GatherWithinPlain(x, y, z, s, end, qx, qy, qz, radius2, d + within,
                                     slot + within);
 }
-
-bool HasAvx2() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt");
-}
 #endif
 
 int GatherWithin(const double* x, const double* y, const double* z, int begin, int end,
                  double qx, double qy, double qz, double radius2, double* d, int* slot) {
 #if defined(__x86_64__) || defined(__i386__)
-  static const bool avx2 = HasAvx2();
-  if (avx2) return GatherWithinAvx2(x, y, z, begin, end, qx, qy, qz, radius2, d, slot);
+  if (autocal::internal::CpuHasAvx2()) {
+    return GatherWithinAvx2(x, y, z, begin, end, qx, qy, qz, radius2, d, slot);
+  }
 #endif
   return GatherWithinPlain(x, y, z, begin, end, qx, qy, qz, radius2, d, slot);
 }

@@ -392,9 +392,9 @@ class SlidingWindowEstimator {
   int64_t newest_sweep_ns_;
 
   std::deque<std::unique_ptr<WindowKeyframe>> window_;
-  // The keyframe last marginalized: the next keyframe takes over its pairing buffers and the
-  // pool its point groups' storage (megabytes at thousands of points) instead of allocating
-  // them afresh.
+  // The keyframe last marginalized (its point groups' storage already in terms_pool_): the
+  // next keyframe takes over its pairing buffers (megabytes at thousands of points) instead of
+  // allocating them afresh.
   std::unique_ptr<WindowKeyframe> dropped_keyframe_;
   int next_keyframe_id_ = 0;
   std::vector<SlidingWindowState> marginalized_;
