@@ -57,31 +57,43 @@ struct SweepPointGroup {
 
 }  // namespace internal
 
-// The emptied point storage of dropped point groups, for the next groups formed: a group of a
-// few thousand points is a megabyte, which the allocator may hand back to the system when
-// freed, so that its next use pays a page fault per 4 kB (in a virtual machine, microseconds
-// each). Shared by the window's keyframes; safe to use from the association's threads.
+// The point storage of the window's groups, kept for reuse: a group of a few thousand points
+// is a megabyte, which the allocator may hand back to the system when freed, so that its next
+// use pays a page fault per 4 kB (in a virtual machine, about 10 microseconds each). Each
+// storage is reserved for all the residual points of a keyframe, the most a group can hold,
+// so that a group never grows out of it (the reservation is address space: a page is only
+// mapped when first written). The pool keeps the storage of dropped groups for the next
+// groups formed, preferring one already written as far as the new group needs, and per chunk
+// of the association's loop the buffer in which a walk forms the terms of the points it
+// pairs anew. Shared by the window's keyframes; Keep, Retire and Take are safe to use from
+// the association's threads.
 class SlidingWindowEstimator::TermsPool {
  public:
   using Storage = std::vector<factors::PointToSweepPlaneFactor::Terms>;
-  static constexpr size_t kMaxKept = 32;
+  // More than the groups of a window with the default partners: the pool frees nothing in
+  // steady state.
+  static constexpr size_t kMaxKept = 128;
 
-  // Drops `group`'s factor (and its compressed form), keeping its storage among the kMaxKept
-  // largest.
-  void Retire(internal::SweepPointGroup* group) {
-    group->compressed.reset();  // it refers to the factor
-    Storage storage =
-        factors::PointToSweepPlaneGroupFactor::ReleaseStorage(std::move(group->factor));
+  // Keeps `storage`, emptied, among the kMaxKept that were written farthest.
+  void Keep(Storage storage) {
     if (storage.capacity() == 0) return;
+    Kept kept{storage.size(), std::move(storage)};
+    kept.storage.clear();
     std::lock_guard<std::mutex> lock(mutex_);
     if (kept_.size() < kMaxKept) {
-      kept_.push_back(std::move(storage));
+      kept_.push_back(std::move(kept));
       return;
     }
-    auto smallest = std::min_element(kept_.begin(), kept_.end(), [](const auto& a, const auto& b) {
-      return a.capacity() < b.capacity();
+    auto least = std::min_element(kept_.begin(), kept_.end(), [](const Kept& a, const Kept& b) {
+      return a.written < b.written;
     });
-    if (storage.capacity() > smallest->capacity()) *smallest = std::move(storage);
+    if (kept.written > least->written) *least = std::move(kept);
+  }
+  // Drops `group`'s factor (and its compressed form), keeping its storage (a factor already
+  // released leaves none).
+  void Retire(internal::SweepPointGroup* group) {
+    group->compressed.reset();  // it refers to the factor
+    Keep(factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(group->factor)));
   }
   // Retires the groups of `groups` paired with keyframe `partner_id`; the others keep their
   // order.
@@ -92,33 +104,46 @@ class SlidingWindowEstimator::TermsPool {
     for (auto g = dropped; g != groups->end(); ++g) Retire(&*g);
     groups->erase(dropped, groups->end());
   }
-  // Empty storage for n terms: the smallest kept one that holds them, else the largest kept
-  // one grown (by an eighth more than asked, so that it fits the next similar group), else a
-  // new one.
-  Storage Take(size_t n) {
+  // Empty storage for n terms reserved for at least `reserve` (>= n): of the kept ones that
+  // hold that many, one written for n terms or more (the least such), else the one written
+  // farthest; a new one when none holds them.
+  Storage Take(size_t n, size_t reserve) {
+    reserve = std::max(n, reserve);
     Storage storage;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      // a before b: holding n first; among those that hold it the smaller, among the others
-      // the larger.
-      const auto before = [n](const Storage& a, const Storage& b) {
-        const bool a_fits = a.capacity() >= n, b_fits = b.capacity() >= n;
-        if (a_fits != b_fits) return a_fits;
-        return a_fits ? a.capacity() < b.capacity() : a.capacity() > b.capacity();
+      // a before b: holding `reserve` first, then written for n, then the least written for
+      // n, or else the farthest written.
+      const auto before = [n, reserve](const Kept& a, const Kept& b) {
+        const bool a_holds = a.storage.capacity() >= reserve;
+        const bool b_holds = b.storage.capacity() >= reserve;
+        if (a_holds != b_holds) return a_holds;
+        const bool a_written = a.written >= n, b_written = b.written >= n;
+        if (a_written != b_written) return a_written;
+        return a_written ? a.written < b.written : a.written > b.written;
       };
       const auto best = std::min_element(kept_.begin(), kept_.end(), before);
-      if (best != kept_.end()) {
-        storage = std::move(*best);
+      if (best != kept_.end() && best->storage.capacity() >= reserve) {
+        storage = std::move(best->storage);
         kept_.erase(best);
       }
     }
-    if (storage.capacity() < n) storage.reserve(n + n / 8);
+    storage.reserve(reserve);
     return storage;
   }
+  // The walk's buffer of chunk `chunk` of the association's loop over `chunks` chunks, kept
+  // from walk to walk. Resize before the loop (not thread safe); each chunk then uses its own.
+  void SetChunks(int chunks) { fresh_.resize(static_cast<size_t>(std::max(chunks, 1))); }
+  Storage& Fresh(int chunk) { return fresh_.at(static_cast<size_t>(chunk)); }
 
  private:
+  struct Kept {
+    size_t written;  // terms it held when kept: at least that much of it is mapped
+    Storage storage;
+  };
   std::mutex mutex_;
-  std::vector<Storage> kept_;
+  std::vector<Kept> kept_;
+  std::vector<Storage> fresh_;
 };
 
 struct SlidingWindowEstimator::WindowKeyframe {
@@ -154,15 +179,9 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // converging at its first pairing, settled_partner_count when it had settled.
   size_t partner_walk = 0;
   std::vector<internal::SweepPointGroup> point_groups;
-  // The terms of the points a walk paired anew, in their order, until the groups take them
-  // (the buffer kept from walk to walk).
-  std::vector<factors::PointToSweepPlaneFactor::Terms> fresh_terms;
-  // Takes over the pairing buffers of a keyframe that left the window (their contents are
-  // never read: each is cleared or overwritten before use).
-  void TakeBuffersOf(WindowKeyframe* old) {
-    fresh_terms = std::move(old->fresh_terms);
-    tried_at = std::move(old->tried_at);
-  }
+  // Takes over the pairing buffer of a keyframe that left the window (its contents are never
+  // read: it is overwritten before use).
+  void TakeBuffersOf(WindowKeyframe* old) { tried_at = std::move(old->tried_at); }
   double residual_max_range_m = 0.0;
   // The tries of the pairing ("Reuse between updates"): per partner position q the relative
   // poses T_Lj_Lk the points were tried at, with the generations of both sweeps' maps then,

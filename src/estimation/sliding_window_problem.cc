@@ -190,7 +190,10 @@ void SlidingWindowEstimator::AssociatePoints() {
   timing_.extrinsic_settled = static_cast<int>(recent_q_I_L_.size()) >= options_.window_size &&
                               recent_rotation_rad <= options_.settled_extrinsic_deg * kDegToRad;
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
-  ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int) {
+  terms_pool_->SetChunks(ParallelChunks(num_sweeps, options_.num_threads));
+  ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int chunk) {
+    // The terms of the points a walk pairs anew, in their order, until the groups take them.
+    TermsPool::Storage& fresh_terms = terms_pool_->Fresh(chunk);
     for (int64_t kk = begin; kk < end; ++kk) {
       const int k = static_cast<int>(kk);
       const LidarKeyframe& s = sweeps[static_cast<size_t>(k)];
@@ -259,7 +262,12 @@ void SlidingWindowEstimator::AssociatePoints() {
       // the plane's when paired), so one measurement serves the whole walk.
       factors::PointToSweepPlaneMeasurement m;
       std::vector<uint8_t> repaired(num_points, 0);  // paired anew by this walk
-      kf.fresh_terms.clear();
+      // The most terms a group of this keyframe, or a walk, forms (every keyframe's count, so
+      // that storage passes between keyframes without growing).
+      const size_t terms_reserve = std::max(
+          num_points, static_cast<size_t>(std::max(options_.max_residuals_per_sweep, 0)));
+      fresh_terms.clear();
+      fresh_terms.reserve(terms_reserve);
       for (size_t r = 0; r < num_points; ++r) {
         int current = kf.partner_position[r];
         if (current >= 0 && partner_of[static_cast<size_t>(current)] < 0) {
@@ -313,61 +321,99 @@ void SlidingWindowEstimator::AssociatePoints() {
           if (current >= 0) changed[static_cast<size_t>(current)] = true;
           changed[q] = true;
           kf.partner_position[r] = static_cast<int>(q);
-          kf.fresh_terms.emplace_back(m, g_W_);
+          fresh_terms.emplace_back(m, g_W_);
           repaired[r] = 1;
           // The partners after it in its list are tried again if this pair fails.
           for (size_t b = a + 1; b < P; ++b) tried[position(r, b)] = -1;
           break;
         }
       }
-      // Rebuild the groups of the partners whose points changed.
-      std::vector<size_t> member_count(P, 0);
-      for (size_t r = 0; r < num_points; ++r) {
-        const int q = kf.partner_position[r];
-        if (q >= 0 && changed[static_cast<size_t>(q)]) ++member_count[static_cast<size_t>(q)];
-      }
-      // A rebuilt group takes the terms of the points paired anew from fresh_terms and those of
-      // the points it kept from the group it replaces (the same pair, so the same terms); the
-      // groups it replaces are dropped after, their storage kept for later groups.
+      // Rebuild the groups of the partners whose points changed. A changed group is edited in
+      // its own storage: the points whose pair held keep their terms where they are (the same
+      // pair, so the same terms), those that left it are dropped, and the points paired anew
+      // take theirs from fresh_terms, merged in so that the points stay in their order. A
+      // group of a partner new to the points takes storage from the pool.
       const auto rebuilt = [&](size_t q) { return changed[q] || partner_of[q] < 0; };
       std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
-      std::vector<const internal::SweepPointGroup*> replaced(P, nullptr);
-      for (const internal::SweepPointGroup& g : groups) {
+      std::vector<TermsPool::Storage> members(P);
+      std::vector<std::vector<int>> member_index(P);
+      std::vector<size_t> held(P, 0);  // points whose pair held, per partner position
+      for (internal::SweepPointGroup& g : groups) {
         for (size_t q = 0; q < P; ++q) {
-          if (g.partner_id == kf.id + partners[q] && rebuilt(q)) replaced[q] = &g;
+          if (g.partner_id != kf.id + partners[q] || !rebuilt(q)) continue;
+          g.compressed.reset();  // it refers to the factor
+          members[q] = factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(g.factor));
+          member_index[q] = std::move(g.point_index);
+          // Keep, in order, the points whose pair held.
+          TermsPool::Storage& terms = members[q];
+          std::vector<int>& index = member_index[q];
+          for (size_t i = 0; i < index.size(); ++i) {
+            const size_t r = static_cast<size_t>(index[i]);
+            if (kf.partner_position[r] != static_cast<int>(q) || repaired[r]) continue;
+            terms[held[q]] = terms[i];
+            index[held[q]] = index[i];
+            ++held[q];
+          }
+          terms.erase(terms.begin() + static_cast<std::ptrdiff_t>(held[q]), terms.end());
+          index.resize(held[q]);
         }
       }
-      std::vector<std::vector<factors::PointToSweepPlaneFactor::Terms>> members(P);
-      std::vector<std::vector<int>> member_index(P);
-      for (size_t q = 0; q < P; ++q) {
-        if (member_count[q] == 0) continue;
-        members[q] = terms_pool_->Take(member_count[q]);
-        member_index[q].reserve(member_count[q]);
-      }
-      std::vector<size_t> cursor(P, 0);  // in the replaced group's points, which are in order
-      size_t fresh = 0;                  // in fresh_terms, also in the points' order
+      // The points paired anew per partner position (residual point, place in fresh_terms),
+      // in their order, and the count of the pairs that held, which the groups must hold.
+      std::vector<std::vector<std::pair<int, size_t>>> fresh_of(P);
+      std::vector<size_t> expected_held(P, 0);
+      size_t fresh = 0;
       for (size_t r = 0; r < num_points; ++r) {
         const int position_r = kf.partner_position[r];
-        if (position_r < 0 || !changed[static_cast<size_t>(position_r)]) continue;
+        if (position_r < 0) continue;
         const size_t q = static_cast<size_t>(position_r);
         if (repaired[r]) {
-          members[q].push_back(kf.fresh_terms[fresh++]);
-        } else {
-          // A pair that held is in the group of its partner, which every change rebuilds.
-          const internal::SweepPointGroup* old = replaced[q];
-          size_t& c = cursor[q];
-          if (old != nullptr) {
-            while (c < old->point_index.size() && old->point_index[c] < static_cast<int>(r)) ++c;
-          }
-          if (old == nullptr || c == old->point_index.size() ||
-              old->point_index[c] != static_cast<int>(r)) {
-            throw Error("SlidingWindowEstimator: residual point " + std::to_string(r) +
-                        " of keyframe " + std::to_string(kf.id) +
-                        " kept a pair that no point group holds");
-          }
-          members[q].push_back(old->factor->points()[c]);
+          fresh_of[q].emplace_back(static_cast<int>(r), fresh++);
+        } else if (changed[q]) {
+          ++expected_held[q];
         }
-        member_index[q].push_back(static_cast<int>(r));
+      }
+      for (size_t q = 0; q < P; ++q) {
+        if (!changed[q]) continue;
+        if (held[q] != expected_held[q]) {
+          // A pair that held is in the group of its partner, which every change rebuilds.
+          throw Error("SlidingWindowEstimator: keyframe " + std::to_string(kf.id) + " kept " +
+                      std::to_string(expected_held[q]) + " pairs with keyframe " +
+                      std::to_string(kf.id + partners[q]) + " but its point group holds " +
+                      std::to_string(held[q]));
+        }
+        const std::vector<std::pair<int, size_t>>& anew = fresh_of[q];
+        if (anew.empty()) continue;
+        TermsPool::Storage& terms = members[q];
+        std::vector<int>& index = member_index[q];
+        const size_t n = held[q] + anew.size();
+        if (terms.capacity() < n) {
+          // Storage that holds them from the pool, the group's own kept for another.
+          TermsPool::Storage grown = terms_pool_->Take(n, terms_reserve);
+          grown.insert(grown.end(), terms.begin(), terms.end());
+          terms_pool_->Keep(std::exchange(terms, std::move(grown)));
+        }
+        index.reserve(n);
+        // Grow by the new points, then merge from the back: the held points move only to
+        // later places, none before it was read.
+        for (const auto& [r, f] : anew) {
+          terms.push_back(fresh_terms[f]);
+          index.push_back(r);
+        }
+        size_t i = held[q];     // held points [0, i) not yet placed
+        size_t a = anew.size(); // new points [0, a) not yet placed
+        for (size_t out = n; a > 0;) {
+          --out;
+          if (i > 0 && index[i - 1] > anew[a - 1].first) {
+            --i;
+            terms[out] = terms[i];
+            index[out] = index[i];
+          } else {
+            --a;
+            terms[out] = fresh_terms[anew[a].second];
+            index[out] = anew[a].first;
+          }
+        }
       }
       for (size_t q = 0; q < P; ++q) {
         if (rebuilt(q)) terms_pool_->RetireGroupsOf(&groups, kf.id + partners[q]);
@@ -380,7 +426,10 @@ void SlidingWindowEstimator::AssociatePoints() {
           kf.tries[q].clear();
           for (size_t r = 0; r < num_points; ++r) kf.tried_at[r * P + q] = -1;
         }
-        if (j < 0 || members[q].empty()) continue;
+        if (j < 0 || members[q].empty()) {
+          terms_pool_->Keep(std::move(members[q]));
+          continue;
+        }
         SlidingWindowState& y = sweeps[static_cast<size_t>(j)].kf->state;
         internal::SweepPointGroup group;
         group.partner_id = partner_id;

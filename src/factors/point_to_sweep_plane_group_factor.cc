@@ -41,12 +41,10 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
 }
 
-std::vector<PointToSweepPlaneFactor::Terms> PointToSweepPlaneGroupFactor::ReleaseStorage(
+std::vector<PointToSweepPlaneFactor::Terms> PointToSweepPlaneGroupFactor::ReleasePoints(
     std::unique_ptr<PointToSweepPlaneGroupFactor> factor) {
-  std::vector<PointToSweepPlaneFactor::Terms> storage;
-  if (factor != nullptr) storage = std::move(factor->points_);
-  storage.clear();
-  return storage;
+  if (factor == nullptr) return {};
+  return std::move(factor->points_);
 }
 
 namespace {

@@ -342,30 +342,38 @@ TEST(PointToSweepPlaneGroupFactor, AnEmptyGroupIsRefused) {
       Error);
 }
 
-// A group built from its points' terms in released storage is the group built from the
-// measurements: the storage carries nothing over.
-TEST(PointToSweepPlaneGroupFactor, ReleasedStorageServesANewGroup) {
+// A released group hands over its points' terms as they were, and their storage, emptied,
+// serves a new group that is the group built from the measurements: it carries nothing over.
+TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   std::mt19937 rng(9);
   const LossOptions loss{lidar::RobustLoss::kHuber, 1.0};
   const std::vector<PointToSweepPlaneMeasurement> first = RandomGroup(40, &rng);
   const std::vector<PointToSweepPlaneMeasurement> second = RandomGroup(25, &rng);
+  State state = RandomState(&rng);
   auto old = std::make_unique<PointToSweepPlaneGroupFactor>(first, kGravity, loss);
+  const test::Evaluation before = test::Evaluate(*old, state.Blocks());
   std::vector<PointToSweepPlaneFactor::Terms> storage =
-      PointToSweepPlaneGroupFactor::ReleaseStorage(std::move(old));
-  EXPECT_TRUE(storage.empty());
-  EXPECT_GE(storage.capacity(), first.size());
+      PointToSweepPlaneGroupFactor::ReleasePoints(std::move(old));
+  ASSERT_EQ(storage.size(), first.size());
   const PointToSweepPlaneFactor::Terms* const reused = storage.data();
+  // The released terms make the same group again.
+  const PointToSweepPlaneGroupFactor again(storage, loss);
+  const test::Evaluation after = test::Evaluate(again, state.Blocks());
+  EXPECT_EQ(after.residual, before.residual);
+  for (size_t k = 0; k < after.jacobians.size(); ++k) {
+    EXPECT_EQ(after.jacobians[k], before.jacobians[k]);
+  }
+  storage.clear();
   for (const PointToSweepPlaneMeasurement& m : second) storage.emplace_back(m, kGravity);
   EXPECT_EQ(storage.data(), reused);
   const PointToSweepPlaneGroupFactor from_terms(std::move(storage), loss);
   const PointToSweepPlaneGroupFactor from_measurements(second, kGravity, loss);
   ASSERT_EQ(from_terms.num_residuals(), 25);
-  State state = RandomState(&rng);
   const test::Evaluation a = test::Evaluate(from_terms, state.Blocks());
   const test::Evaluation b = test::Evaluate(from_measurements, state.Blocks());
   EXPECT_EQ(a.residual, b.residual);
   for (size_t k = 0; k < a.jacobians.size(); ++k) EXPECT_EQ(a.jacobians[k], b.jacobians[k]);
-  EXPECT_TRUE(PointToSweepPlaneGroupFactor::ReleaseStorage(nullptr).empty());
+  EXPECT_TRUE(PointToSweepPlaneGroupFactor::ReleasePoints(nullptr).empty());
 }
 
 }  // namespace

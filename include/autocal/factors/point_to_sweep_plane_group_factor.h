@@ -47,10 +47,11 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   int num_points() const { return static_cast<int>(points_.size()); }
   const std::vector<PointToSweepPlaneFactor::Terms>& points() const { return points_; }
 
-  // Consumes a factor no longer needed and returns its points' storage, emptied, for another
-  // group's terms: a group of a few thousand points is a megabyte, which the allocator may
-  // hand back to the system when freed, so that its next use pays a page fault per 4 kB.
-  static std::vector<PointToSweepPlaneFactor::Terms> ReleaseStorage(
+  // Consumes a factor no longer needed and returns its points' terms in their storage, for
+  // the group that replaces it (edited in place) or, emptied, for another group: a group of a
+  // few thousand points is a megabyte, which the allocator may hand back to the system when
+  // freed, so that its next use pays a page fault per 4 kB. Empty for a null factor.
+  static std::vector<PointToSweepPlaneFactor::Terms> ReleasePoints(
       std::unique_ptr<PointToSweepPlaneGroupFactor> factor);
 
   // The whitened point-to-plane distances r_i (no loss), one per point.
