@@ -93,7 +93,7 @@ class SlidingWindowEstimator::TermsPool {
   // released leaves none).
   void Retire(internal::SweepPointGroup* group) {
     group->compressed.reset();  // it refers to the factor
-    Keep(factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(group->factor)));
+    Keep(factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(group->factor)).points);
   }
   // Retires the groups of `groups` paired with keyframe `partner_id`; the others keep their
   // order.

@@ -261,6 +261,9 @@ void SlidingWindowEstimator::AssociatePoints() {
       // Every field of m a pair uses is set for its point below (p_L and motion when placed,
       // the plane's when paired), so one measurement serves the whole walk.
       factors::PointToSweepPlaneMeasurement m;
+      // The plane side of the walk's pairs with each partner position: its sweep's reference
+      // motion, the same for all of them (Terms hold only the point's side).
+      std::vector<std::optional<factors::PointToSweepPlaneFactor::Side>> plane_side(P);
       std::vector<uint8_t> repaired(num_points, 0);  // paired anew by this walk
       // The most terms a group of this keyframe, or a walk, forms (every keyframe's count, so
       // that storage passes between keyframes without growing).
@@ -315,7 +318,7 @@ void SlidingWindowEstimator::AssociatePoints() {
             }
             continue;
           }
-          m.plane_motion = other.reference_motion;
+          if (!plane_side[q]) plane_side[q].emplace(other.reference_motion, g_W_);
           m.sigma_m = options_.point_sigma_m;
           m.offset_linearization_s = offset_lin;
           if (current >= 0) changed[static_cast<size_t>(current)] = true;
@@ -336,13 +339,16 @@ void SlidingWindowEstimator::AssociatePoints() {
       const auto rebuilt = [&](size_t q) { return changed[q] || partner_of[q] < 0; };
       std::vector<internal::SweepPointGroup>& groups = kf.point_groups;
       std::vector<TermsPool::Storage> members(P);
+      std::vector<std::vector<factors::PointToSweepPlaneFactor::Side>> member_sides(P);
       std::vector<std::vector<int>> member_index(P);
       std::vector<size_t> held(P, 0);  // points whose pair held, per partner position
       for (internal::SweepPointGroup& g : groups) {
         for (size_t q = 0; q < P; ++q) {
           if (g.partner_id != kf.id + partners[q] || !rebuilt(q)) continue;
           g.compressed.reset();  // it refers to the factor
-          members[q] = factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(g.factor));
+          auto released = factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(g.factor));
+          members[q] = std::move(released.points);
+          member_sides[q] = std::move(released.plane_sides);
           member_index[q] = std::move(g.point_index);
           // Keep, in order, the points whose pair held.
           TermsPool::Storage& terms = members[q];
@@ -356,6 +362,20 @@ void SlidingWindowEstimator::AssociatePoints() {
           }
           terms.erase(terms.begin() + static_cast<std::ptrdiff_t>(held[q]), terms.end());
           index.resize(held[q]);
+          // Drop the plane sides no held point refers to.
+          std::vector<factors::PointToSweepPlaneFactor::Side>& sides = member_sides[q];
+          std::vector<uint32_t> renumbered(sides.size(), 0);
+          for (const auto& t : terms) renumbered[t.plane_side()] = 1;
+          uint32_t used = 0;
+          for (size_t e = 0; e < sides.size(); ++e) {
+            if (!renumbered[e]) continue;
+            sides[used] = sides[e];
+            renumbered[e] = used++;
+          }
+          if (used < sides.size()) {
+            sides.erase(sides.begin() + used, sides.end());
+            for (auto& t : terms) t.set_plane_side(renumbered[t.plane_side()]);
+          }
         }
       }
       // The points paired anew per partner position (residual point, place in fresh_terms),
@@ -392,6 +412,12 @@ void SlidingWindowEstimator::AssociatePoints() {
           TermsPool::Storage grown = terms_pool_->Take(n, terms_reserve);
           grown.insert(grown.end(), terms.begin(), terms.end());
           terms_pool_->Keep(std::exchange(terms, std::move(grown)));
+        }
+        // The new points' plane side, this walk's with partner q.
+        std::vector<factors::PointToSweepPlaneFactor::Side>& sides = member_sides[q];
+        sides.push_back(*plane_side[q]);
+        for (const auto& [r, f] : anew) {
+          fresh_terms[f].set_plane_side(static_cast<uint32_t>(sides.size() - 1));
         }
         index.reserve(n);
         // Grow by the new points, then merge from the back: the held points move only to
@@ -434,7 +460,7 @@ void SlidingWindowEstimator::AssociatePoints() {
         internal::SweepPointGroup group;
         group.partner_id = partner_id;
         group.factor = std::make_unique<factors::PointToSweepPlaneGroupFactor>(
-            std::move(members[q]), options_.loss.lidar);
+            std::move(members[q]), std::move(member_sides[q]), options_.loss.lidar);
         group.point_index = std::move(member_index[q]);
         if (group.factor->num_residuals() > internal::CompressedPointGroup::kRows) {
           group.compressed = std::make_unique<internal::CompressedPointGroup>(group.factor.get());

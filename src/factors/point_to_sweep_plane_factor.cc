@@ -39,7 +39,7 @@ PointToSweepPlaneFactor::Frame::Frame(double const* const* parameters)
       lift_j(Lift(parameters[3])),
       lift_I_L_left(R_I_L * Lift(parameters[6])) {}
 
-PointToSweepPlaneFactor::Terms::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
+PointToSweepPlaneFactor::Side::Side(const PointMotion& motion, const Eigen::Vector3d& g_W)
     : delta_R(motion.delta_q.toRotationMatrix()),
       omega_rad_s(motion.omega_rad_s),
       delta_v(motion.delta_v),
@@ -49,22 +49,22 @@ PointToSweepPlaneFactor::Terms::Side::Side(const PointMotion& motion, const Eige
       dt_s(motion.dt_s) {}
 
 PointToSweepPlaneFactor::Terms::Terms(const PointToSweepPlaneMeasurement& measurement,
-                                      const Eigen::Vector3d& g_W)
+                                      const Eigen::Vector3d& g_W, uint32_t plane_side)
     : point_(measurement.motion, g_W),
-      plane_(measurement.plane_motion, g_W),
       p_L_(measurement.p_L),
       n_L_(measurement.plane_L.normal),
       d_L_(measurement.plane_L.d),
       inv_sigma_(1.0 / measurement.sigma_m),
-      offset_linearization_s_(measurement.offset_linearization_s) {}
+      offset_linearization_s_(measurement.offset_linearization_s),
+      plane_side_(plane_side) {}
 
 bool PointToSweepPlaneFactor::Evaluate(double const* const* parameters, double* residuals,
                                        double** jacobians) const {
-  terms_.Evaluate(Frame(parameters), residuals, jacobians);
+  terms_.Evaluate(Frame(parameters), plane_, residuals, jacobians);
   return true;
 }
 
-double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows,
+double PointToSweepPlaneFactor::Terms::Core(const Frame& f, const Side& plane, Rows* rows,
                                             bool calibration_rows) const {
   const double delta = f.time_offset_s - offset_linearization_s_;
 
@@ -84,14 +84,14 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows,
   //   r sigma = a . (z - b) + d_L.                                                 (Eq. P7)
   // alpha = dR_j^T a and beta = dR_j^T (b - dp_j - delta dv_j) stay in the frame before dR_j.
   const Eigen::Vector3d n_I = f.R_I_L * n_L_;
-  const Eigen::Vector3d spun_n = plane_.omega_rad_s.cross(n_I);
-  const Eigen::Vector3d spun_p = plane_.omega_rad_s.cross(f.p_I_L);
+  const Eigen::Vector3d spun_n = plane.omega_rad_s.cross(n_I);
+  const Eigen::Vector3d spun_p = plane.omega_rad_s.cross(f.p_I_L);
   const Eigen::Vector3d alpha = n_I + delta * spun_n;
-  const Eigen::Vector3d a = plane_.delta_R * alpha;
-  const Eigen::Vector3d b = plane_.delta_R * (f.p_I_L + delta * spun_p) + plane_.delta_p +
-                            delta * plane_.delta_v;
-  const Eigen::Vector3d w = p_W - f.p_j - (plane_.dt_s + delta) * f.v_j -
-                            plane_.gravity_position - delta * plane_.gravity_velocity;
+  const Eigen::Vector3d a = plane.delta_R * alpha;
+  const Eigen::Vector3d b = plane.delta_R * (f.p_I_L + delta * spun_p) + plane.delta_p +
+                            delta * plane.delta_v;
+  const Eigen::Vector3d w = p_W - f.p_j - (plane.dt_s + delta) * f.v_j -
+                            plane.gravity_position - delta * plane.gravity_velocity;
   const Eigen::Vector3d z = f.R_j.transpose() * w;
   const Eigen::Vector3d z_minus_b = z - b;
   const double residual = (a.dot(z_minus_b) + d_L_) * inv_sigma_;
@@ -109,17 +109,17 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows,
   rows->v_k = (point_.dt_s + delta) * n_W;
   // Plane side: d/dtheta_j of a . R_j^T w is (a x z)^T (Eq. P8).
   rows->theta_j = inv_sigma_ * a.cross(z);
-  rows->v_j = -(plane_.dt_s + delta) * n_W;
+  rows->v_j = -(plane.dt_s + delta) * n_W;
   if (!calibration_rows) return residual;
   // t = dR_j^T (z - b); B^T (z - b) = (I - delta Hat(omega_j)) t = t + delta t x omega_j.
-  const Eigen::Vector3d t = plane_.delta_R.transpose() * z_minus_b;
+  const Eigen::Vector3d t = plane.delta_R.transpose() * z_minus_b;
   // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
   // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both are R_I_L^T times the
   // left tangent's row below.
-  const Eigen::Vector3d e = t + delta * t.cross(plane_.omega_rad_s);
+  const Eigen::Vector3d e = t + delta * t.cross(plane.omega_rad_s);
   rows->phi_I_L = (x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e);
   // B^T a = alpha + delta alpha x omega_j.
-  const Eigen::Vector3d B_t_a = alpha + delta * alpha.cross(plane_.omega_rad_s);
+  const Eigen::Vector3d B_t_a = alpha + delta * alpha.cross(plane.omega_rad_s);
   rows->p_I_L = m_x - inv_sigma_ * B_t_a;
   // Point side: Eq. (P5) with n_W, m . dR Hat(omega) x_I = u . spun_x. Plane side:
   // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j spun_p + dv_j,
@@ -127,16 +127,16 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, Rows* rows,
   const double point_side =
       u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
   const double plane_side =
-      inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) - a.dot(plane_.delta_v)) -
-      n_W.dot(f.v_j + plane_.gravity_velocity);
+      inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) - a.dot(plane.delta_v)) -
+      n_W.dot(f.v_j + plane.gravity_velocity);
   rows->offset = point_side + plane_side;
   return residual;
 }
 
-void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
-                                              double** jacobians) const {
+void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, const Side& plane,
+                                              double* residual, double** jacobians) const {
   if (jacobians == nullptr) {
-    residual[0] = Core(f, nullptr, false);
+    residual[0] = Core(f, plane, nullptr, false);
     return;
   }
   // The calibration's rows only when asked for (a batch solve with the calibration held fixed
@@ -144,7 +144,7 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
   const bool calibration_rows =
       jacobians[6] != nullptr || jacobians[7] != nullptr || jacobians[8] != nullptr;
   Rows rows;
-  residual[0] = Core(f, &rows, calibration_rows);
+  residual[0] = Core(f, plane, &rows, calibration_rows);
   if (jacobians[0] != nullptr) Row<4>(jacobians[0]) = rows.theta_k.transpose() * f.lift_k;
   if (jacobians[1] != nullptr) Row<3>(jacobians[1]) = rows.p_k.transpose();
   if (jacobians[2] != nullptr) Row<3>(jacobians[2]) = rows.v_k.transpose();
@@ -158,10 +158,11 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, double* residual,
   if (jacobians[8] != nullptr) jacobians[8][0] = rows.offset;
 }
 
-void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, double* residual, double* row,
+void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, const Side& plane,
+                                                     double* residual, double* row,
                                                      size_t stride) const {
   Rows rows;
-  residual[0] = Core(f, &rows, true);
+  residual[0] = Core(f, plane, &rows, true);
   const Eigen::Vector3d theta_I_L = f.R_I_L.transpose() * rows.phi_I_L;
   const Eigen::Vector3d* blocks[] = {&rows.theta_k, &rows.p_k,  &rows.v_k,  &rows.theta_j,
                                      &rows.v_j,     &theta_I_L, &rows.p_I_L};

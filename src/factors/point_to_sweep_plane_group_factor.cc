@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cmath>
+#include <string>
 #include <utility>
 
 #include "autocal/common/error.h"
@@ -18,11 +19,23 @@ static_assert(4 + 3 + 3 + 4 + 3 + 3 + 4 + 3 + 1 == PointToSweepPlaneGroupFactor:
 
 namespace {
 
-std::vector<PointToSweepPlaneFactor::Terms> TermsOf(
+bool SameMotion(const PointMotion& a, const PointMotion& b) {
+  return a.dt_s == b.dt_s && a.delta_q.coeffs() == b.delta_q.coeffs() &&
+         a.delta_v == b.delta_v && a.delta_p == b.delta_p && a.omega_rad_s == b.omega_rad_s;
+}
+
+// The points' terms, with one plane side per run of points with the same plane motion.
+PointToSweepPlaneGroupFactor::Released TermsOf(
     const std::vector<PointToSweepPlaneMeasurement>& points, const Eigen::Vector3d& g_W) {
-  std::vector<PointToSweepPlaneFactor::Terms> terms;
-  terms.reserve(points.size());
-  for (const PointToSweepPlaneMeasurement& m : points) terms.emplace_back(m, g_W);
+  PointToSweepPlaneGroupFactor::Released terms;
+  terms.points.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (i == 0 || !SameMotion(points[i].plane_motion, points[i - 1].plane_motion)) {
+      terms.plane_sides.emplace_back(points[i].plane_motion, g_W);
+    }
+    terms.points.emplace_back(points[i], g_W,
+                              static_cast<uint32_t>(terms.plane_sides.size() - 1));
+  }
   return terms;
 }
 
@@ -33,18 +46,32 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
     const LossOptions& loss)
     : PointToSweepPlaneGroupFactor(TermsOf(points, g_W), loss) {}
 
+PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(Released terms,
+                                                           const LossOptions& loss)
+    : PointToSweepPlaneGroupFactor(std::move(terms.points), std::move(terms.plane_sides), loss) {}
+
 PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
-    std::vector<PointToSweepPlaneFactor::Terms> points, const LossOptions& loss)
-    : points_(std::move(points)), loss_(MakeLossFunction(loss)) {
+    std::vector<PointToSweepPlaneFactor::Terms> points,
+    std::vector<PointToSweepPlaneFactor::Side> plane_sides, const LossOptions& loss)
+    : points_(std::move(points)),
+      plane_sides_(std::move(plane_sides)),
+      loss_(MakeLossFunction(loss)) {
   if (points_.empty()) throw Error("PointToSweepPlaneGroupFactor: no points");
+  for (size_t i = 0; i < points_.size(); ++i) {
+    if (points_[i].plane_side() >= plane_sides_.size()) {
+      throw Error("PointToSweepPlaneGroupFactor: point " + std::to_string(i) + " refers to plane side " +
+                  std::to_string(points_[i].plane_side()) + " of " +
+                  std::to_string(plane_sides_.size()));
+    }
+  }
   set_num_residuals(static_cast<int>(points_.size()));
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
 }
 
-std::vector<PointToSweepPlaneFactor::Terms> PointToSweepPlaneGroupFactor::ReleasePoints(
+PointToSweepPlaneGroupFactor::Released PointToSweepPlaneGroupFactor::ReleasePoints(
     std::unique_ptr<PointToSweepPlaneGroupFactor> factor) {
   if (factor == nullptr) return {};
-  return std::move(factor->points_);
+  return {std::move(factor->points_), std::move(factor->plane_sides_)};
 }
 
 namespace {
@@ -78,7 +105,8 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
       }
       point_jacobians = row_jacobians.data();
     }
-    points_[i].Evaluate(frame, &residuals[i], point_jacobians);
+    const PointToSweepPlaneFactor::Terms& point = points_[i];
+    point.Evaluate(frame, plane_sides_[point.plane_side()], &residuals[i], point_jacobians);
     if (!loss_) continue;
     const double scale = ApplyLoss(*loss_, &residuals[i]);
     if (point_jacobians == nullptr) continue;
@@ -96,7 +124,8 @@ bool PointToSweepPlaneGroupFactor::EvaluateTangent(double const* const* paramete
   const size_t n = points_.size();
   for (size_t i = 0; i < n; ++i) {
     double* row = jacobian + i;
-    points_[i].EvaluateTangent(frame, &residuals[i], row, n);
+    const PointToSweepPlaneFactor::Terms& point = points_[i];
+    point.EvaluateTangent(frame, plane_sides_[point.plane_side()], &residuals[i], row, n);
     if (!loss_) continue;
     const double scale = ApplyLoss(*loss_, &residuals[i]);
     for (int c = 0; c < kTangentColumns; ++c) row[static_cast<size_t>(c) * n] *= scale;
@@ -107,7 +136,10 @@ bool PointToSweepPlaneGroupFactor::EvaluateTangent(double const* const* paramete
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,
                                                      double* distances) const {
   const PointToSweepPlaneFactor::Frame frame(parameters);
-  for (size_t i = 0; i < points_.size(); ++i) points_[i].Evaluate(frame, &distances[i], nullptr);
+  for (size_t i = 0; i < points_.size(); ++i) {
+    const PointToSweepPlaneFactor::Terms& point = points_[i];
+    point.Evaluate(frame, plane_sides_[point.plane_side()], &distances[i], nullptr);
+  }
 }
 
 }  // namespace factors

@@ -337,13 +337,49 @@ TEST(PointToSweepPlaneGroupFactor, TangentJacobianLiftsToTheBlocks) {
 
 TEST(PointToSweepPlaneGroupFactor, AnEmptyGroupIsRefused) {
   EXPECT_THROW(PointToSweepPlaneGroupFactor({}, kGravity, LossOptions()), Error);
-  EXPECT_THROW(
-      PointToSweepPlaneGroupFactor(std::vector<PointToSweepPlaneFactor::Terms>(), LossOptions()),
-      Error);
+  EXPECT_THROW(PointToSweepPlaneGroupFactor(std::vector<PointToSweepPlaneFactor::Terms>(), {},
+                                            LossOptions()),
+               Error);
 }
 
-// A released group hands over its points' terms as they were, and their storage, emptied,
-// serves a new group that is the group built from the measurements: it carries nothing over.
+// The points of a run with one plane motion (a sweep's points paired with one partner in one
+// association) share one plane side, and evaluate as the point factors do.
+TEST(PointToSweepPlaneGroupFactor, PointsOfOnePlaneMotionShareItsSide) {
+  std::mt19937 rng(12);
+  std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(9, &rng);
+  const std::vector<uint32_t> run = {0, 0, 0, 1, 1, 1, 1, 2, 2};
+  for (size_t i = 1; i < points.size(); ++i) {
+    if (run[i] == run[i - 1]) points[i].plane_motion = points[i - 1].plane_motion;
+  }
+  const PointToSweepPlaneGroupFactor group(points, kGravity, LossOptions());
+  ASSERT_EQ(group.plane_sides().size(), 3u);
+  State state = RandomState(&rng);
+  const test::Evaluation stacked = test::Evaluate(group, state.Blocks());
+  for (size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(group.points()[i].plane_side(), run[i]);
+    const PointToSweepPlaneFactor single(points[i], kGravity);
+    const test::Evaluation one = test::Evaluate(single, state.Blocks());
+    EXPECT_EQ(stacked.residual(static_cast<Eigen::Index>(i)), one.residual(0));
+    for (size_t b = 0; b < one.jacobians.size(); ++b) {
+      EXPECT_EQ(stacked.jacobians[b].row(static_cast<Eigen::Index>(i)), one.jacobians[b].row(0))
+          << "point " << i;
+    }
+  }
+}
+
+TEST(PointToSweepPlaneGroupFactor, APlaneSideOutOfRangeIsRefused) {
+  std::mt19937 rng(13);
+  const PointToSweepPlaneMeasurement m = RandomMeasurement(&rng);
+  std::vector<PointToSweepPlaneFactor::Terms> points = {PointToSweepPlaneFactor::Terms(m, kGravity, 1)};
+  std::vector<PointToSweepPlaneFactor::Side> sides = {PointToSweepPlaneFactor::Side(m.plane_motion, kGravity)};
+  EXPECT_THROW(PointToSweepPlaneGroupFactor(points, sides, LossOptions()), Error);
+  points[0].set_plane_side(0);
+  EXPECT_NO_THROW(PointToSweepPlaneGroupFactor(points, sides, LossOptions()));
+}
+
+// A released group hands over its points' terms and plane sides as they were, and their
+// storage, emptied, serves a new group that is the group built from the measurements: it
+// carries nothing over.
 TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   std::mt19937 rng(9);
   const LossOptions loss{lidar::RobustLoss::kHuber, 1.0};
@@ -352,28 +388,37 @@ TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   State state = RandomState(&rng);
   auto old = std::make_unique<PointToSweepPlaneGroupFactor>(first, kGravity, loss);
   const test::Evaluation before = test::Evaluate(*old, state.Blocks());
-  std::vector<PointToSweepPlaneFactor::Terms> storage =
+  PointToSweepPlaneGroupFactor::Released released =
       PointToSweepPlaneGroupFactor::ReleasePoints(std::move(old));
-  ASSERT_EQ(storage.size(), first.size());
-  const PointToSweepPlaneFactor::Terms* const reused = storage.data();
+  ASSERT_EQ(released.points.size(), first.size());
+  ASSERT_EQ(released.plane_sides.size(), first.size());  // every plane motion differs
+  const PointToSweepPlaneFactor::Terms* const reused = released.points.data();
   // The released terms make the same group again.
-  const PointToSweepPlaneGroupFactor again(storage, loss);
+  const PointToSweepPlaneGroupFactor again(released.points, released.plane_sides, loss);
   const test::Evaluation after = test::Evaluate(again, state.Blocks());
   EXPECT_EQ(after.residual, before.residual);
   for (size_t k = 0; k < after.jacobians.size(); ++k) {
     EXPECT_EQ(after.jacobians[k], before.jacobians[k]);
   }
+  std::vector<PointToSweepPlaneFactor::Terms> storage = std::move(released.points);
   storage.clear();
-  for (const PointToSweepPlaneMeasurement& m : second) storage.emplace_back(m, kGravity);
+  std::vector<PointToSweepPlaneFactor::Side> sides;
+  for (const PointToSweepPlaneMeasurement& m : second) {
+    sides.emplace_back(m.plane_motion, kGravity);
+    storage.emplace_back(m, kGravity, static_cast<uint32_t>(sides.size() - 1));
+  }
   EXPECT_EQ(storage.data(), reused);
-  const PointToSweepPlaneGroupFactor from_terms(std::move(storage), loss);
+  const PointToSweepPlaneGroupFactor from_terms(std::move(storage), std::move(sides), loss);
   const PointToSweepPlaneGroupFactor from_measurements(second, kGravity, loss);
   ASSERT_EQ(from_terms.num_residuals(), 25);
   const test::Evaluation a = test::Evaluate(from_terms, state.Blocks());
   const test::Evaluation b = test::Evaluate(from_measurements, state.Blocks());
   EXPECT_EQ(a.residual, b.residual);
   for (size_t k = 0; k < a.jacobians.size(); ++k) EXPECT_EQ(a.jacobians[k], b.jacobians[k]);
-  EXPECT_TRUE(PointToSweepPlaneGroupFactor::ReleasePoints(nullptr).empty());
+  const PointToSweepPlaneGroupFactor::Released none =
+      PointToSweepPlaneGroupFactor::ReleasePoints(nullptr);
+  EXPECT_TRUE(none.points.empty());
+  EXPECT_TRUE(none.plane_sides.empty());
 }
 
 }  // namespace

@@ -15,6 +15,9 @@
 // p_W_I (3), v_W_I (3); q_I_L (4), p_I_L (3), time_offset_lidar_imu_s (1). Quaternions on
 // the RightQuaternionManifold. Keyframes k and j must be different blocks.
 
+#include <cstddef>
+#include <cstdint>
+
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
@@ -59,18 +62,41 @@ class PointToSweepPlaneFactor final
     Eigen::Matrix<double, 3, 4> lift_I_L_left;
   };
 
+  // One side's propagation (Eq. P1-P3) in the form the Jacobians use: the point's, from
+  // keyframe k to its instant, or the plane's, from keyframe j to sweep j's reference instant.
+  // The points a sweep pairs with one partner in one association share the plane's, so a
+  // group keeps each distinct one once.
+  struct Side {
+    Side(const PointMotion& motion, const Eigen::Vector3d& g_W);
+    Eigen::Matrix3d delta_R;
+    Eigen::Vector3d omega_rad_s;
+    Eigen::Vector3d delta_v;
+    Eigen::Vector3d delta_p;
+    Eigen::Vector3d gravity_velocity;   // g_W dt
+    Eigen::Vector3d gravity_position;   // g_W dt^2 / 2
+    double dt_s;
+  };
+
   // One point's terms of Eq. P1-P7 that the parameters do not change, evaluated against a
-  // Frame. Plain data: a group keeps its points in one array.
+  // Frame and its plane's Side (the measurement's plane_motion, held by the caller: a group
+  // keeps each distinct one once, and each point the index of its own). Plain data: a group
+  // keeps its points in one array.
   class Terms {
    public:
-    Terms(const PointToSweepPlaneMeasurement& measurement, const Eigen::Vector3d& g_W);
+    Terms(const PointToSweepPlaneMeasurement& measurement, const Eigen::Vector3d& g_W,
+          uint32_t plane_side = 0);
     // jacobians as in PointToSweepPlaneFactor::Evaluate.
-    void Evaluate(const Frame& frame, double* residual, double** jacobians) const;
+    void Evaluate(const Frame& frame, const Side& plane, double* residual,
+                  double** jacobians) const;
     // The Jacobian in the kTangentColumns independent tangent columns, column c into
     // row[c * stride]: theta_k (right tangent of q_W_I k), p_k, v_k, theta_j, v_j, theta_I_L
     // (right tangent), p_I_L, the offset. The p_j columns are minus p_k's.
     static constexpr int kTangentColumns = 22;
-    void EvaluateTangent(const Frame& frame, double* residual, double* row, size_t stride) const;
+    void EvaluateTangent(const Frame& frame, const Side& plane, double* residual, double* row,
+                         size_t stride) const;
+    // The index of the point's plane Side among its group's.
+    uint32_t plane_side() const { return plane_side_; }
+    void set_plane_side(uint32_t index) { plane_side_ = index; }
 
    private:
     // The Jacobian's rows before any lift: the quaternion blocks' right tangents, except
@@ -81,37 +107,27 @@ class PointToSweepPlaneFactor final
     };
     // The residual, and the rows when `rows` is not null: those of q_I_L, p_I_L and the offset
     // only with `calibration_rows`.
-    double Core(const Frame& frame, Rows* rows, bool calibration_rows) const;
+    double Core(const Frame& frame, const Side& plane, Rows* rows, bool calibration_rows) const;
 
-    // One side's propagation (Eq. P1-P3) in the form the Jacobians use.
-    struct Side {
-      Side(const PointMotion& motion, const Eigen::Vector3d& g_W);
-      Eigen::Matrix3d delta_R;
-      Eigen::Vector3d omega_rad_s;
-      Eigen::Vector3d delta_v;
-      Eigen::Vector3d delta_p;
-      Eigen::Vector3d gravity_velocity;   // g_W dt
-      Eigen::Vector3d gravity_position;   // g_W dt^2 / 2
-      double dt_s;
-    };
     Side point_;
-    Side plane_;
     Eigen::Vector3d p_L_;
     Eigen::Vector3d n_L_;
     double d_L_;
     double inv_sigma_;
     double offset_linearization_s_;
+    uint32_t plane_side_;
   };
 
   PointToSweepPlaneFactor(const PointToSweepPlaneMeasurement& measurement,
                           const Eigen::Vector3d& g_W)
-      : terms_(measurement, g_W) {}
+      : terms_(measurement, g_W), plane_(measurement.plane_motion, g_W) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
 
  private:
   Terms terms_;
+  Side plane_;
 };
 
 // Autodiff twin (Eq. P6 written literally); the test oracle.

@@ -25,12 +25,20 @@ namespace factors {
 
 class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
  public:
+  // A group's points' terms and their planes' sides (ReleasePoints).
+  struct Released {
+    std::vector<PointToSweepPlaneFactor::Terms> points;
+    std::vector<PointToSweepPlaneFactor::Side> plane_sides;
+  };
   // Parameters as PointToSweepPlaneFactor: keyframe k (q, p, v), keyframe j (q, p, v), q_I_L,
   // p_I_L, time offset. Throws autocal::Error for an empty group or a bad loss scale.
   PointToSweepPlaneGroupFactor(const std::vector<PointToSweepPlaneMeasurement>& points,
                                const Eigen::Vector3d& g_W, const LossOptions& loss);
-  // The same from the points' terms, formed by the caller (no copy of the measurements).
+  // The same from the points' terms and their planes' sides, formed by the caller (no copy of
+  // the measurements): point i's plane side is plane_sides[points[i].plane_side()]. Throws
+  // autocal::Error for an empty group or an index out of range.
   PointToSweepPlaneGroupFactor(std::vector<PointToSweepPlaneFactor::Terms> points,
+                               std::vector<PointToSweepPlaneFactor::Side> plane_sides,
                                const LossOptions& loss);
 
   bool Evaluate(double const* const* parameters, double* residuals,
@@ -46,19 +54,22 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
 
   int num_points() const { return static_cast<int>(points_.size()); }
   const std::vector<PointToSweepPlaneFactor::Terms>& points() const { return points_; }
-
-  // Consumes a factor no longer needed and returns its points' terms in their storage, for
-  // the group that replaces it (edited in place) or, emptied, for another group: a group of a
-  // few thousand points is a megabyte, which the allocator may hand back to the system when
-  // freed, so that its next use pays a page fault per 4 kB. Empty for a null factor.
-  static std::vector<PointToSweepPlaneFactor::Terms> ReleasePoints(
-      std::unique_ptr<PointToSweepPlaneGroupFactor> factor);
+  const std::vector<PointToSweepPlaneFactor::Side>& plane_sides() const { return plane_sides_; }
+  // Consumes a factor no longer needed and returns its points' terms and plane sides in their
+  // storage, for the group that replaces it (edited in place) or, emptied, for another group:
+  // a group of a few thousand points is a megabyte, which the allocator may hand back to the
+  // system when freed, so that its next use pays a page fault per 4 kB. Empty for a null
+  // factor.
+  static Released ReleasePoints(std::unique_ptr<PointToSweepPlaneGroupFactor> factor);
 
   // The whitened point-to-plane distances r_i (no loss), one per point.
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
  private:
+  PointToSweepPlaneGroupFactor(Released terms, const LossOptions& loss);
+
   std::vector<PointToSweepPlaneFactor::Terms> points_;
+  std::vector<PointToSweepPlaneFactor::Side> plane_sides_;
   std::unique_ptr<ceres::LossFunction> loss_;  // null for plain least squares
 };
 
