@@ -52,6 +52,10 @@ void CheckOptions(const SlidingWindowOptions& o) {
   if (o.max_wheel_samples_per_interval < 0 || o.max_residuals_per_sweep < 0) {
     throw Error("SlidingWindowOptions: sample limits must not be negative");
   }
+  if (o.max_plane_misses < 0 || o.max_plane_misses > 255) {
+    throw Error("SlidingWindowOptions: max_plane_misses must be in [0, 255], got " +
+                std::to_string(o.max_plane_misses));
+  }
   CheckPositive(o.residual_voxel_m, "residual_voxel_m");
   CheckPositive(o.map_voxel_m, "map_voxel_m");
   CheckPositive(o.point_sigma_m, "point_sigma_m");

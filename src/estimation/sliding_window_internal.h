@@ -175,6 +175,10 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // position in partner_keyframe_offsets of its partner (-1: none); the points grouped by
   // partner (a group keeps each point's terms); the range of its farthest residual point.
   std::vector<int> partner_position;
+  // Per residual point its plane lookups in a row that found no plane (max_plane_misses),
+  // counted since the map generation misses_map_generation.
+  std::vector<uint8_t> plane_misses;
+  int misses_map_generation = -1;
   // How many partner positions its points try (Eq. SW15): all when the extrinsic was still
   // converging at its first pairing, settled_partner_count when it had settled.
   size_t partner_walk = 0;

@@ -202,11 +202,19 @@ void SlidingWindowEstimator::AssociatePoints() {
       const size_t P = static_cast<size_t>(num_partners);
       if (kf.partner_position.empty()) {
         kf.partner_position.assign(num_points, -1);
+        kf.plane_misses.assign(num_points, 0);
         kf.tried_at.assign(num_points * P, -1);
         kf.tries.assign(P, {});
         kf.partner_walk = timing_.extrinsic_settled ? S : P;
       }
       const size_t walk = kf.partner_walk;
+      // A point that found no plane in its last max_plane_misses lookups is not looked up
+      // again until its own map is rebuilt.
+      const int max_misses = options_.max_plane_misses;
+      if (kf.misses_map_generation != kf.map_generation) {
+        std::fill(kf.plane_misses.begin(), kf.plane_misses.end(), 0);
+        kf.misses_map_generation = kf.map_generation;
+      }
       // Per partner position q: its window position (-1: not in the window), the relative
       // pose now, and per earlier try the change to now, (|dp|, angle) of Eq. SW4 (infinite
       // when either sweep's map was rebuilt since: the deskew moved).
@@ -307,8 +315,14 @@ void SlidingWindowEstimator::AssociatePoints() {
             placed = true;
           }
           const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
-          ++lookups[static_cast<size_t>(k)];
-          const bool found = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L) &&
+          uint8_t& misses = kf.plane_misses[r];
+          bool plane = false;  // a lookup that is not made finds none
+          if (max_misses == 0 || misses < max_misses) {
+            ++lookups[static_cast<size_t>(k)];
+            plane = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L);
+            misses = plane ? 0 : static_cast<uint8_t>(std::min(misses + 1, 255));
+          }
+          const bool found = plane &&
                              std::abs(m.plane_L.SignedDistance(p_Lj)) <=
                                  options_.max_point_to_plane_m + gate_per_range * range_m;
           if (!found) {

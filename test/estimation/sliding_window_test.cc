@@ -891,13 +891,17 @@ TEST_F(SlidingWindowUrban, SkipsOnlyKeyframesWithNothingToRepair) {
 // only once the extrinsic stops moving. Measured: settled in 0.87 of the updates after the
 // first window_size; lookups 0.85k against 2.3k per update (from the second quarter on),
 // position rms 0.028 against 0.046 m; from nominal, settled in 0.47 of the first quarter's
-// updates and all of the last quarter's.
+// updates and all of the last quarter's. Both walks look up every point in every partner
+// they walk (max_plane_misses 0): the rule below takes most of the lookups that the
+// settled walk saves.
 TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   const sensors::Calibration& truth = simulator_->true_calibration();
-  SlidingWindowOptions all_options = Options();
+  SlidingWindowOptions settled_options = Options();
+  settled_options.max_plane_misses = 0;
+  SlidingWindowOptions all_options = settled_options;
   all_options.settled_partner_count = static_cast<int>(all_options.partner_keyframe_offsets.size());
   const Run all = Estimate(truth, all_options);
-  const Run settled = Estimate(truth, Options());
+  const Run settled = Estimate(truth, settled_options);
   const size_t n = settled.settled.size();
   ASSERT_GT(n, 100u);
   ASSERT_EQ(all.lookups.size(), n);
@@ -914,13 +918,47 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   EXPECT_LT(settled.rms_position_error_m, 1.1 * all.rms_position_error_m);
   EXPECT_LT(settled.max_rotation_error_deg, 1.1 * all.max_rotation_error_deg);
 
-  const Run nominal = Estimate(simulator_->nominal_calibration(), Options());
+  const Run nominal = Estimate(simulator_->nominal_calibration(), settled_options);
   const size_t m = nominal.settled.size();
   const double first = Mean(nominal.settled, 0, m / 4);
   const double last = Mean(nominal.settled, m - m / 4, m);
   std::cout << "from nominal: settled in " << first << " of the first quarter's updates, "
             << last << " of the last quarter's\n";
   EXPECT_LT(first, last);
+}
+
+// max_plane_misses (docs/sliding_window.md, "Points without a plane"): a point whose last
+// six lookups found no plane is not looked up again until its own map is rebuilt. From the
+// nominal calibration, against looking every point up in every partner it walks, it makes
+// fewer lookups, keeps the pairs and tracks the truth as well. Measured: 1174 lookups per
+// update against 1398, 1180 points against 1206, q_I_L 0.076 against 0.079 deg at the end
+// (with two misses: 875 lookups, 1067 points, q_I_L 0.118 deg: the points of sparse far
+// ground, which pin the rotation, miss most).
+TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
+  const sensors::Calibration& nominal = simulator_->nominal_calibration();
+  SlidingWindowOptions every_options = Options();
+  every_options.max_plane_misses = 0;
+  const Run every = Estimate(nominal, every_options);
+  const Run capped = Estimate(nominal, Options());
+  ASSERT_EQ(capped.lookups.size(), every.lookups.size());
+  const size_t n = capped.lookups.size();
+  const double capped_lookups = Mean(capped.lookups, 0, n);
+  const double every_lookups = Mean(every.lookups, 0, n);
+  const double capped_points = Mean(capped.points, 0, n);
+  const double every_points = Mean(every.points, 0, n);
+  std::cout << "lookups per update " << capped_lookups << " against " << every_lookups
+            << ", points " << capped_points << " against " << every_points << "\n";
+  EXPECT_LT(capped_lookups, 0.9 * every_lookups);
+  EXPECT_GT(capped_points, 0.95 * every_points);
+  EXPECT_LT(capped.rms_position_error_m, 1.1 * every.rms_position_error_m);
+  EXPECT_LT(capped.rms_rotation_error_deg, 1.1 * every.rms_rotation_error_deg);
+  const double capped_q = geometry::AngularDistance(capped.calibration.q_I_L,
+                                                    simulator_->true_calibration().q_I_L);
+  const double every_q = geometry::AngularDistance(every.calibration.q_I_L,
+                                                   simulator_->true_calibration().q_I_L);
+  std::cout << "q_I_L error " << capped_q * 180.0 / M_PI << " against " << every_q * 180.0 / M_PI
+            << " deg\n";
+  EXPECT_LT(capped_q, every_q + 0.01 * M_PI / 180.0);
 }
 
 TEST(SlidingWindowSmoothing, NeedsTheOption) {

@@ -169,6 +169,15 @@ struct SlidingWindowOptions {
   // Outlier gate: a point farther than this from the plane found for it is not associated
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;
+  // A residual point whose last max_plane_misses plane lookups, in any partner sweeps, found
+  // no plane (fewer than num_neighbors map points within the neighbour radius, or a
+  // neighbourhood that fails the plane gates) is not looked up again until its own sweep's
+  // plane map is rebuilt (its deskew moved), and goes without a pair: such points mostly lie
+  // on clutter, edges or sparse far ground, which the other sweeps see alike (docs/
+  // sliding_window.md, "Points without a plane"). Fewer misses save more lookups but drop the
+  // sparse far ground, which pins the rotation. 0: every point is looked up in every partner
+  // it walks.
+  int max_plane_misses = 6;
   // While the extrinsic rotation is still converging the gate widens with it (docs/
   // sliding_window.md, Eq. SW14): a point at range r is associated within
   //   max_point_to_plane_m + gate_extrinsic_factor * max(0, angle - gate_extrinsic_free_deg) * r
