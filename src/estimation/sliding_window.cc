@@ -75,6 +75,11 @@ void CheckOptions(const SlidingWindowOptions& o) {
       std::count(o.partner_keyframe_offsets.begin(), o.partner_keyframe_offsets.end(), 0) > 0) {
     throw Error("SlidingWindowOptions: partner_keyframe_offsets must be non-empty and non-zero");
   }
+  std::vector<int> offsets = o.partner_keyframe_offsets;
+  std::sort(offsets.begin(), offsets.end());
+  if (std::adjacent_find(offsets.begin(), offsets.end()) != offsets.end()) {
+    throw Error("SlidingWindowOptions: partner_keyframe_offsets must not repeat an offset");
+  }
   if (o.settled_partner_count < 1) {
     throw Error("SlidingWindowOptions: settled_partner_count must be >= 1");
   }

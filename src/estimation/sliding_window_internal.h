@@ -74,10 +74,11 @@ class SlidingWindowEstimator::TermsPool {
   // steady state.
   static constexpr size_t kMaxKept = 128;
 
-  // Keeps `storage`, emptied, among the kMaxKept that were written farthest.
-  void Keep(Storage storage) {
+  // Keeps `storage`, emptied, among the kMaxKept that were written farthest: as far as its
+  // size or `written` terms, whichever is more.
+  void Keep(Storage storage, size_t written = 0) {
     if (storage.capacity() == 0) return;
-    Kept kept{storage.size(), std::move(storage)};
+    Kept kept{std::max(written, storage.size()), std::move(storage)};
     kept.storage.clear();
     std::lock_guard<std::mutex> lock(mutex_);
     if (kept_.size() < kMaxKept) {

@@ -190,7 +190,7 @@ void SlidingWindowEstimator::AssociatePoints() {
   timing_.extrinsic_settled = static_cast<int>(recent_q_I_L_.size()) >= options_.window_size &&
                               recent_rotation_rad <= options_.settled_extrinsic_deg * kDegToRad;
   std::vector<int> lookups(static_cast<size_t>(num_sweeps), 0);
-  terms_pool_->SetChunks(ParallelChunks(num_sweeps, options_.num_threads));
+  terms_pool_->SetChunks(std::max(options_.num_threads, 1));  // at least ParallelFor's chunks
   ParallelFor(0, num_sweeps, options_.num_threads, [&](int64_t begin, int64_t end, int chunk) {
     // The terms of the points a walk pairs anew, in their order, until the groups take them.
     TermsPool::Storage& fresh_terms = terms_pool_->Fresh(chunk);
@@ -317,7 +317,8 @@ void SlidingWindowEstimator::AssociatePoints() {
           const Eigen::Vector3d p_Lj = other.T_Lj_W * p_W;
           uint8_t& misses = kf.plane_misses[r];
           bool plane = false;  // a lookup that is not made finds none
-          if (max_misses == 0 || misses < max_misses) {
+          // A point's own pair is always looked up again: only a lookup may end it.
+          if (max_misses == 0 || misses < max_misses || current == static_cast<int>(q)) {
             ++lookups[static_cast<size_t>(k)];
             plane = other.kf->plane_map->FindPlane(p_Lj, &m.plane_L);
             misses = plane ? 0 : static_cast<uint8_t>(std::min(misses + 1, 255));
@@ -356,6 +357,7 @@ void SlidingWindowEstimator::AssociatePoints() {
       std::vector<std::vector<factors::PointToSweepPlaneFactor::Side>> member_sides(P);
       std::vector<std::vector<int>> member_index(P);
       std::vector<size_t> held(P, 0);  // points whose pair held, per partner position
+      std::vector<size_t> written(P, 0);  // how far a released group's storage was written
       for (internal::SweepPointGroup& g : groups) {
         for (size_t q = 0; q < P; ++q) {
           if (g.partner_id != kf.id + partners[q] || !rebuilt(q)) continue;
@@ -364,6 +366,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           members[q] = std::move(released.points);
           member_sides[q] = std::move(released.plane_sides);
           member_index[q] = std::move(g.point_index);
+          written[q] = members[q].size();
           // Keep, in order, the points whose pair held.
           TermsPool::Storage& terms = members[q];
           std::vector<int>& index = member_index[q];
@@ -391,6 +394,10 @@ void SlidingWindowEstimator::AssociatePoints() {
             for (auto& t : terms) t.set_plane_side(renumbered[t.plane_side()]);
           }
         }
+      }
+      // The released groups leave the window's list at once (none is left without its factor).
+      for (size_t q = 0; q < P; ++q) {
+        if (rebuilt(q)) terms_pool_->RetireGroupsOf(&groups, kf.id + partners[q]);
       }
       // The points paired anew per partner position (residual point, place in fresh_terms),
       // in their order, and the count of the pairs that held, which the groups must hold.
@@ -425,7 +432,8 @@ void SlidingWindowEstimator::AssociatePoints() {
           // Storage that holds them from the pool, the group's own kept for another.
           TermsPool::Storage grown = terms_pool_->Take(n, terms_reserve);
           grown.insert(grown.end(), terms.begin(), terms.end());
-          terms_pool_->Keep(std::exchange(terms, std::move(grown)));
+          terms_pool_->Keep(std::exchange(terms, std::move(grown)), written[q]);
+          written[q] = 0;
         }
         // The new points' plane side, this walk's with partner q.
         std::vector<factors::PointToSweepPlaneFactor::Side>& sides = member_sides[q];
@@ -456,9 +464,6 @@ void SlidingWindowEstimator::AssociatePoints() {
         }
       }
       for (size_t q = 0; q < P; ++q) {
-        if (rebuilt(q)) terms_pool_->RetireGroupsOf(&groups, kf.id + partners[q]);
-      }
-      for (size_t q = 0; q < P; ++q) {
         if (!rebuilt(q)) continue;
         const int partner_id = kf.id + partners[q];
         const int j = partner_of[q];
@@ -467,7 +472,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           for (size_t r = 0; r < num_points; ++r) kf.tried_at[r * P + q] = -1;
         }
         if (j < 0 || members[q].empty()) {
-          terms_pool_->Keep(std::move(members[q]));
+          terms_pool_->Keep(std::move(members[q]), written[q]);
           continue;
         }
         SlidingWindowState& y = sweeps[static_cast<size_t>(j)].kf->state;

@@ -145,6 +145,11 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   expect_rejected("a sweep paired with itself",
                   [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {-5, 0}; });
   expect_rejected("no partners", [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {}; });
+  expect_rejected("a partner offset twice",
+                  [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {-5, 5, -5}; });
+  expect_rejected("max_plane_misses < 0", [](SlidingWindowOptions* o) { o->max_plane_misses = -1; });
+  expect_rejected("max_plane_misses > 255",
+                  [](SlidingWindowOptions* o) { o->max_plane_misses = 256; });
   expect_rejected("settled_partner_count 0",
                   [](SlidingWindowOptions* o) { o->settled_partner_count = 0; });
   expect_rejected("settled_extrinsic_deg < 0",

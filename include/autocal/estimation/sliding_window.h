@@ -172,7 +172,8 @@ struct SlidingWindowOptions {
   // A residual point whose last max_plane_misses plane lookups, in any partner sweeps, found
   // no plane (fewer than num_neighbors map points within the neighbour radius, or a
   // neighbourhood that fails the plane gates) is not looked up again until its own sweep's
-  // plane map is rebuilt (its deskew moved), and goes without a pair: such points mostly lie
+  // plane map is rebuilt (its deskew moved), and so finds no new pair (a pair it holds is
+  // still looked up again when its try goes stale, and only a lookup ends it): such points mostly lie
   // on clutter, edges or sparse far ground, which the other sweeps see alike (docs/
   // sliding_window.md, "Points without a plane"). Fewer misses save more lookups but drop the
   // sparse far ground, which pins the rotation. 0: every point is looked up in every partner
@@ -413,7 +414,7 @@ class SlidingWindowEstimator {
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.
   std::unique_ptr<internal::WindowSolverWorkspace> solver_workspace_;
-  // The emptied storage of dropped point groups, reused by new ones.
+  // The point groups' storage and the pairing's buffers, kept for reuse.
   class TermsPool;
   std::unique_ptr<TermsPool> terms_pool_;
 
