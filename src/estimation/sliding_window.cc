@@ -400,10 +400,7 @@ void SlidingWindowEstimator::Update(lidar::LidarSweep sweep) {
 void SlidingWindowEstimator::AddKeyframe(lidar::LidarSweep sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
-  if (dropped_keyframe_) {
-    kf->TakeBuffersOf(dropped_keyframe_.get());
-    dropped_keyframe_.reset();
-  }
+  kf->tried_at = std::move(spare_tried_at_);  // overwritten before use
   kf->id = next_keyframe_id_++;
   kf->state.t_ns = KeyframeTimeOf(sweep);
 
@@ -538,14 +535,12 @@ void SlidingWindowEstimator::RelinearizeImuFactors() {
 void SlidingWindowEstimator::DropOldest(std::unique_ptr<MarginalizationPrior> prior) {
   prior_ = std::move(prior);
   marginalized_.push_back(window_.front()->state);
-  const int dropped_id = window_.front()->id;
-  dropped_keyframe_ = std::move(window_.front());
-  window_.pop_front();
+  WindowKeyframe& dropped = *window_.front();
+  const int dropped_id = dropped.id;
   // Pairs with the dropped sweep are in the prior now, as are the dropped sweep's own.
-  for (internal::SweepPointGroup& group : dropped_keyframe_->point_groups) {
-    terms_pool_->Retire(&group);
-  }
-  dropped_keyframe_->point_groups.clear();
+  for (internal::SweepPointGroup& group : dropped.point_groups) terms_pool_->Retire(&group);
+  spare_tried_at_ = std::move(dropped.tried_at);
+  window_.pop_front();
   for (auto& kf : window_) terms_pool_->RetireGroupsOf(&kf->point_groups, dropped_id);
   window_.front()->imu_from_previous.reset();
   ++counters_.marginalizations;

@@ -184,9 +184,6 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // converging at its first pairing, settled_partner_count when it had settled.
   size_t partner_walk = 0;
   std::vector<internal::SweepPointGroup> point_groups;
-  // Takes over the pairing buffer of a keyframe that left the window (its contents are never
-  // read: it is overwritten before use).
-  void TakeBuffersOf(WindowKeyframe* old) { tried_at = std::move(old->tried_at); }
   double residual_max_range_m = 0.0;
   // The tries of the pairing ("Reuse between updates"): per partner position q the relative
   // poses T_Lj_Lk the points were tried at, with the generations of both sweeps' maps then,

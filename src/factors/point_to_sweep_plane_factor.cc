@@ -124,12 +124,12 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, const Side& plane, R
   // Point side: Eq. (P5) with n_W, m . dR Hat(omega) x_I = u . spun_x. Plane side:
   // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j spun_p + dv_j,
   // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W.
-  const double point_side =
+  const double offset_point =
       u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
-  const double plane_side =
+  const double offset_plane =
       inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) - a.dot(plane.delta_v)) -
       n_W.dot(f.v_j + plane.gravity_velocity);
-  rows->offset = point_side + plane_side;
+  rows->offset = offset_point + offset_plane;
   return residual;
 }
 

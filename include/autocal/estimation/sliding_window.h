@@ -402,10 +402,9 @@ class SlidingWindowEstimator {
   int64_t newest_sweep_ns_;
 
   std::deque<std::unique_ptr<WindowKeyframe>> window_;
-  // The keyframe last marginalized (its point groups' storage already in terms_pool_): the
-  // next keyframe takes over its pairing buffers (megabytes at thousands of points) instead of
-  // allocating them afresh.
-  std::unique_ptr<WindowKeyframe> dropped_keyframe_;
+  // The pairing's try buffer of the keyframe last marginalized (a megabyte at thousands of
+  // points), which the next keyframe takes over instead of allocating it afresh.
+  std::vector<int> spare_tried_at_;
   int next_keyframe_id_ = 0;
   std::vector<SlidingWindowState> marginalized_;
   std::vector<SmoothingStep> smoothing_;  // one per marginalized_, with options_.smoothing
