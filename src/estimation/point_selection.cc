@@ -1,6 +1,7 @@
 #include "estimation/point_selection.h"
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace autocal {
@@ -8,7 +9,9 @@ namespace estimation {
 namespace internal {
 
 std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
-                                  double min_range_m) {
+                                  double min_range_m, double max_range_m) {
+  const double max_range2_m2 =
+      max_range_m > 0.0 ? max_range_m * max_range_m : std::numeric_limits<double>::infinity();
   // 21 bits per axis: +-2^20 voxels around the sensor, far beyond any LiDAR's range. The keys
   // use 63 bits, so ~0 marks an empty slot.
   constexpr int64_t kHalfRange = int64_t{1} << 20;
@@ -26,7 +29,8 @@ std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m
   std::vector<int> out;
   for (int64_t i = 0; i < cloud.size(); ++i) {
     const Eigen::Vector3d p = cloud.points.col(i);
-    if (p.squaredNorm() < min_range_m * min_range_m) continue;
+    const double range2_m2 = p.squaredNorm();
+    if (range2_m2 < min_range_m * min_range_m || range2_m2 > max_range2_m2) continue;
     const uint64_t key = (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
     uint64_t slot = (key * 0x9E3779B97F4A7C15ull) >> (64 - bits);
     while (table[slot] != kEmpty && table[slot] != key) slot = (slot + 1) & mask;

@@ -20,9 +20,10 @@ inline int64_t FloorToInt(double x) {
 }
 
 // Indices of one point per occupied voxel of edge voxel_m (the first met, so a representative
-// keeps its exact coordinates and time), points closer than min_range_m dropped.
+// keeps its exact coordinates and time), points closer than min_range_m dropped, and those
+// farther than max_range_m when it is positive.
 std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
-                                  double min_range_m);
+                                  double min_range_m, double max_range_m = 0.0);
 
 // Evenly spread indices so that at most max_count remain (all when max_count <= 0).
 std::vector<int> Thin(const std::vector<int>& indices, int max_count);

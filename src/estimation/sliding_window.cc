@@ -57,6 +57,7 @@ void CheckOptions(const SlidingWindowOptions& o) {
                 std::to_string(o.max_plane_misses));
   }
   CheckPositive(o.residual_voxel_m, "residual_voxel_m");
+  CheckNonNegative(o.residual_max_range_m, "residual_max_range_m");
   CheckPositive(o.map_voxel_m, "map_voxel_m");
   CheckPositive(o.point_sigma_m, "point_sigma_m");
   CheckPositive(o.solver_function_tolerance, "solver_function_tolerance");
@@ -421,9 +422,10 @@ void SlidingWindowEstimator::AddKeyframe(lidar::LidarSweep sweep) {
   kf->state.b_g = previous.state.b_g;
   kf->state.b_a = previous.state.b_a;
 
-  kf->residual_points = internal::Thin(
-      internal::OnePointPerVoxel(sweep.cloud, options_.residual_voxel_m, options_.min_range_m),
-      options_.max_residuals_per_sweep);
+  kf->residual_points =
+      internal::Thin(internal::OnePointPerVoxel(sweep.cloud, options_.residual_voxel_m,
+                                                options_.min_range_m, options_.residual_max_range_m),
+                     options_.max_residuals_per_sweep);
   kf->map_points =
       internal::OnePointPerVoxel(sweep.cloud, options_.map_voxel_m, options_.min_range_m);
   const size_t num_residuals = kf->residual_points.size();

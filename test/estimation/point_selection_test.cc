@@ -15,16 +15,17 @@ namespace internal {
 namespace {
 
 // The definition, spelled out: the first point (in cloud order) of each occupied voxel,
-// points nearer than the minimum range skipped. A point on a voxel face belongs to the voxel
-// floor(x / v) takes as x * (1 / v), rounding and all.
+// points nearer than the minimum range skipped, and those beyond a positive maximum range. A
+// point on a voxel face belongs to the voxel floor(x / v) takes as x * (1 / v), rounding and
+// all.
 std::vector<int> FirstPointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
-                                    double min_range_m) {
+                                    double min_range_m, double max_range_m = 0.0) {
   const double inv = 1.0 / voxel_m;
   std::set<std::tuple<int64_t, int64_t, int64_t>> seen;
   std::vector<int> out;
   for (int64_t i = 0; i < cloud.size(); ++i) {
     const Eigen::Vector3d p = cloud.points.col(i);
-    if (p.norm() < min_range_m) continue;
+    if (p.norm() < min_range_m || (max_range_m > 0.0 && p.norm() > max_range_m)) continue;
     const auto voxel = std::make_tuple(static_cast<int64_t>(std::floor(p.x() * inv)),
                                        static_cast<int64_t>(std::floor(p.y() * inv)),
                                        static_cast<int64_t>(std::floor(p.z() * inv)));
@@ -52,6 +53,12 @@ TEST(OnePointPerVoxel, KeepsTheFirstPointOfEachVoxel) {
     for (double voxel_m : {0.2, 0.6, 3.0}) {
       const std::vector<int> expected = FirstPointPerVoxel(cloud, voxel_m, 2.0);
       EXPECT_EQ(OnePointPerVoxel(cloud, voxel_m, 2.0), expected) << n << " points, " << voxel_m;
+      // Up to 25 m: the cloud reaches 42 m.
+      const std::vector<int> within = FirstPointPerVoxel(cloud, voxel_m, 2.0, 25.0);
+      EXPECT_EQ(OnePointPerVoxel(cloud, voxel_m, 2.0, 25.0), within) << n << " points, " << voxel_m;
+      if (n >= 5000) {
+        EXPECT_LT(within.size(), expected.size());
+      }
       if (n >= 5000) {
         EXPECT_LT(expected.size(), static_cast<size_t>(n));  // voxels with several points
       }

@@ -143,8 +143,13 @@ struct SlidingWindowOptions {
   // late: an IMU factor over less than two IMU samples has a singular covariance (the
   // position error of one sampled step is a fixed multiple of its velocity error).
   double min_keyframe_interval_s = 0.02;
-  // Residual points of each sweep: one per voxel of this size (in L), then at most this many.
+  // Residual points of each sweep: one per voxel of this size (in L), no farther than
+  // residual_max_range_m, then at most max_residuals_per_sweep. Beyond about 40 m the default
+  // 32-beam LiDAR's rings lie a metre apart, so a local plane of map points within
+  // plane_map.max_neighbor_distance_m is rarely found there (docs/sliding_window.md, "Far
+  // points"); raise it for a denser LiDAR. 0: no limit.
   double residual_voxel_m = 0.6;
+  double residual_max_range_m = 40.0;
   int max_residuals_per_sweep = 2000;
   // Points of each sweep that build the plane map (one per voxel of this size).
   double map_voxel_m = 0.3;
