@@ -240,9 +240,16 @@ Problem ParseProblem(const YamlFile& file) {
   FixBlocksOfAbsentSensors(problem.sensors, &problem.calibration);
   if (const YAML::Node n = root["loss"]) problem.loss = ParseLosses(file, n, problem.sensors);
   if (const YAML::Node window = root["window"]) {
-    file.ExpectMap(window, "window", {"size"});
+    file.ExpectMap(window, "window", {"size", "max_range_m"});
     if (const YAML::Node n = window["size"])
       problem.window_size = IntInRange(file, n, "window.size", 2, kMaxWindowSize);
+    RejectWithoutSensor(file, window, "window", "max_range_m", problem.sensors.lidar, "lidar");
+    if (const YAML::Node n = window["max_range_m"]) {
+      problem.window_max_range_m = file.Double(n, "window.max_range_m");
+      if (problem.window_max_range_m < 0.0) {
+        file.Fail(n, "window.max_range_m: must be >= 0 (0: no limit), found " + n.Scalar());
+      }
+    }
   }
   if (const YAML::Node solver = root["solver"]) {
     file.ExpectMap(solver, "solver", {"max_iterations", "outer_iterations", "num_threads"});

@@ -74,6 +74,7 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   w.num_threads = problem.solver.num_threads;
   w.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
   w.residual_voxel_m = problem.lidar.voxel_m;
+  w.residual_max_range_m = problem.window_max_range_m;
   w.initial_state_sigmas = options.initial_state_sigmas;
   // The rear axle's lateral and vertical speed rows, weighted for their correlated model error
   // (Eq. K6, as in the offline calibration). Without them the wheel speeds see the vehicle

@@ -166,7 +166,7 @@ TEST(ProblemYamlTest, EveryKeyIsRead) {
       "  p_I_A_m: {prior_sigma_m: 0.1}\n"
       "  T_I_V: {rotation: fixed}\n"
       "loss: {imu: \"huber:4\", prior: none, wheel: cauchy, gnss: \"huber 2.5\", lidar: none}\n"
-      "window: {size: 7}\n"
+      "window: {size: 7, max_range_m: 60}\n"
       "solver: {max_iterations: 30, outer_iterations: 3, num_threads: 2}\n"
       "lidar: {max_points_per_sweep: 800, voxel_m: 0.25, sweep_stride: 3}\n";
   const Problem p = ReadProblemYaml(WriteProblem("full.yaml", text));
@@ -193,6 +193,7 @@ TEST(ProblemYamlTest, EveryKeyIsRead) {
   EXPECT_EQ(p.loss.gnss.scale, 2.5);
   EXPECT_EQ(p.loss.lidar.type, lidar::RobustLoss::kNone);
   EXPECT_EQ(p.window_size, 7);
+  EXPECT_EQ(p.window_max_range_m, 60.0);
   EXPECT_EQ(p.solver.max_iterations, 30);
   EXPECT_EQ(p.solver.outer_iterations, 3);
   EXPECT_EQ(p.solver.num_threads, 2);
@@ -242,6 +243,10 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
       {"window_not_int", "window:\n  size: 10.5\n", 2, "10.5", "window.size"},
       {"threads_zero", "solver:\n  num_threads: 0\n", 2, "0", "solver.num_threads: must be within"},
       {"voxel_zero", "lidar:\n  voxel_m: 0\n", 2, "0", "lidar.voxel_m: must be > 0"},
+      {"negative_range", "window:\n  max_range_m: -5\n", 2, "-5",
+       "window.max_range_m: must be >= 0 (0: no limit), found -5"},
+      {"range_without_lidar", "sensors: {lidar: false}\nwindow: {max_range_m: 30}\n", 2,
+       "max_range_m", "window.max_range_m: sensors.lidar is false"},
       {"stride_zero", "lidar:\n  sweep_stride: 0\n", 2, "0",
        "lidar.sweep_stride: must be within [1, 100]"},
       {"shared_mismatch",

@@ -14,7 +14,7 @@
 //     p_I_A_m: estimate
 //     T_I_V: {rotation: fixed, translation: fixed}          # rotation priors: prior_sigma_deg
 //   loss: {imu: none, prior: none, wheel: "huber:2", gnss: "cauchy:3", lidar: "huber:1"}
-//   window: {size: 10}
+//   window: {size: 10, max_range_m: 40}
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
 //   lidar: {max_points_per_sweep: 400, voxel_m: 0.6, sweep_stride: 1}
 //
@@ -114,6 +114,11 @@ struct Problem {
   // LiDAR huber:1, IMU and priors quadratic).
   factors::FactorLossOptions loss;
   int window_size = 10;  // keyframes of the sliding window, >= 2
+  // The sliding window's residual points no farther than this, >= 0 (0: no limit; the batch
+  // solve takes every range). Beyond about 40 m the default 32-beam LiDAR's rings lie too far
+  // apart for a local plane (docs/sliding_window.md, "Far points"); a denser LiDAR may take
+  // more. LiDAR only.
+  double window_max_range_m = 40.0;
   ProblemSolver solver;
   ProblemLidar lidar;
 };
