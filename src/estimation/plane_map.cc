@@ -60,7 +60,20 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const 
 bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const {
   const Eigen::Vector3d centroid = local.rowwise().mean();
   const Neighborhood centered = local.colwise() - centroid;
-  const Eigen::Matrix3d scatter = centered * centered.transpose();
+  // The scatter's six distinct entries summed point by point (Eigen's product of a dynamic
+  // 3 x n block with its transpose went through its general kernel: a ninth of a lookup).
+  double sxx = 0.0, sxy = 0.0, sxz = 0.0, syy = 0.0, syz = 0.0, szz = 0.0;
+  for (Eigen::Index i = 0; i < centered.cols(); ++i) {
+    const double x = centered(0, i), y = centered(1, i), z = centered(2, i);
+    sxx += x * x;
+    sxy += x * y;
+    sxz += x * z;
+    syy += y * y;
+    syz += y * z;
+    szz += z * z;
+  }
+  Eigen::Matrix3d scatter;
+  scatter << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
   // The closed-form eigenvalues decide the gates (line, blob) when both pass or fail by more
   // than kGateMargin of the largest; a neighbourhood nearer a gate goes on to the iterative
   // solver, so that the decision is the solver's. Past both gates the normal is the kernel of
