@@ -491,9 +491,9 @@ void SlidingWindowEstimator::AttachIntervalMeasurements(WindowKeyframe* from, in
     m.gyro_rad_s = gyro.samples > 0 ? gyro.rate_rad_s
                                     : sensors::InterpolateImu(imu_, w.t_ns).gyro_rad_s;
     AttachedFactor f;
-    f.cost.reset(internal::PropagatedWheelResidual::Create(
+    f.cost = std::make_unique<internal::PropagatedWheelFactor>(
         pim, m, wheel_options, options_.wheel.noise_rad_s,
-        gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples))));
+        gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples)));
     f.loss = wheel_loss_.get();
     f.linearized_per_pass = "a wheel factor";
     f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};

@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -17,11 +18,13 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/factors/loss.h"
+#include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/sliding_window_factors.h"
 #include "estimation/sliding_window_internal.h"
 #include "estimation/true_keyframe.h"
+#include "factors/factor_test_utils.h"
 
 namespace autocal {
 namespace estimation {
@@ -321,6 +324,64 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
     // Off the measured wheel rates the rows are far from zero: the check is not vacuous.
     EXPECT_GT(expected.norm(), 1.0);
   }
+}
+
+// The analytic wheel rows against their autodiff form (every block on its tangent space, to
+// 1e-9) and against numeric differentiation (GradientChecker), on random states, with and
+// without the non-holonomic rows; the track width's sign is refused as by the wheel factor.
+TEST(SlidingWindowPropagatedWheelFactor, JacobiansMatchAutodiffAndGradientChecker) {
+  std::srand(11);
+  sensors::ImuNoise noise;
+  sensors::PreintegrationOptions options;
+  const Eigen::Vector3d b_g_lin(0.002, -0.001, 0.003), b_a_lin(0.05, -0.02, 0.01);
+  sensors::ImuPreintegration pim(noise, options, b_g_lin, b_a_lin);
+  for (int i = 0; i < 20; ++i) {
+    pim.IntegrateStep(Eigen::Vector3d(0.05, -0.02, 0.3) + 0.1 * Eigen::Vector3d::Random(),
+                      Eigen::Vector3d(0.8, 0.1, kGravity) + 0.3 * Eigen::Vector3d::Random(), 0.005);
+  }
+  const geometry::RightQuaternionManifold quaternion;
+  const std::vector<const ceres::Manifold*> manifolds = {
+      &quaternion, nullptr, nullptr, nullptr, &quaternion, nullptr, nullptr, nullptr, nullptr};
+  const double encoder_sigma = 0.05, gyro_sigma = 0.003;
+  for (int trial = 0; trial < 12; ++trial) {
+    factors::WheelMeasurement m;
+    m.left_rad_s = 24.0 + 3.0 * Eigen::Vector2d::Random()(0);
+    m.right_rad_s = 25.5 + 3.0 * Eigen::Vector2d::Random()(0);
+    m.gyro_rad_s = Eigen::Vector3d(0.01, 0.02, 0.31) + 0.2 * Eigen::Vector3d::Random();
+    factors::WheelFactorOptions wheel_options;
+    wheel_options.non_holonomic = trial % 2 == 0;
+    wheel_options.lateral_sigma_m_s = 0.03;
+    wheel_options.vertical_sigma_m_s = 0.11;
+    const internal::PropagatedWheelFactor analytic(pim, m, wheel_options, encoder_sigma,
+                                                   gyro_sigma);
+    const std::unique_ptr<ceres::CostFunction> autodiff(internal::PropagatedWheelResidual::Create(
+        pim, m, wheel_options, encoder_sigma, gyro_sigma));
+    ASSERT_EQ(analytic.num_residuals(), autodiff->num_residuals());
+    ASSERT_EQ(analytic.parameter_block_sizes(), autodiff->parameter_block_sizes());
+    Eigen::Quaterniond q(Eigen::Quaterniond::UnitRandom());
+    Eigen::Vector3d v = 8.0 * Eigen::Vector3d::Random();
+    Eigen::Vector3d b_g = b_g_lin + 0.002 * Eigen::Vector3d::Random();
+    Eigen::Vector3d b_a = b_a_lin + 0.05 * Eigen::Vector3d::Random();
+    Eigen::Quaterniond q_I_V(Eigen::AngleAxisd(0.02 * trial, Eigen::Vector3d::UnitX()) *
+                             Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()));
+    Eigen::Vector3d p_I_V(-1.2, 0.1, -0.4);
+    double r_l = 0.33 + 0.01 * trial, r_r = 0.335, track = 1.6 + 0.01 * trial;
+    const std::vector<double*> blocks = {q.coeffs().data(), v.data(),    b_g.data(),
+                                         b_a.data(),        q_I_V.coeffs().data(),
+                                         p_I_V.data(),      &r_l,        &r_r,
+                                         &track};
+    const std::string context = "trial " + std::to_string(trial);
+    test::ExpectSameJacobians(analytic, *autodiff, manifolds, blocks, 1e-9, context);
+    test::ExpectGradientCheckPasses(analytic, manifolds, blocks, 1e-6, context);
+  }
+  factors::WheelFactorOptions shared;
+  shared.shared_radius = true;
+  EXPECT_THROW(internal::PropagatedWheelFactor(pim, factors::WheelMeasurement{}, shared,
+                                               encoder_sigma, gyro_sigma),
+               Error);
+  EXPECT_THROW(internal::PropagatedWheelFactor(pim, factors::WheelMeasurement{},
+                                               factors::WheelFactorOptions{}, 0.0, gyro_sigma),
+               Error);
 }
 
 // ---------------------------------------------------------------------------------------------
