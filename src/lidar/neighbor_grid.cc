@@ -8,7 +8,6 @@
 
 #include "autocal/common/error.h"
 #include "common/cpu_features.h"
-#include "lidar/nearest_list.h"
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -174,16 +173,27 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
   const int y_begin = std::max(cy - 1, 0), y_end = std::min(cy + 1, columns_y_ - 1);
   if (x_begin > x_end || y_begin > y_end) return 0;
 
-  // Slots (positions in the sorted arrays) of the neighbours found, on the stack for the
-  // usual k.
+  // The neighbours found, closest first: their squared distances and slots (positions in the
+  // sorted arrays), on the stack for the usual k. A candidate's index, which breaks ties, is
+  // read only on a tie.
   constexpr int kStackNeighbors = 32;
+  std::array<double, kStackNeighbors> stack_d;
   std::array<int, kStackNeighbors> stack_slots;
+  std::vector<double> heap_d;
   std::vector<int> heap_slots;
+  double* best_d = stack_d.data();
   int* slots = stack_slots.data();
   if (k > kStackNeighbors) {
+    heap_d.resize(static_cast<size_t>(k));
     heap_slots.resize(static_cast<size_t>(k));
+    best_d = heap_d.data();
     slots = heap_slots.data();
   }
+  const int* index = index_.data();
+  // Whether (d, slot s) comes before place i: by distance, a tie by the lower index.
+  const auto before = [&](double d, int s, int i) {
+    return d < best_d[i] || (d == best_d[i] && index[s] < index[slots[i]]);
+  };
   const double qx = query.x(), qy = query.y(), qz = query.z();
   const double radius2 = radius_m_ * radius_m_;
   constexpr int kChunk = 64;
@@ -203,9 +213,25 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
       for (int c = 0; c < within; ++c) {
         const double d = candidate_d[static_cast<size_t>(c)];
         const int s = candidate_slot[static_cast<size_t>(c)];
-        internal::OfferNearest(k, d, index_[static_cast<size_t>(s)], s, out, slots, &count);
+        int i;
+        if (count < k) {
+          i = count++;
+        } else if (before(d, s, k - 1)) {
+          i = k - 1;
+        } else {
+          continue;
+        }
+        for (; i > 0 && before(d, s, i - 1); --i) {
+          best_d[i] = best_d[i - 1];
+          slots[i] = slots[i - 1];
+        }
+        best_d[i] = d;
+        slots[i] = s;
       }
     }
+  }
+  for (int i = 0; i < count; ++i) {
+    out[i] = Neighbor{index[slots[i]], best_d[i]};
   }
   if (points != nullptr) {
     for (int i = 0; i < count; ++i) {
