@@ -58,20 +58,32 @@ PointToSweepPlaneFactor::Terms::Terms(const PointToSweepPlaneMeasurement& measur
       offset_linearization_s_(measurement.offset_linearization_s),
       plane_side_(plane_side) {}
 
+PointToSweepPlaneFactor::PlaneFrame::PlaneFrame(const Frame& f, const Side& plane)
+    : M_j(f.R_j * plane.delta_R),
+      delta_R(plane.delta_R),
+      omega_rad_s(plane.omega_rad_s),
+      c0(f.p_j + plane.dt_s * f.v_j + plane.gravity_position),
+      c1(f.v_j + plane.gravity_velocity),
+      b0(f.p_I_L + plane.delta_R.transpose() * plane.delta_p),
+      b1(plane.omega_rad_s.cross(f.p_I_L) + plane.delta_R.transpose() * plane.delta_v),
+      dt_s(plane.dt_s) {}
+
 bool PointToSweepPlaneFactor::Evaluate(double const* const* parameters, double* residuals,
                                        double** jacobians) const {
-  terms_.Evaluate(Frame(parameters), plane_, residuals, jacobians);
+  const Frame frame(parameters);
+  terms_.Evaluate(frame, PlaneFrame(frame, plane_), residuals, jacobians);
   return true;
 }
 
-double PointToSweepPlaneFactor::Terms::Core(const Frame& f, const Side& plane, Rows* rows,
+double PointToSweepPlaneFactor::Terms::Core(const Frame& f, const PlaneFrame& plane, Rows* rows,
                                             bool calibration_rows) const {
   const double delta = f.time_offset_s - offset_linearization_s_;
 
   // Point side (Eq. P1-P3) with dR (I + delta Hat(omega)) applied as dR (x + delta omega x x):
   //   lever = dR (x_I + delta omega_k x x_I) + dp + delta dv,
   //   p_W = R_k lever + p_k + (dt + delta) v_k + g dt^2/2 + delta g dt.
-  const Eigen::Vector3d x_I = f.R_I_L * p_L_ + f.p_I_L;
+  const Eigen::Vector3d rotated_p = f.R_I_L * p_L_;  // x_I - p_I_L
+  const Eigen::Vector3d x_I = rotated_p + f.p_I_L;
   const Eigen::Vector3d spun_x = point_.omega_rad_s.cross(x_I);  // Hat(omega_k) x_I
   const Eigen::Vector3d lever =
       point_.delta_R * (x_I + delta * spun_x) + point_.delta_p + delta * point_.delta_v;
@@ -82,58 +94,54 @@ double PointToSweepPlaneFactor::Terms::Core(const Frame& f, const Side& plane, R
   //   a = B R_I_L n_L (the normal in I_j),  b = B p_I_L + dp_j + delta dv_j,
   //   w = p_W - p_j - (dt_j + delta) v_j - g dt_j^2/2 - delta g dt_j,   z = R_j^T w,
   //   r sigma = a . (z - b) + d_L.                                                 (Eq. P7)
-  // alpha = dR_j^T a and beta = dR_j^T (b - dp_j - delta dv_j) stay in the frame before dR_j.
+  // With alpha = dR_j^T a = n_I + delta omega_j x n_I and t = dR_j^T (z - b) = M_j^T w - b'
+  // (PlaneFrame), a . (z - b) = alpha . t: neither a nor z is formed.
   const Eigen::Vector3d n_I = f.R_I_L * n_L_;
   const Eigen::Vector3d spun_n = plane.omega_rad_s.cross(n_I);
-  const Eigen::Vector3d spun_p = plane.omega_rad_s.cross(f.p_I_L);
   const Eigen::Vector3d alpha = n_I + delta * spun_n;
-  const Eigen::Vector3d a = plane.delta_R * alpha;
-  const Eigen::Vector3d b = plane.delta_R * (f.p_I_L + delta * spun_p) + plane.delta_p +
-                            delta * plane.delta_v;
-  const Eigen::Vector3d w = p_W - f.p_j - (plane.dt_s + delta) * f.v_j -
-                            plane.gravity_position - delta * plane.gravity_velocity;
-  const Eigen::Vector3d z = f.R_j.transpose() * w;
-  const Eigen::Vector3d z_minus_b = z - b;
-  const double residual = (a.dot(z_minus_b) + d_L_) * inv_sigma_;
+  const Eigen::Vector3d w = p_W - (plane.c0 + delta * plane.c1);
+  const Eigen::Vector3d b_rotated = plane.b0 + delta * plane.b1;  // b' = dR_j^T b
+  const Eigen::Vector3d t = plane.M_j.transpose() * w - b_rotated;
+  const double residual = (alpha.dot(t) + d_L_) * inv_sigma_;
   if (rows == nullptr) return residual;
 
-  // The point side enters through n_W . p_W with n_W = R_j a: the Jacobians of Eq. (P5)
-  // with that normal; m = R_k^T n_W / sigma and m_x = (I + delta Hat(omega_k))^T dR^T m, the
-  // gradient in x_I.
-  const Eigen::Vector3d n_W = f.R_j * a * inv_sigma_;
+  // The point side enters through n_W . p_W with n_W = R_j a = M_j alpha: the Jacobians of
+  // Eq. (P5) with that normal; m = R_k^T n_W / sigma and m_x = (I + delta Hat(omega_k))^T
+  // dR^T m, the gradient in x_I.
+  const Eigen::Vector3d n_W = plane.M_j * alpha * inv_sigma_;
   const Eigen::Vector3d m = f.R_k.transpose() * n_W;
   const Eigen::Vector3d u = point_.delta_R.transpose() * m;
   const Eigen::Vector3d m_x = u + delta * u.cross(point_.omega_rad_s);
   rows->theta_k = lever.cross(m);
   rows->p_k = n_W;
   rows->v_k = (point_.dt_s + delta) * n_W;
-  // Plane side: d/dtheta_j of a . R_j^T w is (a x z)^T (Eq. P8).
-  rows->theta_j = inv_sigma_ * a.cross(z);
+  // Plane side: d/dtheta_j of a . R_j^T w is (a x z)^T (Eq. P8), and with z = dR_j (t + b'),
+  // a x z = dR_j (alpha x (t + b')).
+  rows->theta_j = inv_sigma_ * (plane.delta_R * alpha.cross(t + b_rotated));
   rows->v_j = -(plane.dt_s + delta) * n_W;
   if (!calibration_rows) return residual;
-  // t = dR_j^T (z - b); B^T (z - b) = (I - delta Hat(omega_j)) t = t + delta t x omega_j.
-  const Eigen::Vector3d t = plane.delta_R.transpose() * z_minus_b;
+  // B^T (z - b) = (I - delta Hat(omega_j)) t = t + delta t x omega_j.
   // Point side through x_I: p_L x R_I_L^T m_x. Plane side through a = B R_I_L n_L:
   // n_L x R_I_L^T B^T (z - b). With p_L x R^T y = R^T (R p_L x y), both are R_I_L^T times the
   // left tangent's row below.
   const Eigen::Vector3d e = t + delta * t.cross(plane.omega_rad_s);
-  rows->phi_I_L = (x_I - f.p_I_L).cross(m_x) + inv_sigma_ * n_I.cross(e);
+  rows->phi_I_L = rotated_p.cross(m_x) + inv_sigma_ * n_I.cross(e);
   // B^T a = alpha + delta alpha x omega_j.
   const Eigen::Vector3d B_t_a = alpha + delta * alpha.cross(plane.omega_rad_s);
   rows->p_I_L = m_x - inv_sigma_ * B_t_a;
   // Point side: Eq. (P5) with n_W, m . dR Hat(omega) x_I = u . spun_x. Plane side:
-  // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j spun_p + dv_j,
-  // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W.
+  // da/d(delta) = dR_j spun_n, db/d(delta) = dR_j (omega_j x p_I_L) + dv_j,
+  // dz/d(delta) = -R_j^T (v_j + g dt_j); R_j a = sigma n_W; so the plane side's is
+  // (spun_n . t - alpha . b1) / sigma - n_W . c1.
   const double offset_point =
       u.dot(spun_x) + m.dot(point_.delta_v) + n_W.dot(f.v_k + point_.gravity_velocity);
   const double offset_plane =
-      inv_sigma_ * (spun_n.dot(t) - alpha.dot(spun_p) - a.dot(plane.delta_v)) -
-      n_W.dot(f.v_j + plane.gravity_velocity);
+      inv_sigma_ * (spun_n.dot(t) - alpha.dot(plane.b1)) - n_W.dot(plane.c1);
   rows->offset = offset_point + offset_plane;
   return residual;
 }
 
-void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, const Side& plane,
+void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, const PlaneFrame& plane,
                                               double* residual, double** jacobians) const {
   if (jacobians == nullptr) {
     residual[0] = Core(f, plane, nullptr, false);
@@ -158,7 +166,7 @@ void PointToSweepPlaneFactor::Terms::Evaluate(const Frame& f, const Side& plane,
   if (jacobians[8] != nullptr) jacobians[8][0] = rows.offset;
 }
 
-void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, const Side& plane,
+void PointToSweepPlaneFactor::Terms::EvaluateTangent(const Frame& f, const PlaneFrame& plane,
                                                      double* residual, double* row,
                                                      size_t stride) const {
   Rows rows;

@@ -68,6 +68,14 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
   for (int size : kBlockSizes) mutable_parameter_block_sizes()->push_back(size);
 }
 
+std::vector<PointToSweepPlaneFactor::PlaneFrame> PointToSweepPlaneGroupFactor::PlaneFrames(
+    const PointToSweepPlaneFactor::Frame& frame) const {
+  std::vector<PointToSweepPlaneFactor::PlaneFrame> planes;
+  planes.reserve(plane_sides_.size());
+  for (const PointToSweepPlaneFactor::Side& side : plane_sides_) planes.emplace_back(frame, side);
+  return planes;
+}
+
 PointToSweepPlaneGroupFactor::Released PointToSweepPlaneGroupFactor::ReleasePoints(
     std::unique_ptr<PointToSweepPlaneGroupFactor> factor) {
   if (factor == nullptr) return {};
@@ -93,6 +101,7 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
                                             double** jacobians) const {
   // The rotations and lifts every point shares, once per evaluation (Eq. P8).
   const PointToSweepPlaneFactor::Frame frame(parameters);
+  const std::vector<PointToSweepPlaneFactor::PlaneFrame> planes = PlaneFrames(frame);
   // Row i of each row-major n x size Jacobian is the one-row Jacobian of point i.
   std::array<double*, kBlockSizes.size()> row_jacobians;
   for (size_t i = 0; i < points_.size(); ++i) {
@@ -106,7 +115,7 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
       point_jacobians = row_jacobians.data();
     }
     const PointToSweepPlaneFactor::Terms& point = points_[i];
-    point.Evaluate(frame, plane_sides_[point.plane_side()], &residuals[i], point_jacobians);
+    point.Evaluate(frame, planes[point.plane_side()], &residuals[i], point_jacobians);
     if (!loss_) continue;
     const double scale = ApplyLoss(*loss_, &residuals[i]);
     if (point_jacobians == nullptr) continue;
@@ -121,11 +130,12 @@ bool PointToSweepPlaneGroupFactor::Evaluate(double const* const* parameters, dou
 bool PointToSweepPlaneGroupFactor::EvaluateTangent(double const* const* parameters,
                                                    double* residuals, double* jacobian) const {
   const PointToSweepPlaneFactor::Frame frame(parameters);
+  const std::vector<PointToSweepPlaneFactor::PlaneFrame> planes = PlaneFrames(frame);
   const size_t n = points_.size();
   for (size_t i = 0; i < n; ++i) {
     double* row = jacobian + i;
     const PointToSweepPlaneFactor::Terms& point = points_[i];
-    point.EvaluateTangent(frame, plane_sides_[point.plane_side()], &residuals[i], row, n);
+    point.EvaluateTangent(frame, planes[point.plane_side()], &residuals[i], row, n);
     if (!loss_) continue;
     const double scale = ApplyLoss(*loss_, &residuals[i]);
     for (int c = 0; c < kTangentColumns; ++c) row[static_cast<size_t>(c) * n] *= scale;
@@ -136,9 +146,10 @@ bool PointToSweepPlaneGroupFactor::EvaluateTangent(double const* const* paramete
 void PointToSweepPlaneGroupFactor::WhitenedDistances(double const* const* parameters,
                                                      double* distances) const {
   const PointToSweepPlaneFactor::Frame frame(parameters);
+  const std::vector<PointToSweepPlaneFactor::PlaneFrame> planes = PlaneFrames(frame);
   for (size_t i = 0; i < points_.size(); ++i) {
     const PointToSweepPlaneFactor::Terms& point = points_[i];
-    point.Evaluate(frame, plane_sides_[point.plane_side()], &distances[i], nullptr);
+    point.Evaluate(frame, planes[point.plane_side()], &distances[i], nullptr);
   }
 }
 

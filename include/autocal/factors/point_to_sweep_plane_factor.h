@@ -77,6 +77,21 @@ class PointToSweepPlaneFactor final
     double dt_s;
   };
 
+  // What a Frame and one plane Side give every point paired with that side, once per
+  // evaluation (Eq. P7 rearranged, docs/estimation.md): with B_j = dR_j, M_j = R_j B_j, the
+  // point's t = B_j^T (R_j^T w - b) = M_j^T (p_W - c) - b' where, linear in the point's offset
+  // change delta, c = c0 + delta c1 (the plane side's propagated position) and
+  // b' = B_j^T b = b0 + delta b1.
+  struct PlaneFrame {
+    PlaneFrame(const Frame& frame, const Side& plane);
+    Eigen::Matrix3d M_j;              // R_j dR_j
+    Eigen::Matrix3d delta_R;          // dR_j
+    Eigen::Vector3d omega_rad_s;      // omega_j
+    Eigen::Vector3d c0, c1;           // p_j + dt_j v_j + g dt_j^2 / 2;  v_j + g dt_j
+    Eigen::Vector3d b0, b1;           // p_I_L + dR_j^T dp_j;  omega_j x p_I_L + dR_j^T dv_j
+    double dt_s;
+  };
+
   // One point's terms of Eq. P1-P7 that the parameters do not change, evaluated against a
   // Frame and its plane's Side (the measurement's plane_motion, held by the caller: a group
   // keeps each distinct one once, and each point the index of its own). Plain data: a group
@@ -86,14 +101,14 @@ class PointToSweepPlaneFactor final
     Terms(const PointToSweepPlaneMeasurement& measurement, const Eigen::Vector3d& g_W,
           uint32_t plane_side = 0);
     // jacobians as in PointToSweepPlaneFactor::Evaluate.
-    void Evaluate(const Frame& frame, const Side& plane, double* residual,
+    void Evaluate(const Frame& frame, const PlaneFrame& plane, double* residual,
                   double** jacobians) const;
     // The Jacobian in the kTangentColumns independent tangent columns, column c into
     // row[c * stride]: theta_k (right tangent of q_W_I k), p_k, v_k, theta_j, v_j, theta_I_L
     // (right tangent), p_I_L, the offset. The p_j columns are minus p_k's.
     static constexpr int kTangentColumns = 22;
-    void EvaluateTangent(const Frame& frame, const Side& plane, double* residual, double* row,
-                         size_t stride) const;
+    void EvaluateTangent(const Frame& frame, const PlaneFrame& plane, double* residual,
+                         double* row, size_t stride) const;
     // The index of the point's plane Side among its group's.
     uint32_t plane_side() const { return plane_side_; }
     void set_plane_side(uint32_t index) { plane_side_ = index; }
@@ -107,7 +122,8 @@ class PointToSweepPlaneFactor final
     };
     // The residual, and the rows when `rows` is not null: those of q_I_L, p_I_L and the offset
     // only with `calibration_rows`.
-    double Core(const Frame& frame, const Side& plane, Rows* rows, bool calibration_rows) const;
+    double Core(const Frame& frame, const PlaneFrame& plane, Rows* rows,
+                bool calibration_rows) const;
 
     Side point_;
     Eigen::Vector3d p_L_;

@@ -67,6 +67,9 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
 
  private:
   PointToSweepPlaneGroupFactor(Released terms, const LossOptions& loss);
+  // Each plane side's share of an evaluation at `frame`, in plane_sides_'s order.
+  std::vector<PointToSweepPlaneFactor::PlaneFrame> PlaneFrames(
+      const PointToSweepPlaneFactor::Frame& frame) const;
 
   std::vector<PointToSweepPlaneFactor::Terms> points_;
   std::vector<PointToSweepPlaneFactor::Side> plane_sides_;
