@@ -1,5 +1,6 @@
 // The sliding window's wheel rows with analytic Jacobians (PropagatedWheelFactor, declared in
-// sliding_window_factors.h; derivation there and in docs/sliding_window.md, "Wheel rows").
+// sliding_window_factors.h; derivation there and in docs/sliding_window.md, "Wheel rows with
+// analytic Jacobians").
 
 #include <cmath>
 #include <utility>
@@ -32,7 +33,6 @@ PropagatedWheelFactor::PropagatedWheelFactor(sensors::ImuPreintegration pim,
                                              const factors::WheelFactorOptions& options,
                                              double encoder_sigma_rad_s, double gyro_sigma_rad_s)
     : pim_(std::move(pim)),
-      d_R_d_bg_(pim_.d_R_d_bg()),
       wheel_(measurement, options),
       speed_sigma_m_s_(options.speed_sigma_m_s),
       yaw_rate_sigma_rad_s_(options.yaw_rate_sigma_rad_s),
@@ -53,16 +53,14 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
                                      double** jacobians) const {
   const Eigen::Map<const Eigen::Quaterniond> q_k(parameters[0]);
   const Eigen::Map<const Eigen::Vector3d> v_k(parameters[1]);
-  const Eigen::Map<const Eigen::Vector3d> b_g(parameters[2]);
-  const Eigen::Map<const Eigen::Vector3d> b_a(parameters[3]);
+  const Eigen::Vector3d b_g(parameters[2]);
+  const Eigen::Vector3d b_a(parameters[3]);
   const double r_l = parameters[6][0], r_r = parameters[7][0], b = parameters[8][0];
 
-  // The propagated attitude and body velocity (ImuPreintegration::CorrectedDeltas).
-  const Eigen::Vector3d dbg = b_g - pim_.b_g_lin();
-  const Eigen::Vector3d dba = b_a - pim_.b_a_lin();
-  const Eigen::Vector3d phi = d_R_d_bg_ * dbg;
-  const Eigen::Quaterniond dq = pim_.delta_q() * geometry::Exp(phi);
-  const Eigen::Vector3d dv = pim_.delta_v() + pim_.d_v_d_bg() * dbg + pim_.d_v_d_ba() * dba;
+  // The propagated attitude and body velocity.
+  Eigen::Quaterniond dq;
+  Eigen::Vector3d dv;
+  pim_.CorrectedDeltas<double>(b_g, b_a, &dq, &dv, nullptr);
   const Eigen::Vector3d w = q_k.conjugate() * (v_k + pim_.gravity_W() * pim_.dt_s());
   const Eigen::Vector3d u = w + dv;
   const double* wheel_parameters[kWheelBlocks] = {dq.coeffs().data(), u.data(), parameters[2],
@@ -127,7 +125,10 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
     scale_rows(jacobians[1], 3);
   }
   if (jacobians[2] != nullptr) {
-    output(2, 3) = wheel_block(2, 3) + J_dq * geometry::RightJacobian(phi) * d_R_d_bg_ +
+    // dR = dR_0 Exp(A (b_g - b_g0)): its right tangent moves by Jr(A (b_g - b_g0)) A db_g.
+    const Eigen::Matrix3d A = pim_.d_R_d_bg();
+    const Eigen::Vector3d phi = A * (b_g - pim_.b_g_lin());
+    output(2, 3) = wheel_block(2, 3) + J_dq * geometry::RightJacobian(phi) * A +
                    J_u * pim_.d_v_d_bg();
     scale_rows(jacobians[2], 3);
   }

@@ -156,7 +156,6 @@ class PropagatedWheelFactor final : public ceres::CostFunction {
 
  private:
   sensors::ImuPreintegration pim_;
-  Eigen::Matrix3d d_R_d_bg_;  // A above, kept: ImuPreintegration forms it on each call
   factors::WheelFactor wheel_;
   double speed_sigma_m_s_;
   double yaw_rate_sigma_rad_s_;

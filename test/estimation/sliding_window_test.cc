@@ -272,16 +272,23 @@ TEST(SlidingWindowMarginalization, KeepsAtMostNKeyframesAndAPrior) {
 // The window's wheel rows (Eq. SW1-SW2) are the wheel factor's rows (Eq. F22) at the state
 // ImuPreintegration::Predict gives, whitened at the current radii and track width.
 
-TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState) {
-  std::srand(9);
-  sensors::ImuNoise noise;
-  sensors::PreintegrationOptions options;
-  const Eigen::Vector3d b_g_lin(0.002, -0.001, 0.003), b_a_lin(0.05, -0.02, 0.01);
-  sensors::ImuPreintegration pim(noise, options, b_g_lin, b_a_lin);
+// 0.1 s of a turning, accelerating drive preintegrated from the biases b_g_lin, b_a_lin, its
+// samples drawn after std::srand(seed).
+sensors::ImuPreintegration TurningPreintegration(const Eigen::Vector3d& b_g_lin,
+                                                 const Eigen::Vector3d& b_a_lin, unsigned seed) {
+  std::srand(seed);
+  sensors::ImuPreintegration pim(sensors::ImuNoise{}, sensors::PreintegrationOptions{}, b_g_lin,
+                                 b_a_lin);
   for (int i = 0; i < 20; ++i) {
     pim.IntegrateStep(Eigen::Vector3d(0.05, -0.02, 0.3) + 0.1 * Eigen::Vector3d::Random(),
                       Eigen::Vector3d(0.8, 0.1, kGravity) + 0.3 * Eigen::Vector3d::Random(), 0.005);
   }
+  return pim;
+}
+
+TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState) {
+  const Eigen::Vector3d b_g_lin(0.002, -0.001, 0.003), b_a_lin(0.05, -0.02, 0.01);
+  const sensors::ImuPreintegration pim = TurningPreintegration(b_g_lin, b_a_lin, 9);
   factors::WheelMeasurement m;
   m.left_rad_s = 24.0;
   m.right_rad_s = 25.5;
@@ -328,17 +335,10 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
 
 // The analytic wheel rows against their autodiff form (every block on its tangent space, to
 // 1e-9) and against numeric differentiation (GradientChecker), on random states, with and
-// without the non-holonomic rows; the track width's sign is refused as by the wheel factor.
+// without the non-holonomic rows; a shared radius and a non-positive sigma are refused.
 TEST(SlidingWindowPropagatedWheelFactor, JacobiansMatchAutodiffAndGradientChecker) {
-  std::srand(11);
-  sensors::ImuNoise noise;
-  sensors::PreintegrationOptions options;
   const Eigen::Vector3d b_g_lin(0.002, -0.001, 0.003), b_a_lin(0.05, -0.02, 0.01);
-  sensors::ImuPreintegration pim(noise, options, b_g_lin, b_a_lin);
-  for (int i = 0; i < 20; ++i) {
-    pim.IntegrateStep(Eigen::Vector3d(0.05, -0.02, 0.3) + 0.1 * Eigen::Vector3d::Random(),
-                      Eigen::Vector3d(0.8, 0.1, kGravity) + 0.3 * Eigen::Vector3d::Random(), 0.005);
-  }
+  const sensors::ImuPreintegration pim = TurningPreintegration(b_g_lin, b_a_lin, 11);
   const geometry::RightQuaternionManifold quaternion;
   const std::vector<const ceres::Manifold*> manifolds = {
       &quaternion, nullptr, nullptr, nullptr, &quaternion, nullptr, nullptr, nullptr, nullptr};
