@@ -14,7 +14,7 @@ packages=(
   cmake ninja-build g++ pkg-config
   libeigen3-dev libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
   libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev libnanoflann-dev
-  libgeographiclib-dev
+  libgeographiclib-dev libbz2-dev liblz4-dev libzstd-dev libsqlite3-dev
 )
 
 install_missing_packages() {
