@@ -1,5 +1,7 @@
 #include "import/message_cursor.h"
 
+#include <algorithm>
+
 #include "autocal/common/error.h"
 
 namespace autocal {
@@ -56,11 +58,12 @@ std::string_view MessageCursor::Bytes(size_t count) {
 
 void MessageCursor::SkipArray(size_t count, size_t element_bytes) {
   if (count == 0) return;
-  Align(element_bytes);
-  if (element_bytes != 0 && count > remaining() / element_bytes) {
-    FailShort(count * element_bytes, "a fixed-size array");
+  const size_t padding = Padding(element_bytes);
+  if (element_bytes != 0 &&
+      count > (remaining() - std::min(padding, remaining())) / element_bytes) {
+    FailShort(padding + count * element_bytes, "a fixed-size array");
   }
-  pos_ += count * element_bytes;
+  pos_ += padding + count * element_bytes;
 }
 
 int64_t MessageCursor::Header(std::string* frame_id) {

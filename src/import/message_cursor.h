@@ -85,8 +85,9 @@ class MessageCursor {
  private:
   template <typename T>
   T Read() {
-    Align(sizeof(T));
-    Need(sizeof(T), PrimitiveName<T>());
+    const size_t padding = Padding(sizeof(T));
+    Need(padding + sizeof(T), PrimitiveName<T>());
+    pos_ += padding;
     T value;
     std::memcpy(&value, data_.data() + pos_, sizeof(T));
     pos_ += sizeof(T);
@@ -94,14 +95,10 @@ class MessageCursor {
   }
 
   // CDR pads to a multiple of `size` counted from the byte after the encapsulation header.
-  void Align(size_t size) {
-    if (serialization_ == Serialization::kCdr && size > 1) {
-      const size_t misalignment = (pos_ - kCdrHeaderBytes) % size;
-      if (misalignment != 0) {
-        Need(size - misalignment, "alignment padding");
-        pos_ += size - misalignment;
-      }
-    }
+  size_t Padding(size_t size) const {
+    if (serialization_ != Serialization::kCdr || size <= 1) return 0;
+    const size_t misalignment = (pos_ - kCdrHeaderBytes) % size;
+    return misalignment == 0 ? 0 : size - misalignment;
   }
   void Need(size_t bytes, const char* what) const {
     if (bytes > data_.size() - pos_) FailShort(bytes, what);
