@@ -102,10 +102,7 @@ void StreamImporter::Add(const std::string& bag_path, const BagMessage& message)
   context_.record_offset = message.file_offset;
   context_.type = NormalizedTypeName(topic->type);
   context_.topic = topic->topic;
-  // A topic's serialization is that of its connections (the same for all of them).
-  const Serialization serialization =
-      context_.type == topic->type ? Serialization::kRos1 : Serialization::kCdr;
-  MessageCursor cursor(message.data, serialization, &context_);
+  MessageCursor cursor(message.data, topic->serialization, &context_);
   const int64_t log_ns = message.log_time_ns;
   if (topic == &selection_.imu) {
     AddImu(&cursor, log_ns);

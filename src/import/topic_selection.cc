@@ -15,19 +15,25 @@ struct StreamRule {
   const char* type_names;
 };
 
-// topic -> (type, connection ids)
-using TopicTable = std::map<std::string, std::pair<std::string, std::set<uint32_t>>>;
+struct TopicEntry {
+  std::string type;
+  Serialization serialization = Serialization::kRos1;
+  std::set<uint32_t> connection_ids;
+};
+using TopicTable = std::map<std::string, TopicEntry>;
 
 TopicTable TopicsOf(const std::vector<Connection>& connections) {
   TopicTable table;
   for (const Connection& connection : connections) {
-    auto& entry = table[connection.topic];
-    if (!entry.first.empty() && entry.first != connection.type) {
-      throw Error("topic " + connection.topic + " carries two types: " + entry.first + " and " +
-                  connection.type);
+    TopicEntry& entry = table[connection.topic];
+    if (!entry.type.empty() &&
+        (entry.type != connection.type || entry.serialization != connection.serialization)) {
+      throw Error("topic " + connection.topic + " carries two types or serializations: " +
+                  entry.type + " and " + connection.type);
     }
-    entry.first = connection.type;
-    entry.second.insert(connection.id);
+    entry.type = connection.type;
+    entry.serialization = connection.serialization;
+    entry.connection_ids.insert(connection.id);
   }
   return table;
 }
@@ -48,14 +54,14 @@ SelectedTopic Select(const TopicTable& table, const StreamRule& rule, const std:
     if (it == table.end()) {
       throw Error("--" + std::string(rule.flag) + "=" + named + ": the bag has no such topic");
     }
-    if (!Accepts(rule, KindOfType(it->second.first))) {
+    if (!Accepts(rule, KindOfType(it->second.type))) {
       throw Error("--" + std::string(rule.flag) + "=" + named + ": the topic's type is " +
-                  it->second.first + ", expected " + rule.type_names);
+                  it->second.type + ", expected " + rule.type_names);
     }
     candidates.push_back(named);
   } else {
     for (const auto& [topic, entry] : table) {
-      if (Accepts(rule, KindOfType(entry.first))) candidates.push_back(topic);
+      if (Accepts(rule, KindOfType(entry.type))) candidates.push_back(topic);
     }
   }
   if (candidates.empty()) return selected;
@@ -67,9 +73,10 @@ SelectedTopic Select(const TopicTable& table, const StreamRule& rule, const std:
   }
   const auto& entry = table.at(candidates.front());
   selected.topic = candidates.front();
-  selected.type = entry.first;
-  selected.kind = KindOfType(entry.first);
-  selected.connection_ids = entry.second;
+  selected.type = entry.type;
+  selected.kind = KindOfType(entry.type);
+  selected.serialization = entry.serialization;
+  selected.connection_ids = entry.connection_ids;
   return selected;
 }
 
@@ -102,11 +109,12 @@ TopicSelection SelectTopics(const std::vector<Connection>& connections,
   // /tf_static is looked up by name only: /tf carries the same type with moving frames.
   const auto tf = table.find(options.tf_static_topic);
   if (!options.tf_static_topic.empty() && options.tf_static_topic != "none" && tf != table.end() &&
-      KindOfType(tf->second.first) == MessageKind::kTfMessage) {
+      KindOfType(tf->second.type) == MessageKind::kTfMessage) {
     selection.tf_static.topic = tf->first;
-    selection.tf_static.type = tf->second.first;
+    selection.tf_static.type = tf->second.type;
     selection.tf_static.kind = MessageKind::kTfMessage;
-    selection.tf_static.connection_ids = tf->second.second;
+    selection.tf_static.serialization = tf->second.serialization;
+    selection.tf_static.connection_ids = tf->second.connection_ids;
   }
   return selection;
 }

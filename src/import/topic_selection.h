@@ -18,6 +18,7 @@ struct SelectedTopic {
   std::string topic;  // empty: not imported
   std::string type;
   MessageKind kind = MessageKind::kOther;
+  Serialization serialization = Serialization::kRos1;
   std::set<uint32_t> connection_ids;
 
   bool selected() const { return !topic.empty(); }

@@ -119,6 +119,8 @@ class ImportBagTest : public ::testing::Test {
     ImportOptions options;
     options.input = bag;
     options.output = (test::OutputDir("out") / "dataset").string();
+    fs::remove_all(test::OutputDir("out"));  // a previous run's output
+    fs::create_directories(test::OutputDir("out"));
     return options;
   }
 };
@@ -239,6 +241,7 @@ TEST_F(ImportBagTest, NonEmptyOutputIsRefusedBeforeTheBagIsRead) {
   ImportOptions options;
   options.input = "/nonexistent/bag.bag";
   options.output = (test::OutputDir("out") / "full").string();
+  fs::remove_all(options.output);
   fs::create_directories(options.output);
   std::ofstream(options.output + "/keep.txt") << "mine";
   try {

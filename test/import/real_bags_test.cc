@@ -120,6 +120,7 @@ TEST(RealBagsTest, Test1ImportsIntoADatasetWithGravityOnPlusY) {
   ImportOptions options;
   options.input = BagPath("test1.bag").string();
   options.output = (test::OutputDir("out") / "test1").string();
+  fs::remove_all(options.output);  // a previous run's output
   const ImportSummary summary = ImportBag(options);
   EXPECT_EQ(summary.odometry.topic, "/husky_velocity_controller/odom");
 
