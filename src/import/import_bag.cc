@@ -62,7 +62,12 @@ ImportSummary ImportBag(const ImportOptions& options) {
   try {
     io::ReadDataset(output.temporary_path());
   } catch (const Error& e) {
-    throw Error("the imported data fails the dataset checks: " + std::string(e.what()));
+    std::string why = e.what();
+    const std::string temporary = output.temporary_path() + "/";
+    for (size_t at = why.find(temporary); at != std::string::npos; at = why.find(temporary)) {
+      why.erase(at, temporary.size());
+    }
+    throw Error("the imported data fails the dataset checks, nothing was written: " + why);
   }
   output.Commit();
   return summary;

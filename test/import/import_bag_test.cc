@@ -55,6 +55,7 @@ struct RigOptions {
   bool corrupt_imu = false;
   uint8_t gnss_covariance_type = 2;
   bool joint_velocities = true;
+  double gyro_scale = 1.0;  // 57.3: a driver that publishes deg/s
 };
 
 // 2 s of a rig: IMU 200 Hz, LiDAR 10 Hz, wheels 50 Hz, GNSS 5 Hz (every fifth without a
@@ -78,8 +79,8 @@ std::string RigBag(const RigOptions& rig, Ros1BagWriter::Compression compression
                                 {"/base_link", "gps", Eigen::Quaterniond::Identity(), kPBaseGps}}));
   for (int i = 0; i < 400; ++i) {
     const int64_t t = kStartNs + i * 5000000LL;
-    std::string bytes =
-        test::SerializeImu(false, t - kHeaderLagNs, "imu_link", {0.001 * i, 0, 0}, {0, 9.81, 0});
+    std::string bytes = test::SerializeImu(false, t - kHeaderLagNs, "imu_link",
+                                           {rig.gyro_scale * 0.001 * i, 0, 0}, {0, 9.81, 0});
     if (rig.corrupt_imu && i == 200) bytes.resize(bytes.size() - 1);
     w.Write(imu, t, bytes);
     if (rig.second_imu) w.Write(imu2, t, bytes);
@@ -269,6 +270,21 @@ TEST_F(ImportBagTest, FailedImportLeavesNoDirectory) {
   for (const auto& entry : fs::directory_iterator(fs::path(options.output).parent_path())) {
     ADD_FAILURE() << "left behind: " << entry.path();
   }
+}
+
+TEST_F(ImportBagTest, DataTheDatasetReaderRefusesIsNotWritten) {
+  RigOptions rig;
+  rig.gyro_scale = 180.0 / M_PI;
+  const ImportOptions options = Options(Bag(rig));
+  try {
+    ImportBag(options);
+    FAIL() << "imported a gyroscope in deg/s";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("fails the dataset checks, nothing was written: imu.csv:"));
+    EXPECT_THAT(e.what(), HasSubstr("deg/s"));
+    EXPECT_THAT(e.what(), ::testing::Not(HasSubstr("importing")));
+  }
+  EXPECT_FALSE(fs::exists(options.output));
 }
 
 TEST_F(ImportBagTest, ListTopicsCountsEveryMessage) {

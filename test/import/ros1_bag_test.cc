@@ -124,6 +124,22 @@ TEST_P(Ros1BagCompressionTest, UnindexedBagIsReadByALinearScan) {
   EXPECT_EQ(back.payloads.at("/fix")[149], Payload(1, 149));
 }
 
+TEST(Ros1BagTest, BagWithoutChunkInfosIsReadByALinearScan) {
+  Ros1BagWriter::Options options;
+  options.compression = Ros1BagWriter::Compression::kBz2;
+  options.chunk_bytes = 512;
+  options.chunk_infos = false;
+  Ros1BagWriter writer(options);
+  const uint32_t a = writer.AddConnection("/a", "std_msgs/String");
+  for (int i = 0; i < 40; ++i) writer.Write(a, kStartNs + i, Payload(a, i));
+  const std::string path = WriteBag("no_chunk_infos.bag", writer.Finish());
+  const std::unique_ptr<BagReader> reader = OpenBag(path);
+  EXPECT_FALSE(reader->IndexedTopics().has_value());
+  const ReadBack back = ReadAll(reader.get());
+  ASSERT_EQ(back.payloads.at("/a").size(), 40u);
+  EXPECT_EQ(back.payloads.at("/a")[39], Payload(a, 39));
+}
+
 // The error of opening and reading `bytes` whole.
 std::string ErrorOf(const std::string& name, const std::string& bytes) {
   const std::string path = WriteBag(name, bytes);

@@ -30,6 +30,7 @@ class Ros1BagWriter {
     Compression compression = Compression::kNone;
     size_t chunk_bytes = 64 * 1024;  // a chunk is closed once its records exceed this
     bool indexed = true;
+    bool chunk_infos = true;  // false: index_pos set, but the chunk info records missing
   };
 
   Ros1BagWriter() : Ros1BagWriter(Options()) {}
@@ -66,6 +67,7 @@ class Ros1BagWriter {
     const uint64_t index_pos = out_.size();
     for (uint32_t id = 0; id < connections_.size(); ++id) out_.append(ConnectionRecord(id));
     for (const ChunkInfo& info : chunk_infos_) {
+      if (!options_.chunk_infos) break;
       std::string header = Field("op", std::string(1, '\x06')) + Field("ver", U32(1)) +
                            Field("chunk_pos", U64(info.position)) +
                            Field("start_time", Time(info.start_ns)) +
