@@ -171,7 +171,7 @@ std::pair<int, int> StreamImporter::WheelJoints(const std::vector<std::string>& 
                 "the joints [" +
                 JoinNames(names) +
                 "]: name them with "
-                "--wheel_joints=LEFT,RIGHT");
+                "--wheel_joints=LEFT,RIGHT (or skip them with --wheel_topic=none)");
   }
   joint_names_ = names;
   joint_indices_ = {left, right};

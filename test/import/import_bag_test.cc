@@ -56,6 +56,8 @@ struct RigOptions {
   uint8_t gnss_covariance_type = 2;
   bool joint_velocities = true;
   double gyro_scale = 1.0;  // 57.3: a driver that publishes deg/s
+  std::vector<std::string> joints = {"front_left_wheel", "front_right_wheel", "rear_left_wheel",
+                                     "rear_right_wheel"};
 };
 
 // 2 s of a rig: IMU 200 Hz, LiDAR 10 Hz, wheels 50 Hz, GNSS 5 Hz (every fifth without a
@@ -90,10 +92,8 @@ std::string RigBag(const RigOptions& rig, Ros1BagWriter::Compression compression
                                                ? std::vector<double>{1, 2, 3.0 + i, 4.0 + i}
                                                : std::vector<double>{};
       w.Write(wheel, t + 2000,
-              test::SerializeJointState(
-                  false, t - kHeaderLagNs,
-                  {"front_left_wheel", "front_right_wheel", "rear_left_wheel", "rear_right_wheel"},
-                  {0, 0, 0.01 * i, 0.02 * i}, velocity));
+              test::SerializeJointState(false, t - kHeaderLagNs, rig.joints,
+                                        {0, 0, 0.01 * i, 0.02 * i}, velocity));
     }
     if (i % 40 == 0) {
       const int8_t status = (i / 40) % 5 == 4 ? -1 : 0;
@@ -201,6 +201,26 @@ TEST_F(ImportBagTest, WheelRatesFromPositionsWhenVelocitiesAreMissing) {
   // Angles 0.01 i and 0.02 i rad, a message every 4 samples of 5 ms: 2 and 4 rad/s.
   EXPECT_NEAR(dataset.wheel[5].left_rad_s, 2.0, 1e-9);
   EXPECT_NEAR(dataset.wheel[5].right_rad_s, 4.0, 1e-9);
+}
+
+TEST_F(ImportBagTest, WheelsThatNamesDoNotTellApartNeedAFlag) {
+  RigOptions rig;
+  rig.joints = {"left_front", "left_middle", "right_front", "right_middle"};
+  ImportOptions options = Options(Bag(rig));
+  try {
+    ImportBag(options);
+    FAIL() << "guessed the wheels";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("cannot tell the left and right rear wheels"));
+    EXPECT_THAT(e.what(), HasSubstr("--wheel_joints=LEFT,RIGHT"));
+  }
+  options.left_wheel_joint = "left_middle";
+  options.right_wheel_joint = "right_middle";
+  ImportBag(options);
+  const io::Dataset dataset = io::ReadDataset(options.output);
+  ASSERT_EQ(dataset.wheel.size(), 100u);
+  EXPECT_EQ(dataset.wheel[1].left_rad_s, 2.0);
+  EXPECT_EQ(dataset.wheel[1].right_rad_s, 8.0);
 }
 
 TEST_F(ImportBagTest, UnknownGnssCovarianceTakesTheDefaultOrIsRefused) {
