@@ -12,6 +12,7 @@
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"
 #include "import/bag_reader.h"
+#include "import/import_from_reader.h"
 #include "import/import_streams.h"
 #include "import/output_directory.h"
 #include "import/topic_selection.h"
@@ -25,12 +26,10 @@ void Describe(const SelectedTopic& selected, ImportedStream* stream) {
   stream->type = selected.type;
 }
 
-}  // namespace
-
-ImportSummary ImportBag(const ImportOptions& options) {
-  if (options.input.empty()) throw Error("no input bag given");
-  OutputDirectory output(options.output);  // checked before the bag is read
-  const std::unique_ptr<BagReader> reader = OpenBag(options.input);
+// Streams `reader` into output's temporary directory, checks and renames it.
+ImportSummary ImportInto(BagReader* reader, const ImportOptions& options,
+                         OutputDirectory* output_directory) {
+  OutputDirectory& output = *output_directory;
   const TopicSelection selection = SelectTopics(reader->connections(), options);
 
   ImportSummary summary;
@@ -71,6 +70,20 @@ ImportSummary ImportBag(const ImportOptions& options) {
   }
   output.Commit();
   return summary;
+}
+
+}  // namespace
+
+ImportSummary ImportBag(const ImportOptions& options) {
+  if (options.input.empty()) throw Error("no input bag given");
+  OutputDirectory output(options.output);  // checked before the bag is read
+  const std::unique_ptr<BagReader> reader = OpenBag(options.input);
+  return ImportInto(reader.get(), options, &output);
+}
+
+ImportSummary ImportFromReader(BagReader* reader, const ImportOptions& options) {
+  OutputDirectory output(options.output);
+  return ImportInto(reader, options, &output);
 }
 
 double TopicListing::mean_rate_hz() const {
