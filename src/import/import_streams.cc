@@ -279,8 +279,13 @@ io::SensorsConfig StreamImporter::MakeSensorsConfig() {
     if (RateHz(gnss_) > 0.0) gnss.rate_hz = RateHz(gnss_);
     config.gnss = gnss;
   }
-  // Nominal extrinsics from /tf_static, by the messages' frame_ids.
-  sensors::Calibration& nominal = config.nominal_calibration;
+  config.nominal_calibration = NominalCalibration();
+  return config;
+}
+
+// The nominal extrinsics from /tf_static, by the messages' frame_ids.
+sensors::Calibration StreamImporter::NominalCalibration() {
+  sensors::Calibration nominal;
   const auto describe = [&](const char* what, const std::string& a, const std::string& b) {
     Warn(std::string("sensors.yaml: no static transform between '") + a + "' and '" + b + "' in " +
          (selection_.tf_static.selected() ? selection_.tf_static.topic : "the bag") + ": nominal " +
@@ -307,7 +312,7 @@ io::SensorsConfig StreamImporter::MakeSensorsConfig() {
       describe("p_I_A", imu_frame_, gnss_frame_);
     }
   }
-  return config;
+  return nominal;
 }
 
 void StreamImporter::Finish(const std::string& directory) {

@@ -43,7 +43,9 @@ class StreamImporter {
   void AddOdometry(MessageCursor* cursor, int64_t log_ns);
   // Indices of the left and right wheel joints among `names` (docs/import.md rule).
   std::pair<int, int> WheelJoints(const std::vector<std::string>& names);
+  // Measured rates and the nominal calibration; the IMU noise stays at its defaults.
   io::SensorsConfig MakeSensorsConfig();
+  sensors::Calibration NominalCalibration();
   void Warn(const std::string& line) { summary_->warnings.push_back(line); }
 
   const ImportOptions& options_;
