@@ -3,7 +3,9 @@
 #include <bzlib.h>
 #include <lz4frame.h>
 
+#include <algorithm>
 #include <climits>
+#include <cstring>
 #include <memory>
 
 namespace autocal {
@@ -14,18 +16,38 @@ std::string DecompressBz2Chunk(std::string_view compressed, size_t expected_byte
   if (compressed.size() > UINT_MAX || expected_bytes >= UINT_MAX) {
     return "bz2 chunk larger than 4 GiB";
   }
-  // One byte of slack tells "the stream holds more than declared" from "exactly declared".
-  out->resize(expected_bytes + 1);
-  unsigned int produced = static_cast<unsigned int>(out->size());
-  const int status = BZ2_bzBuffToBuffDecompress(
-      out->data(), &produced, const_cast<char*>(compressed.data()),
-      static_cast<unsigned int>(compressed.size()), /*small=*/0, /*verbosity=*/0);
-  if (status == BZ_OUTBUFF_FULL) {
-    return "bz2 data decompresses to more than the chunk's declared size of " +
-           std::to_string(expected_bytes) + " bytes";
+  bz_stream stream;
+  std::memset(&stream, 0, sizeof(stream));
+  if (BZ2_bzDecompressInit(&stream, /*verbosity=*/0, /*small=*/0) != BZ_OK) {
+    return "cannot start bz2 decompression";
   }
-  if (status != BZ_OK) {
-    return "bz2 data is corrupt or truncated (libbz2 error " + std::to_string(status) + ")";
+  std::unique_ptr<bz_stream, int (*)(bz_stream*)> end(&stream, &BZ2_bzDecompressEnd);
+  stream.next_in = const_cast<char*>(compressed.data());
+  stream.avail_in = static_cast<unsigned int>(compressed.size());
+  // The buffer grows as the data comes out, so that a chunk lying about its size costs no
+  // more memory than its data really holds; one byte beyond the declared size tells "more
+  // than declared" from "exactly declared".
+  const size_t limit = expected_bytes + 1;
+  out->resize(std::min(limit, std::max<size_t>(4 * compressed.size(), 1 << 20)));
+  size_t produced = 0;
+  for (;;) {
+    stream.next_out = out->data() + produced;
+    stream.avail_out = static_cast<unsigned int>(out->size() - produced);
+    const int status = BZ2_bzDecompress(&stream);
+    produced = out->size() - stream.avail_out;
+    if (status == BZ_STREAM_END) break;
+    if (status != BZ_OK) {
+      return "bz2 data is corrupt (libbz2 error " + std::to_string(status) + ")";
+    }
+    if (stream.avail_out == 0) {
+      if (out->size() == limit) {
+        return "bz2 data decompresses to more than the chunk's declared size of " +
+               std::to_string(expected_bytes) + " bytes";
+      }
+      out->resize(std::min(limit, 2 * out->size()));
+    } else if (stream.avail_in == 0) {
+      return "bz2 data is truncated (the stream's end is missing)";
+    }
   }
   if (produced != expected_bytes) {
     return "bz2 data decompresses to " + std::to_string(produced) +

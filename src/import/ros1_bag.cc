@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <map>
@@ -242,6 +243,10 @@ void Ros1BagReader::ReadRecord(uint64_t offset, Record* record) {
   char length[4];
   ReadAt(offset, 4, length, offset, "the record's header length");
   const uint32_t header_bytes = LoadU32(length);
+  if (header_bytes > file_bytes_ - std::min(file_bytes_, offset + 4)) {
+    Fail(offset, "truncated file: the record declares a header of " + std::to_string(header_bytes) +
+                     " bytes but the file ends at byte " + std::to_string(file_bytes_));
+  }
   header_buffer_.resize(header_bytes);
   ReadAt(offset + 4, header_bytes, header_buffer_.data(), offset,
          "the record's header of " + std::to_string(header_bytes) + " bytes");
@@ -444,6 +449,13 @@ void Ros1BagReader::LoadChunk(const Record& record) {
   if (compression != "bz2" && compression != "lz4") {
     Fail(record.offset,
          "unknown chunk compression '" + compression + "' (expected none, bz2 or lz4)");
+  }
+  // LZ4 cannot expand data more than 255-fold; a larger declared size is a lie, refused
+  // before anything is allocated for it.
+  if (compression == "lz4" && size > 255 * uint64_t{record.data_bytes} + 64) {
+    Fail(record.offset, "chunk record: the lz4 chunk of " + std::to_string(record.data_bytes) +
+                            " bytes declares " + std::to_string(size) +
+                            " bytes uncompressed, more than lz4 can expand to");
   }
   compressed_.resize(record.data_bytes);
   ReadAt(record.data_offset, record.data_bytes, compressed_.data(), record.offset,
