@@ -277,6 +277,43 @@ TEST_P(MessagesTest, PointCloud2WithDisagreeingSizesIsRefused) {
   }
 }
 
+// Every message cut short anywhere is refused with a ParseError: the decoders read every
+// field, so no prefix of a message is a message.
+TEST_P(MessagesTest, EveryTruncationIsRefused) {
+  const std::vector<test::TestPointField> fields = {{"x", 0, 7}, {"y", 4, 7}, {"z", 8, 7}};
+  const std::pair<std::string, void (*)(MessageCursor*)> messages[] = {
+      {test::SerializeImu(cdr(), kStampNs, "imu", {1, 2, 3}, {4, 5, 6}),
+       [](MessageCursor* c) { DecodeImu(c); }},
+      {test::SerializeOdometry(cdr(), kStampNs, 1, 2), [](MessageCursor* c) { DecodeOdometry(c); }},
+      {test::SerializeTwistStamped(cdr(), kStampNs, 1, 2),
+       [](MessageCursor* c) { DecodeTwistStamped(c); }},
+      {test::SerializeJointState(cdr(), kStampNs, {"l", "r"}, {1, 2}, {3, 4}),
+       [](MessageCursor* c) { DecodeJointState(c); }},
+      {test::SerializeNavSatFix(cdr(), kStampNs, 0, 1, 2, 3, {1, 1, 1}, 2),
+       [](MessageCursor* c) { DecodeNavSatFix(c); }},
+      {test::SerializeTfMessage(cdr(), kStampNs,
+                                {{"a", "b", Eigen::Quaterniond::Identity(), {1, 2, 3}}}),
+       [](MessageCursor* c) { DecodeTfMessage(c); }},
+      {test::SerializePointCloud2(cdr(), kStampNs, "l", 1, 2, fields, 12, 24,
+                                  std::string(24, '\x01')),
+       [](MessageCursor* c) { DecodePointCloud2(c); }},
+  };
+  for (const auto& [bytes, decode] : messages) {
+    MessageCursor whole = Cursor(bytes);
+    EXPECT_NO_THROW(decode(&whole));
+    for (size_t length = 0; length < bytes.size(); ++length) {
+      try {
+        const std::string prefix = bytes.substr(0, length);
+        MessageCursor cursor = Cursor(prefix);
+        decode(&cursor);
+        ADD_FAILURE() << "a " << length << "-byte prefix of a " << bytes.size()
+                      << "-byte message was accepted";
+      } catch (const ParseError&) {
+      }
+    }
+  }
+}
+
 TEST(MessageKindTest, RosOneAndRosTwoTypeNames) {
   EXPECT_EQ(KindOfType("sensor_msgs/Imu"), MessageKind::kImu);
   EXPECT_EQ(KindOfType("sensor_msgs/msg/Imu"), MessageKind::kImu);
