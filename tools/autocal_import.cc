@@ -41,7 +41,11 @@ int main(int argc, char** argv) {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_input.empty()) throw autocal::Error("--input is required");
     if (FLAGS_list) {
-      std::cout << autocal::import::FormatTopicList(autocal::import::ListTopics(FLAGS_input));
+      bool has_index = true;
+      const auto topics = autocal::import::ListTopics(FLAGS_input, &has_index);
+      std::cout << autocal::import::FormatTopicList(topics);
+      if (!has_index)
+        std::cout << "(the bag has no complete index: it was read by a linear scan)\n";
       return 0;
     }
     if (FLAGS_output.empty()) throw autocal::Error("--output (or --list) is required");

@@ -9,11 +9,10 @@
 // Messages are read by one linear pass over the chunks, one chunk in memory at a time. The
 // index (connection records, chunk infos, index data records) gives the connections up
 // front and IndexedTopics(); a bag without one (index_pos 0, or chunk infos missing, as a
-// recorder killed mid-write leaves it) is first scanned for its connections, with a
-// warning.
+// recorder killed mid-write leaves it) is first scanned for its connections, and has no
+// IndexedTopics() (callers warn).
 
 #include <fcntl.h>
-#include <glog/logging.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -200,7 +199,6 @@ Ros1BagReader::Ros1BagReader(std::string path) : path_(std::move(path)) {
   } else {
     // Without an index the connections are only known from the chunks: scan once.
     records_end_ = index_pos_ != 0 ? index_pos_ : file_bytes_;
-    LOG(WARNING) << path_ << ": the bag has no complete index; reading it by a linear scan";
     indexed_.reset();
     connections_.clear();
     connection_index_.clear();
@@ -362,9 +360,7 @@ bool Ros1BagReader::ReadIndex() {
     }
   }
   if (chunk_positions.size() != declared_chunks_ || connections_.size() != declared_connections_) {
-    LOG(WARNING) << path_ << ": the index holds " << chunk_positions.size() << " chunk infos and "
-                 << connections_.size() << " connections, the bag header declares "
-                 << declared_chunks_ << " and " << declared_connections_;
+    // Incomplete: the chunks are scanned instead.
     return false;
   }
   ReadChunkIndexes(chunk_positions);

@@ -10,8 +10,9 @@
 namespace autocal {
 namespace import {
 
-std::vector<TopicListing> ListTopics(const std::string& input) {
+std::vector<TopicListing> ListTopics(const std::string& input, bool* has_index) {
   const std::unique_ptr<BagReader> reader = OpenBag(input);
+  if (has_index != nullptr) *has_index = reader->IndexedTopics().has_value();
   std::map<uint32_t, std::string> topic_of;
   std::map<std::string, TopicListing> topics;
   for (const Connection& connection : reader->connections()) {

@@ -77,8 +77,9 @@ struct TopicListing {
 };
 
 // Reads every message of `input` (so a malformed bag fails here too) and lists its topics
-// in name order.
-std::vector<TopicListing> ListTopics(const std::string& input);
+// in name order. `has_index`, when given, tells whether the container has an index or
+// summary (else it was read by a linear scan).
+std::vector<TopicListing> ListTopics(const std::string& input, bool* has_index = nullptr);
 // One line per topic: topic, type, count, span (s), mean rate (Hz).
 std::string FormatTopicList(const std::vector<TopicListing>& topics);
 
