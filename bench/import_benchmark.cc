@@ -9,7 +9,10 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <map>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "../test/import/ros1_bag_writer.h"
 #include "../test/import/ros_message_writer.h"
