@@ -1,6 +1,6 @@
 #pragma once
 
-// A rosbag2 directory's metadata.yaml (rosbag2_bagfile_information, versions 1 to 9): the
+// A rosbag2 directory's metadata.yaml (rosbag2_bagfile_information): the
 // storage plugin, the files in recording order, the topics with their message counts, the
 // bag's start and duration, and the compression.
 
