@@ -42,7 +42,9 @@ class McapReader final : public BagReader {
   bool Next(BagMessage* message) override;
 
  private:
-  void ReadFrame();
+  void ReadHeader();
+  void ReadFooter();
+  void CheckSummaryCrc(uint32_t summary_crc) const;
   void ScanChannels();
   uint32_t DataEndCrc() const;
 
@@ -68,7 +70,8 @@ class McapReader final : public BagReader {
 
 McapReader::McapReader(const std::string& path)
     : path_(path), file_(path), bytes_(file_.bytes()), place_{&path_} {
-  ReadFrame();
+  ReadHeader();
+  ReadFooter();
   McapSummary summary(path_, bytes_, summary_start_,
                       summary_offset_start_ != 0 ? summary_offset_start_ : footer_offset_);
   channels_ = summary.channels();
@@ -79,8 +82,8 @@ McapReader::McapReader(const std::string& path)
   defined_in_data_.assign(65536, false);
 }
 
-// Magic, Header, Footer, magic: the frame every MCAP file has.
-void McapReader::ReadFrame() {
+// The leading magic and the Header record: data_begin_.
+void McapReader::ReadHeader() {
   const uint64_t size = bytes_.size();
   if (size < kMcapMagic.size() || bytes_.substr(0, kMcapMagic.size()) != kMcapMagic) {
     throw ParseError({path_, 0, 0, 0},
@@ -97,15 +100,18 @@ void McapReader::ReadFrame() {
   if (header_length > size - header_offset - kMcapRecordPrefixBytes) {
     place_.Fail(header_offset, internal::kOpHeader,
                 "its length " + std::to_string(header_length) +
-                    " runs past the end of the file "
-                    "(truncated file)");
+                    " runs past the end of the file (truncated file)");
   }
   McapFields header(bytes_.substr(header_offset + kMcapRecordPrefixBytes, header_length),
                     header_offset + kMcapRecordPrefixBytes, internal::kOpHeader, place_);
   header.Prefixed32("profile");
   header.Prefixed32("library");
   data_begin_ = header_offset + kMcapRecordPrefixBytes + header_length;
+}
 
+// The Footer record and the trailing magic: where the summary and the data section end.
+void McapReader::ReadFooter() {
+  const uint64_t size = bytes_.size();
   if (size - data_begin_ < kFooterRecordBytes + kMcapMagic.size() ||
       bytes_.substr(size - kMcapMagic.size()) != kMcapMagic) {
     throw ParseError({path_, 0, 0, static_cast<int64_t>(size)},
@@ -138,15 +144,17 @@ void McapReader::ReadFrame() {
   data_limit_ = summary_start_ != 0
                     ? summary_start_
                     : (summary_offset_start_ != 0 ? summary_offset_start_ : footer_offset_);
-  if (summary_start_ != 0 && summary_crc != 0) {
-    // From the summary's first byte through the footer's summary_offset_start field.
-    const uint64_t end = footer_offset_ + kMcapRecordPrefixBytes + 16;
-    const uint32_t crc = Crc32(bytes_.substr(summary_start_, end - summary_start_));
-    if (crc != summary_crc) {
-      place_.Fail(footer_offset_, internal::kOpFooter,
-                  "the CRC-32 of the summary section is " + Hex(crc) + ", the footer says " +
-                      Hex(summary_crc) + " (corrupt data)");
-    }
+  if (summary_start_ != 0 && summary_crc != 0) CheckSummaryCrc(summary_crc);
+}
+
+// The CRC-32 from the summary's first byte through the footer's summary_offset_start field.
+void McapReader::CheckSummaryCrc(uint32_t summary_crc) const {
+  const uint64_t end = footer_offset_ + kMcapRecordPrefixBytes + 16;
+  const uint32_t crc = Crc32(bytes_.substr(summary_start_, end - summary_start_));
+  if (crc != summary_crc) {
+    place_.Fail(footer_offset_, internal::kOpFooter,
+                "the CRC-32 of the summary section is " + Hex(crc) + ", the footer says " +
+                    Hex(summary_crc) + " (corrupt data)");
   }
 }
 

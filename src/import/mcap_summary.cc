@@ -119,7 +119,6 @@ void McapSummary::ReadStatistics(McapFields* fields) {
 }
 
 void McapSummary::ReadChunkIndex(McapFields* fields) {
-  has_chunk_indexes_ = true;
   fields->Time("message_start_time");
   fields->Time("message_end_time");
   fields->U64("chunk_start_offset");

@@ -73,7 +73,6 @@ class McapSummary {
   McapPlace place_;
   McapChannels channels_;
   std::optional<Statistics> statistics_;
-  bool has_chunk_indexes_ = false;
   std::unordered_map<uint16_t, IndexedChannel> indexed_;  // from the message indexes
 };
 

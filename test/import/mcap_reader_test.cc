@@ -285,9 +285,10 @@ TEST(McapReaderBadInput, EveryFlippedByteIsReadOrRefusedCleanly) {
     corrupt[i] = static_cast<char>(corrupt[i] ^ 0x5A);
     if (!ErrorOfFile(memory.Hold(corrupt)).empty()) ++refused;
   }
-  // The CRCs (chunks, summary) and the structure catch nearly everything; what is left is
-  // fields nothing checks (e.g. a message's publish time, the header's library name).
-  EXPECT_GT(refused, static_cast<int>(bytes.size() * 3 / 4)) << "of " << bytes.size();
+  // The CRCs (chunks, summary) and the structure catch 1594 of these 1782 bytes; what is
+  // left is what nothing checks: the header's profile and library, a chunk's start and end
+  // times, the message indexes' entries (outside every CRC when the data CRC is 0).
+  EXPECT_GT(refused, static_cast<int>(bytes.size() * 7 / 8)) << "of " << bytes.size();
 }
 
 TEST(McapReaderBadInput, UnknownCompression) {
