@@ -177,6 +177,20 @@ TEST(Rosbag2Sqlite, ReadsInTimestampOrderWithCounts) {
   EXPECT_EQ((*indexed)[2].message_count, 0u);
 }
 
+TEST(Rosbag2Sqlite, ReadsThroughALeftoverWriteAheadLog) {
+  const std::string path = OutputFile("wal.db3");
+  Db3Writer db(path);  // kept open: its messages stay in wal.db3-wal, not in the database
+  db.Exec("PRAGMA journal_mode = WAL");
+  db.Exec("PRAGMA wal_autocheckpoint = 0");
+  db.CreateTables();
+  db.AddTopic(1, "/chatter", "std_msgs/msg/String");
+  for (int i = 0; i < 5; ++i) db.AddMessage(1, i, CdrString("w" + std::to_string(i)));
+  ASSERT_GT(fs::file_size(path + "-wal"), 0u);
+  const std::vector<ReadMessage> messages = ReadAll(OpenRosbag2Sqlite(path).get());
+  ASSERT_EQ(messages.size(), 5u);
+  EXPECT_EQ(DecodeCdrString(messages[4].data), "w4");
+}
+
 TEST(Rosbag2Sqlite, BadInput) {
   const std::string text = OutputFile("text.db3");
   test::WriteFile(text, "this is not a database at all, it is text\n");
