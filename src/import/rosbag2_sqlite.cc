@@ -37,6 +37,21 @@ bool NonEmptyFileExists(const std::string& path) {
   return ::stat(path.c_str(), &info) == 0 && info.st_size > 0;
 }
 
+// The connection; closed after its statements, whatever order they are finalized in
+// (sqlite3_close_v2), also when the reader's constructor throws.
+class Database {
+ public:
+  Database() = default;
+  ~Database() { sqlite3_close_v2(db_); }
+  Database(const Database&) = delete;
+  Database& operator=(const Database&) = delete;
+  sqlite3** out() { return &db_; }
+  sqlite3* get() const { return db_; }
+
+ private:
+  sqlite3* db_ = nullptr;
+};
+
 class Statement {
  public:
   Statement() = default;
@@ -53,7 +68,6 @@ class Statement {
 class Rosbag2SqliteReader final : public BagReader {
  public:
   explicit Rosbag2SqliteReader(const std::string& path);
-  ~Rosbag2SqliteReader() override { sqlite3_close(db_); }
 
   const std::string& path() const override { return path_; }
   const std::vector<Connection>& connections() const override { return connections_; }
@@ -69,7 +83,8 @@ class Rosbag2SqliteReader final : public BagReader {
   void ReadTopics();
 
   std::string path_;
-  sqlite3* db_ = nullptr;
+  Database database_;      // before the statements: destroyed after them
+  sqlite3* db_ = nullptr;  // database_.get()
   std::vector<Connection> connections_;
   std::unordered_map<int64_t, uint32_t> connection_of_topic_id_;
   Statement messages_;
@@ -87,8 +102,10 @@ Rosbag2SqliteReader::Rosbag2SqliteReader(const std::string& path) : path_(path) 
   // Bags are read where they lie, often on read-only storage: immutable tells SQLite not to
   // look for locks or a journal. A bag left with a write-ahead log is read through it instead.
   const bool immutable = !NonEmptyFileExists(path + "-wal");
-  if (sqlite3_open_v2(ReadOnlyUri(path, immutable).c_str(), &db_,
-                      SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, nullptr) != SQLITE_OK) {
+  const int opened = sqlite3_open_v2(ReadOnlyUri(path, immutable).c_str(), database_.out(),
+                                     SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, nullptr);
+  db_ = database_.get();
+  if (opened != SQLITE_OK) {
     Fail(std::string("cannot open the SQLite database: ") + sqlite3_errmsg(db_));
   }
   CheckTables();
