@@ -46,9 +46,8 @@ bool McapDataWalker::Next(McapRecord* record) {
     if (length > left) {
       file_place_.Fail(offset, opcode,
                        "its length " + std::to_string(length) +
-                           " runs past the end of the data "
-                           "section (" +
-                           std::to_string(left) + " bytes left; truncated file?)");
+                           " runs past the end of the data section (" + std::to_string(left) +
+                           " bytes left; truncated file?)");
     }
     const std::string_view content = file_.substr(offset + kMcapRecordPrefixBytes, length);
     pos_ += kMcapRecordPrefixBytes + length;
