@@ -32,6 +32,11 @@ std::string Head(const std::string& path, size_t bytes) {
 
 }  // namespace
 
+SourceLocation MessageLocation(const std::string& path, const BagMessage& message) {
+  if (message.row_id >= 0) return {path + " (row " + std::to_string(message.row_id) + ")"};
+  return {path, 0, 0, static_cast<int64_t>(message.file_offset)};
+}
+
 std::unique_ptr<BagReader> OpenBag(const std::string& path) {
   std::error_code error;
   if (fs::is_directory(path, error)) {

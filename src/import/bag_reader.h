@@ -12,6 +12,8 @@
 #include <string_view>
 #include <vector>
 
+#include "autocal/common/error.h"
+
 namespace autocal {
 namespace import {
 
@@ -30,7 +32,8 @@ struct BagMessage {
   uint32_t connection_id = 0;
   int64_t log_time_ns = 0;  // when the recorder received it (bag record time)
   std::string_view data;    // the serialized message; valid until the next call of Next()
-  uint64_t file_offset = 0;  // byte offset of the record holding it, for error messages
+  uint64_t file_offset = 0;  // byte offset of the record holding it (0 in SQLite files)
+  int64_t row_id = -1;       // SQLite files: the message's row, which stands in for an offset
 };
 
 // What the container's own index or summary says of one connection, when it has one.
@@ -54,6 +57,10 @@ class BagReader {
   // offset and record kind) on a malformed file.
   virtual bool Next(BagMessage* message) = 0;
 };
+
+// Where a message sits in its file, for error messages: "<path>: byte N", or for a row of a
+// SQLite file "<path> (row N)".
+SourceLocation MessageLocation(const std::string& path, const BagMessage& message);
 
 // Opens `path` by what it is: a directory with metadata.yaml (rosbag2), a `.bag` file (ROS 1),
 // a `.mcap` file or a `.db3` file; the magic bytes decide when the extension is unknown.

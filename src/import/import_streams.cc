@@ -98,8 +98,7 @@ void StreamImporter::Add(const std::string& bag_path, const BagMessage& message)
     if (candidate->Has(message.connection_id)) topic = candidate;
   }
   if (topic == nullptr) return;
-  context_.bag_path = bag_path;
-  context_.record_offset = message.file_offset;
+  context_.location = MessageLocation(bag_path, message);
   context_.type = NormalizedTypeName(topic->type);
   context_.topic = topic->topic;
   MessageCursor cursor(message.data, topic->serialization, &context_);

@@ -90,8 +90,7 @@ void MessageCursor::Fail(const std::string& message) const {
   SourceLocation location;
   std::string what = "message";
   if (context_ != nullptr) {
-    location.file = context_->bag_path;
-    location.byte_offset = static_cast<int64_t>(context_->record_offset);
+    location = context_->location;
     what = context_->type + " message" +
            (context_->topic.empty() ? std::string() : " on " + context_->topic);
   }

@@ -39,8 +39,7 @@ constexpr const char* PrimitiveName() {
 
 // Where a message came from, for error messages.
 struct MessageContext {
-  std::string bag_path;
-  uint64_t record_offset = 0;  // byte offset of the bag record holding the message
+  SourceLocation location;  // the bag and where the message sits in it
   std::string type;            // "sensor_msgs/Imu"
   std::string topic;
 };

@@ -210,8 +210,7 @@ bool Rosbag2DirectoryReader::Next(BagMessage* message) {
 // compression_mode MESSAGE: each message is one zstd frame that declares its size.
 void Rosbag2DirectoryReader::Decompress(BagMessage* message) {
   const auto fail = [&](const std::string& why) {
-    throw ParseError({current_->path(), 0, 0, static_cast<int64_t>(message->file_offset)},
-                     "compressed message: " + why);
+    throw ParseError(MessageLocation(current_->path(), *message), "compressed message: " + why);
   };
   const unsigned long long size =
       ZSTD_getFrameContentSize(message->data.data(), message->data.size());

@@ -207,8 +207,8 @@ bool Rosbag2SqliteReader::Next(BagMessage* message) {
   message->log_time_ns = sqlite3_column_int64(statement, 1);
   message->data =
       data == nullptr ? std::string_view() : std::string_view(static_cast<const char*>(data), size);
-  // No byte offsets in a database: the message's row id stands in for one.
-  message->file_offset = static_cast<uint64_t>(row_id);
+  message->file_offset = 0;
+  message->row_id = row_id;
   return true;
 }
 

@@ -26,8 +26,7 @@ class MessagesTest : public ::testing::TestWithParam<bool> {
   bool cdr() const { return GetParam(); }
   Serialization serialization() const { return cdr() ? Serialization::kCdr : Serialization::kRos1; }
   MessageCursor Cursor(const std::string& bytes) {
-    context_.bag_path = "x.bag";
-    context_.record_offset = 4242;
+    context_.location = {"x.bag", 0, 0, 4242};
     context_.type = "sensor_msgs/Test";
     context_.topic = "/test";
     return MessageCursor(bytes, serialization(), &context_);
