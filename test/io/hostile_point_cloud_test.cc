@@ -16,6 +16,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/io/point_cloud_file.h"
+#include "io/byte_source.h"
 #include "io/checked_math.h"
 #include "support/test_paths.h"
 
@@ -89,6 +90,27 @@ TEST(CheckedMathTest, MultiplyAtTheBoundaries) {
   EXPECT_FALSE(CheckedMultiply(int64_t{3037000500}, int64_t{3037000500}, &i));
   EXPECT_FALSE(CheckedMultiply(kInt64Min, int64_t{-1}, &i));
   EXPECT_TRUE(CheckedMultiply(kInt64Min, int64_t{1}, &i));
+}
+
+// The read position cannot leave the file, whatever a reader computes.
+TEST(ByteSourceTest, PositionStaysInsideTheFile) {
+  const std::string path = "f.bin";
+  const std::string bytes = "abcde";
+  internal::ByteSource source(path, bytes);
+  source.Advance(5);
+  EXPECT_EQ(source.remaining(), 0u);
+  source.set_pos(2);
+  try {
+    source.Advance(kSizeMax);
+    ADD_FAILURE() << "Advance past the end";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, path);
+    EXPECT_EQ(e.location().byte_offset, 5);
+    EXPECT_THAT(e.detail(), HasSubstr("after byte 2: truncated?"));
+  }
+  EXPECT_EQ(source.pos(), 2u);
+  EXPECT_THROW(source.set_pos(6), ParseError);
+  EXPECT_EQ(source.pos(), 2u);
 }
 
 // ---- PCD ----
