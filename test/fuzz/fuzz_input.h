@@ -18,14 +18,18 @@ namespace autocal {
 namespace fuzz {
 
 // A per-process scratch file ending in `suffix` (readers choose the format by extension);
-// TMPDIR when set, else /tmp.
+// TMPDIR when set, else /tmp. Removed when the process exits normally.
 inline const std::string& ScratchPath(const std::string& suffix) {
-  static const std::string path = [&] {
+  struct ScratchFile {
+    std::string path;
+    ~ScratchFile() { std::remove(path.c_str()); }
+  };
+  static const ScratchFile file{[&] {
     const char* dir = std::getenv("TMPDIR");
     return std::string(dir != nullptr && *dir != '\0' ? dir : "/tmp") + "/autocal_fuzz_" +
            std::to_string(static_cast<long>(getpid())) + suffix;
-  }();
-  return path;
+  }()};
+  return file.path;
 }
 
 // Writes `size` bytes at `data` to `path`; aborts when it cannot (not an input problem).
