@@ -28,6 +28,24 @@ void ByteSource::FailAtLineOrByte(int64_t line, size_t byte_offset,
   FailAtByte(byte_offset, message);
 }
 
+void ByteSource::set_pos(size_t pos) {
+  if (pos > bytes_.size()) {
+    FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) +
+                                  ", before byte " + std::to_string(pos) + ": truncated?");
+  }
+  pos_ = pos;
+}
+
+void ByteSource::Advance(size_t n) {
+  if (n > remaining()) {
+    FailAtByte(bytes_.size(), "file ends at byte " + std::to_string(bytes_.size()) + ", " +
+                                  std::to_string(n - remaining()) +
+                                  " bytes short of the data declared after byte " +
+                                  std::to_string(pos_) + ": truncated?");
+  }
+  pos_ += n;
+}
+
 bool ByteSource::NextLine(std::string_view* line) {
   if (pos_ >= bytes_.size()) return false;
   size_t end = bytes_.find('\n', pos_);

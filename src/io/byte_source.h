@@ -43,10 +43,13 @@ class ByteSource {
   // Bytes not read yet.
   size_t remaining() const { return bytes_.size() - pos_; }
 
-  // The read position: the byte offset of the next unread byte.
+  // The read position: the byte offset of the next unread byte, <= size().
   size_t pos() const { return pos_; }
-  void set_pos(size_t pos) { pos_ = pos; }
-  void Advance(size_t n) { pos_ += n; }
+  // `pos` <= size(); beyond it fails like Advance.
+  void set_pos(size_t pos);
+  // Moves `n` bytes on. Readers check n <= remaining() first to name what is missing; this
+  // is the last line of defence and fails at the end of the file ("truncated?").
+  void Advance(size_t n);
 
   // 1-based number of the line read last (0 before the first).
   int64_t line() const { return line_; }

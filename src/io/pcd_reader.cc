@@ -4,12 +4,14 @@
 
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "io/byte_source.h"
+#include "io/checked_math.h"
 #include "io/point_cloud_builder.h"
 #include "io/point_cloud_formats.h"
 #include "io/scalar_type.h"
@@ -24,8 +26,9 @@ struct PcdField {
   std::string name;
   ScalarType type = ScalarType::kFloat32;
   int64_t count = 1;
-  size_t offset = 0;  // byte offset inside a binary record
-  int role = -1;      // PointValue filled by this field, -1 when skipped
+  int64_t count_column = 0;  // of its COUNT value, 0 without a COUNT line
+  size_t offset = 0;         // byte offset inside a binary record
+  int role = -1;             // PointValue filled by this field, -1 when skipped
 };
 
 enum class PcdData { kAscii, kBinary };
@@ -61,6 +64,36 @@ class PcdParser {
     }
   }
 
+  // A header key may appear once: a second FIELDS would leave SIZE and TYPE describing
+  // other fields than the ones read.
+  void CheckFirstOccurrence(const Word& key) {
+    const auto [first, inserted] = key_lines_.emplace(std::string(key.text), source_.line());
+    if (!inserted) {
+      source_.FailAtColumn(key.column, "second " + Quote(key.text) +
+                                           " line in the PCD header (the first is line " +
+                                           std::to_string(first->second) + ")");
+    }
+  }
+
+  // COUNT values; their sum (values per point) must fit in int64.
+  void ParseCounts(const std::vector<Word>& words) {
+    CheckPerField(words);
+    count_line_ = source_.line();
+    int64_t values_per_point = 0;
+    for (size_t i = 1; i < words.size(); ++i) {
+      PcdField& field = fields_[i - 1];
+      field.count = ParseCount(words[i], 1);
+      field.count_column = words[i].column;
+      if (!CheckedAdd(values_per_point, field.count, &values_per_point)) {
+        source_.FailAtColumn(words[i].column,
+                             "COUNT values add up to more than " +
+                                 std::to_string(std::numeric_limits<int64_t>::max()) +
+                                 " values per point");
+      }
+    }
+    values_per_point_ = values_per_point;
+  }
+
   void ParseHeader() {
     if (source_.size() == 0)
       source_.FailAtByte(0, "empty file; a PCD file starts with its header (VERSION, FIELDS, ...)");
@@ -73,10 +106,12 @@ class PcdParser {
       const std::vector<Word> words = SplitWords(line);
       if (words.empty() || words[0].text[0] == '#') continue;
       const std::string_view key = words[0].text;
+      CheckFirstOccurrence(words[0]);
       if (key == "VERSION" || key == "VIEWPOINT") continue;
       if (key == "FIELDS") {
         for (size_t i = 1; i < words.size(); ++i) fields_.push_back({std::string(words[i].text)});
         if (fields_.empty()) source_.FailAtColumn(1, "FIELDS names no field");
+        values_per_point_ = static_cast<int64_t>(fields_.size());
       } else if (key == "SIZE") {
         CheckPerField(words);
         sizes = words;
@@ -86,8 +121,7 @@ class PcdParser {
         types = words;
         types_line = source_.line();
       } else if (key == "COUNT") {
-        CheckPerField(words);
-        for (size_t i = 1; i < words.size(); ++i) fields_[i - 1].count = ParseCount(words[i], 1);
+        ParseCounts(words);
       } else if (key == "WIDTH" || key == "HEIGHT" || key == "POINTS") {
         if (words.size() != 2)
           source_.FailAtColumn(1, "expected '" + std::string(key) + " <integer>'");
@@ -155,7 +189,15 @@ class PcdParser {
       }
       fields_[i].type = *type;
       fields_[i].offset = offset;
-      offset += ScalarSize(*type) * static_cast<size_t>(fields_[i].count);
+      size_t field_bytes = 0;
+      if (!CheckedMultiply(ScalarSize(*type), static_cast<size_t>(fields_[i].count),
+                           &field_bytes) ||
+          !CheckedAdd(offset, field_bytes, &offset)) {
+        source_.FailAt(count_line_, fields_[i].count_column,
+                       "COUNT " + std::to_string(fields_[i].count) + " of field '" +
+                           fields_[i].name + "' makes a point record larger than " +
+                           std::to_string(std::numeric_limits<size_t>::max()) + " bytes");
+      }
     }
     record_size_ = offset;
   }
@@ -209,14 +251,14 @@ class PcdParser {
   void AddPoint(PointCloudBuilder* builder, const double (&values)[kNumPointValues], int64_t index,
                 int64_t line, size_t byte_offset) const {
     int bad = 0;
-    if (builder->Add(values, &bad) == PointCloudBuilder::AddResult::kNonFinite) {
-      source_.FailAtLineOrByte(line, byte_offset, NonFiniteMessage("point", index, bad));
-    }
+    const PointCloudBuilder::AddResult result = builder->Add(values, &bad);
+    FailOnRefusedPoint(result, "point", index, bad, values, [&](const std::string& message) {
+      source_.FailAtLineOrByte(line, byte_offset, message);
+    });
   }
 
   lidar::PointCloud ReadAscii() {
-    int64_t values_per_line = 0;
-    for (const PcdField& field : fields_) values_per_line += field.count;
+    const int64_t values_per_line = values_per_point_;
     if (static_cast<uint64_t>(points_) > source_.remaining() + 1) {
       source_.FailAtByte(source_.size(), "file ends at byte " + std::to_string(source_.size()) +
                                              " but the header declares " + std::to_string(points_) +
@@ -277,7 +319,10 @@ class PcdParser {
   ByteSource source_;
   const PointCloudReadOptions& options_;
   int64_t data_line_ = 0;
+  int64_t count_line_ = 0;
+  std::map<std::string, int64_t> key_lines_;  // header key -> its line
   std::vector<PcdField> fields_;
+  int64_t values_per_point_ = 0;  // the sum of COUNT
   int64_t width_ = -1;
   int64_t height_ = -1;
   int64_t points_ = -1;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "io/byte_source.h"
+#include "io/checked_math.h"
 #include "io/point_cloud_builder.h"
 #include "io/point_cloud_formats.h"
 #include "io/scalar_type.h"
@@ -35,6 +36,7 @@ struct PlyElement {
   int64_t count = 0;
   std::vector<PlyProperty> properties;
   int64_t header_line = 0;
+  int64_t count_column = 0;  // of the count on its header line
 };
 
 // Whitespace-separated tokens of an ascii body with their line and column.
@@ -106,6 +108,7 @@ class PlyParser {
     element.name = std::string(words[1].text);
     element.header_line = source_.line();
     element.count = source_.IntegerAt(words[2].text, source_.line(), words[2].column);
+    element.count_column = words[2].column;
     if (element.count < 0) source_.FailAtColumn(words[2].column, "negative element count");
     elements_.push_back(element);
   }
@@ -153,6 +156,7 @@ class PlyParser {
       } else if (keyword == "end_header") {
         if (!format_seen_) source_.FailAtColumn(1, "PLY header has no 'format' line");
         end_header_line_ = source_.line();
+        CheckElementsHaveProperties();
         return;
       } else {
         source_.FailAtColumn(words[0].column, "unknown PLY header keyword " + Quote(keyword));
@@ -160,6 +164,18 @@ class PlyParser {
     }
     source_.FailAtByte(source_.size(),
                        "file ends inside the PLY header (no 'end_header' line): truncated?");
+  }
+
+  // An instance without properties occupies no bytes, so a count could not be checked
+  // against the file (and skipping 10^18 of them would take forever).
+  void CheckElementsHaveProperties() const {
+    for (const PlyElement& element : elements_) {
+      if (element.properties.empty() && element.count > 0) {
+        source_.FailAt(element.header_line, element.count_column,
+                       "element '" + element.name + "' has no properties but a count of " +
+                           std::to_string(element.count) + " (expected 0)");
+      }
+    }
   }
 
   size_t FindVertexElement() const {
@@ -202,24 +218,31 @@ class PlyParser {
     has_time_ = assign_optional(kTime, "t", "time");
   }
 
-  void CheckPointCount(const PlyElement& vertex, size_t min_bytes_per_vertex) const {
+  // The rest of the file must hold `element.count` instances of at least
+  // `min_bytes_per_instance` bytes each (> 0 whenever count > 0, see
+  // CheckElementsHaveProperties); this also bounds every loop over them by the file size.
+  void CheckInstanceCount(const PlyElement& element, size_t min_bytes_per_instance) const {
     const size_t remaining = source_.remaining();
-    if (min_bytes_per_vertex > 0 &&
-        static_cast<uint64_t>(vertex.count) > remaining / min_bytes_per_vertex) {
+    if (element.count > 0 &&
+        (min_bytes_per_instance == 0 ||
+         static_cast<uint64_t>(element.count) > remaining / min_bytes_per_instance)) {
       source_.FailAtByte(source_.size(),
                          "file ends at byte " + std::to_string(source_.size()) +
-                             " but the header declares " + std::to_string(vertex.count) +
-                             " vertices needing at least " + std::to_string(min_bytes_per_vertex) +
-                             " bytes each: truncated?");
+                             " but the header (line " + std::to_string(element.header_line) +
+                             ") declares " + std::to_string(element.count) + " " + element.name +
+                             " instances needing at least " +
+                             std::to_string(min_bytes_per_instance) + " bytes each after byte " +
+                             std::to_string(source_.pos()) + ": truncated?");
     }
   }
 
   void AddPoint(PointCloudBuilder* builder, const double (&values)[kNumPointValues], int64_t index,
                 int64_t line, size_t byte_offset) const {
     int bad = 0;
-    if (builder->Add(values, &bad) == PointCloudBuilder::AddResult::kNonFinite) {
-      source_.FailAtLineOrByte(line, byte_offset, NonFiniteMessage("vertex", index, bad));
-    }
+    const PointCloudBuilder::AddResult result = builder->Add(values, &bad);
+    FailOnRefusedPoint(result, "vertex", index, bad, values, [&](const std::string& message) {
+      source_.FailAtLineOrByte(line, byte_offset, message);
+    });
   }
 
   // ---- ascii body ----
@@ -291,6 +314,8 @@ class PlyParser {
   }
 
   void SkipAsciiElement(const PlyElement& element) {
+    // Each value takes at least one character.
+    CheckInstanceCount(element, element.properties.size());
     for (int64_t i = 0; i < element.count; ++i) {
       int64_t line = 0;
       for (const PlyProperty& property : element.properties) {
@@ -304,7 +329,7 @@ class PlyParser {
   }
 
   lidar::PointCloud ReadAsciiVertices(const PlyElement& vertex) {
-    CheckPointCount(vertex, vertex.properties.size());
+    CheckInstanceCount(vertex, vertex.properties.size());
     PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
                               options_.drop_non_finite_points);
     for (int64_t i = 0; i < vertex.count; ++i) {
@@ -353,7 +378,13 @@ class PlyParser {
     if (count < 0)
       source_.FailAtByte(count_offset,
                          "negative list length in " + element.name + " " + std::to_string(index));
-    const size_t bytes = static_cast<size_t>(count) * ScalarSize(property.type);
+    // count < 2^32 (an integer count type), so this cannot overflow; checked all the same.
+    size_t bytes = 0;
+    if (!CheckedMultiply(static_cast<size_t>(count), ScalarSize(property.type), &bytes)) {
+      source_.FailAtByte(count_offset, "list length " + FormatDouble(count) + " in " +
+                                           element.name + " " + std::to_string(index) +
+                                           " overflows");
+    }
     NeedBytes(bytes, element, index);
     source_.Advance(bytes);
   }
@@ -367,7 +398,7 @@ class PlyParser {
   }
 
   void SkipBinaryElement(const PlyElement& element) {
-    CheckPointCount(element, MinBinarySize(element));
+    CheckInstanceCount(element, MinBinarySize(element));
     for (int64_t i = 0; i < element.count; ++i) {
       for (const PlyProperty& property : element.properties) {
         if (property.is_list) {
@@ -382,7 +413,7 @@ class PlyParser {
 
   lidar::PointCloud ReadBinaryVertices(const PlyElement& vertex) {
     const size_t record_size = MinBinarySize(vertex);
-    CheckPointCount(vertex, record_size);
+    CheckInstanceCount(vertex, record_size);
     PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
                               options_.drop_non_finite_points);
     const bool fixed_size =

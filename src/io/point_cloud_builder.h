@@ -1,14 +1,18 @@
 #pragma once
 
 // Collects decoded points into a lidar::PointCloud, applying the non-finite policy of
-// PointCloudReadOptions. Shared by the PLY and PCD readers. Private to src/io.
+// PointCloudReadOptions and refusing values the cloud cannot store (an intensity beyond
+// the float range would silently become infinite). Shared by the PLY and PCD readers.
+// Private to src/io.
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
 
 #include "autocal/lidar/point_cloud.h"
+#include "io/text_format.h"
 
 namespace autocal {
 namespace io {
@@ -19,8 +23,10 @@ enum PointValue { kX = 0, kY, kZ, kIntensity, kTime, kNumPointValues };
 
 class PointCloudBuilder {
  public:
-  enum class AddResult { kAdded, kDropped, kNonFinite };
+  enum class AddResult { kAdded, kDropped, kNonFinite, kOutOfRange };
 
+  // `capacity` >= 0 is the number of points the file declares; the readers check it
+  // against the file size before, so the allocation is bounded by the input.
   PointCloudBuilder(int64_t capacity, bool has_intensity, bool has_time, bool drop_non_finite)
       : has_intensity_(has_intensity), has_time_(has_time), drop_non_finite_(drop_non_finite) {
     cloud_.points.resize(3, capacity);
@@ -28,7 +34,10 @@ class PointCloudBuilder {
     if (has_time_) cloud_.time_s.resize(capacity);
   }
 
-  // On kNonFinite, *bad_value is the index (PointValue) of the first non-finite value.
+  // On kNonFinite / kOutOfRange, *bad_value is the index (PointValue) of the first
+  // non-finite value / of the intensity beyond the float range (x, y, z and time are
+  // stored as doubles, so every finite value fits). An out-of-range value is an error
+  // even when non-finite points are dropped: the file holds a number, not a "no return".
   AddResult Add(const double (&values)[kNumPointValues], int* bad_value) {
     for (int i = 0; i < kNumPointValues; ++i) {
       if ((i == kIntensity && !has_intensity_) || (i == kTime && !has_time_)) continue;
@@ -36,6 +45,10 @@ class PointCloudBuilder {
         *bad_value = i;
         return drop_non_finite_ ? AddResult::kDropped : AddResult::kNonFinite;
       }
+    }
+    if (has_intensity_ && std::abs(values[kIntensity]) > std::numeric_limits<float>::max()) {
+      *bad_value = kIntensity;
+      return AddResult::kOutOfRange;
     }
     cloud_.points.col(size_) << values[kX], values[kY], values[kZ];
     if (has_intensity_) cloud_.intensity[size_] = static_cast<float>(values[kIntensity]);
@@ -70,6 +83,25 @@ inline std::string NonFiniteMessage(const char* noun, int64_t index, int bad_val
   return std::string(noun) + " " + std::to_string(index) + " has a non-finite " +
          PointValueName(bad_value) +
          " (set PointCloudReadOptions::drop_non_finite_points to drop such points)";
+}
+
+// Why Add returned kOutOfRange; `value` is the offending number.
+inline std::string OutOfRangeMessage(const char* noun, int64_t index, int bad_value, double value) {
+  return std::string(noun) + " " + std::to_string(index) + " has " + PointValueName(bad_value) +
+         " " + FormatDouble(value) +
+         ", outside the range of a float (expected |value| <= 3.40282e+38)";
+}
+
+// The error for a point Add refused, or nothing when it was added or dropped.
+template <typename FailFunction>
+void FailOnRefusedPoint(PointCloudBuilder::AddResult result, const char* noun, int64_t index,
+                        int bad_value, const double (&values)[kNumPointValues], FailFunction fail) {
+  if (result == PointCloudBuilder::AddResult::kNonFinite) {
+    fail(NonFiniteMessage(noun, index, bad_value));
+  }
+  if (result == PointCloudBuilder::AddResult::kOutOfRange) {
+    fail(OutOfRangeMessage(noun, index, bad_value, values[bad_value]));
+  }
 }
 
 }  // namespace internal

@@ -1,0 +1,36 @@
+// libFuzzer target: the dataset CSV readers (imu, wheel, gnss, lidar, ground-truth
+// trajectory). The first byte picks the reader, the rest is the file.
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "autocal/io/csv_files.h"
+#include "fuzz_input.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  using namespace autocal;
+  if (size == 0) return 0;
+  const std::string& path = fuzz::ScratchPath(".csv");
+  fuzz::WriteScratch(path, data + 1, size - 1);
+  fuzz::ExpectParsedOrRefused([&] {
+    switch (data[0] % 5) {
+      case 0:
+        io::ReadImuCsv(path);
+        break;
+      case 1:
+        io::ReadWheelCsv(path);
+        break;
+      case 2:
+        io::ReadGnssCsv(path);
+        break;
+      case 3:
+        io::ReadLidarCsv(path);
+        break;
+      default:
+        io::ReadTrajectoryCsv(path);
+        break;
+    }
+  });
+  return 0;
+}
