@@ -47,9 +47,14 @@ std::string Quote(std::string_view text);
 // The whole file as bytes; throws autocal::Error naming the path when it cannot be read.
 std::string ReadFileBytes(const std::string& path);
 
-// Replaces the file at `path` by `text`, byte for byte; throws autocal::Error naming the
-// path when it cannot be opened or written.
+// Replaces the file at `path` by `text`, byte for byte and atomically
+// (io::WriteFileAtomically: a temporary file beside it, fsync, rename); throws autocal::Error
+// naming the path and the system's reason ("No space left on device") when it cannot.
 void WriteFileText(const std::string& path, const std::string& text);
+
+// Writes all of `bytes` to the open descriptor `fd` (retrying short writes); throws
+// autocal::Error "cannot write '<path>': <reason>" on the first failure.
+void WriteAllToDescriptor(int fd, std::string_view bytes, const std::string& path);
 
 }  // namespace internal
 }  // namespace io
