@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <optional>
 #include <sstream>
 #include <utility>
@@ -86,6 +87,15 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
       " bridged), and the LiDAR rotation, translation and time offset start from their nominal "
       "values");
   return false;
+}
+
+// `file` without the wall-clock entries of its solver summary ("seconds", "seconds_*"): they
+// go to timings.yaml.
+io::CalibrationFile WithoutTimings(io::CalibrationFile file) {
+  for (auto it = file.solver.begin(); it != file.solver.end();) {
+    it = it->first.rfind("seconds", 0) == 0 ? file.solver.erase(it) : std::next(it);
+  }
+  return file;
 }
 
 // Wall-clock seconds of the run's stages. They differ from run to run, so they live in
@@ -245,7 +255,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
 
 void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result) {
   io::StagedDirectory out(directory, io::OutputKind::kResult);
-  io::WriteCalibrationYaml(out.File("calibration.yaml"), result.calibration);
+  io::WriteCalibrationYaml(out.File("calibration.yaml"), WithoutTimings(result.calibration));
   io::WriteTumTrajectory(out.File("trajectory.tum"), result.trajectory);
   std::ostringstream csv;
   csv << "iteration,qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s,wheel_radius_left_m,"
