@@ -26,8 +26,9 @@ DEFINE_string(output, "",
               "OUTPUT.partial-XXXXXX); an existing one is replaced only when it holds nothing but "
               "result files, otherwise refused");
 DEFINE_int32(threads, 0,
-             "threads for reading sweeps and the Ceres solves; 0: the problem file's "
-             "solver.num_threads. Same result for every count (docs/calibration.md)");
+             "threads for reading sweeps, the odometry and the Ceres solves; 0: the problem "
+             "file's solver.num_threads. Byte-identical results run to run on one thread; other "
+             "counts differ slightly (docs/calibration.md, \"Reproducibility and threads\")");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
 
 int main(int argc, char** argv) {

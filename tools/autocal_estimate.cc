@@ -34,8 +34,8 @@ DEFINE_string(output, "",
               "at the end (a stopped run leaves only OUTPUT.partial-XXXXXX); an existing one is "
               "replaced only when it holds nothing but result files, otherwise refused");
 DEFINE_int32(threads, 0,
-             "threads for reading sweeps and the window's Ceres solves; 0: the problem file's "
-             "solver.num_threads (docs/sliding_window.md on what depends on it)");
+             "threads for reading sweeps and the window's association; 0: the problem file's "
+             "solver.num_threads (docs/calibration.md, \"Reproducibility and threads\")");
 DEFINE_double(init_duration_s, 30.0,
               "seconds of the log (from its first sweep) given to the "
               "initializer that starts the window; > 0");

@@ -61,8 +61,7 @@ TEST(OutputFilesTest, ABadOutputLocationIsRefusedBeforeAnyWork) {
   ExpectRefused(
       [&] { CheckOutputDirectory((root / "missing" / "out").string(), OutputKind::kResult); },
       "the directory '" + (root / "missing").string() + "' does not exist");
-  ExpectRefused([&] { CheckOutputFile((root / "missing" / "r.yaml").string()); },
-                "does not exist");
+  ExpectRefused([&] { CheckOutputFile((root / "missing" / "r.yaml").string()); }, "does not exist");
   ExpectRefused([&] { CheckOutputFile(root.string()); }, "it is a directory");
   // A directory with anything but result files is never replaced.
   fs::create_directories(root / "home");
@@ -135,9 +134,9 @@ TEST(OutputFilesTest, AFileIsReplacedAtomically) {
   EXPECT_EQ(Read(path), "two\n");
   EXPECT_THAT(Names(root), ::testing::ElementsAre("a.yaml"));  // no temporary left
   ExpectRefused([&] { WriteFileAtomically(root.string(), "x"); }, "it is a directory");
-  ExpectRefused([&] { WriteFileAtomically((root / "no" / "a.yaml").string(), "x"); },
-                "cannot write '" + (root / "no" / "a.yaml").string() +
-                    "': No such file or directory");
+  ExpectRefused(
+      [&] { WriteFileAtomically((root / "no" / "a.yaml").string(), "x"); },
+      "cannot write '" + (root / "no" / "a.yaml").string() + "': No such file or directory");
 }
 
 // A full disk names the file and the reason (/dev/full fails every write with ENOSPC).

@@ -41,8 +41,8 @@ std::string Read(const fs::path& path) {
 // problems/urban_full.yaml made small: fewer points and iterations, so that a run takes
 // seconds. Every sensor and block still takes part.
 io::Problem SmallProblem(int num_threads) {
-  io::Problem problem = io::ReadProblemYaml(
-      (fs::path(AUTOCAL_SOURCE_DIR) / "problems" / "urban_full.yaml").string());
+  io::Problem problem =
+      io::ReadProblemYaml((fs::path(AUTOCAL_SOURCE_DIR) / "problems" / "urban_full.yaml").string());
   problem.lidar.max_points_per_sweep = 150;
   problem.solver.outer_iterations = 2;
   problem.solver.max_iterations = 6;
@@ -110,29 +110,28 @@ TEST_F(ResultFilesTest, OneThreadGivesByteIdenticalFilesAndNoPrefixReads) {
   EXPECT_NE(Read(one_a / "timings.yaml"), Read(one_b / "timings.yaml"));
 
   const fs::path cut = test::OutputDir("cut");
-  const auto expect_refused = [&](const char* file,
-                                  const std::function<void(const std::string&)>& read,
-                                  size_t stride) {
-    const std::string bytes = Read(one_a / file);
-    ASSERT_NO_THROW(read((one_a / file).string()));
-    const std::string path = (cut / file).string();
-    size_t tried = 0;
-    size_t accepted = 0;
-    for (size_t n : PrefixLengths(bytes, stride)) {
-      std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes.substr(0, n);
-      ++tried;
-      try {
-        read(path);
-        ++accepted;
-        ADD_FAILURE() << file << ": the first " << n << " of " << bytes.size() << " bytes read";
-      } catch (const ParseError& e) {
-        EXPECT_EQ(e.location().file, path);
-      }
-    }
-    std::cout << file << ": " << accepted << " of " << tried << " prefixes (of " << bytes.size()
-              << " bytes) accepted\n";
-    EXPECT_EQ(accepted, 0u);
-  };
+  const auto expect_refused =
+      [&](const char* file, const std::function<void(const std::string&)>& read, size_t stride) {
+        const std::string bytes = Read(one_a / file);
+        ASSERT_NO_THROW(read((one_a / file).string()));
+        const std::string path = (cut / file).string();
+        size_t tried = 0;
+        size_t accepted = 0;
+        for (size_t n : PrefixLengths(bytes, stride)) {
+          std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes.substr(0, n);
+          ++tried;
+          try {
+            read(path);
+            ++accepted;
+            ADD_FAILURE() << file << ": the first " << n << " of " << bytes.size() << " bytes read";
+          } catch (const ParseError& e) {
+            EXPECT_EQ(e.location().file, path);
+          }
+        }
+        std::cout << file << ": " << accepted << " of " << tried << " prefixes (of " << bytes.size()
+                  << " bytes) accepted\n";
+        EXPECT_EQ(accepted, 0u);
+      };
   expect_refused(
       "calibration.yaml", [](const std::string& p) { io::ReadCalibrationYaml(p); }, 5);
   expect_refused(

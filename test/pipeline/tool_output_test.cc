@@ -32,9 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
-std::string Tool(const std::string& name) {
-  return (fs::path(AUTOCAL_TOOL_DIR) / name).string();
-}
+std::string Tool(const std::string& name) { return (fs::path(AUTOCAL_TOOL_DIR) / name).string(); }
 
 std::string Read(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -160,17 +158,18 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
 // --threads is the problem file's solver.num_threads, for one run.
 TEST_F(ToolOutputTest, ThreadsIsAnOverrideOfTheProblemFile) {
   const fs::path dir = CleanDir("threads");
-  const Finished f = RunTool({Tool("autocal_calibrate"), "--dataset=" + dir.string(),
-                          "--problem=p.yaml", "--output=" + (dir / "r").string(), "--threads=-1"},
-                         dir / "log.txt");
+  const Finished f =
+      RunTool({Tool("autocal_calibrate"), "--dataset=" + dir.string(), "--problem=p.yaml",
+               "--output=" + (dir / "r").string(), "--threads=-1"},
+              dir / "log.txt");
   // The dataset check comes first; a dataset that passes reaches the threads check.
   EXPECT_EQ(f.exit_code, 1);
   std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
-  const Finished g = RunTool({Tool("autocal_calibrate"), "--dataset=" + dir.string(),
-                          "--problem=" + problem, "--output=" + (dir / "r").string(),
-                          "--threads=-1"},
-                         dir / "log.txt");
+  const Finished g =
+      RunTool({Tool("autocal_calibrate"), "--dataset=" + dir.string(), "--problem=" + problem,
+               "--output=" + (dir / "r").string(), "--threads=-1"},
+              dir / "log.txt");
   EXPECT_EQ(g.exit_code, 1);
   EXPECT_THAT(g.output, HasSubstr("--threads must be 0 (the problem file's solver.num_threads)"));
 }
@@ -181,9 +180,9 @@ TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
   const fs::path dir = CleanDir("simulate");
   const fs::path out = dir / "drive";
   // 64 beams for 600 s: minutes of sweeps, killed once it has written a few.
-  const pid_t pid = StartTool({Tool("autocal_simulate"), "--duration_s=600", "--lidar_beams=64",
-                               "--out=" + out.string()},
-                              dir / "log.txt");
+  const pid_t pid = StartTool(
+      {Tool("autocal_simulate"), "--duration_s=600", "--lidar_beams=64", "--out=" + out.string()},
+      dir / "log.txt");
   const auto sweeps_written = [&] {
     for (const std::string& name : Named(dir, "drive.partial-")) {
       std::error_code error;
@@ -204,9 +203,9 @@ TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
   EXPECT_FALSE(fs::exists(out));
   ASSERT_EQ(Named(dir, "drive.partial-").size(), 1u);
 
-  const Finished f =
-      RunTool({Tool("autocal_simulate"), "--duration_s=3", "--lidar_beams=16", "--out=" + out.string()},
-          dir / "log.txt");
+  const Finished f = RunTool(
+      {Tool("autocal_simulate"), "--duration_s=3", "--lidar_beams=16", "--out=" + out.string()},
+      dir / "log.txt");
   ASSERT_EQ(f.exit_code, 0) << f.output;
   EXPECT_NO_THROW(io::ReadDataset(out.string()));
   EXPECT_EQ(Named(dir, "drive.partial-").size(), 1u);  // the stopped run's, nothing new
@@ -216,19 +215,18 @@ TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
 TEST_F(ToolOutputTest, AStoppedCalibrationLeavesThePreviousResult) {
   const fs::path dir = CleanDir("calibrate");
   const fs::path dataset = dir / "drive";
-  const Finished sim =
-      RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16", "--seed=7",
-           "--out=" + dataset.string()},
-          dir / "log.txt");
+  const Finished sim = RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16",
+                                "--seed=7", "--out=" + dataset.string()},
+                               dir / "log.txt");
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
   const fs::path result = dir / "result";
   fs::create_directories(result);
   std::ofstream(result / "calibration.yaml") << "previous\n";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
   for (const char* tool : {"autocal_calibrate", "autocal_estimate"}) {
-    const pid_t pid = StartTool({Tool(tool), "--dataset=" + dataset.string(), "--problem=" + problem,
-                             "--output=" + result.string()},
-                            dir / "log.txt");
+    const pid_t pid = StartTool({Tool(tool), "--dataset=" + dataset.string(),
+                                 "--problem=" + problem, "--output=" + result.string()},
+                                dir / "log.txt");
     ASSERT_TRUE(KillAfter(pid, std::chrono::milliseconds(2000))) << tool << " finished first";
     EXPECT_EQ(Read(result / "calibration.yaml"), "previous\n") << tool;
     EXPECT_FALSE(fs::exists(result / "trajectory.tum")) << tool;
