@@ -31,6 +31,13 @@ DEFINE_int32(threads, 0,
              "counts differ slightly (docs/calibration.md, \"Reproducibility and threads\")");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
 
+namespace {
+
+// True while a progress line without its line break is on the terminal.
+bool progress_line_open = false;
+
+}  // namespace
+
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
       "autocal_calibrate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
@@ -55,6 +62,7 @@ int main(int argc, char** argv) {
         if (p.cost > 0.0) std::fprintf(stderr, "  cost %.4g", p.cost);
         if (p.seconds_left > 0.0) std::fprintf(stderr, "  ~%.0f s left", p.seconds_left);
         std::fprintf(stderr, "   %s", p.fraction >= 1.0 ? "\n" : "");
+        progress_line_open = p.fraction < 1.0;
         std::fflush(stderr);
       };
     }
@@ -65,7 +73,7 @@ int main(int argc, char** argv) {
     std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
               << "calibration_per_iteration.csv, timings.yaml, report.html\n";
   } catch (const autocal::Error& e) {
-    std::cerr << "\nautocal_calibrate: " << e.what() << "\n";
+    std::cerr << (progress_line_open ? "\n" : "") << "autocal_calibrate: " << e.what() << "\n";
     return 1;
   }
   return 0;

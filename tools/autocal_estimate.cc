@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
               << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
                  "calibration.yaml, timings.yaml\n";
   } catch (const autocal::Error& e) {
-    std::cerr << "\nautocal_estimate: " << e.what() << "\n";
+    std::cerr << "autocal_estimate: " << e.what() << "\n";
     return 1;
   }
   return 0;
