@@ -135,7 +135,9 @@ void CheckOutputFile(const std::string& path) {
   }
 }
 
-void WriteFileAtomically(const std::string& path, const std::string& text) {
+namespace internal {
+
+void WriteFileReplacing(const std::string& path, const std::string& text, bool sync) {
   std::error_code error;
   if (fs::is_directory(path, error)) throw Error("cannot write '" + path + "': it is a directory");
   std::string temporary;
@@ -149,7 +151,7 @@ void WriteFileAtomically(const std::string& path, const std::string& text) {
   try {
     internal::WriteAllToDescriptor(fd, text, path);
     // fsync on a file system that cannot (EINVAL) is no failure of the data.
-    if (fsync(fd) != 0 && errno != EINVAL && errno != EROFS) {
+    if (sync && fsync(fd) != 0 && errno != EINVAL && errno != EROFS) {
       throw Error("cannot write '" + path + "': " + SystemReason());
     }
     const int closed = close(fd);
@@ -163,6 +165,12 @@ void WriteFileAtomically(const std::string& path, const std::string& text) {
     unlink(temporary.c_str());
     throw;
   }
+}
+
+}  // namespace internal
+
+void WriteFileAtomically(const std::string& path, const std::string& text) {
+  internal::WriteFileReplacing(path, text, true);
 }
 
 StagedDirectory::StagedDirectory(const std::string& directory, OutputKind kind)
@@ -186,7 +194,14 @@ std::string StagedDirectory::File(const std::string& name) const { return stagin
 
 void StagedDirectory::Commit() {
   CheckOutputDirectory(directory_, kind_);  // nothing foreign appeared meanwhile
-  FsyncPath(staging_);
+  // The files in the staging directory were written without an fsync each (7 ms a file on
+  // the development machine, seconds for a dataset's sweeps): one syncfs puts them all on
+  // disk before the directory appears under its name.
+  const int fd = open(staging_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd >= 0) {
+    syncfs(fd);
+    close(fd);
+  }
   // rename() replaces a missing or empty directory in one step.
   if (rename(staging_.c_str(), directory_.c_str()) != 0) {
     if (errno != ENOTEMPTY && errno != EEXIST) {

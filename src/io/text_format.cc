@@ -11,7 +11,6 @@
 #include <system_error>
 
 #include "autocal/common/error.h"
-#include "autocal/io/output_files.h"
 
 namespace autocal {
 namespace io {
@@ -135,7 +134,7 @@ std::string ReadFileBytes(const std::string& path) {
 }
 
 void WriteFileText(const std::string& path, const std::string& text) {
-  WriteFileAtomically(path, text);
+  WriteFileReplacing(path, text, false);
 }
 
 void WriteAllToDescriptor(int fd, std::string_view bytes, const std::string& path) {

@@ -43,6 +43,14 @@ std::vector<std::string> Names(const fs::path& directory) {
   return names;
 }
 
+// test::OutputDir(name), emptied: an earlier run of the test leaves nothing behind.
+fs::path CleanDir(const std::string& name) {
+  const fs::path dir = test::OutputDir(name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
 void ExpectRefused(const std::function<void()>& call, const std::string& message) {
   try {
     call();
@@ -54,7 +62,7 @@ void ExpectRefused(const std::function<void()>& call, const std::string& message
 }
 
 TEST(OutputFilesTest, ABadOutputLocationIsRefusedBeforeAnyWork) {
-  const fs::path root = test::OutputDir("check");
+  const fs::path root = CleanDir("check");
   Touch(root / "a_file");
   ExpectRefused([&] { CheckOutputDirectory((root / "a_file").string(), OutputKind::kResult); },
                 "it exists and is not a directory");
@@ -88,7 +96,7 @@ TEST(OutputFilesTest, ABadOutputLocationIsRefusedBeforeAnyWork) {
 }
 
 TEST(OutputFilesTest, AStagedDirectoryAppearsWholeOrNotAtAll) {
-  const fs::path root = test::OutputDir("staged");
+  const fs::path root = CleanDir("staged");
   const fs::path out = root / "result";
   {
     StagedDirectory staged(out.string(), OutputKind::kResult);
@@ -127,7 +135,7 @@ TEST(OutputFilesTest, AStagedDirectoryAppearsWholeOrNotAtAll) {
 }
 
 TEST(OutputFilesTest, AFileIsReplacedAtomically) {
-  const fs::path root = test::OutputDir("atomic");
+  const fs::path root = CleanDir("atomic");
   const std::string path = (root / "a.yaml").string();
   WriteFileAtomically(path, "one\n");
   WriteFileAtomically(path, "two\n");

@@ -3,11 +3,11 @@
 // Writing outputs so that a run that is stopped or fails never leaves a file or directory that
 // looks complete.
 //
-// - A file is written to a temporary name in its own directory, flushed, checked (a full
-//   disk says "No space left on device" with the path), fsync'ed and renamed into place:
-//   the path holds either the old file or the whole new one.
+// - A file is written to a temporary name in its own directory, checked (a full disk says
+//   "No space left on device" with the path), fsync'ed (WriteFileAtomically) and renamed
+//   into place: the path holds either the old file or the whole new one.
 // - A result directory (a calibration result, a simulated dataset) is written as a whole into
-//   a sibling "<dir>.partial-XXXXXX" and renamed to <dir> by Commit(). A run killed before
+//   a sibling "<dir>.partial-XXXXXX", synced once (syncfs) and renamed to <dir> by Commit(). A run killed before
 //   then leaves only the ".partial-" directory; <dir> is absent or still the previous result.
 // - An existing <dir> is replaced (atomically where the file system can exchange two
 //   directories, Linux renameat2) only when it is empty or holds nothing but names such a
