@@ -13,14 +13,30 @@
 
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"
+#include "autocal/io/output_files.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "keep_freed_memory.h"
+#include "tool_checks.h"
 
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses); required");
-DEFINE_string(output, "", "result directory (created); required");
+DEFINE_string(output, "",
+              "result directory; required. Written whole at the end (a stopped run leaves only "
+              "OUTPUT.partial-XXXXXX); an existing one is replaced only when it holds nothing but "
+              "result files, otherwise refused");
+DEFINE_int32(threads, 0,
+             "threads for reading sweeps, the odometry and the Ceres solves; 0: the problem "
+             "file's solver.num_threads. Byte-identical results run to run on one thread; other "
+             "counts differ slightly (docs/calibration.md, \"Reproducibility and threads\")");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
+
+namespace {
+
+// True while a progress line without its line break is on the terminal.
+bool progress_line_open = false;
+
+}  // namespace
 
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
@@ -33,7 +49,11 @@ int main(int argc, char** argv) {
     if (FLAGS_dataset.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {
       throw autocal::Error("--dataset, --problem and --output are required (see --help)");
     }
-    const autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
+    // Everything that can be checked before the work starts is.
+    autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
+    autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
+    autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
+    autocal::tools::ApplyThreadsFlag(FLAGS_threads, &problem);
     const autocal::io::Dataset dataset = autocal::io::ReadDataset(FLAGS_dataset);
     autocal::pipeline::OfflineCalibrationOptions options;
     if (FLAGS_progress) {
@@ -42,6 +62,7 @@ int main(int argc, char** argv) {
         if (p.cost > 0.0) std::fprintf(stderr, "  cost %.4g", p.cost);
         if (p.seconds_left > 0.0) std::fprintf(stderr, "  ~%.0f s left", p.seconds_left);
         std::fprintf(stderr, "   %s", p.fraction >= 1.0 ? "\n" : "");
+        progress_line_open = p.fraction < 1.0;
         std::fflush(stderr);
       };
     }
@@ -50,9 +71,9 @@ int main(int argc, char** argv) {
     autocal::pipeline::WriteCalibrationResult(FLAGS_output, result);
     std::cout << autocal::pipeline::FormatCalibrationSummary(result);
     std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
-              << "calibration_per_iteration.csv, report.html\n";
+              << "calibration_per_iteration.csv, timings.yaml, report.html\n";
   } catch (const autocal::Error& e) {
-    std::cerr << "\nautocal_calibrate: " << e.what() << "\n";
+    std::cerr << (progress_line_open ? "\n" : "") << "autocal_calibrate: " << e.what() << "\n";
     return 1;
   }
   return 0;

@@ -18,19 +18,29 @@
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
+#include "autocal/io/output_files.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/online_estimation.h"
 #include "keep_freed_memory.h"
+#include "tool_checks.h"
 
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
-DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses, window "
+DEFINE_string(problem, "",
+              "problem file (problems/*.yaml: sensors, blocks, losses, window "
               "size, solver, LiDAR points); required");
 DEFINE_string(output, "",
-              "result directory (created): trajectory.tum, trajectory_smoothed.tum, "
-              "states.csv, calibration_over_time.csv, calibration.yaml; required");
-DEFINE_double(init_duration_s, 30.0, "seconds of the log (from its first sweep) given to the "
+              "result directory: trajectory.tum, trajectory_smoothed.tum, states.csv, "
+              "calibration_over_time.csv, calibration.yaml, timings.yaml; required. Written whole "
+              "at the end (a stopped run leaves only OUTPUT.partial-XXXXXX); an existing one is "
+              "replaced only when it holds nothing but result files, otherwise refused");
+DEFINE_int32(threads, 0,
+             "threads for reading sweeps and the window's association; 0: the problem file's "
+             "solver.num_threads (docs/calibration.md, \"Reproducibility and threads\")");
+DEFINE_double(init_duration_s, 30.0,
+              "seconds of the log (from its first sweep) given to the "
               "initializer that starts the window; > 0");
-DEFINE_int32(init_sweep_stride, 3, "every n-th sweep of those seconds goes to the initializer; "
+DEFINE_int32(init_sweep_stride, 3,
+             "every n-th sweep of those seconds goes to the initializer; "
              ">= 1");
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
 
@@ -46,7 +56,11 @@ int main(int argc, char** argv) {
       throw autocal::Error("--dataset, --problem and --output are required (see --help)");
     }
     if (FLAGS_progress_every < 0) throw autocal::Error("--progress_every must be >= 0");
-    const autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
+    // Everything that can be checked before the work starts is.
+    autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
+    autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
+    autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
+    autocal::tools::ApplyThreadsFlag(FLAGS_threads, &problem);
     const autocal::io::Dataset dataset = autocal::io::ReadDataset(FLAGS_dataset);
     autocal::pipeline::OnlineEstimationOptions options;
     options.initialization_duration_s = FLAGS_init_duration_s;
@@ -76,9 +90,9 @@ int main(int argc, char** argv) {
               << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
               << " ms\nwritten: " << FLAGS_output
               << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
-                 "calibration.yaml\n";
+                 "calibration.yaml, timings.yaml\n";
   } catch (const autocal::Error& e) {
-    std::cerr << "\nautocal_estimate: " << e.what() << "\n";
+    std::cerr << "autocal_estimate: " << e.what() << "\n";
     return 1;
   }
   return 0;

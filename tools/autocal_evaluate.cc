@@ -15,6 +15,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/evaluation/evaluation.h"
+#include "autocal/io/output_files.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpshort);
@@ -129,6 +130,7 @@ int Run() {
   if (FLAGS_trajectory.empty()) throw Error("--trajectory must name a file of RESULT");
   evaluation::ResultPaths paths = evaluation::ResultPaths::For(FLAGS_dataset, FLAGS_result);
   paths.result_trajectory = (std::filesystem::path(FLAGS_result) / FLAGS_trajectory).string();
+  autocal::io::CheckOutputFile(paths.evaluation);
   evaluation::TrajectoryErrorOptions options;
   options.max_interpolation_gap_s = max_gap_s;
   const evaluation::Evaluation result = evaluation::EvaluateResult(paths, options);
@@ -145,7 +147,9 @@ int Run() {
   const std::vector<evaluation::ThresholdViolation> violations =
       evaluation::ExceededThresholds(result, thresholds);
   std::printf("%s", evaluation::FormatEvaluationTable(result, thresholds).c_str());
-  evaluation::WriteEvaluationYaml(paths.evaluation, result, thresholds);
+  // Replaced atomically: a stopped run leaves the previous evaluation.yaml or none.
+  autocal::io::WriteFileAtomically(paths.evaluation,
+                                   evaluation::EvaluationYamlText(result, thresholds));
   std::printf("wrote %s\n", paths.evaluation.c_str());
   if (violations.empty()) {
     std::printf("PASSED: every given limit holds\n");

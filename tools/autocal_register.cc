@@ -7,10 +7,10 @@
 
 #include <gflags/gflags.h>
 
-#include <fstream>
 #include <iostream>
 
 #include "autocal/common/error.h"
+#include "autocal/io/output_files.h"
 #include "autocal/io/point_cloud_file.h"
 #include "autocal/lidar/registration.h"
 
@@ -21,7 +21,9 @@ DEFINE_string(loss, "none", "robust loss: none | huber | cauchy");
 DEFINE_double(loss_scale_m, 0.1, "robust loss scale (m)");
 DEFINE_double(voxel_m, 0.25, "voxel size for downsampling both clouds (m), 0 = off");
 DEFINE_double(max_correspondence_m, 1.0, "largest distance of a correspondence (m)");
-DEFINE_string(output, "", "also write the result as YAML to this file");
+DEFINE_string(output, "",
+              "also write the result as YAML to this file (checked before the registration, "
+              "replaced atomically)");
 
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
@@ -32,6 +34,7 @@ int main(int argc, char** argv) {
     if (FLAGS_source.empty() || FLAGS_target.empty()) {
       throw autocal::Error("both --source and --target are required");
     }
+    if (!FLAGS_output.empty()) autocal::io::CheckOutputFile(FLAGS_output);
     const autocal::lidar::RegistrationSetting setting = autocal::lidar::MakeRegistrationSetting(
         FLAGS_method, FLAGS_loss, FLAGS_loss_scale_m, FLAGS_voxel_m, FLAGS_max_correspondence_m);
     // Organized PCD clouds mark missing returns with NaN; they carry no geometry.
@@ -45,10 +48,8 @@ int main(int argc, char** argv) {
         source, target, autocal::geometry::Pose3d::Identity(), setting);
     std::cout << autocal::lidar::FormatRegistrationReport(result, setting);
     if (!FLAGS_output.empty()) {
-      std::ofstream out(FLAGS_output);
-      out << autocal::lidar::FormatRegistrationYaml(result, setting);
-      out.close();
-      if (!out) throw autocal::Error("cannot write " + FLAGS_output);
+      autocal::io::WriteFileAtomically(FLAGS_output,
+                                       autocal::lidar::FormatRegistrationYaml(result, setting));
     }
   } catch (const autocal::Error& e) {
     std::cerr << "autocal_register: " << e.what() << "\n";

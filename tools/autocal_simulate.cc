@@ -8,6 +8,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
 
 DEFINE_string(scenario, "urban",
@@ -15,7 +16,10 @@ DEFINE_string(scenario, "urban",
               "curves, lane changes, a lead vehicle)");
 DEFINE_double(duration_s, 60.0, "length of the drive, seconds (0 < d <= 3600)");
 DEFINE_uint64(seed, 1, "random seed: drive, world, noise and the nominal calibration");
-DEFINE_string(out, "", "output dataset directory (created; required)");
+DEFINE_string(out, "",
+              "output dataset directory; required. Written whole at the end (a stopped run "
+              "leaves only OUT.partial-XXXXXX); an existing one is replaced only when it holds "
+              "nothing but dataset files, otherwise refused");
 DEFINE_int32(lidar_beams, 32,
              "LiDAR beams: 16 (-15..15 deg), 32 (-25..15 deg) or 64 (-24.8..2 deg)");
 DEFINE_double(lidar_rate_hz, 10.0, "LiDAR sweeps per second");
@@ -101,6 +105,7 @@ int main(int argc, char** argv) {
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_out.empty()) throw autocal::Error("--out=DIR is required");
+    autocal::io::CheckOutputDirectory(FLAGS_out, autocal::io::OutputKind::kDataset);
     const autocal::sim::Simulator simulator(OptionsFromFlags());
     const autocal::sim::SimulationSummary summary =
         autocal::sim::WriteDataset(simulator, FLAGS_out);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <string>
+#include <string_view>
 
 #include "autocal/common/error.h"
 #include "io/calibration_node.h"
@@ -12,6 +13,37 @@ namespace autocal {
 namespace io {
 namespace internal {
 namespace {
+
+// What a file written by WriteCalibrationYaml states about itself: the format on its first
+// key, this comment as its last line. Either missing means the file was cut.
+constexpr const char* kFormat = "autocal_calibration_1";
+constexpr std::string_view kEndMarker = "# end of autocal calibration\n";
+constexpr const char* kBlocks[] = {"T_I_L",
+                                   "time_offset_lidar_imu_s",
+                                   "wheel_radius_left_m",
+                                   "wheel_radius_right_m",
+                                   "track_width_m",
+                                   "p_I_A_m",
+                                   "T_I_V"};
+
+// A file that says it is a written result must hold all of it: the end marker as its last
+// bytes and every calibration block (a cut file would otherwise read as defaults).
+void CheckWholeResult(const YamlFile& file, const YAML::Node& root) {
+  const std::string bytes = ReadFileBytes(file.path());
+  const size_t size = bytes.size();
+  if (size < kEndMarker.size() ||
+      std::string_view(bytes).substr(size - kEndMarker.size()) != kEndMarker) {
+    throw ParseError(SourceLocation{file.path(), 0, 0, static_cast<int64_t>(size)},
+                     "the file ends without its last line '# end of autocal calibration': it "
+                     "was cut short (a run stopped while writing?)");
+  }
+  for (const char* block : kBlocks) {
+    if (!root[block]) {
+      file.Fail(root, std::string("block '") + block + "' is missing; a file of format " + kFormat +
+                          " holds every block");
+    }
+  }
+}
 
 std::string Join(const std::string& prefix, const char* key) {
   return prefix.empty() ? std::string(key) : prefix + "." + key;
@@ -120,9 +152,18 @@ std::string VectorText(const std::string& pad, const char* name, const Eigen::Ve
 
 CalibrationFile ParseCalibrationNode(const YamlFile& file, const YAML::Node& node,
                                      const std::string& what) {
-  file.ExpectMap(node, what.empty() ? "calibration" : what,
-                 {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
-                  "track_width_m", "p_I_A_m", "T_I_V", "solver", "residuals"});
+  file.ExpectMap(
+      node, what.empty() ? "calibration" : what,
+      {"format", "T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
+       "track_width_m", "p_I_A_m", "T_I_V", "solver", "residuals"});
+  if (const YAML::Node format = node["format"]) {
+    if (!what.empty()) file.Fail(format, what + ".format: only a calibration file has a format");
+    if (file.String(format, "format") != kFormat) {
+      file.Fail(format, std::string("format: expected '") + kFormat + "', found '" +
+                            file.String(format, "format") + "'");
+    }
+    CheckWholeResult(file, node);
+  }
   CalibrationFile out;
   sensors::Calibration& c = out.value;
   CalibrationUncertainty& u = out.uncertainty;
@@ -224,8 +265,10 @@ std::string CalibrationYamlText(const CalibrationFile& calibration, int indent) 
 void WriteCalibrationYaml(const std::string& path, const CalibrationFile& calibration) {
   const std::string text =
       "# autocal calibration (schema: datasets/README.md). T_a_b maps frame b into frame a;\n"
-      "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_lidar + time_offset_lidar_imu_s.\n" +
-      CalibrationYamlText(calibration);
+      "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_lidar + time_offset_lidar_imu_s.\n"
+      "format: " +
+      std::string(internal::kFormat) + "\n" + CalibrationYamlText(calibration) +
+      std::string(internal::kEndMarker);
   internal::WriteFileText(path, text);
 }
 

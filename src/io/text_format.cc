@@ -1,5 +1,7 @@
 #include "io/text_format.h"
 
+#include <unistd.h>
+
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -132,11 +134,17 @@ std::string ReadFileBytes(const std::string& path) {
 }
 
 void WriteFileText(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error("cannot open '" + path + "' for writing: " + std::strerror(errno));
-  out.write(text.data(), static_cast<std::streamsize>(text.size()));
-  out.close();
-  if (!out) throw Error("error while writing '" + path + "'");
+  WriteFileReplacing(path, text, false);
+}
+
+void WriteAllToDescriptor(int fd, std::string_view bytes, const std::string& path) {
+  while (!bytes.empty()) {
+    const ssize_t written = write(fd, bytes.data(), bytes.size());
+    if (written < 0 && errno == EINTR) continue;
+    if (written < 0) throw Error("cannot write '" + path + "': " + std::strerror(errno));
+    if (written == 0) throw Error("cannot write '" + path + "': the device took no bytes");
+    bytes.remove_prefix(static_cast<size_t>(written));
+  }
 }
 
 }  // namespace internal

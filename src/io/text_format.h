@@ -47,9 +47,19 @@ std::string Quote(std::string_view text);
 // The whole file as bytes; throws autocal::Error naming the path when it cannot be read.
 std::string ReadFileBytes(const std::string& path);
 
-// Replaces the file at `path` by `text`, byte for byte; throws autocal::Error naming the
-// path when it cannot be opened or written.
+// Replaces the file at `path` by `text`, byte for byte and atomically (a temporary file
+// beside it, renamed); throws autocal::Error naming the path and the system's reason ("No
+// space left on device") when it cannot. No fsync: the io writers write many files (a
+// dataset's sweeps), and io::StagedDirectory::Commit syncs them all at once.
 void WriteFileText(const std::string& path, const std::string& text);
+
+// The writer behind WriteFileText (sync false) and io::WriteFileAtomically (sync true: fsync
+// before the rename). Implemented in output_files.cc.
+void WriteFileReplacing(const std::string& path, const std::string& text, bool sync);
+
+// Writes all of `bytes` to the open descriptor `fd` (retrying short writes); throws
+// autocal::Error "cannot write '<path>': <reason>" on the first failure.
+void WriteAllToDescriptor(int fd, std::string_view bytes, const std::string& path);
 
 }  // namespace internal
 }  // namespace io

@@ -21,6 +21,31 @@ using internal::Word;
 
 constexpr int kTumColumns = 8;
 
+// A file written by WriteTumTrajectory opens with this line and closes with "# end: <N>
+// poses" and a line break; both are TUM comments, which evo and other readers skip.
+constexpr std::string_view kHeader = "# autocal_trajectory_1 timestamp tx ty tz qx qy qz qw";
+constexpr std::string_view kEndPrefix = "# end: ";
+constexpr std::string_view kEndSuffix = " poses";
+
+std::string EndLine(size_t poses) {
+  return std::string(kEndPrefix) + std::to_string(poses) + std::string(kEndSuffix);
+}
+
+// The pose count of an end line "# end: <N> poses", or -1 when `line` is not one.
+int64_t EndLineCount(std::string_view line) {
+  if (line.size() <= kEndPrefix.size() + kEndSuffix.size() ||
+      line.substr(0, kEndPrefix.size()) != kEndPrefix ||
+      line.substr(line.size() - kEndSuffix.size()) != kEndSuffix) {
+    return -1;
+  }
+  const std::string_view digits =
+      line.substr(kEndPrefix.size(), line.size() - kEndPrefix.size() - kEndSuffix.size());
+  int64_t count = 0;
+  std::string why;
+  if (!internal::ParseInt64(digits, &count, &why) || count < 0) return -1;
+  return count;
+}
+
 // "<seconds>.<nine digits>" -> nanoseconds, exactly (no detour through double). Accepts
 // fewer decimals (evo and other tools may print microseconds).
 bool ParseSecondsToNs(std::string_view text, int64_t* t_ns, std::string* why) {
@@ -64,7 +89,7 @@ bool ParseSecondsToNs(std::string_view text, int64_t* t_ns, std::string* why) {
 }  // namespace
 
 void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
-  std::string text = "# timestamp tx ty tz qx qy qz qw\n";
+  std::string text = std::string(kHeader) + "\n";
   for (size_t i = 0; i < trajectory.size(); ++i) {
     const TrajectorySample& s = trajectory[i];
     if (i > 0 && s.t_ns <= trajectory[i - 1].t_ns) {
@@ -84,17 +109,34 @@ void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
     }
     text += '\n';
   }
+  text += EndLine(trajectory.size()) + "\n";
   internal::WriteFileText(path, text);
 }
 
 Trajectory ReadTumTrajectory(const std::string& path) {
   const std::string bytes = internal::ReadFileBytes(path);
   internal::ByteSource source(path, bytes);
+  if (bytes.empty()) source.FailAtByte(0, "the file is empty: expected TUM poses");
   Trajectory trajectory;
   int64_t previous_line = 0;
+  // Whole-file checks of a file this library wrote (kHeader on its first line).
+  const bool written_here = bytes.compare(0, kHeader.size() + 1, std::string(kHeader) + "\n") == 0;
+  int64_t end_line = 0;
   std::string_view line;
   while (source.NextLine(&line)) {
     const std::string_view trimmed = internal::Trim(line);
+    if (written_here && end_line > 0 && !trimmed.empty()) {
+      source.FailAtColumn(1, "text after the end line (line " + std::to_string(end_line) + ")");
+    }
+    if (written_here && EndLineCount(line) >= 0) {
+      if (EndLineCount(line) != static_cast<int64_t>(trajectory.size())) {
+        source.FailAtColumn(1, "the end line counts " + std::to_string(EndLineCount(line)) +
+                                   " poses, but the file holds " +
+                                   std::to_string(trajectory.size()));
+      }
+      end_line = source.line();
+      continue;
+    }
     if (trimmed.empty() || trimmed[0] == '#') continue;
     const std::vector<Word> fields = internal::SplitWords(line);
     if (fields.size() != kTumColumns) {
@@ -136,6 +178,15 @@ Trajectory ReadTumTrajectory(const std::string& path) {
     sample.T_W_I.q = Eigen::Quaterniond(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
     trajectory.push_back(sample);
     previous_line = source.line();
+  }
+  if (written_here && (end_line == 0 || bytes.back() != '\n')) {
+    source.FailAtByte(bytes.size(), "the file ends without its end line '" +
+                                        EndLine(trajectory.size()) +
+                                        "' and a line break: it was cut short (a run stopped "
+                                        "while writing?)");
+  }
+  if (trajectory.empty() && !written_here) {
+    source.FailAtByte(bytes.size(), "the file holds no poses (only comments or blank lines)");
   }
   return trajectory;
 }

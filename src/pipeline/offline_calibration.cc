@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <optional>
 #include <sstream>
 #include <utility>
@@ -15,6 +16,7 @@
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/io/output_files.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/pipeline/report_html.h"
 #include "calibration_blocks.h"
@@ -85,6 +87,29 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
       " bridged), and the LiDAR rotation, translation and time offset start from their nominal "
       "values");
   return false;
+}
+
+// `file` without the wall-clock entries of its solver summary ("seconds", "seconds_*"): they
+// go to timings.yaml.
+io::CalibrationFile WithoutTimings(io::CalibrationFile file) {
+  for (auto it = file.solver.begin(); it != file.solver.end();) {
+    it = it->first.rfind("seconds", 0) == 0 ? file.solver.erase(it) : std::next(it);
+  }
+  return file;
+}
+
+// Wall-clock seconds of the run's stages. They differ from run to run, so they live in
+// timings.yaml, apart from the values: identical runs give identical calibration.yaml files.
+std::string TimingsYaml(const OfflineCalibrationResult& result) {
+  std::ostringstream out;
+  out << "# autocal_calibrate wall-clock seconds (differ from run to run)\n"
+      << "seconds_total: " << result.seconds_total << "\n"
+      << "seconds_loading: " << result.seconds_loading << "\n"
+      << "seconds_initialization: " << result.seconds_initialization << "\n"
+      << "seconds_solve: " << result.seconds_solve << "\n"
+      << "seconds_association: " << result.batch.seconds_association << "\n"
+      << "seconds_ceres: " << result.batch.seconds_solver << "\n";
+  return out.str();
 }
 
 }  // namespace
@@ -222,8 +247,6 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   file.solver["final_cost"] = std::to_string(batch.final_cost);
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
   file.residuals["lidar"]["associated_points"] = batch.associated_points;
-  file.solver["seconds_association"] = std::to_string(batch.seconds_association);
-  file.solver["seconds_ceres"] = std::to_string(batch.seconds_solver);
   // 4. Observability, uncertainty and the result.
   Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
            &result);
@@ -231,13 +254,10 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
 }
 
 void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result) {
-  std::error_code error;
-  std::filesystem::create_directories(directory, error);
-  if (error) throw Error("cannot create " + directory + ": " + error.message());
-  io::WriteCalibrationYaml(directory + "/calibration.yaml", result.calibration);
-  io::WriteTumTrajectory(directory + "/trajectory.tum", result.trajectory);
-  const std::string csv_path = directory + "/calibration_per_iteration.csv";
-  std::ofstream csv(csv_path);
+  io::StagedDirectory out(directory, io::OutputKind::kResult);
+  io::WriteCalibrationYaml(out.File("calibration.yaml"), WithoutTimings(result.calibration));
+  io::WriteTumTrajectory(out.File("trajectory.tum"), result.trajectory);
+  std::ostringstream csv;
   csv << "iteration,qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s,wheel_radius_left_m,"
          "wheel_radius_right_m,track_width_m,qv_x,qv_y,qv_z,qv_w,pv_x_m,pv_y_m,pv_z_m,pa_x_m,"
          "pa_y_m,pa_z_m\n"
@@ -252,13 +272,10 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
         << c.p_I_V.y() << ',' << c.p_I_V.z() << ',' << c.p_I_A.x() << ',' << c.p_I_A.y() << ','
         << c.p_I_A.z() << '\n';
   }
-  csv.close();
-  if (!csv) throw Error("cannot write " + csv_path);
-  const std::string html_path = directory + "/report.html";
-  std::ofstream html(html_path);
-  html << CalibrationReportHtml(result);
-  html.close();
-  if (!html) throw Error("cannot write " + html_path);
+  io::WriteFileAtomically(out.File("calibration_per_iteration.csv"), csv.str());
+  io::WriteFileAtomically(out.File("timings.yaml"), TimingsYaml(result));
+  io::WriteFileAtomically(out.File("report.html"), CalibrationReportHtml(result));
+  out.Commit();
 }
 
 std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {

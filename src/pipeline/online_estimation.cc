@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iomanip>
 #include <optional>
+#include <sstream>
 #include <tuple>
 #include <utility>
 
@@ -16,6 +17,7 @@
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/io/output_files.h"
 #include "autocal/io/tum_trajectory.h"
 #include "calibration_steps.h"
 #include "sweep_reader.h"
@@ -180,7 +182,7 @@ estimation::Keyframe StartFromGnssAndImu(const io::Dataset& dataset,
 
 void WriteStatesCsv(const std::string& path,
                     const std::vector<estimation::SlidingWindowState>& states) {
-  std::ofstream csv(path);
+  std::ostringstream csv;
   csv << "t_s,p_W_I_x_m,p_W_I_y_m,p_W_I_z_m,q_W_I_x,q_W_I_y,q_W_I_z,q_W_I_w,"
          "v_W_I_x_m_s,v_W_I_y_m_s,v_W_I_z_m_s,b_g_x_rad_s,b_g_y_rad_s,b_g_z_rad_s,"
          "b_a_x_m_s2,b_a_y_m_s2,b_a_z_m_s2\n";
@@ -197,8 +199,7 @@ void WriteStatesCsv(const std::string& path,
     row(x.b_a);
     csv << '\n';
   }
-  csv.close();
-  if (!csv) throw Error("cannot write " + path);
+  io::WriteFileAtomically(path, csv.str());
 }
 
 }  // namespace
@@ -390,17 +391,14 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
 
 void WriteOnlineEstimationResult(const std::string& directory,
                                  const OnlineEstimationResult& result) {
-  std::error_code error;
-  std::filesystem::create_directories(directory, error);
-  if (error) throw Error("cannot create " + directory + ": " + error.message());
-  io::WriteCalibrationYaml(directory + "/calibration.yaml", result.calibration);
-  io::WriteTumTrajectory(directory + "/trajectory.tum", result.trajectory);
+  io::StagedDirectory out(directory, io::OutputKind::kResult);
+  io::WriteCalibrationYaml(out.File("calibration.yaml"), result.calibration);
+  io::WriteTumTrajectory(out.File("trajectory.tum"), result.trajectory);
   if (!result.smoothed_trajectory.empty()) {
-    io::WriteTumTrajectory(directory + "/trajectory_smoothed.tum", result.smoothed_trajectory);
+    io::WriteTumTrajectory(out.File("trajectory_smoothed.tum"), result.smoothed_trajectory);
   }
-  WriteStatesCsv(directory + "/states.csv", result.states);
-  const std::string csv_path = directory + "/calibration_over_time.csv";
-  std::ofstream csv(csv_path);
+  WriteStatesCsv(out.File("states.csv"), result.states);
+  std::ostringstream csv;
   csv << "t_s,q_I_L_x,q_I_L_y,q_I_L_z,q_I_L_w,p_I_L_x_m,p_I_L_y_m,p_I_L_z_m,"
          "time_offset_lidar_imu_s,wheel_radius_left_m,wheel_radius_right_m,track_width_m,"
          "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m\n";
@@ -408,14 +406,19 @@ void WriteOnlineEstimationResult(const std::string& directory,
   for (const CalibrationSample& s : result.calibration_over_time) {
     const sensors::Calibration& c = s.calibration;
     csv << FormatSeconds(s.t_ns);
-    csv << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z()
-        << ',' << c.q_I_L.w() << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z()
-        << ',' << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','
+    csv << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z() << ',' << c.q_I_L.w()
+        << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z() << ','
+        << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','
         << c.wheel_radius_right_m << ',' << c.track_width_m << ',' << c.p_I_A.x() << ','
         << c.p_I_A.y() << ',' << c.p_I_A.z() << '\n';
   }
-  csv.close();
-  if (!csv) throw Error("cannot write " + csv_path);
+  io::WriteFileAtomically(out.File("calibration_over_time.csv"), csv.str());
+  std::ostringstream timings;
+  timings << "# autocal_estimate wall-clock seconds (differ from run to run)\n"
+          << "seconds_total: " << result.seconds_total << "\n"
+          << "seconds_initialization: " << result.seconds_initialization << "\n";
+  io::WriteFileAtomically(out.File("timings.yaml"), timings.str());
+  out.Commit();
 }
 
 }  // namespace pipeline

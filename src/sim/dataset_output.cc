@@ -3,31 +3,26 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
 namespace sim {
 namespace {
 
-std::ofstream OpenForWriting(const std::string& path) {
-  std::ofstream out(path);
-  if (!out) throw Error("cannot write " + path);
+std::ostringstream Text() {
+  std::ostringstream out;
   out.precision(17);
   return out;
 }
 
-void CloseChecked(std::ofstream* out, const std::string& path) {
-  out->close();
-  if (!*out) throw Error("failed writing " + path);
-}
-
 // groundtruth/imu_bias.csv: the true biases at every IMU sample.
 void WriteImuBias(const ImuLog& imu, const std::string& path) {
-  std::ofstream out = OpenForWriting(path);
+  std::ostringstream out = Text();
   out << "t_ns,bgx,bgy,bgz,bax,bay,baz\n";
   for (size_t k = 0; k < imu.samples.size(); ++k) {
     const Eigen::Vector3d& g = imu.gyro_bias[k];
@@ -35,24 +30,29 @@ void WriteImuBias(const ImuLog& imu, const std::string& path) {
     out << imu.samples[k].t_ns << ',' << g.x() << ',' << g.y() << ',' << g.z() << ',' << a.x()
         << ',' << a.y() << ',' << a.z() << '\n';
   }
-  CloseChecked(&out, path);
+  io::WriteFileAtomically(path, out.str());
 }
 
 // groundtruth/gnss.csv: per fix, the true antenna position in W and whether it is an outlier.
 void WriteGnssTruth(const GnssLog& gnss, const std::string& path) {
-  std::ofstream out = OpenForWriting(path);
+  std::ostringstream out = Text();
   out << "t_ns,east_m,north_m,up_m,outlier\n";
   for (size_t i = 0; i < gnss.fixes.size(); ++i) {
     const Eigen::Vector3d& p = gnss.true_p_W_A[i];
     out << gnss.fixes[i].t_ns << ',' << p.x() << ',' << p.y() << ',' << p.z() << ','
         << (gnss.is_outlier[i] ? 1 : 0) << '\n';
   }
-  CloseChecked(&out, path);
+  io::WriteFileAtomically(path, out.str());
 }
 
 }  // namespace
 
-SimulationSummary WriteDataset(const Simulator& simulator, const std::string& directory) {
+// The dataset is written into a staging directory beside `directory` and renamed to it only
+// when every file is written (io/output_files.h): a run stopped midway leaves no directory
+// that looks like a dataset.
+SimulationSummary WriteDataset(const Simulator& simulator, const std::string& final_directory) {
+  io::StagedDirectory staged(final_directory, io::OutputKind::kDataset);
+  const std::string& directory = staged.staging();
   io::DatasetWriter writer(directory);
   writer.WriteSensorsConfig(simulator.sensors_config());
   const ImuLog imu = simulator.GenerateImu();
@@ -72,6 +72,7 @@ SimulationSummary WriteDataset(const Simulator& simulator, const std::string& di
   const std::filesystem::path truth_dir = std::filesystem::path(directory) / "groundtruth";
   WriteImuBias(imu, (truth_dir / "imu_bias.csv").string());
   if (simulator.options().gnss.enabled) WriteGnssTruth(gnss, (truth_dir / "gnss.csv").string());
+  staged.Commit();
   return Summarize(simulator, imu, wheel, gnss, simulator.num_sweeps(), points);
 }
 

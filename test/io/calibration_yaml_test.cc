@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <fstream>
+#include <iostream>
 #include <iterator>
 #include <string>
 
@@ -265,6 +266,60 @@ TEST(CalibrationYamlTest, SyntaxErrorAndEmptyFile) {
                    "T_I_L: {q_xyzw: [0, 0, 0, 1], p_m: [0, 0, 0]\ntrack_width_m: 1\n",
                    kReadCalibration, 2, 1, "YAML syntax error: end of map flow not found");
   ExpectParseError("empty.yaml", "", kReadCalibration, 1, 1, "empty YAML document");
+}
+
+// A written result states that it is whole: every proper prefix of it (a run stopped while
+// writing, a disk that filled up) is refused with a ParseError naming the file, never read
+// as a calibration whose missing blocks take their defaults. Before the format key and end
+// line, 252 of the 1,954 prefixes of a real result parsed.
+TEST(CalibrationYamlTest, EveryPrefixOfAWrittenResultIsRefused) {
+  const std::string path = OutPath("whole.yaml");
+  WriteCalibrationYaml(path, FullResult());
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 1000u);
+  EXPECT_NO_THROW(ReadCalibrationYaml(path));
+  const std::string cut = OutPath("cut.yaml");
+  size_t accepted = 0;
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    WriteText(cut, bytes.substr(0, n));
+    try {
+      ReadCalibrationYaml(cut);
+      ++accepted;
+      ADD_FAILURE() << "the first " << n << " of " << bytes.size() << " bytes were accepted";
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.location().file, cut);
+    }
+  }
+  std::cout << "prefixes accepted: " << accepted << " of " << bytes.size() << "\n";
+  EXPECT_EQ(accepted, 0u);
+}
+
+TEST(CalibrationYamlTest, AWrittenResultStatesItsFormatAndEnd) {
+  const std::string path = OutPath("marked.yaml");
+  WriteCalibrationYaml(path, FullResult());
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(bytes, HasSubstr("\nformat: autocal_calibration_1\nT_I_L:"));
+  EXPECT_THAT(bytes, ::testing::EndsWith("\n# end of autocal calibration\n"));
+  // The end line is a comment: moving it elsewhere or dropping a block is a cut file too.
+  const std::string without_end = bytes.substr(0, bytes.size() - 29);
+  ExpectParseError("no_end.yaml", without_end, kReadCalibration, 0, 0,
+                   "ends without its last line '# end of autocal calibration'");
+  const size_t t_i_v = bytes.find("T_I_V:");
+  const size_t after = bytes.find("solver:");
+  ExpectParseError("no_t_i_v.yaml", bytes.substr(0, t_i_v) + bytes.substr(after), kReadCalibration,
+                   3, 1, "block 'T_I_V' is missing");
+  ExpectParseError("other_format.yaml",
+                   "format: autocal_calibration_2\ntrack_width_m: 1.5\n# end of autocal "
+                   "calibration\n",
+                   kReadCalibration, 1, 9, "expected 'autocal_calibration_1'");
+  // The schema embedded in sensors.yaml takes no format key.
+  ExpectParseError("format_in_sensors.yaml",
+                   "imu:\n  gyroscope_noise_density: 1e-4\n  gyroscope_random_walk: 1e-5\n"
+                   "  accelerometer_noise_density: 1e-3\n  accelerometer_random_walk: 1e-3\n"
+                   "  update_rate: 200\nnominal_calibration:\n  format: autocal_calibration_1\n",
+                   kReadSensors, 8, 11, "only a calibration file has a format");
 }
 
 TEST(CalibrationYamlTest, ImplausibleSensorValues) {

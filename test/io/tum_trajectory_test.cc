@@ -1,6 +1,9 @@
 #include "autocal/io/tum_trajectory.h"
 
+#include <algorithm>
 #include <fstream>
+#include <iostream>
+#include <iterator>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -38,7 +41,7 @@ TEST(TumTrajectoryTest, RoundTripsPosesAndNanosecondStamps) {
   std::ifstream in(OutPath("drive.tum"));
   std::string header;
   std::getline(in, header);
-  EXPECT_EQ(header, "# timestamp tx ty tz qx qy qz qw");
+  EXPECT_EQ(header, "# autocal_trajectory_1 timestamp tx ty tz qx qy qz qw");
 }
 
 TEST(TumTrajectoryTest, ReadsShorterDecimalsAndNegativeStamps) {
@@ -75,6 +78,55 @@ TEST(TumTrajectoryTest, BadInput) {
   ExpectParseError("duplicate.tum", head + "1.0 0 0 0 0 0 0 1\n", 3, 1, "duplicate timestamp");
   ExpectParseError("backwards.tum", head + "0.5 0 0 0 0 0 0 1\n", 3, 1, "non-monotonic timestamp");
   ExpectParseError("quaternion.tum", head + "2.0 0 0 0 0 0 0 2\n", 3, 11, "norm 2");
+}
+
+std::string FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// A written trajectory states that it is whole (first line, "# end: N poses" last): every
+// proper prefix of it is refused, so a file cut mid-number or at a line break is never read
+// as a shorter trajectory. Before, a trajectory cut at 8,192 bytes passed evaluation.
+TEST(TumTrajectoryTest, EveryPrefixOfAWrittenTrajectoryIsRefused) {
+  Trajectory trajectory = test_data::MakeDrive(2.0).trajectory;
+  trajectory.resize(std::min<size_t>(trajectory.size(), 8));
+  const std::string path = OutPath("whole.tum");
+  WriteTumTrajectory(path, trajectory);
+  const std::string bytes = FileBytes(path);
+  EXPECT_THAT(bytes,
+              ::testing::EndsWith("\n# end: " + std::to_string(trajectory.size()) + " poses\n"));
+  ASSERT_EQ(ReadTumTrajectory(path).size(), trajectory.size());
+  const std::string cut = OutPath("cut.tum");
+  size_t accepted = 0;
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    WriteText(cut, bytes.substr(0, n));
+    try {
+      ReadTumTrajectory(cut);
+      ++accepted;
+      ADD_FAILURE() << "the first " << n << " of " << bytes.size() << " bytes were accepted";
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.location().file, cut);
+    }
+  }
+  std::cout << "prefixes accepted: " << accepted << " of " << bytes.size() << "\n";
+  EXPECT_EQ(accepted, 0u);
+}
+
+TEST(TumTrajectoryTest, AWrittenTrajectoryChecksItsEndLine) {
+  const std::string head =
+      "# autocal_trajectory_1 timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n";
+  const std::string two = head + "2.0 0 0 0 0 0 0 1\n";
+  WriteText(OutPath("whole2.tum"), two + "# end: 2 poses\n");
+  EXPECT_EQ(ReadTumTrajectory(OutPath("whole2.tum")).size(), 2u);
+  ExpectParseError("count.tum", two + "# end: 3 poses\n", 4, 1, "counts 3 poses");
+  ExpectParseError("after_end.tum", head + "# end: 1 poses\n2.0 0 0 0 0 0 0 1\n", 4, 1,
+                   "text after the end line");
+  ExpectParseError("no_break.tum", two + "# end: 2 poses", 0, 0, "it was cut short");
+  ExpectParseError("no_end.tum", two, 0, 0, "ends without its end line '# end: 2 poses'");
+  // Another tool's file has no such lines; an empty one or one without poses is refused.
+  ExpectParseError("empty.tum", "", 0, 0, "the file is empty");
+  ExpectParseError("comments.tum", "# timestamp tx ty tz qx qy qz qw\n", 0, 0, "holds no poses");
 }
 
 }  // namespace

@@ -15,18 +15,22 @@
 //   solver: {key: value, ...}                       # free-form solver summary
 //   residuals: {lidar: {rms: 0.02, ...}, imu: {...}} # statistics per sensor
 //
-// Every block is optional (a missing block keeps the sensors::Calibration default);
-// sigma and observable are optional inside a block. A scalar block may be written as a
+// A file written by WriteCalibrationYaml states that it is whole: its first key is
+// `format: autocal_calibration_1` and its last line the comment `# end of autocal calibration`.
+// A file with that format key must end with that line and hold all seven blocks, so that a
+// file cut while it was written is refused (ParseError) instead of read with defaults.
+// In a file without the format key (hand-written, or the nominal_calibration section of
+// sensors.yaml) every block is optional (a missing block keeps the sensors::Calibration
+// default); sigma and observable are optional inside a block. A scalar block may be written as a
 // bare number and p_I_A_m as a bare [x, y, z]. Unknown keys, wrong types, non-finite
 // numbers and quaternions whose norm is off 1 by more than 1e-3 are ParseErrors with
 // file, line and column.
 
+#include <Eigen/Core>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "autocal/sensors/calibration.h"
 
@@ -79,8 +83,9 @@ struct CalibrationFile {
 CalibrationFile ReadCalibrationYaml(const std::string& path);
 
 // Writes `calibration` so that ReadCalibrationYaml returns exactly the same values
-// (shortest round-trip decimal for every double). Throws autocal::Error on I/O failure or
-// a non-finite value.
+// (shortest round-trip decimal for every double), with the format key and end marker, to a
+// temporary file renamed into place (io/output_files.h). Throws autocal::Error on I/O failure
+// or a non-finite value.
 void WriteCalibrationYaml(const std::string& path, const CalibrationFile& calibration);
 
 // The same schema as text, for embedding (sensors.yaml's nominal_calibration section).

@@ -1,0 +1,241 @@
+// The command-line tools as a user runs them: a bad output location or dataset is refused
+// before any work, and a run stopped with SIGKILL (no chance to clean up) leaves nothing that
+// looks complete: no dataset, no result directory, the previous result untouched.
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "autocal/io/dataset.h"
+#include "support/test_paths.h"
+
+#ifndef AUTOCAL_TOOL_DIR
+#error "test/CMakeLists.txt defines AUTOCAL_TOOL_DIR for this test"
+#endif
+
+namespace autocal {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+
+std::string Tool(const std::string& name) { return (fs::path(AUTOCAL_TOOL_DIR) / name).string(); }
+
+std::string Read(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// Starts `args` (args[0] is the program) with stdout and stderr going to `log`.
+pid_t StartTool(const std::vector<std::string>& args, const fs::path& log) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 1);
+    dup2(fd, 2);
+    std::vector<char*> argv;
+    for (const std::string& arg : args) argv.push_back(const_cast<char*>(arg.c_str()));
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+struct Finished {
+  int exit_code = -1;  // -1 when killed by a signal
+  double seconds = 0.0;
+  std::string output;
+};
+
+Finished RunTool(const std::vector<std::string>& args, const fs::path& log) {
+  const auto start = std::chrono::steady_clock::now();
+  const pid_t pid = StartTool(args, log);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  Finished f;
+  f.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  f.output = Read(log);
+  return f;
+}
+
+// Kills the program with SIGKILL after `delay`; true when it was still running then.
+bool KillAfter(pid_t pid, std::chrono::milliseconds delay) {
+  std::this_thread::sleep_for(delay);
+  const bool running = kill(pid, SIGKILL) == 0;
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return running && WIFSIGNALED(status);
+}
+
+// test::OutputDir(name), emptied: a test's earlier run leaves nothing behind.
+fs::path CleanDir(const std::string& name) {
+  const fs::path dir = test::OutputDir(name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Entries of `directory` whose names start with `prefix`.
+std::vector<std::string> Named(const fs::path& directory, const std::string& prefix) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(directory)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) == 0) names.push_back(name);
+  }
+  return names;
+}
+
+class ToolOutputTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (const char* tool : {"autocal_simulate", "autocal_calibrate", "autocal_estimate"}) {
+      ASSERT_TRUE(fs::exists(Tool(tool))) << Tool(tool) << " is not built";
+    }
+  }
+};
+
+// Each refusal takes well under a second (the solve it used to follow took 79-104 s) and is
+// one line.
+TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
+  const fs::path dir = CleanDir("refusals");
+  std::ofstream(dir / "a_file") << "x";
+  fs::create_directories(dir / "empty");
+  const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  struct Case {
+    std::vector<std::string> args;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {{Tool("autocal_calibrate"), "--dataset=" + (dir / "empty").string(), "--problem=" + problem,
+        "--output=" + (dir / "a_file").string()},
+       "it exists and is not a directory"},
+      {{Tool("autocal_calibrate"), "--dataset=" + (dir / "empty").string(), "--problem=" + problem,
+        "--output=" + (dir / "r").string()},
+       "is an empty directory, not a dataset"},
+      {{Tool("autocal_estimate"), "--dataset=" + (dir / "a_file").string(), "--problem=" + problem,
+        "--output=" + (dir / "missing" / "r").string()},
+       "/missing' does not exist"},
+      {{Tool("autocal_estimate"), "--dataset=" + dir.string(), "--problem=" + problem,
+        "--output=" + (dir / "r").string()},
+       "is not a dataset: it has no imu.csv"},
+      {{Tool("autocal_calibrate"), "--dataset=" + dir.string(), "--problem=" + problem,
+        "--output=" + (dir / "r").string(), "--threads=0"},
+       "is not a dataset"},
+      {{Tool("autocal_simulate"), "--duration_s=600", "--out=" + (dir / "a_file").string()},
+       "it exists and is not a directory"},
+      {{Tool("autocal_simulate"), "--duration_s=600", "--out=" + dir.string()},
+       "which is not part of an autocal dataset"},
+      {{Tool("autocal_register"), "--source=s.ply", "--target=t.ply", "--output=" + dir.string()},
+       "it is a directory"},
+  };
+  for (const Case& c : cases) {
+    const Finished f = RunTool(c.args, dir / "log.txt");
+    EXPECT_EQ(f.exit_code, 1) << c.args[0] << ": " << f.output;
+    EXPECT_THAT(f.output, HasSubstr(c.message)) << c.args[0];
+    EXPECT_LT(f.seconds, 5.0) << c.args[0];
+    EXPECT_EQ(std::count(f.output.begin(), f.output.end(), '\n'), 1) << "one line: " << f.output;
+  }
+  EXPECT_FALSE(fs::exists(dir / "r"));
+}
+
+// --threads is recognized by both solving tools: a value out of range is refused naming the
+// problem file's key it replaces, a valid one passes on to the dataset (here a bare imu.csv
+// header, refused by the reader).
+TEST_F(ToolOutputTest, ThreadsIsAnOverrideOfTheProblemFile) {
+  const fs::path dir = CleanDir("threads");
+  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  for (const char* tool : {"autocal_calibrate", "autocal_estimate"}) {
+    const Finished bad = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+                                  "--output=" + (dir / "r").string(), "--threads=-1"},
+                                 dir / "log.txt");
+    EXPECT_EQ(bad.exit_code, 1) << tool;
+    EXPECT_THAT(bad.output, HasSubstr("--threads must be 0 (the problem file's "
+                                      "solver.num_threads) or 1..1024, got -1"))
+        << tool;
+    const Finished good = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+                                   "--output=" + (dir / "r").string(), "--threads=3"},
+                                  dir / "log.txt");
+    EXPECT_EQ(good.exit_code, 1) << tool;
+    EXPECT_THAT(good.output, HasSubstr("no IMU samples after the header")) << tool;
+    EXPECT_THAT(good.output, ::testing::Not(HasSubstr("--threads"))) << tool;
+  }
+  EXPECT_FALSE(fs::exists(dir / "r"));
+}
+
+// A simulation stopped while it writes sweeps leaves only OUT.partial-XXXXXX; one that runs
+// to the end leaves the whole dataset and no staging directory.
+TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
+  const fs::path dir = CleanDir("simulate");
+  const fs::path out = dir / "drive";
+  // 64 beams for 600 s: minutes of sweeps, killed once it has written a few.
+  const pid_t pid = StartTool(
+      {Tool("autocal_simulate"), "--duration_s=600", "--lidar_beams=64", "--out=" + out.string()},
+      dir / "log.txt");
+  const auto sweeps_written = [&] {
+    for (const std::string& name : Named(dir, "drive.partial-")) {
+      std::error_code error;
+      const fs::path lidar = dir / name / "lidar";
+      if (fs::is_directory(lidar, error) &&
+          std::distance(fs::directory_iterator(lidar, error), fs::directory_iterator()) >= 3) {
+        return true;
+      }
+    }
+    return false;
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!sweeps_written() && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(sweeps_written()) << "no sweep written within 60 s";
+  ASSERT_TRUE(KillAfter(pid, std::chrono::milliseconds(0))) << "finished before the kill";
+  EXPECT_FALSE(fs::exists(out));
+  ASSERT_EQ(Named(dir, "drive.partial-").size(), 1u);
+
+  const Finished f = RunTool(
+      {Tool("autocal_simulate"), "--duration_s=3", "--lidar_beams=16", "--out=" + out.string()},
+      dir / "log.txt");
+  ASSERT_EQ(f.exit_code, 0) << f.output;
+  EXPECT_NO_THROW(io::ReadDataset(out.string()));
+  EXPECT_EQ(Named(dir, "drive.partial-").size(), 1u);  // the stopped run's, nothing new
+}
+
+// A calibration stopped midway leaves the previous result as it was.
+TEST_F(ToolOutputTest, AStoppedCalibrationLeavesThePreviousResult) {
+  const fs::path dir = CleanDir("calibrate");
+  const fs::path dataset = dir / "drive";
+  const Finished sim = RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16",
+                                "--seed=7", "--out=" + dataset.string()},
+                               dir / "log.txt");
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const fs::path result = dir / "result";
+  fs::create_directories(result);
+  std::ofstream(result / "calibration.yaml") << "previous\n";
+  const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  for (const char* tool : {"autocal_calibrate", "autocal_estimate"}) {
+    const pid_t pid = StartTool({Tool(tool), "--dataset=" + dataset.string(),
+                                 "--problem=" + problem, "--output=" + result.string()},
+                                dir / "log.txt");
+    ASSERT_TRUE(KillAfter(pid, std::chrono::milliseconds(2000))) << tool << " finished first";
+    EXPECT_EQ(Read(result / "calibration.yaml"), "previous\n") << tool;
+    EXPECT_FALSE(fs::exists(result / "trajectory.tum")) << tool;
+  }
+}
+
+}  // namespace
+}  // namespace autocal
