@@ -129,6 +129,36 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
   AddBlockPriors(*blocks, problem->loss.prior, p);
 }
 
+void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gnss, int64_t t0_ns) {
+  const auto require = [&](bool used, const auto& samples, const char* file) {
+    if (!used) return;
+    for (const auto& sample : samples) {
+      if (sample.t_ns > t0_ns) return;
+    }
+    throw Error(
+        "dataset " + dataset.directory + ": " + file + ": 0 of " + std::to_string(samples.size()) +
+        " samples after the online estimator's initial state at " + std::to_string(t0_ns) +
+        " ns (the log's last is at " + std::to_string(samples.empty() ? 0 : samples.back().t_ns) +
+        " ns); nothing was estimated");
+  };
+  require(use_wheel, dataset.wheel, "wheel.csv");
+  require(use_gnss, dataset.gnss, "gnss.csv");
+}
+
+void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use_gnss,
+                            const estimation::SlidingWindowCounters& counters) {
+  const auto require = [&](bool used, int64_t accepted, size_t total, const char* sensor,
+                           const char* file) {
+    if (!used || accepted > 0) return;
+    throw Error("dataset " + dataset.directory + ": no " + sensor +
+                " sample reached the sliding window (" + file + ": 0 of " + std::to_string(total) +
+                " samples after the initial state, in order and not late); nothing was "
+                "estimated");
+  };
+  require(use_wheel, counters.wheel_accepted, dataset.wheel.size(), "wheel", "wheel.csv");
+  require(use_gnss, counters.gnss_accepted, dataset.gnss.size(), "GNSS", "gnss.csv");
+}
+
 std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
   std::vector<ceres::ResidualBlockId> all;
   problem->GetResidualBlocks(&all);

@@ -1,13 +1,13 @@
 #include "estimation/point_selection.h"
 
-#include <gtest/gtest.h>
-
 #include <cmath>
 #include <cstdint>
 #include <random>
 #include <set>
 #include <tuple>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 

@@ -1,13 +1,13 @@
 #include "autocal/pipeline/offline_calibration.h"
 
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <unistd.h>
-
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
