@@ -233,13 +233,13 @@ StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOpti
   StillStart out = DetectStillStartAsLogged(imu, options);
   if (out.found) return out;
   if (const auto degrees = internal::FindGyroInDegreesAtRest(imu, options)) {
-    out.reason =
-        "the gyroscope looks like deg/s, autocal expects rad/s: the accelerometer is "
-        "steady for " +
-        FormatFixed(degrees->duration_s, 1) + " s from sample " +
-        std::to_string(degrees->first_sample) + ", where the gyro scatters by " +
-        FormatFixed(degrees->gyro_std_as_read, 4) +
-        " (per-axis std), a still gyro's noise only when read as deg/s";
+    // A hint, not a verdict: a very noisy gyro in rad/s scatters like this too (the dataset
+    // reader, which knows the stated noise density, decides).
+    out.reason += "; yet the accelerometer is steady for " + FormatFixed(degrees->duration_s, 1) +
+                  " s from sample " + std::to_string(degrees->first_sample) +
+                  ", where the gyro scatters by " + FormatFixed(degrees->gyro_std_as_read, 4) +
+                  " (per-axis std), a still gyro's noise if it is read as deg/s: is the gyro "
+                  "logged in deg/s? autocal expects rad/s";
   }
   return out;
 }

@@ -147,18 +147,21 @@ void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& sa
   }
   if (checks.check_gyro_unit_at_rest) {
     // A log that never turns fast passes the percentile; at rest the noise tells.
-    if (const auto degrees = estimation::internal::FindGyroInDegreesAtRest(
-            samples, estimation::StillStartOptions())) {
+    const double stated_std_rad_s =
+        checks.gyroscope_noise_density * std::sqrt(checks.update_rate_hz);
+    const auto degrees =
+        estimation::internal::FindGyroInDegreesAtRest(samples, estimation::StillStartOptions());
+    if (degrees && degrees->gyro_std_as_read > checks.max_still_noise_ratio * stated_std_rad_s) {
       const ImuRowPosition& row = rows[degrees->first_sample];
       reader.FailAt(
           row.line, row.gyro_column,
           Printf("gyroscope seems to be in deg/s, autocal expects rad/s: from this row the "
                  "accelerometer is steady for %.1f s (the vehicle at rest), but the gyro "
                  "scatters by %.3g (per-axis std) around %.3g; read as deg/s that is %.3g rad/s "
-                 "around %.3g rad/s, a still gyro's noise and bias",
+                 "around %.3g rad/s, a still gyro's noise (stated: %.3g rad/s) and bias",
                  degrees->duration_s, degrees->gyro_std_as_read, degrees->gyro_mean_as_read,
                  degrees->gyro_std_as_read * M_PI / 180.0,
-                 degrees->gyro_mean_as_read * M_PI / 180.0));
+                 degrees->gyro_mean_as_read * M_PI / 180.0, stated_std_rad_s));
     }
   }
   double sum = 0.0;

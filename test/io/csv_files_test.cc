@@ -390,12 +390,13 @@ TEST(CsvFilesTest, ImuGnssAndLidarStampsInMicroseconds) {
 
 // ---- a gyroscope in deg/s on a drive that never turns fast ----
 
-// `still_s` at rest (gyro noise of a MEMS IMU, 0.002 rad/s per axis, and a bias), then a
-// straight drive with gentle swerves (|omega| <= 0.04 rad/s) and vibration, at 200 Hz; the
-// gyro multiplied by `gyro_scale` (180 / pi: logged in deg/s).
-sensors::ImuSamples GentleDrive(double still_s, double gyro_scale) {
+// `still_s` at rest (gyro noise of a MEMS IMU, 0.002 rad/s per axis unless given, and a bias), then
+// a straight drive with gentle swerves (|omega| <= 0.04 rad/s) and vibration, at 200 Hz; the gyro
+// multiplied by `gyro_scale` (180 / pi: logged in deg/s).
+sensors::ImuSamples GentleDrive(double still_s, double gyro_scale,
+                                double gyro_noise_rad_s = 0.002) {
   std::mt19937 rng(11);
-  std::normal_distribution<double> gyro_noise(0.0, 0.002);
+  std::normal_distribution<double> gyro_noise(0.0, gyro_noise_rad_s);
   std::normal_distribution<double> accel_noise(0.0, 0.01);
   std::normal_distribution<double> vibration(0.0, 0.3);
   const Eigen::Vector3d bias(0.003, -0.002, 0.001);
@@ -431,6 +432,18 @@ TEST(CsvFilesTest, GyroInDegreesPerSecondOnADriveThatNeverTurnsFast) {
   ImuPlausibilityOptions checks;
   checks.check_gyro_unit_at_rest = false;
   EXPECT_NO_THROW(ReadImuCsv(OutPath("gentle_deg_s.csv"), checks));
+}
+
+// A noisy gyro in rad/s (0.03 rad/s per sample) scatters at rest like a good one in deg/s:
+// the noise sensors.yaml states tells them apart.
+TEST(CsvFilesTest, ANoisyGyroIsNotTakenForDegreesPerSecond) {
+  WriteImuCsv(OutPath("noisy_rad_s.csv"), GentleDrive(2.0, 1.0, 0.03));
+  ImuPlausibilityOptions checks;
+  checks.gyroscope_noise_density = 0.03 / std::sqrt(checks.update_rate_hz);
+  EXPECT_NO_THROW(ReadImuCsv(OutPath("noisy_rad_s.csv"), checks));
+  // Stated 15 times better than it is, the same log looks like deg/s.
+  checks.gyroscope_noise_density /= 15.0;
+  EXPECT_THROW(ReadImuCsv(OutPath("noisy_rad_s.csv"), checks), ParseError);
 }
 
 TEST(CsvFilesTest, ASteadyTurnIsNotTakenForDegreesPerSecond) {
