@@ -2,11 +2,8 @@
 // is defined behaviour (a result or an autocal::Error), never an overflowing float-to-integer
 // conversion or an endless loop.
 
-#include <gtest/gtest.h>
-
 #include <Eigen/Core>
-#include <cmath>
-#include <limits>
+#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/lidar/neighbor_grid.h"
