@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
+#include <string>
 
 #include <Eigen/SVD>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/gyro_unit.h"
 
 namespace autocal {
 namespace estimation {
@@ -115,7 +119,10 @@ Eigen::Quaterniond PositiveW(const Eigen::Quaterniond& q) {
 
 }  // namespace
 
-StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOptions& options) {
+namespace {
+
+StillStart DetectStillStartAsLogged(const sensors::ImuSamples& imu,
+                                    const StillStartOptions& options) {
   StillStart out;
   if (imu.size() < 2) {
     out.reason = "too few IMU samples";
@@ -182,6 +189,58 @@ StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOpti
   out.q_W_I = Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
               Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
   out.found = true;
+  return out;
+}
+
+}  // namespace
+
+namespace internal {
+
+std::optional<GyroInDegreesAtRest> FindGyroInDegreesAtRest(const sensors::ImuSamples& imu,
+                                                           const StillStartOptions& options) {
+  if (imu.size() < 2 || DetectStillStartAsLogged(imu, options).found) return std::nullopt;
+  // The search covers the first max_search_s seconds (and the block that crosses it).
+  const int64_t end_ns =
+      imu.front().t_ns + SecondsToNs(options.max_search_s + options.min_duration_s);
+  sensors::ImuSamples scaled;
+  for (const sensors::ImuSample& sample : imu) {
+    if (sample.t_ns > end_ns) break;
+    scaled.push_back(sample);
+    scaled.back().gyro_rad_s *= M_PI / 180.0;
+  }
+  const StillStart in_degrees = DetectStillStartAsLogged(scaled, options);
+  if (!in_degrees.found) return std::nullopt;
+  const auto in_range = [](int64_t t) {
+    return [t](const sensors::ImuSample& s) { return s.t_ns >= t; };
+  };
+  const size_t first = static_cast<size_t>(
+      std::find_if(imu.begin(), imu.end(), in_range(in_degrees.t_begin_ns)) - imu.begin());
+  const size_t last = static_cast<size_t>(
+      std::find_if(imu.begin(), imu.end(), in_range(in_degrees.t_end_ns + 1)) - imu.begin());
+  const AxisStats g = Stats(imu, first, last, Gyro);
+  if (!(g.std.maxCoeff() > options.max_gyro_std_rad_s)) return std::nullopt;
+  GyroInDegreesAtRest out;
+  out.first_sample = first;
+  out.duration_s = SecondsBetween(in_degrees.t_begin_ns, in_degrees.t_end_ns);
+  out.gyro_std_as_read = g.std.maxCoeff();
+  out.gyro_mean_as_read = g.mean.norm();
+  return out;
+}
+
+}  // namespace internal
+
+StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOptions& options) {
+  StillStart out = DetectStillStartAsLogged(imu, options);
+  if (out.found) return out;
+  if (const auto degrees = internal::FindGyroInDegreesAtRest(imu, options)) {
+    // A hint, not a verdict: a very noisy gyro in rad/s scatters like this too (the dataset
+    // reader, which knows the stated noise density, decides).
+    out.reason += "; yet the accelerometer is steady for " + FormatFixed(degrees->duration_s, 1) +
+                  " s from sample " + std::to_string(degrees->first_sample) +
+                  ", where the gyro scatters by " + FormatFixed(degrees->gyro_std_as_read, 4) +
+                  " (per-axis std), a still gyro's noise if it is read as deg/s: is the gyro "
+                  "logged in deg/s? autocal expects rad/s";
+  }
   return out;
 }
 

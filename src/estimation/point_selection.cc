@@ -1,8 +1,12 @@
 #include "estimation/point_selection.h"
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
+
+#include "autocal/common/error.h"
 
 namespace autocal {
 namespace estimation {
@@ -17,8 +21,21 @@ std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m
   constexpr int64_t kHalfRange = int64_t{1} << 20;
   constexpr uint64_t kEmpty = ~uint64_t{0};
   const double inv = 1.0 / voxel_m;
-  const auto cell = [inv](double x) {
-    return static_cast<uint64_t>(FloorToInt(x * inv) + kHalfRange) & 0x1FFFFF;
+  if (!(voxel_m > 0.0) || !std::isfinite(voxel_m) || !std::isfinite(inv)) {
+    throw Error(
+        "OnePointPerVoxel: the voxel size must be positive, finite and not subnormal, "
+        "got " +
+        std::to_string(voxel_m) + " m");
+  }
+  // The voxel index of a coordinate, checked against the grid before any conversion to an
+  // integer (a 1e-300 m voxel would overflow it); false beyond the grid or for NaN.
+  const auto cell = [inv](double x, uint64_t* index) {
+    const double v = x * inv;
+    if (!(v > -static_cast<double>(kHalfRange) && v < static_cast<double>(kHalfRange))) {
+      return false;
+    }
+    *index = static_cast<uint64_t>(FloorToInt(v) + kHalfRange) & 0x1FFFFF;
+    return true;
   };
   // The occupied voxels in an open-addressing table at most half full (linear probing,
   // Fibonacci hashing): a sweep's tens of thousands of points without a node allocation each.
@@ -31,7 +48,9 @@ std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m
     const Eigen::Vector3d p = cloud.points.col(i);
     const double range2_m2 = p.squaredNorm();
     if (range2_m2 < min_range_m * min_range_m || range2_m2 > max_range2_m2) continue;
-    const uint64_t key = (cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z());
+    uint64_t ix = 0, iy = 0, iz = 0;
+    if (!cell(p.x(), &ix) || !cell(p.y(), &iy) || !cell(p.z(), &iz)) continue;
+    const uint64_t key = (ix << 42) | (iy << 21) | iz;
     uint64_t slot = (key * 0x9E3779B97F4A7C15ull) >> (64 - bits);
     while (table[slot] != kEmpty && table[slot] != key) slot = (slot + 1) & mask;
     if (table[slot] == kEmpty) {

@@ -21,7 +21,9 @@ inline int64_t FloorToInt(double x) {
 
 // Indices of one point per occupied voxel of edge voxel_m (the first met, so a representative
 // keeps its exact coordinates and time), points closer than min_range_m dropped, and those
-// farther than max_range_m when it is positive.
+// farther than max_range_m when it is positive. The grid spans +-2^20 voxels around the sensor
+// (630 km at 0.6 m): points beyond it, or not finite, are dropped. Throws autocal::Error for a
+// voxel_m that is not positive and finite or whose inverse overflows.
 std::vector<int> OnePointPerVoxel(const lidar::PointCloud& cloud, double voxel_m,
                                   double min_range_m, double max_range_m = 0.0);
 

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/estimation/initialization.h"
+#include "estimation/gyro_unit.h"
 #include "io/csv_format.h"
 #include "io/csv_reader.h"
 #include "io/text_format.h"
@@ -143,6 +145,25 @@ void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& sa
                "(limit %.3g rad/s); this is the first row above the limit",
                100.0 * checks.gyro_percentile, percentile, checks.max_gyro_percentile_rad_s));
   }
+  if (checks.check_gyro_unit_at_rest) {
+    // A log that never turns fast passes the percentile; at rest the noise tells.
+    const double stated_std_rad_s =
+        checks.gyroscope_noise_density * std::sqrt(checks.update_rate_hz);
+    const auto degrees =
+        estimation::internal::FindGyroInDegreesAtRest(samples, estimation::StillStartOptions());
+    if (degrees && degrees->gyro_std_as_read > checks.max_still_noise_ratio * stated_std_rad_s) {
+      const ImuRowPosition& row = rows[degrees->first_sample];
+      reader.FailAt(
+          row.line, row.gyro_column,
+          Printf("gyroscope seems to be in deg/s, autocal expects rad/s: from this row the "
+                 "accelerometer is steady for %.1f s (the vehicle at rest), but the gyro "
+                 "scatters by %.3g (per-axis std) around %.3g; read as deg/s that is %.3g rad/s "
+                 "around %.3g rad/s, a still gyro's noise (stated: %.3g rad/s) and bias",
+                 degrees->duration_s, degrees->gyro_std_as_read, degrees->gyro_mean_as_read,
+                 degrees->gyro_std_as_read * M_PI / 180.0,
+                 degrees->gyro_mean_as_read * M_PI / 180.0, stated_std_rad_s));
+    }
+  }
   double sum = 0.0;
   for (const sensors::ImuSample& sample : samples) sum += sample.accel_m_s2.norm();
   const double mean_g = sum / static_cast<double>(samples.size()) / checks.gravity_m_s2;
@@ -164,12 +185,49 @@ void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& sa
   }
 }
 
+// ---- the unit of the stamps ----
+
+// Where a row's stamp is, for messages.
+struct StampPosition {
+  int64_t line = 0;
+  int64_t column = 0;
+};
+
+// Refuses stamps that are not nanoseconds: a sensor cannot run faster than max_rate_hz, so a
+// median interval shorter than 1 / max_rate_hz means another unit (microseconds make a 100 Hz
+// encoder look like 100 kHz). The median ignores bursts and dropouts; ten intervals at least.
+template <typename Samples>
+void CheckStampUnit(const CsvReader& reader, const Samples& samples,
+                    const std::vector<StampPosition>& rows, double max_rate_hz,
+                    const char* sensor) {  // with its article: "an IMU"
+  constexpr size_t kMinIntervals = 10;
+  if (samples.size() < kMinIntervals + 1) return;
+  std::vector<int64_t> intervals_ns(samples.size() - 1);
+  for (size_t i = 1; i < samples.size(); ++i) {
+    intervals_ns[i - 1] = samples[i].t_ns - samples[i - 1].t_ns;
+  }
+  const auto middle = intervals_ns.begin() + static_cast<std::ptrdiff_t>(intervals_ns.size() / 2);
+  std::nth_element(intervals_ns.begin(), middle, intervals_ns.end());
+  const double median_s = static_cast<double>(*middle) * 1e-9;
+  if (median_s * max_rate_hz >= 1.0) return;
+  // The smallest power of 1000 that brings the rate below the limit names the likely unit.
+  const char* unit = median_s * 1e3 * max_rate_hz >= 1.0   ? "microseconds"
+                     : median_s * 1e6 * max_rate_hz >= 1.0 ? "milliseconds"
+                                                           : "a unit finer than nanoseconds";
+  reader.FailAt(rows[1].line, rows[1].column,
+                Printf("t_ns: the median interval between rows is %lld ns, %s at %.0f Hz, "
+                       "beyond any (limit %.0f Hz): the stamps seem to be in %s; autocal expects "
+                       "nanoseconds",
+                       static_cast<long long>(*middle), sensor, 1.0 / median_s, max_rate_hz, unit));
+}
+
 }  // namespace
 
 sensors::ImuSamples ReadImuCsv(const std::string& path, const ImuPlausibilityOptions& checks) {
   CsvReader reader(path, internal::ImuColumns());
   sensors::ImuSamples samples;
   std::vector<ImuRowPosition> rows;
+  std::vector<StampPosition> stamps;
   while (reader.Next()) {
     sensors::ImuSample sample;
     sample.t_ns = reader.Timestamp();
@@ -179,8 +237,10 @@ sensors::ImuSamples ReadImuCsv(const std::string& path, const ImuPlausibilityOpt
     }
     samples.push_back(sample);
     rows.push_back({reader.line(), reader.column(1), reader.column(4)});
+    stamps.push_back({reader.line(), reader.column(0)});
   }
   if (samples.empty()) reader.FailAt(2, 1, "no IMU samples after the header");
+  CheckStampUnit(reader, samples, stamps, kMaxPlausibleImuRateHz, "an IMU");
   CheckImuPlausibility(reader, samples, rows, checks);
   return samples;
 }
@@ -188,6 +248,7 @@ sensors::ImuSamples ReadImuCsv(const std::string& path, const ImuPlausibilityOpt
 sensors::WheelSamples ReadWheelCsv(const std::string& path) {
   CsvReader reader(path, internal::WheelColumns());
   sensors::WheelSamples samples;
+  std::vector<StampPosition> stamps;
   while (reader.Next()) {
     sensors::WheelSample sample;
     sample.t_ns = reader.Timestamp();
@@ -202,13 +263,16 @@ sensors::WheelSamples ReadWheelCsv(const std::string& path) {
       }
     }
     samples.push_back(sample);
+    stamps.push_back({reader.line(), reader.column(0)});
   }
+  CheckStampUnit(reader, samples, stamps, kMaxPlausibleWheelSampleRateHz, "a wheel encoder");
   return samples;
 }
 
 sensors::GnssFixes ReadGnssCsv(const std::string& path) {
   CsvReader reader(path, internal::GnssColumns());
   sensors::GnssFixes fixes;
+  std::vector<StampPosition> stamps;
   while (reader.Next()) {
     sensors::GnssFix fix;
     fix.t_ns = reader.Timestamp();
@@ -222,7 +286,9 @@ sensors::GnssFixes ReadGnssCsv(const std::string& path) {
       if (!(fix.std_enu_m[i] > 0.0)) reader.Fail(4 + i, "a standard deviation must be > 0");
     }
     fixes.push_back(fix);
+    stamps.push_back({reader.line(), reader.column(0)});
   }
+  CheckStampUnit(reader, fixes, stamps, kMaxPlausibleGnssRateHz, "a GNSS receiver");
   return fixes;
 }
 
@@ -230,6 +296,7 @@ std::vector<LidarSweepRef> ReadLidarCsv(const std::string& path,
                                         const std::string& sweep_directory) {
   CsvReader reader(path, internal::LidarColumns());
   std::vector<LidarSweepRef> sweeps;
+  std::vector<StampPosition> stamps;
   while (reader.Next()) {
     LidarSweepRef sweep;
     sweep.t_ns = reader.Timestamp();
@@ -248,7 +315,9 @@ std::vector<LidarSweepRef> ReadLidarCsv(const std::string& path,
       }
     }
     sweeps.push_back(sweep);
+    stamps.push_back({reader.line(), reader.column(0)});
   }
+  CheckStampUnit(reader, sweeps, stamps, kMaxPlausibleSweepRateHz, "a LiDAR");
   return sweeps;
 }
 

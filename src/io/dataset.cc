@@ -71,6 +71,8 @@ Dataset ReadDataset(const std::string& directory, const DatasetReadOptions& opti
   }
   ImuPlausibilityOptions imu_checks = options.imu_checks;
   imu_checks.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  imu_checks.gyroscope_noise_density = dataset.sensors.imu.noise.gyroscope_noise_density;
+  imu_checks.update_rate_hz = dataset.sensors.imu.noise.update_rate_hz;
   dataset.imu = ReadImuCsv(imu_path, imu_checks);
 
   const std::string wheel_path = Join(directory, "wheel.csv");

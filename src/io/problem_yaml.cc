@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -32,6 +33,39 @@ int IntInRange(const YamlFile& file, const YAML::Node& node, const std::string& 
                         std::to_string(max_value) + "], found " + node.Scalar());
   }
   return static_cast<int>(value);
+}
+
+// A number within [min_value, max_value] (`unit` follows the bounds in the message): beyond
+// them a setting is a typo or a unit slip, and extreme magnitudes overflow downstream (a
+// 1e-300 m voxel, a 1e-300 sigma whose information is infinite).
+double DoubleInRange(const YamlFile& file, const YAML::Node& node, const std::string& what,
+                     double min_value, double max_value, const std::string& unit) {
+  const double value = file.Double(node, what);
+  if (!(value >= min_value && value <= max_value)) {
+    file.Fail(node, what + ": must be within [" + internal::FormatDouble(min_value) + ", " +
+                        internal::FormatDouble(max_value) + "] " + unit + ", found " +
+                        node.Scalar());
+  }
+  return value;
+}
+
+// The range of a prior sigma by its key: rotations in degrees, lengths in metres, the time
+// offset in seconds (problems/README.md).
+struct SigmaRange {
+  double min_value;
+  double max_value;
+  const char* unit;
+};
+SigmaRange SigmaRangeOf(const std::string& sigma_key) {
+  if (sigma_key == "prior_sigma_deg") return {1e-6, 180.0, "deg"};
+  if (sigma_key == "prior_sigma_s") return {1e-9, 10.0, "s"};
+  return {1e-6, 100.0, "m"};
+}
+
+double Sigma(const YamlFile& file, const YAML::Node& node, const std::string& what,
+             const std::string& sigma_key) {
+  const SigmaRange range = SigmaRangeOf(sigma_key);
+  return DoubleInRange(file, node, what, range.min_value, range.max_value, range.unit);
 }
 
 // "estimate" | "fixed" | {<sigma_key>: sigma}. Returns true for the prior form, leaving the
@@ -65,7 +99,7 @@ ScalarBlockSetting ParseScalarBlock(const YamlFile& file, const YAML::Node& node
   ScalarBlockSetting setting;
   YAML::Node sigma;
   if (ParseMode(file, node, what, sigma_key, "sigma", &setting.mode, &sigma)) {
-    setting.prior_sigma = file.Positive(sigma, what + "." + sigma_key);
+    setting.prior_sigma = Sigma(file, sigma, what + "." + sigma_key, sigma_key);
   }
   return setting;
 }
@@ -78,10 +112,13 @@ VectorBlockSetting ParseVectorBlock(const YamlFile& file, const YAML::Node& node
   if (ParseMode(file, node, what, sigma_key, "sigma or [x, y, z]", &setting.mode, &sigma)) {
     const std::string name = what + "." + sigma_key;
     if (sigma.IsScalar()) {
-      setting.prior_sigma = Eigen::Vector3d::Constant(file.Positive(sigma, name));
+      setting.prior_sigma = Eigen::Vector3d::Constant(Sigma(file, sigma, name, sigma_key));
     } else {
-      setting.prior_sigma = file.Vector3(sigma, name);
-      if (!(setting.prior_sigma.minCoeff() > 0.0)) file.Fail(sigma, name + ": must be > 0");
+      file.Vector3(sigma, name);  // the shape: a list of three numbers
+      for (int i = 0; i < 3; ++i) {
+        setting.prior_sigma[i] =
+            Sigma(file, sigma[i], name + "[" + std::to_string(i) + "]", sigma_key);
+      }
     }
   }
   return setting;
@@ -226,6 +263,12 @@ constexpr int64_t kMaxIterations = 100000;
 constexpr int64_t kMaxThreads = 1024;
 constexpr int64_t kMaxPointsPerSweep = 10000000;
 constexpr int64_t kMaxSweepStride = 100;
+// A residual voxel below 1 cm is finer than the LiDAR's range noise, one above 20 m leaves a
+// handful of points per sweep; the window's range limit below 1 m keeps no point.
+constexpr double kMinVoxelM = 0.01;
+constexpr double kMaxVoxelM = 20.0;
+constexpr double kMinWindowRangeM = 1.0;
+constexpr double kMaxWindowRangeM = 10000.0;
 
 Problem ParseProblem(const YamlFile& file) {
   const YAML::Node& root = file.root();
@@ -246,8 +289,11 @@ Problem ParseProblem(const YamlFile& file) {
     RejectWithoutSensor(file, window, "window", "max_range_m", problem.sensors.lidar, "lidar");
     if (const YAML::Node n = window["max_range_m"]) {
       problem.window_max_range_m = file.Double(n, "window.max_range_m");
-      if (problem.window_max_range_m < 0.0) {
-        file.Fail(n, "window.max_range_m: must be >= 0 (0: no limit), found " + n.Scalar());
+      if (problem.window_max_range_m != 0.0 && !(problem.window_max_range_m >= kMinWindowRangeM &&
+                                                 problem.window_max_range_m <= kMaxWindowRangeM)) {
+        file.Fail(n, "window.max_range_m: must be 0 (no limit) or within [" +
+                         internal::FormatDouble(kMinWindowRangeM) + ", " +
+                         internal::FormatDouble(kMaxWindowRangeM) + "] m, found " + n.Scalar());
       }
     }
   }
@@ -268,8 +314,9 @@ Problem ParseProblem(const YamlFile& file) {
       problem.lidar.max_points_per_sweep =
           IntInRange(file, n, "lidar.max_points_per_sweep", 1, kMaxPointsPerSweep);
     }
-    if (const YAML::Node n = lidar["voxel_m"])
-      problem.lidar.voxel_m = file.Positive(n, "lidar.voxel_m");
+    if (const YAML::Node n = lidar["voxel_m"]) {
+      problem.lidar.voxel_m = DoubleInRange(file, n, "lidar.voxel_m", kMinVoxelM, kMaxVoxelM, "m");
+    }
     if (const YAML::Node n = lidar["sweep_stride"])
       problem.lidar.sweep_stride = IntInRange(file, n, "lidar.sweep_stride", 1, kMaxSweepStride);
   }
@@ -310,6 +357,39 @@ std::string Lacks(const Dataset& dataset, const char* file) {
   const bool exists =
       std::filesystem::exists(std::filesystem::path(dataset.directory) / file, error);
   return exists ? std::string("has no samples in ") + file : std::string("has no ") + file;
+}
+
+// The LiDAR stamps on its own clock, offset from the IMU's by time_offset_lidar_imu_s: sweeps
+// this close to the IMU's span count as inside it.
+constexpr int64_t kLidarClockSlackNs = 1'000'000'000;
+
+// Empty when some of `samples` lie within the IMU's time span (widened by slack_ns), else why
+// not: "0 of 3950 samples of DIR/wheel.csv fall inside the IMU's time span (...)". A sensor
+// whose stamps are in another unit or on another clock would otherwise add no factor.
+template <typename Samples>
+std::string OutsideImuSpan(const Dataset& dataset, const Samples& samples, const char* file,
+                           int64_t slack_ns) {
+  if (samples.empty() || dataset.imu.size() < 2) return "";
+  const int64_t begin_ns = dataset.imu.front().t_ns - slack_ns;
+  const int64_t end_ns = dataset.imu.back().t_ns + slack_ns;
+  size_t inside = 0;
+  for (const auto& sample : samples) inside += sample.t_ns >= begin_ns && sample.t_ns <= end_ns;
+  if (inside > 0) return "";
+  const int64_t first_ns = samples.front().t_ns;
+  const int64_t last_ns = samples.back().t_ns;
+  // Stamps in microseconds or milliseconds sit about 1e3 or 1e6 times closer to the epoch.
+  std::string hint = "another clock?";
+  for (const auto& [factor, unit] : {std::pair<int64_t, const char*>{1000, "microseconds"},
+                                     std::pair<int64_t, const char*>{1000000, "milliseconds"}}) {
+    if (last_ns <= end_ns / factor && last_ns >= begin_ns / factor) {
+      hint = std::string("the stamps look like ") + unit + ", autocal expects nanoseconds";
+    }
+  }
+  return "0 of " + std::to_string(samples.size()) + " samples of " +
+         (std::filesystem::path(dataset.directory) / file).string() +
+         " fall inside the IMU's time span (imu.csv " + std::to_string(dataset.imu.front().t_ns) +
+         " to " + std::to_string(dataset.imu.back().t_ns) + " ns, " + file + " " +
+         std::to_string(first_ns) + " to " + std::to_string(last_ns) + " ns: " + hint + ")";
 }
 
 }  // namespace
@@ -359,6 +439,19 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
   if (problem.sensors.gnss && dataset.gnss.empty()) {
     const std::string demand = Demand({{"p_I_A_m", c.p_I_A_m.mode}}, "uses GNSS");
     reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "gnss.csv"));
+  }
+  const auto add_outside = [&](const std::string& outside, const char* demand) {
+    if (!outside.empty()) reasons.push_back(who + " " + demand + " but " + outside);
+  };
+  if (problem.sensors.lidar) {
+    add_outside(OutsideImuSpan(dataset, dataset.lidar_sweeps, "lidar.csv", kLidarClockSlackNs),
+                "uses the LiDAR");
+  }
+  if (problem.sensors.wheel) {
+    add_outside(OutsideImuSpan(dataset, dataset.wheel, "wheel.csv", 0), "uses the wheel encoders");
+  }
+  if (problem.sensors.gnss) {
+    add_outside(OutsideImuSpan(dataset, dataset.gnss, "gnss.csv", 0), "uses GNSS");
   }
   if (reasons.empty()) return;
   std::string message = reasons[0];

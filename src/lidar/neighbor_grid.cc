@@ -95,8 +95,9 @@ int GatherWithin(const double* x, const double* y, const double* z, int begin, i
 }  // namespace
 
 NeighborGrid::NeighborGrid(const Eigen::Matrix3Xd& points, double radius_m) {
-  if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
-    throw Error("NeighborGrid: the radius must be positive and finite, got " +
+  // A subnormal radius has an infinite inverse: 0 * inf would make a NaN column index.
+  if (!(radius_m > 0.0) || !std::isfinite(radius_m) || !std::isfinite(1.0 / radius_m)) {
+    throw Error("NeighborGrid: the radius must be positive, finite and not subnormal, got " +
                 std::to_string(radius_m) + " m");
   }
   if (points.cols() > std::numeric_limits<int>::max()) {
@@ -120,6 +121,11 @@ NeighborGrid::NeighborGrid(const Eigen::Matrix3Xd& points, double radius_m) {
   origin_y_ = points.row(1).minCoeff();
   const double extent_x = points.row(0).maxCoeff() - origin_x_;
   const double extent_y = points.row(1).maxCoeff() - origin_y_;
+  // Finite points near +-1e308 can still span an infinite extent: no grid of columns covers it
+  // (the loop below would never end and the column counts would not fit an int).
+  if (!std::isfinite(extent_x) || !std::isfinite(extent_y)) {
+    throw Error("NeighborGrid: the points span more than the range of a double");
+  }
   while ((std::floor(extent_x / edge_m_) + 1.0) * (std::floor(extent_y / edge_m_) + 1.0) >
          static_cast<double>(kMaxColumns)) {
     edge_m_ *= 2.0;

@@ -18,8 +18,10 @@ constexpr int64_t kMaxVoxelsPerAxis = int64_t{1} << 21;
 }  // namespace
 
 PointCloud VoxelDownsample(const PointCloud& cloud, double voxel_m) {
-  if (!(voxel_m > 0.0) || !std::isfinite(voxel_m)) {
-    throw Error("VoxelDownsample: voxel size must be positive, got " + std::to_string(voxel_m));
+  // A subnormal size has an infinite inverse: 0 * inf would make a NaN voxel index.
+  if (!(voxel_m > 0.0) || !std::isfinite(voxel_m) || !std::isfinite(1.0 / voxel_m)) {
+    throw Error("VoxelDownsample: voxel size must be positive, finite and not subnormal, got " +
+                std::to_string(voxel_m));
   }
   CheckPointCloud(cloud, "VoxelDownsample");
   const int64_t n = cloud.size();
@@ -27,7 +29,9 @@ PointCloud VoxelDownsample(const PointCloud& cloud, double voxel_m) {
 
   const Eigen::Vector3d min_corner = cloud.points.rowwise().minCoeff();
   const Eigen::Vector3d extent = cloud.points.rowwise().maxCoeff() - min_corner;
-  if ((extent / voxel_m).maxCoeff() >= static_cast<double>(kMaxVoxelsPerAxis - 1)) {
+  // Checked before any conversion to an integer; an extent that overflows (points near
+  // +-1e308) is infinite and fails too.
+  if (!((extent / voxel_m).maxCoeff() < static_cast<double>(kMaxVoxelsPerAxis - 1))) {
     throw Error("VoxelDownsample: the cloud spans too many voxels (extent " +
                 std::to_string(extent.maxCoeff()) + " m at voxel size " + std::to_string(voxel_m) +
                 " m)");

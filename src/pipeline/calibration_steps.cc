@@ -1,9 +1,13 @@
 #include "calibration_steps.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
+#include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
@@ -36,29 +40,123 @@ std::string Join(const std::vector<std::string>& parts, const std::string& separ
   return out;
 }
 
+namespace {
+
+// The median interval between consecutive stamps in seconds (0 for fewer than two).
+template <typename Samples>
+double MedianIntervalS(const Samples& samples) {
+  if (samples.size() < 2) return 0.0;
+  std::vector<int64_t> intervals_ns;
+  intervals_ns.reserve(samples.size() - 1);
+  for (size_t i = 1; i < samples.size(); ++i) {
+    intervals_ns.push_back(samples[i].t_ns - samples[i - 1].t_ns);
+  }
+  const auto middle = intervals_ns.begin() + static_cast<std::ptrdiff_t>(intervals_ns.size() / 2);
+  std::nth_element(intervals_ns.begin(), middle, intervals_ns.end());
+  return NsToSeconds(*middle);
+}
+
+// How many of `samples` lie within the keyframes' time span.
+template <typename Samples>
+size_t CountWithin(const Samples& samples, const std::vector<estimation::Keyframe>& keyframes) {
+  size_t n = 0;
+  for (const auto& sample : samples) {
+    n += sample.t_ns >= keyframes.front().t_ns && sample.t_ns <= keyframes.back().t_ns;
+  }
+  return n;
+}
+
+// Why a sensor with samples gave no factor: none inside the keyframes' span, or none close
+// enough on both sides of any keyframe. `file` names the samples ("wheel.csv").
+template <typename Samples>
+std::string NoFactorReason(const Samples& samples, const std::vector<estimation::Keyframe>& kfs,
+                           const std::string& file, const std::string& gap_name, double max_gap_s) {
+  const size_t inside = kfs.empty() ? 0 : CountWithin(samples, kfs);
+  if (inside == 0) {
+    return file + ": 0 of " + std::to_string(samples.size()) +
+           " samples fall inside the keyframes' time span";
+  }
+  return file + ": no keyframe has samples within " + gap_name + "=" + FormatFixed(max_gap_s, 4) +
+         " s on both sides (the median interval of " + file + " is " +
+         FormatFixed(MedianIntervalS(samples), 4) + " s)";
+}
+
+[[noreturn]] void ThrowNoFactor(const io::Dataset& dataset, const std::string& sensor,
+                                const std::string& reason) {
+  throw Error("dataset " + dataset.directory + ": no " + sensor + " factor in the solve (" +
+              reason + "); nothing is written");
+}
+
+}  // namespace
+
 void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
                         sensors::Calibration* c) const {
   const io::ProblemCalibration& b = problem->calibration;
   if (use_wheel) {
     p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
     estimation::KeyframeWheelOptions wheel;
+    // A sensors.yaml without a wheel: section (or no sensors.yaml) means the encoder defaults
+    // of sensors/sensor_config.h (datasets/README.md).
     wheel.factor = factors::WheelFactorOptions::FromEncoderNoise(
-        *dataset->sensors.wheel, nominal->wheel_radius_left_m, nominal->track_width_m);
+        dataset->sensors.wheel.value_or(sensors::WheelConfig()), nominal->wheel_radius_left_m,
+        nominal->track_width_m);
     wheel.factor.shared_radius = b.wheel_radius_shared;
     wheel.loss = problem->loss.wheel;
     wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
     wheel.estimate_track_width = Estimated(b.track_width_m.mode);
-    estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
+    if (estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel) == 0) {
+      std::string reason = NoFactorReason(dataset->wheel, *keyframes, "wheel.csv",
+                                          "max_wheel_gap_s", wheel.max_wheel_gap_s);
+      if (reason.find("no keyframe") != std::string::npos) {
+        reason += " or IMU samples within max_imu_gap_s=" + FormatFixed(wheel.max_imu_gap_s, 4) +
+                  " s (imu.csv: " + FormatFixed(MedianIntervalS(dataset->imu), 4) + " s)";
+      }
+      ThrowNoFactor(*dataset, "wheel", reason);
+    }
   }
   if (use_gnss) {
     estimation::KeyframeGnssOptions gnss;
     gnss.loss = problem->loss.gnss;
     gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
-    estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
+    if (estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss) == 0) {
+      ThrowNoFactor(*dataset, "GNSS",
+                    NoFactorReason(dataset->gnss, *keyframes, "gnss.csv", "max_fix_gap_s",
+                                   gnss.max_fix_gap_s));
+    }
   }
   AddBlockPriors(*blocks, problem->loss.prior, p);
+}
+
+void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gnss, int64_t t0_ns) {
+  const auto require = [&](bool used, const auto& samples, const char* file) {
+    if (!used) return;
+    for (const auto& sample : samples) {
+      if (sample.t_ns > t0_ns) return;
+    }
+    throw Error(
+        "dataset " + dataset.directory + ": " + file + ": 0 of " + std::to_string(samples.size()) +
+        " samples after the online estimator's initial state at " + std::to_string(t0_ns) +
+        " ns (the log's last is at " + std::to_string(samples.empty() ? 0 : samples.back().t_ns) +
+        " ns); nothing was estimated");
+  };
+  require(use_wheel, dataset.wheel, "wheel.csv");
+  require(use_gnss, dataset.gnss, "gnss.csv");
+}
+
+void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use_gnss,
+                            const estimation::SlidingWindowCounters& counters) {
+  const auto require = [&](bool used, int64_t accepted, size_t total, const char* sensor,
+                           const char* file) {
+    if (!used || accepted > 0) return;
+    throw Error("dataset " + dataset.directory + ": no " + sensor +
+                " sample reached the sliding window (" + file + ": 0 of " + std::to_string(total) +
+                " samples after the initial state, in order and not late); nothing was "
+                "estimated");
+  };
+  require(use_wheel, counters.wheel_accepted, dataset.wheel.size(), "wheel", "wheel.csv");
+  require(use_gnss, counters.gnss_accepted, dataset.gnss.size(), "GNSS", "gnss.csv");
 }
 
 std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
@@ -88,6 +186,11 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
               const std::vector<estimation::Keyframe>& keyframes,
               sensors::Calibration* calibration, std::chrono::steady_clock::time_point start,
               OfflineCalibrationResult* result) {
+  if (problem.sensors.lidar && result->batch.associated_points == 0) {
+    ThrowNoFactor(dataset, "LiDAR",
+                  "lidar.csv: no point of the " + std::to_string(keyframes.size()) +
+                      " keyframe sweeps was associated with a plane");
+  }
   io::CalibrationFile& file = result->calibration;
   const std::vector<std::string> implausible =
       ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);

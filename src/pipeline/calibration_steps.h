@@ -6,6 +6,7 @@
 // LiDAR, which CalibrateDataset dispatches to.
 
 #include <chrono>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -13,6 +14,7 @@
 #include <ceres/ceres.h>
 
 #include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
@@ -52,6 +54,18 @@ struct SensorFactors {
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
            sensors::Calibration* c) const;
 };
+
+// Before the online estimator streams the log: throws one autocal::Error naming the file when
+// the wheels or GNSS (use_wheel, use_gnss) have no sample after the initial state at t0_ns
+// (the initialization used up their whole log), since the window would then get none.
+void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gnss, int64_t t0_ns);
+
+// The online estimator's counterpart of the offline solve's factor check: throws one
+// autocal::Error naming the sensor when the wheels or GNSS (use_wheel, use_gnss) had no
+// sample accepted by the sliding window (all before the initial state, late or out of order),
+// so that no result is presented that silently left them out.
+void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use_gnss,
+                            const estimation::SlidingWindowCounters& counters);
 
 // Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,
 // by sensor, at the current parameter values.

@@ -293,6 +293,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
   enum Kind { kImu, kWheel, kGnss, kSweep };
   std::vector<std::tuple<int64_t, int, size_t>> events;
   const int64_t t0 = initial.t_ns;
+  RequireSamplesAfter(dataset, use_wheel, use_gnss, t0);
   for (size_t i = 0; i < dataset.imu.size(); ++i) {
     const bool needed = dataset.imu[i].t_ns > t0 ||
                         (i + 1 < dataset.imu.size() && dataset.imu[i + 1].t_ns > t0);
@@ -363,6 +364,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
     throw Error("dataset " + dataset.directory + ": no sweep after the initial state was "
                 "covered by the IMU log; nothing was estimated");
   }
+  RequireStreamedSamples(dataset, use_wheel, use_gnss, estimator.counters());
 
   // 3. The result.
   for (const estimation::SlidingWindowState& x : estimator.Trajectory()) {

@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "autocal/common/error.h"
+
 namespace autocal {
 namespace estimation {
 namespace internal {
@@ -63,6 +65,30 @@ TEST(OnePointPerVoxel, KeepsTheFirstPointOfEachVoxel) {
         EXPECT_LT(expected.size(), static_cast<size_t>(n));  // voxels with several points
       }
     }
+  }
+}
+
+// Any finite positive voxel size is defined behaviour: the index is range-checked before the
+// conversion to an integer (a 1e-300 m voxel overflowed it), points beyond the grid's +-2^20
+// voxels are dropped, and a size whose inverse overflows is refused.
+TEST(OnePointPerVoxel, ExtremeVoxelSizesAreDefined) {
+  lidar::PointCloud cloud;
+  cloud.points.resize(3, 5);
+  cloud.points << 3.0, -4.0, 10.0, 50.0, 1e6,  //
+      1.0, 2.0, -7.0, 0.5, 0.0,                //
+      0.0, 0.3, 1.0, -2.0, 0.0;
+  // Huge voxels: every point falls into one of the eight voxels around the origin.
+  const std::vector<int> huge = OnePointPerVoxel(cloud, 1e308, 0.0);
+  EXPECT_EQ(huge, FirstPointPerVoxel(cloud, 1e308, 0.0));
+  EXPECT_LE(huge.size(), 5u);
+  // Tiny voxels put every point beyond the grid: none is kept.
+  for (double voxel_m : {1e-300, 1e-200, 1e-12}) {
+    EXPECT_TRUE(OnePointPerVoxel(cloud, voxel_m, 0.0).empty()) << voxel_m;
+  }
+  // Beyond the grid at an ordinary size: the point 1000 km away is dropped, not aliased.
+  EXPECT_EQ(OnePointPerVoxel(cloud, 0.6, 0.0), (std::vector<int>{0, 1, 2, 3}));
+  for (double voxel_m : {0.0, -0.6, 1e-310, std::nan(""), HUGE_VAL}) {
+    EXPECT_THROW(OnePointPerVoxel(cloud, voxel_m, 0.0), Error) << voxel_m;
   }
 }
 

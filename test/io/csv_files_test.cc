@@ -3,6 +3,7 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -346,6 +347,113 @@ TEST(CsvFilesTest, GnssLatitudeOutOfRange) {
   WriteText(OutPath("gnss_lat.csv"), ReplaceField(lines, 4, 1, "148.1"));
   ExpectParseError(OutPath("gnss_lat.csv"), [](const std::string& p) { ReadGnssCsv(p); },
                    {4, FieldColumn(lines[3], 1), "latitude"});
+}
+
+// ---- stamps in microseconds ----
+
+// The reference drive's samples with their stamps divided by 1000: microseconds.
+template <typename Samples>
+Samples InMicroseconds(Samples samples) {
+  for (auto& sample : samples) sample.t_ns /= 1000;
+  return samples;
+}
+
+TEST(CsvFilesTest, WheelStampsInMicroseconds) {
+  WriteWheelCsv(OutPath("wheel_us.csv"), InMicroseconds(test_data::MakeDrive(1.0).wheel));
+  ExpectParseError(OutPath("wheel_us.csv"), [](const std::string& p) { ReadWheelCsv(p); },
+                   {3, 1,
+                    "t_ns: the median interval between rows is 10000 ns, a wheel encoder at "
+                    "100000 Hz, beyond any (limit 10000 Hz): the stamps seem to be in "
+                    "microseconds; autocal expects nanoseconds"});
+  // In nanoseconds the same file reads.
+  WriteWheelCsv(OutPath("wheel_ns.csv"), test_data::MakeDrive(1.0).wheel);
+  EXPECT_EQ(ReadWheelCsv(OutPath("wheel_ns.csv")).size(), 101u);
+}
+
+TEST(CsvFilesTest, ImuGnssAndLidarStampsInMicroseconds) {
+  const test_data::Drive drive = test_data::MakeDrive(2.0);
+  WriteImuCsv(OutPath("imu_us.csv"), InMicroseconds(drive.imu));
+  ExpectParseError(OutPath("imu_us.csv"), kReadImu,
+                   {3, 1,
+                    "an IMU at 200000 Hz, beyond any (limit 10000 Hz): the stamps seem to "
+                    "be in microseconds"});
+  WriteGnssCsv(OutPath("gnss_us.csv"), InMicroseconds(drive.gnss));
+  ExpectParseError(OutPath("gnss_us.csv"), [](const std::string& p) { ReadGnssCsv(p); },
+                   {3, 1, "a GNSS receiver at 10000 Hz, beyond any (limit 200 Hz)"});
+  std::vector<LidarSweepRef> sweeps;
+  for (int i = 0; i < 20; ++i)
+    sweeps.push_back({(test_data::kStartNs + i * 100'000'000) / 1000, std::to_string(i) + ".ply"});
+  WriteLidarCsv(OutPath("lidar_us.csv"), sweeps);
+  ExpectParseError(OutPath("lidar_us.csv"), [](const std::string& p) { ReadLidarCsv(p); },
+                   {3, 1, "a LiDAR at 10000 Hz, beyond any (limit 1000 Hz)"});
+}
+
+// ---- a gyroscope in deg/s on a drive that never turns fast ----
+
+// `still_s` at rest (gyro noise of a MEMS IMU, 0.002 rad/s per axis unless given, and a bias), then
+// a straight drive with gentle swerves (|omega| <= 0.04 rad/s) and vibration, at 200 Hz; the gyro
+// multiplied by `gyro_scale` (180 / pi: logged in deg/s).
+sensors::ImuSamples GentleDrive(double still_s, double gyro_scale,
+                                double gyro_noise_rad_s = 0.002) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> gyro_noise(0.0, gyro_noise_rad_s);
+  std::normal_distribution<double> accel_noise(0.0, 0.01);
+  std::normal_distribution<double> vibration(0.0, 0.3);
+  const Eigen::Vector3d bias(0.003, -0.002, 0.001);
+  sensors::ImuSamples imu;
+  for (int i = 0; i <= 200 * 12; ++i) {
+    const double t = 0.005 * i;
+    const bool moving = t >= still_s;
+    sensors::ImuSample s;
+    s.t_ns = test_data::kStartNs + int64_t{5'000'000} * i;
+    Eigen::Vector3d omega = bias;
+    if (moving) omega.z() += 0.04 * std::sin(0.5 * (t - still_s));
+    for (int a = 0; a < 3; ++a) omega[a] += gyro_noise(rng);
+    s.gyro_rad_s = gyro_scale * omega;
+    s.accel_m_s2 = Eigen::Vector3d(0.0, 0.0, test_data::kGravity);
+    for (int a = 0; a < 3; ++a) s.accel_m_s2[a] += moving ? vibration(rng) : accel_noise(rng);
+    imu.push_back(s);
+  }
+  return imu;
+}
+
+TEST(CsvFilesTest, GyroInDegreesPerSecondOnADriveThatNeverTurnsFast) {
+  WriteImuCsv(OutPath("gentle_rad_s.csv"), GentleDrive(2.0, 1.0));
+  EXPECT_NO_THROW(ReadImuCsv(OutPath("gentle_rad_s.csv")));
+  // In deg/s the 99th percentile of |omega| stays below 3 (the drive never turns fast): the
+  // still start tells.
+  WriteImuCsv(OutPath("gentle_deg_s.csv"), GentleDrive(2.0, 180.0 / M_PI));
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("gentle_deg_s.csv")));
+  ExpectParseError(OutPath("gentle_deg_s.csv"), kReadImu,
+                   {2, FieldColumn(lines[1], 1),
+                    "gyroscope seems to be in deg/s, autocal expects rad/s: from this row the "
+                    "accelerometer is steady for "});
+  // Switched off, the file reads.
+  ImuPlausibilityOptions checks;
+  checks.check_gyro_unit_at_rest = false;
+  EXPECT_NO_THROW(ReadImuCsv(OutPath("gentle_deg_s.csv"), checks));
+}
+
+// A noisy gyro in rad/s (0.03 rad/s per sample) scatters at rest like a good one in deg/s:
+// the noise sensors.yaml states tells them apart.
+TEST(CsvFilesTest, ANoisyGyroIsNotTakenForDegreesPerSecond) {
+  WriteImuCsv(OutPath("noisy_rad_s.csv"), GentleDrive(2.0, 1.0, 0.03));
+  ImuPlausibilityOptions checks;
+  checks.gyroscope_noise_density = 0.03 / std::sqrt(checks.update_rate_hz);
+  EXPECT_NO_THROW(ReadImuCsv(OutPath("noisy_rad_s.csv"), checks));
+  // Stated 15 times better than it is, the same log looks like deg/s.
+  checks.gyroscope_noise_density /= 15.0;
+  EXPECT_THROW(ReadImuCsv(OutPath("noisy_rad_s.csv"), checks), ParseError);
+}
+
+TEST(CsvFilesTest, ASteadyTurnIsNotTakenForDegreesPerSecond) {
+  // No still start: a steady 0.3 rad/s turn from the first sample on a smooth road. The
+  // accelerometer is steady and the gyro fails the still test on its mean; read as deg/s it
+  // would pass, but its scatter is a rad/s gyro's.
+  sensors::ImuSamples imu = GentleDrive(100.0, 1.0);
+  for (sensors::ImuSample& s : imu) s.gyro_rad_s.z() += 0.3;
+  WriteImuCsv(OutPath("steady_turn.csv"), imu);
+  EXPECT_NO_THROW(ReadImuCsv(OutPath("steady_turn.csv")));
 }
 
 TEST(CsvFilesTest, WritersRefuseWhatReadersReject) {

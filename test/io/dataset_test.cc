@@ -3,12 +3,14 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/io/csv_files.h"
+#include "autocal/io/sensors_yaml.h"
 #include "io/io_test_data.h"
 #include "support/test_paths.h"
 
@@ -156,6 +158,75 @@ TEST(DatasetTest, OnlyImuIsRequired) {
   EXPECT_TRUE(dataset.wheel.empty() && dataset.gnss.empty() && dataset.lidar_sweeps.empty());
   EXPECT_FALSE(dataset.groundtruth_calibration.has_value());
   EXPECT_FALSE(dataset.sensors.lidar.has_value());
+}
+
+// sensors.yaml's optional sections may be left out (the calibration then uses the defaults of
+// sensors/sensor_config.h): the reader leaves them empty.
+TEST(DatasetTest, SensorsYamlWithoutOptionalSections) {
+  const fs::path directory = test::OutputDir("dataset") / "no_wheel_section";
+  fs::remove_all(directory);
+  fs::create_directories(directory);
+  std::ofstream(directory / "sensors.yaml")
+      << "imu:\n  gyroscope_noise_density: 1.6968e-4\n  gyroscope_random_walk: 1.9393e-5\n"
+         "  accelerometer_noise_density: 2.0e-3\n  accelerometer_random_walk: 3.0e-3\n"
+         "  update_rate: 200\n";
+  WriteImuCsv((directory / "imu.csv").string(), test_data::MakeDrive(0.5).imu);
+  const Dataset dataset = ReadDataset(directory.string());
+  EXPECT_FALSE(dataset.sensors.wheel.has_value());
+  EXPECT_FALSE(dataset.sensors.gnss.has_value());
+  EXPECT_FALSE(dataset.sensors.lidar.has_value());
+}
+
+// Numbers of sensors.yaml outside a physical range (a unit slip, a typo, values whose
+// information overflows) are refused with file, line and column.
+TEST(DatasetTest, SensorsYamlRefusesNumbersOutsideTheirRange) {
+  const std::string imu =
+      "imu:\n  gyroscope_noise_density: 1.6968e-4\n  gyroscope_random_walk: 1.9393e-5\n"
+      "  accelerometer_noise_density: 2.0e-3\n  accelerometer_random_walk: 3.0e-3\n"
+      "  update_rate: 200\n";
+  struct Case {
+    std::string name;
+    std::string text;
+    int64_t line;
+    std::string value;  // the error points at it
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"noise_tiny",
+       imu.substr(0, imu.find("1.6968e-4")) + "1e-300" + imu.substr(imu.find("1.6968e-4") + 9), 2,
+       "1e-300", "imu.gyroscope_noise_density: must be within [1e-07, 1] rad/s/sqrt(Hz)"},
+      {"rate_huge", imu.substr(0, imu.find("200")) + "1e308\n", 6, "1e308",
+       "imu.update_rate: must be within [1, 1e+05] Hz, found 1e308"},
+      {"wheel_noise_zero", imu + "wheel:\n  noise_rad_s: 0\n", 8, "0",
+       "wheel.noise_rad_s: must be within [1e-06, 100] rad/s, found 0"},
+      {"wheel_rate_negative", imu + "wheel:\n  rate_hz: -100\n", 8, "-100",
+       "wheel.rate_hz: must be within"},
+      {"gnss_rate_huge", imu + "gnss:\n  rate_hz: 1e9\n", 8, "1e9", "gnss.rate_hz: must be within"},
+      {"lidar_noise_negative", imu + "lidar:\n  range_noise_m: -0.1\n", 8, "-0.1",
+       "lidar.range_noise_m: must be within [0, 10] m"},
+      {"lidar_range_huge", imu + "lidar:\n  max_range_m: 1e300\n", 8, "1e300",
+       "lidar.max_range_m: must be within"},
+      {"lidar_resolution_tiny", imu + "lidar:\n  azimuth_resolution_deg: 1e-300\n", 8, "1e-300",
+       "lidar.azimuth_resolution_deg: must be within"},
+      {"noise_nan", imu + "wheel:\n  noise_rad_s: .nan\n", 8, ".nan", "wheel.noise_rad_s"},
+  };
+  for (const Case& c : cases) {
+    const std::string path = (test::OutputDir("dataset") / (c.name + ".yaml")).string();
+    std::ofstream(path, std::ios::trunc) << c.text;
+    try {
+      ReadSensorsYaml(path);
+      ADD_FAILURE() << c.name << ": accepted";
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.location().line, c.line) << c.name << ": " << e.what();
+      // The value is the last thing on its line.
+      size_t start = 0;
+      for (int64_t i = 1; i < c.line; ++i) start = c.text.find('\n', start) + 1;
+      const std::string line = c.text.substr(start, c.text.find('\n', start) - start);
+      EXPECT_EQ(e.location().column, static_cast<int64_t>(line.rfind(c.value)) + 1)
+          << c.name << ": " << e.what();
+      EXPECT_THAT(e.detail(), HasSubstr(c.message)) << c.name;
+    }
+  }
 }
 
 TEST(DatasetTest, ErrorsInAnyFileNameThatFile) {

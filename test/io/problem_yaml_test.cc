@@ -216,9 +216,9 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
       {"wrong_sigma_unit", "calibration:\n  time_offset_lidar_imu_s: {prior_sigma_m: 0.01}\n", 2,
        "prior_sigma_m", "unknown key 'prior_sigma_m' (expected one of: prior_sigma_s)"},
       {"negative_sigma", "calibration:\n  track_width_m: {prior_sigma_m: -0.1}\n", 2, "-0.1",
-       "prior_sigma_m: must be > 0"},
-      {"zero_axis_sigma", "calibration:\n  p_I_A_m: {prior_sigma_m: [0.1, 0, 0.1]}\n", 2, "[",
-       "calibration.p_I_A_m.prior_sigma_m: must be > 0"},
+       "prior_sigma_m: must be within [1e-06, 100] m, found -0.1"},
+      {"zero_axis_sigma", "calibration:\n  p_I_A_m: {prior_sigma_m: [0.1, 0, 0.1]}\n", 2, "0,",
+       "calibration.p_I_A_m.prior_sigma_m[1]: must be within [1e-06, 100] m, found 0"},
       {"short_sigma", "calibration:\n  p_I_A_m: {prior_sigma_m: [0.1, 0.1]}\n", 2, "[",
        "expected a list of 3 numbers"},
       {"sensor_not_bool", "sensors:\n  wheel: yes\n", 2, "yes",
@@ -242,9 +242,10 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
       {"window_too_small", "window: {size: 1}\n", 1, "1", "window.size: must be within [2, 10000]"},
       {"window_not_int", "window:\n  size: 10.5\n", 2, "10.5", "window.size"},
       {"threads_zero", "solver:\n  num_threads: 0\n", 2, "0", "solver.num_threads: must be within"},
-      {"voxel_zero", "lidar:\n  voxel_m: 0\n", 2, "0", "lidar.voxel_m: must be > 0"},
+      {"voxel_zero", "lidar:\n  voxel_m: 0\n", 2, "0",
+       "lidar.voxel_m: must be within [0.01, 20] m, found 0"},
       {"negative_range", "window:\n  max_range_m: -5\n", 2, "-5",
-       "window.max_range_m: must be >= 0 (0: no limit), found -5"},
+       "window.max_range_m: must be 0 (no limit) or within [1, 10000] m, found -5"},
       {"range_without_lidar", "sensors: {lidar: false}\nwindow: {max_range_m: 30}\n", 2,
        "max_range_m", "window.max_range_m: sensors.lidar is false"},
       {"stride_zero", "lidar:\n  sweep_stride: 0\n", 2, "0",
@@ -256,6 +257,38 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
       {"not_a_map", "- sensors\n", 1, "-", "problem: expected a map"},
   };
   for (const BadCase& c : cases) ExpectParseError(c);
+}
+
+// Settings outside their physical range (zero, negative, subnormal, absurd, non-finite) are
+// refused where they stand: a 1e-300 m voxel overflowed the voxel index, a 1e308 m one left
+// one residual point per sweep, a 1e-300 sigma has an infinite information.
+TEST(ProblemYamlTest, RefusesSettingsOutsideTheirPhysicalRange) {
+  const std::vector<BadCase> cases = {
+      {"voxel_tiny", "lidar:\n  voxel_m: 1e-300\n", 2, "1e-300",
+       "lidar.voxel_m: must be within [0.01, 20] m, found 1e-300"},
+      {"voxel_huge", "lidar:\n  voxel_m: 1e308\n", 2, "1e308",
+       "lidar.voxel_m: must be within [0.01, 20] m, found 1e308"},
+      {"voxel_nan", "lidar:\n  voxel_m: .nan\n", 2, ".nan", "lidar.voxel_m"},
+      {"voxel_inf", "lidar:\n  voxel_m: .inf\n", 2, ".inf", "lidar.voxel_m"},
+      {"range_tiny", "window:\n  max_range_m: 1e-300\n", 2, "1e-300",
+       "window.max_range_m: must be 0 (no limit) or within [1, 10000] m"},
+      {"range_huge", "window:\n  max_range_m: 1e300\n", 2, "1e300", "window.max_range_m"},
+      {"sigma_tiny", "calibration:\n  time_offset_lidar_imu_s: {prior_sigma_s: 1e-300}\n", 2,
+       "1e-300", "time_offset_lidar_imu_s.prior_sigma_s: must be within [1e-09, 10] s"},
+      {"sigma_deg_huge", "calibration:\n  T_I_V: {rotation: {prior_sigma_deg: 1e300}}\n", 2,
+       "1e300", "T_I_V.rotation.prior_sigma_deg: must be within [1e-06, 180] deg"},
+      {"sigma_axis_huge", "calibration:\n  p_I_A_m: {prior_sigma_m: [0.1, 0.1, 1e9]}\n", 2, "1e9",
+       "p_I_A_m.prior_sigma_m[2]: must be within [1e-06, 100] m, found 1e9"},
+  };
+  for (const BadCase& c : cases) ExpectParseError(c);
+  // The ends of each range are accepted.
+  const Problem edges =
+      ReadProblemYaml(WriteProblem("range_edges.yaml",
+                                   "calibration:\n  time_offset_lidar_imu_s: {prior_sigma_s: 10}\n"
+                                   "  T_I_V: {rotation: {prior_sigma_deg: 1e-6}}\n"
+                                   "window: {max_range_m: 0}\nlidar: {voxel_m: 0.01}\n"));
+  EXPECT_EQ(edges.lidar.voxel_m, 0.01);
+  EXPECT_EQ(edges.window_max_range_m, 0.0);
 }
 
 Dataset DatasetWith(bool imu, bool lidar, bool wheel, bool gnss) {
@@ -320,6 +353,43 @@ TEST(ProblemYamlTest, ValidationRefusesWhatTheDatasetCannotGive) {
   problem.calibration.p_I_A_m.mode = BlockMode::kFixed;
   EXPECT_EQ(ValidationMessage(problem, DatasetWith(true, true, true, false)),
             "problem problems/x.yaml uses GNSS but dataset /nonexistent/run3 has no gnss.csv");
+}
+
+// Stamps of one sensor that never meet the IMU's (microseconds, another clock) would give
+// the solve no factor of that sensor: refused before any work, naming file and spans.
+TEST(ProblemYamlTest, ValidationRefusesSamplesOutsideTheImuTimeSpan) {
+  const Problem urban = ReadShipped("urban_full.yaml");
+  Dataset dataset = DatasetWith(true, true, true, true);
+  const int64_t t0_ns = 1'700'000'000'000'000'000;
+  for (size_t i = 0; i < dataset.imu.size(); ++i) {
+    dataset.imu[i].t_ns = t0_ns + static_cast<int64_t>(i) * 5'000'000;
+  }
+  for (size_t i = 0; i < dataset.lidar_sweeps.size(); ++i) {
+    dataset.lidar_sweeps[i].t_ns = t0_ns + static_cast<int64_t>(i) * 10'000'000;
+  }
+  for (size_t i = 0; i < dataset.gnss.size(); ++i) {
+    dataset.gnss[i].t_ns = t0_ns + static_cast<int64_t>(i) * 10'000'000;
+  }
+  // The wheels stamped in microseconds.
+  for (size_t i = 0; i < dataset.wheel.size(); ++i) {
+    dataset.wheel[i].t_ns = (t0_ns + static_cast<int64_t>(i) * 10'000'000) / 1000;
+  }
+  const std::string message = ValidationMessage(urban, dataset);
+  EXPECT_THAT(message, HasSubstr("uses the wheel encoders but 0 of 5 samples of "
+                                 "/nonexistent/run3/wheel.csv fall inside the IMU's time span"));
+  EXPECT_THAT(message, HasSubstr("the stamps look like microseconds"));
+  EXPECT_THAT(message, ::testing::Not(HasSubstr("gnss.csv")));
+  EXPECT_THAT(message, ::testing::Not(HasSubstr("lidar.csv")));
+  // GNSS an hour late: another clock.
+  for (size_t i = 0; i < dataset.wheel.size(); ++i) dataset.wheel[i].t_ns = dataset.gnss[i].t_ns;
+  for (sensors::GnssFix& fix : dataset.gnss) fix.t_ns += int64_t{3600} * 1'000'000'000;
+  EXPECT_THAT(ValidationMessage(urban, dataset),
+              HasSubstr("uses GNSS but 0 of 5 samples of /nonexistent/run3/gnss.csv fall inside "
+                        "the IMU's time span"));
+  // Within the span, or a LiDAR clock a few milliseconds off, is accepted.
+  for (sensors::GnssFix& fix : dataset.gnss) fix.t_ns -= int64_t{3600} * 1'000'000'000;
+  for (LidarSweepRef& sweep : dataset.lidar_sweeps) sweep.t_ns -= 200'000'000;
+  EXPECT_EQ(ValidationMessage(urban, dataset), "");
 }
 
 TEST(ProblemYamlTest, ValidationTellsAnEmptyFileFromAMissingOne) {

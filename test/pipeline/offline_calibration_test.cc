@@ -13,6 +13,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/io/sensors_yaml.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sim/simulator.h"
@@ -316,6 +317,87 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
     FAIL() << "a problem without the LiDAR and without GNSS was accepted";
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("needs GNSS"));
+  }
+}
+
+// problems/imu_wheel_gnss.yaml with one solver round of two iterations: enough to run every
+// step, cheap enough for the bad-input tests below.
+io::Problem QuickImuWheelGnssProblem() {
+  io::Problem problem = ShippedProblem("imu_wheel_gnss.yaml");
+  problem.solver.max_iterations = 2;
+  problem.solver.outer_iterations = 1;
+  return problem;
+}
+
+// datasets/README.md lets sensors.yaml leave out its wheel: section: the wheel factors then
+// take the encoder noise of sensors/sensor_config.h. It used to dereference the empty section
+// (garbage noise, "Residual and Jacobian evaluation failed" after the whole setup).
+TEST_F(OfflineCalibrationTest, WithoutAWheelSectionTheEncoderDefaultsServe) {
+  // The log's IMU, wheels and GNSS with a sensors.yaml that has no wheel: section.
+  const std::filesystem::path directory =
+      test::OutputDir("no_wheel_section_" + std::to_string(static_cast<long>(getpid())));
+  std::filesystem::remove_all(directory);
+  std::filesystem::create_directories(directory);
+  for (const char* file : {"imu.csv", "wheel.csv", "gnss.csv"}) {
+    std::filesystem::copy_file(std::filesystem::path(data_->directory) / file, directory / file);
+  }
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  io::SensorsConfig without_wheel = dataset.sensors;
+  without_wheel.wheel.reset();
+  io::WriteSensorsYaml((directory / "sensors.yaml").string(), without_wheel);
+  const io::Dataset defaulted_dataset = io::ReadDataset(directory.string());
+  ASSERT_FALSE(defaulted_dataset.sensors.wheel.has_value());
+
+  const io::Problem problem = QuickImuWheelGnssProblem();
+  const OfflineCalibrationResult defaulted = CalibrateDataset(defaulted_dataset, problem);
+  dataset.sensors.wheel = sensors::WheelConfig();
+  const OfflineCalibrationResult stated = CalibrateDataset(dataset, problem);
+  std::filesystem::remove_all(directory);
+  EXPECT_EQ(defaulted.calibration.value.wheel_radius_left_m,
+            stated.calibration.value.wheel_radius_left_m);
+  EXPECT_EQ(defaulted.calibration.value.track_width_m, stated.calibration.value.track_width_m);
+  ASSERT_TRUE(defaulted.whitened_residuals.count("wheel"));
+  EXPECT_EQ(defaulted.whitened_residuals.at("wheel").after,
+            stated.whitened_residuals.at("wheel").after);
+}
+
+// Wheel stamps in microseconds never meet the IMU's: refused before any work, naming the file
+// and the likely unit, instead of a result that silently left the wheels out.
+TEST_F(OfflineCalibrationTest, RefusesWheelStampsOutsideTheImuTimeSpan) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  for (sensors::WheelSample& w : dataset.wheel) w.t_ns /= 1000;
+  try {
+    CalibrateDataset(dataset, QuickImuWheelGnssProblem());
+    FAIL() << "wheel stamps in microseconds were accepted";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("uses the wheel encoders but 0 of " +
+                                               std::to_string(dataset.wheel.size()) +
+                                               " samples of " + data_->directory +
+                                               "/wheel.csv fall inside the IMU's time span"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("the stamps look like microseconds"));
+  }
+}
+
+// Wheel samples within the IMU's span but never close enough to a keyframe: the solve would
+// have no wheel factor. The run fails with the sensor and the reason, and writes nothing.
+TEST_F(OfflineCalibrationTest, FailsWhenTheWheelsGiveNoFactor) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  sensors::WheelSamples sparse;
+  // 10 Hz, 1.2 ms off the keyframes' 0.1 s grid: every keyframe's bracket spans 0.1 s.
+  for (size_t i = 0; i < dataset.wheel.size(); i += 10) {
+    sparse.push_back(dataset.wheel[i]);
+    sparse.back().t_ns += 1'234'567;
+  }
+  dataset.wheel = sparse;
+  try {
+    CalibrateDataset(dataset, QuickImuWheelGnssProblem());
+    FAIL() << "a solve without a wheel factor was accepted";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(),
+                ::testing::HasSubstr("no wheel factor in the solve (wheel.csv: no keyframe has "
+                                     "samples within max_wheel_gap_s=0.0250 s on both sides (the "
+                                     "median interval of wheel.csv is 0.1000 s)"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("nothing is written"));
   }
 }
 

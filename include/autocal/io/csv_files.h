@@ -25,6 +25,15 @@ namespace io {
 // Larger rates mean rpm or deg/s.
 constexpr double kMaxPlausibleWheelRateRadS = 500.0;
 
+// Stamps are nanoseconds. A median interval between rows shorter than 1 / rate for these
+// rates is refused as another unit: stamped in microseconds, a 200 Hz IMU looks like 200 kHz,
+// a 100 Hz wheel encoder like 100 kHz, a 10 Hz receiver or LiDAR like 10 kHz. Files with
+// fewer than 11 rows are not checked.
+constexpr double kMaxPlausibleImuRateHz = 10000.0;
+constexpr double kMaxPlausibleWheelSampleRateHz = 10000.0;
+constexpr double kMaxPlausibleGnssRateHz = 200.0;
+constexpr double kMaxPlausibleSweepRateHz = 1000.0;
+
 sensors::ImuSamples ReadImuCsv(const std::string& path, const ImuPlausibilityOptions& checks = {});
 sensors::WheelSamples ReadWheelCsv(const std::string& path);
 sensors::GnssFixes ReadGnssCsv(const std::string& path);

@@ -16,6 +16,19 @@ struct ImuPlausibilityOptions {
   // turns cannot be told apart and passes.
   double gyro_percentile = 0.99;
   double max_gyro_percentile_rad_s = 3.0;
+  // A log that never turns fast is told apart at rest (estimation::DetectStillStart's default
+  // thresholds): where the accelerometer is steady for a second in the first 30 s, a still
+  // gyro reads noise and bias only. Logged in deg/s both are 57x larger, so the gyro's scatter
+  // fails the still test as logged and passes it read as deg/s. A steady turn fails on its mean
+  // rate, not its scatter, and is not taken for a unit slip; neither is a gyro whose scatter
+  // there is within max_still_noise_ratio of the noise sensors.yaml states (a noisy gyro in
+  // rad/s): in deg/s it is about 57 times that.
+  bool check_gyro_unit_at_rest = true;
+  double max_still_noise_ratio = 10.0;
+  // The stated gyro noise: its per-sample standard deviation is the density times
+  // sqrt(update rate). ReadDataset copies both from sensors.yaml.
+  double gyroscope_noise_density = 1.6968e-4;  // rad/s/sqrt(Hz)
+  double update_rate_hz = 200.0;
   // The accelerometer measures specific force: averaged over a log its norm is close to g
   // (the vehicle's own accelerations average out). A mean below this fraction of g means
   // gravity was removed (or the unit is g); above max_mean_accel_g the unit is wrong.

@@ -18,6 +18,10 @@
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
 //   lidar: {max_points_per_sweep: 400, voxel_m: 0.6, sweep_stride: 1}
 //
+// Numbers must lie in a physically sensible range (problems/README.md): prior sigmas within
+// [1e-6, 180] deg, [1e-6, 100] m, [1e-9, 10] s; voxel_m within [0.01, 20] m; max_range_m 0 or
+// within [1, 10000] m.
+//
 // Every key is optional and takes the default of the structs below. A sensor that does not
 // take part holds its calibration blocks fixed; setting one of those blocks (or the sensor's
 // loss, or the lidar section without the LiDAR) is an error, since it would have no effect.
@@ -94,7 +98,7 @@ struct ProblemSolver {
 // LiDAR point-to-plane residuals.
 struct ProblemLidar {
   int max_points_per_sweep = 400;  // residuals per sweep at most, >= 1
-  double voxel_m = 0.6;             // one residual point per voxel of this size, > 0
+  double voxel_m = 0.6;            // one residual point per voxel of this size, [0.01, 20]
   // Every sweep_stride-th sweep becomes a keyframe of the batch solve (the initializer's
   // odometry still registers every sweep), >= 1. Consecutive sweeps 0.1 s apart see nearly
   // the same scene: on the 60 s urban log a stride of 2 halved the solve and kept every
@@ -129,9 +133,13 @@ Problem ReadProblemYaml(const std::string& path);
 
 // Refuses a problem that asks for data the dataset does not have: the LiDAR without sweeps in
 // lidar.csv, the wheel encoders without wheel.csv, GNSS without gnss.csv, or an IMU log with
-// fewer than two samples. Throws one autocal::Error naming the problem, the dataset and every
-// missing piece, e.g. "problem problems/urban_full.yaml estimates wheel_radius_left_m but
-// dataset DIR has no wheel.csv".
+// fewer than two samples; and a sensor none of whose stamps falls inside the IMU's time span
+// (the LiDAR's within 1 s of it: its clock is offset), which could add no factor. Throws one
+// autocal::Error naming the problem, the dataset and every missing piece, e.g. "problem
+// problems/urban_full.yaml estimates wheel_radius_left_m but dataset DIR has no wheel.csv",
+// "problem P uses the wheel encoders but 0 of 3950 samples of DIR/wheel.csv fall inside the
+// IMU's time span (imu.csv A to B ns, wheel.csv C to D ns: the stamps look like microseconds,
+// autocal expects nanoseconds)".
 void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset);
 
 }  // namespace io
