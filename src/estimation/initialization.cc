@@ -43,6 +43,25 @@ AxisStats Stats(const sensors::ImuSamples& imu, size_t begin, size_t end, Get ge
 Eigen::Vector3d Gyro(const sensors::ImuSample& s) { return s.gyro_rad_s; }
 Eigen::Vector3d Accel(const sensors::ImuSample& s) { return s.accel_m_s2; }
 
+// Whether the gyro's scatter over [begin, end) changes from sample to sample as noise does:
+// white noise differs between neighbours by about sqrt(2) times its standard deviation,
+// while a turn on the spot about the gravity axis (the accelerometer steady, the rate
+// changing smoothly) differs by a small fraction of it. Half the scatter leaves room for a
+// sensor's own low-pass filter.
+bool ScatterLooksLikeNoise(const sensors::ImuSamples& imu, size_t begin, size_t end,
+                           const AxisStats& gyro) {
+  int axis = 0;
+  gyro.std.maxCoeff(&axis);
+  double sum_sq = 0.0;
+  for (size_t i = begin + 1; i < end; ++i) {
+    const double d = imu[i].gyro_rad_s[axis] - imu[i - 1].gyro_rad_s[axis];
+    sum_sq += d * d;
+  }
+  const double pairs = static_cast<double>(end - begin) - 1.0;
+  if (pairs < 1.0) return false;
+  return std::sqrt(sum_sq / pairs) > 0.5 * gyro.std[axis];
+}
+
 // Orientation of the IMU at every sample time relative to the first sample, integrated with
 // the mean rate of each step (bias removed), so that the rotation between any two instants
 // is a lookup and one interpolation.
@@ -219,6 +238,7 @@ std::optional<GyroInDegreesAtRest> FindGyroInDegreesAtRest(const sensors::ImuSam
       std::find_if(imu.begin(), imu.end(), in_range(in_degrees.t_end_ns + 1)) - imu.begin());
   const AxisStats g = Stats(imu, first, last, Gyro);
   if (!(g.std.maxCoeff() > options.max_gyro_std_rad_s)) return std::nullopt;
+  if (!ScatterLooksLikeNoise(imu, first, last, g)) return std::nullopt;
   GyroInDegreesAtRest out;
   out.first_sample = first;
   out.duration_s = SecondsBetween(in_degrees.t_begin_ns, in_degrees.t_end_ns);

@@ -77,7 +77,7 @@ bool ParseSecondsToNs(std::string_view text, int64_t* t_ns, std::string* why) {
     nanos = nanos * 10 + digit;
   }
   const int64_t limit = std::numeric_limits<int64_t>::max() / kNanosecondsPerSecond;
-  if (std::abs(seconds) >= limit) {
+  if (seconds >= limit || seconds <= -limit) {  // not std::abs: |INT64_MIN| is not an int64
     *why = "timestamp " + Quote(text) + " does not fit in int64 nanoseconds";
     return false;
   }

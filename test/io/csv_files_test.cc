@@ -456,6 +456,18 @@ TEST(CsvFilesTest, ASteadyTurnIsNotTakenForDegreesPerSecond) {
   EXPECT_NO_THROW(ReadImuCsv(OutPath("steady_turn.csv")));
 }
 
+TEST(CsvFilesTest, ATurnOnTheSpotIsNotTakenForDegreesPerSecond) {
+  // A robot spinning on the spot about the gravity axis, its rate growing 0 -> 1.2 rad/s over
+  // the first 4 s: the accelerometer is steady and the gyro's scatter, read as deg/s, is that
+  // of a still gyro; but it changes smoothly from sample to sample, as no noise does.
+  sensors::ImuSamples imu = GentleDrive(100.0, 1.0);
+  for (size_t i = 0; i < imu.size(); ++i) {
+    imu[i].gyro_rad_s.z() += std::min(1.2, 0.3 * 0.005 * static_cast<double>(i));
+  }
+  WriteImuCsv(OutPath("spin.csv"), imu);
+  EXPECT_NO_THROW(ReadImuCsv(OutPath("spin.csv")));
+}
+
 TEST(CsvFilesTest, WritersRefuseWhatReadersReject) {
   sensors::ImuSamples imu = test_data::MakeDrive(1.0).imu;
   imu[3].accel_m_s2.x() = std::nan("");

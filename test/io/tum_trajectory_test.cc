@@ -78,6 +78,12 @@ TEST(TumTrajectoryTest, BadInput) {
   ExpectParseError("duplicate.tum", head + "1.0 0 0 0 0 0 0 1\n", 3, 1, "duplicate timestamp");
   ExpectParseError("backwards.tum", head + "0.5 0 0 0 0 0 0 1\n", 3, 1, "non-monotonic timestamp");
   ExpectParseError("quaternion.tum", head + "2.0 0 0 0 0 0 0 2\n", 3, 11, "norm 2");
+  // Seconds at the int64 edges: |INT64_MIN| does not exist, so the range check may not
+  // take an absolute value.
+  ExpectParseError("far_past.tum", "-9223372036854775808 0 0 0 0 0 0 1\n", 1, 1,
+                   "does not fit in int64 nanoseconds");
+  ExpectParseError("far_future.tum", "9223372036854775807 0 0 0 0 0 0 1\n", 1, 1,
+                   "does not fit in int64 nanoseconds");
 }
 
 std::string FileBytes(const std::string& path) {
