@@ -2,9 +2,10 @@
 # autocal target.
 
 # AUTOCAL_SANITIZE builds autocal's own targets with AddressSanitizer and
-# UndefinedBehaviorSanitizer. Undefined behaviour aborts (no recovery), so any report fails
-# the test that triggered it. Dependencies (Ceres, glog, ...) stay the uninstrumented Debian
-# builds.
+# UndefinedBehaviorSanitizer, plus the check for a floating-point value (NaN, inf, or out of
+# range) converted to an integer type, which -fsanitize=undefined leaves out. Undefined
+# behaviour aborts (no recovery), so any report fails the test that triggered it.
+# Dependencies (Ceres, glog, ...) stay the uninstrumented Debian builds.
 #
 # EIGEN_MALLOC_ALREADY_ALIGNED=1: Eigen takes glibc's 16-byte aligned malloc as its aligned
 # allocator only when __SANITIZE_ADDRESS__ is undefined; under ASan it switches to its own
@@ -14,7 +15,8 @@
 # heap-buffer-overflow. Fixing the choice to glibc's malloc makes both sides agree.
 option(AUTOCAL_SANITIZE "Build autocal's targets with ASan + UBSan (tests fail on a report)" OFF)
 set(AUTOCAL_SANITIZE_FLAGS
-    -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
+    -fsanitize=address,undefined,float-cast-overflow -fno-sanitize-recover=all
+    -fno-omit-frame-pointer)
 set(AUTOCAL_SANITIZE_DEFINITIONS EIGEN_MALLOC_ALREADY_ALIGNED=1)
 
 function(autocal_target_defaults target)

@@ -64,7 +64,8 @@ case "${1:-}" in
     # accuracy suites are left out as well: they take minutes under the sanitizers.
     install_missing_packages
     configure_and_build "$root/build-asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DAUTOCAL_SANITIZE=ON -DAUTOCAL_BUILD_BENCHMARKS=OFF
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" -DAUTOCAL_SANITIZE=ON \
+      -DAUTOCAL_BUILD_BENCHMARKS=OFF
     ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}" \
       UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1}" \
       ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE "long|fuzz|accuracy"
