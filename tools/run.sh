@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
-# autocal's two entry points (see README.md):
-#   tools/run.sh demo   simulate an urban log, calibrate it, evaluate against the truth
-#   tools/run.sh test   run every test suite (ctest), excluding the label "long"
+# autocal's entry points (see README.md):
+#   tools/run.sh demo       simulate an urban log, calibrate it, evaluate against the truth
+#   tools/run.sh test       run every test suite (ctest), excluding the labels "long" and "fuzz"
+#   tools/run.sh sanitize   the unit tests built with ASan + UBSan (-DAUTOCAL_SANITIZE=ON)
 # Each one installs the Debian 12 packages it needs when they are missing (as root),
-# configures a Release build in build/ (or $AUTOCAL_BUILD_DIR) and builds it.
+# configures a build in build/ (sanitize: build-asan/; or $AUTOCAL_BUILD_DIR) and builds it.
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-build="${AUTOCAL_BUILD_DIR:-$root/build}"
 jobs="$(nproc)"
 
 packages=(
@@ -33,15 +33,18 @@ install_missing_packages() {
   apt-get install -y -qq --no-install-recommends "${missing[@]}"
 }
 
+# configure_and_build <default build dir> [cmake options...]: sets $build.
 configure_and_build() {
-  cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+  build="${AUTOCAL_BUILD_DIR:-$1}"
+  shift
+  cmake -S "$root" -B "$build" -G Ninja "$@"
   cmake --build "$build" -j "$jobs"
 }
 
 case "${1:-}" in
   demo)
     install_missing_packages
-    configure_and_build
+    configure_and_build "$root/build" -DCMAKE_BUILD_TYPE=Release
     out="${AUTOCAL_DEMO_DIR:-$build/demo}"
     rm -rf "$out/urban" "$out/result"
     "$build/tools/autocal_simulate" --scenario=urban --duration_s=60 --seed=1 --out="$out/urban"
@@ -52,11 +55,23 @@ case "${1:-}" in
     ;;
   test)
     install_missing_packages
-    configure_and_build
-    ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE long
+    configure_and_build "$root/build" -DCMAKE_BUILD_TYPE=Release
+    ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE "long|fuzz"
+    ;;
+  sanitize)
+    # Any sanitizer report fails its test: UBSan does not recover (-fno-sanitize-recover),
+    # ASan stops at its first error and LeakSanitizer fails the program at exit. The
+    # accuracy suites are left out as well: they take minutes under the sanitizers.
+    install_missing_packages
+    configure_and_build "$root/build-asan" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" -DAUTOCAL_SANITIZE=ON \
+      -DAUTOCAL_BUILD_BENCHMARKS=OFF
+    ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}" \
+      UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1}" \
+      ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE "long|fuzz|accuracy"
     ;;
   *)
-    echo "usage: tools/run.sh demo|test" >&2
+    echo "usage: tools/run.sh demo|test|sanitize" >&2
     exit 2
     ;;
 esac

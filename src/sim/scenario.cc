@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <unordered_map>
 #include <utility>
@@ -148,7 +149,11 @@ class Corridor {
   static constexpr double kCell = 10.0;
   struct PairHash {
     size_t operator()(const std::pair<int, int>& k) const {
-      return std::hash<int64_t>()((static_cast<int64_t>(k.first) << 32) ^ (k.second & 0xffffffff));
+      // The two cells' bit patterns side by side (shifted as unsigned: a negative int may
+      // not be shifted left).
+      const uint64_t bits = (static_cast<uint64_t>(static_cast<uint32_t>(k.first)) << 32) |
+                            static_cast<uint32_t>(k.second);
+      return std::hash<int64_t>()(static_cast<int64_t>(bits));
     }
   };
   static std::pair<int, int> Key(const Eigen::Vector2d& p) {

@@ -1,10 +1,11 @@
 #include "autocal/pipeline/report_html.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <iomanip>
 #include <limits>
 #include <random>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -132,8 +133,19 @@ int Count(const std::string& html, const std::string& what) {
 
 // "nan" or "inf" as a word of their own (as a stream prints a non-finite double).
 bool HasNonFiniteText(const std::string& html) {
-  static const std::regex non_finite("(^|[^a-z])-?(nan|inf)([^a-z]|$)", std::regex::icase);
-  return std::regex_search(html, non_finite);
+  const auto is_letter = [&html](size_t i) {
+    return std::isalpha(static_cast<unsigned char>(html[i])) != 0;
+  };
+  std::string lower(html.size(), ' ');
+  std::transform(html.begin(), html.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const char* word : {"nan", "inf"}) {
+    for (size_t at = lower.find(word); at != std::string::npos; at = lower.find(word, at + 1)) {
+      const size_t end = at + 3;
+      if ((at == 0 || !is_letter(at - 1)) && (end == html.size() || !is_letter(end))) return true;
+    }
+  }
+  return false;
 }
 
 TEST(ReportHtml, HasResidualHistogramsForEverySensorWithData) {
