@@ -1,0 +1,59 @@
+#include "import/bag_reader.h"
+
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "autocal/common/error.h"
+
+namespace autocal {
+namespace import {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+// The first bytes of a file, fewer when it is shorter.
+std::string Head(const std::string& path, size_t bytes) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error("cannot open '" + path + "': " + std::strerror(errno));
+  std::string head(bytes, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(bytes));
+  head.resize(static_cast<size_t>(in.gcount()));
+  return head;
+}
+
+}  // namespace
+
+std::unique_ptr<BagReader> OpenBag(const std::string& path) {
+  std::error_code error;
+  if (fs::is_directory(path, error)) {
+    if (!fs::is_regular_file(fs::path(path) / "metadata.yaml", error)) {
+      throw Error("'" + path + "' is a directory without metadata.yaml: not a rosbag2 bag");
+    }
+    return OpenRosbag2Directory(path);
+  }
+  if (!fs::exists(path, error)) throw Error("input bag '" + path + "' does not exist");
+  const std::string ext = Extension(path);
+  if (ext == ".bag") return OpenRos1Bag(path);
+  if (ext == ".mcap") return OpenMcap(path);
+  if (ext == ".db3") return OpenRosbag2Sqlite(path);
+  // Unknown extension: the magic bytes decide.
+  const std::string head = Head(path, 16);
+  if (head.rfind("#ROSBAG", 0) == 0) return OpenRos1Bag(path);
+  if (head.rfind("\x89MCAP", 0) == 0) return OpenMcap(path);
+  if (head.rfind("SQLite format 3", 0) == 0) return OpenRosbag2Sqlite(path);
+  throw Error("'" + path +
+              "' is neither a ROS 1 bag, an MCAP file, a rosbag2 SQLite file nor a rosbag2 "
+              "directory (unknown extension and magic bytes)");
+}
+
+}  // namespace import
+}  // namespace autocal

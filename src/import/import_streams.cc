@@ -1,0 +1,362 @@
+#include "import/import_streams.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+
+#include "autocal/common/error.h"
+#include "import/ros_messages.h"
+#include "io/text_format.h"
+
+namespace autocal {
+namespace import {
+namespace {
+
+std::string Lower(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
+// Sorts by stamp and drops samples whose stamp repeats; returns how many were dropped.
+template <typename T>
+int64_t SortUnique(std::vector<T>* samples) {
+  std::stable_sort(samples->begin(), samples->end(),
+                   [](const T& a, const T& b) { return a.t_ns < b.t_ns; });
+  const auto end = std::unique(samples->begin(), samples->end(),
+                               [](const T& a, const T& b) { return a.t_ns == b.t_ns; });
+  const int64_t dropped = samples->end() - end;
+  samples->erase(end, samples->end());
+  return dropped;
+}
+
+// (count - 1) / span of the stamps, 0 when it cannot be told.
+template <typename T>
+double RateHz(const std::vector<T>& samples) {
+  if (samples.size() < 2) return 0.0;
+  const double span_s = 1e-9 * static_cast<double>(samples.back().t_ns - samples.front().t_ns);
+  return span_s > 0.0 ? static_cast<double>(samples.size() - 1) / span_s : 0.0;
+}
+
+// The one joint whose name says `side`, preferring a rear one when several do.
+int FindWheelJoint(const std::vector<std::string>& names, const std::string& side,
+                   const std::string& named) {
+  std::vector<int> candidates;
+  for (size_t i = 0; i < names.size(); ++i) {
+    const bool match =
+        named.empty() ? Lower(names[i]).find(side) != std::string::npos : names[i] == named;
+    if (match) candidates.push_back(static_cast<int>(i));
+  }
+  if (candidates.size() > 1) {
+    std::vector<int> rear;
+    for (int i : candidates) {
+      const std::string name = Lower(names[i]);
+      if (name.find("rear") != std::string::npos || name.find("back") != std::string::npos) {
+        rear.push_back(i);
+      }
+    }
+    candidates = rear;
+  }
+  return candidates.size() == 1 ? candidates.front() : -1;
+}
+
+std::string JoinNames(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& name : names) out += (out.empty() ? "" : ", ") + name;
+  return out;
+}
+
+void WriteOdometryCsv(const std::string& path, const std::vector<OdometrySample>& samples) {
+  std::string text = "t_ns,speed_m_s,yaw_rate_rad_s\n";
+  for (const OdometrySample& s : samples) {
+    text += std::to_string(s.t_ns) + "," + io::internal::FormatDouble(s.speed_m_s) + "," +
+            io::internal::FormatDouble(s.yaw_rate_rad_s) + "\n";
+  }
+  io::internal::WriteFileText(path, text);
+}
+
+}  // namespace
+
+StreamImporter::StreamImporter(const ImportOptions& options, const TopicSelection& selection,
+                               io::DatasetWriter* writer, ImportSummary* summary)
+    : options_(options), selection_(selection), writer_(writer), summary_(summary) {}
+
+int64_t StreamImporter::Stamp(int64_t header_ns, int64_t log_ns) {
+  if (options_.use_receive_time) return log_ns;
+  if (header_ns == 0) {
+    ++zero_stamps_;
+    return log_ns;
+  }
+  return header_ns;
+}
+
+void StreamImporter::Add(const std::string& bag_path, const BagMessage& message) {
+  const SelectedTopic* topics[] = {&selection_.imu,  &selection_.lidar,    &selection_.wheel,
+                                   &selection_.gnss, &selection_.odometry, &selection_.tf_static};
+  const SelectedTopic* topic = nullptr;
+  for (const SelectedTopic* candidate : topics) {
+    if (candidate->Has(message.connection_id)) topic = candidate;
+  }
+  if (topic == nullptr) return;
+  context_.bag_path = bag_path;
+  context_.record_offset = message.file_offset;
+  context_.type = NormalizedTypeName(topic->type);
+  context_.topic = topic->topic;
+  MessageCursor cursor(message.data, topic->serialization, &context_);
+  const int64_t log_ns = message.log_time_ns;
+  if (topic == &selection_.imu) {
+    AddImu(&cursor, log_ns);
+  } else if (topic == &selection_.lidar) {
+    AddCloud(&cursor, log_ns);
+  } else if (topic == &selection_.wheel) {
+    AddJointState(&cursor, log_ns);
+  } else if (topic == &selection_.gnss) {
+    AddFix(&cursor, log_ns);
+  } else if (topic == &selection_.odometry) {
+    AddOdometry(&cursor, log_ns);
+  } else {
+    transforms_.Add(DecodeTfMessage(&cursor));
+    ++summary_->static_transforms;
+  }
+}
+
+void StreamImporter::AddImu(MessageCursor* cursor, int64_t log_ns) {
+  const ImuMessage imu = DecodeImu(cursor);
+  ++summary_->imu.messages;
+  if (imu_frame_.empty()) imu_frame_ = imu.frame_id;
+  sensors::ImuSample sample;
+  sample.t_ns = Stamp(imu.stamp_ns, log_ns);
+  sample.gyro_rad_s = imu.angular_velocity_rad_s;
+  sample.accel_m_s2 = imu.linear_acceleration_m_s2;
+  imu_.push_back(sample);
+}
+
+void StreamImporter::AddCloud(MessageCursor* cursor, int64_t log_ns) {
+  PointCloudMessage cloud = DecodePointCloud2(cursor);
+  ++summary_->lidar.messages;
+  if (lidar_frame_.empty()) lidar_frame_ = cloud.frame_id;
+  if (cloud.height > 1) lidar_rows_ = cloud.height;
+  dropped_points_ += cloud.dropped_points;
+  if (cloud.time_form == PointTimeForm::kNone && !warned_no_point_time_) {
+    warned_no_point_time_ = true;
+    Warn(selection_.lidar.topic +
+         ": the clouds have no per-point time field (t, time, timestamp, offset_time): every "
+         "point gets t = 0, so the sweeps cannot be deskewed");
+  }
+  lidar::LidarSweep sweep;
+  sweep.t_ns = Stamp(cloud.stamp_ns, log_ns);
+  if (cloud.cloud.empty()) {
+    ++empty_sweeps_;
+    return;
+  }
+  if (!sweep_stamps_.empty() && sweep.t_ns <= last_sweep_ns_) {
+    ++unordered_sweeps_;
+    return;
+  }
+  sweep.cloud = std::move(cloud.cloud);
+  writer_->AddSweep(sweep);
+  last_sweep_ns_ = sweep.t_ns;
+  sweep_stamps_.push_back(sweep.t_ns);
+  ++summary_->lidar.written;
+}
+
+std::pair<int, int> StreamImporter::WheelJoints(const std::vector<std::string>& names) {
+  if (names == joint_names_) return joint_indices_;
+  const int left = FindWheelJoint(names, "left", options_.left_wheel_joint);
+  const int right = FindWheelJoint(names, "right", options_.right_wheel_joint);
+  const bool named = !options_.left_wheel_joint.empty() || !options_.right_wheel_joint.empty();
+  if ((left < 0 || right < 0) && !named && names.size() >= 2) {
+    throw Error(selection_.wheel.topic +
+                ": cannot tell the left and right rear wheels among "
+                "the joints [" +
+                JoinNames(names) +
+                "]: name them with "
+                "--wheel_joints=LEFT,RIGHT (or skip them with --wheel_topic=none)");
+  }
+  joint_names_ = names;
+  joint_indices_ = {left, right};
+  return joint_indices_;
+}
+
+void StreamImporter::AddJointState(MessageCursor* cursor, int64_t log_ns) {
+  const JointStateMessage joints = DecodeJointState(cursor);
+  ++summary_->wheel.messages;
+  const auto [left, right] = WheelJoints(joints.names);
+  if (left < 0 || right < 0) {
+    ++joint_states_without_wheels_;
+    return;
+  }
+  sensors::WheelSample sample;
+  sample.t_ns = Stamp(joints.stamp_ns, log_ns);
+  const size_t needed = static_cast<size_t>(std::max(left, right)) + 1;
+  if (joints.velocity_rad_s.size() >= needed) {
+    sample.left_rad_s = joints.velocity_rad_s[left];
+    sample.right_rad_s = joints.velocity_rad_s[right];
+  } else if (joints.position_rad.size() >= needed) {
+    // No velocities: differentiate the wheel angles between consecutive messages.
+    const double left_rad = joints.position_rad[left];
+    const double right_rad = joints.position_rad[right];
+    const bool usable = has_previous_position_ && sample.t_ns > previous_position_ns_;
+    const double dt_s = 1e-9 * static_cast<double>(sample.t_ns - previous_position_ns_);
+    sample.left_rad_s = (left_rad - previous_left_rad_) / dt_s;
+    sample.right_rad_s = (right_rad - previous_right_rad_) / dt_s;
+    has_previous_position_ = true;
+    previous_position_ns_ = sample.t_ns;
+    previous_left_rad_ = left_rad;
+    previous_right_rad_ = right_rad;
+    if (!usable) return;
+  } else {
+    ++joint_states_without_wheels_;
+    return;
+  }
+  wheel_.push_back(sample);
+}
+
+void StreamImporter::AddFix(MessageCursor* cursor, int64_t log_ns) {
+  const NavSatFixMessage fix = DecodeNavSatFix(cursor);
+  ++summary_->gnss.messages;
+  if (gnss_frame_.empty()) gnss_frame_ = fix.frame_id;
+  if (fix.status < 0) {
+    ++no_fix_;
+    return;
+  }
+  sensors::GnssFix out;
+  out.t_ns = Stamp(fix.stamp_ns, log_ns);
+  out.lat_deg = fix.latitude_deg;
+  out.lon_deg = fix.longitude_deg;
+  out.alt_m = fix.altitude_m;
+  const auto& c = fix.position_covariance_m2;
+  const Eigen::Vector3d variance(c[0], c[4], c[8]);  // east, north, up
+  if (fix.covariance_type != 0 && (variance.array() > 0.0).all() && variance.allFinite()) {
+    out.std_enu_m = variance.cwiseSqrt();
+  } else {
+    if (options_.unknown_gnss_sigma_m <= 0.0) {
+      cursor->Fail("NavSatFix covariance is " +
+                   std::string(fix.covariance_type == 0 ? "of unknown type" : "not positive") +
+                   " and no default sigma is set (give one with --unknown_gnss_sigma_m)");
+    }
+    out.std_enu_m.setConstant(options_.unknown_gnss_sigma_m);
+    ++defaulted_gnss_sigma_;
+  }
+  if (!std::isfinite(out.lat_deg) || !std::isfinite(out.lon_deg) || !std::isfinite(out.alt_m)) {
+    ++no_fix_;
+    return;
+  }
+  gnss_.push_back(out);
+}
+
+void StreamImporter::AddOdometry(MessageCursor* cursor, int64_t log_ns) {
+  const VehicleTwistMessage twist = selection_.odometry.kind == MessageKind::kOdometry
+                                        ? DecodeOdometry(cursor)
+                                        : DecodeTwistStamped(cursor);
+  ++summary_->odometry.messages;
+  odometry_.push_back({Stamp(twist.stamp_ns, log_ns), twist.speed_m_s, twist.yaw_rate_rad_s});
+}
+
+io::SensorsConfig StreamImporter::MakeSensorsConfig() {
+  io::SensorsConfig config;
+  const double imu_rate = RateHz(imu_);
+  if (imu_rate > 0.0) config.imu.noise.update_rate_hz = imu_rate;
+  Warn(
+      "sensors.yaml: the IMU noise densities and random walks are placeholders (EuRoC-class "
+      "MEMS): replace them with your IMU's values");
+  if (!sweep_stamps_.empty()) {
+    sensors::LidarConfig lidar;
+    if (sweep_stamps_.size() >= 2) {
+      lidar.rate_hz = static_cast<double>(sweep_stamps_.size() - 1) /
+                      (1e-9 * static_cast<double>(sweep_stamps_.back() - sweep_stamps_.front()));
+    }
+    if (lidar_rows_ > 1) lidar.num_beams = static_cast<int>(lidar_rows_);
+    config.lidar = lidar;
+  }
+  if (!wheel_.empty()) {
+    sensors::WheelConfig wheel;
+    if (RateHz(wheel_) > 0.0) wheel.rate_hz = RateHz(wheel_);
+    config.wheel = wheel;
+  }
+  if (!gnss_.empty()) {
+    sensors::GnssConfig gnss;
+    if (RateHz(gnss_) > 0.0) gnss.rate_hz = RateHz(gnss_);
+    config.gnss = gnss;
+  }
+  config.nominal_calibration = NominalCalibration();
+  return config;
+}
+
+// The nominal extrinsics from /tf_static, by the messages' frame_ids.
+sensors::Calibration StreamImporter::NominalCalibration() {
+  sensors::Calibration nominal;
+  const auto describe = [&](const char* what, const std::string& a, const std::string& b) {
+    Warn(std::string("sensors.yaml: no static transform between '") + a + "' and '" + b + "' in " +
+         (selection_.tf_static.selected() ? selection_.tf_static.topic : "the bag") + ": nominal " +
+         what + " left at its default");
+  };
+  if (!lidar_frame_.empty()) {
+    if (const auto T_I_L = transforms_.Find(imu_frame_, lidar_frame_)) {
+      nominal.q_I_L = T_I_L->q;
+      nominal.p_I_L = T_I_L->p;
+    } else {
+      describe("T_I_L", imu_frame_, lidar_frame_);
+    }
+  }
+  if (const auto T_I_V = transforms_.Find(imu_frame_, options_.base_frame)) {
+    nominal.q_I_V = T_I_V->q;
+    nominal.p_I_V = T_I_V->p;
+  } else {
+    describe("T_I_V", imu_frame_, options_.base_frame);
+  }
+  if (!gnss_frame_.empty() && !gnss_.empty()) {
+    if (const auto T_I_A = transforms_.Find(imu_frame_, gnss_frame_)) {
+      nominal.p_I_A = T_I_A->p;
+    } else {
+      describe("p_I_A", imu_frame_, gnss_frame_);
+    }
+  }
+  return nominal;
+}
+
+void StreamImporter::Finish(const std::string& directory) {
+  if (imu_.empty()) throw Error(selection_.imu.topic + ": no IMU messages in the bag");
+  const auto count = [](int64_t n, const std::string& what) {
+    return std::to_string(n) + " " + what;
+  };
+  if (const int64_t n = SortUnique(&imu_))
+    Warn(count(n, "IMU samples with a repeated stamp dropped"));
+  if (const int64_t n = SortUnique(&wheel_))
+    Warn(count(n, "wheel samples with a repeated stamp dropped"));
+  if (const int64_t n = SortUnique(&gnss_))
+    Warn(count(n, "GNSS fixes with a repeated stamp dropped"));
+  if (const int64_t n = SortUnique(&odometry_))
+    Warn(count(n, "odometry samples with a repeated stamp dropped"));
+  if (zero_stamps_ > 0)
+    Warn(count(zero_stamps_, "messages with a zero header stamp took their receive time"));
+  if (unordered_sweeps_ > 0)
+    Warn(count(unordered_sweeps_,
+               "sweeps whose stamp did not follow the previous sweep's were dropped"));
+  if (empty_sweeps_ > 0) Warn(count(empty_sweeps_, "sweeps without a valid point were dropped"));
+  if (dropped_points_ > 0)
+    Warn(count(dropped_points_,
+               "LiDAR points without a return (non-finite or 0, 0, 0) were dropped"));
+  if (no_fix_ > 0) Warn(count(no_fix_, "GNSS messages without a fix (status < 0) were dropped"));
+  if (defaulted_gnss_sigma_ > 0) {
+    Warn(count(defaulted_gnss_sigma_, "GNSS fixes without a usable covariance got sigma ") +
+         io::internal::FormatDouble(options_.unknown_gnss_sigma_m) + " m");
+  }
+  if (joint_states_without_wheels_ > 0) {
+    Warn(count(joint_states_without_wheels_,
+               "JointState messages without both wheels' rates were skipped"));
+  }
+
+  writer_->WriteImu(imu_);
+  summary_->imu.written = static_cast<int64_t>(imu_.size());
+  if (!wheel_.empty()) writer_->WriteWheel(wheel_);
+  summary_->wheel.written = static_cast<int64_t>(wheel_.size());
+  if (!gnss_.empty()) writer_->WriteGnss(gnss_);
+  summary_->gnss.written = static_cast<int64_t>(gnss_.size());
+  if (!odometry_.empty()) WriteOdometryCsv(directory + "/odometry.csv", odometry_);
+  summary_->odometry.written = static_cast<int64_t>(odometry_.size());
+  writer_->WriteSensorsConfig(MakeSensorsConfig());
+}
+
+}  // namespace import
+}  // namespace autocal

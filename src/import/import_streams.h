@@ -1,0 +1,88 @@
+#pragma once
+
+// The message-by-message part of an import: decodes each message of a selected topic and
+// turns it into dataset rows (docs/import.md, "Message mapping"). Sweeps go straight to
+// the DatasetWriter; the small streams are kept and written, sorted by stamp, by Finish().
+// Private to src/import.
+
+#include <string>
+#include <vector>
+
+#include "autocal/import/import_bag.h"
+#include "autocal/io/dataset.h"
+#include "import/bag_reader.h"
+#include "import/static_transforms.h"
+#include "import/topic_selection.h"
+
+namespace autocal {
+namespace import {
+
+// A row of odometry.csv: vehicle speed and yaw rate (datasets/README.md).
+struct OdometrySample {
+  int64_t t_ns = 0;
+  double speed_m_s = 0.0;
+  double yaw_rate_rad_s = 0.0;
+};
+
+class StreamImporter {
+ public:
+  StreamImporter(const ImportOptions& options, const TopicSelection& selection,
+                 io::DatasetWriter* writer, ImportSummary* summary);
+
+  // Decodes `message` when its connection feeds a stream; ignores it otherwise.
+  void Add(const std::string& bag_path, const BagMessage& message);
+  // Writes imu.csv, wheel.csv, gnss.csv, odometry.csv and sensors.yaml into `directory`.
+  void Finish(const std::string& directory);
+
+ private:
+  int64_t Stamp(int64_t header_ns, int64_t log_ns);
+  void AddImu(MessageCursor* cursor, int64_t log_ns);
+  void AddCloud(MessageCursor* cursor, int64_t log_ns);
+  void AddJointState(MessageCursor* cursor, int64_t log_ns);
+  void AddFix(MessageCursor* cursor, int64_t log_ns);
+  void AddOdometry(MessageCursor* cursor, int64_t log_ns);
+  // Indices of the left and right wheel joints among `names` (docs/import.md rule).
+  std::pair<int, int> WheelJoints(const std::vector<std::string>& names);
+  // Measured rates and the nominal calibration; the IMU noise stays at its defaults.
+  io::SensorsConfig MakeSensorsConfig();
+  sensors::Calibration NominalCalibration();
+  void Warn(const std::string& line) { summary_->warnings.push_back(line); }
+
+  const ImportOptions& options_;
+  const TopicSelection& selection_;
+  io::DatasetWriter* writer_;
+  ImportSummary* summary_;
+  MessageContext context_;
+
+  sensors::ImuSamples imu_;
+  sensors::WheelSamples wheel_;
+  sensors::GnssFixes gnss_;
+  std::vector<OdometrySample> odometry_;
+  StaticTransforms transforms_;
+  std::string imu_frame_, lidar_frame_, gnss_frame_;
+
+  // LiDAR
+  int64_t last_sweep_ns_ = 0;
+  uint32_t lidar_rows_ = 0;
+  std::vector<int64_t> sweep_stamps_;
+  bool warned_no_point_time_ = false;
+  // Wheels: joint names of the last message and their indices; the previous positions for
+  // a JointState without velocities.
+  std::vector<std::string> joint_names_;
+  std::pair<int, int> joint_indices_{-1, -1};
+  bool has_previous_position_ = false;
+  int64_t previous_position_ns_ = 0;
+  double previous_left_rad_ = 0.0, previous_right_rad_ = 0.0;
+
+  // Counts for the warnings.
+  int64_t zero_stamps_ = 0;
+  int64_t unordered_sweeps_ = 0;
+  int64_t empty_sweeps_ = 0;
+  int64_t dropped_points_ = 0;
+  int64_t no_fix_ = 0;
+  int64_t defaulted_gnss_sigma_ = 0;
+  int64_t joint_states_without_wheels_ = 0;
+};
+
+}  // namespace import
+}  // namespace autocal
