@@ -1,0 +1,76 @@
+#include "import/rosbag2_metadata.h"
+
+#include "io/yaml_util.h"
+
+namespace autocal {
+namespace import {
+namespace internal {
+
+namespace {
+
+using io::internal::YamlFile;
+
+// An optional string key ("" when absent).
+std::string OptionalString(const YamlFile& file, const YAML::Node& map, const char* key,
+                           const std::string& what) {
+  const YAML::Node node = map[key];
+  if (!node.IsDefined() || node.IsNull()) return "";
+  return file.String(node, what + "." + key);
+}
+
+Rosbag2Topic ReadTopic(const YamlFile& file, const YAML::Node& entry, const std::string& what) {
+  const YAML::Node metadata = file.Required(entry, what, "topic_metadata");
+  Rosbag2Topic topic;
+  topic.name = file.String(file.Required(metadata, what, "name"), what + ".name");
+  topic.type = file.String(file.Required(metadata, what, "type"), what + ".type");
+  topic.serialization_format = file.String(file.Required(metadata, what, "serialization_format"),
+                                           what + ".serialization_format");
+  const int64_t count =
+      file.Int(file.Required(entry, what, "message_count"), what + ".message_count");
+  if (count < 0) file.Fail(entry["message_count"], what + ".message_count: negative");
+  topic.message_count = static_cast<uint64_t>(count);
+  return topic;
+}
+
+}  // namespace
+
+Rosbag2Metadata ReadRosbag2Metadata(const std::string& path) {
+  const YamlFile file(path);
+  const std::string what = "rosbag2_bagfile_information";
+  const YAML::Node info = file.Required(file.root(), "metadata.yaml", what.c_str());
+  if (!info.IsMap()) file.Fail(info, what + ": expected a map");
+  Rosbag2Metadata metadata;
+  metadata.storage_identifier =
+      file.String(file.Required(info, what, "storage_identifier"), what + ".storage_identifier");
+
+  const YAML::Node files = file.Required(info, what, "relative_file_paths");
+  if (!files.IsSequence()) file.Fail(files, what + ".relative_file_paths: expected a list");
+  for (size_t i = 0; i < files.size(); ++i) {
+    metadata.relative_files.push_back(
+        file.String(files[i], what + ".relative_file_paths[" + std::to_string(i) + "]"));
+  }
+
+  const YAML::Node topics = file.Required(info, what, "topics_with_message_count");
+  if (!topics.IsSequence() && !topics.IsNull()) {
+    file.Fail(topics, what + ".topics_with_message_count: expected a list");
+  }
+  for (size_t i = 0; i < topics.size(); ++i) {
+    metadata.topics.push_back(
+        ReadTopic(file, topics[i], what + ".topics_with_message_count[" + std::to_string(i) + "]"));
+  }
+
+  const YAML::Node start = file.Required(info, what, "starting_time");
+  metadata.starting_time_ns =
+      file.Int(file.Required(start, what + ".starting_time", "nanoseconds_since_epoch"),
+               what + ".starting_time.nanoseconds_since_epoch");
+  const YAML::Node duration = file.Required(info, what, "duration");
+  metadata.duration_ns = file.Int(file.Required(duration, what + ".duration", "nanoseconds"),
+                                  what + ".duration.nanoseconds");
+  metadata.compression_mode = OptionalString(file, info, "compression_mode", what);
+  metadata.compression_format = OptionalString(file, info, "compression_format", what);
+  return metadata;
+}
+
+}  // namespace internal
+}  // namespace import
+}  // namespace autocal
