@@ -6,9 +6,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <string_view>
-#include <vector>
 
 #include "autocal/common/error.h"
 #include "import/bag_reader.h"
@@ -55,9 +55,9 @@ inline void DecodeMessage(import::MessageKind kind, std::string_view data,
 // Reads `reader` to its end; each message of a supported type is decoded. A message the
 // decoder refuses does not end the bag (the reader goes on, as a caller skipping it would).
 inline void ReadAndDecodeAll(import::BagReader* reader) {
-  std::vector<const import::Connection*> by_id;
+  // Ids are the file's own (any uint32 in a ROS 1 bag): a map, not a table indexed by them.
+  std::map<uint32_t, const import::Connection*> by_id;
   for (const import::Connection& connection : reader->connections()) {
-    if (connection.id >= by_id.size()) by_id.resize(connection.id + 1, nullptr);
     by_id[connection.id] = &connection;
   }
   reader->IndexedTopics();
@@ -65,9 +65,9 @@ inline void ReadAndDecodeAll(import::BagReader* reader) {
   context.bag_path = reader->path();
   import::BagMessage message;
   while (reader->Next(&message)) {
-    const import::Connection* connection =
-        message.connection_id < by_id.size() ? by_id[message.connection_id] : nullptr;
-    if (connection == nullptr) continue;
+    const auto found = by_id.find(message.connection_id);
+    if (found == by_id.end()) continue;
+    const import::Connection* connection = found->second;
     context.record_offset = message.file_offset;
     context.type = import::NormalizedTypeName(connection->type);
     context.topic = connection->topic;
