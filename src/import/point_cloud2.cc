@@ -244,6 +244,8 @@ PointCloudMessage DecodePointCloud2(MessageCursor* cursor) {
   const PointTimeReader time_reader(layout, message.stamp_ns);
 
   const int64_t capacity = int64_t{message.height} * message.width;
+  // No points: nothing to read (and no loop over up to 2^32 rows of width 0).
+  if (capacity == 0) return message;
   lidar::PointCloud& cloud = message.cloud;
   cloud.points.resize(3, capacity);
   cloud.time_s.resize(capacity);

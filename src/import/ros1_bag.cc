@@ -115,12 +115,26 @@ class HeaderFields {
   std::vector<std::pair<std::string_view, std::string_view>> fields_;
 };
 
+// Owns an open file descriptor and closes it, also when the reader's constructor throws
+// (a member is destroyed then, the reader's own destructor does not run).
+class FileDescriptor {
+ public:
+  FileDescriptor() = default;
+  FileDescriptor(const FileDescriptor&) = delete;
+  FileDescriptor& operator=(const FileDescriptor&) = delete;
+  ~FileDescriptor() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  void Open(const std::string& path) { fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC); }
+  int get() const { return fd_; }
+
+ private:
+  int fd_ = -1;
+};
+
 class Ros1BagReader final : public BagReader {
  public:
   explicit Ros1BagReader(std::string path);
-  ~Ros1BagReader() override {
-    if (fd_ >= 0) ::close(fd_);
-  }
 
   const std::string& path() const override { return path_; }
   const std::vector<Connection>& connections() const override { return connections_; }
@@ -159,7 +173,7 @@ class Ros1BagReader final : public BagReader {
   void Rewind();
 
   std::string path_;
-  int fd_ = -1;
+  FileDescriptor fd_;
   uint64_t file_bytes_ = 0;
   uint64_t index_pos_ = 0;
   uint32_t declared_connections_ = 0;
@@ -186,10 +200,10 @@ class Ros1BagReader final : public BagReader {
 };
 
 Ros1BagReader::Ros1BagReader(std::string path) : path_(std::move(path)) {
-  fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd_ < 0) throw Error("cannot open '" + path_ + "': " + std::strerror(errno));
+  fd_.Open(path_);
+  if (fd_.get() < 0) throw Error("cannot open '" + path_ + "': " + std::strerror(errno));
   struct stat info;
-  if (::fstat(fd_, &info) != 0 || !S_ISREG(info.st_mode)) {
+  if (::fstat(fd_.get(), &info) != 0 || !S_ISREG(info.st_mode)) {
     throw Error("'" + path_ + "' is not a regular file");
   }
   file_bytes_ = static_cast<uint64_t>(info.st_size);
@@ -226,7 +240,8 @@ void Ros1BagReader::ReadAt(uint64_t offset, size_t bytes, char* out, uint64_t re
   }
   size_t done = 0;
   while (done < bytes) {
-    const ssize_t n = ::pread(fd_, out + done, bytes - done, static_cast<off_t>(offset + done));
+    const ssize_t n =
+        ::pread(fd_.get(), out + done, bytes - done, static_cast<off_t>(offset + done));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
       Fail(offset + done, std::string("read error: ") + (n < 0 ? std::strerror(errno) : "EOF"));

@@ -18,15 +18,23 @@ std::string OptionalString(const YamlFile& file, const YAML::Node& map, const ch
   return file.String(node, what + "." + key);
 }
 
+// The child `key` of `map`, which must be a map: a ParseError at its line:column when the
+// node is a scalar or a list (yaml-cpp's own operator[] would throw an exception of its own).
+YAML::Node Required(const YamlFile& file, const YAML::Node& map, const std::string& what,
+                    const char* key) {
+  if (!map.IsMap()) file.Fail(map, what + ": expected a map");
+  return file.Required(map, what, key);
+}
+
 Rosbag2Topic ReadTopic(const YamlFile& file, const YAML::Node& entry, const std::string& what) {
-  const YAML::Node metadata = file.Required(entry, what, "topic_metadata");
+  const YAML::Node metadata = Required(file, entry, what, "topic_metadata");
   Rosbag2Topic topic;
-  topic.name = file.String(file.Required(metadata, what, "name"), what + ".name");
-  topic.type = file.String(file.Required(metadata, what, "type"), what + ".type");
-  topic.serialization_format = file.String(file.Required(metadata, what, "serialization_format"),
+  topic.name = file.String(Required(file, metadata, what, "name"), what + ".name");
+  topic.type = file.String(Required(file, metadata, what, "type"), what + ".type");
+  topic.serialization_format = file.String(Required(file, metadata, what, "serialization_format"),
                                            what + ".serialization_format");
   const int64_t count =
-      file.Int(file.Required(entry, what, "message_count"), what + ".message_count");
+      file.Int(Required(file, entry, what, "message_count"), what + ".message_count");
   if (count < 0) file.Fail(entry["message_count"], what + ".message_count: negative");
   topic.message_count = static_cast<uint64_t>(count);
   return topic;
@@ -37,20 +45,19 @@ Rosbag2Topic ReadTopic(const YamlFile& file, const YAML::Node& entry, const std:
 Rosbag2Metadata ReadRosbag2Metadata(const std::string& path) {
   const YamlFile file(path);
   const std::string what = "rosbag2_bagfile_information";
-  const YAML::Node info = file.Required(file.root(), "metadata.yaml", what.c_str());
-  if (!info.IsMap()) file.Fail(info, what + ": expected a map");
+  const YAML::Node info = Required(file, file.root(), "metadata.yaml", what.c_str());
   Rosbag2Metadata metadata;
   metadata.storage_identifier =
-      file.String(file.Required(info, what, "storage_identifier"), what + ".storage_identifier");
+      file.String(Required(file, info, what, "storage_identifier"), what + ".storage_identifier");
 
-  const YAML::Node files = file.Required(info, what, "relative_file_paths");
+  const YAML::Node files = Required(file, info, what, "relative_file_paths");
   if (!files.IsSequence()) file.Fail(files, what + ".relative_file_paths: expected a list");
   for (size_t i = 0; i < files.size(); ++i) {
     metadata.relative_files.push_back(
         file.String(files[i], what + ".relative_file_paths[" + std::to_string(i) + "]"));
   }
 
-  const YAML::Node topics = file.Required(info, what, "topics_with_message_count");
+  const YAML::Node topics = Required(file, info, what, "topics_with_message_count");
   if (!topics.IsSequence() && !topics.IsNull()) {
     file.Fail(topics, what + ".topics_with_message_count: expected a list");
   }
@@ -59,12 +66,12 @@ Rosbag2Metadata ReadRosbag2Metadata(const std::string& path) {
         ReadTopic(file, topics[i], what + ".topics_with_message_count[" + std::to_string(i) + "]"));
   }
 
-  const YAML::Node start = file.Required(info, what, "starting_time");
+  const YAML::Node start = Required(file, info, what, "starting_time");
   metadata.starting_time_ns =
-      file.Int(file.Required(start, what + ".starting_time", "nanoseconds_since_epoch"),
+      file.Int(Required(file, start, what + ".starting_time", "nanoseconds_since_epoch"),
                what + ".starting_time.nanoseconds_since_epoch");
-  const YAML::Node duration = file.Required(info, what, "duration");
-  metadata.duration_ns = file.Int(file.Required(duration, what + ".duration", "nanoseconds"),
+  const YAML::Node duration = Required(file, info, what, "duration");
+  metadata.duration_ns = file.Int(Required(file, duration, what + ".duration", "nanoseconds"),
                                   what + ".duration.nanoseconds");
   metadata.compression_mode = OptionalString(file, info, "compression_mode", what);
   metadata.compression_format = OptionalString(file, info, "compression_format", what);

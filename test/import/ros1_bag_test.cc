@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <map>
 #include <random>
 
@@ -172,6 +173,27 @@ TEST(Ros1BagTest, TruncatedFilesAreRefusedWithTheOffset) {
   const std::string unindexed = MakeBag(Ros1BagWriter::Compression::kNone, false);
   const std::string error = ErrorOf("cut_chunk.bag", unindexed.substr(0, 4096 + 13 + 500));
   EXPECT_THAT(error, HasSubstr("byte 4109: truncated file: the chunk record declares"));
+}
+
+// The open file descriptors of this process.
+size_t OpenDescriptors() {
+  size_t count = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    ++count;
+  }
+  return count;
+}
+
+// Regression (fuzz_ros1_bag): a bag refused while it was being opened left its file open, so
+// a long-running caller opening many bad bags ran out of file descriptors.
+TEST(Ros1BagTest, RefusedBagDoesNotKeepItsFileOpen) {
+  std::string bytes = MakeBag(Ros1BagWriter::Compression::kNone, true);
+  const std::string path = WriteBag("refused.bag", bytes.substr(0, bytes.size() - 10));
+  const size_t before = OpenDescriptors();
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_THROW(OpenRos1Bag(path), ParseError);
+  }
+  EXPECT_EQ(OpenDescriptors(), before);
 }
 
 // A bag with one chunk built by hand: `compression` and `declared_size` as given.

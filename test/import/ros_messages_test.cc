@@ -7,6 +7,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
+
 #include "autocal/common/error.h"
 #include "import/ros_message_writer.h"
 
@@ -246,6 +248,25 @@ TEST_P(MessagesTest, PointCloud2InEveryTimeForm) {
       EXPECT_NEAR(cloud.cloud.time_s[k], expected_t, 2e-7) << "point " << i;
     }
   }
+}
+
+// Regression (fuzz_ros_messages): a cloud of width 0 and height 2^32 - 1 holds no points but
+// made the decoder walk every one of its empty rows (a minute under the fuzzer). An optimizing
+// build removes that empty loop, so the time bound catches it only in unoptimized and
+// sanitizer builds.
+TEST_P(MessagesTest, PointCloud2OfWidthZeroIsEmptyWhateverItsHeight) {
+  const std::vector<TestPointField> fields = {{"x", 0, 7}, {"y", 4, 7}, {"z", 8, 7}};
+  const std::string bytes =
+      test::SerializePointCloud2(cdr(), kStampNs, "l", 0xffffffffu, 0, fields, 12, 0, "");
+  MessageCursor cursor = Cursor(bytes);
+  const auto start = std::chrono::steady_clock::now();
+  const PointCloudMessage cloud = DecodePointCloud2(&cursor);
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(cloud.height, 0xffffffffu);
+  EXPECT_EQ(cloud.cloud.points.cols(), 0);
+  EXPECT_EQ(cloud.dropped_points, 0);
+  EXPECT_LT(elapsed_s, 0.1);
 }
 
 TEST_P(MessagesTest, PointCloud2WithDisagreeingSizesIsRefused) {

@@ -423,6 +423,17 @@ TEST(Rosbag2Directory, BadInput) {
             std::string::npos)
       << ErrorReadingDirectory(dir);
 
+  // Regression (fuzz_rosbag2_metadata): a scalar or a list where a map belongs made yaml-cpp
+  // throw its own exception instead of a ParseError naming the place.
+  test::WriteFile(metadata, "rosbag2_bagfile_information\n");
+  EXPECT_NE(ErrorReadingDirectory(dir).find("metadata.yaml:1:1: metadata.yaml: expected a map"),
+            std::string::npos)
+      << ErrorReadingDirectory(dir);
+  test::WriteFile(metadata, Metadata("    - bag_0.mcap\n", "    - /a\n"));
+  EXPECT_NE(ErrorReadingDirectory(dir).find("topics_with_message_count[0]: expected a map"),
+            std::string::npos)
+      << ErrorReadingDirectory(dir);
+
   // A truncated file of the bag.
   test::WriteFile(metadata, Metadata("    - bag_0.mcap\n", Topic("/a", 6) + Topic("/b", 4)));
   test::WriteFile(dir + "/bag_0.mcap", SplitFile(0, 6).substr(0, 300));
