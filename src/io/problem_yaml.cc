@@ -35,20 +35,6 @@ int IntInRange(const YamlFile& file, const YAML::Node& node, const std::string& 
   return static_cast<int>(value);
 }
 
-// A number within [min_value, max_value] (`unit` follows the bounds in the message): beyond
-// them a setting is a typo or a unit slip, and extreme magnitudes overflow downstream (a
-// 1e-300 m voxel, a 1e-300 sigma whose information is infinite).
-double DoubleInRange(const YamlFile& file, const YAML::Node& node, const std::string& what,
-                     double min_value, double max_value, const std::string& unit) {
-  const double value = file.Double(node, what);
-  if (!(value >= min_value && value <= max_value)) {
-    file.Fail(node, what + ": must be within [" + internal::FormatDouble(min_value) + ", " +
-                        internal::FormatDouble(max_value) + "] " + unit + ", found " +
-                        node.Scalar());
-  }
-  return value;
-}
-
 // The range of a prior sigma by its key: rotations in degrees, lengths in metres, the time
 // offset in seconds (problems/README.md).
 struct SigmaRange {
@@ -65,7 +51,7 @@ SigmaRange SigmaRangeOf(const std::string& sigma_key) {
 double Sigma(const YamlFile& file, const YAML::Node& node, const std::string& what,
              const std::string& sigma_key) {
   const SigmaRange range = SigmaRangeOf(sigma_key);
-  return DoubleInRange(file, node, what, range.min_value, range.max_value, range.unit);
+  return file.DoubleInRange(node, what, range.min_value, range.max_value, range.unit);
 }
 
 // "estimate" | "fixed" | {<sigma_key>: sigma}. Returns true for the prior form, leaving the
@@ -315,7 +301,7 @@ Problem ParseProblem(const YamlFile& file) {
           IntInRange(file, n, "lidar.max_points_per_sweep", 1, kMaxPointsPerSweep);
     }
     if (const YAML::Node n = lidar["voxel_m"]) {
-      problem.lidar.voxel_m = DoubleInRange(file, n, "lidar.voxel_m", kMinVoxelM, kMaxVoxelM, "m");
+      problem.lidar.voxel_m = file.DoubleInRange(n, "lidar.voxel_m", kMinVoxelM, kMaxVoxelM, "m");
     }
     if (const YAML::Node n = lidar["sweep_stride"])
       problem.lidar.sweep_stride = IntInRange(file, n, "lidar.sweep_stride", 1, kMaxSweepStride);

@@ -19,20 +19,6 @@ using internal::YamlFile;
 constexpr double kMinGravity = 9.7;
 constexpr double kMaxGravity = 9.9;
 
-// A number within [min_value, max_value] `unit`: beyond these a value is a typo or a unit
-// slip (sensor_config.h's defaults lie well inside), and extreme magnitudes (1e-300, 1e300)
-// overflow the information matrices built from them.
-double InRange(const YamlFile& file, const YAML::Node& node, const std::string& what,
-               double min_value, double max_value, const std::string& unit) {
-  const double value = file.Double(node, what);
-  if (!(value >= min_value && value <= max_value)) {
-    file.Fail(node, what + ": must be within [" + internal::FormatDouble(min_value) + ", " +
-                        internal::FormatDouble(max_value) + "] " + unit + ", found " +
-                        node.Scalar());
-  }
-  return value;
-}
-
 sensors::ImuConfig ParseImu(const YamlFile& file, const YAML::Node& node) {
   file.ExpectMap(node, "imu",
                  {"gyroscope_noise_density", "gyroscope_random_walk", "accelerometer_noise_density",
@@ -40,8 +26,8 @@ sensors::ImuConfig ParseImu(const YamlFile& file, const YAML::Node& node) {
   sensors::ImuConfig imu;
   sensors::ImuNoise& noise = imu.noise;
   const auto required = [&](const char* key, double min_value, double max_value, const char* unit) {
-    return InRange(file, file.Required(node, "imu", key), std::string("imu.") + key, min_value,
-                   max_value, unit);
+    return file.DoubleInRange(file.Required(node, "imu", key), std::string("imu.") + key, min_value,
+                              max_value, unit);
   };
   noise.gyroscope_noise_density = required("gyroscope_noise_density", 1e-7, 1.0, "rad/s/sqrt(Hz)");
   noise.gyroscope_random_walk = required("gyroscope_random_walk", 1e-9, 1.0, "rad/s^2/sqrt(Hz)");
@@ -72,21 +58,21 @@ sensors::LidarConfig ParseLidar(const YamlFile& file, const YAML::Node& node) {
     lidar.num_beams = static_cast<int>(beams);
   }
   if (const YAML::Node n = node["rate_hz"])
-    lidar.rate_hz = InRange(file, n, "lidar.rate_hz", 0.1, 1000.0, "Hz");
+    lidar.rate_hz = file.DoubleInRange(n, "lidar.rate_hz", 0.1, 1000.0, "Hz");
   if (const YAML::Node n = node["min_elevation_deg"])
     lidar.min_elevation_deg = file.Double(n, "lidar.min_elevation_deg");
   if (const YAML::Node n = node["max_elevation_deg"])
     lidar.max_elevation_deg = file.Double(n, "lidar.max_elevation_deg");
   if (const YAML::Node n = node["azimuth_resolution_deg"]) {
     lidar.azimuth_resolution_deg =
-        InRange(file, n, "lidar.azimuth_resolution_deg", 0.001, 360.0, "deg");
+        file.DoubleInRange(n, "lidar.azimuth_resolution_deg", 0.001, 360.0, "deg");
   }
   if (const YAML::Node n = node["min_range_m"])
-    lidar.min_range_m = InRange(file, n, "lidar.min_range_m", 0.0, 1000.0, "m");
+    lidar.min_range_m = file.DoubleInRange(n, "lidar.min_range_m", 0.0, 1000.0, "m");
   if (const YAML::Node n = node["max_range_m"])
-    lidar.max_range_m = InRange(file, n, "lidar.max_range_m", 0.1, 10000.0, "m");
+    lidar.max_range_m = file.DoubleInRange(n, "lidar.max_range_m", 0.1, 10000.0, "m");
   if (const YAML::Node n = node["range_noise_m"])
-    lidar.range_noise_m = InRange(file, n, "lidar.range_noise_m", 0.0, 10.0, "m");
+    lidar.range_noise_m = file.DoubleInRange(n, "lidar.range_noise_m", 0.0, 10.0, "m");
   if (!(lidar.min_elevation_deg < lidar.max_elevation_deg) || lidar.min_elevation_deg < -90.0 ||
       lidar.max_elevation_deg > 90.0) {
     file.Fail(node, "lidar: need -90 <= min_elevation_deg < max_elevation_deg <= 90");
@@ -103,9 +89,9 @@ sensors::WheelConfig ParseWheel(const YamlFile& file, const YAML::Node& node) {
   file.ExpectMap(node, "wheel", {"rate_hz", "noise_rad_s"});
   sensors::WheelConfig wheel;
   if (const YAML::Node n = node["rate_hz"])
-    wheel.rate_hz = InRange(file, n, "wheel.rate_hz", 0.1, 100000.0, "Hz");
+    wheel.rate_hz = file.DoubleInRange(n, "wheel.rate_hz", 0.1, 100000.0, "Hz");
   if (const YAML::Node n = node["noise_rad_s"])
-    wheel.noise_rad_s = InRange(file, n, "wheel.noise_rad_s", 1e-6, 100.0, "rad/s");
+    wheel.noise_rad_s = file.DoubleInRange(n, "wheel.noise_rad_s", 1e-6, 100.0, "rad/s");
   return wheel;
 }
 
@@ -113,7 +99,7 @@ sensors::GnssConfig ParseGnss(const YamlFile& file, const YAML::Node& node) {
   file.ExpectMap(node, "gnss", {"rate_hz"});
   sensors::GnssConfig gnss;
   if (const YAML::Node n = node["rate_hz"])
-    gnss.rate_hz = InRange(file, n, "gnss.rate_hz", 0.01, 1000.0, "Hz");
+    gnss.rate_hz = file.DoubleInRange(n, "gnss.rate_hz", 0.01, 1000.0, "Hz");
   return gnss;
 }
 

@@ -102,6 +102,16 @@ double YamlFile::Double(const YAML::Node& node, const std::string& what) const {
   return value;
 }
 
+double YamlFile::DoubleInRange(const YAML::Node& node, const std::string& what, double min_value,
+                               double max_value, const std::string& unit) const {
+  const double value = Double(node, what);
+  if (!(value >= min_value && value <= max_value)) {
+    Fail(node, what + ": must be within [" + FormatDouble(min_value) + ", " +
+                   FormatDouble(max_value) + "] " + unit + ", found " + node.Scalar());
+  }
+  return value;
+}
+
 double YamlFile::Positive(const YAML::Node& node, const std::string& what) const {
   const double value = Double(node, what);
   if (!(value > 0.0)) Fail(node, what + ": must be > 0, found " + node.Scalar());

@@ -4,14 +4,14 @@
 // every problem becomes a ParseError with the file and the node's line and column. yaml-cpp
 // stays private to the library (it is not part of any public header). Private to src/io.
 
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <initializer_list>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
-#include <yaml-cpp/yaml.h>
 
 namespace autocal {
 namespace io {
@@ -39,6 +39,11 @@ class YamlFile {
   double Double(const YAML::Node& node, const std::string& what) const;
   // A number that must be > 0.
   double Positive(const YAML::Node& node, const std::string& what) const;
+  // A number within [min_value, max_value] (`unit` follows the bounds in the message): beyond
+  // them a setting is a typo or a unit slip, and extreme magnitudes (1e-300, 1e300) overflow
+  // what is built from them (a voxel index, an information matrix).
+  double DoubleInRange(const YAML::Node& node, const std::string& what, double min_value,
+                       double max_value, const std::string& unit) const;
   int64_t Int(const YAML::Node& node, const std::string& what) const;
   bool Bool(const YAML::Node& node, const std::string& what) const;
   std::string String(const YAML::Node& node, const std::string& what) const;
