@@ -62,13 +62,12 @@ inline void ReadAndDecodeAll(import::BagReader* reader) {
   }
   reader->IndexedTopics();
   import::MessageContext context;
-  context.bag_path = reader->path();
   import::BagMessage message;
   while (reader->Next(&message)) {
     const auto found = by_id.find(message.connection_id);
     if (found == by_id.end()) continue;
     const import::Connection* connection = found->second;
-    context.record_offset = message.file_offset;
+    context.location = import::MessageLocation(reader->path(), message);
     context.type = import::NormalizedTypeName(connection->type);
     context.topic = connection->topic;
     try {

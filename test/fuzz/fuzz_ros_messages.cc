@@ -17,7 +17,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto serialization =
       (data[0] & 0x80) != 0 ? import::Serialization::kCdr : import::Serialization::kRos1;
   import::MessageContext context;
-  context.bag_path = "fuzz.bag";
+  context.location.file = "fuzz.bag";
   context.type = "fuzz";
   const std::string_view message(reinterpret_cast<const char*>(data) + 1, size - 1);
   fuzz::ExpectParsedOrRefused([&] { fuzz::DecodeMessage(kind, message, serialization, context); });
