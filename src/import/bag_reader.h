@@ -22,16 +22,16 @@ namespace import {
 enum class Serialization { kRos1, kCdr };
 
 struct Connection {
-  uint32_t id = 0;     // unique within one reader
-  std::string topic;   // "/imu/data"
-  std::string type;    // as stored: "sensor_msgs/Imu" (ROS 1) or "sensor_msgs/msg/Imu" (ROS 2)
+  uint32_t id = 0;    // unique within one reader
+  std::string topic;  // "/imu/data"
+  std::string type;   // as stored: "sensor_msgs/Imu" (ROS 1) or "sensor_msgs/msg/Imu" (ROS 2)
   Serialization serialization = Serialization::kRos1;
 };
 
 struct BagMessage {
   uint32_t connection_id = 0;
-  int64_t log_time_ns = 0;  // when the recorder received it (bag record time)
-  std::string_view data;    // the serialized message; valid until the next call of Next()
+  int64_t log_time_ns = 0;   // when the recorder received it (bag record time)
+  std::string_view data;     // the serialized message; valid until the next call of Next()
   uint64_t file_offset = 0;  // byte offset of the record holding it (0 in SQLite files)
   int64_t row_id = -1;       // SQLite files: the message's row, which stands in for an offset
 };
@@ -67,9 +67,9 @@ SourceLocation MessageLocation(const std::string& path, const BagMessage& messag
 std::unique_ptr<BagReader> OpenBag(const std::string& path);
 
 // The containers OpenBag dispatches to.
-std::unique_ptr<BagReader> OpenRos1Bag(const std::string& path);       // ros1_bag.cc
-std::unique_ptr<BagReader> OpenMcap(const std::string& path);          // mcap_reader.cc
-std::unique_ptr<BagReader> OpenRosbag2Sqlite(const std::string& path);  // rosbag2_sqlite.cc
+std::unique_ptr<BagReader> OpenRos1Bag(const std::string& path);          // ros1_bag.cc
+std::unique_ptr<BagReader> OpenMcap(const std::string& path);             // mcap_reader.cc
+std::unique_ptr<BagReader> OpenRosbag2Sqlite(const std::string& path);    // rosbag2_sqlite.cc
 std::unique_ptr<BagReader> OpenRosbag2Directory(const std::string& dir);  // rosbag2_directory.cc
 
 }  // namespace import

@@ -40,7 +40,7 @@ constexpr const char* PrimitiveName() {
 // Where a message came from, for error messages.
 struct MessageContext {
   SourceLocation location;  // the bag and where the message sits in it
-  std::string type;            // "sensor_msgs/Imu"
+  std::string type;         // "sensor_msgs/Imu"
   std::string topic;
 };
 

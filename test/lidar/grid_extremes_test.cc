@@ -2,8 +2,9 @@
 // is defined behaviour (a result or an autocal::Error), never an overflowing float-to-integer
 // conversion or an endless loop.
 
-#include <Eigen/Core>
 #include <gtest/gtest.h>
+
+#include <Eigen/Core>
 
 #include "autocal/common/error.h"
 #include "autocal/lidar/neighbor_grid.h"

@@ -1,11 +1,11 @@
 // The online estimator's checks that a sensor the problem uses reaches the sliding window
 // (src/pipeline/calibration_steps.h), on hand-made sample lists.
 
-#include <cstdint>
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cstdint>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"

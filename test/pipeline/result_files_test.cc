@@ -3,6 +3,9 @@
 // wall-clock timings live in timings.yaml), and no prefix of the real calibration.yaml or
 // trajectory.tum reads as a result.
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -11,9 +14,6 @@
 #include <map>
 #include <set>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/io/calibration_yaml.h"

@@ -3,6 +3,8 @@
 // looks complete: no dataset, no result directory, the previous result untouched.
 
 #include <fcntl.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -15,9 +17,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "autocal/io/dataset.h"
 #include "support/test_paths.h"

@@ -7,8 +7,9 @@
 //   "No space left on device" with the path), fsync'ed (WriteFileAtomically) and renamed
 //   into place: the path holds either the old file or the whole new one.
 // - A result directory (a calibration result, a simulated dataset) is written as a whole into
-//   a sibling "<dir>.partial-XXXXXX", synced once (syncfs) and renamed to <dir> by Commit(). A run killed before
-//   then leaves only the ".partial-" directory; <dir> is absent or still the previous result.
+//   a sibling "<dir>.partial-XXXXXX", synced once (syncfs) and renamed to <dir> by Commit(). A run
+//   killed before then leaves only the ".partial-" directory; <dir> is absent or still the previous
+//   result.
 // - An existing <dir> is replaced (atomically where the file system can exchange two
 //   directories, Linux renameat2) only when it is empty or holds nothing but names such a
 //   directory holds (the lists below); any other directory is refused, so that a mistyped
