@@ -1,13 +1,13 @@
 #include "estimation/point_selection.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <random>
 #include <set>
 #include <tuple>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 
@@ -47,10 +47,9 @@ TEST(OnePointPerVoxel, KeepsTheFirstPointOfEachVoxel) {
     cloud.points.resize(3, n);
     for (int i = 0; i < n; ++i) {
       // Every third point on the 0.2 m grid itself (a voxel's face).
-      cloud.points.col(i) = i % 3 == 0
-                                ? Eigen::Vector3d(0.2 * grid(rng), 0.2 * grid(rng), 0.2 * grid(rng))
-                                : Eigen::Vector3d(coordinate(rng), coordinate(rng),
-                                                  0.1 * coordinate(rng));
+      cloud.points.col(i) =
+          i % 3 == 0 ? Eigen::Vector3d(0.2 * grid(rng), 0.2 * grid(rng), 0.2 * grid(rng))
+                     : Eigen::Vector3d(coordinate(rng), coordinate(rng), 0.1 * coordinate(rng));
     }
     for (double voxel_m : {0.2, 0.6, 3.0}) {
       const std::vector<int> expected = FirstPointPerVoxel(cloud, voxel_m, 2.0);

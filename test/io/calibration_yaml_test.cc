@@ -1,17 +1,18 @@
 #include "autocal/io/calibration_yaml.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <fstream>
 #include <iostream>
 #include <iterator>
 #include <string>
 
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
 #include "autocal/common/error.h"
 #include "autocal/io/sensors_yaml.h"
 #include "io/io_test_data.h"
+#include "io/prefix_check.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -279,20 +280,9 @@ TEST(CalibrationYamlTest, EveryPrefixOfAWrittenResultIsRefused) {
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   ASSERT_GT(bytes.size(), 1000u);
   EXPECT_NO_THROW(ReadCalibrationYaml(path));
-  const std::string cut = OutPath("cut.yaml");
-  size_t accepted = 0;
-  for (size_t n = 0; n < bytes.size(); ++n) {
-    WriteText(cut, bytes.substr(0, n));
-    try {
-      ReadCalibrationYaml(cut);
-      ++accepted;
-      ADD_FAILURE() << "the first " << n << " of " << bytes.size() << " bytes were accepted";
-    } catch (const ParseError& e) {
-      EXPECT_EQ(e.location().file, cut);
-    }
-  }
-  std::cout << "prefixes accepted: " << accepted << " of " << bytes.size() << "\n";
-  EXPECT_EQ(accepted, 0u);
+  EXPECT_EQ(test_data::CountAcceptedPrefixes(bytes, OutPath("cut.yaml"),
+                                             [](const std::string& p) { ReadCalibrationYaml(p); }),
+            0u);
 }
 
 TEST(CalibrationYamlTest, AWrittenResultStatesItsFormatAndEnd) {

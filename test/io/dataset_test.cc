@@ -1,12 +1,12 @@
 #include "autocal/io/dataset.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/io/csv_files.h"

@@ -1,16 +1,17 @@
 #include "autocal/io/tum_trajectory.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <iterator>
 #include <string>
 
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-
 #include "autocal/common/error.h"
 #include "io/io_test_data.h"
+#include "io/prefix_check.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -103,20 +104,9 @@ TEST(TumTrajectoryTest, EveryPrefixOfAWrittenTrajectoryIsRefused) {
   EXPECT_THAT(bytes,
               ::testing::EndsWith("\n# end: " + std::to_string(trajectory.size()) + " poses\n"));
   ASSERT_EQ(ReadTumTrajectory(path).size(), trajectory.size());
-  const std::string cut = OutPath("cut.tum");
-  size_t accepted = 0;
-  for (size_t n = 0; n < bytes.size(); ++n) {
-    WriteText(cut, bytes.substr(0, n));
-    try {
-      ReadTumTrajectory(cut);
-      ++accepted;
-      ADD_FAILURE() << "the first " << n << " of " << bytes.size() << " bytes were accepted";
-    } catch (const ParseError& e) {
-      EXPECT_EQ(e.location().file, cut);
-    }
-  }
-  std::cout << "prefixes accepted: " << accepted << " of " << bytes.size() << "\n";
-  EXPECT_EQ(accepted, 0u);
+  EXPECT_EQ(test_data::CountAcceptedPrefixes(bytes, OutPath("cut.tum"),
+                                             [](const std::string& p) { ReadTumTrajectory(p); }),
+            0u);
 }
 
 TEST(TumTrajectoryTest, AWrittenTrajectoryChecksItsEndLine) {
