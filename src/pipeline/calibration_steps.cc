@@ -34,6 +34,18 @@ void Report(const OfflineCalibrationOptions& options, const std::string& stage, 
 
 bool Estimated(io::BlockMode mode) { return mode != io::BlockMode::kFixed; }
 
+sensors::Calibration StartFromInitializer(const sensors::Calibration& nominal,
+                                          const io::ProblemCalibration& blocks,
+                                          const estimation::CalibrationInitialization& init) {
+  sensors::Calibration calibration = nominal;
+  if (Estimated(blocks.T_I_L.rotation.mode)) calibration.q_I_L = init.q_I_L;
+  if (Estimated(blocks.T_I_L.translation.mode)) calibration.p_I_L = init.p_I_L;
+  if (Estimated(blocks.time_offset_lidar_imu_s.mode)) {
+    calibration.time_offset_lidar_imu_s = init.time_offset_lidar_imu_s;
+  }
+  return calibration;
+}
+
 std::string Join(const std::vector<std::string>& parts, const std::string& separator) {
   std::string out;
   for (size_t i = 0; i < parts.size(); ++i) out += (i == 0 ? "" : separator) + parts[i];
@@ -126,7 +138,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
                                    gnss.max_fix_gap_s));
     }
   }
-  AddBlockPriors(*blocks, problem->loss.prior, p);
+  estimation::AddBlockPriors(*blocks, problem->loss.prior, p);
 }
 
 void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gnss, int64_t t0_ns) {
@@ -181,19 +193,18 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
 
 void Conclude(const io::Dataset& dataset, const io::Problem& problem,
               const OfflineCalibrationOptions& options,
-              const std::vector<CalibrationBlock>& blocks_estimated,
-              const BlockCovariance& covariance,
-              const std::vector<estimation::Keyframe>& keyframes,
-              sensors::Calibration* calibration, std::chrono::steady_clock::time_point start,
-              OfflineCalibrationResult* result) {
+              const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+              const estimation::BlockCovariance& covariance,
+              const std::vector<estimation::Keyframe>& keyframes, sensors::Calibration* calibration,
+              std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result) {
   if (problem.sensors.lidar && result->batch.associated_points == 0) {
     ThrowNoFactor(dataset, "LiDAR",
                   "lidar.csv: no point of the " + std::to_string(keyframes.size()) +
                       " keyframe sweeps was associated with a plane");
   }
   io::CalibrationFile& file = result->calibration;
-  const std::vector<std::string> implausible =
-      ImplausibleDirections(blocks_estimated, covariance, options.max_prior_deviation_sigmas);
+  const std::vector<std::string> implausible = estimation::ImplausibleDirections(
+      blocks_estimated, covariance, options.max_prior_deviation_sigmas);
   if (!implausible.empty()) {
     throw Error("dataset " + dataset.directory +
                 ": the calibration solve did not converge to a plausible result (" +
@@ -202,8 +213,8 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
                 "give them priors in the problem file");
   }
   if (covariance.ok) {
-    const BlockObservability observability =
-        HoldUnobservableDirections(blocks_estimated, covariance);
+    const estimation::BlockObservability observability =
+        estimation::HoldUnobservableDirections(blocks_estimated, covariance);
     FillUncertainty(blocks_estimated, observability, &file.uncertainty);
     result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
                             observability.warnings.end());
@@ -216,7 +227,8 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
     calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
   }
   if (problem.sensors.wheel && dataset.wheel.empty()) {
-    result->warnings.push_back("the dataset has no wheel samples: wheel blocks keep their nominal value");
+    result->warnings.push_back(
+        "the dataset has no wheel samples: wheel blocks keep their nominal value");
   }
   file.value = *calibration;
   file.solver["keyframes"] = std::to_string(keyframes.size());

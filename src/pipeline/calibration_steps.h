@@ -5,14 +5,16 @@
 // uncertainty, the result's calibration, trajectory and timings); and the path without the
 // LiDAR, which CalibrateDataset dispatches to.
 
+#include <ceres/ceres.h>
+
 #include <chrono>
 #include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
 
-#include <ceres/ceres.h>
-
+#include "autocal/estimation/calibration_initializer.h"
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/manifolds.h"
@@ -21,7 +23,6 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/gnss_enu.h"
-#include "calibration_blocks.h"
 
 namespace autocal {
 namespace pipeline {
@@ -36,6 +37,12 @@ void Report(const OfflineCalibrationOptions& options, const std::string& stage, 
 // A block in estimate or prior mode is estimated; a fixed one is held at its initial guess.
 bool Estimated(io::BlockMode mode);
 
+// `nominal` with the initializer's LiDAR blocks (rotation, translation, time offset) for those
+// the problem estimates.
+sensors::Calibration StartFromInitializer(const sensors::Calibration& nominal,
+                                          const io::ProblemCalibration& blocks,
+                                          const estimation::CalibrationInitialization& init);
+
 // The parts with `separator` between them.
 std::string Join(const std::vector<std::string>& parts, const std::string& separator);
 
@@ -48,7 +55,7 @@ struct SensorFactors {
   bool use_wheel = false;
   bool use_gnss = false;
   const sensors::EnuConverter* enu = nullptr;
-  const std::vector<CalibrationBlock>* blocks = nullptr;
+  const std::vector<estimation::EstimatedBlock>* blocks = nullptr;
   geometry::RightQuaternionManifold* quaternion_manifold = nullptr;
 
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
@@ -77,9 +84,9 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
 // solve ended implausibly far from the priors.
 void Conclude(const io::Dataset& dataset, const io::Problem& problem,
               const OfflineCalibrationOptions& options,
-              const std::vector<CalibrationBlock>& blocks_estimated,
-              const BlockCovariance& covariance, const std::vector<estimation::Keyframe>& keyframes,
-              sensors::Calibration* calibration,
+              const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+              const estimation::BlockCovariance& covariance,
+              const std::vector<estimation::Keyframe>& keyframes, sensors::Calibration* calibration,
               std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result);
 
 // Without the LiDAR (docs/calibration.md, "Without the LiDAR"): keyframes every

@@ -1,5 +1,3 @@
-#include "calibration_steps.h"
-
 #include <algorithm>
 #include <utility>
 
@@ -8,10 +6,68 @@
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/manifolds.h"
+#include "calibration_steps.h"
 #include "problem_blocks.h"
 
 namespace autocal {
 namespace pipeline {
+
+namespace {
+
+// The GNSS-inertial placement with the dataset's IMU and the problem's threads.
+estimation::GnssInertialKeyframesOptions GnssInertialOptions(const io::Dataset& dataset,
+                                                             const io::Problem& problem) {
+  estimation::GnssInertialKeyframesOptions options;
+  options.imu_noise = dataset.sensors.imu.noise;
+  options.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  options.num_threads = problem.solver.num_threads;
+  return options;
+}
+
+// Keyframes every inertial_keyframe_period_s over the span the IMU and the fixes share, placed
+// on the GNSS track and refined with the IMU and the wheels.
+std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
+    const io::Dataset& dataset, const io::Problem& problem,
+    const OfflineCalibrationOptions& options, const sensors::EnuConverter& enu, bool use_wheel,
+    const sensors::Calibration& calibration, estimation::GnssInertialKeyframes* placed) {
+  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
+  const int64_t last_ns = std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns);
+  const int64_t period_ns = SecondsToNs(options.inertial_keyframe_period_s);
+  if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
+  std::vector<estimation::Keyframe> keyframes;
+  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
+    estimation::Keyframe kf;
+    kf.t_ns = t;
+    keyframes.push_back(kf);
+  }
+  if (keyframes.size() < 2) {
+    throw Error("dataset " + dataset.directory +
+                ": the IMU and the GNSS fixes overlap too briefly for two keyframes");
+  }
+  *placed = estimation::KeyframesFromGnssAndImu(
+      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
+      enu, calibration, GnssInertialOptions(dataset, problem));
+  return keyframes;
+}
+
+// The joint solve's summary, or an autocal::Error when it is unusable.
+ceres::Solver::Summary Solve(const io::Dataset& dataset, const io::Problem& problem,
+                             ceres::Problem* p) {
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations =
+      problem.solver.max_iterations * problem.solver.outer_iterations;
+  solver_options.num_threads = problem.solver.num_threads;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, p, &summary);
+  if (!summary.IsSolutionUsable()) {
+    throw Error("dataset " + dataset.directory +
+                ": the calibration solve failed: " + summary.message);
+  }
+  return summary;
+}
+
+}  // namespace
 
 OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                                                const io::Problem& problem,
@@ -32,33 +88,15 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
 
   // 1. Keyframes over the span the IMU and the fixes share.
   Report(options, "initializing", 0.0, 0.0, 0.0);
-  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
-  const int64_t last_ns = std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns);
-  const int64_t period_ns = SecondsToNs(options.inertial_keyframe_period_s);
-  if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
-  std::vector<estimation::Keyframe> keyframes;
-  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
-    estimation::Keyframe kf;
-    kf.t_ns = t;
-    keyframes.push_back(kf);
-  }
-  if (keyframes.size() < 2) {
-    throw Error("dataset " + dataset.directory +
-                ": the IMU and the GNSS fixes overlap too briefly for two keyframes");
-  }
   sensors::Calibration calibration = result.nominal;
-  estimation::GnssInertialKeyframesOptions gnss_inertial;
-  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
-  gnss_inertial.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  gnss_inertial.num_threads = problem.solver.num_threads;
-  const estimation::GnssInertialKeyframes placed = estimation::KeyframesFromGnssAndImu(
-      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
-      enu, calibration, gnss_inertial);
+  estimation::GnssInertialKeyframes placed;
+  std::vector<estimation::Keyframe> keyframes =
+      KeyframesOnGnssTrack(dataset, problem, options, enu, use_wheel, calibration, &placed);
   result.seconds_initialization = SecondsSince(start);
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
-  // 2. The joint solve.
-  const std::vector<CalibrationBlock> blocks_estimated =
+  // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors.
+  const std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, true, &calibration);
   geometry::RightQuaternionManifold quaternion_manifold;
   ceres::Problem::Options problem_options;
@@ -72,30 +110,26 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
   imu.num_threads = problem.solver.num_threads;
   estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
-  estimation::AddBiasPriors(&p, &keyframes.front(), gnss_inertial.gyro_bias_prior_sigma_rad_s,
-                            gnss_inertial.accel_bias_prior_sigma_m_s2);
-  SensorFactors sensor_factors{&dataset, &problem,   &result.nominal,    use_wheel, true,
-                               &enu,     &blocks_estimated, &quaternion_manifold};
+  const estimation::GnssInertialKeyframesOptions bias_priors =
+      GnssInertialOptions(dataset, problem);
+  estimation::AddBiasPriors(&p, &keyframes.front(), bias_priors.gyro_bias_prior_sigma_rad_s,
+                            bias_priors.accel_bias_prior_sigma_m_s2);
+  const SensorFactors sensor_factors{&dataset, &problem, &result.nominal,   use_wheel,
+                                     true,     &enu,     &blocks_estimated, &quaternion_manifold};
   sensor_factors.Add(&p, &keyframes, &calibration);
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].before = std::move(rows);
   }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = problem.solver.max_iterations * problem.solver.outer_iterations;
-  solver_options.num_threads = problem.solver.num_threads;
   Report(options, "solving", 0.0, 0.0, 0.0);
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &p, &summary);
-  if (!summary.IsSolutionUsable()) {
-    throw Error("dataset " + dataset.directory + ": the calibration solve failed: " +
-                summary.message);
-  }
+  const ceres::Solver::Summary summary = Solve(dataset, problem, &p);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].after = std::move(rows);
   }
-  const BlockCovariance covariance = ComputeBlockCovariance(blocks_estimated, &p);
+
+  // 3. Observability, uncertainty and the result.
+  const estimation::BlockCovariance covariance =
+      estimation::ComputeBlockCovariance(blocks_estimated, &p);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
   result.batch.calibration_per_iteration = {calibration};  // one solve

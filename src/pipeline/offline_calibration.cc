@@ -19,7 +19,7 @@
 #include "autocal/io/output_files.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/pipeline/report_html.h"
-#include "calibration_blocks.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
 #include "problem_blocks.h"
 
@@ -53,8 +53,8 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
 // (Eq. K3-K5) and true is returned. Where it did not (a featureless road, traffic moving with
 // the car: its track then misses the fixes by metres or is too short to give the yaw), every
 // state the initializer derived from that track is unusable: the keyframes are rebuilt from
-// GNSS, the IMU and the problem's wheels (estimation/gnss_inertial_keyframes.h), a warning says so, and false
-// is returned (the caller then starts the LiDAR blocks from their nominal values).
+// GNSS, the IMU and the problem's wheels (estimation/gnss_inertial_keyframes.h), a warning says so,
+// and false is returned (the caller then starts the LiDAR blocks from their nominal values).
 bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter& enu,
                          const sensors::Calibration& calibration,
                          const OfflineCalibrationOptions& options, int num_threads,
@@ -81,12 +81,155 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   const estimation::GnssInertialKeyframes rebuilt = estimation::KeyframesFromGnssAndImu(
       keyframes, dataset.imu, wheel, dataset.gnss, enu, calibration, gnss_inertial);
   warnings->push_back(
-      "the LiDAR odometry did not follow the drive (" + failure + "): the keyframes were "
-      "rebuilt from GNSS and the IMU (" + std::to_string(rebuilt.placement.num_placed) +
-      " on the fitted GNSS track, " + std::to_string(rebuilt.placement.num_bridged) +
+      "the LiDAR odometry did not follow the drive (" + failure +
+      "): the keyframes were "
+      "rebuilt from GNSS and the IMU (" +
+      std::to_string(rebuilt.placement.num_placed) + " on the fitted GNSS track, " +
+      std::to_string(rebuilt.placement.num_bridged) +
       " bridged), and the LiDAR rotation, translation and time offset start from their nominal "
       "values");
   return false;
+}
+
+// Every sweep of the log, read on num_threads threads.
+std::vector<lidar::LidarSweep> LoadSweeps(const io::Dataset& dataset, int num_threads,
+                                          const OfflineCalibrationOptions& options) {
+  const int64_t num_sweeps = static_cast<int64_t>(dataset.lidar_sweeps.size());
+  std::vector<lidar::LidarSweep> sweeps(static_cast<size_t>(num_sweeps));
+  ParallelFor(0, num_sweeps, num_threads, [&](int64_t begin, int64_t end, int chunk) {
+    for (int64_t i = begin; i < end; ++i) {
+      sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i));
+      // The first chunk's progress stands for all of them.
+      if (chunk == 0 && (i - begin) % 50 == 0) {
+        Report(options, "loading sweeps",
+               static_cast<double>(i - begin + 1) / static_cast<double>(end - begin), 0.0, 0.0);
+      }
+    }
+  });
+  return sweeps;
+}
+
+// The initializer on every sweep, into result->initialization; throws when the drive
+// cannot initialize the calibration.
+void Initialize(const io::Dataset& dataset, const io::Problem& problem,
+                const OfflineCalibrationOptions& options,
+                const std::vector<lidar::LidarSweep>& sweeps, OfflineCalibrationResult* result) {
+  Report(options, "initializing", 0.0, 0.0, 0.0);
+  estimation::CalibrationInitializerOptions init_options = options.initializer;
+  init_options.imu_noise = dataset.sensors.imu.noise;
+  init_options.p_I_L_prior = result->nominal.p_I_L;
+  init_options.odometry.num_threads = problem.solver.num_threads;
+  // A drive without turns (a highway) cannot determine the rotation and offset: the nominal
+  // values stand in, and the observability analysis then says what the solve could fix.
+  init_options.fallback_q_I_L = result->nominal.q_I_L;
+  init_options.fallback_time_offset_s = result->nominal.time_offset_lidar_imu_s;
+  result->initialization = estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
+  const estimation::CalibrationInitialization& init = result->initialization;
+  if (!init.ok) {
+    throw Error("dataset " + dataset.directory +
+                ": the drive cannot initialize the calibration: " + Join(init.problems, "; "));
+  }
+  for (const std::string& fallback : init.fallbacks) {
+    result->warnings.push_back("initialization: " + fallback);
+  }
+  Report(options, "initializing", 1.0, 0.0, 0.0);
+}
+
+// The keyframes of the batch solve and their sweeps.
+struct BatchKeyframes {
+  std::vector<lidar::LidarSweep> sweeps;
+  std::vector<estimation::Keyframe> keyframes;
+};
+
+// Every sweep_stride-th keyframe of the initializer; their sweeps are moved out of *sweeps
+// (not needed elsewhere any more). Throws when fewer than two remain.
+BatchKeyframes EveryStrideKeyframe(const io::Problem& problem,
+                                   const estimation::CalibrationInitialization& init,
+                                   std::vector<lidar::LidarSweep>* sweeps) {
+  BatchKeyframes out;
+  const size_t stride = static_cast<size_t>(problem.lidar.sweep_stride);
+  for (size_t k = 0; k < init.keyframe_sweeps.size(); k += stride) {
+    out.sweeps.push_back(std::move((*sweeps)[static_cast<size_t>(init.keyframe_sweeps[k])]));
+    out.keyframes.push_back(init.keyframes[k]);
+  }
+  if (out.keyframes.size() < 2) {
+    throw Error("problem " + problem.path + ": lidar.sweep_stride " +
+                std::to_string(problem.lidar.sweep_stride) + " leaves " +
+                std::to_string(out.keyframes.size()) + " keyframe(s) of the " +
+                std::to_string(init.keyframes.size()) + " the log gives; the solve needs two");
+  }
+  return out;
+}
+
+// W becomes the ENU frame at the first fix (`enu`): GNSS fixes position and yaw. Where the
+// LiDAR odometry did not follow the drive, the LiDAR blocks restart from their nominal values.
+void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
+                const OfflineCalibrationOptions& options, const sensors::EnuConverter& enu,
+                bool use_wheel, std::vector<estimation::Keyframe>* keyframes,
+                sensors::Calibration* calibration, OfflineCalibrationResult* result) {
+  if (!PlaceKeyframesInEnu(dataset, enu, *calibration, options, problem.solver.num_threads,
+                           use_wheel ? dataset.wheel : sensors::WheelSamples(), keyframes,
+                           &result->warnings)) {
+    calibration->q_I_L = result->nominal.q_I_L;
+    calibration->p_I_L = result->nominal.p_I_L;
+    calibration->time_offset_lidar_imu_s = result->nominal.time_offset_lidar_imu_s;
+  }
+  for (const sensors::GnssFix& fix : dataset.gnss) {
+    result->gnss_positions_W.push_back(enu.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
+  }
+}
+
+// The batch solve with the problem's wheel and GNSS factors (with `enu`) and the blocks'
+// priors; the whitened residuals before and after go to *result. Returns the blocks' joint
+// covariance at the solution.
+estimation::BlockCovariance SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
+                                       const OfflineCalibrationOptions& options,
+                                       const std::vector<estimation::EstimatedBlock>& blocks,
+                                       const sensors::EnuConverter* enu, BatchKeyframes* keyframes,
+                                       sensors::Calibration* calibration,
+                                       OfflineCalibrationResult* result) {
+  estimation::LidarInertialBatchOptions batch_options = BatchOptions(dataset, problem);
+  batch_options.keyframe_lead_s = options.initializer.keyframe_lead_s;
+  batch_options.hold_first_pose = enu == nullptr;
+  batch_options.progress = [&](const estimation::LidarInertialBatchProgress& p) {
+    const double per_iteration = p.elapsed_s / p.iteration;
+    Report(options, "solving", static_cast<double>(p.iteration) / p.max_iterations, p.cost,
+           per_iteration * (p.max_iterations - p.iteration));
+  };
+  geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
+  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const SensorFactors sensor_factors{
+      &dataset,       &problem, &result->nominal, use_wheel,
+      enu != nullptr, enu,      &blocks,          &quaternion_manifold};
+  bool first_problem = true;
+  batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
+                                  sensors::Calibration* c) {
+    sensor_factors.Add(p, kfs, c);
+    if (!first_problem) return;
+    first_problem = false;
+    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
+      result->whitened_residuals[sensor].before = std::move(rows);
+    }
+  };
+  estimation::BlockCovariance covariance;
+  batch_options.compute_covariance = false;  // the joint one below covers every block
+  batch_options.inspect_final_problem = [&](ceres::Problem* p) {
+    covariance = estimation::ComputeBlockCovariance(blocks, p);
+    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
+      result->whitened_residuals[sensor].after = std::move(rows);
+    }
+  };
+  Report(options, "solving", 0.0, 0.0, 0.0);
+  result->batch = estimation::SolveLidarInertialBatch(
+      dataset.imu, keyframes->sweeps, &keyframes->keyframes, calibration, batch_options);
+  const estimation::LidarInertialBatchReport& batch = result->batch;
+  io::CalibrationFile& file = result->calibration;
+  file.solver["termination"] = batch.termination;
+  file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
+  file.solver["final_cost"] = std::to_string(batch.final_cost);
+  file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
+  file.residuals["lidar"]["associated_points"] = batch.associated_points;
+  return covariance;
 }
 
 // `file` without the wall-clock entries of its solver summary ("seconds", "seconds_*"): they
@@ -96,6 +239,26 @@ io::CalibrationFile WithoutTimings(io::CalibrationFile file) {
     it = it->first.rfind("seconds", 0) == 0 ? file.solver.erase(it) : std::next(it);
   }
   return file;
+}
+
+// calibration_per_iteration.csv: the iteration (from 1), then every block's values in table
+// order.
+std::string PerIterationCsv(const std::vector<sensors::Calibration>& history) {
+  std::ostringstream csv;
+  csv << "iteration";
+  for (const sensors::CalibrationBlockInfo& block : sensors::CalibrationBlocks()) {
+    for (const std::string& column : sensors::IterationColumns(block)) csv << ',' << column;
+  }
+  csv << '\n' << std::setprecision(12);
+  for (size_t i = 0; i < history.size(); ++i) {
+    csv << i + 1;
+    for (const sensors::CalibrationBlockInfo& block : sensors::CalibrationBlocks()) {
+      const double* values = block.const_values(history[i]);
+      for (int k = 0; k < block.ambient_size; ++k) csv << ',' << values[k];
+    }
+    csv << '\n';
+  }
+  return csv.str();
 }
 
 // Wall-clock seconds of the run's stages. They differ from run to run, so they live in
@@ -123,133 +286,36 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   result.nominal = dataset.sensors.nominal_calibration;
 
   // 1. Sweeps.
-  const int64_t num_sweeps = static_cast<int64_t>(dataset.lidar_sweeps.size());
-  std::vector<lidar::LidarSweep> sweeps(static_cast<size_t>(num_sweeps));
-  ParallelFor(0, num_sweeps, problem.solver.num_threads,
-              [&](int64_t begin, int64_t end, int chunk) {
-                for (int64_t i = begin; i < end; ++i) {
-                  sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i));
-                  // The first chunk's progress stands for all of them.
-                  if (chunk == 0 && (i - begin) % 50 == 0) {
-                    Report(options, "loading sweeps",
-                           static_cast<double>(i - begin + 1) / static_cast<double>(end - begin),
-                           0.0, 0.0);
-                  }
-                }
-              });
+  std::vector<lidar::LidarSweep> sweeps = LoadSweeps(dataset, problem.solver.num_threads, options);
+  result.seconds_loading = SecondsSince(start);
 
   // 2. Initialization: no hand-measured guess needed.
-  result.seconds_loading = SecondsSince(start);
-  Report(options, "initializing", 0.0, 0.0, 0.0);
-  estimation::CalibrationInitializerOptions init_options = options.initializer;
-  init_options.imu_noise = dataset.sensors.imu.noise;
-  init_options.p_I_L_prior = result.nominal.p_I_L;
-  init_options.odometry.num_threads = problem.solver.num_threads;
-  // A drive without turns (a highway) cannot determine the rotation and offset: the nominal
-  // values stand in, and the observability analysis then says what the solve could fix.
-  init_options.fallback_q_I_L = result.nominal.q_I_L;
-  init_options.fallback_time_offset_s = result.nominal.time_offset_lidar_imu_s;
-  result.initialization = estimation::InitializeLidarImu(dataset.imu, sweeps, init_options);
-  const estimation::CalibrationInitialization& init = result.initialization;
-  if (!init.ok) {
-    throw Error("dataset " + dataset.directory + ": the drive cannot initialize the calibration: " +
-                Join(init.problems, "; "));
-  }
+  Initialize(dataset, problem, options, sweeps, &result);
   result.seconds_initialization = SecondsSince(start) - result.seconds_loading;
-  for (const std::string& fallback : init.fallbacks) {
-    result.warnings.push_back("initialization: " + fallback);
-  }
-  Report(options, "initializing", 1.0, 0.0, 0.0);
 
   // 3. Batch solve from the initializer's calibration (fixed blocks keep the nominal value),
   //    with the wheel and GNSS factors and the priors of the problem.
-  sensors::Calibration calibration = result.nominal;
-  const io::ProblemCalibration& blocks = problem.calibration;
-  if (Estimated(blocks.T_I_L.rotation.mode)) calibration.q_I_L = init.q_I_L;
-  if (Estimated(blocks.T_I_L.translation.mode)) calibration.p_I_L = init.p_I_L;
-  if (Estimated(blocks.time_offset_lidar_imu_s.mode)) {
-    calibration.time_offset_lidar_imu_s = init.time_offset_lidar_imu_s;
-  }
-  estimation::LidarInertialBatchOptions batch_options = BatchOptions(dataset, problem);
-  batch_options.keyframe_lead_s = init_options.keyframe_lead_s;
-  batch_options.progress = [&](const estimation::LidarInertialBatchProgress& p) {
-    const double per_iteration = p.elapsed_s / p.iteration;
-    Report(options, "solving", static_cast<double>(p.iteration) / p.max_iterations, p.cost,
-           per_iteration * (p.max_iterations - p.iteration));
-  };
-  std::vector<lidar::LidarSweep> keyframe_sweeps;
-  std::vector<estimation::Keyframe> keyframes;
-  // Every sweep_stride-th keyframe; the sweeps are not needed elsewhere any more: moved, not
-  // copied.
-  const size_t stride = static_cast<size_t>(problem.lidar.sweep_stride);
-  for (size_t k = 0; k < init.keyframe_sweeps.size(); k += stride) {
-    keyframe_sweeps.push_back(std::move(sweeps[static_cast<size_t>(init.keyframe_sweeps[k])]));
-    keyframes.push_back(init.keyframes[k]);
-  }
+  sensors::Calibration calibration =
+      StartFromInitializer(result.nominal, problem.calibration, result.initialization);
+  BatchKeyframes keyframes = EveryStrideKeyframe(problem, result.initialization, &sweeps);
   sweeps.clear();
-  if (keyframes.size() < 2) {
-    throw Error("problem " + problem.path + ": lidar.sweep_stride " +
-                std::to_string(problem.lidar.sweep_stride) + " leaves " +
-                std::to_string(keyframes.size()) + " keyframe(s) of the " +
-                std::to_string(init.keyframes.size()) + " the log gives; the solve needs two");
-  }
-
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   std::optional<sensors::EnuConverter> enu;
   if (use_gnss) {
-    // W becomes the ENU frame at the first fix: GNSS fixes position and yaw.
     enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-    if (!PlaceKeyframesInEnu(dataset, *enu, calibration, options, problem.solver.num_threads,
-                             use_wheel ? dataset.wheel : sensors::WheelSamples(), &keyframes,
-                             &result.warnings)) {
-      calibration.q_I_L = result.nominal.q_I_L;
-      calibration.p_I_L = result.nominal.p_I_L;
-      calibration.time_offset_lidar_imu_s = result.nominal.time_offset_lidar_imu_s;
-    }
-    batch_options.hold_first_pose = false;
-    for (const sensors::GnssFix& fix : dataset.gnss) {
-      result.gnss_positions_W.push_back(enu->ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
-    }
+    PlaceInEnu(dataset, problem, options, *enu, use_wheel, &keyframes.keyframes, &calibration,
+               &result);
   }
-  const std::vector<CalibrationBlock> blocks_estimated =
+  const std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, use_gnss, &calibration);
-  geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
-  const SensorFactors sensor_factors{&dataset, &problem, &result.nominal,
-                                     use_wheel, use_gnss, enu ? &*enu : nullptr,
-                                     &blocks_estimated, &quaternion_manifold};
-  bool first_problem = true;
-  batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
-                                  sensors::Calibration* c) {
-    sensor_factors.Add(p, kfs, c);
-    if (!first_problem) return;
-    first_problem = false;
-    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
-      result.whitened_residuals[sensor].before = std::move(rows);
-    }
-  };
-  BlockCovariance covariance;
-  batch_options.compute_covariance = false;  // the joint one below covers every block
-  batch_options.inspect_final_problem = [&](ceres::Problem* p) {
-    covariance = ComputeBlockCovariance(blocks_estimated, p);
-    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
-      result.whitened_residuals[sensor].after = std::move(rows);
-    }
-  };
-  Report(options, "solving", 0.0, 0.0, 0.0);
-  result.batch = estimation::SolveLidarInertialBatch(dataset.imu, keyframe_sweeps, &keyframes,
-                                                     &calibration, batch_options);
+  const estimation::BlockCovariance covariance =
+      SolveBatch(dataset, problem, options, blocks_estimated, enu ? &*enu : nullptr, &keyframes,
+                 &calibration, &result);
 
-  const estimation::LidarInertialBatchReport& batch = result.batch;
-  io::CalibrationFile& file = result.calibration;
-  file.solver["termination"] = batch.termination;
-  file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
-  file.solver["final_cost"] = std::to_string(batch.final_cost);
-  file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
-  file.residuals["lidar"]["associated_points"] = batch.associated_points;
   // 4. Observability, uncertainty and the result.
-  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
-           &result);
+  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes.keyframes,
+           &calibration, start, &result);
   return result;
 }
 
@@ -257,22 +323,8 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
   io::StagedDirectory out(directory, io::OutputKind::kResult);
   io::WriteCalibrationYaml(out.File("calibration.yaml"), WithoutTimings(result.calibration));
   io::WriteTumTrajectory(out.File("trajectory.tum"), result.trajectory);
-  std::ostringstream csv;
-  csv << "iteration,qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s,wheel_radius_left_m,"
-         "wheel_radius_right_m,track_width_m,qv_x,qv_y,qv_z,qv_w,pv_x_m,pv_y_m,pv_z_m,pa_x_m,"
-         "pa_y_m,pa_z_m\n"
-      << std::setprecision(12);
-  for (size_t i = 0; i < result.batch.calibration_per_iteration.size(); ++i) {
-    const sensors::Calibration& c = result.batch.calibration_per_iteration[i];
-    csv << i + 1 << ',' << c.q_I_L.x() << ',' << c.q_I_L.y() << ',' << c.q_I_L.z() << ','
-        << c.q_I_L.w() << ',' << c.p_I_L.x() << ',' << c.p_I_L.y() << ',' << c.p_I_L.z() << ','
-        << c.time_offset_lidar_imu_s << ',' << c.wheel_radius_left_m << ','
-        << c.wheel_radius_right_m << ',' << c.track_width_m << ',' << c.q_I_V.x() << ','
-        << c.q_I_V.y() << ',' << c.q_I_V.z() << ',' << c.q_I_V.w() << ',' << c.p_I_V.x() << ','
-        << c.p_I_V.y() << ',' << c.p_I_V.z() << ',' << c.p_I_A.x() << ',' << c.p_I_A.y() << ','
-        << c.p_I_A.z() << '\n';
-  }
-  io::WriteFileAtomically(out.File("calibration_per_iteration.csv"), csv.str());
+  io::WriteFileAtomically(out.File("calibration_per_iteration.csv"),
+                          PerIterationCsv(result.batch.calibration_per_iteration));
   io::WriteFileAtomically(out.File("timings.yaml"), TimingsYaml(result));
   io::WriteFileAtomically(out.File("report.html"), CalibrationReportHtml(result));
   out.Commit();
@@ -321,7 +373,8 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
     }
   };
   pose("T_I_L", c.q_I_L, c.p_I_L, u.T_I_L, 4);
-  scalar("time offset lidar->imu (ms)", c.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3, 3);
+  scalar("time offset lidar->imu (ms)", c.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3,
+         3);
   scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
   scalar("right rear wheel radius (mm)", c.wheel_radius_right_m, u.wheel_radius_right_m, 1e3, 3);
   scalar("track width (mm)", c.track_width_m, u.track_width_m, 1e3, 1);

@@ -1,6 +1,7 @@
 #include "problem_blocks.h"
 
-#include <optional>
+#include <cmath>
+#include <string>
 #include <utility>
 
 #include "calibration_steps.h"
@@ -10,190 +11,187 @@ namespace pipeline {
 
 namespace {
 
+using Id = sensors::CalibrationBlockId;
+
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-// Prior sigma per direction: the problem's for a block in prior mode, else the dataset's
-// nominal uncertainty when it states one, else the default.
-Eigen::VectorXd PriorSigma(io::BlockMode mode, const Eigen::VectorXd& problem_sigma,
-                           const std::optional<Eigen::VectorXd>& nominal_sigma,
-                           const Eigen::VectorXd& fallback) {
-  if (mode == io::BlockMode::kPrior) return problem_sigma;
-  if (nominal_sigma) return *nominal_sigma;
-  return fallback;
+BlockSetting FromVector(const io::VectorBlockSetting& setting,
+                        const std::optional<Eigen::Vector3d>& nominal_sigma) {
+  BlockSetting out;
+  out.mode = setting.mode;
+  out.prior_sigma = setting.prior_sigma;
+  if (nominal_sigma) out.nominal_sigma = Eigen::VectorXd(*nominal_sigma);
+  return out;
 }
 
-std::optional<Eigen::VectorXd> Optional(const std::optional<Eigen::Vector3d>& v, double scale = 1.0) {
-  if (!v) return std::nullopt;
-  return Eigen::VectorXd(*v * scale);
+BlockSetting FromScalar(const io::ScalarBlockSetting& setting,
+                        const std::optional<double>& nominal_sigma) {
+  BlockSetting out;
+  out.mode = setting.mode;
+  out.prior_sigma = Eigen::VectorXd::Constant(1, setting.prior_sigma);
+  if (nominal_sigma) out.nominal_sigma = Eigen::VectorXd::Constant(1, *nominal_sigma);
+  return out;
 }
 
-std::optional<Eigen::VectorXd> Optional(const std::optional<double>& v) {
-  if (!v) return std::nullopt;
-  return Eigen::VectorXd::Constant(1, *v);
+// The options' weak default prior sigma and observability limit of a block, in file units.
+struct BlockLimits {
+  double default_prior_sigma;
+  double max_observable_sigma;
+};
+BlockLimits LimitsOf(Id id, const OfflineCalibrationOptions& o) {
+  switch (id) {
+    case Id::kLidarRotation:
+      return {o.default_rotation_prior_sigma_deg, o.max_observable_rotation_sigma_deg};
+    case Id::kLidarTranslation:
+      return {o.default_translation_prior_sigma_m, o.max_observable_translation_sigma_m};
+    case Id::kTimeOffset:
+      return {o.default_time_offset_prior_sigma_s, o.max_observable_time_offset_sigma_s};
+    case Id::kWheelRadiusLeft:
+    case Id::kWheelRadiusRight:
+      return {o.default_wheel_radius_prior_sigma_m, o.max_observable_wheel_radius_sigma_m};
+    case Id::kTrackWidth:
+      return {o.default_track_width_prior_sigma_m, o.max_observable_track_width_sigma_m};
+    case Id::kVehicleRotation:
+      return {o.default_rotation_prior_sigma_deg, o.max_observable_vehicle_rotation_sigma_deg};
+    case Id::kVehicleTranslation:
+      return {o.default_translation_prior_sigma_m, o.max_observable_vehicle_translation_sigma_m};
+    case Id::kGnssLeverArm:
+      break;
+  }
+  return {o.default_translation_prior_sigma_m, o.max_observable_lever_arm_sigma_m};
+}
+
+// Prior sigma per direction in tangent units: the problem's for a block in prior mode, else
+// the dataset's nominal uncertainty when it states one, else the default.
+Eigen::VectorXd PriorSigma(const BlockSetting& setting, int size, double default_sigma,
+                           double to_tangent) {
+  if (setting.mode == io::BlockMode::kPrior) return setting.prior_sigma * to_tangent;
+  if (setting.nominal_sigma) return *setting.nominal_sigma * to_tangent;
+  return Eigen::VectorXd::Constant(size, default_sigma * to_tangent);
+}
+
+void SetPose(bool rotation, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
+             io::PoseBlockInfo* info) {
+  if (rotation) {
+    info->sigma_rot_deg = Eigen::Vector3d(sigma * kRadToDeg);
+  } else {
+    info->sigma_p_m = Eigen::Vector3d(sigma);
+  }
+  if (!observable) return;
+  if (info->observable.size() < 6) info->observable.resize(6, true);
+  const size_t first = rotation ? 0 : 3;
+  for (size_t k = 0; k < observable->size(); ++k) info->observable[first + k] = (*observable)[k];
+}
+
+void SetScalar(const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
+               io::ScalarBlockInfo* info) {
+  info->sigma = sigma(0);
+  if (observable) info->observable = (*observable)[0];
 }
 
 }  // namespace
 
-std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
-                                              const io::SensorsConfig& sensors,
-                                              const OfflineCalibrationOptions& o, bool use_wheel,
-                                              bool use_gnss, sensors::Calibration* c) {
+BlockSetting SettingOf(Id id, const io::ProblemCalibration& p,
+                       const io::CalibrationUncertainty& u) {
+  switch (id) {
+    case Id::kLidarRotation:
+      return FromVector(p.T_I_L.rotation, u.T_I_L.sigma_rot_deg);
+    case Id::kLidarTranslation:
+      return FromVector(p.T_I_L.translation, u.T_I_L.sigma_p_m);
+    case Id::kTimeOffset:
+      return FromScalar(p.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s.sigma);
+    case Id::kWheelRadiusLeft:
+      return FromScalar(p.wheel_radius_left_m, u.wheel_radius_left_m.sigma);
+    case Id::kWheelRadiusRight:
+      return FromScalar(p.wheel_radius_right_m, u.wheel_radius_right_m.sigma);
+    case Id::kTrackWidth:
+      return FromScalar(p.track_width_m, u.track_width_m.sigma);
+    case Id::kVehicleRotation:
+      return FromVector(p.T_I_V.rotation, u.T_I_V.sigma_rot_deg);
+    case Id::kVehicleTranslation:
+      return FromVector(p.T_I_V.translation, u.T_I_V.sigma_p_m);
+    case Id::kGnssLeverArm:
+      break;
+  }
+  return FromVector(p.p_I_A_m, u.p_I_A_m.sigma);
+}
+
+double FileToTangent(const sensors::CalibrationBlockInfo& block) {
+  return block.manifold == sensors::BlockManifold::kRightQuaternion ? 1.0 / kRadToDeg : 1.0;
+}
+
+bool SensorUsed(const sensors::CalibrationBlockInfo& block, bool use_wheel, bool use_gnss) {
+  switch (block.sensor) {
+    case sensors::BlockSensor::kWheel:
+      return use_wheel;
+    case sensors::BlockSensor::kGnss:
+      return use_gnss;
+    case sensors::BlockSensor::kLidar:
+      break;
+  }
+  return true;
+}
+
+std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& problem,
+                                                        const io::SensorsConfig& sensors,
+                                                        const OfflineCalibrationOptions& o,
+                                                        bool use_wheel, bool use_gnss,
+                                                        sensors::Calibration* c) {
   const io::ProblemCalibration& p = problem.calibration;
-  const sensors::Calibration& nominal = sensors.nominal_calibration;
-  const io::CalibrationUncertainty& u = sensors.nominal_uncertainty;
-  const double deg = 1.0 / kRadToDeg;
-  std::vector<CalibrationBlock> blocks;
-  const auto push = [&](CalibrationBlock b) {
+  std::vector<estimation::EstimatedBlock> blocks;
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    const BlockSetting setting = SettingOf(info.id, p, sensors.nominal_uncertainty);
+    if (!SensorUsed(info, use_wheel, use_gnss) || !Estimated(setting.mode)) continue;
+    if (info.id == Id::kWheelRadiusRight && p.wheel_radius_shared) continue;
+    estimation::EstimatedBlock b = estimation::BlockOf(info.id, c);
+    if (info.id == Id::kWheelRadiusLeft && p.wheel_radius_shared) {
+      b.name = "rear wheel radius (both wheels)";
+      b.direction_names = {b.name};
+    }
+    const double to_tangent = FileToTangent(info);
+    const BlockLimits limits = LimitsOf(info.id, o);
+    b.prior = Eigen::Map<const Eigen::VectorXd>(info.const_values(sensors.nominal_calibration),
+                                                info.ambient_size);
+    b.prior_sigma = PriorSigma(setting, info.tangent_size, limits.default_prior_sigma, to_tangent);
+    b.max_observable_sigma = limits.max_observable_sigma * to_tangent;
     b.max_posterior_to_prior_sigma = o.max_posterior_to_prior_sigma;
     b.max_kept_sigma_to_limit = o.max_kept_sigma_to_limit;
     blocks.push_back(std::move(b));
-  };
-  auto rotation = [&](const std::string& name, const io::VectorBlockSetting& setting,
-                      const std::optional<Eigen::Vector3d>& nominal_sigma_deg,
-                      const Eigen::Quaterniond& q0, double* data, double max_sigma_deg,
-                      std::vector<std::string> directions) {
-    CalibrationBlock b;
-    b.name = name;
-    b.data = data;
-    b.size = 3;
-    b.rotation = true;
-    b.prior = q0.coeffs();
-    b.prior_sigma = PriorSigma(setting.mode, setting.prior_sigma * deg,
-                               Optional(nominal_sigma_deg, deg),
-                               Eigen::VectorXd::Constant(3, o.default_rotation_prior_sigma_deg * deg));
-    b.max_observable_sigma = max_sigma_deg * deg;
-    b.direction_names = std::move(directions);
-    b.display_scale = kRadToDeg;
-    b.display_unit = "deg";
-    push(b);
-  };
-  auto vector = [&](const std::string& name, const io::VectorBlockSetting& setting,
-                    const std::optional<Eigen::Vector3d>& nominal_sigma,
-                    const Eigen::Vector3d& x0, double* data, double limit,
-                    std::vector<std::string> directions) {
-    CalibrationBlock b;
-    b.name = name;
-    b.data = data;
-    b.size = 3;
-    b.prior = x0;
-    b.prior_sigma = PriorSigma(setting.mode, setting.prior_sigma, Optional(nominal_sigma),
-                               Eigen::VectorXd::Constant(3, o.default_translation_prior_sigma_m));
-    b.max_observable_sigma = limit;
-    b.direction_names = std::move(directions);
-    b.display_scale = 100.0;
-    b.display_unit = "cm";
-    push(b);
-  };
-  auto scalar = [&](const std::string& name, const io::ScalarBlockSetting& setting,
-                    const std::optional<double>& nominal_sigma, double x0, double* data,
-                    double fallback_sigma, double limit, double display_scale,
-                    const std::string& unit) {
-    CalibrationBlock b;
-    b.name = name;
-    b.data = data;
-    b.size = 1;
-    b.prior = Eigen::VectorXd::Constant(1, x0);
-    b.prior_sigma = PriorSigma(setting.mode, Eigen::VectorXd::Constant(1, setting.prior_sigma),
-                               Optional(nominal_sigma), Eigen::VectorXd::Constant(1, fallback_sigma));
-    b.max_observable_sigma = limit;
-    b.direction_names = {name};
-    b.display_scale = display_scale;
-    b.display_unit = unit;
-    push(b);
-  };
-  if (Estimated(p.T_I_L.rotation.mode)) {
-    rotation("T_I_L rotation", p.T_I_L.rotation, u.T_I_L.sigma_rot_deg, nominal.q_I_L,
-             c->q_I_L.coeffs().data(), o.max_observable_rotation_sigma_deg,
-             {"LiDAR rotation about the IMU x axis (roll)", "LiDAR rotation about the IMU y axis (pitch)",
-              "LiDAR rotation about the IMU z axis (yaw)"});
-  }
-  if (Estimated(p.T_I_L.translation.mode)) {
-    vector("T_I_L translation", p.T_I_L.translation, u.T_I_L.sigma_p_m, nominal.p_I_L,
-           c->p_I_L.data(), o.max_observable_translation_sigma_m,
-           {"LiDAR x translation (IMU frame)", "LiDAR y translation (IMU frame)",
-            "LiDAR z translation (IMU frame; planar driving rotates about it only)"});
-  }
-  if (Estimated(p.time_offset_lidar_imu_s.mode)) {
-    scalar("LiDAR-IMU time offset", p.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s.sigma,
-           nominal.time_offset_lidar_imu_s, &c->time_offset_lidar_imu_s,
-           o.default_time_offset_prior_sigma_s, o.max_observable_time_offset_sigma_s, 1e3, "ms");
-  }
-  if (use_wheel) {
-    const char* left = p.wheel_radius_shared ? "rear wheel radius (both wheels)" : "left rear wheel radius";
-    if (Estimated(p.wheel_radius_left_m.mode)) {
-      scalar(left, p.wheel_radius_left_m, u.wheel_radius_left_m.sigma, nominal.wheel_radius_left_m,
-             &c->wheel_radius_left_m, o.default_wheel_radius_prior_sigma_m,
-             o.max_observable_wheel_radius_sigma_m, 1e3, "mm");
-    }
-    if (!p.wheel_radius_shared && Estimated(p.wheel_radius_right_m.mode)) {
-      scalar("right rear wheel radius", p.wheel_radius_right_m, u.wheel_radius_right_m.sigma,
-             nominal.wheel_radius_right_m, &c->wheel_radius_right_m,
-             o.default_wheel_radius_prior_sigma_m, o.max_observable_wheel_radius_sigma_m, 1e3, "mm");
-    }
-    if (Estimated(p.track_width_m.mode)) {
-      scalar("track width", p.track_width_m, u.track_width_m.sigma, nominal.track_width_m,
-             &c->track_width_m, o.default_track_width_prior_sigma_m,
-             o.max_observable_track_width_sigma_m, 1e3, "mm");
-    }
-    if (Estimated(p.T_I_V.rotation.mode)) {
-      rotation("T_I_V rotation", p.T_I_V.rotation, u.T_I_V.sigma_rot_deg, nominal.q_I_V,
-               c->q_I_V.coeffs().data(), o.max_observable_vehicle_rotation_sigma_deg,
-               {"vehicle frame rotation about the IMU x axis (roll)",
-                "vehicle frame rotation about the IMU y axis (pitch)",
-                "vehicle frame rotation about the IMU z axis (yaw)"});
-    }
-    if (Estimated(p.T_I_V.translation.mode)) {
-      vector("T_I_V translation", p.T_I_V.translation, u.T_I_V.sigma_p_m, nominal.p_I_V,
-             c->p_I_V.data(), o.max_observable_vehicle_translation_sigma_m,
-             {"rear-axle x position (IMU frame)", "rear-axle y position (IMU frame)",
-              "rear-axle z position (IMU frame)"});
-    }
-  }
-  if (use_gnss && Estimated(p.p_I_A_m.mode)) {
-    vector("p_I_A", p.p_I_A_m, u.p_I_A_m.sigma, nominal.p_I_A, c->p_I_A.data(),
-           o.max_observable_lever_arm_sigma_m,
-           {"GNSS antenna x lever arm (IMU frame)", "GNSS antenna y lever arm (IMU frame)",
-            "GNSS antenna z lever arm (IMU frame)"});
   }
   return blocks;
 }
 
-void FillUncertainty(const std::vector<CalibrationBlock>& blocks, const BlockObservability& obs,
-                     io::CalibrationUncertainty* u) {
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    const std::string& name = blocks[i].name;
-    const Eigen::VectorXd& sigma = obs.sigma[i];
-    const std::vector<bool>& flags = obs.observable[i];
-    auto append = [](std::vector<bool>* out, const std::vector<bool>& f, size_t first) {
-      if (out->size() < 6) out->resize(6, true);
-      for (size_t k = 0; k < f.size(); ++k) (*out)[first + k] = f[k];
-    };
-    if (name == "T_I_L rotation") {
-      u->T_I_L.sigma_rot_deg = Eigen::Vector3d(sigma * kRadToDeg);
-      append(&u->T_I_L.observable, flags, 0);
-    } else if (name == "T_I_L translation") {
-      u->T_I_L.sigma_p_m = Eigen::Vector3d(sigma);
-      append(&u->T_I_L.observable, flags, 3);
-    } else if (name == "T_I_V rotation") {
-      u->T_I_V.sigma_rot_deg = Eigen::Vector3d(sigma * kRadToDeg);
-      append(&u->T_I_V.observable, flags, 0);
-    } else if (name == "T_I_V translation") {
-      u->T_I_V.sigma_p_m = Eigen::Vector3d(sigma);
-      append(&u->T_I_V.observable, flags, 3);
-    } else if (name == "p_I_A") {
-      u->p_I_A_m.sigma = Eigen::Vector3d(sigma);
-      u->p_I_A_m.observable = flags;
-    } else {
-      io::ScalarBlockInfo* info = name == "LiDAR-IMU time offset" ? &u->time_offset_lidar_imu_s
-                                  : name == "right rear wheel radius" ? &u->wheel_radius_right_m
-                                  : name == "track width"             ? &u->track_width_m
-                                                                      : &u->wheel_radius_left_m;
-      info->sigma = sigma(0);
-      info->observable = flags[0];
-    }
+void SetUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
+                    io::CalibrationUncertainty* u) {
+  switch (id) {
+    case Id::kLidarRotation:
+    case Id::kLidarTranslation:
+      return SetPose(id == Id::kLidarRotation, sigma, observable, &u->T_I_L);
+    case Id::kTimeOffset:
+      return SetScalar(sigma, observable, &u->time_offset_lidar_imu_s);
+    case Id::kWheelRadiusLeft:
+      return SetScalar(sigma, observable, &u->wheel_radius_left_m);
+    case Id::kWheelRadiusRight:
+      return SetScalar(sigma, observable, &u->wheel_radius_right_m);
+    case Id::kTrackWidth:
+      return SetScalar(sigma, observable, &u->track_width_m);
+    case Id::kVehicleRotation:
+    case Id::kVehicleTranslation:
+      return SetPose(id == Id::kVehicleRotation, sigma, observable, &u->T_I_V);
+    case Id::kGnssLeverArm:
+      break;
   }
+  u->p_I_A_m.sigma = Eigen::Vector3d(sigma);
+  if (observable) u->p_I_A_m.observable = *observable;
 }
 
+void FillUncertainty(const std::vector<estimation::EstimatedBlock>& blocks,
+                     const estimation::BlockObservability& observability,
+                     io::CalibrationUncertainty* u) {
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    SetUncertainty(blocks[i].id, observability.sigma[i], &observability.observable[i], u);
+  }
+}
 
 }  // namespace pipeline
 }  // namespace autocal

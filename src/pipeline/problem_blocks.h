@@ -1,32 +1,60 @@
 #pragma once
 
-// The calibration blocks a problem estimates (docs/calibration.md, "Observability and
+// The calibration blocks of the block table (sensors/calibration_blocks.h) as the problem
+// file, the dataset's sensors.yaml and the result's calibration file hold them, and the
+// blocks an offline calibration estimates (docs/calibration.md, "Observability and
 // uncertainty"): each with its prior (the problem's sigma in prior mode, else the dataset's
-// stated nominal uncertainty, else the options' weak default) and its observability limits;
-// and the result's uncertainty section from the observability analysis of those blocks.
+// stated nominal uncertainty, else the options' weak default) and its observability limits.
 
+#include <Eigen/Core>
+#include <optional>
 #include <vector>
 
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/sensors/calibration.h"
-#include "calibration_blocks.h"
+#include "autocal/sensors/calibration_blocks.h"
 
 namespace autocal {
 namespace pipeline {
 
-// The blocks of `problem` that are estimated, their data pointing into `calibration`; the
-// wheel blocks only with use_wheel, the lever arm only with use_gnss.
-std::vector<CalibrationBlock> EstimatedBlocks(const io::Problem& problem,
-                                              const io::SensorsConfig& sensors,
-                                              const OfflineCalibrationOptions& options,
-                                              bool use_wheel, bool use_gnss,
-                                              sensors::Calibration* calibration);
+// What the problem and sensors.yaml say about one block, in file units (degrees for a
+// rotation, else SI), one value per tangent direction.
+struct BlockSetting {
+  io::BlockMode mode = io::BlockMode::kFixed;
+  Eigen::VectorXd prior_sigma;                   // the problem's; set in prior mode
+  std::optional<Eigen::VectorXd> nominal_sigma;  // sensors.yaml's, when it states one
+};
+BlockSetting SettingOf(sensors::CalibrationBlockId id, const io::ProblemCalibration& problem,
+                       const io::CalibrationUncertainty& nominal);
+
+// File units to tangent units: degrees to radians for a rotation, else 1.
+double FileToTangent(const sensors::CalibrationBlockInfo& block);
+
+// Whether the sensor of `block` takes part: the wheels with use_wheel, GNSS with use_gnss.
+// LiDAR blocks always may (a problem without the LiDAR fixes them).
+bool SensorUsed(const sensors::CalibrationBlockInfo& block, bool use_wheel, bool use_gnss);
+
+// The blocks of `problem` that are estimated, in table order, their data pointing into
+// `calibration`; the wheel blocks only with use_wheel, the lever arm only with use_gnss, one
+// radius for both wheels with wheel_radius_shared.
+std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& problem,
+                                                        const io::SensorsConfig& sensors,
+                                                        const OfflineCalibrationOptions& options,
+                                                        bool use_wheel, bool use_gnss,
+                                                        sensors::Calibration* calibration);
+
+// Sets block `id`'s sigma (tangent units, one per direction) in `uncertainty`, and its
+// observability flags when `observable` is given.
+void SetUncertainty(sensors::CalibrationBlockId id, const Eigen::VectorXd& sigma,
+                    const std::vector<bool>* observable, io::CalibrationUncertainty* uncertainty);
 
 // Sigma and observability flags of every block in `uncertainty`.
-void FillUncertainty(const std::vector<CalibrationBlock>& blocks, const BlockObservability& obs,
+void FillUncertainty(const std::vector<estimation::EstimatedBlock>& blocks,
+                     const estimation::BlockObservability& observability,
                      io::CalibrationUncertainty* uncertainty);
 
 }  // namespace pipeline

@@ -1,20 +1,22 @@
-#include "pipeline/calibration_blocks.h"
-
-#include <cmath>
-#include <memory>
+#include "autocal/estimation/calibration_observability.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <memory>
+
+#include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
-namespace pipeline {
+namespace estimation {
 namespace {
 
-CalibrationBlock VectorBlock(double* data, const Eigen::Vector3d& prior, double prior_sigma,
-                             double limit) {
-  CalibrationBlock b;
+EstimatedBlock VectorBlock(double* data, const Eigen::Vector3d& prior, double prior_sigma,
+                           double limit) {
+  EstimatedBlock b;
+  b.id = sensors::CalibrationBlockId::kLidarTranslation;
   b.name = "T_I_L translation";
   b.data = data;
   b.size = 3;
@@ -29,17 +31,17 @@ CalibrationBlock VectorBlock(double* data, const Eigen::Vector3d& prior, double 
 
 // Eq. (C1) on a Gaussian with a known covariance: the unobservable z is set to its prior and
 // x, correlated with it, moves by S_xz / S_zz times z's correction; y, uncorrelated, stays.
-TEST(CalibrationBlocks, HoldsUnobservableDirectionsAndConditionsTheRest) {
+TEST(CalibrationObservability, HoldsUnobservableDirectionsAndConditionsTheRest) {
   Eigen::Vector3d p(0.31, -0.05, 0.60);
-  const std::vector<CalibrationBlock> blocks = {
+  const std::vector<EstimatedBlock> blocks = {
       VectorBlock(p.data(), Eigen::Vector3d(0.30, -0.05, 0.55), 0.3, 0.03)};
   BlockCovariance covariance;
   covariance.ok = true;
   covariance.offsets = {0};
   covariance.matrix = Eigen::Matrix3d::Zero();
-  covariance.matrix(0, 0) = 1e-4;   // sigma 1 cm: observable
+  covariance.matrix(0, 0) = 1e-4;    // sigma 1 cm: observable
   covariance.matrix(1, 1) = 1.6e-3;  // sigma 4 cm: informed (prior 30 cm), above the 3 cm limit
-  covariance.matrix(2, 2) = 4e-2;   // sigma 20 cm: over half the prior's, held
+  covariance.matrix(2, 2) = 4e-2;    // sigma 20 cm: over half the prior's, held
   covariance.matrix(0, 2) = covariance.matrix(2, 0) = 5e-4;
   const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
   // Eq. C1-C2 with the gain K = 5e-4 / 4e-2 from z to x; z is held at a nominal value whose
@@ -60,10 +62,9 @@ TEST(CalibrationBlocks, HoldsUnobservableDirectionsAndConditionsTheRest) {
 
 // A direction whose posterior is barely narrower than its prior is unobservable too, even
 // when the prior itself is tighter than the limit.
-TEST(CalibrationBlocks, ADirectionTheDataDidNotNarrowIsUnobservable) {
+TEST(CalibrationObservability, ADirectionTheDataDidNotNarrowIsUnobservable) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
-  const std::vector<CalibrationBlock> blocks = {
-      VectorBlock(p.data(), p, 0.02, 0.03)};
+  const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.02, 0.03)};
   BlockCovariance covariance;
   covariance.ok = true;
   covariance.offsets = {0};
@@ -75,9 +76,9 @@ TEST(CalibrationBlocks, ADirectionTheDataDidNotNarrowIsUnobservable) {
 // Under a weak prior (30 cm) a direction the data narrowed to 13 cm is still held: above four
 // times its 3 cm limit it is too weak to be worth more than the nominal value. At 11 cm it is
 // kept as partly determined.
-TEST(CalibrationBlocks, ADirectionFarAboveItsLimitIsHeldUnderAWeakPrior) {
+TEST(CalibrationObservability, ADirectionFarAboveItsLimitIsHeldUnderAWeakPrior) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
-  const std::vector<CalibrationBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.03)};
+  const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.03)};
   BlockCovariance covariance;
   covariance.ok = true;
   covariance.offsets = {0};
@@ -90,9 +91,9 @@ TEST(CalibrationBlocks, ADirectionFarAboveItsLimitIsHeldUnderAWeakPrior) {
   EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);
 }
 
-TEST(CalibrationBlocks, NamesExcitedDirectionsFarFromTheirPrior) {
+TEST(CalibrationObservability, NamesExcitedDirectionsFarFromTheirPrior) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
-  std::vector<CalibrationBlock> blocks = {VectorBlock(p.data(), p, 0.05, 0.03)};
+  std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.05, 0.03)};
   const BlockCovariance none;  // not computed: every direction is judged
   EXPECT_TRUE(ImplausibleDirections(blocks, none, 5.0).empty());
   p.y() += 0.3;  // 6 prior sigmas
@@ -114,14 +115,15 @@ TEST(CalibrationBlocks, NamesExcitedDirectionsFarFromTheirPrior) {
 }
 
 // Rotation blocks work in the tangent of the right perturbation.
-TEST(CalibrationBlocks, RotationBlocksUseTheTangent) {
+TEST(CalibrationObservability, RotationBlocksUseTheTangent) {
   const Eigen::Quaterniond nominal = geometry::Exp(Eigen::Vector3d(0.1, -0.2, 0.3));
   Eigen::Quaterniond q = nominal * geometry::Exp(Eigen::Vector3d(0.0, 0.0, 0.2));
-  CalibrationBlock b;
+  EstimatedBlock b;
+  b.id = sensors::CalibrationBlockId::kLidarRotation;
   b.name = "T_I_L rotation";
   b.data = q.coeffs().data();
   b.size = 3;
-  b.rotation = true;
+  b.manifold = sensors::BlockManifold::kRightQuaternion;
   b.prior = nominal.coeffs();
   b.prior_sigma = Eigen::Vector3d::Constant(0.05);
   b.max_observable_sigma = 0.01;
@@ -138,6 +140,57 @@ TEST(CalibrationBlocks, RotationBlocksUseTheTangent) {
   EXPECT_LT(geometry::AngularDistance(q, nominal), 1e-12);
 }
 
+// A block from the table points into the calibration and carries the table's names.
+TEST(CalibrationObservability, BlockOfTakesTheTableRow) {
+  sensors::Calibration c;
+  const EstimatedBlock rotation = BlockOf(sensors::CalibrationBlockId::kVehicleRotation, &c);
+  EXPECT_EQ(rotation.data, c.q_I_V.coeffs().data());
+  EXPECT_EQ(rotation.size, 3);
+  EXPECT_EQ(rotation.manifold, sensors::BlockManifold::kRightQuaternion);
+  EXPECT_EQ(rotation.name, "T_I_V rotation");
+  EXPECT_THAT(rotation.direction_names, ::testing::ElementsAre(::testing::HasSubstr("(roll)"),
+                                                               ::testing::HasSubstr("(pitch)"),
+                                                               ::testing::HasSubstr("(yaw)")));
+  EXPECT_DOUBLE_EQ(rotation.display_scale, 180.0 / M_PI);
+  const EstimatedBlock track = BlockOf(sensors::CalibrationBlockId::kTrackWidth, &c);
+  EXPECT_EQ(track.data, &c.track_width_m);
+  EXPECT_EQ(track.size, 1);
+  EXPECT_THAT(track.direction_names, ::testing::ElementsAre("track width"));
+  EXPECT_EQ(track.display_unit, "mm");
+}
+
+// With nothing but their priors, the blocks' joint covariance is the priors' (diagonal, in the
+// rotation's tangent), and every direction is then held: the data added nothing.
+TEST(CalibrationObservability, PriorsAloneGiveThePriorCovariance) {
+  sensors::Calibration c;
+  c.q_I_L = geometry::Exp(Eigen::Vector3d(0.1, -0.2, 0.3));
+  std::vector<EstimatedBlock> blocks = {BlockOf(sensors::CalibrationBlockId::kLidarRotation, &c),
+                                        BlockOf(sensors::CalibrationBlockId::kTrackWidth, &c)};
+  blocks[0].prior = c.q_I_L.coeffs();
+  blocks[0].prior_sigma = Eigen::Vector3d(0.01, 0.02, 0.03);
+  blocks[0].max_observable_sigma = 0.001;
+  blocks[1].prior = Eigen::VectorXd::Constant(1, c.track_width_m);
+  blocks[1].prior_sigma = Eigen::VectorXd::Constant(1, 0.05);
+  blocks[1].max_observable_sigma = 0.005;
+  geometry::RightQuaternionManifold manifold;
+  ceres::Problem::Options options;
+  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(options);
+  problem.AddParameterBlock(c.q_I_L.coeffs().data(), 4, &manifold);
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  EXPECT_EQ(problem.NumResidualBlocks(), 2);
+  const BlockCovariance covariance = ComputeBlockCovariance(blocks, &problem);
+  ASSERT_TRUE(covariance.ok);
+  EXPECT_THAT(covariance.offsets, ::testing::ElementsAre(0, 3));
+  const Eigen::Vector4d variances(1e-4, 4e-4, 9e-4, 2.5e-3);
+  EXPECT_TRUE(covariance.matrix.isApprox(Eigen::MatrixXd(variances.asDiagonal()), 1e-9))
+      << covariance.matrix;
+  const BlockObservability observability = HoldUnobservableDirections(blocks, covariance);
+  EXPECT_THAT(observability.observable[0], ::testing::ElementsAre(false, false, false));
+  EXPECT_THAT(observability.observable[1], ::testing::ElementsAre(false));
+  EXPECT_EQ(observability.warnings.size(), 4u);
+}
+
 }  // namespace
-}  // namespace pipeline
+}  // namespace estimation
 }  // namespace autocal

@@ -1,0 +1,91 @@
+#pragma once
+
+// The calibration blocks an estimator solves for, seen as one vector: their priors, their
+// joint covariance after a solve, and which of their directions the data excited
+// (docs/calibration.md, "Observability and uncertainty"). A direction the data left at its
+// prior is held there and the others are conditioned on it (Eq. C1-C2), so that a drive that
+// cannot see a block does not report a value the data never determined.
+//
+//   std::vector<EstimatedBlock> blocks = ...;    // BlockOf(id, &calibration) + prior, limits
+//   AddBlockPriors(blocks, loss, &problem);     // before the solve
+//   const BlockCovariance covariance = ComputeBlockCovariance(blocks, &problem);  // after it
+//   if (covariance.ok) observability = HoldUnobservableDirections(blocks, covariance);
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "autocal/factors/loss.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/calibration_blocks.h"
+
+namespace autocal {
+namespace estimation {
+
+// One calibration block under estimation, in tangent units (rad, m, s) unless named.
+struct EstimatedBlock {
+  sensors::CalibrationBlockId id = sensors::CalibrationBlockId::kLidarRotation;
+  std::string name;        // in words, e.g. "T_I_L rotation"
+  double* data = nullptr;  // the parameter block's ambient values (in the calibration solved)
+  int size = 0;            // tangent size: 3 or 1
+  sensors::BlockManifold manifold = sensors::BlockManifold::kEuclidean;
+  Eigen::VectorXd prior;        // ambient value of the prior (the nominal calibration)
+  Eigen::VectorXd prior_sigma;  // per tangent direction
+  // A direction whose posterior sigma exceeds this is not observable.
+  double max_observable_sigma = 0.0;
+  // It is held at its prior (unexcited) when its posterior sigma exceeds this fraction of its
+  // prior sigma (the data added little to the prior) or this multiple of max_observable_sigma.
+  double max_posterior_to_prior_sigma = 0.5;
+  double max_kept_sigma_to_limit = 4.0;
+  std::vector<std::string> direction_names;  // in words, one per tangent direction
+  double display_scale = 1.0;                // tangent units to display units
+  std::string display_unit;
+};
+
+// Block `id` of `calibration` as the block table describes it (sensors/calibration_blocks.h):
+// data, size, manifold, names and display. The prior, its sigma and the limits are the
+// caller's to set.
+EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* calibration);
+
+// A prior at the block's prior value on every block (Gaussian, sigma per direction).
+void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::LossOptions& loss,
+                    ceres::Problem* problem);
+
+// The joint covariance of the blocks' tangent coordinates, blocks in order. A rotation block
+// must carry geometry::RightQuaternionManifold in `problem`.
+struct BlockCovariance {
+  bool ok = false;  // false when Ceres could not compute it or it is not finite
+  Eigen::MatrixXd matrix;
+  std::vector<int> offsets;  // first row of each block
+};
+BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
+                                       ceres::Problem* problem);
+
+// The directions that the data excited (posterior sigma within both limits of their block)
+// and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
+// plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a solve
+// that went there did not converge to anything the priors allow. Unexcited directions are not
+// judged: they are held at their prior anyway. Without a covariance every direction is judged.
+std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>& blocks,
+                                               const BlockCovariance& covariance,
+                                               double max_sigmas);
+
+// Directions the data left at their prior (posterior sigma above max_posterior_to_prior_sigma
+// of the prior's, or above max_kept_sigma_to_limit times the limit) are held (U): set to
+// their prior value, and the others (O) conditioned on them with the prior's error carried
+// along (docs/calibration.md, Eq. C1-C2):
+//   x_O <- x_O - K (x_U - x0_U),   S_OO <- S_OO - K S_UO + K P_U K^T,   K = S_OU S_UU^-1.
+// A direction of O whose sigma then exceeds its block's limit keeps its estimate and sigma
+// but is not reported observable. Updates the blocks' data in place; needs covariance.ok.
+struct BlockObservability {
+  std::vector<std::vector<bool>> observable;  // per block, per direction
+  std::vector<Eigen::VectorXd> sigma;         // posterior (held directions: the prior's)
+  std::vector<std::string> warnings;          // one plain-language line per unobservable one
+};
+BlockObservability HoldUnobservableDirections(const std::vector<EstimatedBlock>& blocks,
+                                              const BlockCovariance& covariance);
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,274 @@
+#include "autocal/estimation/calibration_observability.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+#include <utility>
+
+#include "autocal/factors/prior_factors.h"
+#include "autocal/geometry/so3.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace {
+
+bool IsRotation(const EstimatedBlock& block) {
+  return block.manifold == sensors::BlockManifold::kRightQuaternion;
+}
+
+Eigen::Quaterniond AsQuaternion(const double* xyzw) {
+  return Eigen::Quaterniond(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
+}
+
+// x - x0 in the block's tangent.
+Eigen::VectorXd TangentFromPrior(const EstimatedBlock& block) {
+  if (IsRotation(block)) {
+    const Eigen::Quaterniond q0 = AsQuaternion(block.prior.data());
+    const Eigen::Quaterniond q = AsQuaternion(block.data);
+    return geometry::Log(Eigen::Quaterniond(q0.conjugate() * q));
+  }
+  return Eigen::Map<const Eigen::VectorXd>(block.data, block.size) - block.prior;
+}
+
+// Direction i of a block is informed by the data (not held at its prior) when its posterior
+// sigma is well below its prior's and within a few times its limit.
+bool Informed(const EstimatedBlock& block, int i, double posterior_sigma) {
+  return posterior_sigma <= block.max_posterior_to_prior_sigma * block.prior_sigma(i) &&
+         posterior_sigma <= block.max_kept_sigma_to_limit * block.max_observable_sigma;
+}
+
+// Direction i of a block is excited when it is informed and its sigma within the limit.
+bool Excited(const EstimatedBlock& block, int i, double posterior_sigma) {
+  return Informed(block, i, posterior_sigma) && posterior_sigma <= block.max_observable_sigma;
+}
+
+void Step(const EstimatedBlock& block, const Eigen::VectorXd& step) {
+  if (IsRotation(block)) {
+    Eigen::Map<Eigen::Quaterniond> q(block.data);
+    q = (Eigen::Quaterniond(q) * geometry::Exp(Eigen::Vector3d(step))).normalized();
+    return;
+  }
+  Eigen::Map<Eigen::VectorXd>(block.data, block.size) += step;
+}
+
+double SigmaOf(const Eigen::MatrixXd& S, int row) { return std::sqrt(std::max(0.0, S(row, row))); }
+
+// The rows of the joint vector split into informed (O) and held (U) directions, and every
+// block's difference from its prior.
+struct Partition {
+  Eigen::VectorXd difference;
+  std::vector<int> observable, unobservable;
+  Eigen::VectorXd prior_variance_u;  // the held directions' prior sigma squared
+};
+
+Partition PartitionDirections(const std::vector<EstimatedBlock>& blocks,
+                              const BlockCovariance& covariance) {
+  const Eigen::MatrixXd& S = covariance.matrix;
+  Partition out;
+  out.difference.resize(S.rows());
+  std::vector<double> prior_variance_u;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const int first = covariance.offsets[b];
+    out.difference.segment(first, blocks[b].size) = TangentFromPrior(blocks[b]);
+    for (int i = 0; i < blocks[b].size; ++i) {
+      if (Informed(blocks[b], i, SigmaOf(S, first + i))) {
+        out.observable.push_back(first + i);
+      } else {
+        out.unobservable.push_back(first + i);
+        prior_variance_u.push_back(blocks[b].prior_sigma(i) * blocks[b].prior_sigma(i));
+      }
+    }
+  }
+  out.prior_variance_u = Eigen::Map<const Eigen::VectorXd>(
+      prior_variance_u.data(), static_cast<Eigen::Index>(prior_variance_u.size()));
+  return out;
+}
+
+// S restricted to `rows` x `cols`.
+Eigen::MatrixXd Pick(const Eigen::MatrixXd& S, const std::vector<int>& rows,
+                     const std::vector<int>& cols) {
+  Eigen::MatrixXd m(rows.size(), cols.size());
+  for (size_t r = 0; r < rows.size(); ++r) {
+    for (size_t c = 0; c < cols.size(); ++c) {
+      m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = S(rows[r], cols[c]);
+    }
+  }
+  return m;
+}
+
+// Eq. C1, and Eq. C2: the held values are the nominal ones, whose own error has the prior
+// covariance P_U; through the gain K = S_OU S_UU^-1 it reaches the conditioned directions,
+// so their covariance is S_OO - K S_UO + K P_U K^T. Returns the step of every direction and
+// subtracts the reduction from *conditioned (a copy of S).
+Eigen::VectorXd Condition(const Eigen::MatrixXd& S, const Partition& part,
+                          Eigen::MatrixXd* conditioned) {
+  Eigen::VectorXd step = Eigen::VectorXd::Zero(S.rows());
+  if (part.unobservable.empty()) return step;
+  const Eigen::MatrixXd S_ou = Pick(S, part.observable, part.unobservable);
+  const Eigen::LDLT<Eigen::MatrixXd> S_uu(Pick(S, part.unobservable, part.unobservable));
+  Eigen::VectorXd d_u(part.unobservable.size());
+  for (size_t u = 0; u < part.unobservable.size(); ++u) {
+    d_u(static_cast<Eigen::Index>(u)) = part.difference(part.unobservable[u]);
+  }
+  const Eigen::MatrixXd gain = S_uu.solve(S_ou.transpose()).transpose();
+  const Eigen::VectorXd shift = -gain * d_u;
+  const Eigen::MatrixXd reduction =
+      gain * S_ou.transpose() - gain * part.prior_variance_u.asDiagonal() * gain.transpose();
+  const std::vector<int>& o = part.observable;
+  for (size_t i = 0; i < o.size(); ++i) {
+    step(o[i]) = shift(static_cast<Eigen::Index>(i));
+    for (size_t j = 0; j < o.size(); ++j) {
+      (*conditioned)(o[i], o[j]) -=
+          reduction(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j));
+    }
+  }
+  for (int u : part.unobservable) step(u) = -part.difference(u);
+  return step;
+}
+
+// The flags, sigmas and warnings of one block whose first row is `first`, after the step.
+void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
+            const Eigen::MatrixXd& conditioned, const std::vector<int>& unobservable,
+            BlockObservability* out) {
+  Eigen::VectorXd sigma =
+      conditioned.diagonal().segment(first, block.size).cwiseMax(0.0).cwiseSqrt();
+  std::vector<bool> flags(static_cast<size_t>(block.size), true);
+  const auto value = [&](double x) {
+    std::ostringstream v;
+    v << std::setprecision(3) << x * block.display_scale << ' ' << block.display_unit;
+    return v.str();
+  };
+  for (int i = 0; i < block.size; ++i) {
+    const std::string& name = block.direction_names[static_cast<size_t>(i)];
+    const bool held =
+        std::find(unobservable.begin(), unobservable.end(), first + i) != unobservable.end();
+    if (held) {
+      flags[static_cast<size_t>(i)] = false;
+      sigma(i) = block.prior_sigma(i);
+      out->warnings.push_back(name + ": not excited by the drive (sigma " +
+                              value(SigmaOf(S, first + i)) + " after the solve, prior " +
+                              value(block.prior_sigma(i)) + "); held at the nominal value");
+    } else if (!(sigma(i) <= block.max_observable_sigma)) {
+      // Informed, but not to the accuracy asked for: the estimate is kept (it is better
+      // than the nominal value) with its sigma, and not reported as observable.
+      flags[static_cast<size_t>(i)] = false;
+      out->warnings.push_back(name + ": only partly determined by the drive (sigma " +
+                              value(sigma(i)) + ", limit " + value(block.max_observable_sigma) +
+                              "); the estimate is kept and not reported as observable");
+    }
+  }
+  out->observable.push_back(flags);
+  out->sigma.push_back(sigma);
+}
+
+}  // namespace
+
+EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* calibration) {
+  const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(id);
+  EstimatedBlock block;
+  block.id = id;
+  block.name = info.name;
+  block.data = info.values(calibration);
+  block.size = info.tangent_size;
+  block.manifold = info.manifold;
+  block.direction_names.assign(info.direction_names.begin(),
+                               info.direction_names.begin() + info.tangent_size);
+  block.display_scale = info.display_scale;
+  block.display_unit = info.display_unit;
+  return block;
+}
+
+void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::LossOptions& loss,
+                    ceres::Problem* problem) {
+  for (const EstimatedBlock& block : blocks) {
+    const Eigen::MatrixXd sqrt_information = factors::SqrtInformationFromSigmas(block.prior_sigma);
+    ceres::CostFunction* cost =
+        IsRotation(block) ? static_cast<ceres::CostFunction*>(new factors::QuaternionPriorFactor(
+                                AsQuaternion(block.prior.data()), sqrt_information))
+                          : new factors::VectorPriorFactor(block.prior, sqrt_information);
+    problem->AddResidualBlock(cost, factors::MakeLossFunction(loss), block.data);
+  }
+}
+
+BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
+                                       ceres::Problem* problem) {
+  BlockCovariance out;
+  int size = 0;
+  for (const EstimatedBlock& block : blocks) {
+    out.offsets.push_back(size);
+    size += block.size;
+  }
+  out.matrix = Eigen::MatrixXd::Zero(size, size);
+  if (blocks.empty()) {
+    out.ok = true;
+    return out;
+  }
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (size_t a = 0; a < blocks.size(); ++a) {
+    for (size_t b = a; b < blocks.size(); ++b) pairs.emplace_back(blocks[a].data, blocks[b].data);
+  }
+  ceres::Covariance::Options options;
+  options.algorithm_type = ceres::SPARSE_QR;
+  ceres::Covariance covariance(options);
+  if (!covariance.Compute(pairs, problem)) return out;
+  for (size_t a = 0; a < blocks.size(); ++a) {
+    for (size_t b = a; b < blocks.size(); ++b) {
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(blocks[a].size,
+                                                                               blocks[b].size);
+      if (!covariance.GetCovarianceBlockInTangentSpace(blocks[a].data, blocks[b].data, c.data())) {
+        return out;
+      }
+      out.matrix.block(out.offsets[a], out.offsets[b], blocks[a].size, blocks[b].size) = c;
+      out.matrix.block(out.offsets[b], out.offsets[a], blocks[b].size, blocks[a].size) =
+          c.transpose();
+    }
+  }
+  out.ok = out.matrix.allFinite();
+  return out;
+}
+
+std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>& blocks,
+                                               const BlockCovariance& covariance,
+                                               double max_sigmas) {
+  std::vector<std::string> out;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const EstimatedBlock& block = blocks[b];
+    const Eigen::VectorXd difference = TangentFromPrior(block);
+    for (int i = 0; i < block.size; ++i) {
+      if (covariance.ok &&
+          !Excited(block, i, SigmaOf(covariance.matrix, covariance.offsets[b] + i))) {
+        continue;
+      }
+      const double sigmas = std::abs(difference(i)) / block.prior_sigma(i);
+      if (!(sigmas <= max_sigmas)) {  // also catches NaN
+        std::ostringstream text;
+        text << std::setprecision(3) << block.direction_names[static_cast<size_t>(i)] << " moved "
+             << difference(i) * block.display_scale << ' ' << block.display_unit
+             << " from the nominal value, " << sigmas << " prior sigmas";
+        out.push_back(text.str());
+      }
+    }
+  }
+  return out;
+}
+
+BlockObservability HoldUnobservableDirections(const std::vector<EstimatedBlock>& blocks,
+                                              const BlockCovariance& covariance) {
+  const Partition part = PartitionDirections(blocks, covariance);
+  Eigen::MatrixXd conditioned = covariance.matrix;
+  const Eigen::VectorXd step = Condition(covariance.matrix, part, &conditioned);
+  BlockObservability out;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const int first = covariance.offsets[b];
+    Step(blocks[b], step.segment(first, blocks[b].size));
+    Report(blocks[b], first, covariance.matrix, conditioned, part.unobservable, &out);
+  }
+  return out;
+}
+
+}  // namespace estimation
+}  // namespace autocal

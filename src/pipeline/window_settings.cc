@@ -1,0 +1,133 @@
+#include "window_settings.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "autocal/common/error.h"
+#include "autocal/sensors/calibration_blocks.h"
+#include "calibration_steps.h"
+#include "problem_blocks.h"
+
+namespace autocal {
+namespace pipeline {
+
+namespace {
+
+// The window's switch and prior sigma of a block. The window keeps one switch for both radii
+// and one for the vehicle frame's two blocks, and one sigma for both radii.
+struct WindowBlock {
+  bool* estimate;
+  double* prior_sigma;  // file units: degrees for a rotation
+};
+WindowBlock WindowBlockOf(sensors::CalibrationBlockId id, estimation::SlidingWindowOptions* w) {
+  using Id = sensors::CalibrationBlockId;
+  estimation::SlidingWindowEstimatedBlocks& e = w->estimate;
+  estimation::SlidingWindowCalibrationPrior& p = w->calibration_prior;
+  switch (id) {
+    case Id::kLidarRotation:
+      return {&e.extrinsic_rotation, &p.extrinsic_rotation_deg};
+    case Id::kLidarTranslation:
+      return {&e.extrinsic_translation, &p.extrinsic_translation_m};
+    case Id::kTimeOffset:
+      return {&e.time_offset, &p.time_offset_s};
+    case Id::kWheelRadiusLeft:
+    case Id::kWheelRadiusRight:
+      return {&e.wheel_radii, &p.wheel_radius_m};
+    case Id::kTrackWidth:
+      return {&e.track_width, &p.track_width_m};
+    case Id::kVehicleRotation:
+      return {&e.vehicle_frame, &p.vehicle_rotation_deg};
+    case Id::kVehicleTranslation:
+      return {&e.vehicle_frame, &p.vehicle_translation_m};
+    case Id::kGnssLeverArm:
+      break;
+  }
+  return {&e.gnss_lever_arm, &p.gnss_lever_arm_m};
+}
+
+// What the window estimates and its prior sigmas, from the problem and the dataset's stated
+// nominal uncertainty. A block is estimated when its sensor takes part and the problem does not
+// fix it. The window's priors are one sigma per block: the problem's in prior mode, else the
+// sigma the dataset states, else the window's default; a per-axis sigma takes its widest
+// axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that share a
+// switch are estimated when one of them is, and the radii share the wider sigma.
+void SetWindowBlocks(const io::ProblemCalibration& problem,
+                     const io::CalibrationUncertainty& nominal, bool use_wheel, bool use_gnss,
+                     estimation::SlidingWindowOptions* w) {
+  estimation::SlidingWindowOptions defaults = *w;
+  WindowBlock previous{nullptr, nullptr};
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    const BlockSetting s = SettingOf(info.id, problem, nominal);
+    const bool estimated = SensorUsed(info, use_wheel, use_gnss) && Estimated(s.mode);
+    const double sigma = s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff()
+                         : s.nominal_sigma               ? s.nominal_sigma->maxCoeff()
+                                           : *WindowBlockOf(info.id, &defaults).prior_sigma;
+    const WindowBlock block = WindowBlockOf(info.id, w);
+    *block.estimate =
+        block.estimate == previous.estimate ? *block.estimate || estimated : estimated;
+    *block.prior_sigma =
+        block.prior_sigma == previous.prior_sigma ? std::max(*block.prior_sigma, sigma) : sigma;
+    previous = block;
+  }
+}
+
+}  // namespace
+
+estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
+                                               const io::Problem& problem, bool use_wheel,
+                                               bool use_gnss,
+                                               const OnlineEstimationOptions& options) {
+  const io::ProblemCalibration& b = problem.calibration;
+  if (b.wheel_radius_shared) {
+    throw Error("problem " + problem.path +
+                ": wheel_radius_shared is not supported by the "
+                "online estimator (it estimates both radii)");
+  }
+  if (use_wheel &&
+      Estimated(b.wheel_radius_left_m.mode) != Estimated(b.wheel_radius_right_m.mode)) {
+    throw Error("problem " + problem.path +
+                ": the online estimator estimates both wheel radii "
+                "or neither; the problem fixes only one");
+  }
+  estimation::SlidingWindowOptions w = options.window;
+  w.imu = dataset.sensors.imu;
+  if (dataset.sensors.wheel) w.wheel = *dataset.sensors.wheel;
+  w.loss = problem.loss;
+  w.window_size = problem.window_size;
+  w.solver_iterations = problem.solver.max_iterations;
+  w.num_threads = problem.solver.num_threads;
+  w.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
+  w.residual_voxel_m = problem.lidar.voxel_m;
+  w.residual_max_range_m = problem.window_max_range_m;
+  w.initial_state_sigmas = options.initial_state_sigmas;
+  // The rear axle's lateral and vertical speed rows, weighted for their correlated model error
+  // (Eq. K6, as in the offline calibration). Without them the wheel speeds see the vehicle
+  // frame's pitch and yaw only through the cosine that scales the speed along x_V, as the radii
+  // do: on the 60 s urban log the window drifted along that valley to 5.7 deg and -0.47 %
+  // (docs/sliding_window.md).
+  w.wheel_non_holonomic = use_wheel;
+
+  // The priors are the nominal calibration's, as in the offline calibration: the initializer's
+  // values only start the window.
+  w.calibration_prior.mean = dataset.sensors.nominal_calibration;
+  SetWindowBlocks(problem.calibration, dataset.sensors.nominal_uncertainty, use_wheel, use_gnss,
+                  &w);
+  return w;
+}
+
+void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,
+                           io::CalibrationUncertainty* u) {
+  for (size_t b = 0; b < covariance.names.size(); ++b) {
+    const sensors::CalibrationBlockInfo* info = sensors::FindCalibrationBlock(covariance.names[b]);
+    if (info == nullptr) continue;
+    Eigen::VectorXd sigma(info->tangent_size);
+    for (int k = 0; k < info->tangent_size; ++k) {
+      const int i = covariance.offsets[b] + k;
+      sigma(k) = std::sqrt(std::max(0.0, covariance.covariance(i, i)));
+    }
+    SetUncertainty(info->id, sigma, nullptr, u);
+  }
+}
+
+}  // namespace pipeline
+}  // namespace autocal

@@ -1,0 +1,29 @@
+#pragma once
+
+// The sliding window's settings for a problem and its covariance in the calibration file:
+// where the online estimation meets the window's options, in terms of the block table
+// (sensors/calibration_blocks.h).
+
+#include "autocal/estimation/sliding_window.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/online_estimation.h"
+
+namespace autocal {
+namespace pipeline {
+
+// The window options of a problem: what it estimates, its priors (centred at the dataset's
+// nominal calibration), losses, residual points and solver; the rest from options.window.
+// Throws autocal::Error for a shared wheel radius or a problem that fixes only one radius.
+estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
+                                               const io::Problem& problem, bool use_wheel,
+                                               bool use_gnss,
+                                               const OnlineEstimationOptions& options);
+
+// Sigmas of the estimated blocks from the window's covariance, into the calibration file.
+void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,
+                           io::CalibrationUncertainty* uncertainty);
+
+}  // namespace pipeline
+}  // namespace autocal
