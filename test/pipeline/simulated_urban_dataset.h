@@ -1,21 +1,19 @@
 #pragma once
 
 // The urban drive the pipeline suites run on (seed 7, 16 beams: a still start, straight
-// driving and a roundabout from 18 s, which the initializer needs), simulated and written as a
-// dataset once per test process. ctest runs each test in its own process, in parallel, so
-// each writes its own copy (the directory name carries the process id) and removes it.
+// driving and a roundabout from 18 s, which the initializer needs), written as a dataset once
+// per test program and build (test/support/simulation_cache.h) and shared by its tests, which
+// only read it.
 
 #include <cmath>
 #include <filesystem>
 #include <string>
 
-#include <unistd.h>
-
 #include <Eigen/Geometry>
 
 #include "autocal/io/dataset.h"
 #include "autocal/sim/simulator.h"
-#include "support/test_paths.h"
+#include "support/simulation_cache.h"
 
 namespace autocal {
 namespace test {
@@ -47,19 +45,19 @@ inline void SpoilNominalGuess(io::SensorsConfig* config) {
 struct SimulatedUrbanDataset {
   SimulatedUrbanDataset(double duration_s, const std::string& name)
       : SimulatedUrbanDataset(UrbanDriveOptions(duration_s), name) {}
-  // Any other drive, written and removed the same way.
-  SimulatedUrbanDataset(const sim::SimulationOptions& options, const std::string& name)
-      : simulator(options),
-        directory(OutputDir(name + "_" + std::to_string(static_cast<long>(getpid()))).string()) {
-    std::filesystem::remove_all(directory);
-    summary = sim::WriteDataset(simulator, directory);
+  // Any other drive, cached the same way. `name` only documents the caller's drive: the
+  // cache tells drives apart by their options.
+  SimulatedUrbanDataset(const sim::SimulationOptions& options, const std::string& /*name*/)
+      : simulator(options) {
+    CachedDatasetEntry entry = CachedDataset(simulator);
+    directory = entry.directory;
+    summary = entry.summary;
   }
-  ~SimulatedUrbanDataset() { std::filesystem::remove_all(directory); }
   SimulatedUrbanDataset(const SimulatedUrbanDataset&) = delete;
   SimulatedUrbanDataset& operator=(const SimulatedUrbanDataset&) = delete;
 
   const sim::Simulator simulator;
-  const std::string directory;
+  std::string directory;  // shared by the program's tests: read it, never write into it
   sim::SimulationSummary summary;
 };
 
