@@ -89,6 +89,29 @@ TEST(SimulationCache, KeyChangesWithAnyOption) {
   EXPECT_NE(test::simulation_cache::OptionsKey(lever_arm), key);
 }
 
+TEST(SimulationCache, MakesAValueOnceAndLoadsItBitForBit) {
+  const sim::SimulatedLog log = sim::Simulate(sim::Simulator(ShortDrive()));
+  const std::string name = "short_drive_sweeps";
+  int made = 0;
+  const auto make = [&] {
+    ++made;
+    return log.sweeps;
+  };
+  // The first call makes the value unless an earlier run of this build did; the second loads it.
+  const auto first = test::CachedValue<std::vector<lidar::LidarSweep>>(name, make);
+  EXPECT_LE(made, 1);
+  const int made_before_second = made;
+  const auto second = test::CachedValue<std::vector<lidar::LidarSweep>>(name, make);
+  EXPECT_EQ(made, made_before_second);
+  ASSERT_EQ(second.size(), log.sweeps.size());
+  for (size_t i = 0; i < log.sweeps.size(); ++i) {
+    EXPECT_EQ(first[i].t_ns, log.sweeps[i].t_ns);
+    EXPECT_EQ(second[i].cloud.points, log.sweeps[i].cloud.points);
+    EXPECT_EQ(second[i].cloud.time_s, log.sweeps[i].cloud.time_s);
+    EXPECT_EQ(second[i].cloud.intensity, log.sweeps[i].cloud.intensity);
+  }
+}
+
 TEST(SimulationCache, RefusesATruncatedEntry) {
   sim::SimulatedLog log = sim::Simulate(sim::Simulator(ShortDrive()));
   std::string bytes = Bytes(log);

@@ -391,6 +391,27 @@ std::filesystem::path Entry(const std::string& name, Make make) {
 
 }  // namespace simulation_cache
 
+// Any value the archive can store (vectors, Eigen matrices, LiDAR sweeps, ...), made by
+// `make()` once per test program and build. `name` must tell apart everything the program
+// caches this way (letters, digits and '_'); the build stamp covers changes of the code that
+// makes it.
+template <class T, class Make>
+T CachedValue(const std::string& name, Make make) {
+  namespace cache = simulation_cache;
+  const std::filesystem::path entry =
+      cache::Entry(name + "-value", [&](const std::filesystem::path& dir) {
+        T value = make();
+        cache::Writer writer;
+        writer(value);
+        cache::WriteFile(dir / "value.bin", writer.bytes());
+      });
+  cache::Reader reader(cache::ReadFile(entry / "value.bin"));
+  T value;
+  reader(value);
+  if (!reader.at_end()) throw Error("simulation cache: " + entry.string() + " is too long");
+  return value;
+}
+
 // sim::Simulate(simulator), simulated once per test program and build.
 inline sim::SimulatedLog CachedSimulatedLog(const sim::Simulator& simulator) {
   namespace cache = simulation_cache;
