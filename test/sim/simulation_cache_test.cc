@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <sstream>
 #include <string>
 
 #include "autocal/io/dataset.h"
@@ -116,7 +117,8 @@ TEST(SimulationCache, RefusesATruncatedEntry) {
   sim::SimulatedLog log = sim::Simulate(sim::Simulator(ShortDrive()));
   std::string bytes = Bytes(log);
   bytes.resize(bytes.size() / 2);
-  test::simulation_cache::Reader reader(bytes);
+  std::istringstream in(bytes);
+  test::simulation_cache::Reader reader(in, bytes.size());
   sim::SimulatedLog loaded;
   EXPECT_THROW(reader(loaded), Error);
 }

@@ -26,10 +26,9 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
+#include <istream>
 #include <string>
 #include <system_error>
 #include <type_traits>
@@ -97,19 +96,22 @@ class Writer {
 
 // Reads what Writer wrote, in the same order; throws autocal::Error when the bytes end early
 // or a fixed-size matrix has another size.
+// Streams from `in`, which holds `size` bytes (no copy of the whole entry in memory).
 class Reader {
  public:
-  explicit Reader(std::string bytes) : bytes_(std::move(bytes)) {}
+  Reader(std::istream& in, uint64_t size) : in_(in), size_(size) {}
   template <class T>
   void operator()(T& value) {
     Get(value);
   }
-  bool at_end() const { return offset_ == bytes_.size(); }
+  bool at_end() const { return offset_ == size_; }
 
  private:
+  uint64_t Remaining() const { return size_ - offset_; }
   void Raw(void* data, size_t size) {
-    if (size > bytes_.size() - offset_) throw Error("simulation cache: entry ends early");
-    std::memcpy(data, bytes_.data() + offset_, size);
+    if (size > Remaining() || !in_.read(static_cast<char*>(data), size)) {
+      throw Error("simulation cache: entry ends early");
+    }
     offset_ += size;
   }
   template <class T>
@@ -119,7 +121,7 @@ class Reader {
   uint64_t Size() {
     uint64_t size = 0;
     Get(size);
-    if (size > bytes_.size() - offset_) throw Error("simulation cache: bad length");
+    if (size > Remaining()) throw Error("simulation cache: bad length");
     return size;
   }
   void Get(std::string& text) {
@@ -132,7 +134,7 @@ class Reader {
     Get(rows);
     Get(cols);
     if ((R != Eigen::Dynamic && rows != R) || (C != Eigen::Dynamic && cols != C) || rows < 0 ||
-        cols < 0) {
+        cols < 0 || (cols > 0 && static_cast<uint64_t>(rows) > Remaining() / sizeof(S) / cols)) {
       throw Error("simulation cache: a matrix has the wrong size");
     }
     m.resize(rows, cols);
@@ -162,8 +164,9 @@ class Reader {
     VisitFields(*this, value);
   }
 
-  std::string bytes_;
-  size_t offset_ = 0;
+  std::istream& in_;
+  uint64_t size_;
+  uint64_t offset_ = 0;
 };
 
 // Every field of each stored type, in one order for writing and reading (found by
@@ -350,15 +353,33 @@ inline std::filesystem::path CacheRoot() {
 }
 
 inline std::string ReadFile(const std::filesystem::path& path) {
+  std::error_code error;
+  const uintmax_t size = std::filesystem::file_size(path, error);
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("simulation cache: cannot read " + path.string());
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes(error ? 0 : size, '\0');
+  if (error || !in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()))) {
+    throw Error("simulation cache: cannot read " + path.string());
+  }
+  return bytes;
 }
 
 inline void WriteFile(const std::filesystem::path& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (!out.flush()) throw Error("simulation cache: cannot write " + path.string());
+}
+
+// Reads `value` from the file `path` that Writer wrote; throws autocal::Error when it is short
+// or too long.
+template <class T>
+void Load(const std::filesystem::path& path, T* value) {
+  std::error_code error;
+  const uintmax_t size = std::filesystem::file_size(path, error);
+  std::ifstream in(path, std::ios::binary);
+  if (error || !in) throw Error("simulation cache: cannot read " + path.string());
+  Reader reader(in, size);
+  reader(*value);
+  if (!reader.at_end()) throw Error("simulation cache: " + path.string() + " is too long");
 }
 
 // The entry directory <root>/<stamp>/<name>; on a miss, `make(directory)` fills a private
@@ -405,10 +426,8 @@ T CachedValue(const std::string& name, Make make) {
         writer(value);
         cache::WriteFile(dir / "value.bin", writer.bytes());
       });
-  cache::Reader reader(cache::ReadFile(entry / "value.bin"));
   T value;
-  reader(value);
-  if (!reader.at_end()) throw Error("simulation cache: " + entry.string() + " is too long");
+  cache::Load(entry / "value.bin", &value);
   return value;
 }
 
@@ -422,10 +441,8 @@ inline sim::SimulatedLog CachedSimulatedLog(const sim::Simulator& simulator) {
     writer(log);
     cache::WriteFile(dir / "log.bin", writer.bytes());
   });
-  cache::Reader reader(cache::ReadFile(entry / "log.bin"));
   sim::SimulatedLog log;
-  reader(log);
-  if (!reader.at_end()) throw Error("simulation cache: " + entry.string() + " is too long");
+  cache::Load(entry / "log.bin", &log);
   return log;
 }
 
@@ -446,8 +463,7 @@ inline CachedDatasetEntry CachedDataset(const sim::Simulator& simulator) {
   });
   CachedDatasetEntry result;
   result.directory = (entry / "dataset").string();
-  cache::Reader reader(cache::ReadFile(entry / "summary.bin"));
-  reader(result.summary);
+  cache::Load(entry / "summary.bin", &result.summary);
   return result;
 }
 
