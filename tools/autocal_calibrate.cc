@@ -18,6 +18,7 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "keep_freed_memory.h"
 #include "tool_checks.h"
+#include "tool_help.h"
 
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses); required");
@@ -42,6 +43,7 @@ int main(int argc, char** argv) {
   gflags::SetUsageMessage(
       "autocal_calibrate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
       "Calibrates the LiDAR-IMU extrinsic and time offset of a recorded log.");
+  if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_calibrate")) return 0;
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   autocal::tools::KeepFreedMemory();
   try {

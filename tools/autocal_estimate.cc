@@ -23,6 +23,7 @@
 #include "autocal/pipeline/online_estimation.h"
 #include "keep_freed_memory.h"
 #include "tool_checks.h"
+#include "tool_help.h"
 
 DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
 DEFINE_string(problem, "",
@@ -48,6 +49,7 @@ int main(int argc, char** argv) {
   gflags::SetUsageMessage(
       "autocal_estimate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
       "Streams a recorded log through the online sliding-window estimator.");
+  if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_estimate")) return 0;
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   autocal::tools::KeepFreedMemory();
   try {

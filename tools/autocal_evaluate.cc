@@ -16,6 +16,7 @@
 #include "autocal/common/error.h"
 #include "autocal/evaluation/evaluation.h"
 #include "autocal/io/output_files.h"
+#include "tool_help.h"
 
 DECLARE_bool(help);
 DECLARE_bool(helpshort);
@@ -172,6 +173,7 @@ int main(int argc, char** argv) {
       "ATE after a 4-DoF (yaw + translation) alignment; writes RESULT/evaluation.yaml. A\n"
       "--max_* limit is checked only when given. Exit status: 0 every given limit holds, 1 some\n"
       "limit is exceeded (each is named), 2 bad input (flags, missing or malformed files).");
+  if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_evaluate")) return 0;
   const std::string unknown = UnknownFlag(argc, argv);
   if (!unknown.empty()) {
     std::fprintf(stderr, "autocal_evaluate: unknown flag '%s' (see --help)\n", unknown.c_str());

@@ -12,6 +12,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/import/import_bag.h"
+#include "tool_help.h"
 
 DEFINE_string(input, "", "ROS 1 .bag, .mcap or .db3 file, or a rosbag2 directory");
 DEFINE_string(output, "", "dataset directory to create (must not exist or be empty)");
@@ -36,6 +37,7 @@ DEFINE_double(unknown_gnss_sigma_m, 5.0,
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
       "autocal_import --input=BAG --output=DIR [--imu_topic=...] ... | --input=BAG --list");
+  if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_import")) return 0;
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");

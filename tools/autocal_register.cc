@@ -13,6 +13,7 @@
 #include "autocal/io/output_files.h"
 #include "autocal/io/point_cloud_file.h"
 #include "autocal/lidar/registration.h"
+#include "tool_help.h"
 
 DEFINE_string(source, "", "source cloud (.ply or .pcd), mapped into the target frame");
 DEFINE_string(target, "", "target cloud (.ply or .pcd)");
@@ -28,6 +29,7 @@ DEFINE_string(output, "",
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
       "autocal_register --source=A --target=B [--method=...] [--loss=...] [--output=FILE.yaml]");
+  if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_register")) return 0;
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");

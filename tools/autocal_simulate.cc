@@ -10,6 +10,7 @@
 #include "autocal/common/error.h"
 #include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
+#include "tool_help.h"
 
 DEFINE_string(scenario, "urban",
               "urban (<= 50 km/h, turns, stops, a roundabout, grades) or highway (~120 km/h, "
@@ -99,8 +100,8 @@ int main(int argc, char** argv) {
       "  autocal_simulate --scenario=urban|highway --duration_s=60 --seed=1 --out=DIR\n"
       "Output: sensors.yaml (nominal calibration = truth perturbed), imu.csv, wheel.csv,\n"
       "gnss.csv, lidar.csv + lidar/*.ply, groundtruth/{trajectory.csv, calibration.yaml,\n"
-      "imu_bias.csv, gnss.csv}. Same seed, same dataset.\n"
-      "--helpon=autocal_simulate lists only this tool's flags.");
+      "imu_bias.csv, gnss.csv}. Same seed, same dataset.");
+  if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_simulate")) return 0;
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");

@@ -3,6 +3,8 @@
 #   tools/run.sh demo       simulate an urban log, calibrate it, evaluate against the truth
 #   tools/run.sh test       run every test suite (ctest), excluding the labels "long" and "fuzz"
 #   tools/run.sh sanitize   the unit tests built with ASan + UBSan (-DAUTOCAL_SANITIZE=ON)
+#   tools/run.sh style [BASE]  clang-format check of the sources, and with BASE the commit
+#                           subjects of BASE..HEAD (tools/check_style.sh, docs/contributing.md)
 # Each one installs the Debian 12 packages it needs when they are missing (as root),
 # configures a build in build/ (sanitize: build-asan/; or $AUTOCAL_BUILD_DIR) and builds it.
 set -euo pipefail
@@ -16,10 +18,14 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev libnanoflann-dev
   libgeographiclib-dev libbz2-dev liblz4-dev libzstd-dev libsqlite3-dev
 )
+# What tools/run.sh style needs instead (no build).
+style_packages=(git clang-format)
 
+# install_missing_packages [package...]: the given packages, by default ${packages[@]}.
 install_missing_packages() {
-  local missing=()
-  for p in "${packages[@]}"; do
+  local missing=() wanted=("$@")
+  [ ${#wanted[@]} -gt 0 ] || wanted=("${packages[@]}")
+  for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   [ ${#missing[@]} -eq 0 ] && return 0
@@ -70,8 +76,13 @@ case "${1:-}" in
       UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1}" \
       ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE "long|fuzz|accuracy"
     ;;
+  style)
+    install_missing_packages "${style_packages[@]}"
+    shift
+    "$root/tools/check_style.sh" "$@"
+    ;;
   *)
-    echo "usage: tools/run.sh demo|test|sanitize" >&2
+    echo "usage: tools/run.sh demo|test|sanitize|style [BASE]" >&2
     exit 2
     ;;
 esac

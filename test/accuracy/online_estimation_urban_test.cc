@@ -27,8 +27,10 @@ struct UrbanRun {
     sim_options.scenario = sim::ScenarioType::kUrban;
     sim_options.duration_s = duration_s;
     sim_options.seed = 1;
+    // Simulated once per run: a cached copy of these long drives would only take disk space.
     const test::SimulatedUrbanDataset data(
-        sim_options, "online_urban_" + std::to_string(static_cast<int>(duration_s)) + "s");
+        sim_options, "online_urban_" + std::to_string(static_cast<int>(duration_s)) + "s",
+        test::DatasetStorage::kPrivate);
     const io::Dataset dataset = io::ReadDataset(data.directory);
     const io::Problem problem = io::ReadProblemYaml(
         (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "urban_full.yaml").string());

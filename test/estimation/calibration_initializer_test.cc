@@ -14,6 +14,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
+#include "support/simulation_cache.h"
 
 namespace autocal {
 namespace estimation {
@@ -61,13 +62,13 @@ std::string Problems(const CalibrationInitialization& init) {
 }
 
 // A 28 s urban drive (1.5 s standstill, a straight acceleration and cruise, a roundabout),
-// simulated once; the initializer runs once without any guess (p_I_L prior zero) and the
+// simulated once per test program and build (test/support/simulation_cache.h); the initializer runs once without any guess (p_I_L prior zero) and the
 // tests look at that result.
 class CalibrationInitializerUrbanTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     simulator_ = new sim::Simulator(UrbanOptions(28.0, 3));
-    log_ = new sim::SimulatedLog(sim::Simulate(*simulator_));
+    log_ = new sim::SimulatedLog(test::CachedSimulatedLog(*simulator_));
     const auto start = std::chrono::steady_clock::now();
     init_ = new CalibrationInitialization(InitializeLidarImu(log_->imu.samples, log_->sweeps, Options()));
     std::cout << "initializer: "

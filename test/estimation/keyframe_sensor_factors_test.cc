@@ -13,6 +13,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
+#include "support/simulation_cache.h"
 
 namespace autocal {
 namespace estimation {
@@ -39,7 +40,8 @@ double PercentError(double estimate, double truth) { return 100.0 * (estimate - 
 
 // An urban drive of 30 s (seed 7: straight driving, then the roundabout from 18 s, so the
 // yaw rate is excited), LiDAR off; once with the simulator's noise, GNSS multipath outliers
-// and outages, once without noise (outages stay).
+// and outages, once without noise (outages stay); simulated once per test program and build
+// (test/support/simulation_cache.h).
 class KeyframeSensorFactorsTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -49,9 +51,9 @@ class KeyframeSensorFactorsTest : public ::testing::Test {
     options.seed = 7;
     options.lidar.enabled = false;
     noisy_simulator_ = new sim::Simulator(options);
-    noisy_ = new sim::SimulatedLog(sim::Simulate(*noisy_simulator_));
+    noisy_ = new sim::SimulatedLog(test::CachedSimulatedLog(*noisy_simulator_));
     exact_simulator_ = new sim::Simulator(options.WithoutNoise());
-    exact_ = new sim::SimulatedLog(sim::Simulate(*exact_simulator_));
+    exact_ = new sim::SimulatedLog(test::CachedSimulatedLog(*exact_simulator_));
   }
   static void TearDownTestSuite() {
     delete exact_;
@@ -287,7 +289,8 @@ TEST_F(KeyframeSensorFactorsTest, WheelDropoutsLeaveKeyframesWithoutFactors) {
 // The non-holonomic rows' model error is the body's pitch and roll on its suspension, which
 // follow the acceleration: on the noise-free drive with the true state and calibration, the
 // vertical speed of the rear axle in V is far from white (correlated over seconds), and
-// AddWheelFactors scales those rows' sigma by sqrt(2 tau / dt) (Eq. K6) and no other row.
+// AddWheelFactors scales those rows' sigma by sqrt(2 tau / dt) (the correlated-error scaling,
+// docs/keyframe_factors.md) and no other row.
 TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation) {
   const auto residuals = [&](double tau_s) {
     std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);

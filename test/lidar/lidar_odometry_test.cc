@@ -7,6 +7,7 @@
 
 #include "autocal/common/error.h"
 #include "lidar/synthetic_scene.h"
+#include "support/simulation_cache.h"
 
 namespace autocal {
 namespace lidar {
@@ -85,7 +86,11 @@ DriftReport Evaluate(const std::vector<OdometryFrame>& frames, const ArcTrajecto
 
 class LidarOdometryTest : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() { sweeps_ = new std::vector<LidarSweep>(SimulateSequence({}, 81)); }
+  // Simulated once per test program and build (test/support/simulation_cache.h).
+  static void SetUpTestSuite() {
+    sweeps_ = new std::vector<LidarSweep>(test::CachedValue<std::vector<LidarSweep>>(
+        "arc_sequence_seed_81", [] { return SimulateSequence({}, 81); }));
+  }
   static void TearDownTestSuite() { delete sweeps_; }
   static std::vector<LidarSweep>* sweeps_;
 };

@@ -1,9 +1,9 @@
 #pragma once
 
 // The urban drive the pipeline suites run on (seed 7, 16 beams: a still start, straight
-// driving and a roundabout from 18 s, which the initializer needs), simulated and written as a
-// dataset once per test process. ctest runs each test in its own process, in parallel, so
-// each writes its own copy (the directory name carries the process id) and removes it.
+// driving and a roundabout from 18 s, which the initializer needs), written as a dataset once
+// per test program and build (test/support/simulation_cache.h) and shared by its tests, which
+// only read it; or, for a one-off drive, written privately and removed.
 
 #include <cmath>
 #include <filesystem>
@@ -15,6 +15,7 @@
 
 #include "autocal/io/dataset.h"
 #include "autocal/sim/simulator.h"
+#include "support/simulation_cache.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -44,23 +45,42 @@ inline void SpoilNominalGuess(io::SensorsConfig* config) {
   config->nominal_uncertainty.time_offset_lidar_imu_s = io::ScalarBlockInfo();
 }
 
+// Where the dataset lives: kCached, once per test program and build, shared by its tests
+// (for fixtures: ctest runs each test in its own process); kPrivate, a copy of this object's
+// own, removed with it (for a long drive simulated once, whose copy would only take disk
+// space in the cache).
+enum class DatasetStorage { kCached, kPrivate };
+
 struct SimulatedUrbanDataset {
   SimulatedUrbanDataset(double duration_s, const std::string& name)
       : SimulatedUrbanDataset(UrbanDriveOptions(duration_s), name) {}
-  // Any other drive, written and removed the same way.
-  SimulatedUrbanDataset(const sim::SimulationOptions& options, const std::string& name)
-      : simulator(options),
-        directory(OutputDir(name + "_" + std::to_string(static_cast<long>(getpid()))).string()) {
-    std::filesystem::remove_all(directory);
-    summary = sim::WriteDataset(simulator, directory);
+  // Any other drive. `name` names a private copy; the cache tells drives apart by their
+  // options.
+  SimulatedUrbanDataset(const sim::SimulationOptions& options, const std::string& name,
+                        DatasetStorage storage = DatasetStorage::kCached)
+      : simulator(options), storage_(storage) {
+    if (storage == DatasetStorage::kPrivate) {
+      directory = OutputDir(name + "_" + std::to_string(static_cast<long>(getpid()))).string();
+      std::filesystem::remove_all(directory);
+      summary = sim::WriteDataset(simulator, directory);
+      return;
+    }
+    CachedDatasetEntry entry = CachedDataset(simulator);
+    directory = entry.directory;
+    summary = entry.summary;
   }
-  ~SimulatedUrbanDataset() { std::filesystem::remove_all(directory); }
+  ~SimulatedUrbanDataset() {
+    if (storage_ == DatasetStorage::kPrivate) std::filesystem::remove_all(directory);
+  }
   SimulatedUrbanDataset(const SimulatedUrbanDataset&) = delete;
   SimulatedUrbanDataset& operator=(const SimulatedUrbanDataset&) = delete;
 
   const sim::Simulator simulator;
-  const std::string directory;
+  std::string directory;  // cached: shared by the program's tests, read it and never write
   sim::SimulationSummary summary;
+
+ private:
+  DatasetStorage storage_;
 };
 
 }  // namespace test
