@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "autocal/factors/prior_factors.h"
+#include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -46,7 +47,7 @@ bool Excited(const CalibrationBlock& block, int i, double posterior_sigma) {
 void Step(const CalibrationBlock& block, const Eigen::VectorXd& step) {
   if (block.rotation) {
     Eigen::Map<Eigen::Quaterniond> q(block.data);
-    q = (Eigen::Quaterniond(q) * geometry::Exp(Eigen::Vector3d(step))).normalized();
+    q = geometry::QuaternionPlus(Eigen::Quaterniond(q), Eigen::Vector3d(step));
     return;
   }
   Eigen::Map<Eigen::VectorXd>(block.data, block.size) += step;

@@ -14,6 +14,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/so3.h"
@@ -26,8 +27,6 @@ namespace autocal {
 namespace pipeline {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // The window's priors are one sigma per block: the problem's in prior mode, else the sigma
 // the dataset states for its nominal value, else the window's default; a per-axis sigma takes

@@ -3,14 +3,13 @@
 #include <optional>
 #include <utility>
 
+#include "autocal/common/units.h"
 #include "calibration_steps.h"
 
 namespace autocal {
 namespace pipeline {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // Prior sigma per direction: the problem's for a block in prior mode, else the dataset's
 // nominal uncertainty when it states one, else the default.
