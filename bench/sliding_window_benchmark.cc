@@ -20,9 +20,9 @@
 #include <Eigen/Core>
 
 #include "autocal/common/time.h"
-#include "autocal/estimation/plane_map.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/lidar/plane_map.h"
 #include "autocal/lidar/voxel_grid.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/lower_gram.h"
@@ -216,7 +216,7 @@ void BM_PlaneLookup(benchmark::State& bench) {
   const lidar::LidarSweep& residual_sweep = log.data.sweeps[100];
   const lidar::LidarSweep& map_sweep =
       log.data.sweeps[static_cast<size_t>(100 + bench.range(0))];
-  const estimation::PlaneMap map(lidar::VoxelDownsample(map_sweep.cloud, 0.3).points);
+  const lidar::PlaneMap map(lidar::VoxelDownsample(map_sweep.cloud, 0.3).points);
   const Eigen::Matrix3Xd residual = lidar::VoxelDownsample(residual_sweep.cloud, 0.6).points;
   const geometry::Pose3d T_Lj_Lk = T_W_L(map_sweep).Inverse() * T_W_L(residual_sweep);
   const Eigen::Index count = std::min<Eigen::Index>(2000, residual.cols());

@@ -5,20 +5,21 @@
 #include <optional>
 #include <sstream>
 
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
-
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
+#include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_preintegration.h"
+#include "estimation/inertial_fit.h"
 
 namespace autocal {
 namespace estimation {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
+using internal::InertialFit;
+using internal::KeyframeSlot;
 
 std::string Format(double value, int precision = 3) {
   std::ostringstream s;
@@ -114,14 +115,15 @@ void EstimateOffset(const sensors::ImuSamples& imu, const CalibrationInitializer
     r.q_0_1 = frames[k - 1].T_W_L.q.conjugate() * frames[k].T_W_L.q;
     out->sweep_rotations.push_back(r);
   }
-  out->time_offset = EstimateTimeOffset(out->sweep_rotations, imu,
-                                        out->still_start.gyro_bias_rad_s, options.time_offset);
+  out->time_offset = EstimateTimeOffset(out->sweep_rotations, imu, out->still_start.gyro_bias_rad_s,
+                                        options.time_offset);
   if (!out->time_offset.reliable) {
-    const std::string why = "the LiDAR-IMU time offset is not determined: " + out->time_offset.reason;
+    const std::string why =
+        "the LiDAR-IMU time offset is not determined: " + out->time_offset.reason;
     if (options.fallback_time_offset_s) {
       out->time_offset.offset_s = *options.fallback_time_offset_s;
-      out->fallbacks.push_back(why + "; the given " + Format(*options.fallback_time_offset_s * 1e3) +
-                               " ms is used");
+      out->fallbacks.push_back(why + "; the given " +
+                               Format(*options.fallback_time_offset_s * 1e3) + " ms is used");
     } else {
       out->problems.push_back(why);
     }
@@ -155,8 +157,8 @@ void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerO
           Format(options.min_pair_rotation_deg) + " deg (need " +
           std::to_string(options.min_rotating_pairs) + "); the drive needs turns";
   } else {
-    out->rotation = SolveHandEyeRotation(out->hand_eye_imu_rotations,
-                                         out->hand_eye_lidar_rotations, options.hand_eye);
+    out->rotation = SolveHandEyeRotation(out->hand_eye_imu_rotations, out->hand_eye_lidar_rotations,
+                                         options.hand_eye);
     if (!out->rotation.observable) {
       why = "the LiDAR-IMU rotation is not determined: " + out->rotation.reason;
     }
@@ -172,13 +174,8 @@ void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerO
   }
 }
 
-// The keyframes of steps 5 and 6: sweep index, IMU time, odometry pose at that instant.
-struct KeyframeSlot {
-  int sweep = 0;
-  int64_t t_ns = 0;         // IMU clock
-  geometry::Pose3d T_O_L;   // at LiDAR time t_ns - offset
-};
-
+// The keyframes of steps 5 and 6 (internal::KeyframeSlot): one per sweep that lies inside the
+// IMU log with its margins.
 std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
                                         const std::vector<lidar::LidarSweep>& sweeps,
                                         const CalibrationInitializerOptions& options,
@@ -192,243 +189,13 @@ std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
     const int64_t t_ns = KeyframeTime(sweeps[k].t_ns, offset_s, batch);
     const double sweep_end_s = sweeps[k].cloud.has_time() ? sweeps[k].cloud.time_s.maxCoeff() : 0.0;
     // The whole sweep (and the lead again as a margin) must be inside the IMU log.
-    const int64_t end_ns = sweeps[k].t_ns + offset_ns + SecondsToNs(sweep_end_s + options.keyframe_lead_s);
+    const int64_t end_ns =
+        sweeps[k].t_ns + offset_ns + SecondsToNs(sweep_end_s + options.keyframe_lead_s);
     if (t_ns < imu.front().t_ns || end_ns > imu.back().t_ns) continue;
     slots.push_back({static_cast<int>(k), t_ns, PoseAt(out.odometry, t_ns - offset_ns)});
   }
   return slots;
 }
-
-// Step 5: the lever arm p_I_L, the accelerometer bias b_a, gravity in O, a rotation theta
-// of R_I_L about the IMU's vertical u and one velocity v_k (in O) per keyframe, from IMU
-// preintegration between consecutive keyframes with the IMU positions and rotations
-// p_k = p_O_L,k - R_k p_I_L, R_k = R_O_L,k R_I_L^T Exp(-theta u) taken from odometry
-// (docs/initialization.md, eq. I3-I7). Linear in x = [p_I_L, b_a, g_O, theta, v_0 ..
-// v_{N-1}] to first order in theta; solved by normal equations, with Huber re-weighting of
-// the odometry positions (a sweep where the odometry slipped, e.g. along a featureless
-// street, is down-weighted). Outputs the IMU positions p_O_I,k integrated from the fitted
-// velocities (eq. I7), which bridge such slips.
-class InertialFit {
- public:
-  InertialFit(const sensors::ImuSamples& imu, const std::vector<KeyframeSlot>& slots,
-              const CalibrationInitializerOptions& options, const Eigen::Matrix3d& R_I_L,
-              const Eigen::Vector3d& b_g, const Eigen::Matrix3d& R_O_I_rest,
-              const Eigen::Vector3d& f_rest, const Eigen::Vector3d& up_I,
-              const StillStart* rest)
-      : options_(options), n_(static_cast<int>(slots.size())), dim_(kV + 3 * n_) {
-    const Eigen::Matrix3d I3 = Eigen::Matrix3d::Identity();
-    // Weak priors on the lever arm and the accelerometer bias, and gravity from the rest
-    // period (eq. I3): g_O = -R_O_I,rest (f_rest - b_a).
-    rows_.push_back({{{kP, I3}}, options.p_I_L_prior, options.p_I_L_prior_sigma_m});
-    rows_.push_back({{{kBa, I3}}, Eigen::Vector3d::Zero(), options.accel_bias_prior_sigma_m_s2});
-    rows_.push_back({{{kG, I3}, {kBa, -R_O_I_rest}}, -(R_O_I_rest * f_rest),
-                     options.gravity_prior_sigma_m_s2});
-    sensors::PreintegrationOptions preintegration_options;
-    for (const KeyframeSlot& slot : slots) R_.push_back(slot.T_O_L.R() * R_I_L.transpose());
-    p_O_I_0_ = slots.front().T_O_L.p;
-    for (int i = 0; i + 1 < n_; ++i) {
-      const KeyframeSlot& si = slots[static_cast<size_t>(i)];
-      const KeyframeSlot& sj = slots[static_cast<size_t>(i + 1)];
-      const Eigen::Matrix3d& Ri = R_[static_cast<size_t>(i)];
-      const Eigen::Matrix3d& Rj = R_[static_cast<size_t>(i + 1)];
-      sensors::ImuPreintegration pre(options.imu_noise, preintegration_options, b_g,
-                                     Eigen::Vector3d::Zero());
-      pre.Integrate(imu, si.t_ns, sj.t_ns);
-      const double dt = pre.dt_s();
-      deltas_.push_back({dt, pre.delta_p(), pre.d_p_d_ba()});
-      const sensors::Matrix15d cov = pre.Covariance();
-      // Odometry tilt errors rotate the gravity-compensating part of dv and dp.
-      const double tilt_v =
-          options.odometry_rotation_sigma_rad * preintegration_options.gravity_m_s2 * dt;
-      const double sigma_v = std::sqrt(cov.block<3, 3>(3, 3).trace() / 3.0 + tilt_v * tilt_v);
-      const double sigma_p =
-          std::sqrt(2.0 * options.odometry_position_sigma_m * options.odometry_position_sigma_m +
-                    cov.block<3, 3>(6, 6).trace() / 3.0 + 0.25 * dt * dt * tilt_v * tilt_v);
-      // Eq. I5: p_j - p_i - v_i dt - g_O dt^2/2 - R_i (dp + J_p b_a) = 0.
-      position_rows_.push_back(rows_.size());
-      rows_.push_back({{{kP, -(Rj - Ri)},
-                        {kBa, -Ri * pre.d_p_d_ba()},
-                        {kG, -0.5 * dt * dt * I3},
-                        {kTheta, Ri * up_I.cross(pre.delta_p())},
-                        {VelocityIndex(i), -dt * I3}},
-                       Ri * pre.delta_p() - (sj.T_O_L.p - si.T_O_L.p),
-                       sigma_p});
-      // Eq. I6: v_j - v_i - g_O dt - R_i (dv + J_v b_a) = 0.
-      rows_.push_back({{{kBa, -Ri * pre.d_v_d_ba()},
-                        {kG, -dt * I3},
-                        {kTheta, Ri * up_I.cross(pre.delta_v())},
-                        {VelocityIndex(i), -I3},
-                        {VelocityIndex(i + 1), I3}},
-                       Ri * pre.delta_v(),
-                       sigma_v});
-    }
-    // Zero-velocity rows (eq. I4) for keyframes inside a true rest period: they anchor the IMU's
-    // velocity chain, so that an odometry slip cannot shift it and shows as an outlier.
-    if (rest) {
-      for (int k = 0; k < n_; ++k) {
-        const int64_t t_ns = slots[static_cast<size_t>(k)].t_ns;
-        if (t_ns < rest->t_begin_ns || t_ns > rest->t_end_ns) continue;
-        rows_.push_back({{{VelocityIndex(k), I3}}, Eigen::Vector3d::Zero(),
-                         options.rest_velocity_sigma_m_s});
-      }
-    }
-    weights_.assign(rows_.size(), 1.0);
-  }
-
-  void Solve(InertialAlignment* fit, std::vector<Eigen::Vector3d>* p_O_I,
-             std::vector<Eigen::Vector3d>* v_O_I) {
-    // Huber re-weighting of the odometry positions with every lever-arm axis free.
-    Eigen::VectorXd x;
-    for (int iteration = 0; iteration < options_.robust_iterations; ++iteration) {
-      x = SolveHolding(Eigen::Matrix<bool, 3, 1>::Constant(false));
-      for (size_t r : position_rows_) {
-        const double normalized = Residual(rows_[r], x).norm() / rows_[r].sigma;
-        weights_[r] = normalized <= options_.huber_sigmas ? 1.0 : options_.huber_sigmas / normalized;
-      }
-    }
-    x = SolveHolding(Eigen::Matrix<bool, 3, 1>::Constant(false));
-    // Which lever-arm axes the data determines: posterior standard deviations with only the
-    // weak prior, inflated by the variance factor of the position residuals when it exceeds 1
-    // (odometry noisier than odometry_position_sigma_m). A factor below 1 is not applied: the
-    // residuals are small because each keyframe's free velocity absorbs them (the count below
-    // does not subtract those unknowns), not because the lever arm is known. Applied, it made
-    // the 60 s urban logs' sigma 1-2 cm where x, y were 3-25 cm off (docs/initialization.md).
-    double chi2 = 0.0, sum_sq = 0.0, weight_sum = 0.0;
-    for (size_t r : position_rows_) {
-      const Eigen::Vector3d e = Residual(rows_[r], x);
-      chi2 += weights_[r] * e.squaredNorm() / (rows_[r].sigma * rows_[r].sigma);
-      sum_sq += weights_[r] * e.squaredNorm();
-      weight_sum += weights_[r];
-    }
-    const double variance_factor = std::max(1.0, chi2 / std::max(1.0, 3.0 * weight_sum));
-    fit->position_rms_m = std::sqrt(sum_sq / std::max(1.0, 3.0 * weight_sum));
-    Eigen::SparseMatrix<double> H;
-    Eigen::VectorXd g;
-    Build(AllFree(), x, dim_, &H, &g);
-    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(H);
-    if (solver.info() != Eigen::Success) throw Error("inertial alignment: singular normal equations");
-    const Eigen::MatrixXd covariance =
-        variance_factor *
-        Eigen::MatrixXd(solver.solve(Eigen::MatrixXd::Identity(dim_, kV))).topRows<kV>();
-    for (int axis = 0; axis < 3; ++axis) {
-      fit->lever_arm_std_m(axis) = std::sqrt(std::max(0.0, covariance(kP + axis, kP + axis)));
-      fit->excited(axis) = fit->lever_arm_std_m(axis) < options_.max_excited_lever_arm_std_m;
-    }
-    fit->vertical_rotation_std_rad = std::sqrt(std::max(0.0, covariance(kTheta, kTheta)));
-    x = SolveHolding(fit->excited.unaryExpr([](bool e) { return !e; }));
-    fit->p_I_L = x.segment<3>(kP);
-    fit->accel_bias_m_s2 = x.segment<3>(kBa);
-    fit->gravity_O_m_s2 = x.segment<3>(kG);
-    fit->vertical_rotation_rad = x(kTheta);
-    fit->downweighted_positions = 0;
-    for (size_t r : position_rows_) fit->downweighted_positions += weights_[r] < 1.0 ? 1 : 0;
-
-    // Eq. I7: p_k+1 = p_k + v_k dt + g_O dt^2/2 + R_k (dp + J_p b_a), from p_0 = p_O_L,0 - R_0 p_I_L.
-    v_O_I->resize(static_cast<size_t>(n_));
-    for (int k = 0; k < n_; ++k) (*v_O_I)[static_cast<size_t>(k)] = x.segment<3>(VelocityIndex(k));
-    p_O_I->assign(1, p_O_I_0_ - R_.front() * fit->p_I_L);
-    for (size_t k = 0; k < deltas_.size(); ++k) {
-      const Delta& d = deltas_[k];
-      p_O_I->push_back(p_O_I->back() + (*v_O_I)[k] * d.dt_s + 0.5 * d.dt_s * d.dt_s * fit->gravity_O_m_s2 +
-                       R_[k] * (d.dp + d.d_p_d_ba * fit->accel_bias_m_s2));
-    }
-  }
-
- private:
-  static constexpr int kP = 0, kBa = 3, kG = 6, kTheta = 9, kV = 10;
-  static int VelocityIndex(int k) { return kV + 3 * k; }
-  // One block row r = sum_c A_c x_c - b, whitened by 1/sigma.
-  struct Row {
-    std::vector<std::pair<int, Eigen::MatrixXd>> blocks;
-    Eigen::Vector3d b;
-    double sigma;
-  };
-  struct Delta {
-    double dt_s;
-    Eigen::Vector3d dp;
-    Eigen::Matrix3d d_p_d_ba;
-  };
-
-  static Eigen::Vector3d Residual(const Row& row, const Eigen::VectorXd& x) {
-    Eigen::Vector3d r = -row.b;
-    for (const auto& [c, A] : row.blocks) r += A * x.segment(c, A.cols());
-    return r;
-  }
-
-  // The normal equations over the columns `index` maps to (index[c] < 0: column c is held
-  // at held_x(c) and moves to the right-hand side). H is sparse: each keyframe's velocity
-  // couples only to its neighbours' and to the 10 shared unknowns.
-  void Build(const std::vector<int>& index, const Eigen::VectorXd& held_x, int size,
-             Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g) const {
-    std::vector<Eigen::Triplet<double>> triplets;
-    *g = Eigen::VectorXd::Zero(size);
-    for (size_t r = 0; r < rows_.size(); ++r) {
-      const Row& row = rows_[r];
-      const double w = weights_[r] / (row.sigma * row.sigma);
-      Eigen::Vector3d b = row.b;
-      for (const auto& [c, A] : row.blocks) {
-        for (Eigen::Index k = 0; k < A.cols(); ++k) {
-          if (index[static_cast<size_t>(c + k)] < 0) b -= A.col(k) * held_x(c + k);
-        }
-      }
-      for (const auto& [ci, Ai] : row.blocks) {
-        for (Eigen::Index ki = 0; ki < Ai.cols(); ++ki) {
-          const int i = index[static_cast<size_t>(ci + ki)];
-          if (i < 0) continue;
-          (*g)(i) += w * Ai.col(ki).dot(b);
-          for (const auto& [cj, Aj] : row.blocks) {
-            for (Eigen::Index kj = 0; kj < Aj.cols(); ++kj) {
-              const int j = index[static_cast<size_t>(cj + kj)];
-              if (j >= 0) triplets.emplace_back(i, j, w * Ai.col(ki).dot(Aj.col(kj)));
-            }
-          }
-        }
-      }
-    }
-    H->resize(size, size);
-    H->setFromTriplets(triplets.begin(), triplets.end());
-  }
-
-  // Every column free.
-  std::vector<int> AllFree() const {
-    std::vector<int> index(static_cast<size_t>(dim_));
-    for (int c = 0; c < dim_; ++c) index[static_cast<size_t>(c)] = c;
-    return index;
-  }
-
-  // Solves with the lever-arm axes flagged in `hold` fixed at the prior (their columns move
-  // to the right-hand side).
-  Eigen::VectorXd SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold) const {
-    Eigen::VectorXd x = Eigen::VectorXd::Zero(dim_);
-    std::vector<int> index(static_cast<size_t>(dim_));
-    int size = 0;
-    for (int c = 0; c < dim_; ++c) {
-      const bool held = c < 3 && hold(c);
-      if (held) x(c) = options_.p_I_L_prior(c);
-      index[static_cast<size_t>(c)] = held ? -1 : size++;
-    }
-    Eigen::SparseMatrix<double> H;
-    Eigen::VectorXd g;
-    Build(index, x, size, &H, &g);
-    const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(H);
-    if (solver.info() != Eigen::Success) throw Error("inertial alignment: singular normal equations");
-    const Eigen::VectorXd x_free = solver.solve(g);
-    for (int c = 0; c < dim_; ++c) {
-      if (index[static_cast<size_t>(c)] >= 0) x(c) = x_free(index[static_cast<size_t>(c)]);
-    }
-    return x;
-  }
-
-  const CalibrationInitializerOptions& options_;
-  int n_;
-  int dim_;
-  std::vector<Row> rows_;
-  std::vector<double> weights_;
-  std::vector<size_t> position_rows_;
-  std::vector<Eigen::Matrix3d> R_;
-  std::vector<Delta> deltas_;
-  Eigen::Vector3d p_O_I_0_;
-};
 
 // Step 6: W is O rotated so that gravity points along -z and the first keyframe's yaw is
 // zero, with its origin at the first keyframe's IMU position.
@@ -450,12 +217,14 @@ namespace {
 void CheckStamps(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps) {
   for (size_t k = 1; k < sweeps.size(); ++k) {
     if (sweeps[k].t_ns <= sweeps[k - 1].t_ns) {
-      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) + ")");
+      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) +
+                  ")");
     }
   }
   for (size_t i = 1; i < imu.size(); ++i) {
     if (imu[i].t_ns <= imu[i - 1].t_ns) {
-      throw Error("InitializeLidarImu: IMU stamps must increase (sample " + std::to_string(i) + ")");
+      throw Error("InitializeLidarImu: IMU stamps must increase (sample " + std::to_string(i) +
+                  ")");
     }
   }
 }
@@ -543,7 +312,8 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
 
 CalibrationInitialization InitializeLidarImuFromOdometry(
     const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
-    const std::vector<lidar::OdometryFrame>& odometry, const CalibrationInitializerOptions& options) {
+    const std::vector<lidar::OdometryFrame>& odometry,
+    const CalibrationInitializerOptions& options) {
   CheckStamps(imu, sweeps);
   if (odometry.size() != sweeps.size()) {
     throw Error("InitializeLidarImuFromOdometry: " + std::to_string(odometry.size()) +
@@ -590,17 +360,17 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
   for (int iteration = 0; iteration < 2; ++iteration) {
     // The IMU orientation in O at the end of the rest period, through the first keyframe.
     const Eigen::Matrix3d R_I_L = out.q_I_L.toRotationMatrix();
-    const Eigen::Matrix3d R_O_I_rest =
-        slots.front().T_O_L.R() * R_I_L.transpose() *
-        IntegrateGyro(imu, out.still_start.gyro_bias_rad_s, slots.front().t_ns,
-                      out.still_start.t_end_ns)
-            .toRotationMatrix();
-    InertialFit fit(imu, slots, options, R_I_L, out.still_start.gyro_bias_rad_s, R_O_I_rest,
-                    f_rest, up_I, out.still_start_is_low_excitation ? nullptr : &out.still_start);
+    const Eigen::Matrix3d R_O_I_rest = slots.front().T_O_L.R() * R_I_L.transpose() *
+                                       IntegrateGyro(imu, out.still_start.gyro_bias_rad_s,
+                                                     slots.front().t_ns, out.still_start.t_end_ns)
+                                           .toRotationMatrix();
+    InertialFit fit(imu, slots, options, R_I_L, out.still_start.gyro_bias_rad_s, R_O_I_rest, f_rest,
+                    up_I, out.still_start_is_low_excitation ? nullptr : &out.still_start);
     fit.Solve(&out.inertial, &p_O_I, &v_O_I);
     theta_total_rad += out.inertial.vertical_rotation_rad;
     out.q_I_L = (Eigen::Quaterniond(Eigen::AngleAxisd(out.inertial.vertical_rotation_rad, up_I)) *
-                 out.q_I_L).normalized();
+                 out.q_I_L)
+                    .normalized();
   }
   out.inertial.vertical_rotation_rad = theta_total_rad;
   out.p_I_L = out.inertial.p_I_L;

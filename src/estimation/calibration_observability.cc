@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "autocal/factors/prior_factors.h"
+#include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -49,7 +50,7 @@ bool Excited(const EstimatedBlock& block, int i, double posterior_sigma) {
 void Step(const EstimatedBlock& block, const Eigen::VectorXd& step) {
   if (IsRotation(block)) {
     Eigen::Map<Eigen::Quaterniond> q(block.data);
-    q = (Eigen::Quaterniond(q) * geometry::Exp(Eigen::Vector3d(step))).normalized();
+    q = geometry::QuaternionPlus(Eigen::Quaterniond(q), Eigen::Vector3d(step));
     return;
   }
   Eigen::Map<Eigen::VectorXd>(block.data, block.size) += step;

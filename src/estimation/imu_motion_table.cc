@@ -4,6 +4,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -60,7 +61,7 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
         node.delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * node.gyro)) * node.accel);
     node.delta_p += node.delta_v * dt + 0.5 * a_k * dt * dt;
     node.delta_v += a_k * dt;
-    node.delta_q = (node.delta_q * geometry::Exp(Eigen::Vector3d(node.gyro * dt))).normalized();
+    node.delta_q = geometry::QuaternionPlus(node.delta_q, Eigen::Vector3d(node.gyro * dt));
   }
   node.t_ns = knots.back().t_ns;
   nodes_.push_back(node);  // terminal node: rates of the last step
@@ -76,7 +77,7 @@ factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
       n.delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * n.gyro)) * n.accel);
   factors::PointMotion m;
   m.dt_s = SecondsBetween(t_begin_ns_, t_ns);
-  m.delta_q = (n.delta_q * geometry::Exp(Eigen::Vector3d(n.gyro * dt))).normalized();
+  m.delta_q = geometry::QuaternionPlus(n.delta_q, Eigen::Vector3d(n.gyro * dt));
   m.delta_v = n.delta_v + a_k * dt;
   m.delta_p = n.delta_p + n.delta_v * dt + 0.5 * a_k * dt * dt;
   m.omega_rad_s = n.gyro;

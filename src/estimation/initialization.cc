@@ -11,6 +11,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/gyro_unit.h"
 
@@ -75,7 +76,7 @@ class GyroOrientationTable {
       const Eigen::Vector3d w = 0.5 * (imu[i].gyro_rad_s + imu[i + 1].gyro_rad_s) - bias;
       rate_.push_back(w);
       const double dt = SecondsBetween(imu[i].t_ns, imu[i + 1].t_ns);
-      q_.push_back((q_.back() * Exp(Eigen::Vector3d(w * dt))).normalized());
+      q_.push_back(geometry::QuaternionPlus(q_.back(), Eigen::Vector3d(w * dt)));
     }
   }
 

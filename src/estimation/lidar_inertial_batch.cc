@@ -166,7 +166,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     //    and weigh points less (coarse to fine), so that a calibration still far off finds
     //    associations at all.
     const double coarse = std::pow(2.0, std::max(0, options.coarse_to_fine_steps - iteration));
-    PlaneMapOptions map_options = options.plane_map;
+    lidar::PlaneMapOptions map_options = options.plane_map;
     map_options.max_plane_thickness_m *= coarse;
     const double point_sigma_m = options.point_sigma_m * coarse;
     const double max_point_to_plane_m = options.max_point_to_plane_m * coarse;
@@ -191,7 +191,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
     });
     // The planes of sweep j come from it and its map_neighbor_sweeps neighbours on each
     // side: a denser local map, whose parts are too close in time to disagree much.
-    std::vector<std::unique_ptr<PlaneMap>> maps(sweeps.size());
+    std::vector<std::unique_ptr<lidar::PlaneMap>> maps(sweeps.size());
     for_each_sweep([&](size_t sweep) {
       const int j = static_cast<int>(sweep);
       const int first = std::max(0, j - options.map_neighbor_sweeps);
@@ -205,7 +205,7 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
         local.middleCols(column, part.cols()) = part;
         column += part.cols();
       }
-      maps[sweep] = std::make_unique<PlaneMap>(local, map_options);
+      maps[sweep] = std::make_unique<lidar::PlaneMap>(local, map_options);
     });
 
     // 3. Association: each point is paired with a plane of another sweep (Eq. P6). The

@@ -58,9 +58,10 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
   const double r_l = parameters[6][0], r_r = parameters[7][0], b = parameters[8][0];
 
   // The propagated attitude and body velocity.
+  const sensors::LinearizedDeltas deltas = pim_.Linearized();
   Eigen::Quaterniond dq;
-  Eigen::Vector3d dv;
-  pim_.CorrectedDeltas<double>(b_g, b_a, &dq, &dv, nullptr);
+  Eigen::Vector3d dv, phi_bg;
+  deltas.Corrected<double>(b_g, b_a, &dq, &dv, nullptr, &phi_bg);
   const Eigen::Vector3d w = q_k.conjugate() * (v_k + pim_.gravity_W() * pim_.dt_s());
   const Eigen::Vector3d u = w + dv;
   const double* wheel_parameters[kWheelBlocks] = {dq.coeffs().data(), u.data(), parameters[2],
@@ -125,15 +126,14 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
     scale_rows(jacobians[1], 3);
   }
   if (jacobians[2] != nullptr) {
-    // dR = dR_0 Exp(A (b_g - b_g0)): its right tangent moves by Jr(A (b_g - b_g0)) A db_g.
-    const Eigen::Matrix3d A = pim_.d_R_d_bg();
-    const Eigen::Vector3d phi = A * (b_g - pim_.b_g_lin());
-    output(2, 3) = wheel_block(2, 3) + J_dq * geometry::RightJacobian(phi) * A +
-                   J_u * pim_.d_v_d_bg();
+    // dR = dR_0 Exp(phi_bg), phi_bg = d_R_d_bg (b_g - b_g0): its right tangent moves by
+    // Jr(phi_bg) d_R_d_bg db_g.
+    output(2, 3) = wheel_block(2, 3) + J_dq * geometry::RightJacobian(phi_bg) * deltas.d_R_d_bg +
+                   J_u * deltas.d_v_d_bg;
     scale_rows(jacobians[2], 3);
   }
   if (jacobians[3] != nullptr) {
-    output(3, 3) = J_u * pim_.d_v_d_ba();
+    output(3, 3) = J_u * deltas.d_v_d_ba;
     scale_rows(jacobians[3], 3);
   }
   for (int i = 4; i < 9; ++i) {  // q_I_V, p_I_V, r_l, r_r, b: the wheel factor's own

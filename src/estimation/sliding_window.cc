@@ -8,6 +8,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/prior_factors.h"
 #include "estimation/point_selection.h"
@@ -22,7 +23,6 @@ using internal::StateBlocks;
 
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
 constexpr int64_t kNoStamp = std::numeric_limits<int64_t>::min();
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {

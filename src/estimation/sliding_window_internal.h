@@ -12,10 +12,10 @@
 
 #include <ceres/ceres.h>
 
-#include "autocal/estimation/plane_map.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/se3.h"
+#include "autocal/lidar/plane_map.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/point_selection.h"
@@ -168,7 +168,7 @@ struct SlidingWindowEstimator::WindowKeyframe {
   // The sweep's plane map in its LiDAR frame at the reference instant (point time 0), and the
   // sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
   // (docs/sliding_window.md, "Reuse between updates", Eq. SW4).
-  std::unique_ptr<PlaneMap> plane_map;
+  std::unique_ptr<lidar::PlaneMap> plane_map;
   geometry::Pose3d map_deskew_end;
   double map_max_range_m = 0.0;
   int map_generation = 0;  // counts the map's builds

@@ -15,6 +15,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/point_to_plane_factor.h"
@@ -32,8 +33,6 @@ using internal::AttachedFactor;
 using internal::StateBlocks;
 
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // The LiDAR pose of a sweep at its reference instant (point time 0) under the current
 // estimate: T_W_L = T_W_I(t) T_I_L, T_W_I(t) from Eq. P1-P3 at delta = 0.
@@ -147,7 +146,7 @@ void SlidingWindowEstimator::AssociatePoints() {
           SweepPointsInWorld(*s.table, kf.state, *kf.sweep, kf.map_points, g_W_, c);
       const Eigen::Matrix3Xd points_L =
           (s.T_Lj_W.q.toRotationMatrix() * points_W).colwise() + s.T_Lj_W.p;
-      kf.plane_map = std::make_unique<PlaneMap>(points_L, options_.plane_map);
+      kf.plane_map = std::make_unique<lidar::PlaneMap>(points_L, options_.plane_map);
       kf.map_deskew_end = deskew_end;
       ++kf.map_generation;
       kf.map_max_range_m = 0.0;

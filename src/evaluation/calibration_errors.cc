@@ -4,13 +4,12 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
 namespace evaluation {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // 100 (estimate − truth) / truth, for quantities that are positive by nature.
 double PercentError(double estimate, double truth, const char* name) {

@@ -9,6 +9,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
+#include "autocal/common/units.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/csv_files.h"
 #include "autocal/io/tum_trajectory.h"
@@ -16,8 +17,6 @@
 namespace autocal {
 namespace evaluation {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // One line of the report. Scalars keep their sign in `value`; vectors report their norm and
 // the components in `axes`. A limit applies to |value|.

@@ -7,13 +7,12 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
 namespace evaluation {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 Eigen::Matrix3d YawRotation(double yaw_rad) {
   return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();

@@ -77,16 +77,7 @@ void StoreJacobian(const Eigen::MatrixBase<Derived>& j, double* jacobian) {
 
 ImuDeltaMeasurement::ImuDeltaMeasurement(const sensors::ImuPreintegration& pim)
     : dt_s(pim.dt_s()),
-      delta_q(pim.delta_q()),
-      delta_v(pim.delta_v()),
-      delta_p(pim.delta_p()),
-      d_R_d_bg(pim.d_R_d_bg()),
-      d_v_d_bg(pim.d_v_d_bg()),
-      d_v_d_ba(pim.d_v_d_ba()),
-      d_p_d_bg(pim.d_p_d_bg()),
-      d_p_d_ba(pim.d_p_d_ba()),
-      b_g_lin(pim.b_g_lin()),
-      b_a_lin(pim.b_a_lin()),
+      deltas(pim.Linearized()),
       g_W(pim.gravity_W()),
       sqrt_information(pim.SqrtInformation()) {}
 
@@ -104,12 +95,9 @@ bool ImuFactor::Evaluate(double const* const* parameters, double* residuals,
   const Eigen::Map<const Eigen::Vector3d> ba_j(parameters[9]);
 
   // Eq. F7: bias-corrected deltas.
-  const Eigen::Vector3d dbg = bg_i - m_.b_g_lin;
-  const Eigen::Vector3d dba = ba_i - m_.b_a_lin;
-  const Eigen::Vector3d phi_bias = m_.d_R_d_bg * dbg;
-  const Eigen::Quaterniond dq = m_.delta_q * geometry::Exp(phi_bias);
-  const Eigen::Vector3d dv = m_.delta_v + m_.d_v_d_bg * dbg + m_.d_v_d_ba * dba;
-  const Eigen::Vector3d dp = m_.delta_p + m_.d_p_d_bg * dbg + m_.d_p_d_ba * dba;
+  Eigen::Quaterniond dq;
+  Eigen::Vector3d dv, dp, phi_bias;
+  m_.deltas.Corrected<double>(bg_i, ba_i, &dq, &dv, &dp, &phi_bias);
 
   // Eq. F10.
   const double dt = m_.dt_s;
@@ -147,9 +135,9 @@ bool ImuFactor::Evaluate(double const* const* parameters, double* residuals,
     // Rows phi, v, p, and -I on b_g, whose column of U only reaches b_g and b_a.
     Eigen::Matrix<double, 9, 3> j;
     j.topRows<3>() = -jr_inv * e_q.conjugate().toRotationMatrix() *
-                     geometry::RightJacobian(phi_bias) * m_.d_R_d_bg;
-    j.middleRows<3>(3) = -m_.d_v_d_bg;
-    j.bottomRows<3>() = -m_.d_p_d_bg;
+                     geometry::RightJacobian(phi_bias) * m_.deltas.d_R_d_bg;
+    j.middleRows<3>(3) = -m_.deltas.d_v_d_bg;
+    j.bottomRows<3>() = -m_.deltas.d_p_d_bg;
     Matrix15x3 w = Whiten<0, 2>(U, j);
     w.bottomRows<6>() -= U.block<6, 3>(9, 9);
     StoreJacobian(w, jacobians[3]);
@@ -157,8 +145,8 @@ bool ImuFactor::Evaluate(double const* const* parameters, double* residuals,
   if (jacobians[4] != nullptr) {
     // Non-zero rows v, p (3..9) and b_a (12..15); b_a's rows of U only touch itself.
     Eigen::Matrix<double, 6, 3> j;
-    j.topRows<3>() = -m_.d_v_d_ba;
-    j.bottomRows<3>() = -m_.d_p_d_ba;
+    j.topRows<3>() = -m_.deltas.d_v_d_ba;
+    j.bottomRows<3>() = -m_.deltas.d_p_d_ba;
     Matrix15x3 w = Whiten<1, 2>(U, j);
     w.bottomRows<3>() -= U.block<3, 3>(12, 12);
     StoreJacobian(w, jacobians[4]);

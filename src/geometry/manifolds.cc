@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 
+#include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -17,7 +18,7 @@ bool RightQuaternionManifold::Plus(const double* x, const double* delta,
                                    double* x_plus_delta) const {
   const Eigen::Map<const Eigen::Vector3d> d(delta);
   Eigen::Map<Eigen::Quaterniond> out(x_plus_delta);
-  out = (ConstQuaternionMap(x) * Exp(d)).normalized();
+  out = QuaternionPlus(ConstQuaternionMap(x), d);
   return true;
 }
 

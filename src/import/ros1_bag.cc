@@ -12,7 +12,6 @@
 // recorder killed mid-write leaves it) is first scanned for its connections, and has no
 // IndexedTopics() (callers warn).
 
-#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -26,111 +25,12 @@
 #include "autocal/common/error.h"
 #include "import/bag_reader.h"
 #include "import/chunk_decompression.h"
+#include "import/ros1_records.h"
 
 namespace autocal {
 namespace import {
+namespace ros1 {
 namespace {
-
-constexpr char kMagic[] = "#ROSBAG V2.0\n";
-constexpr size_t kMagicBytes = 13;
-// A chunk declaring more than this uncompressed is refused rather than allocated.
-constexpr uint64_t kMaxChunkBytes = uint64_t{1} << 30;
-
-enum Op : uint8_t {
-  kMessageData = 0x02,
-  kBagHeader = 0x03,
-  kIndexData = 0x04,
-  kChunk = 0x05,
-  kChunkInfo = 0x06,
-  kConnection = 0x07,
-};
-
-std::string OpName(int op) {
-  switch (op) {
-    case kMessageData:
-      return "message data record";
-    case kBagHeader:
-      return "bag header record";
-    case kIndexData:
-      return "index data record";
-    case kChunk:
-      return "chunk record";
-    case kChunkInfo:
-      return "chunk info record";
-    case kConnection:
-      return "connection record";
-    default:
-      return "record";
-  }
-}
-
-uint32_t LoadU32(const char* p) {
-  uint32_t v;
-  std::memcpy(&v, p, 4);
-  return v;
-}
-// A ROS 1 time: u32 sec, u32 nsec.
-int64_t LoadTimeNs(const char* p) { return int64_t{LoadU32(p)} * 1000000000 + LoadU32(p + 4); }
-
-// The "name=value" fields of a record header (or of a connection record's data).
-class HeaderFields {
- public:
-  // `bytes` must outlive this. On a malformed field returns false and sets *why.
-  bool Parse(std::string_view bytes, std::string* why) {
-    fields_.clear();
-    size_t pos = 0;
-    while (pos < bytes.size()) {
-      if (bytes.size() - pos < 4) {
-        *why = "header field length cut off at header byte " + std::to_string(pos);
-        return false;
-      }
-      const uint32_t length = LoadU32(bytes.data() + pos);
-      pos += 4;
-      if (length > bytes.size() - pos) {
-        *why = "header field at header byte " + std::to_string(pos - 4) + " declares " +
-               std::to_string(length) + " bytes, only " + std::to_string(bytes.size() - pos) +
-               " left in the header";
-        return false;
-      }
-      const std::string_view field = bytes.substr(pos, length);
-      const size_t equals = field.find('=');
-      if (equals == std::string_view::npos) {
-        *why = "header field at header byte " + std::to_string(pos - 4) + " has no '='";
-        return false;
-      }
-      fields_.emplace_back(field.substr(0, equals), field.substr(equals + 1));
-      pos += length;
-    }
-    return true;
-  }
-
-  const std::string_view* Find(std::string_view name) const {
-    for (const auto& field : fields_) {
-      if (field.first == name) return &field.second;
-    }
-    return nullptr;
-  }
-
- private:
-  std::vector<std::pair<std::string_view, std::string_view>> fields_;
-};
-
-// Owns an open file descriptor and closes it, also when the reader's constructor throws
-// (a member is destroyed then, the reader's own destructor does not run).
-class FileDescriptor {
- public:
-  FileDescriptor() = default;
-  FileDescriptor(const FileDescriptor&) = delete;
-  FileDescriptor& operator=(const FileDescriptor&) = delete;
-  ~FileDescriptor() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  void Open(const std::string& path) { fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC); }
-  int get() const { return fd_; }
-
- private:
-  int fd_ = -1;
-};
 
 class Ros1BagReader final : public BagReader {
  public:
@@ -554,9 +454,10 @@ bool Ros1BagReader::Next(BagMessage* message) {
 }
 
 }  // namespace
+}  // namespace ros1
 
 std::unique_ptr<BagReader> OpenRos1Bag(const std::string& path) {
-  return std::make_unique<Ros1BagReader>(path);
+  return std::make_unique<ros1::Ros1BagReader>(path);
 }
 
 }  // namespace import

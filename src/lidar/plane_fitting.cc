@@ -9,12 +9,11 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 
 namespace autocal {
 namespace lidar {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 void RequireFinite(const Eigen::Matrix3Xd& points, const char* what) {
   if (!points.allFinite()) throw Error(std::string(what) + ": a point has a non-finite coordinate");

@@ -13,6 +13,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -27,8 +28,6 @@ namespace autocal {
 namespace pipeline {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // The batch solver's settings from the problem and the dataset.
 estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,

@@ -4,6 +4,7 @@
 #include <string>
 #include <utility>
 
+#include "autocal/common/units.h"
 #include "calibration_steps.h"
 
 namespace autocal {
@@ -12,8 +13,6 @@ namespace pipeline {
 namespace {
 
 using Id = sensors::CalibrationBlockId;
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 BlockSetting FromVector(const io::VectorBlockSetting& setting,
                         const std::optional<Eigen::Vector3d>& nominal_sigma) {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "svg_chart.h"
 
@@ -17,7 +18,6 @@ namespace pipeline {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kLidarHistogramRange_m = 0.3;
 constexpr double kWhitenedHistogramRange = 5.0;  // sigma
 // A block whose components never move by more than this (display units) between the outer

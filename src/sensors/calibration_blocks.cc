@@ -2,12 +2,12 @@
 
 #include <cmath>
 
+#include "autocal/common/units.h"
+
 namespace autocal {
 namespace sensors {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 double* DataOf(Eigen::Quaterniond& q) { return q.coeffs().data(); }
 double* DataOf(Eigen::Vector3d& v) { return v.data(); }

@@ -447,6 +447,21 @@ Eigen::Matrix3d ImuPreintegration::d_R_d_bg() const {
   return delta_q_.conjugate().toRotationMatrix() * d_theta_d_bg_.topRows<3>();
 }
 
+LinearizedDeltas ImuPreintegration::Linearized() const {
+  LinearizedDeltas out;
+  out.delta_q = delta_q_;
+  out.delta_v = delta_v_;
+  out.delta_p = delta_p_;
+  out.d_R_d_bg = d_R_d_bg();
+  out.d_v_d_bg = d_v_d_bg_;
+  out.d_v_d_ba = d_v_d_ba_;
+  out.d_p_d_bg = d_p_d_bg_;
+  out.d_p_d_ba = d_p_d_ba_;
+  out.b_g_lin = b_g_lin_;
+  out.b_a_lin = b_a_lin_;
+  return out;
+}
+
 // Left to right rotation error: dphi = dR^T dtheta; the other components are unchanged.
 Matrix15d ImuPreintegration::Covariance() const {
   const Eigen::Matrix3d Rt = delta_q_.conjugate().toRotationMatrix();

@@ -9,12 +9,12 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 
 namespace autocal {
 namespace sim {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr double kKmh = 1.0 / 3.6;
 
 // Lateral offset of the drive from the lane it started in: about the sum of the lane changes
@@ -284,24 +284,24 @@ Scenario BuildUrban(const ScenarioOptions& options, std::mt19937_64* rng) {
       case kRightTurn:
       case kLeftTurn:
         drive.ChangeSpeed(v_turn, 2.5);
-        drive.Arc((maneuver == kRightTurn ? -90.0 : 90.0) * kDeg, between(9.0, 11.0), 10.0);
+        drive.Arc((maneuver == kRightTurn ? -90.0 : 90.0) * kDegToRad, between(9.0, 11.0), 10.0);
         break;
       case kStopLeftTurn:
       case kStopRightTurn:
         drive.ChangeSpeed(0.0, 3.0);
         drive.Stand(between(2.0, 3.0));
         drive.ChangeSpeed(v_turn, 1.5);
-        drive.Arc((maneuver == kStopLeftTurn ? 90.0 : -90.0) * kDeg, between(9.0, 11.0), 10.0);
+        drive.Arc((maneuver == kStopLeftTurn ? 90.0 : -90.0) * kDegToRad, between(9.0, 11.0), 10.0);
         break;
       case kRoundabout: {  // third exit: -35 + 160 - 35 = +90 degrees
         drive.ChangeSpeed(v_turn, 2.5);
-        drive.Arc(-35.0 * kDeg, 14.0, 8.0);
+        drive.Arc(-35.0 * kDegToRad, 14.0, 8.0);
         const double radius = 14.0;
         const double s0 = drive.distance_m();
-        drive.Arc(160.0 * kDeg, radius, 8.0);
+        drive.Arc(160.0 * kDegToRad, radius, 8.0);
         // The middle of the symmetric arc is on its circle: the island is R to the left.
         islands.push_back({0.5 * (s0 + drive.distance_m()), radius});
-        drive.Arc(-35.0 * kDeg, 14.0, 8.0);
+        drive.Arc(-35.0 * kDegToRad, 14.0, 8.0);
         break;
       }
       case kOvertake: {  // around a car parked in the lane
@@ -395,7 +395,7 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
       }
       case 1: {  // gentle curve
         const double sign = uniform(*rng) < 0.5 ? -1.0 : 1.0;
-        drive.Arc(sign * between(7.0, 12.0) * kDeg, between(900.0, 1500.0), 120.0);
+        drive.Arc(sign * between(7.0, 12.0) * kDegToRad, between(900.0, 1500.0), 120.0);
         break;
       }
       case 3:  // speed change with the traffic

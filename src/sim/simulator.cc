@@ -8,18 +8,17 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "sim/random_streams.h"
 
 namespace autocal {
 namespace sim {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-
 Eigen::Quaterniond FromRollPitchYawDeg(double roll, double pitch, double yaw) {
-  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw * kDeg, Eigen::Vector3d::UnitZ()) *
-                            Eigen::AngleAxisd(pitch * kDeg, Eigen::Vector3d::UnitY()) *
-                            Eigen::AngleAxisd(roll * kDeg, Eigen::Vector3d::UnitX()));
+  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw * kDegToRad, Eigen::Vector3d::UnitZ()) *
+                            Eigen::AngleAxisd(pitch * kDegToRad, Eigen::Vector3d::UnitY()) *
+                            Eigen::AngleAxisd(roll * kDegToRad, Eigen::Vector3d::UnitX()));
 }
 
 void Require(bool ok, const std::string& what) {
@@ -118,7 +117,7 @@ Simulator::Simulator(const SimulationOptions& options) : options_(options) {
   const NominalPerturbation& np = options_.nominal_perturbation;
   auto rotation = [&]() -> Eigen::Quaterniond {
     const Eigen::Vector3d phi(normal(rng), normal(rng), normal(rng));
-    return geometry::Exp(Eigen::Vector3d(np.rotation_deg * kDeg * phi));
+    return geometry::Exp(Eigen::Vector3d(np.rotation_deg * kDegToRad * phi));
   };
   auto translation = [&]() -> Eigen::Vector3d {
     return Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * np.translation_m;
@@ -153,7 +152,7 @@ Simulator::Simulator(const SimulationOptions& options) : options_(options) {
     for (int b = 0; b < l.num_beams; ++b) {
       const double f = l.num_beams == 1 ? 0.5 : static_cast<double>(b) / (l.num_beams - 1);
       const double elevation =
-          (l.min_elevation_deg + f * (l.max_elevation_deg - l.min_elevation_deg)) * kDeg;
+          (l.min_elevation_deg + f * (l.max_elevation_deg - l.min_elevation_deg)) * kDegToRad;
       beam_directions_[static_cast<size_t>(c) * l.num_beams + b] =
           Eigen::Vector3d(std::cos(azimuth) * std::cos(elevation),
                           std::sin(azimuth) * std::cos(elevation), std::sin(elevation));

@@ -4,13 +4,12 @@
 #include <sstream>
 #include <string>
 
+#include "autocal/common/units.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
 namespace sim {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 std::string Format(const char* format, double a) {
   char buffer[64];

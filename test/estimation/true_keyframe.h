@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cstdint>
 
-#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {

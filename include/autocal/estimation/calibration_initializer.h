@@ -27,7 +27,7 @@
 #include <Eigen/Geometry>
 
 #include "autocal/estimation/initialization.h"
-#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/lidar_odometry.h"
 #include "autocal/lidar/point_cloud.h"

@@ -20,8 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
-#include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/measurements.h"

@@ -22,7 +22,7 @@
 
 #include <Eigen/Core>
 
-#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/loss.h"
 #include "autocal/factors/wheel_factor.h"

@@ -20,8 +20,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "autocal/estimation/plane_map.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/factors/loss.h"
+#include "autocal/lidar/plane_map.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/measurements.h"
@@ -29,16 +30,6 @@
 
 namespace autocal {
 namespace estimation {
-
-// One keyframe's state as Ceres parameter blocks (DESIGN.md "State").
-struct Keyframe {
-  int64_t t_ns = 0;  // IMU clock
-  Eigen::Quaterniond q_W_I = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d p_W_I = Eigen::Vector3d::Zero();
-  Eigen::Vector3d v_W_I = Eigen::Vector3d::Zero();
-  Eigen::Vector3d b_g = Eigen::Vector3d::Zero();
-  Eigen::Vector3d b_a = Eigen::Vector3d::Zero();
-};
 
 struct LidarInertialBatchProgress {
   int iteration = 0;          // 1-based outer iteration just finished
@@ -61,7 +52,7 @@ struct LidarInertialBatchOptions {
   double map_voxel_m = 0.3;
   // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
   int map_neighbor_sweeps = 0;
-  PlaneMapOptions plane_map;
+  lidar::PlaneMapOptions plane_map;
   // A point of sweep k is paired with a plane of sweep k + offset, the offsets tried in this
   // order (starting at a different one for consecutive points). Partners a few sweeps apart
   // have rotated and moved relative to the point's sweep, which is what makes the extrinsic

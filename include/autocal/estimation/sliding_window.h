@@ -28,11 +28,11 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/marginalization.h"
-#include "autocal/estimation/plane_map.h"
 #include "autocal/factors/loss.h"
 #include "autocal/geometry/manifolds.h"
+#include "autocal/lidar/plane_map.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/gnss_enu.h"
@@ -170,7 +170,7 @@ struct SlidingWindowOptions {
   int settled_partner_count = 2;
   double settled_extrinsic_deg = 0.5;
   // Local plane fitting in each sweep's map.
-  PlaneMapOptions plane_map;
+  lidar::PlaneMapOptions plane_map;
   // Outlier gate: a point farther than this from the plane found for it is not associated
   // (moving objects, edges, planes fitted across a corner).
   double max_point_to_plane_m = 0.1;

@@ -34,16 +34,7 @@ struct ImuDeltaMeasurement {
   explicit ImuDeltaMeasurement(const sensors::ImuPreintegration& pim);
 
   double dt_s;
-  Eigen::Quaterniond delta_q;
-  Eigen::Vector3d delta_v;
-  Eigen::Vector3d delta_p;
-  Eigen::Matrix3d d_R_d_bg;
-  Eigen::Matrix3d d_v_d_bg;
-  Eigen::Matrix3d d_v_d_ba;
-  Eigen::Matrix3d d_p_d_bg;
-  Eigen::Matrix3d d_p_d_ba;
-  Eigen::Vector3d b_g_lin;
-  Eigen::Vector3d b_a_lin;
+  sensors::LinearizedDeltas deltas;  // corrected for the biases of keyframe i (Eq. F7)
   Eigen::Vector3d g_W;
   sensors::Matrix15d sqrt_information;  // lower triangular
 };
@@ -85,14 +76,9 @@ class ImuResidual {
     const Eigen::Map<const Eigen::Quaternion<T>> q_i(q_i_ptr), q_j(q_j_ptr);
     const Eigen::Map<const Vec3> p_i(p_i_ptr), v_i(v_i_ptr), bg_i(bg_i_ptr), ba_i(ba_i_ptr);
     const Eigen::Map<const Vec3> p_j(p_j_ptr), v_j(v_j_ptr), bg_j(bg_j_ptr), ba_j(ba_j_ptr);
-    const Vec3 dbg = bg_i - m_.b_g_lin.cast<T>();
-    const Vec3 dba = ba_i - m_.b_a_lin.cast<T>();
-    const Eigen::Quaternion<T> dq =
-        m_.delta_q.cast<T>() * geometry::Exp(Vec3(m_.d_R_d_bg.cast<T>() * dbg));
-    const Vec3 dv =
-        m_.delta_v.cast<T>() + m_.d_v_d_bg.cast<T>() * dbg + m_.d_v_d_ba.cast<T>() * dba;
-    const Vec3 dp =
-        m_.delta_p.cast<T>() + m_.d_p_d_bg.cast<T>() * dbg + m_.d_p_d_ba.cast<T>() * dba;
+    Eigen::Quaternion<T> dq;
+    Vec3 dv, dp;
+    m_.deltas.Corrected(Vec3(bg_i), Vec3(ba_i), &dq, &dv, &dp);
     const T dt(m_.dt_s);
     const Vec3 g = m_.g_W.cast<T>();
     const Eigen::Quaternion<T> q_i_inv = q_i.conjugate();

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "autocal/geometry/so3.h"
+#include "autocal/sensors/bias_correction.h"
 #include "autocal/sensors/measurements.h"
 #include "autocal/sensors/sensor_config.h"
 
@@ -95,6 +96,9 @@ class ImuPreintegration {
   // autocal::Error when the covariance is not positive definite (e.g. an empty interval).
   Matrix15d SqrtInformation() const;
 
+  // The deltas with their bias Jacobians, as the first-order correction (Eq. F7) uses them.
+  // Valid only with options().compute_covariance.
+  LinearizedDeltas Linearized() const;
   // Deltas corrected to first order for biases (b_g, b_a) (Eq. F7).
   void Corrected(const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a, Eigen::Quaterniond* dq,
                  Eigen::Vector3d* dv, Eigen::Vector3d* dp) const;
@@ -182,13 +186,7 @@ template <typename T>
 void ImuPreintegration::CorrectedDeltas(const geometry::Vector3<T>& b_g,
                                         const geometry::Vector3<T>& b_a, Eigen::Quaternion<T>* dq,
                                         geometry::Vector3<T>* dv, geometry::Vector3<T>* dp) const {
-  const geometry::Vector3<T> dbg = b_g - b_g_lin_.cast<T>();
-  const geometry::Vector3<T> dba = b_a - b_a_lin_.cast<T>();
-  const Eigen::Matrix3d d_R_d_bg_right = d_R_d_bg();
-  const geometry::Vector3<T> dphi = d_R_d_bg_right.cast<T>() * dbg;
-  *dq = delta_q_.cast<T>() * geometry::Exp(dphi);
-  *dv = delta_v_.cast<T>() + d_v_d_bg_.cast<T>() * dbg + d_v_d_ba_.cast<T>() * dba;
-  if (dp != nullptr) *dp = delta_p_.cast<T>() + d_p_d_bg_.cast<T>() * dbg + d_p_d_ba_.cast<T>() * dba;
+  Linearized().Corrected(b_g, b_a, dq, dv, dp);
 }
 
 template <typename T>

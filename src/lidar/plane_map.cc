@@ -1,4 +1,4 @@
-#include "autocal/estimation/plane_map.h"
+#include "autocal/lidar/plane_map.h"
 
 #include <array>
 #include <cmath>
@@ -11,7 +11,7 @@
 #include "autocal/lidar/voxel_grid.h"
 
 namespace autocal {
-namespace estimation {
+namespace lidar {
 
 namespace {
 
@@ -29,9 +29,9 @@ const PlaneMapOptions& Checked(const PlaneMapOptions& options) {
 }
 
 Eigen::Matrix3Xd Downsample(const Eigen::Matrix3Xd& points, double voxel_m) {
-  lidar::PointCloud cloud;
+  PointCloud cloud;
   cloud.points = points;
-  return lidar::VoxelDownsample(cloud, voxel_m).points;
+  return VoxelDownsample(cloud, voxel_m).points;
 }
 
 }  // namespace
@@ -40,24 +40,24 @@ PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& opti
     : options_(Checked(options)),
       grid_(Downsample(points_W, options.voxel_m), options.max_neighbor_distance_m) {}
 
-bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const {
+bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, Plane* plane) const {
   const int k = options_.num_neighbors;
   // Buffers sized for the usual neighbour counts when they suffice: constructing the
   // kMaxNeighbors entries of the larger one took a fifth of a lookup's own time.
   constexpr int kUsualNeighbors = 8;
   Neighborhood local(3, k);
-  const auto fit = [&](lidar::Neighbor* neighbors) {
+  const auto fit = [&](Neighbor* neighbors) {
     return grid_.Knn(p_W, k, neighbors, local.data()) == k && FitLocalPlane(local, plane);
   };
   if (k <= kUsualNeighbors) {
-    std::array<lidar::Neighbor, kUsualNeighbors> neighbors;
+    std::array<Neighbor, kUsualNeighbors> neighbors;
     return fit(neighbors.data());
   }
-  std::array<lidar::Neighbor, kMaxNeighbors> neighbors;
+  std::array<Neighbor, kMaxNeighbors> neighbors;
   return fit(neighbors.data());
 }
 
-bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const {
+bool PlaneMap::FitLocalPlane(const Neighborhood& local, Plane* plane) const {
   const Eigen::Vector3d centroid = local.rowwise().mean();
   const Neighborhood centered = local.colwise() - centroid;
   // The scatter's six distinct entries summed point by point (Eigen's product of a dynamic
@@ -118,5 +118,5 @@ bool PlaneMap::FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) con
   return true;
 }
 
-}  // namespace estimation
+}  // namespace lidar
 }  // namespace autocal

@@ -1,4 +1,4 @@
-#include "autocal/estimation/plane_map.h"
+#include "autocal/lidar/plane_map.h"
 
 #include <algorithm>
 #include <cmath>
@@ -14,7 +14,7 @@
 #include "autocal/lidar/voxel_grid.h"
 
 namespace autocal {
-namespace estimation {
+namespace lidar {
 namespace {
 
 // Ground z = 0 on [0, 20] x [-5, 5], a wall x = 20 up to 3 m, and a thin pole at (5, 3).
@@ -36,7 +36,7 @@ Eigen::Matrix3Xd Scene(double noise_m) {
 
 TEST(PlaneMap, FindsGroundAndWallPlanes) {
   const PlaneMap map(Scene(0.005));
-  lidar::Plane plane;
+  Plane plane;
   ASSERT_TRUE(map.FindPlane(Eigen::Vector3d(7.3, -1.2, 0.05), &plane));
   EXPECT_GT(std::abs(plane.normal.z()), 0.999);
   EXPECT_NEAR(plane.SignedDistance(Eigen::Vector3d(7.3, -1.2, 0.0)), 0.0, 0.01);
@@ -47,7 +47,7 @@ TEST(PlaneMap, FindsGroundAndWallPlanes) {
 
 TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
   const PlaneMap map(Scene(0.0));
-  lidar::Plane plane;
+  Plane plane;
   EXPECT_FALSE(map.FindPlane(Eigen::Vector3d(5.0, 3.0, 3.0), &plane)) << "pole";
   EXPECT_FALSE(map.FindPlane(Eigen::Vector3d(40.0, 0.0, 0.0), &plane)) << "far from the map";
   // At the foot of the wall the neighbours span both planes: too thick to be one plane.
@@ -61,9 +61,9 @@ TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
 // The TLS plane of the k nearest map points computed the plain way, with heap-allocated
 // neighbourhoods and the iterative eigen-solver, its normal facing the origin: the reference
 // the stack-buffered FindPlane, which mostly takes the closed-form solution, must reproduce.
-bool ReferencePlane(const lidar::KdTree& tree, const PlaneMapOptions& o, const Eigen::Vector3d& q,
-                    lidar::Plane* plane) {
-  const std::vector<lidar::Neighbor> nn = tree.Knn(q, o.num_neighbors);
+bool ReferencePlane(const KdTree& tree, const PlaneMapOptions& o, const Eigen::Vector3d& q,
+                    Plane* plane) {
+  const std::vector<Neighbor> nn = tree.Knn(q, o.num_neighbors);
   if (static_cast<int>(nn.size()) < o.num_neighbors) return false;
   if (nn.back().squared_distance_m2 > o.max_neighbor_distance_m * o.max_neighbor_distance_m) {
     return false;
@@ -89,9 +89,9 @@ bool ReferencePlane(const lidar::KdTree& tree, const PlaneMapOptions& o, const E
 
 TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
   const Eigen::Matrix3Xd scene = Scene(0.01);
-  lidar::PointCloud cloud;
+  PointCloud cloud;
   cloud.points = scene;
-  const lidar::KdTree tree(lidar::VoxelDownsample(cloud, PlaneMapOptions().voxel_m).points);
+  const KdTree tree(VoxelDownsample(cloud, PlaneMapOptions().voxel_m).points);
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> x(-1.0, 22.0), y(-6.0, 6.0), z(-0.5, 4.5);
   for (int k : {3, 5, 10, PlaneMap::kMaxNeighbors}) {
@@ -101,7 +101,7 @@ TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
     int found = 0;
     for (int trial = 0; trial < 2000; ++trial) {
       const Eigen::Vector3d q(x(rng), y(rng), z(rng));
-      lidar::Plane plane, reference;
+      Plane plane, reference;
       const bool ok = map.FindPlane(q, &plane);
       ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference))
           << "k " << k << " at " << q.transpose();
@@ -135,10 +135,10 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   }
   Eigen::Matrix3Xd scene(3, static_cast<Eigen::Index>(points.size()));
   for (size_t i = 0; i < points.size(); ++i) scene.col(static_cast<Eigen::Index>(i)) = points[i];
-  lidar::PointCloud cloud;
+  PointCloud cloud;
   cloud.points = scene;
   const PlaneMapOptions options;
-  const lidar::KdTree tree(lidar::VoxelDownsample(cloud, options.voxel_m).points);
+  const KdTree tree(VoxelDownsample(cloud, options.voxel_m).points);
   const PlaneMap map(scene, options);
   // Queries near the scene's points.
   std::uniform_int_distribution<Eigen::Index> pick(0, scene.cols() - 1);
@@ -147,7 +147,7 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   for (int trial = 0; trial < 20000; ++trial) {
     const Eigen::Vector3d q =
         scene.col(pick(rng)) + Eigen::Vector3d(offset(rng), offset(rng), offset(rng));
-    lidar::Plane plane, reference;
+    Plane plane, reference;
     const bool ok = map.FindPlane(q, &plane);
     ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference)) << "at " << q.transpose();
     if (ok) {
@@ -157,7 +157,7 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
       continue;
     }
     // A rejected neighbourhood of k points within reach: count the lines among them.
-    const std::vector<lidar::Neighbor> nn = tree.Knn(q, options.num_neighbors);
+    const std::vector<Neighbor> nn = tree.Knn(q, options.num_neighbors);
     if (nn.back().squared_distance_m2 > options.max_neighbor_distance_m *
                                             options.max_neighbor_distance_m) {
       continue;
@@ -214,5 +214,5 @@ TEST(PlaneMap, RejectsNeighbourCountsOutsideTheBuffer) {
 }
 
 }  // namespace
-}  // namespace estimation
+}  // namespace lidar
 }  // namespace autocal

@@ -14,7 +14,7 @@
 #include "autocal/lidar/plane_fitting.h"
 
 namespace autocal {
-namespace estimation {
+namespace lidar {
 
 struct PlaneMapOptions {
   double voxel_m = 0.2;                  // map resolution
@@ -50,18 +50,18 @@ class PlaneMap {
   // The local plane around p_W, or false when the neighbourhood is not a clean plane. Its
   // normal faces the map frame's origin (plane->d >= 0). Safe to call from several threads
   // at once.
-  bool FindPlane(const Eigen::Vector3d& p_W, lidar::Plane* plane) const;
+  bool FindPlane(const Eigen::Vector3d& p_W, Plane* plane) const;
 
   int64_t size() const { return grid_.size(); }
 
  private:
   using Neighborhood =
       Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxNeighbors>;
-  bool FitLocalPlane(const Neighborhood& local, lidar::Plane* plane) const;
+  bool FitLocalPlane(const Neighborhood& local, Plane* plane) const;
 
   PlaneMapOptions options_;
-  lidar::NeighborGrid grid_;
+  NeighborGrid grid_;
 };
 
-}  // namespace estimation
+}  // namespace lidar
 }  // namespace autocal
