@@ -15,6 +15,7 @@
 #include "autocal/estimation/plane_map.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
+#include "factors/point_group_storage.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/imu_preintegration.h"
@@ -94,7 +95,7 @@ class SlidingWindowEstimator::TermsPool {
   // released leaves none).
   void Retire(internal::SweepPointGroup* group) {
     group->compressed.reset();  // it refers to the factor
-    Keep(factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(group->factor)).points);
+    Keep(factors::ReleasePoints(std::move(group->factor)).points);
   }
   // Retires the groups of `groups` paired with keyframe `partner_id`; the others keep their
   // order.

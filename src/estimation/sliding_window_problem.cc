@@ -19,6 +19,7 @@
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
+#include "factors/point_group_storage.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/firing_poses.h"
@@ -362,7 +363,7 @@ void SlidingWindowEstimator::AssociatePoints() {
         for (size_t q = 0; q < P; ++q) {
           if (g.partner_id != kf.id + partners[q] || !rebuilt(q)) continue;
           g.compressed.reset();  // it refers to the factor
-          auto released = factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(g.factor));
+          auto released = factors::ReleasePoints(std::move(g.factor));
           members[q] = std::move(released.points);
           member_sides[q] = std::move(released.plane_sides);
           member_index[q] = std::move(g.point_index);
