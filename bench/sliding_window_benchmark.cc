@@ -109,11 +109,11 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   options.enu_origin_lla = Eigen::Vector3d(log.options.gnss.origin_lat_deg,
                                            log.options.gnss.origin_lon_deg,
                                            log.options.gnss.origin_alt_m);
-  options.max_residuals_per_sweep = static_cast<int>(bench.range(0));
-  options.residual_voxel_m = 0.01 * static_cast<double>(bench.range(2));
+  options.pairing.max_residuals_per_sweep = static_cast<int>(bench.range(0));
+  options.pairing.residual_voxel_m = 0.01 * static_cast<double>(bench.range(2));
   if (bench.range(1) == 0) {  // no reuse: every keyframe re-paired, every map rebuilt
-    options.reassociation_tolerance_m = 0.0;
-    options.map_rebuild_tolerance_m = 0.0;
+    options.window_pairing.reassociation_tolerance_m = 0.0;
+    options.window_pairing.map_rebuild_tolerance_m = 0.0;
   }
   // The initial state: the truth at the first IMU sample (the drive starts at rest).
   const io::TrajectorySample& first = log.data.imu.truth.front();

@@ -1,211 +1,171 @@
 #pragma once
 
-// Private state of the sliding window shared by its source files (docs/sliding_window.md).
-
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <memory>
-#include <mutex>
-#include <optional>
-#include <vector>
+// The sliding window's implementation (docs/sliding_window.md), private to the library:
+// SlidingWindowEstimator forwards to SlidingWindowEstimator::Impl, whose member functions are
+// spread over sliding_window.cc (streaming input, one update), sliding_window_keyframes.cc
+// (keyframes and their interval factors), sliding_window_problem.cc (the window problem, its
+// solve and marginalization) and sliding_window_smoothing.cc.
 
 #include <ceres/ceres.h>
 
-#include "autocal/estimation/sliding_window.h"
-#include "autocal/factors/point_to_sweep_plane_group_factor.h"
-#include "autocal/geometry/se3.h"
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "autocal/estimation/marginalization.h"
 #include "autocal/lidar/plane_map.h"
-#include "autocal/lidar/point_cloud.h"
+#include "autocal/estimation/sliding_window.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/imu_preintegration.h"
-#include "estimation/point_selection.h"
+#include "estimation/point_group_pool.h"
 #include "estimation/sliding_window_factors.h"
+#include "estimation/sweep_pairing.h"
+#include "estimation/window_solver.h"
 
 namespace autocal {
 namespace estimation {
 
-namespace internal {
-
-// The residual points of one keyframe paired with planes of one partner keyframe's sweep: one
-// residual block (Eq. P9) over both keyframes' q, p, v and q_I_L, p_I_L, time offset.
-struct SweepPointGroup {
-  int partner_id = 0;  // the partner keyframe's id
-  std::unique_ptr<factors::PointToSweepPlaneGroupFactor> factor;
-  // The residual point (index in its keyframe's residual_points) of each of factor's points.
-  std::vector<int> point_index;
-  // The block the solver sees: `factor` compressed (Eq. SW5) when it has more rows than that.
-  std::unique_ptr<CompressedPointGroup> compressed;
-  std::vector<double*> parameters;
-  // Its linearization (Eq. SW7), made at an update's first pass and kept by later ones while
-  // its points moved by at most relinearization_tolerance_m since (Eq. SW12), with what that
-  // bound compares: both sweeps' LiDAR poses and velocities and the time offset then. A
-  // problem that holds `cost` must be dropped before the next BuildProblem replaces it.
-  struct Linearization {
-    std::unique_ptr<ceres::CostFunction> cost;
-    geometry::Pose3d T_W_Lk;
-    geometry::Pose3d T_W_Lj;
-    Eigen::Vector3d v_W_Ik = Eigen::Vector3d::Zero();
-    Eigen::Vector3d v_W_Ij = Eigen::Vector3d::Zero();
-    double offset_s = 0.0;
-  };
-  std::optional<Linearization> linearization;
-
-  ceres::CostFunction* solver_cost() const {
-    return compressed ? static_cast<ceres::CostFunction*>(compressed.get()) : factor.get();
-  }
-};
-
-}  // namespace internal
-
-// The point storage of the window's groups, kept for reuse: a group of a few thousand points
-// is a megabyte, which the allocator may hand back to the system when freed, so that its next
-// use pays a page fault per 4 kB (in a virtual machine, about 10 microseconds each). Each
-// storage is reserved for all the residual points of a keyframe, the most a group can hold,
-// so that a group never grows out of it (the reservation is address space: a page is only
-// mapped when first written). The pool keeps the storage of dropped groups for the next
-// groups formed, preferring one already written as far as the new group needs, and per chunk
-// of the association's loop the buffer in which a walk forms the terms of the points it
-// pairs anew. Shared by the window's keyframes; Keep, Retire and Take are safe to use from
-// the association's threads.
-class SlidingWindowEstimator::TermsPool {
+class SlidingWindowEstimator::Impl {
  public:
-  using Storage = std::vector<factors::PointToSweepPlaneFactor::Terms>;
-  // More than the groups of a window with the default partners: the pool frees nothing in
-  // steady state.
-  static constexpr size_t kMaxKept = 128;
+  Impl(const SlidingWindowOptions& options, const sensors::Calibration& initial_calibration,
+       const SlidingWindowState& initial_state);
 
-  // Keeps `storage`, emptied, among the kMaxKept that were written farthest: as far as its
-  // size or `written` terms, whichever is more.
-  void Keep(Storage storage, size_t written = 0) {
-    if (storage.capacity() == 0) return;
-    Kept kept{std::max(written, storage.size()), std::move(storage)};
-    kept.storage.clear();
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (kept_.size() < kMaxKept) {
-      kept_.push_back(std::move(kept));
-      return;
-    }
-    auto least = std::min_element(kept_.begin(), kept_.end(), [](const Kept& a, const Kept& b) {
-      return a.written < b.written;
-    });
-    if (kept.written > least->written) *least = std::move(kept);
-  }
-  // Drops `group`'s factor (and its compressed form), keeping its storage (a factor already
-  // released leaves none).
-  void Retire(internal::SweepPointGroup* group) {
-    group->compressed.reset();  // it refers to the factor
-    Keep(factors::PointToSweepPlaneGroupFactor::ReleasePoints(std::move(group->factor)).points);
-  }
-  // Retires the groups of `groups` paired with keyframe `partner_id`; the others keep their
-  // order.
-  void RetireGroupsOf(std::vector<internal::SweepPointGroup>* groups, int partner_id) {
-    const auto dropped = std::stable_partition(
-        groups->begin(), groups->end(),
-        [partner_id](const internal::SweepPointGroup& g) { return g.partner_id != partner_id; });
-    for (auto g = dropped; g != groups->end(); ++g) Retire(&*g);
-    groups->erase(dropped, groups->end());
-  }
-  // Empty storage for n terms reserved for at least `reserve` (>= n): of the kept ones that
-  // hold that many, one written for n terms or more (the least such), else the one written
-  // farthest; a new one when none holds them.
-  Storage Take(size_t n, size_t reserve) {
-    reserve = std::max(n, reserve);
-    Storage storage;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      // a before b: holding `reserve` first, then written for n, then the least written for
-      // n, or else the farthest written.
-      const auto before = [n, reserve](const Kept& a, const Kept& b) {
-        const bool a_holds = a.storage.capacity() >= reserve;
-        const bool b_holds = b.storage.capacity() >= reserve;
-        if (a_holds != b_holds) return a_holds;
-        const bool a_written = a.written >= n, b_written = b.written >= n;
-        if (a_written != b_written) return a_written;
-        return a_written ? a.written < b.written : a.written > b.written;
-      };
-      const auto best = std::min_element(kept_.begin(), kept_.end(), before);
-      if (best != kept_.end() && best->storage.capacity() >= reserve) {
-        storage = std::move(best->storage);
-        kept_.erase(best);
-      }
-    }
-    storage.reserve(reserve);
-    return storage;
-  }
-  // The walk's buffer of chunk `chunk` of the association's loop over `chunks` chunks, kept
-  // from walk to walk. Resize before the loop (not thread safe); each chunk then uses its own.
-  void SetChunks(int chunks) { fresh_.resize(static_cast<size_t>(std::max(chunks, 1))); }
-  Storage& Fresh(int chunk) { return fresh_.at(static_cast<size_t>(chunk)); }
+  bool AddImu(const sensors::ImuSample& sample);
+  bool AddWheel(const sensors::WheelSample& sample);
+  bool AddGnss(const sensors::GnssFix& fix);
+  bool AddGnss(const GnssPosition& position);
+  bool AddSweep(lidar::LidarSweep sweep);
+
+  const SlidingWindowState& latest_state() const;
+  std::vector<SlidingWindowState> Trajectory() const;
+  std::vector<SlidingWindowState> SmoothedTrajectory() const;
+  const sensors::Calibration& calibration() const { return calibration_; }
+  CalibrationCovariance ComputeCalibrationCovariance(double min_reciprocal_condition_number);
+  int window_size() const { return static_cast<int>(window_.size()); }
+  int pending_sweeps() const { return static_cast<int>(pending_sweeps_.size()); }
+  bool has_marginalization_prior() const { return prior_ != nullptr; }
+  const SlidingWindowCounters& counters() const { return counters_; }
+  const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
+  int last_associated_points() const { return last_associated_points_; }
+  double last_point_rms_m() const;
 
  private:
-  struct Kept {
-    size_t written;  // terms it held when kept: at least that much of it is mapped
-    Storage storage;
-  };
-  std::mutex mutex_;
-  std::vector<Kept> kept_;
-  std::vector<Storage> fresh_;
+  struct WindowKeyframe;
+  struct ProblemBuild;
+  struct SmoothingStep;
+
+  int64_t KeyframeTimeOf(const lidar::LidarSweep& sweep) const;
+  // Its keyframe would not follow the newest one by min_keyframe_interval_s (dropped as late).
+  bool TooCloseToNewestKeyframe(const lidar::LidarSweep& sweep) const;
+  void ProcessCoveredSweeps();
+  // One window update for a covered sweep.
+  void Update(lidar::LidarSweep sweep);
+  void AddKeyframe(lidar::LidarSweep sweep);
+  // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
+  void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
+  void RelinearizeImuFactors();
+  // Refreshes the plane maps that moved and makes the pairing tries that are missing or stale
+  // (SweepPairing).
+  void AssociatePoints();
+  // The window problem: keyframes, calibration blocks, IMU/wheel/GNSS factors, priors and the
+  // keyframes' point groups. The point groups are linearized afresh, or, given their motions
+  // (PointGroupMotions, in its order; a later pass of an update), only those that moved by
+  // more than relinearization_tolerance_m since their linearization.
+  std::unique_ptr<ProblemBuild> BuildProblem(const std::vector<double>* group_motions = nullptr);
+  void AddPointGroups(ProblemBuild* build, const std::vector<double>* group_motions);
+  // Solves; replaces *build with each later pass's problem, the point groups that moved
+  // relinearized where the previous pass ended.
+  void Solve(std::unique_ptr<ProblemBuild>* build);
+  // Per point group of the window, in the order of the keyframes and their groups: how far
+  // its two sweeps moved relative to each other since its linearization (infinite when it has
+  // none).
+  std::vector<double> PointGroupMotions() const;
+  // Sum of the squared point-to-plane distances (m^2, without the loss) at the current
+  // estimate of the point groups of the window (only those that pair a sweep with the oldest
+  // keyframe's, either way round, if so asked).
+  double SquaredPointDistances(bool oldest_only) const;
+  std::unique_ptr<MarginalizationPrior> MarginalizeOldest(ProblemBuild* build);
+  // With options_.smoothing: keeps the oldest keyframe's conditional for SmoothedTrajectory().
+  void RecordSmoothingStep(MarginalConditional conditional);
+  void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
+  void TrimImuBuffer();
+  void AddCalibrationPriors(const sensors::Calibration& initial_calibration);
+
+  SlidingWindowOptions options_;
+  Eigen::Vector3d g_W_;
+  sensors::Calibration calibration_;
+  geometry::RightQuaternionManifold quaternion_manifold_;
+  std::optional<sensors::EnuConverter> enu_;
+  // One loss per sensor (nullptr = plain least squares), shared by its residual blocks.
+  std::unique_ptr<ceres::LossFunction> imu_loss_;
+  std::unique_ptr<ceres::LossFunction> wheel_loss_;
+  std::unique_ptr<ceres::LossFunction> gnss_loss_;
+  std::unique_ptr<ceres::LossFunction> prior_loss_;
+
+  sensors::ImuSamples imu_;  // from the oldest window keyframe on
+  std::deque<sensors::WheelSample> wheel_;
+  std::deque<GnssPosition> gnss_;
+  std::deque<lidar::LidarSweep> pending_sweeps_;
+  int64_t newest_wheel_ns_;
+  int64_t newest_gnss_ns_;
+  int64_t newest_sweep_ns_;
+
+  std::deque<std::unique_ptr<WindowKeyframe>> window_;
+  // The pairing's try buffer of the keyframe last marginalized (a megabyte at thousands of
+  // points), which the next keyframe takes over instead of allocating it afresh.
+  std::vector<int> spare_tried_at_;
+  int next_keyframe_id_ = 0;
+  std::vector<SlidingWindowState> marginalized_;
+  std::vector<SmoothingStep> smoothing_;  // one per marginalized_, with options_.smoothing
+  // Prior of the marginalized keyframes; replaced by every marginalization.
+  std::unique_ptr<MarginalizationPrior> prior_;
+  std::vector<internal::AttachedFactor> calibration_priors_;
+  // The solver's dense buffers, kept from update to update.
+  internal::WindowSolverWorkspace solver_workspace_;
+  // The pairing engine, with the point groups' storage.
+  internal::SweepPairing pairing_;
+
+  SlidingWindowCounters counters_;
+  SlidingWindowUpdateTiming timing_;
+  // q_I_L after each of the last window_size updates (the pairing's gate).
+  std::deque<Eigen::Quaterniond> recent_q_I_L_;
+  int last_associated_points_ = 0;
+  // Squared distances of the groups the last update's marginalization dropped; the RMS once
+  // evaluated.
+  double dropped_point_squared_m2_ = 0.0;
+  mutable std::optional<double> last_point_rms_m_ = 0.0;
 };
 
-struct SlidingWindowEstimator::WindowKeyframe {
+struct SlidingWindowEstimator::Impl::WindowKeyframe {
   int id = 0;
   SlidingWindowState state;
   // The sweep that made this keyframe (none for the initial keyframe) and its chosen points.
   std::optional<lidar::LidarSweep> sweep;
   double sweep_duration_s = 0.0;
-  std::vector<int> residual_points;
-  // The residual points' coordinates, times and ranges, in their order (contiguous for the
-  // pairing, which visits them in turn).
-  Eigen::Matrix3Xd residual_p_L;
-  std::vector<double> residual_time_s;
-  std::vector<double> residual_ranges_m;
+  internal::ResidualPoints residuals;
   std::vector<int> map_points;
   // Preintegration from the previous keyframe (none for the oldest in the window).
   std::unique_ptr<sensors::ImuPreintegration> imu_from_previous;
   // Factors on this keyframe alone (or with calibration blocks): the initial-state prior,
   // wheel and GNSS samples of the interval that starts here.
   std::vector<internal::AttachedFactor> factors;
-  // The sweep's plane map in its LiDAR frame at the reference instant (point time 0), and the
-  // sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
-  // (docs/sliding_window.md, "Reuse between updates", Eq. SW4).
-  std::unique_ptr<lidar::PlaneMap> plane_map;
-  geometry::Pose3d map_deskew_end;
-  double map_max_range_m = 0.0;
-  int map_generation = 0;  // counts the map's builds
-  // This keyframe's residual points paired with other window sweeps: per residual point the
-  // position in partner_keyframe_offsets of its partner (-1: none); the points grouped by
-  // partner (a group keeps each point's terms); the range of its farthest residual point.
-  std::vector<int> partner_position;
-  // Per residual point its plane lookups in a row that found no plane (max_plane_misses),
-  // counted since the map generation misses_map_generation.
-  std::vector<uint8_t> plane_misses;
-  int misses_map_generation = -1;
-  // How many partner positions its points try (Eq. SW15): all when the extrinsic was still
-  // converging at its first pairing, settled_partner_count when it had settled.
-  size_t partner_walk = 0;
+  // The sweep's plane map, its points' pairing state and their groups (SweepPairing).
+  internal::SweepMap map;
+  internal::PairingState pairing;
   std::vector<internal::SweepPointGroup> point_groups;
-  double residual_max_range_m = 0.0;
-  // The tries of the pairing ("Reuse between updates"): per partner position q the relative
-  // poses T_Lj_Lk the points were tried at, with the generations of both sweeps' maps then,
-  // and per residual point r and q the index in tries[q] of its last try, tried_at[r * P + q]
-  // (-1: not tried since it last mattered).
-  struct Try {
-    geometry::Pose3d T_Lj_Lk;
-    int map_generation = 0;
-    int partner_map_generation = 0;
-  };
-  std::vector<std::vector<Try>> tries;
-  std::vector<int> tried_at;
-  // Per partner position q < partner_walk, whether its sweep was in the window at the last
-  // pairing, and which of tries[q] some point referred to then.
-  std::vector<bool> partner_present;
-  std::vector<std::vector<uint8_t>> tries_in_use;
 };
+
+inline const SlidingWindowState& SlidingWindowEstimator::Impl::latest_state() const {
+  return window_.back()->state;
+}
 
 // A marginalized keyframe's conditional (Eq. M4) and what its kept blocks were: a block of
 // a keyframe (by id, and index in StateBlocks) or a calibration block (its address in the
 // estimator's calibration, keyframe_id -1).
-struct SlidingWindowEstimator::SmoothingStep {
+struct SlidingWindowEstimator::Impl::SmoothingStep {
   struct BlockRef {
     int keyframe_id = -1;
     int state_block = 0;
@@ -218,11 +178,11 @@ struct SlidingWindowEstimator::SmoothingStep {
 };
 
 // One window problem and the cost functions it alone uses (the problem owns nothing).
-struct SlidingWindowEstimator::ProblemBuild {
+struct SlidingWindowEstimator::Impl::ProblemBuild {
   std::vector<std::unique_ptr<ceres::CostFunction>> owned;
   std::unique_ptr<ceres::Problem> problem;
-  // The rows the solver evaluates at every iteration (Eq. SW11): the IMU factors, the rows
-  // with a robust loss and, without linearization per pass, every row.
+  // The rows the solver evaluates at every iteration: the IMU factors, the rows with a robust
+  // loss and, without linearization per pass, every row.
   std::vector<ceres::ResidualBlockId> relinearized;
 };
 
@@ -254,9 +214,11 @@ inline std::vector<CalibrationBlock> CalibrationBlocks(sensors::Calibration* c,
 
 // The five state blocks of a keyframe, in the order the IMU factor and the priors take them.
 inline std::vector<double*> StateBlocks(SlidingWindowState* s) {
-  return {s->q_W_I.coeffs().data(), s->p_W_I.data(), s->v_W_I.data(), s->b_g.data(),
-          s->b_a.data()};
+  return {s->q_W_I.coeffs().data(), s->p_W_I.data(), s->v_W_I.data(), s->b_g.data(), s->b_a.data()};
 }
+
+// Throws autocal::Error naming the first invalid option (sliding_window_options.cc).
+void CheckOptions(const SlidingWindowOptions& options);
 
 }  // namespace internal
 }  // namespace estimation

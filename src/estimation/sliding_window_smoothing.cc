@@ -17,7 +17,7 @@ using internal::StateBlocks;
 
 // The conditional of the keyframe being marginalized (the window's oldest), each of its kept
 // blocks named by keyframe id and state block, or as a calibration block.
-void SlidingWindowEstimator::RecordSmoothingStep(MarginalConditional conditional) {
+void SlidingWindowEstimator::Impl::RecordSmoothingStep(MarginalConditional conditional) {
   SmoothingStep step;
   step.keyframe_id = window_.front()->id;
   step.conditional = std::move(conditional);
@@ -56,7 +56,7 @@ void SlidingWindowEstimator::RecordSmoothingStep(MarginalConditional conditional
 }
 
 // The Rauch-Tung-Striebel pass: Eq. M4 backwards.
-std::vector<SlidingWindowState> SlidingWindowEstimator::SmoothedTrajectory() const {
+std::vector<SlidingWindowState> SlidingWindowEstimator::Impl::SmoothedTrajectory() const {
   if (!options_.smoothing) {
     throw Error("SlidingWindowEstimator::SmoothedTrajectory needs SlidingWindowOptions::smoothing");
   }

@@ -25,18 +25,18 @@ bool SameMotion(const PointMotion& a, const PointMotion& b) {
 }
 
 // The points' terms, with one plane side per run of points with the same plane motion.
-PointToSweepPlaneGroupFactor::Released TermsOf(
-    const std::vector<PointToSweepPlaneMeasurement>& points, const Eigen::Vector3d& g_W) {
-  PointToSweepPlaneGroupFactor::Released terms;
-  terms.points.reserve(points.size());
+std::pair<std::vector<PointToSweepPlaneFactor::Terms>, std::vector<PointToSweepPlaneFactor::Side>>
+TermsOf(const std::vector<PointToSweepPlaneMeasurement>& points, const Eigen::Vector3d& g_W) {
+  std::vector<PointToSweepPlaneFactor::Terms> terms;
+  std::vector<PointToSweepPlaneFactor::Side> plane_sides;
+  terms.reserve(points.size());
   for (size_t i = 0; i < points.size(); ++i) {
     if (i == 0 || !SameMotion(points[i].plane_motion, points[i - 1].plane_motion)) {
-      terms.plane_sides.emplace_back(points[i].plane_motion, g_W);
+      plane_sides.emplace_back(points[i].plane_motion, g_W);
     }
-    terms.points.emplace_back(points[i], g_W,
-                              static_cast<uint32_t>(terms.plane_sides.size() - 1));
+    terms.emplace_back(points[i], g_W, static_cast<uint32_t>(plane_sides.size() - 1));
   }
-  return terms;
+  return {std::move(terms), std::move(plane_sides)};
 }
 
 }  // namespace
@@ -46,9 +46,9 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
     const LossOptions& loss)
     : PointToSweepPlaneGroupFactor(TermsOf(points, g_W), loss) {}
 
-PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(Released terms,
+PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(TermsAndSides terms,
                                                            const LossOptions& loss)
-    : PointToSweepPlaneGroupFactor(std::move(terms.points), std::move(terms.plane_sides), loss) {}
+    : PointToSweepPlaneGroupFactor(std::move(terms.first), std::move(terms.second), loss) {}
 
 PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
     std::vector<PointToSweepPlaneFactor::Terms> points,
@@ -74,12 +74,6 @@ std::vector<PointToSweepPlaneFactor::PlaneFrame> PointToSweepPlaneGroupFactor::P
   planes.reserve(plane_sides_.size());
   for (const PointToSweepPlaneFactor::Side& side : plane_sides_) planes.emplace_back(frame, side);
   return planes;
-}
-
-PointToSweepPlaneGroupFactor::Released PointToSweepPlaneGroupFactor::ReleasePoints(
-    std::unique_ptr<PointToSweepPlaneGroupFactor> factor) {
-  if (factor == nullptr) return {};
-  return {std::move(factor->points_), std::move(factor->plane_sides_)};
 }
 
 namespace {

@@ -35,8 +35,8 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
   estimation::LidarInertialBatchOptions batch;
   batch.imu_noise = dataset.sensors.imu.noise;
   batch.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  batch.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
-  batch.residual_voxel_m = problem.lidar.voxel_m;
+  batch.pairing.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
+  batch.pairing.residual_voxel_m = problem.lidar.voxel_m;
   batch.point_loss = problem.loss.lidar;
   batch.outer_iterations = problem.solver.outer_iterations;
   batch.solver_iterations = problem.solver.max_iterations;

@@ -94,18 +94,18 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   if (dataset.sensors.wheel) w.wheel = *dataset.sensors.wheel;
   w.loss = problem.loss;
   w.window_size = problem.window_size;
-  w.solver_iterations = problem.solver.max_iterations;
+  w.solver.max_iterations = problem.solver.max_iterations;
   w.num_threads = problem.solver.num_threads;
-  w.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
-  w.residual_voxel_m = problem.lidar.voxel_m;
-  w.residual_max_range_m = problem.window_max_range_m;
+  w.pairing.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;
+  w.pairing.residual_voxel_m = problem.lidar.voxel_m;
+  w.pairing.residual_max_range_m = problem.window_max_range_m;
   w.initial_state_sigmas = options.initial_state_sigmas;
   // The rear axle's lateral and vertical speed rows, weighted for their correlated model error
-  // (Eq. K6, as in the offline calibration). Without them the wheel speeds see the vehicle
+  // (the correlated-error scaling, as in the offline calibration). Without them the wheel speeds see the vehicle
   // frame's pitch and yaw only through the cosine that scales the speed along x_V, as the radii
   // do: on the 60 s urban log the window drifted along that valley to 5.7 deg and -0.47 %
   // (docs/sliding_window.md).
-  w.wheel_non_holonomic = use_wheel;
+  w.wheel_rows.non_holonomic = use_wheel;
 
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's
   // values only start the window.

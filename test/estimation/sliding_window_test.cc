@@ -65,7 +65,7 @@ SlidingWindowState StillState() {
 
 SlidingWindowOptions FastOptions() {
   SlidingWindowOptions options;
-  options.solver_iterations = 3;
+  options.solver.max_iterations = 3;
   return options;
 }
 
@@ -147,32 +147,32 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   };
   expect_rejected("window_size 1", [](SlidingWindowOptions* o) { o->window_size = 1; });
   expect_rejected("a sweep paired with itself",
-                  [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {-5, 0}; });
-  expect_rejected("no partners", [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {}; });
+                  [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {-5, 0}; });
+  expect_rejected("no partners", [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {}; });
   expect_rejected("a partner offset twice",
-                  [](SlidingWindowOptions* o) { o->partner_keyframe_offsets = {-5, 5, -5}; });
-  expect_rejected("max_plane_misses < 0", [](SlidingWindowOptions* o) { o->max_plane_misses = -1; });
+                  [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {-5, 5, -5}; });
+  expect_rejected("max_plane_misses < 0", [](SlidingWindowOptions* o) { o->window_pairing.max_plane_misses = -1; });
   expect_rejected("max_plane_misses > 255",
-                  [](SlidingWindowOptions* o) { o->max_plane_misses = 256; });
+                  [](SlidingWindowOptions* o) { o->window_pairing.max_plane_misses = 256; });
   expect_rejected("residual_max_range_m < 0",
-                  [](SlidingWindowOptions* o) { o->residual_max_range_m = -1.0; });
+                  [](SlidingWindowOptions* o) { o->pairing.residual_max_range_m = -1.0; });
   expect_rejected("residual_max_range_m NaN", [](SlidingWindowOptions* o) {
-    o->residual_max_range_m = std::numeric_limits<double>::quiet_NaN();
+    o->pairing.residual_max_range_m = std::numeric_limits<double>::quiet_NaN();
   });
   expect_rejected("settled_partner_count 0",
-                  [](SlidingWindowOptions* o) { o->settled_partner_count = 0; });
+                  [](SlidingWindowOptions* o) { o->window_pairing.settled_partner_count = 0; });
   expect_rejected("settled_extrinsic_deg < 0",
-                  [](SlidingWindowOptions* o) { o->settled_extrinsic_deg = -0.1; });
+                  [](SlidingWindowOptions* o) { o->window_pairing.settled_extrinsic_deg = -0.1; });
   expect_rejected("max_point_to_plane_m 0",
-                  [](SlidingWindowOptions* o) { o->max_point_to_plane_m = 0.0; });
+                  [](SlidingWindowOptions* o) { o->pairing.max_point_to_plane_m = 0.0; });
   expect_rejected("wheel_gyro_mean_span_s < 0",
-                  [](SlidingWindowOptions* o) { o->wheel_gyro_mean_span_s = -0.01; });
+                  [](SlidingWindowOptions* o) { o->wheel_rows.gyro_mean_span_s = -0.01; });
   expect_rejected("min_keyframe_interval_s < 0",
                   [](SlidingWindowOptions* o) { o->min_keyframe_interval_s = -0.01; });
   expect_rejected("gate_extrinsic_factor < 0",
-                  [](SlidingWindowOptions* o) { o->gate_extrinsic_factor = -0.25; });
+                  [](SlidingWindowOptions* o) { o->window_pairing.gate_extrinsic_factor = -0.25; });
   expect_rejected("gate_extrinsic_free_deg NaN",
-                  [](SlidingWindowOptions* o) { o->gate_extrinsic_free_deg = std::nan(""); });
+                  [](SlidingWindowOptions* o) { o->window_pairing.gate_extrinsic_free_deg = std::nan(""); });
   expect_rejected("calibration_prior.mean with a NaN", [](SlidingWindowOptions* o) {
     o->calibration_prior.mean = sensors::Calibration();
     o->calibration_prior.mean->p_I_L.y() = std::nan("");
@@ -182,7 +182,7 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
     o->calibration_prior.mean->q_I_V.coeffs().setZero();
   });
   SlidingWindowOptions options;
-  options.gate_extrinsic_factor = 0.0;  // a fixed gate
+  options.window_pairing.gate_extrinsic_factor = 0.0;  // a fixed gate
   EXPECT_NO_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()));
 }
 
@@ -693,7 +693,7 @@ class SlidingWindowUrban : public ::testing::Test {
     options.enu_origin_lla = Eigen::Vector3d(sim_options_->gnss.origin_lat_deg,
                                              sim_options_->gnss.origin_lon_deg,
                                              sim_options_->gnss.origin_alt_m);
-    options.max_residuals_per_sweep = 400;  // keeps the suite fast; the benchmark uses 2000
+    options.pairing.max_residuals_per_sweep = 400;  // keeps the suite fast; the benchmark uses 2000
     return options;
   }
 
@@ -867,7 +867,7 @@ TEST_F(SlidingWindowUrban, ConvergesFromNominalWhateverTheResidualCount) {
   for (int residuals : {370, 430}) {
     SCOPED_TRACE(residuals);
     SlidingWindowOptions options = Options();
-    options.max_residuals_per_sweep = residuals;
+    options.pairing.max_residuals_per_sweep = residuals;
     const Run run = Estimate(simulator_->nominal_calibration(), options);
     const CalibrationErrors after = ErrorsOf(run.calibration, truth);
     EXPECT_LT(run.max_position_error_m, 0.2);
@@ -890,7 +890,7 @@ double Mean(const std::vector<int>& values, size_t begin, size_t end) {
 TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions options = Options();
-  options.relinearization_tolerance_m = 0.0;
+  options.linearization.relinearization_tolerance_m = 0.0;
   const Run always = Estimate(nominal, options);
   ASSERT_FALSE(always.passes.empty());
   for (int passes : always.passes) EXPECT_EQ(passes, 2);
@@ -918,8 +918,8 @@ TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
 TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions fresh_options = Options();
-  fresh_options.reassociation_tolerance_m = 0.0;
-  fresh_options.map_rebuild_tolerance_m = 0.0;
+  fresh_options.window_pairing.reassociation_tolerance_m = 0.0;
+  fresh_options.window_pairing.map_rebuild_tolerance_m = 0.0;
   const Run fresh = Estimate(truth, fresh_options);
   const Run kept = Estimate(truth, Options());
   ASSERT_EQ(kept.points.size(), fresh.points.size());
@@ -941,9 +941,9 @@ TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
 // nominal calibration, with a tolerance of 5 mm so that tries go stale often.
 TEST_F(SlidingWindowUrban, SkipsOnlyKeyframesWithNothingToRepair) {
   SlidingWindowOptions skip = Options();
-  skip.reassociation_tolerance_m = 0.005;
+  skip.window_pairing.reassociation_tolerance_m = 0.005;
   SlidingWindowOptions walk_all = skip;
-  walk_all.skip_unchanged_keyframes = false;
+  walk_all.window_pairing.skip_unchanged_keyframes = false;
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   const Run walked = Estimate(nominal, walk_all);
   const Run skipped = Estimate(nominal, skip);
@@ -969,9 +969,9 @@ TEST_F(SlidingWindowUrban, SkipsOnlyKeyframesWithNothingToRepair) {
 TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions settled_options = Options();
-  settled_options.max_plane_misses = 0;
+  settled_options.window_pairing.max_plane_misses = 0;
   SlidingWindowOptions all_options = settled_options;
-  all_options.settled_partner_count = static_cast<int>(all_options.partner_keyframe_offsets.size());
+  all_options.window_pairing.settled_partner_count = static_cast<int>(all_options.pairing.partner_offsets.size());
   const Run all = Estimate(truth, all_options);
   const Run settled = Estimate(truth, settled_options);
   const size_t n = settled.settled.size();
@@ -1010,9 +1010,9 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
 TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions capped_options = Options();
-  capped_options.residual_max_range_m = 0.0;
+  capped_options.pairing.residual_max_range_m = 0.0;
   SlidingWindowOptions every_options = capped_options;
-  every_options.max_plane_misses = 0;
+  every_options.window_pairing.max_plane_misses = 0;
   const Run every = Estimate(nominal, every_options);
   const Run capped = Estimate(nominal, capped_options);
   ASSERT_EQ(capped.lookups.size(), every.lookups.size());

@@ -14,6 +14,7 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "factor_test_utils.h"
+#include "factors/point_group_storage.h"
 
 namespace autocal {
 namespace factors {
@@ -388,8 +389,8 @@ TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   State state = RandomState(&rng);
   auto old = std::make_unique<PointToSweepPlaneGroupFactor>(first, kGravity, loss);
   const test::Evaluation before = test::Evaluate(*old, state.Blocks());
-  PointToSweepPlaneGroupFactor::Released released =
-      PointToSweepPlaneGroupFactor::ReleasePoints(std::move(old));
+  ReleasedPointGroup released =
+      ReleasePoints(std::move(old));
   ASSERT_EQ(released.points.size(), first.size());
   ASSERT_EQ(released.plane_sides.size(), first.size());  // every plane motion differs
   const PointToSweepPlaneFactor::Terms* const reused = released.points.data();
@@ -415,8 +416,8 @@ TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   const test::Evaluation b = test::Evaluate(from_measurements, state.Blocks());
   EXPECT_EQ(a.residual, b.residual);
   for (size_t k = 0; k < a.jacobians.size(); ++k) EXPECT_EQ(a.jacobians[k], b.jacobians[k]);
-  const PointToSweepPlaneGroupFactor::Released none =
-      PointToSweepPlaneGroupFactor::ReleasePoints(nullptr);
+  const ReleasedPointGroup none =
+      ReleasePoints(nullptr);
   EXPECT_TRUE(none.points.empty());
   EXPECT_TRUE(none.plane_sides.empty());
 }

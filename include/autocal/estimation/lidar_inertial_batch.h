@@ -5,24 +5,24 @@
 // consecutive keyframes, point-to-plane factors from every sweep against a plane map built
 // from all sweeps, and the LiDAR-IMU extrinsic and time offset shared by all of them.
 // An outer loop re-propagates the sweeps with the current estimate, rebuilds the map,
-// re-associates the points and solves again (ICP style) until the calibration settles.
+// re-associates the points and solves again (ICP style) until the calibration settles. The
+// point selection, deskew and partner order are the sliding window's (PairingSetting).
 //
 // This is the solver core: it starts from given keyframe states and calibration (from an
 // initializer or a previous run) and refines them in place.
-
-#include <cstdint>
-#include <functional>
-#include <string>
-#include <vector>
 
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
 
 #include "autocal/estimation/keyframe.h"
+#include "autocal/estimation/pairing_setting.h"
 #include "autocal/factors/loss.h"
-#include "autocal/lidar/plane_map.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/measurements.h"
@@ -32,10 +32,10 @@ namespace autocal {
 namespace estimation {
 
 struct LidarInertialBatchProgress {
-  int iteration = 0;          // 1-based outer iteration just finished
+  int iteration = 0;  // 1-based outer iteration just finished
   int max_iterations = 0;
-  double cost = 0.0;          // final cost of its solve
-  double elapsed_s = 0.0;     // wall time since the solve began
+  double cost = 0.0;       // final cost of its solve
+  double elapsed_s = 0.0;  // wall time since the solve began
   int associated_points = 0;
 };
 
@@ -45,25 +45,10 @@ struct LidarInertialBatchOptions {
   // Keyframe k sits this long before the first point of sweep k (IMU clock, at the initial
   // offset), so that the offset estimate may move earlier by up to this much.
   double keyframe_lead_s = 0.02;
-  // Points of each sweep used as residuals: a voxel grid in L, then at most this many.
-  double residual_voxel_m = 0.6;
-  int max_residuals_per_sweep = 400;
-  // Points of each sweep that build its plane map (one per voxel of this size).
-  double map_voxel_m = 0.3;
+  // Residual and map points, partners and the outlier gate (shared with the sliding window).
+  PairingSetting pairing = BatchPairingDefaults();
   // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
   int map_neighbor_sweeps = 0;
-  lidar::PlaneMapOptions plane_map;
-  // A point of sweep k is paired with a plane of sweep k + offset, the offsets tried in this
-  // order (starting at a different one for consecutive points). Partners a few sweeps apart
-  // have rotated and moved relative to the point's sweep, which is what makes the extrinsic
-  // and time offset observable; they must still overlap it.
-  std::vector<int> partner_sweep_offsets = {5, -5, 10, -10, 20, -20, 3, -3};
-  double min_range_m = 2.0;  // points closer than this (the car itself) are ignored
-  // Outlier gate: a point farther than this from the plane found for it is not associated
-  // (moving objects, edges, planes fitted across a corner).
-  double max_point_to_plane_m = 0.1;
-  // 1-sigma of a point-to-plane distance (range noise and plane fit).
-  double point_sigma_m = 0.03;
   // Robust loss on point residuals, scale in units of sigma.
   factors::LossOptions point_loss{lidar::RobustLoss::kCauchy, 2.0};
   // The first iterations accept planes 2^(steps - iteration) times thicker and points that
@@ -102,15 +87,15 @@ struct LidarInertialBatchOptions {
 
 struct LidarInertialBatchReport {
   int outer_iterations = 0;
-  int associated_points = 0;          // in the last iteration
+  int associated_points = 0;  // in the last iteration
   double final_cost = 0.0;
-  double point_rms_m = 0.0;           // RMS point-to-plane distance of the last iteration
+  double point_rms_m = 0.0;  // RMS point-to-plane distance of the last iteration
   std::vector<sensors::Calibration> calibration_per_iteration;
   // Signed point-to-plane distances (m, no robust loss) at the start of the first iteration
   // and after the last solve, for residual statistics and histograms.
   std::vector<double> initial_point_residuals_m;
   std::vector<double> final_point_residuals_m;
-  std::string termination;            // Ceres' message of the last solve
+  std::string termination;  // Ceres' message of the last solve
   // Wall time spent propagating, building maps, associating and building the problems, and
   // in Ceres, summed over the outer iterations.
   double seconds_association = 0.0;

@@ -11,11 +11,12 @@
 // (-> dr_i as r_i -> 0). The block's cost 1/2 sum r~_i^2 = 1/2 sum rho(r_i^2) is then exactly
 // the cost of the one-row blocks with the loss given to Ceres.
 
-#include <memory>
-#include <vector>
-
 #include <ceres/ceres.h>
+
 #include <Eigen/Core>
+#include <memory>
+#include <utility>
+#include <vector>
 
 #include "autocal/factors/loss.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
@@ -25,11 +26,6 @@ namespace factors {
 
 class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
  public:
-  // A group's points' terms and their planes' sides (ReleasePoints).
-  struct Released {
-    std::vector<PointToSweepPlaneFactor::Terms> points;
-    std::vector<PointToSweepPlaneFactor::Side> plane_sides;
-  };
   // Parameters as PointToSweepPlaneFactor: keyframe k (q, p, v), keyframe j (q, p, v), q_I_L,
   // p_I_L, time offset. Throws autocal::Error for an empty group or a bad loss scale.
   PointToSweepPlaneGroupFactor(const std::vector<PointToSweepPlaneMeasurement>& points,
@@ -55,18 +51,15 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   int num_points() const { return static_cast<int>(points_.size()); }
   const std::vector<PointToSweepPlaneFactor::Terms>& points() const { return points_; }
   const std::vector<PointToSweepPlaneFactor::Side>& plane_sides() const { return plane_sides_; }
-  // Consumes a factor no longer needed and returns its points' terms and plane sides in their
-  // storage, for the group that replaces it (edited in place) or, emptied, for another group:
-  // a group of a few thousand points is a megabyte, which the allocator may hand back to the
-  // system when freed, so that its next use pays a page fault per 4 kB. Empty for a null
-  // factor.
-  static Released ReleasePoints(std::unique_ptr<PointToSweepPlaneGroupFactor> factor);
-
   // The whitened point-to-plane distances r_i (no loss), one per point.
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
  private:
-  PointToSweepPlaneGroupFactor(Released terms, const LossOptions& loss);
+  using TermsAndSides = std::pair<std::vector<PointToSweepPlaneFactor::Terms>,
+                                  std::vector<PointToSweepPlaneFactor::Side>>;
+  PointToSweepPlaneGroupFactor(TermsAndSides terms, const LossOptions& loss);
+  // Hands a released factor's storage on for reuse (src/factors/point_group_storage.h).
+  friend class PointGroupStorage;
   // Each plane side's share of an evaluation at `frame`, in plane_sides_'s order.
   std::vector<PointToSweepPlaneFactor::PlaneFrame> PlaneFrames(
       const PointToSweepPlaneFactor::Frame& frame) const;

@@ -1,0 +1,114 @@
+#pragma once
+
+// Options of the sliding-window estimator (sliding_window.h): what it estimates, its priors,
+// and the settings of its wheel rows, pairing, linearization and solver. The reasons behind
+// the defaults are in docs/history/sliding_window_notes.md.
+
+#include <Eigen/Core>
+#include <optional>
+
+#include "autocal/estimation/marginalization.h"
+#include "autocal/estimation/pairing_setting.h"
+#include "autocal/factors/loss.h"
+#include "autocal/sensors/calibration.h"
+#include "autocal/sensors/sensor_config.h"
+
+namespace autocal {
+namespace estimation {
+
+// Which calibration blocks the window estimates; the others are held at their initial value.
+struct SlidingWindowEstimatedBlocks {
+  bool extrinsic_rotation = true;     // q_I_L
+  bool extrinsic_translation = true;  // p_I_L
+  bool time_offset = true;            // time_offset_lidar_imu_s
+  bool wheel_radii = true;            // wheel_radius_left_m, wheel_radius_right_m
+  bool track_width = true;            // track_width_m
+  bool vehicle_frame = false;         // q_I_V, p_I_V (weakly observable from wheel data)
+  bool gnss_lever_arm = true;         // p_I_A
+};
+
+// Priors (1-sigma) tying each estimated calibration block to `mean`; never marginalized, they
+// regularize directions the first seconds of driving do not excite. `mean` unset: the initial
+// calibration. A value estimated from the same log is no prior (it would count its data twice).
+struct SlidingWindowCalibrationPrior {
+  std::optional<sensors::Calibration> mean;
+  double extrinsic_rotation_deg = 3.0;
+  double extrinsic_translation_m = 0.1;
+  double time_offset_s = 0.01;
+  double wheel_radius_m = 0.01;
+  double track_width_m = 0.05;
+  double vehicle_rotation_deg = 2.0;
+  double vehicle_translation_m = 0.1;
+  double gnss_lever_arm_m = 0.2;
+};
+
+// 1-sigma of the prior on the initial state, which fixes the gauge until GNSS does.
+struct SlidingWindowInitialStateSigmas {
+  double rotation_deg = 0.01;
+  double position_m = 0.001;
+  double velocity_m_s = 0.01;
+  double gyro_bias_rad_s = 2e-3;
+  double accel_bias_m_s2 = 3e-2;
+};
+
+// The wheel rows (docs/sliding_window.md, "Wheel factors"): speed and yaw rate whitened with
+// the encoder and gyro noise, optionally the rear axle's lateral and vertical speed.
+struct WheelRowSetting {
+  // Non-holonomic rows; their sigma is scaled for the model error's correlation time
+  // (NonHolonomicSigmaScale) at the spacing of the samples used (correlation 0: white rows).
+  bool non_holonomic = false;
+  double non_holonomic_sigma_m_s = 0.05;
+  double non_holonomic_correlation_s = 2.0;
+  int max_samples_per_interval = 5;  // evenly spread; 0: all
+  // The angular rate the rows take: the mean gyro over this span around the sample (0: the
+  // gyro interpolated at the sample), which keeps gyro noise out of the lever-arm regressor.
+  double gyro_mean_span_s = 0.05;
+};
+
+// Rows linearized per solve pass (docs/sliding_window.md, "Linearization per pass").
+struct LinearizationSetting {
+  // Passes per update: the first on every point group, wheel and GNSS row linearized afresh,
+  // a later one on the groups that moved. 0: one pass evaluating them at every iteration.
+  int passes_per_update = 2;
+  // A further pass runs only when some group's points moved by more than this since its
+  // linearization (0: always passes_per_update passes).
+  double relinearization_tolerance_m = 0.01;
+};
+
+// The window's Levenberg-Marquardt (docs/sliding_window.md, "Solver").
+struct WindowSolverSetting {
+  int max_iterations = 10;           // per pass
+  double function_tolerance = 1e-5;  // stop when an iteration lowers the cost less than this
+};
+
+struct SlidingWindowOptions {
+  int window_size = 10;  // keyframes kept; every LiDAR sweep becomes a keyframe
+  sensors::ImuConfig imu;
+  sensors::WheelConfig wheel;
+  factors::FactorLossOptions loss;  // per sensor, on whitened residuals
+  SlidingWindowEstimatedBlocks estimate;
+  SlidingWindowCalibrationPrior calibration_prior;
+  SlidingWindowInitialStateSigmas initial_state_sigmas;
+  WheelRowSetting wheel_rows;
+  // Origin of W for AddGnss(GnssFix) (latitude, longitude, ellipsoidal height); unset: the ENU
+  // frame at the first fix, so the initial state must be given in that frame.
+  std::optional<Eigen::Vector3d> enu_origin_lla;
+  // A keyframe sits keyframe_lead_s before its sweep's first point (room for the time offset
+  // to move earlier); a sweep is processed once the IMU covers its last point plus
+  // imu_coverage_margin_s; one whose keyframe would follow the newest by less than
+  // min_keyframe_interval_s is dropped as late.
+  double keyframe_lead_s = 0.02;
+  double imu_coverage_margin_s = 0.02;
+  double min_keyframe_interval_s = 0.02;
+  PairingSetting pairing = WindowPairingDefaults();
+  WindowPairingSetting window_pairing;
+  LinearizationSetting linearization;
+  WindowSolverSetting solver;
+  int num_threads = 1;  // the pairing's loops and the covariance; the solve runs on one
+  MarginalizationOptions marginalization;
+  // Keep each marginalized keyframe's conditional (about 12 KB each) for SmoothedTrajectory().
+  bool smoothing = false;
+};
+
+}  // namespace estimation
+}  // namespace autocal

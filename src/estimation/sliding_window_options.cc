@@ -1,0 +1,119 @@
+// Validation of SlidingWindowOptions: one clear message naming the first invalid option.
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "estimation/sliding_window_internal.h"
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+namespace {
+
+void CheckPositive(double value, const char* name) {
+  if (!(value > 0.0) || !std::isfinite(value)) {
+    throw Error(std::string("SlidingWindowOptions: ") + name + " must be positive and finite");
+  }
+}
+
+void CheckNonNegative(double value, const char* name) {
+  if (!(value >= 0.0) || !std::isfinite(value)) {
+    throw Error(std::string("SlidingWindowOptions: ") + name + " must be non-negative and finite");
+  }
+}
+
+void CheckPairing(const PairingSetting& p, const WindowPairingSetting& w) {
+  if (p.max_residuals_per_sweep < 0) {
+    throw Error("SlidingWindowOptions: pairing.max_residuals_per_sweep must not be negative");
+  }
+  if (w.max_plane_misses < 0 || w.max_plane_misses > 255) {
+    throw Error("SlidingWindowOptions: window_pairing.max_plane_misses must be in [0, 255], got " +
+                std::to_string(w.max_plane_misses));
+  }
+  CheckPositive(p.residual_voxel_m, "pairing.residual_voxel_m");
+  CheckNonNegative(p.residual_max_range_m, "pairing.residual_max_range_m");
+  CheckPositive(p.map_voxel_m, "pairing.map_voxel_m");
+  CheckPositive(p.point_sigma_m, "pairing.point_sigma_m");
+  CheckPositive(p.max_point_to_plane_m, "pairing.max_point_to_plane_m");
+  CheckNonNegative(w.gate_extrinsic_factor, "window_pairing.gate_extrinsic_factor");
+  CheckNonNegative(w.gate_extrinsic_free_deg, "window_pairing.gate_extrinsic_free_deg");
+  CheckNonNegative(w.settled_extrinsic_deg, "window_pairing.settled_extrinsic_deg");
+  CheckNonNegative(w.reassociation_tolerance_m, "window_pairing.reassociation_tolerance_m");
+  CheckNonNegative(w.map_rebuild_tolerance_m, "window_pairing.map_rebuild_tolerance_m");
+  if (p.partner_offsets.empty() ||
+      std::count(p.partner_offsets.begin(), p.partner_offsets.end(), 0) > 0) {
+    throw Error("SlidingWindowOptions: pairing.partner_offsets must be non-empty and non-zero");
+  }
+  std::vector<int> offsets = p.partner_offsets;
+  std::sort(offsets.begin(), offsets.end());
+  if (std::adjacent_find(offsets.begin(), offsets.end()) != offsets.end()) {
+    throw Error("SlidingWindowOptions: pairing.partner_offsets must not repeat an offset");
+  }
+  if (w.settled_partner_count < 1) {
+    throw Error("SlidingWindowOptions: window_pairing.settled_partner_count must be >= 1");
+  }
+}
+
+void CheckWheelRows(const WheelRowSetting& w) {
+  if (w.max_samples_per_interval < 0) {
+    throw Error("SlidingWindowOptions: wheel_rows.max_samples_per_interval must not be negative");
+  }
+  CheckPositive(w.non_holonomic_sigma_m_s, "wheel_rows.non_holonomic_sigma_m_s");
+  CheckNonNegative(w.non_holonomic_correlation_s, "wheel_rows.non_holonomic_correlation_s");
+  CheckNonNegative(w.gyro_mean_span_s, "wheel_rows.gyro_mean_span_s");
+}
+
+void CheckPriors(const SlidingWindowCalibrationPrior& c, const SlidingWindowInitialStateSigmas& x) {
+  for (double s :
+       {c.extrinsic_rotation_deg, c.extrinsic_translation_m, c.time_offset_s, c.wheel_radius_m,
+        c.track_width_m, c.vehicle_rotation_deg, c.vehicle_translation_m, c.gnss_lever_arm_m}) {
+    CheckPositive(s, "calibration_prior sigmas");
+  }
+  if (c.mean) {
+    const sensors::Calibration& m = *c.mean;
+    const bool finite = m.q_I_L.coeffs().allFinite() && m.p_I_L.allFinite() &&
+                        m.q_I_V.coeffs().allFinite() && m.p_I_V.allFinite() &&
+                        m.p_I_A.allFinite() && std::isfinite(m.time_offset_lidar_imu_s) &&
+                        std::isfinite(m.wheel_radius_left_m) &&
+                        std::isfinite(m.wheel_radius_right_m) && std::isfinite(m.track_width_m);
+    if (!finite || m.q_I_L.norm() < 0.5 || m.q_I_V.norm() < 0.5) {
+      throw Error(
+          "SlidingWindowOptions: calibration_prior.mean must be finite with unit quaternions");
+    }
+  }
+  for (double s :
+       {x.rotation_deg, x.position_m, x.velocity_m_s, x.gyro_bias_rad_s, x.accel_bias_m_s2}) {
+    CheckPositive(s, "initial_state_sigmas");
+  }
+}
+
+}  // namespace
+
+void CheckOptions(const SlidingWindowOptions& o) {
+  if (o.window_size < 2) throw Error("SlidingWindowOptions: window_size must be at least 2");
+  if (o.linearization.passes_per_update < 0) {
+    throw Error("SlidingWindowOptions: linearization.passes_per_update must be >= 0");
+  }
+  CheckNonNegative(o.linearization.relinearization_tolerance_m,
+                   "linearization.relinearization_tolerance_m");
+  if (o.solver.max_iterations < 1) {
+    throw Error("SlidingWindowOptions: solver.max_iterations must be at least 1");
+  }
+  CheckPositive(o.solver.function_tolerance, "solver.function_tolerance");
+  CheckPairing(o.pairing, o.window_pairing);
+  CheckWheelRows(o.wheel_rows);
+  CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
+  CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
+  if (o.keyframe_lead_s < 0.0 || o.imu_coverage_margin_s < 0.0 || o.min_keyframe_interval_s < 0.0) {
+    throw Error(
+        "SlidingWindowOptions: keyframe_lead_s, imu_coverage_margin_s and "
+        "min_keyframe_interval_s must be >= 0");
+  }
+  CheckPriors(o.calibration_prior, o.initial_state_sigmas);
+}
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
