@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <sstream>
 
 #include "autocal/common/error.h"
 
@@ -19,10 +20,16 @@ std::string Trim(const std::string& s) {
   return begin < end ? std::string(begin, end) : std::string();
 }
 
+// A scale is in sigmas. Outside [kMinLossScale, kMaxLossScale] Ceres' losses break down:
+// Cauchy keeps b = scale^2 and c = 1 / b, so a scale of 1e300 evaluates rho = inf * 0 = NaN,
+// and a scale below 1e-154 makes b zero. Within it, rho stays finite for any finite residual.
 void CheckScale(double scale, const std::string& context) {
-  if (!(scale > 0.0) || !std::isfinite(scale)) {
-    throw Error("robust loss '" + context + "': scale must be a positive number, got " +
-                std::to_string(scale));
+  if (!(scale >= kMinLossScale && scale <= kMaxLossScale)) {
+    std::ostringstream message;
+    message << "robust loss '" << context << "': scale must be between " << kMinLossScale
+            << " and " << kMaxLossScale << " sigmas, got " << scale
+            << " (for no robust loss write none)";
+    throw Error(message.str());
   }
 }
 

@@ -9,6 +9,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
+#include "support/simulation_cache.h"
 
 namespace autocal {
 namespace estimation {
@@ -34,7 +35,7 @@ class LidarInertialBatchTest : public ::testing::Test {
     sim_options.wheel.enabled = false;
     sim_options.gnss.enabled = false;
     simulator_ = new sim::Simulator(sim_options);
-    log_ = new sim::SimulatedLog(sim::Simulate(*simulator_));
+    log_ = new sim::SimulatedLog(test::CachedSimulatedLog(*simulator_));
   }
   static void TearDownTestSuite() {
     delete log_;

@@ -25,6 +25,7 @@
 #include "estimation/sliding_window_internal.h"
 #include "estimation/true_keyframe.h"
 #include "factors/factor_test_utils.h"
+#include "support/simulation_cache.h"
 
 namespace autocal {
 namespace estimation {
@@ -677,7 +678,7 @@ class SlidingWindowUrban : public ::testing::Test {
     sim_options_->seed = 7;
     sim_options_->lidar.config.num_beams = 16;
     simulator_ = new sim::Simulator(*sim_options_);
-    log_ = new sim::SimulatedLog(sim::Simulate(*simulator_));
+    log_ = new sim::SimulatedLog(test::CachedSimulatedLog(*simulator_));
   }
   static void TearDownTestSuite() {
     delete log_;

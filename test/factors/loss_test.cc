@@ -33,7 +33,10 @@ TEST(Loss, ParsesTypesAndScales) {
 
 TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
   const std::string cases[] = {"tukey",    "huber:",     "huber:abc", "huber:-1",
-                               "cauchy 0", "huber:1.5x", ""};
+                               "cauchy 0", "huber:1.5x", "",
+                               // Out of range: Cauchy at 1e300 evaluates inf * 0 = NaN.
+                               "cauchy:1e300", "huber:1e300", "cauchy:1e-300", "huber:inf",
+                               "huber:nan"};
   for (const std::string& text : cases) {
     try {
       ParseLossOptions(text);
@@ -49,6 +52,21 @@ TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
     EXPECT_NE(std::string(e.what()).find("expected none, huber or cauchy"), std::string::npos);
   }
   EXPECT_THROW(MakeLossFunction(LossOptions{lidar::RobustLoss::kHuber, 0.0}), Error);
+  EXPECT_THROW(MakeLossFunction(LossOptions{lidar::RobustLoss::kCauchy, 1e300}), Error);
+}
+
+// At both ends of the accepted range every loss stays finite, whatever the residual.
+TEST(Loss, StaysFiniteAcrossTheAcceptedScales) {
+  for (const lidar::RobustLoss type : {lidar::RobustLoss::kHuber, lidar::RobustLoss::kCauchy}) {
+    for (const double scale : {kMinLossScale, kMaxLossScale}) {
+      std::unique_ptr<ceres::LossFunction> loss(MakeLossFunction({type, scale}));
+      for (const double s : {0.0, 1e-12, 1.0, 1e12, 1e300}) {
+        double rho[3];
+        loss->Evaluate(s, rho);
+        for (const double r : rho) EXPECT_TRUE(std::isfinite(r)) << scale << " " << s;
+      }
+    }
+  }
 }
 
 // The created losses behave as their kind: quadratic inside the scale, and for Huber

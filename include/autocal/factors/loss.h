@@ -28,13 +28,18 @@ struct FactorLossOptions {
   LossOptions lidar{lidar::RobustLoss::kHuber, 1.0};
 };
 
+// The scales a loss accepts, in sigmas: wider ones are no robust loss at all, narrower ones
+// no residual at all, and both overflow Ceres' loss arithmetic at the extremes.
+constexpr double kMinLossScale = 1e-3;
+constexpr double kMaxLossScale = 1e3;
+
 // "none", "<type>" (scale 1) or "<type>:<scale>" / "<type> <scale>", e.g. "huber:1.5";
 // <type> as lidar::ParseRobustLoss reads it (case-insensitive).
-// Throws autocal::Error on an unknown type or a scale that is not a positive number.
+// Throws autocal::Error on an unknown type or a scale outside [kMinLossScale, kMaxLossScale].
 LossOptions ParseLossOptions(const std::string& text);
 
 // A new loss function for Problem::AddResidualBlock (which takes ownership), or nullptr for
-// kNone (plain least squares). Throws autocal::Error on a non-positive scale.
+// kNone (plain least squares). Throws autocal::Error on a scale out of range.
 ceres::LossFunction* MakeLossFunction(const LossOptions& options);
 
 }  // namespace factors
