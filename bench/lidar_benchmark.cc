@@ -5,11 +5,10 @@
 
 #include <benchmark/benchmark.h>
 
-#include <nanoflann.hpp>
-
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
+#include <nanoflann.hpp>
 #include <random>
 #include <string>
 #include <vector>

@@ -1,11 +1,11 @@
 // Marginalizing the oldest keyframe of a sliding window: its IMU factor to the next keyframe
 // and the point-to-plane residuals of its sweep (which also touch the calibration blocks).
+#include <benchmark/benchmark.h>
+#include <ceres/ceres.h>
+
 #include <memory>
 #include <random>
 #include <vector>
-
-#include <benchmark/benchmark.h>
-#include <ceres/ceres.h>
 
 #include "autocal/estimation/marginalization.h"
 #include "autocal/factors/imu_factor.h"
@@ -49,9 +49,8 @@ void BM_MarginalizeOldestKeyframe(benchmark::State& bench) {
     for (State* s : {&a, &b}) problem.AddParameterBlock(s->q.coeffs().data(), 4, &manifold);
     problem.AddParameterBlock(q_I_L.coeffs().data(), 4, &manifold);
     problem.AddResidualBlock(factors::ImuFactor::Create(pim), nullptr, a.q.coeffs().data(),
-                             a.p.data(), a.v.data(), a.bg.data(), a.ba.data(),
-                             b.q.coeffs().data(), b.p.data(), b.v.data(), b.bg.data(),
-                             b.ba.data());
+                             a.p.data(), a.v.data(), a.bg.data(), a.ba.data(), b.q.coeffs().data(),
+                             b.p.data(), b.v.data(), b.bg.data(), b.ba.data());
     ceres::LossFunction* loss = new ceres::CauchyLoss(2.0);
     for (int i = 0; i < points; ++i) {
       factors::PointToPlaneMeasurement m;

@@ -1,10 +1,10 @@
 // Cost of one LiDAR point-to-plane residual with all Jacobians, analytic vs autodiff twin:
 // against a plane held in W, and against a plane of another sweep, alone and in a group.
+#include <benchmark/benchmark.h>
+
 #include <memory>
 #include <random>
 #include <vector>
-
-#include <benchmark/benchmark.h>
 
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
@@ -93,8 +93,8 @@ struct SweepPairState {
   Eigen::Vector3d p_I_L{0.3, 0.0, 0.4};
   double offset_s = 0.01;
   std::vector<const double*> Blocks() const {
-    return {q_k.coeffs().data(), p_k.data(),   v_k.data(),
-            q_j.coeffs().data(), p_j.data(),   v_j.data(),
+    return {q_k.coeffs().data(),   p_k.data(),   v_k.data(),
+            q_j.coeffs().data(),   p_j.data(),   v_j.data(),
             q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
   }
 };

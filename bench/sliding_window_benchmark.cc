@@ -5,8 +5,10 @@
 // lookups and the point-to-plane residuals in the window; the thread CPU time of an update
 // (robust to other load on the machine) and the median step of the calibration per update.
 // BM_PlaneLookup times the association's inner step, a plane lookup, on its own.
+#include <benchmark/benchmark.h>
 #include <time.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -14,10 +16,6 @@
 #include <string>
 #include <tuple>
 #include <vector>
-
-#include <benchmark/benchmark.h>
-
-#include <Eigen/Core>
 
 #include "autocal/common/time.h"
 #include "autocal/estimation/sliding_window.h"
@@ -48,12 +46,14 @@ const Log& UrbanLog() {
     l->simulator = std::make_unique<sim::Simulator>(l->options);
     l->data = sim::Simulate(*l->simulator);
     const sim::SimulatedLog& d = l->data;
-    for (size_t i = 0; i < d.imu.samples.size(); ++i) l->events.emplace_back(d.imu.samples[i].t_ns, 0, i);
+    for (size_t i = 0; i < d.imu.samples.size(); ++i)
+      l->events.emplace_back(d.imu.samples[i].t_ns, 0, i);
     for (size_t i = 0; i < d.wheel.size(); ++i) l->events.emplace_back(d.wheel[i].t_ns, 1, i);
-    for (size_t i = 0; i < d.gnss.fixes.size(); ++i) l->events.emplace_back(d.gnss.fixes[i].t_ns, 2, i);
+    for (size_t i = 0; i < d.gnss.fixes.size(); ++i)
+      l->events.emplace_back(d.gnss.fixes[i].t_ns, 2, i);
     for (size_t i = 0; i < d.sweeps.size(); ++i) {
-      l->events.emplace_back(d.sweeps[i].t_ns + SecondsToNs(d.sweeps[i].cloud.time_s.maxCoeff()),
-                             3, i);
+      l->events.emplace_back(d.sweeps[i].t_ns + SecondsToNs(d.sweeps[i].cloud.time_s.maxCoeff()), 3,
+                             i);
     }
     std::stable_sort(l->events.begin(), l->events.end(),
                      [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
@@ -106,9 +106,9 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
   estimation::SlidingWindowOptions options;
   options.imu = config.imu;
   options.wheel = *config.wheel;
-  options.enu_origin_lla = Eigen::Vector3d(log.options.gnss.origin_lat_deg,
-                                           log.options.gnss.origin_lon_deg,
-                                           log.options.gnss.origin_alt_m);
+  options.enu_origin_lla =
+      Eigen::Vector3d(log.options.gnss.origin_lat_deg, log.options.gnss.origin_lon_deg,
+                      log.options.gnss.origin_alt_m);
   options.pairing.max_residuals_per_sweep = static_cast<int>(bench.range(0));
   options.pairing.residual_voxel_m = 0.01 * static_cast<double>(bench.range(2));
   if (bench.range(1) == 0) {  // no reuse: every keyframe re-paired, every map rebuilt
@@ -139,10 +139,18 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
     for (const auto& [t, kind, i] : log.events) {
       const double cpu_start_s = ThreadCpuSeconds();
       switch (kind) {
-        case 0: estimator.AddImu(log.data.imu.samples[i]); break;
-        case 1: estimator.AddWheel(log.data.wheel[i]); break;
-        case 2: estimator.AddGnss(log.data.gnss.fixes[i]); break;
-        default: estimator.AddSweep(log.data.sweeps[i]); break;
+        case 0:
+          estimator.AddImu(log.data.imu.samples[i]);
+          break;
+        case 1:
+          estimator.AddWheel(log.data.wheel[i]);
+          break;
+        case 2:
+          estimator.AddGnss(log.data.gnss.fixes[i]);
+          break;
+        default:
+          estimator.AddSweep(log.data.sweeps[i]);
+          break;
       }
       if (estimator.counters().updates == updates) continue;
       updates = estimator.counters().updates;
@@ -154,13 +162,14 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * 180.0 /
                                   M_PI);
       translation_step_mm.push_back(1e3 * (c.p_I_L - previous.p_I_L).norm());
-      offset_step_ms.push_back(1e3 * std::abs(c.time_offset_lidar_imu_s -
-                                              previous.time_offset_lidar_imu_s));
+      offset_step_ms.push_back(
+          1e3 * std::abs(c.time_offset_lidar_imu_s - previous.time_offset_lidar_imu_s));
       previous = c;
       points.push_back(estimator.last_associated_points());
       iterations.push_back(timing.solver_iterations);
       passes.push_back(timing.solver_passes);
-      if (timing.marginalization_s > 0.0) marginalization_ms.push_back(1e3 * timing.marginalization_s);
+      if (timing.marginalization_s > 0.0)
+        marginalization_ms.push_back(1e3 * timing.marginalization_s);
     }
     q_I_L_error_deg = geometry::AngularDistance(estimator.calibration().q_I_L,
                                                 log.simulator->true_calibration().q_I_L) *
@@ -180,8 +189,8 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       passes.empty() ? 0.0 : std::accumulate(passes.begin(), passes.end(), 0.0) / passes.size();
   bench.counters["marginalization_p50_ms"] = Percentile(marginalization_ms, 0.5);
   bench.counters["marginalization_p99_ms"] = Percentile(marginalization_ms, 0.99);
-  bench.counters["settled_share"] = static_cast<double>(settled.update_ms.size()) /
-                                   static_cast<double>(all.update_ms.size());
+  bench.counters["settled_share"] =
+      static_cast<double>(settled.update_ms.size()) / static_cast<double>(all.update_ms.size());
   settled.Report("settled_", &bench);
   bench.counters["q_I_L_error_end_deg"] = q_I_L_error_deg;
 }
@@ -214,8 +223,7 @@ void BM_PlaneLookup(benchmark::State& bench) {
   // The window's defaults: residual points one per 0.6 m voxel (at most 2000, evenly
   // spread), map points one per 0.3 m voxel, in a map of the default options.
   const lidar::LidarSweep& residual_sweep = log.data.sweeps[100];
-  const lidar::LidarSweep& map_sweep =
-      log.data.sweeps[static_cast<size_t>(100 + bench.range(0))];
+  const lidar::LidarSweep& map_sweep = log.data.sweeps[static_cast<size_t>(100 + bench.range(0))];
   const lidar::PlaneMap map(lidar::VoxelDownsample(map_sweep.cloud, 0.3).points);
   const Eigen::Matrix3Xd residual = lidar::VoxelDownsample(residual_sweep.cloud, 0.6).points;
   const geometry::Pose3d T_Lj_Lk = T_W_L(map_sweep).Inverse() * T_W_L(residual_sweep);
@@ -232,9 +240,9 @@ void BM_PlaneLookup(benchmark::State& bench) {
     benchmark::DoNotOptimize(found);
   }
   bench.SetItemsProcessed(bench.iterations() * count);
-  bench.counters["ns_per_lookup"] = benchmark::Counter(
-      static_cast<double>(bench.iterations() * count), benchmark::Counter::kIsRate |
-                                                           benchmark::Counter::kInvert);
+  bench.counters["ns_per_lookup"] =
+      benchmark::Counter(static_cast<double>(bench.iterations() * count),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
   bench.counters["found_share"] = static_cast<double>(found) / static_cast<double>(count);
   bench.counters["map_points"] = static_cast<double>(map.size());
 }

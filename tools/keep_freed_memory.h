@@ -17,9 +17,9 @@ namespace tools {
 
 inline void KeepFreedMemory() {
 #if defined(__GLIBC__)
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);  // blocks below 32 MiB (glibc's largest) on the heap
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);   // blocks below 32 MiB (glibc's largest) on the heap
   mallopt(M_TRIM_THRESHOLD, 256 << 20);  // the heap's free top kept up to 256 MiB
-  mallopt(M_TOP_PAD, 64 << 20);         // and grown in 64 MiB steps
+  mallopt(M_TOP_PAD, 64 << 20);          // and grown in 64 MiB steps
 #endif
 }
 

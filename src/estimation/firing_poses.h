@@ -5,10 +5,9 @@
 // times take the same motion and pose, formed once (docs/sliding_window.md, "Shared firing
 // poses"). Used by the sliding window and the batch solver alike.
 
-#include <limits>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <limits>
 
 #include "autocal/factors/point_to_plane_factor.h"
 

@@ -1,9 +1,9 @@
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 
+#include <ceres/ceres.h>
+
 #include <cmath>
 #include <memory>
-
-#include <ceres/ceres.h>
 
 #include "autocal/common/error.h"
 #include "autocal/factors/prior_factors.h"
@@ -40,8 +40,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
     if (kf.v_W_I.head<2>().norm() < options.placement.min_heading_speed_m_s) continue;
     const Eigen::Vector3d p_W_A = kf.p_W_I + kf.q_W_I * calibration.p_I_A;
     const double psi = std::atan2(kf.v_W_I.y(), kf.v_W_I.x());
-    kf.q_W_I = (Eigen::Quaterniond(Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ())) * q_V_I)
-                   .normalized();
+    kf.q_W_I =
+        (Eigen::Quaterniond(Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ())) * q_V_I).normalized();
     kf.p_W_I = p_W_A - kf.q_W_I * calibration.p_I_A;
   }
 
@@ -50,7 +50,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   geometry::RightQuaternionManifold quaternion_manifold;
-  for (Keyframe& kf : kfs) problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
+  for (Keyframe& kf : kfs)
+    problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
   KeyframeImuOptions imu_options;
   imu_options.noise = options.imu_noise;
   imu_options.gravity_m_s2 = options.gravity_m_s2;
@@ -69,7 +70,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
     wheel_options.estimate_vehicle_rotation = true;
     problem.AddResidualBlock(
         new factors::QuaternionPriorFactor(
-            held.q_I_V, Eigen::Matrix3d::Identity() / (options.vehicle_rotation_prior_sigma_deg * M_PI / 180.0)),
+            held.q_I_V, Eigen::Matrix3d::Identity() /
+                            (options.vehicle_rotation_prior_sigma_deg * M_PI / 180.0)),
         nullptr, held.q_I_V.coeffs().data());
     wheel_options.estimate_vehicle_translation = false;
     wheel_options.estimate_radii = true;

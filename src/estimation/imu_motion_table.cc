@@ -25,9 +25,8 @@ sensors::ImuSample Interpolate(const sensors::ImuSample& a, const sensors::ImuSa
 
 }  // namespace
 
-ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns,
-                               int64_t t_end_ns, const Eigen::Vector3d& b_g,
-                               const Eigen::Vector3d& b_a)
+ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
+                               const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a)
     : t_begin_ns_(t_begin_ns), t_end_ns_(t_end_ns) {
   if (imu.size() < 2 || t_begin_ns < imu.front().t_ns || t_end_ns > imu.back().t_ns ||
       t_end_ns < t_begin_ns) {
@@ -48,8 +47,12 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
     knots.push_back(last->t_ns == t_end_ns ? *last : Interpolate(*(last - 1), *last, t_end_ns));
   }
 
-  Node node{t_begin_ns, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero(),
-            Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  Node node{t_begin_ns,
+            Eigen::Quaterniond::Identity(),
+            Eigen::Vector3d::Zero(),
+            Eigen::Vector3d::Zero(),
+            Eigen::Vector3d::Zero(),
+            Eigen::Vector3d::Zero()};
   for (size_t i = 0; i + 1 < knots.size(); ++i) {
     node.t_ns = knots[i].t_ns;
     node.gyro = 0.5 * (knots[i].gyro_rad_s + knots[i + 1].gyro_rad_s) - b_g;

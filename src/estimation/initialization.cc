@@ -1,12 +1,11 @@
 #include "autocal/estimation/initialization.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <optional>
 #include <string>
-
-#include <Eigen/SVD>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
@@ -193,8 +192,8 @@ StillStart DetectStillStartAsLogged(const sensors::ImuSamples& imu,
   out.t_begin_ns = imu[first].t_ns;
   out.t_end_ns = imu[last - 1].t_ns;
   if (SecondsBetween(out.t_begin_ns, out.t_end_ns) < 0.75 * options.min_duration_s) {
-    out.reason = "the longest still period is shorter than " +
-                 std::to_string(options.min_duration_s) + " s";
+    out.reason =
+        "the longest still period is shorter than " + std::to_string(options.min_duration_s) + " s";
     return out;
   }
   const AxisStats g = Stats(imu, first, last, Gyro);
@@ -361,7 +360,8 @@ HandEyeRotation SolveHandEyeRotation(const std::vector<Eigen::Quaterniond>& imu_
       const double r = geometry::AngularDistance(Eigen::Quaterniond(imu_rotations[i] * x),
                                                  Eigen::Quaterniond(x * lidar_rotations[i]));
       sum_sq += r * r;
-      weights[i] = r <= options.huber_threshold_rad ? 1.0 : std::sqrt(options.huber_threshold_rad / r);
+      weights[i] =
+          r <= options.huber_threshold_rad ? 1.0 : std::sqrt(options.huber_threshold_rad / r);
     }
     out.rms_residual_rad = std::sqrt(sum_sq / static_cast<double>(n));
   }

@@ -1,11 +1,10 @@
 #include "autocal/estimation/marginalization.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <set>
 #include <string>
 #include <utility>
-
-#include <Eigen/Eigenvalues>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
@@ -38,8 +37,8 @@ struct Eigenspace {
 
 Eigenspace SignificantEigenspace(const Eigen::MatrixXd& symmetric,
                                  const MarginalizationOptions& options) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(
-      0.5 * (symmetric + symmetric.transpose()));
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(0.5 *
+                                                              (symmetric + symmetric.transpose()));
   const Eigen::VectorXd& values = solver.eigenvalues();
   const double largest = values.size() > 0 ? values.maxCoeff() : 0.0;
   const double threshold = std::max(options.absolute_eigenvalue_threshold,
@@ -253,8 +252,7 @@ std::unique_ptr<MarginalizationPrior> Marginalize(ceres::Problem* problem,
   // 4. H* = S^T S (Eq. M2) and r0 (Eq. M3), keeping only informative directions.
   const Eigenspace star = SignificantEigenspace(H_star, options);
   if (star.values.size() == 0) return nullptr;
-  const Eigen::MatrixXd S =
-      star.values.cwiseSqrt().asDiagonal() * star.vectors.transpose();
+  const Eigen::MatrixXd S = star.values.cwiseSqrt().asDiagonal() * star.vectors.transpose();
   const Eigen::VectorXd r0 =
       star.values.cwiseSqrt().cwiseInverse().asDiagonal() * (star.vectors.transpose() * b_star);
 

@@ -3,13 +3,12 @@
 // The Gauss-Newton normal equations of a set of Ceres residual blocks in tangent coordinates,
 // shared by marginalization (Eq. M1) and the window's solver (docs/sliding_window.md, Eq. SW11).
 
-#include <functional>
-#include <map>
-#include <vector>
-
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <functional>
+#include <map>
+#include <vector>
 
 namespace autocal {
 namespace estimation {

@@ -2,11 +2,10 @@
 // sliding_window_factors.h; derivation there and in docs/sliding_window.md, "Wheel rows with
 // analytic Jacobians").
 
-#include <cmath>
-#include <utility>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
+#include <utility>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
@@ -64,7 +63,7 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
   deltas.Corrected<double>(b_g, b_a, &dq, &dv, nullptr, &phi_bg);
   const Eigen::Vector3d w = q_k.conjugate() * (v_k + pim_.gravity_W() * pim_.dt_s());
   const Eigen::Vector3d u = w + dv;
-  const double* wheel_parameters[kWheelBlocks] = {dq.coeffs().data(), u.data(), parameters[2],
+  const double* wheel_parameters[kWheelBlocks] = {dq.coeffs().data(), u.data(),      parameters[2],
                                                   parameters[4],      parameters[5], parameters[6],
                                                   parameters[7],      parameters[8]};
   const int rows = num_residuals();
@@ -92,8 +91,9 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
   residuals[0] *= speed_scale;
   residuals[1] *= yaw_scale;
   const auto wheel_block = [&](int i, int size) {
-    return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor,
-                                          kMaxRows, 4>>(wheel_storage[i], rows, size);
+    return Eigen::Map<
+        const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor, kMaxRows, 4>>(
+        wheel_storage[i], rows, size);
   };
   // The attitude's rows in its right tangent: the wheel factor gives them lifted to dq's
   // ambient coordinates, which dq's PlusJacobian takes back exactly.

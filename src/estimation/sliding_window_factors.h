@@ -5,6 +5,11 @@
 // IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8), and the compressed form of a
 // point group the solver sees (Eq. SW5).
 
+#include <ceres/ceres.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -12,12 +17,6 @@
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <ceres/ceres.h>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "autocal/common/error.h"
 #include "autocal/factors/gnss_factor.h"
@@ -129,7 +128,7 @@ class PropagatedWheelResidual {
  private:
   sensors::ImuPreintegration pim_;
   factors::WheelResidual wheel_;
-  double speed_sigma_m_s_;       // the sigmas wheel_ whitens with
+  double speed_sigma_m_s_;  // the sigmas wheel_ whitens with
   double yaw_rate_sigma_rad_s_;
   double encoder_sigma_rad_s_;
   double gyro_sigma_rad_s_;
@@ -316,8 +315,7 @@ class LinearizedCost final : public ceres::CostFunction {
     r0_.resize(rows);
     J_.resize(rows, ambient);
     x0_.resize(ambient);
-    std::vector<Eigen::Matrix<double, kRows, Eigen::Dynamic, Eigen::RowMajor>> blocks(
-        sizes.size());
+    std::vector<Eigen::Matrix<double, kRows, Eigen::Dynamic, Eigen::RowMajor>> blocks(sizes.size());
     std::vector<double*> jacobians(sizes.size());
     for (size_t b = 0; b < sizes.size(); ++b) {
       blocks[b].resize(rows, sizes[b]);

@@ -15,9 +15,9 @@
 #include <vector>
 
 #include "autocal/estimation/marginalization.h"
-#include "autocal/lidar/plane_map.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/manifolds.h"
+#include "autocal/lidar/plane_map.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/point_group_pool.h"

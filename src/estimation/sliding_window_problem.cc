@@ -216,8 +216,9 @@ std::vector<double> SlidingWindowEstimator::Impl::PointGroupMotions() const {
       // sweep's duration.
       const double deskew_m = (kf.state.v_W_I - l.v_W_Ik).norm() * kf.sweep_duration_s +
                               (partner.state.v_W_I - l.v_W_Ij).norm() * partner.sweep_duration_s;
-      motions.push_back(internal::MaxPointMotion(l.T_W_Lj.Inverse() * l.T_W_Lk, T_W_Lj.Inverse() * T_W_Lk,
-                                       kf.residuals.max_range_m) +
+      motions.push_back(internal::MaxPointMotion(l.T_W_Lj.Inverse() * l.T_W_Lk,
+                                                 T_W_Lj.Inverse() * T_W_Lk,
+                                                 kf.residuals.max_range_m) +
                         deskew_m);
     }
   }

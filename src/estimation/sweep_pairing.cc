@@ -66,7 +66,6 @@ double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& af
 
 namespace {
 
-
 // Propagates the sweep with the current estimate and rebuilds its plane map when the deskew
 // moved a map point by more than `rebuild_tolerance_m` (Eq. SW4). The map holds the map
 // points deskewed into L_j at the reference instant.

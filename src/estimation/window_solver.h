@@ -6,12 +6,11 @@
 // evaluates the rows that are relinearized (the IMU factors, rows with a robust loss) and
 // solves the dense system.
 
-#include <vector>
-
 #include <ceres/ceres.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <vector>
 
 namespace autocal {
 namespace estimation {

@@ -26,9 +26,8 @@ std::string Trim(const std::string& s) {
 void CheckScale(double scale, const std::string& context) {
   if (!(scale >= kMinLossScale && scale <= kMaxLossScale)) {
     std::ostringstream message;
-    message << "robust loss '" << context << "': scale must be between " << kMinLossScale
-            << " and " << kMaxLossScale << " sigmas, got " << scale
-            << " (for no robust loss write none)";
+    message << "robust loss '" << context << "': scale must be between " << kMinLossScale << " and "
+            << kMaxLossScale << " sigmas, got " << scale << " (for no robust loss write none)";
     throw Error(message.str());
   }
 }

@@ -20,8 +20,8 @@ static_assert(4 + 3 + 3 + 4 + 3 + 3 + 4 + 3 + 1 == PointToSweepPlaneGroupFactor:
 namespace {
 
 bool SameMotion(const PointMotion& a, const PointMotion& b) {
-  return a.dt_s == b.dt_s && a.delta_q.coeffs() == b.delta_q.coeffs() &&
-         a.delta_v == b.delta_v && a.delta_p == b.delta_p && a.omega_rad_s == b.omega_rad_s;
+  return a.dt_s == b.dt_s && a.delta_q.coeffs() == b.delta_q.coeffs() && a.delta_v == b.delta_v &&
+         a.delta_p == b.delta_p && a.omega_rad_s == b.omega_rad_s;
 }
 
 // The points' terms, with one plane side per run of points with the same plane motion.
@@ -59,8 +59,8 @@ PointToSweepPlaneGroupFactor::PointToSweepPlaneGroupFactor(
   if (points_.empty()) throw Error("PointToSweepPlaneGroupFactor: no points");
   for (size_t i = 0; i < points_.size(); ++i) {
     if (points_[i].plane_side() >= plane_sides_.size()) {
-      throw Error("PointToSweepPlaneGroupFactor: point " + std::to_string(i) + " refers to plane side " +
-                  std::to_string(points_[i].plane_side()) + " of " +
+      throw Error("PointToSweepPlaneGroupFactor: point " + std::to_string(i) +
+                  " refers to plane side " + std::to_string(points_[i].plane_side()) + " of " +
                   std::to_string(plane_sides_.size()));
     }
   }

@@ -1,8 +1,7 @@
 #include "autocal/geometry/manifolds.h"
 
-#include <cmath>
-
 #include <Eigen/Geometry>
+#include <cmath>
 
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"

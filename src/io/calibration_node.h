@@ -3,9 +3,9 @@
 // Reads the calibration schema from a YAML node, for calibration.yaml files and for the
 // nominal_calibration section of sensors.yaml. Private to src/io.
 
-#include <string>
-
 #include <yaml-cpp/yaml.h>
+
+#include <string>
 
 #include "autocal/io/calibration_yaml.h"
 #include "io/yaml_util.h"

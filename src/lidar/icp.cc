@@ -133,8 +133,7 @@ NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpT
 
   const Eigen::Matrix3Xd& normals = target.normals().normals;
   const Eigen::VectorXd& planarity = target.normals().planarity;
-  std::vector<NormalEquations> partial(
-      static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
+  std::vector<NormalEquations> partial(static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
   ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int chunk) {
     NormalEquations& eq = partial[static_cast<size_t>(chunk)];
     Vector6d J;

@@ -142,8 +142,7 @@ template <bool kWithPoints>
 class KnnResult {
  public:
   // Only points within max_squared_distance (inclusive) are kept.
-  KnnResult(int k, Neighbor* out, double max_squared_distance,
-            const TreePoint** points = nullptr)
+  KnnResult(int k, Neighbor* out, double max_squared_distance, const TreePoint** points = nullptr)
       : k_(k), out_(out), points_(points), max_squared_distance_(max_squared_distance) {}
   int count() const { return count_; }
   // Cells farther than this cannot improve the result.

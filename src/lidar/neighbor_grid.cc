@@ -41,10 +41,9 @@ int GatherWithinPlain(const double* x, const double* y, const double* z, int beg
 // The same, four points at a time: the passing lanes are packed to the front by a permutation
 // chosen by their mask (the same operations in the same order, so the same bits).
 __attribute__((target("avx2,popcnt"))) int GatherWithinAvx2(const double* x, const double* y,
-                                                           const double* z, int begin, int end,
-                                                           double qx, double qy, double qz,
-                                                           double radius2, double* d,
-                                                           int* slot) {
+                                                            const double* z, int begin, int end,
+                                                            double qx, double qy, double qz,
+                                                            double radius2, double* d, int* slot) {
   // Per mask, the float pairs (one double each) of the passing lanes first.
   alignas(32) static const int kPack[16][8] = {
       {0, 1, 2, 3, 4, 5, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {2, 3, 0, 1, 4, 5, 6, 7},
@@ -66,24 +65,24 @@ __attribute__((target("avx2,popcnt"))) int GatherWithinAvx2(const double* x, con
     const __m256d dx = _mm256_sub_pd(vx, _mm256_loadu_pd(x + s));
     const __m256d dy = _mm256_sub_pd(vy, _mm256_loadu_pd(y + s));
     const __m256d dz = _mm256_sub_pd(vz, _mm256_loadu_pd(z + s));
-    const __m256d d2 = _mm256_add_pd(
-        _mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+    const __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                                     _mm256_mul_pd(dz, dz));
     const int mask = _mm256_movemask_pd(_mm256_cmp_pd(d2, r2, _CMP_LE_OQ));
     const __m256i pack = _mm256_load_si256(reinterpret_cast<const __m256i*>(kPack[mask]));
-    _mm256_storeu_pd(d + within, _mm256_castps_pd(_mm256_permutevar8x32_ps(
-                                     _mm256_castpd_ps(d2), pack)));
+    _mm256_storeu_pd(d + within,
+                     _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(d2), pack)));
     const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kLane[mask]));
     _mm_storeu_si128(reinterpret_cast<__m128i*>(slot + within),
                      _mm_add_epi32(lanes, _mm_set1_epi32(s)));
     within += __builtin_popcount(static_cast<unsigned>(mask));
   }
-  return within + GatherWithinPlain(x, y, z, s, end, qx, qy, qz, radius2, d + within,
-                                    slot + within);
+  return within +
+         GatherWithinPlain(x, y, z, s, end, qx, qy, qz, radius2, d + within, slot + within);
 }
 #endif
 
-int GatherWithin(const double* x, const double* y, const double* z, int begin, int end,
-                 double qx, double qy, double qz, double radius2, double* d, int* slot) {
+int GatherWithin(const double* x, const double* y, const double* z, int begin, int end, double qx,
+                 double qy, double qz, double radius2, double* d, int* slot) {
 #if defined(__x86_64__) || defined(__i386__)
   if (autocal::internal::CpuHasAvx2()) {
     return GatherWithinAvx2(x, y, z, begin, end, qx, qy, qz, radius2, d, slot);
@@ -213,9 +212,9 @@ int NeighborGrid::Knn(const Eigen::Vector3d& query, int k, Neighbor* out, double
     for (int chunk = begin; chunk < end; chunk += kChunk) {
       // The points of a chunk within the radius, gathered without a branch per point: about a
       // sixth of the points scanned pass, in no predictable pattern.
-      const int within = GatherWithin(x_.data(), y_.data(), z_.data(), chunk,
-                                      std::min(chunk + kChunk, end), qx, qy, qz, radius2,
-                                      candidate_d.data(), candidate_slot.data());
+      const int within =
+          GatherWithin(x_.data(), y_.data(), z_.data(), chunk, std::min(chunk + kChunk, end), qx,
+                       qy, qz, radius2, candidate_d.data(), candidate_slot.data());
       for (int c = 0; c < within; ++c) {
         const double d = candidate_d[static_cast<size_t>(c)];
         const int s = candidate_slot[static_cast<size_t>(c)];

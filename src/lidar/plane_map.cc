@@ -1,10 +1,9 @@
 #include "autocal/lidar/plane_map.h"
 
+#include <Eigen/Eigenvalues>
 #include <array>
 #include <cmath>
 #include <string>
-
-#include <Eigen/Eigenvalues>
 
 #include "autocal/common/error.h"
 #include "autocal/lidar/point_cloud.h"
@@ -104,7 +103,7 @@ bool PlaneMap::FitLocalPlane(const Neighborhood& local, Plane* plane) const {
     }
   } else {
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
-    const Eigen::Vector3d l = solver.eigenvalues();  // ascending
+    const Eigen::Vector3d l = solver.eigenvalues();                            // ascending
     if (l(2) <= 0.0 || l(1) < options_.min_spread_ratio * l(2)) return false;  // a line
     if ((l(1) - l(0)) < options_.min_flatness * l(1)) return false;            // a blob
     normal = solver.eigenvectors().col(0);

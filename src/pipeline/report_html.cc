@@ -81,19 +81,27 @@ std::vector<BlockTrace> CalibrationBlockTraces(const io::CalibrationUncertainty&
        [=](const C& first, const C& c) { return rotation_deg(first.q_I_L, c.q_I_L); }},
       {"LiDAR–IMU translation T_I_L", "cm", xyz, u.T_I_L.sigma_p_m.has_value(),
        [](const C& first, const C& c) { return Components((c.p_I_L - first.p_I_L) * 100.0); }},
-      {"time offset LiDAR→IMU", "ms", {"offset"}, u.time_offset_lidar_imu_s.sigma.has_value(),
+      {"time offset LiDAR→IMU",
+       "ms",
+       {"offset"},
+       u.time_offset_lidar_imu_s.sigma.has_value(),
        [](const C& first, const C& c) {
          return std::vector<double>{(c.time_offset_lidar_imu_s - first.time_offset_lidar_imu_s) *
                                     1e3};
        }},
-      {"wheel radii, relative", "%", {"left", "right"},
+      {"wheel radii, relative",
+       "%",
+       {"left", "right"},
        u.wheel_radius_left_m.sigma.has_value() || u.wheel_radius_right_m.sigma.has_value(),
        [](const C& first, const C& c) {
          return std::vector<double>{
              100.0 * (c.wheel_radius_left_m / first.wheel_radius_left_m - 1.0),
              100.0 * (c.wheel_radius_right_m / first.wheel_radius_right_m - 1.0)};
        }},
-      {"track width", "mm", {"track width"}, u.track_width_m.sigma.has_value(),
+      {"track width",
+       "mm",
+       {"track width"},
+       u.track_width_m.sigma.has_value(),
        [](const C& first, const C& c) {
          return std::vector<double>{(c.track_width_m - first.track_width_m) * 1e3};
        }},
@@ -112,8 +120,9 @@ std::string ConvergenceSection(const OfflineCalibrationResult& result) {
   std::ostringstream html;
   html << "<h2>Convergence</h2>";
   if (history.size() < 2) {
-    html << "<p>" << (history.empty() ? "No outer iteration was recorded"
-                                       : "Only one outer iteration was recorded")
+    html << "<p>"
+         << (history.empty() ? "No outer iteration was recorded"
+                             : "Only one outer iteration was recorded")
          << ": no convergence chart.</p>\n";
     return html.str();
   }
@@ -137,9 +146,8 @@ std::string ConvergenceSection(const OfflineCalibrationResult& result) {
       }
     }
     if (!changed && !block.has_sigma) continue;
-    const std::string chart =
-        LineChart(block.title + " (" + block.unit + ")", "outer iteration",
-                  "change (" + block.unit + ")", series);
+    const std::string chart = LineChart(block.title + " (" + block.unit + ")", "outer iteration",
+                                        "change (" + block.unit + ")", series);
     html << chart;
     if (!chart.empty()) ++charts;
   }
@@ -148,7 +156,7 @@ std::string ConvergenceSection(const OfflineCalibrationResult& result) {
 }
 
 std::string Sigma(const std::optional<Eigen::Vector3d>& sigma, double scale, int row) {
-  return sigma ? Number((*sigma)(row) * scale) : "–";
+  return sigma ? Number((*sigma)(row)*scale) : "–";
 }
 
 // One flag for the whole block or one per component (io::PoseBlockInfo, VectorBlockInfo);
@@ -184,10 +192,10 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
            << Observable(info.observable, static_cast<size_t>(i)) << "</td></tr>";
     }
     for (int i = 0; i < 3; ++i) {
-      rows << "<tr><td>" << name << " translation " << axes[i] << " (m)</td><td>"
-           << Number(p(i)) << "</td><td>" << Sigma(info.sigma_p_m, 1.0, i) << "</td><td>"
-           << Number(p_nominal(i)) << "</td><td>"
-           << Observable(info.observable, static_cast<size_t>(3 + i)) << "</td></tr>";
+      rows << "<tr><td>" << name << " translation " << axes[i] << " (m)</td><td>" << Number(p(i))
+           << "</td><td>" << Sigma(info.sigma_p_m, 1.0, i) << "</td><td>" << Number(p_nominal(i))
+           << "</td><td>" << Observable(info.observable, static_cast<size_t>(3 + i))
+           << "</td></tr>";
     }
   };
   const auto scalar_row = [&](const std::string& label, double value, double nominal,
@@ -207,16 +215,16 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
                result.nominal.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3);
   }
   if (u.wheel_radius_left_m.sigma) {
-    scalar_row("wheel radius left (mm)", c.wheel_radius_left_m,
-               result.nominal.wheel_radius_left_m, u.wheel_radius_left_m, 1e3);
+    scalar_row("wheel radius left (mm)", c.wheel_radius_left_m, result.nominal.wheel_radius_left_m,
+               u.wheel_radius_left_m, 1e3);
   }
   if (u.wheel_radius_right_m.sigma) {
     scalar_row("wheel radius right (mm)", c.wheel_radius_right_m,
                result.nominal.wheel_radius_right_m, u.wheel_radius_right_m, 1e3);
   }
   if (u.track_width_m.sigma) {
-    scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m,
-               u.track_width_m, 1e3);
+    scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m, u.track_width_m,
+               1e3);
   }
   if (u.p_I_A_m.sigma) {
     for (int i = 0; i < 3; ++i) {
@@ -242,8 +250,7 @@ std::string RunSummary(const OfflineCalibrationResult& result, bool lidar_used,
                        const std::vector<std::string>& whitened_sensors) {
   std::vector<std::string> facts;
   if (result.batch.outer_iterations > 0) {
-    facts.push_back(
-        Counted(static_cast<size_t>(result.batch.outer_iterations), "outer iteration"));
+    facts.push_back(Counted(static_cast<size_t>(result.batch.outer_iterations), "outer iteration"));
   }
   facts.push_back(Counted(result.trajectory.size(), "keyframe"));
   if (std::isfinite(result.seconds_total) && result.seconds_total > 0.0) {
@@ -269,8 +276,7 @@ std::string RunSummary(const OfflineCalibrationResult& result, bool lidar_used,
   for (const std::string& key : whitened_sensors) {
     const SensorResiduals& r = result.whitened_residuals.at(key);
     html << "<li>" << Escape(SensorName(key)) << ": "
-         << Counted(std::max(r.before.size(), r.after.size()), "whitened residual row")
-         << "</li>";
+         << Counted(std::max(r.before.size(), r.after.size()), "whitened residual row") << "</li>";
   }
   if (!result.gnss_positions_W.empty()) {
     html << "<li>GNSS fixes: " << result.gnss_positions_W.size() << "</li>";
@@ -288,12 +294,12 @@ std::string ResidualSection(const OfflineCalibrationResult& result, bool lidar_u
                             const std::vector<std::string>& whitened_sensors) {
   std::string html;
   if (lidar_used) {
-    html += Section("LiDAR residuals",
-                    ResidualHistogram("point-to-plane distance, before and after the solve",
-                                      "distance (m)", "points per bin (%)", "m",
-                                      kLidarHistogramRange_m,
-                                      result.batch.initial_point_residuals_m,
-                                      result.batch.final_point_residuals_m, false));
+    html +=
+        Section("LiDAR residuals",
+                ResidualHistogram("point-to-plane distance, before and after the solve",
+                                  "distance (m)", "points per bin (%)", "m", kLidarHistogramRange_m,
+                                  result.batch.initial_point_residuals_m,
+                                  result.batch.final_point_residuals_m, false));
   }
   for (const std::string& key : whitened_sensors) {
     const SensorResiduals& r = result.whitened_residuals.at(key);
@@ -316,8 +322,7 @@ std::string TimeOffsetSection(const estimation::TimeOffsetEstimate& t) {
     curve.y.push_back(t.correlation[i]);
   }
   const std::string chart =
-      LineChart("LiDAR vs gyro angular-rate correlation (peak " + Number(t.offset_s * 1e3) +
-                    " ms)",
+      LineChart("LiDAR vs gyro angular-rate correlation (peak " + Number(t.offset_s * 1e3) + " ms)",
                 "candidate offset (ms)", "correlation", {curve});
   return Section("Time offset initialization", chart);
 }
@@ -348,8 +353,7 @@ std::string TrajectorySection(const OfflineCalibrationResult& result) {
 
 std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
   const bool lidar_used = LidarUsed(result.batch);
-  const std::vector<std::string> whitened_sensors =
-      SensorsWithResiduals(result.whitened_residuals);
+  const std::vector<std::string> whitened_sensors = SensorsWithResiduals(result.whitened_residuals);
   std::ostringstream html;
   html << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>autocal calibration report"
           "</title><style>body{font-family:sans-serif;max-width:1180px;margin:auto}"

@@ -13,12 +13,23 @@ std::string Escape(const std::string& text) {
   std::string out;
   for (char c : text) {
     switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&#39;"; break;
-      default: out += c;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -70,8 +81,14 @@ bool Fit(const std::vector<Series>& series, bool equal_scale, Axes* axes) {
     }
   }
   if (x0 > x1) return false;
-  if (!(x1 > x0)) { x0 -= 1.0; x1 += 1.0; }
-  if (!(y1 > y0)) { y0 -= 1.0; y1 += 1.0; }
+  if (!(x1 > x0)) {
+    x0 -= 1.0;
+    x1 += 1.0;
+  }
+  if (!(y1 > y0)) {
+    y0 -= 1.0;
+    y1 += 1.0;
+  }
   if (equal_scale) {
     const double sx = (x1 - x0) / kPlotWidth;
     const double sy = (y1 - y0) / kPlotHeight;
@@ -88,7 +105,7 @@ bool Fit(const std::vector<Series>& series, bool equal_scale, Axes* axes) {
 
 // Statistics of one residual set over its finite values (docs/report.md, Eq. R1).
 struct ResidualStats {
-  size_t count = 0;           // finite values
+  size_t count = 0;  // finite values
   double rms = 0.0;
   double beyond_range = 0.0;  // share of the finite values with |r| > range
 };
@@ -144,18 +161,18 @@ std::string LineChart(const std::string& title, const std::string& x_label,
       << "<rect x='" << kPlotLeft << "' y='" << kPlotTop << "' width='" << kPlotWidth
       << "' height='" << kPlotHeight << "' fill='none' stroke='#999'/>";
   svg << "<text x='" << kPlotLeft << "' y='" << kPlotBottom + 14 << "'>" << Number(a.x0)
-      << "</text><text x='" << kPlotRight << "' y='" << kPlotBottom + 14
-      << "' text-anchor='end'>" << Number(a.x1) << "</text><text x='" << kPlotLeft + kPlotWidth / 2
-      << "' y='" << kHeight - 8 << "' text-anchor='middle'>" << Escape(x_label) << "</text>";
+      << "</text><text x='" << kPlotRight << "' y='" << kPlotBottom + 14 << "' text-anchor='end'>"
+      << Number(a.x1) << "</text><text x='" << kPlotLeft + kPlotWidth / 2 << "' y='" << kHeight - 8
+      << "' text-anchor='middle'>" << Escape(x_label) << "</text>";
   svg << "<text x='" << kPlotLeft - 4 << "' y='" << kPlotBottom << "' text-anchor='end'>"
       << Number(a.y0) << "</text><text x='" << kPlotLeft - 4 << "' y='" << kPlotTop + 10
-      << "' text-anchor='end'>" << Number(a.y1)
-      << "</text><text x='12' y='" << kPlotTop + kPlotHeight / 2 << "' transform='rotate(-90 12 "
-      << kPlotTop + kPlotHeight / 2 << ")' text-anchor='middle'>" << Escape(y_label) << "</text>";
+      << "' text-anchor='end'>" << Number(a.y1) << "</text><text x='12' y='"
+      << kPlotTop + kPlotHeight / 2 << "' transform='rotate(-90 12 " << kPlotTop + kPlotHeight / 2
+      << ")' text-anchor='middle'>" << Escape(y_label) << "</text>";
   svg << std::fixed << std::setprecision(1);
   if (a.y0 < 0.0 && a.y1 > 0.0) {
-    svg << "<line x1='" << kPlotLeft << "' x2='" << kPlotRight << "' y1='" << a.Y(0.0)
-        << "' y2='" << a.Y(0.0) << "' stroke='#ccc'/>";
+    svg << "<line x1='" << kPlotLeft << "' x2='" << kPlotRight << "' y1='" << a.Y(0.0) << "' y2='"
+        << a.Y(0.0) << "' stroke='#ccc'/>";
   }
   int legend_y = 12;
   for (const Series& s : series) {
@@ -174,8 +191,8 @@ std::string LineChart(const std::string& title, const std::string& x_label,
       }
       svg << "'/>";
     }
-    svg << "<text x='" << kPlotRight << "' y='" << legend_y
-        << "' text-anchor='end' fill='" << s.color << "'>" << Escape(s.label) << "</text>";
+    svg << "<text x='" << kPlotRight << "' y='" << legend_y << "' text-anchor='end' fill='"
+        << s.color << "'>" << Escape(s.label) << "</text>";
     legend_y += 14;
   }
   svg << "</svg></figure>\n";
@@ -195,8 +212,8 @@ std::string ResidualHistogram(const std::string& title, const std::string& x_lab
     if (stats.count == 0) continue;
     const std::string label = std::string(sets[k].first) + ": RMS " + Number(stats.rms) + " " +
                               unit + ", " + Percent(stats.beyond_range) + " beyond ±" +
-                              Number(range) + " " + unit + " (n = " +
-                              std::to_string(stats.count) + ")";
+                              Number(range) + " " + unit + " (n = " + std::to_string(stats.count) +
+                              ")";
     series.push_back(HistogramSeries(label, colors[k], *sets[k].second, range, stats.count));
   }
   if (series.empty()) return "";

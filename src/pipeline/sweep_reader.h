@@ -25,15 +25,15 @@ class SweepReader {
   SweepReader& operator=(const SweepReader&) = delete;
 
   lidar::LidarSweep Take(size_t index) {
-    lidar::LidarSweep sweep = next_.valid() && next_index_ == index ? next_.get()
-                                                                    : dataset_.LoadSweep(index);
+    lidar::LidarSweep sweep =
+        next_.valid() && next_index_ == index ? next_.get() : dataset_.LoadSweep(index);
     if (next_.valid()) next_.wait();  // a read-ahead of another sweep is not taken
     next_ = std::future<lidar::LidarSweep>();
     if (read_ahead_ && index + 1 < dataset_.lidar_sweeps.size()) {
       next_index_ = index + 1;
       try {
-        next_ = std::async(std::launch::async,
-                           [this, index] { return dataset_.LoadSweep(index + 1); });
+        next_ =
+            std::async(std::launch::async, [this, index] { return dataset_.LoadSweep(index + 1); });
       } catch (const std::system_error&) {
         read_ahead_ = false;  // no thread to be had: read when due, as without read-ahead
       }

@@ -101,10 +101,10 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   w.pairing.residual_max_range_m = problem.window_max_range_m;
   w.initial_state_sigmas = options.initial_state_sigmas;
   // The rear axle's lateral and vertical speed rows, weighted for their correlated model error
-  // (the correlated-error scaling, as in the offline calibration). Without them the wheel speeds see the vehicle
-  // frame's pitch and yaw only through the cosine that scales the speed along x_V, as the radii
-  // do: on the 60 s urban log the window drifted along that valley to 5.7 deg and -0.47 %
-  // (docs/sliding_window.md).
+  // (the correlated-error scaling, as in the offline calibration). Without them the wheel speeds
+  // see the vehicle frame's pitch and yaw only through the cosine that scales the speed along x_V,
+  // as the radii do: on the 60 s urban log the window drifted along that valley to 5.7 deg and
+  // -0.47 % (docs/sliding_window.md).
   w.wheel_rows.non_holonomic = use_wheel;
 
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's

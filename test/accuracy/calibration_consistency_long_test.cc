@@ -8,6 +8,9 @@
 // a result just outside the band is weak evidence, while the per-component figures printed
 // show where a large excess comes from. Drives that cannot be calibrated (the pipeline
 // refuses them) carry no sample. Label "long": about 15 minutes, run with `ctest -L long`.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -16,9 +19,6 @@
 #include <map>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <unistd.h>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
@@ -85,10 +85,9 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
     options.lidar.config.num_beams = 16;
     const sim::Simulator simulator(options);
     // Concurrent runs of the suite each write their own copies.
-    const std::string directory =
-        test::OutputDir("urban_seed_" + std::to_string(seed) + "_" +
-                        std::to_string(static_cast<long>(getpid())))
-            .string();
+    const std::string directory = test::OutputDir("urban_seed_" + std::to_string(seed) + "_" +
+                                                  std::to_string(static_cast<long>(getpid())))
+                                      .string();
     std::filesystem::remove_all(directory);
     sim::WriteDataset(simulator, directory);
     io::Problem problem;
@@ -113,17 +112,15 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
                  &drive);
     AddPoseBlock("T_I_V", estimate.q_I_V, truth.q_I_V, estimate.p_I_V, truth.p_I_V, u.T_I_V,
                  &drive);
-    AddIfObservable("time offset",
-                    estimate.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s,
+    AddIfObservable("time offset", estimate.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s,
                     u.time_offset_lidar_imu_s.sigma,
                     u.time_offset_lidar_imu_s.observable.value_or(true), &drive);
     AddIfObservable("wheel radius left", estimate.wheel_radius_left_m - truth.wheel_radius_left_m,
                     u.wheel_radius_left_m.sigma, u.wheel_radius_left_m.observable.value_or(true),
                     &drive);
-    AddIfObservable("wheel radius right",
-                    estimate.wheel_radius_right_m - truth.wheel_radius_right_m,
-                    u.wheel_radius_right_m.sigma, u.wheel_radius_right_m.observable.value_or(true),
-                    &drive);
+    AddIfObservable(
+        "wheel radius right", estimate.wheel_radius_right_m - truth.wheel_radius_right_m,
+        u.wheel_radius_right_m.sigma, u.wheel_radius_right_m.observable.value_or(true), &drive);
     AddIfObservable("track width", estimate.track_width_m - truth.track_width_m,
                     u.track_width_m.sigma, u.track_width_m.observable.value_or(true), &drive);
     if (u.p_I_A_m.sigma) {

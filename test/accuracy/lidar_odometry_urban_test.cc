@@ -1,9 +1,9 @@
 // LiDAR odometry on a simulated urban drive: deskewed scan-to-map registration must track
 // the true LiDAR trajectory (moving cars, range noise, dropouts and all).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <iostream>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/time.h"
 #include "autocal/geometry/se3.h"
@@ -32,7 +32,8 @@ TEST(LidarOdometryUrban, TracksTheTrueTrajectory) {
   for (int k = 0; k < simulator.num_sweeps(); ++k) {
     const lidar::LidarSweep sweep = simulator.GenerateSweep(k);
     // A point at tau = 0 was measured at IMU time stamp + offset.
-    const double t_s = simulator.TimeOf(sweep.t_ns + SecondsToNs(calibration.time_offset_lidar_imu_s));
+    const double t_s =
+        simulator.TimeOf(sweep.t_ns + SecondsToNs(calibration.time_offset_lidar_imu_s));
     if (t_s < 0.0 || t_s > options.duration_s) continue;
     truth.push_back(simulator.ImuPoseAt(t_s) * T_I_L);
     odometry.AddSweep(sweep);
@@ -56,13 +57,14 @@ TEST(LidarOdometryUrban, TracksTheTrueTrajectory) {
   // Drift: the end pose relative to the start, estimated vs true.
   const geometry::Pose3d true_total = truth.front().Inverse() * truth.back();
   const geometry::Pose3d est_total = frames.front().T_W_L.Inverse() * frames.back().T_W_L;
-  const double drift_percent = 100.0 * geometry::TranslationError(true_total, est_total) / distance_m;
+  const double drift_percent =
+      100.0 * geometry::TranslationError(true_total, est_total) / distance_m;
   const double heading_drift_deg_per_100m =
       100.0 * geometry::RotationErrorRad(true_total, est_total) * kRadToDeg / distance_m;
   std::cout << frames.size() << " sweeps over " << distance_m << " m: drift " << drift_percent
-            << " % of distance, " << heading_drift_deg_per_100m << " deg/100 m; worst sweep-to-sweep error "
-            << worst_relative_translation_m * 100.0 << " cm, " << worst_relative_rotation_deg
-            << " deg\n";
+            << " % of distance, " << heading_drift_deg_per_100m
+            << " deg/100 m; worst sweep-to-sweep error " << worst_relative_translation_m * 100.0
+            << " cm, " << worst_relative_rotation_deg << " deg\n";
   // Goals of a usable odometry for the calibration's hand-eye initialization, in the usual
   // odometry metrics: drift within 1 % of distance and 1 deg per 100 m, every relative
   // motion within 5 cm and 0.2 deg.

@@ -2,12 +2,12 @@
 // simulated urban logs (seed 1, default sensors) of 60 s and 120 s streamed through the
 // sliding window from the simulator's nominal guess with the shipped problems/urban_full.yaml,
 // compared with the simulator's truth.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "autocal/evaluation/calibration_errors.h"
 #include "autocal/evaluation/trajectory_errors.h"

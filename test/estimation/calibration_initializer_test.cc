@@ -1,13 +1,13 @@
 #include "autocal/estimation/calibration_initializer.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <iostream>
 #include <random>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -38,7 +38,8 @@ using test::TrueKeyframe;
 
 // The rotation about z and translation that best map estimated keyframe positions onto the
 // true ones (least squares; roll and pitch are not fitted: gravity fixes them).
-geometry::Pose3d YawAlignment(const std::vector<Keyframe>& estimate, const std::vector<Keyframe>& truth) {
+geometry::Pose3d YawAlignment(const std::vector<Keyframe>& estimate,
+                              const std::vector<Keyframe>& truth) {
   Eigen::Vector3d mean_est = Eigen::Vector3d::Zero(), mean_true = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < estimate.size(); ++k) {
     mean_est += estimate[k].p_W_I;
@@ -52,7 +53,8 @@ geometry::Pose3d YawAlignment(const std::vector<Keyframe>& estimate, const std::
     cos_sum += a.x() * b.x() + a.y() * b.y();
     sin_sum += a.x() * b.y() - a.y() * b.x();
   }
-  const Eigen::Quaterniond q(Eigen::AngleAxisd(std::atan2(sin_sum, cos_sum), Eigen::Vector3d::UnitZ()));
+  const Eigen::Quaterniond q(
+      Eigen::AngleAxisd(std::atan2(sin_sum, cos_sum), Eigen::Vector3d::UnitZ()));
   return geometry::Pose3d(q, mean_true - q * mean_est);
 }
 
@@ -63,15 +65,16 @@ std::string Problems(const CalibrationInitialization& init) {
 }
 
 // A 28 s urban drive (1.5 s standstill, a straight acceleration and cruise, a roundabout),
-// simulated once per test program and build (test/support/simulation_cache.h); the initializer runs once without any guess (p_I_L prior zero) and the
-// tests look at that result.
+// simulated once per test program and build (test/support/simulation_cache.h); the initializer runs
+// once without any guess (p_I_L prior zero) and the tests look at that result.
 class CalibrationInitializerUrbanTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     simulator_ = new sim::Simulator(UrbanOptions(28.0, 3));
     log_ = new sim::SimulatedLog(test::CachedSimulatedLog(*simulator_));
     const auto start = std::chrono::steady_clock::now();
-    init_ = new CalibrationInitialization(InitializeLidarImu(log_->imu.samples, log_->sweeps, Options()));
+    init_ = new CalibrationInitialization(
+        InitializeLidarImu(log_->imu.samples, log_->sweeps, Options()));
     std::cout << "initializer: "
               << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
               << " s for " << log_->sweeps.size() << " sweeps\n";
@@ -103,7 +106,8 @@ TEST_F(CalibrationInitializerUrbanTest, RecoversCalibrationWithoutAGuess) {
   EXPECT_FALSE(init.still_start_is_low_excitation);
   const sensors::Calibration& truth = simulator_->true_calibration();
   const double rotation_error_deg = geometry::AngularDistance(init.q_I_L, truth.q_I_L) * kRadToDeg;
-  const double offset_error_s = std::abs(init.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s);
+  const double offset_error_s =
+      std::abs(init.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s);
   const Eigen::Vector3d lever_error_m = (init.p_I_L - truth.p_I_L).cwiseAbs();
   std::cout << "rotation error " << rotation_error_deg << " deg (hand-eye alone "
             << geometry::AngularDistance(init.rotation.q_I_L, truth.q_I_L) * kRadToDeg
@@ -140,19 +144,23 @@ TEST_F(CalibrationInitializerUrbanTest, KeyframesFollowTheTrueTrajectory) {
   ASSERT_GT(init.keyframes.size(), 250u);
   // Keyframes against the truth after aligning W by yaw and translation.
   std::vector<Keyframe> true_keyframes;
-  for (const Keyframe& kf : init.keyframes) true_keyframes.push_back(TrueKeyframe(log_->imu, kf.t_ns));
+  for (const Keyframe& kf : init.keyframes)
+    true_keyframes.push_back(TrueKeyframe(log_->imu, kf.t_ns));
   const geometry::Pose3d T_true_est = YawAlignment(init.keyframes, true_keyframes);
   double worst_rotation_deg = 0.0, worst_position_m = 0.0, worst_velocity_m_s = 0.0;
   for (size_t k = 0; k < init.keyframes.size(); ++k) {
     const Keyframe& est = init.keyframes[k];
     const Keyframe& tru = true_keyframes[k];
-    EXPECT_EQ(est.t_ns, KeyframeTime(log_->sweeps[static_cast<size_t>(init.keyframe_sweeps[k])].t_ns,
-                                     init.time_offset_lidar_imu_s, LidarInertialBatchOptions()));
+    EXPECT_EQ(est.t_ns,
+              KeyframeTime(log_->sweeps[static_cast<size_t>(init.keyframe_sweeps[k])].t_ns,
+                           init.time_offset_lidar_imu_s, LidarInertialBatchOptions()));
     worst_rotation_deg = std::max(
         worst_rotation_deg,
-        geometry::AngularDistance(Eigen::Quaterniond(T_true_est.q * est.q_W_I), tru.q_W_I) * kRadToDeg);
+        geometry::AngularDistance(Eigen::Quaterniond(T_true_est.q * est.q_W_I), tru.q_W_I) *
+            kRadToDeg);
     worst_position_m = std::max(worst_position_m, (T_true_est * est.p_W_I - tru.p_W_I).norm());
-    worst_velocity_m_s = std::max(worst_velocity_m_s, (T_true_est.q * est.v_W_I - tru.v_W_I).norm());
+    worst_velocity_m_s =
+        std::max(worst_velocity_m_s, (T_true_est.q * est.v_W_I - tru.v_W_I).norm());
     EXPECT_EQ(est.b_g, init.still_start.gyro_bias_rad_s);
     EXPECT_EQ(est.b_a, Eigen::Vector3d::Zero());
   }
@@ -184,11 +192,14 @@ TEST_F(CalibrationInitializerUrbanTest, ResultDoesNotDependOnTheGuess) {
   // Same odometry, same rest period: the offset and the hand-eye rotation are identical.
   EXPECT_EQ(other.time_offset_lidar_imu_s, init_->time_offset_lidar_imu_s);
   EXPECT_EQ(other.rotation.q_I_L.coeffs(), init_->rotation.q_I_L.coeffs());
-  const double rotation_difference_deg = geometry::AngularDistance(other.q_I_L, init_->q_I_L) * kRadToDeg;
+  const double rotation_difference_deg =
+      geometry::AngularDistance(other.q_I_L, init_->q_I_L) * kRadToDeg;
   std::cout << "rotation difference " << rotation_difference_deg << " deg, lever arm "
             << other.p_I_L.transpose() << " vs " << init_->p_I_L.transpose() << "\n";
   EXPECT_LT(rotation_difference_deg, 0.3);
-  EXPECT_LT(geometry::AngularDistance(other.q_I_L, simulator_->true_calibration().q_I_L) * kRadToDeg, 1.0);
+  EXPECT_LT(
+      geometry::AngularDistance(other.q_I_L, simulator_->true_calibration().q_I_L) * kRadToDeg,
+      1.0);
   EXPECT_EQ(other.inertial.excited, init_->inertial.excited);
   for (int axis = 0; axis < 3; ++axis) {
     if (other.inertial.excited(axis)) {

@@ -1,10 +1,10 @@
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
@@ -53,19 +53,19 @@ StateErrors RebuildAndCompare(sim::ScenarioType scenario, uint64_t seed, bool tr
   for (size_t k = 0; k < truth.size(); ++k) {
     sum_m2 += (keyframes[k].p_W_I - truth[k].p_W_I).squaredNorm();
     e.velocity_max_m_s = std::max(e.velocity_max_m_s, (keyframes[k].v_W_I - truth[k].v_W_I).norm());
-    e.rotation_max_deg = std::max(
-        e.rotation_max_deg, geometry::AngularDistance(keyframes[k].q_W_I, truth[k].q_W_I) * kRadToDeg);
+    e.rotation_max_deg =
+        std::max(e.rotation_max_deg,
+                 geometry::AngularDistance(keyframes[k].q_W_I, truth[k].q_W_I) * kRadToDeg);
     e.gyro_bias_max_rad_s =
         std::max(e.gyro_bias_max_rad_s, (keyframes[k].b_g - truth[k].b_g).norm());
   }
   e.position_rms_m = std::sqrt(sum_m2 / static_cast<double>(truth.size()));
   std::cout << result.placement.num_placed << " placed, " << result.placement.num_bridged
             << " bridged, " << result.gnss_factors << " GNSS and " << result.wheel_factors
-            << " wheel factors; cost "
-            << result.initial_cost << " -> " << result.final_cost << "; errors: position RMS "
-            << e.position_rms_m << " m, velocity max " << e.velocity_max_m_s
-            << " m/s, rotation max " << e.rotation_max_deg << " deg, gyro bias max "
-            << e.gyro_bias_max_rad_s << " rad/s\n";
+            << " wheel factors; cost " << result.initial_cost << " -> " << result.final_cost
+            << "; errors: position RMS " << e.position_rms_m << " m, velocity max "
+            << e.velocity_max_m_s << " m/s, rotation max " << e.rotation_max_deg
+            << " deg, gyro bias max " << e.gyro_bias_max_rad_s << " rad/s\n";
   return e;
 }
 

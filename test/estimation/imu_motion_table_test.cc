@@ -1,8 +1,8 @@
 #include "autocal/estimation/imu_motion_table.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -35,7 +35,8 @@ struct Motion {
   Eigen::Vector3d omega(double t) const { return geometry::RightJacobian(phi(t)) * phi_dot(t); }
 };
 
-sensors::ImuSamples Sample(const Motion& m, const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a) {
+sensors::ImuSamples Sample(const Motion& m, const Eigen::Vector3d& b_g,
+                           const Eigen::Vector3d& b_a) {
   sensors::ImuSamples imu;
   for (int64_t t_ns = 0; t_ns <= SecondsToNs(3.0); t_ns += 5'000'000) {
     const double t = NsToSeconds(t_ns);
@@ -59,8 +60,9 @@ TEST(ImuMotionTable, MatchesTrueMotionInsideASweep) {
     EXPECT_NEAR(m.dt_s, dt, 1e-12);
     const Eigen::Quaterniond dq_true = q_k.conjugate() * motion.q(t);
     const Eigen::Vector3d dv_true = q_k.conjugate() * (motion.v(t) - motion.v(tk) - kGravity * dt);
-    const Eigen::Vector3d dp_true = q_k.conjugate() * (motion.p(t) - motion.p(tk) -
-                                                       motion.v(tk) * dt - 0.5 * kGravity * dt * dt);
+    const Eigen::Vector3d dp_true =
+        q_k.conjugate() *
+        (motion.p(t) - motion.p(tk) - motion.v(tk) * dt - 0.5 * kGravity * dt * dt);
     // Midpoint integration of 5 ms steps: errors of order (rate change per step)^2.
     EXPECT_LT(geometry::AngularDistance(m.delta_q, dq_true), 2e-6) << "dt " << dt;
     EXPECT_LT((m.delta_v - dv_true).norm(), 1e-4) << "dt " << dt;

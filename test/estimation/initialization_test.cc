@@ -1,11 +1,11 @@
 #include "autocal/estimation/initialization.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <functional>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
@@ -61,7 +61,8 @@ sensors::ImuSamples SimulateImu(const RotationMotion& motion, double duration_s,
     const double t = NsToSeconds(t_ns);
     sensors::ImuSample s;
     s.t_ns = t_ns;
-    s.gyro_rad_s = motion.Rate(t) + bias + gyro_noise_rad_s * Eigen::Vector3d(n(rng), n(rng), n(rng));
+    s.gyro_rad_s =
+        motion.Rate(t) + bias + gyro_noise_rad_s * Eigen::Vector3d(n(rng), n(rng), n(rng));
     s.accel_m_s2 = motion.At(t).conjugate() * Eigen::Vector3d(0.0, 0.0, kGravity) +
                    0.02 * Eigen::Vector3d(n(rng), n(rng), n(rng));
     imu.push_back(s);
@@ -88,7 +89,8 @@ TEST(DetectStillStart, FindsBiasAndGravityDirection) {
 }
 
 TEST(DetectStillStart, ReportsWhenThereIsNoStillPeriod) {
-  const sensors::ImuSamples imu = SimulateImu(RichMotion(0.0), 10.0, Eigen::Vector3d::Zero(), 0.002, 2);
+  const sensors::ImuSamples imu =
+      SimulateImu(RichMotion(0.0), 10.0, Eigen::Vector3d::Zero(), 0.002, 2);
   const StillStart still = DetectStillStart(imu);
   EXPECT_FALSE(still.found);
   EXPECT_FALSE(still.reason.empty());
@@ -196,8 +198,8 @@ TEST(SolveHandEyeTranslation, RecoversLeverAndHoldsUnexcitedAxes) {
     std::vector<Eigen::Quaterniond> rotations;
     std::vector<Eigen::Vector3d> t_imu, t_lidar;
     for (int i = 0; i < 40; ++i) {
-      const Eigen::Vector3d phi =
-          planar ? Eigen::Vector3d(0.0, 0.0, 0.5 * u(rng)) : 0.4 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+      const Eigen::Vector3d phi = planar ? Eigen::Vector3d(0.0, 0.0, 0.5 * u(rng))
+                                         : 0.4 * Eigen::Vector3d(u(rng), u(rng), u(rng));
       const Eigen::Quaterniond q_a = Exp(phi);
       const Eigen::Vector3d t_a = 2.0 * Eigen::Vector3d(u(rng), u(rng), planar ? 0.0 : u(rng));
       // T_L = T_I_L^-1 T_I T_I_L.

@@ -1,11 +1,11 @@
 #include "autocal/estimation/keyframe_sensor_factors.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -371,8 +371,9 @@ TEST_F(KeyframeSensorFactorsTest, PlacesKeyframesOnTheGnssTrack) {
   ASSERT_EQ(placement.placed.size(), keyframes.size());
   double max_p_m = 0.0, max_v_m_s = 0.0, max_rotation_deg = 0.0, sum_p_m2 = 0.0;
   for (size_t k = 0; k < keyframes.size(); ++k) {
-    max_rotation_deg = std::max(
-        max_rotation_deg, geometry::AngularDistance(keyframes[k].q_W_I, truth[k].q_W_I) * kRadToDeg);
+    max_rotation_deg =
+        std::max(max_rotation_deg,
+                 geometry::AngularDistance(keyframes[k].q_W_I, truth[k].q_W_I) * kRadToDeg);
     if (!placement.placed[k]) continue;
     const double p_m = (keyframes[k].p_W_I - truth[k].p_W_I).norm();
     sum_p_m2 += p_m * p_m;
@@ -382,9 +383,10 @@ TEST_F(KeyframeSensorFactorsTest, PlacesKeyframesOnTheGnssTrack) {
   const double rms_p_m = std::sqrt(sum_p_m2 / static_cast<double>(placement.num_placed));
   std::cout << placement.num_placed << " placed, " << placement.num_bridged << " bridged, "
             << placement.num_headings << " headings (RMS " << placement.heading_rms_rad * kRadToDeg
-            << " deg); yaw " << placement.yaw_rad * kRadToDeg << " deg; errors on the placed: position max "
-            << max_p_m << " m (RMS " << rms_p_m << "), velocity max " << max_v_m_s
-            << " m/s, rotation max " << max_rotation_deg << " deg\n";
+            << " deg); yaw " << placement.yaw_rad * kRadToDeg
+            << " deg; errors on the placed: position max " << max_p_m << " m (RMS " << rms_p_m
+            << "), velocity max " << max_v_m_s << " m/s, rotation max " << max_rotation_deg
+            << " deg\n";
   EXPECT_GT(placement.num_bridged, 0);  // the outages
   EXPECT_GT(placement.num_headings, 100);
   EXPECT_NEAR(placement.yaw_rad * kRadToDeg, -30.0, 0.5);
@@ -401,9 +403,8 @@ TEST_F(KeyframeSensorFactorsTest, PlacementNeedsFixesAroundTheKeyframes) {
   std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
   const sensors::GnssFixes few(noisy_->gnss.fixes.begin(), noisy_->gnss.fixes.begin() + 3);
   const sensors::Calibration& c = noisy_simulator_->true_calibration();
-  EXPECT_THROW(PlaceKeyframesOnGnss(&keyframes, few, Converter(*noisy_simulator_), c.p_I_A,
-                                    c.q_I_V),
-               Error);
+  EXPECT_THROW(
+      PlaceKeyframesOnGnss(&keyframes, few, Converter(*noisy_simulator_), c.p_I_A, c.q_I_V), Error);
 }
 
 // A quaternion block that Ceres would add as a Euclidean 4-vector is refused.

@@ -1,9 +1,9 @@
 #include "autocal/estimation/lidar_inertial_batch.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
-
-#include <gtest/gtest.h>
 
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
@@ -76,9 +76,8 @@ TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
   const LidarInertialBatchReport report =
       SolveLidarInertialBatch(log_->imu.samples, sweeps_, &keyframes_, &calibration, options);
   for (const sensors::Calibration& c : report.calibration_per_iteration) {
-    std::cout << "  rotation error "
-              << geometry::AngularDistance(c.q_I_L, truth.q_I_L) * kRadToDeg << " deg, p error "
-              << (c.p_I_L - truth.p_I_L).transpose() << " m, offset error "
+    std::cout << "  rotation error " << geometry::AngularDistance(c.q_I_L, truth.q_I_L) * kRadToDeg
+              << " deg, p error " << (c.p_I_L - truth.p_I_L).transpose() << " m, offset error "
               << (c.time_offset_lidar_imu_s - truth.time_offset_lidar_imu_s) * 1e3 << " ms\n";
   }
   const double rotation_error_deg =

@@ -1,11 +1,10 @@
 #include "estimation/lower_gram.h"
 
-#include <random>
-#include <vector>
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <random>
+#include <vector>
 
 #include "autocal/common/error.h"
 

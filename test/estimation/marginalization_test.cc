@@ -1,15 +1,15 @@
 #include "autocal/estimation/marginalization.h"
 
+#include <ceres/ceres.h>
+#include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <array>
 #include <memory>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <ceres/ceres.h>
-#include <ceres/gradient_checker.h>
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
@@ -39,8 +39,8 @@ TEST(Marginalization, WindowWithPriorMatchesBatchSolution) {
     PoseChain window = batch;
     ceres::Problem window_problem;
     chain.Build(&window_problem, &window, false);
-    std::unique_ptr<MarginalizationPrior> prior = Marginalize(
-        &window_problem, {window.q[0].coeffs().data(), window.p[0].data()});
+    std::unique_ptr<MarginalizationPrior> prior =
+        Marginalize(&window_problem, {window.q[0].coeffs().data(), window.p[0].data()});
     ASSERT_NE(prior, nullptr);
     EXPECT_EQ(prior->blocks().size(), 3u);  // q1, p1 and the lever arm
     window_problem.RemoveParameterBlock(window.q[0].coeffs().data());
@@ -58,9 +58,9 @@ TEST(Marginalization, WindowWithPriorMatchesBatchSolution) {
     for (int i = 1; i < kPoses; ++i) {
       EXPECT_LT(geometry::AngularDistance(window.q[i], batch.q[i]), 1e-7)
           << "seed " << seed << " pose " << i;
-      EXPECT_LT((window.p[i] - batch.p[i]).norm(), 1e-7) << "seed " << seed << " pose " << i
-                                                         << ": window " << window.p[i].transpose()
-                                                         << " batch " << batch.p[i].transpose();
+      EXPECT_LT((window.p[i] - batch.p[i]).norm(), 1e-7)
+          << "seed " << seed << " pose " << i << ": window " << window.p[i].transpose() << " batch "
+          << batch.p[i].transpose();
     }
     EXPECT_LT((window.lever - batch.lever).norm(), 1e-7)
         << "window " << window.lever.transpose() << " batch " << batch.lever.transpose();
@@ -125,9 +125,10 @@ void BuildLinear(ceres::Problem* problem, LinearChain* v, int first_rows) {
   problem->AddResidualBlock(absolute, nullptr, v->x[0].data());
   for (int i = 1; i < LinearChain::kStates; ++i) {
     const Eigen::Vector3d z(i + 0.2 * n(rng), 0.2 * n(rng), 3.0 + 0.2 * n(rng));
-    problem->AddResidualBlock(new ceres::NumericDiffCostFunction<OffsetResidual, ceres::CENTRAL, 3, 3, 3>(
-                                  new OffsetResidual(z)),
-                              nullptr, v->x[i].data(), v->c.data());
+    problem->AddResidualBlock(
+        new ceres::NumericDiffCostFunction<OffsetResidual, ceres::CENTRAL, 3, 3, 3>(
+            new OffsetResidual(z)),
+        nullptr, v->x[i].data(), v->c.data());
   }
   // A prior on c fixes the direction (all x_i + e, c - e) that the offsets cannot see.
   auto* c_prior = new ceres::DynamicNumericDiffCostFunction<AbsoluteResidual>(
@@ -329,8 +330,9 @@ TEST(MarginalizationPrior, JacobiansPassGradientChecker) {
   for (size_t i = 0; i < 3; ++i) {
     const Eigen::MatrixXd& analytic = results.local_jacobians[i];
     const Eigen::MatrixXd& numeric = results.local_numeric_jacobians[i];
-    EXPECT_LT((analytic - numeric).norm(), 1e-7 * numeric.norm())
-        << "block " << i << "\nanalytic\n" << analytic << "\nnumeric\n" << numeric;
+    EXPECT_LT((analytic - numeric).norm(), 1e-7 * numeric.norm()) << "block " << i << "\nanalytic\n"
+                                                                  << analytic << "\nnumeric\n"
+                                                                  << numeric;
   }
 }
 

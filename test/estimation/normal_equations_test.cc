@@ -1,13 +1,12 @@
 #include "estimation/normal_equations.h"
 
-#include <random>
-#include <utility>
-#include <vector>
-
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"

@@ -4,17 +4,16 @@
 // relative-pose factors, antenna positions with a shared lever arm (a calibration block,
 // Huber loss) and a prior on the first pose, built from noisy measurements of a random truth.
 
-#include <array>
-#include <cmath>
-#include <random>
-#include <utility>
-#include <vector>
-
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
+#include <cmath>
+#include <random>
+#include <utility>
+#include <vector>
 
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -23,7 +22,8 @@ namespace autocal {
 namespace test {
 
 struct RelativePoseResidual {
-  RelativePoseResidual(const Eigen::Quaterniond& dq, const Eigen::Vector3d& dp) : dq_(dq), dp_(dp) {}
+  RelativePoseResidual(const Eigen::Quaterniond& dq, const Eigen::Vector3d& dp)
+      : dq_(dq), dp_(dp) {}
   template <typename T>
   bool operator()(const T* qi, const T* pi, const T* qj, const T* pj, T* r) const {
     const Eigen::Map<const Eigen::Quaternion<T>> q_i(qi), q_j(qj);
@@ -89,11 +89,11 @@ class PoseChainProblem {
     }
     truth.lever = Eigen::Vector3d(0.8, -0.3, 1.2);
     for (int i = 0; i + 1 < kPoses; ++i) {
-      relative_.emplace_back(
-          truth.q[i].conjugate() * truth.q[i + 1] *
-              geometry::Exp(Eigen::Vector3d(0.01 * noise(rng), 0.01 * noise(rng), 0.01 * noise(rng))),
-          truth.q[i].conjugate() * (truth.p[i + 1] - truth.p[i]) +
-              0.05 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+      relative_.emplace_back(truth.q[i].conjugate() * truth.q[i + 1] *
+                                 geometry::Exp(Eigen::Vector3d(0.01 * noise(rng), 0.01 * noise(rng),
+                                                               0.01 * noise(rng))),
+                             truth.q[i].conjugate() * (truth.p[i + 1] - truth.p[i]) +
+                                 0.05 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
     }
     for (int i = 0; i < kPoses; ++i) {
       antenna_.push_back(truth.p[i] + truth.q[i] * truth.lever +
@@ -104,7 +104,8 @@ class PoseChainProblem {
     // Initial values: truth perturbed.
     values_ = truth;
     for (int i = 0; i < kPoses; ++i) {
-      values_.q[i] = truth.q[i] * geometry::Exp(Eigen::Vector3d(0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)));
+      values_.q[i] =
+          truth.q[i] * geometry::Exp(Eigen::Vector3d(0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)));
       values_.p[i] += 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
     }
     values_.lever += Eigen::Vector3d(0.2, 0.2, -0.2);
@@ -154,8 +155,8 @@ class PoseChainProblem {
       if (skip_first_pose_factors && i == 0) continue;
       problem->AddResidualBlock(new ceres::AutoDiffCostFunction<AntennaResidual, 3, 4, 3, 3>(
                                     new AntennaResidual(antenna_[i])),
-                                new ceres::HuberLoss(0.5), x->q[i].coeffs().data(),
-                                x->p[i].data(), x->lever.data());
+                                new ceres::HuberLoss(0.5), x->q[i].coeffs().data(), x->p[i].data(),
+                                x->lever.data());
     }
     if (!skip_first_pose_factors) {
       problem->AddResidualBlock(new ceres::AutoDiffCostFunction<PosePriorResidual, 6, 4, 3>(

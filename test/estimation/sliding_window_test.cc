@@ -1,5 +1,8 @@
 #include "autocal/estimation/sliding_window.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -10,10 +13,6 @@
 #include <string>
 #include <tuple>
 #include <vector>
-
-#include <gtest/gtest.h>
-
-#include <Eigen/LU>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -74,8 +73,8 @@ TEST(SlidingWindowStreaming, DropsOutOfOrderAndLateSamples) {
   SlidingWindowEstimator estimator(FastOptions(), sensors::Calibration(), StillState());
   EXPECT_TRUE(estimator.AddImu(StillImu(kStart - kImuStep)));
   EXPECT_TRUE(estimator.AddImu(StillImu(kStart)));
-  EXPECT_FALSE(estimator.AddImu(StillImu(kStart)));              // not newer
-  EXPECT_FALSE(estimator.AddImu(StillImu(kStart - kImuStep)));   // older
+  EXPECT_FALSE(estimator.AddImu(StillImu(kStart)));             // not newer
+  EXPECT_FALSE(estimator.AddImu(StillImu(kStart - kImuStep)));  // older
   EXPECT_EQ(estimator.counters().out_of_order, 2);
 
   sensors::WheelSample wheel;
@@ -147,12 +146,15 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
     EXPECT_THROW(SlidingWindowEstimator(options, sensors::Calibration(), StillState()), Error);
   };
   expect_rejected("window_size 1", [](SlidingWindowOptions* o) { o->window_size = 1; });
-  expect_rejected("a sweep paired with itself",
-                  [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {-5, 0}; });
+  expect_rejected("a sweep paired with itself", [](SlidingWindowOptions* o) {
+    o->pairing.partner_offsets = {-5, 0};
+  });
   expect_rejected("no partners", [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {}; });
-  expect_rejected("a partner offset twice",
-                  [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {-5, 5, -5}; });
-  expect_rejected("max_plane_misses < 0", [](SlidingWindowOptions* o) { o->window_pairing.max_plane_misses = -1; });
+  expect_rejected("a partner offset twice", [](SlidingWindowOptions* o) {
+    o->pairing.partner_offsets = {-5, 5, -5};
+  });
+  expect_rejected("max_plane_misses < 0",
+                  [](SlidingWindowOptions* o) { o->window_pairing.max_plane_misses = -1; });
   expect_rejected("max_plane_misses > 255",
                   [](SlidingWindowOptions* o) { o->window_pairing.max_plane_misses = 256; });
   expect_rejected("residual_max_range_m < 0",
@@ -172,8 +174,9 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
                   [](SlidingWindowOptions* o) { o->min_keyframe_interval_s = -0.01; });
   expect_rejected("gate_extrinsic_factor < 0",
                   [](SlidingWindowOptions* o) { o->window_pairing.gate_extrinsic_factor = -0.25; });
-  expect_rejected("gate_extrinsic_free_deg NaN",
-                  [](SlidingWindowOptions* o) { o->window_pairing.gate_extrinsic_free_deg = std::nan(""); });
+  expect_rejected("gate_extrinsic_free_deg NaN", [](SlidingWindowOptions* o) {
+    o->window_pairing.gate_extrinsic_free_deg = std::nan("");
+  });
   expect_rejected("calibration_prior.mean with a NaN", [](SlidingWindowOptions* o) {
     o->calibration_prior.mean = sensors::Calibration();
     o->calibration_prior.mean->p_I_L.y() = std::nan("");
@@ -222,8 +225,8 @@ TEST(SlidingWindowStreaming, BuffersSweepUntilImuCoversIt) {
   estimator.AddImu(StillImu(t));
   const lidar::LidarSweep sweep = SmallSweep(kStart + 100'000'000);
   // Covered once the IMU reaches the last point plus the coverage margin (offset 0).
-  const int64_t needed = sweep.t_ns + SecondsToNs(sweep.cloud.time_s.maxCoeff() +
-                                                  options.imu_coverage_margin_s);
+  const int64_t needed =
+      sweep.t_ns + SecondsToNs(sweep.cloud.time_s.maxCoeff() + options.imu_coverage_margin_s);
   while (t + kImuStep < needed) estimator.AddImu(StillImu(t += kImuStep));
   EXPECT_TRUE(estimator.AddSweep(sweep));
   EXPECT_EQ(estimator.pending_sweeps(), 1);
@@ -265,8 +268,10 @@ TEST(SlidingWindowMarginalization, KeepsAtMostNKeyframesAndAPrior) {
   }
   // At rest with a tight initial prior, the marginalized prior holds the window still.
   EXPECT_LT(estimator.latest_state().p_W_I.norm(), 1e-3);
-  EXPECT_LT(geometry::AngularDistance(estimator.latest_state().q_W_I,
-                                      Eigen::Quaterniond::Identity()) * kRadToDeg, 0.01);
+  EXPECT_LT(
+      geometry::AngularDistance(estimator.latest_state().q_W_I, Eigen::Quaterniond::Identity()) *
+          kRadToDeg,
+      0.01);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -367,10 +372,9 @@ TEST(SlidingWindowPropagatedWheelFactor, JacobiansMatchAutodiffAndGradientChecke
                              Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()));
     Eigen::Vector3d p_I_V(-1.2, 0.1, -0.4);
     double r_l = 0.33 + 0.01 * trial, r_r = 0.335, track = 1.6 + 0.01 * trial;
-    const std::vector<double*> blocks = {q.coeffs().data(), v.data(),    b_g.data(),
-                                         b_a.data(),        q_I_V.coeffs().data(),
-                                         p_I_V.data(),      &r_l,        &r_r,
-                                         &track};
+    const std::vector<double*> blocks = {
+        q.coeffs().data(), v.data(), b_g.data(), b_a.data(), q_I_V.coeffs().data(),
+        p_I_V.data(),      &r_l,     &r_r,       &track};
     const std::string context = "trial " + std::to_string(trial);
     test::ExpectSameJacobians(analytic, *autodiff, manifolds, blocks, 1e-9, context);
     test::ExpectGradientCheckPasses(analytic, manifolds, blocks, 1e-6, context);
@@ -465,7 +469,8 @@ struct RotatedOffset {
     const Eigen::Quaternion<T> rotation = Eigen::Map<const Eigen::Quaternion<T>>(q);
     Eigen::Map<geometry::Vector3<T>> residual(r);
     residual = rotation * Eigen::Vector3d(1.0, -2.0, 0.5).cast<T>() +
-        Eigen::Map<const geometry::Vector3<T>>(x) - Eigen::Vector3d(0.3, 0.1, -0.2).cast<T>();
+               Eigen::Map<const geometry::Vector3<T>>(x) -
+               Eigen::Vector3d(0.3, 0.1, -0.2).cast<T>();
     return true;
   }
 };
@@ -482,8 +487,8 @@ struct NeverEvaluates {
 // function to second order.
 TEST(SlidingWindowLinearizedCost, IsTheFirstOrderModelAtItsParameters) {
   ceres::AutoDiffCostFunction<RotatedOffset, 3, 4, 3> cost(new RotatedOffset);
-  Eigen::Quaterniond q = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3)
-                                                                       .normalized()));
+  Eigen::Quaterniond q =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
   Eigen::Vector3d x(0.4, -0.3, 1.2);
   const std::vector<double*> blocks = {q.coeffs().data(), x.data()};
   const internal::LinearizedCost<> linearized(cost, blocks, "the test cost");
@@ -566,8 +571,8 @@ TEST(SlidingWindowLinearizedCost, HoldsTheLossWeightOfItsParameters) {
     double* ceres_jacobians[] = {Jq_ceres.data(), Jx_ceres.data()};
     double* held_jacobians[] = {Jq_held.data(), Jx_held.data()};
     double robust_cost = 0.0;
-    ASSERT_TRUE(problem.EvaluateResidualBlock(id, true, &robust_cost, r_ceres.data(),
-                                              ceres_jacobians));
+    ASSERT_TRUE(
+        problem.EvaluateResidualBlock(id, true, &robust_cost, r_ceres.data(), ceres_jacobians));
     ASSERT_TRUE(linearized.Evaluate(blocks.data(), r_held.data(), held_jacobians));
     EXPECT_LT((r_held - r_ceres).norm(), 1e-14);
     EXPECT_LT((Jq_held - Jq_ceres).norm(), 1e-14);
@@ -598,8 +603,8 @@ TEST(SlidingWindowLinearizedCost, HoldsTheLossWeightOfItsParameters) {
 using test::TrueKeyframe;
 
 struct CalibrationErrors {
-  double rotation_deg, translation_m, offset_ms, radius_left_mm, radius_right_mm,
-      track_width_mm, lever_arm_m;
+  double rotation_deg, translation_m, offset_ms, radius_left_mm, radius_right_mm, track_width_mm,
+      lever_arm_m;
 };
 
 CalibrationErrors ErrorsOf(const sensors::Calibration& c, const sensors::Calibration& truth) {
@@ -691,9 +696,9 @@ class SlidingWindowUrban : public ::testing::Test {
     SlidingWindowOptions options;
     options.imu = config.imu;
     options.wheel = *config.wheel;
-    options.enu_origin_lla = Eigen::Vector3d(sim_options_->gnss.origin_lat_deg,
-                                             sim_options_->gnss.origin_lon_deg,
-                                             sim_options_->gnss.origin_alt_m);
+    options.enu_origin_lla =
+        Eigen::Vector3d(sim_options_->gnss.origin_lat_deg, sim_options_->gnss.origin_lon_deg,
+                        sim_options_->gnss.origin_alt_m);
     options.pairing.max_residuals_per_sweep = 400;  // keeps the suite fast; the benchmark uses 2000
     return options;
   }
@@ -719,20 +724,27 @@ class SlidingWindowUrban : public ::testing::Test {
     }
     for (size_t i = 0; i < log.sweeps.size(); ++i) {
       if (log.sweeps[i].t_ns < t0 + 50'000'000) continue;
-      events.emplace_back(
-          log.sweeps[i].t_ns + SecondsToNs(log.sweeps[i].cloud.time_s.maxCoeff()), kSweep, i);
+      events.emplace_back(log.sweeps[i].t_ns + SecondsToNs(log.sweeps[i].cloud.time_s.maxCoeff()),
+                          kSweep, i);
     }
-    std::stable_sort(events.begin(), events.end(), [](const auto& a, const auto& b) {
-      return std::get<0>(a) < std::get<0>(b);
-    });
+    std::stable_sort(events.begin(), events.end(),
+                     [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
 
     Run run;
     for (const auto& [t, kind, i] : events) {
       switch (kind) {
-        case kImu: estimator.AddImu(log.imu.samples[i]); break;
-        case kWheel: estimator.AddWheel(log.wheel[i]); break;
-        case kGnss: estimator.AddGnss(log.gnss.fixes[i]); break;
-        default: estimator.AddSweep(log.sweeps[i]); break;
+        case kImu:
+          estimator.AddImu(log.imu.samples[i]);
+          break;
+        case kWheel:
+          estimator.AddWheel(log.wheel[i]);
+          break;
+        case kGnss:
+          estimator.AddGnss(log.gnss.fixes[i]);
+          break;
+        default:
+          estimator.AddSweep(log.sweeps[i]);
+          break;
       }
       run.max_window = std::max(run.max_window, estimator.window_size());
       // A sweep is processed once the IMU covers it, so one call makes at most one update.
@@ -972,7 +984,8 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   SlidingWindowOptions settled_options = Options();
   settled_options.window_pairing.max_plane_misses = 0;
   SlidingWindowOptions all_options = settled_options;
-  all_options.window_pairing.settled_partner_count = static_cast<int>(all_options.pairing.partner_offsets.size());
+  all_options.window_pairing.settled_partner_count =
+      static_cast<int>(all_options.pairing.partner_offsets.size());
   const Run all = Estimate(truth, all_options);
   const Run settled = Estimate(truth, settled_options);
   const size_t n = settled.settled.size();
@@ -995,8 +1008,8 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   const size_t m = nominal.settled.size();
   const double first = Mean(nominal.settled, 0, m / 4);
   const double last = Mean(nominal.settled, m - m / 4, m);
-  std::cout << "from nominal: settled in " << first << " of the first quarter's updates, "
-            << last << " of the last quarter's\n";
+  std::cout << "from nominal: settled in " << first << " of the first quarter's updates, " << last
+            << " of the last quarter's\n";
   EXPECT_LT(first, last);
 }
 
@@ -1028,10 +1041,10 @@ TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   EXPECT_GT(capped_points, 0.95 * every_points);
   EXPECT_LT(capped.rms_position_error_m, 1.1 * every.rms_position_error_m);
   EXPECT_LT(capped.rms_rotation_error_deg, 1.1 * every.rms_rotation_error_deg);
-  const double capped_q = geometry::AngularDistance(capped.calibration.q_I_L,
-                                                    simulator_->true_calibration().q_I_L);
-  const double every_q = geometry::AngularDistance(every.calibration.q_I_L,
-                                                   simulator_->true_calibration().q_I_L);
+  const double capped_q =
+      geometry::AngularDistance(capped.calibration.q_I_L, simulator_->true_calibration().q_I_L);
+  const double every_q =
+      geometry::AngularDistance(every.calibration.q_I_L, simulator_->true_calibration().q_I_L);
   std::cout << "q_I_L error " << capped_q * 180.0 / M_PI << " against " << every_q * 180.0 / M_PI
             << " deg\n";
   EXPECT_LT(capped_q, every_q + 0.01 * M_PI / 180.0);

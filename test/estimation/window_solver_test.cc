@@ -1,12 +1,11 @@
 #include "estimation/window_solver.h"
 
-#include <limits>
-#include <vector>
-
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <limits>
+#include <vector>
 
 #include "autocal/geometry/so3.h"
 #include "estimation/normal_equations.h"

@@ -4,10 +4,9 @@
 // (docs/estimation.md, Eq. P1-P3) that IMU propagation yields on it: the ground truth of the
 // LiDAR factor tests.
 
-#include <cmath>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/geometry/so3.h"
@@ -33,9 +32,7 @@ struct AnalyticTrajectory {
     return {0.1 * std::cos(t), -0.1 * std::sin(0.5 * t), 0.8};
   }
   Eigen::Quaterniond Rotation(double t) const { return geometry::Exp(Phi(t)); }
-  Eigen::Vector3d BodyRate(double t) const {
-    return geometry::RightJacobian(Phi(t)) * PhiDot(t);
-  }
+  Eigen::Vector3d BodyRate(double t) const { return geometry::RightJacobian(Phi(t)) * PhiDot(t); }
 };
 
 // What IMU propagation from keyframe time t_k to t_k + dt yields on this trajectory.

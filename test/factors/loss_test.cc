@@ -32,11 +32,10 @@ TEST(Loss, ParsesTypesAndScales) {
 }
 
 TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
-  const std::string cases[] = {"tukey",    "huber:",     "huber:abc", "huber:-1",
-                               "cauchy 0", "huber:1.5x", "",
-                               // Out of range: Cauchy at 1e300 evaluates inf * 0 = NaN.
-                               "cauchy:1e300", "huber:1e300", "cauchy:1e-300", "huber:inf",
-                               "huber:nan"};
+  const std::string cases[] = {
+      "tukey", "huber:", "huber:abc", "huber:-1", "cauchy 0", "huber:1.5x", "",
+      // Out of range: Cauchy at 1e300 evaluates inf * 0 = NaN.
+      "cauchy:1e300", "huber:1e300", "cauchy:1e-300", "huber:inf", "huber:nan"};
   for (const std::string& text : cases) {
     try {
       ParseLossOptions(text);

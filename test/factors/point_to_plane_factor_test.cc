@@ -1,15 +1,15 @@
 #include "autocal/factors/point_to_plane_factor.h"
 
+#include <ceres/gradient_checker.h>
+#include <gtest/gtest.h>
+
 #include <memory>
 #include <random>
 #include <vector>
 
-#include <ceres/gradient_checker.h>
-#include <gtest/gtest.h>
-
+#include "analytic_motion.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
-#include "analytic_motion.h"
 
 namespace autocal {
 namespace factors {
@@ -94,14 +94,10 @@ TEST(PointToPlaneFactor, ZeroAtGroundTruth) {
 TEST(PointToPlaneFactor, TimeOffsetModelIsFirstOrderAccurate) {
   std::mt19937 rng(2);
   const Scene scene(&rng, 0.05);
-  const double error_coarse =
-      std::abs(Residual(PointToPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.004),
-                                           kGravity),
-                        scene.truth));
-  const double error_fine =
-      std::abs(Residual(PointToPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.002),
-                                           kGravity),
-                        scene.truth));
+  const double error_coarse = std::abs(Residual(
+      PointToPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.004), kGravity), scene.truth));
+  const double error_fine = std::abs(Residual(
+      PointToPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.002), kGravity), scene.truth));
   EXPECT_GT(error_coarse, 0.0);
   EXPECT_NEAR(error_coarse / error_fine, 4.0, 0.4)
       << "coarse " << error_coarse << " fine " << error_fine;

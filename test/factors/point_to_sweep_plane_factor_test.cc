@@ -1,5 +1,6 @@
 #include "autocal/factors/point_to_sweep_plane_factor.h"
-#include "autocal/factors/point_to_sweep_plane_group_factor.h"
+
+#include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
@@ -7,10 +8,9 @@
 #include <random>
 #include <vector>
 
-#include <gtest/gtest.h>
-
 #include "analytic_motion.h"
 #include "autocal/common/error.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "factor_test_utils.h"
@@ -31,8 +31,9 @@ struct State {
   Eigen::Vector3d p_k, v_k, p_j, v_j, p_I_L;
   double offset_s = 0.0;
   std::vector<double*> Blocks() {
-    return {q_k.coeffs().data(), p_k.data(), v_k.data(),     q_j.coeffs().data(), p_j.data(),
-            v_j.data(),          q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
+    return {q_k.coeffs().data(),   p_k.data(),   v_k.data(),
+            q_j.coeffs().data(),   p_j.data(),   v_j.data(),
+            q_I_L.coeffs().data(), p_I_L.data(), &offset_s};
   }
 };
 
@@ -119,12 +120,12 @@ TEST(PointToSweepPlaneFactor, EveryBlockMovesTheResidual) {
     EXPECT_GT(at_truth.jacobians[block].norm(), 1e-3) << "block " << block;
   }
   // Linearized at a wrong offset, evaluated at the true one: first-order exact.
-  const double coarse = std::abs(Residual(
-      PointToSweepPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.004), kGravity),
-      scene.truth));
-  const double fine = std::abs(Residual(
-      PointToSweepPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.002), kGravity),
-      scene.truth));
+  const double coarse = std::abs(
+      Residual(PointToSweepPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.004), kGravity),
+               scene.truth));
+  const double fine = std::abs(
+      Residual(PointToSweepPlaneFactor(scene.Measurement(scene.truth.offset_s - 0.002), kGravity),
+               scene.truth));
   EXPECT_GT(coarse, 0.0);
   EXPECT_NEAR(coarse / fine, 4.0, 0.5) << "coarse " << coarse << " fine " << fine;
 }
@@ -371,8 +372,10 @@ TEST(PointToSweepPlaneGroupFactor, PointsOfOnePlaneMotionShareItsSide) {
 TEST(PointToSweepPlaneGroupFactor, APlaneSideOutOfRangeIsRefused) {
   std::mt19937 rng(13);
   const PointToSweepPlaneMeasurement m = RandomMeasurement(&rng);
-  std::vector<PointToSweepPlaneFactor::Terms> points = {PointToSweepPlaneFactor::Terms(m, kGravity, 1)};
-  std::vector<PointToSweepPlaneFactor::Side> sides = {PointToSweepPlaneFactor::Side(m.plane_motion, kGravity)};
+  std::vector<PointToSweepPlaneFactor::Terms> points = {
+      PointToSweepPlaneFactor::Terms(m, kGravity, 1)};
+  std::vector<PointToSweepPlaneFactor::Side> sides = {
+      PointToSweepPlaneFactor::Side(m.plane_motion, kGravity)};
   EXPECT_THROW(PointToSweepPlaneGroupFactor(points, sides, LossOptions()), Error);
   points[0].set_plane_side(0);
   EXPECT_NO_THROW(PointToSweepPlaneGroupFactor(points, sides, LossOptions()));
@@ -389,8 +392,7 @@ TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   State state = RandomState(&rng);
   auto old = std::make_unique<PointToSweepPlaneGroupFactor>(first, kGravity, loss);
   const test::Evaluation before = test::Evaluate(*old, state.Blocks());
-  ReleasedPointGroup released =
-      ReleasePoints(std::move(old));
+  ReleasedPointGroup released = ReleasePoints(std::move(old));
   ASSERT_EQ(released.points.size(), first.size());
   ASSERT_EQ(released.plane_sides.size(), first.size());  // every plane motion differs
   const PointToSweepPlaneFactor::Terms* const reused = released.points.data();
@@ -416,8 +418,7 @@ TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   const test::Evaluation b = test::Evaluate(from_measurements, state.Blocks());
   EXPECT_EQ(a.residual, b.residual);
   for (size_t k = 0; k < a.jacobians.size(); ++k) EXPECT_EQ(a.jacobians[k], b.jacobians[k]);
-  const ReleasedPointGroup none =
-      ReleasePoints(nullptr);
+  const ReleasedPointGroup none = ReleasePoints(nullptr);
   EXPECT_TRUE(none.points.empty());
   EXPECT_TRUE(none.plane_sides.empty());
 }

@@ -1,11 +1,11 @@
 #include "autocal/geometry/manifolds.h"
 
-#include <random>
-
 #include <ceres/ceres.h>
 #include <ceres/gradient_checker.h>
 #include <ceres/manifold_test_utils.h>
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "autocal/geometry/so3.h"
 

@@ -1,8 +1,8 @@
 #include "autocal/geometry/se3.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 namespace autocal {
 namespace geometry {

@@ -1,11 +1,11 @@
 #include "autocal/geometry/so3.h"
 
+#include <ceres/jet.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <ceres/jet.h>
-#include <gtest/gtest.h>
 
 namespace autocal {
 namespace geometry {
@@ -18,8 +18,8 @@ std::vector<Eigen::Vector3d> TestRotationVectors() {
   std::vector<Eigen::Vector3d> out = {Eigen::Vector3d::Zero()};
   std::mt19937 rng(42);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  const std::vector<double> angles = {1e-12, 1e-8, 1e-5, 1e-3, 0.1, 1.0, 2.5,
-                                      3.0,   kPi - 1e-3, kPi - 1e-7};
+  const std::vector<double> angles = {1e-12, 1e-8, 1e-5, 1e-3,       0.1,
+                                      1.0,   2.5,  3.0,  kPi - 1e-3, kPi - 1e-7};
   for (double angle : angles) {
     for (int i = 0; i < 5; ++i) {
       const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng), unit(rng), unit(rng)).normalized();
@@ -39,9 +39,9 @@ TEST(So3, HatIsCrossProductAndVeeInvertsIt) {
 TEST(So3, ExpMatchesAngleAxis) {
   for (const Eigen::Vector3d& phi : TestRotationVectors()) {
     const double angle = phi.norm();
-    const Eigen::Matrix3d expected =
-        angle > 0 ? Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix()
-                  : Eigen::Matrix3d::Identity();
+    const Eigen::Matrix3d expected = angle > 0
+                                         ? Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix()
+                                         : Eigen::Matrix3d::Identity();
     EXPECT_TRUE(ExpMatrix(phi).isApprox(expected, 1e-12)) << "phi = " << phi.transpose();
     EXPECT_NEAR(Exp(phi).norm(), 1.0, 1e-15);
   }

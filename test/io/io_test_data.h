@@ -5,13 +5,12 @@
 // kRadius at yaw rate kYawRate while bobbing vertically, so every quantity has a closed
 // form: p_W_I(t) = (R sin(wt), R (1 - cos(wt)), A sin(Wt)), yaw(t) = wt.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "autocal/common/time.h"
 #include "autocal/io/dataset.h"

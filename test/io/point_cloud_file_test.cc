@@ -1,5 +1,8 @@
 #include "autocal/io/point_cloud_file.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -11,9 +14,6 @@
 #include <tuple>
 #include <utility>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "io/point_cloud_formats.h"
@@ -123,8 +123,8 @@ std::string ComposePly(const std::string& format, const TypeSpec& type, int n,
          << "property uchar flags\n"
          << "property " << type.name << " x\nproperty " << type.name << " y\nproperty " << type.name
          << " z\n"
-         << (vertex_list ? "property list uchar int extra\n" : "")
-         << "property " << type.name << " intensity\n"
+         << (vertex_list ? "property list uchar int extra\n" : "") << "property " << type.name
+         << " intensity\n"
          << "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   std::string out = header.str();
   const TypeSpec uchar = kPlyTypes[1];

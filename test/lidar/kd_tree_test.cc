@@ -67,11 +67,10 @@ void ExpectMatchesBruteForce(const Eigen::Matrix3Xd& points, const Eigen::Matrix
       if (n == 0) break;
       const double at_m = std::sqrt(brute[std::min(rank, brute.size() - 1)].first);
       for (const double bound_m : {at_m, 0.999 * at_m, 1.001 * at_m + 1e-9}) {
-        const int expected = static_cast<int>(
-            std::min<size_t>(16, static_cast<size_t>(std::count_if(
-                                     brute.begin(), brute.end(), [&](const auto& e) {
-                                       return e.first <= bound_m * bound_m;
-                                     }))));
+        const int expected = static_cast<int>(std::min<size_t>(
+            16, static_cast<size_t>(std::count_if(brute.begin(), brute.end(), [&](const auto& e) {
+              return e.first <= bound_m * bound_m;
+            }))));
         ASSERT_EQ(tree.Knn(query, 16, bound_m, bounded), expected) << "bound " << bound_m;
         for (int r = 0; r < expected; ++r) {
           ASSERT_EQ(bounded[r].index, brute[static_cast<size_t>(r)].second) << "bound " << bound_m;

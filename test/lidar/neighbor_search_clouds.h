@@ -3,11 +3,10 @@
 // Point clouds that exercise a nearest-neighbour search (KdTree, NeighborGrid): uniform,
 // scan-like density, and clouds whose distances tie.
 
+#include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
 #include <random>
-
-#include <Eigen/Core>
 
 namespace autocal {
 namespace test {

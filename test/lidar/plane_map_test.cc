@@ -1,12 +1,12 @@
 #include "autocal/lidar/plane_map.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <Eigen/Eigenvalues>
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/lidar/kd_tree.h"
@@ -115,8 +115,8 @@ TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
 }
 
 // Rings of a 30-beam scanner (0.7 deg apart) over the ground and a wall: far from the sensor
-// the nearest map points of a query lie on one ring, a line that FitLocalPlane rejects before its iterative
-// solver (PlaneMap::kGateMargin). The decisions and planes must stay the reference's.
+// the nearest map points of a query lie on one ring, a line that FitLocalPlane rejects before its
+// iterative solver (PlaneMap::kGateMargin). The decisions and planes must stay the reference's.
 TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.01);
@@ -158,8 +158,8 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
     }
     // A rejected neighbourhood of k points within reach: count the lines among them.
     const std::vector<Neighbor> nn = tree.Knn(q, options.num_neighbors);
-    if (nn.back().squared_distance_m2 > options.max_neighbor_distance_m *
-                                            options.max_neighbor_distance_m) {
+    if (nn.back().squared_distance_m2 >
+        options.max_neighbor_distance_m * options.max_neighbor_distance_m) {
       continue;
     }
     Eigen::Matrix3Xd local(3, options.num_neighbors);
@@ -188,7 +188,8 @@ TEST(PlaneMap, ClosedFormEigenvaluesAreWithinTheGateMargin) {
     const Eigen::Vector3d scale(std::pow(10.0, -4.0 * (trial % 5) / 4.0),
                                 std::pow(10.0, -4.0 * (trial % 3) / 2.0), 1.0);
     const Eigen::Matrix3d rotation =
-        Eigen::Quaterniond(Eigen::Vector4d(n(rng), n(rng), n(rng), n(rng))).normalized()
+        Eigen::Quaterniond(Eigen::Vector4d(n(rng), n(rng), n(rng), n(rng)))
+            .normalized()
             .toRotationMatrix();
     Eigen::Matrix3Xd local(3, 5);
     for (int i = 0; i < 5; ++i) {

@@ -1,13 +1,13 @@
 #include "autocal/pipeline/offline_calibration.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
-#include <unistd.h>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
@@ -103,8 +103,8 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
   const auto percent = [](double estimate, double truth) {
     return 100.0 * std::abs(estimate - truth) / truth;
   };
-  std::cout << "radii " << percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m)
-            << " % " << percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m)
+  std::cout << "radii " << percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m) << " % "
+            << percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m)
             << " %, track width " << percent(estimate.track_width_m, truth.track_width_m)
             << " %, lever arm " << (estimate.p_I_A - truth.p_I_A).transpose() << " m\n";
   for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
@@ -253,8 +253,9 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
   std::cout << FormatCalibrationSummary(result);
   for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
 
-  EXPECT_THAT(result.warnings,
-              ::testing::Contains(::testing::HasSubstr("the LiDAR odometry did not follow the drive")));
+  EXPECT_THAT(
+      result.warnings,
+      ::testing::Contains(::testing::HasSubstr("the LiDAR odometry did not follow the drive")));
   const sensors::Calibration& truth = simulator.true_calibration();
   const sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
   const sensors::Calibration& estimate = result.calibration.value;
@@ -272,8 +273,9 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
   // and the time offset (no turns; measured sigma 0.50, 0.26, 0.12 deg and 1.6 ms).
   for (size_t a = 0; a < 3; ++a) EXPECT_FALSE(u.T_I_L.observable[a]);
   EXPECT_EQ(u.time_offset_lidar_imu_s.observable, false);
-  EXPECT_THAT(result.warnings,
-              ::testing::Contains(::testing::HasSubstr("LiDAR-IMU time offset: only partly determined")));
+  EXPECT_THAT(
+      result.warnings,
+      ::testing::Contains(::testing::HasSubstr("LiDAR-IMU time offset: only partly determined")));
 
   // Observable: the radii, within the goal (measured 0.0019 % and 0.0000 %); and whatever
   // else is reported observable meets its goal.
@@ -418,8 +420,8 @@ TEST_F(OfflineCalibrationTest, WithoutTheLidarFromImuWheelsAndGnss) {
   };
   const double vehicle_rotation_deg =
       geometry::AngularDistance(estimate.q_I_V, truth.q_I_V) * kRadToDeg;
-  std::cout << "radii " << percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m)
-            << " % " << percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m)
+  std::cout << "radii " << percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m) << " % "
+            << percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m)
             << " %, track width " << percent(estimate.track_width_m, truth.track_width_m)
             << " %, lever arm " << (estimate.p_I_A - truth.p_I_A).transpose()
             << " m, T_I_V rotation " << vehicle_rotation_deg << " deg\n";

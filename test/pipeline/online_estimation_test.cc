@@ -1,14 +1,14 @@
 #include "autocal/pipeline/online_estimation.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "autocal/common/error.h"
 #include "autocal/evaluation/trajectory_errors.h"
@@ -177,9 +177,9 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
   EXPECT_EQ(rows, static_cast<int>(result.calibration_over_time.size()));
   // The stamp keeps its nanoseconds.
   const int64_t t_last = result.calibration_over_time.back().t_ns;
-  EXPECT_THAT(last, ::testing::StartsWith(std::to_string(t_last / 1'000'000'000) + "." +
-                                          std::to_string(t_last % 1'000'000'000 + 1'000'000'000)
-                                              .substr(1)));
+  EXPECT_THAT(last, ::testing::StartsWith(
+                        std::to_string(t_last / 1'000'000'000) + "." +
+                        std::to_string(t_last % 1'000'000'000 + 1'000'000'000).substr(1)));
 
   // states.csv: one row per keyframe, its last one the final state with its biases.
   std::ifstream states(out + "/states.csv");

@@ -1,5 +1,8 @@
 #include "autocal/pipeline/report_html.h"
 
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -9,9 +12,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <gmock/gmock.h>
-#include <gtest/gtest.h>
 
 #include "autocal/geometry/so3.h"
 
@@ -223,7 +223,7 @@ TEST(ReportHtml, SkipsConvergenceOfBlocksThatWereNotEstimated) {
     c.q_I_V = result.batch.calibration_per_iteration.front().q_I_V;
     c.p_I_A = result.batch.calibration_per_iteration.front().p_I_A;
   }
-  result.calibration.uncertainty.T_I_V = io::PoseBlockInfo();  // held, no sigma: no chart
+  result.calibration.uncertainty.T_I_V = io::PoseBlockInfo();            // held, no sigma: no chart
   result.calibration.uncertainty.track_width_m = io::ScalarBlockInfo();  // moved: a chart
   const std::string html = CalibrationReportHtml(result);
   EXPECT_THAT(html, Not(HasSubstr("vehicle–IMU rotation T_I_V")));
@@ -256,7 +256,7 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   }
   EXPECT_THAT(html, HasSubstr("Only one outer iteration was recorded"));
   EXPECT_THAT(html, Not(HasSubstr("points=''")));  // no empty chart
-  EXPECT_EQ(Count(html, "<figure>"), 4);  // three histograms and the trajectory
+  EXPECT_EQ(Count(html, "<figure>"), 4);           // three histograms and the trajectory
   EXPECT_FALSE(HasNonFiniteText(html));
 }
 

@@ -5,13 +5,12 @@
 // per test program and build (test/support/simulation_cache.h) and shared by its tests, which
 // only read it; or, for a one-off drive, written privately and removed.
 
-#include <cmath>
-#include <filesystem>
-#include <string>
-
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <cmath>
+#include <filesystem>
+#include <string>
 
 #include "autocal/io/dataset.h"
 #include "autocal/sim/simulator.h"
@@ -36,9 +35,8 @@ inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
 inline void SpoilNominalGuess(io::SensorsConfig* config) {
   sensors::Calibration& nominal = config->nominal_calibration;
   const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
-  nominal.q_I_L =
-      (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * M_PI / 180.0, axis)))
-          .normalized();
+  nominal.q_I_L = (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * M_PI / 180.0, axis)))
+                      .normalized();
   nominal.p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
   nominal.time_offset_lidar_imu_s += 0.040;
   config->nominal_uncertainty.T_I_L = io::PoseBlockInfo();

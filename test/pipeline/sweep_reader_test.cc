@@ -1,10 +1,10 @@
 #include "pipeline/sweep_reader.h"
 
-#include <filesystem>
-#include <string>
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/io/point_cloud_file.h"

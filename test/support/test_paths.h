@@ -2,11 +2,11 @@
 
 // Where tests find the shared real data and where they may write.
 
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <string>
-
-#include <gtest/gtest.h>
 
 namespace autocal {
 namespace test {
@@ -37,10 +37,10 @@ inline std::filesystem::path OutputDir(const std::string& name) {
 }  // namespace autocal
 
 // Skips the current test with a clear message when a shared data folder is absent.
-#define AUTOCAL_REQUIRE_SHARED_DATA(path)                                                  \
-  do {                                                                                    \
-    if (!std::filesystem::exists(path)) {                                                 \
-      GTEST_SKIP() << "shared data not found at " << (path).string()                      \
+#define AUTOCAL_REQUIRE_SHARED_DATA(path)                                                    \
+  do {                                                                                       \
+    if (!std::filesystem::exists(path)) {                                                    \
+      GTEST_SKIP() << "shared data not found at " << (path).string()                         \
                    << " (expected ../shared beside the project, or set AUTOCAL_SHARED_DIR)"; \
-    }                                                                                     \
+    }                                                                                        \
   } while (0)

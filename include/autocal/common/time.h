@@ -11,9 +11,7 @@ namespace autocal {
 // (never raw epoch seconds inside a residual).
 constexpr int64_t kNanosecondsPerSecond = 1'000'000'000;
 
-constexpr double NsToSeconds(int64_t t_ns) {
-  return static_cast<double>(t_ns) * 1e-9;
-}
+constexpr double NsToSeconds(int64_t t_ns) { return static_cast<double>(t_ns) * 1e-9; }
 
 // Seconds between two stamps, computed in integers first so that epoch-sized stamps keep
 // full precision.

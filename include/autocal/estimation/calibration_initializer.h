@@ -18,13 +18,12 @@
 // Every step that the motion cannot support adds a plain-language problem to the result
 // instead of producing numbers; the result is usable only when ok.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "autocal/estimation/initialization.h"
 #include "autocal/estimation/keyframe.h"
@@ -123,7 +122,7 @@ struct InertialAlignment {
   double vertical_rotation_std_rad = 0.0;
   Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d gravity_O_m_s2 = Eigen::Vector3d::Zero();  // gravity in the odometry frame
-  double position_rms_m = 0.0;  // weighted RMS of the odometry-position residuals
+  double position_rms_m = 0.0;     // weighted RMS of the odometry-position residuals
   int downweighted_positions = 0;  // keyframe intervals the Huber weights discounted
 };
 

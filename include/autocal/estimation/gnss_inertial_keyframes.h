@@ -32,7 +32,7 @@ namespace estimation {
 
 struct GnssInertialKeyframesOptions {
   GnssPlacementOptions placement;
-  KeyframeGnssOptions gnss;  // loss and fix gap of the GNSS factors (the lever arm is held)
+  KeyframeGnssOptions gnss;    // loss and fix gap of the GNSS factors (the lever arm is held)
   KeyframeWheelOptions wheel;  // sigmas and loss of the wheel factors (blocks as above)
   sensors::ImuNoise imu_noise;
   double gravity_m_s2 = 9.80665;

@@ -5,11 +5,10 @@
 // once, and each query integrates only the last partial step. Biases are fixed at the values
 // given (the keyframe's estimate), so a table is rebuilt when they move.
 
-#include <cstdint>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
 
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/sensors/measurements.h"

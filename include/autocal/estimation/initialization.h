@@ -10,12 +10,11 @@
 //      (SolveHandEyeTranslation).
 // Each step reports when the motion is too poor to determine its result.
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "autocal/sensors/measurements.h"
 
@@ -25,24 +24,24 @@ namespace estimation {
 // ---- 1. Still start.
 
 struct StillStartOptions {
-  double min_duration_s = 1.0;           // shortest still period accepted
-  double max_gyro_std_rad_s = 0.01;      // per-axis standard deviation while still
-  double max_accel_std_m_s2 = 0.05;      // per-axis standard deviation while still
+  double min_duration_s = 1.0;       // shortest still period accepted
+  double max_gyro_std_rad_s = 0.01;  // per-axis standard deviation while still
+  double max_accel_std_m_s2 = 0.05;  // per-axis standard deviation while still
   // Mean rate (norm, bias included) above which a block is turning, however steadily: a
   // constant-rate turn has a small standard deviation too. Gyro biases are far below this.
   double max_gyro_mean_rad_s = 0.05;
-  double max_search_s = 30.0;            // look for the still period in the first seconds
+  double max_search_s = 30.0;  // look for the still period in the first seconds
 };
 
 struct StillStart {
   bool found = false;
-  std::string reason;                     // why not, when !found
+  std::string reason;  // why not, when !found
   int64_t t_begin_ns = 0;
   int64_t t_end_ns = 0;
   Eigen::Vector3d gyro_bias_rad_s = Eigen::Vector3d::Zero();
   // Roll and pitch of the IMU from the measured specific force (yaw set to 0).
   Eigen::Quaterniond q_W_I = Eigen::Quaterniond::Identity();
-  double gravity_m_s2 = 0.0;              // measured magnitude of the specific force
+  double gravity_m_s2 = 0.0;  // measured magnitude of the specific force
 };
 
 // Finds the first still period of at least min_duration_s that starts within the first
@@ -70,7 +69,7 @@ struct TimeOffsetOptions {
 struct TimeOffsetEstimate {
   bool reliable = false;
   std::string reason;
-  double offset_s = 0.0;          // t_imu = t_lidar + offset_s
+  double offset_s = 0.0;  // t_imu = t_lidar + offset_s
   double peak_correlation = 0.0;
   std::vector<double> candidate_offsets_s;  // the correlation curve, for reports
   std::vector<double> correlation;
@@ -92,7 +91,7 @@ Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Ve
 
 struct HandEyeOptions {
   int robust_iterations = 5;
-  double huber_threshold_rad = 0.005;   // angular residual where Huber weights start
+  double huber_threshold_rad = 0.005;  // angular residual where Huber weights start
   // The rotation is determined when the second smallest singular value of the stacked
   // system exceeds this fraction of the largest (rotation about two non-parallel axes).
   double min_singular_value_ratio = 0.02;
@@ -103,7 +102,7 @@ struct HandEyeRotation {
   std::string reason;
   Eigen::Quaterniond q_I_L = Eigen::Quaterniond::Identity();
   double rms_residual_rad = 0.0;
-  double singular_value_ratio = 0.0;   // second smallest / largest
+  double singular_value_ratio = 0.0;  // second smallest / largest
 };
 
 // Solves R_I_ij R_I_L = R_I_L R_L_ij for pairs of simultaneous relative rotations

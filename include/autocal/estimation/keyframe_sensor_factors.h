@@ -15,12 +15,11 @@
 // Quaternion blocks (each keyframe's q_W_I, the calibration's q_I_V) must already be in the
 // problem with geometry::RightQuaternionManifold; the functions add every other block they use.
 
-#include <cstdint>
-#include <vector>
-
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <cstdint>
+#include <vector>
 
 #include "autocal/estimation/keyframe.h"
 #include "autocal/factors/gnss_factor.h"
@@ -169,11 +168,11 @@ struct GnssPlacementOptions {
 };
 
 struct GnssPlacement {
-  double yaw_rad = 0.0;     // rotation about z_W applied to every keyframe (Eq. K8)
-  int num_placed = 0;       // keyframes placed on their own fitted track
-  int num_bridged = 0;      // keyframes without one, interpolated from placed neighbours
-  std::vector<bool> placed;  // per keyframe: on its own track (else bridged)
-  int num_headings = 0;     // keyframes whose heading entered the yaw
+  double yaw_rad = 0.0;          // rotation about z_W applied to every keyframe (Eq. K8)
+  int num_placed = 0;            // keyframes placed on their own fitted track
+  int num_bridged = 0;           // keyframes without one, interpolated from placed neighbours
+  std::vector<bool> placed;      // per keyframe: on its own track (else bridged)
+  int num_headings = 0;          // keyframes whose heading entered the yaw
   double heading_rms_rad = 0.0;  // RMS heading residual of those after the yaw
 };
 

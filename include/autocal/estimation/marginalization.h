@@ -20,12 +20,11 @@
 // which a smoother applies backwards once later estimates of the kept blocks are known
 // (docs/estimation.md, "Smoothing").
 
-#include <memory>
-#include <vector>
-
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <memory>
+#include <vector>
 
 namespace autocal {
 namespace estimation {

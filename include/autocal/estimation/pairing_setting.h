@@ -21,7 +21,7 @@ struct PairingSetting {
   int max_residuals_per_sweep = 400;
   // Points that build a sweep's plane map: one per voxel of this size.
   double map_voxel_m = 0.3;
-  double min_range_m = 2.0;   // closer points (the car itself) are ignored
+  double min_range_m = 2.0;          // closer points (the car itself) are ignored
   lidar::PlaneMapOptions plane_map;  // local plane fitting in each map
   // A point of sweep k is paired with a plane of sweep k + offset, the offsets tried in this
   // order, starting at a different one for consecutive points. Partners a few sweeps apart

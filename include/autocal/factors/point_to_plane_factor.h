@@ -32,18 +32,18 @@ namespace factors {
 // IMU motion from a keyframe to the instant a point was measured (at the linearization
 // offset), as IMU propagation predicts it.
 struct PointMotion {
-  double dt_s = 0.0;                                       // t - t_k
+  double dt_s = 0.0;                                            // t - t_k
   Eigen::Quaterniond delta_q = Eigen::Quaterniond::Identity();  // R_Ik_I(t)
-  Eigen::Vector3d delta_v = Eigen::Vector3d::Zero();       // preintegrated, in I_k
-  Eigen::Vector3d delta_p = Eigen::Vector3d::Zero();       // preintegrated, in I_k
-  Eigen::Vector3d omega_rad_s = Eigen::Vector3d::Zero();   // body rate at t, bias-corrected
+  Eigen::Vector3d delta_v = Eigen::Vector3d::Zero();            // preintegrated, in I_k
+  Eigen::Vector3d delta_p = Eigen::Vector3d::Zero();            // preintegrated, in I_k
+  Eigen::Vector3d omega_rad_s = Eigen::Vector3d::Zero();        // body rate at t, bias-corrected
 };
 
 struct PointToPlaneMeasurement {
   Eigen::Vector3d p_L = Eigen::Vector3d::Zero();  // the point in the LiDAR frame
   PointMotion motion;
-  lidar::Plane plane;                 // in W: normal . x + d = 0
-  double sigma_m = 0.02;               // 1-sigma of the point-to-plane distance
+  lidar::Plane plane;                   // in W: normal . x + d = 0
+  double sigma_m = 0.02;                // 1-sigma of the point-to-plane distance
   double offset_linearization_s = 0.0;  // offset_0
 };
 
@@ -110,9 +110,8 @@ struct PointToPlaneResidual {
     const Eigen::Map<const Eigen::Quaternion<T>> q_I_L(q_I_L_ptr);
     const Eigen::Map<const Vec3> p_I_L(p_I_L_ptr);
     const T delta = offset_ptr[0] - T(m.offset_linearization_s);
-    const PropagatedPose<T> pose =
-        PropagateKeyframe<T>(Eigen::Quaternion<T>(q_W_I), Vec3(p_W_I), Vec3(v_W_I), delta,
-                             m.motion, g);
+    const PropagatedPose<T> pose = PropagateKeyframe<T>(Eigen::Quaternion<T>(q_W_I), Vec3(p_W_I),
+                                                        Vec3(v_W_I), delta, m.motion, g);
     const Vec3 p_W = pose.R_W_I * (q_I_L * m.p_L.cast<T>() + p_I_L) + pose.p_W_I;
     residual[0] = (m.plane.normal.cast<T>().dot(p_W) + T(m.plane.d)) / T(m.sigma_m);
     return true;

@@ -15,13 +15,12 @@
 // p_W_I (3), v_W_I (3); q_I_L (4), p_I_L (3), time_offset_lidar_imu_s (1). Quaternions on
 // the RightQuaternionManifold. Keyframes k and j must be different blocks.
 
-#include <cstddef>
-#include <cstdint>
-
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstddef>
+#include <cstdint>
 
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/lidar/plane_fitting.h"
@@ -31,11 +30,11 @@ namespace factors {
 
 struct PointToSweepPlaneMeasurement {
   Eigen::Vector3d p_L = Eigen::Vector3d::Zero();  // the point in sweep k's LiDAR frame
-  PointMotion motion;                              // keyframe k to the point's instant
-  PointMotion plane_motion;                        // keyframe j to sweep j's reference instant
-  lidar::Plane plane_L;                            // in sweep j's LiDAR frame at that instant
-  double sigma_m = 0.02;                           // 1-sigma of the point-to-plane distance
-  double offset_linearization_s = 0.0;             // offset_0 of both motions
+  PointMotion motion;                             // keyframe k to the point's instant
+  PointMotion plane_motion;                       // keyframe j to sweep j's reference instant
+  lidar::Plane plane_L;                           // in sweep j's LiDAR frame at that instant
+  double sigma_m = 0.02;                          // 1-sigma of the point-to-plane distance
+  double offset_linearization_s = 0.0;            // offset_0 of both motions
 };
 
 class PointToSweepPlaneFactor final
@@ -72,8 +71,8 @@ class PointToSweepPlaneFactor final
     Eigen::Vector3d omega_rad_s;
     Eigen::Vector3d delta_v;
     Eigen::Vector3d delta_p;
-    Eigen::Vector3d gravity_velocity;   // g_W dt
-    Eigen::Vector3d gravity_position;   // g_W dt^2 / 2
+    Eigen::Vector3d gravity_velocity;  // g_W dt
+    Eigen::Vector3d gravity_position;  // g_W dt^2 / 2
     double dt_s;
   };
 
@@ -84,11 +83,11 @@ class PointToSweepPlaneFactor final
   // b' = B_j^T b = b0 + delta b1.
   struct PlaneFrame {
     PlaneFrame(const Frame& frame, const Side& plane);
-    Eigen::Matrix3d M_j;              // R_j dR_j
-    Eigen::Matrix3d delta_R;          // dR_j
-    Eigen::Vector3d omega_rad_s;      // omega_j
-    Eigen::Vector3d c0, c1;           // p_j + dt_j v_j + g dt_j^2 / 2;  v_j + g dt_j
-    Eigen::Vector3d b0, b1;           // p_I_L + dR_j^T dp_j;  omega_j x p_I_L + dR_j^T dv_j
+    Eigen::Matrix3d M_j;          // R_j dR_j
+    Eigen::Matrix3d delta_R;      // dR_j
+    Eigen::Vector3d omega_rad_s;  // omega_j
+    Eigen::Vector3d c0, c1;       // p_j + dt_j v_j + g dt_j^2 / 2;  v_j + g dt_j
+    Eigen::Vector3d b0, b1;       // p_I_L + dR_j^T dp_j;  omega_j x p_I_L + dR_j^T dv_j
     double dt_s;
   };
 
@@ -107,8 +106,8 @@ class PointToSweepPlaneFactor final
     // row[c * stride]: theta_k (right tangent of q_W_I k), p_k, v_k, theta_j, v_j, theta_I_L
     // (right tangent), p_I_L, the offset. The p_j columns are minus p_k's.
     static constexpr int kTangentColumns = 22;
-    void EvaluateTangent(const Frame& frame, const PlaneFrame& plane, double* residual,
-                         double* row, size_t stride) const;
+    void EvaluateTangent(const Frame& frame, const PlaneFrame& plane, double* residual, double* row,
+                         size_t stride) const;
     // The index of the point's plane Side among its group's.
     uint32_t plane_side() const { return plane_side_; }
     void set_plane_side(uint32_t index) { plane_side_ = index; }

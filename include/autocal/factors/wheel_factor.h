@@ -37,14 +37,14 @@ struct WheelMeasurement {
 };
 
 struct WheelFactorOptions {
-  double speed_sigma_m_s = 0.02;          // 1-sigma of the wheel forward speed
-  double yaw_rate_sigma_rad_s = 0.01;     // 1-sigma of the wheel yaw rate
-  bool non_holonomic = true;              // add the zero lateral/vertical speed rows
+  double speed_sigma_m_s = 0.02;       // 1-sigma of the wheel forward speed
+  double yaw_rate_sigma_rad_s = 0.01;  // 1-sigma of the wheel yaw rate
+  bool non_holonomic = true;           // add the zero lateral/vertical speed rows
   // 1-sigma of the rear axle's lateral speed (slip) and vertical speed (the body pitching on
   // its suspension) in V, the non-holonomic rows.
   double lateral_sigma_m_s = 0.05;
   double vertical_sigma_m_s = 0.05;
-  bool shared_radius = false;             // one radius block for both wheels
+  bool shared_radius = false;  // one radius block for both wheels
 
   // Sigmas of speed and yaw rate from the encoders' rate noise (Eq. F23) at nominal
   // radius and track width; the other fields keep their defaults.

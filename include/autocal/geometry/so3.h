@@ -7,10 +7,9 @@
 // the right Jacobian Jr satisfies Exp(phi + dphi) ~= Exp(phi) * Exp(Jr(phi) * dphi)
 // (Forster et al. 2017, eq. 7). Every function is safe near theta = 0 and theta = pi.
 
-#include <cmath>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace autocal {
 namespace geometry {

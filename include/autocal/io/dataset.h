@@ -6,13 +6,12 @@
 // Every file but imu.csv is optional. Readers validate as they go and throw
 // autocal::ParseError naming file, line and column (or byte offset) on the first problem.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "autocal/geometry/se3.h"
 #include "autocal/io/calibration_yaml.h"

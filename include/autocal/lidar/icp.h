@@ -76,10 +76,10 @@ struct IcpSetting {
 
 // How an IcpTarget provides normals for point-to-plane alignment.
 enum class TargetNormals {
-  kNone,       // point-to-point only
-  kAll,        // every point's normal, computed when the target is built
-  kOnDemand,   // a point's normal computed when an alignment first pairs a point with it:
-               // a map registered against once computes a fraction of its normals
+  kNone,      // point-to-point only
+  kAll,       // every point's normal, computed when the target is built
+  kOnDemand,  // a point's normal computed when an alignment first pairs a point with it:
+              // a map registered against once computes a fraction of its normals
 };
 
 // A target cloud prepared once for many alignments: its k-d tree and, for point-to-plane,

@@ -9,10 +9,9 @@
 // and backtracks through its nodes. Results are exact and ordered as KdTree's: by (squared
 // distance, index), so ties go to the lower index.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "autocal/lidar/neighbor.h"
 

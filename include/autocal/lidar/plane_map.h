@@ -6,9 +6,8 @@
 // associated with the total-least-squares plane of its k nearest map points when those points
 // are close, flat and thin enough.
 
-#include <cstdint>
-
 #include <Eigen/Core>
+#include <cstdint>
 
 #include "autocal/lidar/neighbor_grid.h"
 #include "autocal/lidar/plane_fitting.h"
@@ -55,8 +54,7 @@ class PlaneMap {
   int64_t size() const { return grid_.size(); }
 
  private:
-  using Neighborhood =
-      Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxNeighbors>;
+  using Neighborhood = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxNeighbors>;
   bool FitLocalPlane(const Neighborhood& local, Plane* plane) const;
 
   PlaneMapOptions options_;

@@ -51,12 +51,12 @@ struct OfflineCalibrationOptions {
   double default_track_width_prior_sigma_m = 0.05;
   // A direction whose sigma exceeds its limit is reported unobservable: held at its nominal
   // value when the drive left it at its prior (below), else kept at its estimate; the others
-  // are conditioned on the held ones (docs/calibration.md, Eq. C1-C2). The LiDAR, offset, radius and lever-arm limits are the accuracy a calibration is expected to
-  // reach (0.1 deg, 1 cm, 0.5 ms, 0.1 % of a radius, 2 cm): a direction known less well is not
-  // reported as found.
-  double max_observable_rotation_sigma_deg = 0.1;   // T_I_L
+  // are conditioned on the held ones (docs/calibration.md, Eq. C1-C2). The LiDAR, offset, radius
+  // and lever-arm limits are the accuracy a calibration is expected to reach (0.1 deg, 1 cm, 0.5
+  // ms, 0.1 % of a radius, 2 cm): a direction known less well is not reported as found.
+  double max_observable_rotation_sigma_deg = 0.1;          // T_I_L
   double max_observable_vehicle_rotation_sigma_deg = 0.3;  // T_I_V (only scales wheel speeds)
-  double max_observable_translation_sigma_m = 0.01;  // T_I_L
+  double max_observable_translation_sigma_m = 0.01;        // T_I_L
   double max_observable_time_offset_sigma_s = 0.0005;
   double max_observable_wheel_radius_sigma_m = 0.0003;
   double max_observable_track_width_sigma_m = 0.005;
@@ -100,7 +100,7 @@ struct OfflineCalibrationResult {
   // in `batch`): "imu", "wheel", "gnss".
   std::map<std::string, SensorResiduals> whitened_residuals;
   sensors::Calibration nominal;  // the dataset's initial guess, for comparison
-  double seconds_total = 0.0;  // wall time, and its stages
+  double seconds_total = 0.0;    // wall time, and its stages
   double seconds_loading = 0.0;
   double seconds_initialization = 0.0;
   double seconds_solve = 0.0;  // batch solve, covariance and observability
@@ -115,8 +115,8 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
                                           const OfflineCalibrationOptions& options = {});
 
 // Writes calibration.yaml, trajectory.tum (TUM format, seconds),
-// calibration_per_iteration.csv and report.html into `directory` (created). Throws autocal::Error on I/O
-// failure.
+// calibration_per_iteration.csv and report.html into `directory` (created). Throws autocal::Error
+// on I/O failure.
 void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result);
 
 // A plain-text summary table (values, sigma, observability, warnings) for terminals.

@@ -25,9 +25,9 @@ namespace autocal {
 namespace pipeline {
 
 struct OnlineEstimationProgress {
-  double log_fraction = 0.0;  // of the log's duration streamed so far, 0 ... 1
-  int64_t updates = 0;        // window updates (keyframes) so far
-  double update_s = 0.0;      // wall time of the last update
+  double log_fraction = 0.0;         // of the log's duration streamed so far, 0 ... 1
+  int64_t updates = 0;               // window updates (keyframes) so far
+  double update_s = 0.0;             // wall time of the last update
   sensors::Calibration calibration;  // current estimate
 };
 
@@ -106,8 +106,7 @@ struct OnlineEstimationResult {
 // problem asks for data the dataset lacks, asks for what the window does not estimate
 // (a calibration without LiDAR, one shared wheel radius, only one radius estimated), or when
 // the initializer cannot start (its reasons).
-OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset,
-                                             const io::Problem& problem,
+OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const io::Problem& problem,
                                              const OnlineEstimationOptions& options = {});
 
 // Writes trajectory.tum, trajectory_smoothed.tum (when smoothed), states.csv,

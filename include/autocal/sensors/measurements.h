@@ -3,10 +3,9 @@
 // Raw measurement types, exactly as a dataset carries them (DESIGN.md "Data formats").
 // Stamps are int64 nanoseconds on the sensor's own clock.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace autocal {
 namespace sensors {

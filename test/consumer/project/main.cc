@@ -1,7 +1,7 @@
 // A project that links the installed autocal package and uses its public API.
-#include <cstdio>
-
 #include <ceres/ceres.h>
+
+#include <cstdio>
 
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/se3.h"
@@ -31,9 +31,8 @@ int main() {
   Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
   const Eigen::Quaterniond target = Exp(phi);
   ceres::Problem problem;
-  problem.AddResidualBlock(
-      new ceres::AutoDiffCostFunction<Residual, 3, 4>(new Residual(target)), nullptr,
-      q.coeffs().data());
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Residual, 3, 4>(new Residual(target)),
+                           nullptr, q.coeffs().data());
   problem.SetManifold(q.coeffs().data(), new autocal::geometry::RightQuaternionManifold);
   ceres::Solver::Options options;
   options.function_tolerance = 1e-16;
