@@ -237,7 +237,7 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
       {"bad_loss", "loss:\n  wheel: \"hubber:2\"\n", 2, "\"hubber",
        "loss.wheel: unknown robust loss 'hubber'"},
       {"bad_loss_scale", "loss:\n  lidar: \"huber:-1\"\n", 2, "\"huber",
-       "loss.lidar: robust loss 'huber:-1': scale must be a positive number"},
+       "loss.lidar: robust loss 'huber:-1': scale must be between 0.001 and 1000 sigmas, got -1"},
       {"loss_not_scalar", "loss:\n  lidar: [huber, 1]\n", 2, "[", "loss.lidar: expected a scalar"},
       {"window_too_small", "window: {size: 1}\n", 1, "1", "window.size: must be within [2, 10000]"},
       {"window_not_int", "window:\n  size: 10.5\n", 2, "10.5", "window.size"},
