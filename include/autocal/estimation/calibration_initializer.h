@@ -69,7 +69,7 @@ struct CalibrationInitializerOptions {
   HandEyeOptions hand_eye;
   // Repeat steps 1, 3 and 4 once with each sweep deskewed by the gyro (rotated into L with
   // the first q_I_L, at the first offset): constant-velocity deskewing lets the odometry lag
-  // when the turn rate changes, which biased the offset by ~10 ms in the urban test.
+  // when the turn rate changes, which biases the offset (docs/history/initialization.md).
   bool gyro_deskew_pass = true;
   // With the gyro pass on, the first pass only has to find the offset and rotation to
   // deskew with, not their final values: it registers each sweep with this coarser grid
@@ -168,9 +168,8 @@ struct CalibrationInitialization {
 // Settings for a caller that refines the initializer's rotation and offset afterwards (the
 // offline batch, the sliding window): the odometry runs once, without the gyro-deskewed
 // repetition, registering each sweep on a 0.5 m grid of its points (the map keeps 0.25 m) and
-// stopping its ICP at steps below 1 mm and 0.1 mrad. On the 60 s urban log this took the
-// initialization from 27 s to 13 s and changed no final calibration error by more than its
-// noise.
+// stopping its ICP at steps below 1 mm and 0.1 mrad: about half the cost, for a start the
+// caller refines anyway (figures in docs/history/initialization.md).
 CalibrationInitializerOptions RefinedLaterInitializerOptions();
 
 // Runs the chain. Throws autocal::Error only on malformed input (unsorted stamps); poor

@@ -25,9 +25,7 @@ struct PlaneMapOptions {
   // The line gate also rejects strips of one or two scan rings (docs/sliding_window.md,
   // "Planes across scan rings"): a plane fitted to a narrow strip extrapolates the road's
   // curvature to the point, and the error moves with the rings when the body pitches, which
-  // the estimators took for a pitch (0.02 before: the window's noise-free ATE rotation 0.073 ->
-  // 0.051 deg, the offline calibration's LiDAR pitch ANEES 2.36 -> 1.39 over 20 drives; 0.2
-  // lost the 16-beam window drive started 3.6 deg off).
+  // the estimators took for a pitch (figures in docs/history/estimation.md).
   double min_spread_ratio = 0.1;
   // Largest distance of any neighbour to the fitted plane: rejects corners and clutter.
   double max_plane_thickness_m = 0.1;

@@ -35,8 +35,8 @@ struct OfflineCalibrationOptions {
   // The LiDAR odometry's keyframes are aligned to GNSS (yaw and shift); when they miss the
   // fixes by more than this RMS afterwards (or span too little to give the yaw), the odometry
   // did not follow the drive and the keyframes are rebuilt from GNSS and the IMU instead
-  // (docs/calibration.md). An urban odometry track misses by about 4 m RMS (its drift and the
-  // initializer's scale), which the batch corrects; a failed one by hundreds of metres.
+  // (docs/calibration.md). A working track misses by metres (its drift and the initializer's
+  // scale), which the batch corrects; a failed one by hundreds of metres.
   double max_odometry_to_gnss_rms_m = 20.0;
   // Without the LiDAR, a keyframe every this many seconds (docs/calibration.md, "Without the
   // LiDAR"): the GNSS rate of 10 Hz receivers.
@@ -68,9 +68,7 @@ struct OfflineCalibrationOptions {
   double max_posterior_to_prior_sigma = 0.5;
   // ... or above this multiple of its observability limit above. Weakly determined directions
   // are where unmodelled effects show, and a weak prior (the defaults, when the dataset states
-  // no nominal uncertainty) does not hold them: on the 34 s urban log the LiDAR height (8.5 cm
-  // against a 30 cm prior) ended 20 cm off and the track width (24 mm against 50 mm) 5 % off
-  // when kept.
+  // no nominal uncertainty) does not hold them (docs/history/calibration.md).
   double max_kept_sigma_to_limit = 4.0;
   // A solve that moves any direction farther than this many prior sigmas from the nominal
   // value is not trusted: CalibrateDataset throws instead of returning it.

@@ -36,10 +36,8 @@ struct OnlineEstimationOptions {
   // the first keyframe the initializer returns.
   double initialization_duration_s = 30.0;
   // Every n-th sweep of those seconds goes to the initializer (docs/sliding_window.md,
-  // "Streaming a dataset"): its odometry then registers sweeps 0.3 s apart. On the 60 s urban
-  // logs of seeds 1-3 a stride of 2 halved the initializer (7.8-9.1 s -> 4.1-4.8 s) and took
-  // its time offset from -4.3 .. -6.9 ms off to -1.2 .. 0.3 ms; 3 took it to 3.3-3.9 s, and
-  // the window's final figures stayed within their spread.
+  // "Streaming a dataset"): its odometry then registers sweeps 0.3 s apart, which costs less
+  // and gives the time offset larger rotations to correlate (docs/history/sliding_window.md).
   int initializer_sweep_stride = 3;
   // The window refines the initializer's extrinsic and offset, so the faster settings serve,
   // as in the offline calibration (docs/sliding_window.md, "Streaming a dataset").
@@ -71,9 +69,8 @@ struct OnlineEstimationOptions {
   double initial_position_sigma_with_gnss_m = 2.0;
   // With GNSS, 1-sigma of the initial accelerometer bias instead of initial_state_sigmas': the
   // start then comes from the GNSS-inertial solve over the initialization span, whose turns
-  // tell the bias from the tilt (first-keyframe bias 0.006-0.026 m/s^2 off on the 60 s urban
-  // logs of seeds 1-3). Until the window's own drive turns, roll and the lateral bias trade
-  // against each other: at 0.03 m/s^2 the window's roll wandered to 0.3 deg in the first 20 s.
+  // tell the bias from the tilt. Until the window's own drive turns, roll and the lateral bias
+  // trade against each other, so a wider sigma lets the roll wander.
   double initial_accel_bias_sigma_with_gnss_m_s2 = 0.02;
   // Called after every window update; may be empty.
   std::function<void(const OnlineEstimationProgress&)> progress;
