@@ -18,6 +18,7 @@
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/lidar/plane_map.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/point_group_pool.h"
@@ -198,18 +199,40 @@ struct CalibrationBlock {
   bool estimated;
 };
 
-// The calibration's blocks in the order of CalibrationCovariance.
+// Whether the window estimates block `id` (SlidingWindowEstimatedBlocks groups some blocks).
+inline bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& e) {
+  using Id = sensors::CalibrationBlockId;
+  switch (id) {
+    case Id::kLidarRotation:
+      return e.extrinsic_rotation;
+    case Id::kLidarTranslation:
+      return e.extrinsic_translation;
+    case Id::kTimeOffset:
+      return e.time_offset;
+    case Id::kWheelRadiusLeft:
+    case Id::kWheelRadiusRight:
+      return e.wheel_radii;
+    case Id::kTrackWidth:
+      return e.track_width;
+    case Id::kVehicleRotation:
+    case Id::kVehicleTranslation:
+      return e.vehicle_frame;
+    case Id::kGnssLeverArm:
+      return e.gnss_lever_arm;
+  }
+  return false;
+}
+
+// The calibration's blocks in the order of CalibrationCovariance: the block table's
+// (sensors/calibration_blocks.h).
 inline std::vector<CalibrationBlock> CalibrationBlocks(sensors::Calibration* c,
                                                        const SlidingWindowEstimatedBlocks& e) {
-  return {{"q_I_L", c->q_I_L.coeffs().data(), 4, 3, e.extrinsic_rotation},
-          {"p_I_L", c->p_I_L.data(), 3, 3, e.extrinsic_translation},
-          {"time_offset_lidar_imu_s", &c->time_offset_lidar_imu_s, 1, 1, e.time_offset},
-          {"wheel_radius_left_m", &c->wheel_radius_left_m, 1, 1, e.wheel_radii},
-          {"wheel_radius_right_m", &c->wheel_radius_right_m, 1, 1, e.wheel_radii},
-          {"track_width_m", &c->track_width_m, 1, 1, e.track_width},
-          {"q_I_V", c->q_I_V.coeffs().data(), 4, 3, e.vehicle_frame},
-          {"p_I_V", c->p_I_V.data(), 3, 3, e.vehicle_frame},
-          {"p_I_A", c->p_I_A.data(), 3, 3, e.gnss_lever_arm}};
+  std::vector<CalibrationBlock> blocks;
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    blocks.push_back(
+        {info.key, info.values(c), info.ambient_size, info.tangent_size, Estimated(info.id, e)});
+  }
+  return blocks;
 }
 
 // The five state blocks of a keyframe, in the order the IMU factor and the priors take them.
