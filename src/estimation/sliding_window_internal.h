@@ -16,9 +16,9 @@
 
 #include "autocal/estimation/marginalization.h"
 #include "autocal/estimation/sliding_window.h"
+#include "autocal/estimation/sliding_window_blocks.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/lidar/plane_map.h"
-#include "autocal/sensors/calibration_blocks.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/point_group_pool.h"
@@ -198,30 +198,6 @@ struct CalibrationBlock {
   int tangent_size;
   bool estimated;
 };
-
-// Whether the window estimates block `id` (SlidingWindowEstimatedBlocks groups some blocks).
-inline bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& e) {
-  using Id = sensors::CalibrationBlockId;
-  switch (id) {
-    case Id::kLidarRotation:
-      return e.extrinsic_rotation;
-    case Id::kLidarTranslation:
-      return e.extrinsic_translation;
-    case Id::kTimeOffset:
-      return e.time_offset;
-    case Id::kWheelRadiusLeft:
-    case Id::kWheelRadiusRight:
-      return e.wheel_radii;
-    case Id::kTrackWidth:
-      return e.track_width;
-    case Id::kVehicleRotation:
-    case Id::kVehicleTranslation:
-      return e.vehicle_frame;
-    case Id::kGnssLeverArm:
-      return e.gnss_lever_arm;
-  }
-  return false;
-}
 
 // The calibration's blocks in the order of CalibrationCovariance: the block table's
 // (sensors/calibration_blocks.h).

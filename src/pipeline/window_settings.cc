@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "autocal/common/error.h"
+#include "autocal/estimation/sliding_window_blocks.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
 #include "problem_blocks.h"
@@ -12,38 +13,6 @@ namespace autocal {
 namespace pipeline {
 
 namespace {
-
-// The window's switch and prior sigma of a block. The window keeps one switch for both radii
-// and one for the vehicle frame's two blocks, and one sigma for both radii.
-struct WindowBlock {
-  bool* estimate;
-  double* prior_sigma;  // file units: degrees for a rotation
-};
-WindowBlock WindowBlockOf(sensors::CalibrationBlockId id, estimation::SlidingWindowOptions* w) {
-  using Id = sensors::CalibrationBlockId;
-  estimation::SlidingWindowEstimatedBlocks& e = w->estimate;
-  estimation::SlidingWindowCalibrationPrior& p = w->calibration_prior;
-  switch (id) {
-    case Id::kLidarRotation:
-      return {&e.extrinsic_rotation, &p.extrinsic_rotation_deg};
-    case Id::kLidarTranslation:
-      return {&e.extrinsic_translation, &p.extrinsic_translation_m};
-    case Id::kTimeOffset:
-      return {&e.time_offset, &p.time_offset_s};
-    case Id::kWheelRadiusLeft:
-    case Id::kWheelRadiusRight:
-      return {&e.wheel_radii, &p.wheel_radius_m};
-    case Id::kTrackWidth:
-      return {&e.track_width, &p.track_width_m};
-    case Id::kVehicleRotation:
-      return {&e.vehicle_frame, &p.vehicle_rotation_deg};
-    case Id::kVehicleTranslation:
-      return {&e.vehicle_frame, &p.vehicle_translation_m};
-    case Id::kGnssLeverArm:
-      break;
-  }
-  return {&e.gnss_lever_arm, &p.gnss_lever_arm_m};
-}
 
 // What the window estimates and its prior sigmas, from the problem and the dataset's stated
 // nominal uncertainty. A block is estimated when its sensor takes part and the problem does not
@@ -55,14 +24,18 @@ void SetWindowBlocks(const io::ProblemCalibration& problem,
                      const io::CalibrationUncertainty& nominal, bool use_wheel, bool use_gnss,
                      estimation::SlidingWindowOptions* w) {
   estimation::SlidingWindowOptions defaults = *w;
-  WindowBlock previous{nullptr, nullptr};
+  estimation::SlidingWindowBlockSetting previous{nullptr, nullptr};
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     const BlockSetting s = SettingOf(info.id, problem, nominal);
     const bool estimated = SensorUsed(info, use_wheel, use_gnss) && Estimated(s.mode);
+    const double default_sigma =
+        *estimation::BlockSettingOf(info.id, &defaults.estimate, &defaults.calibration_prior)
+             .prior_sigma;
     const double sigma = s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff()
                          : s.nominal_sigma               ? s.nominal_sigma->maxCoeff()
-                                           : *WindowBlockOf(info.id, &defaults).prior_sigma;
-    const WindowBlock block = WindowBlockOf(info.id, w);
+                                                         : default_sigma;
+    const estimation::SlidingWindowBlockSetting block =
+        estimation::BlockSettingOf(info.id, &w->estimate, &w->calibration_prior);
     *block.estimate =
         block.estimate == previous.estimate ? *block.estimate || estimated : estimated;
     *block.prior_sigma =

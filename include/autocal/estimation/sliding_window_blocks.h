@@ -1,0 +1,26 @@
+#pragma once
+
+// Where each calibration block (sensors/calibration_blocks.h) lives in the window's options:
+// its estimate switch and its prior sigma. The window keeps one switch for both radii and one
+// for the vehicle frame's two blocks, and one sigma for both radii, so blocks may share them.
+
+#include "autocal/estimation/sliding_window_options.h"
+#include "autocal/sensors/calibration_blocks.h"
+
+namespace autocal {
+namespace estimation {
+
+struct SlidingWindowBlockSetting {
+  bool* estimate;
+  double* prior_sigma;  // the prior's unit: degrees for a rotation
+};
+
+SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
+                                         SlidingWindowEstimatedBlocks* estimate,
+                                         SlidingWindowCalibrationPrior* prior);
+
+// Whether the window estimates block `id`.
+bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate);
+
+}  // namespace estimation
+}  // namespace autocal

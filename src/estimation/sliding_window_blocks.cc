@@ -1,0 +1,39 @@
+#include "autocal/estimation/sliding_window_blocks.h"
+
+namespace autocal {
+namespace estimation {
+
+SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
+                                         SlidingWindowEstimatedBlocks* e,
+                                         SlidingWindowCalibrationPrior* p) {
+  using Id = sensors::CalibrationBlockId;
+  switch (id) {
+    case Id::kLidarRotation:
+      return {&e->extrinsic_rotation, &p->extrinsic_rotation_deg};
+    case Id::kLidarTranslation:
+      return {&e->extrinsic_translation, &p->extrinsic_translation_m};
+    case Id::kTimeOffset:
+      return {&e->time_offset, &p->time_offset_s};
+    case Id::kWheelRadiusLeft:
+    case Id::kWheelRadiusRight:
+      return {&e->wheel_radii, &p->wheel_radius_m};
+    case Id::kTrackWidth:
+      return {&e->track_width, &p->track_width_m};
+    case Id::kVehicleRotation:
+      return {&e->vehicle_frame, &p->vehicle_rotation_deg};
+    case Id::kVehicleTranslation:
+      return {&e->vehicle_frame, &p->vehicle_translation_m};
+    case Id::kGnssLeverArm:
+      break;
+  }
+  return {&e->gnss_lever_arm, &p->gnss_lever_arm_m};
+}
+
+bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate) {
+  SlidingWindowEstimatedBlocks e = estimate;
+  SlidingWindowCalibrationPrior unused;
+  return *BlockSettingOf(id, &e, &unused).estimate;
+}
+
+}  // namespace estimation
+}  // namespace autocal
