@@ -568,22 +568,29 @@ Scenario BuildSkidSteer(const ScenarioOptions& options, std::mt19937_64* rng) {
   return scenario;
 }
 
-// A straight road at one heading: away from a standstill, speed changes between 30 and
-// 90 km/h, a stop every fourth change. Buildings and poles line the road.
+// A straight road at one heading: away from a standstill, then speed changes between 30 and
+// 90 km/h with a stop in every third (the first within a minute). Buildings and poles line
+// the road.
 Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   auto between = [&](double a, double b) { return a + (b - a) * uniform(*rng); };
   DriveBuilder drive(between(-M_PI, M_PI), 0.0);
   drive.Stand(2.0);
-  drive.ChangeSpeed(between(45.0, 55.0) * kKmh, 2.0);
+  drive.ChangeSpeed(between(45.0, 55.0) * kKmh, 2.5);
   for (int m = 0; drive.time_s() < options.duration_s + 5.0; ++m) {
-    drive.Cruise(between(60.0, 160.0));
-    if (m % 4 == 3) {
-      drive.ChangeSpeed(0.0, 2.5);
-      drive.Stand(between(2.0, 3.0));
-      drive.ChangeSpeed(between(40.0, 60.0) * kKmh, 2.0);
-    } else {
-      drive.ChangeSpeed(between(30.0, 90.0) * kKmh, between(1.0, 2.0));
+    drive.Cruise(between(30.0, 80.0));
+    switch (m % 3) {
+      case 0:
+        drive.ChangeSpeed(between(65.0, 90.0) * kKmh, between(1.5, 2.5));
+        break;
+      case 1:
+        drive.ChangeSpeed(0.0, 2.8);
+        drive.Stand(between(2.0, 3.0));
+        drive.ChangeSpeed(between(30.0, 50.0) * kKmh, 2.5);
+        break;
+      default:
+        drive.ChangeSpeed(between(50.0, 80.0) * kKmh, between(1.5, 2.5));
+        break;
     }
   }
   drive.Cruise(100.0);
