@@ -553,11 +553,11 @@ Scenario BuildSkidSteer(const ScenarioOptions& options, std::mt19937_64* rng) {
   auto trajectory = std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground,
                                                         options.dynamics, drive.pivots());
   auto world = std::make_shared<World>(ground);
-  // One lap holds every object: later laps retrace it.
-  const double lap_end = std::min(drive.distance_m(), 200.0);
-  const Corridor corridor(trajectory->path(), -5.0, lap_end + 5.0);
+  // Objects beside the first 250 m (every lap starts at the same point), kept clear of the
+  // whole drive: later laps are drawn anew and pass elsewhere.
+  const Corridor corridor(trajectory->path(), -5.0, drive.distance_m() + 5.0);
   Placer placer(*trajectory, corridor, world.get());
-  AddOpenGroundObjects(&placer, -5.0, lap_end, rng);
+  AddOpenGroundObjects(&placer, -5.0, std::min(drive.distance_m(), 250.0), rng);
 
   Scenario scenario;
   scenario.type = ScenarioType::kSkidSteer;

@@ -103,6 +103,21 @@ TEST(ClockTest, WheelSampleStampedTIsTheTruthAtImuTimeTPlusOffset) {
   }
 }
 
+TEST(ClockTest, WheelRatesFrom5To200HzAreTheTruthAtTheirStamps) {
+  for (double rate : {5.0, 200.0}) {
+    SimulationOptions options = ExactLog(8.0);
+    options.wheel.config.rate_hz = rate;
+    const Simulator simulator(options);
+    const sensors::WheelSamples samples = simulator.GenerateWheel();
+    EXPECT_EQ(samples.size(), static_cast<size_t>(8.0 * rate) + 1) << rate << " Hz";
+    double worst = 0.0;
+    for (const sensors::WheelSample& s : samples) {
+      worst = std::max(worst, WheelError(simulator, s, simulator.TimeOf(s.t_ns)));
+    }
+    EXPECT_LT(worst, 1e-9) << rate << " Hz";
+  }
+}
+
 TEST(ClockTest, WheelTruthCarriesSpeedAndYawRateAtEachMeasurement) {
   SimulationOptions options = ExactLog(12.0);
   options.wheel.config.rate_hz = 50.0;

@@ -107,6 +107,37 @@ TEST(PlatformTest, StraightDriveKeepsItsHeadingAndChangesSpeed) {
   EXPECT_GT(stop_s, 1.5) << "a stop after the start, s";
 }
 
+TEST(PlatformTest, LidarPointsLieOnSurfacesWhileTheRobotPivots) {
+  // The skid-steer preset with a LiDAR: the IMU is mounted y-up and the robot turns on the
+  // spot, so the sweep checks the mount chain T_W_I T_I_L and the pivot kinematics together.
+  SimulationOptions options = SkidSteerRobotOptions().WithoutNoise();
+  options.duration_s = 12.0;
+  options.lidar.enabled = true;
+  options.lidar.config.num_beams = 16;
+  options.lidar.config.azimuth_resolution_deg = 1.0;
+  const Simulator simulator(options);
+  const sensors::Calibration& truth = simulator.true_calibration();
+  const geometry::Pose3d T_I_L(truth.q_I_L, truth.p_I_L);
+  int pivot_sweeps = 0;
+  for (int k = 0; k < simulator.num_sweeps(); k += 5) {
+    const lidar::LidarSweep sweep = simulator.GenerateSweep(k);
+    const double t0 = simulator.TimeOf(sweep.t_ns) + truth.time_offset_lidar_imu_s;
+    const BodyState state = simulator.scenario().trajectory->StateAt(t0);
+    if (std::abs(state.omega_B.z()) < 0.3 || state.v_W.norm() > 1e-9) continue;
+    ++pivot_sweeps;
+    ASSERT_GT(sweep.cloud.size(), 1000);
+    double worst = 0.0;
+    for (int64_t i = 0; i < sweep.cloud.size(); ++i) {
+      const double t = t0 + sweep.cloud.time_s(i);
+      const Eigen::Vector3d p_W =
+          simulator.ImuPoseAt(t) * (T_I_L * Eigen::Vector3d(sweep.cloud.points.col(i)));
+      worst = std::max(worst, simulator.scenario().world->DistanceToSurface(p_W, t));
+    }
+    EXPECT_LT(worst, 1e-6) << "sweep " << k;
+  }
+  EXPECT_GE(pivot_sweeps, 3);
+}
+
 // A preset written as a dataset reads back, and groundtruth/timing.yaml holds its offsets.
 void CheckPresetDataset(SimulationOptions options, const std::string& name) {
   const Simulator simulator(options);
