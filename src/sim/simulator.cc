@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -115,6 +116,20 @@ int64_t JitteredInstant(int64_t k, int64_t dt_ns, int64_t end_ns, StampJitter* j
   if (!jitter->on()) return k * dt_ns;
   const int64_t t = k * dt_ns + jitter->Next();
   return std::min(std::max<int64_t>(t, 0), end_ns);
+}
+
+// Arrival of each measurement (same clock as `instants`) when they are delivered in groups of
+// `burst` consecutive ones: a group leaves when its last member is measured, and member j
+// arrives j * span / burst after that. Without bursts, at its instant.
+std::vector<int64_t> ArrivalTimes(const std::vector<int64_t>& instants, int burst, double span_s) {
+  if (burst <= 1) return instants;
+  const int64_t n = static_cast<int64_t>(instants.size());
+  std::vector<int64_t> arrivals(instants.size());
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t last = std::min(n - 1, (k / burst) * burst + burst - 1);
+    arrivals[k] = instants[last] + SecondsToNs(span_s * (k % burst) / burst);
+  }
+  return arrivals;
 }
 
 }  // namespace
@@ -330,36 +345,30 @@ WheelLog Simulator::GenerateWheelLog() const {
   const int64_t n = static_cast<int64_t>(std::floor(options_.duration_s / NsToSeconds(dt_ns))) + 1;
   std::mt19937_64 rng = RandomStream(options_.seed, Stream::kWheel);
   std::normal_distribution<double> noise(0.0, o.add_noise ? o.config.noise_rad_s : 0.0);
+  // The stamp stream gives the jitter of every instant first, then the losses.
   StampJitter jitter(o.stamp_jitter_s, options_.seed, Stream::kWheelStamps);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // Measurement instants in trajectory time (IMU clock), and when each sample arrives.
   const int64_t end_ns = SecondsToNs(options_.duration_s);
-  const int64_t offset_ns = SecondsToNs(o.time_offset_wheel_imu_s);
-  // Measurement instants on the IMU clock (trajectory time), then the delivery stamps.
   std::vector<int64_t> instants(n);
   for (int64_t k = 0; k < n; ++k) instants[k] = JitteredInstant(k, dt_ns, end_ns, &jitter);
-  const int burst = o.burst_size;
+  const std::vector<int64_t> arrivals = ArrivalTimes(instants, o.burst_size, o.burst_span_s);
+  const int64_t offset_ns = SecondsToNs(o.time_offset_wheel_imu_s);
   log.samples.reserve(n);
   for (int64_t k = 0; k < n; ++k) {
-    const double t = NsToSeconds(instants[k]);
-    const BodyState v_state = scenario_.trajectory->StateAt(t);
+    const BodyState v_state = scenario_.trajectory->StateAt(NsToSeconds(instants[k]));
     // V's origin: forward speed and yaw rate in V; wheel contact speeds v -+ omega b / 2
     // (left, right), rates over the true radii.
     const double forward = (v_state.T_W_B.q.conjugate() * v_state.v_W).x();
     const double yaw_rate = v_state.omega_B.z();
     const double half_track = 0.5 * truth.track_width_m;
     sensors::WheelSample sample;
+    // Stamped on the wheel clock: t_wheel = t_imu - offset.
+    sample.t_ns = options_.start_time_ns + arrivals[k] - offset_ns;
     sample.left_rad_s = (forward - yaw_rate * half_track) / truth.wheel_radius_left_m + noise(rng);
     sample.right_rad_s =
         (forward + yaw_rate * half_track) / truth.wheel_radius_right_m + noise(rng);
-    // Delivery: the group's last measurement releases it; sample j arrives j spans later.
-    int64_t arrival_ns = instants[k];
-    if (burst > 1) {
-      const int64_t last = std::min(n - 1, (k / burst) * burst + burst - 1);
-      arrival_ns = instants[last] + SecondsToNs(o.burst_span_s * (k % burst) / burst);
-    }
-    const bool dropped = o.drop_probability > 0.0 && uniform(jitter.rng()) < o.drop_probability;
-    if (dropped) continue;
-    sample.t_ns = options_.start_time_ns + arrival_ns - offset_ns;
+    if (o.drop_probability > 0.0 && uniform(jitter.rng()) < o.drop_probability) continue;
     log.samples.push_back(sample);
     log.true_t_ns.push_back(options_.start_time_ns + instants[k]);
     log.speed_m_s.push_back(forward);
