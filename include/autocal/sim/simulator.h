@@ -71,7 +71,8 @@ struct WheelSimOptions {
   // Burst delivery (a CAN bus read in groups): the measurements are delivered in groups of
   // burst_size consecutive ones, released when the last of the group is measured; sample j
   // of a group (j = 0 .. burst_size - 1) is stamped at arrival, release + j * burst_span_s /
-  // burst_size. The stamp then runs late by up to (burst_size - 1) periods + the span. 1: off.
+  // burst_size. A stamp then runs late on its measurement by (burst_size - 1 - j) periods
+  // plus j * burst_span_s / burst_size. 1: off.
   int burst_size = 1;
   double burst_span_s = 0.002;
   // Each sample is lost with this probability (a gap in the log, not a zero reading).
