@@ -45,6 +45,31 @@ void WriteGnssTruth(const GnssLog& gnss, const std::string& path) {
   io::WriteFileAtomically(path, out.str());
 }
 
+// groundtruth/timing.yaml: how each sensor's stamps relate to the IMU clock (the truth of
+// the clock offsets, which sensors::Calibration does not hold) and the stamp models used.
+void WriteTiming(const SimulationOptions& o, const std::string& path) {
+  std::ostringstream out = Text();
+  out << "# Simulated sensor clocks: a measurement stamped t by a sensor was taken at IMU time\n"
+      << "# t + offset (t_imu = t_sensor + offset), wheel bursts adding their delay on top.\n"
+      << "time_offset_lidar_imu_s: " << o.true_calibration.time_offset_lidar_imu_s << '\n'
+      << "time_offset_wheel_imu_s: " << o.wheel.time_offset_wheel_imu_s << '\n'
+      << "time_offset_gnss_imu_s: " << o.gnss.time_offset_gnss_imu_s << '\n'
+      << "imu:\n"
+      << "  rate_hz: " << o.imu.noise.update_rate_hz << '\n'
+      << "  stamp_jitter_s: " << o.imu.stamp_jitter_s << '\n'
+      << "wheel:\n"
+      << "  enabled: " << (o.wheel.enabled ? "true" : "false") << '\n'
+      << "  rate_hz: " << o.wheel.config.rate_hz << '\n'
+      << "  stamp_jitter_s: " << o.wheel.stamp_jitter_s << '\n'
+      << "  burst_size: " << o.wheel.burst_size << '\n'
+      << "  burst_span_s: " << o.wheel.burst_span_s << '\n'
+      << "  drop_probability: " << o.wheel.drop_probability << '\n'
+      << "gnss:\n"
+      << "  enabled: " << (o.gnss.enabled ? "true" : "false") << '\n'
+      << "  rate_hz: " << o.gnss.config.rate_hz << '\n';
+  io::WriteFileAtomically(path, out.str());
+}
+
 }  // namespace
 
 // The dataset is written into a staging directory beside `directory` and renamed to it only
@@ -72,6 +97,7 @@ SimulationSummary WriteDataset(const Simulator& simulator, const std::string& fi
   const std::filesystem::path truth_dir = std::filesystem::path(directory) / "groundtruth";
   WriteImuBias(imu, (truth_dir / "imu_bias.csv").string());
   if (simulator.options().gnss.enabled) WriteGnssTruth(gnss, (truth_dir / "gnss.csv").string());
+  WriteTiming(simulator.options(), (truth_dir / "timing.yaml").string());
   staged.Commit();
   return Summarize(simulator, imu, wheel, gnss, simulator.num_sweeps(), points);
 }

@@ -10,7 +10,16 @@
 namespace autocal {
 namespace sim {
 
-enum class Stream : uint32_t { kNominal = 1, kImu, kWheel, kGnss, kLidar };
+// New streams go at the end: the values of the existing ones seed their generators.
+enum class Stream : uint32_t {
+  kNominal = 1,
+  kImu,
+  kWheel,
+  kGnss,
+  kLidar,
+  kImuStamps,
+  kWheelStamps
+};
 
 inline std::mt19937_64 RandomStream(uint64_t seed, Stream stream, uint64_t index = 0) {
   std::seed_seq seq{static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32),

@@ -69,6 +69,13 @@ class DriveBuilder {
     path_.AddArc(heading_change_rad, radius_m, ramp_m);
     speed_.Hold(length / RequireMoving());
   }
+  // A turn on the spot while standing (skid steer), over duration_s.
+  void Pivot(double heading_change_rad, double duration_s) {
+    if (speed_.final_speed_m_s() != 0.0) throw Error("simulated drive: pivoting while moving");
+    pivots_.Add(time_s(), duration_s, heading_change_rad);
+    speed_.Hold(duration_s);
+    path_.AddPivot(heading_change_rad);
+  }
   void LaneChange(double shift_m, double length_m) {
     const double s0 = path_.length_m();
     path_.AddLaneChange(shift_m, length_m);
@@ -80,6 +87,7 @@ class DriveBuilder {
 
   PathProfile& path() { return path_; }
   SpeedProfile& speed() { return speed_; }
+  const PivotProfile& pivots() const { return pivots_; }
 
  private:
   double RequireMoving() const {
@@ -89,6 +97,7 @@ class DriveBuilder {
   }
   PathProfile path_;
   SpeedProfile speed_;
+  PivotProfile pivots_;
   LaneOffsets lane_offsets_;
 };
 
@@ -242,13 +251,25 @@ struct ParkedObstacle {
 }  // namespace
 
 std::string ScenarioName(ScenarioType type) {
-  return type == ScenarioType::kUrban ? "urban" : "highway";
+  switch (type) {
+    case ScenarioType::kUrban:
+      return "urban";
+    case ScenarioType::kHighway:
+      return "highway";
+    case ScenarioType::kSkidSteer:
+      return "skid_steer";
+    case ScenarioType::kStraight:
+      return "straight";
+  }
+  return "unknown";
 }
 
 ScenarioType ParseScenarioType(const std::string& name) {
-  if (name == "urban") return ScenarioType::kUrban;
-  if (name == "highway") return ScenarioType::kHighway;
-  throw Error("unknown scenario '" + name + "' (expected urban or highway)");
+  for (ScenarioType type : {ScenarioType::kUrban, ScenarioType::kHighway, ScenarioType::kSkidSteer,
+                            ScenarioType::kStraight}) {
+    if (name == ScenarioName(type)) return type;
+  }
+  throw Error("unknown scenario '" + name + "' (expected urban, highway, skid_steer or straight)");
 }
 
 namespace {
@@ -463,6 +484,148 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
   return scenario;
 }
 
+// One lap of the skid-steer loop: two identical halves, each a straight ending in a pivot by
+// +90 deg and a straight ending in a +90 deg arc. The second half is the first rotated by
+// 180 deg, so every lap closes on itself. The first half starts with a pivot to the right
+// and back (turns on the spot in both directions, no displacement).
+void SkidSteerLap(DriveBuilder* drive, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  auto between = [&](double a, double b) { return a + (b - a) * uniform(*rng); };
+  const double side_a = between(28.0, 40.0), side_b = between(18.0, 26.0);
+  const double v_fast = between(0.8, 1.0), v_slow = between(0.4, 0.6);
+  const double radius = between(2.0, 3.0), accel = 0.4;
+  const double wiggle = between(45.0, 75.0) * kDegToRad;
+  for (int half = 0; half < 2; ++half) {
+    if (half == 0) {
+      drive->Pivot(-wiggle, 4.0);
+      drive->Stand(0.5);
+      drive->Pivot(wiggle, 4.0);
+      drive->Stand(0.5);
+    }
+    // Side a: away, half of it fast and half slow, stop, pivot left.
+    const double start = drive->distance_m();
+    drive->ChangeSpeed(v_fast, accel);
+    drive->Cruise(0.5 * side_a);
+    drive->ChangeSpeed(v_slow, accel);
+    drive->Cruise(side_a - (drive->distance_m() - start) -
+                  0.5 * v_slow * v_slow / (accel / kSmoothStepPeakSlope));
+    drive->ChangeSpeed(0.0, accel);
+    drive->Stand(1.0);
+    drive->Pivot(0.5 * M_PI, 5.0);
+    drive->Stand(1.0);
+    // Side b, then a slow arc to the left without stopping.
+    drive->ChangeSpeed(v_fast, accel);
+    drive->Cruise(side_b);
+    drive->ChangeSpeed(v_slow, accel);
+    drive->Arc(0.5 * M_PI, radius, 1.5);
+    drive->ChangeSpeed(0.0, accel);
+    drive->Stand(1.0);
+  }
+}
+
+// Trees and sheds scattered around the drive, clear of it.
+void AddOpenGroundObjects(Placer* placer, double s_begin, double s_end, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  auto between = [&](double a, double b) { return a + (b - a) * uniform(*rng); };
+  for (double s = s_begin; s < s_end; s += between(4.0, 9.0)) {
+    const double side = uniform(*rng) < 0.5 ? -1.0 : 1.0;
+    if (uniform(*rng) < 0.8) {
+      placer->AddPole(s, side * between(4.0, 15.0), between(0.1, 0.4), between(3.0, 10.0), 2.0,
+                      0.4f);
+    } else {
+      placer->AddBox(s, side * between(8.0, 20.0),
+                     {between(3.0, 8.0), between(3.0, 6.0), between(2.5, 4.0)}, between(-0.5, 0.5),
+                     3.0, 0.6f);
+    }
+  }
+}
+
+Scenario BuildSkidSteer(const ScenarioOptions& options, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  DriveBuilder drive(-M_PI + 2.0 * M_PI * uniform(*rng), 0.0);
+  drive.Stand(2.0);
+  while (drive.time_s() < options.duration_s + 5.0) SkidSteerLap(&drive, rng);
+
+  const double extent = 300.0;
+  auto ground =
+      std::make_shared<GroundSurface>(RandomGrades(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0),
+                                      RandomGrades(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0));
+  auto trajectory = std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground,
+                                                        options.dynamics, drive.pivots());
+  auto world = std::make_shared<World>(ground);
+  // Objects beside the first 250 m (every lap starts at the same point), kept clear of the
+  // whole drive: later laps are drawn anew and pass elsewhere.
+  const Corridor corridor(trajectory->path(), -5.0, drive.distance_m() + 5.0);
+  Placer placer(*trajectory, corridor, world.get());
+  AddOpenGroundObjects(&placer, -5.0, std::min(drive.distance_m(), 250.0), rng);
+
+  Scenario scenario;
+  scenario.type = ScenarioType::kSkidSteer;
+  scenario.ground = ground;
+  scenario.trajectory = trajectory;
+  scenario.world = world;
+  scenario.limits = {1.0, 0.0, 1.0, 2.0};
+  return scenario;
+}
+
+// A straight road at one heading: away from a standstill, then speed changes between 30 and
+// 90 km/h with a stop in every third (the first within a minute). Buildings and poles line
+// the road.
+Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  auto between = [&](double a, double b) { return a + (b - a) * uniform(*rng); };
+  DriveBuilder drive(between(-M_PI, M_PI), 0.0);
+  drive.Stand(2.0);
+  drive.ChangeSpeed(between(45.0, 55.0) * kKmh, 2.5);
+  for (int m = 0; drive.time_s() < options.duration_s + 5.0; ++m) {
+    drive.Cruise(between(30.0, 80.0));
+    switch (m % 3) {
+      case 0:
+        drive.ChangeSpeed(between(65.0, 90.0) * kKmh, between(1.5, 2.5));
+        break;
+      case 1:
+        drive.ChangeSpeed(0.0, 2.8);
+        drive.Stand(between(2.0, 3.0));
+        drive.ChangeSpeed(between(30.0, 50.0) * kKmh, 2.5);
+        break;
+      default:
+        drive.ChangeSpeed(between(50.0, 80.0) * kKmh, between(1.5, 2.5));
+        break;
+    }
+  }
+  drive.Cruise(100.0);
+
+  const double extent = drive.distance_m() + 400.0;
+  auto ground =
+      std::make_shared<GroundSurface>(RandomGrades(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0),
+                                      RandomGrades(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0));
+  auto trajectory =
+      std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
+  auto world = std::make_shared<World>(ground);
+  const double s_end = drive.distance_m() + 150.0;
+  const Corridor corridor(trajectory->path(), -60.0, s_end);
+  Placer placer(*trajectory, corridor, world.get());
+  for (double s = -50.0; s < s_end; s += between(14.0, 30.0)) {
+    for (double side : {-1.0, 1.0}) {
+      const Eigen::Vector3d size(between(12.0, 26.0), between(8.0, 16.0), between(6.0, 20.0));
+      placer.AddBox(s, side * (between(10.0, 14.0) + 0.5 * size.y()), size, 0.0, 7.0,
+                    static_cast<float>(between(0.3, 0.8)));
+    }
+  }
+  for (double s = -40.0; s < s_end; s += between(20.0, 40.0)) {
+    const double side = uniform(*rng) < 0.5 ? -1.0 : 1.0;
+    placer.AddPole(s, side * between(5.5, 7.0), between(0.1, 0.2), between(5.0, 9.0), 3.5, 0.6f);
+  }
+
+  Scenario scenario;
+  scenario.type = ScenarioType::kStraight;
+  scenario.ground = ground;
+  scenario.trajectory = trajectory;
+  scenario.world = world;
+  scenario.limits = {95.0 * kKmh, 0.0, 3.0, 5.0};
+  return scenario;
+}
+
 }  // namespace
 
 Scenario BuildScenario(const ScenarioOptions& options) {
@@ -471,8 +634,17 @@ Scenario BuildScenario(const ScenarioOptions& options) {
                 std::to_string(options.duration_s));
   }
   std::mt19937_64 rng(options.seed * 0x9E3779B97F4A7C15ull + 17);
-  return options.type == ScenarioType::kUrban ? BuildUrban(options, &rng)
-                                              : BuildHighway(options, &rng);
+  switch (options.type) {
+    case ScenarioType::kUrban:
+      return BuildUrban(options, &rng);
+    case ScenarioType::kHighway:
+      return BuildHighway(options, &rng);
+    case ScenarioType::kSkidSteer:
+      return BuildSkidSteer(options, &rng);
+    case ScenarioType::kStraight:
+      return BuildStraight(options, &rng);
+  }
+  throw Error("simulated scenario: unknown type");
 }
 
 }  // namespace sim

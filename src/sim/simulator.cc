@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -16,19 +17,38 @@ namespace sim {
 namespace {
 
 Eigen::Quaterniond FromRollPitchYawDeg(double roll, double pitch, double yaw) {
-  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw * kDegToRad, Eigen::Vector3d::UnitZ()) *
-                            Eigen::AngleAxisd(pitch * kDegToRad, Eigen::Vector3d::UnitY()) *
-                            Eigen::AngleAxisd(roll * kDegToRad, Eigen::Vector3d::UnitX()));
+  return RotationFromRollPitchYawDeg(roll, pitch, yaw);
 }
 
 void Require(bool ok, const std::string& what) {
   if (!ok) throw Error("simulation options: " + what);
 }
 
+// Stamp options of a sensor at rate_hz: jitter below 0.4 periods.
+void ValidateJitter(double jitter_s, double rate_hz, const std::string& sensor) {
+  Require(jitter_s >= 0.0 && jitter_s < 0.4 / rate_hz,
+          sensor + " stamp_jitter_s must be in [0, 0.4 / rate_hz)");
+}
+
+void ValidateClocks(const SimulationOptions& o) {
+  ValidateJitter(o.imu.stamp_jitter_s, o.imu.noise.update_rate_hz, "imu");
+  const WheelSimOptions& w = o.wheel;
+  ValidateJitter(w.stamp_jitter_s, w.config.rate_hz, "wheel");
+  Require(w.burst_size >= 1 && w.burst_size <= 50, "wheel burst_size must be in [1, 50]");
+  Require(w.burst_span_s >= 0.0 && w.burst_span_s < 1.0 / w.config.rate_hz,
+          "wheel burst_span_s must be in [0, 1 / rate_hz)");
+  Require(w.drop_probability >= 0.0 && w.drop_probability <= 0.5,
+          "wheel drop_probability must be in [0, 0.5]");
+  Require(std::abs(w.time_offset_wheel_imu_s) <= 2.0,
+          "|wheel time_offset_wheel_imu_s| must be at most 2 s");
+  Require(std::abs(o.gnss.time_offset_gnss_imu_s) <= 2.0,
+          "|gnss time_offset_gnss_imu_s| must be at most 2 s");
+}
+
 void Validate(const SimulationOptions& o) {
   Require(o.duration_s > 0.0 && o.duration_s <= 3600.0, "duration_s must be in (0, 3600]");
-  Require(o.imu.noise.update_rate_hz >= 50.0 && o.imu.noise.update_rate_hz <= 2000.0,
-          "imu update_rate_hz must be in [50, 2000]");
+  Require(o.imu.noise.update_rate_hz >= 20.0 && o.imu.noise.update_rate_hz <= 2000.0,
+          "imu update_rate_hz must be in [20, 2000]");
   Require(o.imu.noise_scale >= 0.0 && std::isfinite(o.imu.noise_scale),
           "imu noise_scale must be >= 0");
   const sensors::LidarConfig& l = o.lidar.config;
@@ -47,6 +67,7 @@ void Validate(const SimulationOptions& o) {
           "wheel rate_hz must be in (0, 1000]");
   Require(o.gnss.config.rate_hz > 0.0 && o.gnss.config.rate_hz <= 100.0,
           "gnss rate_hz must be in (0, 100]");
+  ValidateClocks(o);
   Require((o.gnss.std_enu_m.array() > 0.0).all(), "gnss std_enu_m must be positive");
   Require(o.gnss.outlier_probability >= 0.0 && o.gnss.outlier_probability <= 1.0,
           "gnss outlier_probability must be in [0, 1]");
@@ -67,9 +88,75 @@ void Validate(const SimulationOptions& o) {
                np.wheel_radius_sigma_m > 0.0 && np.track_width_sigma_m > 0.0),
           "nominal_perturbation: a stated uncertainty needs every sigma > 0 "
           "(or state_uncertainty = false)");
+  Require(!np.q_I_V || (std::abs(np.q_I_V->norm() - 1.0) < 1e-6 && np.q_I_V_sigma_deg > 0.0),
+          "nominal_perturbation q_I_V must be a unit quaternion with q_I_V_sigma_deg > 0");
+}
+
+// Uniform offsets in [-jitter_s, jitter_s] from a stream, in ns; zeros without jitter (and
+// then nothing is drawn).
+class StampJitter {
+ public:
+  StampJitter(double jitter_s, uint64_t seed, Stream stream)
+      : jitter_s_(jitter_s), rng_(RandomStream(seed, stream)) {}
+  bool on() const { return jitter_s_ > 0.0; }
+  int64_t Next() {
+    if (!on()) return 0;
+    return SecondsToNs(jitter_s_ * (2.0 * uniform_(rng_) - 1.0));
+  }
+  std::mt19937_64& rng() { return rng_; }
+
+ private:
+  double jitter_s_;
+  std::mt19937_64 rng_;
+  std::uniform_real_distribution<double> uniform_{0.0, 1.0};
+};
+
+// Measurement instant k of a grid of period dt_ns, jittered and then kept in [0, end_ns].
+int64_t JitteredInstant(int64_t k, int64_t dt_ns, int64_t end_ns, StampJitter* jitter) {
+  if (!jitter->on()) return k * dt_ns;
+  const int64_t t = k * dt_ns + jitter->Next();
+  return std::min(std::max<int64_t>(t, 0), end_ns);
+}
+
+// Arrival of each measurement (same clock as `instants`) when they are delivered in groups of
+// `burst` consecutive ones: a group leaves when its last member is measured, and member j
+// arrives j * span / burst after that. Without bursts, at its instant.
+std::vector<int64_t> ArrivalTimes(const std::vector<int64_t>& instants, int burst, double span_s) {
+  if (burst <= 1) return instants;
+  const int64_t n = static_cast<int64_t>(instants.size());
+  std::vector<int64_t> arrivals(instants.size());
+  for (int64_t k = 0; k < n; ++k) {
+    const int64_t last = std::min(n - 1, (k / burst) * burst + burst - 1);
+    arrivals[k] = instants[last] + SecondsToNs(span_s * (k % burst) / burst);
+  }
+  return arrivals;
 }
 
 }  // namespace
+
+Eigen::Quaterniond RotationFromRollPitchYawDeg(double roll_deg, double pitch_deg, double yaw_deg) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * kDegToRad, Eigen::Vector3d::UnitZ()) *
+                            Eigen::AngleAxisd(pitch_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
+                            Eigen::AngleAxisd(roll_deg * kDegToRad, Eigen::Vector3d::UnitX()));
+}
+
+sensors::Calibration WithImuMount(const sensors::Calibration& calibration,
+                                  const Eigen::Quaterniond& q_V_I) {
+  const geometry::Pose3d T_V_I_old =
+      geometry::Pose3d(calibration.q_I_V, calibration.p_I_V).Inverse();
+  const geometry::Pose3d T_V_I(q_V_I.normalized(), T_V_I_old.p);
+  const geometry::Pose3d T_I_V = T_V_I.Inverse();
+  // New IMU frame from the old one: T_Inew_Iold = T_Inew_V T_V_Iold.
+  const geometry::Pose3d T_new_old = T_I_V * T_V_I_old;
+  sensors::Calibration c = calibration;
+  c.q_I_V = T_I_V.q;
+  c.p_I_V = T_I_V.p;
+  const geometry::Pose3d T_I_L = T_new_old * geometry::Pose3d(calibration.q_I_L, calibration.p_I_L);
+  c.q_I_L = T_I_L.q;
+  c.p_I_L = T_I_L.p;
+  c.p_I_A = T_new_old * calibration.p_I_A;
+  return c;
+}
 
 sensors::Calibration DefaultTrueCalibration() {
   sensors::Calibration c;
@@ -127,6 +214,7 @@ Simulator::Simulator(const SimulationOptions& options) : options_(options) {
   nominal_.p_I_L = truth.p_I_L + translation();
   nominal_.time_offset_lidar_imu_s = truth.time_offset_lidar_imu_s + np.time_offset_s * normal(rng);
   nominal_.q_I_V = (truth.q_I_V * rotation()).normalized();
+  if (np.q_I_V) nominal_.q_I_V = np.q_I_V->normalized();
   nominal_.p_I_V = truth.p_I_V + translation();
   nominal_.p_I_A = truth.p_I_A + translation();
   nominal_.wheel_radius_left_m = options_.nominal_wheel_radius_m;
@@ -179,7 +267,7 @@ io::SensorsConfig Simulator::sensors_config() const {
     const Eigen::Vector3d translation_m = Eigen::Vector3d::Constant(np.translation_m);
     u.T_I_L.sigma_rot_deg = rotation_deg;
     u.T_I_L.sigma_p_m = translation_m;
-    u.T_I_V.sigma_rot_deg = rotation_deg;
+    u.T_I_V.sigma_rot_deg = np.q_I_V ? Eigen::Vector3d::Constant(np.q_I_V_sigma_deg) : rotation_deg;
     u.T_I_V.sigma_p_m = translation_m;
     u.p_I_A_m.sigma = translation_m;
     u.time_offset_lidar_imu_s.sigma = np.time_offset_s;
@@ -222,13 +310,16 @@ ImuLog Simulator::GenerateImu() const {
   Eigen::Vector3d b_a = draw(bias_scale * o.initial_accel_bias_sigma_m_s2);
   const Eigen::Vector3d g_W(0.0, 0.0, -o.gravity_m_s2);
 
+  StampJitter jitter(o.stamp_jitter_s, options_.seed, Stream::kImuStamps);
+  const int64_t end_ns = SecondsToNs(options_.duration_s);
+
   ImuLog log;
   log.samples.reserve(n);
   log.gyro_bias.reserve(n);
   log.accel_bias.reserve(n);
   log.truth.reserve(n);
   for (int64_t k = 0; k < n; ++k) {
-    const int64_t t_ns = options_.start_time_ns + k * dt_ns;
+    const int64_t t_ns = options_.start_time_ns + JitteredInstant(k, dt_ns, end_ns, &jitter);
     const BodyState state = scenario_.trajectory->StateAt(TimeOf(t_ns), T_V_I_);
     sensors::ImuSample sample;
     sample.t_ns = t_ns;
@@ -245,32 +336,45 @@ ImuLog Simulator::GenerateImu() const {
   return log;
 }
 
-sensors::WheelSamples Simulator::GenerateWheel() const {
-  sensors::WheelSamples samples;
-  if (!options_.wheel.enabled) return samples;
+WheelLog Simulator::GenerateWheelLog() const {
+  WheelLog log;
+  if (!options_.wheel.enabled) return log;
   const WheelSimOptions& o = options_.wheel;
   const sensors::Calibration& truth = options_.true_calibration;
   const int64_t dt_ns = SecondsToNs(1.0 / o.config.rate_hz);
   const int64_t n = static_cast<int64_t>(std::floor(options_.duration_s / NsToSeconds(dt_ns))) + 1;
   std::mt19937_64 rng = RandomStream(options_.seed, Stream::kWheel);
   std::normal_distribution<double> noise(0.0, o.add_noise ? o.config.noise_rad_s : 0.0);
-  samples.reserve(n);
+  // The stamp stream gives the jitter of every instant first, then the losses.
+  StampJitter jitter(o.stamp_jitter_s, options_.seed, Stream::kWheelStamps);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // Measurement instants in trajectory time (IMU clock), and when each sample arrives.
+  const int64_t end_ns = SecondsToNs(options_.duration_s);
+  std::vector<int64_t> instants(n);
+  for (int64_t k = 0; k < n; ++k) instants[k] = JitteredInstant(k, dt_ns, end_ns, &jitter);
+  const std::vector<int64_t> arrivals = ArrivalTimes(instants, o.burst_size, o.burst_span_s);
+  const int64_t offset_ns = SecondsToNs(o.time_offset_wheel_imu_s);
+  log.samples.reserve(n);
   for (int64_t k = 0; k < n; ++k) {
-    const int64_t t_ns = options_.start_time_ns + k * dt_ns;
-    const BodyState v_state = scenario_.trajectory->StateAt(TimeOf(t_ns));
-    // Rear-axle centre: forward speed and yaw rate in V; wheel contact speeds
-    // v -+ omega b / 2 (left, right), rates over the true radii.
+    const BodyState v_state = scenario_.trajectory->StateAt(NsToSeconds(instants[k]));
+    // V's origin: forward speed and yaw rate in V; wheel contact speeds v -+ omega b / 2
+    // (left, right), rates over the true radii.
     const double forward = (v_state.T_W_B.q.conjugate() * v_state.v_W).x();
     const double yaw_rate = v_state.omega_B.z();
     const double half_track = 0.5 * truth.track_width_m;
     sensors::WheelSample sample;
-    sample.t_ns = t_ns;
+    // Stamped on the wheel clock: t_wheel = t_imu - offset.
+    sample.t_ns = options_.start_time_ns + arrivals[k] - offset_ns;
     sample.left_rad_s = (forward - yaw_rate * half_track) / truth.wheel_radius_left_m + noise(rng);
     sample.right_rad_s =
         (forward + yaw_rate * half_track) / truth.wheel_radius_right_m + noise(rng);
-    samples.push_back(sample);
+    if (o.drop_probability > 0.0 && uniform(jitter.rng()) < o.drop_probability) continue;
+    log.samples.push_back(sample);
+    log.true_t_ns.push_back(options_.start_time_ns + instants[k]);
+    log.speed_m_s.push_back(forward);
+    log.yaw_rate_rad_s.push_back(yaw_rate);
   }
-  return samples;
+  return log;
 }
 
 GnssLog Simulator::GenerateGnss() const {
@@ -295,7 +399,9 @@ GnssLog Simulator::GenerateGnss() const {
   const int64_t dt_ns = SecondsToNs(1.0 / o.config.rate_hz);
   const int64_t n = static_cast<int64_t>(std::floor(duration / NsToSeconds(dt_ns))) + 1;
   const double noise_on = o.add_noise ? 1.0 : 0.0;
+  const int64_t offset_ns = SecondsToNs(o.time_offset_gnss_imu_s);
   for (int64_t k = 0; k < n; ++k) {
+    // Measured at IMU time t, stamped t - offset on the receiver's clock.
     const int64_t t_ns = options_.start_time_ns + k * dt_ns;
     const double t = TimeOf(t_ns);
     // Draw every random number of the epoch even when it falls in an outage, so that an
@@ -317,7 +423,7 @@ GnssLog Simulator::GenerateGnss() const {
                                   outlier_horizontal * std::sin(outlier_angle), outlier_vertical);
     }
     sensors::GnssFix fix;
-    fix.t_ns = t_ns;
+    fix.t_ns = t_ns - offset_ns;
     enu.Reverse(measured.x(), measured.y(), measured.z(), fix.lat_deg, fix.lon_deg, fix.alt_m);
     fix.std_enu_m = sigma;
     log.fixes.push_back(fix);

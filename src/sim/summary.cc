@@ -77,6 +77,11 @@ SimulationSummary Summarize(const Simulator& simulator, const ImuLog& imu,
   for (const auto& outage : gnss.outages_s) s.gnss_outage_s += outage.second - outage.first;
   s.sweeps = sweeps;
   s.points = points;
+  s.imu_rate_hz = options.imu.noise.update_rate_hz;
+  s.wheel_rate_hz = options.wheel.config.rate_hz;
+  s.gnss_rate_hz = options.gnss.config.rate_hz;
+  s.time_offset_wheel_imu_s = options.wheel.time_offset_wheel_imu_s;
+  s.time_offset_gnss_imu_s = options.gnss.time_offset_gnss_imu_s;
   s.true_calibration = simulator.true_calibration();
   s.nominal_calibration = simulator.nominal_calibration();
   return s;
@@ -95,10 +100,14 @@ std::string FormatSummary(const SimulationSummary& s) {
   out << "attitude        pitch " << Format("%.2f", s.min_pitch_deg) << " .. "
       << Format("%.2f", s.max_pitch_deg) << " deg, roll " << Format("%.2f", s.min_roll_deg)
       << " .. " << Format("%.2f", s.max_roll_deg) << " deg\n";
-  out << "imu             " << s.imu_samples << " samples\n";
-  out << "wheel           " << s.wheel_samples << " samples\n";
-  out << "gnss            " << s.gnss_fixes << " fixes, " << s.gnss_outliers << " outliers, "
-      << s.gnss_outages << " outages (" << Format("%.1f", s.gnss_outage_s) << " s)\n";
+  out << "imu             " << s.imu_samples << " samples (" << Format("%g", s.imu_rate_hz)
+      << " Hz)\n";
+  out << "wheel           " << s.wheel_samples << " samples (" << Format("%g", s.wheel_rate_hz)
+      << " Hz), clock offset " << Format("%.1f", s.time_offset_wheel_imu_s * 1e3) << " ms\n";
+  out << "gnss            " << s.gnss_fixes << " fixes (" << Format("%g", s.gnss_rate_hz)
+      << " Hz), " << s.gnss_outliers << " outliers, " << s.gnss_outages << " outages ("
+      << Format("%.1f", s.gnss_outage_s) << " s), clock offset "
+      << Format("%.1f", s.time_offset_gnss_imu_s * 1e3) << " ms\n";
   out << "lidar           " << s.sweeps << " sweeps, " << s.points << " points ("
       << (s.sweeps > 0 ? s.points / s.sweeps : 0) << " per sweep)\n";
 

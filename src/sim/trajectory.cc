@@ -73,11 +73,18 @@ PathProfile::PathProfile(const Eigen::Vector2d& start_xy, double start_heading_r
 }
 
 double PathProfile::final_heading_rad() const {
-  if (pieces_.empty()) return start_heading_;
+  if (pieces_.empty()) return pivot_total_ == 0.0 ? start_heading_ : start_heading_ + pivot_total_;
   const Piece& p = pieces_.back();
   double sum = 0.0;
   for (double c : p.coeffs) sum += c;
-  return p.psi0 + sum;
+  const double heading = p.psi0 + sum;
+  // Pivots after the last piece (none in a drive without pivots: the sum stays untouched).
+  return pivot_total_ == p.pivots ? heading : heading + (pivot_total_ - p.pivots);
+}
+
+void PathProfile::AddPivot(double heading_change_rad) {
+  if (!std::isfinite(heading_change_rad)) throw Error("simulated path: pivot angle not finite");
+  pivot_total_ += heading_change_rad;
 }
 
 const PathProfile::Piece* PathProfile::Find(double s) const {
@@ -97,6 +104,7 @@ void PathProfile::AddPiece(double length, const std::array<double, kDegree + 1>&
   piece.length = length;
   piece.psi0 = final_heading_rad();
   piece.coeffs = coeffs;
+  piece.pivots = pivot_total_;
   pieces_.push_back(piece);
   // Tabulate positions along the new piece; the quadrature below reads the heading of this
   // piece, so length_m_ must already cover it.
@@ -168,6 +176,19 @@ Eigen::Vector2d PathProfile::Position(double s) const {
   return node.xy + Integrate(node.s, s);
 }
 
+// ----- PivotProfile -------------------------------------------------------------------------
+
+void PivotProfile::Add(double t0_s, double duration_s, double heading_change_rad) {
+  CheckPositive(duration_s, "pivot duration");
+  if (!std::isfinite(t0_s) || !std::isfinite(heading_change_rad)) {
+    throw Error("simulated pivot: start and angle must be finite");
+  }
+  if (!pivots_.empty() && t0_s < pivots_.back().t0 + pivots_.back().duration) {
+    throw Error("simulated pivot: pivots must be in time order without overlap");
+  }
+  pivots_.push_back({t0_s, duration_s, heading_change_rad});
+}
+
 // ----- VehicleTrajectory --------------------------------------------------------------------
 
 namespace {
@@ -209,11 +230,12 @@ Eigen::Matrix<T, 3, 3> RotX(const T& angle) {
 
 VehicleTrajectory::VehicleTrajectory(PathProfile path, SpeedProfile speed,
                                      std::shared_ptr<const GroundSurface> ground,
-                                     VehicleDynamicsOptions dynamics)
+                                     VehicleDynamicsOptions dynamics, PivotProfile pivots)
     : path_(std::move(path)),
       speed_(std::move(speed)),
       ground_(std::move(ground)),
-      dynamics_(dynamics) {
+      dynamics_(dynamics),
+      pivots_(std::move(pivots)) {
   if (!ground_) throw Error("simulated trajectory: no ground surface");
 }
 
@@ -226,7 +248,11 @@ void VehicleTrajectory::Evaluate(const T& t, Eigen::Matrix<T, 3, 3>* R_W_V,
   using Vec3 = Eigen::Matrix<T, 3, 1>;
   T s, v, a;
   speed_.Evaluate(t, &s, &v, &a);
-  const T psi = path_.Heading(s);
+  // Body yaw: the path heading, with the path's pivots replaced by the turns on the spot done
+  // by time t (equal to them whenever the vehicle moves). The direction of travel inside
+  // PlanarPosition stays the path heading.
+  T psi = path_.Heading(s);
+  if (!pivots_.empty()) psi = psi - T(path_.PivotsBefore(ScalarValue(s))) + pivots_.Yaw(t);
   const T kappa = path_.Curvature(s);
   const Eigen::Matrix<T, 2, 1> xy = PlanarPosition(path_, s);
   const T z = ground_->Height(xy(0), xy(1));

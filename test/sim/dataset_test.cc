@@ -66,7 +66,8 @@ TEST_P(DatasetTest, WrittenDatasetReadsBackWithTheSameContent) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, DatasetTest,
-                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway),
+                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway,
+                                           ScenarioType::kSkidSteer, ScenarioType::kStraight),
                          [](const auto& info) { return test::Name(info.param); });
 
 }  // namespace

@@ -97,7 +97,8 @@ TEST(DriveTest, UrbanDriveHasStandstillTurnsStopsAndGrades) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, DriveTest,
-                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway),
+                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway,
+                                           ScenarioType::kSkidSteer, ScenarioType::kStraight),
                          [](const auto& info) { return test::Name(info.param); });
 
 }  // namespace

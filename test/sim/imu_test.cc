@@ -109,7 +109,8 @@ TEST_P(ImuTest, NoiseAndBiasFollowTheDiscretizedDensities) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, ImuTest,
-                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway),
+                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway,
+                                           ScenarioType::kSkidSteer, ScenarioType::kStraight),
                          [](const auto& info) { return test::Name(info.param); });
 
 }  // namespace

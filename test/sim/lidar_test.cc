@@ -125,7 +125,8 @@ TEST(LidarTest, MovingVehiclesAppearInTheSweeps) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, LidarTest,
-                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway),
+                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway,
+                                           ScenarioType::kStraight),
                          [](const auto& info) { return test::Name(info.param); });
 
 }  // namespace

@@ -191,7 +191,8 @@ TEST(SimulatorTest, BadOptionsGiveOneClearError) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, WheelGnssTest,
-                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway),
+                         ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway,
+                                           ScenarioType::kSkidSteer, ScenarioType::kStraight),
                          [](const auto& info) { return test::Name(info.param); });
 
 }  // namespace

@@ -257,13 +257,18 @@ void VisitFields(A& a, sim::SimulationSummary& s) {
   a(s.gnss_outage_s);
   a(s.sweeps);
   a(s.points);
+  a(s.imu_rate_hz);
+  a(s.wheel_rate_hz);
+  a(s.gnss_rate_hz);
+  a(s.time_offset_wheel_imu_s);
+  a(s.time_offset_gnss_imu_s);
   a(s.true_calibration);
   a(s.nominal_calibration);
 }
 
 // Every field of the options, for the key. A field added to SimulationOptions (or to a struct
 // it holds) changes its size and stops the build here: add the field to the list below.
-static_assert(sizeof(sim::SimulationOptions) == 592,
+static_assert(sizeof(sim::SimulationOptions) == 704,
               "sim::SimulationOptions changed: list its new fields in the cache key");
 template <class A>
 void VisitFields(A& a, sim::SimulationOptions& o) {
@@ -284,6 +289,7 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.imu.initial_gyro_bias_sigma_rad_s);
   a(o.imu.initial_accel_bias_sigma_m_s2);
   a(o.imu.gravity_m_s2);
+  a(o.imu.stamp_jitter_s);
   a(o.lidar.enabled);
   a(o.lidar.config.num_beams);
   a(o.lidar.config.rate_hz);
@@ -299,6 +305,11 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.wheel.config.rate_hz);
   a(o.wheel.config.noise_rad_s);
   a(o.wheel.add_noise);
+  a(o.wheel.time_offset_wheel_imu_s);
+  a(o.wheel.stamp_jitter_s);
+  a(o.wheel.burst_size);
+  a(o.wheel.burst_span_s);
+  a(o.wheel.drop_probability);
   a(o.gnss.enabled);
   a(o.gnss.config.rate_hz);
   a(o.gnss.std_enu_m);
@@ -309,6 +320,7 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.gnss.origin_lat_deg);
   a(o.gnss.origin_lon_deg);
   a(o.gnss.origin_alt_m);
+  a(o.gnss.time_offset_gnss_imu_s);
   a(o.true_calibration);
   a(o.nominal_perturbation.rotation_deg);
   a(o.nominal_perturbation.translation_m);
@@ -316,12 +328,19 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.nominal_perturbation.wheel_radius_sigma_m);
   a(o.nominal_perturbation.track_width_sigma_m);
   a(o.nominal_perturbation.state_uncertainty);
+  // The options are only written (into the key): the optional goes in as a flag and a value.
+  bool has_nominal_q_I_V = o.nominal_perturbation.q_I_V.has_value();
+  Eigen::Quaterniond nominal_q_I_V =
+      o.nominal_perturbation.q_I_V.value_or(Eigen::Quaterniond::Identity());
+  a(has_nominal_q_I_V);
+  a(nominal_q_I_V);
+  a(o.nominal_perturbation.q_I_V_sigma_deg);
   a(o.nominal_wheel_radius_m);
   a(o.nominal_track_width_m);
 }
 
 // Bump when the stored form changes.
-constexpr int kFormatVersion = 1;
+constexpr int kFormatVersion = 2;
 
 inline std::string Hex64(const std::string& bytes) {
   uint64_t hash = 14695981039346656037ull;  // FNV-1a, 64 bit

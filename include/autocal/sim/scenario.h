@@ -5,7 +5,12 @@
 //            traffic in the adjacent lanes, noise barriers, lamp posts, sign gantries;
 //   urban:   <= 50 km/h, a standstill at the start, 90-degree turns at intersections (some
 //            after a stop), a roundabout, overtaking a parked car, road grades, building
-//            facades, poles, parked cars and oncoming traffic.
+//            facades, poles, parked cars and oncoming traffic;
+//   skid_steer: a slow ground robot (<= 1 m/s) on open ground, laps of a closed loop of a
+//            few minutes with turns on the spot (pivots) and tight arcs, a few trees and
+//            sheds (a LiDAR is optional there);
+//   straight: a car on a straight road at one constant heading, with speed changes and a
+//            stop (the weak-excitation case of a calibration drive).
 // The drive and the world are generated from a seed; the same seed gives the same scenario.
 
 #include <cstdint>
@@ -19,9 +24,9 @@
 namespace autocal {
 namespace sim {
 
-enum class ScenarioType { kUrban, kHighway };
+enum class ScenarioType { kUrban, kHighway, kSkidSteer, kStraight };
 
-// "urban" / "highway".
+// "urban" / "highway" / "skid_steer" / "straight".
 std::string ScenarioName(ScenarioType type);
 // Inverse of ScenarioName; throws autocal::Error on an unknown name.
 ScenarioType ParseScenarioType(const std::string& name);

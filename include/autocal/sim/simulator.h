@@ -6,13 +6,16 @@
 // Noise models and what is exact are described in docs/simulator.md.
 //
 // Clocks: the IMU clock is the reference; the trajectory time t_s is seconds since
-// start_time_ns on that clock. Wheel and GNSS stamps are on the IMU clock. LiDAR stamps are
-// on the LiDAR clock: a point stamped t_sweep + tau was measured at IMU time
-// t_sweep + tau + time_offset_lidar_imu_s.
+// start_time_ns on that clock. Every other sensor stamps on its own clock with the
+// project's convention t_imu = t_sensor + offset: a wheel sample stamped t was measured at
+// IMU time t + time_offset_wheel_imu_s, a GNSS fix at t + time_offset_gnss_imu_s, a LiDAR
+// point stamped t_sweep + tau at t_sweep + tau + time_offset_lidar_imu_s (burst delivery
+// of wheel samples adds a delay on top, see WheelSimOptions).
 
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,6 +42,10 @@ struct ImuSimOptions {
   double initial_gyro_bias_sigma_rad_s = 2e-3;
   double initial_accel_bias_sigma_m_s2 = 3e-2;
   double gravity_m_s2 = 9.80665;
+  // The rate is noise.update_rate_hz (20-2000 Hz). Irregular sampling: each sample instant
+  // moves from its grid point by a uniform draw in [-stamp_jitter_s, +stamp_jitter_s]
+  // (below 0.4 periods) and is the truth at its stamp.
+  double stamp_jitter_s = 0.0;
 };
 
 struct LidarSimOptions {
@@ -50,15 +57,34 @@ struct LidarSimOptions {
   double dropout_probability = 0.02;  // returns lost at random
 };
 
+// Rear-wheel angular rates (v -+ omega b / 2) / r from the true speed v and yaw rate omega of
+// V, with b the calibration's track width: for a skid-steer platform that is the effective
+// (slip) track, wider than the physical one (docs/simulator.md, "Wheels").
 struct WheelSimOptions {
   bool enabled = true;
   sensors::WheelConfig config;  // rate and 1-sigma noise of each wheel rate
   bool add_noise = true;
+  // Clock: a sample stamped t on the wheel clock was measured at IMU time t + offset.
+  double time_offset_wheel_imu_s = 0.0;
+  // Irregular sampling as for the IMU: measurement instants move by U(-jitter, +jitter).
+  double stamp_jitter_s = 0.0;
+  // Burst delivery (a CAN bus read in groups): the measurements are delivered in groups of
+  // burst_size consecutive ones, released when the last of the group is measured; sample j
+  // of a group (j = 0 .. burst_size - 1) is stamped at arrival, release + j * burst_span_s /
+  // burst_size. A stamp then runs late on its measurement by (burst_size - 1 - j) periods
+  // plus j * burst_span_s / burst_size. 1: off.
+  int burst_size = 1;
+  double burst_span_s = 0.002;
+  // Each sample is lost with this probability (a gap in the log, not a zero reading).
+  double drop_probability = 0.0;
 };
 
 struct GnssSimOptions {
   bool enabled = true;
-  sensors::GnssConfig config;  // rate_hz: 10 or 1
+  sensors::GnssConfig config;  // rate_hz in (0, 100]
+  // Clock: a fix stamped t on the receiver's clock is the antenna position at IMU time
+  // t + offset (a receiver stamping 0.2 s after the fix: -0.2).
+  double time_offset_gnss_imu_s = 0.0;
   // Receiver-reported 1-sigma (east, north, up); each fix scales it by a factor in [1, 2]
   // that drifts slowly, and the error is drawn with the reported sigma.
   Eigen::Vector3d std_enu_m = Eigen::Vector3d(0.03, 0.03, 0.06);
@@ -88,6 +114,10 @@ struct NominalPerturbation {
   double wheel_radius_sigma_m = 0.005;  // stated only; 0.33 m vs the true 0.3335 / 0.3326 m
   double track_width_sigma_m = 0.03;    // stated only; 1.60 m vs the true 1.62 m
   bool state_uncertainty = true;
+  // When set, sensors.yaml's q_I_V is this rotation instead of a draw around the truth (a
+  // mount guessed from drawings, possibly far off), stated with q_I_V_sigma_deg per axis.
+  std::optional<Eigen::Quaterniond> q_I_V;
+  double q_I_V_sigma_deg = 30.0;
 };
 
 // LiDAR 0.55 m above and 0.3 m ahead of the IMU, rotated (2, -3, 4) deg (roll, pitch, yaw);
@@ -95,6 +125,15 @@ struct NominalPerturbation {
 // rear wheel radii 0.3335 m (left) and 0.3326 m (right) for a nominal 0.33 m; track width
 // 1.62 m for a nominal 1.60 m; antenna 1.2 m behind and 0.65 m above the IMU.
 sensors::Calibration DefaultTrueCalibration();
+
+// The calibration with the IMU turned to q_V_I in the vehicle, its origin in V kept, and
+// the LiDAR and the GNSS antenna left where they are in V (T_I_L and p_I_A re-expressed):
+// any mounting (e.g. y-up or z-down) without moving the other sensors.
+sensors::Calibration WithImuMount(const sensors::Calibration& calibration,
+                                  const Eigen::Quaterniond& q_V_I);
+
+// Rotation from roll, pitch, yaw in degrees: Rz(yaw) Ry(pitch) Rx(roll).
+Eigen::Quaterniond RotationFromRollPitchYawDeg(double roll_deg, double pitch_deg, double yaw_deg);
 
 struct SimulationOptions {
   ScenarioType scenario = ScenarioType::kUrban;
@@ -113,9 +152,22 @@ struct SimulationOptions {
   double nominal_track_width_m = 1.60;
 
   // The same options with every random effect off (add_noise = false everywhere, no LiDAR
-  // dropouts, no GNSS outliers). Outages stay: they are not noise.
+  // dropouts, no GNSS outliers). Outages stay: they are not noise; so do stamp jitter,
+  // bursts and lost wheel samples (they are timing, not measurement noise).
   SimulationOptions WithoutNoise() const;
 };
+
+// Platforms after real logs (docs/simulator.md, "Presets"); change any field afterwards.
+// A slow skid-steer robot: skid_steer scenario, 300 s, IMU at 30 Hz mounted y-up
+// (R_V_I = Rz(-90 deg) Rx(+90 deg), 1 deg off), wheel odometry at 10 Hz with 10 ms jitter
+// and 2 % lost samples lagging the IMU by 0.38 s, an effective track 1.875 times the
+// physical 0.555 m, GPS at 2.5 Hz with ~1 m sigma, no LiDAR. The nominal mount is the
+// exact y-up one and the nominal track the physical one.
+SimulationOptions SkidSteerRobotOptions();
+// A car with a phone-grade IMU at 104 Hz mounted x forward, y right, z down (R_V_I =
+// Rx(180 deg), 1 deg off), CAN wheel rates at 83 Hz delivered in bursts of 4, GNSS at 10 Hz
+// stamped 0.2 s after the fix, on the straight scenario (60 s), no LiDAR.
+SimulationOptions CanBusCarOptions();
 
 // The IMU log with its truth: samples, the true biases at each sample and T_W_I, v_W_I.
 struct ImuLog {
@@ -123,6 +175,16 @@ struct ImuLog {
   std::vector<Eigen::Vector3d> gyro_bias;
   std::vector<Eigen::Vector3d> accel_bias;
   io::Trajectory truth;
+};
+
+// The wheel log with its truth per delivered sample: the IMU-clock instant it was measured
+// at (the stamp plus the offset, minus the burst delay), and the true forward speed of V's
+// origin and yaw rate of V then (the inputs of every wheel data form).
+struct WheelLog {
+  sensors::WheelSamples samples;
+  std::vector<int64_t> true_t_ns;  // IMU clock
+  std::vector<double> speed_m_s;
+  std::vector<double> yaw_rate_rad_s;
 };
 
 struct GnssLog {
@@ -152,7 +214,8 @@ class Simulator {
   geometry::Pose3d ImuPoseAt(double t_s) const;
 
   ImuLog GenerateImu() const;
-  sensors::WheelSamples GenerateWheel() const;
+  WheelLog GenerateWheelLog() const;
+  sensors::WheelSamples GenerateWheel() const { return GenerateWheelLog().samples; }
   GnssLog GenerateGnss() const;
 
   // Sweeps are generated one at a time (each from its own random stream, so any subset is
@@ -203,6 +266,8 @@ struct SimulationSummary {
   int gnss_outages = 0;
   double gnss_outage_s = 0.0;
   int64_t sweeps = 0, points = 0;
+  double imu_rate_hz = 0.0, wheel_rate_hz = 0.0, gnss_rate_hz = 0.0;
+  double time_offset_wheel_imu_s = 0.0, time_offset_gnss_imu_s = 0.0;  // true
   sensors::Calibration true_calibration, nominal_calibration;
 };
 
@@ -214,7 +279,9 @@ std::string FormatSummary(const SimulationSummary& summary);
 
 // Simulates and writes a dataset directory (DESIGN.md "Data formats") through
 // io::DatasetWriter, sweep by sweep; adds groundtruth/imu_bias.csv and groundtruth/gnss.csv
-// (true antenna position and outlier flag per fix). Throws autocal::Error on I/O failure.
+// (true antenna position and outlier flag per fix) and groundtruth/timing.yaml (the
+// sensor clock offsets and stamp models, truth an estimator of them compares with).
+// Throws autocal::Error on I/O failure.
 SimulationSummary WriteDataset(const Simulator& simulator, const std::string& directory);
 
 }  // namespace sim

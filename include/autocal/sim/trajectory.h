@@ -81,8 +81,10 @@ class SpeedProfile {
 };
 
 // A planar path: heading psi(s) over arc length s as polynomial pieces, x, y by quadrature of
-// (cos psi, sin psi). Curvature is continuous with two continuous derivatives everywhere.
-// Before s = 0 and after the end the path continues straight.
+// (cos psi, sin psi). Curvature is continuous with two continuous derivatives everywhere,
+// except at pivots: a pivot (a turn on the spot) makes the direction of travel jump at one
+// arc length; the body turns there in time, while standing (PivotProfile). Before s = 0 and
+// after the end the path continues straight.
 class PathProfile {
  public:
   PathProfile(const Eigen::Vector2d& start_xy, double start_heading_rad);
@@ -95,9 +97,20 @@ class PathProfile {
   // A lateral shift of about lateral_shift_m (left positive) over length_m, heading back to
   // where it started: psi = h x^5 (1-x)^5 with h = 2772 shift / length.
   void AddLaneChange(double lateral_shift_m, double length_m);
+  // A turn on the spot by heading_change_rad (left positive) at the current end: the pieces
+  // added afterwards start in the new direction.
+  void AddPivot(double heading_change_rad);
 
   double length_m() const { return length_m_; }
   double final_heading_rad() const;
+
+  // Sum of the pivots before arc length s (as Heading(s) sees them): Heading(s) minus this
+  // is continuous across pivots.
+  double PivotsBefore(double s) const {
+    const Piece* piece = Find(s);
+    if (piece == nullptr) return s < 0.0 ? 0.0 : pivot_total_;
+    return piece->pivots;
+  }
 
   template <typename T>
   T Heading(const T& s) const {
@@ -130,6 +143,7 @@ class PathProfile {
     double length = 1.0;
     double psi0 = 0.0;
     std::array<double, kDegree + 1> coeffs{};  // psi - psi0 in powers of (s - s0) / length
+    double pivots = 0.0;                       // sum of the pivots before this piece
   };
   struct Node {
     double s = 0.0;
@@ -142,8 +156,42 @@ class PathProfile {
   Eigen::Vector2d start_xy_;
   double start_heading_;
   double length_m_ = 0.0;
+  double pivot_total_ = 0.0;  // sum of every pivot so far
   std::vector<Piece> pieces_;
   std::vector<Node> nodes_;  // tabulated positions, at most 2 m apart
+};
+
+// Turns on the spot over time: each pivot changes the body's yaw by a smooth step while the
+// vehicle stands (a skid-steer platform turning in place). Yaw(t) is the sum of the pivots
+// done by t; between pivots it is constant.
+class PivotProfile {
+ public:
+  // A pivot of heading_change_rad starting at t0_s and lasting duration_s (> 0); pivots are
+  // added in time order and must not overlap.
+  void Add(double t0_s, double duration_s, double heading_change_rad);
+  bool empty() const { return pivots_.empty(); }
+
+  template <typename T>
+  T Yaw(const T& t) const {
+    const double t0 = ScalarValue(t);
+    T yaw = T(0.0);
+    for (const Pivot& p : pivots_) {
+      if (t0 >= p.t0 + p.duration) {
+        yaw = yaw + T(p.change);
+      } else if (t0 > p.t0) {
+        yaw = yaw + T(p.change) * SmoothStep((t - T(p.t0)) / T(p.duration));
+      }
+    }
+    return yaw;
+  }
+
+ private:
+  struct Pivot {
+    double t0 = 0.0;
+    double duration = 0.0;
+    double change = 0.0;
+  };
+  std::vector<Pivot> pivots_;
 };
 
 // How the body moves on its suspension, and where the rear axle sits.
@@ -166,9 +214,11 @@ struct BodyState {
 
 class VehicleTrajectory {
  public:
+  // The pivots must happen while the speed profile stands, at the arc lengths of the path's
+  // pivots (DriveBuilder in scenario.cc plans both together).
   VehicleTrajectory(PathProfile path, SpeedProfile speed,
                     std::shared_ptr<const GroundSurface> ground,
-                    VehicleDynamicsOptions dynamics = {});
+                    VehicleDynamicsOptions dynamics = {}, PivotProfile pivots = {});
 
   // T_W_V at time t_s (seconds from the start of the drive).
   geometry::Pose3d PoseAt(double t_s) const;
@@ -183,6 +233,7 @@ class VehicleTrajectory {
   const SpeedProfile& speed() const { return speed_; }
   const GroundSurface& ground() const { return *ground_; }
   const VehicleDynamicsOptions& dynamics() const { return dynamics_; }
+  const PivotProfile& pivots() const { return pivots_; }
 
  private:
   template <typename T>
@@ -192,6 +243,7 @@ class VehicleTrajectory {
   SpeedProfile speed_;
   std::shared_ptr<const GroundSurface> ground_;
   VehicleDynamicsOptions dynamics_;
+  PivotProfile pivots_;
 };
 
 }  // namespace sim
