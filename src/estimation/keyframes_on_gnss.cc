@@ -328,6 +328,78 @@ void BridgeUnplaced(const std::vector<Keyframe>& kfs, const std::vector<bool>& p
   }
 }
 
+// Eq. K7 around every keyframe: the fixes within half_width_s, with their sigmas (K10) and
+// the outlier floor of 3 of their own sigmas. placed[k] says whether keyframe k got a track.
+std::vector<TrackFit> FitTracks(const std::vector<Keyframe>& kfs, const sensors::GnssFixes& fixes,
+                                const sensors::EnuConverter& converter,
+                                const GnssPlacementOptions& options, std::vector<bool>* placed) {
+  std::vector<Eigen::Vector3d> fixes_W(fixes.size());
+  for (size_t i = 0; i < fixes.size(); ++i) fixes_W[i] = converter.ToEnu(fixes[i]);
+  const int64_t half_width_ns = SecondsToNs(options.half_width_s);
+  std::vector<TrackFit> tracks(kfs.size());
+  placed->assign(kfs.size(), false);
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    const int64_t t_ns = kfs[k].t_ns;
+    auto it = std::lower_bound(fixes.begin(), fixes.end(), t_ns - half_width_ns,
+                               [](const sensors::GnssFix& f, int64_t t) { return f.t_ns < t; });
+    std::vector<double> tau_s, sigma_m, floor_m;
+    std::vector<Eigen::Vector3d> p;
+    for (; it != fixes.end() && it->t_ns <= t_ns + half_width_ns; ++it) {
+      tau_s.push_back(NsToSeconds(it->t_ns - t_ns));
+      p.push_back(fixes_W[static_cast<size_t>(it - fixes.begin())]);
+      sigma_m.push_back(HorizontalSigma(*it));
+      floor_m.push_back(3.0 * it->std_enu_m.norm());
+    }
+    (*placed)[k] = FitAntennaTrack(tau_s, p, sigma_m, floor_m, options, &tracks[k]);
+  }
+  return tracks;
+}
+
+// The yaw each keyframe whose speed stands out of its velocity's noise (Eq. K10) needs
+// (Eq. K8), flagged in *heading; and, for messages, the keyframe whose speed stands out most.
+struct Headings {
+  std::vector<double> delta_rad;
+  double best_speed_m_s = 0.0;
+  double best_sigma_m_s = 0.0;
+};
+Headings TrustedHeadings(const std::vector<Keyframe>& kfs, const std::vector<bool>& placed,
+                         const std::vector<TrackFit>& tracks, const Eigen::Quaterniond& q_I_V,
+                         double heading_sigmas, std::vector<bool>* heading) {
+  Headings h;
+  double best_ratio = 0.0;
+  heading->assign(kfs.size(), false);
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    if (!placed[k]) continue;
+    const Eigen::Vector3d& v = tracks[k].velocity;
+    const double ratio = v.head<2>().norm() / tracks[k].velocity_sigma_m_s;
+    if (ratio > best_ratio) {
+      best_ratio = ratio;
+      h.best_speed_m_s = v.head<2>().norm();
+      h.best_sigma_m_s = tracks[k].velocity_sigma_m_s;
+    }
+    if (!(ratio > heading_sigmas)) continue;
+    (*heading)[k] = true;
+    h.delta_rad.push_back(WrapAngle(std::atan2(v.y(), v.x()) - ForwardHeading(kfs[k], q_I_V)));
+  }
+  return h;
+}
+
+// Neither the headings nor the track's travel give the yaw: why, with the figures.
+[[noreturn]] void ThrowNoYaw(const Headings& h, int num_placed, const GnssPlacementOptions& o,
+                             double travel_m, double needed_m, double sigma_m) {
+  throw Error(
+      "PlaceKeyframesOnGnss: no heading for the yaw: " + std::to_string(h.delta_rad.size()) +
+      " of " + std::to_string(num_placed) + " keyframes on the GNSS track move faster than " +
+      FormatFixed(o.heading_sigmas, 1) + " sigma of their fitted velocity (" +
+      std::to_string(o.min_headings) + " needed; the best: " + FormatFixed(h.best_speed_m_s, 2) +
+      " m/s against a sigma of " + FormatFixed(h.best_sigma_m_s, 2) + " m/s from " +
+      FormatFixed(o.half_width_s, 1) + " s of fixes on either side), and the track travels " +
+      FormatFixed(travel_m, 1) + " m net along the vehicle's heading, less than the " +
+      FormatFixed(needed_m, 1) + " m needed (the fixes' median horizontal sigma is " +
+      FormatFixed(sigma_m, 2) + " m): the drive is too slow or too short to tell where the " +
+      "vehicle points");
+}
+
 }  // namespace
 
 GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
@@ -342,79 +414,28 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
         "PlaceKeyframesOnGnss: half_width_s and heading_sigmas must be positive, min_fixes at "
         "least 3, min_headings at least 1 and max_refits not negative");
   }
-  std::vector<Eigen::Vector3d> fixes_W(fixes.size());
-  std::vector<double> sigma_W(fixes.size());
-  for (size_t i = 0; i < fixes.size(); ++i) {
-    fixes_W[i] = converter.ToEnu(fixes[i]);
-    sigma_W[i] = HorizontalSigma(fixes[i]);
-  }
-  const int64_t half_width_ns = SecondsToNs(options.half_width_s);
-
-  // Eq. K7 around every keyframe.
   std::vector<Keyframe>& kfs = *keyframes;
   GnssPlacement result;
-  std::vector<bool>& placed = result.placed;
-  placed.assign(kfs.size(), false);
-  std::vector<TrackFit> tracks(kfs.size());
-  for (size_t k = 0; k < kfs.size(); ++k) {
-    const int64_t t_ns = kfs[k].t_ns;
-    auto it = std::lower_bound(fixes.begin(), fixes.end(), t_ns - half_width_ns,
-                               [](const sensors::GnssFix& f, int64_t t) { return f.t_ns < t; });
-    std::vector<double> tau_s, sigma_m, floor_m;
-    std::vector<Eigen::Vector3d> p;
-    for (; it != fixes.end() && it->t_ns <= t_ns + half_width_ns; ++it) {
-      const size_t i = static_cast<size_t>(it - fixes.begin());
-      tau_s.push_back(NsToSeconds(it->t_ns - t_ns));
-      p.push_back(fixes_W[i]);
-      sigma_m.push_back(sigma_W[i]);
-      floor_m.push_back(3.0 * it->std_enu_m.norm());
-    }
-    placed[k] = FitAntennaTrack(tau_s, p, sigma_m, floor_m, options, &tracks[k]);
-    result.num_placed += placed[k] ? 1 : 0;
-  }
+  const std::vector<bool>& placed = result.placed;
+  std::vector<TrackFit> tracks = FitTracks(kfs, fixes, converter, options, &result.placed);
+  result.num_placed = static_cast<int>(std::count(placed.begin(), placed.end(), true));
   if (result.num_placed < 2) {
     throw Error("PlaceKeyframesOnGnss: only " + std::to_string(result.num_placed) + " of " +
                 std::to_string(kfs.size()) + " keyframes have a GNSS track around them");
   }
 
-  // Eq. K8 on the keyframes whose speed stands out of their velocity's noise (Eq. K10), else
-  // Eq. K11 on the whole track.
-  std::vector<double> delta;
-  result.heading.assign(kfs.size(), false);
-  double best_ratio = 0.0, best_speed_m_s = 0.0, best_sigma_m_s = 0.0;
-  for (size_t k = 0; k < kfs.size(); ++k) {
-    if (!placed[k]) continue;
-    const double speed_m_s = tracks[k].velocity.head<2>().norm();
-    const double ratio = speed_m_s / tracks[k].velocity_sigma_m_s;
-    if (ratio > best_ratio) {
-      best_ratio = ratio;
-      best_speed_m_s = speed_m_s;
-      best_sigma_m_s = tracks[k].velocity_sigma_m_s;
-    }
-    if (!(ratio > options.heading_sigmas)) continue;
-    result.heading[k] = true;
-    delta.push_back(WrapAngle(std::atan2(tracks[k].velocity.y(), tracks[k].velocity.x()) -
-                              ForwardHeading(kfs[k], q_I_V)));
-  }
-  if (static_cast<int>(delta.size()) >= options.min_headings) {
-    YawFromHeadings(delta, &result);
+  // Eq. K8 on the keyframes with a trusted heading, else Eq. K11 on the whole track.
+  const Headings headings =
+      TrustedHeadings(kfs, placed, tracks, q_I_V, options.heading_sigmas, &result.heading);
+  if (static_cast<int>(headings.delta_rad.size()) >= options.min_headings) {
+    YawFromHeadings(headings.delta_rad, &result);
   } else {
     const double sigma_m = MedianHorizontalSigma(fixes);
     const double needed_m =
         std::max(options.min_track_travel_m, options.heading_sigmas * std::sqrt(2.0) * sigma_m);
     double travel_m = 0.0;
     if (!YawFromTrackGeometry(kfs, placed, tracks, q_I_V, needed_m, &result, &travel_m)) {
-      throw Error(
-          "PlaceKeyframesOnGnss: no heading for the yaw: " + std::to_string(delta.size()) + " of " +
-          std::to_string(result.num_placed) + " keyframes on the GNSS track move faster than " +
-          FormatFixed(options.heading_sigmas, 1) + " sigma of their fitted velocity (" +
-          std::to_string(options.min_headings) +
-          " needed; the best: " + FormatFixed(best_speed_m_s, 2) + " m/s against a sigma of " +
-          FormatFixed(best_sigma_m_s, 2) + " m/s from " + FormatFixed(options.half_width_s, 1) +
-          " s of fixes on either side), and the track travels " + FormatFixed(travel_m, 1) +
-          " m net along the vehicle's heading, less than the " + FormatFixed(needed_m, 1) +
-          " m needed (the fixes' median horizontal sigma is " + FormatFixed(sigma_m, 2) +
-          " m): the drive is too slow or too short to tell where the vehicle points");
+      ThrowNoYaw(headings, result.num_placed, options, travel_m, needed_m, sigma_m);
     }
     result.heading.assign(kfs.size(), false);
   }
