@@ -129,6 +129,23 @@ TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& p
   return t;
 }
 
+void RecordTiming(const TimingLimits& timing, bool without_lidar, io::CalibrationFile* file) {
+  std::map<std::string, std::string>& solver = file->solver;
+  solver["timing_imu_rate_hz"] = FormatFixed(timing.imu.rate_hz(), 3);
+  solver["timing_max_imu_gap_s"] = FormatFixed(timing.max_imu_gap_s, 4);
+  if (timing.wheel) {
+    solver["timing_wheel_rate_hz"] = FormatFixed(timing.wheel->rate_hz(), 3);
+    solver["timing_max_wheel_gap_s"] = FormatFixed(timing.max_wheel_gap_s, 4);
+  }
+  if (timing.gnss) {
+    solver["timing_gnss_rate_hz"] = FormatFixed(timing.gnss->rate_hz(), 3);
+    solver["timing_max_fix_gap_s"] = FormatFixed(timing.max_fix_gap_s, 4);
+    solver["timing_gnss_track_half_width_s"] = FormatFixed(timing.gnss_track_half_width_s, 4);
+    if (without_lidar)
+      solver["timing_keyframe_period_s"] = FormatFixed(timing.keyframe_period_s, 4);
+  }
+}
+
 void ApplyTimingLimits(const TimingLimits& timing,
                        estimation::GnssInertialKeyframesOptions* options) {
   options->placement.half_width_s = timing.gnss_track_half_width_s;

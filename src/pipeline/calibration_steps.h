@@ -69,6 +69,10 @@ struct TimingLimits {
 TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& problem,
                                 bool use_wheel, bool use_gnss);
 
+// The measured rates and the limits used, into the result's solver summary (calibration.yaml):
+// timing_<sensor>_rate_hz and timing_<limit> (keyframe_period_s only without the LiDAR).
+void RecordTiming(const TimingLimits& timing, bool without_lidar, io::CalibrationFile* file);
+
 // The gaps and the track window of the GNSS-inertial keyframes (placement, GNSS and wheel
 // factors) from `timing`.
 void ApplyTimingLimits(const TimingLimits& timing,

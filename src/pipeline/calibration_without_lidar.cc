@@ -146,6 +146,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   file.solver["iterations"] = std::to_string(summary.iterations.size());
   file.solver["final_cost"] = std::to_string(summary.final_cost);
   file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
+  RecordTiming(timing, true, &file);
   Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
            &result);
   return result;

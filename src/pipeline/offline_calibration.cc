@@ -316,6 +316,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   const estimation::BlockCovariance covariance =
       SolveBatch(dataset, problem, options, blocks_estimated, enu ? &*enu : nullptr, timing,
                  &keyframes, &calibration, &result);
+  RecordTiming(timing, false, &result.calibration);
 
   // 4. Observability, uncertainty and the result.
   Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes.keyframes,
