@@ -156,6 +156,13 @@ TEST(SampleTiming, KeyframePeriodIsClamped) {
   EXPECT_DOUBLE_EQ(KeyframePeriodS(fast, imu, nullptr), 0.05);
   EXPECT_DOUBLE_EQ(KeyframePeriodS(slow, imu, nullptr), 0.5);
   EXPECT_DOUBLE_EQ(GnssTrackHalfWidthS(slow), 2.5);
+  // Wheels slower than the fixes set the period: one wheel sample between keyframes.
+  const SampleTiming gnss = MeasureTiming(Regular(10.0, 30.0), "gnss");
+  const SampleTiming wheel = MeasureTiming(Bursty(5.0, 3, 30.0), "wheel");
+  EXPECT_NEAR(KeyframePeriodS(gnss, imu, &wheel), 0.2, 0.005);  // 153 samples over 30 s
+  // A 25 Hz IMU: three samples between keyframes.
+  const SampleTiming slow_imu = MeasureTiming(Regular(25.0, 30.0), "imu");
+  EXPECT_NEAR(KeyframePeriodS(gnss, slow_imu, nullptr), 0.12, 1e-6);
 }
 
 TEST(SampleTiming, RefusesTooFewOrUnorderedStamps) {
