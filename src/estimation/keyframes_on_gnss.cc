@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "estimation/keyframe_interpolation.h"
@@ -127,15 +128,41 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
 
 namespace {
 
+// The antenna track around one keyframe (Eq. K7): position, velocity and the velocity's
+// 1-sigma per horizontal axis from the fixes' sigmas and the fit's design (Eq. K10).
+struct TrackFit {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  double velocity_sigma_m_s = 0.0;
+};
+
+// Eq. K10: the sigma of the linear coefficient b of a weighted least-squares quadratic, from
+// the inliers' horizontal sigmas: sqrt([(sum_i x_i x_i^T / sigma_i^2)^-1]_bb),
+// x_i = (1, tau_i, tau_i^2).
+double VelocitySigma(const std::vector<double>& tau_s, const std::vector<double>& sigma_m,
+                     const std::vector<size_t>& rows) {
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  for (size_t i : rows) {
+    const Eigen::Vector3d x(1.0, tau_s[i], tau_s[i] * tau_s[i]);
+    information += x * x.transpose() / (sigma_m[i] * sigma_m[i]);
+  }
+  const Eigen::Matrix3d covariance = information.inverse();
+  return std::isfinite(covariance(1, 1)) && covariance(1, 1) > 0.0
+             ? std::sqrt(covariance(1, 1))
+             : std::numeric_limits<double>::infinity();
+}
+
 // Eq. K7: p(tau) = a + b tau + c tau^2 fitted to the fixes (tau from the keyframe time).
 // Multipath jumps of metres would bend a least-squares quadratic towards them (several may
 // fall in one window, one may sit at its end), so the fit starts from the least median of
 // distances over quadratics through three fixes, one from each third of the window; fixes
 // within the gate of that one are fitted by least squares, and the gate is re-applied.
+// A fix within 3 of its own sigmas (floor_m) is never an outlier: with five to ten fixes the
+// median distance can fall well below their noise, and the gate would then reject honest ones.
 // False when fewer than min_fixes inliers remain or fewer than two on either side of tau = 0.
 bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::Vector3d>& p,
-                     const GnssPlacementOptions& o, Eigen::Vector3d* position,
-                     Eigen::Vector3d* velocity) {
+                     const std::vector<double>& sigma_m, const std::vector<double>& floor_m,
+                     const GnssPlacementOptions& o, TrackFit* track) {
   const size_t n = tau_s.size();
   if (n < static_cast<size_t>(std::max(o.min_fixes, 3))) return false;
   const auto basis = [&](size_t i) { return Eigen::Vector3d(1.0, tau_s[i], tau_s[i] * tau_s[i]); };
@@ -182,7 +209,7 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
     inliers.clear();
     int before = 0, after = 0;
     for (size_t i = 0; i < n; ++i) {
-      if (distance_m[i] > gate_m) continue;
+      if (distance_m[i] > std::max(gate_m, floor_m[i])) continue;
       inliers.push_back(i);
       before += tau_s[i] <= 0.0 ? 1 : 0;
       after += tau_s[i] >= 0.0 ? 1 : 0;
@@ -193,67 +220,29 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
     median_m = distances(coefficients);
     previous = inliers;
   }
-  *position = coefficients.col(0);
-  *velocity = coefficients.col(1);
+  track->position = coefficients.col(0);
+  track->velocity = coefficients.col(1);
+  track->velocity_sigma_m_s = VelocitySigma(tau_s, sigma_m, inliers);
   return true;
 }
 
 double WrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 
-}  // namespace
+// The horizontal 1-sigma of a fix: the RMS of its east and north sigmas.
+double HorizontalSigma(const sensors::GnssFix& fix) {
+  return std::sqrt(0.5 *
+                   (fix.std_enu_m.x() * fix.std_enu_m.x() + fix.std_enu_m.y() * fix.std_enu_m.y()));
+}
 
-GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
-                                   const sensors::GnssFixes& fixes,
-                                   const sensors::EnuConverter& converter,
-                                   const Eigen::Vector3d& p_I_A, const Eigen::Quaterniond& q_I_V,
-                                   const GnssPlacementOptions& options) {
-  CheckIncreasing(fixes, "PlaceKeyframesOnGnss: GNSS fix");
-  if (!(options.half_width_s > 0.0) || options.min_fixes < 3 || options.max_refits < 0) {
-    throw Error(
-        "PlaceKeyframesOnGnss: half_width_s must be positive, min_fixes at least 3 and "
-        "max_refits not negative");
-  }
-  std::vector<Eigen::Vector3d> fixes_W(fixes.size());
-  for (size_t i = 0; i < fixes.size(); ++i) fixes_W[i] = converter.ToEnu(fixes[i]);
-  const int64_t half_width_ns = SecondsToNs(options.half_width_s);
+// The heading of the vehicle's forward axis R_W_I R_I_V x in the keyframe's current frame.
+double ForwardHeading(const Keyframe& kf, const Eigen::Quaterniond& q_I_V) {
+  const Eigen::Vector3d forward_W = kf.q_W_I * (q_I_V * Eigen::Vector3d::UnitX());
+  return std::atan2(forward_W.y(), forward_W.x());
+}
 
-  // Eq. K7 around every keyframe.
-  std::vector<Keyframe>& kfs = *keyframes;
-  GnssPlacement result;
-  std::vector<bool>& placed = result.placed;
-  placed.assign(kfs.size(), false);
-  std::vector<Eigen::Vector3d> p_W_A(kfs.size()), v_W_A(kfs.size());
-  for (size_t k = 0; k < kfs.size(); ++k) {
-    const int64_t t_ns = kfs[k].t_ns;
-    auto it = std::lower_bound(fixes.begin(), fixes.end(), t_ns - half_width_ns,
-                               [](const sensors::GnssFix& f, int64_t t) { return f.t_ns < t; });
-    std::vector<double> tau_s;
-    std::vector<Eigen::Vector3d> p;
-    for (; it != fixes.end() && it->t_ns <= t_ns + half_width_ns; ++it) {
-      tau_s.push_back(NsToSeconds(it->t_ns - t_ns));
-      p.push_back(fixes_W[static_cast<size_t>(it - fixes.begin())]);
-    }
-    placed[k] = FitAntennaTrack(tau_s, p, options, &p_W_A[k], &v_W_A[k]);
-    result.num_placed += placed[k] ? 1 : 0;
-  }
-  if (result.num_placed < 2) {
-    throw Error("PlaceKeyframesOnGnss: only " + std::to_string(result.num_placed) + " of " +
-                std::to_string(kfs.size()) + " keyframes have a GNSS track around them");
-  }
-
-  // Eq. K8: the yaw that turns the vehicle's forward axis onto the track heading (circular
-  // mean, then once more without headings over 0.2 rad from it: reversing, slip, bad fits).
-  std::vector<double> delta;
-  for (size_t k = 0; k < kfs.size(); ++k) {
-    if (!placed[k] || v_W_A[k].head<2>().norm() < options.min_heading_speed_m_s) continue;
-    const Eigen::Vector3d forward_W = kfs[k].q_W_I * (q_I_V * Eigen::Vector3d::UnitX());
-    delta.push_back(WrapAngle(std::atan2(v_W_A[k].y(), v_W_A[k].x()) -
-                              std::atan2(forward_W.y(), forward_W.x())));
-  }
-  if (delta.empty()) {
-    throw Error("PlaceKeyframesOnGnss: the GNSS track is never faster than " +
-                std::to_string(options.min_heading_speed_m_s) + " m/s: no heading for the yaw");
-  }
+// Eq. K8 from the keyframes with a heading: the circular mean of the yaw each needs, then
+// once more without those over 0.2 rad from it (reversing, slip, bad fits).
+void YawFromHeadings(const std::vector<double>& delta, GnssPlacement* result) {
   const auto circular_mean = [&](double center, double gate) {
     double s = 0.0, c = 0.0;
     int n = 0;
@@ -265,17 +254,54 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
     }
     return n > 0 ? std::atan2(s, c) : center;
   };
-  result.yaw_rad = circular_mean(circular_mean(0.0, M_PI + 1.0), 0.2);
+  result->yaw_rad = circular_mean(circular_mean(0.0, M_PI + 1.0), 0.2);
   double sum_rad2 = 0.0;
+  result->num_headings = 0;
   for (double d : delta) {
-    const double r = WrapAngle(d - result.yaw_rad);
+    const double r = WrapAngle(d - result->yaw_rad);
     if (std::abs(r) > 0.2) continue;
     sum_rad2 += r * r;
-    ++result.num_headings;
+    ++result->num_headings;
   }
-  result.heading_rms_rad = std::sqrt(sum_rad2 / std::max(1, result.num_headings));
+  result->heading_rms_rad = std::sqrt(sum_rad2 / std::max(1, result->num_headings));
+}
 
-  // Keyframes without a track of their own: between placed neighbours.
+// Eq. K11, the yaw from the track's geometry when too few keyframes move fast enough for a
+// heading of their own: every placed keyframe's fitted velocity, turned into its forward
+// frame (x along R_W_I R_I_V x) and weighted by its share of time, sums to the track's net
+// travel along the vehicle's heading, d. Its direction is the yaw; its length must exceed
+// max(min_track_travel_m, k sqrt(2) sigma) (the noise of a displacement between two fixes).
+// Returns false when it does not, with the travel in *travel_m.
+bool YawFromTrackGeometry(const std::vector<Keyframe>& kfs, const std::vector<bool>& placed,
+                          const std::vector<TrackFit>& tracks, const Eigen::Quaterniond& q_I_V,
+                          double needed_m, GnssPlacement* result, double* travel_m) {
+  Eigen::Vector2d d = Eigen::Vector2d::Zero();
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    if (!placed[k]) continue;
+    const size_t prev = k == 0 ? k : k - 1, next = k + 1 == kfs.size() ? k : k + 1;
+    const double dt_s = 0.5 * NsToSeconds(kfs[next].t_ns - kfs[prev].t_ns);
+    d += Eigen::Rotation2Dd(-ForwardHeading(kfs[k], q_I_V)) * tracks[k].velocity.head<2>() * dt_s;
+  }
+  *travel_m = d.norm();
+  if (!(*travel_m >= needed_m)) return false;
+  result->yaw_rad = std::atan2(d.y(), d.x());
+  result->yaw_from_track_geometry = true;
+  return true;
+}
+
+// The median of the fixes' horizontal sigmas.
+double MedianHorizontalSigma(const sensors::GnssFixes& fixes) {
+  std::vector<double> sigma_m;
+  sigma_m.reserve(fixes.size());
+  for (const sensors::GnssFix& fix : fixes) sigma_m.push_back(HorizontalSigma(fix));
+  return Median(sigma_m);
+}
+
+// Keyframes without a track of their own: between the nearest placed ones (or moved with the
+// nearest one's velocity at the ends).
+void BridgeUnplaced(const std::vector<Keyframe>& kfs, const std::vector<bool>& placed,
+                    std::vector<TrackFit>* tracks, int* num_bridged) {
+  std::vector<TrackFit>& t = *tracks;
   for (size_t k = 0; k < kfs.size(); ++k) {
     if (placed[k]) continue;
     ptrdiff_t before = static_cast<ptrdiff_t>(k) - 1, after = static_cast<ptrdiff_t>(k) + 1;
@@ -284,8 +310,8 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
       ++after;
     }
     const auto from = [&](size_t j) {
-      p_W_A[k] = p_W_A[j] + v_W_A[j] * NsToSeconds(kfs[k].t_ns - kfs[j].t_ns);
-      v_W_A[k] = v_W_A[j];
+      t[k].position = t[j].position + t[j].velocity * NsToSeconds(kfs[k].t_ns - kfs[j].t_ns);
+      t[k].velocity = t[j].velocity;
     };
     if (before < 0) {
       from(static_cast<size_t>(after));
@@ -295,18 +321,132 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
       const size_t i = static_cast<size_t>(before), j = static_cast<size_t>(after);
       const double s =
           NsToSeconds(kfs[k].t_ns - kfs[i].t_ns) / NsToSeconds(kfs[j].t_ns - kfs[i].t_ns);
-      p_W_A[k] = (1.0 - s) * p_W_A[i] + s * p_W_A[j];
-      v_W_A[k] = (1.0 - s) * v_W_A[i] + s * v_W_A[j];
+      t[k].position = (1.0 - s) * t[i].position + s * t[j].position;
+      t[k].velocity = (1.0 - s) * t[i].velocity + s * t[j].velocity;
     }
-    ++result.num_bridged;
+    ++*num_bridged;
+  }
+}
+
+// Eq. K7 around every keyframe: the fixes within half_width_s, with their sigmas (K10) and
+// the outlier floor of 3 of their own sigmas. placed[k] says whether keyframe k got a track.
+std::vector<TrackFit> FitTracks(const std::vector<Keyframe>& kfs, const sensors::GnssFixes& fixes,
+                                const sensors::EnuConverter& converter,
+                                const GnssPlacementOptions& options, std::vector<bool>* placed) {
+  std::vector<Eigen::Vector3d> fixes_W(fixes.size());
+  for (size_t i = 0; i < fixes.size(); ++i) fixes_W[i] = converter.ToEnu(fixes[i]);
+  const int64_t half_width_ns = SecondsToNs(options.half_width_s);
+  std::vector<TrackFit> tracks(kfs.size());
+  placed->assign(kfs.size(), false);
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    const int64_t t_ns = kfs[k].t_ns;
+    auto it = std::lower_bound(fixes.begin(), fixes.end(), t_ns - half_width_ns,
+                               [](const sensors::GnssFix& f, int64_t t) { return f.t_ns < t; });
+    std::vector<double> tau_s, sigma_m, floor_m;
+    std::vector<Eigen::Vector3d> p;
+    for (; it != fixes.end() && it->t_ns <= t_ns + half_width_ns; ++it) {
+      tau_s.push_back(NsToSeconds(it->t_ns - t_ns));
+      p.push_back(fixes_W[static_cast<size_t>(it - fixes.begin())]);
+      sigma_m.push_back(HorizontalSigma(*it));
+      floor_m.push_back(3.0 * it->std_enu_m.norm());
+    }
+    (*placed)[k] = FitAntennaTrack(tau_s, p, sigma_m, floor_m, options, &tracks[k]);
+  }
+  return tracks;
+}
+
+// The yaw each keyframe whose speed stands out of its velocity's noise (Eq. K10) needs
+// (Eq. K8), flagged in *heading; and, for messages, the keyframe whose speed stands out most.
+struct Headings {
+  std::vector<double> delta_rad;
+  double best_speed_m_s = 0.0;
+  double best_sigma_m_s = 0.0;
+};
+Headings TrustedHeadings(const std::vector<Keyframe>& kfs, const std::vector<bool>& placed,
+                         const std::vector<TrackFit>& tracks, const Eigen::Quaterniond& q_I_V,
+                         double heading_sigmas, std::vector<bool>* heading) {
+  Headings h;
+  double best_ratio = 0.0;
+  heading->assign(kfs.size(), false);
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    if (!placed[k]) continue;
+    const Eigen::Vector3d& v = tracks[k].velocity;
+    const double ratio = v.head<2>().norm() / tracks[k].velocity_sigma_m_s;
+    if (ratio > best_ratio) {
+      best_ratio = ratio;
+      h.best_speed_m_s = v.head<2>().norm();
+      h.best_sigma_m_s = tracks[k].velocity_sigma_m_s;
+    }
+    if (!(ratio > heading_sigmas)) continue;
+    (*heading)[k] = true;
+    h.delta_rad.push_back(WrapAngle(std::atan2(v.y(), v.x()) - ForwardHeading(kfs[k], q_I_V)));
+  }
+  return h;
+}
+
+// Neither the headings nor the track's travel give the yaw: why, with the figures.
+[[noreturn]] void ThrowNoYaw(const Headings& h, int num_placed, const GnssPlacementOptions& o,
+                             double travel_m, double needed_m, double sigma_m) {
+  throw Error(
+      "PlaceKeyframesOnGnss: no heading for the yaw: " + std::to_string(h.delta_rad.size()) +
+      " of " + std::to_string(num_placed) + " keyframes on the GNSS track move faster than " +
+      FormatFixed(o.heading_sigmas, 1) + " sigma of their fitted velocity (" +
+      std::to_string(o.min_headings) + " needed; the best: " + FormatFixed(h.best_speed_m_s, 2) +
+      " m/s against a sigma of " + FormatFixed(h.best_sigma_m_s, 2) + " m/s from " +
+      FormatFixed(o.half_width_s, 1) + " s of fixes on either side), and the track travels " +
+      FormatFixed(travel_m, 1) + " m net along the vehicle's heading, less than the " +
+      FormatFixed(needed_m, 1) + " m needed (the fixes' median horizontal sigma is " +
+      FormatFixed(sigma_m, 2) + " m): the drive is too slow or too short to tell where the " +
+      "vehicle points");
+}
+
+}  // namespace
+
+GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
+                                   const sensors::GnssFixes& fixes,
+                                   const sensors::EnuConverter& converter,
+                                   const Eigen::Vector3d& p_I_A, const Eigen::Quaterniond& q_I_V,
+                                   const GnssPlacementOptions& options) {
+  CheckIncreasing(fixes, "PlaceKeyframesOnGnss: GNSS fix");
+  if (!(options.half_width_s > 0.0) || options.min_fixes < 3 || options.max_refits < 0 ||
+      !(options.heading_sigmas > 0.0) || options.min_headings < 1) {
+    throw Error(
+        "PlaceKeyframesOnGnss: half_width_s and heading_sigmas must be positive, min_fixes at "
+        "least 3, min_headings at least 1 and max_refits not negative");
+  }
+  std::vector<Keyframe>& kfs = *keyframes;
+  GnssPlacement result;
+  const std::vector<bool>& placed = result.placed;
+  std::vector<TrackFit> tracks = FitTracks(kfs, fixes, converter, options, &result.placed);
+  result.num_placed = static_cast<int>(std::count(placed.begin(), placed.end(), true));
+  if (result.num_placed < 2) {
+    throw Error("PlaceKeyframesOnGnss: only " + std::to_string(result.num_placed) + " of " +
+                std::to_string(kfs.size()) + " keyframes have a GNSS track around them");
   }
 
+  // Eq. K8 on the keyframes with a trusted heading, else Eq. K11 on the whole track.
+  const Headings headings =
+      TrustedHeadings(kfs, placed, tracks, q_I_V, options.heading_sigmas, &result.heading);
+  if (static_cast<int>(headings.delta_rad.size()) >= options.min_headings) {
+    YawFromHeadings(headings.delta_rad, &result);
+  } else {
+    const double sigma_m = MedianHorizontalSigma(fixes);
+    const double needed_m =
+        std::max(options.min_track_travel_m, options.heading_sigmas * std::sqrt(2.0) * sigma_m);
+    double travel_m = 0.0;
+    if (!YawFromTrackGeometry(kfs, placed, tracks, q_I_V, needed_m, &result, &travel_m)) {
+      ThrowNoYaw(headings, result.num_placed, options, travel_m, needed_m, sigma_m);
+    }
+    result.heading.assign(kfs.size(), false);
+  }
+
+  BridgeUnplaced(kfs, placed, &tracks, &result.num_bridged);
   const Eigen::Quaterniond q_z(Eigen::AngleAxisd(result.yaw_rad, Eigen::Vector3d::UnitZ()));
   for (size_t k = 0; k < kfs.size(); ++k) {
     Keyframe& kf = kfs[k];
     kf.q_W_I = (q_z * kf.q_W_I).normalized();
-    kf.p_W_I = p_W_A[k] - kf.q_W_I * p_I_A;
-    kf.v_W_I = v_W_A[k];
+    kf.p_W_I = tracks[k].position - kf.q_W_I * p_I_A;
+    kf.v_W_I = tracks[k].velocity;
   }
   return result;
 }

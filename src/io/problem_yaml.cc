@@ -256,10 +256,51 @@ constexpr double kMaxVoxelM = 20.0;
 constexpr double kMinWindowRangeM = 1.0;
 constexpr double kMaxWindowRangeM = 10000.0;
 
+// Bounds of the timing settings: a gap under 1 ms brackets no sample of a 1000 Hz IMU, one over
+// a minute bridges any outage; a keyframe period below 5 ms is finer than any IMU needs.
+constexpr double kMinGapS = 1e-3;
+constexpr double kMaxGapS = 60.0;
+constexpr double kMinKeyframePeriodS = 0.005;
+constexpr double kMaxKeyframePeriodS = 10.0;
+constexpr double kMinHalfWidthS = 0.1;
+
+ProblemTiming ParseTiming(const YamlFile& file, const YAML::Node& node,
+                          const ProblemSensors& sensors) {
+  file.ExpectMap(node, "timing",
+                 {"max_imu_gap_s", "max_wheel_gap_s", "max_fix_gap_s", "keyframe_period_s",
+                  "gnss_track_half_width_s", "min_factor_fraction"});
+  RejectWithoutSensor(file, node, "timing", "max_wheel_gap_s", sensors.wheel, "wheel");
+  RejectWithoutSensor(file, node, "timing", "max_fix_gap_s", sensors.gnss, "gnss");
+  RejectWithoutSensor(file, node, "timing", "gnss_track_half_width_s", sensors.gnss, "gnss");
+  if (sensors.lidar && node["keyframe_period_s"]) {
+    file.Fail(KeyNode(node, "keyframe_period_s"),
+              "timing.keyframe_period_s: sensors.lidar is true, so the keyframes are the LiDAR "
+              "sweeps and this setting has no effect (remove it or disable the LiDAR)");
+  }
+  ProblemTiming timing;
+  const auto seconds = [&](const char* key, double min_s, double max_s,
+                           std::optional<double>* value) {
+    if (const YAML::Node n = node[key]) {
+      *value = file.DoubleInRange(n, std::string("timing.") + key, min_s, max_s, "s");
+    }
+  };
+  seconds("max_imu_gap_s", kMinGapS, kMaxGapS, &timing.max_imu_gap_s);
+  seconds("max_wheel_gap_s", kMinGapS, kMaxGapS, &timing.max_wheel_gap_s);
+  seconds("max_fix_gap_s", kMinGapS, kMaxGapS, &timing.max_fix_gap_s);
+  seconds("keyframe_period_s", kMinKeyframePeriodS, kMaxKeyframePeriodS, &timing.keyframe_period_s);
+  seconds("gnss_track_half_width_s", kMinHalfWidthS, kMaxGapS, &timing.gnss_track_half_width_s);
+  if (const YAML::Node n = node["min_factor_fraction"]) {
+    timing.min_factor_fraction = file.DoubleInRange(n, "timing.min_factor_fraction", 0.0, 1.0,
+                                                    "(a fraction of the keyframes)");
+  }
+  return timing;
+}
+
 Problem ParseProblem(const YamlFile& file) {
   const YAML::Node& root = file.root();
-  file.ExpectMap(root, "problem",
-                 {"description", "sensors", "calibration", "loss", "window", "solver", "lidar"});
+  file.ExpectMap(
+      root, "problem",
+      {"description", "sensors", "calibration", "loss", "window", "solver", "lidar", "timing"});
   Problem problem;
   problem.path = file.path();
   if (const YAML::Node n = root["description"]) problem.description = file.String(n, "description");
@@ -306,6 +347,7 @@ Problem ParseProblem(const YamlFile& file) {
     if (const YAML::Node n = lidar["sweep_stride"])
       problem.lidar.sweep_stride = IntInRange(file, n, "lidar.sweep_stride", 1, kMaxSweepStride);
   }
+  if (const YAML::Node n = root["timing"]) problem.timing = ParseTiming(file, n, problem.sensors);
   return problem;
 }
 

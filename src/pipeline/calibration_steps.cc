@@ -54,18 +54,13 @@ std::string Join(const std::vector<std::string>& parts, const std::string& separ
 
 namespace {
 
-// The median interval between consecutive stamps in seconds (0 for fewer than two).
+// The stamps of `samples`, for sensors::MeasureTiming.
 template <typename Samples>
-double MedianIntervalS(const Samples& samples) {
-  if (samples.size() < 2) return 0.0;
-  std::vector<int64_t> intervals_ns;
-  intervals_ns.reserve(samples.size() - 1);
-  for (size_t i = 1; i < samples.size(); ++i) {
-    intervals_ns.push_back(samples[i].t_ns - samples[i - 1].t_ns);
-  }
-  const auto middle = intervals_ns.begin() + static_cast<std::ptrdiff_t>(intervals_ns.size() / 2);
-  std::nth_element(intervals_ns.begin(), middle, intervals_ns.end());
-  return NsToSeconds(*middle);
+std::vector<int64_t> Stamps(const Samples& samples) {
+  std::vector<int64_t> stamps;
+  stamps.reserve(samples.size());
+  for (const auto& sample : samples) stamps.push_back(sample.t_ns);
+  return stamps;
 }
 
 // How many of `samples` lie within the keyframes' time span.
@@ -78,19 +73,31 @@ size_t CountWithin(const Samples& samples, const std::vector<estimation::Keyfram
   return n;
 }
 
-// Why a sensor with samples gave no factor: none inside the keyframes' span, or none close
-// enough on both sides of any keyframe. `file` names the samples ("wheel.csv").
+// Throws when a sensor gave factors at fewer than the problem's fraction of the keyframes:
+// "wheel (10.1 Hz): 0 of 988 keyframes bracketed within max_wheel_gap_s = 0.250 s ...".
+// `limits` names the gap settings that decide it, `file` the samples (for when none falls
+// inside the keyframes' span).
 template <typename Samples>
-std::string NoFactorReason(const Samples& samples, const std::vector<estimation::Keyframe>& kfs,
-                           const std::string& file, const std::string& gap_name, double max_gap_s) {
-  const size_t inside = kfs.empty() ? 0 : CountWithin(samples, kfs);
-  if (inside == 0) {
-    return file + ": 0 of " + std::to_string(samples.size()) +
-           " samples fall inside the keyframes' time span";
+void RequireCoverage(const io::Dataset& dataset, const std::string& sensor,
+                     const sensors::SampleTiming& timing, int factors,
+                     const std::vector<estimation::Keyframe>& keyframes, const std::string& limits,
+                     double min_fraction, const Samples& samples, const std::string& file) {
+  const double needed = min_fraction * static_cast<double>(keyframes.size());
+  if (factors > 0 && static_cast<double>(factors) >= needed) return;
+  std::string message =
+      "dataset " + dataset.directory + ": " + sensor + " (" + FormatFixed(timing.rate_hz(), 1) +
+      " Hz): " + std::to_string(factors) + " of " + std::to_string(keyframes.size()) +
+      " keyframes bracketed within " + limits +
+      ", fewer than timing.min_factor_fraction = " + FormatFixed(min_fraction, 2) + " of them";
+  if (!keyframes.empty() && CountWithin(samples, keyframes) == 0) {
+    message += " (" + file + ": 0 of " + std::to_string(samples.size()) +
+               " samples fall inside the keyframes' time span)";
+  } else {
+    message += " (" + file + ": median interval " + FormatFixed(timing.median_interval_s, 3) +
+               " s, p99 " + FormatFixed(timing.p99_interval_s, 3) + " s, longest " +
+               FormatFixed(timing.max_gap_s, 3) + " s)";
   }
-  return file + ": no keyframe has samples within " + gap_name + "=" + FormatFixed(max_gap_s, 4) +
-         " s on both sides (the median interval of " + file + " is " +
-         FormatFixed(MedianIntervalS(samples), 4) + " s)";
+  throw Error(message + "; nothing is written");
 }
 
 [[noreturn]] void ThrowNoFactor(const io::Dataset& dataset, const std::string& sensor,
@@ -100,6 +107,52 @@ std::string NoFactorReason(const Samples& samples, const std::vector<estimation:
 }
 
 }  // namespace
+
+TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& problem,
+                                bool use_wheel, bool use_gnss) {
+  const std::string where = dataset.directory + "/";
+  TimingLimits t;
+  t.imu = sensors::MeasureTiming(Stamps(dataset.imu), where + "imu.csv");
+  if (use_wheel) t.wheel = sensors::MeasureTiming(Stamps(dataset.wheel), where + "wheel.csv");
+  if (use_gnss) t.gnss = sensors::MeasureTiming(Stamps(dataset.gnss), where + "gnss.csv");
+  const io::ProblemTiming& o = problem.timing;
+  t.max_imu_gap_s = o.max_imu_gap_s.value_or(sensors::MaxBracketingGapS(t.imu));
+  if (t.wheel) t.max_wheel_gap_s = o.max_wheel_gap_s.value_or(sensors::MaxBracketingGapS(*t.wheel));
+  if (t.gnss) {
+    t.max_fix_gap_s = o.max_fix_gap_s.value_or(sensors::MaxBracketingGapS(*t.gnss));
+    t.keyframe_period_s = o.keyframe_period_s.value_or(
+        sensors::KeyframePeriodS(*t.gnss, t.imu, t.wheel ? &*t.wheel : nullptr));
+    t.gnss_track_half_width_s =
+        o.gnss_track_half_width_s.value_or(sensors::GnssTrackHalfWidthS(*t.gnss));
+  }
+  t.min_factor_fraction = o.min_factor_fraction;
+  return t;
+}
+
+void RecordTiming(const TimingLimits& timing, bool without_lidar, io::CalibrationFile* file) {
+  std::map<std::string, std::string>& solver = file->solver;
+  solver["timing_imu_rate_hz"] = FormatFixed(timing.imu.rate_hz(), 3);
+  solver["timing_max_imu_gap_s"] = FormatFixed(timing.max_imu_gap_s, 4);
+  if (timing.wheel) {
+    solver["timing_wheel_rate_hz"] = FormatFixed(timing.wheel->rate_hz(), 3);
+    solver["timing_max_wheel_gap_s"] = FormatFixed(timing.max_wheel_gap_s, 4);
+  }
+  if (timing.gnss) {
+    solver["timing_gnss_rate_hz"] = FormatFixed(timing.gnss->rate_hz(), 3);
+    solver["timing_max_fix_gap_s"] = FormatFixed(timing.max_fix_gap_s, 4);
+    solver["timing_gnss_track_half_width_s"] = FormatFixed(timing.gnss_track_half_width_s, 4);
+    if (without_lidar)
+      solver["timing_keyframe_period_s"] = FormatFixed(timing.keyframe_period_s, 4);
+  }
+}
+
+void ApplyTimingLimits(const TimingLimits& timing,
+                       estimation::GnssInertialKeyframesOptions* options) {
+  options->placement.half_width_s = timing.gnss_track_half_width_s;
+  options->gnss.max_fix_gap_s = timing.max_fix_gap_s;
+  if (timing.wheel) options->wheel.max_wheel_gap_s = timing.max_wheel_gap_s;
+  options->wheel.max_imu_gap_s = timing.max_imu_gap_s;
+}
 
 void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
                         sensors::Calibration* c) const {
@@ -114,29 +167,29 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
         nominal->track_width_m);
     wheel.factor.shared_radius = b.wheel_radius_shared;
     wheel.loss = problem->loss.wheel;
+    wheel.max_wheel_gap_s = timing->max_wheel_gap_s;
+    wheel.max_imu_gap_s = timing->max_imu_gap_s;
     wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
     wheel.estimate_track_width = Estimated(b.track_width_m.mode);
-    if (estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel) == 0) {
-      std::string reason = NoFactorReason(dataset->wheel, *keyframes, "wheel.csv",
-                                          "max_wheel_gap_s", wheel.max_wheel_gap_s);
-      if (reason.find("no keyframe") != std::string::npos) {
-        reason += " or IMU samples within max_imu_gap_s=" + FormatFixed(wheel.max_imu_gap_s, 4) +
-                  " s (imu.csv: " + FormatFixed(MedianIntervalS(dataset->imu), 4) + " s)";
-      }
-      ThrowNoFactor(*dataset, "wheel", reason);
-    }
+    const int n = estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
+    RequireCoverage(
+        *dataset, "wheel", *timing->wheel, n, *keyframes,
+        "max_wheel_gap_s = " + FormatFixed(wheel.max_wheel_gap_s, 3) +
+            " s (and IMU samples within max_imu_gap_s = " + FormatFixed(wheel.max_imu_gap_s, 4) +
+            " s, IMU at " + FormatFixed(timing->imu.rate_hz(), 1) + " Hz)",
+        timing->min_factor_fraction, dataset->wheel, "wheel.csv");
   }
   if (use_gnss) {
     estimation::KeyframeGnssOptions gnss;
     gnss.loss = problem->loss.gnss;
+    gnss.max_fix_gap_s = timing->max_fix_gap_s;
     gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
-    if (estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss) == 0) {
-      ThrowNoFactor(*dataset, "GNSS",
-                    NoFactorReason(dataset->gnss, *keyframes, "gnss.csv", "max_fix_gap_s",
-                                   gnss.max_fix_gap_s));
-    }
+    const int n = estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
+    RequireCoverage(*dataset, "GNSS", *timing->gnss, n, *keyframes,
+                    "max_fix_gap_s = " + FormatFixed(gnss.max_fix_gap_s, 3) + " s",
+                    timing->min_factor_fraction, dataset->gnss, "gnss.csv");
   }
   estimation::AddBlockPriors(*blocks, problem->loss.prior, p);
 }

@@ -10,11 +10,13 @@
 #include <chrono>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "autocal/estimation/calibration_initializer.h"
 #include "autocal/estimation/calibration_observability.h"
+#include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/manifolds.h"
@@ -23,6 +25,7 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/gnss_enu.h"
+#include "autocal/sensors/sample_timing.h"
 
 namespace autocal {
 namespace pipeline {
@@ -46,8 +49,39 @@ sensors::Calibration StartFromInitializer(const sensors::Calibration& nominal,
 // The parts with `separator` between them.
 std::string Join(const std::vector<std::string>& parts, const std::string& separator);
 
+// The limits that follow from the log's rates (sensors/sample_timing.h, Eqs. T1-T3), each
+// replaced by the problem's timing: setting where the file gives one.
+struct TimingLimits {
+  sensors::SampleTiming imu;
+  std::optional<sensors::SampleTiming> wheel;  // when the problem uses the wheels
+  std::optional<sensors::SampleTiming> gnss;   // when the problem uses GNSS
+  double max_imu_gap_s = 0.0;
+  double max_wheel_gap_s = 0.0;
+  double max_fix_gap_s = 0.0;
+  double keyframe_period_s = 0.0;  // without the LiDAR (needs GNSS)
+  double gnss_track_half_width_s = 0.0;
+  double min_factor_fraction = 0.0;
+};
+
+// The dataset's timing for the sensors the problem uses (use_wheel, use_gnss), with the
+// problem's overrides. Throws autocal::Error naming the file whose stamps are too few or out
+// of order.
+TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& problem,
+                                bool use_wheel, bool use_gnss);
+
+// The measured rates and the limits used, into the result's solver summary (calibration.yaml):
+// timing_<sensor>_rate_hz and timing_<limit> (keyframe_period_s only without the LiDAR).
+void RecordTiming(const TimingLimits& timing, bool without_lidar, io::CalibrationFile* file);
+
+// The gaps and the track window of the GNSS-inertial keyframes (placement, GNSS and wheel
+// factors) from `timing`.
+void ApplyTimingLimits(const TimingLimits& timing,
+                       estimation::GnssInertialKeyframesOptions* options);
+
 // The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
-// the priors of the estimated blocks.
+// the priors of the estimated blocks. A sensor that gives factors at fewer than
+// timing->min_factor_fraction of the keyframes is an autocal::Error naming it, its rate, the
+// count and the limit (issue: never a result that silently left most of a sensor out).
 struct SensorFactors {
   const io::Dataset* dataset = nullptr;
   const io::Problem* problem = nullptr;
@@ -57,6 +91,7 @@ struct SensorFactors {
   const sensors::EnuConverter* enu = nullptr;
   const std::vector<estimation::EstimatedBlock>* blocks = nullptr;
   geometry::RightQuaternionManifold* quaternion_manifold = nullptr;
+  const TimingLimits* timing = nullptr;
 
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
            sensors::Calibration* c) const;

@@ -14,25 +14,31 @@ namespace pipeline {
 
 namespace {
 
-// The GNSS-inertial placement with the dataset's IMU and the problem's threads.
+// The GNSS-inertial placement with the dataset's IMU, the limits of its timing and the
+// problem's threads.
 estimation::GnssInertialKeyframesOptions GnssInertialOptions(const io::Dataset& dataset,
-                                                             const io::Problem& problem) {
+                                                             const io::Problem& problem,
+                                                             const TimingLimits& timing) {
   estimation::GnssInertialKeyframesOptions options;
   options.imu_noise = dataset.sensors.imu.noise;
   options.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
   options.num_threads = problem.solver.num_threads;
+  ApplyTimingLimits(timing, &options);
   return options;
 }
 
-// Keyframes every inertial_keyframe_period_s over the span the IMU and the fixes share, placed
-// on the GNSS track and refined with the IMU and the wheels.
+// Keyframes every keyframe period (the caller's inertial_keyframe_period_s, else the timing's)
+// over the span the IMU and the fixes share, placed on the GNSS track and refined with the IMU
+// and the wheels.
 std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
     const io::Dataset& dataset, const io::Problem& problem,
-    const OfflineCalibrationOptions& options, const sensors::EnuConverter& enu, bool use_wheel,
-    const sensors::Calibration& calibration, estimation::GnssInertialKeyframes* placed) {
+    const OfflineCalibrationOptions& options, const TimingLimits& timing,
+    const sensors::EnuConverter& enu, bool use_wheel, const sensors::Calibration& calibration,
+    estimation::GnssInertialKeyframes* placed) {
   const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
   const int64_t last_ns = std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns);
-  const int64_t period_ns = SecondsToNs(options.inertial_keyframe_period_s);
+  const int64_t period_ns =
+      SecondsToNs(options.inertial_keyframe_period_s.value_or(timing.keyframe_period_s));
   if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
   std::vector<estimation::Keyframe> keyframes;
   for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
@@ -46,7 +52,7 @@ std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
   }
   *placed = estimation::KeyframesFromGnssAndImu(
       &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
-      enu, calibration, GnssInertialOptions(dataset, problem));
+      enu, calibration, GnssInertialOptions(dataset, problem, timing));
   return keyframes;
 }
 
@@ -82,6 +88,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   result.nominal = dataset.sensors.nominal_calibration;
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
+  const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, true);
   for (const sensors::GnssFix& fix : dataset.gnss) {
     result.gnss_positions_W.push_back(enu.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
   }
@@ -91,7 +98,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   sensors::Calibration calibration = result.nominal;
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
-      KeyframesOnGnssTrack(dataset, problem, options, enu, use_wheel, calibration, &placed);
+      KeyframesOnGnssTrack(dataset, problem, options, timing, enu, use_wheel, calibration, &placed);
   result.seconds_initialization = SecondsSince(start);
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
@@ -111,11 +118,12 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   imu.num_threads = problem.solver.num_threads;
   estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
   const estimation::GnssInertialKeyframesOptions bias_priors =
-      GnssInertialOptions(dataset, problem);
+      GnssInertialOptions(dataset, problem, timing);
   estimation::AddBiasPriors(&p, &keyframes.front(), bias_priors.gyro_bias_prior_sigma_rad_s,
                             bias_priors.accel_bias_prior_sigma_m_s2);
   const SensorFactors sensor_factors{&dataset, &problem, &result.nominal,   use_wheel,
-                                     true,     &enu,     &blocks_estimated, &quaternion_manifold};
+                                     true,     &enu,     &blocks_estimated, &quaternion_manifold,
+                                     &timing};
   sensor_factors.Add(&p, &keyframes, &calibration);
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].before = std::move(rows);
@@ -138,6 +146,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   file.solver["iterations"] = std::to_string(summary.iterations.size());
   file.solver["final_cost"] = std::to_string(summary.final_cost);
   file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
+  RecordTiming(timing, true, &file);
   Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
            &result);
   return result;

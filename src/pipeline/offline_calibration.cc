@@ -57,14 +57,16 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
 bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter& enu,
                          const sensors::Calibration& calibration,
                          const OfflineCalibrationOptions& options, int num_threads,
-                         const sensors::WheelSamples& wheel,
+                         const sensors::WheelSamples& wheel, const TimingLimits& timing,
                          std::vector<estimation::Keyframe>* keyframes,
                          std::vector<std::string>* warnings) {
   std::vector<estimation::Keyframe> aligned = *keyframes;
   std::string failure;
   try {
+    estimation::GnssAlignmentOptions alignment;
+    alignment.max_fix_gap_s = timing.max_fix_gap_s;
     const estimation::GnssAlignment fit =
-        estimation::AlignKeyframesToGnss(&aligned, dataset.gnss, enu, calibration.p_I_A);
+        estimation::AlignKeyframesToGnss(&aligned, dataset.gnss, enu, calibration.p_I_A, alignment);
     if (fit.rms_m <= options.max_odometry_to_gnss_rms_m) {
       *keyframes = std::move(aligned);
       return true;
@@ -77,6 +79,7 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   estimation::GnssInertialKeyframesOptions gnss_inertial;
   gnss_inertial.imu_noise = dataset.sensors.imu.noise;
   gnss_inertial.num_threads = num_threads;
+  ApplyTimingLimits(timing, &gnss_inertial);
   const estimation::GnssInertialKeyframes rebuilt = estimation::KeyframesFromGnssAndImu(
       keyframes, dataset.imu, wheel, dataset.gnss, enu, calibration, gnss_inertial);
   warnings->push_back(
@@ -164,10 +167,11 @@ BatchKeyframes EveryStrideKeyframe(const io::Problem& problem,
 // LiDAR odometry did not follow the drive, the LiDAR blocks restart from their nominal values.
 void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
                 const OfflineCalibrationOptions& options, const sensors::EnuConverter& enu,
-                bool use_wheel, std::vector<estimation::Keyframe>* keyframes,
-                sensors::Calibration* calibration, OfflineCalibrationResult* result) {
+                bool use_wheel, const TimingLimits& timing,
+                std::vector<estimation::Keyframe>* keyframes, sensors::Calibration* calibration,
+                OfflineCalibrationResult* result) {
   if (!PlaceKeyframesInEnu(dataset, enu, *calibration, options, problem.solver.num_threads,
-                           use_wheel ? dataset.wheel : sensors::WheelSamples(), keyframes,
+                           use_wheel ? dataset.wheel : sensors::WheelSamples(), timing, keyframes,
                            &result->warnings)) {
     calibration->q_I_L = result->nominal.q_I_L;
     calibration->p_I_L = result->nominal.p_I_L;
@@ -184,8 +188,8 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
 estimation::BlockCovariance SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
                                        const OfflineCalibrationOptions& options,
                                        const std::vector<estimation::EstimatedBlock>& blocks,
-                                       const sensors::EnuConverter* enu, BatchKeyframes* keyframes,
-                                       sensors::Calibration* calibration,
+                                       const sensors::EnuConverter* enu, const TimingLimits& timing,
+                                       BatchKeyframes* keyframes, sensors::Calibration* calibration,
                                        OfflineCalibrationResult* result) {
   estimation::LidarInertialBatchOptions batch_options = BatchOptions(dataset, problem);
   batch_options.keyframe_lead_s = options.initializer.keyframe_lead_s;
@@ -198,8 +202,8 @@ estimation::BlockCovariance SolveBatch(const io::Dataset& dataset, const io::Pro
   geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const SensorFactors sensor_factors{
-      &dataset,       &problem, &result->nominal, use_wheel,
-      enu != nullptr, enu,      &blocks,          &quaternion_manifold};
+      &dataset, &problem, &result->nominal,     use_wheel, enu != nullptr,
+      enu,      &blocks,  &quaternion_manifold, &timing};
   bool first_problem = true;
   batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
                                   sensors::Calibration* c) {
@@ -300,17 +304,19 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   sweeps.clear();
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
+  const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);
   std::optional<sensors::EnuConverter> enu;
   if (use_gnss) {
     enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-    PlaceInEnu(dataset, problem, options, *enu, use_wheel, &keyframes.keyframes, &calibration,
-               &result);
+    PlaceInEnu(dataset, problem, options, *enu, use_wheel, timing, &keyframes.keyframes,
+               &calibration, &result);
   }
   const std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, use_gnss, &calibration);
   const estimation::BlockCovariance covariance =
-      SolveBatch(dataset, problem, options, blocks_estimated, enu ? &*enu : nullptr, &keyframes,
-                 &calibration, &result);
+      SolveBatch(dataset, problem, options, blocks_estimated, enu ? &*enu : nullptr, timing,
+                 &keyframes, &calibration, &result);
+  RecordTiming(timing, false, &result.calibration);
 
   // 4. Observability, uncertainty and the result.
   Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes.keyframes,

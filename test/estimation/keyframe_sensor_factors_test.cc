@@ -6,8 +6,12 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <random>
+#include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -531,6 +535,101 @@ TEST_F(KeyframeSensorFactorsTest, AlignmentRejectsMultipathOutliers) {
   EXPECT_LT(alignment.rms_m, 0.15);
   EXPECT_LT(max_position_m, 0.02);
   EXPECT_LT(max_rotation_deg, 0.01);
+}
+
+// A slow platform (issue: a skid-steer robot at up to 1 m/s with 1 m fixes at 2.5 Hz): speed_m_s
+// along a heading that turns at turn_rate_rad_s from 40 deg, for duration_s. The fixes carry
+// seeded noise of their 1 m sigma; the keyframes (every 0.4 s) point their vehicle x axis
+// (q_I_V = I) along the true heading minus 30 deg, as a gyro-propagated start would, so the yaw
+// to find is +30 deg.
+struct SlowPlatform {
+  sensors::GnssFixes fixes;
+  std::vector<Keyframe> keyframes;
+  sensors::EnuConverter enu{49.0, 8.4, 110.0};
+};
+
+SlowPlatform SlowPlatformLog(double speed_m_s, double turn_rate_rad_s, double duration_s) {
+  SlowPlatform log;
+  std::mt19937_64 random(11);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const int64_t start_ns = 1'700'000'000'000'000'000;
+  const auto heading = [&](double t_s) { return 40.0 / kRadToDeg + turn_rate_rad_s * t_s; };
+  const auto position = [&](double t_s) {  // the integral of the speed along the heading
+    if (turn_rate_rad_s == 0.0) {
+      return Eigen::Vector3d(speed_m_s * t_s * std::cos(heading(0)),
+                             speed_m_s * t_s * std::sin(heading(0)), 0.0);
+    }
+    const double r = speed_m_s / turn_rate_rad_s;
+    return Eigen::Vector3d(r * (std::sin(heading(t_s)) - std::sin(heading(0))),
+                           -r * (std::cos(heading(t_s)) - std::cos(heading(0))), 0.0);
+  };
+  for (double t_s = 0.0; t_s <= duration_s; t_s += 0.4) {
+    sensors::GnssFix fix;
+    fix.t_ns = start_ns + SecondsToNs(t_s);
+    fix.std_enu_m = Eigen::Vector3d(1.0, 1.0, 2.0);
+    const Eigen::Vector3d p = position(t_s) + Eigen::Vector3d(noise(random), noise(random), 0.0);
+    const Eigen::Vector3d lla = log.enu.ToGeodetic(p);
+    fix.lat_deg = lla.x();
+    fix.lon_deg = lla.y();
+    fix.alt_m = lla.z();
+    log.fixes.push_back(fix);
+  }
+  for (double t_s = 3.0; t_s <= duration_s - 3.0; t_s += 0.4) {
+    Keyframe kf;
+    kf.t_ns = start_ns + SecondsToNs(t_s + 0.13);
+    kf.q_W_I = Eigen::AngleAxisd(heading(t_s + 0.13) - 30.0 / kRadToDeg, Eigen::Vector3d::UnitZ());
+    log.keyframes.push_back(kf);
+  }
+  return log;
+}
+
+// 1 m/s with 1 m fixes: over +-5 s the fitted velocity's sigma (Eq. K10) is about 0.07 m/s, so
+// nearly every keyframe's heading stands out of it by more than 5 sigma and gives the yaw.
+TEST(PlaceKeyframesOnGnss, ASlowPlatformGetsHeadingsOverAWideWindow) {
+  SlowPlatform log = SlowPlatformLog(1.0, 0.02, 120.0);
+  GnssPlacementOptions options;
+  options.half_width_s = 5.0;
+  const GnssPlacement placement =
+      PlaceKeyframesOnGnss(&log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(),
+                           Eigen::Quaterniond::Identity(), options);
+  std::cout << placement.num_headings << " of " << log.keyframes.size()
+            << " keyframes give a heading; yaw " << placement.yaw_rad * kRadToDeg << " deg\n";
+  EXPECT_FALSE(placement.yaw_from_track_geometry);
+  EXPECT_GT(placement.num_headings, static_cast<int>(log.keyframes.size()) * 9 / 10);
+  EXPECT_NEAR(placement.yaw_rad * kRadToDeg, 30.0, 2.0);
+}
+
+// The same platform with the +-1 s window of a 10 Hz receiver: the velocity's sigma (about
+// 0.8 m/s) hides the 1 m/s, so no keyframe gives a heading, and the yaw comes from the whole
+// track's travel against the keyframes' forward axes (Eq. K11).
+TEST(PlaceKeyframesOnGnss, ASlowPlatformGetsTheYawFromTheTrackGeometry) {
+  SlowPlatform log = SlowPlatformLog(1.0, 0.02, 120.0);
+  const GnssPlacement placement = PlaceKeyframesOnGnss(
+      &log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+  std::cout << "yaw from the track geometry: " << placement.yaw_rad * kRadToDeg << " deg\n";
+  EXPECT_TRUE(placement.yaw_from_track_geometry);
+  EXPECT_EQ(std::count(placement.heading.begin(), placement.heading.end(), true), 0);
+  EXPECT_NEAR(placement.yaw_rad * kRadToDeg, 30.0, 2.0);
+}
+
+// A standing platform: no heading stands out of the noise and the track goes nowhere. The
+// error says so with the figures.
+TEST(PlaceKeyframesOnGnss, AStandingPlatformGivesNoYaw) {
+  SlowPlatform log = SlowPlatformLog(0.0, 0.0, 120.0);
+  GnssPlacementOptions options;
+  options.half_width_s = 5.0;
+  try {
+    PlaceKeyframesOnGnss(&log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(),
+                         Eigen::Quaterniond::Identity(), options);
+    FAIL() << "a standing platform gave a yaw";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("no heading for the yaw: 0 of"), std::string::npos) << what;
+    EXPECT_NE(what.find("move faster than 5.0 sigma of their fitted velocity"), std::string::npos)
+        << what;
+    EXPECT_NE(what.find("the fixes' median horizontal sigma is 1.00 m"), std::string::npos) << what;
+    EXPECT_NE(what.find("too slow or too short"), std::string::npos) << what;
+  }
 }
 
 }  // namespace

@@ -151,6 +151,26 @@ TEST(ProblemYamlTest, EmptyMapsGiveTheDocumentedDefaults) {
   EXPECT_EQ(read.lidar.sweep_stride, 1);
   EXPECT_EQ(read.loss.gnss.type, factors::FactorLossOptions().gnss.type);
   EXPECT_EQ(read.loss.gnss.scale, factors::FactorLossOptions().gnss.scale);
+  // Timing limits come from the dataset's stamps unless the file sets them.
+  EXPECT_FALSE(read.timing.max_imu_gap_s || read.timing.max_wheel_gap_s ||
+               read.timing.max_fix_gap_s || read.timing.keyframe_period_s ||
+               read.timing.gnss_track_half_width_s);
+  EXPECT_EQ(read.timing.min_factor_fraction, 0.5);
+}
+
+TEST(ProblemYamlTest, TimingOverridesAreRead) {
+  const Problem p = ReadProblemYaml(
+      WriteProblem("timing.yaml",
+                   "sensors: {lidar: false}\n"
+                   "timing: {max_imu_gap_s: 0.1, max_wheel_gap_s: 0.3, max_fix_gap_s: 1.5,\n"
+                   "         keyframe_period_s: 0.4, gnss_track_half_width_s: 4,\n"
+                   "         min_factor_fraction: 0.8}\n"));
+  EXPECT_EQ(p.timing.max_imu_gap_s, 0.1);
+  EXPECT_EQ(p.timing.max_wheel_gap_s, 0.3);
+  EXPECT_EQ(p.timing.max_fix_gap_s, 1.5);
+  EXPECT_EQ(p.timing.keyframe_period_s, 0.4);
+  EXPECT_EQ(p.timing.gnss_track_half_width_s, 4.0);
+  EXPECT_EQ(p.timing.min_factor_fraction, 0.8);
 }
 
 TEST(ProblemYamlTest, EveryKeyIsRead) {
@@ -255,6 +275,20 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
        "  wheel_radius_right_m: fixed\n",
        4, "fixed", "wheel_radius_shared is true, so both radii are one parameter"},
       {"not_a_map", "- sensors\n", 1, "-", "problem: expected a map"},
+      {"unknown_timing", "timing:\n  max_gap_s: 1\n", 2, "max_gap_s",
+       "timing: unknown key 'max_gap_s'"},
+      {"gap_zero", "timing:\n  max_wheel_gap_s: 0\n", 2, "0",
+       "timing.max_wheel_gap_s: must be within [0.001, 60] s, found 0"},
+      {"gap_nan", "timing:\n  max_fix_gap_s: .nan\n", 2, ".nan", "timing.max_fix_gap_s"},
+      {"period_huge", "sensors: {lidar: false}\ntiming: {keyframe_period_s: 1e9}\n", 2, "1e9",
+       "timing.keyframe_period_s: must be within [0.005, 10] s, found 1e9"},
+      {"period_with_lidar", "timing:\n  keyframe_period_s: 0.2\n", 2, "keyframe_period_s",
+       "timing.keyframe_period_s: sensors.lidar is true, so the keyframes are the LiDAR sweeps"},
+      {"fix_gap_without_gnss", "sensors: {gnss: false}\ntiming:\n  max_fix_gap_s: 1\n", 3,
+       "max_fix_gap_s", "timing.max_fix_gap_s: sensors.gnss is false"},
+      {"fraction_above_one", "timing:\n  min_factor_fraction: 1.5\n", 2, "1.5",
+       "timing.min_factor_fraction: must be within [0, 1] (a fraction of the keyframes), found "
+       "1.5"},
   };
   for (const BadCase& c : cases) ExpectParseError(c);
 }

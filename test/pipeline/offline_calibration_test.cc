@@ -380,27 +380,95 @@ TEST_F(OfflineCalibrationTest, RefusesWheelStampsOutsideTheImuTimeSpan) {
   }
 }
 
-// Wheel samples within the IMU's span but never close enough to a keyframe: the solve would
-// have no wheel factor. The run fails with the sensor and the reason, and writes nothing.
-TEST_F(OfflineCalibrationTest, FailsWhenTheWheelsGiveNoFactor) {
+// The message of the error CalibrateDataset throws, or a failure when it throws none.
+std::string CalibrationError(const io::Dataset& dataset, const io::Problem& problem) {
+  try {
+    CalibrateDataset(dataset, problem);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "the calibration was accepted";
+  return "";
+}
+
+// Wheel samples over the first 30 % of the log only: most keyframes get no wheel factor. A
+// result would present wheel blocks as calibrated from the log while they saw a third of it:
+// the run fails with the sensor, its rate, the count and the limits, and writes nothing.
+TEST_F(OfflineCalibrationTest, FailsWhenTheWheelsCoverTooFewKeyframes) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  dataset.wheel.resize(dataset.wheel.size() * 3 / 10);
+  const std::string what = CalibrationError(dataset, QuickImuWheelGnssProblem());
+  EXPECT_THAT(what, ::testing::MatchesRegex(
+                        ".*: wheel \\(100\\.0 Hz\\): [0-9]+ of [0-9]+ keyframes bracketed within "
+                        "max_wheel_gap_s = 0\\.025 s \\(and IMU samples within max_imu_gap_s = "
+                        "0\\.0125 s, IMU at 200\\.0 Hz\\), fewer than timing\\.min_factor_fraction "
+                        "= 0\\.50 of them .*; nothing is written"));
+  // The problem may accept less.
+  io::Problem lenient = QuickImuWheelGnssProblem();
+  lenient.timing.min_factor_fraction = 0.2;
+  EXPECT_NO_THROW(CalibrateDataset(dataset, lenient));
+}
+
+// Wheel samples at 10 Hz, 1.2 ms off the keyframes' 0.1 s grid: the gap derived from their
+// rate (Eq. T1, 0.25 s) brackets every keyframe, where the former fixed 25 ms bracketed none.
+// A problem file that sets a tighter gap gets none, and the error says so with the figures.
+TEST_F(OfflineCalibrationTest, WheelGapFollowsTheirRateUnlessTheProblemSetsIt) {
   io::Dataset dataset = io::ReadDataset(data_->directory);
   sensors::WheelSamples sparse;
-  // 10 Hz, 1.2 ms off the keyframes' 0.1 s grid: every keyframe's bracket spans 0.1 s.
   for (size_t i = 0; i < dataset.wheel.size(); i += 10) {
     sparse.push_back(dataset.wheel[i]);
     sparse.back().t_ns += 1'234'567;
   }
   dataset.wheel = sparse;
-  try {
-    CalibrateDataset(dataset, QuickImuWheelGnssProblem());
-    FAIL() << "a solve without a wheel factor was accepted";
-  } catch (const Error& e) {
-    EXPECT_THAT(e.what(),
-                ::testing::HasSubstr("no wheel factor in the solve (wheel.csv: no keyframe has "
-                                     "samples within max_wheel_gap_s=0.0250 s on both sides (the "
-                                     "median interval of wheel.csv is 0.1000 s)"));
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("nothing is written"));
-  }
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, QuickImuWheelGnssProblem());
+  const size_t keyframes = result.trajectory.size();
+  EXPECT_GE(result.whitened_residuals.at("wheel").after.size() / 4, keyframes * 9 / 10);
+  io::Problem tight = QuickImuWheelGnssProblem();
+  tight.timing.max_wheel_gap_s = 0.02;
+  const std::string what = CalibrationError(dataset, tight);
+  EXPECT_THAT(what, ::testing::HasSubstr("wheel (10.0 Hz): 0 of " + std::to_string(keyframes) +
+                                         " keyframes bracketed within max_wheel_gap_s = 0.020 s"));
+  EXPECT_THAT(what, ::testing::HasSubstr("(wheel.csv: median interval 0.100 s, p99 0.100 s"));
+}
+
+// A slower platform's sensors (IMU 100 Hz, wheels 10 Hz, GNSS 1 Hz) calibrate without the
+// LiDAR from limits derived from their rates: keyframes every 0.5 s (Eq. T2), a track window
+// of +-2.5 s (T3), and every sensor gives factors at 90 % of the keyframes or more.
+TEST(OfflineCalibrationSlowSensors, CalibratesWithoutTheLidarFromTheirRates) {
+  sim::SimulationOptions options = test::UrbanDriveOptions(34.0);
+  options.lidar.enabled = false;
+  options.imu.noise.update_rate_hz = 100.0;
+  options.wheel.config.rate_hz = 10.0;
+  options.gnss.config.rate_hz = 1.0;
+  options.gnss.num_outages = 0;
+  const test::SimulatedUrbanDataset data(options, "slow_sensors");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  const OfflineCalibrationResult result =
+      CalibrateDataset(dataset, ShippedProblem("imu_wheel_gnss.yaml"));
+  std::cout << FormatCalibrationSummary(result);
+  const size_t keyframes = result.trajectory.size();
+  ASSERT_GT(keyframes, 60u);
+  EXPECT_EQ(result.trajectory[1].t_ns - result.trajectory[0].t_ns, 500'000'000);
+  const size_t wheel = result.whitened_residuals.at("wheel").after.size() / 4;
+  const size_t gnss = result.whitened_residuals.at("gnss").after.size() / 3;
+  const size_t imu = result.whitened_residuals.at("imu").after.size() / 15;
+  std::cout << keyframes << " keyframes: " << wheel << " wheel, " << gnss << " GNSS, " << imu
+            << " IMU factors\n";
+  EXPECT_GE(wheel * 10, keyframes * 9);
+  EXPECT_GE(gnss * 10, keyframes * 9);
+  EXPECT_EQ(imu, keyframes - 1);
+  const sensors::Calibration& truth = data.simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const auto percent = [](double estimate, double truth) {
+    return 100.0 * std::abs(estimate - truth) / truth;
+  };
+  std::cout << "radii " << percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m) << " % "
+            << percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m) << " %\n";
+  // The issue's goal for the radii and the other test's for the keyframes (measured 0.060 % and
+  // 0.072 %, 6.0 cm RMS).
+  EXPECT_LT(percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m), 0.1);
+  EXPECT_LT(percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m), 0.1);
+  EXPECT_LT(KeyframePositionRms(result, dataset, data.simulator), 0.1);
 }
 
 // problems/imu_wheel_gnss.yaml on the same log: keyframes every 0.1 s from GNSS and the IMU,

@@ -7,7 +7,10 @@
 // with it.
 //
 // 1. Each keyframe is placed on the antenna track fitted to the fixes around it (Eq. K7,
-//    PlaceKeyframesOnGnss), level, its vehicle x axis along the track heading (Eq. K9).
+//    PlaceKeyframesOnGnss), level and turned by the gyro's yaw about the vehicle's up axis
+//    (their relative headings), then by one yaw from the track headings that stand out of the
+//    fit's noise (Eqs. K8, K10) or, on a slow platform, from the track's travel (Eq. K11);
+//    a keyframe with a trusted heading gets its vehicle x axis along it (Eq. K9).
 // 2. A GNSS-inertial least-squares problem refines every state: IMU factors (Eq. F10) between
 //    consecutive keyframes, GNSS factors (Eq. F30, Cauchy loss) on each keyframe, wheel
 //    factors (Eq. F22) when wheel samples are given, and a weak prior on the first keyframe's

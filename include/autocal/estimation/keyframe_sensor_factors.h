@@ -64,10 +64,12 @@ struct KeyframeWheelOptions {
   // (Calibration::wheel_radius_left_m) stands for both wheels; the right one is not touched.
   factors::WheelFactorOptions factor;
   factors::LossOptions loss = factors::FactorLossOptions().wheel;  // Huber, 2 sigma
-  // A keyframe whose bracketing wheel samples are farther apart than this gets no factor
-  // (2.5 periods of a 100 Hz encoder: one lost sample is bridged, a dropout is not).
+  // A keyframe whose bracketing wheel samples are farther apart than this gets no factor (one
+  // lost sample is bridged, a dropout is not). The default is Eq. T1 (sensors/sample_timing.h)
+  // for a 100 Hz encoder; the offline calibration derives it from the log's stamps.
   double max_wheel_gap_s = 0.025;
-  // The same for the IMU samples that give the raw gyro at the keyframe (2.5 periods at 200 Hz).
+  // The same for the IMU samples that give the raw gyro at the keyframe (Eq. T1 at 200 Hz;
+  // derived from the log as above).
   double max_imu_gap_s = 0.0125;
   // Correlation time of the non-holonomic rows' model error (Eq. K6): the rear axle's
   // lateral and vertical speed in the vehicle frame is not white noise but follows the body's
@@ -101,7 +103,8 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
 struct KeyframeGnssOptions {
   factors::LossOptions loss = factors::FactorLossOptions().gnss;  // Cauchy, 3 sigma (multipath)
   // A keyframe whose bracketing fixes are farther apart than this gets no factor (outages).
-  // The default suits 10 Hz receivers; use about 1.5 s at 1 Hz.
+  // The default is Eq. T1 (sensors/sample_timing.h) for a 10 Hz receiver (2.5 s at 1 Hz); the
+  // offline calibration derives it from the log's stamps.
   double max_fix_gap_s = 0.25;
   bool estimate_lever_arm = true;  // else p_I_A is set constant
 };
@@ -123,7 +126,7 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
                    sensors::Calibration* calibration, const KeyframeGnssOptions& options = {});
 
 struct GnssAlignmentOptions {
-  double max_fix_gap_s = 0.25;  // as KeyframeGnssOptions::max_fix_gap_s
+  double max_fix_gap_s = 0.25;  // as KeyframeGnssOptions::max_fix_gap_s (derived likewise)
   // Multipath outliers would pull a plain least-squares fit: after each fit, pairs farther
   // than max(min_outlier_distance_m, outlier_mad_factor * 1.4826 * median distance) from
   // their fix are dropped and the fit is repeated, at most this many times.
@@ -158,33 +161,50 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
 struct GnssPlacementOptions {
   // The antenna track around a keyframe: the fixes within this half-width of its time, fitted
   // per axis by a quadratic in time (Eq. K7) with outlier rejection as GnssAlignmentOptions.
+  // The default is Eq. T3 (sensors/sample_timing.h) for 1-10 Hz receivers; the offline
+  // calibration derives it from the log's stamps (2.5 s at 1 Hz).
   double half_width_s = 1.0;
   int min_fixes = 5;  // fewer inliers in the window: the keyframe is left to its neighbours
   int max_refits = 3;
   double outlier_mad_factor = 5.0;
   double min_outlier_distance_m = 0.5;
-  // Keyframes slower than this give no heading for the yaw (Eq. K8).
-  double min_heading_speed_m_s = 3.0;
+  // A keyframe's track heading enters the yaw (Eq. K8) when its horizontal speed exceeds this
+  // many sigmas of its fitted velocity (Eq. K10, from the fixes' sigmas and the window): at 5
+  // a heading is rarely noise, whatever the platform's speed or the receiver's accuracy.
+  double heading_sigmas = 5.0;
+  // With fewer keyframes with a heading, the yaw comes from the whole track's geometry
+  // (Eq. K11) when its net travel along the vehicle's heading exceeds
+  // max(min_track_travel_m, heading_sigmas * sqrt(2) * the fixes' median horizontal sigma).
+  int min_headings = 5;
+  double min_track_travel_m = 5.0;
 };
 
 struct GnssPlacement {
-  double yaw_rad = 0.0;          // rotation about z_W applied to every keyframe (Eq. K8)
-  int num_placed = 0;            // keyframes placed on their own fitted track
-  int num_bridged = 0;           // keyframes without one, interpolated from placed neighbours
-  std::vector<bool> placed;      // per keyframe: on its own track (else bridged)
-  int num_headings = 0;          // keyframes whose heading entered the yaw
-  double heading_rms_rad = 0.0;  // RMS heading residual of those after the yaw
+  double yaw_rad = 0.0;      // rotation about z_W applied to every keyframe (Eq. K8)
+  int num_placed = 0;        // keyframes placed on their own fitted track
+  int num_bridged = 0;       // keyframes without one, interpolated from placed neighbours
+  std::vector<bool> placed;  // per keyframe: on its own track (else bridged)
+  // Per keyframe: its track heading is trusted (Eq. K10; none when the yaw came from the
+  // track's geometry).
+  std::vector<bool> heading;
+  int num_headings = 0;                  // keyframes whose heading entered the yaw
+  double heading_rms_rad = 0.0;          // RMS heading residual of those after the yaw
+  bool yaw_from_track_geometry = false;  // Eq. K11 (too few headings)
 };
 
 // For keyframes whose positions the LiDAR odometry could not determine (a featureless road,
 // or traffic moving with the car), positions and velocities from GNSS alone: the antenna
 // track fitted around each keyframe (Eq. K7) gives p_W_A and v_W_A, the yaw about gravity
-// comes from the track heading against the vehicle's forward axis R_W_I R_I_V x (Eq. K8), and
-// every keyframe becomes q <- R_z q, p <- p_W_A - R_W_I p_I_A, v <- v_W_A. Roll, pitch and
-// the biases are the initializer's. Keyframes without a fitted track (outages) are
-// interpolated between the nearest placed ones (or moved with the nearest one's velocity at
-// the ends). Throws autocal::Error when fewer than two keyframes can be placed or none moves
-// fast enough for a heading, or as InterpolateGnss.
+// comes from the track heading against the vehicle's forward axis R_W_I R_I_V x (Eq. K8) of
+// the keyframes whose speed stands out of their fitted velocity's noise (Eq. K10), or, with
+// fewer than min_headings of those (a slow platform, noisy fixes), from the whole track's
+// travel against the keyframes' forward axes (Eq. K11); every keyframe becomes
+// q <- R_z q, p <- p_W_A - R_W_I p_I_A, v <- v_W_A. Roll, pitch and the biases are the
+// initializer's. Keyframes without a fitted track (outages) are interpolated between the
+// nearest placed ones (or moved with the nearest one's velocity at the ends). Throws
+// autocal::Error when fewer than two keyframes can be placed, when neither the headings nor
+// the track's travel give the yaw (the message gives the speeds, sigmas and travel), or as
+// InterpolateGnss.
 GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::GnssFixes& fixes,
                                    const sensors::EnuConverter& converter,

@@ -17,6 +17,7 @@
 //   window: {size: 10, max_range_m: 40}
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
 //   lidar: {max_points_per_sweep: 400, voxel_m: 0.6, sweep_stride: 1}
+//   timing: {max_wheel_gap_s: 0.25, keyframe_period_s: 0.4, min_factor_fraction: 0.5}
 //
 // Numbers must lie in a physically sensible range (problems/README.md): prior sigmas within
 // [1e-6, 180] deg, [1e-6, 100] m, [1e-9, 10] s; voxel_m within [0.01, 20] m; max_range_m 0 or
@@ -29,6 +30,7 @@
 // file, line and column.
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 
 #include "autocal/factors/loss.h"
@@ -108,6 +110,24 @@ struct ProblemLidar {
   int sweep_stride = 1;
 };
 
+// Limits that follow from the log's measured rates (sensors/sample_timing.h, Eqs. T1-T3):
+// an empty one is derived from the dataset's stamps, a given one overrides that. The gaps lie
+// within [0.001, 60] s, keyframe_period_s within [0.005, 10] s, gnss_track_half_width_s within
+// [0.1, 60] s.
+struct ProblemTiming {
+  std::optional<double> max_imu_gap_s;    // bracketing IMU samples of a wheel factor (T1)
+  std::optional<double> max_wheel_gap_s;  // bracketing wheel samples (T1); wheel only
+  std::optional<double> max_fix_gap_s;    // bracketing GNSS fixes (T1); GNSS only
+  // Keyframe spacing of a calibration without the LiDAR (T2); LiDAR off only.
+  std::optional<double> keyframe_period_s;
+  // Fixes within this of a keyframe are fitted for its track (T3, Eq. K7); GNSS only.
+  std::optional<double> gnss_track_half_width_s;
+  // A sensor the problem uses must give factors at no fewer than this fraction of the
+  // keyframes, else the calibration is an error naming it (a result built on a handful of
+  // its samples would be presented as if it used the log), within [0, 1].
+  double min_factor_fraction = 0.5;
+};
+
 struct Problem {
   // The file the problem was read from, for messages; empty for a problem built in code.
   std::string path;
@@ -125,6 +145,7 @@ struct Problem {
   double window_max_range_m = 40.0;
   ProblemSolver solver;
   ProblemLidar lidar;
+  ProblemTiming timing;
 };
 
 // Reads and checks a problem file. Throws ParseError (file, line, column) on malformed

@@ -7,6 +7,7 @@
 
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,8 +40,9 @@ struct OfflineCalibrationOptions {
   // scale), which the batch corrects; a failed one by hundreds of metres.
   double max_odometry_to_gnss_rms_m = 20.0;
   // Without the LiDAR, a keyframe every this many seconds (docs/calibration.md, "Without the
-  // LiDAR"): the GNSS rate of 10 Hz receivers.
-  double inertial_keyframe_period_s = 0.1;
+  // LiDAR"). Empty: the problem's timing.keyframe_period_s, else derived from the log's rates
+  // (sensors/sample_timing.h, Eq. T2: 0.1 s for 10 Hz GNSS, 0.5 s for 1 Hz).
+  std::optional<double> inertial_keyframe_period_s;
   // Every estimated block carries a prior at the nominal value: the problem's sigma in prior
   // mode, else the dataset's nominal uncertainty, else these weak defaults, which keep the
   // problem regular where the drive excites nothing (an excited direction ends far inside).
