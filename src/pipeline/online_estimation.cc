@@ -18,6 +18,7 @@
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
+#include "online_without_lidar.h"
 #include "problem_blocks.h"
 #include "sweep_reader.h"
 #include "window_settings.h"
@@ -170,72 +171,6 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
   // The initializer's keyframes use its time offset; the window's keyframe time rule
   // (KeyframeTimeOf) uses the calibration's, which is the same value or the nominal one.
   out.keyframe = keyframes.front();
-  return out;
-}
-
-// Without the LiDAR (docs/sliding_window.md, "Without the LiDAR"): the keyframe period is the
-// option's, or the median interval of the GNSS fixes clamped to [kMinKeyframePeriodS,
-// kMaxKeyframePeriodS], so that a keyframe interval holds about one fix. Throws when fewer
-// than two fixes leave no interval to measure.
-constexpr double kMinKeyframePeriodS = 0.05;
-constexpr double kMaxKeyframePeriodS = 0.5;
-int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
-                                   const OnlineEstimationOptions& options) {
-  if (options.keyframe_period_without_lidar_s > 0.0) {
-    return SecondsToNs(options.keyframe_period_without_lidar_s);
-  }
-  std::vector<int64_t> intervals;
-  for (size_t i = 1; i < dataset.gnss.size(); ++i) {
-    intervals.push_back(dataset.gnss[i].t_ns - dataset.gnss[i - 1].t_ns);
-  }
-  if (intervals.empty()) {
-    throw Error("dataset " + dataset.directory + ": gnss.csv has " +
-                std::to_string(dataset.gnss.size()) +
-                " fix; the online estimator without the LiDAR needs at least 2 to set its "
-                "keyframe period");
-  }
-  std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
-  return std::clamp(intervals[intervals.size() / 2], SecondsToNs(kMinKeyframePeriodS),
-                    SecondsToNs(kMaxKeyframePeriodS));
-}
-
-// Without the LiDAR: keyframes every period_ns over the first initialization_duration_s of
-// the span the IMU and the fixes share, placed on the GNSS track and refined with the IMU and
-// the wheels (estimation::KeyframesFromGnssAndImu, the offline calibration's start without
-// the LiDAR); the first starts the window in the ENU frame at the first fix. The calibration
-// is the nominal one.
-WindowStart StartWithoutLidar(const io::Dataset& dataset, const io::Problem& problem,
-                              const OnlineEstimationOptions& options, int64_t period_ns,
-                              bool use_wheel, estimation::SlidingWindowOptions* window_options) {
-  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
-  const int64_t last_ns = std::min({dataset.imu.back().t_ns, dataset.gnss.back().t_ns,
-                                    first_ns + SecondsToNs(options.initialization_duration_s)});
-  std::vector<estimation::Keyframe> keyframes;
-  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
-    keyframes.emplace_back();
-    keyframes.back().t_ns = t;
-  }
-  if (keyframes.size() < 2) {
-    throw Error("dataset " + dataset.directory +
-                ": the IMU and the GNSS fixes overlap too briefly for two keyframes " +
-                std::to_string(NsToSeconds(period_ns)) +
-                " s apart; the online estimator without the LiDAR starts from them");
-  }
-  WindowStart out;
-  out.calibration = dataset.sensors.nominal_calibration;
-  const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-  estimation::GnssInertialKeyframesOptions gnss_inertial;
-  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
-  gnss_inertial.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  gnss_inertial.num_threads = problem.solver.num_threads;
-  estimation::KeyframesFromGnssAndImu(&keyframes, dataset.imu,
-                                      use_wheel ? dataset.wheel : sensors::WheelSamples(),
-                                      dataset.gnss, enu, out.calibration, gnss_inertial);
-  out.keyframe = keyframes.front();
-  window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
-  window_options->initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
-  window_options->initial_state_sigmas.accel_bias_m_s2 =
-      options.initial_accel_bias_sigma_with_gnss_m_s2;
   return out;
 }
 
@@ -481,8 +416,9 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const i
         StartWindow(dataset, problem, options, first.init, use_wheel, use_gnss, &window_options);
   } else {
     keyframe_period_ns = KeyframePeriodWithoutLidar(dataset, options);
-    window_start = StartWithoutLidar(dataset, problem, options, keyframe_period_ns, use_wheel,
-                                     &window_options);
+    window_start.calibration = dataset.sensors.nominal_calibration;
+    window_start.keyframe = StartWithoutLidar(dataset, problem, options, keyframe_period_ns,
+                                              use_wheel, &window_options);
     result.seconds_initialization = SecondsSince(start);
   }
   result.initial = window_start.calibration;
