@@ -2,9 +2,10 @@
 //
 //   autocal_estimate --dataset=DIR --problem=problems/urban_full.yaml --output=DIR
 //
-// Initializes the state and LiDAR-IMU calibration from the first seconds of the log, then
-// streams the IMU, wheel, GNSS and LiDAR data in arrival order through the sliding-window
-// estimator, and writes trajectory.tum (every keyframe as it left the window),
+// Initializes the state and LiDAR-IMU calibration from the first seconds of the log (without
+// the LiDAR: the state from GNSS and the IMU, keyframes at the GNSS period), then streams the
+// IMU, wheel, GNSS and LiDAR data in arrival order through the sliding-window estimator, and
+// writes trajectory.tum (every keyframe as it left the window),
 // trajectory_smoothed.tum (the same keyframes smoothed from the final window), states.csv
 // (every keyframe's pose, velocity and biases), calibration_over_time.csv (the estimate after
 // every keyframe) and calibration.yaml (final values with sigma) into --output
@@ -67,10 +68,20 @@ int main(int argc, char** argv) {
     autocal::pipeline::OnlineEstimationOptions options;
     options.initialization_duration_s = FLAGS_init_duration_s;
     options.initializer_sweep_stride = FLAGS_init_sweep_stride;
+    const bool lidar = problem.sensors.lidar;
     if (FLAGS_progress_every > 0) {
-      options.progress = [](const autocal::pipeline::OnlineEstimationProgress& p) {
+      options.progress = [lidar](const autocal::pipeline::OnlineEstimationProgress& p) {
         if (p.updates % FLAGS_progress_every != 0) return;
         const autocal::sensors::Calibration& c = p.calibration;
+        if (!lidar) {
+          std::fprintf(stderr,
+                       "%5.1f %%  keyframe %lld  update %.0f ms  radii %.4f %.4f m  track %.4f m  "
+                       "p_I_A [%.3f %.3f %.3f] m\n",
+                       100.0 * p.log_fraction, static_cast<long long>(p.updates), 1e3 * p.update_s,
+                       c.wheel_radius_left_m, c.wheel_radius_right_m, c.track_width_m, c.p_I_A.x(),
+                       c.p_I_A.y(), c.p_I_A.z());
+          return;
+        }
         const Eigen::Vector3d r_deg = autocal::geometry::Log(c.q_I_L) * 180.0 / M_PI;
         std::fprintf(stderr,
                      "%5.1f %%  keyframe %lld  update %.0f ms  q_I_L [%.3f %.3f %.3f] deg  "
@@ -87,10 +98,17 @@ int main(int argc, char** argv) {
     const autocal::sensors::Calibration& c = result.calibration.value;
     std::cout << "keyframes " << result.trajectory.size() << ", marginalized "
               << result.counters.marginalizations << ", " << result.seconds_total
-              << " s (initialization " << result.seconds_initialization << " s)\n"
-              << "q_I_L (xyzw) " << c.q_I_L.coeffs().transpose() << "\np_I_L (m)    "
-              << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
-              << " ms\nwritten: " << FLAGS_output
+              << " s (initialization " << result.seconds_initialization << " s)\n";
+    if (lidar) {
+      std::cout << "q_I_L (xyzw) " << c.q_I_L.coeffs().transpose() << "\np_I_L (m)    "
+                << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
+                << " ms\n";
+    } else {
+      std::cout << "keyframe period " << result.keyframe_period_s << " s\nwheel radii (m) "
+                << c.wheel_radius_left_m << " " << c.wheel_radius_right_m << "\ntrack width (m) "
+                << c.track_width_m << "\np_I_A (m)       " << c.p_I_A.transpose() << "\n";
+    }
+    std::cout << "written: " << FLAGS_output
               << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
                  "calibration.yaml, timings.yaml\n";
   } catch (const autocal::Error& e) {

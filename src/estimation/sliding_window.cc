@@ -74,6 +74,7 @@ bool SlidingWindowEstimator::AddGnss(const GnssPosition& position) {
 bool SlidingWindowEstimator::AddSweep(lidar::LidarSweep sweep) {
   return impl_->AddSweep(std::move(sweep));
 }
+bool SlidingWindowEstimator::AddKeyframeAt(int64_t t_ns) { return impl_->AddKeyframeAt(t_ns); }
 const SlidingWindowState& SlidingWindowEstimator::latest_state() const {
   return impl_->latest_state();
 }
@@ -116,6 +117,7 @@ SlidingWindowEstimator::Impl::Impl(const SlidingWindowOptions& options,
       newest_wheel_ns_(kNoStamp),
       newest_gnss_ns_(kNoStamp),
       newest_sweep_ns_(kNoStamp),
+      newest_time_ns_(kNoStamp),
       pairing_(options.pairing, options.window_pairing, options.loss.lidar, options.num_threads) {
   internal::CheckOptions(options_);
   if (options_.enu_origin_lla) {
@@ -218,6 +220,7 @@ bool SlidingWindowEstimator::Impl::AddImu(const sensors::ImuSample& sample) {
   imu_.push_back(sample);
   ++counters_.imu_accepted;
   ProcessCoveredSweeps();
+  ProcessCoveredTimes();
   return true;
 }
 
@@ -272,6 +275,7 @@ bool SlidingWindowEstimator::Impl::AddGnss(const GnssPosition& position) {
 }
 
 bool SlidingWindowEstimator::Impl::AddSweep(lidar::LidarSweep sweep) {
+  UseKeyframeSource(KeyframeSource::kSweeps);
   lidar::CheckPointCloud(sweep.cloud, "SlidingWindowEstimator::AddSweep: sweep");
   if (!sweep.cloud.empty() && !sweep.cloud.has_time()) {
     throw Error("SlidingWindowEstimator::AddSweep: the sweep at t_ns " +
@@ -282,7 +286,7 @@ bool SlidingWindowEstimator::Impl::AddSweep(lidar::LidarSweep sweep) {
     return false;
   }
   newest_sweep_ns_ = sweep.t_ns;
-  if (TooCloseToNewestKeyframe(sweep)) {
+  if (TooCloseToNewestKeyframe(KeyframeTimeOf(sweep))) {
     ++counters_.late;
     return false;
   }
@@ -292,12 +296,49 @@ bool SlidingWindowEstimator::Impl::AddSweep(lidar::LidarSweep sweep) {
   return true;
 }
 
+bool SlidingWindowEstimator::Impl::AddKeyframeAt(int64_t t_ns) {
+  UseKeyframeSource(KeyframeSource::kTimes);
+  if (t_ns <= newest_time_ns_) {
+    ++counters_.out_of_order;
+    return false;
+  }
+  newest_time_ns_ = t_ns;
+  if (TooCloseToNewestKeyframe(t_ns)) {
+    ++counters_.late;
+    return false;
+  }
+  pending_times_.push_back(t_ns);
+  ++counters_.keyframe_times_accepted;
+  ProcessCoveredTimes();
+  return true;
+}
+
+void SlidingWindowEstimator::Impl::UseKeyframeSource(KeyframeSource source) {
+  if (keyframe_source_ == source) return;
+  if (keyframe_source_ != KeyframeSource::kUndecided) {
+    throw Error(source == KeyframeSource::kSweeps
+                    ? "SlidingWindowEstimator::AddSweep: this window takes its keyframes from "
+                      "AddKeyframeAt, not from sweeps"
+                    : "SlidingWindowEstimator::AddKeyframeAt: this window takes its keyframes "
+                      "from sweeps, not from AddKeyframeAt");
+  }
+  keyframe_source_ = source;
+  if (source != KeyframeSource::kTimes) return;
+  // No point rows: the LiDAR blocks stay where they are. No update has run yet, so the
+  // calibration is still the initial one the priors are rebuilt with.
+  options_.estimate.extrinsic_rotation = false;
+  options_.estimate.extrinsic_translation = false;
+  options_.estimate.time_offset = false;
+  calibration_priors_.clear();
+  AddCalibrationPriors(calibration_);
+}
+
 int64_t SlidingWindowEstimator::Impl::KeyframeTimeOf(const lidar::LidarSweep& sweep) const {
   return sweep.t_ns + SecondsToNs(calibration_.time_offset_lidar_imu_s - options_.keyframe_lead_s);
 }
 
-bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(const lidar::LidarSweep& sweep) const {
-  return KeyframeTimeOf(sweep) - latest_state().t_ns <
+bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const {
+  return t_ns - latest_state().t_ns <
          std::max<int64_t>(1, SecondsToNs(options_.min_keyframe_interval_s));
 }
 
@@ -312,23 +353,35 @@ void SlidingWindowEstimator::Impl::ProcessCoveredSweeps() {
     lidar::LidarSweep covered = std::move(pending_sweeps_.front());
     pending_sweeps_.pop_front();
     // The offset estimate may have moved since the sweep arrived.
-    if (TooCloseToNewestKeyframe(covered)) {
+    const int64_t t_ns = KeyframeTimeOf(covered);
+    if (TooCloseToNewestKeyframe(t_ns)) {
       ++counters_.late;
     } else {
-      Update(std::move(covered));
+      Update(t_ns, std::move(covered));
     }
   }
 }
 
-void SlidingWindowEstimator::Impl::Update(lidar::LidarSweep sweep) {
+void SlidingWindowEstimator::Impl::ProcessCoveredTimes() {
+  while (!pending_times_.empty() && !imu_.empty() &&
+         imu_.back().t_ns >= pending_times_.front() + SecondsToNs(options_.imu_coverage_margin_s)) {
+    const int64_t t_ns = pending_times_.front();
+    pending_times_.pop_front();
+    Update(t_ns, std::nullopt);
+  }
+}
+
+void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<lidar::LidarSweep> sweep) {
   const auto start = std::chrono::steady_clock::now();
   timing_ = SlidingWindowUpdateTiming();
-  AddKeyframe(std::move(sweep));
+  AddKeyframe(t_ns, std::move(sweep));
   RelinearizeImuFactors();
 
-  const auto association_start = std::chrono::steady_clock::now();
-  AssociatePoints();
-  timing_.association_s = SecondsSince(association_start);
+  if (keyframe_source_ == KeyframeSource::kSweeps) {
+    const auto association_start = std::chrono::steady_clock::now();
+    AssociatePoints();
+    timing_.association_s = SecondsSince(association_start);
+  }
 
   const auto build_start = std::chrono::steady_clock::now();
   std::unique_ptr<ProblemBuild> build = BuildProblem();

@@ -39,6 +39,7 @@ class SlidingWindowEstimator::Impl {
   bool AddGnss(const sensors::GnssFix& fix);
   bool AddGnss(const GnssPosition& position);
   bool AddSweep(lidar::LidarSweep sweep);
+  bool AddKeyframeAt(int64_t t_ns);
 
   const SlidingWindowState& latest_state() const;
   std::vector<SlidingWindowState> Trajectory() const;
@@ -46,7 +47,9 @@ class SlidingWindowEstimator::Impl {
   const sensors::Calibration& calibration() const { return calibration_; }
   CalibrationCovariance ComputeCalibrationCovariance(double min_reciprocal_condition_number);
   int window_size() const { return static_cast<int>(window_.size()); }
-  int pending_sweeps() const { return static_cast<int>(pending_sweeps_.size()); }
+  int pending_sweeps() const {
+    return static_cast<int>(pending_sweeps_.size() + pending_times_.size());
+  }
   bool has_marginalization_prior() const { return prior_ != nullptr; }
   const SlidingWindowCounters& counters() const { return counters_; }
   const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
@@ -58,13 +61,25 @@ class SlidingWindowEstimator::Impl {
   struct ProblemBuild;
   struct SmoothingStep;
 
+  // Where the keyframes come from: decided by the first AddSweep or AddKeyframeAt.
+  enum class KeyframeSource { kUndecided, kSweeps, kTimes };
+  // Sets the source, or throws autocal::Error when the window already takes the other one.
+  // Keyframes from times hold the LiDAR blocks (options_.estimate and their priors).
+  void UseKeyframeSource(KeyframeSource source);
+
   int64_t KeyframeTimeOf(const lidar::LidarSweep& sweep) const;
-  // Its keyframe would not follow the newest one by min_keyframe_interval_s (dropped as late).
-  bool TooCloseToNewestKeyframe(const lidar::LidarSweep& sweep) const;
+  // A keyframe at t_ns would not follow the newest one by min_keyframe_interval_s (dropped as
+  // late).
+  bool TooCloseToNewestKeyframe(int64_t t_ns) const;
   void ProcessCoveredSweeps();
-  // One window update for a covered sweep.
-  void Update(lidar::LidarSweep sweep);
-  void AddKeyframe(lidar::LidarSweep sweep);
+  void ProcessCoveredTimes();
+  // One window update for a new keyframe at t_ns, with its sweep when it has one (t_ns is then
+  // KeyframeTimeOf(*sweep)).
+  void Update(int64_t t_ns, std::optional<lidar::LidarSweep> sweep);
+  // The keyframe at t_ns predicted with the IMU, its sweep's chosen points, and the factors
+  // of the interval before it.
+  void AddKeyframe(int64_t t_ns, std::optional<lidar::LidarSweep> sweep);
+  void SetSweepPoints(lidar::LidarSweep sweep, WindowKeyframe* kf) const;
   // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
   void RelinearizeImuFactors();
@@ -110,9 +125,12 @@ class SlidingWindowEstimator::Impl {
   std::deque<sensors::WheelSample> wheel_;
   std::deque<GnssPosition> gnss_;
   std::deque<lidar::LidarSweep> pending_sweeps_;
+  std::deque<int64_t> pending_times_;  // AddKeyframeAt
+  KeyframeSource keyframe_source_ = KeyframeSource::kUndecided;
   int64_t newest_wheel_ns_;
   int64_t newest_gnss_ns_;
   int64_t newest_sweep_ns_;
+  int64_t newest_time_ns_;
 
   std::deque<std::unique_ptr<WindowKeyframe>> window_;
   // The pairing's try buffer of the keyframe last marginalized (a megabyte at thousands of

@@ -16,12 +16,13 @@ namespace estimation {
 using internal::AttachedFactor;
 using internal::StateBlocks;
 
-void SlidingWindowEstimator::Impl::AddKeyframe(lidar::LidarSweep sweep) {
+void SlidingWindowEstimator::Impl::AddKeyframe(int64_t t_ns,
+                                               std::optional<lidar::LidarSweep> sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
   kf->pairing.tried_at = std::move(spare_tried_at_);  // overwritten before use
   kf->id = next_keyframe_id_++;
-  kf->state.t_ns = KeyframeTimeOf(sweep);
+  kf->state.t_ns = t_ns;
 
   // Prediction with the IMU from the previous keyframe (Eq. F8); biases carried over.
   sensors::PreintegrationOptions preintegration;
@@ -39,7 +40,14 @@ void SlidingWindowEstimator::Impl::AddKeyframe(lidar::LidarSweep sweep) {
   kf->state.v_W_I = x.v_W_I;
   kf->state.b_g = previous.state.b_g;
   kf->state.b_a = previous.state.b_a;
+  if (sweep) SetSweepPoints(std::move(*sweep), kf.get());
 
+  AttachIntervalMeasurements(&previous, kf->state.t_ns);
+  window_.push_back(std::move(kf));
+}
+
+void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
+                                                  WindowKeyframe* kf) const {
   internal::SweepSelection selection = internal::SelectSweepPoints(sweep.cloud, options_.pairing);
   kf->map_points = std::move(selection.map_points);
   internal::ResidualPoints& res = kf->residuals;
@@ -57,9 +65,6 @@ void SlidingWindowEstimator::Impl::AddKeyframe(lidar::LidarSweep sweep) {
   }
   kf->sweep_duration_s = sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
   kf->sweep = std::move(sweep);
-
-  AttachIntervalMeasurements(&previous, kf->state.t_ns);
-  window_.push_back(std::move(kf));
 }
 
 void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* from,

@@ -12,11 +12,13 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/estimation/sliding_window_blocks.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/output_files.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
+#include "online_without_lidar.h"
 #include "problem_blocks.h"
 #include "sweep_reader.h"
 #include "window_settings.h"
@@ -71,12 +73,17 @@ estimation::Keyframe StartFromGnssAndImu(
   return refined.front();
 }
 
-// Throws one autocal::Error for a problem without the LiDAR or invalid options.
-void CheckOnlineInputs(const io::Problem& problem, const OnlineEstimationOptions& options) {
-  if (!problem.sensors.lidar) {
+// Throws one autocal::Error for a problem that has neither the LiDAR nor GNSS, or invalid
+// options.
+void CheckOnlineInputs(const io::Dataset& dataset, const io::Problem& problem,
+                       const OnlineEstimationOptions& options) {
+  if (!problem.sensors.lidar && (!problem.sensors.gnss || dataset.gnss.empty())) {
     throw Error("problem " + problem.path +
-                ": the online estimator needs the LiDAR (its "
-                "keyframes are the sweeps)");
+                ": the online estimator without the LiDAR needs GNSS (sensors.gnss and " +
+                "gnss.csv): its start is placed on the GNSS track");
+  }
+  if (!(options.keyframe_period_without_lidar_s >= 0.0)) {
+    throw Error("OnlineEstimationOptions: keyframe_period_without_lidar_s must be >= 0");
   }
   if (!(options.initialization_duration_s > 0.0) ||
       !(options.initial_position_sigma_with_gnss_m > 0.0) ||
@@ -167,8 +174,9 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
   return out;
 }
 
-// One datum of the log at its arrival time: which stream, which sample.
-enum class Source { kImu, kWheel, kGnss, kSweep };
+// One datum of the log at its arrival time: which stream, which sample (for a keyframe time,
+// none: the time is the arrival's).
+enum class Source { kImu, kWheel, kGnss, kSweep, kKeyframeTime };
 struct Arrival {
   int64_t t_ns;
   Source source;
@@ -179,9 +187,11 @@ struct Arrival {
 // point is measured (its stamp plus the sweep period), IMU samples from the last one at or
 // before t0_ns on. A sweep's keyframe precedes its stamp by less than keyframe_lead_s plus the
 // offset (`sweep_to_keyframe_s`, offset minus lead): one whose keyframe would precede the
-// initial state belongs to no interval.
+// initial state belongs to no interval. Without the LiDAR (keyframe_period_ns > 0) a keyframe
+// time every period after t0_ns up to the last IMU sample takes the sweeps' place.
 std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bool use_gnss,
-                                  int64_t t0_ns, double sweep_to_keyframe_s) {
+                                  int64_t t0_ns, double sweep_to_keyframe_s,
+                                  int64_t keyframe_period_ns) {
   std::vector<Arrival> out;
   for (size_t i = 0; i < dataset.imu.size(); ++i) {
     const bool needed = dataset.imu[i].t_ns > t0_ns ||
@@ -195,10 +205,15 @@ std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bo
     if (dataset.gnss[i].t_ns > t0_ns) out.push_back({dataset.gnss[i].t_ns, Source::kGnss, i});
   }
   const double sweep_period_s = dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
-  for (size_t i = 0; i < dataset.lidar_sweeps.size(); ++i) {
+  for (size_t i = 0; keyframe_period_ns == 0 && i < dataset.lidar_sweeps.size(); ++i) {
     const int64_t t = dataset.lidar_sweeps[i].t_ns;
     if (t + SecondsToNs(sweep_to_keyframe_s) <= t0_ns) continue;
     out.push_back({t + SecondsToNs(sweep_period_s), Source::kSweep, i});
+  }
+  for (int64_t t = t0_ns + keyframe_period_ns;
+       keyframe_period_ns > 0 && !dataset.imu.empty() && t <= dataset.imu.back().t_ns;
+       t += keyframe_period_ns) {
+    out.push_back({t, Source::kKeyframeTime, 0});
   }
   std::stable_sort(out.begin(), out.end(),
                    [](const Arrival& a, const Arrival& b) { return a.t_ns < b.t_ns; });
@@ -231,6 +246,9 @@ void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
         estimator->AddSweep(a.index < initial_sweeps->size() ? std::move((*initial_sweeps)[a.index])
                                                              : reader.Take(a.index));
         break;
+      case Source::kKeyframeTime:
+        estimator->AddKeyframeAt(a.t_ns);
+        break;
     }
     if (estimator->counters().updates == updates) continue;
     updates = estimator->counters().updates;
@@ -249,15 +267,17 @@ void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
     }
   }
   if (updates == 0) {
-    throw Error("dataset " + dataset.directory +
-                ": no sweep after the initial state was "
-                "covered by the IMU log; nothing was estimated");
+    throw Error("dataset " + dataset.directory + ": no " +
+                (dataset.sensors.lidar && problem.sensors.lidar ? "sweep" : "keyframe time") +
+                " after the initial state was covered by the IMU log; nothing was estimated");
   }
 }
 
-// The trajectories, states, counters and calibration (with its sigmas) of the estimator.
-void CollectResult(const estimation::SlidingWindowOptions& window_options,
-                   estimation::SlidingWindowEstimator* estimator, OnlineEstimationResult* result) {
+// The trajectories, states, counters and calibration (with its sigmas) of the estimator;
+// returns the calibration covariance.
+estimation::CalibrationCovariance CollectResult(
+    const estimation::SlidingWindowOptions& window_options, bool use_lidar,
+    estimation::SlidingWindowEstimator* estimator, OnlineEstimationResult* result) {
   for (const estimation::SlidingWindowState& x : estimator->Trajectory()) {
     result->trajectory.push_back(TrajectorySampleOf(x));
     result->states.push_back(x);
@@ -270,14 +290,53 @@ void CollectResult(const estimation::SlidingWindowOptions& window_options,
   result->counters = estimator->counters();
   io::CalibrationFile& file = result->calibration;
   file.value = estimator->calibration();
-  FillWindowUncertainty(estimator->ComputeCalibrationCovariance(), &file.uncertainty);
+  estimation::CalibrationCovariance covariance = estimator->ComputeCalibrationCovariance();
+  FillWindowUncertainty(covariance, &file.uncertainty);
   file.solver["estimator"] = "sliding_window";
   file.solver["window_size"] = std::to_string(window_options.window_size);
   file.solver["updates"] = std::to_string(result->counters.updates);
   file.solver["marginalizations"] = std::to_string(result->counters.marginalizations);
   file.solver["dropped_late"] = std::to_string(result->counters.late);
-  file.residuals["lidar"]["rms_m"] = estimator->last_point_rms_m();
-  file.residuals["lidar"]["points"] = estimator->last_associated_points();
+  if (use_lidar) {
+    file.residuals["lidar"]["rms_m"] = estimator->last_point_rms_m();
+    file.residuals["lidar"]["points"] = estimator->last_associated_points();
+  }
+  return covariance;
+}
+
+// Observability per direction by the offline calibration's rule (docs/calibration.md,
+// "Observability and uncertainty"), nothing held: a direction is observable when its window
+// sigma is positive (the covariance's pseudo-inverse gives an unobservable one zero), within
+// its block's limit (OfflineCalibrationOptions) and below max_posterior_to_prior_sigma of the
+// window's prior sigma on the block (the data, not the prior, set it).
+void FillWindowObservability(const io::Dataset& dataset, const io::Problem& problem,
+                             estimation::SlidingWindowOptions window_options, bool use_wheel,
+                             bool use_gnss, const estimation::CalibrationCovariance& covariance,
+                             io::CalibrationUncertainty* uncertainty) {
+  sensors::Calibration scratch = dataset.sensors.nominal_calibration;
+  const std::vector<estimation::EstimatedBlock> limits = EstimatedBlocks(
+      problem, dataset.sensors, OfflineCalibrationOptions(), use_wheel, use_gnss, &scratch);
+  for (size_t b = 0; b < covariance.names.size(); ++b) {
+    const sensors::CalibrationBlockInfo* info = sensors::FindCalibrationBlock(covariance.names[b]);
+    if (info == nullptr) continue;
+    const auto limit =
+        std::find_if(limits.begin(), limits.end(),
+                     [info](const estimation::EstimatedBlock& e) { return e.id == info->id; });
+    if (limit == limits.end()) continue;
+    const double prior_sigma = *estimation::BlockSettingOf(info->id, &window_options.estimate,
+                                                           &window_options.calibration_prior)
+                                    .prior_sigma *
+                               FileToTangent(*info);
+    Eigen::VectorXd sigma(info->tangent_size);
+    std::vector<bool> observable;
+    for (int k = 0; k < info->tangent_size; ++k) {
+      const int i = covariance.offsets[b] + k;
+      sigma(k) = std::sqrt(std::max(0.0, covariance.covariance(i, i)));
+      observable.push_back(sigma(k) > 0.0 && sigma(k) <= limit->max_observable_sigma &&
+                           sigma(k) <= limit->max_posterior_to_prior_sigma * prior_sigma);
+    }
+    SetUncertainty(info->id, sigma, &observable, uncertainty);
+  }
 }
 
 void WriteStatesCsv(const std::string& path,
@@ -336,21 +395,34 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const i
                                              const OnlineEstimationOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   io::ValidateProblemForDataset(problem, dataset);
-  CheckOnlineInputs(problem, options);
+  CheckOnlineInputs(dataset, problem, options);
+  const bool use_lidar = problem.sensors.lidar;
   const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   estimation::SlidingWindowOptions window_options =
       WindowOptions(dataset, problem, use_wheel, use_gnss, options);
   OnlineEstimationResult result;
 
-  // 1. The initial state: the initializer on the first seconds of the log. Its sweeps are
-  //    kept for the streaming, which would otherwise read them from disk again.
-  InitialSeconds first = InitializeOnFirstSeconds(dataset, problem, options);
-  result.seconds_initialization =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const WindowStart window_start =
-      StartWindow(dataset, problem, options, first.init, use_wheel, use_gnss, &window_options);
+  // 1. The initial state. With the LiDAR: the initializer on the first seconds of the log,
+  //    whose sweeps are kept for the streaming, which would otherwise read them from disk
+  //    again. Without: the GNSS-inertial keyframes over those seconds, and a keyframe period.
+  InitialSeconds first;
+  WindowStart window_start;
+  int64_t keyframe_period_ns = 0;
+  if (use_lidar) {
+    first = InitializeOnFirstSeconds(dataset, problem, options);
+    result.seconds_initialization = SecondsSince(start);
+    window_start =
+        StartWindow(dataset, problem, options, first.init, use_wheel, use_gnss, &window_options);
+  } else {
+    keyframe_period_ns = KeyframePeriodWithoutLidar(dataset, options);
+    window_start.calibration = dataset.sensors.nominal_calibration;
+    window_start.keyframe = StartWithoutLidar(dataset, problem, options, keyframe_period_ns,
+                                              use_wheel, &window_options);
+    result.seconds_initialization = SecondsSince(start);
+  }
   result.initial = window_start.calibration;
+  result.keyframe_period_s = NsToSeconds(keyframe_period_ns);
   estimation::SlidingWindowEstimator estimator(window_options, window_start.calibration,
                                                window_start.keyframe);
 
@@ -359,14 +431,19 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const i
   RequireSamplesAfter(dataset, use_wheel, use_gnss, t0);
   const std::vector<Arrival> arrivals = ArrivalOrder(
       dataset, use_wheel, use_gnss, t0,
-      window_start.calibration.time_offset_lidar_imu_s - window_options.keyframe_lead_s);
+      window_start.calibration.time_offset_lidar_imu_s - window_options.keyframe_lead_s,
+      keyframe_period_ns);
   StreamArrivals(dataset, problem, options, arrivals, &first.sweeps, &estimator, &result);
   RequireStreamedSamples(dataset, use_wheel, use_gnss, estimator.counters());
 
   // 3. The result.
-  CollectResult(window_options, &estimator, &result);
-  result.seconds_total =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const estimation::CalibrationCovariance covariance =
+      CollectResult(window_options, use_lidar, &estimator, &result);
+  FillWindowObservability(dataset, problem, window_options, use_wheel, use_gnss, covariance,
+                          &result.calibration.uncertainty);
+  if (!use_lidar)
+    result.calibration.solver["keyframe_period_s"] = FormatSeconds(keyframe_period_ns);
+  result.seconds_total = SecondsSince(start);
   return result;
 }
 

@@ -1,5 +1,6 @@
 #include "autocal/estimation/sliding_window.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/LU>
@@ -238,6 +239,59 @@ TEST(SlidingWindowStreaming, BuffersSweepUntilImuCoversIt) {
   EXPECT_EQ(estimator.latest_state().t_ns, sweep.t_ns - SecondsToNs(options.keyframe_lead_s));
   EXPECT_LT(estimator.latest_state().p_W_I.norm(), 1e-6);
   EXPECT_LT(estimator.latest_state().v_W_I.norm(), 1e-6);
+}
+
+// Keyframes from AddKeyframeAt (a window without the LiDAR): each made once the IMU covers
+// its time plus the margin, with the sweep keyframes' streaming rules, the LiDAR blocks held
+// at their initial value (their prior, centred elsewhere, would pull them) and left out of
+// the covariance.
+TEST(SlidingWindowTimedKeyframes, MakesKeyframesWithoutSweepsAndHoldsTheLidarBlocks) {
+  SlidingWindowOptions options = FastOptions();
+  options.window_size = 4;
+  sensors::Calibration initial;
+  initial.p_I_L = Eigen::Vector3d(0.5, 0.1, 1.2);
+  initial.time_offset_lidar_imu_s = 0.01;
+  options.calibration_prior.mean = initial;
+  options.calibration_prior.mean->p_I_L += Eigen::Vector3d(0.05, -0.02, 0.01);
+  options.calibration_prior.mean->time_offset_lidar_imu_s += 0.003;
+  SlidingWindowEstimator estimator(options, initial, StillState());
+  int64_t t = kStart - kImuStep;
+  estimator.AddImu(StillImu(t));
+  const int num_keyframes = 12;
+  for (int k = 1; k <= num_keyframes; ++k) {
+    const int64_t t_keyframe = kStart + k * 100'000'000;
+    EXPECT_TRUE(estimator.AddKeyframeAt(t_keyframe));
+    EXPECT_EQ(estimator.pending_sweeps(), 1);
+    const int64_t needed = t_keyframe + SecondsToNs(options.imu_coverage_margin_s);
+    while (t + kImuStep < needed) estimator.AddImu(StillImu(t += kImuStep));
+    EXPECT_EQ(estimator.counters().updates, k - 1);
+    estimator.AddImu(StillImu(t += kImuStep));
+    ASSERT_EQ(estimator.counters().updates, k);
+    EXPECT_EQ(estimator.latest_state().t_ns, t_keyframe);
+  }
+  EXPECT_EQ(estimator.window_size(), options.window_size);
+  EXPECT_EQ(estimator.counters().marginalizations, num_keyframes + 1 - options.window_size);
+  EXPECT_EQ(estimator.counters().keyframe_times_accepted, num_keyframes);
+  EXPECT_EQ(estimator.last_associated_points(), 0);
+  EXPECT_LT(estimator.latest_state().p_W_I.norm(), 1e-3);
+  EXPECT_EQ(estimator.calibration().p_I_L, initial.p_I_L);
+  EXPECT_EQ(estimator.calibration().time_offset_lidar_imu_s, initial.time_offset_lidar_imu_s);
+  const CalibrationCovariance covariance = estimator.ComputeCalibrationCovariance();
+  EXPECT_THAT(covariance.names, ::testing::Not(::testing::Contains(std::string("q_I_L"))));
+  EXPECT_THAT(covariance.names, ::testing::Not(::testing::Contains(std::string("p_I_L"))));
+  EXPECT_THAT(covariance.names, ::testing::Contains(std::string("p_I_A")));
+
+  // Streaming rules: not after the last time asked for, too close to the newest keyframe.
+  const int64_t last = kStart + num_keyframes * 100'000'000;
+  EXPECT_FALSE(estimator.AddKeyframeAt(last));
+  EXPECT_EQ(estimator.counters().out_of_order, 1);
+  EXPECT_FALSE(estimator.AddKeyframeAt(last + 1000));
+  EXPECT_EQ(estimator.counters().late, 1);
+  // Keyframes come from one source.
+  EXPECT_THROW(estimator.AddSweep(SmallSweep(last + 100'000'000)), Error);
+  SlidingWindowEstimator with_sweeps(FastOptions(), sensors::Calibration(), StillState());
+  with_sweeps.AddSweep(SmallSweep(kStart + 100'000'000));
+  EXPECT_THROW(with_sweeps.AddKeyframeAt(kStart + 200'000'000), Error);
 }
 
 // The window never holds more than N keyframes; the prior exists from the first

@@ -1,5 +1,6 @@
 // The online estimator's checks that a sensor the problem uses reaches the sliding window
-// (src/pipeline/calibration_steps.h), on hand-made sample lists.
+// (src/pipeline/calibration_steps.h) and its keyframe period without the LiDAR
+// (src/pipeline/online_without_lidar.h), on hand-made sample lists.
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -10,6 +11,7 @@
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"
 #include "pipeline/calibration_steps.h"
+#include "pipeline/online_without_lidar.h"
 
 namespace autocal {
 namespace pipeline {
@@ -71,6 +73,44 @@ TEST(OnlineEstimationInputs, RefusesSensorsTheWindowAcceptedNothingFrom) {
   EXPECT_NO_THROW(RequireStreamedSamples(dataset, true, false, counters));
   counters.wheel_accepted = 0;
   EXPECT_THROW(RequireStreamedSamples(dataset, true, false, counters), Error);
+}
+
+// Fixes every interval_ns, each stamp moved by up to jitter_ns (a fixed pattern).
+io::Dataset FixesEvery(int64_t interval_ns, int64_t jitter_ns, int count) {
+  io::Dataset dataset;
+  dataset.directory = "/data/run8";
+  for (int i = 0; i < count; ++i) {
+    sensors::GnssFix fix;
+    fix.t_ns = kStartNs + i * interval_ns + ((i * 7) % 5 - 2) * jitter_ns / 2;
+    dataset.gnss.push_back(fix);
+  }
+  return dataset;
+}
+
+// The keyframe period is the median GNSS interval (jitter and an outage do not move it),
+// clamped to [0.05, 0.5] s; the option overrides it.
+TEST(OnlineEstimationInputs, KeyframePeriodFollowsTheGnssRate) {
+  const OnlineEstimationOptions options;
+  EXPECT_EQ(KeyframePeriodWithoutLidar(FixesEvery(100'000'000, 0, 50), options), 100'000'000);
+  EXPECT_EQ(KeyframePeriodWithoutLidar(FixesEvery(400'000'000, 0, 50), options), 400'000'000);
+  EXPECT_EQ(KeyframePeriodWithoutLidar(FixesEvery(50'000'000, 0, 50), options), 50'000'000);
+  EXPECT_EQ(KeyframePeriodWithoutLidar(FixesEvery(20'000'000, 0, 50), options), 50'000'000);
+  EXPECT_EQ(KeyframePeriodWithoutLidar(FixesEvery(1'000'000'000, 0, 50), options), 500'000'000);
+  io::Dataset outage = FixesEvery(200'000'000, 0, 50);
+  for (size_t i = 20; i < outage.gnss.size(); ++i) outage.gnss[i].t_ns += 10'000'000'000;
+  EXPECT_EQ(KeyframePeriodWithoutLidar(outage, options), 200'000'000);
+  const int64_t jittered =
+      KeyframePeriodWithoutLidar(FixesEvery(200'000'000, 20'000'000, 51), options);
+  EXPECT_NEAR(static_cast<double>(jittered), 200'000'000.0, 20'000'000.0);
+  OnlineEstimationOptions set = options;
+  set.keyframe_period_without_lidar_s = 0.25;
+  EXPECT_EQ(KeyframePeriodWithoutLidar(FixesEvery(100'000'000, 0, 50), set), 250'000'000);
+  try {
+    KeyframePeriodWithoutLidar(FixesEvery(100'000'000, 0, 1), options);
+    FAIL() << "one fix gave a period";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("dataset /data/run8: gnss.csv has 1 fix"));
+  }
 }
 
 }  // namespace

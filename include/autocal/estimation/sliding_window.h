@@ -10,6 +10,9 @@
 // it with the IMU, attach the interval's IMU, wheel and GNSS factors, pair the window's points
 // with planes of other window sweeps (estimation/pairing_setting.h), solve, and marginalize
 // the oldest keyframe when the window holds more than N.
+//
+// Without a LiDAR the keyframes come from AddKeyframeAt instead (e.g. at a fixed period): the
+// same update without point rows, so IMU, wheels and GNSS alone carry the window.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -43,9 +46,10 @@ struct SlidingWindowCounters {
   int64_t wheel_accepted = 0;
   int64_t gnss_accepted = 0;
   int64_t sweeps_accepted = 0;
-  int64_t out_of_order = 0;  // not newer than the newest of their stream (dropped)
-  int64_t late = 0;          // at or before the newest keyframe (dropped)
-  int64_t updates = 0;       // keyframes added (= window updates)
+  int64_t keyframe_times_accepted = 0;  // AddKeyframeAt
+  int64_t out_of_order = 0;             // not newer than the newest of their stream (dropped)
+  int64_t late = 0;                     // at or before the newest keyframe (dropped)
+  int64_t updates = 0;                  // keyframes added (= window updates)
   int64_t marginalizations = 0;
 };
 
@@ -91,6 +95,15 @@ class SlidingWindowEstimator {
   bool AddGnss(const sensors::GnssFix& fix);
   bool AddGnss(const GnssPosition& position);
   bool AddSweep(lidar::LidarSweep sweep);  // an rvalue is moved in, not copied
+  // A keyframe at IMU time t_ns without a sweep, for a window without the LiDAR: made once the
+  // IMU covers t_ns plus imu_coverage_margin_s, by the same update as a sweep's keyframe minus
+  // the point rows. Nothing then constrains the LiDAR blocks (q_I_L, p_I_L, the LiDAR time
+  // offset), so such a window holds them at their initial value whatever options.estimate says
+  // (no prior, not in ComputeCalibrationCovariance). A window takes its keyframes from sweeps
+  // or from this, never both (the first call decides; the other then throws autocal::Error).
+  // A time not after the last one asked for is dropped (out_of_order), one within
+  // min_keyframe_interval_s of the newest keyframe too (late).
+  bool AddKeyframeAt(int64_t t_ns);
 
   const SlidingWindowState& latest_state() const;
   // Every keyframe so far in time order: marginalized ones as last estimated in the window,
@@ -108,8 +121,8 @@ class SlidingWindowEstimator {
   CalibrationCovariance ComputeCalibrationCovariance(
       double min_reciprocal_condition_number = 1e-12);
 
-  int window_size() const;  // keyframes currently in the window
-  int pending_sweeps() const;
+  int window_size() const;     // keyframes currently in the window
+  int pending_sweeps() const;  // sweeps or AddKeyframeAt times waiting for the IMU
   bool has_marginalization_prior() const;
   const SlidingWindowCounters& counters() const;
   const SlidingWindowUpdateTiming& last_update_timing() const;

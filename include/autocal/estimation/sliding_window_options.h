@@ -82,7 +82,7 @@ struct WindowSolverSetting {
 };
 
 struct SlidingWindowOptions {
-  int window_size = 10;  // keyframes kept; every LiDAR sweep becomes a keyframe
+  int window_size = 10;  // keyframes kept: every sweep or AddKeyframeAt time makes one
   sensors::ImuConfig imu;
   sensors::WheelConfig wheel;
   factors::FactorLossOptions loss;  // per sensor, on whitened residuals

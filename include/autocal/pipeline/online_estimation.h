@@ -9,6 +9,13 @@
 // moved into ENU by the 4-DoF GNSS alignment when GNSS takes part. The initial calibration
 // is the dataset's nominal one; the blocks the initializer estimates (q_I_L, p_I_L, time
 // offset) take its values when the problem estimates them.
+//
+// Without the LiDAR (IMU, GNSS and optionally wheels; docs/sliding_window.md, "Without the
+// LiDAR") the window's keyframes come at a fixed period (SlidingWindowEstimator::
+// AddKeyframeAt): by default the median interval of the GNSS fixes, clamped to [0.05, 0.5] s,
+// so that each keyframe interval holds about one fix. The initial state is the first of the
+// GNSS-inertial keyframes (estimation::KeyframesFromGnssAndImu) over the first
+// `initialization_duration_s`, the calibration the nominal one. The outputs are the same.
 
 #include <cstdint>
 #include <functional>
@@ -32,9 +39,12 @@ struct OnlineEstimationProgress {
 };
 
 struct OnlineEstimationOptions {
-  // Seconds of the log (from its first sweep) given to the initializer. The window starts at
-  // the first keyframe the initializer returns.
+  // Seconds of the log (from its first sweep; without the LiDAR from the first moment the IMU
+  // and GNSS share) given to the initializer. The window starts at the first keyframe the
+  // initializer returns.
   double initialization_duration_s = 30.0;
+  // Without the LiDAR: the keyframe period; 0 derives it from the GNSS rate (above).
+  double keyframe_period_without_lidar_s = 0.0;
   // Every n-th sweep of those seconds goes to the initializer (docs/sliding_window.md,
   // "Streaming a dataset"): its odometry then registers sweeps 0.3 s apart, which costs less
   // and gives the time offset larger rotations to correlate (docs/history/sliding_window.md).
@@ -94,15 +104,17 @@ struct OnlineEstimationResult {
   std::vector<estimation::SlidingWindowState> states;
   std::vector<CalibrationSample> calibration_over_time;
   estimation::SlidingWindowCounters counters;
-  sensors::Calibration initial;  // the calibration the window started from
+  sensors::Calibration initial;    // the calibration the window started from
+  double keyframe_period_s = 0.0;  // without the LiDAR; 0 with it (keyframes are sweeps)
   double seconds_total = 0.0;
   double seconds_initialization = 0.0;  // of seconds_total: loading its sweeps, the initializer
 };
 
 // Streams the dataset through the window. Throws autocal::Error naming what is wrong when the
 // problem asks for data the dataset lacks, asks for what the window does not estimate
-// (a calibration without LiDAR, one shared wheel radius, only one radius estimated), or when
-// the initializer cannot start (its reasons).
+// (one shared wheel radius, only one radius estimated), has neither the LiDAR nor GNSS, or
+// when the initializer cannot start (its reasons; without the LiDAR: too few fixes, or too
+// short an overlap of IMU and GNSS for two keyframes).
 OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const io::Problem& problem,
                                              const OnlineEstimationOptions& options = {});
 

@@ -1,0 +1,82 @@
+#include "online_without_lidar.h"
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/estimation/gnss_inertial_keyframes.h"
+#include "autocal/sensors/gnss_enu.h"
+
+namespace autocal {
+namespace pipeline {
+
+namespace {
+
+constexpr double kMinKeyframePeriodS = 0.05;
+constexpr double kMaxKeyframePeriodS = 0.5;
+
+}  // namespace
+
+int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
+                                   const OnlineEstimationOptions& options) {
+  if (options.keyframe_period_without_lidar_s > 0.0) {
+    return SecondsToNs(options.keyframe_period_without_lidar_s);
+  }
+  std::vector<int64_t> intervals;
+  for (size_t i = 1; i < dataset.gnss.size(); ++i) {
+    intervals.push_back(dataset.gnss[i].t_ns - dataset.gnss[i - 1].t_ns);
+  }
+  if (intervals.empty()) {
+    throw Error("dataset " + dataset.directory + ": gnss.csv has " +
+                std::to_string(dataset.gnss.size()) +
+                " fix; the online estimator without the LiDAR needs at least 2 to set its "
+                "keyframe period");
+  }
+  std::nth_element(intervals.begin(), intervals.begin() + intervals.size() / 2, intervals.end());
+  return std::clamp(intervals[intervals.size() / 2], SecondsToNs(kMinKeyframePeriodS),
+                    SecondsToNs(kMaxKeyframePeriodS));
+}
+
+estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Problem& problem,
+                                       const OnlineEstimationOptions& options, int64_t period_ns,
+                                       bool use_wheel,
+                                       estimation::SlidingWindowOptions* window_options) {
+  if (dataset.imu.empty() || dataset.gnss.empty()) {
+    throw Error("dataset " + dataset.directory + ": " +
+                (dataset.imu.empty() ? "imu.csv" : "gnss.csv") +
+                " has no sample; the online estimator without the LiDAR starts from the IMU "
+                "and the GNSS fixes");
+  }
+  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
+  const int64_t last_ns = std::min({dataset.imu.back().t_ns, dataset.gnss.back().t_ns,
+                                    first_ns + SecondsToNs(options.initialization_duration_s)});
+  std::vector<estimation::Keyframe> keyframes;
+  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
+    keyframes.emplace_back();
+    keyframes.back().t_ns = t;
+  }
+  if (keyframes.size() < 2) {
+    throw Error("dataset " + dataset.directory +
+                ": the IMU and the GNSS fixes overlap too briefly for two keyframes " +
+                std::to_string(NsToSeconds(period_ns)) +
+                " s apart; the online estimator without the LiDAR starts from them");
+  }
+  const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
+  estimation::GnssInertialKeyframesOptions gnss_inertial;
+  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
+  gnss_inertial.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  gnss_inertial.num_threads = problem.solver.num_threads;
+  estimation::KeyframesFromGnssAndImu(
+      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
+      enu, dataset.sensors.nominal_calibration, gnss_inertial);
+  window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
+  window_options->initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
+  window_options->initial_state_sigmas.accel_bias_m_s2 =
+      options.initial_accel_bias_sigma_with_gnss_m_s2;
+  return keyframes.front();
+}
+
+}  // namespace pipeline
+}  // namespace autocal

@@ -1,0 +1,37 @@
+#pragma once
+
+// The online estimator's start without the LiDAR (docs/sliding_window.md, "Without the
+// LiDAR"): the keyframe period, which takes the sweeps' place, and the initial state from GNSS
+// and the IMU, which takes the LiDAR-IMU initializer's.
+
+#include <cstdint>
+
+#include "autocal/estimation/keyframe.h"
+#include "autocal/estimation/sliding_window_options.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/online_estimation.h"
+
+namespace autocal {
+namespace pipeline {
+
+// The period of the keyframes (ns): options.keyframe_period_without_lidar_s when set, else the
+// median interval of the GNSS fixes clamped to [0.05, 0.5] s, so that a keyframe interval
+// holds about one fix. Throws autocal::Error naming gnss.csv when fewer than two fixes leave
+// no interval to measure.
+int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
+                                   const OnlineEstimationOptions& options);
+
+// Keyframes every period_ns over the first options.initialization_duration_s of the span the
+// IMU and the fixes share, placed on the GNSS track and refined with the IMU and the wheels
+// (estimation::KeyframesFromGnssAndImu, the offline calibration's start without the LiDAR) at
+// the nominal calibration. Returns the first, in the ENU frame at the first fix; sets
+// *window_options' ENU origin and the initial sigmas of a GNSS start. Throws autocal::Error
+// when that span holds fewer than two keyframes, or as KeyframesFromGnssAndImu.
+estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Problem& problem,
+                                       const OnlineEstimationOptions& options, int64_t period_ns,
+                                       bool use_wheel,
+                                       estimation::SlidingWindowOptions* window_options);
+
+}  // namespace pipeline
+}  // namespace autocal
