@@ -1,10 +1,10 @@
 #pragma once
 
 // Initial time offsets of the wheel odometry and the GNSS receiver against the IMU, found by
-// cross-correlating scalar signals that both clocks see (docs/initialization.md, "Clock
-// offsets"). Sign as for the LiDAR: t_imu = t_sensor + offset_s, a sample stamped t by the
-// sensor was measured at IMU-clock time t + offset_s. Odometry whose yaw rate lags the gyro
-// by 0.38 s (its stamps come late) has offset_s = -0.38 s.
+// cross-correlating scalar signals that both clocks see (docs/calibration.md, "Clock
+// offsets of the wheels and GNSS"). Sign as for the LiDAR: t_imu = t_sensor + offset_s, a sample
+// stamped t by the sensor was measured at IMU-clock time t + offset_s. Odometry whose yaw rate lags
+// the gyro by 0.38 s (its stamps come late) has offset_s = -0.38 s.
 //
 //   EstimateSeriesOffset   any two sampled scalar series with their own (jittered) rates;
 //   EstimateWheelImuOffset wheel yaw rate vs the gyro about the vehicle's up axis, or on a

@@ -1,7 +1,7 @@
 #pragma once
 
 // The IMU's mounting in the vehicle, q_I_V (p_I = R_I_V p_V; V is x forward, y left, z up),
-// from the data alone (docs/initialization.md, "Mount from gravity and motion"), so that a
+// from the data alone (docs/calibration.md, "IMU mount from gravity and motion"), so that a
 // nominal guess may be far off or missing:
 //   - the vehicle's up axis in the IMU frame is the direction of the mean specific force,
 //     over a still period when the log has one, else over the samples that barely turn;
