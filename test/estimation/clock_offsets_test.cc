@@ -8,6 +8,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/sensors/gnss_enu.h"
 #include "estimation/real_vehicle_logs.h"
 
 namespace autocal {
@@ -115,6 +116,75 @@ TEST(MovingAverage, IsCentredAndDelaysNothing) {
   for (int i = 0; i < 100; ++i) ramp.push_back({SecondsToNs(0.01 * i), 0.01 * i});
   const ScalarSeries smooth = MovingAverage(ramp, 0.1);
   for (size_t i = 10; i < 90; ++i) EXPECT_NEAR(smooth[i].value, ramp[i].value, 1e-12);
+}
+
+// A straight drive with a varying speed: the IMU (x forward, z up) and the wheel speed, whose
+// stamps are late by `lag_s` (t_imu = t_wheel - lag_s).
+struct StraightDrive {
+  sensors::ImuSamples imu;
+  ScalarSeries speed_m_s;
+  ScalarSeries yaw_rate_rad_s;
+};
+
+double DriveSpeed(double t) {
+  return 8.0 + 3.0 * std::sin(0.4 * t) + 1.5 * std::sin(1.1 * t + 0.5);
+}
+double DriveAcceleration(double t) {
+  return 1.2 * std::cos(0.4 * t) + 1.65 * std::cos(1.1 * t + 0.5);
+}
+
+StraightDrive SimulateStraightDrive(double lag_s, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  StraightDrive d;
+  for (double t = 0.0; t < 90.0; t += 0.01) {
+    sensors::ImuSample s;
+    s.t_ns = SecondsToNs(t);
+    s.accel_m_s2 = Eigen::Vector3d(DriveAcceleration(t), 0.0, 9.81) +
+                   0.05 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    s.gyro_rad_s = 0.002 * Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    d.imu.push_back(s);
+  }
+  for (double t = 0.013; t < 90.0; t += 0.02) {
+    d.speed_m_s.push_back({SecondsToNs(t + lag_s), DriveSpeed(t) + 0.01 * gauss(rng)});
+    d.yaw_rate_rad_s.push_back({SecondsToNs(t + lag_s), 0.001 * gauss(rng)});
+  }
+  return d;
+}
+
+TEST(EstimateWheelImuOffset, OnAStraightDriveComparesTheForwardAcceleration) {
+  const StraightDrive d = SimulateStraightDrive(0.25, 21);
+  const WheelImuOffset wheel =
+      EstimateWheelImuOffset(d.imu, d.speed_m_s, d.yaw_rate_rad_s, Eigen::Quaterniond::Identity());
+  EXPECT_EQ(wheel.signal, "forward acceleration");
+  EXPECT_TRUE(wheel.estimate.reliable) << wheel.estimate.reason;
+  EXPECT_NEAR(wheel.estimate.offset_s, -0.25, 0.005);
+  EXPECT_NE(wheel.estimate.reason.find("hardly varies"), std::string::npos);
+}
+
+TEST(EstimateGnssImuOffset, AlignsTheTrackSpeedWithTheWheelSpeed) {
+  const StraightDrive d = SimulateStraightDrive(0.0, 22);
+  // Fixes at 10 Hz along a straight line heading north-east, stamped 0.2 s late, 2 cm noise.
+  std::mt19937 rng(23);
+  std::normal_distribution<double> gauss(0.0, 0.02);
+  const sensors::EnuConverter enu(48.0, 11.0, 500.0);
+  sensors::GnssFixes fixes;
+  double distance_m = 0.0;
+  for (double t = 0.0; t < 90.0; t += 0.1) {
+    const Eigen::Vector3d p = Eigen::Vector3d(0.6, 0.8, 0.0) * distance_m +
+                              Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng));
+    const Eigen::Vector3d geodetic = enu.ToGeodetic(p);
+    sensors::GnssFix fix;
+    fix.t_ns = SecondsToNs(t + 0.2);
+    fix.lat_deg = geodetic.x();
+    fix.lon_deg = geodetic.y();
+    fix.alt_m = geodetic.z();
+    fixes.push_back(fix);
+    for (int k = 0; k < 100; ++k) distance_m += 0.001 * DriveSpeed(t + 0.001 * k + 0.0005);
+  }
+  const SeriesOffsetEstimate gnss = EstimateGnssImuOffset(fixes, d.speed_m_s);
+  EXPECT_TRUE(gnss.reliable) << gnss.reason;
+  EXPECT_NEAR(gnss.offset_s, -0.2, 0.005);
 }
 
 // The odometry's yaw rate lags the gyro about the up axis by about 0.38 s (its stamps come
