@@ -3,7 +3,6 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <optional>
 #include <string>
 
@@ -12,6 +11,7 @@
 #include "autocal/common/time.h"
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/correlation_peak.h"
 #include "estimation/gyro_unit.h"
 
 namespace autocal {
@@ -97,20 +97,6 @@ class GyroOrientationTable {
   std::vector<Eigen::Quaterniond> q_;
   std::vector<Eigen::Vector3d> rate_;
 };
-
-double Pearson(const std::vector<double>& a, const std::vector<double>& b) {
-  const double n = static_cast<double>(a.size());
-  const double mean_a = std::accumulate(a.begin(), a.end(), 0.0) / n;
-  const double mean_b = std::accumulate(b.begin(), b.end(), 0.0) / n;
-  double sab = 0.0, saa = 0.0, sbb = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    sab += (a[i] - mean_a) * (b[i] - mean_b);
-    saa += (a[i] - mean_a) * (a[i] - mean_a);
-    sbb += (b[i] - mean_b) * (b[i] - mean_b);
-  }
-  if (saa <= 0.0 || sbb <= 0.0) return 0.0;
-  return sab / std::sqrt(saa * sbb);
-}
 
 // Left and right quaternion-product matrices in Eigen's [x, y, z, w] order:
 // q (x) p = QuaternionLeft(q) p,  p (x) q = QuaternionRight(q) p.
@@ -293,32 +279,25 @@ TimeOffsetEstimate EstimateTimeOffset(const std::vector<RelativeRotation>& lidar
     out.reason = "fewer than 10 LiDAR relative rotations inside the IMU's time span";
     return out;
   }
-  const int steps = static_cast<int>(std::round(options.search_range_s / options.step_s));
   std::vector<double> imu_rate(usable.size());
-  for (int k = -steps; k <= steps; ++k) {
-    const double offset_s = k * options.step_s;
-    const int64_t offset_ns = SecondsToNs(offset_s);
-    for (size_t i = 0; i < usable.size(); ++i) {
-      const Eigen::Quaterniond q = table.At(usable[i]->t0_ns + offset_ns).conjugate() *
-                                   table.At(usable[i]->t1_ns + offset_ns);
-      imu_rate[i] = geometry::AngleOf(q) / SecondsBetween(usable[i]->t0_ns, usable[i]->t1_ns);
-    }
-    out.candidate_offsets_s.push_back(offset_s);
-    out.correlation.push_back(Pearson(lidar_rate, imu_rate));
-  }
-  const auto peak = std::max_element(out.correlation.begin(), out.correlation.end());
-  const size_t p = static_cast<size_t>(peak - out.correlation.begin());
-  out.peak_correlation = *peak;
-  out.offset_s = out.candidate_offsets_s[p];
-  if (p == 0 || p + 1 == out.correlation.size()) {
+  const internal::CorrelationScan scan =
+      internal::ScanCorrelation(0.0, options.search_range_s, options.step_s, [&](double offset_s) {
+        const int64_t offset_ns = SecondsToNs(offset_s);
+        for (size_t i = 0; i < usable.size(); ++i) {
+          const Eigen::Quaterniond q = table.At(usable[i]->t0_ns + offset_ns).conjugate() *
+                                       table.At(usable[i]->t1_ns + offset_ns);
+          imu_rate[i] = geometry::AngleOf(q) / SecondsBetween(usable[i]->t0_ns, usable[i]->t1_ns);
+        }
+        return internal::Pearson(lidar_rate, imu_rate);
+      });
+  out.candidate_offsets_s = scan.offsets_s;
+  out.correlation = scan.correlation;
+  out.peak_correlation = scan.correlation[scan.peak];
+  out.offset_s = scan.refined_offset_s;
+  if (scan.peak_at_edge) {
     out.reason = "the correlation peaks at the edge of the search range";
     return out;
   }
-  // Parabola through the peak and its neighbours.
-  const double c_minus = out.correlation[p - 1], c0 = out.correlation[p],
-               c_plus = out.correlation[p + 1];
-  const double curvature = c_minus - 2.0 * c0 + c_plus;
-  if (curvature < 0.0) out.offset_s += 0.5 * options.step_s * (c_minus - c_plus) / curvature;
   if (out.peak_correlation < options.min_peak_correlation) {
     out.reason = "angular-rate correlation " + std::to_string(out.peak_correlation) +
                  " is too weak: the drive needs more varied turning";

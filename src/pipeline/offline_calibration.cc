@@ -22,6 +22,7 @@
 #include "autocal/pipeline/report_html.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
+#include "mount_angles.h"
 #include "problem_blocks.h"
 
 namespace autocal {
@@ -365,11 +366,13 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
          Eigen::VectorXd::Constant(1, *info.sigma * scale),
          info.observable.value_or(true) ? " yes" : " no", precision);
   };
-  const auto pose = [&](const std::string& name, const Eigen::Quaterniond& q,
-                        const Eigen::Vector3d& p, const io::PoseBlockInfo& info,
-                        int rotation_precision) {
+  // Rotations as roll, pitch, yaw of the mounting (mount_angles.h): `mount` is R_I_L for the
+  // LiDAR, R_V_I for the IMU in the vehicle.
+  const auto pose = [&](const std::string& name, const std::string& rotation_name,
+                        const Eigen::Quaterniond& mount, const Eigen::Vector3d& p,
+                        const io::PoseBlockInfo& info, int rotation_precision) {
     if (info.sigma_rot_deg) {
-      line(name + " rotation vector (deg)", geometry::Log(q) * kRadToDeg, *info.sigma_rot_deg,
+      line(rotation_name, DisplayRollPitchYawDeg(mount, rotation_precision), *info.sigma_rot_deg,
            flags(info.observable, 0, 3), rotation_precision);
     }
     if (info.sigma_p_m) {
@@ -377,13 +380,13 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
            1);
     }
   };
-  pose("T_I_L", c.q_I_L, c.p_I_L, u.T_I_L, 4);
+  pose("T_I_L", "T_I_L roll pitch yaw (deg)", c.q_I_L, c.p_I_L, u.T_I_L, 4);
   scalar("time offset lidar->imu (ms)", c.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3,
          3);
   scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
   scalar("right rear wheel radius (mm)", c.wheel_radius_right_m, u.wheel_radius_right_m, 1e3, 3);
   scalar("track width (mm)", c.track_width_m, u.track_width_m, 1e3, 1);
-  pose("T_I_V", c.q_I_V, c.p_I_V, u.T_I_V, 3);
+  pose("T_I_V", "IMU mount roll pitch yaw (deg)", ImuMountInVehicle(c.q_I_V), c.p_I_V, u.T_I_V, 3);
   if (u.p_I_A_m.sigma) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
          flags(u.p_I_A_m.observable, 0, 3), 1);

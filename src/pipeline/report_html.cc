@@ -1,6 +1,7 @@
 #include "autocal/pipeline/report_html.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -9,8 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/format.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
+#include "mount_angles.h"
 #include "svg_chart.h"
 
 namespace autocal {
@@ -23,6 +26,16 @@ constexpr double kWhitenedHistogramRange = 5.0;  // sigma
 // A block whose components never move by more than this (display units) between the outer
 // iterations was held, unless the result carries its sigma.
 constexpr double kUnchangedTolerance = 1e-9;
+// Rotations: roll, pitch and yaw of R_I_L (the LiDAR in the IMU frame) and of R_V_I (the IMU
+// in the vehicle frame), printed with this many decimals.
+constexpr int kAngleDecimals = 2;
+constexpr std::array<const char*, 3> kLidarAngleNames = {"T_I_L roll (about the IMU x axis)",
+                                                         "T_I_L pitch (about the IMU y axis)",
+                                                         "T_I_L yaw (about the IMU z axis)"};
+constexpr std::array<const char*, 3> kMountAngleNames = {
+    "IMU mount roll (about the vehicle's forward axis)",
+    "IMU mount pitch (about the vehicle's left axis)",
+    "IMU mount yaw (about the vehicle's up axis)"};
 
 // "1 keyframe", "2 keyframes".
 std::string Counted(size_t count, const std::string& noun) {
@@ -180,15 +193,20 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
   const char* axes[3] = {"x", "y", "z"};
   std::ostringstream rows;
-  const auto pose_rows = [&](const std::string& name, const Eigen::Quaterniond& q,
-                             const Eigen::Vector3d& p, const Eigen::Quaterniond& q_nominal,
+  // Rotations as roll, pitch and yaw of the mounting (mount_angles.h); `angle_names` say
+  // about which axes, `mount` turns the stored rotation into the mounting shown.
+  using AngleNames = std::array<const char*, 3>;
+  const auto pose_rows = [&](const std::string& name, const AngleNames& angle_names,
+                             const Eigen::Quaterniond& mount, const Eigen::Vector3d& p,
+                             const Eigen::Quaterniond& mount_nominal,
                              const Eigen::Vector3d& p_nominal, const io::PoseBlockInfo& info) {
-    const Eigen::Vector3d rotation_deg = geometry::Log(q) * kRadToDeg;
-    const Eigen::Vector3d nominal_deg = geometry::Log(q_nominal) * kRadToDeg;
+    const Eigen::Vector3d rotation_deg = DisplayRollPitchYawDeg(mount, kAngleDecimals);
+    const Eigen::Vector3d nominal_deg = DisplayRollPitchYawDeg(mount_nominal, kAngleDecimals);
     for (int i = 0; i < 3; ++i) {
-      rows << "<tr><td>" << name << " rotation vector " << axes[i] << " (deg)</td><td>"
-           << Number(rotation_deg(i)) << "</td><td>" << Sigma(info.sigma_rot_deg, 1.0, i)
-           << "</td><td>" << Number(nominal_deg(i)) << "</td><td>"
+      rows << "<tr><td>" << angle_names[static_cast<size_t>(i)] << " (deg)</td><td>"
+           << FormatFixed(rotation_deg(i), kAngleDecimals) << "</td><td>"
+           << Sigma(info.sigma_rot_deg, 1.0, i) << "</td><td>"
+           << FormatFixed(nominal_deg(i), kAngleDecimals) << "</td><td>"
            << Observable(info.observable, static_cast<size_t>(i)) << "</td></tr>";
     }
     for (int i = 0; i < 3; ++i) {
@@ -208,7 +226,8 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
   // LiDAR blocks whenever the LiDAR took part; the others when the result carries their
   // sigma (they were estimated).
   if (lidar_used || u.T_I_L.sigma_rot_deg || u.T_I_L.sigma_p_m) {
-    pose_rows("T_I_L", c.q_I_L, c.p_I_L, result.nominal.q_I_L, result.nominal.p_I_L, u.T_I_L);
+    pose_rows("T_I_L", kLidarAngleNames, c.q_I_L, c.p_I_L, result.nominal.q_I_L,
+              result.nominal.p_I_L, u.T_I_L);
   }
   if (lidar_used || u.time_offset_lidar_imu_s.sigma) {
     scalar_row("time offset lidar→imu (ms)", c.time_offset_lidar_imu_s,
@@ -235,7 +254,8 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
     }
   }
   if (u.T_I_V.sigma_rot_deg || u.T_I_V.sigma_p_m) {
-    pose_rows("T_I_V", c.q_I_V, c.p_I_V, result.nominal.q_I_V, result.nominal.p_I_V, u.T_I_V);
+    pose_rows("T_I_V", kMountAngleNames, ImuMountInVehicle(c.q_I_V), c.p_I_V,
+              ImuMountInVehicle(result.nominal.q_I_V), result.nominal.p_I_V, u.T_I_V);
   }
   const std::string body = rows.str();
   if (body.empty()) return "<h2>Result</h2><p>No calibration block was estimated.</p>\n";

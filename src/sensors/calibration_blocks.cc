@@ -36,9 +36,10 @@ constexpr Names kLidarRotationNames = {"LiDAR rotation about the IMU x axis (rol
 constexpr Names kLidarTranslationNames = {
     "LiDAR x translation (IMU frame)", "LiDAR y translation (IMU frame)",
     "LiDAR z translation (IMU frame; planar driving rotates about it only)"};
-constexpr Names kVehicleRotationNames = {"vehicle frame rotation about the IMU x axis (roll)",
-                                         "vehicle frame rotation about the IMU y axis (pitch)",
-                                         "vehicle frame rotation about the IMU z axis (yaw)"};
+// q_I_V is perturbed on the right, q_I_V * Exp(delta): delta is about the vehicle's axes.
+constexpr Names kVehicleRotationNames = {"mount roll (about the vehicle's forward axis)",
+                                         "mount pitch (about the vehicle's left axis)",
+                                         "mount yaw (about the vehicle's up axis)"};
 constexpr Names kVehicleTranslationNames = {"rear-axle x position (IMU frame)",
                                             "rear-axle y position (IMU frame)",
                                             "rear-axle z position (IMU frame)"};

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -240,13 +241,65 @@ TEST(ReportHtml, SaysSoInsteadOfChartingASingleIteration) {
   EXPECT_THAT(html, Not(HasSubstr("outer iteration</text>")));
 }
 
+// The result table's rows for the IMU mount, from its first angle row to its translation.
+std::string MountRows(const std::string& html) {
+  const size_t begin = html.find("<tr><td>IMU mount roll");
+  if (begin == std::string::npos) return "";
+  return html.substr(begin, html.find("T_I_V translation", begin) - begin);
+}
+
+// R_V_I a half turn -+ 0.001 deg about an axis 1.3 deg from the vehicle's up axis: the IMU
+// mounted upside down, the rotation a rotation vector cannot show steadily.
+Eigen::Quaterniond MountNearAHalfTurn(double past_half_turn_deg) {
+  const Eigen::Quaterniond R_V_I(Eigen::AngleAxisd((180.0 + past_half_turn_deg) * kDegToRad,
+                                                   Eigen::Vector3d(0.01, 0.02, 1.0).normalized()));
+  return R_V_I.conjugate();  // q_I_V
+}
+
+TEST(ReportHtml, PrintsAMountNearAHalfTurnAlikeOnEitherSide) {
+  const Eigen::Quaterniond before = MountNearAHalfTurn(-0.001);
+  const Eigen::Quaterniond after = MountNearAHalfTurn(0.001);
+  // 0.002 deg apart, yet their rotation vectors point opposite ways (what the table printed).
+  ASSERT_LT(geometry::AngularDistance(before, after), 0.003 * kDegToRad);
+  ASSERT_GT((geometry::Log(before) - geometry::Log(after)).norm(), 6.0);
+  OfflineCalibrationResult a = ResultWithoutLidar();
+  a.calibration.value.q_I_V = before;
+  OfflineCalibrationResult b = ResultWithoutLidar();
+  b.calibration.value.q_I_V = after;
+  const std::string rows = MountRows(CalibrationReportHtml(a));
+  EXPECT_EQ(rows, MountRows(CalibrationReportHtml(b)));
+  // Golden: estimate, sigma (about the vehicle's axes), nominal (identity), observable.
+  EXPECT_EQ(rows,
+            "<tr><td>IMU mount roll (about the vehicle's forward axis) (deg)</td><td>2.29</td>"
+            "<td>0.2</td><td>0.00</td><td>yes</td></tr>"
+            "<tr><td>IMU mount pitch (about the vehicle's left axis) (deg)</td><td>-1.15</td>"
+            "<td>0.2</td><td>0.00</td><td>yes</td></tr>"
+            "<tr><td>IMU mount yaw (about the vehicle's up axis) (deg)</td><td>179.98</td>"
+            "<td>0.2</td><td>0.00</td><td>yes</td></tr><tr><td>");
+  EXPECT_THAT(CalibrationReportHtml(a), Not(HasSubstr("rotation vector")));
+}
+
+TEST(ReportHtml, PrintsAYawOnEitherSideOfTheHalfTurnAsPlus180) {
+  std::string printed[2];
+  for (int side = 0; side < 2; ++side) {
+    OfflineCalibrationResult result = ResultWithoutLidar();
+    const double yaw_deg = side == 0 ? 179.999 : -179.999;
+    result.calibration.value.q_I_V =
+        geometry::FromRollPitchYaw(0.0, -0.001 * kDegToRad, yaw_deg * kDegToRad).conjugate();
+    printed[side] = MountRows(CalibrationReportHtml(result));
+  }
+  EXPECT_EQ(printed[0], printed[1]);
+  EXPECT_THAT(printed[0], HasSubstr("up axis) (deg)</td><td>180.00</td>"));
+  EXPECT_THAT(printed[0], HasSubstr("left axis) (deg)</td><td>0.00</td>"));  // not -0.00
+}
+
 TEST(ReportHtml, RendersARunWithoutLidar) {
   const std::string html = CalibrationReportHtml(ResultWithoutLidar());
   EXPECT_THAT(html, HasSubstr("<li>LiDAR: not used</li>"));
   EXPECT_THAT(html, Not(HasSubstr("LiDAR residuals")));
   EXPECT_THAT(html, Not(HasSubstr("point residuals")));
   EXPECT_THAT(html, Not(HasSubstr("point-to-plane")));
-  EXPECT_THAT(html, Not(HasSubstr("T_I_L rotation")));
+  EXPECT_THAT(html, Not(HasSubstr("T_I_L roll")));
   EXPECT_THAT(html, Not(HasSubstr("time offset lidar")));
   EXPECT_THAT(html, Not(HasSubstr("Time offset initialization")));
   for (const char* heading :

@@ -1,0 +1,51 @@
+// pipeline::FormatCalibrationSummary prints rotations as roll, pitch and yaw of the mounting
+// (docs/report.md, "Result"), alike for nearly equal rotations.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "autocal/geometry/roll_pitch_yaw.h"
+#include "autocal/geometry/so3.h"
+#include "autocal/pipeline/offline_calibration.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+// A result whose only estimated block is T_I_V, with R_V_I a half turn -+ 0.0001 deg about an
+// axis 1.3 deg from the vehicle's up axis (an IMU mounted upside down).
+OfflineCalibrationResult MountResult(double past_half_turn_deg) {
+  OfflineCalibrationResult result;
+  const Eigen::Quaterniond R_V_I(Eigen::AngleAxisd((180.0 + past_half_turn_deg) * kDegToRad,
+                                                   Eigen::Vector3d(0.01, 0.02, 1.0).normalized()));
+  result.calibration.value.q_I_V = R_V_I.conjugate();
+  result.calibration.uncertainty.T_I_V.sigma_rot_deg = Eigen::Vector3d(0.2, 0.3, 0.4);
+  return result;
+}
+
+// The summary's line for the mount.
+std::string MountLine(const std::string& summary) {
+  const size_t begin = summary.find("IMU mount roll pitch yaw (deg)");
+  if (begin == std::string::npos) return "";
+  return summary.substr(begin, summary.find('\n', begin) - begin);
+}
+
+TEST(CalibrationSummary, PrintsTheMountAsRollPitchYawAlikeOnEitherSideOfAHalfTurn) {
+  const std::string before = FormatCalibrationSummary(MountResult(-0.0001));
+  const std::string after = FormatCalibrationSummary(MountResult(0.0001));
+  EXPECT_EQ(MountLine(before), MountLine(after));
+  EXPECT_THAT(MountLine(before), HasSubstr("2.292    -1.145   179.977   sigma"));
+  EXPECT_THAT(before, Not(HasSubstr("rotation vector")));
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal
