@@ -162,7 +162,13 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
                               "); the estimate is kept and not reported as observable");
     }
   }
+  std::vector<bool> held(static_cast<size_t>(block.size));
+  for (int i = 0; i < block.size; ++i) {
+    held[static_cast<size_t>(i)] =
+        std::find(unobservable.begin(), unobservable.end(), first + i) != unobservable.end();
+  }
   out->observable.push_back(flags);
+  out->held.push_back(held);
   out->sigma.push_back(sigma);
 }
 
@@ -269,6 +275,34 @@ BlockObservability HoldUnobservableDirections(const std::vector<EstimatedBlock>&
     Report(blocks[b], first, covariance.matrix, conditioned, part.unobservable, &out);
   }
   return out;
+}
+
+bool AnyHeld(const BlockObservability& observability) {
+  for (const std::vector<bool>& block : observability.held) {
+    if (std::find(block.begin(), block.end(), true) != block.end()) return true;
+  }
+  return false;
+}
+
+void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
+                            const BlockObservability& observability, ceres::Problem* problem) {
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const EstimatedBlock& block = blocks[b];
+    Eigen::MatrixXd sqrt_information = Eigen::MatrixXd::Zero(block.size, block.size);
+    for (int i = 0; i < block.size; ++i) {
+      if (observability.held[b][static_cast<size_t>(i)]) {
+        sqrt_information(i, i) = 1.0 / (kHeldSigmaFraction * block.prior_sigma(i));
+      }
+    }
+    if (sqrt_information.isZero()) continue;
+    ceres::CostFunction* cost =
+        IsRotation(block)
+            ? static_cast<ceres::CostFunction*>(new factors::QuaternionPriorFactor(
+                  AsQuaternion(block.data), Eigen::Matrix3d(sqrt_information)))
+            : new factors::VectorPriorFactor(
+                  Eigen::Map<const Eigen::VectorXd>(block.data, block.size), sqrt_information);
+    problem->AddResidualBlock(cost, nullptr, block.data);
+  }
 }
 
 }  // namespace estimation

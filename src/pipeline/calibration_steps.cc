@@ -244,18 +244,38 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
   return out;
 }
 
-void Conclude(const io::Dataset& dataset, const io::Problem& problem,
-              const OfflineCalibrationOptions& options,
-              const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-              const estimation::BlockCovariance& covariance,
-              const std::vector<estimation::Keyframe>& keyframes, sensors::Calibration* calibration,
-              std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result) {
-  if (problem.sensors.lidar && result->batch.associated_points == 0) {
+void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
+                         size_t num_keyframes, const OfflineCalibrationResult& result) {
+  if (problem.sensors.lidar && result.batch.associated_points == 0) {
     ThrowNoFactor(dataset, "LiDAR",
-                  "lidar.csv: no point of the " + std::to_string(keyframes.size()) +
+                  "lidar.csv: no point of the " + std::to_string(num_keyframes) +
                       " keyframe sweeps was associated with a plane");
   }
-  io::CalibrationFile& file = result->calibration;
+}
+
+void SolveAgainAfterHolding(const io::Problem& problem,
+                            const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                            const estimation::BlockObservability& observability, ceres::Problem* p,
+                            OfflineCalibrationResult* result) {
+  if (!estimation::AnyHeld(observability)) return;
+  estimation::AddHeldDirectionPriors(blocks_estimated, observability, p);
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = problem.solver.max_iterations;
+  solver_options.num_threads = problem.solver.num_threads;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, p, &summary);
+  if (!summary.IsSolutionUsable()) {
+    throw Error("the solve with the unobservable directions held failed: " + summary.message);
+  }
+  result->calibration.solver["iterations_after_holding"] =
+      std::to_string(summary.iterations.size());
+}
+
+estimation::BlockObservability Observe(
+    const io::Dataset& dataset, const OfflineCalibrationOptions& options,
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+    const estimation::BlockCovariance& covariance, OfflineCalibrationResult* result) {
   const std::vector<std::string> implausible = estimation::ImplausibleDirections(
       blocks_estimated, covariance, options.max_prior_deviation_sigmas);
   if (!implausible.empty()) {
@@ -265,17 +285,24 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
                 "); nothing is written. The drive may not excite these blocks: fix them or "
                 "give them priors in the problem file");
   }
-  if (covariance.ok) {
-    const estimation::BlockObservability observability =
-        estimation::HoldUnobservableDirections(blocks_estimated, covariance);
-    FillUncertainty(blocks_estimated, observability, &file.uncertainty);
-    result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
-                            observability.warnings.end());
-  } else {
+  if (!covariance.ok) {
     result->warnings.push_back(
         "the covariance of the calibration could not be computed; no sigma and no "
         "observability are reported");
+    return {};
   }
+  const estimation::BlockObservability observability =
+      estimation::HoldUnobservableDirections(blocks_estimated, covariance);
+  FillUncertainty(blocks_estimated, observability, &result->calibration.uncertainty);
+  result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
+                          observability.warnings.end());
+  return observability;
+}
+
+void Conclude(const io::Dataset& dataset, const io::Problem& problem,
+              const std::vector<estimation::Keyframe>& keyframes, sensors::Calibration* calibration,
+              std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result) {
+  io::CalibrationFile& file = result->calibration;
   if (problem.calibration.wheel_radius_shared) {
     calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
   }

@@ -81,7 +81,7 @@ void ApplyTimingLimits(const TimingLimits& timing,
 // The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
 // the priors of the estimated blocks. A sensor that gives factors at fewer than
 // timing->min_factor_fraction of the keyframes is an autocal::Error naming it, its rate, the
-// count and the limit (issue: never a result that silently left most of a sensor out).
+// count and the limit: no result silently leaves most of a sensor out.
 struct SensorFactors {
   const io::Dataset* dataset = nullptr;
   const io::Problem* problem = nullptr;
@@ -113,14 +113,32 @@ void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use
 // by sensor, at the current parameter values.
 std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem);
 
+// Throws the no-factor error when the LiDAR is in the problem and no point was associated.
+void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
+                         size_t num_keyframes, const OfflineCalibrationResult& result);
+
+// Eq. C3: when Observe held directions, pins them in `p` (the solved problem, whose blocks
+// are the keyframes and the calibration) and solves it again from where it ended, so that the
+// trajectory, the residuals and the other blocks follow the calibration that is reported.
+// Throws autocal::Error when that solve fails.
+void SolveAgainAfterHolding(const io::Problem& problem,
+                            const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                            const estimation::BlockObservability& observability, ceres::Problem* p,
+                            OfflineCalibrationResult* result);
+
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
-// data point into it); then the result's calibration, trajectory and timings. Throws when the
-// solve ended implausibly far from the priors.
+// data point into it); sigma, flags and warnings go into the result. Returns the flags (empty
+// without a covariance). Throws when the solve ended implausibly far from the priors.
+estimation::BlockObservability Observe(
+    const io::Dataset& dataset, const OfflineCalibrationOptions& options,
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+    const estimation::BlockCovariance& covariance, OfflineCalibrationResult* result);
+
+// The result's calibration values, trajectory, residual statistics and timings, from
+// `keyframes` and `calibration` as they are (after SolveAgainAfterHolding, so that both come
+// from one solve).
 void Conclude(const io::Dataset& dataset, const io::Problem& problem,
-              const OfflineCalibrationOptions& options,
-              const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-              const estimation::BlockCovariance& covariance,
               const std::vector<estimation::Keyframe>& keyframes, sensors::Calibration* calibration,
               std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result);
 

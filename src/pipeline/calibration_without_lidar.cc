@@ -130,10 +130,6 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   Report(options, "solving", 0.0, 0.0, 0.0);
   const ceres::Solver::Summary summary = Solve(dataset, problem, &p);
-  for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
-  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
-    result.whitened_residuals[sensor].after = std::move(rows);
-  }
 
   // 3. Observability, uncertainty and the result.
   const estimation::BlockCovariance covariance =
@@ -147,8 +143,14 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   file.solver["final_cost"] = std::to_string(summary.final_cost);
   file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
   RecordTiming(timing, true, &file);
-  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes, &calibration, start,
-           &result);
+  const estimation::BlockObservability observability =
+      Observe(dataset, options, blocks_estimated, covariance, &result);
+  SolveAgainAfterHolding(problem, blocks_estimated, observability, &p, &result);
+  for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
+  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
+    result.whitened_residuals[sensor].after = std::move(rows);
+  }
+  Conclude(dataset, problem, keyframes, &calibration, start, &result);
   return result;
 }
 

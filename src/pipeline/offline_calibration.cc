@@ -184,14 +184,15 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
 }
 
 // The batch solve with the problem's wheel and GNSS factors (with `enu`) and the blocks'
-// priors; the whitened residuals before and after go to *result. Returns the blocks' joint
-// covariance at the solution.
-estimation::BlockCovariance SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
-                                       const OfflineCalibrationOptions& options,
-                                       const std::vector<estimation::EstimatedBlock>& blocks,
-                                       const sensors::EnuConverter* enu, const TimingLimits& timing,
-                                       BatchKeyframes* keyframes, sensors::Calibration* calibration,
-                                       OfflineCalibrationResult* result) {
+// priors; on its final problem the blocks' joint covariance, observability (Observe) and the
+// solve after holding (Eq. C3). The whitened residuals before and after go to *result. The
+// LiDAR's point RMS is the batch's, before that last solve.
+void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
+                const OfflineCalibrationOptions& options,
+                const std::vector<estimation::EstimatedBlock>& blocks,
+                const sensors::EnuConverter* enu, const TimingLimits& timing,
+                BatchKeyframes* keyframes, sensors::Calibration* calibration,
+                OfflineCalibrationResult* result) {
   estimation::LidarInertialBatchOptions batch_options = BatchOptions(dataset, problem);
   batch_options.keyframe_lead_s = options.initializer.keyframe_lead_s;
   batch_options.hold_first_pose = enu == nullptr;
@@ -215,10 +216,12 @@ estimation::BlockCovariance SolveBatch(const io::Dataset& dataset, const io::Pro
       result->whitened_residuals[sensor].before = std::move(rows);
     }
   };
-  estimation::BlockCovariance covariance;
   batch_options.compute_covariance = false;  // the joint one below covers every block
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
-    covariance = estimation::ComputeBlockCovariance(blocks, p);
+    const estimation::BlockCovariance covariance = estimation::ComputeBlockCovariance(blocks, p);
+    const estimation::BlockObservability observability =
+        Observe(dataset, options, blocks, covariance, result);
+    SolveAgainAfterHolding(problem, blocks, observability, p, result);
     for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
       result->whitened_residuals[sensor].after = std::move(rows);
     }
@@ -233,7 +236,6 @@ estimation::BlockCovariance SolveBatch(const io::Dataset& dataset, const io::Pro
   file.solver["final_cost"] = std::to_string(batch.final_cost);
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
   file.residuals["lidar"]["associated_points"] = batch.associated_points;
-  return covariance;
 }
 
 // `file` without the wall-clock entries of its solver summary ("seconds", "seconds_*"): they
@@ -314,14 +316,13 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   }
   const std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, use_gnss, &calibration);
-  const estimation::BlockCovariance covariance =
-      SolveBatch(dataset, problem, options, blocks_estimated, enu ? &*enu : nullptr, timing,
-                 &keyframes, &calibration, &result);
+  SolveBatch(dataset, problem, options, blocks_estimated, enu ? &*enu : nullptr, timing, &keyframes,
+             &calibration, &result);
   RecordTiming(timing, false, &result.calibration);
 
-  // 4. Observability, uncertainty and the result.
-  Conclude(dataset, problem, options, blocks_estimated, covariance, keyframes.keyframes,
-           &calibration, start, &result);
+  // 4. (Observability and uncertainty came with the final problem, in SolveBatch.) The result.
+  RequireLidarFactors(dataset, problem, keyframes.keyframes.size(), result);
+  Conclude(dataset, problem, keyframes.keyframes, &calibration, start, &result);
   return result;
 }
 

@@ -148,9 +148,9 @@ TEST(CalibrationObservability, BlockOfTakesTheTableRow) {
   EXPECT_EQ(rotation.size, 3);
   EXPECT_EQ(rotation.manifold, sensors::BlockManifold::kRightQuaternion);
   EXPECT_EQ(rotation.name, "T_I_V rotation");
-  EXPECT_THAT(rotation.direction_names, ::testing::ElementsAre(::testing::HasSubstr("(roll)"),
-                                                               ::testing::HasSubstr("(pitch)"),
-                                                               ::testing::HasSubstr("(yaw)")));
+  EXPECT_THAT(rotation.direction_names, ::testing::ElementsAre(::testing::HasSubstr("mount roll"),
+                                                               ::testing::HasSubstr("mount pitch"),
+                                                               ::testing::HasSubstr("mount yaw")));
   EXPECT_DOUBLE_EQ(rotation.display_scale, 180.0 / M_PI);
   const EstimatedBlock track = BlockOf(sensors::CalibrationBlockId::kTrackWidth, &c);
   EXPECT_EQ(track.data, &c.track_width_m);
@@ -189,6 +189,56 @@ TEST(CalibrationObservability, PriorsAloneGiveThePriorCovariance) {
   EXPECT_THAT(observability.observable[0], ::testing::ElementsAre(false, false, false));
   EXPECT_THAT(observability.observable[1], ::testing::ElementsAre(false));
   EXPECT_EQ(observability.warnings.size(), 4u);
+}
+
+// A linear problem: a state s measured against x (as a trajectory is solved with the
+// calibration), x + z/2 and y measured, z barely informed. After HoldUnobservableDirections
+// moves the calibration (Eq. C1) the state still belongs to the old one; pinning the held z
+// and solving again (Eq. C3) gives, for a linear problem, exactly the conditioned x and the
+// state that goes with it.
+struct LinearRow {
+  double weight, a, b, c, d, m;  // weight * (a x + b y + c z + d s - m)
+  template <typename T>
+  bool operator()(const T* p, const T* s, T* r) const {
+    r[0] = T(weight) * (T(a) * p[0] + T(b) * p[1] + T(c) * p[2] + T(d) * s[0] - T(m));
+    return true;
+  }
+};
+
+TEST(CalibrationObservability, SolvingAgainWithTheHeldDirectionsPinnedKeepsTheStateConsistent) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  double s = 0.0;
+  std::vector<EstimatedBlock> blocks = {
+      VectorBlock(p.data(), Eigen::Vector3d(0.30, -0.05, 0.55), 0.3, 0.05)};
+  ceres::Problem problem;
+  const auto row = [&](const LinearRow& r) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)),
+                             nullptr, p.data(), &s);
+  };
+  row({100.0, 1.0, 0.0, 0.5, 0.0, 0.62});   // x + z/2 = 0.62
+  row({100.0, 0.0, 1.0, 0.0, 0.0, -0.02});  // y = -0.02
+  row({100.0, -1.0, 0.0, 0.0, 1.0, 1.5});   // s - x = 1.5
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  ceres::Solver::Options options;
+  options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-15;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  const BlockCovariance covariance = ComputeBlockCovariance(blocks, &problem);
+  ASSERT_TRUE(covariance.ok);
+  const BlockObservability observability = HoldUnobservableDirections(blocks, covariance);
+  EXPECT_THAT(observability.held[0], ::testing::ElementsAre(false, false, true));
+  ASSERT_TRUE(AnyHeld(observability));
+  const Eigen::Vector3d conditioned = p;
+  EXPECT_DOUBLE_EQ(conditioned.z(), 0.55);
+  EXPECT_GT(std::abs((s - p.x()) - 1.5), 1e-3);  // the state belongs to the solve's x
+
+  AddHeldDirectionPriors(blocks, observability, &problem);
+  EXPECT_EQ(problem.NumResidualBlocks(), 5);
+  ceres::Solve(options, &problem, &summary);
+  EXPECT_NEAR(p.z(), 0.55, 1e-9);
+  EXPECT_NEAR(p.x(), conditioned.x(), 1e-9);
+  EXPECT_NEAR(p.y(), conditioned.y(), 1e-9);
+  EXPECT_NEAR(s - p.x(), 1.5, 1e-4);  // within the row's sigma of 0.01 times the prior's pull
 }
 
 }  // namespace

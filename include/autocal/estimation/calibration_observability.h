@@ -81,11 +81,23 @@ std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>
 // but is not reported observable. Updates the blocks' data in place; needs covariance.ok.
 struct BlockObservability {
   std::vector<std::vector<bool>> observable;  // per block, per direction
+  std::vector<std::vector<bool>> held;        // per block, per direction: set to the prior
   std::vector<Eigen::VectorXd> sigma;         // posterior (held directions: the prior's)
   std::vector<std::string> warnings;          // one plain-language line per unobservable one
 };
 BlockObservability HoldUnobservableDirections(const std::vector<EstimatedBlock>& blocks,
                                               const BlockCovariance& covariance);
+
+// Whether any direction of `observability` was held.
+bool AnyHeld(const BlockObservability& observability);
+
+// After HoldUnobservableDirections: a prior that pins every held direction at its held value
+// (a sigma of kHeldSigmaFraction of its prior sigma; the other directions get no row), so that
+// a second solve of `problem` moves the trajectory and the other blocks to the calibration that
+// is reported (Eq. C3). Ownership as AddBlockPriors.
+constexpr double kHeldSigmaFraction = 1e-6;
+void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
+                            const BlockObservability& observability, ceres::Problem* problem);
 
 }  // namespace estimation
 }  // namespace autocal
