@@ -144,7 +144,8 @@ Problem ReadProblemYaml(const std::string& path);
 
 // Refuses a problem that asks for data the dataset does not have: the LiDAR without sweeps in
 // lidar.csv, the wheel encoders without the file of the dataset's wheel form (wheel.csv,
-// wheel_speed.csv or odometry.csv), GNSS without gnss.csv, or an IMU log with
+// wheel_speed.csv or odometry.csv) or with wheel data in another form than angular rates
+// (which the calibration cannot use yet), GNSS without gnss.csv, or an IMU log with
 // fewer than two samples; and a sensor none of whose stamps falls inside the IMU's time span
 // (the LiDAR's within 1 s of it: its clock is offset), which could add no factor. Throws one
 // autocal::Error naming the problem, the dataset and every missing piece, e.g. "problem
