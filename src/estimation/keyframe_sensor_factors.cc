@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
@@ -134,9 +135,23 @@ void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias
       nullptr, keyframe->b_a.data());
 }
 
-int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
-                    const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
-                    sensors::Calibration* calibration, const KeyframeWheelOptions& options) {
+namespace {
+
+// A keyframe's wheel factor: its cost and the calibration blocks after q_I_V and p_I_V.
+struct WheelCost {
+  ceres::CostFunction* cost;
+  std::vector<double*> intrinsics;
+};
+
+// AddWheelFactors for the samples of any wheel form: make_cost(s0, s1, s, gyro, factor_options)
+// builds a keyframe's factor from the bracketing samples s0, s1, the fraction s between them and
+// the interpolated raw gyro. `scales` are set constant unless options.estimate_radii, `tracks`
+// unless options.estimate_track_width.
+template <typename Samples, typename MakeCost>
+int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, const Samples& wheel,
+                      std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
+                      const KeyframeWheelOptions& options, const std::vector<double*>& scales,
+                      const std::vector<double*>& tracks, MakeCost make_cost) {
   const int64_t max_wheel_gap_ns = GapNs(options.max_wheel_gap_s, "max_wheel_gap_s");
   const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   CheckIncreasing(wheel, "AddWheelFactors: wheel");
@@ -165,31 +180,90 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
     const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);
     const std::optional<Bracket> g = FindBracket(imu, kf.t_ns, max_imu_gap_ns);
     if (!w || !g) continue;
-    const sensors::WheelSample& w0 = wheel[w->first];
-    const sensors::WheelSample& w1 = wheel[w->second];
-    factors::WheelMeasurement m;
-    m.left_rad_s = (1.0 - w->s) * w0.left_rad_s + w->s * w1.left_rad_s;
-    m.right_rad_s = (1.0 - w->s) * w0.right_rad_s + w->s * w1.right_rad_s;
-    m.gyro_rad_s = (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
-
-    std::vector<double*> blocks = {
-        kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
-        c.q_I_V.coeffs().data(),  c.p_I_V.data(),  &c.wheel_radius_left_m};
-    if (!options.factor.shared_radius) blocks.push_back(&c.wheel_radius_right_m);
-    blocks.push_back(&c.track_width_m);
-    problem->AddResidualBlock(factors::WheelFactor::Create(m, factor_options), loss, blocks);
+    const Eigen::Vector3d gyro =
+        (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
+    const WheelCost factor =
+        make_cost(wheel[w->first], wheel[w->second], w->s, gyro, factor_options);
+    std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
+                                   c.q_I_V.coeffs().data(), c.p_I_V.data()};
+    blocks.insert(blocks.end(), factor.intrinsics.begin(), factor.intrinsics.end());
+    problem->AddResidualBlock(factor.cost, loss, blocks);
     unused_loss.release();
     ++added;
   }
   if (added == 0) return 0;
   SetConstantUnless(options.estimate_vehicle_rotation, c.q_I_V.coeffs().data(), problem);
   SetConstantUnless(options.estimate_vehicle_translation, c.p_I_V.data(), problem);
-  SetConstantUnless(options.estimate_radii, &c.wheel_radius_left_m, problem);
-  if (!options.factor.shared_radius) {
-    SetConstantUnless(options.estimate_radii, &c.wheel_radius_right_m, problem);
-  }
-  SetConstantUnless(options.estimate_track_width, &c.track_width_m, problem);
+  for (double* block : scales) SetConstantUnless(options.estimate_radii, block, problem);
+  for (double* block : tracks) SetConstantUnless(options.estimate_track_width, block, problem);
   return added;
+}
+
+double Lerp(double a, double b, double s) { return (1.0 - s) * a + s * b; }
+
+}  // namespace
+
+int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                    const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
+                    sensors::Calibration* calibration, const KeyframeWheelOptions& options) {
+  sensors::Calibration& c = *calibration;
+  const bool shared = options.factor.shared_radius;
+  std::vector<double*> radii = {&c.wheel_radius_left_m};
+  if (!shared) radii.push_back(&c.wheel_radius_right_m);
+  std::vector<double*> intrinsics = radii;
+  intrinsics.push_back(&c.track_width_m);
+  return AddWheelFactorsOf(
+      problem, imu, wheel, keyframes, calibration, options, radii, {&c.track_width_m},
+      [&](const sensors::WheelSample& w0, const sensors::WheelSample& w1, double s,
+          const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
+        factors::WheelMeasurement m;
+        m.left_rad_s = Lerp(w0.left_rad_s, w1.left_rad_s, s);
+        m.right_rad_s = Lerp(w0.right_rad_s, w1.right_rad_s, s);
+        m.gyro_rad_s = gyro;
+        return WheelCost{factors::WheelFactor::Create(m, factor_options), intrinsics};
+      });
+}
+
+int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, const WheelData& wheel,
+                    std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
+                    const KeyframeWheelOptions& options) {
+  sensors::Calibration& c = *calibration;
+  switch (wheel.form) {
+    case sensors::WheelForm::kAngularRates:
+      return AddWheelFactors(problem, imu, wheel.rates, keyframes, calibration, options);
+    case sensors::WheelForm::kLinearSpeeds:
+      return AddWheelFactorsOf(
+          problem, imu, wheel.speeds, keyframes, calibration, options,
+          {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right}, {&c.track_width_m},
+          [&](const sensors::WheelSpeedSample& w0, const sensors::WheelSpeedSample& w1, double s,
+              const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
+            factors::WheelSpeedMeasurement m;
+            m.left_m_s = Lerp(w0.left_m_s, w1.left_m_s, s);
+            m.right_m_s = Lerp(w0.right_m_s, w1.right_m_s, s);
+            m.gyro_rad_s = gyro;
+            return WheelCost{
+                factors::WheelSpeedResidual::Create(m, factor_options),
+                {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right, &c.track_width_m}};
+          });
+    case sensors::WheelForm::kSpeedYawRate:
+      break;
+  }
+  if (!(wheel.controller_track_m > 0.0) || !std::isfinite(wheel.controller_track_m)) {
+    throw Error("AddWheelFactors: the controller track b_ctrl must be positive");
+  }
+  return AddWheelFactorsOf(
+      problem, imu, wheel.odometry, keyframes, calibration, options, {&c.odometry_speed_scale},
+      {&c.effective_track_m},
+      [&](const sensors::OdometrySample& w0, const sensors::OdometrySample& w1, double s,
+          const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
+        factors::OdometryMeasurement m;
+        m.speed_m_s = Lerp(w0.speed_m_s, w1.speed_m_s, s);
+        m.yaw_rate_rad_s = Lerp(w0.yaw_rate_rad_s, w1.yaw_rate_rad_s, s);
+        m.controller_track_m = wheel.controller_track_m;
+        m.gyro_rad_s = gyro;
+        return WheelCost{factors::OdometryTwistResidual::Create(m, factor_options),
+                         {&c.odometry_speed_scale, &c.effective_track_m}};
+      });
 }
 
 bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,

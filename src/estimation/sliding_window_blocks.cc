@@ -1,5 +1,9 @@
 #include "autocal/estimation/sliding_window_blocks.h"
 
+#include <string>
+
+#include "autocal/common/error.h"
+
 namespace autocal {
 namespace estimation {
 
@@ -24,12 +28,26 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
     case Id::kVehicleTranslation:
       return {&e->vehicle_frame, &p->vehicle_translation_m};
     case Id::kGnssLeverArm:
+      return {&e->gnss_lever_arm, &p->gnss_lever_arm_m};
+    case Id::kWheelSpeedScaleLeft:
+    case Id::kWheelSpeedScaleRight:
+    case Id::kOdometrySpeedScale:
+    case Id::kEffectiveTrack:
       break;
   }
-  return {&e->gnss_lever_arm, &p->gnss_lever_arm_m};
+  throw Error(std::string("calibration block ") + sensors::CalibrationBlock(id).key +
+              " is not supported by the sliding window (it takes wheel data as angular rates "
+              "only)");
+}
+
+bool WindowSupports(sensors::CalibrationBlockId id) {
+  using Id = sensors::CalibrationBlockId;
+  return id != Id::kWheelSpeedScaleLeft && id != Id::kWheelSpeedScaleRight &&
+         id != Id::kOdometrySpeedScale && id != Id::kEffectiveTrack;
 }
 
 bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate) {
+  if (!WindowSupports(id)) return false;
   SlidingWindowEstimatedBlocks e = estimate;
   SlidingWindowCalibrationPrior unused;
   return *BlockSettingOf(id, &e, &unused).estimate;

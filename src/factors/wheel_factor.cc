@@ -18,7 +18,63 @@ void CheckSigma(double sigma, const char* name) {
   }
 }
 
+void CheckRowSigmas(const WheelFactorOptions& options) {
+  CheckSigma(options.speed_sigma_m_s, "speed_sigma_m_s");
+  CheckSigma(options.yaw_rate_sigma_rad_s, "yaw_rate_sigma_rad_s");
+  if (options.non_holonomic) {
+    CheckSigma(options.lateral_sigma_m_s, "lateral_sigma_m_s");
+    CheckSigma(options.vertical_sigma_m_s, "vertical_sigma_m_s");
+  }
+}
+
+int NumRows(const WheelFactorOptions& options) { return options.non_holonomic ? 4 : 2; }
+
 }  // namespace
+
+WheelFactorOptions WheelFactorOptions::FromWheelSpeedNoise(const sensors::WheelConfig& config,
+                                                           double track_width_m) {
+  CheckSigma(config.noise_m_s, "wheel speed noise");
+  CheckSigma(track_width_m, "track width");
+  WheelFactorOptions options;
+  // Eq. F25: independent speed noise s on both wheels.
+  options.speed_sigma_m_s = config.noise_m_s / std::sqrt(2.0);
+  options.yaw_rate_sigma_rad_s = std::sqrt(2.0) * config.noise_m_s / track_width_m;
+  return options;
+}
+
+WheelFactorOptions WheelFactorOptions::FromOdometryNoise(const sensors::WheelConfig& config) {
+  CheckSigma(config.noise_m_s, "odometry speed noise");
+  CheckSigma(config.yaw_rate_noise_rad_s, "odometry yaw rate noise");
+  WheelFactorOptions options;
+  options.speed_sigma_m_s = config.noise_m_s;
+  options.yaw_rate_sigma_rad_s = config.yaw_rate_noise_rad_s;
+  return options;
+}
+
+ceres::CostFunction* WheelSpeedResidual::Create(const WheelSpeedMeasurement& measurement,
+                                                const WheelFactorOptions& options) {
+  if (!std::isfinite(measurement.left_m_s) || !std::isfinite(measurement.right_m_s) ||
+      !measurement.gyro_rad_s.allFinite()) {
+    throw Error("wheel-speed factor: wheel speed or gyro rate is not finite");
+  }
+  CheckRowSigmas(options);
+  return new ceres::AutoDiffCostFunction<WheelSpeedResidual, ceres::DYNAMIC, 4, 3, 3, 4, 3, 1, 1,
+                                         1>(new WheelSpeedResidual(measurement, options),
+                                            NumRows(options));
+}
+
+ceres::CostFunction* OdometryTwistResidual::Create(const OdometryMeasurement& measurement,
+                                                   const WheelFactorOptions& options) {
+  if (!std::isfinite(measurement.speed_m_s) || !std::isfinite(measurement.yaw_rate_rad_s) ||
+      !measurement.gyro_rad_s.allFinite()) {
+    throw Error("odometry factor: speed, yaw rate or gyro rate is not finite");
+  }
+  CheckSigma(measurement.controller_track_m, "controller track (b_ctrl)");
+  CheckRowSigmas(options);
+  return new ceres::AutoDiffCostFunction<OdometryTwistResidual, ceres::DYNAMIC, 4, 3, 3, 4, 3, 1,
+                                         1>(new OdometryTwistResidual(measurement, options),
+                                            NumRows(options));
+}
 
 WheelFactorOptions WheelFactorOptions::FromEncoderNoise(const sensors::WheelConfig& config,
                                                         double radius_m, double track_width_m) {
@@ -38,13 +94,8 @@ WheelFactor::WheelFactor(const WheelMeasurement& measurement, const WheelFactorO
       !measurement.gyro_rad_s.allFinite()) {
     throw Error("wheel factor: wheel or gyro rate is not finite");
   }
-  CheckSigma(options.speed_sigma_m_s, "speed_sigma_m_s");
-  CheckSigma(options.yaw_rate_sigma_rad_s, "yaw_rate_sigma_rad_s");
-  if (options.non_holonomic) {
-    CheckSigma(options.lateral_sigma_m_s, "lateral_sigma_m_s");
-    CheckSigma(options.vertical_sigma_m_s, "vertical_sigma_m_s");
-  }
-  set_num_residuals(options.non_holonomic ? 4 : 2);
+  CheckRowSigmas(options);
+  set_num_residuals(NumRows(options));
   auto* sizes = mutable_parameter_block_sizes();
   *sizes = {4, 3, 3, 4, 3, 1};
   if (!options.shared_radius) sizes->push_back(1);

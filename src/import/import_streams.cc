@@ -66,15 +66,6 @@ std::string JoinNames(const std::vector<std::string>& names) {
   return out;
 }
 
-void WriteOdometryCsv(const std::string& path, const std::vector<OdometrySample>& samples) {
-  std::string text = "t_ns,speed_m_s,yaw_rate_rad_s\n";
-  for (const OdometrySample& s : samples) {
-    text += std::to_string(s.t_ns) + "," + io::internal::FormatDouble(s.speed_m_s) + "," +
-            io::internal::FormatDouble(s.yaw_rate_rad_s) + "\n";
-  }
-  io::internal::WriteFileText(path, text);
-}
-
 }  // namespace
 
 StreamImporter::StreamImporter(const ImportOptions& options, const TopicSelection& selection,
@@ -272,6 +263,16 @@ io::SensorsConfig StreamImporter::MakeSensorsConfig() {
     sensors::WheelConfig wheel;
     if (RateHz(wheel_) > 0.0) wheel.rate_hz = RateHz(wheel_);
     config.wheel = wheel;
+  } else if (!odometry_.empty()) {
+    // Without wheel rates the controller's twist is the wheel data (form speed_yaw_rate);
+    // beside wheel rates, odometry.csv stays in the dataset, unused.
+    sensors::WheelConfig wheel;
+    wheel.form = sensors::WheelForm::kSpeedYawRate;
+    if (RateHz(odometry_) > 0.0) wheel.rate_hz = RateHz(odometry_);
+    config.wheel = wheel;
+    Warn("sensors.yaml: wheel data from " + selection_.odometry.topic +
+         " (form speed_yaw_rate); its noise and the controller's wheel separation "
+         "(controller_track_m) are not in the bag: set them for your platform");
   }
   if (!gnss_.empty()) {
     sensors::GnssConfig gnss;
@@ -314,7 +315,7 @@ sensors::Calibration StreamImporter::NominalCalibration() {
   return nominal;
 }
 
-void StreamImporter::Finish(const std::string& directory) {
+void StreamImporter::Finish(const std::string& /*directory: the writer's*/) {
   if (imu_.empty()) throw Error(selection_.imu.topic + ": no IMU messages in the bag");
   const auto count = [](int64_t n, const std::string& what) {
     return std::to_string(n) + " " + what;
@@ -352,7 +353,7 @@ void StreamImporter::Finish(const std::string& directory) {
   summary_->wheel.written = static_cast<int64_t>(wheel_.size());
   if (!gnss_.empty()) writer_->WriteGnss(gnss_);
   summary_->gnss.written = static_cast<int64_t>(gnss_.size());
-  if (!odometry_.empty()) WriteOdometryCsv(directory + "/odometry.csv", odometry_);
+  if (!odometry_.empty()) writer_->WriteOdometry(odometry_);
   summary_->odometry.written = static_cast<int64_t>(odometry_.size());
   writer_->WriteSensorsConfig(MakeSensorsConfig());
 }

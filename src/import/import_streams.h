@@ -18,11 +18,7 @@ namespace autocal {
 namespace import {
 
 // A row of odometry.csv: vehicle speed and yaw rate (datasets/README.md).
-struct OdometrySample {
-  int64_t t_ns = 0;
-  double speed_m_s = 0.0;
-  double yaw_rate_rad_s = 0.0;
-};
+using OdometrySample = sensors::OdometrySample;
 
 class StreamImporter {
  public:

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "autocal/common/error.h"
 #include "io/calibration_node.h"
@@ -155,7 +156,8 @@ CalibrationFile ParseCalibrationNode(const YamlFile& file, const YAML::Node& nod
   file.ExpectMap(
       node, what.empty() ? "calibration" : what,
       {"format", "T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
-       "track_width_m", "p_I_A_m", "T_I_V", "solver", "residuals"});
+       "track_width_m", "p_I_A_m", "T_I_V", "wheel_speed_scale_left", "wheel_speed_scale_right",
+       "odometry_speed_scale", "effective_track_m", "solver", "residuals"});
   if (const YAML::Node format = node["format"]) {
     if (!what.empty()) file.Fail(format, what + ".format: only a calibration file has a format");
     if (file.String(format, "format") != kFormat) {
@@ -186,6 +188,14 @@ CalibrationFile ParseCalibrationNode(const YamlFile& file, const YAML::Node& nod
   if (node["track_width_m"]) {
     ParseScalar(file, node["track_width_m"], Join(what, "track_width_m"), true, &c.track_width_m,
                 &u.track_width_m);
+  }
+  const std::pair<const char*, std::pair<double*, ScalarBlockInfo*>> wheel_form_blocks[] = {
+      {"wheel_speed_scale_left", {&c.wheel_speed_scale_left, &u.wheel_speed_scale_left}},
+      {"wheel_speed_scale_right", {&c.wheel_speed_scale_right, &u.wheel_speed_scale_right}},
+      {"odometry_speed_scale", {&c.odometry_speed_scale, &u.odometry_speed_scale}},
+      {"effective_track_m", {&c.effective_track_m, &u.effective_track_m}}};
+  for (const auto& [key, fields] : wheel_form_blocks) {
+    if (node[key]) ParseScalar(file, node[key], Join(what, key), true, fields.first, fields.second);
   }
   if (node["p_I_A_m"])
     ParseVector(file, node["p_I_A_m"], Join(what, "p_I_A_m"), &c.p_I_A, &u.p_I_A_m);
@@ -243,6 +253,13 @@ std::string CalibrationYamlText(const CalibrationFile& calibration, int indent) 
   out += internal::ScalarText(pad, "track_width_m", c.track_width_m, u.track_width_m);
   out += internal::VectorText(pad, "p_I_A_m", c.p_I_A, u.p_I_A_m);
   out += internal::PoseText(pad, "T_I_V", c.q_I_V, c.p_I_V, u.T_I_V);
+  out += internal::ScalarText(pad, "wheel_speed_scale_left", c.wheel_speed_scale_left,
+                              u.wheel_speed_scale_left);
+  out += internal::ScalarText(pad, "wheel_speed_scale_right", c.wheel_speed_scale_right,
+                              u.wheel_speed_scale_right);
+  out += internal::ScalarText(pad, "odometry_speed_scale", c.odometry_speed_scale,
+                              u.odometry_speed_scale);
+  out += internal::ScalarText(pad, "effective_track_m", c.effective_track_m, u.effective_track_m);
   if (!calibration.solver.empty()) {
     out += pad + "solver:\n";
     for (const auto& [key, value] : calibration.solver) {

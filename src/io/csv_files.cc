@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -25,6 +26,16 @@ const std::vector<std::string>& ImuColumns() {
 }
 const std::vector<std::string>& WheelColumns() {
   static const std::vector<std::string> kColumns = {"t_ns", "left_rad_s", "right_rad_s"};
+  return kColumns;
+}
+const std::vector<std::string>& WheelSpeedColumns(bool four_wheels) {
+  static const std::vector<std::string> kRear = {"t_ns", "left_m_s", "right_m_s"};
+  static const std::vector<std::string> kFour = {"t_ns", "left_m_s", "right_m_s", "front_left_m_s",
+                                                 "front_right_m_s"};
+  return four_wheels ? kFour : kRear;
+}
+const std::vector<std::string>& OdometryColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns", "speed_m_s", "yaw_rate_rad_s"};
   return kColumns;
 }
 const std::vector<std::string>& GnssColumns() {
@@ -269,6 +280,70 @@ sensors::WheelSamples ReadWheelCsv(const std::string& path) {
   return samples;
 }
 
+namespace {
+
+// Whether the header line of wheel_speed.csv names more than three columns: the four-wheel
+// layout. Its columns are then checked by the reader like any header.
+bool HasFourWheelHeader(const std::string& path) {
+  const std::string bytes = internal::ReadFileBytes(path);
+  const std::string_view first(bytes.data(), std::min(bytes.find('\n'), bytes.size()));
+  return std::count(first.begin(), first.end(), ',') > 2;
+}
+
+}  // namespace
+
+sensors::WheelSpeedSamples ReadWheelSpeedCsv(const std::string& path) {
+  const bool four_wheels = HasFourWheelHeader(path);
+  CsvReader reader(path, internal::WheelSpeedColumns(four_wheels));
+  sensors::WheelSpeedSamples samples;
+  std::vector<StampPosition> stamps;
+  while (reader.Next()) {
+    sensors::WheelSpeedSample sample;
+    sample.t_ns = reader.Timestamp();
+    double* speeds[] = {&sample.left_m_s, &sample.right_m_s, &sample.front_left_m_s,
+                        &sample.front_right_m_s};
+    sample.has_front = four_wheels;
+    for (size_t field = 1; field < (four_wheels ? 5u : 3u); ++field) {
+      *speeds[field - 1] = reader.Double(field);
+      if (std::abs(*speeds[field - 1]) > kMaxPlausibleWheelSpeedMS) {
+        reader.Fail(field, Printf("wheel speed %.4g m/s is beyond any car (limit %.0f m/s): is "
+                                  "the column in km/h or mph?",
+                                  *speeds[field - 1], kMaxPlausibleWheelSpeedMS));
+      }
+    }
+    samples.push_back(sample);
+    stamps.push_back({reader.line(), reader.column(0)});
+  }
+  CheckStampUnit(reader, samples, stamps, kMaxPlausibleWheelSampleRateHz, "a wheel-speed sensor");
+  return samples;
+}
+
+sensors::OdometrySamples ReadOdometryCsv(const std::string& path) {
+  CsvReader reader(path, internal::OdometryColumns());
+  sensors::OdometrySamples samples;
+  std::vector<StampPosition> stamps;
+  while (reader.Next()) {
+    sensors::OdometrySample sample;
+    sample.t_ns = reader.Timestamp();
+    sample.speed_m_s = reader.Double(1);
+    if (std::abs(sample.speed_m_s) > kMaxPlausibleWheelSpeedMS) {
+      reader.Fail(1, Printf("speed %.4g m/s is beyond any vehicle (limit %.0f m/s): is the "
+                            "column in km/h or mph?",
+                            sample.speed_m_s, kMaxPlausibleWheelSpeedMS));
+    }
+    sample.yaw_rate_rad_s = reader.Double(2);
+    if (std::abs(sample.yaw_rate_rad_s) > kMaxPlausibleYawRateRadS) {
+      reader.Fail(2, Printf("yaw rate %.4g rad/s is beyond any vehicle (limit %.0f rad/s): is "
+                            "the column in deg/s?",
+                            sample.yaw_rate_rad_s, kMaxPlausibleYawRateRadS));
+    }
+    samples.push_back(sample);
+    stamps.push_back({reader.line(), reader.column(0)});
+  }
+  CheckStampUnit(reader, samples, stamps, kMaxPlausibleWheelSampleRateHz, "a vehicle odometry");
+  return samples;
+}
+
 sensors::GnssFixes ReadGnssCsv(const std::string& path) {
   CsvReader reader(path, internal::GnssColumns());
   sensors::GnssFixes fixes;
@@ -355,6 +430,29 @@ void WriteImuCsv(const std::string& path, const sensors::ImuSamples& samples) {
 void WriteWheelCsv(const std::string& path, const sensors::WheelSamples& samples) {
   WriteRows(path, internal::WheelColumns(), samples, [](const sensors::WheelSample& s) {
     return std::vector<double>{s.left_rad_s, s.right_rad_s};
+  });
+}
+
+void WriteWheelSpeedCsv(const std::string& path, const sensors::WheelSpeedSamples& samples) {
+  const bool four_wheels = !samples.empty() && samples.front().has_front;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    if (samples[i].has_front != four_wheels) {
+      throw Error("cannot write '" + path + "': row " + std::to_string(i) +
+                  (four_wheels ? " lacks" : " has") +
+                  " the front wheels, unlike row 0 (one layout per file)");
+    }
+  }
+  WriteRows(path, internal::WheelSpeedColumns(four_wheels), samples,
+            [four_wheels](const sensors::WheelSpeedSample& s) {
+              return four_wheels ? std::vector<double>{s.left_m_s, s.right_m_s, s.front_left_m_s,
+                                                       s.front_right_m_s}
+                                 : std::vector<double>{s.left_m_s, s.right_m_s};
+            });
+}
+
+void WriteOdometryCsv(const std::string& path, const sensors::OdometrySamples& samples) {
+  WriteRows(path, internal::OdometryColumns(), samples, [](const sensors::OdometrySample& s) {
+    return std::vector<double>{s.speed_m_s, s.yaw_rate_rad_s};
   });
 }
 

@@ -29,7 +29,59 @@ bool IsFile(const std::string& path) {
   return fs::is_regular_file(path, error);
 }
 
+// Reads the wheel data of the form sensors.yaml names. A missing file of that form is no wheel
+// data, unless the file of another form is there: then sensors.yaml and the files disagree.
+void ReadWheelData(const std::string& directory, Dataset* dataset) {
+  const sensors::WheelForm form = dataset->wheel_form();
+  const std::string path = Join(directory, sensors::WheelFormFile(form));
+  if (!IsFile(path)) {
+    for (sensors::WheelForm other :
+         {sensors::WheelForm::kAngularRates, sensors::WheelForm::kLinearSpeeds,
+          sensors::WheelForm::kSpeedYawRate}) {
+      const std::string other_path = Join(directory, sensors::WheelFormFile(other));
+      if (other == form || !IsFile(other_path)) continue;
+      SourceLocation location;
+      location.file = Join(directory, "sensors.yaml");
+      throw ParseError(
+          location,
+          std::string("the wheel form is ") + sensors::WheelFormName(form) +
+              (dataset->sensors.wheel ? "" : " (no wheel section: the default)") +
+              ", which reads " + sensors::WheelFormFile(form) + ", but the dataset has no " +
+              sensors::WheelFormFile(form) + " and has " + sensors::WheelFormFile(other) +
+              ": set wheel: {form: " + sensors::WheelFormName(other) + "} in sensors.yaml");
+    }
+    return;
+  }
+  switch (form) {
+    case sensors::WheelForm::kAngularRates:
+      dataset->wheel = ReadWheelCsv(path);
+      return;
+    case sensors::WheelForm::kLinearSpeeds:
+      dataset->wheel_speeds = ReadWheelSpeedCsv(path);
+      return;
+    case sensors::WheelForm::kSpeedYawRate:
+      break;
+  }
+  dataset->odometry = ReadOdometryCsv(path);
+}
+
 }  // namespace
+
+sensors::WheelForm Dataset::wheel_form() const {
+  return sensors.wheel ? sensors.wheel->form : sensors::WheelForm::kAngularRates;
+}
+
+size_t Dataset::wheel_sample_count() const {
+  switch (wheel_form()) {
+    case sensors::WheelForm::kAngularRates:
+      return wheel.size();
+    case sensors::WheelForm::kLinearSpeeds:
+      return wheel_speeds.size();
+    case sensors::WheelForm::kSpeedYawRate:
+      break;
+  }
+  return odometry.size();
+}
 
 lidar::LidarSweep Dataset::LoadSweep(size_t index) const {
   if (index >= lidar_sweeps.size()) {
@@ -75,8 +127,7 @@ Dataset ReadDataset(const std::string& directory, const DatasetReadOptions& opti
   imu_checks.update_rate_hz = dataset.sensors.imu.noise.update_rate_hz;
   dataset.imu = ReadImuCsv(imu_path, imu_checks);
 
-  const std::string wheel_path = Join(directory, "wheel.csv");
-  if (IsFile(wheel_path)) dataset.wheel = ReadWheelCsv(wheel_path);
+  ReadWheelData(directory, &dataset);
   const std::string gnss_path = Join(directory, "gnss.csv");
   if (IsFile(gnss_path)) dataset.gnss = ReadGnssCsv(gnss_path);
   const std::string lidar_path = Join(directory, "lidar.csv");
@@ -137,6 +188,16 @@ void DatasetWriter::WriteImu(const sensors::ImuSamples& samples) {
 void DatasetWriter::WriteWheel(const sensors::WheelSamples& samples) {
   impl_->CheckOpen();
   WriteWheelCsv(Join(impl_->directory, "wheel.csv"), samples);
+}
+
+void DatasetWriter::WriteWheelSpeeds(const sensors::WheelSpeedSamples& samples) {
+  impl_->CheckOpen();
+  WriteWheelSpeedCsv(Join(impl_->directory, "wheel_speed.csv"), samples);
+}
+
+void DatasetWriter::WriteOdometry(const sensors::OdometrySamples& samples) {
+  impl_->CheckOpen();
+  WriteOdometryCsv(Join(impl_->directory, "odometry.csv"), samples);
 }
 
 void DatasetWriter::WriteGnss(const sensors::GnssFixes& fixes) {

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "io/text_format.h"
 #include "io/yaml_util.h"
 
@@ -36,7 +37,7 @@ int IntInRange(const YamlFile& file, const YAML::Node& node, const std::string& 
 }
 
 // The range of a prior sigma by its key: rotations in degrees, lengths in metres, the time
-// offset in seconds (problems/README.md).
+// offset in seconds, speed scales without a unit (problems/README.md).
 struct SigmaRange {
   double min_value;
   double max_value;
@@ -45,6 +46,7 @@ struct SigmaRange {
 SigmaRange SigmaRangeOf(const std::string& sigma_key) {
   if (sigma_key == "prior_sigma_deg") return {1e-6, 180.0, "deg"};
   if (sigma_key == "prior_sigma_s") return {1e-9, 10.0, "s"};
+  if (sigma_key == "prior_sigma") return {1e-6, 1.0, "(a scale factor)"};
   return {1e-6, 100.0, "m"};
 }
 
@@ -164,6 +166,10 @@ void FixBlocksOfAbsentSensors(const ProblemSensors& sensors, ProblemCalibration*
     c->wheel_radius_right_m = fixed_scalar;
     c->track_width_m = fixed_scalar;
     c->T_I_V = {fixed_vector, fixed_vector};
+    c->wheel_speed_scale_left = fixed_scalar;
+    c->wheel_speed_scale_right = fixed_scalar;
+    c->odometry_speed_scale = fixed_scalar;
+    c->effective_track_m = fixed_scalar;
   }
   if (!sensors.gnss) c->p_I_A_m = fixed_vector;
 }
@@ -171,13 +177,16 @@ void FixBlocksOfAbsentSensors(const ProblemSensors& sensors, ProblemCalibration*
 ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node,
                                     const ProblemSensors& sensors) {
   const std::string what = "calibration";
-  file.ExpectMap(node, what,
-                 {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
-                  "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V"});
+  file.ExpectMap(
+      node, what,
+      {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
+       "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V", "wheel_speed_scale_left",
+       "wheel_speed_scale_right", "odometry_speed_scale", "effective_track_m"});
   for (const char* key : {"T_I_L", "time_offset_lidar_imu_s"})
     RejectWithoutSensor(file, node, what, key, sensors.lidar, "lidar");
   for (const char* key : {"wheel_radius_left_m", "wheel_radius_right_m", "wheel_radius_shared",
-                          "track_width_m", "T_I_V"})
+                          "track_width_m", "T_I_V", "wheel_speed_scale_left",
+                          "wheel_speed_scale_right", "odometry_speed_scale", "effective_track_m"})
     RejectWithoutSensor(file, node, what, key, sensors.wheel, "wheel");
   RejectWithoutSensor(file, node, what, "p_I_A_m", sensors.gnss, "gnss");
 
@@ -215,6 +224,18 @@ ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node
   if (const YAML::Node n = node["p_I_A_m"])
     c.p_I_A_m = ParseVectorBlock(file, n, "calibration.p_I_A_m", "prior_sigma_m");
   if (const YAML::Node n = node["T_I_V"]) c.T_I_V = ParsePoseBlock(file, n, "calibration.T_I_V");
+  const std::pair<const char*, ScalarBlockSetting*> wheel_form_blocks[] = {
+      {"wheel_speed_scale_left", &c.wheel_speed_scale_left},
+      {"wheel_speed_scale_right", &c.wheel_speed_scale_right},
+      {"odometry_speed_scale", &c.odometry_speed_scale}};
+  for (const auto& [key, setting] : wheel_form_blocks) {
+    if (const YAML::Node n = node[key])
+      *setting = ParseScalarBlock(file, n, std::string("calibration.") + key, "prior_sigma");
+  }
+  if (const YAML::Node n = node["effective_track_m"]) {
+    c.effective_track_m =
+        ParseScalarBlock(file, n, "calibration.effective_track_m", "prior_sigma_m");
+  }
   return c;
 }
 
@@ -379,6 +400,32 @@ std::string Demand(const std::vector<NamedMode>& blocks, const std::string& fall
   return fallback;
 }
 
+// The wheel blocks of `form` with their modes, for Demand.
+std::vector<NamedMode> WheelDemands(const ProblemCalibration& c, sensors::WheelForm form) {
+  const std::vector<std::pair<sensors::CalibrationBlockId, NamedMode>> all = {
+      {sensors::CalibrationBlockId::kWheelRadiusLeft,
+       {"wheel_radius_left_m", c.wheel_radius_left_m.mode}},
+      {sensors::CalibrationBlockId::kWheelRadiusRight,
+       {"wheel_radius_right_m", c.wheel_radius_right_m.mode}},
+      {sensors::CalibrationBlockId::kWheelSpeedScaleLeft,
+       {"wheel_speed_scale_left", c.wheel_speed_scale_left.mode}},
+      {sensors::CalibrationBlockId::kWheelSpeedScaleRight,
+       {"wheel_speed_scale_right", c.wheel_speed_scale_right.mode}},
+      {sensors::CalibrationBlockId::kOdometrySpeedScale,
+       {"odometry_speed_scale", c.odometry_speed_scale.mode}},
+      {sensors::CalibrationBlockId::kTrackWidth, {"track_width_m", c.track_width_m.mode}},
+      {sensors::CalibrationBlockId::kEffectiveTrack,
+       {"effective_track_m", c.effective_track_m.mode}},
+      {sensors::CalibrationBlockId::kVehicleRotation, {"T_I_V rotation", c.T_I_V.rotation.mode}},
+      {sensors::CalibrationBlockId::kVehicleTranslation,
+       {"T_I_V translation", c.T_I_V.translation.mode}}};
+  std::vector<NamedMode> out;
+  for (const auto& [id, named] : all) {
+    if (sensors::BlockInWheelForm(id, form)) out.push_back(named);
+  }
+  return out;
+}
+
 // "has no wheel.csv", or "has no samples in wheel.csv" when the file is there but empty.
 std::string Lacks(const Dataset& dataset, const char* file) {
   std::error_code error;
@@ -455,14 +502,18 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
                                       "uses the LiDAR");
     reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "lidar.csv"));
   }
-  if (problem.sensors.wheel && dataset.wheel.empty()) {
-    const std::string demand = Demand({{"wheel_radius_left_m", c.wheel_radius_left_m.mode},
-                                       {"wheel_radius_right_m", c.wheel_radius_right_m.mode},
-                                       {"track_width_m", c.track_width_m.mode},
-                                       {"T_I_V rotation", c.T_I_V.rotation.mode},
-                                       {"T_I_V translation", c.T_I_V.translation.mode}},
-                                      "uses the wheel encoders");
-    reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "wheel.csv"));
+  const char* wheel_file = sensors::WheelFormFile(dataset.wheel_form());
+  if (problem.sensors.wheel && dataset.wheel_form() != sensors::WheelForm::kAngularRates &&
+      dataset.wheel_sample_count() > 0) {
+    reasons.push_back(who + " uses the wheel encoders but " + where + " reports its wheels as " +
+                      sensors::WheelFormName(dataset.wheel_form()) + " (" + wheel_file +
+                      "), and the calibration takes angular rates (wheel.csv) only so far: set "
+                      "sensors.wheel: false");
+  }
+  if (problem.sensors.wheel && dataset.wheel_sample_count() == 0) {
+    const std::string demand =
+        Demand(WheelDemands(c, dataset.wheel_form()), "uses the wheel encoders");
+    reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, wheel_file));
   }
   if (problem.sensors.gnss && dataset.gnss.empty()) {
     const std::string demand = Demand({{"p_I_A_m", c.p_I_A_m.mode}}, "uses GNSS");
@@ -476,7 +527,12 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
                 "uses the LiDAR");
   }
   if (problem.sensors.wheel) {
-    add_outside(OutsideImuSpan(dataset, dataset.wheel, "wheel.csv", 0), "uses the wheel encoders");
+    const std::string outside = dataset.wheel_form() == sensors::WheelForm::kAngularRates
+                                    ? OutsideImuSpan(dataset, dataset.wheel, wheel_file, 0)
+                                : dataset.wheel_form() == sensors::WheelForm::kLinearSpeeds
+                                    ? OutsideImuSpan(dataset, dataset.wheel_speeds, wheel_file, 0)
+                                    : OutsideImuSpan(dataset, dataset.odometry, wheel_file, 0);
+    add_outside(outside, "uses the wheel encoders");
   }
   if (problem.sensors.gnss) {
     add_outside(OutsideImuSpan(dataset, dataset.gnss, "gnss.csv", 0), "uses GNSS");

@@ -86,12 +86,36 @@ sensors::LidarConfig ParseLidar(const YamlFile& file, const YAML::Node& node) {
 }
 
 sensors::WheelConfig ParseWheel(const YamlFile& file, const YAML::Node& node) {
-  file.ExpectMap(node, "wheel", {"rate_hz", "noise_rad_s"});
+  file.ExpectMap(node, "wheel",
+                 {"form", "rate_hz", "noise_rad_s", "noise_m_s", "yaw_rate_noise_rad_s",
+                  "controller_track_m"});
   sensors::WheelConfig wheel;
+  if (const YAML::Node n = node["form"]) {
+    const std::string name = file.String(n, "wheel.form");
+    if (!sensors::ParseWheelForm(name, &wheel.form)) {
+      file.Fail(n, "wheel.form: expected angular_rates, linear_speeds or speed_yaw_rate, found '" +
+                       name + "'");
+    }
+  }
   if (const YAML::Node n = node["rate_hz"])
     wheel.rate_hz = file.DoubleInRange(n, "wheel.rate_hz", 0.1, 100000.0, "Hz");
   if (const YAML::Node n = node["noise_rad_s"])
     wheel.noise_rad_s = file.DoubleInRange(n, "wheel.noise_rad_s", 1e-6, 100.0, "rad/s");
+  if (const YAML::Node n = node["noise_m_s"])
+    wheel.noise_m_s = file.DoubleInRange(n, "wheel.noise_m_s", 1e-6, 100.0, "m/s");
+  if (const YAML::Node n = node["yaw_rate_noise_rad_s"]) {
+    wheel.yaw_rate_noise_rad_s =
+        file.DoubleInRange(n, "wheel.yaw_rate_noise_rad_s", 1e-6, 100.0, "rad/s");
+  }
+  if (const YAML::Node n = node["controller_track_m"]) {
+    if (wheel.form != sensors::WheelForm::kSpeedYawRate) {
+      file.Fail(n,
+                "wheel.controller_track_m: only the form speed_yaw_rate has a controller track "
+                "(wheel.form is " +
+                    std::string(sensors::WheelFormName(wheel.form)) + ")");
+    }
+    wheel.controller_track_m = file.DoubleInRange(n, "wheel.controller_track_m", 0.05, 100.0, "m");
+  }
   return wheel;
 }
 
@@ -158,8 +182,13 @@ void WriteSensorsYaml(const std::string& path, const SensorsConfig& config) {
             "\n  range_noise_m: " + Number(l.range_noise_m) + "\n";
   }
   if (config.wheel) {
-    text += "wheel:\n  rate_hz: " + Number(config.wheel->rate_hz) +
-            "\n  noise_rad_s: " + Number(config.wheel->noise_rad_s) + "\n";
+    const sensors::WheelConfig& w = *config.wheel;
+    text += std::string("wheel:\n  form: ") + sensors::WheelFormName(w.form) +
+            "\n  rate_hz: " + Number(w.rate_hz) + "\n  noise_rad_s: " + Number(w.noise_rad_s) +
+            "\n  noise_m_s: " + Number(w.noise_m_s) +
+            "\n  yaw_rate_noise_rad_s: " + Number(w.yaw_rate_noise_rad_s) + "\n";
+    if (w.controller_track_m)
+      text += "  controller_track_m: " + Number(*w.controller_track_m) + "\n";
   }
   if (config.gnss) text += "gnss:\n  rate_hz: " + Number(config.gnss->rate_hz) + "\n";
   CalibrationFile nominal;

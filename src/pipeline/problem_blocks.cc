@@ -37,6 +37,13 @@ struct BlockLimits {
   double default_prior_sigma;
   double max_observable_sigma;
 };
+// The weak default prior and observability limit of the speed scales (OfflineCalibrationOptions
+// has none yet): a scale starts within 3 % of 1 and counts as observed to 0.1 %, as a 0.33 m
+// radius does with the radius limits. A skid-steer effective track may lie far beyond the wheel
+// separation: its default prior is four times the track width's.
+constexpr BlockLimits kSpeedScaleLimits = {0.03, 0.001};
+constexpr double kEffectiveTrackPriorToTrackWidth = 4.0;
+
 BlockLimits LimitsOf(Id id, const OfflineCalibrationOptions& o) {
   switch (id) {
     case Id::kLidarRotation:
@@ -54,6 +61,13 @@ BlockLimits LimitsOf(Id id, const OfflineCalibrationOptions& o) {
       return {o.default_rotation_prior_sigma_deg, o.max_observable_vehicle_rotation_sigma_deg};
     case Id::kVehicleTranslation:
       return {o.default_translation_prior_sigma_m, o.max_observable_vehicle_translation_sigma_m};
+    case Id::kWheelSpeedScaleLeft:
+    case Id::kWheelSpeedScaleRight:
+    case Id::kOdometrySpeedScale:
+      return kSpeedScaleLimits;
+    case Id::kEffectiveTrack:
+      return {kEffectiveTrackPriorToTrackWidth * o.default_track_width_prior_sigma_m,
+              o.max_observable_track_width_sigma_m};
     case Id::kGnssLeverArm:
       break;
   }
@@ -109,6 +123,14 @@ BlockSetting SettingOf(Id id, const io::ProblemCalibration& p,
       return FromVector(p.T_I_V.rotation, u.T_I_V.sigma_rot_deg);
     case Id::kVehicleTranslation:
       return FromVector(p.T_I_V.translation, u.T_I_V.sigma_p_m);
+    case Id::kWheelSpeedScaleLeft:
+      return FromScalar(p.wheel_speed_scale_left, u.wheel_speed_scale_left.sigma);
+    case Id::kWheelSpeedScaleRight:
+      return FromScalar(p.wheel_speed_scale_right, u.wheel_speed_scale_right.sigma);
+    case Id::kOdometrySpeedScale:
+      return FromScalar(p.odometry_speed_scale, u.odometry_speed_scale.sigma);
+    case Id::kEffectiveTrack:
+      return FromScalar(p.effective_track_m, u.effective_track_m.sigma);
     case Id::kGnssLeverArm:
       break;
   }
@@ -141,6 +163,8 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     const BlockSetting setting = SettingOf(info.id, p, sensors.nominal_uncertainty);
     if (!SensorUsed(info, use_wheel, use_gnss) || !Estimated(setting.mode)) continue;
+    const sensors::WheelForm form = sensors.wheel ? sensors.wheel->form : sensors::WheelForm();
+    if (!sensors::BlockInWheelForm(info.id, form)) continue;
     if (info.id == Id::kWheelRadiusRight && p.wheel_radius_shared) continue;
     estimation::EstimatedBlock b = estimation::BlockOf(info.id, c);
     if (info.id == Id::kWheelRadiusLeft && p.wheel_radius_shared) {
@@ -177,6 +201,14 @@ void SetUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>
     case Id::kVehicleRotation:
     case Id::kVehicleTranslation:
       return SetPose(id == Id::kVehicleRotation, sigma, observable, &u->T_I_V);
+    case Id::kWheelSpeedScaleLeft:
+      return SetScalar(sigma, observable, &u->wheel_speed_scale_left);
+    case Id::kWheelSpeedScaleRight:
+      return SetScalar(sigma, observable, &u->wheel_speed_scale_right);
+    case Id::kOdometrySpeedScale:
+      return SetScalar(sigma, observable, &u->odometry_speed_scale);
+    case Id::kEffectiveTrack:
+      return SetScalar(sigma, observable, &u->effective_track_m);
     case Id::kGnssLeverArm:
       break;
   }

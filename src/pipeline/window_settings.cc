@@ -26,6 +26,8 @@ void SetWindowBlocks(const io::ProblemCalibration& problem,
   estimation::SlidingWindowOptions defaults = *w;
   estimation::SlidingWindowBlockSetting previous{nullptr, nullptr};
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    // The wheel forms the window cannot take are refused in WindowOptions.
+    if (!estimation::WindowSupports(info.id)) continue;
     const BlockSetting s = SettingOf(info.id, problem, nominal);
     const bool estimated = SensorUsed(info, use_wheel, use_gnss) && Estimated(s.mode);
     const double default_sigma =
@@ -61,6 +63,12 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
     throw Error("problem " + problem.path +
                 ": the online estimator estimates both wheel radii "
                 "or neither; the problem fixes only one");
+  }
+  if (use_wheel && dataset.wheel_form() != sensors::WheelForm::kAngularRates) {
+    throw Error(std::string("dataset ") + dataset.directory + ": the online estimator takes " +
+                "wheel data as angular rates (wheel.csv) only, this dataset's are " +
+                sensors::WheelFormName(dataset.wheel_form()) + " (" +
+                sensors::WheelFormFile(dataset.wheel_form()) + ")");
   }
   estimation::SlidingWindowOptions w = options.window;
   w.imu = dataset.sensors.imu;

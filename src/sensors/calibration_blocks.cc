@@ -79,6 +79,20 @@ constexpr std::array<CalibrationBlockInfo, kNumCalibrationBlocks> kBlocks = {{
     {Id::kGnssLeverArm, "p_I_A", "p_I_A", S::kGnss, M::kEuclidean, 3, 3, "m",
      100.0, "cm", kLeverArmNames, "pa_",
      Values<&Calibration::p_I_A>, ConstValues<&Calibration::p_I_A>},
+    {Id::kWheelSpeedScaleLeft, "wheel_speed_scale_left", "left rear wheel speed scale",
+     S::kWheel, M::kEuclidean, 1, 1, "", 100.0, "%", {"left rear wheel speed scale"}, "",
+     Values<&Calibration::wheel_speed_scale_left>,
+     ConstValues<&Calibration::wheel_speed_scale_left>},
+    {Id::kWheelSpeedScaleRight, "wheel_speed_scale_right", "right rear wheel speed scale",
+     S::kWheel, M::kEuclidean, 1, 1, "", 100.0, "%", {"right rear wheel speed scale"}, "",
+     Values<&Calibration::wheel_speed_scale_right>,
+     ConstValues<&Calibration::wheel_speed_scale_right>},
+    {Id::kOdometrySpeedScale, "odometry_speed_scale", "odometry speed scale", S::kWheel,
+     M::kEuclidean, 1, 1, "", 100.0, "%", {"odometry speed scale"}, "",
+     Values<&Calibration::odometry_speed_scale>, ConstValues<&Calibration::odometry_speed_scale>},
+    {Id::kEffectiveTrack, "effective_track_m", "effective track", S::kWheel, M::kEuclidean, 1, 1,
+     "", 1e3, "mm", {"effective (slip) track"}, "",
+     Values<&Calibration::effective_track_m>, ConstValues<&Calibration::effective_track_m>},
 }};
 // clang-format on
 
@@ -107,6 +121,30 @@ const CalibrationBlockInfo* FindCalibrationBlock(const std::string& key) {
     if (key == block.key) return &block;
   }
   return nullptr;
+}
+
+bool BlockInWheelForm(CalibrationBlockId id, WheelForm form) {
+  switch (id) {
+    case Id::kWheelRadiusLeft:
+    case Id::kWheelRadiusRight:
+      return form == WheelForm::kAngularRates;
+    case Id::kTrackWidth:
+      return form != WheelForm::kSpeedYawRate;
+    case Id::kWheelSpeedScaleLeft:
+    case Id::kWheelSpeedScaleRight:
+      return form == WheelForm::kLinearSpeeds;
+    case Id::kOdometrySpeedScale:
+    case Id::kEffectiveTrack:
+      return form == WheelForm::kSpeedYawRate;
+    case Id::kLidarRotation:
+    case Id::kLidarTranslation:
+    case Id::kTimeOffset:
+    case Id::kVehicleRotation:
+    case Id::kVehicleTranslation:
+    case Id::kGnssLeverArm:
+      break;
+  }
+  return true;
 }
 
 std::vector<std::string> ValueColumns(const CalibrationBlockInfo& block) {

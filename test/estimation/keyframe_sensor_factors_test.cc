@@ -213,6 +213,97 @@ TEST_F(KeyframeSensorFactorsTest, WheelRadiiAndTrackWidthFromTheNominalGuess) {
   EXPECT_EQ(calibration.p_I_V, truth.p_I_V);
 }
 
+// The simulated encoder log converted into the two other wheel forms with known intrinsics:
+// wheel speeds scaled by 1/1.02 and 1/0.99, and a controller twist with k_v = 0.96 and a skid
+// track b_eff = 1.9 m against b_ctrl = 1.62 m. From the nominal guess (scales 1, b_eff = b_ctrl)
+// with true keyframes, the factors of each form recover their own intrinsics.
+TEST_F(KeyframeSensorFactorsTest, WheelFormsRecoverTheirIntrinsics) {
+  const sensors::Calibration& truth = noisy_simulator_->true_calibration();
+  const double true_scale_left = 1.02, true_scale_right = 0.99;
+  const double true_speed_scale = 0.96, true_effective_track_m = 1.9, controller_track_m = 1.62;
+  WheelData speeds, twist;
+  speeds.form = sensors::WheelForm::kLinearSpeeds;
+  twist.form = sensors::WheelForm::kSpeedYawRate;
+  twist.controller_track_m = controller_track_m;
+  for (const sensors::WheelSample& w : noisy_->wheel) {
+    const double left_m_s = truth.wheel_radius_left_m * w.left_rad_s;
+    const double right_m_s = truth.wheel_radius_right_m * w.right_rad_s;
+    speeds.speeds.push_back(
+        {w.t_ns, left_m_s / true_scale_left, right_m_s / true_scale_right, false, 0.0, 0.0});
+    const double v = 0.5 * (left_m_s + right_m_s);
+    const double yaw_rate = (right_m_s - left_m_s) / truth.track_width_m;
+    twist.odometry.push_back(
+        {w.t_ns, v / true_speed_scale,
+         yaw_rate * true_effective_track_m / (true_speed_scale * controller_track_m)});
+  }
+  sensors::WheelConfig config = noisy_simulator_->options().wheel.config;
+  config.noise_m_s = 0.33 * config.noise_rad_s;  // the encoders' noise as speed noise
+  config.yaw_rate_noise_rad_s = std::sqrt(2.0) * config.noise_m_s / truth.track_width_m;
+  for (const WheelData* data : {&speeds, &twist}) {
+    const bool is_twist = data == &twist;
+    std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+    sensors::Calibration calibration = noisy_simulator_->nominal_calibration();
+    calibration.q_I_V = truth.q_I_V;
+    calibration.p_I_V = truth.p_I_V;
+    calibration.effective_track_m = controller_track_m;
+    const sensors::Calibration nominal = calibration;
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    KeyframeWheelOptions options;
+    options.factor = is_twist ? factors::WheelFactorOptions::FromOdometryNoise(config)
+                              : factors::WheelFactorOptions::FromWheelSpeedNoise(
+                                    config, calibration.track_width_m);
+    options.estimate_vehicle_rotation = false;
+    options.estimate_vehicle_translation = false;
+    const int added = AddWheelFactors(problem.get(), noisy_->imu.samples, *data, &keyframes,
+                                      &calibration, options);
+    EXPECT_EQ(added, static_cast<int>(keyframes.size()));
+    const ceres::Solver::Summary summary = Solve(problem.get());
+    ASSERT_TRUE(summary.IsSolutionUsable()) << summary.BriefReport();
+    if (is_twist) {
+      const double k_percent = PercentError(calibration.odometry_speed_scale, true_speed_scale);
+      const double b_percent = PercentError(calibration.effective_track_m, true_effective_track_m);
+      std::cout << added << " odometry factors: k_v error " << k_percent << " %, b_eff error "
+                << b_percent << " % (nominal " << PercentError(1.0, true_speed_scale) << " %, "
+                << PercentError(controller_track_m, true_effective_track_m) << " %)\n";
+      EXPECT_LT(std::abs(k_percent), 0.05);
+      EXPECT_LT(std::abs(b_percent), 0.2);
+      // The blocks of the other forms are not touched.
+      EXPECT_EQ(calibration.wheel_radius_left_m, nominal.wheel_radius_left_m);
+      EXPECT_EQ(calibration.track_width_m, nominal.track_width_m);
+    } else {
+      const double left_percent = PercentError(calibration.wheel_speed_scale_left, true_scale_left);
+      const double right_percent =
+          PercentError(calibration.wheel_speed_scale_right, true_scale_right);
+      const double track_percent = PercentError(calibration.track_width_m, truth.track_width_m);
+      std::cout << added << " wheel-speed factors: scale error left " << left_percent
+                << " %, right " << right_percent << " %, track width " << track_percent << " %\n";
+      EXPECT_LT(std::abs(left_percent), 0.05);
+      EXPECT_LT(std::abs(right_percent), 0.05);
+      EXPECT_LT(std::abs(track_percent), 0.2);
+      EXPECT_EQ(calibration.odometry_speed_scale, nominal.odometry_speed_scale);
+      EXPECT_EQ(calibration.wheel_radius_left_m, nominal.wheel_radius_left_m);
+    }
+    EXPECT_EQ(calibration.p_I_V, truth.p_I_V);
+  }
+  // Held, the form's intrinsics stay at the nominal guess.
+  std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+  sensors::Calibration calibration = noisy_simulator_->nominal_calibration();
+  auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+  KeyframeWheelOptions held;
+  held.factor = factors::WheelFactorOptions::FromOdometryNoise(config);
+  held.estimate_radii = false;
+  held.estimate_track_width = false;
+  ASSERT_GT(
+      AddWheelFactors(problem.get(), noisy_->imu.samples, twist, &keyframes, &calibration, held),
+      0);
+  EXPECT_TRUE(problem->IsParameterBlockConstant(&calibration.odometry_speed_scale));
+  EXPECT_TRUE(problem->IsParameterBlockConstant(&calibration.effective_track_m));
+  twist.controller_track_m = 0.0;
+  EXPECT_THROW(
+      AddWheelFactors(problem.get(), noisy_->imu.samples, twist, &keyframes, &calibration, held),
+      Error);
+}
+
 // With one shared radius the left block takes the mean of the two true radii (the forward
 // speed depends on their mean; their 0.27 % difference is left as a yaw-rate error on
 // straights, which the Huber loss bounds) and the right block is not touched.

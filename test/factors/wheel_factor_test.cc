@@ -3,6 +3,7 @@
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -277,6 +278,183 @@ TEST(WheelFactor, CourseExampleRecoversRadiusWithTheStates) {
     EXPECT_LT((keyframes[k].v - car.v_W_I(t)).norm(), 0.05) << "keyframe " << k;
     EXPECT_LT((keyframes[k].p - car.p_W_I(t)).norm(), 0.05) << "keyframe " << k;
   }
+}
+
+// ---- the other wheel forms: linear speeds (Eq. F25) and the controller's twist (Eq. F26) ----
+
+// The intrinsics of the two other forms, random around nominal.
+struct FormIntrinsics {
+  double scale_left = 1.0;
+  double scale_right = 1.0;
+  double speed_scale = 1.0;           // k_v
+  double effective_track_m = 0.9;     // b_eff
+  double controller_track_m = 0.555;  // b_ctrl, a constant of the measurement
+};
+
+FormIntrinsics RandomIntrinsics(std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  FormIntrinsics f;
+  f.scale_left = 1.0 + 0.05 * u(*rng);
+  f.scale_right = 1.0 + 0.05 * u(*rng);
+  f.speed_scale = 0.95 + 0.05 * u(*rng);
+  f.effective_track_m = 0.9 + 0.3 * u(*rng);
+  f.controller_track_m = 0.555 + 0.1 * u(*rng);
+  return f;
+}
+
+// The parameter blocks of a form's residual: the state's five, then the form's intrinsics.
+std::vector<double*> SpeedBlocks(WheelBlocks* s, FormIntrinsics* f) {
+  return {s->q_W_I.coeffs().data(), s->v_W_I.data(), s->b_g.data(),   s->q_I_V.coeffs().data(),
+          s->p_I_V.data(),          &f->scale_left,  &f->scale_right, &s->track_width};
+}
+std::vector<double*> TwistBlocks(WheelBlocks* s, FormIntrinsics* f) {
+  return {s->q_W_I.coeffs().data(), s->v_W_I.data(), s->b_g.data(),        s->q_I_V.coeffs().data(),
+          s->p_I_V.data(),          &f->speed_scale, &f->effective_track_m};
+}
+
+// What the wheels of a car moving with speed v and yaw rate w (in V) report in each form: the
+// forward models of Eq. F25 and F26 solved for the measurement.
+WheelSpeedMeasurement SpeedsOf(double v, double w, const Eigen::Vector3d& gyro,
+                               const WheelBlocks& truth, const FormIntrinsics& f) {
+  WheelSpeedMeasurement m;
+  m.left_m_s = (v - 0.5 * w * truth.track_width) / f.scale_left;
+  m.right_m_s = (v + 0.5 * w * truth.track_width) / f.scale_right;
+  m.gyro_rad_s = gyro;
+  return m;
+}
+OdometryMeasurement TwistOf(double v, double w, const Eigen::Vector3d& gyro,
+                            const FormIntrinsics& f) {
+  OdometryMeasurement m;
+  m.speed_m_s = v / f.speed_scale;
+  m.yaw_rate_rad_s = w * f.effective_track_m / (f.speed_scale * f.controller_track_m);
+  m.controller_track_m = f.controller_track_m;
+  m.gyro_rad_s = gyro;
+  return m;
+}
+
+TEST(WheelForms, ResidualsVanishAtGroundTruth) {
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    WheelBlocks truth = RandomCalibration(&rng);
+    FormIntrinsics f = RandomIntrinsics(&rng);
+    const double v = 15.0 * u(rng);
+    const double w = 0.8 * u(rng);
+    const CarInstant car = SimulateCar(Eigen::Quaterniond::UnitRandom(), v, w, truth);
+    WheelBlocks state = truth;
+    state.q_W_I = car.q_W_I;
+    state.v_W_I = car.v_W_I;
+    const Eigen::Vector3d& gyro = car.measurement.gyro_rad_s;
+    WheelFactorOptions options;
+    options.non_holonomic = trial % 2 == 0;
+    const std::unique_ptr<ceres::CostFunction> speeds(
+        WheelSpeedResidual::Create(SpeedsOf(v, w, gyro, truth, f), options));
+    const std::unique_ptr<ceres::CostFunction> twist(
+        OdometryTwistResidual::Create(TwistOf(v, w, gyro, f), options));
+    const std::string context = "trial " + std::to_string(trial);
+    const test::Evaluation at_speeds = test::Evaluate(*speeds, SpeedBlocks(&state, &f));
+    const test::Evaluation at_twist = test::Evaluate(*twist, TwistBlocks(&state, &f));
+    ASSERT_EQ(at_speeds.residual.size(), options.non_holonomic ? 4 : 2);
+    EXPECT_LT(at_speeds.residual.norm(), 1e-9) << context << ": " << at_speeds.residual.transpose();
+    EXPECT_LT(at_twist.residual.norm(), 1e-9) << context << ": " << at_twist.residual.transpose();
+    // A 1 % error in an intrinsic shows: each block enters the prediction.
+    for (double* block : {&f.scale_left, &f.scale_right, &state.track_width}) {
+      const double saved = *block;
+      *block *= 1.01;
+      EXPECT_GT(test::Evaluate(*speeds, SpeedBlocks(&state, &f)).residual.norm(), 1e-3) << context;
+      *block = saved;
+    }
+    for (double* block : {&f.speed_scale, &f.effective_track_m}) {
+      const double saved = *block;
+      *block *= 1.01;
+      EXPECT_GT(test::Evaluate(*twist, TwistBlocks(&state, &f)).residual.norm(), 1e-3) << context;
+      *block = saved;
+    }
+  }
+}
+
+TEST(WheelForms, JacobiansPassGradientChecker) {
+  const geometry::RightQuaternionManifold quaternion;
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    WheelBlocks state = RandomCalibration(&rng);
+    FormIntrinsics f = RandomIntrinsics(&rng);
+    state.q_W_I = Eigen::Quaterniond::UnitRandom();
+    state.v_W_I = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 15.0;
+    const Eigen::Vector3d gyro(u(rng), u(rng), u(rng));
+    WheelFactorOptions options;
+    options.non_holonomic = trial % 2 == 0;
+    options.lateral_sigma_m_s = 0.03;
+    options.vertical_sigma_m_s = 0.11;
+    options.yaw_rate_sigma_rad_s = 0.013;
+    const std::string context = "trial " + std::to_string(trial);
+    // Random measurements, far from agreeing with the state: every Jacobian term counts.
+    const std::unique_ptr<ceres::CostFunction> speeds(
+        WheelSpeedResidual::Create(SpeedsOf(12.0 * u(rng), 0.7 * u(rng), gyro, state, f), options));
+    const std::unique_ptr<ceres::CostFunction> twist(
+        OdometryTwistResidual::Create(TwistOf(1.5 * u(rng), 1.2 * u(rng), gyro, f), options));
+    std::vector<const ceres::Manifold*> manifolds = {&quaternion, nullptr, nullptr, &quaternion,
+                                                     nullptr,     nullptr, nullptr, nullptr};
+    test::ExpectGradientCheckPasses(*speeds, manifolds, SpeedBlocks(&state, &f), 1e-6,
+                                    context + " speeds");
+    manifolds.pop_back();
+    test::ExpectGradientCheckPasses(*twist, manifolds, TwistBlocks(&state, &f), 1e-6,
+                                    context + " twist");
+  }
+}
+
+// The twist's rows in closed form, k_v and b_eff as the derivation states them (Eq. F26):
+// a car at rest with zero gyro, the residual is the scaled measurement itself.
+TEST(WheelForms, TwistRowsScaleSpeedByKvAndYawRateByControllerOverEffectiveTrack) {
+  OdometryMeasurement m;
+  m.speed_m_s = 0.8;
+  m.yaw_rate_rad_s = 0.5;
+  m.controller_track_m = 0.555;
+  WheelFactorOptions options;
+  options.non_holonomic = false;
+  options.speed_sigma_m_s = 0.1;
+  options.yaw_rate_sigma_rad_s = 0.2;
+  const std::unique_ptr<ceres::CostFunction> twist(OdometryTwistResidual::Create(m, options));
+  WheelBlocks state;
+  FormIntrinsics f;
+  f.speed_scale = 0.96;
+  f.effective_track_m = 0.9;
+  const test::Evaluation e = test::Evaluate(*twist, TwistBlocks(&state, &f));
+  EXPECT_NEAR(e.residual(0), -0.96 * 0.8 / 0.1, 1e-12);
+  EXPECT_NEAR(e.residual(1), -0.96 * 0.5 * 0.555 / 0.9 / 0.2, 1e-12);
+}
+
+TEST(WheelForms, RejectBadInputAndInvalidTracks) {
+  WheelSpeedMeasurement speeds;
+  speeds.left_m_s = std::nan("");
+  EXPECT_THROW(WheelSpeedResidual::Create(speeds, WheelFactorOptions{}), Error);
+  OdometryMeasurement twist;
+  twist.controller_track_m = 0.0;
+  EXPECT_THROW(OdometryTwistResidual::Create(twist, WheelFactorOptions{}), Error);
+  twist.controller_track_m = 0.5;
+  twist.yaw_rate_rad_s = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(OdometryTwistResidual::Create(twist, WheelFactorOptions{}), Error);
+  WheelFactorOptions bad;
+  bad.yaw_rate_sigma_rad_s = -1.0;
+  EXPECT_THROW(OdometryTwistResidual::Create(OdometryMeasurement{}, bad), Error);
+  // A non-positive track is an invalid step, not a NaN.
+  const std::unique_ptr<ceres::CostFunction> cost(
+      OdometryTwistResidual::Create(OdometryMeasurement{}, WheelFactorOptions{}));
+  WheelBlocks state;
+  FormIntrinsics f;
+  f.effective_track_m = 0.0;
+  const std::vector<double*> blocks = TwistBlocks(&state, &f);
+  Eigen::Vector4d residual;
+  EXPECT_FALSE(cost->Evaluate(blocks.data(), residual.data(), nullptr));
+  // Sigmas from the stated noise: sqrt(2) s / b on the yaw rate of two wheel speeds.
+  sensors::WheelConfig config;
+  config.noise_m_s = 0.05;
+  const WheelFactorOptions from_speeds = WheelFactorOptions::FromWheelSpeedNoise(config, 1.5);
+  EXPECT_DOUBLE_EQ(from_speeds.speed_sigma_m_s, 0.05 / std::sqrt(2.0));
+  EXPECT_DOUBLE_EQ(from_speeds.yaw_rate_sigma_rad_s, std::sqrt(2.0) * 0.05 / 1.5);
+  config.yaw_rate_noise_rad_s = 0.03;
+  EXPECT_EQ(WheelFactorOptions::FromOdometryNoise(config).yaw_rate_sigma_rad_s, 0.03);
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
 // libFuzzer target: the dataset CSV readers (imu, wheel, gnss, lidar, ground-truth
-// trajectory). The first byte picks the reader, the rest is the file.
+// trajectory, wheel speeds, odometry). The first byte picks the reader, the rest is the file.
 
 #include <cstddef>
 #include <cstdint>
@@ -14,7 +14,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string& path = fuzz::ScratchPath(".csv");
   fuzz::WriteScratch(path, data + 1, size - 1);
   fuzz::ExpectParsedOrRefused([&] {
-    switch (data[0] % 5) {
+    switch (data[0] % 7) {
       case 0:
         io::ReadImuCsv(path);
         break;
@@ -27,8 +27,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       case 3:
         io::ReadLidarCsv(path);
         break;
-      default:
+      case 4:
         io::ReadTrajectoryCsv(path);
+        break;
+      case 5:
+        io::ReadWheelSpeedCsv(path);
+        break;
+      default:
+        io::ReadOdometryCsv(path);
         break;
     }
   });

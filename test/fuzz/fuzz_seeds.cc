@@ -63,6 +63,20 @@ void WriteCsvSeeds(const std::string& dir) {
   PrefixSelector(dir + "/gnss.csv", 2);
   PrefixSelector(dir + "/lidar.csv", 3);
   PrefixSelector(dir + "/trajectory.csv", 4);
+  sensors::WheelSpeedSamples speeds(kSamples);
+  sensors::OdometrySamples odometry(kSamples);
+  for (int i = 0; i < kSamples; ++i) {
+    speeds[i].t_ns = odometry[i].t_ns = wheel[i].t_ns;
+    speeds[i].left_m_s = speeds[i].front_left_m_s = 5.0 + 0.1 * i;
+    speeds[i].right_m_s = speeds[i].front_right_m_s = 5.2 + 0.1 * i;
+    speeds[i].has_front = true;
+    odometry[i].speed_m_s = 0.8;
+    odometry[i].yaw_rate_rad_s = 0.01 * i;
+  }
+  io::WriteWheelSpeedCsv(dir + "/wheel_speed.csv", speeds);
+  io::WriteOdometryCsv(dir + "/odometry.csv", odometry);
+  PrefixSelector(dir + "/wheel_speed.csv", 5);
+  PrefixSelector(dir + "/odometry.csv", 6);
 }
 
 void WritePointCloudSeeds(const std::string& dir) {

@@ -157,6 +157,34 @@ TEST(RealBagsTest, Test1ImportsIntoADatasetWithGravityOnPlusY) {
   EXPECT_GT(mean.y(), 9.5) << mean.transpose();
 }
 
+// The Husky logs no wheel rates, only its controller's twist: the imported dataset's wheel
+// data are that twist (form speed_yaw_rate) at the rate the README states.
+TEST(RealBagsTest, Test1ImportsTheControllerTwistAsItsWheelData) {
+  AUTOCAL_REQUIRE_SHARED_DATA(BagPath("test1.bag"));
+  ImportOptions options;
+  options.input = BagPath("test1.bag").string();
+  options.output = (test::OutputDir("out") / "test1_form").string();
+  fs::remove_all(options.output);
+  const ImportSummary summary = ImportBag(options);
+  const io::Dataset dataset = io::ReadDataset(options.output);
+  ASSERT_TRUE(dataset.sensors.wheel.has_value());
+  EXPECT_EQ(dataset.wheel_form(), sensors::WheelForm::kSpeedYawRate);
+  EXPECT_NEAR(dataset.sensors.wheel->rate_hz, 10.0, 0.05);
+  EXPECT_FALSE(dataset.sensors.wheel->controller_track_m.has_value());
+  EXPECT_TRUE(dataset.wheel.empty());
+  EXPECT_EQ(static_cast<int64_t>(dataset.odometry.size()), summary.odometry.written);
+  EXPECT_EQ(dataset.wheel_sample_count(), dataset.odometry.size());
+  EXPECT_NEAR(
+      1e-9 * static_cast<double>(dataset.odometry.back().t_ns - dataset.odometry.front().t_ns),
+      395.3, 0.2);
+  // A Husky drives at most about 1 m/s.
+  double max_speed_m_s = 0.0;
+  for (const sensors::OdometrySample& s : dataset.odometry)
+    max_speed_m_s = std::max(max_speed_m_s, std::abs(s.speed_m_s));
+  EXPECT_GT(max_speed_m_s, 0.3);
+  EXPECT_LT(max_speed_m_s, 1.1);
+}
+
 }  // namespace
 }  // namespace import
 }  // namespace autocal

@@ -46,6 +46,13 @@ CalibrationFile FullResult() {
   u.p_I_A_m.sigma = Eigen::Vector3d(0.01, 0.01, 0.02);
   u.p_I_A_m.observable = {true};
   u.T_I_V.observable = {false};
+  file.value.wheel_speed_scale_left = 1.0 + 1.0 / 3.0 * 1e-2;
+  file.value.wheel_speed_scale_right = 0.987;
+  file.value.odometry_speed_scale = 0.9612345678901234;
+  file.value.effective_track_m = 0.8123;
+  u.wheel_speed_scale_left.sigma = 2e-4;
+  u.odometry_speed_scale = {1.0 / 7.0 * 1e-3, true};
+  u.effective_track_m.observable = false;
   file.solver = {{"termination", "CONVERGENCE"},
                  {"iterations", "14"},
                  {"message", "Function tolerance reached: |cost change| < 1e-6"},
@@ -68,6 +75,10 @@ void ExpectSameCalibration(const sensors::Calibration& a, const sensors::Calibra
   EXPECT_EQ(a.wheel_radius_right_m, b.wheel_radius_right_m);
   EXPECT_EQ(a.track_width_m, b.track_width_m);
   EXPECT_EQ(a.p_I_A, b.p_I_A) << a.p_I_A.transpose() << " vs " << b.p_I_A.transpose();
+  EXPECT_EQ(a.wheel_speed_scale_left, b.wheel_speed_scale_left);
+  EXPECT_EQ(a.wheel_speed_scale_right, b.wheel_speed_scale_right);
+  EXPECT_EQ(a.odometry_speed_scale, b.odometry_speed_scale);
+  EXPECT_EQ(a.effective_track_m, b.effective_track_m);
 }
 
 void ExpectSamePose(const PoseBlockInfo& a, const PoseBlockInfo& b) {
@@ -99,6 +110,12 @@ TEST(CalibrationYamlTest, ResultRoundTripsExactly) {
   ExpectSameScalar(read.uncertainty.wheel_radius_left_m, written.uncertainty.wheel_radius_left_m);
   ExpectSameScalar(read.uncertainty.wheel_radius_right_m, written.uncertainty.wheel_radius_right_m);
   ExpectSameScalar(read.uncertainty.track_width_m, written.uncertainty.track_width_m);
+  ExpectSameScalar(read.uncertainty.wheel_speed_scale_left,
+                   written.uncertainty.wheel_speed_scale_left);
+  ExpectSameScalar(read.uncertainty.wheel_speed_scale_right,
+                   written.uncertainty.wheel_speed_scale_right);
+  ExpectSameScalar(read.uncertainty.odometry_speed_scale, written.uncertainty.odometry_speed_scale);
+  ExpectSameScalar(read.uncertainty.effective_track_m, written.uncertainty.effective_track_m);
   ASSERT_TRUE(read.uncertainty.p_I_A_m.sigma.has_value());
   EXPECT_EQ(*read.uncertainty.p_I_A_m.sigma, *written.uncertainty.p_I_A_m.sigma);
   EXPECT_EQ(read.uncertainty.p_I_A_m.observable, written.uncertainty.p_I_A_m.observable);
@@ -130,6 +147,10 @@ TEST(CalibrationYamlTest, SensorsYamlRoundTripsExactly) {
   config.nominal_uncertainty.T_I_L.sigma_p_m = Eigen::Vector3d(0.1, 0.1, 0.2);
   config.lidar->num_beams = 64;
   config.wheel->noise_rad_s = 0.05;
+  config.wheel->form = sensors::WheelForm::kSpeedYawRate;
+  config.wheel->noise_m_s = 1.0 / 3.0 * 0.1;
+  config.wheel->yaw_rate_noise_rad_s = 0.07;
+  config.wheel->controller_track_m = 0.5555;
   config.gnss->rate_hz = 5.0;
   WriteSensorsYaml(OutPath("sensors.yaml"), config);
   const SensorsConfig read = ReadSensorsYaml(OutPath("sensors.yaml"));
@@ -151,6 +172,10 @@ TEST(CalibrationYamlTest, SensorsYamlRoundTripsExactly) {
   EXPECT_EQ(read.lidar->rate_hz, config.lidar->rate_hz);
   EXPECT_EQ(read.wheel->noise_rad_s, 0.05);
   EXPECT_EQ(read.wheel->rate_hz, config.wheel->rate_hz);
+  EXPECT_EQ(read.wheel->form, sensors::WheelForm::kSpeedYawRate);
+  EXPECT_EQ(read.wheel->noise_m_s, config.wheel->noise_m_s);
+  EXPECT_EQ(read.wheel->yaw_rate_noise_rad_s, 0.07);
+  EXPECT_EQ(read.wheel->controller_track_m, 0.5555);
   EXPECT_EQ(read.gnss->rate_hz, 5.0);
   ExpectSameCalibration(read.nominal_calibration, config.nominal_calibration);
   ExpectSamePose(read.nominal_uncertainty.T_I_L, config.nominal_uncertainty.T_I_L);
@@ -273,6 +298,25 @@ TEST(CalibrationYamlTest, SyntaxErrorAndEmptyFile) {
 // writing, a disk that filled up) is refused with a ParseError naming the file, never read
 // as a calibration whose missing blocks take their defaults. Before the format key and end
 // line, 252 of the 1,954 prefixes of a real result parsed.
+// A result written before the blocks of the other wheel forms existed still reads: they keep
+// their nominal defaults; a bad value in one of them is refused with its place.
+TEST(CalibrationYamlTest, WheelFormBlocksAreOptionalInAResult) {
+  const std::string path = OutPath("older.yaml");
+  WriteCalibrationYaml(path, FullResult());
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t first = bytes.find("wheel_speed_scale_left:");
+  const size_t after = bytes.find("solver:");
+  ASSERT_NE(first, std::string::npos);
+  WriteText(path, bytes.substr(0, first) + bytes.substr(after));
+  const CalibrationFile read = ReadCalibrationYaml(path);
+  EXPECT_EQ(read.value.odometry_speed_scale, 1.0);
+  EXPECT_EQ(read.value.effective_track_m, sensors::Calibration().effective_track_m);
+  EXPECT_EQ(read.value.track_width_m, FullResult().value.track_width_m);
+  ExpectParseError("bad_scale.yaml", "odometry_speed_scale: {value: -0.9}\n", kReadCalibration, 1,
+                   31, "odometry_speed_scale.value");
+}
+
 TEST(CalibrationYamlTest, EveryPrefixOfAWrittenResultIsRefused) {
   const std::string path = OutPath("whole.yaml");
   WriteCalibrationYaml(path, FullResult());

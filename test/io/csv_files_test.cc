@@ -478,6 +478,119 @@ TEST(CsvFilesTest, WritersRefuseWhatReadersReject) {
   EXPECT_THROW(WriteLidarCsv(OutPath("w_name.csv"), {{1, "../escape.ply"}}), Error);
 }
 
+// ---- wheel forms: linear speeds and the controller's twist ----
+
+namespace wheel_forms {
+
+// The reference drive's wheel rates as rear-wheel speeds (radius 0.33 m), with a front pair
+// when `four_wheels`: digits that need all 17 places.
+sensors::WheelSpeedSamples DriveSpeeds(double duration_s, bool four_wheels) {
+  sensors::WheelSpeedSamples out;
+  for (const sensors::WheelSample& w : test_data::MakeDrive(duration_s).wheel) {
+    sensors::WheelSpeedSample s;
+    s.t_ns = w.t_ns;
+    s.left_m_s = 0.33 * w.left_rad_s;
+    s.right_m_s = 0.33 * w.right_rad_s;
+    s.has_front = four_wheels;
+    if (four_wheels) {
+      s.front_left_m_s = s.left_m_s * (1.0 + 1.0 / 3.0 * 1e-3);
+      s.front_right_m_s = s.right_m_s / 3.0 * 2.99;
+    }
+    out.push_back(s);
+  }
+  return out;
+}
+
+sensors::OdometrySamples DriveTwist(double duration_s) {
+  sensors::OdometrySamples out;
+  for (const sensors::WheelSample& w : test_data::MakeDrive(duration_s).wheel) {
+    out.push_back({w.t_ns, 0.33 * 0.5 * (w.left_rad_s + w.right_rad_s),
+                   0.33 * (w.right_rad_s - w.left_rad_s) / 1.6});
+  }
+  return out;
+}
+
+const auto kReadSpeeds = [](const std::string& p) { ReadWheelSpeedCsv(p); };
+const auto kReadOdometry = [](const std::string& p) { ReadOdometryCsv(p); };
+
+}  // namespace wheel_forms
+
+TEST(CsvFilesTest, WheelSpeedsOfTwoAndFourWheelsRoundTripExactly) {
+  for (bool four_wheels : {false, true}) {
+    const sensors::WheelSpeedSamples written = wheel_forms::DriveSpeeds(2.0, four_wheels);
+    const std::string path = OutPath(four_wheels ? "speed4.csv" : "speed2.csv");
+    WriteWheelSpeedCsv(path, written);
+    EXPECT_EQ(Lines(ReadText(path))[0],
+              four_wheels ? "t_ns,left_m_s,right_m_s,front_left_m_s,front_right_m_s"
+                          : "t_ns,left_m_s,right_m_s");
+    const sensors::WheelSpeedSamples read = ReadWheelSpeedCsv(path);
+    ASSERT_EQ(read.size(), written.size());
+    for (size_t i = 0; i < read.size(); ++i) {
+      ASSERT_EQ(read[i].t_ns, written[i].t_ns) << "row " << i;
+      ASSERT_EQ(read[i].left_m_s, written[i].left_m_s) << "row " << i;
+      ASSERT_EQ(read[i].right_m_s, written[i].right_m_s) << "row " << i;
+      ASSERT_EQ(read[i].has_front, four_wheels) << "row " << i;
+      ASSERT_EQ(read[i].front_left_m_s, written[i].front_left_m_s) << "row " << i;
+      ASSERT_EQ(read[i].front_right_m_s, written[i].front_right_m_s) << "row " << i;
+    }
+  }
+  // One layout per file.
+  sensors::WheelSpeedSamples mixed = wheel_forms::DriveSpeeds(1.0, true);
+  mixed[3].has_front = false;
+  EXPECT_THROW(WriteWheelSpeedCsv(OutPath("mixed.csv"), mixed), Error);
+}
+
+TEST(CsvFilesTest, OdometryRoundTripsExactly) {
+  const sensors::OdometrySamples written = wheel_forms::DriveTwist(2.0);
+  WriteOdometryCsv(OutPath("odometry.csv"), written);
+  const sensors::OdometrySamples read = ReadOdometryCsv(OutPath("odometry.csv"));
+  ASSERT_EQ(read.size(), written.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    ASSERT_EQ(read[i].t_ns, written[i].t_ns) << "row " << i;
+    ASSERT_EQ(read[i].speed_m_s, written[i].speed_m_s) << "row " << i;
+    ASSERT_EQ(read[i].yaw_rate_rad_s, written[i].yaw_rate_rad_s) << "row " << i;
+  }
+}
+
+// Each bad input is one error with its line and column and what was expected.
+TEST(CsvFilesTest, WheelFormFilesNameLineColumnAndExpectation) {
+  WriteWheelSpeedCsv(OutPath("speed_ref.csv"), wheel_forms::DriveSpeeds(1.0, true));
+  const std::vector<std::string> speed = Lines(ReadText(OutPath("speed_ref.csv")));
+  // A front column misnamed: the four-wheel header is checked column by column.
+  std::vector<std::string> renamed = speed;
+  renamed[0] = "t_ns,left_m_s,right_m_s,front_l_m_s,front_right_m_s";
+  WriteText(OutPath("speed_header.csv"), JoinLines(renamed));
+  ExpectParseError(OutPath("speed_header.csv"), wheel_forms::kReadSpeeds,
+                   {1, FieldColumn(renamed[0], 3), "expected 'front_left_m_s'"});
+  // A row with the rear pair only in a four-wheel file.
+  std::vector<std::string> short_row = speed;
+  short_row[2] = short_row[2].substr(0, FieldColumn(short_row[2], 3) - 2);
+  WriteText(OutPath("speed_short.csv"), JoinLines(short_row));
+  ExpectParseError(OutPath("speed_short.csv"), wheel_forms::kReadSpeeds,
+                   {3, static_cast<int64_t>(short_row[2].size()) + 1, "expected 5 columns"});
+  // km/h instead of m/s.
+  WriteText(OutPath("speed_kmh.csv"), ReplaceField(speed, 4, 2, "130.5"));
+  ExpectParseError(OutPath("speed_kmh.csv"), wheel_forms::kReadSpeeds,
+                   {4, FieldColumn(speed[3], 2), "km/h or mph"});
+
+  WriteOdometryCsv(OutPath("odometry_ref.csv"), wheel_forms::DriveTwist(1.0));
+  const std::vector<std::string> odometry = Lines(ReadText(OutPath("odometry_ref.csv")));
+  WriteText(OutPath("odometry_deg.csv"), ReplaceField(odometry, 5, 2, "28.6"));
+  ExpectParseError(OutPath("odometry_deg.csv"), wheel_forms::kReadOdometry,
+                   {5, FieldColumn(odometry[4], 2), "deg/s"});
+  WriteText(OutPath("odometry_text.csv"), ReplaceField(odometry, 3, 1, "fast"));
+  ExpectParseError(OutPath("odometry_text.csv"), wheel_forms::kReadOdometry,
+                   {3, FieldColumn(odometry[2], 1), "speed_m_s: expected a number"});
+  std::vector<std::string> wrong = odometry;
+  wrong[0] = "t_ns,v_m_s,yaw_rate_rad_s";
+  WriteText(OutPath("odometry_header.csv"), JoinLines(wrong));
+  ExpectParseError(OutPath("odometry_header.csv"), wheel_forms::kReadOdometry,
+                   {1, 6, "expected 'speed_m_s'"});
+  WriteOdometryCsv(OutPath("odometry_us.csv"), InMicroseconds(wheel_forms::DriveTwist(1.0)));
+  ExpectParseError(OutPath("odometry_us.csv"), wheel_forms::kReadOdometry,
+                   {3, 1, "the stamps seem to be in microseconds"});
+}
+
 }  // namespace
 }  // namespace io
 }  // namespace autocal

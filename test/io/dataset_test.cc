@@ -209,6 +209,17 @@ TEST(DatasetTest, SensorsYamlRefusesNumbersOutsideTheirRange) {
       {"lidar_resolution_tiny", imu + "lidar:\n  azimuth_resolution_deg: 1e-300\n", 8, "1e-300",
        "lidar.azimuth_resolution_deg: must be within"},
       {"noise_nan", imu + "wheel:\n  noise_rad_s: .nan\n", 8, ".nan", "wheel.noise_rad_s"},
+      {"wheel_form_unknown", imu + "wheel:\n  form: twist\n", 8, "twist",
+       "wheel.form: expected angular_rates, linear_speeds or speed_yaw_rate, found 'twist'"},
+      {"speed_noise_zero", imu + "wheel:\n  form: linear_speeds\n  noise_m_s: 0\n", 9, "0",
+       "wheel.noise_m_s: must be within [1e-06, 100] m/s"},
+      {"yaw_noise_huge", imu + "wheel:\n  yaw_rate_noise_rad_s: 1e3\n", 8, "1e3",
+       "wheel.yaw_rate_noise_rad_s: must be within"},
+      {"controller_track_tiny",
+       imu + "wheel:\n  form: speed_yaw_rate\n  controller_track_m: 0.001\n", 9, "0.001",
+       "wheel.controller_track_m: must be within [0.05, 100] m"},
+      {"controller_track_of_rates", imu + "wheel:\n  controller_track_m: 0.5\n", 8, "0.5",
+       "only the form speed_yaw_rate has a controller track (wheel.form is angular_rates)"},
   };
   for (const Case& c : cases) {
     const std::string path = (test::OutputDir("dataset") / (c.name + ".yaml")).string();
@@ -227,6 +238,91 @@ TEST(DatasetTest, SensorsYamlRefusesNumbersOutsideTheirRange) {
       EXPECT_THAT(e.detail(), HasSubstr(c.message)) << c.name;
     }
   }
+}
+
+// A dataset reads the wheel file its form names: the two other forms, written and read back.
+TEST(DatasetTest, ReadsTheWheelFileItsFormNames) {
+  const test_data::Drive drive = test_data::MakeDrive(1.0);
+  for (sensors::WheelForm form :
+       {sensors::WheelForm::kLinearSpeeds, sensors::WheelForm::kSpeedYawRate}) {
+    const std::string name = sensors::WheelFormName(form);
+    const fs::path directory = test::OutputDir("dataset") / ("form_" + name);
+    fs::remove_all(directory);
+    SensorsConfig config = drive.config;
+    config.wheel->form = form;
+    config.wheel->rate_hz = 50.0;
+    if (form == sensors::WheelForm::kSpeedYawRate) config.wheel->controller_track_m = 0.555;
+    sensors::WheelSpeedSamples speeds;
+    sensors::OdometrySamples twist;
+    for (const sensors::WheelSample& w : drive.wheel) {
+      speeds.push_back({w.t_ns, 0.33 * w.left_rad_s, 0.33 * w.right_rad_s, false, 0.0, 0.0});
+      twist.push_back({w.t_ns, 0.165 * (w.left_rad_s + w.right_rad_s),
+                       0.33 * (w.right_rad_s - w.left_rad_s) / 0.555});
+    }
+    {
+      DatasetWriter writer(directory.string());
+      writer.WriteSensorsConfig(config);
+      writer.WriteImu(drive.imu);
+      if (form == sensors::WheelForm::kLinearSpeeds) {
+        writer.WriteWheelSpeeds(speeds);
+      } else {
+        writer.WriteOdometry(twist);
+      }
+      writer.Close();
+    }
+    const Dataset dataset = ReadDataset(directory.string());
+    EXPECT_EQ(dataset.wheel_form(), form) << name;
+    ASSERT_TRUE(dataset.sensors.wheel.has_value());
+    EXPECT_EQ(dataset.sensors.wheel->rate_hz, 50.0);
+    EXPECT_EQ(dataset.sensors.wheel->controller_track_m, config.wheel->controller_track_m);
+    EXPECT_TRUE(dataset.wheel.empty()) << name;
+    EXPECT_EQ(dataset.wheel_sample_count(), drive.wheel.size()) << name;
+    if (form == sensors::WheelForm::kLinearSpeeds) {
+      ASSERT_EQ(dataset.wheel_speeds.size(), speeds.size());
+      EXPECT_EQ(dataset.wheel_speeds[7].right_m_s, speeds[7].right_m_s);
+      EXPECT_TRUE(dataset.odometry.empty());
+    } else {
+      ASSERT_EQ(dataset.odometry.size(), twist.size());
+      EXPECT_EQ(dataset.odometry[7].yaw_rate_rad_s, twist[7].yaw_rate_rad_s);
+      EXPECT_TRUE(dataset.wheel_speeds.empty());
+    }
+  }
+}
+
+// sensors.yaml names one form, the directory holds another form's file: one error naming both
+// (a dataset imported before the form existed, or a file renamed by hand).
+TEST(DatasetTest, FormAndFilesThatDisagreeAreRefused) {
+  const test_data::Drive drive = test_data::MakeDrive(0.5);
+  const fs::path directory = test::OutputDir("dataset") / "form_disagrees";
+  fs::remove_all(directory);
+  fs::create_directories(directory);
+  std::ofstream(directory / "sensors.yaml")
+      << "imu:\n  gyroscope_noise_density: 1.6968e-4\n  gyroscope_random_walk: 1.9393e-5\n"
+         "  accelerometer_noise_density: 2.0e-3\n  accelerometer_random_walk: 3.0e-3\n"
+         "  update_rate: 200\n";
+  WriteImuCsv((directory / "imu.csv").string(), drive.imu);
+  WriteOdometryCsv((directory / "odometry.csv").string(), {{drive.imu[0].t_ns, 0.5, 0.1}});
+  try {
+    ReadDataset(directory.string());
+    FAIL() << "no error for odometry.csv under the default form";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().file, (directory / "sensors.yaml").string());
+    EXPECT_THAT(e.detail(),
+                HasSubstr("the wheel form is angular_rates (no wheel section: the default), which "
+                          "reads wheel.csv, but the dataset has no wheel.csv and has "
+                          "odometry.csv: set wheel: {form: speed_yaw_rate} in sensors.yaml"));
+  }
+  // Named explicitly, the form reads; a form whose file is missing reads as no wheel data.
+  std::ofstream(directory / "sensors.yaml", std::ios::app) << "wheel:\n  form: speed_yaw_rate\n";
+  EXPECT_EQ(ReadDataset(directory.string()).odometry.size(), 1u);
+  fs::remove(directory / "odometry.csv");
+  EXPECT_EQ(ReadDataset(directory.string()).wheel_sample_count(), 0u);
+  // Beside the form's own file, another form's file is left unread.
+  WriteWheelCsv((directory / "wheel.csv").string(), drive.wheel);
+  WriteOdometryCsv((directory / "odometry.csv").string(), {{drive.imu[0].t_ns, 0.5, 0.1}});
+  const Dataset both = ReadDataset(directory.string());
+  EXPECT_EQ(both.odometry.size(), 1u);
+  EXPECT_TRUE(both.wheel.empty());
 }
 
 TEST(DatasetTest, ErrorsInAnyFileNameThatFile) {

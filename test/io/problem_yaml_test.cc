@@ -222,6 +222,52 @@ TEST(ProblemYamlTest, EveryKeyIsRead) {
   EXPECT_EQ(p.lidar.sweep_stride, 3);
 }
 
+// The blocks of the wheel forms linear_speeds and speed_yaw_rate: read like the others,
+// estimated by default, fixed without the wheels, their sigmas checked with their place.
+TEST(ProblemYamlTest, WheelFormBlocksAreRead) {
+  const std::string text =
+      "calibration:\n"
+      "  wheel_speed_scale_left: {prior_sigma: 0.01}\n"
+      "  wheel_speed_scale_right: fixed\n"
+      "  odometry_speed_scale: {prior_sigma: 0.05}\n"
+      "  effective_track_m: {prior_sigma_m: 0.3}\n";
+  const ProblemCalibration c = ReadProblemYaml(WriteProblem("forms.yaml", text)).calibration;
+  EXPECT_EQ(c.wheel_speed_scale_left.mode, BlockMode::kPrior);
+  EXPECT_EQ(c.wheel_speed_scale_left.prior_sigma, 0.01);
+  EXPECT_EQ(c.wheel_speed_scale_right.mode, BlockMode::kFixed);
+  EXPECT_EQ(c.odometry_speed_scale.prior_sigma, 0.05);
+  EXPECT_EQ(c.effective_track_m.mode, BlockMode::kPrior);
+  EXPECT_EQ(c.effective_track_m.prior_sigma, 0.3);
+  const ProblemCalibration defaults =
+      ReadProblemYaml(WriteProblem("forms_default.yaml", "sensors: {}\n")).calibration;
+  EXPECT_EQ(defaults.odometry_speed_scale.mode, BlockMode::kEstimate);
+  EXPECT_EQ(defaults.effective_track_m.mode, BlockMode::kEstimate);
+  const ProblemCalibration no_wheel =
+      ReadProblemYaml(WriteProblem("forms_no_wheel.yaml", "sensors: {wheel: false}\n")).calibration;
+  EXPECT_EQ(no_wheel.odometry_speed_scale.mode, BlockMode::kFixed);
+  EXPECT_EQ(no_wheel.wheel_speed_scale_left.mode, BlockMode::kFixed);
+  // A scale's sigma has no unit: 1.0 (100 %) at most.
+  try {
+    ReadProblemYaml(WriteProblem("forms_sigma.yaml",
+                                 "calibration:\n  odometry_speed_scale: {prior_sigma: 5}\n"));
+    ADD_FAILURE() << "a scale sigma of 5 was accepted";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().line, 2);
+    EXPECT_EQ(e.location().column, 39);
+    EXPECT_THAT(e.detail(), HasSubstr("calibration.odometry_speed_scale.prior_sigma: must be "
+                                      "within [1e-06, 1]"));
+  }
+  try {
+    ReadProblemYaml(WriteProblem("forms_without_wheel.yaml",
+                                 "sensors: {wheel: false}\ncalibration:\n"
+                                 "  effective_track_m: estimate\n"));
+    ADD_FAILURE() << "effective_track_m accepted without the wheels";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.location().line, 3);
+    EXPECT_THAT(e.detail(), HasSubstr("sensors.wheel is false"));
+  }
+}
+
 TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
   const std::vector<BadCase> cases = {
       {"unknown_top", "sensors: {}\nwindows: {size: 5}\n", 2, "windows", "unknown key 'windows'"},
@@ -387,6 +433,35 @@ TEST(ProblemYamlTest, ValidationRefusesWhatTheDatasetCannotGive) {
   problem.calibration.p_I_A_m.mode = BlockMode::kFixed;
   EXPECT_EQ(ValidationMessage(problem, DatasetWith(true, true, true, false)),
             "problem problems/x.yaml uses GNSS but dataset /nonexistent/run3 has no gnss.csv");
+}
+
+// The dataset's wheel form decides which file the wheels need and which blocks the message
+// names; a form the calibration cannot use yet is refused by name.
+TEST(ProblemYamlTest, ValidationFollowsTheWheelForm) {
+  const Problem urban = ReadShipped("urban_full.yaml");
+  Dataset twist = DatasetWith(true, true, false, true);
+  twist.sensors.wheel = sensors::WheelConfig();
+  twist.sensors.wheel->form = sensors::WheelForm::kSpeedYawRate;
+  EXPECT_EQ(ValidationMessage(urban, twist),
+            "problem " + urban.path +
+                " estimates odometry_speed_scale but dataset /nonexistent/run3 has no "
+                "odometry.csv");
+  twist.odometry.resize(4);
+  EXPECT_EQ(ValidationMessage(urban, twist),
+            "problem " + urban.path +
+                " uses the wheel encoders but dataset /nonexistent/run3 reports its wheels as "
+                "speed_yaw_rate (odometry.csv), and the calibration takes angular rates "
+                "(wheel.csv) only so far: set sensors.wheel: false");
+  Dataset speeds = DatasetWith(true, true, false, true);
+  speeds.sensors.wheel = sensors::WheelConfig();
+  speeds.sensors.wheel->form = sensors::WheelForm::kLinearSpeeds;
+  EXPECT_THAT(ValidationMessage(urban, speeds),
+              HasSubstr("estimates wheel_speed_scale_left but dataset /nonexistent/run3 has no "
+                        "wheel_speed.csv"));
+  Problem scales = urban;
+  scales.calibration.wheel_speed_scale_left = {BlockMode::kPrior, 0.01};
+  EXPECT_THAT(ValidationMessage(scales, speeds),
+              HasSubstr("puts a prior on wheel_speed_scale_left but"));
 }
 
 // Stamps of one sensor that never meet the IMU's (microseconds, another clock) would give

@@ -56,6 +56,40 @@ TEST(ProblemBlocks, EstimatedBlocksFollowTheTableAndTheSensorsUsed) {
   EXPECT_THAT(blocks[2].direction_names, ::testing::ElementsAre(blocks[2].name));
 }
 
+// The wheel intrinsics that take part are those of the dataset's wheel form; their priors
+// default to the weak ones of problem_blocks.cc, a stated nominal sigma wins.
+TEST(ProblemBlocks, WheelBlocksFollowTheWheelForm) {
+  const io::Problem problem;  // every block estimated
+  io::SensorsConfig sensors = Nominal();
+  sensors.wheel = sensors::WheelConfig();
+  sensors.wheel->form = sensors::WheelForm::kSpeedYawRate;
+  sensors.nominal_calibration.effective_track_m = 0.9;
+  sensors.nominal_uncertainty.odometry_speed_scale.sigma = 0.02;
+  sensors::Calibration c = sensors.nominal_calibration;
+  const OfflineCalibrationOptions options;
+  const std::vector<estimation::EstimatedBlock> twist =
+      EstimatedBlocks(problem, sensors, options, true, false, &c);
+  EXPECT_THAT(Ids(twist),
+              ::testing::ElementsAre(Id::kLidarRotation, Id::kLidarTranslation, Id::kTimeOffset,
+                                     Id::kVehicleRotation, Id::kVehicleTranslation,
+                                     Id::kOdometrySpeedScale, Id::kEffectiveTrack));
+  EXPECT_EQ(twist[5].prior(0), 1.0);
+  EXPECT_EQ(twist[5].prior_sigma(0), 0.02);
+  EXPECT_EQ(twist[6].prior(0), 0.9);
+  EXPECT_EQ(twist[6].prior_sigma(0), 4.0 * options.default_track_width_prior_sigma_m);
+  sensors.wheel->form = sensors::WheelForm::kLinearSpeeds;
+  EXPECT_THAT(Ids(EstimatedBlocks(problem, sensors, options, true, false, &c)),
+              ::testing::ElementsAre(Id::kLidarRotation, Id::kLidarTranslation, Id::kTimeOffset,
+                                     Id::kTrackWidth, Id::kVehicleRotation, Id::kVehicleTranslation,
+                                     Id::kWheelSpeedScaleLeft, Id::kWheelSpeedScaleRight));
+  // The uncertainty of a result reaches the form's blocks.
+  io::CalibrationUncertainty u;
+  SetUncertainty(Id::kEffectiveTrack, Eigen::VectorXd::Constant(1, 0.004), nullptr, &u);
+  SetUncertainty(Id::kWheelSpeedScaleRight, Eigen::VectorXd::Constant(1, 0.001), nullptr, &u);
+  EXPECT_EQ(u.effective_track_m.sigma, 0.004);
+  EXPECT_EQ(u.wheel_speed_scale_right.sigma, 0.001);
+}
+
 // The prior is the nominal value; its sigma the problem's in prior mode (degrees to radians),
 // else the dataset's stated one, else the options' default; the limits from the options.
 TEST(ProblemBlocks, PriorsComeFromTheProblemTheDatasetOrTheDefaults) {

@@ -58,7 +58,11 @@ TEST(CalibrationBlocks, AccessorsReachTheNamedField) {
       {CalibrationBlockId::kTrackWidth, &c.track_width_m},
       {CalibrationBlockId::kVehicleRotation, c.q_I_V.coeffs().data()},
       {CalibrationBlockId::kVehicleTranslation, c.p_I_V.data()},
-      {CalibrationBlockId::kGnssLeverArm, c.p_I_A.data()}};
+      {CalibrationBlockId::kGnssLeverArm, c.p_I_A.data()},
+      {CalibrationBlockId::kWheelSpeedScaleLeft, &c.wheel_speed_scale_left},
+      {CalibrationBlockId::kWheelSpeedScaleRight, &c.wheel_speed_scale_right},
+      {CalibrationBlockId::kOdometrySpeedScale, &c.odometry_speed_scale},
+      {CalibrationBlockId::kEffectiveTrack, &c.effective_track_m}};
   ASSERT_EQ(fields.size(), CalibrationBlocks().size());
   for (const auto& [id, field] : fields) {
     const CalibrationBlockInfo& block = CalibrationBlock(id);
@@ -82,13 +86,49 @@ TEST(CalibrationBlocks, ColumnsAreTheResultFilesNames) {
   EXPECT_EQ(Joined(iteration),
             "qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s,wheel_radius_left_m,"
             "wheel_radius_right_m,track_width_m,qv_x,qv_y,qv_z,qv_w,pv_x_m,pv_y_m,pv_z_m,pa_x_m,"
-            "pa_y_m,pa_z_m");
+            "pa_y_m,pa_z_m,wheel_speed_scale_left,wheel_speed_scale_right,odometry_speed_scale,"
+            "effective_track_m");
   EXPECT_EQ(Joined(over_time),
             "q_I_L_x,q_I_L_y,q_I_L_z,q_I_L_w,p_I_L_x_m,p_I_L_y_m,p_I_L_z_m,"
             "time_offset_lidar_imu_s,wheel_radius_left_m,wheel_radius_right_m,track_width_m,"
-            "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m");
+            "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m,wheel_speed_scale_left,wheel_speed_scale_right,"
+            "odometry_speed_scale,effective_track_m");
   EXPECT_THAT(ValueColumns(CalibrationBlock(CalibrationBlockId::kVehicleRotation)),
               ::testing::ElementsAre("q_I_V_x", "q_I_V_y", "q_I_V_z", "q_I_V_w"));
+}
+
+// Each wheel form determines its own intrinsics; the vehicle frame belongs to every form.
+TEST(CalibrationBlocks, WheelFormsSelectTheirBlocks) {
+  using Id = CalibrationBlockId;
+  const auto blocks_of = [](WheelForm form) {
+    std::vector<std::string> keys;
+    for (const CalibrationBlockInfo& block : CalibrationBlocks()) {
+      if (block.sensor == BlockSensor::kWheel && BlockInWheelForm(block.id, form))
+        keys.push_back(block.key);
+    }
+    return Joined(keys);
+  };
+  EXPECT_EQ(blocks_of(WheelForm::kAngularRates),
+            "wheel_radius_left_m,wheel_radius_right_m,track_width_m,q_I_V,p_I_V");
+  EXPECT_EQ(blocks_of(WheelForm::kLinearSpeeds),
+            "track_width_m,q_I_V,p_I_V,wheel_speed_scale_left,wheel_speed_scale_right");
+  EXPECT_EQ(blocks_of(WheelForm::kSpeedYawRate),
+            "q_I_V,p_I_V,odometry_speed_scale,effective_track_m");
+  EXPECT_TRUE(BlockInWheelForm(Id::kLidarRotation, WheelForm::kSpeedYawRate));
+}
+
+// The sensors.yaml spelling of every form reads back, and names its file.
+TEST(CalibrationBlocks, WheelFormNamesRoundTrip) {
+  for (WheelForm form :
+       {WheelForm::kAngularRates, WheelForm::kLinearSpeeds, WheelForm::kSpeedYawRate}) {
+    WheelForm read = WheelForm::kAngularRates;
+    ASSERT_TRUE(ParseWheelForm(WheelFormName(form), &read)) << WheelFormName(form);
+    EXPECT_EQ(read, form);
+  }
+  WheelForm unused;
+  EXPECT_FALSE(ParseWheelForm("twist", &unused));
+  EXPECT_STREQ(WheelFormFile(WheelForm::kLinearSpeeds), "wheel_speed.csv");
+  EXPECT_STREQ(WheelFormFile(WheelForm::kSpeedYawRate), "odometry.csv");
 }
 
 }  // namespace

@@ -233,6 +233,10 @@ void VisitFields(A& a, sensors::Calibration& c) {
   a(c.wheel_radius_right_m);
   a(c.track_width_m);
   a(c.p_I_A);
+  a(c.wheel_speed_scale_left);
+  a(c.wheel_speed_scale_right);
+  a(c.odometry_speed_scale);
+  a(c.effective_track_m);
 }
 template <class A>
 void VisitFields(A& a, sim::SimulationSummary& s) {
@@ -268,7 +272,7 @@ void VisitFields(A& a, sim::SimulationSummary& s) {
 
 // Every field of the options, for the key. A field added to SimulationOptions (or to a struct
 // it holds) changes its size and stops the build here: add the field to the list below.
-static_assert(sizeof(sim::SimulationOptions) == 704,
+static_assert(sizeof(sim::SimulationOptions) == 784,
               "sim::SimulationOptions changed: list its new fields in the cache key");
 template <class A>
 void VisitFields(A& a, sim::SimulationOptions& o) {
@@ -304,6 +308,13 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.wheel.enabled);
   a(o.wheel.config.rate_hz);
   a(o.wheel.config.noise_rad_s);
+  a(o.wheel.config.form);
+  a(o.wheel.config.noise_m_s);
+  a(o.wheel.config.yaw_rate_noise_rad_s);
+  bool has_controller_track = o.wheel.config.controller_track_m.has_value();
+  double controller_track_m = o.wheel.config.controller_track_m.value_or(0.0);
+  a(has_controller_track);  // the options are only written into the key
+  a(controller_track_m);
   a(o.wheel.add_noise);
   a(o.wheel.time_offset_wheel_imu_s);
   a(o.wheel.stamp_jitter_s);
@@ -340,7 +351,7 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
 }
 
 // Bump when the stored form changes.
-constexpr int kFormatVersion = 2;
+constexpr int kFormatVersion = 3;  // 2: clocks and stamp models; 3: wheel-form blocks
 
 inline std::string Hex64(const std::string& bytes) {
   uint64_t hash = 14695981039346656037ull;  // FNV-1a, 64 bit

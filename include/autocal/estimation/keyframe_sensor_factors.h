@@ -100,6 +100,27 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                     const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
                     sensors::Calibration* calibration, const KeyframeWheelOptions& options = {});
 
+// Wheel data in the form a dataset carries them (io::Dataset, datasets/README.md "Wheel
+// forms"): only the form's samples are read.
+struct WheelData {
+  sensors::WheelForm form = sensors::WheelForm::kAngularRates;
+  sensors::WheelSamples rates;        // angular_rates
+  sensors::WheelSpeedSamples speeds;  // linear_speeds: the rear pair is used
+  sensors::OdometrySamples odometry;  // speed_yaw_rate
+  double controller_track_m = 1.0;    // speed_yaw_rate: b_ctrl (> 0)
+};
+
+// The same for any form: WheelFactor on the radii and track width for angular rates,
+// WheelSpeedResidual (Eq. F25) on the speed scales and track width for linear speeds,
+// OdometryTwistResidual (Eq. F26) on odometry_speed_scale and effective_track_m for speed and
+// yaw rate. options.factor carries the form's sigmas (WheelFactorOptions::FromEncoderNoise,
+// FromWheelSpeedNoise, FromOdometryNoise); estimate_radii holds or frees the form's scales
+// (radii, speed scales, k_v), estimate_track_width its track (b or b_eff). Throws as above,
+// and for a non-positive controller track.
+int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, const WheelData& wheel,
+                    std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
+                    const KeyframeWheelOptions& options = {});
+
 struct KeyframeGnssOptions {
   factors::LossOptions loss = factors::FactorLossOptions().gnss;  // Cauchy, 3 sigma (multipath)
   // A keyframe whose bracketing fixes are farther apart than this gets no factor (outages).

@@ -15,11 +15,16 @@ struct SlidingWindowBlockSetting {
   double* prior_sigma;  // the prior's unit: degrees for a rotation
 };
 
+// Throws autocal::Error for a block the window does not support (WindowSupports).
 SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
                                          SlidingWindowEstimatedBlocks* estimate,
                                          SlidingWindowCalibrationPrior* prior);
 
-// Whether the window estimates block `id`.
+// Whether the window has a setting for block `id`: not yet for the blocks of the wheel forms
+// linear_speeds and speed_yaw_rate (speed scales, odometry speed scale, effective track).
+bool WindowSupports(sensors::CalibrationBlockId id);
+
+// Whether the window estimates block `id` (false for a block it does not support).
 bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate);
 
 }  // namespace estimation

@@ -1,6 +1,10 @@
 #pragma once
 
-// Rear-wheel encoder factor (docs/factors.md, "Wheel-encoder factor").
+// Wheel factors (docs/factors.md, "Wheel-encoder factor" and "Wheel forms"): the state's
+// vehicle-frame speed and yaw rate (PredictVehicleMotion, Eq. F21) against the wheel data in
+// the form the vehicle reports them: angular rates times radii (WheelFactor, WheelResidual),
+// linear speeds times speed scales (WheelSpeedResidual, Eq. F25) or the controller's speed and
+// yaw rate (OdometryTwistResidual, Eq. F26).
 //
 // The wheel rates give the forward speed and yaw rate of the rear-axle centre V
 // (Eq. F20):  v_wheel = (w_l r_l + w_r r_r) / 2,   yaw_wheel = (w_r r_r - w_l r_l) / b.
@@ -50,6 +54,13 @@ struct WheelFactorOptions {
   // radius and track width; the other fields keep their defaults.
   static WheelFactorOptions FromEncoderNoise(const sensors::WheelConfig& config, double radius_m,
                                              double track_width_m);
+  // The same for wheel speeds with noise s = config.noise_m_s on each wheel (Eq. F25):
+  // s / sqrt(2) on the speed, sqrt(2) s / b on the yaw rate.
+  static WheelFactorOptions FromWheelSpeedNoise(const sensors::WheelConfig& config,
+                                                double track_width_m);
+  // The controller's twist: config.noise_m_s on the speed, config.yaw_rate_noise_rad_s on the
+  // yaw rate (Eq. F26).
+  static WheelFactorOptions FromOdometryNoise(const sensors::WheelConfig& config);
 };
 
 class WheelFactor final : public ceres::CostFunction {
@@ -70,6 +81,39 @@ class WheelFactor final : public ceres::CostFunction {
   WheelFactorOptions options_;
 };
 
+// Eq. F21: the forward speed v_V and yaw rate w_V of the rear-axle centre V that the state
+// predicts, with w_I = gyro - b_g the bias-corrected body rate at the measurement instant.
+template <typename T>
+struct VehicleMotion {
+  geometry::Vector3<T> v_V;
+  geometry::Vector3<T> w_V;
+};
+
+template <typename T>
+VehicleMotion<T> PredictVehicleMotion(const T* q_W_I_ptr, const T* v_W_I_ptr, const T* b_g_ptr,
+                                      const T* q_I_V_ptr, const T* p_I_V_ptr,
+                                      const Eigen::Vector3d& gyro_rad_s) {
+  using Vec3 = geometry::Vector3<T>;
+  const Eigen::Map<const Eigen::Quaternion<T>> q_W_I(q_W_I_ptr), q_I_V(q_I_V_ptr);
+  const Eigen::Map<const Vec3> v_W_I(v_W_I_ptr), b_g(b_g_ptr), p_I_V(p_I_V_ptr);
+  const Vec3 w_I = gyro_rad_s.cast<T>() - b_g;
+  return {q_I_V.conjugate() * Vec3(q_W_I.conjugate() * v_W_I + w_I.cross(p_I_V)),
+          q_I_V.conjugate() * w_I};
+}
+
+// Eq. F22 for any form: the state's speed and yaw rate minus the wheels' (`speed`,
+// `yaw_rate`), then the non-holonomic rows when enabled; whitened by the options' sigmas.
+template <typename T>
+void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate,
+               const WheelFactorOptions& options, T* residual) {
+  residual[0] = (motion.v_V.x() - speed) / T(options.speed_sigma_m_s);
+  residual[1] = (motion.w_V.z() - yaw_rate) / T(options.yaw_rate_sigma_rad_s);
+  if (options.non_holonomic) {
+    residual[2] = motion.v_V.y() / T(options.lateral_sigma_m_s);
+    residual[3] = motion.v_V.z() / T(options.vertical_sigma_m_s);
+  }
+}
+
 // Autodiff twin of WheelFactor with separate radii; the test oracle. The number of residuals
 // is 4 with the non-holonomic rows, else 2.
 class WheelResidual {
@@ -84,28 +128,102 @@ class WheelResidual {
   }
 
   template <typename T>
-  bool operator()(const T* q_W_I_ptr, const T* v_W_I_ptr, const T* b_g_ptr, const T* q_I_V_ptr,
-                  const T* p_I_V_ptr, const T* r_l, const T* r_r, const T* track_width,
-                  T* residual) const {
-    using Vec3 = geometry::Vector3<T>;
-    const Eigen::Map<const Eigen::Quaternion<T>> q_W_I(q_W_I_ptr), q_I_V(q_I_V_ptr);
-    const Eigen::Map<const Vec3> v_W_I(v_W_I_ptr), b_g(b_g_ptr), p_I_V(p_I_V_ptr);
-    const Vec3 w_I = m_.gyro_rad_s.cast<T>() - b_g;
-    const Vec3 v_V = q_I_V.conjugate() * Vec3(q_W_I.conjugate() * v_W_I + w_I.cross(p_I_V));
-    const Vec3 w_V = q_I_V.conjugate() * w_I;
+  bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
+                  const T* r_l, const T* r_r, const T* track_width, T* residual) const {
+    const VehicleMotion<T> motion =
+        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const T left = T(m_.left_rad_s) * r_l[0];
     const T right = T(m_.right_rad_s) * r_r[0];
-    residual[0] = (v_V.x() - T(0.5) * (left + right)) / T(options_.speed_sigma_m_s);
-    residual[1] = (w_V.z() - (right - left) / track_width[0]) / T(options_.yaw_rate_sigma_rad_s);
-    if (options_.non_holonomic) {
-      residual[2] = v_V.y() / T(options_.lateral_sigma_m_s);
-      residual[3] = v_V.z() / T(options_.vertical_sigma_m_s);
-    }
+    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], options_, residual);
     return true;
   }
 
  private:
   WheelMeasurement m_;
+  WheelFactorOptions options_;
+};
+
+// ---- Wheels as linear speeds (CAN wheel speeds), Eq. F25 ----
+
+struct WheelSpeedMeasurement {
+  double left_m_s = 0.0;                                 // rear left, as reported
+  double right_m_s = 0.0;                                // rear right
+  Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();  // raw gyro at the same instant
+};
+
+// The reported rear-wheel speeds v_l, v_r scaled by s_l, s_r give the rear axle's motion:
+//   v_wheel = (s_l v_l + s_r v_r) / 2,   yaw_wheel = (s_r v_r - s_l v_l) / b.
+// Parameter blocks: q_W_I (4), v_W_I (3), b_g (3), q_I_V (4), p_I_V (3), s_l (1), s_r (1),
+// track width b (1). Residuals as WheelResidual (4 with the non-holonomic rows, else 2).
+class WheelSpeedResidual {
+ public:
+  WheelSpeedResidual(const WheelSpeedMeasurement& measurement, const WheelFactorOptions& options)
+      : m_(measurement), options_(options) {}
+
+  // Throws autocal::Error on non-finite speeds or non-positive sigmas.
+  static ceres::CostFunction* Create(const WheelSpeedMeasurement& measurement,
+                                     const WheelFactorOptions& options);
+
+  // False (an invalid step) for a non-positive track width.
+  template <typename T>
+  bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
+                  const T* scale_left, const T* scale_right, const T* track_width,
+                  T* residual) const {
+    if (!(track_width[0] > T(0.0))) return false;
+    const VehicleMotion<T> motion =
+        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
+    const T left = T(m_.left_m_s) * scale_left[0];
+    const T right = T(m_.right_m_s) * scale_right[0];
+    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], options_, residual);
+    return true;
+  }
+
+ private:
+  WheelSpeedMeasurement m_;
+  WheelFactorOptions options_;
+};
+
+// ---- Wheels as the controller's speed and yaw rate (odometry twist), Eq. F26 ----
+
+struct OdometryMeasurement {
+  double speed_m_s = 0.0;       // v_odo, as reported
+  double yaw_rate_rad_s = 0.0;  // w_odo, as reported
+  // b_ctrl: the wheel separation the controller divided by (WheelConfig::controller_track_m).
+  double controller_track_m = 1.0;
+  Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();  // raw gyro at the same instant
+};
+
+// The controller computed v_odo = r0 (w_l + w_r) / 2 and w_odo = r0 (w_r - w_l) / b_ctrl with
+// its nominal radius r0. With the true radius r = k_v r0 and the slip of a skid-steer turn
+// folded into an effective track b_eff:
+//   v_wheel = k_v v_odo,   yaw_wheel = k_v w_odo b_ctrl / b_eff.
+// Parameter blocks: q_W_I (4), v_W_I (3), b_g (3), q_I_V (4), p_I_V (3), k_v (1), b_eff (1).
+// Residuals as WheelResidual.
+class OdometryTwistResidual {
+ public:
+  OdometryTwistResidual(const OdometryMeasurement& measurement, const WheelFactorOptions& options)
+      : m_(measurement), options_(options) {}
+
+  // Throws autocal::Error on a non-finite measurement, a non-positive b_ctrl or sigma.
+  static ceres::CostFunction* Create(const OdometryMeasurement& measurement,
+                                     const WheelFactorOptions& options);
+
+  // False (an invalid step) for a non-positive effective track.
+  template <typename T>
+  bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
+                  const T* speed_scale, const T* effective_track, T* residual) const {
+    if (!(effective_track[0] > T(0.0))) return false;
+    const VehicleMotion<T> motion =
+        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
+    const T speed = speed_scale[0] * T(m_.speed_m_s);
+    const T yaw_rate =
+        speed_scale[0] * T(m_.yaw_rate_rad_s * m_.controller_track_m) / effective_track[0];
+    WheelRows(motion, speed, yaw_rate, options_, residual);
+    return true;
+  }
+
+ private:
+  OdometryMeasurement m_;
   WheelFactorOptions options_;
 };
 

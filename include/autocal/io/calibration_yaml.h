@@ -12,13 +12,20 @@
 //   track_width_m: {value: 1.6}
 //   p_I_A_m: {value: [x, y, z], sigma: [x, y, z], observable: [true, true, false]}
 //   T_I_V: {q_xyzw: [...], p_m: [...]}
+//   wheel_speed_scale_left: {value: 1.0}            # wheels as linear speeds
+//   wheel_speed_scale_right: {value: 1.0}
+//   odometry_speed_scale: {value: 0.97}             # wheels as speed and yaw rate
+//   effective_track_m: {value: 0.9}
 //   solver: {key: value, ...}                       # free-form solver summary
 //   residuals: {lidar: {rms: 0.02, ...}, imu: {...}} # statistics per sensor
 //
 // A file written by WriteCalibrationYaml states that it is whole: its first key is
 // `format: autocal_calibration_1` and its last line the comment `# end of autocal calibration`.
-// A file with that format key must end with that line and hold all seven blocks, so that a
-// file cut while it was written is refused (ParseError) instead of read with defaults.
+// A file with that format key must end with that line and hold the seven blocks of every rig
+// (T_I_L to T_I_V), so that a file cut while it was written is refused (ParseError) instead of
+// read with defaults; the four blocks of the other wheel forms (speed scales, odometry speed
+// scale, effective track) are written always and optional on reading, so results written
+// before they existed still read.
 // In a file without the format key (hand-written, or the nominal_calibration section of
 // sensors.yaml) every block is optional (a missing block keeps the sensors::Calibration
 // default); sigma and observable are optional inside a block. A scalar block may be written as a
@@ -66,6 +73,10 @@ struct CalibrationUncertainty {
   ScalarBlockInfo track_width_m;
   VectorBlockInfo p_I_A_m;
   PoseBlockInfo T_I_V;
+  ScalarBlockInfo wheel_speed_scale_left;
+  ScalarBlockInfo wheel_speed_scale_right;
+  ScalarBlockInfo odometry_speed_scale;
+  ScalarBlockInfo effective_track_m;
 };
 
 struct CalibrationFile {

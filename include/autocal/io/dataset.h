@@ -1,10 +1,11 @@
 #pragma once
 
 // A dataset directory in autocal's format (datasets/README.md):
-//   sensors.yaml, imu.csv, wheel.csv, gnss.csv, lidar.csv + lidar/<file>.ply,
-//   groundtruth/trajectory.csv, groundtruth/calibration.yaml.
-// Every file but imu.csv is optional. Readers validate as they go and throw
-// autocal::ParseError naming file, line and column (or byte offset) on the first problem.
+//   sensors.yaml, imu.csv, wheel.csv | wheel_speed.csv | odometry.csv, gnss.csv,
+//   lidar.csv + lidar/<file>.ply, groundtruth/trajectory.csv, groundtruth/calibration.yaml.
+// Every file but imu.csv is optional. The wheel data come in the form sensors.yaml names
+// (wheel.form, default angular_rates): only that form's file is read. Readers validate as they go
+// and throw autocal::ParseError naming file, line and column (or byte offset) on the first problem.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -57,10 +58,17 @@ struct Dataset {
   SensorsConfig sensors;
   sensors::ImuSamples imu;
   sensors::WheelSamples wheel;              // empty without wheel.csv
+  sensors::WheelSpeedSamples wheel_speeds;  // form linear_speeds: wheel_speed.csv
+  sensors::OdometrySamples odometry;        // form speed_yaw_rate: odometry.csv
   sensors::GnssFixes gnss;                  // empty without gnss.csv
   std::vector<LidarSweepRef> lidar_sweeps;  // empty without lidar.csv
   Trajectory groundtruth_trajectory;        // empty without groundtruth/trajectory.csv
   std::optional<sensors::Calibration> groundtruth_calibration;
+
+  // The form of the wheel data: sensors.yaml's, angular rates without a wheel section.
+  sensors::WheelForm wheel_form() const;
+  // Rows of the wheel form's file (0 without it).
+  size_t wheel_sample_count() const;
 
   // Sweeps are large, so they are read on demand. Throws ParseError on a missing or
   // malformed file.
@@ -73,7 +81,8 @@ struct DatasetReadOptions {
 };
 
 // Reads and validates a whole dataset directory (sweeps excepted: their index is checked,
-// the files must exist).
+// the files must exist). The wheel form's file is read; when it is missing but the file of
+// another form is there, sensors.yaml and the files disagree: a ParseError names both.
 Dataset ReadDataset(const std::string& directory);
 Dataset ReadDataset(const std::string& directory, const DatasetReadOptions& options);
 
@@ -89,6 +98,8 @@ class DatasetWriter {
   void WriteSensorsConfig(const SensorsConfig& config);
   void WriteImu(const sensors::ImuSamples& samples);
   void WriteWheel(const sensors::WheelSamples& samples);
+  void WriteWheelSpeeds(const sensors::WheelSpeedSamples& samples);
+  void WriteOdometry(const sensors::OdometrySamples& samples);
   void WriteGnss(const sensors::GnssFixes& fixes);
   // Writes lidar/<t_ns>.ply and appends a row to lidar.csv.
   void AddSweep(const lidar::LidarSweep& sweep);

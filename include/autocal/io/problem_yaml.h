@@ -13,6 +13,10 @@
 //     track_width_m: {prior_sigma_m: 0.02}
 //     p_I_A_m: estimate
 //     T_I_V: {rotation: fixed, translation: fixed}          # rotation priors: prior_sigma_deg
+//     wheel_speed_scale_left: estimate                      # wheels as linear speeds
+//     wheel_speed_scale_right: {prior_sigma: 0.01}          # (dimensionless)
+//     odometry_speed_scale: estimate                        # wheels as speed and yaw rate
+//     effective_track_m: {prior_sigma_m: 0.2}
 //   loss: {imu: none, prior: none, wheel: "huber:2", gnss: "cauchy:3", lidar: "huber:1"}
 //   window: {size: 10, max_range_m: 40}
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
@@ -78,7 +82,10 @@ struct ProblemSensors {
 
 // Every block defaults to kEstimate. The LiDAR owns T_I_L and the time offset, the wheel
 // encoders own both radii, the track width and T_I_V (wheel odometry lives in V), the GNSS
-// receiver owns the lever arm.
+// receiver owns the lever arm. Of the wheel intrinsics only those of the dataset's wheel form
+// take part (sensors::BlockInWheelForm): radii and track width for angular rates, speed
+// scales and track width for linear speeds, odometry speed scale and effective track for
+// speed and yaw rate; the settings of the others are ignored.
 struct ProblemCalibration {
   PoseBlockSetting T_I_L;
   ScalarBlockSetting time_offset_lidar_imu_s;
@@ -89,6 +96,10 @@ struct ProblemCalibration {
   ScalarBlockSetting track_width_m;
   VectorBlockSetting p_I_A_m;
   PoseBlockSetting T_I_V;
+  ScalarBlockSetting wheel_speed_scale_left;  // prior_sigma dimensionless
+  ScalarBlockSetting wheel_speed_scale_right;
+  ScalarBlockSetting odometry_speed_scale;  // prior_sigma dimensionless
+  ScalarBlockSetting effective_track_m;
 };
 
 struct ProblemSolver {
@@ -153,7 +164,9 @@ struct Problem {
 Problem ReadProblemYaml(const std::string& path);
 
 // Refuses a problem that asks for data the dataset does not have: the LiDAR without sweeps in
-// lidar.csv, the wheel encoders without wheel.csv, GNSS without gnss.csv, or an IMU log with
+// lidar.csv, the wheel encoders without the file of the dataset's wheel form (wheel.csv,
+// wheel_speed.csv or odometry.csv) or with wheel data in another form than angular rates
+// (which the calibration cannot use yet), GNSS without gnss.csv, or an IMU log with
 // fewer than two samples; and a sensor none of whose stamps falls inside the IMU's time span
 // (the LiDAR's within 1 s of it: its clock is offset), which could add no factor. Throws one
 // autocal::Error naming the problem, the dataset and every missing piece, e.g. "problem

@@ -12,7 +12,8 @@
 //     rostopic: /imu0                         # optional, ignored (pasted Kalibr files)
 //   lidar: {num_beams, rate_hz, min_elevation_deg, max_elevation_deg,
 //           azimuth_resolution_deg, min_range_m, max_range_m, range_noise_m}   # optional
-//   wheel: {rate_hz, noise_rad_s}                                              # optional
+//   wheel: {form, rate_hz, noise_rad_s, noise_m_s, yaw_rate_noise_rad_s,       # optional
+//           controller_track_m}   # form: angular_rates (default) | linear_speeds | speed_yaw_rate
 //   gnss: {rate_hz}                                                            # optional
 //   nominal_calibration: {...}          # optional, the schema of calibration_yaml.h
 //

@@ -23,6 +23,17 @@ struct Calibration {
   double wheel_radius_left_m = 0.33;
   double wheel_radius_right_m = 0.33;
   double track_width_m = 1.6;
+  // Wheels reported as linear speeds (m/s): the true speed of a rear wheel is its scale times
+  // the reported one (1 when the vehicle's own radius is right).
+  double wheel_speed_scale_left = 1.0;
+  double wheel_speed_scale_right = 1.0;
+  // Wheels reported as the controller's speed and yaw rate (odometry twist): the true speed is
+  // odometry_speed_scale (k_v) times the reported one, and the true yaw rate
+  // k_v * yaw_rate_odo * b_ctrl / effective_track_m, b_ctrl being the separation the controller
+  // divides by (sensors::WheelConfig::controller_track_m). A skid-steer platform slips in
+  // turns, so its effective track b_eff exceeds the wheel separation.
+  double odometry_speed_scale = 1.0;
+  double effective_track_m = 1.6;
   // GNSS lever arm: antenna position in the IMU frame.
   Eigen::Vector3d p_I_A = Eigen::Vector3d::Zero();
 };

@@ -9,23 +9,28 @@
 #include <vector>
 
 #include "autocal/sensors/calibration.h"
+#include "autocal/sensors/sensor_config.h"
 
 namespace autocal {
 namespace sensors {
 
 // The blocks, in table order.
 enum class CalibrationBlockId {
-  kLidarRotation,       // q_I_L
-  kLidarTranslation,    // p_I_L
-  kTimeOffset,          // time_offset_lidar_imu_s
-  kWheelRadiusLeft,     // wheel_radius_left_m
-  kWheelRadiusRight,    // wheel_radius_right_m
-  kTrackWidth,          // track_width_m
-  kVehicleRotation,     // q_I_V
-  kVehicleTranslation,  // p_I_V
-  kGnssLeverArm,        // p_I_A
+  kLidarRotation,         // q_I_L
+  kLidarTranslation,      // p_I_L
+  kTimeOffset,            // time_offset_lidar_imu_s
+  kWheelRadiusLeft,       // wheel_radius_left_m
+  kWheelRadiusRight,      // wheel_radius_right_m
+  kTrackWidth,            // track_width_m
+  kVehicleRotation,       // q_I_V
+  kVehicleTranslation,    // p_I_V
+  kGnssLeverArm,          // p_I_A
+  kWheelSpeedScaleLeft,   // wheel_speed_scale_left
+  kWheelSpeedScaleRight,  // wheel_speed_scale_right
+  kOdometrySpeedScale,    // odometry_speed_scale
+  kEffectiveTrack,        // effective_track_m
 };
-constexpr int kNumCalibrationBlocks = 9;
+constexpr int kNumCalibrationBlocks = 13;
 
 // How a block is perturbed: a unit quaternion [x, y, z, w] on the right, q ⊞ δ = q ⊗ Exp(δ)
 // (geometry::RightQuaternionManifold; ambient 4, tangent 3 in rad), or a Euclidean vector.
@@ -63,6 +68,11 @@ const CalibrationBlockInfo& CalibrationBlock(CalibrationBlockId id);
 
 // The block whose key is `key`, or nullptr.
 const CalibrationBlockInfo* FindCalibrationBlock(const std::string& key);
+
+// Whether the wheel data of `form` determine block `id`: the radii with angular rates, the speed
+// scales with linear speeds, the track width with both, the odometry speed scale and the
+// effective track with speed and yaw rate. Every other block (T_I_V among them) belongs to all.
+bool BlockInWheelForm(CalibrationBlockId id, WheelForm form);
 
 // Names of the block's ambient values as columns: "q_I_L_x" .. "q_I_L_w", "p_I_L_x_m",
 // "time_offset_lidar_imu_s".

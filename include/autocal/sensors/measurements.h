@@ -24,6 +24,27 @@ struct WheelSample {
   double right_rad_s = 0.0;
 };
 
+// Linear speeds of the rear wheels in m/s (CAN wheel speeds), positive when driving forward;
+// a four-wheel log also carries the front pair (has_front), which the rear-axle model of the
+// vehicle frame V does not use (the front wheels steer).
+struct WheelSpeedSample {
+  int64_t t_ns = 0;
+  double left_m_s = 0.0;   // rear left
+  double right_m_s = 0.0;  // rear right
+  bool has_front = false;
+  double front_left_m_s = 0.0;
+  double front_right_m_s = 0.0;
+};
+
+// The body twist a vehicle controller publishes (nav_msgs/Odometry, geometry_msgs/Twist):
+// forward speed and yaw rate, already computed from the wheels with the controller's own
+// radius and wheel separation.
+struct OdometrySample {
+  int64_t t_ns = 0;
+  double speed_m_s = 0.0;       // twist linear.x, negative when reversing
+  double yaw_rate_rad_s = 0.0;  // twist angular.z, positive counter-clockwise
+};
+
 // A GNSS position fix of the antenna A with the receiver's 1-sigma (east, north, up).
 // Heights are ellipsoidal (WGS84).
 struct GnssFix {
@@ -37,6 +58,8 @@ struct GnssFix {
 using ImuSamples = std::vector<ImuSample>;
 using WheelSamples = std::vector<WheelSample>;
 using GnssFixes = std::vector<GnssFix>;
+using WheelSpeedSamples = std::vector<WheelSpeedSample>;
+using OdometrySamples = std::vector<OdometrySample>;
 
 }  // namespace sensors
 }  // namespace autocal

@@ -2,6 +2,7 @@
 
 // Sensor descriptions that sensors.yaml carries besides the calibration.
 
+#include <optional>
 #include <string>
 
 namespace autocal {
@@ -34,9 +35,31 @@ struct LidarConfig {
   double range_noise_m = 0.02;  // 1-sigma
 };
 
+// The form in which a vehicle reports its wheels (datasets/README.md, "Wheel forms"); it names
+// the dataset file and the calibration blocks the wheels determine.
+enum class WheelForm {
+  kAngularRates,  // wheel.csv: rear-wheel rates in rad/s; radii and track width
+  kLinearSpeeds,  // wheel_speed.csv: rear-wheel speeds in m/s; speed scales and track width
+  kSpeedYawRate,  // odometry.csv: body speed and yaw rate; speed scale, effective track
+};
+
+// "angular_rates", "linear_speeds", "speed_yaw_rate": the sensors.yaml spelling.
+const char* WheelFormName(WheelForm form);
+// The form spelled `name`, false when there is none.
+bool ParseWheelForm(const std::string& name, WheelForm* form);
+// The dataset file that carries the form: "wheel.csv", "wheel_speed.csv", "odometry.csv".
+const char* WheelFormFile(WheelForm form);
+
 struct WheelConfig {
+  WheelForm form = WheelForm::kAngularRates;
   double rate_hz = 100.0;
-  double noise_rad_s = 0.02;  // 1-sigma of each wheel rate
+  double noise_rad_s = 0.02;  // angular_rates: 1-sigma of each wheel rate
+  // linear_speeds: 1-sigma of each wheel speed; speed_yaw_rate: 1-sigma of the speed.
+  double noise_m_s = 0.02;
+  double yaw_rate_noise_rad_s = 0.02;  // speed_yaw_rate: 1-sigma of the yaw rate
+  // speed_yaw_rate: the wheel separation b_ctrl the controller divides by to report its yaw
+  // rate; unset means the nominal effective track (the nominal yaw-rate scale is then 1).
+  std::optional<double> controller_track_m;
 };
 
 struct GnssConfig {
