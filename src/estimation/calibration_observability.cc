@@ -305,5 +305,26 @@ void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
   }
 }
 
+void SetHeldDirectionsToPrior(const std::vector<EstimatedBlock>& blocks,
+                              const BlockObservability& observability) {
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const EstimatedBlock& block = blocks[b];
+    const std::vector<bool>& held = observability.held[b];
+    if (std::find(held.begin(), held.end(), true) == held.end()) continue;
+    if (!IsRotation(block)) {
+      for (int i = 0; i < block.size; ++i) {
+        if (held[static_cast<size_t>(i)]) block.data[i] = block.prior(i);
+      }
+      continue;
+    }
+    Eigen::Vector3d difference = TangentFromPrior(block);
+    for (int i = 0; i < 3; ++i) {
+      if (held[static_cast<size_t>(i)]) difference(i) = 0.0;
+    }
+    Eigen::Map<Eigen::Quaterniond>(block.data) =
+        geometry::QuaternionPlus(AsQuaternion(block.prior.data()), difference);
+  }
+}
+
 }  // namespace estimation
 }  // namespace autocal

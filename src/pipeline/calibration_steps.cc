@@ -255,9 +255,15 @@ void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
 
 void SolveAgainAfterHolding(const io::Problem& problem,
                             const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-                            const estimation::BlockObservability& observability, ceres::Problem* p,
-                            OfflineCalibrationResult* result) {
+                            const estimation::BlockObservability& observability,
+                            const sensors::Calibration& solved, sensors::Calibration* calibration,
+                            ceres::Problem* p, OfflineCalibrationResult* result) {
   if (!estimation::AnyHeld(observability)) return;
+  // From the solve's values with the held directions at their prior: the start does not depend
+  // on the covariance's last digits (Eq. C1's step does), so identical runs give identical
+  // values.
+  *calibration = solved;
+  estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
   estimation::AddHeldDirectionPriors(blocks_estimated, observability, p);
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -270,6 +276,7 @@ void SolveAgainAfterHolding(const io::Problem& problem,
   }
   result->calibration.solver["iterations_after_holding"] =
       std::to_string(summary.iterations.size());
+  estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
 }
 
 estimation::BlockObservability Observe(

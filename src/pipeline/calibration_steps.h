@@ -118,13 +118,15 @@ void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
                          size_t num_keyframes, const OfflineCalibrationResult& result);
 
 // Eq. C3: when Observe held directions, pins them in `p` (the solved problem, whose blocks
-// are the keyframes and the calibration) and solves it again from where it ended, so that the
-// trajectory, the residuals and the other blocks follow the calibration that is reported.
-// Throws autocal::Error when that solve fails.
+// are the keyframes and `calibration`) and solves it again from `solved` (the calibration
+// before Observe) with the held directions at their prior, so that the trajectory, the
+// residuals and the other blocks follow the calibration that is reported. Throws
+// autocal::Error when that solve fails.
 void SolveAgainAfterHolding(const io::Problem& problem,
                             const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-                            const estimation::BlockObservability& observability, ceres::Problem* p,
-                            OfflineCalibrationResult* result);
+                            const estimation::BlockObservability& observability,
+                            const sensors::Calibration& solved, sensors::Calibration* calibration,
+                            ceres::Problem* p, OfflineCalibrationResult* result);
 
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'

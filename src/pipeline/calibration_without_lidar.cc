@@ -143,9 +143,11 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   file.solver["final_cost"] = std::to_string(summary.final_cost);
   file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
   RecordTiming(timing, true, &file);
+  const sensors::Calibration solved = calibration;
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
-  SolveAgainAfterHolding(problem, blocks_estimated, observability, &p, &result);
+  SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration, &p,
+                         &result);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].after = std::move(rows);

@@ -219,9 +219,10 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   batch_options.compute_covariance = false;  // the joint one below covers every block
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
     const estimation::BlockCovariance covariance = estimation::ComputeBlockCovariance(blocks, p);
+    const sensors::Calibration solved = *calibration;
     const estimation::BlockObservability observability =
         Observe(dataset, options, blocks, covariance, result);
-    SolveAgainAfterHolding(problem, blocks, observability, p, result);
+    SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
     for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
       result->whitened_residuals[sensor].after = std::move(rows);
     }

@@ -236,6 +236,8 @@ TEST(CalibrationObservability, SolvingAgainWithTheHeldDirectionsPinnedKeepsTheSt
   EXPECT_EQ(problem.NumResidualBlocks(), 5);
   ceres::Solve(options, &problem, &summary);
   EXPECT_NEAR(p.z(), 0.55, 1e-9);
+  SetHeldDirectionsToPrior(blocks, observability);
+  EXPECT_EQ(p.z(), 0.55);
   EXPECT_NEAR(p.x(), conditioned.x(), 1e-9);
   EXPECT_NEAR(p.y(), conditioned.y(), 1e-9);
   EXPECT_NEAR(s - p.x(), 1.5, 1e-4);  // within the row's sigma of 0.01 times the prior's pull

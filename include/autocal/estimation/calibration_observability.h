@@ -99,5 +99,10 @@ constexpr double kHeldSigmaFraction = 1e-6;
 void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
                             const BlockObservability& observability, ceres::Problem* problem);
 
+// After that solve: every held direction exactly at its prior value again (the solve leaves
+// it within kHeldSigmaFraction of a sigma), the other directions as they are.
+void SetHeldDirectionsToPrior(const std::vector<EstimatedBlock>& blocks,
+                              const BlockObservability& observability);
+
 }  // namespace estimation
 }  // namespace autocal
