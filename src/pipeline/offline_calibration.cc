@@ -202,7 +202,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
            per_iteration * (p.max_iterations - p.iteration));
   };
   geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const SensorFactors sensor_factors{
       &dataset, &problem, &result->nominal,     use_wheel, enu != nullptr,
       enu,      &blocks,  &quaternion_manifold, &timing};
@@ -305,7 +305,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
       StartFromInitializer(result.nominal, problem.calibration, result.initialization);
   BatchKeyframes keyframes = EveryStrideKeyframe(problem, result.initialization, &sweeps);
   sweeps.clear();
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);
   std::optional<sensors::EnuConverter> enu;
