@@ -155,20 +155,20 @@ factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
 void EstimateFormBlocks(sensors::WheelForm form, const io::ProblemCalibration& b,
                         estimation::KeyframeWheelOptions* wheel) {
   const bool twist = form == sensors::WheelForm::kSpeedYawRate;
-  const io::ScalarBlockSetting& scale =
-      twist ? b.odometry_speed_scale
-            : form == sensors::WheelForm::kLinearSpeeds ? b.wheel_speed_scale_left
-                                                        : b.wheel_radius_left_m;
+  const io::ScalarBlockSetting& scale = twist ? b.odometry_speed_scale
+                                        : form == sensors::WheelForm::kLinearSpeeds
+                                            ? b.wheel_speed_scale_left
+                                            : b.wheel_radius_left_m;
   wheel->estimate_radii = Estimated(scale.mode);
   wheel->estimate_track_width = Estimated(twist ? b.effective_track_m.mode : b.track_width_m.mode);
 }
 
 // Whether `f` is a wheel factor of any form (Eqs. F22, F25, F26).
 bool IsWheelCost(const ceres::CostFunction* f) {
-  using SpeedCost = ceres::AutoDiffCostFunction<factors::WheelSpeedResidual, ceres::DYNAMIC, 4,
-                                                3, 3, 4, 3, 1, 1, 1>;
-  using TwistCost = ceres::AutoDiffCostFunction<factors::OdometryTwistResidual, ceres::DYNAMIC,
-                                                4, 3, 3, 4, 3, 1, 1>;
+  using SpeedCost = ceres::AutoDiffCostFunction<factors::WheelSpeedResidual, ceres::DYNAMIC, 4, 3,
+                                                3, 4, 3, 1, 1, 1>;
+  using TwistCost = ceres::AutoDiffCostFunction<factors::OdometryTwistResidual, ceres::DYNAMIC, 4,
+                                                3, 3, 4, 3, 1, 1>;
   return dynamic_cast<const factors::WheelFactor*>(f) || dynamic_cast<const SpeedCost*>(f) ||
          dynamic_cast<const TwistCost*>(f);
 }
@@ -244,9 +244,8 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     EstimateFormBlocks(dataset->wheel_form(), b, &wheel);
-    const int n =
-        estimation::AddWheelFactors(p, dataset->imu, FormData(*dataset, *nominal), keyframes, c,
-                                    wheel);
+    const int n = estimation::AddWheelFactors(p, dataset->imu, FormData(*dataset, *nominal),
+                                              keyframes, c, wheel);
     const char* file = sensors::WheelFormFile(dataset->wheel_form());
     const std::string limits =
         "max_wheel_gap_s = " + FormatFixed(wheel.max_wheel_gap_s, 3) +
