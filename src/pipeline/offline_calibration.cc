@@ -387,6 +387,12 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
   scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
   scalar("right rear wheel radius (mm)", c.wheel_radius_right_m, u.wheel_radius_right_m, 1e3, 3);
   scalar("track width (mm)", c.track_width_m, u.track_width_m, 1e3, 1);
+  scalar("left rear wheel speed scale (%)", c.wheel_speed_scale_left, u.wheel_speed_scale_left,
+         100.0, 3);
+  scalar("right rear wheel speed scale (%)", c.wheel_speed_scale_right, u.wheel_speed_scale_right,
+         100.0, 3);
+  scalar("odometry speed scale (%)", c.odometry_speed_scale, u.odometry_speed_scale, 100.0, 3);
+  scalar("effective track (mm)", c.effective_track_m, u.effective_track_m, 1e3, 1);
   pose("T_I_V", "IMU mount roll pitch yaw (deg)", ImuMountInVehicle(c.q_I_V), c.p_I_V, u.T_I_V, 3);
   if (u.p_I_A_m.sigma) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
