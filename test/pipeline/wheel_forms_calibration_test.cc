@@ -84,6 +84,40 @@ TEST(WheelFormsCalibration, OdometryTwistGivesSpeedScaleAndEffectiveTrack) {
   EXPECT_EQ(estimate.wheel_speed_scale_left, nominal.wheel_speed_scale_left);
 }
 
+// The slow skid-steer robot (preset: 300 s at up to 1 m/s, IMU 30 Hz, odometry 10 Hz, GPS
+// 2.5 Hz with 0.6 m sigma) as odometry twist, its clock offset left out (nothing models it
+// here): k_v 0.97 and b_eff 1.875 times the physical track come back within 3 sigma of the
+// truth. The drive determines them only partly (sigma 0.26 % and 63 mm, above the limits of
+// 0.1 % and 5 % of the nominal b_eff): kept, not reported observable, and not held at the
+// nominal value, which the data put 9 sigma away.
+TEST(WheelFormsCalibration, SlowSkidSteerOdometryKeepsItsSpeedScaleAndEffectiveTrack) {
+  sim::SimulationOptions options = sim::SkidSteerRobotOptions();
+  options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
+  options.wheel.time_offset_wheel_imu_s = 0.0;
+  const test::SimulatedUrbanDataset data(options, "skid_steer_twist");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, ImuWheelGnssProblem());
+  std::cout << FormatCalibrationSummary(result);
+  const sensors::Calibration& truth = data.simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  const auto expect_kept = [](const char* name, double estimate, double truth,
+                              const io::ScalarBlockInfo& info, double max_sigma) {
+    ASSERT_TRUE(info.sigma.has_value()) << name;
+    std::cout << name << ": estimate " << estimate << ", truth " << truth << ", sigma "
+              << *info.sigma << '\n';
+    EXPECT_LT(*info.sigma, max_sigma) << name;
+    EXPECT_LE(std::abs(estimate - truth), 3.0 * *info.sigma) << name;
+  };
+  expect_kept("odometry_speed_scale", estimate.odometry_speed_scale, truth.odometry_speed_scale,
+              u.odometry_speed_scale, 0.005);
+  expect_kept("effective_track_m", estimate.effective_track_m, truth.effective_track_m,
+              u.effective_track_m, 0.1);
+  EXPECT_GT(
+      std::abs(estimate.effective_track_m - dataset.sensors.nominal_calibration.effective_track_m),
+      0.3);
+}
+
 // CAN wheel speeds from wheels 1.2 % and 0.8 % larger than the vehicle assumes (scales
 // 1.012, 0.992): both scales and the track width come back within their sigma.
 TEST(WheelFormsCalibration, WheelSpeedsGiveSpeedScalesAndTrackWidth) {
