@@ -60,6 +60,12 @@ DEFINE_double(wheel_burst_span_s, 0.002, "arrival span of one wheel burst, secon
 DEFINE_double(wheel_drop_probability, 0.0, "probability that a wheel sample is lost");
 DEFINE_double(wheel_time_offset_s, 0.0,
               "wheel clock offset: a sample stamped t was measured at IMU time t + offset");
+DEFINE_string(wheel_form, "angular_rates",
+              "wheel data written: angular_rates (wheel.csv), linear_speeds (wheel_speed.csv) "
+              "or speed_yaw_rate (odometry.csv)");
+DEFINE_double(wheel_noise_m_s, 0.02,
+              "noise of each wheel speed (linear_speeds) or the odometry speed, 1-sigma m/s");
+DEFINE_double(wheel_yaw_rate_noise_rad_s, 0.02, "odometry yaw rate noise, 1-sigma rad/s");
 DEFINE_bool(noise, true, "false: every sensor exact (no noise, bias, dropouts or outliers)");
 
 namespace {
@@ -158,6 +164,14 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   set("wheel_burst_span_s", FLAGS_wheel_burst_span_s, &o.wheel.burst_span_s);
   set("wheel_drop_probability", FLAGS_wheel_drop_probability, &o.wheel.drop_probability);
   set("wheel_time_offset_s", FLAGS_wheel_time_offset_s, &o.wheel.time_offset_wheel_imu_s);
+  if ((all || Given("wheel_form")) &&
+      !autocal::sensors::ParseWheelForm(FLAGS_wheel_form, &o.wheel.config.form)) {
+    throw Error("--wheel_form must be angular_rates, linear_speeds or speed_yaw_rate, got '" +
+                FLAGS_wheel_form + "'");
+  }
+  set("wheel_noise_m_s", FLAGS_wheel_noise_m_s, &o.wheel.config.noise_m_s);
+  set("wheel_yaw_rate_noise_rad_s", FLAGS_wheel_yaw_rate_noise_rad_s,
+      &o.wheel.config.yaw_rate_noise_rad_s);
   return FLAGS_noise ? o : o.WithoutNoise();
 }
 
@@ -169,7 +183,8 @@ int main(int argc, char** argv) {
       "  autocal_simulate --scenario=urban|highway|skid_steer|straight --duration_s=60 "
       "--seed=1 --out=DIR\n"
       "  autocal_simulate --preset=skid_steer|can_bus_car --out=DIR\n"
-      "Output: sensors.yaml (nominal calibration = truth perturbed), imu.csv, wheel.csv,\n"
+      "Output: sensors.yaml (nominal calibration = truth perturbed), imu.csv, wheel.csv\n"
+      "(or wheel_speed.csv, odometry.csv: --wheel_form),\n"
       "gnss.csv, lidar.csv + lidar/*.ply, groundtruth/{trajectory.csv, calibration.yaml,\n"
       "imu_bias.csv, gnss.csv, timing.yaml}. Same seed, same dataset.");
   if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_simulate")) return 0;

@@ -43,6 +43,14 @@ CalibrationErrors CompareCalibration(const sensors::Calibration& estimate,
       estimate.wheel_radius_right_m, truth.wheel_radius_right_m, "wheel_radius_right_m");
   errors.track_width_percent =
       PercentError(estimate.track_width_m, truth.track_width_m, "track_width_m");
+  errors.wheel_speed_scale_left_percent = PercentError(
+      estimate.wheel_speed_scale_left, truth.wheel_speed_scale_left, "wheel_speed_scale_left");
+  errors.wheel_speed_scale_right_percent = PercentError(
+      estimate.wheel_speed_scale_right, truth.wheel_speed_scale_right, "wheel_speed_scale_right");
+  errors.odometry_speed_scale_percent = PercentError(
+      estimate.odometry_speed_scale, truth.odometry_speed_scale, "odometry_speed_scale");
+  errors.effective_track_percent =
+      PercentError(estimate.effective_track_m, truth.effective_track_m, "effective_track_m");
   errors.p_I_A_mm = 1e3 * (estimate.p_I_A - truth.p_I_A);
   errors.T_I_V = ComparePose(estimate.q_I_V, estimate.p_I_V, truth.q_I_V, truth.p_I_V);
   return errors;

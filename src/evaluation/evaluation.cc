@@ -179,6 +179,12 @@ std::string EvaluationYamlText(const Evaluation& evaluation, const Thresholds& t
   out += "  wheel_radius_left_error_percent: " + Number(c.wheel_radius_left_percent) + "\n";
   out += "  wheel_radius_right_error_percent: " + Number(c.wheel_radius_right_percent) + "\n";
   out += "  track_width_error_percent: " + Number(c.track_width_percent) + "\n";
+  out +=
+      "  wheel_speed_scale_left_error_percent: " + Number(c.wheel_speed_scale_left_percent) + "\n";
+  out += "  wheel_speed_scale_right_error_percent: " + Number(c.wheel_speed_scale_right_percent) +
+         "\n";
+  out += "  odometry_speed_scale_error_percent: " + Number(c.odometry_speed_scale_percent) + "\n";
+  out += "  effective_track_error_percent: " + Number(c.effective_track_percent) + "\n";
   out += "  p_I_A:\n";
   out += "    error_mm: " + Number(c.p_I_A_mm.norm()) + "\n";
   out += "    error_axes_mm: " + List(c.p_I_A_mm) + "\n";

@@ -503,13 +503,6 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
     reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "lidar.csv"));
   }
   const char* wheel_file = sensors::WheelFormFile(dataset.wheel_form());
-  if (problem.sensors.wheel && dataset.wheel_form() != sensors::WheelForm::kAngularRates &&
-      dataset.wheel_sample_count() > 0) {
-    reasons.push_back(who + " uses the wheel encoders but " + where + " reports its wheels as " +
-                      sensors::WheelFormName(dataset.wheel_form()) + " (" + wheel_file +
-                      "), and the calibration takes angular rates (wheel.csv) only so far: set "
-                      "sensors.wheel: false");
-  }
   if (problem.sensors.wheel && dataset.wheel_sample_count() == 0) {
     const std::string demand =
         Demand(WheelDemands(c, dataset.wheel_form()), "uses the wheel encoders");

@@ -100,6 +100,79 @@ void RequireCoverage(const io::Dataset& dataset, const std::string& sensor,
   throw Error(message + "; nothing is written");
 }
 
+// The stamps of the wheel form's samples.
+std::vector<int64_t> WheelStamps(const io::Dataset& dataset) {
+  switch (dataset.wheel_form()) {
+    case sensors::WheelForm::kLinearSpeeds:
+      return Stamps(dataset.wheel_speeds);
+    case sensors::WheelForm::kSpeedYawRate:
+      return Stamps(dataset.odometry);
+    case sensors::WheelForm::kAngularRates:
+      break;
+  }
+  return Stamps(dataset.wheel);
+}
+
+// The separation b_ctrl the odometry's controller divides by: sensors.yaml's
+// controller_track_m, else the nominal effective track (the nominal yaw-rate scale is then 1).
+double ControllerTrackM(const io::Dataset& dataset, const sensors::Calibration& nominal) {
+  const std::optional<sensors::WheelConfig>& config = dataset.sensors.wheel;
+  return config && config->controller_track_m ? *config->controller_track_m
+                                              : nominal.effective_track_m;
+}
+
+// The wheel form's samples for estimation::AddWheelFactors.
+estimation::WheelData FormData(const io::Dataset& dataset, const sensors::Calibration& nominal) {
+  estimation::WheelData data;
+  data.form = dataset.wheel_form();
+  data.rates = dataset.wheel;
+  data.speeds = dataset.wheel_speeds;
+  data.odometry = dataset.odometry;
+  data.controller_track_m = ControllerTrackM(dataset, nominal);
+  return data;
+}
+
+// The sigmas of the form's factor rows from sensors.yaml's wheel noise (a sensors.yaml without
+// a wheel: section, or no sensors.yaml, means the encoder defaults of sensors/sensor_config.h;
+// datasets/README.md).
+factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
+                                       const sensors::Calibration& nominal) {
+  const sensors::WheelConfig config = dataset.sensors.wheel.value_or(sensors::WheelConfig());
+  switch (dataset.wheel_form()) {
+    case sensors::WheelForm::kLinearSpeeds:
+      return factors::WheelFactorOptions::FromWheelSpeedNoise(config, nominal.track_width_m);
+    case sensors::WheelForm::kSpeedYawRate:
+      return factors::WheelFactorOptions::FromOdometryNoise(config);
+    case sensors::WheelForm::kAngularRates:
+      break;
+  }
+  return factors::WheelFactorOptions::FromEncoderNoise(config, nominal.wheel_radius_left_m,
+                                                       nominal.track_width_m);
+}
+
+// The estimate switches of the form's scales (radii, speed scales or k_v) and track (b or
+// b_eff), from the problem's settings of those blocks.
+void EstimateFormBlocks(sensors::WheelForm form, const io::ProblemCalibration& b,
+                        estimation::KeyframeWheelOptions* wheel) {
+  const bool twist = form == sensors::WheelForm::kSpeedYawRate;
+  const io::ScalarBlockSetting& scale = twist ? b.odometry_speed_scale
+                                        : form == sensors::WheelForm::kLinearSpeeds
+                                            ? b.wheel_speed_scale_left
+                                            : b.wheel_radius_left_m;
+  wheel->estimate_radii = Estimated(scale.mode);
+  wheel->estimate_track_width = Estimated(twist ? b.effective_track_m.mode : b.track_width_m.mode);
+}
+
+// Whether `f` is a wheel factor of any form (Eqs. F22, F25, F26).
+bool IsWheelCost(const ceres::CostFunction* f) {
+  using SpeedCost = ceres::AutoDiffCostFunction<factors::WheelSpeedResidual, ceres::DYNAMIC, 4, 3,
+                                                3, 4, 3, 1, 1, 1>;
+  using TwistCost = ceres::AutoDiffCostFunction<factors::OdometryTwistResidual, ceres::DYNAMIC, 4,
+                                                3, 3, 4, 3, 1, 1>;
+  return dynamic_cast<const factors::WheelFactor*>(f) || dynamic_cast<const SpeedCost*>(f) ||
+         dynamic_cast<const TwistCost*>(f);
+}
+
 [[noreturn]] void ThrowNoFactor(const io::Dataset& dataset, const std::string& sensor,
                                 const std::string& reason) {
   throw Error("dataset " + dataset.directory + ": no " + sensor + " factor in the solve (" +
@@ -113,7 +186,10 @@ TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& p
   const std::string where = dataset.directory + "/";
   TimingLimits t;
   t.imu = sensors::MeasureTiming(Stamps(dataset.imu), where + "imu.csv");
-  if (use_wheel) t.wheel = sensors::MeasureTiming(Stamps(dataset.wheel), where + "wheel.csv");
+  if (use_wheel) {
+    t.wheel = sensors::MeasureTiming(WheelStamps(dataset),
+                                     where + sensors::WheelFormFile(dataset.wheel_form()));
+  }
   if (use_gnss) t.gnss = sensors::MeasureTiming(Stamps(dataset.gnss), where + "gnss.csv");
   const io::ProblemTiming& o = problem.timing;
   t.max_imu_gap_s = o.max_imu_gap_s.value_or(sensors::MaxBracketingGapS(t.imu));
@@ -160,26 +236,36 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
   if (use_wheel) {
     p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
     estimation::KeyframeWheelOptions wheel;
-    // A sensors.yaml without a wheel: section (or no sensors.yaml) means the encoder defaults
-    // of sensors/sensor_config.h (datasets/README.md).
-    wheel.factor = factors::WheelFactorOptions::FromEncoderNoise(
-        dataset->sensors.wheel.value_or(sensors::WheelConfig()), nominal->wheel_radius_left_m,
-        nominal->track_width_m);
+    wheel.factor = WheelNoise(*dataset, *nominal);
     wheel.factor.shared_radius = b.wheel_radius_shared;
     wheel.loss = problem->loss.wheel;
     wheel.max_wheel_gap_s = timing->max_wheel_gap_s;
     wheel.max_imu_gap_s = timing->max_imu_gap_s;
     wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
-    wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
-    wheel.estimate_track_width = Estimated(b.track_width_m.mode);
-    const int n = estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
-    RequireCoverage(
-        *dataset, "wheel", *timing->wheel, n, *keyframes,
+    EstimateFormBlocks(dataset->wheel_form(), b, &wheel);
+    const int n = estimation::AddWheelFactors(p, dataset->imu, FormData(*dataset, *nominal),
+                                              keyframes, c, wheel);
+    const char* file = sensors::WheelFormFile(dataset->wheel_form());
+    const std::string limits =
         "max_wheel_gap_s = " + FormatFixed(wheel.max_wheel_gap_s, 3) +
-            " s (and IMU samples within max_imu_gap_s = " + FormatFixed(wheel.max_imu_gap_s, 4) +
-            " s, IMU at " + FormatFixed(timing->imu.rate_hz(), 1) + " Hz)",
-        timing->min_factor_fraction, dataset->wheel, "wheel.csv");
+        " s (and IMU samples within max_imu_gap_s = " + FormatFixed(wheel.max_imu_gap_s, 4) +
+        " s, IMU at " + FormatFixed(timing->imu.rate_hz(), 1) + " Hz)";
+    const auto require = [&](const auto& samples) {
+      RequireCoverage(*dataset, "wheel", *timing->wheel, n, *keyframes, limits,
+                      timing->min_factor_fraction, samples, file);
+    };
+    switch (dataset->wheel_form()) {
+      case sensors::WheelForm::kLinearSpeeds:
+        require(dataset->wheel_speeds);
+        break;
+      case sensors::WheelForm::kSpeedYawRate:
+        require(dataset->odometry);
+        break;
+      case sensors::WheelForm::kAngularRates:
+        require(dataset->wheel);
+        break;
+    }
   }
   if (use_gnss) {
     estimation::KeyframeGnssOptions gnss;
@@ -231,7 +317,7 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
   for (ceres::ResidualBlockId id : all) {
     const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
     if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
-    if (dynamic_cast<const factors::WheelFactor*>(f)) ids["wheel"].push_back(id);
+    if (IsWheelCost(f)) ids["wheel"].push_back(id);
     if (dynamic_cast<const factors::GnssFactor*>(f)) ids["gnss"].push_back(id);
   }
   std::map<std::string, std::vector<double>> out;
@@ -313,7 +399,7 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
   if (problem.calibration.wheel_radius_shared) {
     calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
   }
-  if (problem.sensors.wheel && dataset.wheel.empty()) {
+  if (problem.sensors.wheel && dataset.wheel_sample_count() == 0) {
     result->warnings.push_back(
         "the dataset has no wheel samples: wheel blocks keep their nominal value");
   }

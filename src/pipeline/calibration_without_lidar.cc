@@ -86,7 +86,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   OfflineCalibrationResult result;
   result.nominal = dataset.sensors.nominal_calibration;
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
   const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, true);
   for (const sensors::GnssFix& fix : dataset.gnss) {

@@ -202,7 +202,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
            per_iteration * (p.max_iterations - p.iteration));
   };
   geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const SensorFactors sensor_factors{
       &dataset, &problem, &result->nominal,     use_wheel, enu != nullptr,
       enu,      &blocks,  &quaternion_manifold, &timing};
@@ -306,7 +306,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
       StartFromInitializer(result.nominal, problem.calibration, result.initialization);
   BatchKeyframes keyframes = EveryStrideKeyframe(problem, result.initialization, &sweeps);
   sweeps.clear();
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);
   std::optional<sensors::EnuConverter> enu;
@@ -388,6 +388,12 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
   scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
   scalar("right rear wheel radius (mm)", c.wheel_radius_right_m, u.wheel_radius_right_m, 1e3, 3);
   scalar("track width (mm)", c.track_width_m, u.track_width_m, 1e3, 1);
+  scalar("left rear wheel speed scale (%)", c.wheel_speed_scale_left, u.wheel_speed_scale_left,
+         100.0, 3);
+  scalar("right rear wheel speed scale (%)", c.wheel_speed_scale_right, u.wheel_speed_scale_right,
+         100.0, 3);
+  scalar("odometry speed scale (%)", c.odometry_speed_scale, u.odometry_speed_scale, 100.0, 3);
+  scalar("effective track (mm)", c.effective_track_m, u.effective_track_m, 1e3, 1);
   pose("T_I_V", "IMU mount roll pitch yaw (deg)", ImuMountInVehicle(c.q_I_V), c.p_I_V, u.T_I_V, 3);
   if (u.p_I_A_m.sigma) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,

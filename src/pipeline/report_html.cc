@@ -8,6 +8,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/format.h"
@@ -117,6 +118,29 @@ std::vector<BlockTrace> CalibrationBlockTraces(const io::CalibrationUncertainty&
        u.track_width_m.sigma.has_value(),
        [](const C& first, const C& c) {
          return std::vector<double>{(c.track_width_m - first.track_width_m) * 1e3};
+       }},
+      {"wheel speed scales",
+       "%",
+       {"left", "right"},
+       u.wheel_speed_scale_left.sigma.has_value() || u.wheel_speed_scale_right.sigma.has_value(),
+       [](const C& first, const C& c) {
+         return std::vector<double>{
+             100.0 * (c.wheel_speed_scale_left - first.wheel_speed_scale_left),
+             100.0 * (c.wheel_speed_scale_right - first.wheel_speed_scale_right)};
+       }},
+      {"odometry speed scale",
+       "%",
+       {"k_v"},
+       u.odometry_speed_scale.sigma.has_value(),
+       [](const C& first, const C& c) {
+         return std::vector<double>{100.0 * (c.odometry_speed_scale - first.odometry_speed_scale)};
+       }},
+      {"effective track",
+       "mm",
+       {"b_eff"},
+       u.effective_track_m.sigma.has_value(),
+       [](const C& first, const C& c) {
+         return std::vector<double>{(c.effective_track_m - first.effective_track_m) * 1e3};
        }},
       {"vehicle–IMU rotation T_I_V", "deg", xyz, u.T_I_V.sigma_rot_deg.has_value(),
        [=](const C& first, const C& c) { return rotation_deg(first.q_I_V, c.q_I_V); }},
@@ -244,6 +268,19 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
   if (u.track_width_m.sigma) {
     scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m, u.track_width_m,
                1e3);
+  }
+  // The blocks of the other wheel forms (speed scales in %).
+  const std::pair<const char*, double sensors::Calibration::*> form_blocks[] = {
+      {"wheel speed scale left (%)", &sensors::Calibration::wheel_speed_scale_left},
+      {"wheel speed scale right (%)", &sensors::Calibration::wheel_speed_scale_right},
+      {"odometry speed scale (%)", &sensors::Calibration::odometry_speed_scale},
+      {"effective track (mm)", &sensors::Calibration::effective_track_m}};
+  const io::ScalarBlockInfo* form_infos[] = {&u.wheel_speed_scale_left, &u.wheel_speed_scale_right,
+                                             &u.odometry_speed_scale, &u.effective_track_m};
+  for (size_t i = 0; i < 4; ++i) {
+    const auto& [label, member] = form_blocks[i];
+    if (!form_infos[i]->sigma) continue;
+    scalar_row(label, c.*member, result.nominal.*member, *form_infos[i], i < 3 ? 100.0 : 1e3);
   }
   if (u.p_I_A_m.sigma) {
     for (int i = 0; i < 3; ++i) {

@@ -70,6 +70,19 @@ void WriteTiming(const SimulationOptions& o, const std::string& path) {
   io::WriteFileAtomically(path, out.str());
 }
 
+// The wheel log in the form the options name (its file, datasets/README.md "Wheel forms").
+void WriteWheelForm(const Simulator& simulator, const WheelLog& log, io::DatasetWriter* writer) {
+  switch (simulator.options().wheel.config.form) {
+    case sensors::WheelForm::kLinearSpeeds:
+      return writer->WriteWheelSpeeds(simulator.WheelSpeedsOf(log));
+    case sensors::WheelForm::kSpeedYawRate:
+      return writer->WriteOdometry(simulator.OdometryOf(log));
+    case sensors::WheelForm::kAngularRates:
+      break;
+  }
+  writer->WriteWheel(log.samples);
+}
+
 }  // namespace
 
 // The dataset is written into a staging directory beside `directory` and renamed to it only
@@ -82,8 +95,9 @@ SimulationSummary WriteDataset(const Simulator& simulator, const std::string& fi
   writer.WriteSensorsConfig(simulator.sensors_config());
   const ImuLog imu = simulator.GenerateImu();
   writer.WriteImu(imu.samples);
-  const sensors::WheelSamples wheel = simulator.GenerateWheel();
-  if (simulator.options().wheel.enabled) writer.WriteWheel(wheel);
+  const WheelLog wheel_log = simulator.GenerateWheelLog();
+  const sensors::WheelSamples& wheel = wheel_log.samples;
+  if (simulator.options().wheel.enabled) WriteWheelForm(simulator, wheel_log, &writer);
   const GnssLog gnss = simulator.GenerateGnss();
   if (simulator.options().gnss.enabled) writer.WriteGnss(gnss.fixes);
   int64_t points = 0;

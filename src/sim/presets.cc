@@ -47,6 +47,10 @@ SimulationOptions SkidSteerRobotOptions() {
   // Skid steer: the wheels slip sideways in a turn, so the yaw rate is (v_r - v_l) / b_eff
   // with an effective track 1.875 times the physical 0.555 m.
   c.track_width_m = 1.875 * 0.555;
+  // As odometry twist (config.form speed_yaw_rate): the controller divides by the physical
+  // track and its radius is 3 % large, so it reports 3 % too much speed.
+  c.effective_track_m = c.track_width_m;
+  c.odometry_speed_scale = 0.97;
   o.true_calibration = c;
   o.nominal_wheel_radius_m = 0.165;
   o.nominal_track_width_m = 0.555;
@@ -58,6 +62,8 @@ SimulationOptions SkidSteerRobotOptions() {
   o.lidar.enabled = false;
   o.wheel.config.rate_hz = 10.0;
   o.wheel.config.noise_rad_s = 0.05;
+  o.wheel.config.noise_m_s = 0.01;
+  o.wheel.config.yaw_rate_noise_rad_s = 0.02;
   o.wheel.stamp_jitter_s = 0.01;
   o.wheel.drop_probability = 0.02;
   o.wheel.time_offset_wheel_imu_s = -0.38;  // odometry stamped 0.38 s after the motion

@@ -18,7 +18,8 @@ enum class Stream : uint32_t {
   kGnss,
   kLidar,
   kImuStamps,
-  kWheelStamps
+  kWheelStamps,
+  kWheelForm  // the noise of wheel speeds and odometry twist
 };
 
 inline std::mt19937_64 RandomStream(uint64_t seed, Stream stream, uint64_t index = 0) {

@@ -41,6 +41,16 @@ void ValidateClocks(const SimulationOptions& o) {
           "wheel drop_probability must be in [0, 0.5]");
   Require(std::abs(w.time_offset_wheel_imu_s) <= 2.0,
           "|wheel time_offset_wheel_imu_s| must be at most 2 s");
+  const sensors::Calibration& c = o.true_calibration;
+  Require(c.wheel_speed_scale_left > 0.5 && c.wheel_speed_scale_left < 2.0 &&
+              c.wheel_speed_scale_right > 0.5 && c.wheel_speed_scale_right < 2.0 &&
+              c.odometry_speed_scale > 0.5 && c.odometry_speed_scale < 2.0,
+          "wheel speed scales and odometry_speed_scale must be in (0.5, 2)");
+  Require(c.effective_track_m > 0.1, "effective_track_m must exceed 0.1 m");
+  Require(w.config.noise_m_s >= 0.0 && w.config.yaw_rate_noise_rad_s >= 0.0,
+          "wheel noise_m_s and yaw_rate_noise_rad_s must be >= 0");
+  Require(!w.config.controller_track_m || *w.config.controller_track_m > 0.0,
+          "wheel controller_track_m must be positive");
   Require(std::abs(o.gnss.time_offset_gnss_imu_s) <= 2.0,
           "|gnss time_offset_gnss_imu_s| must be at most 2 s");
 }
@@ -220,6 +230,12 @@ Simulator::Simulator(const SimulationOptions& options) : options_(options) {
   nominal_.wheel_radius_left_m = options_.nominal_wheel_radius_m;
   nominal_.wheel_radius_right_m = options_.nominal_wheel_radius_m;
   nominal_.track_width_m = options_.nominal_track_width_m;
+  // The wheel forms' scales are 1 as the vehicle reports them; the effective track is the
+  // physical one.
+  nominal_.wheel_speed_scale_left = 1.0;
+  nominal_.wheel_speed_scale_right = 1.0;
+  nominal_.odometry_speed_scale = 1.0;
+  nominal_.effective_track_m = options_.nominal_track_width_m;
 
   // Sweeps: the first one starts 50 ms after t = 0 on the IMU clock; every sweep lies inside
   // [0, duration_s] on the IMU clock.
@@ -375,6 +391,43 @@ WheelLog Simulator::GenerateWheelLog() const {
     log.yaw_rate_rad_s.push_back(yaw_rate);
   }
   return log;
+}
+
+sensors::WheelSpeedSamples Simulator::WheelSpeedsOf(const WheelLog& log) const {
+  const sensors::Calibration& truth = options_.true_calibration;
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kWheelForm);
+  const WheelSimOptions& o = options_.wheel;
+  std::normal_distribution<double> noise(0.0, o.add_noise ? o.config.noise_m_s : 0.0);
+  const double half_track = 0.5 * truth.track_width_m;
+  sensors::WheelSpeedSamples out(log.samples.size());
+  for (size_t k = 0; k < out.size(); ++k) {
+    // The true contact speed v -+ omega b / 2 is the scale times the reported one.
+    const double v = log.speed_m_s[k], omega = log.yaw_rate_rad_s[k];
+    out[k].t_ns = log.samples[k].t_ns;
+    out[k].left_m_s = (v - omega * half_track) / truth.wheel_speed_scale_left + noise(rng);
+    out[k].right_m_s = (v + omega * half_track) / truth.wheel_speed_scale_right + noise(rng);
+  }
+  return out;
+}
+
+sensors::OdometrySamples Simulator::OdometryOf(const WheelLog& log) const {
+  const sensors::Calibration& truth = options_.true_calibration;
+  const WheelSimOptions& o = options_.wheel;
+  std::mt19937_64 rng = RandomStream(options_.seed, Stream::kWheelForm);
+  std::normal_distribution<double> speed_noise(0.0, o.add_noise ? o.config.noise_m_s : 0.0);
+  std::normal_distribution<double> yaw_noise(0.0,
+                                             o.add_noise ? o.config.yaw_rate_noise_rad_s : 0.0);
+  const double k_v = truth.odometry_speed_scale;
+  const double b_ctrl = o.config.controller_track_m.value_or(nominal_.effective_track_m);
+  sensors::OdometrySamples out(log.samples.size());
+  for (size_t k = 0; k < out.size(); ++k) {
+    // Eq. F26 inverted: v = k_v v_odo, omega = k_v w_odo b_ctrl / b_eff.
+    out[k].t_ns = log.samples[k].t_ns;
+    out[k].speed_m_s = log.speed_m_s[k] / k_v + speed_noise(rng);
+    out[k].yaw_rate_rad_s =
+        log.yaw_rate_rad_s[k] * truth.effective_track_m / (k_v * b_ctrl) + yaw_noise(rng);
+  }
+  return out;
 }
 
 GnssLog Simulator::GenerateGnss() const {

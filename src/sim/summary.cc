@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "autocal/common/units.h"
 #include "autocal/sim/simulator.h"
@@ -138,6 +139,18 @@ std::string FormatSummary(const SimulationSummary& s) {
   scalar_row("  radius left", t.wheel_radius_left_m, n.wheel_radius_left_m, "m", 1.0);
   scalar_row("  radius right", t.wheel_radius_right_m, n.wheel_radius_right_m, "m", 1.0);
   scalar_row("  track width", t.track_width_m, n.track_width_m, "m", 1.0);
+  // The other wheel forms' blocks where the truth differs from the nominal value.
+  const std::pair<const char*, double sensors::Calibration::*> form_blocks[] = {
+      {"  scale left", &sensors::Calibration::wheel_speed_scale_left},
+      {"  scale right", &sensors::Calibration::wheel_speed_scale_right},
+      {"  odometry k_v", &sensors::Calibration::odometry_speed_scale},
+      {"  eff. track", &sensors::Calibration::effective_track_m}};
+  for (const auto& [name, member] : form_blocks) {
+    if (t.*member == n.*member) continue;
+    const char* unit = member == &sensors::Calibration::effective_track_m ? " m" : "";
+    out << Pad(name) << "true " << Format("%.4f", t.*member) << unit << ", nominal "
+        << Format("%.4f", n.*member) << unit << "\n";
+  }
   return out.str();
 }
 

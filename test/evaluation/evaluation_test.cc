@@ -80,6 +80,9 @@ TEST(CalibrationErrorsTest, KnownPerturbationsGiveExactlyTheirErrors) {
   const Eigen::Vector3d delta_V_deg(-0.5, 0.0, 2.0);
   estimate.q_I_V = truth.q_I_V * geometry::Exp(Eigen::Vector3d(kDegToRad * delta_V_deg));
   estimate.p_I_V += Eigen::Vector3d(0.0, 0.02, 0.0);
+  estimate.wheel_speed_scale_left += 0.012;
+  estimate.odometry_speed_scale -= 0.03;
+  estimate.effective_track_m += 0.08;
 
   const CalibrationErrors e = CompareCalibration(estimate, truth);
   constexpr double kTol = 1e-9;
@@ -92,6 +95,10 @@ TEST(CalibrationErrorsTest, KnownPerturbationsGiveExactlyTheirErrors) {
   EXPECT_NEAR(e.wheel_radius_left_percent, 1.0, kTol);
   EXPECT_NEAR(e.wheel_radius_right_percent, -0.5, kTol);
   EXPECT_NEAR(e.track_width_percent, 100.0 * 0.0162 / truth.track_width_m, kTol);
+  EXPECT_NEAR(e.wheel_speed_scale_left_percent, 100.0 * 0.012 / truth.wheel_speed_scale_left, kTol);
+  EXPECT_NEAR(e.wheel_speed_scale_right_percent, 0.0, kTol);
+  EXPECT_NEAR(e.odometry_speed_scale_percent, -100.0 * 0.03 / truth.odometry_speed_scale, kTol);
+  EXPECT_NEAR(e.effective_track_percent, 100.0 * 0.08 / truth.effective_track_m, kTol);
   EXPECT_TRUE(e.p_I_A_mm.isApprox(Eigen::Vector3d(5, 0, -12), kTol)) << e.p_I_A_mm.transpose();
   EXPECT_NEAR(e.p_I_A_mm.norm(), 13.0, kTol);
   EXPECT_TRUE(e.T_I_V.rotation_deg.isApprox(delta_V_deg, kTol)) << e.T_I_V.rotation_deg.transpose();

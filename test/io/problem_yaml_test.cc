@@ -436,7 +436,7 @@ TEST(ProblemYamlTest, ValidationRefusesWhatTheDatasetCannotGive) {
 }
 
 // The dataset's wheel form decides which file the wheels need and which blocks the message
-// names; a form the calibration cannot use yet is refused by name.
+// names.
 TEST(ProblemYamlTest, ValidationFollowsTheWheelForm) {
   const Problem urban = ReadShipped("urban_full.yaml");
   Dataset twist = DatasetWith(true, true, false, true);
@@ -446,12 +446,9 @@ TEST(ProblemYamlTest, ValidationFollowsTheWheelForm) {
             "problem " + urban.path +
                 " estimates odometry_speed_scale but dataset /nonexistent/run3 has no "
                 "odometry.csv");
+  // With its file, every form is accepted (the calibration takes each).
   twist.odometry.resize(4);
-  EXPECT_EQ(ValidationMessage(urban, twist),
-            "problem " + urban.path +
-                " uses the wheel encoders but dataset /nonexistent/run3 reports its wheels as "
-                "speed_yaw_rate (odometry.csv), and the calibration takes angular rates "
-                "(wheel.csv) only so far: set sensors.wheel: false");
+  EXPECT_EQ(ValidationMessage(urban, twist), "");
   Dataset speeds = DatasetWith(true, true, false, true);
   speeds.sensors.wheel = sensors::WheelConfig();
   speeds.sensors.wheel->form = sensors::WheelForm::kLinearSpeeds;
@@ -462,6 +459,8 @@ TEST(ProblemYamlTest, ValidationFollowsTheWheelForm) {
   scales.calibration.wheel_speed_scale_left = {BlockMode::kPrior, 0.01};
   EXPECT_THAT(ValidationMessage(scales, speeds),
               HasSubstr("puts a prior on wheel_speed_scale_left but"));
+  speeds.wheel_speeds.resize(4);
+  EXPECT_EQ(ValidationMessage(scales, speeds), "");
 }
 
 // Stamps of one sensor that never meet the IMU's (microseconds, another clock) would give

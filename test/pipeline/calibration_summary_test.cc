@@ -46,6 +46,22 @@ TEST(CalibrationSummary, PrintsTheMountAsRollPitchYawAlikeOnEitherSideOfAHalfTur
   EXPECT_THAT(before, Not(HasSubstr("rotation vector")));
 }
 
+// The blocks of the other wheel forms get a line each when they were estimated.
+TEST(CalibrationSummary, ListsTheBlocksOfTheWheelForm) {
+  OfflineCalibrationResult result;
+  result.calibration.value.odometry_speed_scale = 0.97;
+  result.calibration.value.effective_track_m = 1.04;
+  result.calibration.uncertainty.odometry_speed_scale.sigma = 0.002;
+  result.calibration.uncertainty.effective_track_m.sigma = 0.01;
+  result.calibration.uncertainty.effective_track_m.observable = false;
+  const std::string summary = FormatCalibrationSummary(result);
+  EXPECT_THAT(summary, HasSubstr("odometry speed scale (%)"));
+  EXPECT_THAT(summary, HasSubstr("97.000   sigma   0.200   observable yes"));
+  EXPECT_THAT(summary, HasSubstr("1040.0   sigma    10.0   observable no"));
+  EXPECT_THAT(summary, Not(HasSubstr("wheel speed scale")));
+  EXPECT_THAT(summary, Not(HasSubstr("track width")));
+}
+
 }  // namespace
 }  // namespace pipeline
 }  // namespace autocal

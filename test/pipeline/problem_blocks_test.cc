@@ -76,7 +76,14 @@ TEST(ProblemBlocks, WheelBlocksFollowTheWheelForm) {
   EXPECT_EQ(twist[5].prior(0), 1.0);
   EXPECT_EQ(twist[5].prior_sigma(0), 0.02);
   EXPECT_EQ(twist[6].prior(0), 0.9);
-  EXPECT_EQ(twist[6].prior_sigma(0), 4.0 * options.default_track_width_prior_sigma_m);
+  // b_eff's default prior and limit follow its nominal value (0.75 and 5 % of it).
+  EXPECT_DOUBLE_EQ(twist[6].prior_sigma(0), 0.75 * 0.9);
+  EXPECT_DOUBLE_EQ(twist[6].max_observable_sigma, 0.05 * 0.9);
+  sensors.nominal_calibration.effective_track_m = 0.04;
+  const std::vector<estimation::EstimatedBlock> narrow =
+      EstimatedBlocks(problem, sensors, options, true, false, &c);
+  EXPECT_EQ(narrow[6].prior_sigma(0), options.default_track_width_prior_sigma_m);
+  EXPECT_EQ(narrow[6].max_observable_sigma, options.max_observable_track_width_sigma_m);
   sensors.wheel->form = sensors::WheelForm::kLinearSpeeds;
   EXPECT_THAT(Ids(EstimatedBlocks(problem, sensors, options, true, false, &c)),
               ::testing::ElementsAre(Id::kLidarRotation, Id::kLidarTranslation, Id::kTimeOffset,

@@ -313,6 +313,39 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   EXPECT_FALSE(HasNonFiniteText(html));
 }
 
+// Wheels as odometry twist or wheel speeds: the form's blocks get their rows and charts, the
+// radii and the track width (not estimated) none.
+TEST(ReportHtml, ShowsTheBlocksOfTheWheelForm) {
+  const auto has = [](const std::string& html, const std::string& what) {
+    return html.find(what) != std::string::npos;
+  };
+  for (OfflineCalibrationResult result : {ResultWithoutLidar(), FullResult()}) {
+    io::CalibrationUncertainty& u = result.calibration.uncertainty;
+    u.wheel_radius_left_m = u.wheel_radius_right_m = u.track_width_m = io::ScalarBlockInfo();
+    u.odometry_speed_scale.sigma = 0.002;
+    u.effective_track_m.sigma = 0.01;
+    u.effective_track_m.observable = false;
+    result.calibration.value.odometry_speed_scale = 0.97;
+    result.calibration.value.effective_track_m = 1.04;
+    const std::string html = CalibrationReportHtml(result);
+    EXPECT_TRUE(has(html, "<td>odometry speed scale (%)</td><td>97</td><td>0.2</td>"));
+    EXPECT_TRUE(has(html, "<td>effective track (mm)</td><td>1040</td><td>10</td>"));
+    EXPECT_FALSE(has(html, "<td>track width (mm)</td>"));
+    EXPECT_FALSE(has(html, "wheel speed scale left"));
+    EXPECT_FALSE(HasNonFiniteText(html));
+    u.wheel_speed_scale_left.sigma = u.wheel_speed_scale_right.sigma = 0.001;
+    EXPECT_TRUE(has(CalibrationReportHtml(result), "<td>wheel speed scale right (%)</td>"));
+  }
+  // With the iterations recorded, their convergence is charted.
+  OfflineCalibrationResult result = FullResult();
+  result.calibration.uncertainty.odometry_speed_scale.sigma = 0.002;
+  result.calibration.uncertainty.effective_track_m.sigma = 0.01;
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_TRUE(has(html, "<figcaption>odometry speed scale (%)"));
+  EXPECT_TRUE(has(html, "<figcaption>effective track (mm)"));
+  EXPECT_FALSE(has(html, "<figcaption>wheel speed scales"));
+}
+
 TEST(ReportHtml, IsSelfContained) {
   for (const OfflineCalibrationResult& result : {FullResult(), ResultWithoutLidar()}) {
     const std::string html = CalibrationReportHtml(result);

@@ -141,6 +141,8 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
        "which is not part of an autocal dataset"},
       {{Tool("autocal_register"), "--source=s.ply", "--target=t.ply", "--output=" + dir.string()},
        "it is a directory"},
+      {{Tool("autocal_simulate"), "--wheel_form=rates", "--out=" + (dir / "w").string()},
+       "--wheel_form must be angular_rates, linear_speeds or speed_yaw_rate, got 'rates'"},
   };
   for (const Case& c : cases) {
     const Finished f = RunTool(c.args, dir / "log.txt");
@@ -150,6 +152,7 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
     EXPECT_EQ(std::count(f.output.begin(), f.output.end(), '\n'), 1) << "one line: " << f.output;
   }
   EXPECT_FALSE(fs::exists(dir / "r"));
+  EXPECT_FALSE(fs::exists(dir / "w"));
 }
 
 // --threads is recognized by both solving tools: a value out of range is refused naming the

@@ -65,6 +65,41 @@ TEST_P(DatasetTest, WrittenDatasetReadsBackWithTheSameContent) {
   EXPECT_LT((sweep.cloud.time_s - log.sweeps[k].cloud.time_s).cwiseAbs().maxCoeff(), 1e-7);
 }
 
+// The wheels in the other forms: only the form's file, read back as written, and the truth
+// of its blocks in groundtruth/calibration.yaml.
+TEST(DatasetWheelForms, WritesTheFormsFileAndItsTruth) {
+  SimulationOptions options = test::SmallLog(ScenarioType::kUrban, 3.0);
+  options.lidar.enabled = false;
+  options.true_calibration.odometry_speed_scale = 0.97;
+  options.true_calibration.effective_track_m = 1.9;
+  options.true_calibration.wheel_speed_scale_right = 1.01;
+  for (sensors::WheelForm form :
+       {sensors::WheelForm::kLinearSpeeds, sensors::WheelForm::kSpeedYawRate}) {
+    options.wheel.config.form = form;
+    const Simulator simulator(options);
+    const std::string directory =
+        (autocal::test::OutputDir("sim_dataset") / sensors::WheelFormName(form)).string();
+    WriteDataset(simulator, directory);
+    const io::Dataset dataset = io::ReadDataset(directory);
+    const WheelLog log = simulator.GenerateWheelLog();
+    EXPECT_EQ(dataset.wheel_form(), form);
+    EXPECT_TRUE(dataset.wheel.empty());
+    ASSERT_EQ(dataset.wheel_sample_count(), log.samples.size());
+    if (form == sensors::WheelForm::kLinearSpeeds) {
+      EXPECT_NEAR(dataset.wheel_speeds.back().right_m_s,
+                  simulator.WheelSpeedsOf(log).back().right_m_s, 1e-12);
+    } else {
+      EXPECT_NEAR(dataset.odometry.back().yaw_rate_rad_s,
+                  simulator.OdometryOf(log).back().yaw_rate_rad_s, 1e-12);
+    }
+    ASSERT_TRUE(dataset.groundtruth_calibration.has_value());
+    EXPECT_EQ(dataset.groundtruth_calibration->odometry_speed_scale, 0.97);
+    EXPECT_EQ(dataset.groundtruth_calibration->effective_track_m, 1.9);
+    EXPECT_EQ(dataset.groundtruth_calibration->wheel_speed_scale_right, 1.01);
+    EXPECT_EQ(dataset.sensors.nominal_calibration.odometry_speed_scale, 1.0);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Scenarios, DatasetTest,
                          ::testing::Values(ScenarioType::kUrban, ScenarioType::kHighway,
                                            ScenarioType::kSkidSteer, ScenarioType::kStraight),

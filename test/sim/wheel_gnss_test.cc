@@ -155,6 +155,59 @@ TEST_P(WheelGnssTest, SameSeedSameLogOtherSeedOtherLog) {
   EXPECT_NE(a.nominal_calibration().p_I_L, other.nominal_calibration().p_I_L);
 }
 
+// The other wheel forms follow from the same truth per sample: rear-wheel speeds
+// (v -+ omega b / 2) / s, twist v / k_v and omega b_eff / (k_v b_ctrl); exact without noise,
+// with the stated noise otherwise. The dataset carries only the form's file.
+TEST(SimulatorTest, WheelFormsFollowTheTruthOfEachSample) {
+  SimulationOptions options = test::SmallLog(ScenarioType::kUrban, 10.0);
+  options.lidar.enabled = false;
+  options.true_calibration.wheel_speed_scale_left = 1.02;
+  options.true_calibration.wheel_speed_scale_right = 0.99;
+  options.true_calibration.odometry_speed_scale = 0.97;
+  options.true_calibration.effective_track_m = 1.9;
+  options.wheel.config.controller_track_m = 1.5;
+  options.wheel.config.noise_m_s = 0.03;
+  options.wheel.config.yaw_rate_noise_rad_s = 0.01;
+  const Simulator exact(options.WithoutNoise());
+  const WheelLog log = exact.GenerateWheelLog();
+  const sensors::WheelSpeedSamples speeds = exact.WheelSpeedsOf(log);
+  const sensors::OdometrySamples twist = exact.OdometryOf(log);
+  ASSERT_EQ(speeds.size(), log.samples.size());
+  ASSERT_EQ(twist.size(), log.samples.size());
+  const double b = options.true_calibration.track_width_m;
+  for (size_t k = 0; k < log.samples.size(); ++k) {
+    const double v = log.speed_m_s[k], w = log.yaw_rate_rad_s[k];
+    ASSERT_EQ(speeds[k].t_ns, log.samples[k].t_ns);
+    ASSERT_NEAR(speeds[k].left_m_s, (v - 0.5 * w * b) / 1.02, 1e-12);
+    ASSERT_NEAR(speeds[k].right_m_s, (v + 0.5 * w * b) / 0.99, 1e-12);
+    ASSERT_NEAR(twist[k].speed_m_s, v / 0.97, 1e-12);
+    ASSERT_NEAR(twist[k].yaw_rate_rad_s, w * 1.9 / (0.97 * 1.5), 1e-12);
+  }
+  const Simulator noisy(options);
+  const WheelLog noisy_log = noisy.GenerateWheelLog();
+  const sensors::WheelSpeedSamples noisy_speeds = noisy.WheelSpeedsOf(noisy_log);
+  const sensors::OdometrySamples noisy_twist = noisy.OdometryOf(noisy_log);
+  double speed_sq = 0.0, odo_speed_sq = 0.0, yaw_sq = 0.0;
+  for (size_t k = 0; k < speeds.size(); ++k) {
+    speed_sq += std::pow(noisy_speeds[k].left_m_s - speeds[k].left_m_s, 2);
+    odo_speed_sq += std::pow(noisy_twist[k].speed_m_s - twist[k].speed_m_s, 2);
+    yaw_sq += std::pow(noisy_twist[k].yaw_rate_rad_s - twist[k].yaw_rate_rad_s, 2);
+  }
+  const double n = static_cast<double>(speeds.size());
+  EXPECT_NEAR(std::sqrt(speed_sq / n), 0.03, 0.003);
+  EXPECT_NEAR(std::sqrt(odo_speed_sq / n), 0.03, 0.003);
+  EXPECT_NEAR(std::sqrt(yaw_sq / n), 0.01, 0.001);
+  // Nominal: scales 1, the effective track the physical one; sensors.yaml names the form.
+  const sensors::Calibration& nominal = noisy.nominal_calibration();
+  EXPECT_EQ(nominal.odometry_speed_scale, 1.0);
+  EXPECT_EQ(nominal.wheel_speed_scale_left, 1.0);
+  EXPECT_EQ(nominal.effective_track_m, options.nominal_track_width_m);
+  options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
+  EXPECT_EQ(Simulator(options).sensors_config().wheel->form, sensors::WheelForm::kSpeedYawRate);
+  options.true_calibration.odometry_speed_scale = 0.0;
+  EXPECT_THROW(Simulator{options}, Error);
+}
+
 TEST(SimulatorTest, NominalCalibrationIsTheTruthPerturbed) {
   for (uint64_t seed = 1; seed <= 5; ++seed) {
     SimulationOptions options = test::SmallLog(ScenarioType::kUrban, 5.0, seed);

@@ -28,6 +28,11 @@ struct CalibrationErrors {
   double wheel_radius_left_percent = 0.0;
   double wheel_radius_right_percent = 0.0;
   double track_width_percent = 0.0;
+  // The blocks of the other wheel forms (sensors::Calibration): speed scales, k_v, b_eff.
+  double wheel_speed_scale_left_percent = 0.0;
+  double wheel_speed_scale_right_percent = 0.0;
+  double odometry_speed_scale_percent = 0.0;
+  double effective_track_percent = 0.0;
   Eigen::Vector3d p_I_A_mm = Eigen::Vector3d::Zero();  // lever arm, in I
   PoseError T_I_V;
 };
@@ -35,7 +40,8 @@ struct CalibrationErrors {
 PoseError ComparePose(const Eigen::Quaterniond& q_estimate, const Eigen::Vector3d& p_estimate,
                       const Eigen::Quaterniond& q_truth, const Eigen::Vector3d& p_truth);
 
-// Throws autocal::Error when a true wheel radius or track width is not positive.
+// Throws autocal::Error when a true wheel radius, track width, speed scale or effective track
+// is not positive.
 CalibrationErrors CompareCalibration(const sensors::Calibration& estimate,
                                      const sensors::Calibration& truth);
 

@@ -59,10 +59,16 @@ struct LidarSimOptions {
 
 // Rear-wheel angular rates (v -+ omega b / 2) / r from the true speed v and yaw rate omega of
 // V, with b the calibration's track width: for a skid-steer platform that is the effective
-// (slip) track, wider than the physical one (docs/simulator.md, "Wheels").
+// (slip) track, wider than the physical one (docs/simulator.md, "Wheels"). config.form picks
+// what the dataset carries: those rates (wheel.csv), rear-wheel speeds (v -+ omega b / 2) / s
+// with the true speed scales s (wheel_speed.csv), or the odometry twist v / k_v and
+// omega b_eff / (k_v b_ctrl) with the true odometry_speed_scale k_v and effective_track_m
+// b_eff (odometry.csv; b_ctrl is config.controller_track_m, else the nominal effective track).
 struct WheelSimOptions {
   bool enabled = true;
-  sensors::WheelConfig config;  // rate and 1-sigma noise of each wheel rate
+  // Rate, form and 1-sigma noise: noise_rad_s of each wheel rate, noise_m_s of each wheel
+  // speed or of the odometry speed, yaw_rate_noise_rad_s of the odometry yaw rate.
+  sensors::WheelConfig config;
   bool add_noise = true;
   // Clock: a sample stamped t on the wheel clock was measured at IMU time t + offset.
   double time_offset_wheel_imu_s = 0.0;
@@ -216,6 +222,9 @@ class Simulator {
   ImuLog GenerateImu() const;
   WheelLog GenerateWheelLog() const;
   sensors::WheelSamples GenerateWheel() const { return GenerateWheelLog().samples; }
+  // The log's samples in the other wheel forms (WheelSimOptions), same stamps, own noise.
+  sensors::WheelSpeedSamples WheelSpeedsOf(const WheelLog& log) const;
+  sensors::OdometrySamples OdometryOf(const WheelLog& log) const;
   GnssLog GenerateGnss() const;
 
   // Sweeps are generated one at a time (each from its own random stream, so any subset is

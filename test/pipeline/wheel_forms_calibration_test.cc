@@ -1,0 +1,171 @@
+// Offline calibration without the LiDAR of logs whose wheels come as linear speeds
+// (wheel_speed.csv) or as the odometry twist (odometry.csv): the form's blocks are estimated
+// against the simulator's exact truth, and the sigma the calibration reports covers the error.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include "autocal/common/error.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/offline_calibration.h"
+#include "autocal/sim/simulator.h"
+#include "pipeline/simulated_urban_dataset.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+io::Problem ImuWheelGnssProblem() {
+  return io::ReadProblemYaml(
+      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
+}
+
+// The urban drive (its roundabout excites the yaw rate) without the LiDAR, the wheels in
+// `form`.
+sim::SimulationOptions UrbanWithoutLidar(sensors::WheelForm form) {
+  sim::SimulationOptions options = test::UrbanDriveOptions(34.0);
+  options.lidar.enabled = false;
+  options.wheel.config.form = form;
+  return options;
+}
+
+// One estimated scalar block against its truth: |error| within 3 sigma, and the sigma small
+// enough that the block counts as observed.
+void ExpectCovered(const char* name, double estimate, double truth, const io::ScalarBlockInfo& u,
+                   double max_sigma) {
+  ASSERT_TRUE(u.sigma.has_value()) << name;
+  std::cout << name << ": estimate " << estimate << ", truth " << truth << ", error "
+            << estimate - truth << ", sigma " << *u.sigma << '\n';
+  EXPECT_LT(*u.sigma, max_sigma) << name;
+  EXPECT_LE(std::abs(estimate - truth), 3.0 * *u.sigma) << name;
+  ASSERT_TRUE(u.observable.has_value()) << name;
+  EXPECT_TRUE(*u.observable) << name;
+}
+
+// Odometry twist that reports 3 % too much speed and divides by the physical track of a
+// vehicle whose effective track is 1.2 times that (b_ctrl = the nominal 1.60 m, b_eff =
+// 1.92 m): k_v and b_eff come back within their sigma, 0.1 % and 5 mm at most (the
+// observability limits of the speed scales and the track, problem_blocks.cc).
+TEST(WheelFormsCalibration, OdometryTwistGivesSpeedScaleAndEffectiveTrack) {
+  sim::SimulationOptions options = UrbanWithoutLidar(sensors::WheelForm::kSpeedYawRate);
+  options.true_calibration.odometry_speed_scale = 0.97;
+  options.true_calibration.effective_track_m = 1.92;
+  // The noise the default encoders (0.02 rad/s per wheel, r = 0.33 m, b = 1.6 m) give through
+  // the controller's formulas: r 0.02 / sqrt(2) m/s and r 0.02 sqrt(2) / b rad/s.
+  options.wheel.config.noise_m_s = 0.0047;
+  options.wheel.config.yaw_rate_noise_rad_s = 0.0058;
+  const test::SimulatedUrbanDataset data(options, "wheel_twist");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  ASSERT_EQ(dataset.wheel_form(), sensors::WheelForm::kSpeedYawRate);
+  ASSERT_TRUE(dataset.wheel.empty());
+  ASSERT_GT(dataset.odometry.size(), 3000u);
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, ImuWheelGnssProblem());
+  std::cout << FormatCalibrationSummary(result);
+  ASSERT_GT(result.whitened_residuals.count("wheel"), 0u);
+  EXPECT_GE(result.whitened_residuals.at("wheel").after.size() / 4,
+            result.trajectory.size() * 9 / 10);
+  const sensors::Calibration& truth = data.simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  ExpectCovered("odometry_speed_scale", estimate.odometry_speed_scale, truth.odometry_speed_scale,
+                u.odometry_speed_scale, 0.001);
+  ExpectCovered("effective_track_m", estimate.effective_track_m, truth.effective_track_m,
+                u.effective_track_m, 0.005);
+  // The blocks of the other forms take no part.
+  const sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
+  EXPECT_EQ(estimate.wheel_radius_left_m, nominal.wheel_radius_left_m);
+  EXPECT_EQ(estimate.track_width_m, nominal.track_width_m);
+  EXPECT_EQ(estimate.wheel_speed_scale_left, nominal.wheel_speed_scale_left);
+}
+
+// The slow skid-steer robot (preset: 300 s at up to 1 m/s, IMU 30 Hz, odometry 10 Hz, GPS
+// 2.5 Hz with 0.6 m sigma) as odometry twist, its clock offset left out (nothing models it
+// here): k_v 0.97 and b_eff 1.875 times the physical track come back within 3 sigma of the
+// truth. The drive determines them only partly (sigma 0.26 % and 63 mm, above the limits of
+// 0.1 % and 5 % of the nominal b_eff): kept, not reported observable, and not held at the
+// nominal value, which the data put 9 sigma away.
+TEST(WheelFormsCalibration, SlowSkidSteerOdometryKeepsItsSpeedScaleAndEffectiveTrack) {
+  sim::SimulationOptions options = sim::SkidSteerRobotOptions();
+  options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
+  options.wheel.time_offset_wheel_imu_s = 0.0;
+  const test::SimulatedUrbanDataset data(options, "skid_steer_twist");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, ImuWheelGnssProblem());
+  std::cout << FormatCalibrationSummary(result);
+  const sensors::Calibration& truth = data.simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  const auto expect_kept = [](const char* name, double estimate, double truth,
+                              const io::ScalarBlockInfo& info, double max_sigma) {
+    ASSERT_TRUE(info.sigma.has_value()) << name;
+    std::cout << name << ": estimate " << estimate << ", truth " << truth << ", sigma "
+              << *info.sigma << '\n';
+    EXPECT_LT(*info.sigma, max_sigma) << name;
+    EXPECT_LE(std::abs(estimate - truth), 3.0 * *info.sigma) << name;
+  };
+  expect_kept("odometry_speed_scale", estimate.odometry_speed_scale, truth.odometry_speed_scale,
+              u.odometry_speed_scale, 0.005);
+  expect_kept("effective_track_m", estimate.effective_track_m, truth.effective_track_m,
+              u.effective_track_m, 0.1);
+  EXPECT_GT(
+      std::abs(estimate.effective_track_m - dataset.sensors.nominal_calibration.effective_track_m),
+      0.3);
+}
+
+// CAN wheel speeds from wheels 1.2 % and 0.8 % larger than the vehicle assumes (scales
+// 1.012, 0.992): both scales and the track width come back within their sigma.
+TEST(WheelFormsCalibration, WheelSpeedsGiveSpeedScalesAndTrackWidth) {
+  sim::SimulationOptions options = UrbanWithoutLidar(sensors::WheelForm::kLinearSpeeds);
+  options.true_calibration.wheel_speed_scale_left = 1.012;
+  options.true_calibration.wheel_speed_scale_right = 0.992;
+  options.wheel.config.noise_m_s = 0.01;
+  const test::SimulatedUrbanDataset data(options, "wheel_speeds");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  ASSERT_EQ(dataset.wheel_form(), sensors::WheelForm::kLinearSpeeds);
+  ASSERT_GT(dataset.wheel_speeds.size(), 3000u);
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, ImuWheelGnssProblem());
+  std::cout << FormatCalibrationSummary(result);
+  const sensors::Calibration& truth = data.simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  ExpectCovered("wheel_speed_scale_left", estimate.wheel_speed_scale_left,
+                truth.wheel_speed_scale_left, u.wheel_speed_scale_left, 0.001);
+  ExpectCovered("wheel_speed_scale_right", estimate.wheel_speed_scale_right,
+                truth.wheel_speed_scale_right, u.wheel_speed_scale_right, 0.001);
+  ExpectCovered("track_width_m", estimate.track_width_m, truth.track_width_m, u.track_width_m,
+                0.005);
+  EXPECT_EQ(estimate.wheel_radius_left_m, dataset.sensors.nominal_calibration.wheel_radius_left_m);
+}
+
+// Odometry at 10 Hz, 1.2 ms off the keyframes' grid: a problem whose wheel gap is tighter
+// than the samples' spacing gets no wheel factor, and the error names the form's file.
+TEST(WheelFormsCalibration, CoverageErrorNamesTheFormsFile) {
+  const test::SimulatedUrbanDataset data(UrbanWithoutLidar(sensors::WheelForm::kSpeedYawRate),
+                                         "wheel_twist_plain");
+  io::Dataset dataset = io::ReadDataset(data.directory);
+  sensors::OdometrySamples sparse;
+  for (size_t i = 0; i < dataset.odometry.size(); i += 10) {
+    sparse.push_back(dataset.odometry[i]);
+    sparse.back().t_ns += 1'234'567;
+  }
+  dataset.odometry = sparse;
+  io::Problem tight = ImuWheelGnssProblem();
+  tight.timing.max_wheel_gap_s = 0.02;
+  try {
+    CalibrateDataset(dataset, tight);
+    ADD_FAILURE() << "a wheel gap of 20 ms must leave no wheel factor";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("wheel (10.0 Hz): 0 of "));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("(odometry.csv: median interval 0.100 s"));
+  }
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal
