@@ -173,6 +173,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     wheel.estimate_radii = Estimated(b.wheel_radius_left_m.mode);
     wheel.estimate_track_width = Estimated(b.track_width_m.mode);
+    wheel.estimate_time_offset = Estimated(b.time_offset_wheel_imu_s.mode);
     const int n = estimation::AddWheelFactors(p, dataset->imu, dataset->wheel, keyframes, c, wheel);
     RequireCoverage(
         *dataset, "wheel", *timing->wheel, n, *keyframes,
@@ -186,6 +187,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     gnss.loss = problem->loss.gnss;
     gnss.max_fix_gap_s = timing->max_fix_gap_s;
     gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
+    gnss.estimate_time_offset = Estimated(b.time_offset_gnss_imu_s.mode);
     const int n = estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
     RequireCoverage(*dataset, "GNSS", *timing->gnss, n, *keyframes,
                     "max_fix_gap_s = " + FormatFixed(gnss.max_fix_gap_s, 3) + " s",
