@@ -294,8 +294,7 @@ std::string CalibrationYamlText(const CalibrationFile& calibration, int indent) 
 void WriteCalibrationYaml(const std::string& path, const CalibrationFile& calibration) {
   const std::string text =
       "# autocal calibration (schema: datasets/README.md). T_a_b maps frame b into frame a;\n"
-      "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_lidar + time_offset_lidar_imu_s,\n"
-      "# t_imu = t_wheel + time_offset_wheel_imu_s, t_imu = t_gnss + time_offset_gnss_imu_s.\n"
+      "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_sensor + time_offset_<sensor>_imu_s.\n"
       "format: " +
       std::string(internal::kFormat) + "\n" + CalibrationYamlText(calibration) +
       std::string(internal::kEndMarker);

@@ -100,7 +100,8 @@ TEST(CalibrationBlocks, ColumnsAreTheResultFilesNames) {
               ::testing::ElementsAre("q_I_V_x", "q_I_V_y", "q_I_V_z", "q_I_V_w"));
 }
 
-// Each wheel form determines its own intrinsics; the vehicle frame belongs to every form.
+// Each wheel form determines its own intrinsics; the vehicle frame and the wheel clock belong
+// to every form.
 TEST(CalibrationBlocks, WheelFormsSelectTheirBlocks) {
   using Id = CalibrationBlockId;
   const auto blocks_of = [](WheelForm form) {
@@ -112,11 +113,13 @@ TEST(CalibrationBlocks, WheelFormsSelectTheirBlocks) {
     return Joined(keys);
   };
   EXPECT_EQ(blocks_of(WheelForm::kAngularRates),
-            "wheel_radius_left_m,wheel_radius_right_m,track_width_m,q_I_V,p_I_V");
+            "wheel_radius_left_m,wheel_radius_right_m,track_width_m,q_I_V,p_I_V,"
+            "time_offset_wheel_imu_s");
   EXPECT_EQ(blocks_of(WheelForm::kLinearSpeeds),
-            "track_width_m,q_I_V,p_I_V,wheel_speed_scale_left,wheel_speed_scale_right");
+            "track_width_m,q_I_V,p_I_V,wheel_speed_scale_left,wheel_speed_scale_right,"
+            "time_offset_wheel_imu_s");
   EXPECT_EQ(blocks_of(WheelForm::kSpeedYawRate),
-            "q_I_V,p_I_V,odometry_speed_scale,effective_track_m");
+            "q_I_V,p_I_V,odometry_speed_scale,effective_track_m,time_offset_wheel_imu_s");
   EXPECT_TRUE(BlockInWheelForm(Id::kLidarRotation, WheelForm::kSpeedYawRate));
 }
 
