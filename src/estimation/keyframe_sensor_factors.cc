@@ -211,17 +211,14 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   factor_options.vertical_sigma_m_s *= scale;
   int added = 0;
   for (Keyframe& kf : *keyframes) {
-    std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
-                                   c.q_I_V.coeffs().data(), c.p_I_V.data()};
-    blocks.insert(blocks.end(), form_blocks.intrinsics.begin(), form_blocks.intrinsics.end());
     const std::optional<Bracket> g = FindBracket(imu, kf.t_ns, max_imu_gap_ns);
-    ceres::CostFunction* cost = nullptr;
+    WheelCost factor{nullptr, {}};
     if (!shifted) {
       const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);
       if (!w || !g) continue;
       const Eigen::Vector3d gyro =
           (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
-      cost = make_cost(wheel[w->first], wheel[w->second], w->s, gyro, factor_options).cost;
+      factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro, factor_options);
     } else {
       // The gap rule of Eq. K9: the samples around t_k - offset within the maximum gap.
       if (!series || !g || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_wheel_gap_s)) {
@@ -229,11 +226,14 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
       }
       const Eigen::Vector3d gyro =
           (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
-      cost = internal::ShiftedWheelResidual::Create(series, kf.t_ns, gyro, form_blocks.form,
-                                                    factor_options);
-      blocks.push_back(offset);
+      factor.cost = internal::ShiftedWheelResidual::Create(series, kf.t_ns, gyro, form_blocks.form,
+                                                           factor_options);
     }
-    problem->AddResidualBlock(cost, loss, blocks);
+    std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
+                                   c.q_I_V.coeffs().data(), c.p_I_V.data()};
+    blocks.insert(blocks.end(), form_blocks.intrinsics.begin(), form_blocks.intrinsics.end());
+    if (shifted) blocks.push_back(offset);
+    problem->AddResidualBlock(factor.cost, loss, blocks);
     unused_loss.release();
     ++added;
   }
