@@ -164,21 +164,21 @@ TEST(ProblemYamlTest, EmptyMapsGiveTheDocumentedDefaults) {
 // The clock offsets of the wheels and the GNSS receiver: estimate or a prior in seconds, each
 // only with its sensor.
 TEST(ProblemYamlTest, ClockOffsetsOfWheelsAndGnssAreRead) {
-  const Problem p = ReadProblemYaml(
-      WriteProblem("clocks.yaml",
-                   "sensors: {lidar: false}\n"
-                   "calibration:\n"
-                   "  time_offset_wheel_imu_s: estimate\n"
-                   "  time_offset_gnss_imu_s: {prior_sigma_s: 0.05}\n"));
+  const Problem p =
+      ReadProblemYaml(WriteProblem("clocks.yaml",
+                                   "sensors: {lidar: false}\n"
+                                   "calibration:\n"
+                                   "  time_offset_wheel_imu_s: estimate\n"
+                                   "  time_offset_gnss_imu_s: {prior_sigma_s: 0.05}\n"));
   EXPECT_EQ(p.calibration.time_offset_wheel_imu_s.mode, BlockMode::kEstimate);
   EXPECT_EQ(p.calibration.time_offset_gnss_imu_s.mode, BlockMode::kPrior);
   EXPECT_EQ(p.calibration.time_offset_gnss_imu_s.prior_sigma, 0.05);
   for (const auto& [sensor, key] :
        {std::pair<std::string, std::string>{"wheel", "time_offset_wheel_imu_s"},
         std::pair<std::string, std::string>{"gnss", "time_offset_gnss_imu_s"}}) {
-    const std::string path = WriteProblem(
-        "clock_without_" + sensor + ".yaml",
-        "sensors: {" + sensor + ": false}\ncalibration:\n  " + key + ": estimate\n");
+    const std::string path =
+        WriteProblem("clock_without_" + sensor + ".yaml",
+                     "sensors: {" + sensor + ": false}\ncalibration:\n  " + key + ": estimate\n");
     try {
       ReadProblemYaml(path);
       ADD_FAILURE() << key << ": no error";
