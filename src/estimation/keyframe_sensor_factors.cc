@@ -17,6 +17,7 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/keyframe_interpolation.h"
+#include "estimation/time_offset_factors.h"
 
 namespace autocal {
 namespace estimation {
@@ -143,15 +144,41 @@ struct WheelCost {
   std::vector<double*> intrinsics;
 };
 
-// AddWheelFactors for the samples of any wheel form: make_cost(s0, s1, s, gyro, factor_options)
-// builds a keyframe's factor from the bracketing samples s0, s1, the fraction s between them and
-// the interpolated raw gyro. `scales` are set constant unless options.estimate_radii, `tracks`
-// unless options.estimate_track_width.
-template <typename Samples, typename MakeCost>
+// A wheel form's blocks: `intrinsics` in factor order after q_I_V and p_I_V; `scales` are set
+// constant unless options.estimate_radii, `tracks` unless options.estimate_track_width.
+struct WheelFormBlocks {
+  internal::ShiftedWheelForm form;
+  std::vector<double*> intrinsics;
+  std::vector<double*> scales;
+  std::vector<double*> tracks;
+};
+
+// The form's two values of every sample (internal::WheelSeries), stamped on the wheel clock;
+// null with fewer than two samples.
+template <typename Samples, typename ToValue>
+std::shared_ptr<const internal::WheelSeries> WheelSeriesOf(const Samples& wheel, ToValue to_value) {
+  if (wheel.size() < 2) return nullptr;
+  std::vector<int64_t> t_ns;
+  std::vector<internal::WheelSeries::Value> values;
+  for (const auto& sample : wheel) {
+    t_ns.push_back(sample.t_ns);
+    values.push_back(to_value(sample));
+  }
+  return std::make_shared<const internal::WheelSeries>(t_ns, std::move(values),
+                                                       "AddWheelFactors: wheel");
+}
+
+// AddWheelFactors for the samples of any wheel form. With the wheel clock at the IMU's (offset
+// 0, not estimated) make_cost(s0, s1, s, gyro, factor_options) builds a keyframe's factor from
+// the bracketing samples s0, s1, the fraction s between them and the interpolated raw gyro
+// (Eq. K1). Otherwise every factor reads the form's values, to_value(sample), at
+// t_k - time_offset_wheel_imu_s (Eq. K9, internal::ShiftedWheelResidual) on the offset block,
+// held constant unless options.estimate_time_offset.
+template <typename Samples, typename MakeCost, typename ToValue>
 int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, const Samples& wheel,
                       std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
-                      const KeyframeWheelOptions& options, const std::vector<double*>& scales,
-                      const std::vector<double*>& tracks, MakeCost make_cost) {
+                      const KeyframeWheelOptions& options, const WheelFormBlocks& form_blocks,
+                      MakeCost make_cost, ToValue to_value) {
   const int64_t max_wheel_gap_ns = GapNs(options.max_wheel_gap_s, "max_wheel_gap_s");
   const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   CheckIncreasing(wheel, "AddWheelFactors: wheel");
@@ -162,6 +189,13 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   }
 
   sensors::Calibration& c = *calibration;
+  double* offset = &c.time_offset_wheel_imu_s;
+  if (!std::isfinite(*offset)) {
+    throw Error("AddWheelFactors: time_offset_wheel_imu_s must be finite");
+  }
+  const bool shifted = options.estimate_time_offset || *offset != 0.0;
+  const std::shared_ptr<const internal::WheelSeries> series =
+      shifted ? WheelSeriesOf(wheel, to_value) : nullptr;
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
@@ -177,16 +211,28 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   factor_options.vertical_sigma_m_s *= scale;
   int added = 0;
   for (Keyframe& kf : *keyframes) {
-    const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);
     const std::optional<Bracket> g = FindBracket(imu, kf.t_ns, max_imu_gap_ns);
-    if (!w || !g) continue;
-    const Eigen::Vector3d gyro =
-        (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
-    const WheelCost factor =
-        make_cost(wheel[w->first], wheel[w->second], w->s, gyro, factor_options);
+    WheelCost factor{nullptr, {}};
+    if (!shifted) {
+      const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);
+      if (!w || !g) continue;
+      const Eigen::Vector3d gyro =
+          (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
+      factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro, factor_options);
+    } else {
+      // The gap rule of Eq. K9: the samples around t_k - offset within the maximum gap.
+      if (!series || !g || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_wheel_gap_s)) {
+        continue;
+      }
+      const Eigen::Vector3d gyro =
+          (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
+      factor.cost = internal::ShiftedWheelResidual::Create(series, kf.t_ns, gyro, form_blocks.form,
+                                                           factor_options);
+    }
     std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
                                    c.q_I_V.coeffs().data(), c.p_I_V.data()};
-    blocks.insert(blocks.end(), factor.intrinsics.begin(), factor.intrinsics.end());
+    blocks.insert(blocks.end(), form_blocks.intrinsics.begin(), form_blocks.intrinsics.end());
+    if (shifted) blocks.push_back(offset);
     problem->AddResidualBlock(factor.cost, loss, blocks);
     unused_loss.release();
     ++added;
@@ -194,8 +240,12 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   if (added == 0) return 0;
   SetConstantUnless(options.estimate_vehicle_rotation, c.q_I_V.coeffs().data(), problem);
   SetConstantUnless(options.estimate_vehicle_translation, c.p_I_V.data(), problem);
-  for (double* block : scales) SetConstantUnless(options.estimate_radii, block, problem);
-  for (double* block : tracks) SetConstantUnless(options.estimate_track_width, block, problem);
+  for (double* block : form_blocks.scales)
+    SetConstantUnless(options.estimate_radii, block, problem);
+  for (double* block : form_blocks.tracks) {
+    SetConstantUnless(options.estimate_track_width, block, problem);
+  }
+  if (shifted) SetConstantUnless(options.estimate_time_offset, offset, problem);
   return added;
 }
 
@@ -207,43 +257,53 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                     const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
                     sensors::Calibration* calibration, const KeyframeWheelOptions& options) {
   sensors::Calibration& c = *calibration;
-  const bool shared = options.factor.shared_radius;
-  std::vector<double*> radii = {&c.wheel_radius_left_m};
-  if (!shared) radii.push_back(&c.wheel_radius_right_m);
-  std::vector<double*> intrinsics = radii;
-  intrinsics.push_back(&c.track_width_m);
+  WheelFormBlocks blocks;
+  blocks.form.form = sensors::WheelForm::kAngularRates;
+  blocks.form.shared_radius = options.factor.shared_radius;
+  blocks.scales = {&c.wheel_radius_left_m};
+  if (!blocks.form.shared_radius) blocks.scales.push_back(&c.wheel_radius_right_m);
+  blocks.tracks = {&c.track_width_m};
+  blocks.intrinsics = blocks.scales;
+  blocks.intrinsics.push_back(&c.track_width_m);
   return AddWheelFactorsOf(
-      problem, imu, wheel, keyframes, calibration, options, radii, {&c.track_width_m},
+      problem, imu, wheel, keyframes, calibration, options, blocks,
       [&](const sensors::WheelSample& w0, const sensors::WheelSample& w1, double s,
           const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
         factors::WheelMeasurement m;
         m.left_rad_s = Lerp(w0.left_rad_s, w1.left_rad_s, s);
         m.right_rad_s = Lerp(w0.right_rad_s, w1.right_rad_s, s);
         m.gyro_rad_s = gyro;
-        return WheelCost{factors::WheelFactor::Create(m, factor_options), intrinsics};
-      });
+        return WheelCost{factors::WheelFactor::Create(m, factor_options), blocks.intrinsics};
+      },
+      [](const sensors::WheelSample& w) { return Eigen::Vector2d(w.left_rad_s, w.right_rad_s); });
 }
 
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, const WheelData& wheel,
                     std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
                     const KeyframeWheelOptions& options) {
   sensors::Calibration& c = *calibration;
+  WheelFormBlocks blocks;
+  blocks.form.form = wheel.form;
   switch (wheel.form) {
     case sensors::WheelForm::kAngularRates:
       return AddWheelFactors(problem, imu, wheel.rates, keyframes, calibration, options);
     case sensors::WheelForm::kLinearSpeeds:
+      blocks.scales = {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right};
+      blocks.tracks = {&c.track_width_m};
+      blocks.intrinsics = {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right, &c.track_width_m};
       return AddWheelFactorsOf(
-          problem, imu, wheel.speeds, keyframes, calibration, options,
-          {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right}, {&c.track_width_m},
+          problem, imu, wheel.speeds, keyframes, calibration, options, blocks,
           [&](const sensors::WheelSpeedSample& w0, const sensors::WheelSpeedSample& w1, double s,
               const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
             factors::WheelSpeedMeasurement m;
             m.left_m_s = Lerp(w0.left_m_s, w1.left_m_s, s);
             m.right_m_s = Lerp(w0.right_m_s, w1.right_m_s, s);
             m.gyro_rad_s = gyro;
-            return WheelCost{
-                factors::WheelSpeedResidual::Create(m, factor_options),
-                {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right, &c.track_width_m}};
+            return WheelCost{factors::WheelSpeedResidual::Create(m, factor_options),
+                             blocks.intrinsics};
+          },
+          [](const sensors::WheelSpeedSample& w) {
+            return Eigen::Vector2d(w.left_m_s, w.right_m_s);
           });
     case sensors::WheelForm::kSpeedYawRate:
       break;
@@ -251,9 +311,12 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, con
   if (!(wheel.controller_track_m > 0.0) || !std::isfinite(wheel.controller_track_m)) {
     throw Error("AddWheelFactors: the controller track b_ctrl must be positive");
   }
+  blocks.form.controller_track_m = wheel.controller_track_m;
+  blocks.scales = {&c.odometry_speed_scale};
+  blocks.tracks = {&c.effective_track_m};
+  blocks.intrinsics = {&c.odometry_speed_scale, &c.effective_track_m};
   return AddWheelFactorsOf(
-      problem, imu, wheel.odometry, keyframes, calibration, options, {&c.odometry_speed_scale},
-      {&c.effective_track_m},
+      problem, imu, wheel.odometry, keyframes, calibration, options, blocks,
       [&](const sensors::OdometrySample& w0, const sensors::OdometrySample& w1, double s,
           const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
         factors::OdometryMeasurement m;
@@ -262,7 +325,10 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, con
         m.controller_track_m = wheel.controller_track_m;
         m.gyro_rad_s = gyro;
         return WheelCost{factors::OdometryTwistResidual::Create(m, factor_options),
-                         {&c.odometry_speed_scale, &c.effective_track_m}};
+                         blocks.intrinsics};
+      },
+      [](const sensors::OdometrySample& w) {
+        return Eigen::Vector2d(w.speed_m_s, w.yaw_rate_rad_s);
       });
 }
 
@@ -273,6 +339,26 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
                                measurement);
 }
 
+namespace {
+
+// The fixes in ENU with their per-axis sigma (internal::GnssSeries); null with fewer than two.
+std::shared_ptr<const internal::GnssSeries> GnssSeriesOf(const sensors::GnssFixes& fixes,
+                                                         const sensors::EnuConverter& converter) {
+  if (fixes.size() < 2) return nullptr;
+  std::vector<int64_t> t_ns;
+  std::vector<internal::GnssSeries::Value> values;
+  for (const sensors::GnssFix& fix : fixes) {
+    t_ns.push_back(fix.t_ns);
+    internal::GnssSeries::Value row;
+    row << converter.ToEnu(fix), fix.std_enu_m;
+    values.push_back(row);
+  }
+  return std::make_shared<const internal::GnssSeries>(t_ns, std::move(values),
+                                                      "AddGnssFactors: GNSS fix");
+}
+
+}  // namespace
+
 int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
                    const sensors::EnuConverter& converter, std::vector<Keyframe>* keyframes,
                    sensors::Calibration* calibration, const KeyframeGnssOptions& options) {
@@ -281,6 +367,11 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
   for (const Keyframe& kf : *keyframes) {
     RequireQuaternionBlock(*problem, kf.q_W_I, "keyframe q_W_I");
   }
+  double* offset = &calibration->time_offset_gnss_imu_s;
+  if (!std::isfinite(*offset)) throw Error("AddGnssFactors: time_offset_gnss_imu_s must be finite");
+  const bool shifted = options.estimate_time_offset || *offset != 0.0;
+  const std::shared_ptr<const internal::GnssSeries> series =
+      shifted ? GnssSeriesOf(fixes, converter) : nullptr;
 
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.
@@ -288,14 +379,24 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
   ceres::LossFunction* loss = unused_loss.get();
   int added = 0;
   for (Keyframe& kf : *keyframes) {
-    factors::GnssMeasurement m;
-    if (!InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
-    problem->AddResidualBlock(factors::GnssFactor::Create(m), loss, kf.q_W_I.coeffs().data(),
-                              kf.p_W_I.data(), calibration->p_I_A.data());
+    if (!shifted) {
+      factors::GnssMeasurement m;
+      if (!InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
+      problem->AddResidualBlock(factors::GnssFactor::Create(m), loss, kf.q_W_I.coeffs().data(),
+                                kf.p_W_I.data(), calibration->p_I_A.data());
+    } else {
+      // The gap rule of Eq. K9: the fixes around t_k - offset within the maximum gap.
+      if (!series || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_fix_gap_s)) continue;
+      problem->AddResidualBlock(internal::ShiftedGnssResidual::Create(series, kf.t_ns), loss,
+                                kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
+                                calibration->p_I_A.data(), offset);
+    }
     unused_loss.release();
     ++added;
   }
-  if (added > 0) SetConstantUnless(options.estimate_lever_arm, calibration->p_I_A.data(), problem);
+  if (added == 0) return 0;
+  SetConstantUnless(options.estimate_lever_arm, calibration->p_I_A.data(), problem);
+  if (shifted) SetConstantUnless(options.estimate_time_offset, offset, problem);
   return added;
 }
 

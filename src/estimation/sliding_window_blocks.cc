@@ -33,17 +33,23 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
     case Id::kWheelSpeedScaleRight:
     case Id::kOdometrySpeedScale:
     case Id::kEffectiveTrack:
+      throw Error(std::string("calibration block ") + sensors::CalibrationBlock(id).key +
+                  " is not supported by the sliding window (it takes wheel data as angular "
+                  "rates only)");
+    case Id::kWheelTimeOffset:
+    case Id::kGnssTimeOffset:
       break;
   }
   throw Error(std::string("calibration block ") + sensors::CalibrationBlock(id).key +
-              " is not supported by the sliding window (it takes wheel data as angular rates "
-              "only)");
+              " is not supported by the sliding window (it reads the wheels and the GNSS on "
+              "the IMU clock; estimate the offsets offline)");
 }
 
 bool WindowSupports(sensors::CalibrationBlockId id) {
   using Id = sensors::CalibrationBlockId;
   return id != Id::kWheelSpeedScaleLeft && id != Id::kWheelSpeedScaleRight &&
-         id != Id::kOdometrySpeedScale && id != Id::kEffectiveTrack;
+         id != Id::kOdometrySpeedScale && id != Id::kEffectiveTrack && id != Id::kWheelTimeOffset &&
+         id != Id::kGnssTimeOffset;
 }
 
 bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate) {

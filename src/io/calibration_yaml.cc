@@ -157,7 +157,8 @@ CalibrationFile ParseCalibrationNode(const YamlFile& file, const YAML::Node& nod
       node, what.empty() ? "calibration" : what,
       {"format", "T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
        "track_width_m", "p_I_A_m", "T_I_V", "wheel_speed_scale_left", "wheel_speed_scale_right",
-       "odometry_speed_scale", "effective_track_m", "solver", "residuals"});
+       "odometry_speed_scale", "effective_track_m", "time_offset_wheel_imu_s",
+       "time_offset_gnss_imu_s", "solver", "residuals"});
   if (const YAML::Node format = node["format"]) {
     if (!what.empty()) file.Fail(format, what + ".format: only a calibration file has a format");
     if (file.String(format, "format") != kFormat) {
@@ -196,6 +197,13 @@ CalibrationFile ParseCalibrationNode(const YamlFile& file, const YAML::Node& nod
       {"effective_track_m", {&c.effective_track_m, &u.effective_track_m}}};
   for (const auto& [key, fields] : wheel_form_blocks) {
     if (node[key]) ParseScalar(file, node[key], Join(what, key), true, fields.first, fields.second);
+  }
+  const std::pair<const char*, std::pair<double*, ScalarBlockInfo*>> clock_blocks[] = {
+      {"time_offset_wheel_imu_s", {&c.time_offset_wheel_imu_s, &u.time_offset_wheel_imu_s}},
+      {"time_offset_gnss_imu_s", {&c.time_offset_gnss_imu_s, &u.time_offset_gnss_imu_s}}};
+  for (const auto& [key, fields] : clock_blocks) {
+    if (node[key])
+      ParseScalar(file, node[key], Join(what, key), false, fields.first, fields.second);
   }
   if (node["p_I_A_m"])
     ParseVector(file, node["p_I_A_m"], Join(what, "p_I_A_m"), &c.p_I_A, &u.p_I_A_m);
@@ -260,6 +268,10 @@ std::string CalibrationYamlText(const CalibrationFile& calibration, int indent) 
   out += internal::ScalarText(pad, "odometry_speed_scale", c.odometry_speed_scale,
                               u.odometry_speed_scale);
   out += internal::ScalarText(pad, "effective_track_m", c.effective_track_m, u.effective_track_m);
+  out += internal::ScalarText(pad, "time_offset_wheel_imu_s", c.time_offset_wheel_imu_s,
+                              u.time_offset_wheel_imu_s);
+  out += internal::ScalarText(pad, "time_offset_gnss_imu_s", c.time_offset_gnss_imu_s,
+                              u.time_offset_gnss_imu_s);
   if (!calibration.solver.empty()) {
     out += pad + "solver:\n";
     for (const auto& [key, value] : calibration.solver) {
@@ -282,7 +294,7 @@ std::string CalibrationYamlText(const CalibrationFile& calibration, int indent) 
 void WriteCalibrationYaml(const std::string& path, const CalibrationFile& calibration) {
   const std::string text =
       "# autocal calibration (schema: datasets/README.md). T_a_b maps frame b into frame a;\n"
-      "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_lidar + time_offset_lidar_imu_s.\n"
+      "# quaternions [qx, qy, qz, qw] (Hamilton); t_imu = t_sensor + time_offset_<sensor>_imu_s.\n"
       "format: " +
       std::string(internal::kFormat) + "\n" + CalibrationYamlText(calibration) +
       std::string(internal::kEndMarker);

@@ -170,25 +170,31 @@ void FixBlocksOfAbsentSensors(const ProblemSensors& sensors, ProblemCalibration*
     c->wheel_speed_scale_right = fixed_scalar;
     c->odometry_speed_scale = fixed_scalar;
     c->effective_track_m = fixed_scalar;
+    c->time_offset_wheel_imu_s = fixed_scalar;
   }
-  if (!sensors.gnss) c->p_I_A_m = fixed_vector;
+  if (!sensors.gnss) {
+    c->p_I_A_m = fixed_vector;
+    c->time_offset_gnss_imu_s = fixed_scalar;
+  }
 }
 
 ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node,
                                     const ProblemSensors& sensors) {
   const std::string what = "calibration";
-  file.ExpectMap(
-      node, what,
-      {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
-       "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V", "wheel_speed_scale_left",
-       "wheel_speed_scale_right", "odometry_speed_scale", "effective_track_m"});
+  file.ExpectMap(node, what,
+                 {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
+                  "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V",
+                  "wheel_speed_scale_left", "wheel_speed_scale_right", "odometry_speed_scale",
+                  "effective_track_m", "time_offset_wheel_imu_s", "time_offset_gnss_imu_s"});
   for (const char* key : {"T_I_L", "time_offset_lidar_imu_s"})
     RejectWithoutSensor(file, node, what, key, sensors.lidar, "lidar");
-  for (const char* key : {"wheel_radius_left_m", "wheel_radius_right_m", "wheel_radius_shared",
-                          "track_width_m", "T_I_V", "wheel_speed_scale_left",
-                          "wheel_speed_scale_right", "odometry_speed_scale", "effective_track_m"})
+  for (const char* key :
+       {"wheel_radius_left_m", "wheel_radius_right_m", "wheel_radius_shared", "track_width_m",
+        "T_I_V", "wheel_speed_scale_left", "wheel_speed_scale_right", "odometry_speed_scale",
+        "effective_track_m", "time_offset_wheel_imu_s"})
     RejectWithoutSensor(file, node, what, key, sensors.wheel, "wheel");
-  RejectWithoutSensor(file, node, what, "p_I_A_m", sensors.gnss, "gnss");
+  for (const char* key : {"p_I_A_m", "time_offset_gnss_imu_s"})
+    RejectWithoutSensor(file, node, what, key, sensors.gnss, "gnss");
 
   ProblemCalibration c;
   if (const YAML::Node n = node["T_I_L"]) c.T_I_L = ParsePoseBlock(file, n, "calibration.T_I_L");
@@ -235,6 +241,13 @@ ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node
   if (const YAML::Node n = node["effective_track_m"]) {
     c.effective_track_m =
         ParseScalarBlock(file, n, "calibration.effective_track_m", "prior_sigma_m");
+  }
+  const std::pair<const char*, ScalarBlockSetting*> clock_blocks[] = {
+      {"time_offset_wheel_imu_s", &c.time_offset_wheel_imu_s},
+      {"time_offset_gnss_imu_s", &c.time_offset_gnss_imu_s}};
+  for (const auto& [key, setting] : clock_blocks) {
+    if (const YAML::Node n = node[key])
+      *setting = ParseScalarBlock(file, n, std::string("calibration.") + key, "prior_sigma_s");
   }
   return c;
 }

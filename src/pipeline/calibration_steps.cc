@@ -12,6 +12,7 @@
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/wheel_factor.h"
+#include "estimation/time_offset_factors.h"
 #include "problem_blocks.h"
 
 namespace autocal {
@@ -169,8 +170,17 @@ bool IsWheelCost(const ceres::CostFunction* f) {
                                                 3, 4, 3, 1, 1, 1>;
   using TwistCost = ceres::AutoDiffCostFunction<factors::OdometryTwistResidual, ceres::DYNAMIC, 4,
                                                 3, 3, 4, 3, 1, 1>;
+  using ShiftedCost =
+      ceres::DynamicAutoDiffCostFunction<estimation::internal::ShiftedWheelResidual,
+                                         estimation::internal::ShiftedWheelResidual::kStride>;
   return dynamic_cast<const factors::WheelFactor*>(f) || dynamic_cast<const SpeedCost*>(f) ||
-         dynamic_cast<const TwistCost*>(f);
+         dynamic_cast<const TwistCost*>(f) || dynamic_cast<const ShiftedCost*>(f);
+}
+
+bool IsGnssCost(const ceres::CostFunction* f) {
+  using ShiftedCost =
+      ceres::AutoDiffCostFunction<estimation::internal::ShiftedGnssResidual, 3, 4, 3, 3, 1>;
+  return dynamic_cast<const factors::GnssFactor*>(f) || dynamic_cast<const ShiftedCost*>(f);
 }
 
 [[noreturn]] void ThrowNoFactor(const io::Dataset& dataset, const std::string& sensor,
@@ -244,6 +254,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     wheel.estimate_vehicle_rotation = Estimated(b.T_I_V.rotation.mode);
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     EstimateFormBlocks(dataset->wheel_form(), b, &wheel);
+    wheel.estimate_time_offset = Estimated(b.time_offset_wheel_imu_s.mode);
     const int n = estimation::AddWheelFactors(p, dataset->imu, FormData(*dataset, *nominal),
                                               keyframes, c, wheel);
     const char* file = sensors::WheelFormFile(dataset->wheel_form());
@@ -272,6 +283,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     gnss.loss = problem->loss.gnss;
     gnss.max_fix_gap_s = timing->max_fix_gap_s;
     gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
+    gnss.estimate_time_offset = Estimated(b.time_offset_gnss_imu_s.mode);
     const int n = estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
     RequireCoverage(*dataset, "GNSS", *timing->gnss, n, *keyframes,
                     "max_fix_gap_s = " + FormatFixed(gnss.max_fix_gap_s, 3) + " s",
@@ -318,7 +330,7 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
     const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
     if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
     if (IsWheelCost(f)) ids["wheel"].push_back(id);
-    if (dynamic_cast<const factors::GnssFactor*>(f)) ids["gnss"].push_back(id);
+    if (IsGnssCost(f)) ids["gnss"].push_back(id);
   }
   std::map<std::string, std::vector<double>> out;
   for (const auto& [sensor, blocks] : ids) {

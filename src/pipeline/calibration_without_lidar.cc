@@ -7,6 +7,7 @@
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "calibration_steps.h"
+#include "clock_initialization.h"
 #include "problem_blocks.h"
 
 namespace autocal {
@@ -96,6 +97,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   // 1. Keyframes over the span the IMU and the fixes share.
   Report(options, "initializing", 0.0, 0.0, 0.0);
   sensors::Calibration calibration = result.nominal;
+  InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
       KeyframesOnGnssTrack(dataset, problem, options, timing, enu, use_wheel, calibration, &placed);

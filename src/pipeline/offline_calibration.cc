@@ -22,6 +22,7 @@
 #include "autocal/pipeline/report_html.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
+#include "clock_initialization.h"
 #include "mount_angles.h"
 #include "problem_blocks.h"
 
@@ -304,6 +305,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   //    with the wheel and GNSS factors and the priors of the problem.
   sensors::Calibration calibration =
       StartFromInitializer(result.nominal, problem.calibration, result.initialization);
+  InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
   BatchKeyframes keyframes = EveryStrideKeyframe(problem, result.initialization, &sweeps);
   sweeps.clear();
   const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;

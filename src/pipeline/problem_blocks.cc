@@ -55,6 +55,11 @@ BlockLimits EffectiveTrackLimits(double nominal_m, const OfflineCalibrationOptio
   return {std::max(o.default_track_width_prior_sigma_m, kEffectiveTrackPriorFraction * nominal_m),
           std::max(o.max_observable_track_width_sigma_m, kEffectiveTrackLimitFraction * nominal_m)};
 }
+// The wheel and GNSS clocks start from a cross-correlation searched over +-1 s
+// (pipeline/clock_initialization.h): the weak default prior covers that range at 2 sigma. An
+// offset counts as observed to 20 ms, the LiDAR's limit scaled by the slower sensors' rates (a
+// 10 Hz GNSS or odometry interval is 100 ms; 20 ms moves a fix by 0.2 m at 10 m/s).
+constexpr BlockLimits kClockOffsetLimits = {0.5, 0.02};
 
 BlockLimits LimitsOf(Id id, const OfflineCalibrationOptions& o) {
   switch (id) {
@@ -79,6 +84,9 @@ BlockLimits LimitsOf(Id id, const OfflineCalibrationOptions& o) {
       return kSpeedScaleLimits;
     case Id::kEffectiveTrack:  // the floor of EffectiveTrackLimits
       return {o.default_track_width_prior_sigma_m, o.max_observable_track_width_sigma_m};
+    case Id::kWheelTimeOffset:
+    case Id::kGnssTimeOffset:
+      return kClockOffsetLimits;
     case Id::kGnssLeverArm:
       break;
   }
@@ -142,6 +150,10 @@ BlockSetting SettingOf(Id id, const io::ProblemCalibration& p,
       return FromScalar(p.odometry_speed_scale, u.odometry_speed_scale.sigma);
     case Id::kEffectiveTrack:
       return FromScalar(p.effective_track_m, u.effective_track_m.sigma);
+    case Id::kWheelTimeOffset:
+      return FromScalar(p.time_offset_wheel_imu_s, u.time_offset_wheel_imu_s.sigma);
+    case Id::kGnssTimeOffset:
+      return FromScalar(p.time_offset_gnss_imu_s, u.time_offset_gnss_imu_s.sigma);
     case Id::kGnssLeverArm:
       break;
   }
@@ -223,6 +235,10 @@ void SetUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>
       return SetScalar(sigma, observable, &u->odometry_speed_scale);
     case Id::kEffectiveTrack:
       return SetScalar(sigma, observable, &u->effective_track_m);
+    case Id::kWheelTimeOffset:
+      return SetScalar(sigma, observable, &u->time_offset_wheel_imu_s);
+    case Id::kGnssTimeOffset:
+      return SetScalar(sigma, observable, &u->time_offset_gnss_imu_s);
     case Id::kGnssLeverArm:
       break;
   }

@@ -93,6 +93,14 @@ constexpr std::array<CalibrationBlockInfo, kNumCalibrationBlocks> kBlocks = {{
     {Id::kEffectiveTrack, "effective_track_m", "effective track", S::kWheel, M::kEuclidean, 1, 1,
      "", 1e3, "mm", {"effective (slip) track"}, "",
      Values<&Calibration::effective_track_m>, ConstValues<&Calibration::effective_track_m>},
+    {Id::kWheelTimeOffset, "time_offset_wheel_imu_s", "wheel-IMU time offset", S::kWheel,
+     M::kEuclidean, 1, 1, "", 1e3, "ms", {"wheel-IMU time offset"}, "",
+     Values<&Calibration::time_offset_wheel_imu_s>,
+     ConstValues<&Calibration::time_offset_wheel_imu_s>},
+    {Id::kGnssTimeOffset, "time_offset_gnss_imu_s", "GNSS-IMU time offset", S::kGnss,
+     M::kEuclidean, 1, 1, "", 1e3, "ms", {"GNSS-IMU time offset"}, "",
+     Values<&Calibration::time_offset_gnss_imu_s>,
+     ConstValues<&Calibration::time_offset_gnss_imu_s>},
 }};
 // clang-format on
 
@@ -142,6 +150,8 @@ bool BlockInWheelForm(CalibrationBlockId id, WheelForm form) {
     case Id::kVehicleRotation:
     case Id::kVehicleTranslation:
     case Id::kGnssLeverArm:
+    case Id::kWheelTimeOffset:
+    case Id::kGnssTimeOffset:
       break;
   }
   return true;

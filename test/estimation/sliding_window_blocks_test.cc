@@ -13,15 +13,16 @@ namespace {
 
 using Id = sensors::CalibrationBlockId;
 
-// Every block of angular-rate wheels has a setting; the blocks of the other wheel forms are
-// refused by name, and never count as estimated.
+// Every block of angular-rate wheels has a setting; the blocks of the other wheel forms and
+// the wheel and GNSS clocks are refused by name, and never count as estimated.
 TEST(SlidingWindowBlocks, TheWheelFormBlocksAreNotSupportedYet) {
   SlidingWindowEstimatedBlocks estimate;
   SlidingWindowCalibrationPrior prior;
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     const bool other_form = info.id == Id::kWheelSpeedScaleLeft ||
                             info.id == Id::kWheelSpeedScaleRight ||
-                            info.id == Id::kOdometrySpeedScale || info.id == Id::kEffectiveTrack;
+                            info.id == Id::kOdometrySpeedScale || info.id == Id::kEffectiveTrack ||
+                            info.id == Id::kWheelTimeOffset || info.id == Id::kGnssTimeOffset;
     EXPECT_EQ(WindowSupports(info.id), !other_form) << info.key;
     if (!other_form) {
       const SlidingWindowBlockSetting setting = BlockSettingOf(info.id, &estimate, &prior);

@@ -53,6 +53,10 @@ CalibrationFile FullResult() {
   u.wheel_speed_scale_left.sigma = 2e-4;
   u.odometry_speed_scale = {1.0 / 7.0 * 1e-3, true};
   u.effective_track_m.observable = false;
+  file.value.time_offset_wheel_imu_s = -0.391 - 1.0 / 3.0 * 1e-3;
+  file.value.time_offset_gnss_imu_s = 0.15;
+  u.time_offset_wheel_imu_s = {1.0 / 7.0 * 1e-2, true};
+  u.time_offset_gnss_imu_s.observable = false;
   file.solver = {{"termination", "CONVERGENCE"},
                  {"iterations", "14"},
                  {"message", "Function tolerance reached: |cost change| < 1e-6"},
@@ -79,6 +83,8 @@ void ExpectSameCalibration(const sensors::Calibration& a, const sensors::Calibra
   EXPECT_EQ(a.wheel_speed_scale_right, b.wheel_speed_scale_right);
   EXPECT_EQ(a.odometry_speed_scale, b.odometry_speed_scale);
   EXPECT_EQ(a.effective_track_m, b.effective_track_m);
+  EXPECT_EQ(a.time_offset_wheel_imu_s, b.time_offset_wheel_imu_s);
+  EXPECT_EQ(a.time_offset_gnss_imu_s, b.time_offset_gnss_imu_s);
 }
 
 void ExpectSamePose(const PoseBlockInfo& a, const PoseBlockInfo& b) {
@@ -116,6 +122,10 @@ TEST(CalibrationYamlTest, ResultRoundTripsExactly) {
                    written.uncertainty.wheel_speed_scale_right);
   ExpectSameScalar(read.uncertainty.odometry_speed_scale, written.uncertainty.odometry_speed_scale);
   ExpectSameScalar(read.uncertainty.effective_track_m, written.uncertainty.effective_track_m);
+  ExpectSameScalar(read.uncertainty.time_offset_wheel_imu_s,
+                   written.uncertainty.time_offset_wheel_imu_s);
+  ExpectSameScalar(read.uncertainty.time_offset_gnss_imu_s,
+                   written.uncertainty.time_offset_gnss_imu_s);
   ASSERT_TRUE(read.uncertainty.p_I_A_m.sigma.has_value());
   EXPECT_EQ(*read.uncertainty.p_I_A_m.sigma, *written.uncertainty.p_I_A_m.sigma);
   EXPECT_EQ(read.uncertainty.p_I_A_m.observable, written.uncertainty.p_I_A_m.observable);
@@ -298,8 +308,9 @@ TEST(CalibrationYamlTest, SyntaxErrorAndEmptyFile) {
 // writing, a disk that filled up) is refused with a ParseError naming the file, never read
 // as a calibration whose missing blocks take their defaults. Before the format key and end
 // line, 252 of the 1,954 prefixes of a real result parsed.
-// A result written before the blocks of the other wheel forms existed still reads: they keep
-// their nominal defaults; a bad value in one of them is refused with its place.
+// A result written before the blocks of the other wheel forms and the wheel and GNSS clocks
+// existed still reads: they keep their nominal defaults; a bad value in one of them is refused
+// with its place.
 TEST(CalibrationYamlTest, WheelFormBlocksAreOptionalInAResult) {
   const std::string path = OutPath("older.yaml");
   WriteCalibrationYaml(path, FullResult());
@@ -313,6 +324,11 @@ TEST(CalibrationYamlTest, WheelFormBlocksAreOptionalInAResult) {
   EXPECT_EQ(read.value.odometry_speed_scale, 1.0);
   EXPECT_EQ(read.value.effective_track_m, sensors::Calibration().effective_track_m);
   EXPECT_EQ(read.value.track_width_m, FullResult().value.track_width_m);
+  EXPECT_EQ(read.value.time_offset_wheel_imu_s, 0.0);
+  EXPECT_EQ(read.value.time_offset_gnss_imu_s, 0.0);
+  EXPECT_FALSE(read.uncertainty.time_offset_wheel_imu_s.sigma.has_value());
+  ExpectParseError("bad_offset.yaml", "time_offset_gnss_imu_s: {value: .nan}\n", kReadCalibration,
+                   1, 33, "time_offset_gnss_imu_s.value");
   ExpectParseError("bad_scale.yaml", "odometry_speed_scale: {value: -0.9}\n", kReadCalibration, 1,
                    31, "odometry_speed_scale.value");
 }

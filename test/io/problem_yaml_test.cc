@@ -156,6 +156,37 @@ TEST(ProblemYamlTest, EmptyMapsGiveTheDocumentedDefaults) {
                read.timing.max_fix_gap_s || read.timing.keyframe_period_s ||
                read.timing.gnss_track_half_width_s);
   EXPECT_EQ(read.timing.min_factor_fraction, 0.5);
+  // The wheel and GNSS clocks are held at the nominal unless the problem estimates them.
+  EXPECT_EQ(read.calibration.time_offset_wheel_imu_s.mode, BlockMode::kFixed);
+  EXPECT_EQ(read.calibration.time_offset_gnss_imu_s.mode, BlockMode::kFixed);
+}
+
+// The clock offsets of the wheels and the GNSS receiver: estimate or a prior in seconds, each
+// only with its sensor.
+TEST(ProblemYamlTest, ClockOffsetsOfWheelsAndGnssAreRead) {
+  const Problem p =
+      ReadProblemYaml(WriteProblem("clocks.yaml",
+                                   "sensors: {lidar: false}\n"
+                                   "calibration:\n"
+                                   "  time_offset_wheel_imu_s: estimate\n"
+                                   "  time_offset_gnss_imu_s: {prior_sigma_s: 0.05}\n"));
+  EXPECT_EQ(p.calibration.time_offset_wheel_imu_s.mode, BlockMode::kEstimate);
+  EXPECT_EQ(p.calibration.time_offset_gnss_imu_s.mode, BlockMode::kPrior);
+  EXPECT_EQ(p.calibration.time_offset_gnss_imu_s.prior_sigma, 0.05);
+  for (const auto& [sensor, key] :
+       {std::pair<std::string, std::string>{"wheel", "time_offset_wheel_imu_s"},
+        std::pair<std::string, std::string>{"gnss", "time_offset_gnss_imu_s"}}) {
+    const std::string path =
+        WriteProblem("clock_without_" + sensor + ".yaml",
+                     "sensors: {" + sensor + ": false}\ncalibration:\n  " + key + ": estimate\n");
+    try {
+      ReadProblemYaml(path);
+      ADD_FAILURE() << key << ": no error";
+    } catch (const ParseError& e) {
+      EXPECT_EQ(e.location().line, 3) << e.what();
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("sensors." + sensor + " is false")) << e.what();
+    }
+  }
 }
 
 TEST(ProblemYamlTest, TimingOverridesAreRead) {

@@ -62,7 +62,9 @@ TEST(CalibrationBlocks, AccessorsReachTheNamedField) {
       {CalibrationBlockId::kWheelSpeedScaleLeft, &c.wheel_speed_scale_left},
       {CalibrationBlockId::kWheelSpeedScaleRight, &c.wheel_speed_scale_right},
       {CalibrationBlockId::kOdometrySpeedScale, &c.odometry_speed_scale},
-      {CalibrationBlockId::kEffectiveTrack, &c.effective_track_m}};
+      {CalibrationBlockId::kEffectiveTrack, &c.effective_track_m},
+      {CalibrationBlockId::kWheelTimeOffset, &c.time_offset_wheel_imu_s},
+      {CalibrationBlockId::kGnssTimeOffset, &c.time_offset_gnss_imu_s}};
   ASSERT_EQ(fields.size(), CalibrationBlocks().size());
   for (const auto& [id, field] : fields) {
     const CalibrationBlockInfo& block = CalibrationBlock(id);
@@ -87,17 +89,19 @@ TEST(CalibrationBlocks, ColumnsAreTheResultFilesNames) {
             "qx,qy,qz,qw,px_m,py_m,pz_m,time_offset_lidar_imu_s,wheel_radius_left_m,"
             "wheel_radius_right_m,track_width_m,qv_x,qv_y,qv_z,qv_w,pv_x_m,pv_y_m,pv_z_m,pa_x_m,"
             "pa_y_m,pa_z_m,wheel_speed_scale_left,wheel_speed_scale_right,odometry_speed_scale,"
-            "effective_track_m");
+            "effective_track_m,time_offset_wheel_imu_s,time_offset_gnss_imu_s");
   EXPECT_EQ(Joined(over_time),
             "q_I_L_x,q_I_L_y,q_I_L_z,q_I_L_w,p_I_L_x_m,p_I_L_y_m,p_I_L_z_m,"
             "time_offset_lidar_imu_s,wheel_radius_left_m,wheel_radius_right_m,track_width_m,"
             "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m,wheel_speed_scale_left,wheel_speed_scale_right,"
-            "odometry_speed_scale,effective_track_m");
+            "odometry_speed_scale,effective_track_m,time_offset_wheel_imu_s,"
+            "time_offset_gnss_imu_s");
   EXPECT_THAT(ValueColumns(CalibrationBlock(CalibrationBlockId::kVehicleRotation)),
               ::testing::ElementsAre("q_I_V_x", "q_I_V_y", "q_I_V_z", "q_I_V_w"));
 }
 
-// Each wheel form determines its own intrinsics; the vehicle frame belongs to every form.
+// Each wheel form determines its own intrinsics; the vehicle frame and the wheel clock belong
+// to every form.
 TEST(CalibrationBlocks, WheelFormsSelectTheirBlocks) {
   using Id = CalibrationBlockId;
   const auto blocks_of = [](WheelForm form) {
@@ -109,11 +113,13 @@ TEST(CalibrationBlocks, WheelFormsSelectTheirBlocks) {
     return Joined(keys);
   };
   EXPECT_EQ(blocks_of(WheelForm::kAngularRates),
-            "wheel_radius_left_m,wheel_radius_right_m,track_width_m,q_I_V,p_I_V");
+            "wheel_radius_left_m,wheel_radius_right_m,track_width_m,q_I_V,p_I_V,"
+            "time_offset_wheel_imu_s");
   EXPECT_EQ(blocks_of(WheelForm::kLinearSpeeds),
-            "track_width_m,q_I_V,p_I_V,wheel_speed_scale_left,wheel_speed_scale_right");
+            "track_width_m,q_I_V,p_I_V,wheel_speed_scale_left,wheel_speed_scale_right,"
+            "time_offset_wheel_imu_s");
   EXPECT_EQ(blocks_of(WheelForm::kSpeedYawRate),
-            "q_I_V,p_I_V,odometry_speed_scale,effective_track_m");
+            "q_I_V,p_I_V,odometry_speed_scale,effective_track_m,time_offset_wheel_imu_s");
   EXPECT_TRUE(BlockInWheelForm(Id::kLidarRotation, WheelForm::kSpeedYawRate));
 }
 

@@ -237,6 +237,8 @@ void VisitFields(A& a, sensors::Calibration& c) {
   a(c.wheel_speed_scale_right);
   a(c.odometry_speed_scale);
   a(c.effective_track_m);
+  a(c.time_offset_wheel_imu_s);
+  a(c.time_offset_gnss_imu_s);
 }
 template <class A>
 void VisitFields(A& a, sim::SimulationSummary& s) {
@@ -272,7 +274,7 @@ void VisitFields(A& a, sim::SimulationSummary& s) {
 
 // Every field of the options, for the key. A field added to SimulationOptions (or to a struct
 // it holds) changes its size and stops the build here: add the field to the list below.
-static_assert(sizeof(sim::SimulationOptions) == 784,
+static_assert(sizeof(sim::SimulationOptions) == 800,
               "sim::SimulationOptions changed: list its new fields in the cache key");
 template <class A>
 void VisitFields(A& a, sim::SimulationOptions& o) {

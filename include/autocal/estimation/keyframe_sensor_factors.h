@@ -85,14 +85,20 @@ struct KeyframeWheelOptions {
   bool estimate_vehicle_translation = true;  // p_I_V
   bool estimate_radii = true;
   bool estimate_track_width = true;
+  // Estimate Calibration::time_offset_wheel_imu_s (Eq. K9). When false the offset is held at
+  // its value; at 0 the wheel samples are read at t_k as before (Eq. K1).
+  bool estimate_time_offset = false;
 };
 
 // Adds one WheelFactor (Eq. F22) per keyframe whose time both the wheel samples and the IMU
 // samples bracket within the maximum gaps: wheel rates and raw gyro interpolated to t_k
-// (Eq. K1), on the keyframe's q_W_I, v_W_I, b_g (the factor removes b_g from the gyro) and
-// the calibration's q_I_V, p_I_V, radii and track width. A standing car gives zero rates: its
-// factors carry no radius information but tie the keyframe's velocity to zero.
-// The keyframes and the calibration must outlive the problem (their members are the blocks);
+// (Eq. K1). With a wheel clock offset (Calibration::time_offset_wheel_imu_s nonzero, or
+// options.estimate_time_offset) the wheel values are read at t_k - offset instead (Eq. K9,
+// the gyro stays at t_k) and the offset block enters every factor; the gap rule then applies
+// to the samples around t_k - offset. Factors on the keyframe's q_W_I, v_W_I, b_g (the factor
+// removes b_g from the gyro) and the calibration's q_I_V, p_I_V, radii and track width. A standing
+// car gives zero rates: its factors carry no radius information but tie the keyframe's velocity to
+// zero. The keyframes and the calibration must outlive the problem (their members are the blocks);
 // the problem takes ownership of the cost and loss functions (Problem::Options defaults).
 // Returns the number of factors added. Throws autocal::Error for stamps that do not increase,
 // non-positive gaps, or a quaternion block missing from the problem or without a manifold.
@@ -128,6 +134,9 @@ struct KeyframeGnssOptions {
   // offline calibration derives it from the log's stamps.
   double max_fix_gap_s = 0.25;
   bool estimate_lever_arm = true;  // else p_I_A is set constant
+  // Estimate Calibration::time_offset_gnss_imu_s (Eq. K9). When false the offset is held at
+  // its value; at 0 the fixes are read at t_k as before (Eq. K1).
+  bool estimate_time_offset = false;
 };
 
 // The antenna position in ENU at t_ns (Eq. K1 on the fixes converted by `converter`) with the
@@ -139,7 +148,9 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
                      int64_t t_ns, double max_fix_gap_s, factors::GnssMeasurement* measurement);
 
 // Adds one GnssFactor (Eq. F30) per keyframe with an interpolated fix (InterpolateGnss), on
-// the keyframe's q_W_I, p_W_I and the calibration's p_I_A. Returns the number added.
+// the keyframe's q_W_I, p_W_I and the calibration's p_I_A. With a GNSS clock offset
+// (Calibration::time_offset_gnss_imu_s nonzero, or options.estimate_time_offset) the fixes are
+// read at t_k - offset (Eq. K9) and the offset block enters every factor. Returns the number added.
 // Ownership as AddWheelFactors. Throws autocal::Error as InterpolateGnss, for a non-positive
 // gap, a keyframe q_W_I missing from the problem or without a manifold, or an invalid fix.
 int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,

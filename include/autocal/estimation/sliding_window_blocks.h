@@ -21,7 +21,8 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
                                          SlidingWindowCalibrationPrior* prior);
 
 // Whether the window has a setting for block `id`: not yet for the blocks of the wheel forms
-// linear_speeds and speed_yaw_rate (speed scales, odometry speed scale, effective track).
+// linear_speeds and speed_yaw_rate (speed scales, odometry speed scale, effective track), nor
+// the wheel and GNSS time offsets.
 bool WindowSupports(sensors::CalibrationBlockId id);
 
 // Whether the window estimates block `id` (false for a block it does not support).

@@ -16,6 +16,8 @@
 //   wheel_speed_scale_right: {value: 1.0}
 //   odometry_speed_scale: {value: 0.97}             # wheels as speed and yaw rate
 //   effective_track_m: {value: 0.9}
+//   time_offset_wheel_imu_s: {value: -0.2, sigma: 0.002, observable: true}
+//   time_offset_gnss_imu_s: {value: 0.15, sigma: 0.01, observable: true}
 //   solver: {key: value, ...}                       # free-form solver summary
 //   residuals: {lidar: {rms: 0.02, ...}, imu: {...}} # statistics per sensor
 //
@@ -24,8 +26,8 @@
 // A file with that format key must end with that line and hold the seven blocks of every rig
 // (T_I_L to T_I_V), so that a file cut while it was written is refused (ParseError) instead of
 // read with defaults; the four blocks of the other wheel forms (speed scales, odometry speed
-// scale, effective track) are written always and optional on reading, so results written
-// before they existed still read.
+// scale, effective track) and the wheel and GNSS time offsets are written always and optional
+// on reading, so results written before they existed still read.
 // In a file without the format key (hand-written, or the nominal_calibration section of
 // sensors.yaml) every block is optional (a missing block keeps the sensors::Calibration
 // default); sigma and observable are optional inside a block. A scalar block may be written as a
@@ -77,6 +79,8 @@ struct CalibrationUncertainty {
   ScalarBlockInfo wheel_speed_scale_right;
   ScalarBlockInfo odometry_speed_scale;
   ScalarBlockInfo effective_track_m;
+  ScalarBlockInfo time_offset_wheel_imu_s;
+  ScalarBlockInfo time_offset_gnss_imu_s;
 };
 
 struct CalibrationFile {

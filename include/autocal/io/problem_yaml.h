@@ -17,6 +17,8 @@
 //     wheel_speed_scale_right: {prior_sigma: 0.01}          # (dimensionless)
 //     odometry_speed_scale: estimate                        # wheels as speed and yaw rate
 //     effective_track_m: {prior_sigma_m: 0.2}
+//     time_offset_wheel_imu_s: estimate                     # default fixed (at the nominal)
+//     time_offset_gnss_imu_s: {prior_sigma_s: 0.05}         # default fixed (at the nominal)
 //   loss: {imu: none, prior: none, wheel: "huber:2", gnss: "cauchy:3", lidar: "huber:1"}
 //   window: {size: 10, max_range_m: 40}
 //   solver: {max_iterations: 15, outer_iterations: 8, num_threads: 1}
@@ -85,7 +87,9 @@ struct ProblemSensors {
 // receiver owns the lever arm. Of the wheel intrinsics only those of the dataset's wheel form
 // take part (sensors::BlockInWheelForm): radii and track width for angular rates, speed
 // scales and track width for linear speeds, odometry speed scale and effective track for
-// speed and yaw rate; the settings of the others are ignored.
+// speed and yaw rate; the settings of the others are ignored. The wheel and GNSS clocks
+// (time_offset_wheel_imu_s, owned by the wheels, time_offset_gnss_imu_s, by the GNSS receiver)
+// default to kFixed at the nominal offset: a problem estimates them only when it says so.
 struct ProblemCalibration {
   PoseBlockSetting T_I_L;
   ScalarBlockSetting time_offset_lidar_imu_s;
@@ -100,6 +104,8 @@ struct ProblemCalibration {
   ScalarBlockSetting wheel_speed_scale_right;
   ScalarBlockSetting odometry_speed_scale;  // prior_sigma dimensionless
   ScalarBlockSetting effective_track_m;
+  ScalarBlockSetting time_offset_wheel_imu_s{BlockMode::kFixed, 0.0};
+  ScalarBlockSetting time_offset_gnss_imu_s{BlockMode::kFixed, 0.0};
 };
 
 struct ProblemSolver {

@@ -36,6 +36,10 @@ struct Calibration {
   double effective_track_m = 1.6;
   // GNSS lever arm: antenna position in the IMU frame.
   Eigen::Vector3d p_I_A = Eigen::Vector3d::Zero();
+  // Clocks of the wheel odometry and the GNSS receiver, as the LiDAR's:
+  // t_imu = t_wheel + time_offset_wheel_imu_s, t_imu = t_gnss + time_offset_gnss_imu_s.
+  double time_offset_wheel_imu_s = 0.0;
+  double time_offset_gnss_imu_s = 0.0;
 };
 
 }  // namespace sensors

@@ -29,8 +29,10 @@ enum class CalibrationBlockId {
   kWheelSpeedScaleRight,  // wheel_speed_scale_right
   kOdometrySpeedScale,    // odometry_speed_scale
   kEffectiveTrack,        // effective_track_m
+  kWheelTimeOffset,       // time_offset_wheel_imu_s
+  kGnssTimeOffset,        // time_offset_gnss_imu_s
 };
-constexpr int kNumCalibrationBlocks = 13;
+constexpr int kNumCalibrationBlocks = 15;
 
 // How a block is perturbed: a unit quaternion [x, y, z, w] on the right, q ⊞ δ = q ⊗ Exp(δ)
 // (geometry::RightQuaternionManifold; ambient 4, tangent 3 in rad), or a Euclidean vector.

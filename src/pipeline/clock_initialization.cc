@@ -1,0 +1,105 @@
+#include "clock_initialization.h"
+
+#include <cstdio>
+
+#include "autocal/common/units.h"
+#include "calibration_steps.h"
+
+namespace autocal {
+namespace pipeline {
+
+namespace {
+
+// "-391.2 ms".
+std::string Ms(double seconds) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f ms", seconds * 1e3);
+  return text;
+}
+
+// Appends one speed and yaw-rate sample per wheel sample from the pair (left, right) scaled by
+// (scale_left, scale_right) over the track `track_m`.
+template <typename Samples, typename Pair>
+void FromWheelPair(const Samples& samples, double scale_left, double scale_right, double track_m,
+                   Pair pair, estimation::ScalarSeries* speed, estimation::ScalarSeries* yaw) {
+  for (const auto& sample : samples) {
+    const auto [left, right] = pair(sample);
+    speed->push_back({sample.t_ns, 0.5 * (scale_left * left + scale_right * right)});
+    yaw->push_back({sample.t_ns, (scale_right * right - scale_left * left) / track_m});
+  }
+}
+
+}  // namespace
+
+void WheelSpeedAndYawRate(const io::Dataset& dataset, const sensors::Calibration& c,
+                          estimation::ScalarSeries* speed_m_s,
+                          estimation::ScalarSeries* yaw_rate_rad_s) {
+  speed_m_s->clear();
+  yaw_rate_rad_s->clear();
+  switch (dataset.wheel_form()) {
+    case sensors::WheelForm::kAngularRates:
+      return FromWheelPair(
+          dataset.wheel, c.wheel_radius_left_m, c.wheel_radius_right_m, c.track_width_m,
+          [](const sensors::WheelSample& w) { return std::pair(w.left_rad_s, w.right_rad_s); },
+          speed_m_s, yaw_rate_rad_s);
+    case sensors::WheelForm::kLinearSpeeds:
+      return FromWheelPair(
+          dataset.wheel_speeds, c.wheel_speed_scale_left, c.wheel_speed_scale_right,
+          c.track_width_m,
+          [](const sensors::WheelSpeedSample& w) { return std::pair(w.left_m_s, w.right_m_s); },
+          speed_m_s, yaw_rate_rad_s);
+    case sensors::WheelForm::kSpeedYawRate:
+      break;
+  }
+  // The yaw rate's scale k_v b_ctrl / b_eff does not change a correlation: k_v alone is used.
+  for (const sensors::OdometrySample& o : dataset.odometry) {
+    speed_m_s->push_back({o.t_ns, c.odometry_speed_scale * o.speed_m_s});
+    yaw_rate_rad_s->push_back({o.t_ns, c.odometry_speed_scale * o.yaw_rate_rad_s});
+  }
+}
+
+ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io::Problem& problem,
+                                           sensors::Calibration* calibration,
+                                           std::vector<std::string>* warnings) {
+  ClockInitialization out;
+  const io::ProblemCalibration& b = problem.calibration;
+  estimation::ScalarSeries speed, yaw_rate;
+  if (problem.sensors.wheel) WheelSpeedAndYawRate(dataset, *calibration, &speed, &yaw_rate);
+  if (problem.sensors.wheel && Estimated(b.time_offset_wheel_imu_s.mode) && !speed.empty()) {
+    out.wheel =
+        estimation::EstimateWheelImuOffset(dataset.imu, speed, yaw_rate, calibration->q_I_V);
+    const estimation::SeriesOffsetEstimate& e = out.wheel->estimate;
+    if (e.reliable) {
+      calibration->time_offset_wheel_imu_s = e.offset_s;
+    } else {
+      warnings->push_back("initialization: the wheel-IMU time offset keeps its nominal " +
+                          Ms(calibration->time_offset_wheel_imu_s) +
+                          ": the cross-correlation of the wheels' " + out.wheel->signal +
+                          " with the IMU is not reliable (" + e.reason + ")");
+    }
+  }
+  if (problem.sensors.gnss && Estimated(b.time_offset_gnss_imu_s.mode) && !dataset.gnss.empty()) {
+    if (speed.empty()) {
+      warnings->push_back("initialization: the GNSS-IMU time offset keeps its nominal " +
+                          Ms(calibration->time_offset_gnss_imu_s) +
+                          ": its cross-correlation compares the track's speed with the wheel "
+                          "speed, and the problem has no wheel data");
+      return out;
+    }
+    out.gnss = estimation::EstimateGnssImuOffset(
+        dataset.gnss, estimation::Shifted(speed, calibration->time_offset_wheel_imu_s));
+    if (out.gnss->reliable) {
+      calibration->time_offset_gnss_imu_s = out.gnss->offset_s;
+    } else {
+      warnings->push_back("initialization: the GNSS-IMU time offset keeps its nominal " +
+                          Ms(calibration->time_offset_gnss_imu_s) +
+                          ": the cross-correlation of the track's speed with the wheel speed is "
+                          "not reliable (" +
+                          out.gnss->reason + ")");
+    }
+  }
+  return out;
+}
+
+}  // namespace pipeline
+}  // namespace autocal

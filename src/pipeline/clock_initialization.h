@@ -1,0 +1,43 @@
+#pragma once
+
+// Initial wheel-IMU and GNSS-IMU time offsets of the offline calibration (docs/calibration.md,
+// "Clock offsets of the wheels and GNSS"): before the solve, each offset the problem estimates
+// starts at the cross-correlation of a signal both clocks see (estimation/clock_offsets.h),
+// searched over +-1 s; the solve then refines it through the factors of Eq. K9.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "autocal/estimation/clock_offsets.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/sensors/calibration.h"
+
+namespace autocal {
+namespace pipeline {
+
+struct ClockInitialization {
+  std::optional<estimation::WheelImuOffset> wheel;       // when the problem estimates it
+  std::optional<estimation::SeriesOffsetEstimate> gnss;  // likewise
+};
+
+// The rear axle's speed (m/s) and yaw rate (rad/s) on the wheel clock from the dataset's wheel
+// data in its form, through the nominal radii, speed scales or odometry scale and tracks of
+// `calibration` (their scale does not matter to a correlation). Both empty without wheel data.
+void WheelSpeedAndYawRate(const io::Dataset& dataset, const sensors::Calibration& calibration,
+                          estimation::ScalarSeries* speed_m_s,
+                          estimation::ScalarSeries* yaw_rate_rad_s);
+
+// Sets calibration->time_offset_wheel_imu_s (wheel yaw rate against the gyro about q_I_V's up
+// axis, or the speed's derivative against the forward accelerometer) and then
+// time_offset_gnss_imu_s (the track's horizontal speed against the wheel speed on the IMU
+// clock) for each offset the problem estimates and whose sensor the dataset has. An estimate
+// that is not reliable keeps the value in *calibration (the nominal) and appends a warning
+// naming why to *warnings; so does a GNSS offset without wheel data to compare with.
+ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io::Problem& problem,
+                                           sensors::Calibration* calibration,
+                                           std::vector<std::string>* warnings);
+
+}  // namespace pipeline
+}  // namespace autocal
