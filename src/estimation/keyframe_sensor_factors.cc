@@ -153,6 +153,44 @@ struct WheelFormBlocks {
   std::vector<double*> tracks;
 };
 
+// The body rate the wheel rows take at t_k (Eq. K10): the mean gyro over gyro_mean_span_s
+// around it (the sample interpolated at t_k when the span holds none), and the 1-sigma of
+// that mean per axis.
+struct KeyframeGyro {
+  Eigen::Vector3d rate_rad_s = Eigen::Vector3d::Zero();
+  double sigma_rad_s = 0.0;
+};
+KeyframeGyro GyroAt(const sensors::ImuSamples& imu, int64_t t_ns, const Bracket& g,
+                    const KeyframeWheelOptions& options) {
+  const int64_t half_ns = SecondsToNs(0.5 * options.gyro_mean_span_s);
+  const sensors::GyroMean mean =
+      half_ns > 0 ? sensors::MeanGyro(imu, t_ns - half_ns, t_ns + half_ns) : sensors::GyroMean();
+  KeyframeGyro out;
+  out.rate_rad_s =
+      mean.samples > 0
+          ? mean.rate_rad_s
+          : Eigen::Vector3d((1.0 - g.s) * imu[g.first].gyro_rad_s + g.s * imu[g.second].gyro_rad_s);
+  out.sigma_rad_s = options.gyro_sample_sigma_rad_s / std::sqrt(std::max(1, mean.samples));
+  return out;
+}
+
+// Eq. K10: gyro noise of sigma per axis (isotropic) reaches the rows through w x p, p = p_I_V
+// in V: row i (forward, lateral, vertical speed) gets sigma^2 (|p|^2 - p_i^2), the yaw-rate
+// row sigma^2, added to their variances.
+factors::WheelFactorOptions WithGyroNoise(factors::WheelFactorOptions rows, double sigma_rad_s,
+                                          const Eigen::Vector3d& p_V) {
+  const auto add = [&](double* row_sigma, double lever_sq) {
+    *row_sigma = std::sqrt(*row_sigma * *row_sigma + sigma_rad_s * sigma_rad_s * lever_sq);
+  };
+  if (sigma_rad_s == 0.0) return rows;
+  const double p_sq = p_V.squaredNorm();
+  add(&rows.speed_sigma_m_s, p_sq - p_V.x() * p_V.x());
+  add(&rows.lateral_sigma_m_s, p_sq - p_V.y() * p_V.y());
+  add(&rows.vertical_sigma_m_s, p_sq - p_V.z() * p_V.z());
+  add(&rows.yaw_rate_sigma_rad_s, 1.0);
+  return rows;
+}
+
 // The form's two values of every sample (internal::WheelSeries), stamped on the wheel clock;
 // null with fewer than two samples.
 template <typename Samples, typename ToValue>
@@ -209,25 +247,29 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
       KeyframeNonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
   factor_options.lateral_sigma_m_s *= scale;
   factor_options.vertical_sigma_m_s *= scale;
+  if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_sample_sigma_rad_s >= 0.0)) {
+    throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
+  }
+  const Eigen::Vector3d p_I_V_in_V = c.q_I_V.conjugate() * c.p_I_V;
   int added = 0;
   for (Keyframe& kf : *keyframes) {
     const std::optional<Bracket> g = FindBracket(imu, kf.t_ns, max_imu_gap_ns);
+    if (!g) continue;
+    const KeyframeGyro gyro = GyroAt(imu, kf.t_ns, *g, options);
+    const factors::WheelFactorOptions rows =
+        WithGyroNoise(factor_options, gyro.sigma_rad_s, p_I_V_in_V);
     WheelCost factor{nullptr, {}};
     if (!shifted) {
       const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);
-      if (!w || !g) continue;
-      const Eigen::Vector3d gyro =
-          (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
-      factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro, factor_options);
+      if (!w) continue;
+      factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro.rate_rad_s, rows);
     } else {
       // The gap rule of Eq. K9: the samples around t_k - offset within the maximum gap.
-      if (!series || !g || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_wheel_gap_s)) {
+      if (!series || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_wheel_gap_s)) {
         continue;
       }
-      const Eigen::Vector3d gyro =
-          (1.0 - g->s) * imu[g->first].gyro_rad_s + g->s * imu[g->second].gyro_rad_s;
-      factor.cost = internal::ShiftedWheelResidual::Create(series, kf.t_ns, gyro, form_blocks.form,
-                                                           factor_options);
+      factor.cost = internal::ShiftedWheelResidual::Create(series, kf.t_ns, gyro.rate_rad_s,
+                                                           form_blocks.form, rows);
     }
     std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
                                    c.q_I_V.coeffs().data(), c.p_I_V.data()};
