@@ -97,7 +97,9 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   // 1. Keyframes over the span the IMU and the fixes share.
   Report(options, "initializing", 0.0, 0.0, 0.0);
   sensors::Calibration calibration = result.nominal;
-  InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
+  io::SensorsConfig priors = dataset.sensors;  // the prior centres: the nominal calibration
+  InitializeMountAndClocks(dataset, problem, MaxNominalMountDeg(problem, dataset.sensors, options),
+                           &calibration, &priors.nominal_calibration, &result.warnings);
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
       KeyframesOnGnssTrack(dataset, problem, options, timing, enu, use_wheel, calibration, &placed);
@@ -106,7 +108,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
 
   // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors.
   const std::vector<estimation::EstimatedBlock> blocks_estimated =
-      EstimatedBlocks(problem, dataset.sensors, options, use_wheel, true, &calibration);
+      EstimatedBlocks(problem, priors, options, use_wheel, true, &calibration);
   geometry::RightQuaternionManifold quaternion_manifold;
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;

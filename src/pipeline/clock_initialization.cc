@@ -3,12 +3,25 @@
 #include <cstdio>
 
 #include "autocal/common/units.h"
+#include "autocal/estimation/mount_initialization.h"
+#include "autocal/geometry/so3.h"
 #include "calibration_steps.h"
 
 namespace autocal {
 namespace pipeline {
 
 namespace {
+
+// The angle between two rotations in degrees.
+double AngleDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return geometry::Log(Eigen::Quaterniond(a.conjugate() * b)).norm() * kRadToDeg;
+}
+
+// The mount turned by the least rotation that takes its up axis onto up_I.
+Eigen::Quaterniond WithUpAxis(const Eigen::Quaterniond& q_I_V, const Eigen::Vector3d& up_I) {
+  return (Eigen::Quaterniond::FromTwoVectors(q_I_V * Eigen::Vector3d::UnitZ(), up_I) * q_I_V)
+      .normalized();
+}
 
 // "-391.2 ms".
 std::string Ms(double seconds) {
@@ -99,6 +112,51 @@ ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io:
     }
   }
   return out;
+}
+
+ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const io::Problem& problem,
+                                             double max_nominal_deg,
+                                             sensors::Calibration* calibration,
+                                             sensors::Calibration* prior_centre,
+                                             std::vector<std::string>* warnings) {
+  const bool mount_wanted = problem.sensors.wheel &&
+                            Estimated(problem.calibration.T_I_V.rotation.mode) &&
+                            dataset.wheel_sample_count() > 0;
+  if (!mount_wanted) return InitializeClockOffsets(dataset, problem, calibration, warnings);
+  const estimation::UpAxisEstimate up = estimation::EstimateUpAxis(dataset.imu);
+  if (!up.ok) {
+    warnings->push_back("initialization: the IMU mount keeps its nominal value: " + up.problem);
+    return InitializeClockOffsets(dataset, problem, calibration, warnings);
+  }
+  const Eigen::Quaterniond nominal = calibration->q_I_V;
+  calibration->q_I_V = WithUpAxis(nominal, up.up_I);  // the wheel clock needs the up axis
+  const ClockInitialization clocks =
+      InitializeClockOffsets(dataset, problem, calibration, warnings);
+  estimation::ScalarSeries speed, yaw_rate;
+  WheelSpeedAndYawRate(dataset, *calibration, &speed, &yaw_rate);
+  const estimation::MountInitialization mount =
+      estimation::InitializeMount(dataset.imu, speed, calibration->time_offset_wheel_imu_s);
+  for (const std::string& problem_text : mount.problems) {
+    warnings->push_back("initialization: IMU mount: " + problem_text);
+  }
+  if (!mount.ok) {
+    calibration->q_I_V = nominal;
+    return clocks;
+  }
+  // The data's mount is the start and the prior's centre: gravity gives the roll and pitch a
+  // level drive cannot (the vehicle's up is gravity's on average), the motion the yaw.
+  calibration->q_I_V = mount.q_I_V;
+  prior_centre->q_I_V = mount.q_I_V;
+  const double off_deg = AngleDeg(nominal, mount.q_I_V);
+  if (off_deg > max_nominal_deg) {
+    char text[200];
+    std::snprintf(text, sizeof(text),
+                  "initialization: the nominal IMU mount is %.1f deg from the one the data give "
+                  "(more than %.1f deg, three prior sigmas); the data's is used",
+                  off_deg, max_nominal_deg);
+    warnings->push_back(text);
+  }
+  return clocks;
 }
 
 }  // namespace pipeline

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -208,6 +209,16 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
     blocks.push_back(std::move(b));
   }
   return blocks;
+}
+
+double MaxNominalMountDeg(const io::Problem& problem, const io::SensorsConfig& sensors,
+                          const OfflineCalibrationOptions& options) {
+  sensors::Calibration scratch = sensors.nominal_calibration;
+  for (const estimation::EstimatedBlock& b :
+       EstimatedBlocks(problem, sensors, options, true, false, &scratch)) {
+    if (b.id == Id::kVehicleRotation) return 3.0 * b.prior_sigma.maxCoeff() * kRadToDeg;
+  }
+  return std::numeric_limits<double>::infinity();
 }
 
 void SetUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,

@@ -47,6 +47,12 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
                                                         bool use_wheel, bool use_gnss,
                                                         sensors::Calibration* calibration);
 
+// Three times the widest prior sigma (degrees) of the IMU mount q_I_V in `problem` with the
+// nominal uncertainty of `sensors`: a nominal mount further than this from the data's is
+// no guess. Infinity when the problem does not estimate the mount.
+double MaxNominalMountDeg(const io::Problem& problem, const io::SensorsConfig& sensors,
+                          const OfflineCalibrationOptions& options);
+
 // Sets block `id`'s sigma (tangent units, one per direction) in `uncertainty`, and its
 // observability flags when `observable` is given.
 void SetUncertainty(sensors::CalibrationBlockId id, const Eigen::VectorXd& sigma,
