@@ -165,6 +165,10 @@ void EstimateFormBlocks(sensors::WheelForm form, const io::ProblemCalibration& b
 }
 
 // Whether `f` is a wheel factor of any form (Eqs. F22, F25, F26).
+// The span of the mean gyro the wheel rows take (Eq. K10): a vehicle's body rates change over
+// more than 0.2 s, and 0.1 s left the straight-drive suite's pitch NEES at the band's edge.
+constexpr double kWheelGyroMeanSpanS = 0.2;
+
 bool IsWheelCost(const ceres::CostFunction* f) {
   using SpeedCost = ceres::AutoDiffCostFunction<factors::WheelSpeedResidual, ceres::DYNAMIC, 4, 3,
                                                 3, 4, 3, 1, 1, 1>;
@@ -255,6 +259,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     EstimateFormBlocks(dataset->wheel_form(), b, &wheel);
     wheel.estimate_time_offset = Estimated(b.time_offset_wheel_imu_s.mode);
+    wheel.gyro_mean_span_s = kWheelGyroMeanSpanS;
     wheel.gyro_sample_sigma_rad_s =
         dataset->sensors.imu.noise.gyroscope_noise_density * std::sqrt(timing->imu.rate_hz());
     const int n = estimation::AddWheelFactors(p, dataset->imu, FormData(*dataset, *nominal),
