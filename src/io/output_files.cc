@@ -33,8 +33,9 @@ const std::set<std::string>& ReplaceableNames(OutputKind kind) {
                                                 "states.csv",
                                                 "report.html",
                                                 "evaluation.yaml"};
-  static const std::set<std::string> kDataset = {
-      "sensors.yaml", "imu.csv", "wheel.csv", "gnss.csv", "lidar.csv", "lidar", "groundtruth"};
+  static const std::set<std::string> kDataset = {"sensors.yaml",    "imu.csv",      "wheel.csv",
+                                                 "wheel_speed.csv", "odometry.csv", "gnss.csv",
+                                                 "lidar.csv",       "lidar",        "groundtruth"};
   return kind == OutputKind::kResult ? kResult : kDataset;
 }
 

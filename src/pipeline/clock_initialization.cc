@@ -139,23 +139,20 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
   for (const std::string& problem_text : mount.problems) {
     warnings->push_back("initialization: IMU mount: " + problem_text);
   }
-  if (!mount.ok) {
-    calibration->q_I_V = nominal;
+  const double off_deg = mount.ok ? AngleDeg(nominal, mount.q_I_V) : 0.0;
+  if (!mount.ok || off_deg <= max_nominal_deg) {
+    calibration->q_I_V = nominal;  // a nominal within its prior: start and centre there
     return clocks;
   }
-  // The data's mount is the start and the prior's centre: gravity gives the roll and pitch a
-  // level drive cannot (the vehicle's up is gravity's on average), the motion the yaw.
+  // A nominal that is no guess: the data's mount is the start and the prior's centre.
   calibration->q_I_V = mount.q_I_V;
   prior_centre->q_I_V = mount.q_I_V;
-  const double off_deg = AngleDeg(nominal, mount.q_I_V);
-  if (off_deg > max_nominal_deg) {
-    char text[200];
-    std::snprintf(text, sizeof(text),
-                  "initialization: the nominal IMU mount is %.1f deg from the one the data give "
-                  "(more than %.1f deg, three prior sigmas); the data's is used",
-                  off_deg, max_nominal_deg);
-    warnings->push_back(text);
-  }
+  char text[200];
+  std::snprintf(text, sizeof(text),
+                "initialization: the nominal IMU mount is %.1f deg from the one the data give "
+                "(more than %.1f deg, three prior sigmas); the data's is used",
+                off_deg, max_nominal_deg);
+  warnings->push_back(text);
   return clocks;
 }
 

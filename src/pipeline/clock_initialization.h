@@ -42,11 +42,10 @@ ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io:
 // The IMU mount q_I_V from the data (estimation/mount_initialization.h), when the problem
 // estimates it and the dataset has wheel data: the up axis from gravity, the wheel clock
 // (InitializeClockOffsets) with that up axis, then the forward axis from the wheel speed's
-// changes and turns. The data's mount is the solve's start and the centre of the mount's
-// prior (*prior_centre): gravity fixes the roll a level drive leaves unobserved (the vehicle's
-// up is gravity's on average). A nominal mount further than max_nominal_deg from it (three
-// prior sigmas) gets a warning. An initialization that fails keeps the nominal with a warning
-// naming why. Runs InitializeClockOffsets in either case.
+// changes and turns. A nominal mount further than max_nominal_deg from the data's (three prior
+// sigmas) is no guess: the data's mount is then the solve's start and the centre of the
+// mount's prior (*prior_centre), and a warning says so. Otherwise, or when the initialization
+// fails (a warning names why), the nominal stays. Runs InitializeClockOffsets in either case.
 ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const io::Problem& problem,
                                              double max_nominal_deg,
                                              sensors::Calibration* calibration,
