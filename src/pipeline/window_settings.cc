@@ -46,6 +46,34 @@ void SetWindowBlocks(const io::ProblemCalibration& problem,
   }
 }
 
+// The problem's blocks that the window cannot estimate (estimation::WindowSupports): one
+// autocal::Error naming the first that the problem estimates, and the wheel or GNSS clock
+// offsets when the nominal one is not zero (the window reads both streams on the IMU clock), so
+// that no result silently leaves them out.
+void RefuseWhatTheWindowCannotDo(const io::Dataset& dataset, const io::Problem& problem,
+                                 bool use_wheel, bool use_gnss) {
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    if (estimation::WindowSupports(info.id) || !SensorUsed(info, use_wheel, use_gnss) ||
+        !sensors::BlockInWheelForm(info.id, dataset.wheel_form())) {
+      continue;
+    }
+    if (Estimated(
+            SettingOf(info.id, problem.calibration, dataset.sensors.nominal_uncertainty).mode)) {
+      throw Error("problem " + problem.path + ": the online estimator does not estimate the " +
+                  info.name + " yet; fix it in the problem file or use autocal_calibrate");
+    }
+  }
+  const sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
+  const auto refuse_offset = [&](bool used, double offset_s, const char* sensor) {
+    if (!used || offset_s == 0.0) return;
+    throw Error("dataset " + dataset.directory + ": the online estimator reads the " + sensor +
+                " on the IMU clock, and sensors.yaml states a " + sensor + " time offset of " +
+                std::to_string(offset_s) + " s; it does not apply clock offsets yet");
+  };
+  refuse_offset(use_wheel, nominal.time_offset_wheel_imu_s, "wheel");
+  refuse_offset(use_gnss, nominal.time_offset_gnss_imu_s, "GNSS");
+}
+
 }  // namespace
 
 estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
@@ -70,6 +98,7 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
                 sensors::WheelFormName(dataset.wheel_form()) + " (" +
                 sensors::WheelFormFile(dataset.wheel_form()) + ")");
   }
+  RefuseWhatTheWindowCannotDo(dataset, problem, use_wheel, use_gnss);
   estimation::SlidingWindowOptions w = options.window;
   w.imu = dataset.sensors.imu;
   if (dataset.sensors.wheel) w.wheel = *dataset.sensors.wheel;

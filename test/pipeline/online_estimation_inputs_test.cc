@@ -12,6 +12,7 @@
 #include "autocal/io/dataset.h"
 #include "pipeline/calibration_steps.h"
 #include "pipeline/online_without_lidar.h"
+#include "pipeline/window_settings.h"
 
 namespace autocal {
 namespace pipeline {
@@ -110,6 +111,31 @@ TEST(OnlineEstimationInputs, KeyframePeriodFollowsTheGnssRate) {
     FAIL() << "one fix gave a period";
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), HasSubstr("dataset /data/run8: gnss.csv has 1 fix"));
+  }
+}
+
+// The window reads wheels and fixes on the IMU clock and has no clock blocks: a problem that
+// estimates a clock, or a dataset that states one, is refused instead of silently ignored.
+TEST(OnlineEstimationInputs, RefusesClockOffsetsTheWindowCannotApply) {
+  io::Dataset dataset = Logged(2.0);
+  io::Problem problem;
+  problem.path = "clocks.yaml";
+  EXPECT_NO_THROW(WindowOptions(dataset, problem, true, true, OnlineEstimationOptions()));
+  problem.calibration.time_offset_wheel_imu_s.mode = io::BlockMode::kEstimate;
+  try {
+    WindowOptions(dataset, problem, true, true, OnlineEstimationOptions());
+    FAIL() << "an estimated wheel clock was accepted";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("clocks.yaml: the online estimator does not estimate"));
+  }
+  EXPECT_NO_THROW(WindowOptions(dataset, problem, false, true, OnlineEstimationOptions()));
+  problem.calibration.time_offset_wheel_imu_s.mode = io::BlockMode::kFixed;
+  dataset.sensors.nominal_calibration.time_offset_gnss_imu_s = -0.2;
+  try {
+    WindowOptions(dataset, problem, true, true, OnlineEstimationOptions());
+    FAIL() << "a stated GNSS clock offset was ignored";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("GNSS time offset of -0.2"));
   }
 }
 
