@@ -12,11 +12,6 @@ namespace pipeline {
 
 namespace {
 
-// The angle between two rotations in degrees.
-double AngleDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
-  return geometry::Log(Eigen::Quaterniond(a.conjugate() * b)).norm() * kRadToDeg;
-}
-
 // The mount turned by the least rotation that takes its up axis onto up_I.
 Eigen::Quaterniond WithUpAxis(const Eigen::Quaterniond& q_I_V, const Eigen::Vector3d& up_I) {
   return (Eigen::Quaterniond::FromTwoVectors(q_I_V * Eigen::Vector3d::UnitZ(), up_I) * q_I_V)
@@ -71,13 +66,17 @@ void WheelSpeedAndYawRate(const io::Dataset& dataset, const sensors::Calibration
   }
 }
 
-ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io::Problem& problem,
-                                           sensors::Calibration* calibration,
-                                           std::vector<std::string>* warnings) {
+namespace {
+
+// InitializeClockOffsets with the wheels' speed and yaw rate (WheelSpeedAndYawRate; empty
+// without wheels in the problem).
+ClockInitialization ClockOffsetsFrom(const io::Dataset& dataset, const io::Problem& problem,
+                                     const estimation::ScalarSeries& speed,
+                                     const estimation::ScalarSeries& yaw_rate,
+                                     sensors::Calibration* calibration,
+                                     std::vector<std::string>* warnings) {
   ClockInitialization out;
   const io::ProblemCalibration& b = problem.calibration;
-  estimation::ScalarSeries speed, yaw_rate;
-  if (problem.sensors.wheel) WheelSpeedAndYawRate(dataset, *calibration, &speed, &yaw_rate);
   if (problem.sensors.wheel && Estimated(b.time_offset_wheel_imu_s.mode) && !speed.empty()) {
     out.wheel =
         estimation::EstimateWheelImuOffset(dataset.imu, speed, yaw_rate, calibration->q_I_V);
@@ -114,6 +113,16 @@ ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io:
   return out;
 }
 
+}  // namespace
+
+ClockInitialization InitializeClockOffsets(const io::Dataset& dataset, const io::Problem& problem,
+                                           sensors::Calibration* calibration,
+                                           std::vector<std::string>* warnings) {
+  estimation::ScalarSeries speed, yaw_rate;
+  if (problem.sensors.wheel) WheelSpeedAndYawRate(dataset, *calibration, &speed, &yaw_rate);
+  return ClockOffsetsFrom(dataset, problem, speed, yaw_rate, calibration, warnings);
+}
+
 ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const io::Problem& problem,
                                              double max_nominal_deg,
                                              sensors::Calibration* calibration,
@@ -130,16 +139,18 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
   }
   const Eigen::Quaterniond nominal = calibration->q_I_V;
   calibration->q_I_V = WithUpAxis(nominal, up.up_I);  // the wheel clock needs the up axis
-  const ClockInitialization clocks =
-      InitializeClockOffsets(dataset, problem, calibration, warnings);
+  // The series depend on the wheel intrinsics only: computed once for the clocks and the mount.
   estimation::ScalarSeries speed, yaw_rate;
   WheelSpeedAndYawRate(dataset, *calibration, &speed, &yaw_rate);
+  const ClockInitialization clocks =
+      ClockOffsetsFrom(dataset, problem, speed, yaw_rate, calibration, warnings);
   const estimation::MountInitialization mount =
       estimation::InitializeMount(dataset.imu, speed, calibration->time_offset_wheel_imu_s);
   for (const std::string& problem_text : mount.problems) {
     warnings->push_back("initialization: IMU mount: " + problem_text);
   }
-  const double off_deg = mount.ok ? AngleDeg(nominal, mount.q_I_V) : 0.0;
+  const double off_deg =
+      mount.ok ? kRadToDeg * geometry::AngularDistance(nominal, mount.q_I_V) : 0.0;
   if (!mount.ok || off_deg <= max_nominal_deg) {
     calibration->q_I_V = nominal;  // a nominal within its prior: start and centre there
     return clocks;
