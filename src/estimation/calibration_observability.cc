@@ -152,7 +152,7 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
       sigma(i) = block.prior_sigma(i);
       out->warnings.push_back(name + ": not excited by the drive (sigma " +
                               value(SigmaOf(S, first + i)) + " after the solve, prior " +
-                              value(block.prior_sigma(i)) + "); held at the nominal value");
+                              value(block.prior_sigma(i)) + "); held at " + block.prior_source);
     } else if (!(sigma(i) <= block.max_observable_sigma)) {
       // Informed, but not to the accuracy asked for: the estimate is kept (it is better
       // than the nominal value) with its sigma, and not reported as observable.

@@ -5,8 +5,10 @@
 #include <cmath>
 #include <string>
 
+#include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/geometry/so3.h"
 
 namespace autocal {
 namespace estimation {
@@ -262,6 +264,26 @@ MountInitialization InitializeMount(const sensors::ImuSamples& imu,
   }
   out.ok = out.up.ok && out.forward_found;
   return out;
+}
+
+MountPrior FuseUpAxis(const MountPrior& prior, const Eigen::Vector3d& up_I, double up_sigma_rad) {
+  if (!(up_sigma_rad > 0.0) || !std::isfinite(up_sigma_rad) || !up_I.allFinite() ||
+      !(up_I.norm() > 0.0)) {
+    throw Error("FuseUpAxis: the up axis needs a positive finite sigma and a nonzero direction");
+  }
+  const Eigen::Vector3d up_V = prior.q_I_V.conjugate() * up_I.normalized();
+  const Eigen::Vector3d delta_g =
+      geometry::Log(Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), up_V));
+  MountPrior fused = prior;
+  Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+  const double g2 = up_sigma_rad * up_sigma_rad;
+  for (int i = 0; i < 2; ++i) {
+    const double p2 = prior.sigma_rad(i) * prior.sigma_rad(i);
+    delta(i) = p2 / (p2 + g2) * delta_g(i);
+    fused.sigma_rad(i) = std::sqrt(p2 * g2 / (p2 + g2));
+  }
+  fused.q_I_V = (prior.q_I_V * geometry::Exp(delta)).normalized();
+  return fused;
 }
 
 }  // namespace estimation

@@ -98,8 +98,9 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   Report(options, "initializing", 0.0, 0.0, 0.0);
   sensors::Calibration calibration = result.nominal;
   io::SensorsConfig priors = dataset.sensors;  // the prior centres: the nominal calibration
-  InitializeMountAndClocks(dataset, problem, MaxNominalMountDeg(problem, dataset.sensors, options),
-                           &calibration, &priors.nominal_calibration, &result.warnings);
+  const ClockInitialization initialization = InitializeMountAndClocks(
+      dataset, problem, MaxNominalMountDeg(problem, dataset.sensors, options), &calibration,
+      &priors.nominal_calibration, &result.warnings);
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
       KeyframesOnGnssTrack(dataset, problem, options, timing, enu, use_wheel, calibration, &placed);
@@ -107,8 +108,14 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
   // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors.
-  const std::vector<estimation::EstimatedBlock> blocks_estimated =
+  const estimation::GnssInertialKeyframesOptions bias_priors =
+      GnssInertialOptions(dataset, problem, timing);
+  std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, priors, options, use_wheel, true, &calibration);
+  FuseUpAxisIntoMountPrior(initialization, problem, bias_priors.accel_bias_prior_sigma_m_s2,
+                           dataset.sensors.imu.gravity_m_s2, &blocks_estimated,
+                           &priors.nominal_calibration);
+  result.prior_centre = priors.nominal_calibration;
   geometry::RightQuaternionManifold quaternion_manifold;
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -121,8 +128,6 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
   imu.num_threads = problem.solver.num_threads;
   estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
-  const estimation::GnssInertialKeyframesOptions bias_priors =
-      GnssInertialOptions(dataset, problem, timing);
   estimation::AddBiasPriors(&p, &keyframes.front(), bias_priors.gyro_bias_prior_sigma_rad_s,
                             bias_priors.accel_bias_prior_sigma_m_s2);
   const SensorFactors sensor_factors{&dataset, &problem, &result.nominal,   use_wheel,

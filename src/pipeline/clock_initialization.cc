@@ -1,5 +1,7 @@
 #include "clock_initialization.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "autocal/common/units.h"
@@ -142,8 +144,9 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
   // The series depend on the wheel intrinsics only: computed once for the clocks and the mount.
   estimation::ScalarSeries speed, yaw_rate;
   WheelSpeedAndYawRate(dataset, *calibration, &speed, &yaw_rate);
-  const ClockInitialization clocks =
+  ClockInitialization clocks =
       ClockOffsetsFrom(dataset, problem, speed, yaw_rate, calibration, warnings);
+  clocks.up = up;
   const estimation::MountInitialization mount =
       estimation::InitializeMount(dataset.imu, speed, calibration->time_offset_wheel_imu_s);
   for (const std::string& problem_text : mount.problems) {
@@ -165,6 +168,30 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
                 off_deg, max_nominal_deg);
   warnings->push_back(text);
   return clocks;
+}
+
+void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem& problem,
+                              double accel_bias_sigma_m_s2, double gravity_m_s2,
+                              std::vector<estimation::EstimatedBlock>* blocks,
+                              sensors::Calibration* prior_centre) {
+  if (!init.up || !problem.calibration.ground_tilt_sigma_deg) return;
+  const auto block =
+      std::find_if(blocks->begin(), blocks->end(), [](const estimation::EstimatedBlock& b) {
+        return b.id == sensors::CalibrationBlockId::kVehicleRotation;
+      });
+  if (block == blocks->end()) return;
+  const double ground_rad = *problem.calibration.ground_tilt_sigma_deg / kRadToDeg;
+  const double bias_rad = accel_bias_sigma_m_s2 / gravity_m_s2;
+  estimation::MountPrior prior;
+  prior.q_I_V = Eigen::Quaterniond(block->prior.data()).normalized();
+  prior.sigma_rad = block->prior_sigma;
+  const estimation::MountPrior fused = estimation::FuseUpAxis(
+      prior, init.up->up_I, std::sqrt(ground_rad * ground_rad + bias_rad * bias_rad));
+  block->prior = Eigen::Map<const Eigen::Vector4d>(fused.q_I_V.coeffs().data());
+  block->prior_sigma = fused.sigma_rad;
+  block->prior_source = "its prior (the nominal value and gravity's up axis)";
+  Eigen::Map<Eigen::Quaterniond>(block->data) = fused.q_I_V;
+  prior_centre->q_I_V = fused.q_I_V;
 }
 
 }  // namespace pipeline

@@ -9,7 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/clock_offsets.h"
+#include "autocal/estimation/mount_initialization.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/sensors/calibration.h"
@@ -20,6 +22,7 @@ namespace pipeline {
 struct ClockInitialization {
   std::optional<estimation::WheelImuOffset> wheel;       // when the problem estimates it
   std::optional<estimation::SeriesOffsetEstimate> gnss;  // likewise
+  std::optional<estimation::UpAxisEstimate> up;  // gravity's up axis, when the mount was sought
 };
 
 // The rear axle's speed (m/s) and yaw rate (rad/s) on the wheel clock from the dataset's wheel
@@ -51,6 +54,16 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
                                              sensors::Calibration* calibration,
                                              sensors::Calibration* prior_centre,
                                              std::vector<std::string>* warnings);
+
+// Eq. C4: the mount's prior (the kVehicleRotation block of *blocks: centre and sigmas) fused
+// with gravity's up axis of `init` (estimation::FuseUpAxis), when there is one and the
+// problem gives calibration.ground_tilt_sigma_deg. The up axis's sigma is
+// sqrt(ground_tilt^2 + (accel_bias_sigma / g)^2): the accelerometer's bias tilts the mean
+// specific force. The block's start and prior_centre->q_I_V move to the fused centre.
+void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem& problem,
+                              double accel_bias_sigma_m_s2, double gravity_m_s2,
+                              std::vector<estimation::EstimatedBlock>* blocks,
+                              sensors::Calibration* prior_centre);
 
 }  // namespace pipeline
 }  // namespace autocal

@@ -292,6 +292,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   if (!problem.sensors.lidar) return CalibrateWithoutLidar(dataset, problem, options, start);
   OfflineCalibrationResult result;
   result.nominal = dataset.sensors.nominal_calibration;
+  result.prior_centre = result.nominal;
 
   // 1. Sweeps.
   std::vector<lidar::LidarSweep> sweeps = LoadSweeps(dataset, problem.solver.num_threads, options);

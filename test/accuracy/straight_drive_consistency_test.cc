@@ -9,7 +9,8 @@
 // for the drives that report it observable and those that keep it (their estimate with its
 // posterior sigma, not reported observable). A held direction (set to its nominal value and
 // reported with its prior sigma) must hold the truth within the two-sided 95 % bound for all
-// held directions together (Bonferroni). The sensor clocks are exact here (the wheel bursts
+// held directions together (Bonferroni). The mount's roll and pitch priors carry gravity's up
+// axis (docs/calibration.md, Eq. C4). The sensor clocks are exact here (the wheel bursts
 // and the receiver's late stamps are another subject). About 30 s on one core.
 // Figures: docs/calibration.md, "Straight drives".
 #include <gtest/gtest.h>
@@ -50,7 +51,8 @@ struct Component {
 };
 using Components = std::map<std::string, Component>;
 
-// `error` = estimate - truth and `from_nominal` = estimate - nominal in the direction.
+// `error` = estimate - truth and `from_nominal` = estimate - the prior's centre (where a held
+// direction is held) in the direction.
 void Add(const std::string& name, double error, double from_nominal,
          const std::optional<double>& sigma, bool observable, int seed, Components* components) {
   if (!sigma || !(*sigma > 0.0)) return;
@@ -131,7 +133,7 @@ Drive SimulateDrive(int seed) {
 void AddDrive(const pipeline::OfflineCalibrationResult& result, const sensors::Calibration& truth,
               int seed, Components* components) {
   const sensors::Calibration& estimate = result.calibration.value;
-  const sensors::Calibration& nominal = result.nominal;
+  const sensors::Calibration& nominal = result.prior_centre;
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
   const char* axes[] = {"x", "y", "z"};
   // q_I_V's sigmas are of the right perturbation q_truth = q_estimate Exp(delta), delta in V:

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/real_vehicle_logs.h"
@@ -175,6 +176,39 @@ TEST(EstimateUpAxis, AnAccelerometerInGIsNotGravity) {
 // and the fit's own standard deviation about the up axis is about 2.8 deg on this rough,
 // slow drive (0.11 m/s^2 of modelled horizontal acceleration): the whole rotation came out
 // 1.6 deg from the nominal mount, a pass within that noise, not a margin.
+// Eq. C4 against its closed form: a prior and gravity's up axis combine per vehicle axis as
+// two Gaussians (roll, pitch); the yaw keeps the prior's.
+TEST(FuseUpAxis, CombinesRollAndPitchAsTwoGaussiansAndKeepsTheYaw) {
+  MountPrior prior;
+  prior.q_I_V = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 3).normalized()));
+  prior.sigma_rad = Eigen::Vector3d(0.08, 0.05, 0.1);
+  // The true mount: the prior's centre turned by a small roll and pitch (and a yaw gravity
+  // cannot see).
+  const Eigen::Vector3d delta_true(0.02, -0.03, 0.04);
+  const Eigen::Quaterniond q_true = prior.q_I_V * geometry::Exp(delta_true);
+  const Eigen::Vector3d up_I = q_true * Eigen::Vector3d::UnitZ();
+  const double up_sigma = 0.03;
+  const MountPrior fused = FuseUpAxis(prior, up_I, up_sigma);
+  const Eigen::Vector3d delta =
+      geometry::Log(Eigen::Quaterniond(prior.q_I_V.conjugate() * fused.q_I_V));
+  // The up axis of q_true seen at the prior's centre: (roll, pitch) of delta_true to first order.
+  for (int i = 0; i < 2; ++i) {
+    const double p2 = prior.sigma_rad(i) * prior.sigma_rad(i);
+    const double g2 = up_sigma * up_sigma;
+    EXPECT_NEAR(delta(i), p2 / (p2 + g2) * delta_true(i), 2e-3) << i;
+    EXPECT_NEAR(fused.sigma_rad(i), std::sqrt(p2 * g2 / (p2 + g2)), 1e-12) << i;
+  }
+  EXPECT_NEAR(delta(2), 0.0, 1e-3);
+  EXPECT_EQ(fused.sigma_rad(2), prior.sigma_rad(2));
+  // A precise up axis puts the fused mount's up axis on it; a vague one leaves the prior.
+  const MountPrior sharp = FuseUpAxis(prior, up_I, 1e-9);
+  EXPECT_LT((sharp.q_I_V * Eigen::Vector3d::UnitZ() - up_I).norm(), 1e-6);
+  const MountPrior vague = FuseUpAxis(prior, up_I, 1e6);
+  EXPECT_LT(geometry::AngularDistance(vague.q_I_V, prior.q_I_V), 1e-9);
+  EXPECT_THROW(FuseUpAxis(prior, up_I, 0.0), Error);
+  EXPECT_THROW(FuseUpAxis(prior, Eigen::Vector3d::Zero(), up_sigma), Error);
+}
+
 TEST(RealLogs, HuskyMountIsYUp) {
   AUTOCAL_REQUIRE_SHARED_DATA(test::RealBag("test1.bag"));
   const test::VehicleLog log = test::ImportVehicleLog(test::RealBag("test1.bag"));

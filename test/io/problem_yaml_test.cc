@@ -204,6 +204,19 @@ TEST(ProblemYamlTest, TimingOverridesAreRead) {
   EXPECT_EQ(p.timing.min_factor_fraction, 0.8);
 }
 
+TEST(ProblemYamlTest, GroundTiltSigmaIsReadOrSwitchedOff) {
+  EXPECT_EQ(ReadProblemYaml(WriteProblem("tilt_default.yaml", "sensors: {lidar: false}\n"))
+                .calibration.ground_tilt_sigma_deg,
+            1.0);
+  EXPECT_EQ(
+      ReadProblemYaml(WriteProblem("tilt.yaml", "calibration: {ground_tilt_sigma_deg: 2.5}\n"))
+          .calibration.ground_tilt_sigma_deg,
+      2.5);
+  EXPECT_FALSE(ReadProblemYaml(
+                   WriteProblem("tilt_none.yaml", "calibration: {ground_tilt_sigma_deg: none}\n"))
+                   .calibration.ground_tilt_sigma_deg);
+}
+
 TEST(ProblemYamlTest, EveryKeyIsRead) {
   const std::string text =
       "description: test rig\n"
@@ -363,6 +376,10 @@ TEST(ProblemYamlTest, BadInputsNameLineAndColumn) {
        "timing.keyframe_period_s: sensors.lidar is true, so the keyframes are the LiDAR sweeps"},
       {"fix_gap_without_gnss", "sensors: {gnss: false}\ntiming:\n  max_fix_gap_s: 1\n", 3,
        "max_fix_gap_s", "timing.max_fix_gap_s: sensors.gnss is false"},
+      {"tilt_zero", "calibration:\n  ground_tilt_sigma_deg: 0\n", 2, "0",
+       "calibration.ground_tilt_sigma_deg: must be within [0.01, 30] deg (or none), found 0"},
+      {"tilt_without_wheel", "sensors: {wheel: false}\ncalibration:\n  ground_tilt_sigma_deg: 1\n",
+       3, "ground_tilt_sigma_deg", "calibration.ground_tilt_sigma_deg: sensors.wheel is false"},
       {"fraction_above_one", "timing:\n  min_factor_fraction: 1.5\n", 2, "1.5",
        "timing.min_factor_fraction: must be within [0, 1] (a fraction of the keyframes), found "
        "1.5"},

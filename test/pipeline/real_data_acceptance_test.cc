@@ -3,10 +3,12 @@
 // 1 m/s over 395 s) imported and calibrated from problems/skid_steer_imu_odometry_gnss.yaml,
 // starting from a mount 10 deg off the launch file's R_V_I = Rz(-90 deg) Rx(+90 deg).
 // Checked: the odometry's clock -0.39 +- 0.05 s (t_imu = t_odometry + offset), the odometry
-// speed scale in [0.93, 1.00], a run under 30 s. Printed but not met yet: the mount within
-// 2 deg of the launch file's (measured 6.8 deg: the roll the drive cannot see stays at the
-// nominal's) and the antenna within 1.5 m RMS of the fixes (measured 1.51 m). The robot
-// without GPS (test2.bag) is refused with a reason.
+// speed scale in [0.93, 1.00], a run under 30 s, the mount's roll (which only gravity sees,
+// Eq. C4) within 2 deg. Printed but not met yet: the mount within 2 deg of the launch file's
+// (measured 3.55 deg: the receiver's altitude drifts 32 m and bends the pitch, and the yaw
+// sits 2.5 deg off in every part of the log; docs/calibration.md) and the antenna within
+// 1.5 m RMS of the fixes (measured 1.51 m). The robot without GPS (test2.bag) is refused with
+// a reason.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -101,8 +103,9 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
   EXPECT_GE(c.odometry_speed_scale, 0.93);
   EXPECT_LE(c.odometry_speed_scale, 1.00);
   EXPECT_LT(seconds, 30.0);
-  EXPECT_LT(mount_error_deg, 10.0);  // the start's error; the 2 deg goal is not met yet
-  EXPECT_LT(rms_m, 2.0);             // the 1.5 m goal is not met yet
+  EXPECT_LT(std::abs(mount_error_rad.x()) * kRadToDeg, 2.0);  // roll, from gravity
+  EXPECT_LT(mount_error_deg, 4.0);                            // the 2 deg goal is not met yet
+  EXPECT_LT(rms_m, 2.0);                                      // the 1.5 m goal is not met yet
 }
 
 TEST(RealDataAcceptance, RobotWithoutGpsIsRefusedWithAReason) {

@@ -31,8 +31,9 @@ struct EstimatedBlock {
   double* data = nullptr;  // the parameter block's ambient values (in the calibration solved)
   int size = 0;            // tangent size: 3 or 1
   sensors::BlockManifold manifold = sensors::BlockManifold::kEuclidean;
-  Eigen::VectorXd prior;        // ambient value of the prior (the nominal calibration)
-  Eigen::VectorXd prior_sigma;  // per tangent direction
+  Eigen::VectorXd prior;  // ambient value of the prior (the nominal calibration)
+  std::string prior_source = "the nominal value";  // what the prior's centre is, in words
+  Eigen::VectorXd prior_sigma;                     // per tangent direction
   // A direction whose posterior sigma exceeds this is not observable.
   double max_observable_sigma = 0.0;
   // It is held at its prior (unexcited) when its posterior sigma exceeds this fraction of its

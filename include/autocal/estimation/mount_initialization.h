@@ -85,5 +85,19 @@ MountInitialization InitializeMount(const sensors::ImuSamples& imu,
                                     const ScalarSeries& wheel_speed_m_s, double wheel_time_offset_s,
                                     const MountInitializationOptions& options = {});
 
+// A Gaussian belief about the mount: q_I_V = q_centre Exp(delta), delta ~ N(0, diag(sigma^2)),
+// delta = (roll, pitch, yaw) about the vehicle's axes (the right tangent, docs/design.md).
+struct MountPrior {
+  Eigen::Quaterniond q_I_V = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d sigma_rad = Eigen::Vector3d::Zero();
+};
+
+// The prior fused with gravity's up axis (docs/calibration.md, Eq. C4): up_I measures the
+// mount's roll and pitch, R_I_V z = up_I, with standard deviation up_sigma_rad per axis (the
+// mean ground's tilt under the averaged samples and the accelerometer's bias over g). In V at
+// the prior's centre the measurement is delta_g = Log(FromTwoVectors(z, R_I_V^T up_I)), whose
+// yaw is zero; roll and pitch combine as two Gaussians, the yaw keeps the prior's.
+MountPrior FuseUpAxis(const MountPrior& prior, const Eigen::Vector3d& up_I, double up_sigma_rad);
+
 }  // namespace estimation
 }  // namespace autocal

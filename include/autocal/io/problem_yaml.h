@@ -106,6 +106,12 @@ struct ProblemCalibration {
   ScalarBlockSetting effective_track_m;
   ScalarBlockSetting time_offset_wheel_imu_s{BlockMode::kFixed, 0.0};
   ScalarBlockSetting time_offset_gnss_imu_s{BlockMode::kFixed, 0.0};
+  // How far the vehicle's mean attitude over a log may lean from level (road crown and
+  // grades, a parking spot): the standard deviation, per axis, with which gravity's up axis
+  // measures the mount's roll and pitch when T_I_V's rotation is estimated without the LiDAR
+  // (docs/calibration.md, Eq. C4), within [0.01, 30] deg; empty ("none" in the file): the
+  // mount's prior is the nominal's alone.
+  std::optional<double> ground_tilt_sigma_deg = 1.0;
 };
 
 struct ProblemSolver {

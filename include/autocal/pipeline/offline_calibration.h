@@ -100,7 +100,11 @@ struct OfflineCalibrationResult {
   // in `batch`): "imu", "wheel", "gnss".
   std::map<std::string, SensorResiduals> whitened_residuals;
   sensors::Calibration nominal;  // the dataset's initial guess, for comparison
-  double seconds_total = 0.0;    // wall time, and its stages
+  // The centres of the blocks' priors, where a held direction is held: the nominal, unless the
+  // initialization replaced the mount (a nominal no guess) or fused gravity into its roll and
+  // pitch (docs/calibration.md, Eq. C4).
+  sensors::Calibration prior_centre;
+  double seconds_total = 0.0;  // wall time, and its stages
   double seconds_loading = 0.0;
   double seconds_initialization = 0.0;
   double seconds_solve = 0.0;  // batch solve, covariance and observability
