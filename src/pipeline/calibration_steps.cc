@@ -358,6 +358,14 @@ void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
   }
 }
 
+ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_iterations) {
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = problem.solver.num_threads;
+  return options;
+}
+
 void SolveAgainAfterHolding(const io::Problem& problem,
                             const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                             const estimation::BlockObservability& observability,
@@ -370,12 +378,8 @@ void SolveAgainAfterHolding(const io::Problem& problem,
   *calibration = solved;
   estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
   estimation::AddHeldDirectionPriors(blocks_estimated, observability, p);
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = problem.solver.max_iterations;
-  solver_options.num_threads = problem.solver.num_threads;
   ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, p, &summary);
+  ceres::Solve(JointSolverOptions(problem, problem.solver.max_iterations), p, &summary);
   if (!summary.IsSolutionUsable()) {
     throw Error("the solve with the unobservable directions held failed: " + summary.message);
   }

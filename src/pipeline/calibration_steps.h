@@ -117,6 +117,10 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
 void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
                          size_t num_keyframes, const OfflineCalibrationResult& result);
 
+// The options of the joint solves: sparse normal Cholesky on the problem's threads, at most
+// `max_iterations` iterations.
+ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_iterations);
+
 // Eq. C3: when Observe held directions, pins them in `p` (the solved problem, whose blocks
 // are the keyframes and `calibration`) and solves it again from `solved` (the calibration
 // before Observe) with the held directions at their prior, so that the trajectory, the

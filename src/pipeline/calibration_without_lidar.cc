@@ -60,13 +60,10 @@ std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
 // The joint solve's summary, or an autocal::Error when it is unusable.
 ceres::Solver::Summary Solve(const io::Dataset& dataset, const io::Problem& problem,
                              ceres::Problem* p) {
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations =
-      problem.solver.max_iterations * problem.solver.outer_iterations;
-  solver_options.num_threads = problem.solver.num_threads;
   ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, p, &summary);
+  ceres::Solve(
+      JointSolverOptions(problem, problem.solver.max_iterations * problem.solver.outer_iterations),
+      p, &summary);
   if (!summary.IsSolutionUsable()) {
     throw Error("dataset " + dataset.directory +
                 ": the calibration solve failed: " + summary.message);
