@@ -1,14 +1,17 @@
 #include "autocal/estimation/clock_offsets.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "estimation/correlation_peak.h"
+#include "estimation/robust_statistics.h"
 
 namespace autocal {
 namespace estimation {
@@ -237,6 +240,17 @@ ScalarSeries Shifted(const ScalarSeries& series, double offset_s) {
   return out;
 }
 
+double InterpolateSeries(const ScalarSeries& series, int64_t t_ns) {
+  const auto it = std::lower_bound(series.begin(), series.end(), t_ns,
+                                   [](const TimedValue& s, int64_t t) { return s.t_ns < t; });
+  if (it == series.begin()) return series.front().value;
+  if (it == series.end()) return series.back().value;
+  const TimedValue& a = *(it - 1);
+  const TimedValue& b = *it;
+  return a.value +
+         SecondsBetween(a.t_ns, t_ns) / SecondsBetween(a.t_ns, b.t_ns) * (b.value - a.value);
+}
+
 namespace {
 
 SeriesOffsetEstimate AccelerationOffset(const sensors::ImuSamples& imu,
@@ -321,6 +335,53 @@ SeriesOffsetEstimate EstimateGnssImuOffset(const sensors::GnssFixes& fixes,
   series.min_sensor_std = std::max(series.min_sensor_std, options.min_speed_std_m_s);
   return EstimateSeriesOffset(MovingAverage(wheel_speed, options.speed_baseline_s),
                               GnssHorizontalSpeed(fixes, options.speed_baseline_s), series);
+}
+
+YawRateAgreement CompareYawRates(const sensors::ImuSamples& imu,
+                                 const ScalarSeries& wheel_speed_m_s,
+                                 const ScalarSeries& wheel_yaw_rate_rad_s, double offset_s,
+                                 const Eigen::Vector3d& up_I) {
+  YawRateAgreement out;
+  if (imu.size() < 2 || wheel_yaw_rate_rad_s.size() < 10 ||
+      wheel_speed_m_s.size() != wheel_yaw_rate_rad_s.size()) {
+    return out;
+  }
+  const int64_t shift_ns = SecondsToNs(offset_s);
+  const ScalarSeries& yaw = wheel_yaw_rate_rad_s;
+  const double interval_s =
+      SecondsBetween(yaw.front().t_ns, yaw.back().t_ns) / static_cast<double>(yaw.size() - 1);
+  const ScalarSeries gyro = MovingAverage(GyroAbout(imu, up_I), interval_s);
+  std::vector<Eigen::Vector3d> rows;  // (yaw rate, speed, 1)
+  std::vector<double> measured;       // the gyro
+  for (size_t i = 0; i < yaw.size(); ++i) {
+    const int64_t t_ns = yaw[i].t_ns + shift_ns;
+    if (t_ns < imu.front().t_ns || t_ns > imu.back().t_ns) continue;
+    rows.emplace_back(yaw[i].value, wheel_speed_m_s[i].value, 1.0);
+    measured.push_back(InterpolateSeries(gyro, t_ns));
+  }
+  if (rows.size() < 10) return out;
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < rows.size(); ++i) {
+    normal += rows[i] * rows[i].transpose();
+    rhs += rows[i] * measured[i];
+  }
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(normal);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 1e-9 * normal.trace())) {
+    return out;
+  }
+  const Eigen::Vector3d fit = ldlt.solve(rhs);
+  std::vector<double> residuals;
+  residuals.reserve(rows.size());
+  for (size_t i = 0; i < rows.size(); ++i) residuals.push_back(measured[i] - rows[i].dot(fit));
+  const double centre = internal::Median(residuals);
+  for (double& r : residuals) r = std::abs(r - centre);
+  out.samples = rows.size();
+  out.scale = fit(0);
+  out.per_speed_rad_m = fit(1);
+  out.bias_rad_s = fit(2);
+  out.residual_sigma_rad_s = 1.4826 * internal::Median(residuals);
+  return out;
 }
 
 }  // namespace estimation

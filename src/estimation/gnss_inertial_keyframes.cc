@@ -10,38 +10,10 @@
 #include "autocal/common/time.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
+#include "estimation/keyframe_interpolation.h"
 
 namespace autocal {
 namespace estimation {
-namespace {
-
-// The gyro integrated about the vehicle's up axis (R_I_V z, in I) from the first keyframe to
-// each keyframe (trapezoids between samples, linear within one): the keyframes' relative yaw,
-// so that a turning platform's keyframes start with their own headings (Eq. K11 needs them).
-// The gyro bias is unknown here; its drift is what the solve below removes.
-std::vector<double> GyroYawAtKeyframes(const sensors::ImuSamples& imu,
-                                       const std::vector<Keyframe>& kfs,
-                                       const Eigen::Vector3d& up_I) {
-  std::vector<double> yaw_rad(kfs.size(), 0.0);
-  size_t i = 0;
-  double integral_rad = 0.0;  // up to imu[i]
-  const auto rate = [&](size_t j) { return imu[j].gyro_rad_s.dot(up_I); };
-  const auto at = [&](int64_t t_ns) {
-    while (i + 1 < imu.size() && imu[i + 1].t_ns <= t_ns) {
-      integral_rad += 0.5 * (rate(i) + rate(i + 1)) * NsToSeconds(imu[i + 1].t_ns - imu[i].t_ns);
-      ++i;
-    }
-    if (i + 1 >= imu.size()) return integral_rad;
-    const double dt_s = NsToSeconds(t_ns - imu[i].t_ns);
-    const double s = dt_s / NsToSeconds(imu[i + 1].t_ns - imu[i].t_ns);
-    return integral_rad + dt_s * (rate(i) + 0.5 * s * (rate(i + 1) - rate(i)));
-  };
-  const double first_rad = at(kfs.front().t_ns);
-  for (size_t k = 0; k < kfs.size(); ++k) yaw_rad[k] = at(kfs[k].t_ns) - first_rad;
-  return yaw_rad;
-}
-
-}  // namespace
 
 GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
                                               const sensors::ImuSamples& imu,
@@ -59,7 +31,7 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
   //    track (Eq. K7) ...
   const Eigen::Quaterniond q_V_I = calibration.q_I_V.conjugate();
   const std::vector<double> gyro_yaw_rad =
-      GyroYawAtKeyframes(imu, kfs, calibration.q_I_V * Eigen::Vector3d::UnitZ());
+      internal::GyroYawAtKeyframes(imu, kfs, calibration.q_I_V * Eigen::Vector3d::UnitZ());
   for (size_t k = 0; k < kfs.size(); ++k) {
     kfs[k].q_W_I =
         (Eigen::Quaterniond(Eigen::AngleAxisd(gyro_yaw_rad[k], Eigen::Vector3d::UnitZ())) * q_V_I)

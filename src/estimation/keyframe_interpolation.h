@@ -1,8 +1,9 @@
 #pragma once
 
 // Measurements interpolated to keyframe instants (docs/keyframe_factors.md, Eq. K1), shared by
-// the keyframe factors and the GNSS alignment of keyframes.
+// the keyframe factors, the GNSS alignment of keyframes and their placement.
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
@@ -11,6 +12,8 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/measurements.h"
@@ -63,6 +66,33 @@ int64_t GapNs(double gap_s, const std::string& name);
 // InterpolateGnss on fixes known to be in time order.
 bool InterpolateSortedGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
                            int64_t t_ns, int64_t max_gap_ns, factors::GnssMeasurement* measurement);
+
+// The gyro integrated about the vehicle's up axis (R_I_V z, in I) from the first keyframe to
+// each keyframe (trapezoids between samples, linear within one): the keyframes' relative yaw,
+// so that a turning platform's keyframes start with their own headings (Eq. K11 needs them,
+// and dead reckoning).
+// The gyro bias is unknown here; its drift is what the solve below removes.
+inline std::vector<double> GyroYawAtKeyframes(const sensors::ImuSamples& imu,
+                                              const std::vector<Keyframe>& kfs,
+                                              const Eigen::Vector3d& up_I) {
+  std::vector<double> yaw_rad(kfs.size(), 0.0);
+  size_t i = 0;
+  double integral_rad = 0.0;  // up to imu[i]
+  const auto rate = [&](size_t j) { return imu[j].gyro_rad_s.dot(up_I); };
+  const auto at = [&](int64_t t_ns) {
+    while (i + 1 < imu.size() && imu[i + 1].t_ns <= t_ns) {
+      integral_rad += 0.5 * (rate(i) + rate(i + 1)) * NsToSeconds(imu[i + 1].t_ns - imu[i].t_ns);
+      ++i;
+    }
+    if (i + 1 >= imu.size()) return integral_rad;
+    const double dt_s = NsToSeconds(t_ns - imu[i].t_ns);
+    const double s = dt_s / NsToSeconds(imu[i + 1].t_ns - imu[i].t_ns);
+    return integral_rad + dt_s * (rate(i) + 0.5 * s * (rate(i + 1) - rate(i)));
+  };
+  const double first_rad = at(kfs.front().t_ns);
+  for (size_t k = 0; k < kfs.size(); ++k) yaw_rad[k] = at(kfs[k].t_ns) - first_rad;
+  return yaw_rad;
+}
 
 }  // namespace internal
 }  // namespace estimation

@@ -14,6 +14,7 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "estimation/keyframe_interpolation.h"
+#include "estimation/robust_statistics.h"
 
 namespace autocal {
 namespace estimation {
@@ -22,13 +23,7 @@ namespace {
 using internal::CheckIncreasing;
 using internal::GapNs;
 using internal::InterpolateSortedGnss;
-
-// The middle element of `values` (the upper one for an even count).
-double Median(std::vector<double> values) {
-  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), middle, values.end());
-  return *middle;
-}
+using internal::Median;
 
 // Distances to a fit beyond this are outliers: a multiple of the median distance's robust
 // sigma (1.4826 * median for a Gaussian), never below a floor.

@@ -30,18 +30,6 @@ Eigen::Vector3d MeanSpecificForce(const sensors::ImuSamples& imu, Use use, size_
   return *n > 0 ? Eigen::Vector3d(sum / static_cast<double>(*n)) : Eigen::Vector3d::Zero();
 }
 
-// Linear interpolation of a series at t (clamped to its ends); the series has >= 2 samples.
-double Interpolate(const ScalarSeries& series, int64_t t_ns) {
-  const auto it = std::lower_bound(series.begin(), series.end(), t_ns,
-                                   [](const TimedValue& s, int64_t t) { return s.t_ns < t; });
-  if (it == series.begin()) return series.front().value;
-  if (it == series.end()) return series.back().value;
-  const TimedValue& a = *(it - 1);
-  const TimedValue& b = *it;
-  return a.value +
-         SecondsBetween(a.t_ns, t_ns) / SecondsBetween(a.t_ns, b.t_ns) * (b.value - a.value);
-}
-
 // One row of the horizontal fit: the measured horizontal specific force and the modelled
 // (forward, left) acceleration, both as means over one window, in the plane's 2-D basis.
 struct FitRow {
@@ -70,7 +58,7 @@ std::vector<FitRow> HorizontalFitRows(const sensors::ImuSamples& imu, const Scal
     for (size_t k = i; k < imu.size() && imu[k].t_ns < b; ++k, ++n) {
       const double rate = up_I.dot(imu[k].gyro_rad_s);
       force += imu[k].accel_m_s2;
-      centripetal += Interpolate(speed, imu[k].t_ns) * rate;
+      centripetal += InterpolateSeries(speed, imu[k].t_ns) * rate;
       rate_sq += rate * rate;
     }
     if (n < 3) continue;
@@ -82,7 +70,7 @@ std::vector<FitRow> HorizontalFitRows(const sensors::ImuSamples& imu, const Scal
         (second / static_cast<double>(n - half) - first / static_cast<double>(half)) /
         (0.5 * window_s);
     force /= static_cast<double>(n);
-    const double dv_dt = (Interpolate(speed, b) - Interpolate(speed, a)) / window_s;
+    const double dv_dt = (InterpolateSeries(speed, b) - InterpolateSeries(speed, a)) / window_s;
     rows.push_back({Eigen::Vector2d(e1.dot(force), e2.dot(force)),
                     Eigen::Vector2d(dv_dt, centripetal / static_cast<double>(n)),
                     rate_sq / static_cast<double>(n), rate_change});

@@ -133,24 +133,6 @@ estimation::WheelData FormData(const io::Dataset& dataset, const sensors::Calibr
   return data;
 }
 
-// The sigmas of the form's factor rows from sensors.yaml's wheel noise (a sensors.yaml without
-// a wheel: section, or no sensors.yaml, means the encoder defaults of sensors/sensor_config.h;
-// datasets/README.md).
-factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
-                                       const sensors::Calibration& nominal) {
-  const sensors::WheelConfig config = dataset.sensors.wheel.value_or(sensors::WheelConfig());
-  switch (dataset.wheel_form()) {
-    case sensors::WheelForm::kLinearSpeeds:
-      return factors::WheelFactorOptions::FromWheelSpeedNoise(config, nominal.track_width_m);
-    case sensors::WheelForm::kSpeedYawRate:
-      return factors::WheelFactorOptions::FromOdometryNoise(config);
-    case sensors::WheelForm::kAngularRates:
-      break;
-  }
-  return factors::WheelFactorOptions::FromEncoderNoise(config, nominal.wheel_radius_left_m,
-                                                       nominal.track_width_m);
-}
-
 // The estimate switches of the form's scales (radii, speed scales or k_v) and track (b or
 // b_eff), from the problem's settings of those blocks.
 void EstimateFormBlocks(sensors::WheelForm form, const io::ProblemCalibration& b,
@@ -195,6 +177,21 @@ bool IsGnssCost(const ceres::CostFunction* f) {
 
 }  // namespace
 
+factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
+                                       const sensors::Calibration& nominal) {
+  const sensors::WheelConfig config = dataset.sensors.wheel.value_or(sensors::WheelConfig());
+  switch (dataset.wheel_form()) {
+    case sensors::WheelForm::kLinearSpeeds:
+      return factors::WheelFactorOptions::FromWheelSpeedNoise(config, nominal.track_width_m);
+    case sensors::WheelForm::kSpeedYawRate:
+      return factors::WheelFactorOptions::FromOdometryNoise(config);
+    case sensors::WheelForm::kAngularRates:
+      break;
+  }
+  return factors::WheelFactorOptions::FromEncoderNoise(config, nominal.wheel_radius_left_m,
+                                                       nominal.track_width_m);
+}
+
 TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& problem,
                                 bool use_wheel, bool use_gnss) {
   const std::string where = dataset.directory + "/";
@@ -208,10 +205,12 @@ TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& p
   const io::ProblemTiming& o = problem.timing;
   t.max_imu_gap_s = o.max_imu_gap_s.value_or(sensors::MaxBracketingGapS(t.imu));
   if (t.wheel) t.max_wheel_gap_s = o.max_wheel_gap_s.value_or(sensors::MaxBracketingGapS(*t.wheel));
+  const sensors::SampleTiming* wheel = t.wheel ? &*t.wheel : nullptr;
+  t.keyframe_period_s =
+      o.keyframe_period_s.value_or(t.gnss ? sensors::KeyframePeriodS(*t.gnss, t.imu, wheel)
+                                          : sensors::KeyframePeriodS(t.imu, wheel));
   if (t.gnss) {
     t.max_fix_gap_s = o.max_fix_gap_s.value_or(sensors::MaxBracketingGapS(*t.gnss));
-    t.keyframe_period_s = o.keyframe_period_s.value_or(
-        sensors::KeyframePeriodS(*t.gnss, t.imu, t.wheel ? &*t.wheel : nullptr));
     t.gnss_track_half_width_s =
         o.gnss_track_half_width_s.value_or(sensors::GnssTrackHalfWidthS(*t.gnss));
   }
@@ -231,9 +230,8 @@ void RecordTiming(const TimingLimits& timing, bool without_lidar, io::Calibratio
     solver["timing_gnss_rate_hz"] = FormatFixed(timing.gnss->rate_hz(), 3);
     solver["timing_max_fix_gap_s"] = FormatFixed(timing.max_fix_gap_s, 4);
     solver["timing_gnss_track_half_width_s"] = FormatFixed(timing.gnss_track_half_width_s, 4);
-    if (without_lidar)
-      solver["timing_keyframe_period_s"] = FormatFixed(timing.keyframe_period_s, 4);
   }
+  if (without_lidar) solver["timing_keyframe_period_s"] = FormatFixed(timing.keyframe_period_s, 4);
 }
 
 void ApplyTimingLimits(const TimingLimits& timing,
@@ -251,6 +249,10 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
     estimation::KeyframeWheelOptions wheel;
     wheel.factor = WheelNoise(*dataset, *nominal);
+    for (double* sigma : {&wheel.factor.speed_sigma_m_s, &wheel.factor.yaw_rate_sigma_rad_s,
+                          &wheel.factor.lateral_sigma_m_s, &wheel.factor.vertical_sigma_m_s}) {
+      *sigma *= wheel_noise_scale;
+    }
     wheel.factor.shared_radius = b.wheel_radius_shared;
     wheel.loss = problem->loss.wheel;
     wheel.max_wheel_gap_s = timing->max_wheel_gap_s;

@@ -19,6 +19,7 @@
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/estimation/sliding_window.h"
+#include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
@@ -58,7 +59,7 @@ struct TimingLimits {
   double max_imu_gap_s = 0.0;
   double max_wheel_gap_s = 0.0;
   double max_fix_gap_s = 0.0;
-  double keyframe_period_s = 0.0;  // without the LiDAR (needs GNSS)
+  double keyframe_period_s = 0.0;  // without the LiDAR
   double gnss_track_half_width_s = 0.0;
   double min_factor_fraction = 0.0;
 };
@@ -82,6 +83,12 @@ void ApplyTimingLimits(const TimingLimits& timing,
 // the priors of the estimated blocks. A sensor that gives factors at fewer than
 // timing->min_factor_fraction of the keyframes is an autocal::Error naming it, its rate, the
 // count and the limit: no result silently leaves most of a sensor out.
+// The sigmas of the form's factor rows from sensors.yaml's wheel noise (a sensors.yaml without
+// a wheel: section, or no sensors.yaml, means the encoder defaults of sensors/sensor_config.h;
+// datasets/README.md).
+factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
+                                       const sensors::Calibration& nominal);
+
 struct SensorFactors {
   const io::Dataset* dataset = nullptr;
   const io::Problem* problem = nullptr;
@@ -92,6 +99,9 @@ struct SensorFactors {
   const std::vector<estimation::EstimatedBlock>* blocks = nullptr;
   geometry::RightQuaternionManifold* quaternion_manifold = nullptr;
   const TimingLimits* timing = nullptr;
+  // Every wheel row's sigma times this: the data's noise when it exceeds the stated one
+  // (pipeline/clock_initialization.h, WheelNoiseScale).
+  double wheel_noise_scale = 1.0;
 
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
            sensors::Calibration* c) const;

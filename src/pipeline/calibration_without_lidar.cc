@@ -1,8 +1,11 @@
 #include <algorithm>
+#include <optional>
+#include <string>
 #include <utility>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/estimation/dead_reckoning_keyframes.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/geometry/manifolds.h"
@@ -29,15 +32,11 @@ estimation::GnssInertialKeyframesOptions GnssInertialOptions(const io::Dataset& 
 }
 
 // Keyframes every keyframe period (the caller's inertial_keyframe_period_s, else the timing's)
-// over the span the IMU and the fixes share, placed on the GNSS track and refined with the IMU
-// and the wheels.
-std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
-    const io::Dataset& dataset, const io::Problem& problem,
-    const OfflineCalibrationOptions& options, const TimingLimits& timing,
-    const sensors::EnuConverter& enu, bool use_wheel, const sensors::Calibration& calibration,
-    estimation::GnssInertialKeyframes* placed) {
-  const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
-  const int64_t last_ns = std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns);
+// over [first_ns, last_ns], the span the IMU shares with `other` (named in the error).
+std::vector<estimation::Keyframe> KeyframeGrid(const io::Dataset& dataset,
+                                               const OfflineCalibrationOptions& options,
+                                               const TimingLimits& timing, int64_t first_ns,
+                                               int64_t last_ns, const std::string& other) {
   const int64_t period_ns =
       SecondsToNs(options.inertial_keyframe_period_s.value_or(timing.keyframe_period_s));
   if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
@@ -48,14 +47,49 @@ std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
     keyframes.push_back(kf);
   }
   if (keyframes.size() < 2) {
-    throw Error("dataset " + dataset.directory +
-                ": the IMU and the GNSS fixes overlap too briefly for two keyframes");
+    throw Error("dataset " + dataset.directory + ": the IMU and " + other +
+                " overlap too briefly for two keyframes");
   }
+  return keyframes;
+}
+
+// Keyframes over the span the IMU and the fixes share, placed on the GNSS track and refined
+// with the IMU and the wheels.
+std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
+    const io::Dataset& dataset, const io::Problem& problem,
+    const OfflineCalibrationOptions& options, const TimingLimits& timing,
+    const sensors::EnuConverter& enu, bool use_wheel, const sensors::Calibration& calibration,
+    estimation::GnssInertialKeyframes* placed) {
+  std::vector<estimation::Keyframe> keyframes = KeyframeGrid(
+      dataset, options, timing, std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns),
+      std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns), "the GNSS fixes");
   *placed = estimation::KeyframesFromGnssAndImu(
       &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
       enu, calibration, GnssInertialOptions(dataset, problem, timing));
   return keyframes;
 }
+
+// Keyframes over the span the IMU and the wheels share (the wheels on the IMU clock), placed
+// by dead reckoning: a log without a position reference.
+std::vector<estimation::Keyframe> KeyframesByDeadReckoning(
+    const io::Dataset& dataset, const OfflineCalibrationOptions& options,
+    const TimingLimits& timing, const sensors::Calibration& calibration) {
+  estimation::ScalarSeries speed, yaw_rate;
+  WheelSpeedAndYawRate(dataset, calibration, &speed, &yaw_rate);
+  speed = estimation::Shifted(speed, calibration.time_offset_wheel_imu_s);
+  if (speed.size() < 2) {
+    throw Error("dataset " + dataset.directory + ": fewer than two wheel samples");
+  }
+  std::vector<estimation::Keyframe> keyframes =
+      KeyframeGrid(dataset, options, timing, std::max(dataset.imu.front().t_ns, speed.front().t_ns),
+                   std::min(dataset.imu.back().t_ns, speed.back().t_ns), "the wheels");
+  estimation::PlaceKeyframesByDeadReckoning(&keyframes, dataset.imu, speed, calibration.q_I_V);
+  return keyframes;
+}
+
+// The gauge of a log without a position reference: the first keyframe's position and yaw.
+constexpr double kGaugePositionSigmaM = 1e-3;
+constexpr double kGaugeYawSigmaRad = 1e-4;
 
 // The joint solve's summary, or an autocal::Error when it is unusable.
 ceres::Solver::Summary Solve(const io::Dataset& dataset, const io::Problem& problem,
@@ -77,18 +111,27 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                                                const io::Problem& problem,
                                                const OfflineCalibrationOptions& options,
                                                std::chrono::steady_clock::time_point start) {
-  if (!problem.sensors.gnss || dataset.gnss.empty()) {
+  const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
+  if (!use_gnss && !use_wheel) {
     throw Error("problem " + problem.path +
-                ": a calibration without the LiDAR needs GNSS (sensors.gnss and gnss.csv): the "
-                "keyframes are placed on the GNSS track");
+                ": a calibration without the LiDAR needs GNSS (sensors.gnss and gnss.csv: the "
+                "keyframes are placed on its track) or the wheels (sensors.wheel and their "
+                "file: the keyframes are placed by dead reckoning)");
   }
   OfflineCalibrationResult result;
   result.nominal = dataset.sensors.nominal_calibration;
-  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
-  const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-  const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, true);
-  for (const sensors::GnssFix& fix : dataset.gnss) {
-    result.gnss_positions_W.push_back(enu.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m));
+  std::optional<sensors::EnuConverter> enu;
+  if (use_gnss) enu.emplace(sensors::EnuConverter::AtFirstFix(dataset.gnss));
+  const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);
+  if (use_gnss) {
+    for (const sensors::GnssFix& fix : dataset.gnss) {
+      result.gnss_positions_W.push_back(enu->ToEnu(fix));
+    }
+  } else {
+    result.warnings.push_back(
+        "no position reference (no GNSS, no LiDAR): the trajectory starts at the origin with yaw "
+        "zero and is dead reckoned from the IMU and the wheels");
   }
 
   // 1. Keyframes over the span the IMU and the fixes share.
@@ -100,7 +143,9 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
       &priors.nominal_calibration, &result.warnings);
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
-      KeyframesOnGnssTrack(dataset, problem, options, timing, enu, use_wheel, calibration, &placed);
+      use_gnss ? KeyframesOnGnssTrack(dataset, problem, options, timing, *enu, use_wheel,
+                                      calibration, &placed)
+               : KeyframesByDeadReckoning(dataset, options, timing, calibration);
   result.seconds_initialization = SecondsSince(start);
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
@@ -108,7 +153,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   const estimation::GnssInertialKeyframesOptions bias_priors =
       GnssInertialOptions(dataset, problem, timing);
   std::vector<estimation::EstimatedBlock> blocks_estimated =
-      EstimatedBlocks(problem, priors, options, use_wheel, true, &calibration);
+      EstimatedBlocks(problem, priors, options, use_wheel, use_gnss, &calibration);
   FuseUpAxisIntoMountPrior(initialization, problem, bias_priors.accel_bias_prior_sigma_m_s2,
                            dataset.sensors.imu.gravity_m_s2, &blocks_estimated,
                            &priors.nominal_calibration);
@@ -127,9 +172,23 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
   estimation::AddBiasPriors(&p, &keyframes.front(), bias_priors.gyro_bias_prior_sigma_rad_s,
                             bias_priors.accel_bias_prior_sigma_m_s2);
-  const SensorFactors sensor_factors{&dataset, &problem, &result.nominal,   use_wheel,
-                                     true,     &enu,     &blocks_estimated, &quaternion_manifold,
-                                     &timing};
+  if (!use_gnss) {
+    estimation::AddDeadReckoningGauge(&p, &keyframes.front(), kGaugePositionSigmaM,
+                                      kGaugeYawSigmaRad);
+  }
+  SensorFactors sensor_factors{&dataset,
+                               &problem,
+                               &result.nominal,
+                               use_wheel,
+                               use_gnss,
+                               enu ? &*enu : nullptr,
+                               &blocks_estimated,
+                               &quaternion_manifold,
+                               &timing};
+  if (use_wheel) {
+    sensor_factors.wheel_noise_scale =
+        WheelNoiseScale(dataset, calibration, result.nominal, &result.warnings);
+  }
   sensor_factors.Add(&p, &keyframes, &calibration);
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].before = std::move(rows);
@@ -147,7 +206,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   file.solver["termination"] = summary.message;
   file.solver["iterations"] = std::to_string(summary.iterations.size());
   file.solver["final_cost"] = std::to_string(summary.final_cost);
-  file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
+  if (use_gnss) file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
   RecordTiming(timing, true, &file);
   const sensors::Calibration solved = calibration;
   const estimation::BlockObservability observability =

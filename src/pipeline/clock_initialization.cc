@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/mount_initialization.h"
 #include "autocal/geometry/so3.h"
@@ -168,6 +169,34 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
                 off_deg, max_nominal_deg);
   warnings->push_back(text);
   return clocks;
+}
+
+double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& calibration,
+                       const sensors::Calibration& nominal, std::vector<std::string>* warnings) {
+  estimation::ScalarSeries speed, yaw_rate;
+  WheelSpeedAndYawRate(dataset, calibration, &speed, &yaw_rate);
+  const estimation::YawRateAgreement agreement =
+      estimation::CompareYawRates(dataset.imu, speed, yaw_rate, calibration.time_offset_wheel_imu_s,
+                                  calibration.q_I_V * Eigen::Vector3d::UnitZ());
+  if (agreement.samples == 0) return 1.0;
+  const double interval_s = SecondsBetween(yaw_rate.front().t_ns, yaw_rate.back().t_ns) /
+                            static_cast<double>(yaw_rate.size() - 1);
+  const double gyro_sigma =
+      dataset.sensors.imu.noise.gyroscope_noise_density / std::sqrt(interval_s);
+  const double wheel_sigma = WheelNoise(dataset, nominal).yaw_rate_sigma_rad_s;
+  const double expected = std::hypot(wheel_sigma, gyro_sigma);
+  const double scale = agreement.residual_sigma_rad_s / expected;
+  if (!(scale >= kMinWheelNoiseScale)) return 1.0;
+  char text[400];
+  std::snprintf(text, sizeof(text),
+                "wheels: their yaw rate explains the gyro's to %.3f rad/s (robust sigma over %zu "
+                "samples, after a scale of %.2f) where %.3f rad/s was expected from the stated "
+                "noise: the platform slips or the wheel data follow something else; every wheel "
+                "row's sigma is scaled by %.1f",
+                agreement.residual_sigma_rad_s, agreement.samples, agreement.scale, expected,
+                scale);
+  warnings->push_back(text);
+  return scale;
 }
 
 void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem& problem,

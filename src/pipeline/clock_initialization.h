@@ -55,6 +55,17 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
                                              sensors::Calibration* prior_centre,
                                              std::vector<std::string>* warnings);
 
+// The wheel rows' noise from the data (docs/calibration.md, "Wheel noise from the data"): the
+// wheels' yaw rate against the gyro about the mount's up axis, on one clock
+// (estimation::CompareYawRates). When what that fit leaves exceeds the noise it should
+// (sensors.yaml's yaw-rate noise with the gyro's averaged over the wheels' interval) by at
+// least kMinWheelNoiseScale, the ratio is returned and a warning says so: every wheel row's
+// sigma is scaled by it (a skid-steer robot slipping, odometry that follows something else).
+// 1 otherwise, or when the comparison has too few samples.
+constexpr double kMinWheelNoiseScale = 1.5;
+double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& calibration,
+                       const sensors::Calibration& nominal, std::vector<std::string>* warnings);
+
 // Eq. C4: the mount's prior (the kVehicleRotation block of *blocks: centre and sigmas) fused
 // with gravity's up axis of `init` (estimation::FuseUpAxis), when there is one and the
 // problem gives calibration.ground_tilt_sigma_deg. The up axis's sigma is

@@ -78,7 +78,11 @@ double MaxBracketingGapS(const SampleTiming& timing) {
 
 double KeyframePeriodS(const SampleTiming& gnss, const SampleTiming& imu,
                        const SampleTiming* wheel) {
-  double period_s = std::max(gnss.mean_interval_s, 3.0 * imu.mean_interval_s);
+  return std::clamp(std::max(gnss.mean_interval_s, KeyframePeriodS(imu, wheel)), 0.05, 0.5);
+}
+
+double KeyframePeriodS(const SampleTiming& imu, const SampleTiming* wheel) {
+  double period_s = 3.0 * imu.mean_interval_s;
   if (wheel != nullptr) period_s = std::max(period_s, wheel->mean_interval_s);
   return std::clamp(period_s, 0.05, 0.5);
 }

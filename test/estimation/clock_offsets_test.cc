@@ -189,6 +189,44 @@ TEST(EstimateGnssImuOffset, AlignsTheTrackSpeedWithTheWheelSpeed) {
 
 // The odometry's yaw rate lags the gyro about the up axis by about 0.38 s (its stamps come
 // late), so t_imu = t_wheel + offset with offset about -0.38 s.
+// A gyro that reads 0.8 times the wheels' yaw rate (slip), 0.01 rad/m of their speed (unequal
+// radii) plus a bias and white noise, the wheels 0.3 s late: the fit recovers the scale, the
+// speed term and the bias, and the noise as its robust sigma.
+// A speed that reverses now and then: its mean does not mimic the bias.
+double Speed(double t_s) { return 1.0 + 3.0 * std::sin(0.31 * t_s); }
+
+TEST(CompareYawRates, RecoversScaleBiasAndNoise) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  const Eigen::Vector3d up_I = Eigen::Vector3d(0.2, -1.0, 0.1).normalized();
+  sensors::ImuSamples imu;
+  for (double t = 0.0; t <= 60.0; t += 0.01) {
+    sensors::ImuSample s;
+    s.t_ns = SecondsToNs(t);
+    s.gyro_rad_s = up_I * (0.8 * Signal(t) + 0.01 * Speed(t) + 0.01 + noise(rng));
+    imu.push_back(s);
+  }
+  ScalarSeries wheel, speed;  // stamped 0.3 s early on their own clock: t_imu = t_wheel + 0.3
+  for (double t = 1.0; t <= 58.0; t += 0.1) {
+    wheel.push_back({SecondsToNs(t - 0.3), Signal(t)});
+    speed.push_back({SecondsToNs(t - 0.3), Speed(t)});
+  }
+  const YawRateAgreement a = CompareYawRates(imu, speed, wheel, 0.3, up_I);
+  EXPECT_GT(a.samples, 500u);
+  EXPECT_NEAR(a.scale, 0.8, 0.01);
+  EXPECT_NEAR(a.per_speed_rad_m, 0.01, 0.001);
+  EXPECT_NEAR(a.bias_rad_s, 0.01, 0.002);
+  // The gyro is averaged over the wheels' 0.1 s (10 samples): 0.05 / sqrt(10).
+  EXPECT_NEAR(a.residual_sigma_rad_s, 0.05 / std::sqrt(10.0), 0.004);
+  // On the wrong clock the shape no longer matches: far more is left.
+  EXPECT_GT(CompareYawRates(imu, speed, wheel, 0.0, up_I).residual_sigma_rad_s,
+            3.0 * a.residual_sigma_rad_s);
+  // Too little to compare, or a speed that is not the yaw rate's.
+  const ScalarSeries five(wheel.begin(), wheel.begin() + 5);
+  EXPECT_EQ(CompareYawRates(imu, five, five, 0.3, up_I).samples, 0u);
+  EXPECT_EQ(CompareYawRates(imu, five, wheel, 0.3, up_I).samples, 0u);
+}
+
 TEST(RealLogs, HuskyOdometryLagsTheGyroBy038Seconds) {
   AUTOCAL_REQUIRE_SHARED_DATA(test::RealBag("test1.bag"));
   const test::VehicleLog log = test::ImportVehicleLog(test::RealBag("test1.bag"));

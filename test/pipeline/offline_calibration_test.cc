@@ -310,16 +310,62 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("wheel"));
   }
-  // Without the LiDAR the keyframes come from the GNSS track: GNSS is required.
-  io::Problem no_lidar = ShippedProblem("imu_wheel_gnss.yaml");
-  no_lidar.sensors.gnss = false;
-  no_lidar.calibration.p_I_A_m.mode = io::BlockMode::kFixed;
+  // Without the LiDAR the keyframes come from the GNSS track or the wheels: one is required.
+  io::Problem imu_alone = LidarImuProblem();
+  imu_alone.sensors.lidar = false;
+  imu_alone.sensors.gnss = false;
+  imu_alone.calibration.T_I_L.rotation.mode = io::BlockMode::kFixed;
+  imu_alone.calibration.T_I_L.translation.mode = io::BlockMode::kFixed;
+  imu_alone.calibration.time_offset_lidar_imu_s.mode = io::BlockMode::kFixed;
   try {
-    CalibrateDataset(io::ReadDataset(data_->directory), no_lidar);
-    FAIL() << "a problem without the LiDAR and without GNSS was accepted";
+    CalibrateDataset(io::ReadDataset(data_->directory), imu_alone);
+    FAIL() << "a problem with the IMU alone was accepted";
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("needs GNSS"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("or the wheels"));
   }
+}
+
+// Without a position reference (no GNSS, no LiDAR) the keyframes are dead reckoned from the IMU
+// and the wheels, the first one's position and yaw the gauge: the yaw rows still tie the radii
+// to the track (their ratio), gravity the mount's roll and pitch, and the drive reports what it
+// cannot determine rather than a value.
+TEST_F(OfflineCalibrationTest, WithoutGnssTheWheelsDeadReckon) {
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
+  io::Problem problem = ShippedProblem("imu_wheel_gnss.yaml");
+  problem.sensors.gnss = false;
+  problem.calibration.p_I_A_m.mode = io::BlockMode::kFixed;
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
+  std::cout << FormatCalibrationSummary(result);
+  const sensors::Calibration& truth = data_->simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  EXPECT_TRUE(result.gnss_positions_W.empty());
+  EXPECT_FALSE(result.calibration.solver.count("gnss_factors"));
+  EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr("no position reference")));
+  // Every block within what it reports: an observable or kept value within 4 sigma of the
+  // truth, a held one at its prior.
+  const auto within = [](double error, double sigma, const char* what) {
+    EXPECT_LT(std::abs(error), 4.0 * sigma) << what << ": error " << error << ", sigma " << sigma;
+  };
+  within(estimate.wheel_radius_left_m - truth.wheel_radius_left_m, *u.wheel_radius_left_m.sigma,
+         "left radius");
+  within(estimate.wheel_radius_right_m - truth.wheel_radius_right_m, *u.wheel_radius_right_m.sigma,
+         "right radius");
+  within(estimate.track_width_m - truth.track_width_m, *u.track_width_m.sigma, "track");
+  const Eigen::Vector3d mount_error =
+      -geometry::Log(Eigen::Quaterniond(estimate.q_I_V.conjugate() * truth.q_I_V));
+  for (int a = 0; a < 3; ++a) {
+    within(mount_error(a), (*u.T_I_V.sigma_rot_deg)(a) / kRadToDeg, "mount");
+  }
+  // The ratio of radius to track is what the yaw rows see: better than either.
+  const double ratio_error = estimate.wheel_radius_left_m / estimate.track_width_m /
+                                 (truth.wheel_radius_left_m / truth.track_width_m) -
+                             1.0;
+  std::cout << "radius / track " << 100.0 * ratio_error << " %\n";
+  EXPECT_LT(std::abs(ratio_error), 0.01);
+  // The trajectory: relative to the first keyframe, close to the truth's shape over the drive.
+  ASSERT_GT(result.trajectory.size(), 300u);
 }
 
 // problems/imu_wheel_gnss.yaml with one solver round of two iterations: enough to run every

@@ -7,8 +7,8 @@
 // Eq. C4) within 2 deg. Printed but not met yet: the mount within 2 deg of the launch file's
 // (measured 3.55 deg: the receiver's altitude drifts 32 m and bends the pitch, and the yaw
 // sits 2.5 deg off in every part of the log; docs/calibration.md) and the antenna within
-// 1.5 m RMS of the fixes (measured 1.51 m). The robot without GPS (test2.bag) is refused with
-// a reason.
+// 1.5 m RMS of the fixes (measured 1.51 m). The robot without GPS (test2.bag) is dead reckoned
+// and reports what it cannot observe.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -108,16 +108,30 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
   EXPECT_LT(rms_m, 2.0);                                      // the 1.5 m goal is not met yet
 }
 
-TEST(RealDataAcceptance, RobotWithoutGpsIsRefusedWithAReason) {
+// The Jackal's odometry turns about five times faster than its gyro (yaw rate scale 0.18,
+// 0.20 rad/s left against 0.02 rad/s stated): slip, or a controller that reports something
+// else. Without a position reference the keyframes are dead reckoned; the run says both and
+// reports nothing as observable that this log cannot give.
+TEST(RealDataAcceptance, RobotWithoutGpsRunsAndReportsWhatItCannotObserve) {
   const std::filesystem::path bag = test::SharedDataDir("ros1_bags") / "test2.bag";
   AUTOCAL_REQUIRE_SHARED_DATA(bag);
   const io::Dataset dataset = Import(bag);
-  try {
-    CalibrateDataset(dataset, Shipped("skid_steer_imu_odometry.yaml"));
-    FAIL() << "a problem without GNSS nor LiDAR was calibrated";
-  } catch (const Error& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("GNSS")) << e.what();
-  }
+  const auto start = std::chrono::steady_clock::now();
+  const OfflineCalibrationResult result =
+      CalibrateDataset(dataset, Shipped("skid_steer_imu_odometry.yaml"));
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
+  EXPECT_LT(seconds, 30.0);
+  EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr("no position reference")));
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::HasSubstr("every wheel row's sigma is scaled")));
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  EXPECT_EQ(u.odometry_speed_scale.observable, std::optional<bool>(false));
+  EXPECT_EQ(u.effective_track_m.observable, std::optional<bool>(false));
+  ASSERT_EQ(u.T_I_V.observable.size(), 6u);
+  for (size_t i = 0; i < 6; ++i) EXPECT_FALSE(u.T_I_V.observable[i]) << i;
+  EXPECT_GT(result.trajectory.size(), 100u);
 }
 
 }  // namespace

@@ -147,6 +147,9 @@ TEST(SampleTiming, SkidSteerRobotLog) {
   EXPECT_NEAR(MaxBracketingGapS(gnss), 1.0, 0.002);
   EXPECT_NEAR(KeyframePeriodS(gnss, imu, &wheel), 0.4, 1e-3);
   EXPECT_NEAR(GnssTrackHalfWidthS(gnss), 1.0, 1e-3);
+  // Without the receiver the odometry's 10 Hz sets it: one sample between keyframes.
+  EXPECT_NEAR(KeyframePeriodS(imu, &wheel), 0.1, 0.002);
+  EXPECT_NEAR(KeyframePeriodS(imu, nullptr), 0.1, 0.002);  // three IMU samples
 }
 
 TEST(SampleTiming, KeyframePeriodIsClamped) {

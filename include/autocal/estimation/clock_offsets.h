@@ -82,6 +82,8 @@ ScalarSeries CentralDerivative(const ScalarSeries& series);
 ScalarSeries MovingAverage(const ScalarSeries& series, double width_s);
 // The same samples stamped offset_s later (onto the reference clock of that offset).
 ScalarSeries Shifted(const ScalarSeries& series, double offset_s);
+// Linear interpolation at t_ns, clamped to the ends; `series` must not be empty.
+double InterpolateSeries(const ScalarSeries& series, int64_t t_ns);
 
 // ---- Wheel odometry against the IMU.
 
@@ -113,6 +115,27 @@ WheelImuOffset EstimateWheelImuOffset(const sensors::ImuSamples& imu,
                                       const ScalarSeries& wheel_yaw_rate_rad_s,
                                       const Eigen::Quaterniond& q_I_V,
                                       const WheelImuOffsetOptions& options = {});
+
+// How well the wheels' yaw rate explains the gyro's about the vehicle's up axis, once both are
+// on one clock: gyro_up(t) = scale * yaw_wheel(t) + per_speed * v_wheel(t) + bias + e, least
+// squares over the wheel samples inside the IMU's span, the gyro averaged over the wheels'
+// mean interval around each. The scale absorbs a wrong track or a skid-steer robot's slip, the
+// speed term the left and right wheels' different radii or speed scales (the factors estimate
+// both); what is left, e, is noise the wheel factors must carry.
+struct YawRateAgreement {
+  size_t samples = 0;
+  double scale = 0.0;
+  double per_speed_rad_m = 0.0;
+  double bias_rad_s = 0.0;
+  double residual_sigma_rad_s = 0.0;  // robust: 1.4826 * median |e - median e|
+};
+// `offset_s` puts the wheel series (speed and yaw rate at the same stamps) on the IMU clock
+// (t_imu = t_wheel + offset_s). Fewer than ten samples, or series that do not vary
+// independently, give samples = 0.
+YawRateAgreement CompareYawRates(const sensors::ImuSamples& imu,
+                                 const ScalarSeries& wheel_speed_m_s,
+                                 const ScalarSeries& wheel_yaw_rate_rad_s, double offset_s,
+                                 const Eigen::Vector3d& up_I);
 
 // ---- GNSS against the IMU.
 

@@ -59,6 +59,8 @@ double MaxBracketingGapS(const SampleTiming& timing);
 // Eq. T2. `wheel` may be null (no wheel encoders in the problem).
 double KeyframePeriodS(const SampleTiming& gnss, const SampleTiming& imu,
                        const SampleTiming* wheel);
+// Eq. T2 without a receiver (the IMU and the wheels alone).
+double KeyframePeriodS(const SampleTiming& imu, const SampleTiming* wheel);
 
 // Eq. T3: the half-width of the window of fixes fitted around a keyframe.
 double GnssTrackHalfWidthS(const SampleTiming& gnss);
