@@ -15,6 +15,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
@@ -69,17 +70,28 @@ int main(int argc, char** argv) {
     options.initialization_duration_s = FLAGS_init_duration_s;
     options.initializer_sweep_stride = FLAGS_init_sweep_stride;
     const bool lidar = problem.sensors.lidar;
+    const bool odometry = dataset.wheel_form() == autocal::sensors::WheelForm::kSpeedYawRate;
+    // The wheel blocks of the dataset's form, in words.
+    const auto wheels = [odometry](const autocal::sensors::Calibration& c) {
+      char text[96];
+      if (odometry) {
+        std::snprintf(text, sizeof(text), "k_v %.4f  b_eff %.4f m", c.odometry_speed_scale,
+                      c.effective_track_m);
+      } else {
+        std::snprintf(text, sizeof(text), "radii %.4f %.4f m  track %.4f m", c.wheel_radius_left_m,
+                      c.wheel_radius_right_m, c.track_width_m);
+      }
+      return std::string(text);
+    };
     if (FLAGS_progress_every > 0) {
-      options.progress = [lidar](const autocal::pipeline::OnlineEstimationProgress& p) {
+      options.progress = [lidar, wheels](const autocal::pipeline::OnlineEstimationProgress& p) {
         if (p.updates % FLAGS_progress_every != 0) return;
         const autocal::sensors::Calibration& c = p.calibration;
         if (!lidar) {
           std::fprintf(stderr,
-                       "%5.1f %%  keyframe %lld  update %.0f ms  radii %.4f %.4f m  track %.4f m  "
-                       "p_I_A [%.3f %.3f %.3f] m\n",
+                       "%5.1f %%  keyframe %lld  update %.0f ms  %s  p_I_A [%.3f %.3f %.3f] m\n",
                        100.0 * p.log_fraction, static_cast<long long>(p.updates), 1e3 * p.update_s,
-                       c.wheel_radius_left_m, c.wheel_radius_right_m, c.track_width_m, c.p_I_A.x(),
-                       c.p_I_A.y(), c.p_I_A.z());
+                       wheels(c).c_str(), c.p_I_A.x(), c.p_I_A.y(), c.p_I_A.z());
           return;
         }
         const Eigen::Vector3d r_deg = autocal::geometry::Log(c.q_I_L) * 180.0 / M_PI;
@@ -104,10 +116,10 @@ int main(int argc, char** argv) {
                 << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
                 << " ms\n";
     } else {
-      std::cout << "keyframe period " << result.keyframe_period_s << " s\nwheel radii (m) "
-                << c.wheel_radius_left_m << " " << c.wheel_radius_right_m << "\ntrack width (m) "
-                << c.track_width_m << "\np_I_A (m)       " << c.p_I_A.transpose() << "\n";
+      std::cout << "keyframe period " << result.keyframe_period_s << " s\nwheels " << wheels(c)
+                << "\np_I_A (m) " << c.p_I_A.transpose() << "\n";
     }
+    for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
     std::cout << "written: " << FLAGS_output
               << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
                  "calibration.yaml, timings.yaml\n";

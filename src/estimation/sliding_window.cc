@@ -67,6 +67,10 @@ bool SlidingWindowEstimator::AddImu(const sensors::ImuSample& sample) {
 bool SlidingWindowEstimator::AddWheel(const sensors::WheelSample& sample) {
   return impl_->AddWheel(sample);
 }
+
+bool SlidingWindowEstimator::AddOdometry(const sensors::OdometrySample& sample) {
+  return impl_->AddOdometry(sample);
+}
 bool SlidingWindowEstimator::AddGnss(const sensors::GnssFix& fix) { return impl_->AddGnss(fix); }
 bool SlidingWindowEstimator::AddGnss(const GnssPosition& position) {
   return impl_->AddGnss(position);
@@ -190,6 +194,14 @@ void SlidingWindowEstimator::Impl::AddCalibrationPriors(
     calibration_priors_.push_back(
         VectorPrior(&x.track_width_m, &m.track_width_m, 1, c.track_width_m, loss));
   }
+  if (e.odometry_speed_scale) {
+    calibration_priors_.push_back(VectorPrior(&x.odometry_speed_scale, &m.odometry_speed_scale, 1,
+                                              c.odometry_speed_scale, loss));
+  }
+  if (e.effective_track) {
+    calibration_priors_.push_back(
+        VectorPrior(&x.effective_track_m, &m.effective_track_m, 1, c.effective_track_m, loss));
+  }
   if (e.vehicle_frame) {
     calibration_priors_.push_back(
         QuaternionPrior(&x.q_I_V, m.q_I_V, c.vehicle_rotation_deg * kDegToRad, loss));
@@ -229,16 +241,35 @@ bool SlidingWindowEstimator::Impl::AddWheel(const sensors::WheelSample& sample) 
     throw Error("SlidingWindowEstimator::AddWheel: non-finite rates at t_ns " +
                 std::to_string(sample.t_ns));
   }
-  if (sample.t_ns <= newest_wheel_ns_) {
+  if (!AcceptWheelStamp(sample.t_ns)) return false;
+  wheel_.push_back(sample);
+  ++counters_.wheel_accepted;
+  return true;
+}
+
+bool SlidingWindowEstimator::Impl::AcceptWheelStamp(int64_t t_ns) {
+  if (t_ns <= newest_wheel_ns_) {
     ++counters_.out_of_order;
     return false;
   }
-  newest_wheel_ns_ = sample.t_ns;
-  if (sample.t_ns <= latest_state().t_ns) {
+  newest_wheel_ns_ = t_ns;
+  if (t_ns <= latest_state().t_ns) {
     ++counters_.late;
     return false;
   }
-  wheel_.push_back(sample);
+  return true;
+}
+
+bool SlidingWindowEstimator::Impl::AddOdometry(const sensors::OdometrySample& sample) {
+  if (!std::isfinite(sample.speed_m_s) || !std::isfinite(sample.yaw_rate_rad_s)) {
+    throw Error("SlidingWindowEstimator::AddOdometry: non-finite speed or yaw rate at t_ns " +
+                std::to_string(sample.t_ns));
+  }
+  if (!options_.wheel.controller_track_m || !(*options_.wheel.controller_track_m > 0.0)) {
+    throw Error("SlidingWindowEstimator::AddOdometry: options.wheel.controller_track_m is not set");
+  }
+  if (!AcceptWheelStamp(sample.t_ns)) return false;
+  odometry_.push_back(sample);
   ++counters_.wheel_accepted;
   return true;
 }

@@ -29,13 +29,15 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
       return {&e->vehicle_frame, &p->vehicle_translation_m};
     case Id::kGnssLeverArm:
       return {&e->gnss_lever_arm, &p->gnss_lever_arm_m};
+    case Id::kOdometrySpeedScale:
+      return {&e->odometry_speed_scale, &p->odometry_speed_scale};
+    case Id::kEffectiveTrack:
+      return {&e->effective_track, &p->effective_track_m};
     case Id::kWheelSpeedScaleLeft:
     case Id::kWheelSpeedScaleRight:
-    case Id::kOdometrySpeedScale:
-    case Id::kEffectiveTrack:
       throw Error(std::string("calibration block ") + sensors::CalibrationBlock(id).key +
                   " is not supported by the sliding window (it takes wheel data as angular "
-                  "rates only)");
+                  "rates or as the odometry's speed and yaw rate)");
     case Id::kWheelTimeOffset:
     case Id::kGnssTimeOffset:
       break;
@@ -48,8 +50,7 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
 bool WindowSupports(sensors::CalibrationBlockId id) {
   using Id = sensors::CalibrationBlockId;
   return id != Id::kWheelSpeedScaleLeft && id != Id::kWheelSpeedScaleRight &&
-         id != Id::kOdometrySpeedScale && id != Id::kEffectiveTrack && id != Id::kWheelTimeOffset &&
-         id != Id::kGnssTimeOffset;
+         id != Id::kWheelTimeOffset && id != Id::kGnssTimeOffset;
 }
 
 bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate) {

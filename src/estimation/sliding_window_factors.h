@@ -57,6 +57,24 @@ sensors::NavState<T> PropagatedState(const sensors::ImuPreintegration& pim, cons
                      geometry::Vector3<T>(Eigen::Map<const geometry::Vector3<T>>(b_a_ptr)));
 }
 
+// The propagated state of ImuPreintegration::Predict (Eq. F7-F8), only as far as the wheel
+// rows see it: they read the velocity in the body frame, R_t^T v_t with R_t = R_k dR and
+// v_t = v_k + g dt + R_k dv, which is dR^T (R_k^T (v_k + g dt) + dv). So a wheel residual is
+// given dR for the attitude and R_k^T (v_k + g dt) + dv for the velocity: no product R_k dR,
+// and no position.
+template <typename T>
+void PropagatedBodyInputs(const sensors::ImuPreintegration& pim, const T* q, const T* v,
+                          const T* b_g, const T* b_a, Eigen::Quaternion<T>* dq,
+                          geometry::Vector3<T>* v_in_k) {
+  using Vec3 = geometry::Vector3<T>;
+  Vec3 dv;
+  pim.CorrectedDeltas<T>(Eigen::Map<const Vec3>(b_g), Eigen::Map<const Vec3>(b_a), dq, &dv,
+                         nullptr);
+  const Vec3 g_dt = (pim.gravity_W() * pim.dt_s()).cast<T>();
+  const Eigen::Map<const Eigen::Quaternion<T>> q_k(q);
+  *v_in_k = q_k.conjugate() * Vec3(Eigen::Map<const Vec3>(v) + g_dt) + dv;
+}
+
 // Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened
 // at the current radii and track width (docs/sliding_window.md, "Wheel rows", Eq. SW1-SW2).
 // The encoder noise s_w enters the wheel speed as w r and the wheel yaw rate as w r / b, and
@@ -97,19 +115,9 @@ class PropagatedWheelResidual {
   bool operator()(const T* q, const T* v, const T* b_g, const T* b_a, const T* q_I_V,
                   const T* p_I_V, const T* r_l, const T* r_r, const T* track_width,
                   T* residual) const {
-    using Vec3 = geometry::Vector3<T>;
-    // The propagated state of ImuPreintegration::Predict (Eq. F7-F8), only as far as the
-    // wheel rows see it: they read the velocity in the body frame, R_t^T v_t with
-    // R_t = R_k dR and v_t = v_k + g dt + R_k dv, which is dR^T (R_k^T (v_k + g dt) + dv).
-    // So the wheel residual is given dR for the attitude and R_k^T (v_k + g dt) + dv for the
-    // velocity: no product R_k dR, and no position.
     Eigen::Quaternion<T> dq;
-    Vec3 dv;
-    pim_.CorrectedDeltas<T>(Eigen::Map<const Vec3>(b_g), Eigen::Map<const Vec3>(b_a), &dq, &dv,
-                            nullptr);
-    const Vec3 g_dt = (pim_.gravity_W() * pim_.dt_s()).cast<T>();
-    const Eigen::Map<const Eigen::Quaternion<T>> q_k(q);
-    const Vec3 v_in_k = q_k.conjugate() * Vec3(Eigen::Map<const Vec3>(v) + g_dt) + dv;
+    geometry::Vector3<T> v_in_k;
+    PropagatedBodyInputs(pim_, q, v, b_g, b_a, &dq, &v_in_k);
     if (!wheel_(dq.coeffs().data(), v_in_k.data(), b_g, q_I_V, p_I_V, r_l, r_r, track_width,
                 residual)) {
       return false;
@@ -160,6 +168,42 @@ class PropagatedWheelFactor final : public ceres::CostFunction {
   double yaw_rate_sigma_rad_s_;
   double encoder_sigma_rad_s_;
   double gyro_sigma_rad_s_;
+};
+
+// Odometry twist residual (Eq. F26) at the propagated state, the counterpart of
+// PropagatedWheelResidual for wheels reported as the controller's speed and yaw rate: their
+// sigmas are the controller's (sensors.yaml), not derived from encoder rates.
+// Parameter blocks: q_W_I, v_W_I, b_g, b_a of the keyframe, then q_I_V, p_I_V, k_v, b_eff.
+class PropagatedOdometryResidual {
+ public:
+  PropagatedOdometryResidual(sensors::ImuPreintegration pim,
+                             const factors::OdometryMeasurement& measurement,
+                             const factors::WheelFactorOptions& options)
+      : pim_(std::move(pim)), odometry_(measurement, options) {}
+
+  static ceres::CostFunction* Create(sensors::ImuPreintegration pim,
+                                     const factors::OdometryMeasurement& measurement,
+                                     const factors::WheelFactorOptions& options) {
+    return new ceres::AutoDiffCostFunction<PropagatedOdometryResidual, ceres::DYNAMIC, 4, 3, 3, 3,
+                                           4, 3, 1, 1>(
+        new PropagatedOdometryResidual(std::move(pim), measurement, options),
+        options.non_holonomic ? 4 : 2);
+  }
+
+  template <typename T>
+  bool operator()(const T* q, const T* v, const T* b_g, const T* b_a, const T* q_I_V,
+                  const T* p_I_V, const T* speed_scale, const T* effective_track,
+                  T* residual) const {
+    Eigen::Quaternion<T> dq;
+    geometry::Vector3<T> v_in_k;
+    PropagatedBodyInputs(pim_, q, v, b_g, b_a, &dq, &v_in_k);
+    return odometry_(dq.coeffs().data(), v_in_k.data(), b_g, q_I_V, p_I_V, speed_scale,
+                     effective_track, residual);
+  }
+
+ private:
+  sensors::ImuPreintegration pim_;
+  factors::OdometryTwistResidual odometry_;
 };
 
 // GNSS residual (Eq. F30) at the propagated state.

@@ -36,6 +36,10 @@ class SlidingWindowEstimator::Impl {
 
   bool AddImu(const sensors::ImuSample& sample);
   bool AddWheel(const sensors::WheelSample& sample);
+  bool AddOdometry(const sensors::OdometrySample& sample);
+  // Counts a wheel stamp (either form) not newer than the newest as out of order and one at or
+  // before the newest keyframe as late; false for both.
+  bool AcceptWheelStamp(int64_t t_ns);
   bool AddGnss(const sensors::GnssFix& fix);
   bool AddGnss(const GnssPosition& position);
   bool AddSweep(lidar::LidarSweep sweep);
@@ -80,8 +84,18 @@ class SlidingWindowEstimator::Impl {
   // of the interval before it.
   void AddKeyframe(int64_t t_ns, std::optional<lidar::LidarSweep> sweep);
   void SetSweepPoints(lidar::LidarSweep sweep, WindowKeyframe* kf) const;
-  // Wheel and GNSS factors for the buffered samples in (from, t_end_ns], attached to `from`.
+  // Wheel (angular rates or odometry) and GNSS factors for the buffered samples in
+  // (from, t_end_ns], attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
+  void AttachWheelFactors(WindowKeyframe* from, int64_t t_end_ns);
+  void AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns);
+  sensors::GyroMean GyroAround(int64_t t_ns) const;
+  factors::WheelFactorOptions NonHolonomicRows(factors::WheelFactorOptions options, size_t used,
+                                               int64_t t_from_ns, int64_t t_end_ns) const;
+  template <typename Sample>
+  std::vector<Sample> TakeThinned(std::deque<Sample>* queue, int64_t t_end_ns) const;
+  template <typename Sample, typename Make>
+  void AttachPropagated(WindowKeyframe* from, const std::vector<Sample>& used, Make make) const;
   void RelinearizeImuFactors();
   // Refreshes the plane maps that moved and makes the pairing tries that are missing or stale
   // (SweepPairing).
@@ -123,6 +137,7 @@ class SlidingWindowEstimator::Impl {
 
   sensors::ImuSamples imu_;  // from the oldest window keyframe on
   std::deque<sensors::WheelSample> wheel_;
+  std::deque<sensors::OdometrySample> odometry_;
   std::deque<GnssPosition> gnss_;
   std::deque<lidar::LidarSweep> pending_sweeps_;
   std::deque<int64_t> pending_times_;  // AddKeyframeAt

@@ -67,6 +67,125 @@ void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
   kf->sweep = std::move(sweep);
 }
 
+// The mean gyro over the span around t_ns (wheel_rows.gyro_mean_span_s) and how many samples
+// it averaged; the interpolated sample when the span holds none.
+sensors::GyroMean SlidingWindowEstimator::Impl::GyroAround(int64_t t_ns) const {
+  const int64_t half_span_ns = SecondsToNs(0.5 * options_.wheel_rows.gyro_mean_span_s);
+  sensors::GyroMean gyro = sensors::MeanGyro(imu_, t_ns - half_span_ns, t_ns + half_span_ns);
+  if (gyro.samples == 0) gyro.rate_rad_s = sensors::InterpolateImu(imu_, t_ns).gyro_rad_s;
+  return gyro;
+}
+
+// The wheel rows' options with the non-holonomic sigma scaled for the spacing of `used`
+// samples over (t_from, t_end].
+factors::WheelFactorOptions SlidingWindowEstimator::Impl::NonHolonomicRows(
+    factors::WheelFactorOptions options, size_t used, int64_t t_from_ns, int64_t t_end_ns) const {
+  const double non_holonomic_sigma_m_s =
+      options_.wheel_rows.non_holonomic_sigma_m_s *
+      NonHolonomicSigmaScale(
+          options_.wheel_rows.non_holonomic_correlation_s,
+          used == 0 ? 0.0 : NsToSeconds(t_end_ns - t_from_ns) / static_cast<double>(used));
+  options.non_holonomic = options_.wheel_rows.non_holonomic;
+  options.lateral_sigma_m_s = non_holonomic_sigma_m_s;
+  options.vertical_sigma_m_s = non_holonomic_sigma_m_s;
+  return options;
+}
+
+// Samples of `queue` up to t_end_ns, taken out of it and evenly thinned.
+template <typename Sample>
+std::vector<Sample> SlidingWindowEstimator::Impl::TakeThinned(std::deque<Sample>* queue,
+                                                              int64_t t_end_ns) const {
+  std::vector<Sample> taken;
+  while (!queue->empty() && queue->front().t_ns <= t_end_ns) {
+    taken.push_back(queue->front());
+    queue->pop_front();
+  }
+  std::vector<int> all(taken.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  std::vector<Sample> used;
+  for (int i : internal::Thin(all, options_.wheel_rows.max_samples_per_interval)) {
+    used.push_back(taken[static_cast<size_t>(i)]);
+  }
+  return used;
+}
+
+// One factor per sample of `used`, at the state propagated from `from` to the sample's time:
+// make(pim, sample) builds it from the preintegration up to there.
+template <typename Sample, typename Make>
+void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
+                                                    const std::vector<Sample>& used,
+                                                    Make make) const {
+  const SlidingWindowState& s = from->state;
+  sensors::PreintegrationOptions preintegration;
+  preintegration.gravity_m_s2 = options_.imu.gravity_m_s2;
+  sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
+  int64_t integrated_to_ns = s.t_ns;
+  for (const Sample& sample : used) {
+    pim.Integrate(imu_, integrated_to_ns, sample.t_ns);
+    integrated_to_ns = sample.t_ns;
+    from->factors.push_back(make(pim, sample));
+  }
+}
+
+void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int64_t t_end_ns) {
+  SlidingWindowState& s = from->state;
+  sensors::Calibration& c = calibration_;
+  const std::vector<sensors::WheelSample> used = TakeThinned(&wheel_, t_end_ns);
+  const factors::WheelFactorOptions wheel_options = NonHolonomicRows(
+      factors::WheelFactorOptions::FromEncoderNoise(
+          options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
+      used.size(), s.t_ns, t_end_ns);
+  const double gyro_sample_sigma_rad_s =
+      options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
+  AttachPropagated(
+      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
+        factors::WheelMeasurement m;
+        m.left_rad_s = w.left_rad_s;
+        m.right_rad_s = w.right_rad_s;
+        const sensors::GyroMean gyro = GyroAround(w.t_ns);
+        m.gyro_rad_s = gyro.rate_rad_s;
+        AttachedFactor f;
+        f.cost = std::make_unique<internal::PropagatedWheelFactor>(
+            pim, m, wheel_options, options_.wheel.noise_rad_s,
+            gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples)));
+        f.loss = wheel_loss_.get();
+        f.linearized_per_pass = "a wheel factor";
+        f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};
+        for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
+                          &c.wheel_radius_right_m, &c.track_width_m}) {
+          f.blocks.push_back(b);
+        }
+        return f;
+      });
+}
+
+void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns) {
+  SlidingWindowState& s = from->state;
+  sensors::Calibration& c = calibration_;
+  const std::vector<sensors::OdometrySample> used = TakeThinned(&odometry_, t_end_ns);
+  const factors::WheelFactorOptions options =
+      NonHolonomicRows(factors::WheelFactorOptions::FromOdometryNoise(options_.wheel), used.size(),
+                       s.t_ns, t_end_ns);
+  AttachPropagated(
+      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::OdometrySample& o) {
+        factors::OdometryMeasurement m;
+        m.speed_m_s = o.speed_m_s;
+        m.yaw_rate_rad_s = o.yaw_rate_rad_s;
+        m.controller_track_m = *options_.wheel.controller_track_m;
+        m.gyro_rad_s = GyroAround(o.t_ns).rate_rad_s;
+        AttachedFactor f;
+        f.cost.reset(internal::PropagatedOdometryResidual::Create(pim, m, options));
+        f.loss = wheel_loss_.get();
+        f.linearized_per_pass = "an odometry factor";
+        f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};
+        for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
+                          &c.effective_track_m}) {
+          f.blocks.push_back(b);
+        }
+        return f;
+      });
+}
+
 void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* from,
                                                               int64_t t_end_ns) {
   sensors::PreintegrationOptions preintegration;
@@ -74,60 +193,12 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
 
-  // Wheel samples of (t_from, t_end], evenly thinned.
-  std::vector<sensors::WheelSample> wheel;
-  while (!wheel_.empty() && wheel_.front().t_ns <= t_end_ns) {
-    wheel.push_back(wheel_.front());
-    wheel_.pop_front();
-  }
-  std::vector<int> all(wheel.size());
-  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
-  factors::WheelFactorOptions wheel_options = factors::WheelFactorOptions::FromEncoderNoise(
-      options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m);
-  const double gyro_sample_sigma_rad_s =
-      options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
-  const std::vector<int> used = internal::Thin(all, options_.wheel_rows.max_samples_per_interval);
-  // The non-holonomic sigma scaled for the spacing of the samples used.
-  const double non_holonomic_sigma_m_s =
-      options_.wheel_rows.non_holonomic_sigma_m_s *
-      NonHolonomicSigmaScale(
-          options_.wheel_rows.non_holonomic_correlation_s,
-          used.empty() ? 0.0 : NsToSeconds(t_end_ns - s.t_ns) / static_cast<double>(used.size()));
-  wheel_options.non_holonomic = options_.wheel_rows.non_holonomic;
-  wheel_options.lateral_sigma_m_s = non_holonomic_sigma_m_s;
-  wheel_options.vertical_sigma_m_s = non_holonomic_sigma_m_s;
-  sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
-  int64_t integrated_to_ns = s.t_ns;
-  for (int i : used) {
-    const sensors::WheelSample& w = wheel[static_cast<size_t>(i)];
-    pim.Integrate(imu_, integrated_to_ns, w.t_ns);
-    integrated_to_ns = w.t_ns;
-    factors::WheelMeasurement m;
-    m.left_rad_s = w.left_rad_s;
-    m.right_rad_s = w.right_rad_s;
-    // The mean gyro over the span around the wheel sample (wheel_rows.gyro_mean_span_s).
-    const int64_t half_span_ns = SecondsToNs(0.5 * options_.wheel_rows.gyro_mean_span_s);
-    const sensors::GyroMean gyro =
-        sensors::MeanGyro(imu_, w.t_ns - half_span_ns, w.t_ns + half_span_ns);
-    m.gyro_rad_s =
-        gyro.samples > 0 ? gyro.rate_rad_s : sensors::InterpolateImu(imu_, w.t_ns).gyro_rad_s;
-    AttachedFactor f;
-    f.cost = std::make_unique<internal::PropagatedWheelFactor>(
-        pim, m, wheel_options, options_.wheel.noise_rad_s,
-        gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples)));
-    f.loss = wheel_loss_.get();
-    f.linearized_per_pass = "a wheel factor";
-    f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};
-    for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
-                      &c.wheel_radius_right_m, &c.track_width_m}) {
-      f.blocks.push_back(b);
-    }
-    from->factors.push_back(std::move(f));
-  }
+  AttachWheelFactors(from, t_end_ns);
+  AttachOdometryFactors(from, t_end_ns);
 
   // GNSS fixes of (t_from, t_end].
   sensors::ImuPreintegration gnss_pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
-  integrated_to_ns = s.t_ns;
+  int64_t integrated_to_ns = s.t_ns;
   while (!gnss_.empty() && gnss_.front().t_ns <= t_end_ns) {
     const GnssPosition g = gnss_.front();
     gnss_.pop_front();

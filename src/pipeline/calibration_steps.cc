@@ -114,14 +114,6 @@ std::vector<int64_t> WheelStamps(const io::Dataset& dataset) {
   return Stamps(dataset.wheel);
 }
 
-// The separation b_ctrl the odometry's controller divides by: sensors.yaml's
-// controller_track_m, else the nominal effective track (the nominal yaw-rate scale is then 1).
-double ControllerTrackM(const io::Dataset& dataset, const sensors::Calibration& nominal) {
-  const std::optional<sensors::WheelConfig>& config = dataset.sensors.wheel;
-  return config && config->controller_track_m ? *config->controller_track_m
-                                              : nominal.effective_track_m;
-}
-
 // The wheel form's samples for estimation::AddWheelFactors.
 estimation::WheelData FormData(const io::Dataset& dataset, const sensors::Calibration& nominal) {
   estimation::WheelData data;
@@ -176,6 +168,12 @@ bool IsGnssCost(const ceres::CostFunction* f) {
 }
 
 }  // namespace
+
+double ControllerTrackM(const io::Dataset& dataset, const sensors::Calibration& nominal) {
+  const std::optional<sensors::WheelConfig>& config = dataset.sensors.wheel;
+  return config && config->controller_track_m ? *config->controller_track_m
+                                              : nominal.effective_track_m;
+}
 
 factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
                                        const sensors::Calibration& nominal) {
@@ -313,7 +311,18 @@ void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gn
         " ns (the log's last is at " + std::to_string(samples.empty() ? 0 : samples.back().t_ns) +
         " ns); nothing was estimated");
   };
-  require(use_wheel, dataset.wheel, "wheel.csv");
+  const char* wheel_file = sensors::WheelFormFile(dataset.wheel_form());
+  switch (dataset.wheel_form()) {
+    case sensors::WheelForm::kAngularRates:
+      require(use_wheel, dataset.wheel, wheel_file);
+      break;
+    case sensors::WheelForm::kLinearSpeeds:
+      require(use_wheel, dataset.wheel_speeds, wheel_file);
+      break;
+    case sensors::WheelForm::kSpeedYawRate:
+      require(use_wheel, dataset.odometry, wheel_file);
+      break;
+  }
   require(use_gnss, dataset.gnss, "gnss.csv");
 }
 
@@ -327,7 +336,8 @@ void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use
                 " samples after the initial state, in order and not late); nothing was "
                 "estimated");
   };
-  require(use_wheel, counters.wheel_accepted, dataset.wheel.size(), "wheel", "wheel.csv");
+  require(use_wheel, counters.wheel_accepted, dataset.wheel_sample_count(), "wheel",
+          sensors::WheelFormFile(dataset.wheel_form()));
   require(use_gnss, counters.gnss_accepted, dataset.gnss.size(), "GNSS", "gnss.csv");
 }
 

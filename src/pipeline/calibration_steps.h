@@ -89,6 +89,10 @@ void ApplyTimingLimits(const TimingLimits& timing,
 factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
                                        const sensors::Calibration& nominal);
 
+// b_ctrl of the odometry twist: sensors.yaml's wheel.controller_track_m, else the nominal
+// effective track.
+double ControllerTrackM(const io::Dataset& dataset, const sensors::Calibration& nominal);
+
 struct SensorFactors {
   const io::Dataset* dataset = nullptr;
   const io::Problem* problem = nullptr;

@@ -176,7 +176,7 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
 
 // One datum of the log at its arrival time: which stream, which sample (for a keyframe time,
 // none: the time is the arrival's).
-enum class Source { kImu, kWheel, kGnss, kSweep, kKeyframeTime };
+enum class Source { kImu, kWheel, kOdometry, kGnss, kSweep, kKeyframeTime };
 struct Arrival {
   int64_t t_ns;
   Source source;
@@ -200,6 +200,10 @@ std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bo
   }
   for (size_t i = 0; use_wheel && i < dataset.wheel.size(); ++i) {
     if (dataset.wheel[i].t_ns > t0_ns) out.push_back({dataset.wheel[i].t_ns, Source::kWheel, i});
+  }
+  for (size_t i = 0; use_wheel && i < dataset.odometry.size(); ++i) {
+    const int64_t t = dataset.odometry[i].t_ns;
+    if (t > t0_ns) out.push_back({t, Source::kOdometry, i});
   }
   for (size_t i = 0; use_gnss && i < dataset.gnss.size(); ++i) {
     if (dataset.gnss[i].t_ns > t0_ns) out.push_back({dataset.gnss[i].t_ns, Source::kGnss, i});
@@ -238,6 +242,9 @@ void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
         break;
       case Source::kWheel:
         estimator->AddWheel(dataset.wheel[a.index]);
+        break;
+      case Source::kOdometry:
+        estimator->AddOdometry(dataset.odometry[a.index]);
         break;
       case Source::kGnss:
         estimator->AddGnss(dataset.gnss[a.index]);
@@ -391,13 +398,21 @@ std::string CalibrationOverTimeCsv(const std::vector<CalibrationSample>& samples
 
 }  // namespace
 
-OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const io::Problem& problem,
+OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& log, const io::Problem& problem_in,
                                              const OnlineEstimationOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  io::ValidateProblemForDataset(problem, dataset);
-  CheckOnlineInputs(dataset, problem, options);
+  io::ValidateProblemForDataset(problem_in, log);
+  CheckOnlineInputs(log, problem_in, options);
+  // Without the LiDAR the window reads the wheels and GNSS on the IMU clock, its mount from
+  // the data.
+  io::Problem problem = problem_in;
+  sensors::Calibration applied = log.sensors.nominal_calibration;
+  std::vector<std::string> start_warnings;
+  const io::Dataset shifted =
+      problem.sensors.lidar ? io::Dataset() : OnImuClock(log, &problem, &applied, &start_warnings);
+  const io::Dataset& dataset = problem.sensors.lidar ? log : shifted;
   const bool use_lidar = problem.sensors.lidar;
-  const bool use_wheel = problem.sensors.wheel && !dataset.wheel.empty();
+  const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   estimation::SlidingWindowOptions window_options =
       WindowOptions(dataset, problem, use_wheel, use_gnss, options);
@@ -441,8 +456,12 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const i
       CollectResult(window_options, use_lidar, &estimator, &result);
   FillWindowObservability(dataset, problem, window_options, use_wheel, use_gnss, covariance,
                           &result.calibration.uncertainty);
-  if (!use_lidar)
+  if (!use_lidar) {
     result.calibration.solver["keyframe_period_s"] = FormatSeconds(keyframe_period_ns);
+    result.calibration.value.time_offset_wheel_imu_s = applied.time_offset_wheel_imu_s;
+    result.calibration.value.time_offset_gnss_imu_s = applied.time_offset_gnss_imu_s;
+    result.warnings = start_warnings;
+  }
   result.seconds_total = SecondsSince(start);
   return result;
 }

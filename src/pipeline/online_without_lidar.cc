@@ -1,6 +1,7 @@
 #include "online_without_lidar.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -8,6 +9,9 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/sensors/gnss_enu.h"
+#include "calibration_steps.h"
+#include "clock_initialization.h"
+#include "problem_blocks.h"
 
 namespace autocal {
 namespace pipeline {
@@ -17,7 +21,45 @@ namespace {
 constexpr double kMinKeyframePeriodS = 0.05;
 constexpr double kMaxKeyframePeriodS = 0.5;
 
+// The samples' stamps moved by offset_s.
+template <typename Samples>
+void Shift(double offset_s, Samples* samples) {
+  const int64_t shift_ns = SecondsToNs(offset_s);
+  for (auto& s : *samples) s.t_ns += shift_ns;
+}
+
 }  // namespace
+
+io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
+                       sensors::Calibration* applied, std::vector<std::string>* warnings) {
+  *applied = dataset.sensors.nominal_calibration;
+  io::Dataset out = dataset;
+  InitializeMountAndClocks(
+      dataset, *problem, MaxNominalMountDeg(*problem, dataset.sensors, OfflineCalibrationOptions()),
+      applied, &out.sensors.nominal_calibration, warnings);
+  out.sensors.nominal_calibration.q_I_V = applied->q_I_V;
+  const auto apply = [&](double offset_s, io::ScalarBlockSetting* setting, const char* sensor) {
+    if (offset_s == 0.0 && !Estimated(setting->mode)) return;
+    char text[240];
+    std::snprintf(
+        text, sizeof(text),
+        "the %s-IMU time offset is held at %.1f ms by the online estimator (%s; "
+        "it is not refined while streaming)",
+        sensor, offset_s * 1e3,
+        Estimated(setting->mode) ? "initialized by cross-correlation" : "the nominal one");
+    warnings->push_back(text);
+    setting->mode = io::BlockMode::kFixed;
+  };
+  apply(applied->time_offset_wheel_imu_s, &problem->calibration.time_offset_wheel_imu_s, "wheel");
+  apply(applied->time_offset_gnss_imu_s, &problem->calibration.time_offset_gnss_imu_s, "GNSS");
+  Shift(applied->time_offset_wheel_imu_s, &out.wheel);
+  Shift(applied->time_offset_wheel_imu_s, &out.wheel_speeds);
+  Shift(applied->time_offset_wheel_imu_s, &out.odometry);
+  Shift(applied->time_offset_gnss_imu_s, &out.gnss);
+  out.sensors.nominal_calibration.time_offset_wheel_imu_s = 0.0;
+  out.sensors.nominal_calibration.time_offset_gnss_imu_s = 0.0;
+  return out;
+}
 
 int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
                                    const OnlineEstimationOptions& options) {

@@ -5,6 +5,8 @@
 // and the IMU, which takes the LiDAR-IMU initializer's.
 
 #include <cstdint>
+#include <string>
+#include <vector>
 
 #include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/sliding_window_options.h"
@@ -21,6 +23,17 @@ namespace pipeline {
 // no interval to measure.
 int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
                                    const OnlineEstimationOptions& options);
+
+// The log as the window without the LiDAR reads it (docs/sliding_window.md, "Clocks and mount
+// without the LiDAR"): the IMU mount and the wheel and GNSS clock offsets from the data as the
+// offline calibration initializes them (InitializeMountAndClocks: a nominal mount that is no
+// guess replaced by the data's; an offset the problem estimates from the cross-correlation,
+// else the nominal one), then the wheel and GNSS stamps moved onto the IMU clock
+// (t_imu = t + offset) and the offsets in the copy's nominal calibration zeroed. The window
+// holds the offsets: *problem has them fixed, *applied keeps them for the result, and
+// *warnings says so.
+io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
+                       sensors::Calibration* applied, std::vector<std::string>* warnings);
 
 // Keyframes every period_ns over the first options.initialization_duration_s of the span the
 // IMU and the fixes share, placed on the GNSS track and refined with the IMU and the wheels

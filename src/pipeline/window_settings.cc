@@ -21,15 +21,16 @@ namespace {
 // axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that share a
 // switch are estimated when one of them is, and the radii share the wider sigma.
 void SetWindowBlocks(const io::ProblemCalibration& problem,
-                     const io::CalibrationUncertainty& nominal, bool use_wheel, bool use_gnss,
-                     estimation::SlidingWindowOptions* w) {
+                     const io::CalibrationUncertainty& nominal, sensors::WheelForm form,
+                     bool use_wheel, bool use_gnss, estimation::SlidingWindowOptions* w) {
   estimation::SlidingWindowOptions defaults = *w;
   estimation::SlidingWindowBlockSetting previous{nullptr, nullptr};
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     // The wheel forms the window cannot take are refused in WindowOptions.
     if (!estimation::WindowSupports(info.id)) continue;
     const BlockSetting s = SettingOf(info.id, problem, nominal);
-    const bool estimated = SensorUsed(info, use_wheel, use_gnss) && Estimated(s.mode);
+    const bool estimated = SensorUsed(info, use_wheel, use_gnss) &&
+                           sensors::BlockInWheelForm(info.id, form) && Estimated(s.mode);
     const double default_sigma =
         *estimation::BlockSettingOf(info.id, &defaults.estimate, &defaults.calibration_prior)
              .prior_sigma;
@@ -92,9 +93,10 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
                 ": the online estimator estimates both wheel radii "
                 "or neither; the problem fixes only one");
   }
-  if (use_wheel && dataset.wheel_form() != sensors::WheelForm::kAngularRates) {
+  if (use_wheel && dataset.wheel_form() == sensors::WheelForm::kLinearSpeeds) {
     throw Error(std::string("dataset ") + dataset.directory + ": the online estimator takes " +
-                "wheel data as angular rates (wheel.csv) only, this dataset's are " +
+                "wheel data as angular rates (wheel.csv) or as the odometry's speed and yaw rate " +
+                "(odometry.csv), this dataset's are " +
                 sensors::WheelFormName(dataset.wheel_form()) + " (" +
                 sensors::WheelFormFile(dataset.wheel_form()) + ")");
   }
@@ -102,6 +104,9 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   estimation::SlidingWindowOptions w = options.window;
   w.imu = dataset.sensors.imu;
   if (dataset.sensors.wheel) w.wheel = *dataset.sensors.wheel;
+  if (dataset.wheel_form() == sensors::WheelForm::kSpeedYawRate) {
+    w.wheel.controller_track_m = ControllerTrackM(dataset, dataset.sensors.nominal_calibration);
+  }
   w.loss = problem.loss;
   w.window_size = problem.window_size;
   w.solver.max_iterations = problem.solver.max_iterations;
@@ -120,8 +125,8 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's
   // values only start the window.
   w.calibration_prior.mean = dataset.sensors.nominal_calibration;
-  SetWindowBlocks(problem.calibration, dataset.sensors.nominal_uncertainty, use_wheel, use_gnss,
-                  &w);
+  SetWindowBlocks(problem.calibration, dataset.sensors.nominal_uncertainty, dataset.wheel_form(),
+                  use_wheel, use_gnss, &w);
   return w;
 }
 

@@ -15,13 +15,14 @@ using Id = sensors::CalibrationBlockId;
 
 // Every block of angular-rate wheels has a setting; the blocks of the other wheel forms and
 // the wheel and GNSS clocks are refused by name, and never count as estimated.
-TEST(SlidingWindowBlocks, TheWheelFormBlocksAreNotSupportedYet) {
+// The window takes wheels as angular rates or as the odometry's twist: the linear wheel
+// speeds' scales and the clock offsets (held by the pipeline) are not its blocks.
+TEST(SlidingWindowBlocks, TheLinearSpeedScalesAndClocksAreNotSupported) {
   SlidingWindowEstimatedBlocks estimate;
   SlidingWindowCalibrationPrior prior;
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     const bool other_form = info.id == Id::kWheelSpeedScaleLeft ||
                             info.id == Id::kWheelSpeedScaleRight ||
-                            info.id == Id::kOdometrySpeedScale || info.id == Id::kEffectiveTrack ||
                             info.id == Id::kWheelTimeOffset || info.id == Id::kGnssTimeOffset;
     EXPECT_EQ(WindowSupports(info.id), !other_form) << info.key;
     if (!other_form) {

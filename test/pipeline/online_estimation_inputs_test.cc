@@ -139,6 +139,31 @@ TEST(OnlineEstimationInputs, RefusesClockOffsetsTheWindowCannotApply) {
   }
 }
 
+// Without the LiDAR the window reads the wheels and fixes moved onto the IMU clock by the
+// stated offsets (t_imu = t + offset), and says that it holds them.
+TEST(OnlineEstimationInputs, WithoutTheLidarTheStatedClockOffsetsMoveTheStamps) {
+  io::Dataset dataset = Logged(2.0);
+  dataset.sensors.nominal_calibration.time_offset_wheel_imu_s = 0.25;
+  dataset.sensors.nominal_calibration.time_offset_gnss_imu_s = -0.1;
+  io::Problem problem;
+  problem.sensors.lidar = false;
+  problem.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
+  sensors::Calibration applied;
+  std::vector<std::string> warnings;
+  const io::Dataset moved = OnImuClock(dataset, &problem, &applied, &warnings);
+  ASSERT_EQ(moved.wheel.size(), dataset.wheel.size());
+  EXPECT_EQ(moved.wheel.front().t_ns, dataset.wheel.front().t_ns + 250'000'000);
+  EXPECT_EQ(moved.gnss.back().t_ns, dataset.gnss.back().t_ns - 100'000'000);
+  EXPECT_EQ(moved.sensors.nominal_calibration.time_offset_wheel_imu_s, 0.0);
+  EXPECT_EQ(moved.sensors.nominal_calibration.time_offset_gnss_imu_s, 0.0);
+  EXPECT_EQ(applied.time_offset_wheel_imu_s, 0.25);
+  EXPECT_EQ(applied.time_offset_gnss_imu_s, -0.1);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_THAT(warnings[0], HasSubstr("wheel-IMU time offset is held at 250.0 ms"));
+  EXPECT_THAT(warnings[1], HasSubstr("GNSS-IMU time offset is held at -100.0 ms"));
+  EXPECT_NO_THROW(WindowOptions(moved, problem, true, true, OnlineEstimationOptions()));
+}
+
 }  // namespace
 }  // namespace pipeline
 }  // namespace autocal

@@ -183,6 +183,38 @@ TEST(OnlineEstimationWithoutLidar, KeyframesFollowASlowGnssRate) {
   ExpectWithinSigmas(result, dataset, data.simulator.true_calibration());
 }
 
+// The same drive with the wheels reported as the controller's speed and yaw rate
+// (odometry.csv, test::UseOdometryTwist): the window estimates the speed scale k_v and the
+// effective track b_eff (Eq. F26) within their sigmas, each sigma under a third of its default
+// prior (3 %, 0.5 m).
+TEST(OnlineEstimationWithoutLidar, EstimatesTheOdometrysSpeedScaleAndEffectiveTrack) {
+  sim::SimulationOptions options = DriveWithoutLidar();
+  test::UseOdometryTwist(&options);
+  const test::SimulatedUrbanDataset data(options, "urban_45s_no_lidar_odometry");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  ASSERT_EQ(dataset.wheel_form(), sensors::WheelForm::kSpeedYawRate);
+  const OnlineEstimationResult result = EstimateDatasetOnline(dataset, ProblemWithoutLidar());
+  const sensors::Calibration& truth = data.simulator.true_calibration();
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  EXPECT_GT(result.counters.wheel_accepted, 4000);
+  ExpectCovered("odometry speed scale", estimate.odometry_speed_scale, truth.odometry_speed_scale,
+                u.odometry_speed_scale.sigma, 0.03 / 3.0);
+  ExpectCovered("effective track (m)", estimate.effective_track_m, truth.effective_track_m,
+                u.effective_track_m.sigma, 0.5 / 3.0);
+  // The angular-rate blocks take no part.
+  const sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
+  EXPECT_EQ(estimate.wheel_radius_left_m, nominal.wheel_radius_left_m);
+  EXPECT_EQ(estimate.track_width_m, nominal.track_width_m);
+  EXPECT_FALSE(u.wheel_radius_left_m.sigma.has_value());
+  const evaluation::TrajectoryErrors ate =
+      evaluation::CompareTrajectory(result.trajectory, dataset.groundtruth_trajectory);
+  std::cout << "ATE " << ate.ate_translation_rmse_m << " m / " << ate.ate_rotation_rmse_deg
+            << " deg\n";
+  EXPECT_LT(ate.ate_translation_rmse_m, 0.1);
+  EXPECT_LT(ate.ate_rotation_rmse_deg, 0.5);
+}
+
 TEST_F(OnlineEstimationWithoutLidarTest, NamesWhatIsMissing) {
   const io::Dataset full = io::ReadDataset(data_->directory);
   io::Problem no_gnss = ProblemWithoutLidar();

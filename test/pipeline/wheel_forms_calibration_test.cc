@@ -48,18 +48,12 @@ void ExpectCovered(const char* name, double estimate, double truth, const io::Sc
   EXPECT_TRUE(*u.observable) << name;
 }
 
-// Odometry twist that reports 3 % too much speed and divides by the physical track of a
-// vehicle whose effective track is 1.2 times that (b_ctrl = the nominal 1.60 m, b_eff =
-// 1.92 m): k_v and b_eff come back within their sigma, 0.1 % and 5 mm at most (the
-// observability limits of the speed scales and the track, problem_blocks.cc).
+// Odometry twist (test::UseOdometryTwist): k_v and b_eff come back within their sigma, 0.1 %
+// and 5 mm at most (the observability limits of the speed scales and the track,
+// problem_blocks.cc).
 TEST(WheelFormsCalibration, OdometryTwistGivesSpeedScaleAndEffectiveTrack) {
   sim::SimulationOptions options = UrbanWithoutLidar(sensors::WheelForm::kSpeedYawRate);
-  options.true_calibration.odometry_speed_scale = 0.97;
-  options.true_calibration.effective_track_m = 1.92;
-  // The noise the default encoders (0.02 rad/s per wheel, r = 0.33 m, b = 1.6 m) give through
-  // the controller's formulas: r 0.02 / sqrt(2) m/s and r 0.02 sqrt(2) / b rad/s.
-  options.wheel.config.noise_m_s = 0.0047;
-  options.wheel.config.yaw_rate_noise_rad_s = 0.0058;
+  test::UseOdometryTwist(&options);
   const test::SimulatedUrbanDataset data(options, "wheel_twist");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   ASSERT_EQ(dataset.wheel_form(), sensors::WheelForm::kSpeedYawRate);

@@ -104,7 +104,10 @@ struct OnlineEstimationResult {
   std::vector<estimation::SlidingWindowState> states;
   std::vector<CalibrationSample> calibration_over_time;
   estimation::SlidingWindowCounters counters;
-  sensors::Calibration initial;    // the calibration the window started from
+  sensors::Calibration initial;  // the calibration the window started from
+  // Plain-language findings of the start: the clock offsets the window holds, a nominal mount
+  // replaced by the data's.
+  std::vector<std::string> warnings;
   double keyframe_period_s = 0.0;  // without the LiDAR; 0 with it (keyframes are sweeps)
   double seconds_total = 0.0;
   double seconds_initialization = 0.0;  // of seconds_total: loading its sweeps, the initializer
