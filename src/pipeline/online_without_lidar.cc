@@ -34,10 +34,19 @@ io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
                        sensors::Calibration* applied, std::vector<std::string>* warnings) {
   *applied = dataset.sensors.nominal_calibration;
   io::Dataset out = dataset;
-  InitializeMountAndClocks(
+  const ClockInitialization initialization = InitializeMountAndClocks(
       dataset, *problem, MaxNominalMountDeg(*problem, dataset.sensors, OfflineCalibrationOptions()),
       applied, &out.sensors.nominal_calibration, warnings);
-  out.sensors.nominal_calibration.q_I_V = applied->q_I_V;
+  // The mount's prior centre with gravity's roll and pitch (Eq. C4), as offline.
+  sensors::Calibration scratch = out.sensors.nominal_calibration;
+  std::vector<estimation::EstimatedBlock> blocks =
+      EstimatedBlocks(*problem, out.sensors, OfflineCalibrationOptions(), problem->sensors.wheel,
+                      problem->sensors.gnss, &scratch);
+  FuseUpAxisIntoMountPrior(initialization, *problem,
+                           estimation::GnssInertialKeyframesOptions().accel_bias_prior_sigma_m_s2,
+                           dataset.sensors.imu.gravity_m_s2, &blocks,
+                           &out.sensors.nominal_calibration);
+  applied->q_I_V = out.sensors.nominal_calibration.q_I_V;
   const auto apply = [&](double offset_s, io::ScalarBlockSetting* setting, const char* sensor) {
     if (offset_s == 0.0 && !Estimated(setting->mode)) return;
     char text[240];

@@ -27,8 +27,9 @@ int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
 // The log as the window without the LiDAR reads it (docs/sliding_window.md, "Clocks and mount
 // without the LiDAR"): the IMU mount and the wheel and GNSS clock offsets from the data as the
 // offline calibration initializes them (InitializeMountAndClocks: a nominal mount that is no
-// guess replaced by the data's; an offset the problem estimates from the cross-correlation,
-// else the nominal one), then the wheel and GNSS stamps moved onto the IMU clock
+// guess replaced by the data's, its roll and pitch centred on gravity's (Eq. C4); an offset
+// the problem estimates from the cross-correlation, else the nominal one), then the wheel and
+// GNSS stamps moved onto the IMU clock
 // (t_imu = t + offset) and the offsets in the copy's nominal calibration zeroed. The window
 // holds the offsets: *problem has them fixed, *applied keeps them for the result, and
 // *warnings says so.
