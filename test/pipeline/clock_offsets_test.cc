@@ -103,12 +103,13 @@ TEST_F(ClockOffsetsTest, GnssOffsetWithoutWheelsKeepsTheNominalWithAWarning) {
   EXPECT_THAT(warnings[0], ::testing::HasSubstr("no wheel data"));
 }
 
-// The solve refines both offsets, with sigma and observability. The estimated states carry a
-// few milliseconds of their own whatever the clocks: on the drive with aligned clocks the
-// estimates are +4.6 ms and +0.7 ms, 18 and 4 of their sigmas (with the true keyframes the same
-// factors find both offsets within 0.04 ms, estimation_keyframe_sensor_factors_test), so the
-// shift each offset measures, the estimate on the offset drive less the one on the aligned
-// drive, is what is held to the sigma.
+// The solve refines both offsets, with sigma and observability. Estimated together they carry
+// a few milliseconds of their own whatever the clocks: on the drive with aligned clocks the
+// estimates are about +3.6 ms and +5.2 ms, 4 and 5 of their sigmas (18 and 4 before the
+// line's slope of Eq. K9b; with the true keyframes the same factors find both offsets within
+// 0.04 ms, estimation_keyframe_sensor_factors_test), so the shift each offset measures, the
+// estimate on the offset drive less the one on the aligned drive, is what is held to the
+// sigma.
 TEST_F(ClockOffsetsTest, CalibratesBothOffsetsWithSigmaInCalibrationYaml) {
   const io::Dataset dataset = io::ReadDataset(data_->directory);
   const OfflineCalibrationResult result = CalibrateDataset(dataset, ClockProblem());
