@@ -12,6 +12,7 @@
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/wheel_factor.h"
+#include "estimation/robust_statistics.h"
 #include "estimation/time_offset_factors.h"
 #include "problem_blocks.h"
 
@@ -299,6 +300,36 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
   estimation::AddBlockPriors(*blocks, problem->loss.prior, p);
 }
 
+std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows, bool alike_rows) {
+  std::map<std::string, double> out;
+  if (rows.empty()) return out;
+  const double rows_n = static_cast<double>(rows.size());
+  double sum = 0.0;
+  for (double r : rows) sum += r * r;
+  out["rows"] = rows_n;
+  out["whitened_rms"] = std::sqrt(sum / rows_n);
+  if (!alike_rows) return out;
+  std::vector<double> magnitudes;
+  magnitudes.reserve(rows.size());
+  for (double r : rows) magnitudes.push_back(std::abs(r));
+  const double robust_sigma = 1.4826 * estimation::internal::Median(magnitudes);
+  double inlier_sum = 0.0;
+  size_t outliers = 0;
+  for (double r : rows) {
+    if (std::abs(r) > kOutlierRobustSigmas * robust_sigma) {
+      ++outliers;
+    } else {
+      inlier_sum += r * r;
+    }
+  }
+  out["whitened_robust_sigma"] = robust_sigma;
+  out["outlier_rows"] = static_cast<double>(outliers);
+  out["whitened_rms_without_outliers"] =
+      outliers < rows.size() ? std::sqrt(inlier_sum / (rows_n - static_cast<double>(outliers)))
+                             : 0.0;
+  return out;
+}
+
 void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gnss, int64_t t0_ns) {
   const auto require = [&](bool used, const auto& samples, const char* file) {
     if (!used) return;
@@ -448,12 +479,8 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
     result->trajectory.push_back(sample);
   }
   for (const auto& [sensor, residuals] : result->whitened_residuals) {
-    double sum = 0.0;
-    for (double r : residuals.after) sum += r * r;
     if (!residuals.after.empty()) {
-      file.residuals[sensor]["whitened_rms"] =
-          std::sqrt(sum / static_cast<double>(residuals.after.size()));
-      file.residuals[sensor]["rows"] = static_cast<double>(residuals.after.size());
+      file.residuals[sensor] = WhitenedStatistics(residuals.after, sensor == "gnss");
     }
   }
   result->seconds_total = SecondsSince(start);

@@ -413,7 +413,16 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
     const auto rows = statistics.find("rows");
     if (rms == statistics.end() || rows == statistics.end()) continue;
     out << sensor << " whitened residual RMS: " << std::setprecision(3) << rms->second << " over "
-        << std::setprecision(0) << rows->second << " rows\n";
+        << std::setprecision(0) << rows->second << " rows";
+    const auto outliers = statistics.find("outlier_rows");
+    const auto without = statistics.find("whitened_rms_without_outliers");
+    const auto robust = statistics.find("whitened_robust_sigma");
+    if (outliers != statistics.end() && without != statistics.end() && robust != statistics.end()) {
+      out << " (" << std::setprecision(3) << without->second << " without the "
+          << std::setprecision(0) << outliers->second << " beyond " << kOutlierRobustSigmas
+          << " robust sigmas; robust sigma " << std::setprecision(3) << robust->second << ")";
+    }
+    out << "\n";
   }
   out << std::setprecision(1) << result.trajectory.size() << " keyframes; " << result.seconds_total
       << " s (loading " << result.seconds_loading << " s, initialization "

@@ -574,6 +574,16 @@ TEST_F(OfflineCalibrationTest, WithoutTheLidarFromImuWheelsAndGnss) {
               result.whitened_residuals.at(sensor).after.size());
   }
   EXPECT_GT(result.calibration.residuals.at("gnss").at("whitened_rms"), 0.0);
+  // The multipath fixes carry the plain RMS; without them the fixes fit their stated noise.
+  const std::map<std::string, double>& gnss = result.calibration.residuals.at("gnss");
+  EXPECT_GT(gnss.at("outlier_rows"), 0.0);
+  EXPECT_LT(gnss.at("outlier_rows"), 0.05 * gnss.at("rows"));
+  EXPECT_GT(gnss.at("whitened_robust_sigma"), 0.7);
+  EXPECT_LT(gnss.at("whitened_robust_sigma"), 1.3);
+  EXPECT_LT(gnss.at("whitened_rms_without_outliers"), 1.3);
+  EXPECT_GT(gnss.at("whitened_rms"), 3.0 * gnss.at("whitened_rms_without_outliers"));
+  // The IMU's and the wheels' rows are of several kinds: no robust statistics for them.
+  EXPECT_FALSE(result.calibration.residuals.at("imu").count("whitened_robust_sigma"));
 }
 
 }  // namespace

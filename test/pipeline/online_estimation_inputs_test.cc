@@ -5,8 +5,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"
@@ -162,6 +165,25 @@ TEST(OnlineEstimationInputs, WithoutTheLidarTheStatedClockOffsetsMoveTheStamps) 
   EXPECT_THAT(warnings[0], HasSubstr("wheel-IMU time offset is held at 250.0 ms"));
   EXPECT_THAT(warnings[1], HasSubstr("GNSS-IMU time offset is held at -100.0 ms"));
   EXPECT_NO_THROW(WindowOptions(moved, problem, true, true, OnlineEstimationOptions()));
+}
+
+// The residual statistics of calibration.yaml: 1000 rows of RMS 1 (a sinusoid, whose median
+// |r| is 1: robust sigma 1.48, where Gaussian rows give 1) and 10 at 50 sigma have a plain RMS
+// of 5, 10 outlier rows and an RMS of 1 without them; rows of several kinds get the plain
+// figures only.
+TEST(WhitenedStatistics, NameTheOutliersThatCarryTheRms) {
+  std::vector<double> rows;
+  for (int i = 0; i < 1000; ++i) rows.push_back(std::sin(0.7 * i) * std::sqrt(2.0));
+  for (int i = 0; i < 10; ++i) rows.push_back(i % 2 == 0 ? 50.0 : -50.0);
+  const std::map<std::string, double> s = WhitenedStatistics(rows, true);
+  EXPECT_EQ(s.at("rows"), 1010.0);
+  EXPECT_NEAR(s.at("whitened_rms"), std::sqrt((1000.0 + 25000.0) / 1010.0), 0.01);
+  EXPECT_NEAR(s.at("whitened_robust_sigma"), 1.4826 * std::sqrt(2.0) * std::sin(M_PI / 4), 0.05);
+  EXPECT_EQ(s.at("outlier_rows"), 10.0);
+  EXPECT_NEAR(s.at("whitened_rms_without_outliers"), 1.0, 0.01);
+  const std::map<std::string, double> plain = WhitenedStatistics(rows, false);
+  EXPECT_EQ(plain.size(), 2u);
+  EXPECT_TRUE(WhitenedStatistics({}, true).empty());
 }
 
 }  // namespace
