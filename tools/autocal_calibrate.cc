@@ -70,6 +70,8 @@ int main(int argc, char** argv) {
     }
     const autocal::pipeline::OfflineCalibrationResult result =
         autocal::pipeline::CalibrateDataset(dataset, problem, options);
+    if (progress_line_open) std::fputc('\n', stderr);
+    progress_line_open = false;
     autocal::pipeline::WriteCalibrationResult(FLAGS_output, result);
     std::cout << autocal::pipeline::FormatCalibrationSummary(result);
     std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "

@@ -195,6 +195,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   Report(options, "solving", 0.0, 0.0, 0.0);
   const ceres::Solver::Summary summary = Solve(dataset, problem, &p);
+  Report(options, "solving", 1.0, summary.final_cost, 0.0);
 
   // 3. Observability, uncertainty and the result.
   const estimation::BlockCovariance covariance =
