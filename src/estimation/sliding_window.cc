@@ -68,6 +68,10 @@ bool SlidingWindowEstimator::AddWheel(const sensors::WheelSample& sample) {
   return impl_->AddWheel(sample);
 }
 
+bool SlidingWindowEstimator::AddWheelSpeeds(const sensors::WheelSpeedSample& sample) {
+  return impl_->AddWheelSpeeds(sample);
+}
+
 bool SlidingWindowEstimator::AddOdometry(const sensors::OdometrySample& sample) {
   return impl_->AddOdometry(sample);
 }
@@ -194,6 +198,12 @@ void SlidingWindowEstimator::Impl::AddCalibrationPriors(
     calibration_priors_.push_back(
         VectorPrior(&x.track_width_m, &m.track_width_m, 1, c.track_width_m, loss));
   }
+  if (e.wheel_speed_scales) {
+    calibration_priors_.push_back(VectorPrior(&x.wheel_speed_scale_left, &m.wheel_speed_scale_left,
+                                              1, c.wheel_speed_scale, loss));
+    calibration_priors_.push_back(VectorPrior(
+        &x.wheel_speed_scale_right, &m.wheel_speed_scale_right, 1, c.wheel_speed_scale, loss));
+  }
   if (e.odometry_speed_scale) {
     calibration_priors_.push_back(VectorPrior(&x.odometry_speed_scale, &m.odometry_speed_scale, 1,
                                               c.odometry_speed_scale, loss));
@@ -257,6 +267,17 @@ bool SlidingWindowEstimator::Impl::AcceptWheelStamp(int64_t t_ns) {
     ++counters_.late;
     return false;
   }
+  return true;
+}
+
+bool SlidingWindowEstimator::Impl::AddWheelSpeeds(const sensors::WheelSpeedSample& sample) {
+  if (!std::isfinite(sample.left_m_s) || !std::isfinite(sample.right_m_s)) {
+    throw Error("SlidingWindowEstimator::AddWheelSpeeds: non-finite speeds at t_ns " +
+                std::to_string(sample.t_ns));
+  }
+  if (!AcceptWheelStamp(sample.t_ns)) return false;
+  wheel_speeds_.push_back(sample);
+  ++counters_.wheel_accepted;
   return true;
 }
 

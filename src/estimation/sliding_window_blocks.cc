@@ -35,9 +35,7 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
       return {&e->effective_track, &p->effective_track_m};
     case Id::kWheelSpeedScaleLeft:
     case Id::kWheelSpeedScaleRight:
-      throw Error(std::string("calibration block ") + sensors::CalibrationBlock(id).key +
-                  " is not supported by the sliding window (it takes wheel data as angular "
-                  "rates or as the odometry's speed and yaw rate)");
+      return {&e->wheel_speed_scales, &p->wheel_speed_scale};
     case Id::kWheelTimeOffset:
     case Id::kGnssTimeOffset:
       break;
@@ -49,8 +47,7 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
 
 bool WindowSupports(sensors::CalibrationBlockId id) {
   using Id = sensors::CalibrationBlockId;
-  return id != Id::kWheelSpeedScaleLeft && id != Id::kWheelSpeedScaleRight &&
-         id != Id::kWheelTimeOffset && id != Id::kGnssTimeOffset;
+  return id != Id::kWheelTimeOffset && id != Id::kGnssTimeOffset;
 }
 
 bool Estimated(sensors::CalibrationBlockId id, const SlidingWindowEstimatedBlocks& estimate) {

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -36,6 +37,7 @@ class SlidingWindowEstimator::Impl {
 
   bool AddImu(const sensors::ImuSample& sample);
   bool AddWheel(const sensors::WheelSample& sample);
+  bool AddWheelSpeeds(const sensors::WheelSpeedSample& sample);
   bool AddOdometry(const sensors::OdometrySample& sample);
   // Counts a wheel stamp (either form) not newer than the newest as out of order and one at or
   // before the newest keyframe as late; false for both.
@@ -88,8 +90,14 @@ class SlidingWindowEstimator::Impl {
   // (from, t_end_ns], attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
   void AttachWheelFactors(WindowKeyframe* from, int64_t t_end_ns);
+  void AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns);
   void AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns);
   sensors::GyroMean GyroAround(int64_t t_ns) const;
+  double GyroSampleSigma() const;
+  double GyroMeanSigma(const sensors::GyroMean& gyro) const;
+  internal::AttachedFactor WheelRowFactor(ceres::CostFunction* cost, SlidingWindowState* s,
+                                          std::initializer_list<double*> blocks,
+                                          const char* what) const;
   factors::WheelFactorOptions NonHolonomicRows(factors::WheelFactorOptions options, size_t used,
                                                int64_t t_from_ns, int64_t t_end_ns) const;
   template <typename Sample>
@@ -137,6 +145,7 @@ class SlidingWindowEstimator::Impl {
 
   sensors::ImuSamples imu_;  // from the oldest window keyframe on
   std::deque<sensors::WheelSample> wheel_;
+  std::deque<sensors::WheelSpeedSample> wheel_speeds_;
   std::deque<sensors::OdometrySample> odometry_;
   std::deque<GnssPosition> gnss_;
   std::deque<lidar::LidarSweep> pending_sweeps_;

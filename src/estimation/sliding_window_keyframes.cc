@@ -67,6 +67,30 @@ void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
   kf->sweep = std::move(sweep);
 }
 
+// 1-sigma of one gyro sample: the noise density times the square root of the IMU rate.
+double SlidingWindowEstimator::Impl::GyroSampleSigma() const {
+  return options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
+}
+
+// 1-sigma of the mean of gyro.samples samples (at least one).
+double SlidingWindowEstimator::Impl::GyroMeanSigma(const sensors::GyroMean& gyro) const {
+  return GyroSampleSigma() / std::sqrt(std::max(1, gyro.samples));
+}
+
+// A wheel-row factor (any form) on the keyframe's q_W_I, v_W_I, b_g, b_a and the calibration's
+// `blocks`, linearized per pass under the name `what`.
+internal::AttachedFactor SlidingWindowEstimator::Impl::WheelRowFactor(
+    ceres::CostFunction* cost, SlidingWindowState* s, std::initializer_list<double*> blocks,
+    const char* what) const {
+  internal::AttachedFactor f;
+  f.cost.reset(cost);
+  f.loss = wheel_loss_.get();
+  f.linearized_per_pass = what;
+  f.blocks = {s->q_W_I.coeffs().data(), s->v_W_I.data(), s->b_g.data(), s->b_a.data()};
+  f.blocks.insert(f.blocks.end(), blocks);
+  return f;
+}
+
 // The mean gyro over the span around t_ns (wheel_rows.gyro_mean_span_s) and how many samples
 // it averaged; the interpolated sample when the span holds none.
 sensors::GyroMean SlidingWindowEstimator::Impl::GyroAround(int64_t t_ns) const {
@@ -135,8 +159,6 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
       factors::WheelFactorOptions::FromEncoderNoise(
           options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
-  const double gyro_sample_sigma_rad_s =
-      options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
   AttachPropagated(
       from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
         factors::WheelMeasurement m;
@@ -144,18 +166,36 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
         m.right_rad_s = w.right_rad_s;
         const sensors::GyroMean gyro = GyroAround(w.t_ns);
         m.gyro_rad_s = gyro.rate_rad_s;
-        AttachedFactor f;
-        f.cost = std::make_unique<internal::PropagatedWheelFactor>(
-            pim, m, wheel_options, options_.wheel.noise_rad_s,
-            gyro_sample_sigma_rad_s / std::sqrt(std::max(1, gyro.samples)));
-        f.loss = wheel_loss_.get();
-        f.linearized_per_pass = "a wheel factor";
-        f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};
-        for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
-                          &c.wheel_radius_right_m, &c.track_width_m}) {
-          f.blocks.push_back(b);
-        }
-        return f;
+        return WheelRowFactor(
+            new internal::PropagatedWheelFactor(pim, m, wheel_options, options_.wheel.noise_rad_s,
+                                                GyroMeanSigma(gyro)),
+            &s,
+            {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
+             &c.wheel_radius_right_m, &c.track_width_m},
+            "a wheel factor");
+      });
+}
+
+void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns) {
+  SlidingWindowState& s = from->state;
+  sensors::Calibration& c = calibration_;
+  const std::vector<sensors::WheelSpeedSample> used = TakeThinned(&wheel_speeds_, t_end_ns);
+  const factors::WheelFactorOptions options = NonHolonomicRows(
+      factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m),
+      used.size(), s.t_ns, t_end_ns);
+  AttachPropagated(
+      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w) {
+        factors::WheelSpeedMeasurement m;
+        m.left_m_s = w.left_m_s;
+        m.right_m_s = w.right_m_s;
+        const sensors::GyroMean gyro = GyroAround(w.t_ns);
+        m.gyro_rad_s = gyro.rate_rad_s;
+        return WheelRowFactor(internal::PropagatedWheelSpeedResidual::Create(
+                                  pim, m, options, options_.wheel.noise_m_s, GyroMeanSigma(gyro)),
+                              &s,
+                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
+                               &c.wheel_speed_scale_right, &c.track_width_m},
+                              "a wheel speed factor");
       });
 }
 
@@ -172,17 +212,13 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
         m.speed_m_s = o.speed_m_s;
         m.yaw_rate_rad_s = o.yaw_rate_rad_s;
         m.controller_track_m = *options_.wheel.controller_track_m;
-        m.gyro_rad_s = GyroAround(o.t_ns).rate_rad_s;
-        AttachedFactor f;
-        f.cost.reset(internal::PropagatedOdometryResidual::Create(pim, m, options));
-        f.loss = wheel_loss_.get();
-        f.linearized_per_pass = "an odometry factor";
-        f.blocks = {s.q_W_I.coeffs().data(), s.v_W_I.data(), s.b_g.data(), s.b_a.data()};
-        for (double* b : {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
-                          &c.effective_track_m}) {
-          f.blocks.push_back(b);
-        }
-        return f;
+        const sensors::GyroMean gyro = GyroAround(o.t_ns);
+        m.gyro_rad_s = gyro.rate_rad_s;
+        return WheelRowFactor(
+            internal::PropagatedOdometryResidual::Create(pim, m, options, GyroMeanSigma(gyro)), &s,
+            {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
+             &c.effective_track_m},
+            "an odometry factor");
       });
 }
 
@@ -194,6 +230,7 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
   sensors::Calibration& c = calibration_;
 
   AttachWheelFactors(from, t_end_ns);
+  AttachWheelSpeedFactors(from, t_end_ns);
   AttachOdometryFactors(from, t_end_ns);
 
   // GNSS fixes of (t_from, t_end].

@@ -176,7 +176,7 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
 
 // One datum of the log at its arrival time: which stream, which sample (for a keyframe time,
 // none: the time is the arrival's).
-enum class Source { kImu, kWheel, kOdometry, kGnss, kSweep, kKeyframeTime };
+enum class Source { kImu, kWheel, kWheelSpeeds, kOdometry, kGnss, kSweep, kKeyframeTime };
 struct Arrival {
   int64_t t_ns;
   Source source;
@@ -200,6 +200,10 @@ std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bo
   }
   for (size_t i = 0; use_wheel && i < dataset.wheel.size(); ++i) {
     if (dataset.wheel[i].t_ns > t0_ns) out.push_back({dataset.wheel[i].t_ns, Source::kWheel, i});
+  }
+  for (size_t i = 0; use_wheel && i < dataset.wheel_speeds.size(); ++i) {
+    const int64_t t = dataset.wheel_speeds[i].t_ns;
+    if (t > t0_ns) out.push_back({t, Source::kWheelSpeeds, i});
   }
   for (size_t i = 0; use_wheel && i < dataset.odometry.size(); ++i) {
     const int64_t t = dataset.odometry[i].t_ns;
@@ -242,6 +246,9 @@ void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
         break;
       case Source::kWheel:
         estimator->AddWheel(dataset.wheel[a.index]);
+        break;
+      case Source::kWheelSpeeds:
+        estimator->AddWheelSpeeds(dataset.wheel_speeds[a.index]);
         break;
       case Source::kOdometry:
         estimator->AddOdometry(dataset.odometry[a.index]);

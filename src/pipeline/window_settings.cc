@@ -93,13 +93,6 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
                 ": the online estimator estimates both wheel radii "
                 "or neither; the problem fixes only one");
   }
-  if (use_wheel && dataset.wheel_form() == sensors::WheelForm::kLinearSpeeds) {
-    throw Error(std::string("dataset ") + dataset.directory + ": the online estimator takes " +
-                "wheel data as angular rates (wheel.csv) or as the odometry's speed and yaw rate " +
-                "(odometry.csv), this dataset's are " +
-                sensors::WheelFormName(dataset.wheel_form()) + " (" +
-                sensors::WheelFormFile(dataset.wheel_form()) + ")");
-  }
   RefuseWhatTheWindowCannotDo(dataset, problem, use_wheel, use_gnss);
   estimation::SlidingWindowOptions w = options.window;
   w.imu = dataset.sensors.imu;

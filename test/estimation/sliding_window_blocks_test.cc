@@ -15,15 +15,13 @@ using Id = sensors::CalibrationBlockId;
 
 // Every block of angular-rate wheels has a setting; the blocks of the other wheel forms and
 // the wheel and GNSS clocks are refused by name, and never count as estimated.
-// The window takes wheels as angular rates or as the odometry's twist: the linear wheel
-// speeds' scales and the clock offsets (held by the pipeline) are not its blocks.
-TEST(SlidingWindowBlocks, TheLinearSpeedScalesAndClocksAreNotSupported) {
+// The window takes every wheel form; the clock offsets (held by the pipeline) are not its
+// blocks.
+TEST(SlidingWindowBlocks, TheClockOffsetsAreNotSupported) {
   SlidingWindowEstimatedBlocks estimate;
   SlidingWindowCalibrationPrior prior;
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
-    const bool other_form = info.id == Id::kWheelSpeedScaleLeft ||
-                            info.id == Id::kWheelSpeedScaleRight ||
-                            info.id == Id::kWheelTimeOffset || info.id == Id::kGnssTimeOffset;
+    const bool other_form = info.id == Id::kWheelTimeOffset || info.id == Id::kGnssTimeOffset;
     EXPECT_EQ(WindowSupports(info.id), !other_form) << info.key;
     if (!other_form) {
       const SlidingWindowBlockSetting setting = BlockSettingOf(info.id, &estimate, &prior);

@@ -45,6 +45,21 @@ io::Problem ProblemWithoutLidar() {
       (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
 }
 
+// The 45 s drive without the LiDAR, simulated with `options` as the dataset `name`, streamed
+// through the window with problems/imu_wheel_gnss.yaml.
+struct StreamedDrive {
+  StreamedDrive(const sim::SimulationOptions& options, const std::string& name)
+      : data(options, name),
+        dataset(io::ReadDataset(data.directory)),
+        result(EstimateDatasetOnline(dataset, ProblemWithoutLidar())) {}
+  const sensors::Calibration& truth() const { return data.simulator.true_calibration(); }
+  const sensors::Calibration& estimate() const { return result.calibration.value; }
+  const io::CalibrationUncertainty& sigma() const { return result.calibration.uncertainty; }
+  test::SimulatedUrbanDataset data;
+  io::Dataset dataset;
+  OnlineEstimationResult result;
+};
+
 class OnlineEstimationWithoutLidarTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -190,25 +205,50 @@ TEST(OnlineEstimationWithoutLidar, KeyframesFollowASlowGnssRate) {
 TEST(OnlineEstimationWithoutLidar, EstimatesTheOdometrysSpeedScaleAndEffectiveTrack) {
   sim::SimulationOptions options = DriveWithoutLidar();
   test::UseOdometryTwist(&options);
-  const test::SimulatedUrbanDataset data(options, "urban_45s_no_lidar_odometry");
-  const io::Dataset dataset = io::ReadDataset(data.directory);
-  ASSERT_EQ(dataset.wheel_form(), sensors::WheelForm::kSpeedYawRate);
-  const OnlineEstimationResult result = EstimateDatasetOnline(dataset, ProblemWithoutLidar());
-  const sensors::Calibration& truth = data.simulator.true_calibration();
-  const sensors::Calibration& estimate = result.calibration.value;
-  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
-  EXPECT_GT(result.counters.wheel_accepted, 4000);
+  const StreamedDrive drive(options, "urban_45s_no_lidar_odometry");
+  ASSERT_EQ(drive.dataset.wheel_form(), sensors::WheelForm::kSpeedYawRate);
+  EXPECT_GT(drive.result.counters.wheel_accepted, 4000);
+  const sensors::Calibration &truth = drive.truth(), &estimate = drive.estimate();
+  const io::CalibrationUncertainty& u = drive.sigma();
   ExpectCovered("odometry speed scale", estimate.odometry_speed_scale, truth.odometry_speed_scale,
                 u.odometry_speed_scale.sigma, 0.03 / 3.0);
   ExpectCovered("effective track (m)", estimate.effective_track_m, truth.effective_track_m,
                 u.effective_track_m.sigma, 0.5 / 3.0);
   // The angular-rate blocks take no part.
-  const sensors::Calibration& nominal = dataset.sensors.nominal_calibration;
+  const sensors::Calibration& nominal = drive.dataset.sensors.nominal_calibration;
   EXPECT_EQ(estimate.wheel_radius_left_m, nominal.wheel_radius_left_m);
   EXPECT_EQ(estimate.track_width_m, nominal.track_width_m);
   EXPECT_FALSE(u.wheel_radius_left_m.sigma.has_value());
   const evaluation::TrajectoryErrors ate =
-      evaluation::CompareTrajectory(result.trajectory, dataset.groundtruth_trajectory);
+      evaluation::CompareTrajectory(drive.result.trajectory, drive.dataset.groundtruth_trajectory);
+  std::cout << "ATE " << ate.ate_translation_rmse_m << " m / " << ate.ate_rotation_rmse_deg
+            << " deg\n";
+  EXPECT_LT(ate.ate_translation_rmse_m, 0.1);
+  EXPECT_LT(ate.ate_rotation_rmse_deg, 0.5);
+}
+
+// The same drive with the wheels reported as the rear pair's linear speeds (wheel_speed.csv,
+// a CAN bus): the window estimates their speed scales within their sigmas, each sigma under a
+// third of its default prior (3 %).
+TEST(OnlineEstimationWithoutLidar, EstimatesTheWheelSpeedScales) {
+  sim::SimulationOptions options = DriveWithoutLidar();
+  options.wheel.config.form = sensors::WheelForm::kLinearSpeeds;
+  options.true_calibration.wheel_speed_scale_left = 1.012;
+  options.true_calibration.wheel_speed_scale_right = 0.992;
+  const StreamedDrive drive(options, "urban_45s_no_lidar_wheel_speeds");
+  ASSERT_EQ(drive.dataset.wheel_form(), sensors::WheelForm::kLinearSpeeds);
+  EXPECT_GT(drive.result.counters.wheel_accepted, 4000);
+  const sensors::Calibration &truth = drive.truth(), &estimate = drive.estimate();
+  const io::CalibrationUncertainty& u = drive.sigma();
+  ExpectCovered("left speed scale", estimate.wheel_speed_scale_left, truth.wheel_speed_scale_left,
+                u.wheel_speed_scale_left.sigma, 0.03 / 3.0);
+  ExpectCovered("right speed scale", estimate.wheel_speed_scale_right,
+                truth.wheel_speed_scale_right, u.wheel_speed_scale_right.sigma, 0.03 / 3.0);
+  ExpectCovered("track width (m)", estimate.track_width_m, truth.track_width_m,
+                u.track_width_m.sigma, 0.05 / 3.0);
+  EXPECT_FALSE(u.wheel_radius_left_m.sigma.has_value());
+  const evaluation::TrajectoryErrors ate =
+      evaluation::CompareTrajectory(drive.result.trajectory, drive.dataset.groundtruth_trajectory);
   std::cout << "ATE " << ate.ate_translation_rmse_m << " m / " << ate.ate_rotation_rmse_deg
             << " deg\n";
   EXPECT_LT(ate.ate_translation_rmse_m, 0.1);

@@ -92,6 +92,8 @@ class SlidingWindowEstimator {
   // buffered sweep the IMU now covers (one update per sweep).
   bool AddImu(const sensors::ImuSample& sample);
   bool AddWheel(const sensors::WheelSample& sample);
+  // Wheels as the rear pair's linear speeds (Eq. F25).
+  bool AddWheelSpeeds(const sensors::WheelSpeedSample& sample);
   // Wheels as the controller's twist (Eq. F26); options.wheel.controller_track_m must be set.
   bool AddOdometry(const sensors::OdometrySample& sample);
   bool AddGnss(const sensors::GnssFix& fix);

@@ -25,6 +25,9 @@ struct SlidingWindowEstimatedBlocks {
   bool track_width = true;            // track_width_m
   bool vehicle_frame = false;         // q_I_V, p_I_V (weakly observable from wheel data)
   bool gnss_lever_arm = true;         // p_I_A
+  // Wheels as linear speeds (AddWheelSpeeds): wheel_speed_scale_left, wheel_speed_scale_right
+  // (with track_width_m).
+  bool wheel_speed_scales = true;
   // Wheels as the controller's speed and yaw rate (AddOdometry): odometry_speed_scale (k_v)
   // and effective_track_m (b_eff).
   bool odometry_speed_scale = true;
@@ -44,6 +47,7 @@ struct SlidingWindowCalibrationPrior {
   double vehicle_rotation_deg = 2.0;
   double vehicle_translation_m = 0.1;
   double gnss_lever_arm_m = 0.2;
+  double wheel_speed_scale = 0.03;     // dimensionless, each of the two
   double odometry_speed_scale = 0.03;  // dimensionless
   double effective_track_m = 0.5;
 };
