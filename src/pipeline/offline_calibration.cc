@@ -204,9 +204,12 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   };
   geometry::RightQuaternionManifold quaternion_manifold;  // outlives every solve
   const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
-  const SensorFactors sensor_factors{
-      &dataset, &problem, &result->nominal,     use_wheel, enu != nullptr,
-      enu,      &blocks,  &quaternion_manifold, &timing};
+  SensorFactors sensor_factors{&dataset, &problem, &result->nominal,     use_wheel, enu != nullptr,
+                               enu,      &blocks,  &quaternion_manifold, &timing};
+  if (use_wheel) {
+    sensor_factors.wheel_noise_scale =
+        WheelNoiseScale(dataset, *calibration, result->nominal, &result->warnings);
+  }
   bool first_problem = true;
   batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
                                   sensors::Calibration* c) {
