@@ -70,16 +70,23 @@ int main(int argc, char** argv) {
     options.initialization_duration_s = FLAGS_init_duration_s;
     options.initializer_sweep_stride = FLAGS_init_sweep_stride;
     const bool lidar = problem.sensors.lidar;
-    const bool odometry = dataset.wheel_form() == autocal::sensors::WheelForm::kSpeedYawRate;
+    const autocal::sensors::WheelForm form = dataset.wheel_form();
     // The wheel blocks of the dataset's form, in words.
-    const auto wheels = [odometry](const autocal::sensors::Calibration& c) {
+    const auto wheels = [form](const autocal::sensors::Calibration& c) {
       char text[96];
-      if (odometry) {
-        std::snprintf(text, sizeof(text), "k_v %.4f  b_eff %.4f m", c.odometry_speed_scale,
-                      c.effective_track_m);
-      } else {
-        std::snprintf(text, sizeof(text), "radii %.4f %.4f m  track %.4f m", c.wheel_radius_left_m,
-                      c.wheel_radius_right_m, c.track_width_m);
+      switch (form) {
+        case autocal::sensors::WheelForm::kSpeedYawRate:
+          std::snprintf(text, sizeof(text), "k_v %.4f  b_eff %.4f m", c.odometry_speed_scale,
+                        c.effective_track_m);
+          break;
+        case autocal::sensors::WheelForm::kLinearSpeeds:
+          std::snprintf(text, sizeof(text), "speed scales %.4f %.4f  track %.4f m",
+                        c.wheel_speed_scale_left, c.wheel_speed_scale_right, c.track_width_m);
+          break;
+        case autocal::sensors::WheelForm::kAngularRates:
+          std::snprintf(text, sizeof(text), "radii %.4f %.4f m  track %.4f m",
+                        c.wheel_radius_left_m, c.wheel_radius_right_m, c.track_width_m);
+          break;
       }
       return std::string(text);
     };

@@ -69,9 +69,8 @@ bool InterpolateSortedGnss(const sensors::GnssFixes& fixes, const sensors::EnuCo
 
 // The gyro integrated about the vehicle's up axis (R_I_V z, in I) from the first keyframe to
 // each keyframe (trapezoids between samples, linear within one): the keyframes' relative yaw,
-// so that a turning platform's keyframes start with their own headings (Eq. K11 needs them,
-// and dead reckoning).
-// The gyro bias is unknown here; its drift is what the solve below removes.
+// so that a turning platform's keyframes start with their own headings (Eq. K11 and dead
+// reckoning need them). The gyro bias is unknown here; its drift is left to the caller's solve.
 inline std::vector<double> GyroYawAtKeyframes(const sensors::ImuSamples& imu,
                                               const std::vector<Keyframe>& kfs,
                                               const Eigen::Vector3d& up_I) {

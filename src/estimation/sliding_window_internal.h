@@ -86,8 +86,8 @@ class SlidingWindowEstimator::Impl {
   // of the interval before it.
   void AddKeyframe(int64_t t_ns, std::optional<lidar::LidarSweep> sweep);
   void SetSweepPoints(lidar::LidarSweep sweep, WindowKeyframe* kf) const;
-  // Wheel (angular rates or odometry) and GNSS factors for the buffered samples in
-  // (from, t_end_ns], attached to `from`.
+  // Wheel (every form) and GNSS factors for the buffered samples in (from, t_end_ns],
+  // attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
   void AttachWheelFactors(WindowKeyframe* from, int64_t t_end_ns);
   void AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns);

@@ -79,10 +79,6 @@ void RecordTiming(const TimingLimits& timing, bool without_lidar, io::Calibratio
 void ApplyTimingLimits(const TimingLimits& timing,
                        estimation::GnssInertialKeyframesOptions* options);
 
-// The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
-// the priors of the estimated blocks. A sensor that gives factors at fewer than
-// timing->min_factor_fraction of the keyframes is an autocal::Error naming it, its rate, the
-// count and the limit: no result silently leaves most of a sensor out.
 // The sigmas of the form's factor rows from sensors.yaml's wheel noise (a sensors.yaml without
 // a wheel: section, or no sensors.yaml, means the encoder defaults of sensors/sensor_config.h;
 // datasets/README.md).
@@ -93,6 +89,10 @@ factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
 // effective track.
 double ControllerTrackM(const io::Dataset& dataset, const sensors::Calibration& nominal);
 
+// The wheel and GNSS factors of the problem on the keyframes (docs/keyframe_factors.md), and
+// the priors of the estimated blocks. A sensor that gives factors at fewer than
+// timing->min_factor_fraction of the keyframes is an autocal::Error naming it, its rate, the
+// count and the limit: no result silently leaves most of a sensor out.
 struct SensorFactors {
   const io::Dataset* dataset = nullptr;
   const io::Problem* problem = nullptr;

@@ -134,7 +134,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
         "zero and is dead reckoned from the IMU and the wheels");
   }
 
-  // 1. Keyframes over the span the IMU and the fixes share.
+  // 1. Keyframes over the span the IMU shares with the fixes, or without them with the wheels.
   Report(options, "initializing", 0.0, 0.0, 0.0);
   sensors::Calibration calibration = result.nominal;
   io::SensorsConfig priors = dataset.sensors;  // the prior centres: the nominal calibration

@@ -393,6 +393,120 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
   }
 }
 
+// The other wheel forms' window rows (linear speeds, Eq. F25; the controller's twist, Eq. F26)
+// are their factor's rows at the state ImuPreintegration::Predict gives, the yaw-rate row in
+// the Deming form of Eq. SW2 (and the linear speeds' speed row at the current scales); zero
+// where the measurement is what the predicted state gives; their autodiff Jacobians pass the
+// GradientChecker on random states, with and without the non-holonomic rows.
+struct FormTrial {
+  Eigen::Quaterniond q = Eigen::Quaterniond::UnitRandom();
+  Eigen::Vector3d p = 10.0 * Eigen::Vector3d::Random(), v = 8.0 * Eigen::Vector3d::Random();
+  Eigen::Vector3d b_g, b_a;
+  Eigen::Quaterniond q_I_V;
+  Eigen::Vector3d p_I_V{-1.2, 0.1, -0.4};
+  FormTrial(const Eigen::Vector3d& b_g_lin, const Eigen::Vector3d& b_a_lin, int trial)
+      : b_g(b_g_lin + 0.002 * Eigen::Vector3d::Random()),
+        b_a(b_a_lin + 0.05 * Eigen::Vector3d::Random()),
+        q_I_V(Eigen::AngleAxisd(0.02 * trial, Eigen::Vector3d::UnitX()) *
+              Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ())) {}
+  // The rear axle's forward speed and yaw rate at the state `pim` predicts (the raw gyro
+  // `gyro_rad_s`, its bias removed, for the yaw rate).
+  Eigen::Vector2d VehicleMotion(const sensors::ImuPreintegration& pim,
+                                const Eigen::Vector3d& gyro_rad_s) const {
+    sensors::NavState<double> x;
+    x.q_W_I = q;
+    x.p_W_I = p;
+    x.v_W_I = v;
+    const sensors::NavState<double> at = pim.Predict(x, b_g, b_a);
+    const factors::VehicleMotion<double> motion =
+        factors::PredictVehicleMotion(at.q_W_I.coeffs().data(), at.v_W_I.data(), b_g.data(),
+                                      q_I_V.coeffs().data(), p_I_V.data(), gyro_rad_s);
+    return Eigen::Vector2d(motion.v_V.x(), motion.w_V.z());
+  }
+};
+
+TEST(SlidingWindowPropagatedFormResiduals, VanishAtTheTruthAndPassGradientChecker) {
+  const Eigen::Vector3d b_g_lin(0.002, -0.001, 0.003), b_a_lin(0.05, -0.02, 0.01);
+  const sensors::ImuPreintegration pim = TurningPreintegration(b_g_lin, b_a_lin, 13);
+  const geometry::RightQuaternionManifold quaternion;
+  const double speed_sigma = 0.02, gyro_sigma = 0.003;
+  for (int trial = 0; trial < 12; ++trial) {
+    FormTrial x(b_g_lin, b_a_lin, trial);
+    factors::WheelFactorOptions options;
+    options.non_holonomic = trial % 2 == 0;
+    const Eigen::Vector3d gyro =
+        Eigen::Vector3d(0.01, 0.02, 0.31) + 0.2 * Eigen::Vector3d::Random();
+    const Eigen::Vector2d motion = x.VehicleMotion(pim, gyro);
+    const std::string context = "trial " + std::to_string(trial);
+
+    // Linear speeds that the predicted motion gives through the scales and the track.
+    double s_l = 1.01 + 0.002 * trial, s_r = 0.99, track = 1.6 + 0.01 * trial;
+    factors::WheelSpeedMeasurement speeds;
+    speeds.left_m_s = (motion(0) - 0.5 * track * motion(1)) / s_l;
+    speeds.right_m_s = (motion(0) + 0.5 * track * motion(1)) / s_r;
+    speeds.gyro_rad_s = gyro;
+    const std::unique_ptr<ceres::CostFunction> speed_cost(
+        internal::PropagatedWheelSpeedResidual::Create(pim, speeds, options, speed_sigma,
+                                                       gyro_sigma));
+    std::vector<double*> blocks = {
+        x.q.coeffs().data(), x.v.data(), x.b_g.data(), x.b_a.data(), x.q_I_V.coeffs().data(),
+        x.p_I_V.data(),      &s_l,       &s_r,         &track};
+    Eigen::Vector4d r;
+    ASSERT_TRUE(speed_cost->Evaluate(blocks.data(), r.data(), nullptr));
+    EXPECT_LT(r.head<2>().norm(), 1e-9) << context;
+    // Off the truth, the rows are the factor's, rescaled as the header says.
+    s_l += 0.02;
+    ASSERT_TRUE(speed_cost->Evaluate(blocks.data(), r.data(), nullptr));
+    const factors::WheelSpeedResidual plain(speeds, options);
+    Eigen::Vector4d expected;
+    {
+      sensors::NavState<double> state;
+      state.q_W_I = x.q;
+      state.p_W_I = x.p;
+      state.v_W_I = x.v;
+      const sensors::NavState<double> at = pim.Predict(state, x.b_g, x.b_a);
+      ASSERT_TRUE(plain(at.q_W_I.coeffs().data(), at.v_W_I.data(), x.b_g.data(),
+                        x.q_I_V.coeffs().data(), x.p_I_V.data(), &s_l, &s_r, &track,
+                        expected.data()));
+    }
+    const double scale_sq = s_l * s_l + s_r * s_r;
+    expected(0) *= 2.0 * options.speed_sigma_m_s / (speed_sigma * std::sqrt(scale_sq));
+    expected(1) *=
+        options.yaw_rate_sigma_rad_s * track /
+        std::sqrt(speed_sigma * speed_sigma * scale_sq + track * track * gyro_sigma * gyro_sigma);
+    const int rows = options.non_holonomic ? 4 : 2;
+    EXPECT_LT((r - expected).head(rows).norm(), 1e-9 * (1.0 + expected.head(rows).norm()))
+        << context;
+    EXPECT_GT(expected.head<2>().norm(), 0.1) << context;
+    test::ExpectGradientCheckPasses(
+        *speed_cost,
+        {&quaternion, nullptr, nullptr, nullptr, &quaternion, nullptr, nullptr, nullptr, nullptr},
+        blocks, 1e-6, context + ", linear speeds");
+
+    // The controller's twist that the predicted motion gives through k_v and b_eff.
+    double k_v = 0.97, b_eff = 1.9 + 0.02 * trial;
+    factors::OdometryMeasurement twist;
+    twist.controller_track_m = 1.2;
+    twist.speed_m_s = motion(0) / k_v;
+    twist.yaw_rate_rad_s = motion(1) * b_eff / (k_v * twist.controller_track_m);
+    twist.gyro_rad_s = gyro;
+    const std::unique_ptr<ceres::CostFunction> twist_cost(
+        internal::PropagatedOdometryResidual::Create(pim, twist, options, gyro_sigma));
+    std::vector<double*> twist_blocks = {
+        x.q.coeffs().data(),     x.v.data(),     x.b_g.data(), x.b_a.data(),
+        x.q_I_V.coeffs().data(), x.p_I_V.data(), &k_v,         &b_eff};
+    ASSERT_TRUE(twist_cost->Evaluate(twist_blocks.data(), r.data(), nullptr));
+    EXPECT_LT(r.head<2>().norm(), 1e-9) << context;
+    b_eff += 0.1;
+    ASSERT_TRUE(twist_cost->Evaluate(twist_blocks.data(), r.data(), nullptr));
+    EXPECT_GT(std::abs(r(1)), 0.1) << context;
+    test::ExpectGradientCheckPasses(
+        *twist_cost,
+        {&quaternion, nullptr, nullptr, nullptr, &quaternion, nullptr, nullptr, nullptr},
+        twist_blocks, 1e-6, context + ", odometry");
+  }
+}
+
 // The analytic wheel rows against their autodiff form (every block on its tangent space, to
 // 1e-9) and against numeric differentiation (GradientChecker), on random states, with and
 // without the non-holonomic rows; a shared radius and a non-positive sigma are refused.
