@@ -11,7 +11,7 @@
 #include "autocal/common/time.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "estimation/correlation_peak.h"
-#include "estimation/robust_statistics.h"
+#include "common/order_statistics.h"
 
 namespace autocal {
 namespace estimation {
@@ -374,13 +374,13 @@ YawRateAgreement CompareYawRates(const sensors::ImuSamples& imu,
   std::vector<double> residuals;
   residuals.reserve(rows.size());
   for (size_t i = 0; i < rows.size(); ++i) residuals.push_back(measured[i] - rows[i].dot(fit));
-  const double centre = internal::Median(residuals);
+  const double centre = autocal::internal::Median(residuals);
   for (double& r : residuals) r = std::abs(r - centre);
   out.samples = rows.size();
   out.scale = fit(0);
   out.per_speed_rad_m = fit(1);
   out.bias_rad_s = fit(2);
-  out.residual_sigma_rad_s = 1.4826 * internal::Median(residuals);
+  out.residual_sigma_rad_s = 1.4826 * autocal::internal::Median(residuals);
   return out;
 }
 

@@ -14,7 +14,7 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "estimation/keyframe_interpolation.h"
-#include "estimation/robust_statistics.h"
+#include "common/order_statistics.h"
 
 namespace autocal {
 namespace estimation {
@@ -23,7 +23,7 @@ namespace {
 using internal::CheckIncreasing;
 using internal::GapNs;
 using internal::InterpolateSortedGnss;
-using internal::Median;
+using autocal::internal::Median;
 
 // Distances to a fit beyond this are outliers: a multiple of the median distance's robust
 // sigma (1.4826 * median for a Gaussian), never below a floor.

@@ -12,7 +12,7 @@
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/wheel_factor.h"
-#include "estimation/robust_statistics.h"
+#include "common/order_statistics.h"
 #include "estimation/time_offset_factors.h"
 #include "problem_blocks.h"
 
@@ -312,7 +312,7 @@ std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows
   std::vector<double> magnitudes;
   magnitudes.reserve(rows.size());
   for (double r : rows) magnitudes.push_back(std::abs(r));
-  const double robust_sigma = 1.4826 * estimation::internal::Median(magnitudes);
+  const double robust_sigma = 1.4826 * autocal::internal::Median(magnitudes);
   double inlier_sum = 0.0;
   size_t outliers = 0;
   for (double r : rows) {
