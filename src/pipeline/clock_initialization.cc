@@ -8,6 +8,7 @@
 #include "autocal/common/units.h"
 #include "autocal/estimation/mount_initialization.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/sensors/imu_scatter.h"
 #include "calibration_steps.h"
 
 namespace autocal {
@@ -169,6 +170,52 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
                 off_deg, max_nominal_deg);
   warnings->push_back(text);
   return clocks;
+}
+
+namespace {
+
+// One sensor's density for ImuNoiseFromData: the measured one when it is kMinImuNoiseScale
+// times the stated one or more (a warning says so), else the stated one.
+double DensityFromData(const char* sensor, const char* unit, double stated, double measured,
+                       std::vector<std::string>* warnings) {
+  if (!(measured >= kMinImuNoiseScale * stated)) return stated;
+  char text[400];
+  std::snprintf(
+      text, sizeof(text),
+      "IMU %s: its samples scatter %.3g %s from sample to sample (vibration and noise, Eq. N1), "
+      "%.1f times sensors.yaml's noise density %.3g; the IMU factors use the measured "
+      "density",
+      sensor, measured, unit, measured / stated, stated);
+  warnings->push_back(text);
+  return measured;
+}
+
+}  // namespace
+
+sensors::ImuNoise ImuNoiseFromData(const io::Dataset& dataset, std::vector<std::string>* warnings) {
+  sensors::ImuNoise noise = dataset.sensors.imu.noise;
+  const sensors::ImuScatter scatter = sensors::MeasureImuScatter(dataset.imu);
+  noise.gyroscope_noise_density =
+      DensityFromData("gyroscope", "rad/s/sqrt(Hz)", noise.gyroscope_noise_density,
+                      scatter.gyroscope_noise_density(), warnings);
+  noise.accelerometer_noise_density =
+      DensityFromData("accelerometer", "m/s^2/sqrt(Hz)", noise.accelerometer_noise_density,
+                      scatter.accelerometer_noise_density(), warnings);
+  return noise;
+}
+
+const io::Dataset& WithImuNoiseFromData(const io::Dataset& dataset,
+                                        std::optional<io::Dataset>* storage,
+                                        std::vector<std::string>* warnings) {
+  const sensors::ImuNoise noise = ImuNoiseFromData(dataset, warnings);
+  const sensors::ImuNoise& stated = dataset.sensors.imu.noise;
+  if (noise.gyroscope_noise_density == stated.gyroscope_noise_density &&
+      noise.accelerometer_noise_density == stated.accelerometer_noise_density) {
+    return dataset;
+  }
+  storage->emplace(dataset);
+  (*storage)->sensors.imu.noise = noise;
+  return **storage;
 }
 
 double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& calibration,

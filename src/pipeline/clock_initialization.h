@@ -55,6 +55,19 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
                                              sensors::Calibration* prior_centre,
                                              std::vector<std::string>* warnings);
 
+// The IMU noise the factors use (docs/calibration.md, "IMU noise from the data"): sensors.yaml's
+// densities, each replaced by the samples' scatter (sensors::MeasureImuScatter, Eq. N1) when
+// that is at least kMinImuNoiseScale times the stated one, with a warning naming both (the
+// vibration of a vehicle the datasheet does not know). The random walks stay as stated.
+constexpr double kMinImuNoiseScale = 1.5;
+sensors::ImuNoise ImuNoiseFromData(const io::Dataset& dataset, std::vector<std::string>* warnings);
+
+// `dataset` as the calibration uses it: itself when ImuNoiseFromData keeps the stated noise,
+// else a copy with the measured noise, held in *storage.
+const io::Dataset& WithImuNoiseFromData(const io::Dataset& dataset,
+                                        std::optional<io::Dataset>* storage,
+                                        std::vector<std::string>* warnings);
+
 // The wheel rows' noise from the data (docs/calibration.md, "Wheel noise from the data"): the
 // wheels' yaw rate against the gyro about the mount's up axis, on one clock
 // (estimation::CompareYawRates). When what that fit leaves exceeds the noise it should

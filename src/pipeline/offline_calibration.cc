@@ -286,13 +286,9 @@ std::string TimingsYaml(const OfflineCalibrationResult& result) {
   return out.str();
 }
 
-}  // namespace
-
-OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::Problem& problem,
-                                          const OfflineCalibrationOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  io::ValidateProblemForDataset(problem, dataset);
-  if (!problem.sensors.lidar) return CalibrateWithoutLidar(dataset, problem, options, start);
+OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io::Problem& problem,
+                                            const OfflineCalibrationOptions& options,
+                                            std::chrono::steady_clock::time_point start) {
   OfflineCalibrationResult result;
   result.nominal = dataset.sensors.nominal_calibration;
   result.prior_centre = result.nominal;
@@ -330,6 +326,22 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
   // 4. (Observability and uncertainty came with the final problem, in SolveBatch.) The result.
   RequireLidarFactors(dataset, problem, keyframes.keyframes.size(), result);
   Conclude(dataset, problem, keyframes.keyframes, &calibration, start, &result);
+  return result;
+}
+
+}  // namespace
+
+OfflineCalibrationResult CalibrateDataset(const io::Dataset& input, const io::Problem& problem,
+                                          const OfflineCalibrationOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  io::ValidateProblemForDataset(problem, input);
+  std::vector<std::string> noise_warnings;
+  std::optional<io::Dataset> storage;
+  const io::Dataset& dataset = WithImuNoiseFromData(input, &storage, &noise_warnings);
+  OfflineCalibrationResult result = problem.sensors.lidar
+                                        ? CalibrateWithLidar(dataset, problem, options, start)
+                                        : CalibrateWithoutLidar(dataset, problem, options, start);
+  result.warnings.insert(result.warnings.begin(), noise_warnings.begin(), noise_warnings.end());
   return result;
 }
 

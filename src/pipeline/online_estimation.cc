@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -18,6 +19,7 @@
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
+#include "clock_initialization.h"
 #include "online_without_lidar.h"
 #include "problem_blocks.h"
 #include "sweep_reader.h"
@@ -405,16 +407,19 @@ std::string CalibrationOverTimeCsv(const std::vector<CalibrationSample>& samples
 
 }  // namespace
 
-OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& log, const io::Problem& problem_in,
+OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
+                                             const io::Problem& problem_in,
                                              const OnlineEstimationOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  io::ValidateProblemForDataset(problem_in, log);
-  CheckOnlineInputs(log, problem_in, options);
+  io::ValidateProblemForDataset(problem_in, input);
+  CheckOnlineInputs(input, problem_in, options);
+  std::vector<std::string> start_warnings;
+  std::optional<io::Dataset> with_measured_noise;
+  const io::Dataset& log = WithImuNoiseFromData(input, &with_measured_noise, &start_warnings);
   // Without the LiDAR the window reads the wheels and GNSS on the IMU clock, its mount from
   // the data.
   io::Problem problem = problem_in;
   sensors::Calibration applied = log.sensors.nominal_calibration;
-  std::vector<std::string> start_warnings;
   const io::Dataset shifted =
       problem.sensors.lidar ? io::Dataset() : OnImuClock(log, &problem, &applied, &start_warnings);
   const io::Dataset& dataset = problem.sensors.lidar ? log : shifted;
@@ -467,8 +472,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& log, const io::P
     result.calibration.solver["keyframe_period_s"] = FormatSeconds(keyframe_period_ns);
     result.calibration.value.time_offset_wheel_imu_s = applied.time_offset_wheel_imu_s;
     result.calibration.value.time_offset_gnss_imu_s = applied.time_offset_gnss_imu_s;
-    result.warnings = start_warnings;
   }
+  result.warnings = start_warnings;
   result.seconds_total = SecondsSince(start);
   return result;
 }
