@@ -10,8 +10,8 @@
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/sensors/gnss_enu.h"
-#include "estimation/correlation_peak.h"
 #include "common/order_statistics.h"
+#include "estimation/correlation_peak.h"
 
 namespace autocal {
 namespace estimation {

@@ -13,17 +13,17 @@
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
-#include "estimation/keyframe_interpolation.h"
 #include "common/order_statistics.h"
+#include "estimation/keyframe_interpolation.h"
 
 namespace autocal {
 namespace estimation {
 namespace {
 
+using autocal::internal::Median;
 using internal::CheckIncreasing;
 using internal::GapNs;
 using internal::InterpolateSortedGnss;
-using autocal::internal::Median;
 
 // Distances to a fit beyond this are outliers: a multiple of the median distance's robust
 // sigma (1.4826 * median for a Gaussian), never below a floor.
