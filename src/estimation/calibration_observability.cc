@@ -42,11 +42,6 @@ bool Informed(const EstimatedBlock& block, int i, double posterior_sigma) {
          posterior_sigma <= block.max_kept_sigma_to_limit * block.max_observable_sigma;
 }
 
-// Direction i of a block is excited when it is informed and its sigma within the limit.
-bool Excited(const EstimatedBlock& block, int i, double posterior_sigma) {
-  return Informed(block, i, posterior_sigma) && posterior_sigma <= block.max_observable_sigma;
-}
-
 void Step(const EstimatedBlock& block, const Eigen::VectorXd& step) {
   if (IsRotation(block)) {
     Eigen::Map<Eigen::Quaterniond> q(block.data);
@@ -247,7 +242,7 @@ std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>
     const Eigen::VectorXd difference = TangentFromPrior(block);
     for (int i = 0; i < block.size; ++i) {
       if (covariance.ok &&
-          !Excited(block, i, SigmaOf(covariance.matrix, covariance.offsets[b] + i))) {
+          !Informed(block, i, SigmaOf(covariance.matrix, covariance.offsets[b] + i))) {
         continue;
       }
       const double sigmas = std::abs(difference(i)) / block.prior_sigma(i);

@@ -431,10 +431,9 @@ void SolveAgainAfterHolding(const io::Problem& problem,
   estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
 }
 
-estimation::BlockObservability Observe(
-    const io::Dataset& dataset, const OfflineCalibrationOptions& options,
-    const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-    const estimation::BlockCovariance& covariance, OfflineCalibrationResult* result) {
+void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOptions& options,
+                      const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                      const estimation::BlockCovariance& covariance) {
   const std::vector<std::string> implausible = estimation::ImplausibleDirections(
       blocks_estimated, covariance, options.max_prior_deviation_sigmas);
   if (!implausible.empty()) {
@@ -444,6 +443,13 @@ estimation::BlockObservability Observe(
                 "); nothing is written. The drive may not excite these blocks: fix them or "
                 "give them priors in the problem file");
   }
+}
+
+estimation::BlockObservability Observe(
+    const io::Dataset& dataset, const OfflineCalibrationOptions& options,
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+    const estimation::BlockCovariance& covariance, OfflineCalibrationResult* result) {
+  RequirePlausible(dataset, options, blocks_estimated, covariance);
   if (!covariance.ok) {
     result->warnings.push_back(
         "the covariance of the calibration could not be computed; no sigma and no "

@@ -156,6 +156,14 @@ void SolveAgainAfterHolding(const io::Problem& problem,
                             const sensors::Calibration& solved, sensors::Calibration* calibration,
                             ceres::Problem* p, OfflineCalibrationResult* result);
 
+// Throws one autocal::Error naming every direction the data inform that lies more than
+// options.max_prior_deviation_sigmas prior sigmas from its prior (ImplausibleDirections):
+// before the observability is judged, and again after SolveAgainAfterHolding, whose solve may
+// move the kept directions once the held ones are pinned.
+void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOptions& options,
+                      const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                      const estimation::BlockCovariance& covariance);
+
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
 // data point into it); sigma, flags and warnings go into the result. Returns the flags (empty

@@ -214,6 +214,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
       Observe(dataset, options, blocks_estimated, covariance, &result);
   SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration, &p,
                          &result);
+  RequirePlausible(dataset, options, blocks_estimated, covariance);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].after = std::move(rows);

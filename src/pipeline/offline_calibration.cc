@@ -227,6 +227,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     const estimation::BlockObservability observability =
         Observe(dataset, options, blocks, covariance, result);
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
+    RequirePlausible(dataset, options, blocks, covariance);
     for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
       result->whitened_residuals[sensor].after = std::move(rows);
     }

@@ -91,7 +91,7 @@ TEST(CalibrationObservability, ADirectionFarAboveItsLimitIsHeldUnderAWeakPrior) 
   EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.3);
 }
 
-TEST(CalibrationObservability, NamesExcitedDirectionsFarFromTheirPrior) {
+TEST(CalibrationObservability, NamesInformedDirectionsFarFromTheirPrior) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
   std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.05, 0.03)};
   const BlockCovariance none;  // not computed: every direction is judged
@@ -112,6 +112,17 @@ TEST(CalibrationObservability, NamesExcitedDirectionsFarFromTheirPrior) {
   EXPECT_TRUE(ImplausibleDirections(blocks, covariance, 5.0).empty());
   covariance.matrix(1, 1) = 1e-6;  // excited: judged
   EXPECT_EQ(ImplausibleDirections(blocks, covariance, 5.0).size(), 1u);
+
+  // Under a 30 cm prior a direction the data narrowed to 10 cm is only partly determined
+  // (above the 3 cm limit, within four times it): its estimate is kept, so it is judged.
+  const Eigen::Vector3d nominal(0.30, -0.05, 0.55);
+  Eigen::Vector3d wide = nominal + Eigen::Vector3d(0.0, 1.8, 0.0);  // 6 prior sigmas
+  const std::vector<EstimatedBlock> kept = {VectorBlock(wide.data(), nominal, 0.3, 0.03)};
+  covariance.matrix = Eigen::Vector3d(1e-6, 0.1 * 0.1, 1e-6).asDiagonal();
+  EXPECT_THAT(ImplausibleDirections(kept, covariance, 5.0),
+              ::testing::ElementsAre(::testing::HasSubstr("y moved 180 cm")));
+  covariance.matrix(1, 1) = 0.2 * 0.2;  // left at its prior: held, not judged
+  EXPECT_TRUE(ImplausibleDirections(kept, covariance, 5.0).empty());
 }
 
 // Rotation blocks work in the tangent of the right perturbation.

@@ -64,11 +64,12 @@ struct BlockCovariance {
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem);
 
-// The directions that the data excited (posterior sigma within both limits of their block)
-// and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
+// The directions that the data inform (posterior sigma well below the prior's: observable or
+// kept) and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
 // plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a solve
-// that went there did not converge to anything the priors allow. Unexcited directions are not
-// judged: they are held at their prior anyway. Without a covariance every direction is judged.
+// that went there did not converge to anything the priors allow. Directions the data do not
+// inform are not judged: they are held at their prior anyway. Without a covariance every
+// direction is judged.
 std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>& blocks,
                                                const BlockCovariance& covariance,
                                                double max_sigmas);
