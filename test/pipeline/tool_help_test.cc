@@ -3,10 +3,8 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <algorithm>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -14,9 +12,7 @@
 #include <string>
 #include <vector>
 
-#ifndef AUTOCAL_TOOL_DIR
-#error "test/CMakeLists.txt defines AUTOCAL_TOOL_DIR for this test"
-#endif
+#include "support/tool_runner.h"
 
 namespace autocal {
 namespace {
@@ -26,25 +22,11 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 
 const char* const kTools[] = {"autocal_calibrate", "autocal_estimate", "autocal_evaluate",
-                              "autocal_import",    "autocal_register", "autocal_simulate"};
+                              "autocal_export",    "autocal_import",   "autocal_register",
+                              "autocal_simulate"};
 
-struct Output {
-  int exit_code = -1;
-  std::string text;  // stdout and stderr
-};
-
-Output RunTool(const std::string& tool, const std::string& args) {
-  const std::string command = (fs::path(AUTOCAL_TOOL_DIR) / tool).string() + " " + args + " 2>&1";
-  Output out;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return out;
-  char buffer[4096];
-  size_t n = 0;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) out.text.append(buffer, n);
-  const int status = pclose(pipe);
-  out.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return out;
-}
+using Output = test::ToolOutput;
+using test::RunTool;
 
 // The names of the flags tools/<tool>.cc defines (DEFINE_<type>(name, ...)).
 std::vector<std::string> DefinedFlags(const std::string& tool) {
