@@ -1,11 +1,15 @@
 #include "autocal/lidar/registration.h"
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <iomanip>
 #include <sstream>
+#include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/lidar/voxel_grid.h"
 
 namespace autocal {
@@ -51,6 +55,65 @@ RegistrationSetting MakeRegistrationSetting(const std::string& method, const std
   return setting;
 }
 
+namespace {
+
+// The numbers of `text`, separated by spaces, commas, brackets or line breaks.
+std::vector<double> NumbersIn(const std::string& text, const std::string& what) {
+  std::vector<double> numbers;
+  std::string token;
+  const auto flush = [&]() {
+    if (token.empty()) return;
+    char* end = nullptr;
+    const double value = std::strtod(token.c_str(), &end);
+    if (end != token.c_str() + token.size() || !std::isfinite(value)) {
+      throw Error(what + ": '" + token + "' (number " + std::to_string(numbers.size() + 1) +
+                  ") is not a finite number");
+    }
+    numbers.push_back(value);
+    token.clear();
+  };
+  for (const char c : text) {
+    if (std::isspace(static_cast<unsigned char>(c)) || c == ',' || c == '[' || c == ']') {
+      flush();
+    } else {
+      token += c;
+    }
+  }
+  flush();
+  return numbers;
+}
+
+}  // namespace
+
+geometry::Pose3d ParsePoseGuess(const std::string& text, const std::string& what) {
+  const std::vector<double> v = NumbersIn(text, what);
+  constexpr double kDegToRad = M_PI / 180.0;
+  if (v.size() == 6) {
+    return geometry::Pose3d(
+        geometry::FromRollPitchYaw(v[3] * kDegToRad, v[4] * kDegToRad, v[5] * kDegToRad),
+        Eigen::Vector3d(v[0], v[1], v[2]));
+  }
+  if (v.size() != 16) {
+    throw Error(what +
+                ": expected 6 numbers (x,y,z in m, roll,pitch,yaw in deg) or 16 (a 4x4 "
+                "matrix), found " +
+                std::to_string(v.size()));
+  }
+  const Eigen::Matrix4d m =
+      Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(v.data());
+  if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
+    throw Error(what + ": the last row of the 4x4 matrix must be 0 0 0 1");
+  }
+  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-4 ||
+      R.determinant() < 0.0) {
+    throw Error(what +
+                ": the 3x3 block of the matrix is not a rotation (orthonormal to 1e-4, "
+                "determinant +1)");
+  }
+  return geometry::Pose3d::FromMatrix(m);
+}
+
 RegistrationResult RegisterPointClouds(const PointCloud& source, const PointCloud& target,
                                        const geometry::Pose3d& T_target_source_guess,
                                        const RegistrationSetting& setting) {
@@ -62,8 +125,9 @@ RegistrationResult RegisterPointClouds(const PointCloud& source, const PointClou
   const auto start = std::chrono::steady_clock::now();
   const Eigen::Matrix3Xd source_points = Downsampled(source, setting.voxel_m);
   const bool with_normals = setting.icp.method == IcpMethod::kPointToPlane;
-  const IcpTarget prepared(Downsampled(target, setting.voxel_m), with_normals,
-                           setting.target_normals);
+  const IcpTarget prepared(Downsampled(target, setting.voxel_m),
+                           with_normals ? TargetNormals::kAll : TargetNormals::kNone,
+                           setting.target_normals, setting.icp.num_threads);
   RegistrationResult result;
   result.icp = AlignIcp(source_points, prepared, T_target_source_guess, setting.icp);
   result.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -4,6 +4,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <random>
+#include <sstream>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "lidar/synthetic_scene.h"
@@ -28,6 +30,42 @@ TEST(RegistrationTest, SettingValidatesEveryOption) {
   EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.1, -1.0, 1.0), Error);
   EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.1, 0.25, 0.0), Error);
   EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.1, std::nan(""), 1.0), Error);
+}
+
+// --init: six numbers (m, deg) or a 4x4 matrix in any of the usual spellings.
+TEST(RegistrationTest, PoseGuessFromSixNumbersOrAMatrix) {
+  const Pose3d six = ParsePoseGuess("1, 2, 3, 90, 0, -90", "--init");
+  EXPECT_LT((six.p - Eigen::Vector3d(1, 2, 3)).norm(), 1e-15);
+  const Eigen::Quaterniond expected(Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
+  EXPECT_LT(six.q.angularDistance(expected), 1e-12);
+  // The same pose as a 4x4, with brackets and line breaks (as numpy prints it).
+  const Eigen::Matrix4d m = six.Matrix();
+  std::ostringstream text;
+  text << "[[" << m(0, 0) << ", " << m(0, 1) << ", " << m(0, 2) << ", " << m(0, 3) << "],\n";
+  for (int i = 1; i < 4; ++i) {
+    text << " [" << m(i, 0) << " " << m(i, 1) << " " << m(i, 2) << " " << m(i, 3) << "]\n";
+  }
+  text << "]";
+  const Pose3d matrix = ParsePoseGuess(text.str(), "guess.txt");
+  EXPECT_LT(matrix.q.angularDistance(expected), 1e-5);  // six printed digits
+  EXPECT_LT((matrix.p - six.p).norm(), 1e-12);
+  // Errors name the problem.
+  const auto message = [](const std::string& t) {
+    try {
+      ParsePoseGuess(t, "--init");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message("1,2,3").find("expected 6 numbers"), std::string::npos);
+  EXPECT_NE(message("1,2,x,0,0,0").find("'x' (number 3)"), std::string::npos);
+  EXPECT_NE(message("1 0 0 0  0 1 0 0  0 0 1 0  0 0 1 1").find("last row"), std::string::npos);
+  EXPECT_NE(message("2 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1").find("not a rotation"),
+            std::string::npos);
+  EXPECT_NE(message("-1 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1").find("not a rotation"),
+            std::string::npos);
 }
 
 class RegistrationOnSimulatedScans : public ::testing::Test {

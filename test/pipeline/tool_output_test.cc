@@ -155,6 +155,40 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
   EXPECT_FALSE(fs::exists(dir / "w"));
 }
 
+// autocal_register on the real scan pair: started at the reference 4x4 (--init=FILE) it
+// converges (exit 0, the file written); stopped after one iteration from the identity it is
+// not converged: exit 2, the report printed, no file written.
+TEST_F(ToolOutputTest, RegisterStartsFromAGuessAndSaysWhenItDidNotConverge) {
+  const fs::path pair = test::SharedDataDir("lidar_scan_pair");
+  AUTOCAL_REQUIRE_SHARED_DATA(pair / "source.ply");
+  const fs::path dir = CleanDir("register");
+  const std::vector<std::string> clouds = {Tool("autocal_register"),
+                                           "--source=" + (pair / "source.ply").string(),
+                                           "--target=" + (pair / "target.ply").string()};
+  std::vector<std::string> from_guess = clouds;
+  from_guess.push_back("--init=" + (pair / "T_target_source.txt").string());
+  from_guess.push_back("--num_threads=2");
+  from_guess.push_back("--output=" + (dir / "guess.yaml").string());
+  const Finished converged = RunTool(from_guess, dir / "log.txt");
+  EXPECT_EQ(converged.exit_code, 0) << converged.output;
+  EXPECT_TRUE(fs::exists(dir / "guess.yaml"));
+
+  std::vector<std::string> one_step = clouds;
+  one_step.push_back("--max_iterations=1");
+  one_step.push_back("--output=" + (dir / "one.yaml").string());
+  const Finished stopped = RunTool(one_step, dir / "log.txt");
+  EXPECT_EQ(stopped.exit_code, 2) << stopped.output;
+  EXPECT_THAT(stopped.output, HasSubstr("not converged within 1 iterations"));
+  EXPECT_THAT(stopped.output, HasSubstr("T_target_source"));
+  EXPECT_FALSE(fs::exists(dir / "one.yaml"));
+
+  std::vector<std::string> bad = clouds;
+  bad.push_back("--init=1,2,3");
+  const Finished refused = RunTool(bad, dir / "log.txt");
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_THAT(refused.output, HasSubstr("--init: expected 6 numbers"));
+}
+
 // --threads is recognized by both solving tools: a value out of range is refused naming the
 // problem file's key it replaces, a valid one passes on to the dataset (here a bare imu.csv
 // header, refused by the reader).

@@ -41,6 +41,15 @@ RegistrationSetting MakeRegistrationSetting(const std::string& method, const std
                                             double loss_scale_m, double voxel_m,
                                             double max_correspondence_m);
 
+// The initial guess T_target_source of autocal_register --init, from either form:
+//   "x,y,z,roll,pitch,yaw"  metres and degrees, R = Rz(yaw) Ry(pitch) Rx(roll);
+//   a 4x4 homogeneous matrix as 16 numbers (row by row, separated by spaces, commas, brackets
+//   or line breaks), whose rotation block is orthonormal to 1e-4 (six printed digits
+//   suffice) and last row 0 0 0 1.
+// `what` names the text's origin in errors (a file name, or "--init"). Throws autocal::Error
+// saying which number or which property is wrong.
+geometry::Pose3d ParsePoseGuess(const std::string& text, const std::string& what);
+
 // Throws autocal::Error on empty clouds, non-finite points or a failed alignment (see
 // AlignIcp). Points with non-finite coordinates are rejected, not dropped: clean the
 // clouds with RemoveNonFinite first if that is intended.
