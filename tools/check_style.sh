@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The habits of docs/contributing.md that a program can check:
 #   tools/check_style.sh [BASE]
-# 1. every tracked *.h / *.cc under src include tools test bench (the fuzz corpus left out)
-#    is formatted as the repository's .clang-format says (clang-format --dry-run --Werror);
+# 1. every tracked *.h / *.cc under src include tools test bench python (the fuzz corpus left
+#    out) is formatted as the repository's .clang-format says (clang-format --dry-run --Werror);
 # 2. with BASE (a commit, e.g. origin/main), the subject of every commit in BASE..HEAD is at
 #    most 72 characters and, when the message has more lines, followed by a blank line.
 # Prints each offending file or commit and exits 1 when there is any, 0 otherwise.
@@ -24,7 +24,8 @@ check_format() {
   while IFS= read -r -d '' file; do
     files+=("$file")
   done < <(git ls-files -z -- 'src/*.h' 'src/*.cc' 'include/*.h' 'include/*.cc' 'tools/*.h' \
-    'tools/*.cc' 'test/*.h' 'test/*.cc' 'bench/*.h' 'bench/*.cc' ':!:test/fuzz/corpus/*')
+    'tools/*.cc' 'test/*.h' 'test/*.cc' 'bench/*.h' 'bench/*.cc' 'python/*.cc' \
+    ':!:test/fuzz/corpus/*')
   # One run over every file; each difference is reported as "FILE:LINE:COL: error: ...".
   local differing
   differing="$("$clang_format" --style=file --dry-run --Werror "${files[@]}" 2>&1 |

@@ -17,6 +17,7 @@ packages=(
   libeigen3-dev libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
   libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev libnanoflann-dev
   libgeographiclib-dev libbz2-dev liblz4-dev libzstd-dev libsqlite3-dev
+  python3-dev pybind11-dev python3-numpy
 )
 # What tools/run.sh style needs instead (no build).
 style_packages=(git clang-format)

@@ -99,8 +99,12 @@ geometry::Pose3d ParsePoseGuess(const std::string& text, const std::string& what
                 "matrix), found " +
                 std::to_string(v.size()));
   }
-  const Eigen::Matrix4d m =
-      Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(v.data());
+  return PoseGuessFromMatrix(
+      Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(v.data()), what);
+}
+
+geometry::Pose3d PoseGuessFromMatrix(const Eigen::Matrix4d& m, const std::string& what) {
+  if (!m.allFinite()) throw Error(what + ": the 4x4 matrix holds a non-finite number");
   if ((m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9) {
     throw Error(what + ": the last row of the 4x4 matrix must be 0 0 0 1");
   }

@@ -49,6 +49,8 @@ RegistrationSetting MakeRegistrationSetting(const std::string& method, const std
 // `what` names the text's origin in errors (a file name, or "--init"). Throws autocal::Error
 // saying which number or which property is wrong.
 geometry::Pose3d ParsePoseGuess(const std::string& text, const std::string& what);
+// The matrix form's checks and conversion alone.
+geometry::Pose3d PoseGuessFromMatrix(const Eigen::Matrix4d& m, const std::string& what);
 
 // Throws autocal::Error on empty clouds, non-finite points or a failed alignment (see
 // AlignIcp). Points with non-finite coordinates are rejected, not dropped: clean the

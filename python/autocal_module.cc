@@ -1,0 +1,488 @@
+// The Python module `autocal` (docs/python.md): datasets and results in and out as numpy
+// arrays, calibration and online estimation with progress callbacks, IMU preintegration,
+// registration and evaluation. A thin layer: every computation is the C++ library's.
+
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "autocal/common/error.h"
+#include "autocal/evaluation/calibration_errors.h"
+#include "autocal/evaluation/trajectory_errors.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/lidar/registration.h"
+#include "autocal/pipeline/offline_calibration.h"
+#include "autocal/pipeline/online_estimation.h"
+#include "autocal/sensors/imu_preintegration.h"
+
+namespace py = pybind11;
+
+namespace autocal {
+namespace python {
+namespace {
+
+using RowsX3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using Stamps = Eigen::Matrix<int64_t, Eigen::Dynamic, 1>;
+
+// ---- Arrays <-> measurements ----
+
+void RequireRows(const char* what, Eigen::Index rows, Eigen::Index expected) {
+  if (rows != expected) {
+    throw Error(std::string(what) + ": " + std::to_string(rows) + " rows for " +
+                std::to_string(expected) + " stamps");
+  }
+}
+
+sensors::ImuSamples ImuFromArrays(const Stamps& t_ns, const RowsX3& gyro, const RowsX3& accel) {
+  RequireRows("gyro_rad_s", gyro.rows(), t_ns.size());
+  RequireRows("accel_m_s2", accel.rows(), t_ns.size());
+  sensors::ImuSamples imu(static_cast<size_t>(t_ns.size()));
+  for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
+    imu[k].t_ns = t_ns(k);
+    imu[k].gyro_rad_s = gyro.row(k).transpose();
+    imu[k].accel_m_s2 = accel.row(k).transpose();
+  }
+  return imu;
+}
+
+template <typename Samples, typename Get>
+Stamps StampsOf(const Samples& samples, Get get) {
+  Stamps t(static_cast<Eigen::Index>(samples.size()));
+  for (size_t k = 0; k < samples.size(); ++k) t(static_cast<Eigen::Index>(k)) = get(samples[k]);
+  return t;
+}
+
+template <int Cols, typename Samples, typename Row>
+Eigen::Matrix<double, Eigen::Dynamic, Cols, Eigen::RowMajor> RowsOf(const Samples& samples,
+                                                                    Row row) {
+  Eigen::Matrix<double, Eigen::Dynamic, Cols, Eigen::RowMajor> out(
+      static_cast<Eigen::Index>(samples.size()), Cols);
+  for (size_t k = 0; k < samples.size(); ++k)
+    out.row(static_cast<Eigen::Index>(k)) = row(samples[k]);
+  return out;
+}
+
+// A trajectory as (t_ns, positions (N,3), quaternions xyzw (N,4)).
+py::dict TrajectoryDict(const io::Trajectory& trajectory) {
+  py::dict d;
+  d["t_ns"] = StampsOf(trajectory, [](const io::TrajectorySample& s) { return s.t_ns; });
+  d["p_W_I"] =
+      RowsOf<3>(trajectory, [](const io::TrajectorySample& s) { return s.T_W_I.p.transpose(); });
+  d["q_W_I_xyzw"] = RowsOf<4>(
+      trajectory, [](const io::TrajectorySample& s) { return s.T_W_I.q.coeffs().transpose(); });
+  return d;
+}
+
+io::Trajectory TrajectoryFromArrays(
+    const Stamps& t_ns, const RowsX3& p,
+    const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& q) {
+  RequireRows("p_W_I", p.rows(), t_ns.size());
+  RequireRows("q_W_I_xyzw", q.rows(), t_ns.size());
+  io::Trajectory out(static_cast<size_t>(t_ns.size()));
+  for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
+    out[k].t_ns = t_ns(k);
+    out[k].T_W_I.p = p.row(k).transpose();
+    out[k].T_W_I.q = Eigen::Quaterniond(q(k, 3), q(k, 0), q(k, 1), q(k, 2)).normalized();
+  }
+  return out;
+}
+
+// ---- Calibration ----
+
+Eigen::Vector4d Xyzw(const Eigen::Quaterniond& q) { return q.coeffs(); }
+Eigen::Quaterniond FromXyzw(const Eigen::Vector4d& v) {
+  const Eigen::Quaterniond q(v(3), v(0), v(1), v(2));
+  if (!(q.norm() > 0.5 && q.norm() < 1.5)) throw Error("a quaternion [x, y, z, w] of norm 1");
+  return q.normalized();
+}
+
+void BindCalibration(py::module_& m) {
+  py::class_<sensors::Calibration>(m, "Calibration",
+                                   "autocal's calibration values (names and units as in "
+                                   "calibration.yaml; quaternions [x, y, z, w], Hamilton)")
+      .def(py::init<>())
+      .def_property(
+          "q_I_L_xyzw", [](const sensors::Calibration& c) { return Xyzw(c.q_I_L); },
+          [](sensors::Calibration& c, const Eigen::Vector4d& v) { c.q_I_L = FromXyzw(v); })
+      .def_readwrite("p_I_L_m", &sensors::Calibration::p_I_L)
+      .def_readwrite("time_offset_lidar_imu_s", &sensors::Calibration::time_offset_lidar_imu_s)
+      .def_property(
+          "q_I_V_xyzw", [](const sensors::Calibration& c) { return Xyzw(c.q_I_V); },
+          [](sensors::Calibration& c, const Eigen::Vector4d& v) { c.q_I_V = FromXyzw(v); })
+      .def_readwrite("p_I_V_m", &sensors::Calibration::p_I_V)
+      .def_readwrite("wheel_radius_left_m", &sensors::Calibration::wheel_radius_left_m)
+      .def_readwrite("wheel_radius_right_m", &sensors::Calibration::wheel_radius_right_m)
+      .def_readwrite("track_width_m", &sensors::Calibration::track_width_m)
+      .def_readwrite("wheel_speed_scale_left", &sensors::Calibration::wheel_speed_scale_left)
+      .def_readwrite("wheel_speed_scale_right", &sensors::Calibration::wheel_speed_scale_right)
+      .def_readwrite("odometry_speed_scale", &sensors::Calibration::odometry_speed_scale)
+      .def_readwrite("effective_track_m", &sensors::Calibration::effective_track_m)
+      .def_readwrite("p_I_A_m", &sensors::Calibration::p_I_A)
+      .def_readwrite("time_offset_wheel_imu_s", &sensors::Calibration::time_offset_wheel_imu_s)
+      .def_readwrite("time_offset_gnss_imu_s", &sensors::Calibration::time_offset_gnss_imu_s);
+
+  py::class_<io::CalibrationFile>(m, "CalibrationFile",
+                                  "calibration.yaml: the values, their sigma and observability")
+      .def(py::init<>())
+      .def_readwrite("value", &io::CalibrationFile::value)
+      .def_readwrite("solver", &io::CalibrationFile::solver)
+      .def_readwrite("residuals", &io::CalibrationFile::residuals)
+      .def_property_readonly("sigma", [](const io::CalibrationFile& f) {
+        const io::CalibrationUncertainty& u = f.uncertainty;
+        py::dict d;
+        if (u.T_I_L.sigma_rot_deg) d["T_I_L_rotation_deg"] = *u.T_I_L.sigma_rot_deg;
+        if (u.T_I_L.sigma_p_m) d["T_I_L_translation_m"] = *u.T_I_L.sigma_p_m;
+        if (u.T_I_V.sigma_rot_deg) d["T_I_V_rotation_deg"] = *u.T_I_V.sigma_rot_deg;
+        if (u.T_I_V.sigma_p_m) d["T_I_V_translation_m"] = *u.T_I_V.sigma_p_m;
+        if (u.p_I_A_m.sigma) d["p_I_A_m"] = *u.p_I_A_m.sigma;
+        const std::pair<const char*, const io::ScalarBlockInfo*> scalars[] = {
+            {"time_offset_lidar_imu_s", &u.time_offset_lidar_imu_s},
+            {"wheel_radius_left_m", &u.wheel_radius_left_m},
+            {"wheel_radius_right_m", &u.wheel_radius_right_m},
+            {"track_width_m", &u.track_width_m},
+            {"wheel_speed_scale_left", &u.wheel_speed_scale_left},
+            {"wheel_speed_scale_right", &u.wheel_speed_scale_right},
+            {"odometry_speed_scale", &u.odometry_speed_scale},
+            {"effective_track_m", &u.effective_track_m},
+            {"time_offset_wheel_imu_s", &u.time_offset_wheel_imu_s},
+            {"time_offset_gnss_imu_s", &u.time_offset_gnss_imu_s}};
+        for (const auto& [name, info] : scalars) {
+          if (info->sigma) d[name] = *info->sigma;
+        }
+        return d;
+      });
+
+  m.def("read_calibration", &io::ReadCalibrationYaml, py::arg("path"),
+        "reads a calibration.yaml (a result, or a dataset's ground truth)");
+  m.def("write_calibration", &io::WriteCalibrationYaml, py::arg("path"), py::arg("calibration"),
+        "writes a CalibrationFile as calibration.yaml (atomically, values round-trip exactly)");
+}
+
+// ---- Dataset ----
+
+void BindDataset(py::module_& m) {
+  py::class_<io::Dataset>(m, "Dataset",
+                          "a dataset directory (datasets/README.md); arrays are copies")
+      .def(py::init<>())
+      .def_readonly("directory", &io::Dataset::directory)
+      .def_property(
+          "nominal", [](const io::Dataset& d) { return d.sensors.nominal_calibration; },
+          [](io::Dataset& d, const sensors::Calibration& c) { d.sensors.nominal_calibration = c; })
+      .def_property_readonly("imu_t_ns",
+                             [](const io::Dataset& d) {
+                               return StampsOf(d.imu,
+                                               [](const sensors::ImuSample& s) { return s.t_ns; });
+                             })
+      .def_property_readonly("imu_gyro_rad_s",
+                             [](const io::Dataset& d) {
+                               return RowsOf<3>(d.imu, [](const sensors::ImuSample& s) {
+                                 return s.gyro_rad_s.transpose();
+                               });
+                             })
+      .def_property_readonly("imu_accel_m_s2",
+                             [](const io::Dataset& d) {
+                               return RowsOf<3>(d.imu, [](const sensors::ImuSample& s) {
+                                 return s.accel_m_s2.transpose();
+                               });
+                             })
+      .def(
+          "set_imu",
+          [](io::Dataset& d, const Stamps& t_ns, const RowsX3& gyro, const RowsX3& accel) {
+            d.imu = ImuFromArrays(t_ns, gyro, accel);
+          },
+          py::arg("t_ns"), py::arg("gyro_rad_s"), py::arg("accel_m_s2"))
+      .def_property_readonly("gnss_t_ns",
+                             [](const io::Dataset& d) {
+                               return StampsOf(d.gnss,
+                                               [](const sensors::GnssFix& f) { return f.t_ns; });
+                             })
+      .def_property_readonly("gnss_lat_lon_alt",
+                             [](const io::Dataset& d) {
+                               return RowsOf<3>(d.gnss, [](const sensors::GnssFix& f) {
+                                 return Eigen::RowVector3d(f.lat_deg, f.lon_deg, f.alt_m);
+                               });
+                             })
+      .def_property_readonly("gnss_std_enu_m",
+                             [](const io::Dataset& d) {
+                               return RowsOf<3>(d.gnss, [](const sensors::GnssFix& f) {
+                                 return f.std_enu_m.transpose();
+                               });
+                             })
+      .def(
+          "set_gnss",
+          [](io::Dataset& d, const Stamps& t_ns, const RowsX3& lat_lon_alt, const RowsX3& std_enu) {
+            RequireRows("lat_lon_alt", lat_lon_alt.rows(), t_ns.size());
+            RequireRows("std_enu_m", std_enu.rows(), t_ns.size());
+            d.gnss.assign(static_cast<size_t>(t_ns.size()), sensors::GnssFix());
+            for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
+              d.gnss[k] = {t_ns(k), lat_lon_alt(k, 0), lat_lon_alt(k, 1), lat_lon_alt(k, 2),
+                           std_enu.row(k).transpose()};
+            }
+            if (!d.sensors.gnss) d.sensors.gnss = sensors::GnssConfig();
+          },
+          py::arg("t_ns"), py::arg("lat_lon_alt"), py::arg("std_enu_m"))
+      .def_property_readonly(
+          "odometry_t_ns",
+          [](const io::Dataset& d) {
+            return StampsOf(d.odometry, [](const sensors::OdometrySample& s) { return s.t_ns; });
+          })
+      .def_property_readonly("odometry_speed_yaw_rate",
+                             [](const io::Dataset& d) {
+                               return RowsOf<2>(d.odometry, [](const sensors::OdometrySample& s) {
+                                 return Eigen::RowVector2d(s.speed_m_s, s.yaw_rate_rad_s);
+                               });
+                             })
+      .def_property_readonly("wheel_t_ns",
+                             [](const io::Dataset& d) {
+                               return StampsOf(
+                                   d.wheel, [](const sensors::WheelSample& s) { return s.t_ns; });
+                             })
+      .def_property_readonly("wheel_rad_s",
+                             [](const io::Dataset& d) {
+                               return RowsOf<2>(d.wheel, [](const sensors::WheelSample& s) {
+                                 return Eigen::RowVector2d(s.left_rad_s, s.right_rad_s);
+                               });
+                             })
+      .def_property_readonly("lidar_sweeps",
+                             [](const io::Dataset& d) { return d.lidar_sweeps.size(); });
+
+  m.def(
+      "read_dataset", [](const std::string& directory) { return io::ReadDataset(directory); },
+      py::arg("directory"), "reads and validates a dataset directory (sweeps stay on disk)");
+  m.def(
+      "write_dataset",
+      [](const std::string& directory, const io::Dataset& d) {
+        if (!d.lidar_sweeps.empty()) {
+          throw Error(
+              "write_dataset: datasets with LiDAR sweeps are written by autocal_import "
+              "or autocal_simulate");
+        }
+        io::DatasetWriter writer(directory);
+        writer.WriteSensorsConfig(d.sensors);
+        writer.WriteImu(d.imu);
+        if (!d.wheel.empty()) writer.WriteWheel(d.wheel);
+        if (!d.wheel_speeds.empty()) writer.WriteWheelSpeeds(d.wheel_speeds);
+        if (!d.odometry.empty()) writer.WriteOdometry(d.odometry);
+        if (!d.gnss.empty()) writer.WriteGnss(d.gnss);
+        writer.Close();
+      },
+      py::arg("directory"), py::arg("dataset"),
+      "writes a dataset without LiDAR (IMU, wheel data in its form, GNSS, sensors.yaml)");
+}
+
+// ---- Calibration and online estimation ----
+
+// Calls a Python progress callback from the library with the GIL held; its exception ends
+// the run and reaches the caller.
+template <typename Progress>
+std::function<void(const Progress&)> WithGil(std::function<void(const Progress&)> callback) {
+  if (!callback) return nullptr;
+  return [callback](const Progress& p) {
+    py::gil_scoped_acquire gil;
+    callback(p);
+  };
+}
+
+void BindPipeline(py::module_& m) {
+  py::class_<pipeline::CalibrationProgress>(m, "CalibrationProgress")
+      .def_readonly("stage", &pipeline::CalibrationProgress::stage)
+      .def_readonly("fraction", &pipeline::CalibrationProgress::fraction)
+      .def_readonly("cost", &pipeline::CalibrationProgress::cost)
+      .def_readonly("seconds_left", &pipeline::CalibrationProgress::seconds_left);
+  py::class_<pipeline::OnlineEstimationProgress>(m, "OnlineEstimationProgress")
+      .def_readonly("log_fraction", &pipeline::OnlineEstimationProgress::log_fraction)
+      .def_readonly("updates", &pipeline::OnlineEstimationProgress::updates)
+      .def_readonly("calibration", &pipeline::OnlineEstimationProgress::calibration);
+
+  py::class_<pipeline::OfflineCalibrationResult>(m, "CalibrationResult")
+      .def_readonly("calibration", &pipeline::OfflineCalibrationResult::calibration)
+      .def_readonly("warnings", &pipeline::OfflineCalibrationResult::warnings)
+      .def_readonly("seconds_total", &pipeline::OfflineCalibrationResult::seconds_total)
+      .def_property_readonly(
+          "trajectory",
+          [](const pipeline::OfflineCalibrationResult& r) { return TrajectoryDict(r.trajectory); })
+      .def(
+          "write",
+          [](const pipeline::OfflineCalibrationResult& r, const std::string& directory) {
+            pipeline::WriteCalibrationResult(directory, r);
+          },
+          py::arg("directory"), "writes the result files autocal_calibrate writes");
+
+  py::class_<pipeline::OnlineEstimationResult>(m, "OnlineEstimationResult")
+      .def_readonly("calibration", &pipeline::OnlineEstimationResult::calibration)
+      .def_readonly("warnings", &pipeline::OnlineEstimationResult::warnings)
+      .def_property_readonly(
+          "trajectory",
+          [](const pipeline::OnlineEstimationResult& r) { return TrajectoryDict(r.trajectory); })
+      .def(
+          "write",
+          [](const pipeline::OnlineEstimationResult& r, const std::string& directory) {
+            pipeline::WriteOnlineEstimationResult(directory, r);
+          },
+          py::arg("directory"), "writes the result files autocal_estimate writes");
+
+  m.def(
+      "calibrate",
+      [](const std::string& dataset, const std::string& problem,
+         std::function<void(const pipeline::CalibrationProgress&)> progress) {
+        const io::Dataset d = io::ReadDataset(dataset);
+        const io::Problem p = io::ReadProblemYaml(problem);
+        pipeline::OfflineCalibrationOptions options;
+        options.progress = WithGil(std::move(progress));
+        py::gil_scoped_release release;
+        return pipeline::CalibrateDataset(d, p, options);
+      },
+      py::arg("dataset"), py::arg("problem"), py::arg("progress") = nullptr,
+      "autocal_calibrate as a call: dataset directory, problem file, optional progress(p)");
+  m.def(
+      "estimate_online",
+      [](const std::string& dataset, const std::string& problem,
+         std::function<void(const pipeline::OnlineEstimationProgress&)> progress) {
+        const io::Dataset d = io::ReadDataset(dataset);
+        const io::Problem p = io::ReadProblemYaml(problem);
+        pipeline::OnlineEstimationOptions options;
+        options.progress = WithGil(std::move(progress));
+        py::gil_scoped_release release;
+        return pipeline::EstimateDatasetOnline(d, p, options);
+      },
+      py::arg("dataset"), py::arg("problem"), py::arg("progress") = nullptr,
+      "autocal_estimate as a call: dataset directory, problem file, optional progress(p)");
+}
+
+// ---- Preintegration, registration, evaluation ----
+
+void BindAlgorithms(py::module_& m) {
+  m.def(
+      "preintegrate",
+      [](const Stamps& t_ns, const RowsX3& gyro, const RowsX3& accel, int64_t t_start_ns,
+         int64_t t_end_ns, double gyroscope_noise_density, double accelerometer_noise_density,
+         double gyroscope_random_walk, double accelerometer_random_walk, double gravity_m_s2,
+         const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a) {
+        sensors::ImuNoise noise;
+        noise.gyroscope_noise_density = gyroscope_noise_density;
+        noise.accelerometer_noise_density = accelerometer_noise_density;
+        noise.gyroscope_random_walk = gyroscope_random_walk;
+        noise.accelerometer_random_walk = accelerometer_random_walk;
+        sensors::PreintegrationOptions options;
+        options.gravity_m_s2 = gravity_m_s2;
+        sensors::ImuPreintegration pre(noise, options, b_g, b_a);
+        pre.Integrate(ImuFromArrays(t_ns, gyro, accel), t_start_ns, t_end_ns);
+        py::dict d;
+        d["dt_s"] = pre.dt_s();
+        d["delta_R"] = pre.delta_R();
+        d["delta_v"] = pre.delta_v();
+        d["delta_p"] = pre.delta_p();
+        d["covariance"] = Eigen::MatrixXd(pre.Covariance());
+        return d;
+      },
+      py::arg("t_ns"), py::arg("gyro_rad_s"), py::arg("accel_m_s2"), py::arg("t_start_ns"),
+      py::arg("t_end_ns"), py::arg("gyroscope_noise_density") = 1.6968e-4,
+      py::arg("accelerometer_noise_density") = 2.0e-3, py::arg("gyroscope_random_walk") = 1.9393e-5,
+      py::arg("accelerometer_random_walk") = 3.0e-3, py::arg("gravity_m_s2") = 9.80665,
+      py::arg("b_g") = Eigen::Vector3d::Zero(), py::arg("b_a") = Eigen::Vector3d::Zero(),
+      "IMU preintegration over [t_start_ns, t_end_ns] (docs/factors.md, Eq. F3-F5): dt_s, "
+      "delta_R, delta_v, delta_p and the 15x15 covariance of [dphi, dv, dp, dbg, dba]");
+
+  m.def(
+      "register",
+      [](const RowsX3& source, const RowsX3& target, const Eigen::Matrix4d& init,
+         const std::string& method, const std::string& loss, double loss_scale_m, double voxel_m,
+         double max_correspondence_m, int max_iterations, int num_threads) {
+        lidar::RegistrationSetting setting = lidar::MakeRegistrationSetting(
+            method, loss, loss_scale_m, voxel_m, max_correspondence_m);
+        if (max_iterations < 1 || num_threads < 1) {
+          throw Error("register: max_iterations and num_threads must be at least 1");
+        }
+        setting.icp.convergence.max_iterations = max_iterations;
+        setting.icp.num_threads = num_threads;
+        lidar::PointCloud s, t;
+        s.points = source.transpose();
+        t.points = target.transpose();
+        const geometry::Pose3d guess = lidar::PoseGuessFromMatrix(init, "register: init");
+        lidar::RegistrationResult r;
+        {
+          py::gil_scoped_release release;
+          r = lidar::RegisterPointClouds(s, t, guess, setting);
+        }
+        py::dict d;
+        d["T_target_source"] = r.icp.T_target_source.Matrix();
+        d["covariance"] = Eigen::MatrixXd(r.icp.covariance);
+        d["converged"] = r.icp.converged;
+        d["iterations"] = r.icp.iterations;
+        d["inlier_rmse_m"] = r.icp.inlier_rmse_m;
+        d["fitness"] = r.icp.fitness;
+        return d;
+      },
+      py::arg("source"), py::arg("target"), py::arg("init") = Eigen::Matrix4d::Identity(),
+      py::arg("method") = "point_to_plane", py::arg("loss") = "none", py::arg("loss_scale_m") = 0.1,
+      py::arg("voxel_m") = 0.25, py::arg("max_correspondence_m") = 1.0,
+      py::arg("max_iterations") = 30, py::arg("num_threads") = 1,
+      "aligns source (N,3) to target (M,3) as autocal_register does (docs/lidar.md): "
+      "T_target_source (4x4), covariance (6x6, [rho; phi]), converged, iterations, "
+      "inlier_rmse_m, fitness");
+
+  m.def(
+      "compare_calibration",
+      [](const sensors::Calibration& estimate, const sensors::Calibration& truth) {
+        const evaluation::CalibrationErrors e = evaluation::CompareCalibration(estimate, truth);
+        py::dict d;
+        d["T_I_L_rotation_deg"] = e.T_I_L.rotation_deg;
+        d["T_I_L_translation_mm"] = e.T_I_L.translation_mm;
+        d["time_offset_ms"] = e.time_offset_ms;
+        d["wheel_radius_left_percent"] = e.wheel_radius_left_percent;
+        d["wheel_radius_right_percent"] = e.wheel_radius_right_percent;
+        d["track_width_percent"] = e.track_width_percent;
+        d["odometry_speed_scale_percent"] = e.odometry_speed_scale_percent;
+        d["effective_track_percent"] = e.effective_track_percent;
+        d["p_I_A_mm"] = e.p_I_A_mm;
+        d["T_I_V_rotation_deg"] = e.T_I_V.rotation_deg;
+        d["T_I_V_translation_mm"] = e.T_I_V.translation_mm;
+        return d;
+      },
+      py::arg("estimate"), py::arg("truth"),
+      "estimate minus truth per block (docs/evaluation.md, \"Calibration\")");
+  m.def(
+      "compare_trajectory",
+      [](const Stamps& est_t, const RowsX3& est_p,
+         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& est_q,
+         const Stamps& true_t, const RowsX3& true_p,
+         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& true_q) {
+        const evaluation::TrajectoryErrors e =
+            evaluation::CompareTrajectory(TrajectoryFromArrays(est_t, est_p, est_q),
+                                          TrajectoryFromArrays(true_t, true_p, true_q));
+        py::dict d;
+        d["matched_poses"] = e.matched_poses;
+        d["ate_translation_rmse_m"] = e.ate_translation_rmse_m;
+        d["ate_rotation_rmse_deg"] = e.ate_rotation_rmse_deg;
+        d["max_translation_error_m"] = e.max_translation_error_m;
+        d["max_rotation_error_deg"] = e.max_rotation_error_deg;
+        return d;
+      },
+      py::arg("t_ns"), py::arg("p_W_I"), py::arg("q_W_I_xyzw"), py::arg("true_t_ns"),
+      py::arg("true_p_W_I"), py::arg("true_q_W_I_xyzw"),
+      "ATE after a 4-DoF (yaw + translation) alignment (docs/evaluation.md)");
+}
+
+}  // namespace
+}  // namespace python
+}  // namespace autocal
+
+PYBIND11_MODULE(autocal, m) {
+  m.doc() = "autocal: LiDAR-IMU-wheel-GNSS calibration (https: see README.md)";
+  py::register_exception<autocal::Error>(m, "Error", PyExc_RuntimeError);
+  autocal::python::BindCalibration(m);
+  autocal::python::BindDataset(m);
+  autocal::python::BindPipeline(m);
+  autocal::python::BindAlgorithms(m);
+}

@@ -1,0 +1,167 @@
+"""Tests of the Python module `autocal` (docs/python.md), run by ctest as python.module.
+
+Each test checks numbers against a closed form or the ground truth of a simulated log."""
+
+import math
+import os
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+
+import autocal
+
+
+def rot_z(angle_rad):
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def output_dir(name):
+    root = os.environ.get("AUTOCAL_TEST_OUTPUT_DIR", tempfile.gettempdir())
+    path = os.path.join(root, name)
+    shutil.rmtree(path, ignore_errors=True)
+    os.makedirs(path)
+    return path
+
+
+class CalibrationFiles(unittest.TestCase):
+    def test_values_round_trip_through_calibration_yaml(self):
+        f = autocal.CalibrationFile()
+        f.value.q_I_L_xyzw = np.array([0.0, 0.0, math.sin(0.3), math.cos(0.3)])
+        f.value.p_I_L_m = np.array([0.3, -0.05, 0.55])
+        f.value.time_offset_lidar_imu_s = 0.025
+        f.value.wheel_radius_left_m = 0.3335
+        path = os.path.join(output_dir("calibration"), "calibration.yaml")
+        autocal.write_calibration(path, f)
+        back = autocal.read_calibration(path)
+        np.testing.assert_array_equal(back.value.q_I_L_xyzw, f.value.q_I_L_xyzw)
+        np.testing.assert_array_equal(back.value.p_I_L_m, [0.3, -0.05, 0.55])
+        self.assertEqual(back.value.time_offset_lidar_imu_s, 0.025)
+        self.assertEqual(back.value.wheel_radius_left_m, 0.3335)
+
+    def test_a_missing_file_raises_autocal_error(self):
+        with self.assertRaises(autocal.Error):
+            autocal.read_calibration("/nonexistent/calibration.yaml")
+
+
+class Datasets(unittest.TestCase):
+    def test_imu_and_gnss_round_trip_through_a_dataset_directory(self):
+        n = 400
+        t_ns = 1_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000  # 200 Hz
+        rng = np.random.default_rng(3)
+        gyro = 0.01 * rng.standard_normal((n, 3))
+        accel = np.array([0.0, 0.0, 9.81]) + 0.02 * rng.standard_normal((n, 3))
+        d = autocal.Dataset()
+        d.set_imu(t_ns, gyro, accel)
+        fixes = t_ns[::20]
+        lla = np.column_stack([49.0 + 1e-6 * np.arange(len(fixes)), np.full(len(fixes), 8.4),
+                               np.full(len(fixes), 165.0)])
+        d.set_gnss(fixes, lla, np.full((len(fixes), 3), 0.5))
+        directory = output_dir("dataset")
+        autocal.write_dataset(directory, d)
+        back = autocal.read_dataset(directory)
+        np.testing.assert_array_equal(back.imu_t_ns, t_ns)
+        np.testing.assert_array_equal(back.imu_gyro_rad_s, gyro)
+        np.testing.assert_array_equal(back.imu_accel_m_s2, accel)
+        np.testing.assert_array_equal(back.gnss_t_ns, fixes)
+        np.testing.assert_array_equal(back.gnss_lat_lon_alt, lla)
+
+    def test_mismatched_arrays_are_refused(self):
+        d = autocal.Dataset()
+        with self.assertRaises(autocal.Error):
+            d.set_imu(np.arange(3, dtype=np.int64), np.zeros((2, 3)), np.zeros((3, 3)))
+
+
+class Preintegration(unittest.TestCase):
+    # 1 s at 100 Hz: a constant turn rate about z and a constant specific force along x in
+    # the turning frame; with gravity left in the deltas (Eq. F3), the closed forms are
+    # delta_R = Rz(w T), delta_v = integral of Rz(w t) f dt.
+    def test_matches_the_closed_form_of_a_constant_turn(self):
+        w, f, T = 0.5, 2.0, 1.0
+        t_ns = (np.arange(101, dtype=np.int64) * 10_000_000)
+        gyro = np.tile([0.0, 0.0, w], (101, 1))
+        accel = np.tile([f, 0.0, 0.0], (101, 1))
+        p = autocal.preintegrate(t_ns, gyro, accel, 0, 1_000_000_000)
+        self.assertAlmostEqual(p["dt_s"], T, places=12)
+        np.testing.assert_allclose(p["delta_R"], rot_z(w * T), atol=1e-12)
+        expected_v = f / w * np.array([math.sin(w * T), 1.0 - math.cos(w * T), 0.0])
+        np.testing.assert_allclose(p["delta_v"], expected_v, atol=2e-4)
+        cov = p["covariance"]
+        self.assertEqual(cov.shape, (15, 15))
+        np.testing.assert_allclose(cov, cov.T, atol=1e-18)
+        self.assertTrue(np.all(np.linalg.eigvalsh(cov) > 0.0))
+
+
+class Registration(unittest.TestCase):
+    # Points on a floor and two walls; the source is the target seen from a pose moved by
+    # 0.3 m and 3 degrees of yaw.
+    def test_recovers_a_known_motion(self):
+        rng = np.random.default_rng(7)
+        u = rng.uniform(-10.0, 10.0, (3000, 2))
+        floor = np.column_stack([u[:1000, 0], u[:1000, 1], np.zeros(1000)])
+        wall_x = np.column_stack([np.full(1000, 8.0), u[1000:2000, 0], u[1000:2000, 1] * 0.2 + 2])
+        wall_y = np.column_stack([u[2000:, 0], np.full(1000, -6.0), u[2000:, 1] * 0.2 + 2])
+        target = np.vstack([floor, wall_x, wall_y])
+        T = np.eye(4)
+        T[:3, :3] = rot_z(math.radians(3.0))
+        T[:3, 3] = [0.3, -0.1, 0.02]
+        source = (target - T[:3, 3]) @ T[:3, :3]  # p_source = R^T (p_target - t)
+        r = autocal.register(source, target, voxel_m=0.0, max_iterations=50)
+        self.assertTrue(r["converged"])
+        np.testing.assert_allclose(r["T_target_source"], T, atol=1e-6)
+        self.assertEqual(r["covariance"].shape, (6, 6))
+        # From a guess next to the answer it takes fewer iterations.
+        near = autocal.register(source, target, init=T, voxel_m=0.0)
+        self.assertLessEqual(near["iterations"], r["iterations"])
+        with self.assertRaises(autocal.Error):
+            autocal.register(source, target, init=2.0 * np.eye(4))
+
+
+class Pipeline(unittest.TestCase):
+    # A 30 s simulated urban drive without the LiDAR, calibrated from problems/
+    # imu_wheel_gnss.yaml with a progress callback, and compared with its ground truth.
+    @classmethod
+    def setUpClass(cls):
+        cls.dataset = output_dir("urban_30s")
+        tool = os.path.join(os.environ["AUTOCAL_TOOL_DIR"], "autocal_simulate")
+        subprocess.run([tool, "--scenario=urban", "--duration_s=30", "--seed=5", "--lidar=false",
+                        "--out=" + cls.dataset], check=True, capture_output=True)
+        cls.problem = os.path.join(os.environ["AUTOCAL_SOURCE_DIR"], "problems",
+                                   "imu_wheel_gnss.yaml")
+
+    def test_calibrates_with_progress_and_meets_the_truth(self):
+        stages = []
+        result = autocal.calibrate(self.dataset, self.problem,
+                                   progress=lambda p: stages.append((p.stage, p.fraction)))
+        self.assertIn(("solving", 1.0), stages)
+        truth = autocal.read_calibration(os.path.join(self.dataset, "groundtruth",
+                                                      "calibration.yaml"))
+        errors = autocal.compare_calibration(result.calibration.value, truth.value)
+        self.assertLess(abs(errors["wheel_radius_left_percent"]), 0.05)
+        self.assertLess(abs(errors["wheel_radius_right_percent"]), 0.05)
+        self.assertIn("wheel_radius_left_m", result.calibration.sigma)
+        trajectory = result.trajectory
+        self.assertEqual(trajectory["p_W_I"].shape, (len(trajectory["t_ns"]), 3))
+        out = output_dir("urban_30s_result")
+        result.write(out)
+        self.assertTrue(os.path.exists(os.path.join(out, "calibration.yaml")))
+
+    def test_an_exception_in_the_callback_stops_the_run(self):
+        def stop(progress):
+            raise KeyboardInterrupt("stopped by the user")
+        with self.assertRaises(KeyboardInterrupt):
+            autocal.calibrate(self.dataset, self.problem, progress=stop)
+
+    def test_streams_the_log_online(self):
+        updates = []
+        result = autocal.estimate_online(self.dataset, self.problem,
+                                         progress=lambda p: updates.append(p.updates))
+        self.assertGreater(len(updates), 0)
+        self.assertGreater(len(result.trajectory["t_ns"]), 100)
+
+
+if __name__ == "__main__":
+    unittest.main()
