@@ -141,6 +141,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   const ClockInitialization initialization = InitializeMountAndClocks(
       dataset, problem, MaxNominalMountDeg(problem, dataset.sensors, options), &calibration,
       &priors.nominal_calibration, &result.warnings);
+  result.wheel_clock_initialization = initialization.wheel;
+  result.gnss_clock_initialization = initialization.gnss;
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
       use_gnss ? KeyframesOnGnssTrack(dataset, problem, options, timing, *enu, use_wheel,

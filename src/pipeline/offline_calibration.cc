@@ -306,7 +306,10 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
   //    with the wheel and GNSS factors and the priors of the problem.
   sensors::Calibration calibration =
       StartFromInitializer(result.nominal, problem.calibration, result.initialization);
-  InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
+  const ClockInitialization clocks =
+      InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
+  result.wheel_clock_initialization = clocks.wheel;
+  result.gnss_clock_initialization = clocks.gnss;
   BatchKeyframes keyframes = EveryStrideKeyframe(problem, result.initialization, &sweeps);
   sweeps.clear();
   const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;

@@ -14,6 +14,7 @@
 #include "autocal/common/format.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/io/calibration_yaml.h"
 #include "mount_angles.h"
 #include "svg_chart.h"
 
@@ -369,19 +370,128 @@ std::string ResidualSection(const OfflineCalibrationResult& result, bool lidar_u
   return html;
 }
 
-std::string TimeOffsetSection(const estimation::TimeOffsetEstimate& t) {
-  if (t.candidate_offsets_s.empty() || t.candidate_offsets_s.size() != t.correlation.size()) {
-    return "";
-  }
+// One cross-correlation curve against the candidate offsets, in ms; empty without one.
+std::string CorrelationChart(const std::string& title, const std::vector<double>& offsets_s,
+                             const std::vector<double>& correlation) {
+  if (offsets_s.empty() || offsets_s.size() != correlation.size()) return "";
   Series curve{"correlation", "#36c", {}, {}};
-  for (size_t i = 0; i < t.candidate_offsets_s.size(); ++i) {
-    curve.x.push_back(t.candidate_offsets_s[i] * 1e3);
-    curve.y.push_back(t.correlation[i]);
+  for (size_t i = 0; i < offsets_s.size(); ++i) {
+    curve.x.push_back(offsets_s[i] * 1e3);
+    curve.y.push_back(correlation[i]);
   }
-  const std::string chart =
-      LineChart("LiDAR vs gyro angular-rate correlation (peak " + Number(t.offset_s * 1e3) + " ms)",
-                "candidate offset (ms)", "correlation", {curve});
-  return Section("Time offset initialization", chart);
+  return LineChart(title, "candidate offset (ms)", "correlation", {curve});
+}
+
+// The clocks' initializations: the LiDAR's against the gyro, the wheels' and the GNSS
+// receiver's (t_imu = t_sensor + offset), each the curve whose peak started the solve.
+std::string ClockSection(const OfflineCalibrationResult& result) {
+  const estimation::TimeOffsetEstimate& lidar = result.initialization.time_offset;
+  std::string charts = CorrelationChart(
+      "LiDAR vs gyro angular-rate correlation (peak " + Number(lidar.offset_s * 1e3) + " ms)",
+      lidar.candidate_offsets_s, lidar.correlation);
+  if (result.wheel_clock_initialization) {
+    const estimation::SeriesOffsetEstimate& e = result.wheel_clock_initialization->estimate;
+    charts += CorrelationChart("wheels vs IMU, " + result.wheel_clock_initialization->signal +
+                                   " (peak " + Number(e.offset_s * 1e3) + " ms" +
+                                   (e.reliable ? "" : ", not used: " + e.reason) + ")",
+                               e.candidate_offsets_s, e.correlation);
+  }
+  if (result.gnss_clock_initialization) {
+    const estimation::SeriesOffsetEstimate& e = *result.gnss_clock_initialization;
+    charts += CorrelationChart("GNSS track speed vs wheel speed (peak " + Number(e.offset_s * 1e3) +
+                                   " ms" + (e.reliable ? "" : ", not used: " + e.reason) + ")",
+                               e.candidate_offsets_s, e.correlation);
+  }
+  return Section("Clock offset initialization", charts);
+}
+
+// A position's covariance from a block's per-axis sigma in the IMU frame, turned into V.
+Eigen::Matrix3d CovarianceInV(const Eigen::Matrix3d& R_V_I,
+                              const std::optional<Eigen::Vector3d>& sigma_I) {
+  if (!sigma_I) return Eigen::Matrix3d::Zero();
+  return R_V_I * sigma_I->cwiseAbs2().asDiagonal() * R_V_I.transpose();
+}
+
+struct RigPoint {
+  std::string label;
+  std::string color;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+};
+
+// The sensors in the vehicle frame (docs/report.md, "Rig"): its origin (the rear-axle centre),
+// the IMU at p_V_I with the rear axle's translation sigma, the LiDAR and the antenna at R_V_I p +
+// p_V_I with their own sigma added, the rear wheels at +-track/2 with half the track's sigma.
+// Without an estimated mount the IMU frame stands in for V.
+std::vector<RigPoint> RigPoints(const OfflineCalibrationResult& result, bool lidar_used) {
+  const sensors::Calibration& c = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  const bool vehicle = u.T_I_V.sigma_rot_deg.has_value();
+  const Eigen::Matrix3d R_V_I =
+      vehicle ? c.q_I_V.conjugate().toRotationMatrix() : Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d p_V_I =
+      vehicle ? Eigen::Vector3d(-(R_V_I * c.p_I_V)) : Eigen::Vector3d::Zero();
+  const Eigen::Matrix3d imu_cov =
+      vehicle ? CovarianceInV(R_V_I, u.T_I_V.sigma_p_m) : Eigen::Matrix3d::Zero();
+  std::vector<RigPoint> points = {{"IMU", "#333", p_V_I, imu_cov}};
+  if (vehicle) {
+    points.push_back(
+        {"rear axle centre", "#999", Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()});
+  }
+  if (lidar_used || u.T_I_L.sigma_p_m) {
+    points.push_back({"LiDAR", "#36c", R_V_I * c.p_I_L + p_V_I,
+                      CovarianceInV(R_V_I, u.T_I_L.sigma_p_m) + imu_cov});
+  }
+  if (u.p_I_A_m.sigma) {
+    points.push_back({"GNSS antenna", "#c33", R_V_I * c.p_I_A + p_V_I,
+                      CovarianceInV(R_V_I, u.p_I_A_m.sigma) + imu_cov});
+  }
+  if (vehicle && u.track_width_m.sigma) {
+    const double half = 0.5 * c.track_width_m;
+    const double var = 0.25 * *u.track_width_m.sigma * *u.track_width_m.sigma;
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    cov(1, 1) = var;
+    points.push_back({"left rear wheel", "#393", Eigen::Vector3d(0.0, half, 0.0), cov});
+    points.push_back({"right rear wheel", "#393", Eigen::Vector3d(0.0, -half, 0.0), cov});
+  }
+  return points;
+}
+
+// The power of ten that makes the largest 1-sigma ellipse at least 2 % of the rig's extent.
+double EllipseMagnification(const std::vector<RigPoint>& points) {
+  double extent = 1.0, sigma = 0.0;
+  for (const RigPoint& a : points) {
+    for (const RigPoint& b : points) extent = std::max(extent, (a.p - b.p).norm());
+    sigma = std::max(sigma, std::sqrt(std::max(a.covariance.diagonal().maxCoeff(), 0.0)));
+  }
+  double magnification = 1.0;
+  while (sigma > 0.0 && magnification * sigma < 0.02 * extent && magnification < 1e6) {
+    magnification *= 10.0;
+  }
+  return magnification;
+}
+
+std::string RigSection(const OfflineCalibrationResult& result, bool lidar_used) {
+  const std::vector<RigPoint> points = RigPoints(result, lidar_used);
+  if (points.size() < 2) return "";
+  const bool vehicle = result.calibration.uncertainty.T_I_V.sigma_rot_deg.has_value();
+  const double magnification = EllipseMagnification(points);
+  const auto view = [&](int a, int b, const std::string& title, const std::string& x_label,
+                        const std::string& y_label) {
+    std::vector<RigMark> marks;
+    for (const RigPoint& p : points) {
+      Eigen::Matrix2d cov;
+      cov << p.covariance(a, a), p.covariance(a, b), p.covariance(b, a), p.covariance(b, b);
+      marks.push_back({p.label, p.color, p.p(a), p.p(b), cov});
+    }
+    return RigView(title, x_label, y_label, marks, magnification);
+  };
+  const std::string frame = vehicle ? "vehicle frame" : "IMU frame";
+  return Section("Rig",
+                 view(0, 1, "from above, " + frame, vehicle ? "forward x (m)" : "x (m)",
+                      vehicle ? "left y (m)" : "y (m)") +
+                     view(0, 2, "from the side, " + frame, vehicle ? "forward x (m)" : "x (m)",
+                          vehicle ? "up z (m)" : "z (m)"));
 }
 
 std::string TrajectorySection(const OfflineCalibrationResult& result) {
@@ -426,7 +536,7 @@ std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
     html << "</ul>\n";
   }
   html << ResidualSection(result, lidar_used, whitened_sensors) << ConvergenceSection(result)
-       << TimeOffsetSection(result.initialization.time_offset) << TrajectorySection(result);
+       << ClockSection(result) << RigSection(result, lidar_used) << TrajectorySection(result);
   html << "</body></html>\n";
   return html.str();
 }

@@ -1,5 +1,6 @@
 #include "svg_chart.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -148,14 +149,9 @@ Series HistogramSeries(const std::string& label, const std::string& color,
   return s;
 }
 
-}  // namespace
-
-std::string LineChart(const std::string& title, const std::string& x_label,
-                      const std::string& y_label, const std::vector<Series>& series,
-                      bool equal_scale) {
-  Axes a{};
-  if (!Fit(series, equal_scale, &a)) return "";
-  std::ostringstream svg;
+// The figure's opening: caption, the plot's frame, the axis ranges and labels.
+void OpenFigure(const std::string& title, const std::string& x_label, const std::string& y_label,
+                const Axes& a, std::ostringstream& svg) {
   svg << "<figure><figcaption>" << Escape(title) << "</figcaption><svg width='" << kWidth
       << "' height='" << kHeight << "' viewBox='0 0 " << kWidth << ' ' << kHeight << "'>"
       << "<rect x='" << kPlotLeft << "' y='" << kPlotTop << "' width='" << kPlotWidth
@@ -169,6 +165,17 @@ std::string LineChart(const std::string& title, const std::string& x_label,
       << "' text-anchor='end'>" << Number(a.y1) << "</text><text x='12' y='"
       << kPlotTop + kPlotHeight / 2 << "' transform='rotate(-90 12 " << kPlotTop + kPlotHeight / 2
       << ")' text-anchor='middle'>" << Escape(y_label) << "</text>";
+}
+
+}  // namespace
+
+std::string LineChart(const std::string& title, const std::string& x_label,
+                      const std::string& y_label, const std::vector<Series>& series,
+                      bool equal_scale) {
+  Axes a{};
+  if (!Fit(series, equal_scale, &a)) return "";
+  std::ostringstream svg;
+  OpenFigure(title, x_label, y_label, a, svg);
   svg << std::fixed << std::setprecision(1);
   if (a.y0 < 0.0 && a.y1 > 0.0) {
     svg << "<line x1='" << kPlotLeft << "' x2='" << kPlotRight << "' y1='" << a.Y(0.0) << "' y2='"
@@ -194,6 +201,46 @@ std::string LineChart(const std::string& title, const std::string& x_label,
     svg << "<text x='" << kPlotRight << "' y='" << legend_y << "' text-anchor='end' fill='"
         << s.color << "'>" << Escape(s.label) << "</text>";
     legend_y += 14;
+  }
+  svg << "</svg></figure>\n";
+  return svg.str();
+}
+
+std::string RigView(const std::string& title, const std::string& x_label,
+                    const std::string& y_label, const std::vector<RigMark>& marks,
+                    double magnification) {
+  // The frame holds every dot and its magnified ellipse's bounding box.
+  Series extent{"", "", {}, {}};
+  for (const RigMark& m : marks) {
+    if (!std::isfinite(m.x) || !std::isfinite(m.y) || !m.covariance.allFinite()) continue;
+    const double hx = magnification * std::sqrt(std::max(m.covariance(0, 0), 0.0));
+    const double hy = magnification * std::sqrt(std::max(m.covariance(1, 1), 0.0));
+    extent.x.insert(extent.x.end(), {m.x - hx - 0.2, m.x + hx + 0.2});
+    extent.y.insert(extent.y.end(), {m.y - hy - 0.2, m.y + hy + 0.2});
+  }
+  Axes a{};
+  if (!Fit({extent}, true, &a)) return "";
+  const double pixels_per_m = kPlotWidth / (a.x1 - a.x0);
+  std::ostringstream svg;
+  OpenFigure(title + (magnification > 1.0 ? " (1σ ellipses ×" + Number(magnification) + ")"
+                                          : " (1σ ellipses)"),
+             x_label, y_label, a, svg);
+  svg << std::fixed << std::setprecision(1);
+  for (const RigMark& m : marks) {
+    if (!std::isfinite(m.x) || !std::isfinite(m.y) || !m.covariance.allFinite()) continue;
+    const double cx = a.X(m.x), cy = a.Y(m.y);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(m.covariance);
+    const Eigen::Vector2d axes_m = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt() * magnification;
+    const Eigen::Vector2d major = eigen.eigenvectors().col(1);
+    // The page's y axis points down: an angle counter-clockwise in the view is clockwise
+    // on the page.
+    const double angle_deg = -std::atan2(major.y(), major.x()) * 180.0 / M_PI;
+    svg << "<ellipse cx='" << cx << "' cy='" << cy << "' rx='" << axes_m(1) * pixels_per_m
+        << "' ry='" << axes_m(0) * pixels_per_m << "' transform='rotate(" << angle_deg << ' ' << cx
+        << ' ' << cy << ")' fill='" << m.color << "' fill-opacity='0.2' stroke='" << m.color
+        << "'/><circle r='3' fill='" << m.color << "' cx='" << cx << "' cy='" << cy
+        << "'/><text x='" << cx + 5 << "' y='" << cy - 5 << "' fill='" << m.color << "'>"
+        << Escape(m.label) << "</text>";
   }
   svg << "</svg></figure>\n";
   return svg.str();

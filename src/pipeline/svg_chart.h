@@ -5,6 +5,7 @@
 // axis labels and legend; and the text escaping and number formatting the page shares with
 // them.
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,22 @@ struct Series {
 std::string LineChart(const std::string& title, const std::string& x_label,
                       const std::string& y_label, const std::vector<Series>& series,
                       bool equal_scale = false);
+
+// A sensor in a view of the rig: its position in the view's two axes (m) and the 2x2
+// covariance of that position (m^2).
+struct RigMark {
+  std::string label;
+  std::string color;
+  double x = 0.0, y = 0.0;
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();
+};
+
+// One view of the rig at equal scale: each sensor a dot with its label and its 1-sigma
+// ellipse drawn `magnification` times larger (the caption says so), so that millimetre
+// uncertainties show against a vehicle's metres. Empty without a finite mark.
+std::string RigView(const std::string& title, const std::string& x_label,
+                    const std::string& y_label, const std::vector<RigMark>& marks,
+                    double magnification);
 
 // The before/after histograms of one sensor's residuals, with RMS and the share outside the
 // range in the legend; empty when neither set has a finite value.

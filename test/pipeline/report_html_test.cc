@@ -9,6 +9,7 @@
 #include <iomanip>
 #include <limits>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -301,7 +302,7 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   EXPECT_THAT(html, Not(HasSubstr("point-to-plane")));
   EXPECT_THAT(html, Not(HasSubstr("T_I_L roll")));
   EXPECT_THAT(html, Not(HasSubstr("time offset lidar")));
-  EXPECT_THAT(html, Not(HasSubstr("Time offset initialization")));
+  EXPECT_THAT(html, Not(HasSubstr("Clock offset initialization")));
   for (const char* heading :
        {"<h2>IMU residuals</h2>", "<h2>Wheel odometry residuals</h2>", "<h2>GNSS residuals</h2>",
         "<td>track width (mm)</td>", "IMU trajectory against GNSS"}) {
@@ -309,7 +310,8 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   }
   EXPECT_THAT(html, HasSubstr("Only one outer iteration was recorded"));
   EXPECT_THAT(html, Not(HasSubstr("points=''")));  // no empty chart
-  EXPECT_EQ(Count(html, "<figure>"), 4);           // three histograms and the trajectory
+  // Three histograms, the rig from above and from the side, the trajectory.
+  EXPECT_EQ(Count(html, "<figure>"), 6);
   EXPECT_FALSE(HasNonFiniteText(html));
 }
 
@@ -344,6 +346,87 @@ TEST(ReportHtml, ShowsTheBlocksOfTheWheelForm) {
   EXPECT_TRUE(has(html, "<figcaption>odometry speed scale (%)"));
   EXPECT_TRUE(has(html, "<figcaption>effective track (mm)"));
   EXPECT_FALSE(has(html, "<figcaption>wheel speed scales"));
+}
+
+// The rig from above and from the side: every sensor with its ellipse, magnified by the
+// stated power of ten. The LiDAR's 30 cm z sigma (FullResult) needs none; the millimetre
+// ones alone would.
+TEST(ReportHtml, DrawsTheRigWithSigmaEllipses) {
+  const std::string html = CalibrationReportHtml(FullResult());
+  const std::string top = Figure(html, "from above, vehicle frame");
+  const std::string side = Figure(html, "from the side, vehicle frame");
+  ASSERT_FALSE(top.empty());
+  ASSERT_FALSE(side.empty());
+  for (const char* sensor :
+       {">IMU<", ">LiDAR<", ">GNSS antenna<", ">left rear wheel<", ">rear axle centre<"}) {
+    EXPECT_THAT(top, HasSubstr(sensor)) << sensor;
+  }
+  EXPECT_EQ(Count(top, "<ellipse"), 6);
+  EXPECT_THAT(top, HasSubstr("(1σ ellipses)"));
+  OfflineCalibrationResult small = FullResult();
+  small.calibration.uncertainty.T_I_L.sigma_p_m = Eigen::Vector3d(0.002, 0.002, 0.003);
+  small.calibration.uncertainty.T_I_V.sigma_p_m = Eigen::Vector3d(0.003, 0.003, 0.003);
+  small.calibration.uncertainty.p_I_A_m.sigma = Eigen::Vector3d(0.004, 0.004, 0.004);
+  EXPECT_THAT(Figure(CalibrationReportHtml(small), "from above"), HasSubstr("(1σ ellipses ×10)"));
+  // Without the mount the IMU frame stands in.
+  OfflineCalibrationResult no_mount = FullResult();
+  no_mount.calibration.uncertainty.T_I_V = io::PoseBlockInfo();
+  EXPECT_FALSE(Figure(CalibrationReportHtml(no_mount), "from above, IMU frame").empty());
+}
+
+// Each clock that was initialized shows its correlation curve; one that was not used says why.
+TEST(ReportHtml, ChartsEveryClocksCorrelation) {
+  OfflineCalibrationResult result = FullResult();
+  estimation::WheelImuOffset wheel;
+  wheel.signal = "yaw rate";
+  wheel.estimate.offset_s = -0.39;
+  wheel.estimate.reliable = true;
+  estimation::SeriesOffsetEstimate gnss;
+  gnss.offset_s = 0.2;
+  gnss.reason = "the peak lies at the edge of the range";
+  for (int i = -10; i <= 10; ++i) {
+    wheel.estimate.candidate_offsets_s.push_back(0.1 * i);
+    wheel.estimate.correlation.push_back(1.0 - std::abs(0.1 * i + 0.39));
+    gnss.candidate_offsets_s.push_back(0.1 * i);
+    gnss.correlation.push_back(0.1 * i);
+  }
+  result.wheel_clock_initialization = wheel;
+  result.gnss_clock_initialization = gnss;
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, HasSubstr("<h2>Clock offset initialization</h2>"));
+  EXPECT_FALSE(Figure(html, "LiDAR vs gyro").empty());
+  EXPECT_FALSE(Figure(html, "wheels vs IMU, yaw rate (peak -390 ms)").empty());
+  EXPECT_FALSE(Figure(html, "GNSS track speed vs wheel speed (peak 200 ms, not used: the peak lies")
+                   .empty());
+  EXPECT_THAT(CalibrationReportHtml(ResultWithoutLidar()),
+              Not(HasSubstr("Clock offset initialization")));
+}
+
+// Every element the page opens is closed in order (the void elements excepted), and every
+// attribute value is quoted: the page parses the same in any browser.
+TEST(ReportHtml, IsWellFormed) {
+  for (const OfflineCalibrationResult& result : {FullResult(), ResultWithoutLidar()}) {
+    const std::string html = CalibrationReportHtml(result);
+    std::vector<std::string> open;
+    const std::regex tag(R"(<(/?)([a-zA-Z][a-zA-Z0-9]*)([^>]*)>)");
+    for (auto it = std::sregex_iterator(html.begin(), html.end(), tag);
+         it != std::sregex_iterator(); ++it) {
+      const std::string name = (*it)[2].str();
+      const std::string attributes = (*it)[3].str();
+      if ((*it)[1].str().empty()) {
+        EXPECT_FALSE(std::regex_search(attributes, std::regex(R"(=[^'"])"))) << (*it)[0];
+        const bool self_closed = !attributes.empty() && attributes.back() == '/';
+        const bool void_element = name == "meta" || name == "br";
+        if (!self_closed && !void_element) open.push_back(name);
+      } else {
+        ASSERT_FALSE(open.empty()) << "</" << name << "> closes nothing";
+        ASSERT_EQ(open.back(), name) << "</" << name << "> closes <" << open.back() << ">";
+        open.pop_back();
+      }
+    }
+    EXPECT_TRUE(open.empty()) << open.size() << " elements left open, first <" << open.front()
+                              << ">";
+  }
 }
 
 TEST(ReportHtml, IsSelfContained) {

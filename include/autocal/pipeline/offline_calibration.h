@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "autocal/estimation/calibration_initializer.h"
+#include "autocal/estimation/clock_offsets.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
@@ -95,6 +96,10 @@ struct OfflineCalibrationResult {
   // Plain-language findings: directions the drive did not excite, unreliable steps.
   std::vector<std::string> warnings;
   estimation::CalibrationInitialization initialization;
+  // The clocks' cross-correlations that started their offsets (docs/calibration.md), for the
+  // report: the wheels' (with the signal compared) and the GNSS receiver's, when estimated.
+  std::optional<estimation::WheelImuOffset> wheel_clock_initialization;
+  std::optional<estimation::SeriesOffsetEstimate> gnss_clock_initialization;
   estimation::LidarInertialBatchReport batch;
   // Per sensor that took part besides the LiDAR (whose point-to-plane distances in metres are
   // in `batch`): "imu", "wheel", "gnss".
