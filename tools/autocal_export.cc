@@ -1,5 +1,5 @@
 // autocal_export: writes a calibration result in the file format of another stack (Kalibr,
-// FAST-LIO, Autoware, URDF, ROS 2 static transforms). See docs/export.md.
+// FAST-LIO, LIO-SAM, Autoware, URDF, ROS 2 static transforms). See docs/export.md.
 
 #include <gflags/gflags.h>
 
@@ -16,7 +16,7 @@
 #include "tool_help.h"
 
 DEFINE_string(result, "", "result directory (its calibration.yaml) or a calibration.yaml file");
-DEFINE_string(format, "", "kalibr, fast_lio, autoware, urdf or ros2_static_tf");
+DEFINE_string(format, "", "kalibr, fast_lio, lio_sam, autoware, urdf or ros2_static_tf");
 DEFINE_string(output, "-", "file to write (replaced whole), or - for the standard output");
 DEFINE_string(vehicle_frame, "base_link", "name of the vehicle frame");
 DEFINE_string(imu_frame, "imu_link", "name of the IMU frame");
@@ -56,7 +56,7 @@ autocal::io::ExportOptions Options() {
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
       "writes a calibration result in another stack's format\n"
-      "  autocal_export --result=DIR --format=kalibr|fast_lio|autoware|urdf|ros2_static_tf "
+      "  autocal_export --result=DIR --format=kalibr|fast_lio|lio_sam|autoware|urdf|ros2_static_tf "
       "[--output=FILE]\n"
       "Frames, time-offset signs and sources of each format: docs/export.md. Exit status 0, or\n"
       "1 with a message (bad flags, unreadable result, a format needing a block the result\n"

@@ -116,6 +116,30 @@ std::string Kalibr(const CalibrationFile& r) {
   return out.str();
 }
 
+// LIO-SAM rotates every IMU sample into the LiDAR frame with extrinsicRot (R_L_I), and its
+// IMU pose is the LiDAR pose composed with (identity, extrinsicTrans): the IMU's origin in the
+// LiDAR frame, p_L_I. Together T_L_I, which its parameter file calls "lidar -> IMU".
+std::string LioSam(const CalibrationFile& r) {
+  RequireLidar(r, "lio_sam");
+  const Eigen::Quaterniond q_L_I = r.value.q_I_L.conjugate().normalized();
+  const Eigen::Matrix3d R = q_L_I.toRotationMatrix();
+  const Eigen::Vector3d p_L_I = -(q_L_I * r.value.p_I_L);
+  const std::string rows = Vector(R.row(0).transpose(), ", ") + ",\n" + "               " +
+                           Vector(R.row(1).transpose(), ", ") + ",\n" + "               " +
+                           Vector(R.row(2).transpose(), ", ") + "]\n";
+  std::ostringstream out;
+  out << "# autocal calibration for LIO-SAM (merge into its params.yaml). extrinsicRot turns IMU\n"
+         "# vectors into the LiDAR frame (R_L_I); extrinsicTrans is the IMU's origin in the\n"
+         "# LiDAR frame (p_L_I). extrinsicRPY equals extrinsicRot for an IMU whose orientation\n"
+         "# field is its own frame's attitude (sensor_msgs/Imu); check yours. LIO-SAM has no\n"
+         "# time offset: "
+      << Clock("", "lidar", r.uncertainty.time_offset_lidar_imu_s, r.value.time_offset_lidar_imu_s)
+      << (r.uncertainty.time_offset_lidar_imu_s.sigma ? "" : "(not estimated)\n")
+      << "extrinsicTrans: [" << Vector(p_L_I, ", ") << "]\n"
+      << "extrinsicRot: [" << rows << "extrinsicRPY: [" << rows;
+  return out.str();
+}
+
 std::string FastLio(const CalibrationFile& r) {
   RequireLidar(r, "fast_lio");
   const Eigen::Matrix3d R = r.value.q_I_L.normalized().toRotationMatrix();
@@ -201,11 +225,12 @@ std::string Ros2StaticTf(const CalibrationFile& r, const ExportOptions& o, doubl
 ExportFormat ParseExportFormat(const std::string& name) {
   if (name == "kalibr") return ExportFormat::kKalibr;
   if (name == "fast_lio") return ExportFormat::kFastLio;
+  if (name == "lio_sam") return ExportFormat::kLioSam;
   if (name == "autoware") return ExportFormat::kAutoware;
   if (name == "urdf") return ExportFormat::kUrdf;
   if (name == "ros2_static_tf") return ExportFormat::kRos2StaticTf;
   throw Error("unknown export format '" + name +
-              "' (known: kalibr, fast_lio, autoware, urdf, ros2_static_tf)");
+              "' (known: kalibr, fast_lio, lio_sam, autoware, urdf, ros2_static_tf)");
 }
 
 std::string ExportCalibration(const CalibrationFile& result, ExportFormat format,
@@ -225,6 +250,8 @@ std::string ExportCalibration(const CalibrationFile& result, ExportFormat format
       return Kalibr(result);
     case ExportFormat::kFastLio:
       return FastLio(result);
+    case ExportFormat::kLioSam:
+      return LioSam(result);
     case ExportFormat::kAutoware:
       if (below_from_radius) below_axle_m = mean_radius_m;
       return Autoware(result, options, below_axle_m, below_from_radius);

@@ -86,6 +86,22 @@ TEST(ExportCalibration, KalibrHoldsTheImuToLidarTransformAndTheTimeshift) {
   EXPECT_EQ(y["lidar0"]["timeshift_lidar_imu"].as<double>(), 0.025);
 }
 
+// LIO-SAM holds T_L_I: extrinsicRot = R_L_I (= extrinsicRPY), extrinsicTrans = -R_L_I p_I_L.
+TEST(ExportCalibration, LioSamHoldsTheImuInTheLidarFrame) {
+  const YAML::Node y = YAML::Load(ExportCalibration(Result(), ExportFormat::kLioSam));
+  const std::vector<double> expected_R = {0, 1, 0, -1, 0, 0, 0, 0, 1};
+  for (const char* key : {"extrinsicRot", "extrinsicRPY"}) {
+    const std::vector<double> R = Numbers(y[key]);
+    ASSERT_EQ(R.size(), 9u) << key;
+    for (size_t i = 0; i < 9; ++i) EXPECT_NEAR(R[i], expected_R[i], kTol) << key << i;
+  }
+  const std::vector<double> t = Numbers(y["extrinsicTrans"]);
+  ASSERT_EQ(t.size(), 3u);
+  EXPECT_NEAR(t[0], -2.0, kTol);
+  EXPECT_NEAR(t[1], 1.0, kTol);
+  EXPECT_NEAR(t[2], -3.0, kTol);
+}
+
 // The launch file's numbers come back: x y z and roll pitch yaw = (pi/2, 0, -pi/2).
 TEST(ExportCalibration, AutowareGivesTheLaunchFilesPoseOfTheImu) {
   ExportOptions options;
@@ -177,6 +193,7 @@ TEST(ExportCalibration, RefusesWhatTheResultCannotGive) {
   no_lidar.uncertainty.T_I_L = PoseBlockInfo();
   EXPECT_THROW(ExportCalibration(no_lidar, ExportFormat::kKalibr), Error);
   EXPECT_THROW(ExportCalibration(no_lidar, ExportFormat::kFastLio), Error);
+  EXPECT_THROW(ExportCalibration(no_lidar, ExportFormat::kLioSam), Error);
   CalibrationFile no_mount = Result();
   no_mount.uncertainty.T_I_V = PoseBlockInfo();
   EXPECT_THROW(ExportCalibration(no_mount, ExportFormat::kAutoware), Error);
@@ -186,10 +203,10 @@ TEST(ExportCalibration, RefusesWhatTheResultCannotGive) {
   bad.lidar_frame = "";
   EXPECT_THROW(ExportCalibration(Result(), ExportFormat::kUrdf, bad), Error);
   try {
-    ParseExportFormat("lio_sam");
+    ParseExportFormat("kitti");
     ADD_FAILURE() << "an unknown format was accepted";
   } catch (const Error& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("known: kalibr, fast_lio, autoware, urdf"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("known: kalibr, fast_lio, lio_sam, autoware, urdf"));
   }
   EXPECT_EQ(ParseExportFormat("fast_lio"), ExportFormat::kFastLio);
 }

@@ -60,9 +60,9 @@ TEST(ExportTool, WritesTheFormatsFileFromAResultDirectory) {
 
 TEST(ExportTool, SaysWhatItCannotDoWithStatusOne) {
   const fs::path result = LidarResult();
-  const ToolRun unknown = Export("--result=" + result.string() + " --format=lio_sam");
+  const ToolRun unknown = Export("--result=" + result.string() + " --format=kitti");
   EXPECT_EQ(unknown.exit_code, 1);
-  EXPECT_THAT(unknown.text, ::testing::HasSubstr("unknown export format 'lio_sam'"));
+  EXPECT_THAT(unknown.text, ::testing::HasSubstr("unknown export format 'kitti'"));
   const ToolRun no_mount = Export("--result=" + result.string() + " --format=autoware");
   EXPECT_EQ(no_mount.exit_code, 1);
   EXPECT_THAT(no_mount.text, ::testing::HasSubstr("T_I_V was not estimated"));

@@ -8,6 +8,8 @@
 //   fast_lio        FAST-LIO's config: mapping.extrinsic_T and extrinsic_R (row-major), the
 //                   LiDAR in the IMU frame (T_I_L), and common.time_diff_lidar_to_imu (FAST-LIO
 //                   subtracts it from the IMU stamps: t_imu = t_lidar + diff);
+//   lio_sam         LIO-SAM's params: extrinsicRot (= extrinsicRPY) R_L_I and extrinsicTrans
+//                   p_L_I, i.e. T_L_I ("lidar -> IMU" in its file); no time offset field;
 //   autoware        Autoware's sensor kit calibration: each sensor frame in base_link (on the
 //                   ground under the rear axle) as x, y, z (m) and roll, pitch, yaw (rad);
 //   urdf            fixed joints, each sensor's origin xyz and rpy in its parent link;
@@ -25,10 +27,10 @@
 namespace autocal {
 namespace io {
 
-enum class ExportFormat { kKalibr, kFastLio, kAutoware, kUrdf, kRos2StaticTf };
+enum class ExportFormat { kKalibr, kFastLio, kLioSam, kAutoware, kUrdf, kRos2StaticTf };
 
-// "kalibr", "fast_lio", "autoware", "urdf", "ros2_static_tf". Throws autocal::Error naming
-// the known formats otherwise.
+// "kalibr", "fast_lio", "lio_sam", "autoware", "urdf", "ros2_static_tf". Throws autocal::Error
+// naming the known formats otherwise.
 ExportFormat ParseExportFormat(const std::string& name);
 
 struct ExportOptions {
@@ -43,7 +45,7 @@ struct ExportOptions {
 };
 
 // The file's text. Throws autocal::Error when the format needs a frame the result lacks
-// (kalibr and fast_lio: the LiDAR; autoware: the vehicle).
+// (kalibr, fast_lio and lio_sam: the LiDAR; autoware: the vehicle).
 std::string ExportCalibration(const CalibrationFile& result, ExportFormat format,
                               const ExportOptions& options = {});
 
