@@ -224,16 +224,18 @@ void BM_AlignPreparedTarget(benchmark::State& state) {
 BENCHMARK(BM_AlignPreparedTarget)->Unit(benchmark::kMillisecond);
 
 // The whole pipeline of autocal_register: downsample both, prepare the target, align.
+// Argument 0: point-to-plane, 1: GICP (source normals too).
 void BM_RegisterScanPair(benchmark::State& state) {
   REQUIRE_PAIR(state);
   autocal::lidar::RegistrationSetting setting;
   setting.voxel_m = 0.25;
+  if (state.range(0) == 1) setting.icp.method = autocal::lidar::IcpMethod::kGeneralized;
   for (auto _ : state) {
     benchmark::DoNotOptimize(autocal::lidar::RegisterPointClouds(
         pair.source, pair.target, autocal::geometry::Pose3d::Identity(), setting));
   }
 }
-BENCHMARK(BM_RegisterScanPair)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RegisterScanPair)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -113,6 +113,9 @@ class Registration(unittest.TestCase):
         self.assertTrue(r["converged"])
         np.testing.assert_allclose(r["T_target_source"], T, atol=1e-6)
         self.assertEqual(r["covariance"].shape, (6, 6))
+        gicp = autocal.register(source, target, voxel_m=0.0, method="gicp", max_iterations=50)
+        self.assertTrue(gicp["converged"])
+        np.testing.assert_allclose(gicp["T_target_source"], T, atol=1e-6)
         # From a guess next to the answer it takes fewer iterations.
         near = autocal.register(source, target, init=T, voxel_m=0.0)
         self.assertLessEqual(near["iterations"], r["iterations"])

@@ -19,7 +19,7 @@
 
 DEFINE_string(source, "", "source cloud (.ply or .pcd), mapped into the target frame");
 DEFINE_string(target, "", "target cloud (.ply or .pcd)");
-DEFINE_string(method, "point_to_plane", "point_to_point | point_to_plane");
+DEFINE_string(method, "point_to_plane", "point_to_point | point_to_plane | gicp");
 DEFINE_string(loss, "none", "robust loss: none | huber | cauchy");
 DEFINE_double(loss_scale_m, 0.1, "robust loss scale (m)");
 DEFINE_double(voxel_m, 0.25, "voxel size for downsampling both clouds (m), 0 = off");

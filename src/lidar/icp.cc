@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -108,9 +109,9 @@ struct NormalEquations {
 // match, so the search starts with that distance as its bound, just above it so that the
 // previous match itself still counts: the same match as with max_correspondence_m, found
 // with less of the tree searched.
-NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                                      const geometry::Pose3d& T, const IcpSetting& setting,
-                                      std::vector<int>* matches_io) {
+void MatchNearest(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                  const geometry::Pose3d& T, const IcpSetting& setting,
+                  std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   const Eigen::Index n = source.cols();
   std::vector<int>& matches = *matches_io;
@@ -130,7 +131,32 @@ NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpT
     }
   });
   target.PrepareNormals(matches, setting.num_threads);
+}
 
+// The per-chunk sums of a linearization, combined in chunk order (deterministic for a given
+// thread count).
+NormalEquations Combined(const std::vector<NormalEquations>& partial, int residual_dimension) {
+  NormalEquations eq = partial.front();
+  for (size_t chunk = 1; chunk < partial.size(); ++chunk) {
+    eq.H += partial[chunk].H;
+    eq.propagated += partial[chunk].propagated;
+    eq.g += partial[chunk].g;
+    eq.weighted_squared_residuals += partial[chunk].weighted_squared_residuals;
+    eq.squared_residuals += partial[chunk].squared_residuals;
+    eq.count += partial[chunk].count;
+  }
+  eq.residual_dimension = residual_dimension;
+  return eq;
+}
+
+NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                                      const geometry::Pose3d& T, const IcpSetting& setting,
+                                      std::vector<int>* matches_io) {
+  MatchNearest(source, target, T, setting, matches_io);
+  const std::vector<int>& matches = *matches_io;
+  const Eigen::Matrix3d R = T.R();
+  const Eigen::Index n = source.cols();
+  const Eigen::Matrix3Xd& target_points = target.points();
   const Eigen::Matrix3Xd& normals = target.normals().normals;
   const Eigen::VectorXd& planarity = target.normals().planarity;
   std::vector<NormalEquations> partial(static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
@@ -161,17 +187,55 @@ NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpT
       ++eq.count;
     }
   });
-  NormalEquations eq = partial.front();
-  for (size_t chunk = 1; chunk < partial.size(); ++chunk) {
-    eq.H += partial[chunk].H;
-    eq.propagated += partial[chunk].propagated;
-    eq.g += partial[chunk].g;
-    eq.weighted_squared_residuals += partial[chunk].weighted_squared_residuals;
-    eq.squared_residuals += partial[chunk].squared_residuals;
-    eq.count += partial[chunk].count;
-  }
-  eq.residual_dimension = 1;
-  return eq;
+  return Combined(partial, 1);
+}
+
+// A point's plane-regularized covariance (docs/lidar.md, eq. 4.17): eigenvalues epsilon
+// along the normal, 1 along the plane.
+Eigen::Matrix3d PlaneCovariance(const Eigen::Vector3d& normal, double epsilon) {
+  return Eigen::Matrix3d::Identity() - (1.0 - epsilon) * normal * normal.transpose();
+}
+
+// Generalized-ICP at T (eqs. 4.17-4.18): d = T p - q with the information
+// M = 2 epsilon (C_q + R C_p R^T)^-1, scaled so that sqrt(d^T M d) is the point-to-plane
+// distance in metres for coplanar neighbourhoods (the robust loss and the statistics use it);
+// dd/d[rho; phi] = [I, -(T p)^] for the left perturbation.
+NormalEquations LinearizeGeneralized(const Eigen::Matrix3Xd& source,
+                                     const SurfaceNormals& source_normals, const IcpTarget& target,
+                                     const geometry::Pose3d& T, const IcpSetting& setting,
+                                     std::vector<int>* matches_io) {
+  MatchNearest(source, target, T, setting, matches_io);
+  const std::vector<int>& matches = *matches_io;
+  const Eigen::Matrix3d R = T.R();
+  const Eigen::Index n = source.cols();
+  const double epsilon = setting.gicp_epsilon;
+  std::vector<NormalEquations> partial(static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
+  ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int chunk) {
+    NormalEquations& eq = partial[static_cast<size_t>(chunk)];
+    Eigen::Matrix<double, 3, 6> J;
+    J.leftCols<3>().setIdentity();
+    for (int64_t i = begin; i < end; ++i) {
+      const int match = matches[static_cast<size_t>(i)];
+      if (match < 0 || source_normals.planarity(i) <= 0.0) continue;
+      const double target_planarity = target.normals().planarity(match);
+      if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
+      const Eigen::Vector3d p = R * source.col(i) + T.p;
+      const Eigen::Vector3d d = p - target.points().col(match);
+      const Eigen::Matrix3d C =
+          PlaneCovariance(target.normals().normals.col(match), epsilon) +
+          R * PlaneCovariance(source_normals.normals.col(i), epsilon) * R.transpose();
+      const Eigen::Matrix3d M = 2.0 * epsilon * C.inverse();
+      const double r = std::sqrt(std::max(d.dot(M * d), 0.0));
+      J.rightCols<3>() = -geometry::Hat(p);
+      const double w = setting.robust.Weight(r);
+      eq.H.noalias() += w * J.transpose() * M * J;
+      eq.g.noalias() += w * J.transpose() * (M * d);
+      eq.weighted_squared_residuals += w * r * r;
+      eq.squared_residuals += r * r;
+      ++eq.count;
+    }
+  });
+  return Combined(partial, 1);
 }
 
 // Point-to-point correspondences at T with IRLS weights of the point distance.
@@ -262,11 +326,20 @@ void FillStatistics(const NormalEquations& eq, const IcpSetting& setting, Eigen:
 IcpMethod ParseIcpMethod(const std::string& name) {
   if (name == "point_to_point") return IcpMethod::kPointToPoint;
   if (name == "point_to_plane") return IcpMethod::kPointToPlane;
+  if (name == "gicp") return IcpMethod::kGeneralized;
   throw Error("unknown ICP method '" + name + "' (expected point_to_point or point_to_plane)");
 }
 
 const char* IcpMethodName(IcpMethod method) {
-  return method == IcpMethod::kPointToPoint ? "point_to_point" : "point_to_plane";
+  switch (method) {
+    case IcpMethod::kPointToPoint:
+      return "point_to_point";
+    case IcpMethod::kPointToPlane:
+      return "point_to_plane";
+    case IcpMethod::kGeneralized:
+      return "gicp";
+  }
+  return "point_to_plane";
 }
 
 geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
@@ -351,24 +424,34 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
     throw Error("ICP setting: the robust loss scale must be > 0");
   }
   const bool point_to_plane = setting.method == IcpMethod::kPointToPlane;
-  if (point_to_plane && !target.has_normals()) {
-    throw Error("point-to-plane ICP needs a target prepared with normals");
+  const bool generalized = setting.method == IcpMethod::kGeneralized;
+  if ((point_to_plane || generalized) && !target.has_normals()) {
+    throw Error("point-to-plane ICP and GICP need a target prepared with normals");
   }
+  if (generalized && !(setting.gicp_epsilon > 0.0 && setting.gicp_epsilon <= 1.0)) {
+    throw Error("ICP setting: gicp_epsilon must lie in (0, 1]");
+  }
+  // GICP's source covariances come from the source's own neighbourhoods.
+  const SurfaceNormals source_normals =
+      generalized ? EstimateNormals(KdTree(source), setting.source_normals, setting.num_threads)
+                  : SurfaceNormals();
 
   IcpResult result;
   geometry::Pose3d T = T_target_source_guess;
   T.q.normalize();
   NormalEquations last;
-  std::vector<int> matches;  // of the last point-to-plane iteration
+  std::vector<int> matches;  // of the last point-to-plane or GICP iteration
   std::vector<WeightedPair> pairs;
-  if (!point_to_plane) pairs.reserve(static_cast<size_t>(source.cols()));
+  if (!point_to_plane && !generalized) pairs.reserve(static_cast<size_t>(source.cols()));
 
   for (int iteration = 1; iteration <= setting.convergence.max_iterations; ++iteration) {
     result.iterations = iteration;
     double step_translation_m = 0.0;
     double step_rotation_rad = 0.0;
-    if (point_to_plane) {
-      last = LinearizePointToPlane(source, target, T, setting, &matches);
+    if (point_to_plane || generalized) {
+      last = generalized
+                 ? LinearizeGeneralized(source, source_normals, target, T, setting, &matches)
+                 : LinearizePointToPlane(source, target, T, setting, &matches);
       RequireEnough(last.count, setting, source.cols());
       RequireConstrained(last);
       // Gauss-Newton step of eq. (4.11); LDLT on the 6x6 system, no explicit inverse.

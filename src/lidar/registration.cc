@@ -128,7 +128,7 @@ RegistrationResult RegisterPointClouds(const PointCloud& source, const PointClou
   }
   const auto start = std::chrono::steady_clock::now();
   const Eigen::Matrix3Xd source_points = Downsampled(source, setting.voxel_m);
-  const bool with_normals = setting.icp.method == IcpMethod::kPointToPlane;
+  const bool with_normals = setting.icp.method != IcpMethod::kPointToPoint;
   const IcpTarget prepared(Downsampled(target, setting.voxel_m),
                            with_normals ? TargetNormals::kAll : TargetNormals::kNone,
                            setting.target_normals, setting.icp.num_threads);

@@ -128,6 +128,8 @@ TEST(RobustKernelTest, WeightIsLossDerivativeOverResidual) {
   EXPECT_EQ(ParseRobustLoss("cauchy"), RobustLoss::kCauchy);
   EXPECT_THROW(ParseRobustLoss("tukey"), Error);
   EXPECT_EQ(ParseIcpMethod("point_to_point"), IcpMethod::kPointToPoint);
+  EXPECT_EQ(ParseIcpMethod("gicp"), IcpMethod::kGeneralized);
+  EXPECT_STREQ(IcpMethodName(IcpMethod::kGeneralized), "gicp");
   EXPECT_THROW(ParseIcpMethod("plane"), Error);
 }
 
@@ -169,13 +171,18 @@ IcpSetting StreetSetting() {
   return setting;
 }
 
+// The street of `seed` seen from two poses 1.2 m and 3 deg apart, 2 cm range noise, 0.25 m
+// voxels.
+SweepPair StreetPair(uint64_t seed) {
+  const test::Scene scene = test::MakeStreetScene(seed);
+  return SimulatePair(scene, MakePose(0.0, 0.0, 1.8, 0.0, 0.0, 0.0),
+                      MakePose(1.2, 0.15, 1.82, 3.0, 0.4, -0.3), 0.02, 0.25, seed);
+}
+
 TEST(IcpTest, PointToPlaneRecoversSimulatedMotionWithRangeNoise) {
   // Accuracy goal: error below 5 mm and 0.05 deg with 2 cm range noise, static scene.
   for (uint64_t seed : {21, 22, 23}) {
-    const test::Scene scene = test::MakeStreetScene(seed);
-    const Pose3d T_W_target = MakePose(0.0, 0.0, 1.8, 0.0, 0.0, 0.0);
-    const Pose3d T_W_source = MakePose(1.2, 0.15, 1.82, 3.0, 0.4, -0.3);
-    const SweepPair pair = SimulatePair(scene, T_W_target, T_W_source, 0.02, 0.25, seed);
+    const SweepPair pair = StreetPair(seed);
     const IcpTarget target(pair.target, /*with_normals=*/true, StreetNormals());
     const IcpResult result = AlignIcp(pair.source, target, Pose3d::Identity(), StreetSetting());
     const double translation_error_m =
@@ -192,6 +199,39 @@ TEST(IcpTest, PointToPlaneRecoversSimulatedMotionWithRangeNoise) {
     RecordProperty("rotation_error_mdeg_seed" + std::to_string(seed),
                    std::to_string(1e3 * rotation_error_deg));
   }
+}
+
+// Generalized-ICP on the same street: the goal of point-to-plane (5 mm, 0.05 deg with 2 cm
+// range noise), its residual in metres, and the same pose on two threads.
+TEST(IcpTest, GeneralizedIcpRecoversSimulatedMotionWithRangeNoise) {
+  for (uint64_t seed : {21, 22, 23}) {
+    const SweepPair pair = StreetPair(seed);
+    const IcpTarget target(pair.target, /*with_normals=*/true, StreetNormals());
+    IcpSetting setting = StreetSetting();
+    setting.method = IcpMethod::kGeneralized;
+    setting.source_normals = StreetNormals();
+    const IcpResult result = AlignIcp(pair.source, target, Pose3d::Identity(), setting);
+    EXPECT_TRUE(result.converged) << "seed " << seed;
+    EXPECT_LT(geometry::TranslationError(result.T_target_source, pair.T_target_source), 0.005)
+        << "seed " << seed;
+    EXPECT_LT(RotationErrorDeg(result.T_target_source, pair.T_target_source), 0.05)
+        << "seed " << seed;
+    EXPECT_GT(result.inlier_rmse_m, 0.005);  // about the 2 cm range noise, in metres
+    EXPECT_LT(result.inlier_rmse_m, 0.05);
+    setting.num_threads = 2;
+    const IcpResult threaded = AlignIcp(pair.source, target, Pose3d::Identity(), setting);
+    EXPECT_LT(geometry::TranslationError(threaded.T_target_source, result.T_target_source), 1e-9);
+  }
+  IcpSetting bad;
+  bad.method = IcpMethod::kGeneralized;
+  bad.gicp_epsilon = 0.0;
+  const test::Scene scene = test::MakeStreetScene(21);
+  const SweepPair pair = SimulatePair(scene, MakePose(0, 0, 1.8, 0, 0, 0),
+                                      MakePose(0.5, 0, 1.8, 0, 0, 0), 0.02, 0.25, 21);
+  EXPECT_THROW(AlignIcp(pair.source, IcpTarget(pair.target, true), Pose3d::Identity(), bad), Error);
+  bad.gicp_epsilon = 1e-3;
+  EXPECT_THROW(AlignIcp(pair.source, IcpTarget(pair.target, false), Pose3d::Identity(), bad),
+               Error);
 }
 
 TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {

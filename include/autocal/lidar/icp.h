@@ -24,9 +24,11 @@ namespace lidar {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
-enum class IcpMethod { kPointToPoint, kPointToPlane };
+// kGeneralized: Generalized-ICP (Segal, Haehnel, Thrun 2009) with plane-regularized point
+// covariances (docs/lidar.md §4.7).
+enum class IcpMethod { kPointToPoint, kPointToPlane, kGeneralized };
 
-// "point_to_point" | "point_to_plane"; throws autocal::Error otherwise.
+// "point_to_point" | "point_to_plane" | "gicp"; throws autocal::Error otherwise.
 IcpMethod ParseIcpMethod(const std::string& name);
 const char* IcpMethodName(IcpMethod method);
 
@@ -68,6 +70,10 @@ struct IcpSetting {
   // Cov = H^-1 (sum w^2 var_i J J^T) H^-1 with var_i = sigma_r^2 (n . R u_i)^2 (eq. 4.16).
   // Grazing ground returns then count with their small along-normal noise.
   double source_range_sigma_m = 0.0;
+  // Generalized-ICP: each point's covariance is its neighbourhood's plane, eigenvalues
+  // (epsilon, 1, 1) along (normal, tangents); source normals from these neighbourhoods.
+  double gicp_epsilon = 1e-3;
+  NormalEstimationSetting source_normals;
   // Threads for the correspondence search and the normal equations of point-to-plane
   // alignment (common/parallel_for.h; point-to-point runs on one thread). The result
   // depends on it only through the summation order.

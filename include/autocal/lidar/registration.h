@@ -34,7 +34,7 @@ struct RegistrationResult {
 };
 
 // Builds a setting from the command-line vocabulary of autocal_register, validating every
-// value: method "point_to_point" | "point_to_plane", loss "none" | "huber" | "cauchy",
+// value: method "point_to_point" | "point_to_plane" | "gicp", loss "none" | "huber" | "cauchy",
 // positive loss scale and correspondence distance, voxel >= 0. Throws autocal::Error naming
 // the offending option.
 RegistrationSetting MakeRegistrationSetting(const std::string& method, const std::string& loss,
