@@ -146,10 +146,10 @@ std::string FastLio(const CalibrationFile& r) {
   std::ostringstream out;
   out << "# autocal calibration for FAST-LIO (merge into its config). extrinsic_T and\n"
          "# extrinsic_R (row-major) are the LiDAR in the IMU frame: p_I = R p_L + T.\n"
-         "# FAST-LIO subtracts time_diff_lidar_to_imu from the IMU stamps: t_imu = t_lidar + "
-         "diff.\n"
+         "# FAST-LIO reads time_offset_lidar_to_imu into time_diff_lidar_to_imu and subtracts it\n"
+         "# from the IMU stamps: t_imu = t_lidar + offset.\n"
          "common:\n"
-      << "    time_diff_lidar_to_imu: " << FormatDouble(r.value.time_offset_lidar_imu_s) << "\n"
+      << "    time_offset_lidar_to_imu: " << FormatDouble(r.value.time_offset_lidar_imu_s) << "\n"
       << "mapping:\n    extrinsic_est_en: false\n"
       << "    extrinsic_T: [" << Vector(r.value.p_I_L, ", ") << "]\n"
       << "    extrinsic_R: [" << Vector(R.row(0).transpose(), ", ") << ",\n"

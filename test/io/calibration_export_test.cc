@@ -68,7 +68,7 @@ TEST(ExportCalibration, FastLioHoldsTheLidarInTheImuFrameAndTheClock) {
   const std::vector<double> expected = {0, -1, 0, 1, 0, 0, 0, 0, 1};  // Rz(90 deg), row-major
   ASSERT_EQ(R.size(), 9u);
   for (size_t i = 0; i < 9; ++i) EXPECT_NEAR(R[i], expected[i], kTol) << i;
-  EXPECT_EQ(y["common"]["time_diff_lidar_to_imu"].as<double>(), 0.025);
+  EXPECT_EQ(y["common"]["time_offset_lidar_to_imu"].as<double>(), 0.025);
   EXPECT_FALSE(y["mapping"]["extrinsic_est_en"].as<bool>());
 }
 

@@ -6,8 +6,8 @@
 //                   to LiDAR coordinates (T_L_I), and timeshift_lidar_imu (t_imu = t_lidar +
 //                   shift, Kalibr's sign for timeshift_cam_imu);
 //   fast_lio        FAST-LIO's config: mapping.extrinsic_T and extrinsic_R (row-major), the
-//                   LiDAR in the IMU frame (T_I_L), and common.time_diff_lidar_to_imu (FAST-LIO
-//                   subtracts it from the IMU stamps: t_imu = t_lidar + diff);
+//                   LiDAR in the IMU frame (T_I_L), and common.time_offset_lidar_to_imu (FAST-LIO
+//                   subtracts it from the IMU stamps: t_imu = t_lidar + offset);
 //   lio_sam         LIO-SAM's params: extrinsicRot (= extrinsicRPY) R_L_I and extrinsicTrans
 //                   p_L_I, i.e. T_L_I ("lidar -> IMU" in its file); no time offset field;
 //   autoware        Autoware's sensor kit calibration: each sensor frame in base_link (on the
