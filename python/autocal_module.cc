@@ -18,9 +18,11 @@
 #include "autocal/common/error.h"
 #include "autocal/evaluation/calibration_errors.h"
 #include "autocal/evaluation/trajectory_errors.h"
+#include "autocal/io/calibration_export.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/io/tum_trajectory.h"
 #include "autocal/lidar/registration.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/online_estimation.h"
@@ -163,6 +165,35 @@ void BindCalibration(py::module_& m) {
         return d;
       });
 
+  m.def(
+      "read_trajectory",
+      [](const std::string& path) { return TrajectoryDict(io::ReadTumTrajectory(path)); },
+      py::arg("path"), "a trajectory.tum (T_W_I on the IMU clock) as t_ns, p_W_I, q_W_I_xyzw");
+  m.def(
+      "write_trajectory",
+      [](const std::string& path, const Stamps& t_ns, const RowsX3& p,
+         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& q) {
+        io::WriteTumTrajectory(path, TrajectoryFromArrays(t_ns, p, q));
+      },
+      py::arg("path"), py::arg("t_ns"), py::arg("p_W_I"), py::arg("q_W_I_xyzw"),
+      "writes a TUM trajectory (what autocal_evaluate reads)");
+  m.def(
+      "export_calibration",
+      [](const io::CalibrationFile& result, const std::string& format,
+         const std::string& vehicle_frame, const std::string& imu_frame,
+         const std::string& lidar_frame, const std::string& gnss_frame) {
+        io::ExportOptions options;
+        options.vehicle_frame = vehicle_frame;
+        options.imu_frame = imu_frame;
+        options.lidar_frame = lidar_frame;
+        options.gnss_frame = gnss_frame;
+        return io::ExportCalibration(result, io::ParseExportFormat(format), options);
+      },
+      py::arg("result"), py::arg("format"), py::arg("vehicle_frame") = "base_link",
+      py::arg("imu_frame") = "imu_link", py::arg("lidar_frame") = "lidar_link",
+      py::arg("gnss_frame") = "gnss_link",
+      "the text autocal_export writes (docs/export.md): kalibr, fast_lio, lio_sam, autoware, "
+      "urdf, ros2_static_tf");
   m.def("read_calibration", &io::ReadCalibrationYaml, py::arg("path"),
         "reads a calibration.yaml (a result, or a dataset's ground truth)");
   m.def("write_calibration", &io::WriteCalibrationYaml, py::arg("path"), py::arg("calibration"),
@@ -254,8 +285,29 @@ void BindDataset(py::module_& m) {
                                  return Eigen::RowVector2d(s.left_rad_s, s.right_rad_s);
                                });
                              })
+      .def_property_readonly(
+          "groundtruth_trajectory",
+          [](const io::Dataset& d) { return TrajectoryDict(d.groundtruth_trajectory); })
       .def_property_readonly("lidar_sweeps",
-                             [](const io::Dataset& d) { return d.lidar_sweeps.size(); });
+                             [](const io::Dataset& d) { return d.lidar_sweeps.size(); })
+      .def(
+          "load_sweep",
+          [](const io::Dataset& d, size_t index) {
+            if (index >= d.lidar_sweeps.size()) {
+              throw Error("load_sweep: sweep " + std::to_string(index) + " of " +
+                          std::to_string(d.lidar_sweeps.size()));
+            }
+            const lidar::LidarSweep sweep = d.LoadSweep(index);
+            py::dict out;
+            out["t_ns"] = sweep.t_ns;
+            out["points"] = RowsX3(sweep.cloud.points.transpose());
+            out["time_s"] = sweep.cloud.time_s;
+            out["intensity"] = sweep.cloud.intensity;
+            return out;
+          },
+          py::arg("index"),
+          "one sweep read from disk: t_ns (LiDAR clock), points (N,3) in the sensor frame, "
+          "time_s after the stamp and intensity (empty when the file has none)");
 
   m.def(
       "read_dataset", [](const std::string& directory) { return io::ReadDataset(directory); },

@@ -42,6 +42,21 @@ class CalibrationFiles(unittest.TestCase):
         self.assertEqual(back.value.time_offset_lidar_imu_s, 0.025)
         self.assertEqual(back.value.wheel_radius_left_m, 0.3335)
 
+    def test_exports_as_autocal_export_does(self):
+        f = autocal.CalibrationFile()
+        f.value.p_I_L_m = np.array([1.0, 2.0, 3.0])
+        with self.assertRaises(autocal.Error):  # no LiDAR block was estimated
+            autocal.export_calibration(f, "fast_lio")
+        path = os.path.join(output_dir("export"), "calibration.yaml")
+        autocal.write_calibration(path, f)
+        with open(path) as yaml_file:  # mark the LiDAR block as estimated: give it a sigma
+            text = yaml_file.read().replace("  p_m: [1, 2, 3]\n",
+                                            "  p_m: [1, 2, 3]\n  sigma_rot_deg: [0.1, 0.1, 0.1]\n", 1)
+        with open(path, "w") as yaml_file:
+            yaml_file.write(text)
+        text = autocal.export_calibration(autocal.read_calibration(path), "fast_lio")
+        self.assertIn("extrinsic_T: [1, 2, 3]", text)
+
     def test_a_missing_file_raises_autocal_error(self):
         with self.assertRaises(autocal.Error):
             autocal.read_calibration("/nonexistent/calibration.yaml")
@@ -73,6 +88,24 @@ class Datasets(unittest.TestCase):
         d = autocal.Dataset()
         with self.assertRaises(autocal.Error):
             d.set_imu(np.arange(3, dtype=np.int64), np.zeros((2, 3)), np.zeros((3, 3)))
+
+
+class Sweeps(unittest.TestCase):
+    def test_a_simulated_sweep_reads_as_arrays(self):
+        directory = output_dir("urban_2s_lidar")
+        tool = os.path.join(os.environ["AUTOCAL_TOOL_DIR"], "autocal_simulate")
+        subprocess.run([tool, "--scenario=urban", "--duration_s=2", "--seed=2", "--lidar_beams=16",
+                        "--out=" + directory], check=True, capture_output=True)
+        d = autocal.read_dataset(directory)
+        self.assertGreater(d.lidar_sweeps, 10)
+        sweep = d.load_sweep(0)
+        n = sweep["points"].shape[0]
+        self.assertGreater(n, 1000)
+        self.assertEqual(sweep["points"].shape, (n, 3))
+        self.assertEqual(sweep["time_s"].shape, (n,))
+        self.assertTrue(np.all(np.isfinite(sweep["points"])))
+        with self.assertRaises(autocal.Error):
+            d.load_sweep(d.lidar_sweeps)
 
 
 class Preintegration(unittest.TestCase):
@@ -151,6 +184,17 @@ class Pipeline(unittest.TestCase):
         out = output_dir("urban_30s_result")
         result.write(out)
         self.assertTrue(os.path.exists(os.path.join(out, "calibration.yaml")))
+        # The written trajectory reads back (stamps exact, values in shortest round-trip text).
+        back = autocal.read_trajectory(os.path.join(out, "trajectory.tum"))
+        np.testing.assert_array_equal(back["t_ns"], trajectory["t_ns"])
+        np.testing.assert_array_equal(back["p_W_I"], trajectory["p_W_I"])
+        # Against the ground truth: the keyframes within 10 cm after the 4-DoF alignment.
+        gt = autocal.read_dataset(self.dataset).groundtruth_trajectory
+        ate = autocal.compare_trajectory(trajectory["t_ns"], trajectory["p_W_I"],
+                                         trajectory["q_W_I_xyzw"], gt["t_ns"], gt["p_W_I"],
+                                         gt["q_W_I_xyzw"])
+        self.assertGreater(ate["matched_poses"], 100)
+        self.assertLess(ate["ate_translation_rmse_m"], 0.10)
 
     def test_an_exception_in_the_callback_stops_the_run(self):
         def stop(progress):
