@@ -7,34 +7,12 @@
 #include <sstream>
 #include <utility>
 
+#include "autocal/common/format.h"
+
 namespace autocal {
 namespace pipeline {
 
-std::string Escape(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '&':
-        out += "&amp;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&#39;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
+std::string Escape(const std::string& text) { return EscapeXml(text); }
 
 std::string Number(double v) {
   if (!std::isfinite(v)) return "–";

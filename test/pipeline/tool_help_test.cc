@@ -21,9 +21,9 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
-const char* const kTools[] = {"autocal_calibrate", "autocal_estimate", "autocal_evaluate",
-                              "autocal_export",    "autocal_import",   "autocal_register",
-                              "autocal_simulate"};
+const char* const kTools[] = {"autocal_calibrate", "autocal_coverage", "autocal_estimate",
+                              "autocal_evaluate",  "autocal_export",   "autocal_import",
+                              "autocal_register",  "autocal_simulate"};
 
 using Output = test::ToolOutput;
 using test::RunTool;
