@@ -207,6 +207,36 @@ std::vector<Maneuver> Requirements(const Scenario& s, const Body& body) {
 
 namespace {
 
+bool SeenByAny(const Rig& rig, const Eigen::Vector3d& target) {
+  for (const Sensor& sensor : rig.sensors) {
+    if (Sees(sensor, rig.body, target)) return true;
+  }
+  return false;
+}
+
+constexpr double kMaxMarginM = 100.0;
+constexpr double kMarginStepM = 0.5;
+
+// The least reach past a corner, over the region's corners (RegionCoverage::margin_m).
+double Margin(const Rig& rig, const Scenario& s, const Region& region) {
+  const Eigen::Vector2d centre(0.5 * (rig.body.front_m + rig.body.rear_m), 0.0);
+  double margin = kMaxMarginM;
+  for (const Eigen::Vector2d& corner : region.polygon) {
+    const Eigen::Vector2d offset = corner - centre;
+    if (!(offset.norm() > 0.0)) continue;
+    const Eigen::Vector2d direction = offset.normalized();
+    double reach = 0.0;
+    while (reach < margin) {
+      const Eigen::Vector2d p = corner + (reach + kMarginStepM) * direction;
+      if (!SeenByAny(rig, Eigen::Vector3d(p.x(), p.y(), s.target_height_m))) break;
+      reach += kMarginStepM;
+    }
+    if (!SeenByAny(rig, Eigen::Vector3d(corner.x(), corner.y(), s.target_height_m))) reach = 0.0;
+    margin = std::min(margin, reach);
+  }
+  return margin;
+}
+
 RegionCoverage Analyze(const Rig& rig, const Scenario& s, const Region& region, int samples) {
   Eigen::Vector2d lo = region.polygon.front(), hi = region.polygon.front();
   for (const Eigen::Vector2d& p : region.polygon) {
@@ -244,6 +274,7 @@ RegionCoverage Analyze(const Rig& rig, const Scenario& s, const Region& region, 
     for (double& f : out.sensor_fraction) f /= out.samples;
   }
   out.covered = out.samples > 0 && out.covered_fraction >= s.min_covered_fraction;
+  if (out.covered) out.margin_m = Margin(rig, s, region);
   return out;
 }
 
@@ -272,7 +303,7 @@ std::string CoverageTable(const Rig& rig, const std::vector<ManeuverCoverage>& r
       out << "| " << m.name << " | " << r.region.name << " | " << r.region.requirement << " | "
           << std::fixed << std::setprecision(1) << 100.0 * r.covered_fraction << " % | ";
       if (r.covered) {
-        out << "covered";
+        out << "covered, margin " << Metres(r.margin_m);
       } else {
         out << "short: nothing sees " << Metres(r.worst_range_m) << " at " << std::setprecision(0)
             << r.worst_bearing_rad * kRadToDeg << " deg";

@@ -112,6 +112,10 @@ struct RegionCoverage {
   // The uncovered sample farthest from the rear axle: range and bearing (rad).
   double worst_range_m = 0.0;
   double worst_bearing_rad = 0.0;
+  // How far past the region the view reaches in its weakest direction: over the region's
+  // corners, the least distance that stays seen beyond the corner on the ray from the
+  // vehicle's centre (capped at 100 m; 0 when the corner itself is not seen).
+  double margin_m = 0.0;
   bool covered = false;
 };
 
