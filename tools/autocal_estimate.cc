@@ -18,6 +18,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/output_files.h"
@@ -101,7 +102,7 @@ int main(int argc, char** argv) {
                        wheels(c).c_str(), c.p_I_A.x(), c.p_I_A.y(), c.p_I_A.z());
           return;
         }
-        const Eigen::Vector3d r_deg = autocal::geometry::Log(c.q_I_L) * 180.0 / M_PI;
+        const Eigen::Vector3d r_deg = autocal::geometry::Log(c.q_I_L) * autocal::kRadToDeg;
         std::fprintf(stderr,
                      "%5.1f %%  keyframe %lld  update %.0f ms  q_I_L [%.3f %.3f %.3f] deg  "
                      "p_I_L [%.3f %.3f %.3f] m  offset %.2f ms\n",

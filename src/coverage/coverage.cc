@@ -7,13 +7,13 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
+#include "autocal/common/units.h"
 
 namespace autocal {
 namespace coverage {
 namespace {
 
 constexpr double kTwoPi = 2.0 * M_PI;
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr int kDiscSides = 72;
 
 void RequirePositive(double value, const char* what) {

@@ -9,6 +9,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/correlation_peak.h"
@@ -211,7 +212,7 @@ std::optional<GyroInDegreesAtRest> FindGyroInDegreesAtRest(const sensors::ImuSam
   for (const sensors::ImuSample& sample : imu) {
     if (sample.t_ns > end_ns) break;
     scaled.push_back(sample);
-    scaled.back().gyro_rad_s *= M_PI / 180.0;
+    scaled.back().gyro_rad_s *= kDegToRad;
   }
   const StillStart in_degrees = DetectStillStartAsLogged(scaled, options);
   if (!in_degrees.found) return std::nullopt;

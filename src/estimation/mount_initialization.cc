@@ -8,14 +8,13 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
 namespace estimation {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // Mean specific force over the samples that `use` accepts; the count in *n.
 template <typename Use>

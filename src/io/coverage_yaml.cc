@@ -5,6 +5,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/io/calibration_yaml.h"
 #include "yaml_util.h"
@@ -14,8 +15,6 @@ namespace io {
 namespace {
 
 using internal::YamlFile;
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 coverage::SensorType SensorTypeOf(const YamlFile& f, const YAML::Node& node) {
   const std::string name = f.String(node, "type");

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/initialization.h"
 #include "estimation/gyro_unit.h"
 #include "io/csv_format.h"
@@ -171,8 +172,8 @@ void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& sa
                  "scatters by %.3g (per-axis std) around %.3g; read as deg/s that is %.3g rad/s "
                  "around %.3g rad/s, a still gyro's noise (stated: %.3g rad/s) and bias",
                  degrees->duration_s, degrees->gyro_std_as_read, degrees->gyro_mean_as_read,
-                 degrees->gyro_std_as_read * M_PI / 180.0,
-                 degrees->gyro_mean_as_read * M_PI / 180.0, stated_std_rad_s));
+                 degrees->gyro_std_as_read * kDegToRad, degrees->gyro_mean_as_read * kDegToRad,
+                 stated_std_rad_s));
     }
   }
   double sum = 0.0;

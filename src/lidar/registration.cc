@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/lidar/voxel_grid.h"
 
@@ -87,7 +88,6 @@ std::vector<double> NumbersIn(const std::string& text, const std::string& what) 
 
 geometry::Pose3d ParsePoseGuess(const std::string& text, const std::string& what) {
   const std::vector<double> v = NumbersIn(text, what);
-  constexpr double kDegToRad = M_PI / 180.0;
   if (v.size() == 6) {
     return geometry::Pose3d(
         geometry::FromRollPitchYaw(v[3] * kDegToRad, v[4] * kDegToRad, v[5] * kDegToRad),

@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/geometry/so3.h"
 
@@ -29,7 +30,7 @@ inline Eigen::Quaterniond ImuMountInVehicle(const Eigen::Quaterniond& q_I_V) {
 // one that rounds to 0 as 0 (never "-0.0"). Near gimbal lock see geometry::RollPitchYaw.
 inline Eigen::Vector3d DisplayRollPitchYawDeg(const Eigen::Quaterniond& q, int decimals) {
   const double scale = std::pow(10.0, decimals);
-  Eigen::Vector3d out = geometry::RollPitchYaw(q) * (180.0 / M_PI);
+  Eigen::Vector3d out = geometry::RollPitchYaw(q) * kRadToDeg;
   for (int i = 0; i < 3; ++i) {
     double rounded = std::round(out(i) * scale) / scale;
     if (rounded <= -180.0) rounded += 360.0;

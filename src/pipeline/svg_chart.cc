@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "autocal/common/format.h"
+#include "autocal/common/units.h"
 
 namespace autocal {
 namespace pipeline {
@@ -212,7 +213,7 @@ std::string RigView(const std::string& title, const std::string& x_label,
     const Eigen::Vector2d major = eigen.eigenvectors().col(1);
     // The page's y axis points down: an angle counter-clockwise in the view is clockwise
     // on the page.
-    const double angle_deg = -std::atan2(major.y(), major.x()) * 180.0 / M_PI;
+    const double angle_deg = -std::atan2(major.y(), major.x()) * kRadToDeg;
     svg << "<ellipse cx='" << cx << "' cy='" << cy << "' rx='" << axes_m(1) * pixels_per_m
         << "' ry='" << axes_m(0) * pixels_per_m << "' transform='rotate(" << angle_deg << ' ' << cx
         << ' ' << cy << ")' fill='" << m.color << "' fill-opacity='0.2' stroke='" << m.color
