@@ -372,7 +372,10 @@ void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use
   require(use_gnss, counters.gnss_accepted, dataset.gnss.size(), "GNSS", "gnss.csv");
 }
 
-std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
+namespace {
+
+// The residual blocks of the IMU, wheel and GNSS factors in `problem`, by sensor.
+std::map<std::string, std::vector<ceres::ResidualBlockId>> BlocksBySensor(ceres::Problem* problem) {
   std::vector<ceres::ResidualBlockId> all;
   problem->GetResidualBlocks(&all);
   std::map<std::string, std::vector<ceres::ResidualBlockId>> ids;
@@ -382,8 +385,44 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
     if (IsWheelCost(f)) ids["wheel"].push_back(id);
     if (IsGnssCost(f)) ids["gnss"].push_back(id);
   }
+  return ids;
+}
+
+}  // namespace
+
+void AddLossStatistics(ceres::Problem* problem, std::map<std::string, SensorResiduals>* residuals) {
+  for (const auto& [sensor, blocks] : BlocksBySensor(problem)) {
+    SensorResiduals& r = (*residuals)[sensor];
+    r.factors = blocks.size();
+    r.factors_downweighted = 0;
+    double kept_sum = 0.0;
+    size_t kept_rows = 0;
+    std::vector<double> rows;
+    for (ceres::ResidualBlockId id : blocks) {
+      rows.assign(
+          static_cast<size_t>(problem->GetCostFunctionForResidualBlock(id)->num_residuals()), 0.0);
+      double cost = 0.0;
+      problem->EvaluateResidualBlock(id, false, &cost, rows.data(), nullptr);
+      const ceres::LossFunction* loss = problem->GetLossFunctionForResidualBlock(id);
+      if (loss != nullptr) {
+        double rho[3];
+        loss->Evaluate(2.0 * cost, rho);  // s = |r|^2; Ceres' cost is s / 2
+        if (rho[1] < kDownweightedBelow) {
+          ++r.factors_downweighted;
+          continue;
+        }
+      }
+      for (double v : rows) kept_sum += v * v;
+      kept_rows += rows.size();
+    }
+    r.rms_not_downweighted =
+        kept_rows > 0 ? std::sqrt(kept_sum / static_cast<double>(kept_rows)) : 0.0;
+  }
+}
+
+std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
   std::map<std::string, std::vector<double>> out;
-  for (const auto& [sensor, blocks] : ids) {
+  for (const auto& [sensor, blocks] : BlocksBySensor(problem)) {
     ceres::Problem::EvaluateOptions evaluate;
     evaluate.residual_blocks = blocks;
     evaluate.apply_loss_function = false;
@@ -485,8 +524,14 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
     result->trajectory.push_back(sample);
   }
   for (const auto& [sensor, residuals] : result->whitened_residuals) {
-    if (!residuals.after.empty()) {
-      file.residuals[sensor] = WhitenedStatistics(residuals.after, sensor == "gnss");
+    if (residuals.after.empty()) continue;
+    std::map<std::string, double>& statistics = file.residuals[sensor];
+    statistics = WhitenedStatistics(residuals.after, sensor == "gnss");
+    if (residuals.factors > 0) {
+      statistics["factors"] = static_cast<double>(residuals.factors);
+      statistics["factors_downweighted_by_loss"] =
+          static_cast<double>(residuals.factors_downweighted);
+      statistics["whitened_rms_not_downweighted"] = residuals.rms_not_downweighted;
     }
   }
   result->seconds_total = SecondsSince(start);

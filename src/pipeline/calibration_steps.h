@@ -137,6 +137,13 @@ std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows
 // by sensor, at the current parameter values.
 std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem);
 
+// SensorResiduals::factors, factors_downweighted and rms_not_downweighted of each sensor in
+// *residuals, from `problem` at the current values: a factor counts as down-weighted when its
+// loss's weight rho'(s) at its squared whitened norm s is below kDownweightedBelow (Huber
+// with scale d beyond 2 d, Cauchy with scale c beyond c).
+constexpr double kDownweightedBelow = 0.5;
+void AddLossStatistics(ceres::Problem* problem, std::map<std::string, SensorResiduals>* residuals);
+
 // Throws the no-factor error when the LiDAR is in the problem and no point was associated.
 void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
                          size_t num_keyframes, const OfflineCalibrationResult& result);

@@ -221,6 +221,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].after = std::move(rows);
   }
+  AddLossStatistics(&p, &result.whitened_residuals);
   Conclude(dataset, problem, keyframes, &calibration, start, &result);
   return result;
 }

@@ -231,6 +231,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
       result->whitened_residuals[sensor].after = std::move(rows);
     }
+    AddLossStatistics(p, &result->whitened_residuals);
   };
   Report(options, "solving", 0.0, 0.0, 0.0);
   result->batch = estimation::SolveLidarInertialBatch(
@@ -440,6 +441,15 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
       out << " (" << std::setprecision(3) << without->second << " without the "
           << std::setprecision(0) << outliers->second << " beyond " << kOutlierRobustSigmas
           << " robust sigmas; robust sigma " << std::setprecision(3) << robust->second << ")";
+    }
+    const auto factors = statistics.find("factors");
+    const auto downweighted = statistics.find("factors_downweighted_by_loss");
+    const auto rest = statistics.find("whitened_rms_not_downweighted");
+    if (factors != statistics.end() && downweighted != statistics.end() &&
+        rest != statistics.end() && downweighted->second > 0.0) {
+      out << "; the loss down-weighted " << std::setprecision(0) << downweighted->second << " of "
+          << factors->second << " factors (the others' RMS " << std::setprecision(3) << rest->second
+          << ")";
     }
     out << "\n";
   }

@@ -334,7 +334,13 @@ std::string RunSummary(const OfflineCalibrationResult& result, bool lidar_used,
   for (const std::string& key : whitened_sensors) {
     const SensorResiduals& r = result.whitened_residuals.at(key);
     html << "<li>" << Escape(SensorName(key)) << ": "
-         << Counted(std::max(r.before.size(), r.after.size()), "whitened residual row") << "</li>";
+         << Counted(std::max(r.before.size(), r.after.size()), "whitened residual row");
+    if (r.factors_downweighted > 0) {
+      html << "; the robust loss down-weighted " << r.factors_downweighted << " of "
+           << Counted(r.factors, "factor") << " (the others' RMS " << Number(r.rms_not_downweighted)
+           << ")";
+    }
+    html << "</li>";
   }
   if (!result.gnss_positions_W.empty()) {
     html << "<li>GNSS fixes: " << result.gnss_positions_W.size() << "</li>";

@@ -608,6 +608,16 @@ TEST_F(OfflineCalibrationTest, WithoutTheLidarFromImuWheelsAndGnss) {
   EXPECT_GT(gnss.at("whitened_rms"), 3.0 * gnss.at("whitened_rms_without_outliers"));
   // The IMU's and the wheels' rows are of several kinds: no robust statistics for them.
   EXPECT_FALSE(result.calibration.residuals.at("imu").count("whitened_robust_sigma"));
+  // The factors the Cauchy loss down-weighted (weight below one half): the multipath fixes
+  // and the noise's tail, a few percent; the others fit their stated noise. The IMU has no
+  // loss: none down-weighted.
+  EXPECT_EQ(gnss.at("factors") * 3.0, gnss.at("rows"));
+  EXPECT_GE(gnss.at("factors_downweighted_by_loss"), gnss.at("outlier_rows") / 3.0);
+  EXPECT_LT(gnss.at("factors_downweighted_by_loss"), 0.1 * gnss.at("factors"));
+  EXPECT_LT(gnss.at("whitened_rms_not_downweighted"), 1.2);
+  EXPECT_EQ(result.calibration.residuals.at("imu").at("factors_downweighted_by_loss"), 0.0);
+  EXPECT_EQ(result.calibration.residuals.at("imu").at("whitened_rms_not_downweighted"),
+            result.calibration.residuals.at("imu").at("whitened_rms"));
 }
 
 }  // namespace

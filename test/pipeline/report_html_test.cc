@@ -429,6 +429,18 @@ TEST(ReportHtml, IsWellFormed) {
   }
 }
 
+// The sensors' lines say how many factors the robust loss down-weighted.
+TEST(ReportHtml, SaysHowManyFactorsTheLossDownWeighted) {
+  OfflineCalibrationResult result = FullResult();
+  result.whitened_residuals["gnss"].factors = 100;
+  result.whitened_residuals["gnss"].factors_downweighted = 4;
+  result.whitened_residuals["gnss"].rms_not_downweighted = 0.97;
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, HasSubstr("GNSS: 300 whitened residual rows; the robust loss down-weighted 4 "
+                              "of 100 factors (the others' RMS 0.97)"));
+  EXPECT_THAT(html, Not(HasSubstr("IMU: 900 whitened residual rows; the robust loss")));
+}
+
 TEST(ReportHtml, IsSelfContained) {
   for (const OfflineCalibrationResult& result : {FullResult(), ResultWithoutLidar()}) {
     const std::string html = CalibrationReportHtml(result);

@@ -85,6 +85,12 @@ struct OfflineCalibrationOptions {
 struct SensorResiduals {
   std::vector<double> before;
   std::vector<double> after;
+  // After the solve: the sensor's factors (residual blocks), those its robust loss
+  // down-weighted (a weight rho'(s) below one half at the block's squared whitened norm s),
+  // and the RMS of the rows of the others.
+  size_t factors = 0;
+  size_t factors_downweighted = 0;
+  double rms_not_downweighted = 0.0;
 };
 
 struct OfflineCalibrationResult {
