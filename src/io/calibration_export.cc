@@ -9,6 +9,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
+#include "autocal/geometry/se3.h"
 #include "text_format.h"
 
 namespace autocal {
@@ -20,12 +21,11 @@ std::string FormatDouble(double value) {
   return internal::FormatDouble(value == 0.0 ? 0.0 : value);
 }
 
-// A child frame in its parent: p_parent = q * p_child + p.
+// A child frame in its parent: p_parent = T * p_child.
 struct Transform {
   std::string parent;
   std::string child;
-  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  geometry::Pose3d T;
 };
 
 bool HasLidar(const CalibrationFile& r) { return r.uncertainty.T_I_L.sigma_rot_deg.has_value(); }
@@ -51,20 +51,21 @@ void CheckFrameName(const std::string& name) {
 std::vector<Transform> Tree(const CalibrationFile& r, const ExportOptions& o, double below_axle_m) {
   const sensors::Calibration& c = r.value;
   std::vector<Transform> out;
-  Eigen::Quaterniond q_P_I = Eigen::Quaterniond::Identity();  // the IMU in the root P
-  Eigen::Vector3d p_P_I = Eigen::Vector3d::Zero();
+  geometry::Pose3d T_P_I;  // the IMU in the root P
   std::string root = o.imu_frame;
   if (HasVehicle(r)) {
     root = o.vehicle_frame;
-    q_P_I = c.q_I_V.conjugate().normalized();
-    p_P_I = -(q_P_I * c.p_I_V) + Eigen::Vector3d(0.0, 0.0, below_axle_m);
-    out.push_back({root, o.imu_frame, q_P_I, p_P_I});
+    const geometry::Pose3d raise(Eigen::Quaterniond::Identity(),
+                                 Eigen::Vector3d(0.0, 0.0, below_axle_m));
+    T_P_I = raise * geometry::Pose3d(c.q_I_V, c.p_I_V).Inverse();
+    out.push_back({root, o.imu_frame, T_P_I});
   }
   if (HasLidar(r)) {
-    out.push_back({root, o.lidar_frame, (q_P_I * c.q_I_L).normalized(), q_P_I * c.p_I_L + p_P_I});
+    out.push_back({root, o.lidar_frame, T_P_I * geometry::Pose3d(c.q_I_L, c.p_I_L)});
   }
   if (HasAntenna(r)) {
-    out.push_back({root, o.gnss_frame, Eigen::Quaterniond::Identity(), q_P_I * c.p_I_A + p_P_I});
+    out.push_back(
+        {root, o.gnss_frame, geometry::Pose3d(Eigen::Quaterniond::Identity(), T_P_I * c.p_I_A)});
   }
   return out;
 }
@@ -101,9 +102,9 @@ void RequireLidar(const CalibrationFile& r, const char* format) {
 
 std::string Kalibr(const CalibrationFile& r) {
   RequireLidar(r, "kalibr");
-  const Eigen::Quaterniond q_L_I = r.value.q_I_L.conjugate().normalized();
-  const Eigen::Matrix3d R = q_L_I.toRotationMatrix();
-  const Eigen::Vector3d t = -(q_L_I * r.value.p_I_L);
+  const geometry::Pose3d T_L_I = geometry::Pose3d(r.value.q_I_L, r.value.p_I_L).Inverse();
+  const Eigen::Matrix3d R = T_L_I.R();
+  const Eigen::Vector3d& t = T_L_I.p;
   std::ostringstream out;
   out << "# autocal calibration, Kalibr camchain style. T_lidar_imu takes IMU coordinates to\n"
          "# LiDAR coordinates (p_L = T_lidar_imu p_I); t_imu = t_lidar + timeshift_lidar_imu.\n"
@@ -121,9 +122,9 @@ std::string Kalibr(const CalibrationFile& r) {
 // LiDAR frame, p_L_I. Together T_L_I, which its parameter file calls "lidar -> IMU".
 std::string LioSam(const CalibrationFile& r) {
   RequireLidar(r, "lio_sam");
-  const Eigen::Quaterniond q_L_I = r.value.q_I_L.conjugate().normalized();
-  const Eigen::Matrix3d R = q_L_I.toRotationMatrix();
-  const Eigen::Vector3d p_L_I = -(q_L_I * r.value.p_I_L);
+  const geometry::Pose3d T_L_I = geometry::Pose3d(r.value.q_I_L, r.value.p_I_L).Inverse();
+  const Eigen::Matrix3d R = T_L_I.R();
+  const Eigen::Vector3d& p_L_I = T_L_I.p;
   const std::string rows = Vector(R.row(0).transpose(), ", ") + ",\n" + "               " +
                            Vector(R.row(1).transpose(), ", ") + ",\n" + "               " +
                            Vector(R.row(2).transpose(), ", ") + "]\n";
@@ -175,10 +176,10 @@ std::string Autoware(const CalibrationFile& r, const ExportOptions& o, double be
                               "ground).\n")
       << Clocks(r, "# ") << o.vehicle_frame << ":\n";
   for (const Transform& t : Tree(r, o, below_axle_m)) {
-    const Eigen::Vector3d rpy = Rpy(t.q);
+    const Eigen::Vector3d rpy = Rpy(t.T.q);
     out << "  " << t.child << ":\n"
-        << "    x: " << FormatDouble(t.p.x()) << "\n    y: " << FormatDouble(t.p.y())
-        << "\n    z: " << FormatDouble(t.p.z()) << "\n    roll: " << FormatDouble(rpy(0))
+        << "    x: " << FormatDouble(t.T.p.x()) << "\n    y: " << FormatDouble(t.T.p.y())
+        << "\n    z: " << FormatDouble(t.T.p.z()) << "\n    roll: " << FormatDouble(rpy(0))
         << "\n    pitch: " << FormatDouble(rpy(1)) << "\n    yaw: " << FormatDouble(rpy(2)) << "\n";
   }
   return out.str();
@@ -196,7 +197,7 @@ std::string Urdf(const CalibrationFile& r, const ExportOptions& o, double below_
         << "  <joint name=\"" << t.child << "_joint\" type=\"fixed\">\n"
         << "    <parent link=\"" << t.parent << "\"/>\n"
         << "    <child link=\"" << t.child << "\"/>\n"
-        << "    <origin xyz=\"" << Vector(t.p, " ") << "\" rpy=\"" << Vector(Rpy(t.q), " ")
+        << "    <origin xyz=\"" << Vector(t.T.p, " ") << "\" rpy=\"" << Vector(Rpy(t.T.q), " ")
         << "\"/>\n  </joint>\n";
   }
   out << "</robot>\n";
@@ -209,9 +210,9 @@ std::string Ros2StaticTf(const CalibrationFile& r, const ExportOptions& o, doubl
          "later).\n"
       << Clocks(r, "# ");
   for (const Transform& t : Tree(r, o, below_axle_m)) {
-    const Eigen::Quaterniond q = t.q.normalized();
-    out << "ros2 run tf2_ros static_transform_publisher --x " << FormatDouble(t.p.x()) << " --y "
-        << FormatDouble(t.p.y()) << " --z " << FormatDouble(t.p.z()) << " --qx "
+    const Eigen::Quaterniond q = t.T.q.normalized();
+    out << "ros2 run tf2_ros static_transform_publisher --x " << FormatDouble(t.T.p.x()) << " --y "
+        << FormatDouble(t.T.p.y()) << " --z " << FormatDouble(t.T.p.z()) << " --qx "
         << FormatDouble(q.x()) << " --qy " << FormatDouble(q.y()) << " --qz " << FormatDouble(q.z())
         << " --qw " << FormatDouble(q.w()) << " --frame-id " << t.parent << " --child-frame-id "
         << t.child << " &\n";

@@ -7,6 +7,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
+#include "autocal/geometry/se3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "yaml_util.h"
 
@@ -49,10 +50,10 @@ void PlaceFromCalibration(const YamlFile& f, const YAML::Node& rig, const YAML::
     f.Fail(c, "calibration: the result estimated no wheel radius; give axle_height_m");
   }
   const sensors::Calibration& v = result.value;
-  const Eigen::Quaterniond q_V_I = v.q_I_V.conjugate();
-  const Eigen::Vector3d p_V_I = -(q_V_I * v.p_I_V);
-  const Eigen::Vector3d rpy = geometry::RollPitchYaw(q_V_I * v.q_I_L);
-  sensor->position_m = q_V_I * v.p_I_L + p_V_I + Eigen::Vector3d(0.0, 0.0, axle_height_m);
+  const geometry::Pose3d T_V_L =
+      geometry::Pose3d(v.q_I_V, v.p_I_V).Inverse() * geometry::Pose3d(v.q_I_L, v.p_I_L);
+  const Eigen::Vector3d rpy = geometry::RollPitchYaw(T_V_L.q);
+  sensor->position_m = T_V_L.p + Eigen::Vector3d(0.0, 0.0, axle_height_m);
   sensor->yaw_rad = rpy(2);
   sensor->pitch_rad = rpy(1);
 }

@@ -13,6 +13,7 @@
 
 #include "autocal/common/format.h"
 #include "autocal/common/units.h"
+#include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "mount_angles.h"
@@ -426,31 +427,30 @@ struct RigPoint {
 };
 
 // The sensors in the vehicle frame (docs/report.md, "Rig"): its origin (the rear-axle centre),
-// the IMU at p_V_I with the rear axle's translation sigma, the LiDAR and the antenna at R_V_I p +
-// p_V_I with their own sigma added, the rear wheels at +-track/2 with half the track's sigma.
+// the IMU at p_V_I with the rear axle's translation sigma, the LiDAR and the antenna at T_V_I p
+// with their own sigma added, the rear wheels at +-track/2 with half the track's sigma.
 // Without an estimated mount the IMU frame stands in for V.
 std::vector<RigPoint> RigPoints(const OfflineCalibrationResult& result, bool lidar_used) {
   const sensors::Calibration& c = result.calibration.value;
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
   const bool vehicle = u.T_I_V.sigma_rot_deg.has_value();
-  const Eigen::Matrix3d R_V_I =
-      vehicle ? c.q_I_V.conjugate().toRotationMatrix() : Eigen::Matrix3d::Identity();
-  const Eigen::Vector3d p_V_I =
-      vehicle ? Eigen::Vector3d(-(R_V_I * c.p_I_V)) : Eigen::Vector3d::Zero();
+  const geometry::Pose3d T_V_I =
+      vehicle ? geometry::Pose3d(c.q_I_V, c.p_I_V).Inverse() : geometry::Pose3d::Identity();
+  const Eigen::Matrix3d R_V_I = T_V_I.R();
   const Eigen::Matrix3d imu_cov =
       vehicle ? CovarianceInV(R_V_I, u.T_I_V.sigma_p_m) : Eigen::Matrix3d::Zero();
-  std::vector<RigPoint> points = {{"IMU", "#333", p_V_I, imu_cov}};
+  std::vector<RigPoint> points = {{"IMU", "#333", T_V_I.p, imu_cov}};
   if (vehicle) {
     points.push_back(
         {"rear axle centre", "#999", Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()});
   }
   if (lidar_used || u.T_I_L.sigma_p_m) {
-    points.push_back({"LiDAR", "#36c", R_V_I * c.p_I_L + p_V_I,
-                      CovarianceInV(R_V_I, u.T_I_L.sigma_p_m) + imu_cov});
+    points.push_back(
+        {"LiDAR", "#36c", T_V_I * c.p_I_L, CovarianceInV(R_V_I, u.T_I_L.sigma_p_m) + imu_cov});
   }
   if (u.p_I_A_m.sigma) {
-    points.push_back({"GNSS antenna", "#c33", R_V_I * c.p_I_A + p_V_I,
-                      CovarianceInV(R_V_I, u.p_I_A_m.sigma) + imu_cov});
+    points.push_back(
+        {"GNSS antenna", "#c33", T_V_I * c.p_I_A, CovarianceInV(R_V_I, u.p_I_A_m.sigma) + imu_cov});
   }
   if (vehicle && u.track_width_m.sigma) {
     const double half = 0.5 * c.track_width_m;
