@@ -149,45 +149,58 @@ NormalEquations Combined(const std::vector<NormalEquations>& partial, int residu
   return eq;
 }
 
-NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                                      const geometry::Pose3d& T, const IcpSetting& setting,
-                                      std::vector<int>* matches_io) {
+// The sums of one linearization over the source points matched at T to a target point with a
+// plane (planarity above 0 and min_target_planarity): `add(eq, i, match, p)` adds source point
+// i, at p = T source_i, to its chunk's sums, or returns without adding to skip it. The chunks
+// are combined in order (deterministic for a given thread count).
+template <typename Add>
+NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                                     const geometry::Pose3d& T, const IcpSetting& setting,
+                                     std::vector<int>* matches_io, Add add) {
   MatchNearest(source, target, T, setting, matches_io);
   const std::vector<int>& matches = *matches_io;
   const Eigen::Matrix3d R = T.R();
   const Eigen::Index n = source.cols();
-  const Eigen::Matrix3Xd& target_points = target.points();
-  const Eigen::Matrix3Xd& normals = target.normals().normals;
   const Eigen::VectorXd& planarity = target.normals().planarity;
   std::vector<NormalEquations> partial(static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
   ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int chunk) {
     NormalEquations& eq = partial[static_cast<size_t>(chunk)];
-    Vector6d J;
     for (int64_t i = begin; i < end; ++i) {
       const int match = matches[static_cast<size_t>(i)];
       if (match < 0) continue;
       // Planarity 0 marks a target point without a normal (EstimateNormals).
       const double target_planarity = planarity(match);
       if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
-      const Eigen::Vector3d p = R * source.col(i) + T.p;
-      const Eigen::Vector3d normal = normals.col(match);
-      const double r = normal.dot(p - target_points.col(match));
-      J.head<3>() = normal;
-      J.tail<3>() = p.cross(normal);
-      const double w = setting.robust.Weight(r);
-      eq.H.noalias() += (w * J) * J.transpose();
-      if (setting.source_range_sigma_m > 0.0) {
-        const double along_normal = normal.dot(R * source.col(i).normalized());
-        const double variance = std::pow(setting.source_range_sigma_m * along_normal, 2);
-        eq.propagated.noalias() += (w * w * variance * J) * J.transpose();
-      }
-      eq.g.noalias() += (w * r) * J;
-      eq.weighted_squared_residuals += w * r * r;
-      eq.squared_residuals += r * r;
-      ++eq.count;
+      add(eq, i, match, Eigen::Vector3d(R * source.col(i) + T.p));
     }
   });
   return Combined(partial, 1);
+}
+
+NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
+                                      const geometry::Pose3d& T, const IcpSetting& setting,
+                                      std::vector<int>* matches_io) {
+  const Eigen::Matrix3d R = T.R();
+  return SumOverMatchedPlanes(
+      source, target, T, setting, matches_io,
+      [&](NormalEquations& eq, int64_t i, int match, const Eigen::Vector3d& p) {
+        const Eigen::Vector3d normal = target.normals().normals.col(match);
+        const double r = normal.dot(p - target.points().col(match));
+        Vector6d J;
+        J.head<3>() = normal;
+        J.tail<3>() = p.cross(normal);
+        const double w = setting.robust.Weight(r);
+        eq.H.noalias() += (w * J) * J.transpose();
+        if (setting.source_range_sigma_m > 0.0) {
+          const double along_normal = normal.dot(R * source.col(i).normalized());
+          const double variance = std::pow(setting.source_range_sigma_m * along_normal, 2);
+          eq.propagated.noalias() += (w * w * variance * J) * J.transpose();
+        }
+        eq.g.noalias() += (w * r) * J;
+        eq.weighted_squared_residuals += w * r * r;
+        eq.squared_residuals += r * r;
+        ++eq.count;
+      });
 }
 
 // A point's plane-regularized covariance (docs/lidar.md, eq. 4.17): eigenvalues epsilon
@@ -204,38 +217,28 @@ NormalEquations LinearizeGeneralized(const Eigen::Matrix3Xd& source,
                                      const SurfaceNormals& source_normals, const IcpTarget& target,
                                      const geometry::Pose3d& T, const IcpSetting& setting,
                                      std::vector<int>* matches_io) {
-  MatchNearest(source, target, T, setting, matches_io);
-  const std::vector<int>& matches = *matches_io;
   const Eigen::Matrix3d R = T.R();
-  const Eigen::Index n = source.cols();
   const double epsilon = setting.gicp_epsilon;
-  std::vector<NormalEquations> partial(static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
-  ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int chunk) {
-    NormalEquations& eq = partial[static_cast<size_t>(chunk)];
-    Eigen::Matrix<double, 3, 6> J;
-    J.leftCols<3>().setIdentity();
-    for (int64_t i = begin; i < end; ++i) {
-      const int match = matches[static_cast<size_t>(i)];
-      if (match < 0 || source_normals.planarity(i) <= 0.0) continue;
-      const double target_planarity = target.normals().planarity(match);
-      if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
-      const Eigen::Vector3d p = R * source.col(i) + T.p;
-      const Eigen::Vector3d d = p - target.points().col(match);
-      const Eigen::Matrix3d C =
-          PlaneCovariance(target.normals().normals.col(match), epsilon) +
-          R * PlaneCovariance(source_normals.normals.col(i), epsilon) * R.transpose();
-      const Eigen::Matrix3d M = 2.0 * epsilon * C.inverse();
-      const double r = std::sqrt(std::max(d.dot(M * d), 0.0));
-      J.rightCols<3>() = -geometry::Hat(p);
-      const double w = setting.robust.Weight(r);
-      eq.H.noalias() += w * J.transpose() * M * J;
-      eq.g.noalias() += w * J.transpose() * (M * d);
-      eq.weighted_squared_residuals += w * r * r;
-      eq.squared_residuals += r * r;
-      ++eq.count;
-    }
-  });
-  return Combined(partial, 1);
+  return SumOverMatchedPlanes(
+      source, target, T, setting, matches_io,
+      [&](NormalEquations& eq, int64_t i, int match, const Eigen::Vector3d& p) {
+        if (source_normals.planarity(i) <= 0.0) return;
+        const Eigen::Vector3d d = p - target.points().col(match);
+        const Eigen::Matrix3d C =
+            PlaneCovariance(target.normals().normals.col(match), epsilon) +
+            R * PlaneCovariance(source_normals.normals.col(i), epsilon) * R.transpose();
+        const Eigen::Matrix3d M = 2.0 * epsilon * C.inverse();
+        const double r = std::sqrt(std::max(d.dot(M * d), 0.0));
+        Eigen::Matrix<double, 3, 6> J;
+        J.leftCols<3>().setIdentity();
+        J.rightCols<3>() = -geometry::Hat(p);
+        const double w = setting.robust.Weight(r);
+        eq.H.noalias() += w * J.transpose() * M * J;
+        eq.g.noalias() += w * J.transpose() * (M * d);
+        eq.weighted_squared_residuals += w * r * r;
+        eq.squared_residuals += r * r;
+        ++eq.count;
+      });
 }
 
 // Point-to-point correspondences at T with IRLS weights of the point distance.
