@@ -390,19 +390,21 @@ std::map<std::string, std::vector<ceres::ResidualBlockId>> BlocksBySensor(ceres:
 
 }  // namespace
 
-void AddLossStatistics(ceres::Problem* problem, std::map<std::string, SensorResiduals>* residuals) {
+void RecordResidualsAfterSolve(ceres::Problem* problem,
+                               std::map<std::string, SensorResiduals>* residuals) {
   for (const auto& [sensor, blocks] : BlocksBySensor(problem)) {
     SensorResiduals& r = (*residuals)[sensor];
+    r.after.clear();
     r.factors = blocks.size();
     r.factors_downweighted = 0;
     double kept_sum = 0.0;
     size_t kept_rows = 0;
-    std::vector<double> rows;
     for (ceres::ResidualBlockId id : blocks) {
-      rows.assign(
-          static_cast<size_t>(problem->GetCostFunctionForResidualBlock(id)->num_residuals()), 0.0);
+      const size_t first = r.after.size();
+      r.after.resize(first + static_cast<size_t>(
+                                 problem->GetCostFunctionForResidualBlock(id)->num_residuals()));
       double cost = 0.0;
-      problem->EvaluateResidualBlock(id, false, &cost, rows.data(), nullptr);
+      problem->EvaluateResidualBlock(id, false, &cost, r.after.data() + first, nullptr);
       const ceres::LossFunction* loss = problem->GetLossFunctionForResidualBlock(id);
       if (loss != nullptr) {
         double rho[3];
@@ -412,8 +414,8 @@ void AddLossStatistics(ceres::Problem* problem, std::map<std::string, SensorResi
           continue;
         }
       }
-      for (double v : rows) kept_sum += v * v;
-      kept_rows += rows.size();
+      for (size_t k = first; k < r.after.size(); ++k) kept_sum += r.after[k] * r.after[k];
+      kept_rows += r.after.size() - first;
     }
     r.rms_not_downweighted =
         kept_rows > 0 ? std::sqrt(kept_sum / static_cast<double>(kept_rows)) : 0.0;

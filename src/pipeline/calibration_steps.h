@@ -137,12 +137,14 @@ std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows
 // by sensor, at the current parameter values.
 std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem);
 
-// SensorResiduals::factors, factors_downweighted and rms_not_downweighted of each sensor in
-// *residuals, from `problem` at the current values: a factor counts as down-weighted when its
-// loss's weight rho'(s) at its squared whitened norm s is below kDownweightedBelow (Huber
-// with scale d beyond 2 d, Cauchy with scale c beyond c).
+// After the solve, for each sensor in `problem` at the current values: SensorResiduals::after
+// (the rows WhitenedResidualsBySensor gives, in the same order), factors, factors_downweighted
+// and rms_not_downweighted, from one evaluation of each factor. A factor counts as
+// down-weighted when its loss's weight rho'(s) at its squared whitened norm s is below
+// kDownweightedBelow (Huber with scale d beyond 2 d, Cauchy with scale c beyond c).
 constexpr double kDownweightedBelow = 0.5;
-void AddLossStatistics(ceres::Problem* problem, std::map<std::string, SensorResiduals>* residuals);
+void RecordResidualsAfterSolve(ceres::Problem* problem,
+                               std::map<std::string, SensorResiduals>* residuals);
 
 // Throws the no-factor error when the LiDAR is in the problem and no point was associated.
 void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,

@@ -218,10 +218,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                          &result);
   RequirePlausible(dataset, options, blocks_estimated, covariance);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
-  for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
-    result.whitened_residuals[sensor].after = std::move(rows);
-  }
-  AddLossStatistics(&p, &result.whitened_residuals);
+  RecordResidualsAfterSolve(&p, &result.whitened_residuals);
   Conclude(dataset, problem, keyframes, &calibration, start, &result);
   return result;
 }

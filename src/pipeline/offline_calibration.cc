@@ -228,10 +228,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
         Observe(dataset, options, blocks, covariance, result);
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
     RequirePlausible(dataset, options, blocks, covariance);
-    for (auto& [sensor, rows] : WhitenedResidualsBySensor(p)) {
-      result->whitened_residuals[sensor].after = std::move(rows);
-    }
-    AddLossStatistics(p, &result->whitened_residuals);
+    RecordResidualsAfterSolve(p, &result->whitened_residuals);
   };
   Report(options, "solving", 0.0, 0.0, 0.0);
   result->batch = estimation::SolveLidarInertialBatch(
