@@ -62,21 +62,32 @@ namespace {
 std::vector<double> NumbersIn(const std::string& text, const std::string& what) {
   std::vector<double> numbers;
   std::string token;
+  int line = 1, column = 0, token_line = 1, token_column = 1;
   const auto flush = [&]() {
     if (token.empty()) return;
     char* end = nullptr;
     const double value = std::strtod(token.c_str(), &end);
     if (end != token.c_str() + token.size() || !std::isfinite(value)) {
-      throw Error(what + ": '" + token + "' (number " + std::to_string(numbers.size() + 1) +
+      throw Error(what + ":" + std::to_string(token_line) + ":" + std::to_string(token_column) +
+                  ": '" + token + "' (number " + std::to_string(numbers.size() + 1) +
                   ") is not a finite number");
     }
     numbers.push_back(value);
     token.clear();
   };
   for (const char c : text) {
+    ++column;
     if (std::isspace(static_cast<unsigned char>(c)) || c == ',' || c == '[' || c == ']') {
       flush();
+      if (c == '\n') {
+        ++line;
+        column = 0;
+      }
     } else {
+      if (token.empty()) {
+        token_line = line;
+        token_column = column;
+      }
       token += c;
     }
   }

@@ -60,7 +60,9 @@ TEST(RegistrationTest, PoseGuessFromSixNumbersOrAMatrix) {
     return std::string("accepted");
   };
   EXPECT_NE(message("1,2,3").find("expected 6 numbers"), std::string::npos);
-  EXPECT_NE(message("1,2,x,0,0,0").find("'x' (number 3)"), std::string::npos);
+  EXPECT_NE(message("1,2,x,0,0,0").find("--init:1:5: 'x' (number 3)"), std::string::npos);
+  EXPECT_NE(message("1 0 0 0\n0 1 0 O\n0 0 1 0\n0 0 0 1").find("--init:2:7: 'O' (number 8)"),
+            std::string::npos);
   EXPECT_NE(message("1 0 0 0  0 1 0 0  0 0 1 0  0 0 1 1").find("last row"), std::string::npos);
   EXPECT_NE(message("2 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1").find("not a rotation"),
             std::string::npos);

@@ -47,7 +47,7 @@ RegistrationSetting MakeRegistrationSetting(const std::string& method, const std
 //   or line breaks), whose rotation block is orthonormal to 1e-4 (six printed digits
 //   suffice) and last row 0 0 0 1.
 // `what` names the text's origin in errors (a file name, or "--init"). Throws autocal::Error
-// saying which number or which property is wrong.
+// saying which number (with its line and column) or which property is wrong.
 geometry::Pose3d ParsePoseGuess(const std::string& text, const std::string& what);
 // The matrix form's checks and conversion alone.
 geometry::Pose3d PoseGuessFromMatrix(const Eigen::Matrix4d& m, const std::string& what);
