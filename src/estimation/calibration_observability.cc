@@ -25,14 +25,8 @@ Eigen::Quaterniond AsQuaternion(const double* xyzw) {
   return Eigen::Quaterniond(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
 }
 
-// x - x0 in the block's tangent.
 Eigen::VectorXd TangentFromPrior(const EstimatedBlock& block) {
-  if (IsRotation(block)) {
-    const Eigen::Quaterniond q0 = AsQuaternion(block.prior.data());
-    const Eigen::Quaterniond q = AsQuaternion(block.data);
-    return geometry::Log(Eigen::Quaterniond(q0.conjugate() * q));
-  }
-  return Eigen::Map<const Eigen::VectorXd>(block.data, block.size) - block.prior;
+  return BlockMinus(block, block.data, block.prior.data());
 }
 
 // Direction i of a block is informed by the data (not held at its prior) when its posterior
@@ -43,12 +37,7 @@ bool Informed(const EstimatedBlock& block, int i, double posterior_sigma) {
 }
 
 void Step(const EstimatedBlock& block, const Eigen::VectorXd& step) {
-  if (IsRotation(block)) {
-    Eigen::Map<Eigen::Quaterniond> q(block.data);
-    q = geometry::QuaternionPlus(Eigen::Quaterniond(q), Eigen::Vector3d(step));
-    return;
-  }
-  Eigen::Map<Eigen::VectorXd>(block.data, block.size) += step;
+  BlockPlus(block, step, block.data);
 }
 
 double SigmaOf(const Eigen::MatrixXd& S, int row) { return std::sqrt(std::max(0.0, S(row, row))); }
@@ -168,6 +157,25 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
 }
 
 }  // namespace
+
+Eigen::VectorXd BlockMinus(const EstimatedBlock& block, const double* x, const double* x0) {
+  if (IsRotation(block)) {
+    const Eigen::Quaterniond q0 = AsQuaternion(x0);
+    const Eigen::Quaterniond q = AsQuaternion(x);
+    return geometry::Log(Eigen::Quaterniond(q0.conjugate() * q));
+  }
+  return Eigen::Map<const Eigen::VectorXd>(x, block.size) -
+         Eigen::Map<const Eigen::VectorXd>(x0, block.size);
+}
+
+void BlockPlus(const EstimatedBlock& block, const Eigen::VectorXd& step, double* x) {
+  if (IsRotation(block)) {
+    Eigen::Map<Eigen::Quaterniond> q(x);
+    q = geometry::QuaternionPlus(Eigen::Quaterniond(q), Eigen::Vector3d(step));
+    return;
+  }
+  Eigen::Map<Eigen::VectorXd>(x, block.size) += step;
+}
 
 EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* calibration) {
   const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(id);

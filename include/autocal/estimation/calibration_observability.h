@@ -50,6 +50,11 @@ struct EstimatedBlock {
 // caller's to set.
 EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* calibration);
 
+// x - x0 in the block's tangent (a rotation: Log(q0^-1 q)), and x <- x + step (q Exp(step));
+// x and x0 hold the block's ambient values.
+Eigen::VectorXd BlockMinus(const EstimatedBlock& block, const double* x, const double* x0);
+void BlockPlus(const EstimatedBlock& block, const Eigen::VectorXd& step, double* x);
+
 // A prior at the block's prior value on every block (Gaussian, sigma per direction).
 void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::LossOptions& loss,
                     ceres::Problem* problem);
