@@ -1,31 +1,47 @@
-// autocal_calibrate: offline calibration of a recorded dataset.
+// autocal_calibrate: offline calibration of one recorded dataset, or of several logs of one
+// vehicle in one solve.
 //
 //   autocal_calibrate --dataset=DIR --problem=problems/urban_full.yaml --output=DIR
+//   autocal_calibrate --dataset=A --dataset=B [--datasets_file=LIST] --problem=... --output=DIR
 //
 // Loads and validates the dataset against the problem, initializes the calibration without a
 // hand-measured guess, solves the whole log in one batch, and writes calibration.yaml (values,
-// sigma, observability), trajectory.tum and calibration_per_iteration.csv into --output.
+// sigma, observability), trajectory.tum and calibration_per_iteration.csv into --output. With
+// several datasets: one shared calibration, each log's trajectory at it and its own estimate,
+// and their repeatability (docs/calibration.md, "Several logs"). Every run that reaches its
+// output leaves status.yaml there, also when it fails (docs/fleet.md).
 
 #include <gflags/gflags.h>
 
+#include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/output_files.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/io/run_status.h"
+#include "autocal/pipeline/multi_log_calibration.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "keep_freed_memory.h"
 #include "tool_checks.h"
 #include "tool_help.h"
 
-DEFINE_string(dataset, "", "dataset directory (format: datasets/README.md); required");
+DEFINE_string(dataset, "",
+              "dataset directory (format: datasets/README.md); required unless --datasets_file. "
+              "Given more than once: several logs of one vehicle, one shared calibration");
+DEFINE_string(datasets_file, "",
+              "a file listing dataset directories, one per line (# comments); added to --dataset");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses); required");
 DEFINE_string(output, "",
               "result directory; required. Written whole at the end (a stopped run leaves only "
               "OUTPUT.partial-XXXXXX); an existing one is replaced only when it holds nothing but "
-              "result files, otherwise refused");
+              "result files, otherwise refused. A failed run leaves status.yaml alone there");
+DEFINE_string(vehicle, "",
+              "the vehicle's label in status.yaml, for autocal_fleet_report; default: the first "
+              "dataset directory's name");
 DEFINE_int32(threads, 0,
              "threads for reading sweeps, the odometry and the Ceres solves; 0: the problem "
              "file's solver.num_threads. Byte-identical results run to run on one thread; other "
@@ -37,47 +53,125 @@ namespace {
 // True while a progress line without its line break is on the terminal.
 bool progress_line_open = false;
 
+void PrintProgress(const autocal::pipeline::CalibrationProgress& p) {
+  std::fprintf(stderr, "\r%-16s %5.1f %%", p.stage.c_str(), 100.0 * p.fraction);
+  if (p.cost > 0.0) std::fprintf(stderr, "  cost %.4g", p.cost);
+  if (p.seconds_left > 0.0) std::fprintf(stderr, "  ~%.0f s left", p.seconds_left);
+  std::fprintf(stderr, "   %s", p.fraction >= 1.0 ? "\n" : "");
+  progress_line_open = p.fraction < 1.0;
+  std::fflush(stderr);
+}
+
+void EndProgressLine() {
+  if (progress_line_open) std::fputc('\n', stderr);
+  progress_line_open = false;
+}
+
+std::string VehicleLabel(const std::vector<std::string>& datasets) {
+  if (!FLAGS_vehicle.empty() || datasets.empty()) return FLAGS_vehicle;
+  return std::filesystem::path(datasets.front()).lexically_normal().filename().string();
+}
+
+void CalibrateOne(const std::string& directory, const autocal::io::Problem& problem,
+                  const autocal::pipeline::OfflineCalibrationOptions& options,
+                  autocal::io::RunStatus* status) {
+  const autocal::io::Dataset dataset = autocal::io::ReadDataset(directory);
+  const autocal::pipeline::OfflineCalibrationResult result =
+      autocal::pipeline::CalibrateDataset(dataset, problem, options);
+  EndProgressLine();
+  status->seconds = result.seconds_total;
+  autocal::pipeline::WriteCalibrationResult(FLAGS_output, result);
+  autocal::io::WriteRunStatus(FLAGS_output + "/status.yaml", *status);
+  std::cout << autocal::pipeline::FormatCalibrationSummary(result);
+  std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
+            << "calibration_per_iteration.csv, timings.yaml, report.html, status.yaml\n";
+}
+
+void CalibrateSeveral(const std::vector<std::string>& directories,
+                      const autocal::io::Problem& problem,
+                      const autocal::pipeline::OfflineCalibrationOptions& options,
+                      autocal::io::RunStatus* status) {
+  std::vector<autocal::io::Dataset> datasets;
+  for (const std::string& d : directories) datasets.push_back(autocal::io::ReadDataset(d));
+  autocal::pipeline::MultiLogCalibrationOptions multi;
+  multi.calibration = options;
+  const autocal::pipeline::MultiLogCalibrationResult result =
+      autocal::pipeline::CalibrateDatasets(datasets, problem, multi);
+  EndProgressLine();
+  status->seconds = result.seconds_total;
+  autocal::pipeline::WriteMultiLogResult(FLAGS_output, result);
+  autocal::io::WriteRunStatus(FLAGS_output + "/status.yaml", *status);
+  std::cout << autocal::pipeline::FormatMultiLogSummary(result);
+  std::cout << "written: " << FLAGS_output << "/calibration.yaml, repeatability.csv, report.html, "
+            << "status.yaml, logs/<log>/trajectory.tum and logs/<log>/own/\n";
+}
+
+// A run that failed after its output was found writable leaves status.yaml alone there, so
+// that a batch of runs can be gathered; a failure to write it is reported, not hidden.
+void WriteFailureStatus(autocal::io::RunStatus status, const std::string& message, double seconds) {
+  status.exit_status = 1;
+  status.message = message;
+  status.seconds = seconds;
+  try {
+    autocal::io::StagedDirectory out(FLAGS_output, autocal::io::OutputKind::kResult);
+    autocal::io::WriteRunStatus(out.File("status.yaml"), status);
+    out.Commit();
+  } catch (const autocal::Error& e) {
+    std::cerr << "autocal_calibrate: status.yaml not written: " << e.what() << "\n";
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   gflags::SetUsageMessage(
-      "autocal_calibrate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
-      "Calibrates the LiDAR-IMU extrinsic and time offset of a recorded log.");
+      "autocal_calibrate --dataset=DIR [--dataset=DIR ...] --problem=problems/X.yaml "
+      "--output=DIR\n"
+      "Calibrates the sensors of a recorded log, or of several logs of one vehicle together.");
   if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_calibrate")) return 0;
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<std::string> given = autocal::tools::RepeatedFlagValues(argc, argv, "dataset");
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   autocal::tools::KeepFreedMemory();
+  autocal::io::RunStatus status;
+  status.tool = "autocal_calibrate";
+  bool output_checked = false;
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
-    if (FLAGS_dataset.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {
-      throw autocal::Error("--dataset, --problem and --output are required (see --help)");
+    std::vector<std::string> directories = given;
+    if (!FLAGS_datasets_file.empty()) {
+      for (const std::string& d :
+           autocal::tools::ReadListFile(FLAGS_datasets_file, "--datasets_file")) {
+        directories.push_back(d);
+      }
     }
-    // Everything that can be checked before the work starts is.
+    if (directories.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {
+      throw autocal::Error(
+          "--dataset (or --datasets_file), --problem and --output are required (see --help)");
+    }
+    status.datasets = directories;
+    status.vehicle = VehicleLabel(directories);
+    // Everything that can be checked before the work starts is; a wrong flag leaves nothing.
+    autocal::tools::CheckThreadsFlag(FLAGS_threads);
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
-    autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
+    output_checked = true;
+    for (const std::string& d : directories) autocal::tools::CheckDatasetDirectory(d);
     autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
     autocal::tools::ApplyThreadsFlag(FLAGS_threads, &problem);
-    const autocal::io::Dataset dataset = autocal::io::ReadDataset(FLAGS_dataset);
     autocal::pipeline::OfflineCalibrationOptions options;
-    if (FLAGS_progress) {
-      options.progress = [](const autocal::pipeline::CalibrationProgress& p) {
-        std::fprintf(stderr, "\r%-16s %5.1f %%", p.stage.c_str(), 100.0 * p.fraction);
-        if (p.cost > 0.0) std::fprintf(stderr, "  cost %.4g", p.cost);
-        if (p.seconds_left > 0.0) std::fprintf(stderr, "  ~%.0f s left", p.seconds_left);
-        std::fprintf(stderr, "   %s", p.fraction >= 1.0 ? "\n" : "");
-        progress_line_open = p.fraction < 1.0;
-        std::fflush(stderr);
-      };
+    if (FLAGS_progress) options.progress = PrintProgress;
+    if (directories.size() == 1) {
+      CalibrateOne(directories.front(), problem, options, &status);
+    } else {
+      CalibrateSeveral(directories, problem, options, &status);
     }
-    const autocal::pipeline::OfflineCalibrationResult result =
-        autocal::pipeline::CalibrateDataset(dataset, problem, options);
-    if (progress_line_open) std::fputc('\n', stderr);
-    progress_line_open = false;
-    autocal::pipeline::WriteCalibrationResult(FLAGS_output, result);
-    std::cout << autocal::pipeline::FormatCalibrationSummary(result);
-    std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
-              << "calibration_per_iteration.csv, timings.yaml, report.html\n";
   } catch (const autocal::Error& e) {
     std::cerr << (progress_line_open ? "\n" : "") << "autocal_calibrate: " << e.what() << "\n";
+    if (output_checked) {
+      WriteFailureStatus(
+          status, e.what(),
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
     return 1;
   }
   return 0;

@@ -66,6 +66,11 @@ DEFINE_string(wheel_form, "angular_rates",
 DEFINE_double(wheel_noise_m_s, 0.02,
               "noise of each wheel speed (linear_speeds) or the odometry speed, 1-sigma m/s");
 DEFINE_double(wheel_yaw_rate_noise_rad_s, 0.02, "odometry yaw rate noise, 1-sigma rad/s");
+DEFINE_double(left_wheel_radius_change_pct, 0.0,
+              "true left rear wheel radius this many percent above the vehicle's (tyre pressure "
+              "or wear between logs of one vehicle)");
+DEFINE_double(right_wheel_radius_change_pct, 0.0,
+              "true right rear wheel radius this many percent above the vehicle's");
 DEFINE_bool(noise, true, "false: every sensor exact (no noise, bias, dropouts or outliers)");
 
 namespace {
@@ -157,6 +162,8 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
     o.nominal_perturbation.q_I_V =
         ParseRollPitchYaw(FLAGS_nominal_imu_mount_rpy_deg, "nominal_imu_mount_rpy_deg").conjugate();
   }
+  o.true_calibration.wheel_radius_left_m *= 1.0 + FLAGS_left_wheel_radius_change_pct / 100.0;
+  o.true_calibration.wheel_radius_right_m *= 1.0 + FLAGS_right_wheel_radius_change_pct / 100.0;
   set("wheel_rate_hz", FLAGS_wheel_rate_hz, &o.wheel.config.rate_hz);
   set("wheel_noise_rad_s", FLAGS_wheel_noise_rad_s, &o.wheel.config.noise_rad_s);
   set("wheel_stamp_jitter_s", FLAGS_wheel_stamp_jitter_s, &o.wheel.stamp_jitter_s);

@@ -4,8 +4,10 @@
 // --threads is reported in a second with one line, not after a solve of minutes.
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/io/problem_yaml.h"
@@ -39,13 +41,52 @@ inline void CheckDatasetDirectory(const std::string& directory) {
   }
 }
 
-// --threads=N (N >= 1) replaces the problem file's solver.num_threads; 0 keeps it.
-inline void ApplyThreadsFlag(int threads, io::Problem* problem) {
+// Throws autocal::Error when --threads is out of range.
+inline void CheckThreadsFlag(int threads) {
   if (threads < 0 || threads > kMaxThreads) {
     throw Error("--threads must be 0 (the problem file's solver.num_threads) or 1.." +
                 std::to_string(kMaxThreads) + ", got " + std::to_string(threads));
   }
+}
+
+// --threads=N (N >= 1) replaces the problem file's solver.num_threads; 0 keeps it.
+inline void ApplyThreadsFlag(int threads, io::Problem* problem) {
+  CheckThreadsFlag(threads);
   if (threads > 0) problem->solver.num_threads = threads;
+}
+
+// Every value of a flag given more than once (--name=V, -name=V, --name V), in order;
+// gflags keeps only the last.
+inline std::vector<std::string> RepeatedFlagValues(int argc, char** argv, const std::string& name) {
+  std::vector<std::string> values;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    for (const std::string& prefix : {"--" + name, "-" + name}) {
+      if (arg.rfind(prefix + "=", 0) == 0) {
+        values.push_back(arg.substr(prefix.size() + 1));
+      } else if (arg == prefix && i + 1 < argc) {
+        values.push_back(argv[++i]);
+      }
+    }
+  }
+  return values;
+}
+
+// The lines of a list file (one entry per line; blank lines and lines starting with # are
+// skipped, surrounding blanks dropped). Throws autocal::Error when it cannot be read or is
+// empty.
+inline std::vector<std::string> ReadListFile(const std::string& path, const std::string& flag) {
+  std::ifstream in(path);
+  if (!in) throw Error(flag + ": cannot read '" + path + "'");
+  std::vector<std::string> entries;
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    entries.push_back(line.substr(first, line.find_last_not_of(" \t\r") - first + 1));
+  }
+  if (entries.empty()) throw Error(flag + ": '" + path + "' lists no entry");
+  return entries;
 }
 
 }  // namespace tools

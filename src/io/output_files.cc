@@ -32,7 +32,12 @@ const std::set<std::string>& ReplaceableNames(OutputKind kind) {
                                                 "calibration_over_time.csv",
                                                 "states.csv",
                                                 "report.html",
-                                                "evaluation.yaml"};
+                                                "evaluation.yaml",
+                                                "status.yaml",
+                                                "repeatability.csv",
+                                                "logs",
+                                                "fleet.csv",
+                                                "fleet.html"};
   static const std::set<std::string> kDataset = {"sensors.yaml",    "imu.csv",      "wheel.csv",
                                                  "wheel_speed.csv", "odometry.csv", "gnss.csv",
                                                  "lidar.csv",       "lidar",        "groundtruth"};

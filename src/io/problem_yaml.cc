@@ -558,5 +558,20 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
   throw Error(message);
 }
 
+ProblemCalibration WithEveryBlockFixed(ProblemCalibration c) {
+  for (VectorBlockSetting* block : {&c.T_I_L.rotation, &c.T_I_L.translation, &c.p_I_A_m,
+                                    &c.T_I_V.rotation, &c.T_I_V.translation}) {
+    *block = VectorBlockSetting{BlockMode::kFixed, Eigen::Vector3d::Zero()};
+  }
+  for (ScalarBlockSetting* block :
+       {&c.time_offset_lidar_imu_s, &c.wheel_radius_left_m, &c.wheel_radius_right_m,
+        &c.track_width_m, &c.wheel_speed_scale_left, &c.wheel_speed_scale_right,
+        &c.odometry_speed_scale, &c.effective_track_m, &c.time_offset_wheel_imu_s,
+        &c.time_offset_gnss_imu_s}) {
+    *block = ScalarBlockSetting{BlockMode::kFixed, 0.0};
+  }
+  return c;
+}
+
 }  // namespace io
 }  // namespace autocal

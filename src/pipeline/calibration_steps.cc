@@ -486,6 +486,16 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
   }
 }
 
+void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                     const estimation::BlockCovariance& covariance,
+                     const sensors::Calibration& solved, OfflineCalibrationResult* result) {
+  estimation::CalibrationPosterior& posterior = result->posterior;
+  posterior.solved = solved;
+  posterior.blocks = blocks_estimated;
+  for (estimation::EstimatedBlock& block : posterior.blocks) block.data = nullptr;
+  posterior.covariance = covariance;
+}
+
 estimation::BlockObservability Observe(
     const io::Dataset& dataset, const OfflineCalibrationOptions& options,
     const std::vector<estimation::EstimatedBlock>& blocks_estimated,

@@ -173,6 +173,12 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
                       const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                       const estimation::BlockCovariance& covariance);
 
+// result->posterior from the solve's calibration (`solved`), the blocks' priors and their
+// covariance, before Observe holds any direction.
+void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                     const estimation::BlockCovariance& covariance,
+                     const sensors::Calibration& solved, OfflineCalibrationResult* result);
+
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
 // data point into it); sigma, flags and warnings go into the result. Returns the flags (empty

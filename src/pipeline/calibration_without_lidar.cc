@@ -212,6 +212,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   if (use_gnss) file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
   RecordTiming(timing, true, &file);
   const sensors::Calibration solved = calibration;
+  RecordPosterior(blocks_estimated, covariance, solved, &result);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
   SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration, &p,

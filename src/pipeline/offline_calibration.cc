@@ -224,6 +224,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
     const estimation::BlockCovariance covariance = estimation::ComputeBlockCovariance(blocks, p);
     const sensors::Calibration solved = *calibration;
+    RecordPosterior(blocks, covariance, solved, result);
     const estimation::BlockObservability observability =
         Observe(dataset, options, blocks, covariance, result);
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
@@ -358,9 +359,9 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
   out.Commit();
 }
 
-std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
-  const sensors::Calibration& c = result.calibration.value;
-  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+std::string FormatCalibrationValues(const io::CalibrationFile& file) {
+  const sensors::Calibration& c = file.value;
+  const io::CalibrationUncertainty& u = file.uncertainty;
   std::ostringstream out;
   out << std::fixed;
   // One line per estimated block (those with a sigma): value, sigma, observable per axis.
@@ -419,6 +420,12 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
          flags(u.p_I_A_m.observable, 0, 3), 1);
   }
+  return out.str();
+}
+
+std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
+  std::ostringstream out;
+  out << std::fixed << FormatCalibrationValues(result.calibration);
   const estimation::LidarInertialBatchReport& batch = result.batch;
   if (batch.associated_points > 0) {
     out << "LiDAR residual RMS (m): " << std::setprecision(4) << batch.point_rms_m << " over "

@@ -16,6 +16,7 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
+#include "html_page.h"
 #include "mount_angles.h"
 #include "svg_chart.h"
 
@@ -528,22 +529,12 @@ std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
   const bool lidar_used = LidarUsed(result.batch);
   const std::vector<std::string> whitened_sensors = SensorsWithResiduals(result.whitened_residuals);
   std::ostringstream html;
-  html << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>autocal calibration report"
-          "</title><style>body{font-family:sans-serif;max-width:1180px;margin:auto}"
-          "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;"
-          "text-align:right}figure{display:inline-block;margin:8px}svg text{font-size:11px}"
-          ".warn{color:#a40}</style></head><body><h1>autocal calibration report</h1>\n";
+  html << HtmlPageStart("autocal calibration report");
   html << SummaryTable(result, lidar_used) << RunSummary(result, lidar_used, whitened_sensors);
-  if (!result.warnings.empty()) {
-    html << "<h2>Warnings</h2><ul>";
-    for (const std::string& w : result.warnings) {
-      html << "<li class='warn'>" << Escape(w) << "</li>";
-    }
-    html << "</ul>\n";
-  }
+  html << HtmlWarnings("Warnings", result.warnings);
   html << ResidualSection(result, lidar_used, whitened_sensors) << ConvergenceSection(result)
        << ClockSection(result) << RigSection(result, lidar_used) << TrajectorySection(result);
-  html << "</body></html>\n";
+  html << HtmlPageEnd();
   return html.str();
 }
 

@@ -26,7 +26,7 @@ namespace io {
 enum class OutputKind {
   // calibration.yaml, timings.yaml, trajectory.tum, trajectory_smoothed.tum,
   // calibration_per_iteration.csv, calibration_over_time.csv, states.csv, report.html,
-  // evaluation.yaml
+  // evaluation.yaml, status.yaml, repeatability.csv, logs/, fleet.csv, fleet.html
   kResult,
   // sensors.yaml, imu.csv, wheel.csv, gnss.csv, lidar.csv, lidar/, groundtruth/
   kDataset,

@@ -114,6 +114,10 @@ struct ProblemCalibration {
   std::optional<double> ground_tilt_sigma_deg = 1.0;
 };
 
+// `calibration` with every block fixed (no prior): a solve then estimates the trajectory alone,
+// at the nominal calibration.
+ProblemCalibration WithEveryBlockFixed(ProblemCalibration calibration);
+
 struct ProblemSolver {
   int max_iterations = 15;   // Ceres iterations per solve, >= 1
   int outer_iterations = 8;  // associate planes -> solve rounds of the batch solver, >= 1

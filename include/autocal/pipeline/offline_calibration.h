@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/calibration_fusion.h"
 #include "autocal/estimation/calibration_initializer.h"
 #include "autocal/estimation/clock_offsets.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
@@ -107,6 +108,10 @@ struct OfflineCalibrationResult {
   std::optional<estimation::WheelImuOffset> wheel_clock_initialization;
   std::optional<estimation::SeriesOffsetEstimate> gnss_clock_initialization;
   estimation::LidarInertialBatchReport batch;
+  // What this log says of the estimated blocks before any direction was held (their values,
+  // priors and joint covariance): several logs combine from these (multi_log_calibration.h).
+  // covariance.ok is false when the covariance could not be computed.
+  estimation::CalibrationPosterior posterior;
   // Per sensor that took part besides the LiDAR (whose point-to-plane distances in metres are
   // in `batch`): "imu", "wheel", "gnss".
   std::map<std::string, SensorResiduals> whitened_residuals;
@@ -136,6 +141,9 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
 
 // A plain-text summary table (values, sigma, observability, warnings) for terminals.
 std::string FormatCalibrationSummary(const OfflineCalibrationResult& result);
+
+// Its first part: one line per estimated block (value, sigma, observable per direction).
+std::string FormatCalibrationValues(const io::CalibrationFile& file);
 
 }  // namespace pipeline
 }  // namespace autocal

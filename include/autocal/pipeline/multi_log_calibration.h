@@ -1,0 +1,79 @@
+#pragma once
+
+// Several logs of one vehicle calibrated together (docs/calibration.md, "Several logs"):
+//   1. each log alone, as CalibrateDataset does: its own estimate, kept for comparison;
+//   2. one shared calibration from the logs' posteriors (estimation/calibration_fusion.h,
+//      Eq. M1-M2), whose directions no log excited are held at their prior as for one log;
+//   3. each log's trajectory solved at the shared calibration;
+//   4. the repeatability: per block, whether the logs agree with one true value (Eq. M3), and
+//      in words where they do not ("the right rear wheel radius changed by 0.40 % between ...:
+//      tyre pressure or wear?").
+// This is what autocal_calibrate runs when given more than one dataset.
+
+#include <string>
+#include <vector>
+
+#include "autocal/estimation/calibration_fusion.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/offline_calibration.h"
+
+namespace autocal {
+namespace pipeline {
+
+struct MultiLogCalibrationOptions {
+  OfflineCalibrationOptions calibration;  // for every log's solves
+  // The chance that logs which do share one calibration have any block flagged: each of the
+  // m blocks tested (Eq. M3) is flagged below a p-value of this over m (Bonferroni), so that a
+  // fleet's reports do not fill with false findings as blocks are added.
+  double min_agreement_p_value = 0.01;
+};
+
+struct LogCalibration {
+  std::string name;  // unique among the logs: the dataset directory's name
+  std::string dataset_directory;
+  OfflineCalibrationResult own;        // the log alone (step 1)
+  OfflineCalibrationResult at_shared;  // its trajectory and residuals at the shared calibration
+};
+
+// One block's repeatability: the test and, when it fails, the finding in words.
+struct BlockRepeatability {
+  estimation::BlockAgreement agreement;
+  std::string name;          // the block in words
+  double p_threshold = 0.0;  // flagged below this p-value
+  bool agree = true;
+  std::string finding;  // empty when the logs agree
+};
+
+struct MultiLogCalibrationResult {
+  io::CalibrationFile calibration;     // shared: values, sigma and observability
+  estimation::FusedCalibration fused;  // before holding; blocks' data not bound
+  std::vector<LogCalibration> logs;
+  std::vector<BlockRepeatability> repeatability;
+  std::vector<std::string> warnings;  // the shared calibration's, then the findings
+  double seconds_total = 0.0;
+};
+
+// Throws autocal::Error naming the log when one cannot be calibrated, or when the logs
+// cannot be combined (no covariance). Fewer than two datasets are refused.
+MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& datasets,
+                                            const io::Problem& problem,
+                                            const MultiLogCalibrationOptions& options = {});
+
+// Into `directory` (written whole): calibration.yaml (shared), repeatability.csv (every log's
+// estimate, the shared one and the test per block), report.html, and per log
+// logs/<name>/trajectory.tum (at the shared calibration) and logs/<name>/own/ (the log alone,
+// as WriteCalibrationResult writes it).
+void WriteMultiLogResult(const std::string& directory, const MultiLogCalibrationResult& result);
+
+// repeatability.csv: one row per log (and "shared") and block direction: value and sigma in
+// display units, then the block's chi-square, degrees of freedom, p-value and agreement.
+std::string RepeatabilityCsv(const MultiLogCalibrationResult& result);
+
+// The terminal summary: the shared calibration as FormatCalibrationSummary prints one, then
+// one line per block's repeatability and the findings.
+std::string FormatMultiLogSummary(const MultiLogCalibrationResult& result);
+
+}  // namespace pipeline
+}  // namespace autocal

@@ -1,0 +1,212 @@
+#include "autocal/pipeline/fleet_report.h"
+
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+#include "autocal/common/error.h"
+#include "autocal/common/format.h"
+#include "autocal/sensors/calibration_blocks.h"
+#include "common/order_statistics.h"
+#include "html_page.h"
+#include "mount_angles.h"
+#include "problem_blocks.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+FleetEntry ReadEntry(const std::string& directory) {
+  FleetEntry entry;
+  entry.directory = directory;
+  entry.vehicle = std::filesystem::path(directory).lexically_normal().filename().string();
+  const std::string status_path = directory + "/status.yaml";
+  if (!std::filesystem::exists(status_path)) {
+    entry.failure = "no status.yaml: the run did not finish (stopped, out of time or memory?)";
+    return entry;
+  }
+  try {
+    entry.status = io::ReadRunStatus(status_path);
+    if (!entry.status->vehicle.empty()) entry.vehicle = entry.status->vehicle;
+    if (entry.status->exit_status != 0) {
+      entry.failure = entry.status->message.empty()
+                          ? "exit status " + std::to_string(entry.status->exit_status)
+                          : entry.status->message;
+      return entry;
+    }
+    entry.calibration = io::ReadCalibrationYaml(directory + "/calibration.yaml");
+  } catch (const Error& e) {
+    entry.failure = e.what();
+  }
+  return entry;
+}
+
+// One block's values and sigmas in the file's units (SI; a rotation as roll, pitch, yaw in
+// degrees), with their column names, or nothing when the file gives the block no sigma (not
+// estimated).
+struct BlockValues {
+  std::vector<double> values, sigmas;
+  std::vector<std::string> names, directions;
+};
+std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
+                                    const io::CalibrationFile& file) {
+  const std::optional<Eigen::VectorXd> sigma =
+      SettingOf(info.id, io::ProblemCalibration{}, file.uncertainty).nominal_sigma;
+  if (!sigma) return std::nullopt;
+  BlockValues out;
+  const double* v = info.const_values(file.value);
+  if (info.manifold == sensors::BlockManifold::kRightQuaternion) {
+    const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
+    const Eigen::Vector3d rpy = DisplayRollPitchYawDeg(
+        info.id == sensors::CalibrationBlockId::kVehicleRotation ? ImuMountInVehicle(q) : q, 6);
+    for (const char* angle : {"roll", "pitch", "yaw"}) {
+      out.names.push_back(std::string(info.key) + "_" + angle + "_deg");
+      out.directions.push_back(angle);
+    }
+    out.values = {rpy.x(), rpy.y(), rpy.z()};
+  } else {
+    out.names = sensors::ValueColumns(info);
+    out.directions.assign(info.direction_names.begin(),
+                          info.direction_names.begin() + info.tangent_size);
+    out.values.assign(v, v + info.tangent_size);
+  }
+  out.sigmas.assign(sigma->data(), sigma->data() + info.tangent_size);
+  return out;
+}
+
+void Tabulate(FleetReport* report) {
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    bool any = false;
+    for (const FleetEntry& e : report->entries) {
+      any = any || (e.calibration && ValuesOf(info, *e.calibration));
+    }
+    if (!any) continue;
+    const size_t first_column = report->columns.size();
+    for (int k = 0; k < info.tangent_size; ++k) report->columns.push_back({});
+    for (size_t e = 0; e < report->entries.size(); ++e) {
+      const FleetEntry& entry = report->entries[e];
+      const std::optional<BlockValues> values =
+          entry.calibration ? ValuesOf(info, *entry.calibration) : std::nullopt;
+      if (!values) continue;
+      for (int k = 0; k < info.tangent_size; ++k) {
+        report->columns[first_column + k] = {values->names[k], values->directions[k]};
+        report->values[e][first_column + k] = values->values[k];
+        report->sigmas[e][first_column + k] = values->sigmas[k];
+      }
+    }
+  }
+}
+
+void FindOutliers(FleetReport* report) {
+  for (size_t c = 0; c < report->columns.size(); ++c) {
+    std::vector<double> column;
+    for (const std::vector<double>& row : report->values) {
+      if (c < row.size() && std::isfinite(row[c])) column.push_back(row[c]);
+    }
+    if (column.size() < 3) continue;
+    const double median = internal::Median(column);
+    const double robust_sigma = internal::MadSigma(column);
+    for (size_t e = 0; e < report->entries.size(); ++e) {
+      const double value = report->values[e][c], sigma = report->sigmas[e][c];
+      if (!std::isfinite(value)) continue;
+      const double deviation = std::abs(value - median);
+      if (deviation <= kFleetOutlierRobustSigmas * robust_sigma || deviation <= 3.0 * sigma) {
+        continue;
+      }
+      const FleetColumn& col = report->columns[c];
+      std::ostringstream text;
+      text << report->entries[e].vehicle << ": " << col.direction << " " << std::setprecision(7)
+           << value << " (" << col.name << "), the fleet's median " << median << " (robust sigma "
+           << std::setprecision(3) << robust_sigma << "): " << FormatFixed(deviation / sigma, 1)
+           << " of its own sigma off";
+      report->outliers.push_back({e, c, value, median, robust_sigma, text.str()});
+    }
+  }
+}
+
+std::string Cell(double value) {
+  if (!std::isfinite(value)) return "";
+  std::ostringstream out;
+  out << std::setprecision(8) << value;
+  return out.str();
+}
+
+}  // namespace
+
+FleetReport GatherFleet(const std::vector<std::string>& result_directories) {
+  FleetReport report;
+  for (const std::string& directory : result_directories) {
+    report.entries.push_back(ReadEntry(directory));
+    if (report.entries.back().calibration) ++report.succeeded;
+  }
+  const size_t max_columns = 3 * sensors::kNumCalibrationBlocks;
+  report.values.assign(report.entries.size(), std::vector<double>(max_columns, kNaN));
+  report.sigmas = report.values;
+  Tabulate(&report);
+  for (std::vector<double>& row : report.values) row.resize(report.columns.size());
+  for (std::vector<double>& row : report.sigmas) row.resize(report.columns.size());
+  FindOutliers(&report);
+  return report;
+}
+
+std::string FleetCsv(const FleetReport& report) {
+  std::ostringstream csv;
+  csv << "vehicle,directory,exit_status,message";
+  for (const FleetColumn& c : report.columns) csv << ',' << c.name << ',' << c.name << "_sigma";
+  csv << '\n';
+  const auto quoted = [](std::string text) {
+    for (size_t i = 0; (i = text.find('"', i)) != std::string::npos; i += 2) text.insert(i, "\"");
+    return '"' + text + '"';
+  };
+  for (size_t e = 0; e < report.entries.size(); ++e) {
+    const FleetEntry& entry = report.entries[e];
+    csv << quoted(entry.vehicle) << ',' << quoted(entry.directory) << ','
+        << (entry.status ? std::to_string(entry.status->exit_status) : "") << ','
+        << quoted(entry.failure);
+    for (size_t c = 0; c < report.columns.size(); ++c) {
+      csv << ',' << Cell(report.values[e][c]) << ',' << Cell(report.sigmas[e][c]);
+    }
+    csv << '\n';
+  }
+  return csv.str();
+}
+
+std::string FleetReportHtml(const FleetReport& report) {
+  std::ostringstream html;
+  html << HtmlPageStart("autocal fleet report");
+  html << "<p>" << report.entries.size() << " runs: " << report.succeeded << " calibrated, "
+       << report.entries.size() - report.succeeded << " failed.</p>\n";
+  std::vector<std::string> failures, outliers;
+  for (const FleetEntry& e : report.entries) {
+    if (!e.calibration) failures.push_back(e.vehicle + " (" + e.directory + "): " + e.failure);
+  }
+  for (const FleetOutlier& o : report.outliers) outliers.push_back(o.text);
+  html << HtmlWarnings("Failures", failures) << HtmlWarnings("Outliers", outliers);
+  html << "<h2>Values</h2><table><tr><th>vehicle</th>";
+  for (const FleetColumn& c : report.columns) {
+    html << "<th>" << EscapeXml(c.name) << "</th>";
+  }
+  html << "</tr>\n";
+  for (size_t e = 0; e < report.entries.size(); ++e) {
+    if (!report.entries[e].calibration) continue;
+    html << "<tr><td>" << EscapeXml(report.entries[e].vehicle) << "</td>";
+    for (size_t c = 0; c < report.columns.size(); ++c) {
+      bool outlier = false;
+      for (const FleetOutlier& o : report.outliers)
+        outlier = outlier || (o.entry == e && o.column == c);
+      html << "<td" << (outlier ? " class='warn'" : "") << ">" << Cell(report.values[e][c]);
+      if (std::isfinite(report.sigmas[e][c])) html << " ± " << Cell(report.sigmas[e][c]);
+      html << "</td>";
+    }
+    html << "</tr>\n";
+  }
+  html << "</table>\n" << HtmlPageEnd();
+  return html.str();
+}
+
+}  // namespace pipeline
+}  // namespace autocal

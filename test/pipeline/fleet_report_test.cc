@@ -1,0 +1,102 @@
+#include "autocal/pipeline/fleet_report.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/run_status.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A succeeded run of vehicle `name`: radii, track and mount estimated with sigmas.
+std::string Succeeded(const fs::path& root, const std::string& name, double right_radius_m) {
+  const fs::path dir = root / name;
+  fs::create_directories(dir);
+  io::CalibrationFile file;
+  file.value.wheel_radius_left_m = 0.3335;
+  file.value.wheel_radius_right_m = right_radius_m;
+  file.value.track_width_m = 1.62;
+  file.value.q_I_V = Eigen::Quaterniond(Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitZ()));
+  file.uncertainty.wheel_radius_left_m.sigma = 3e-5;
+  file.uncertainty.wheel_radius_right_m.sigma = 3e-5;
+  file.uncertainty.track_width_m.sigma = 3e-3;
+  file.uncertainty.T_I_V.sigma_rot_deg = Eigen::Vector3d(1.2, 0.1, 0.1);
+  io::WriteCalibrationYaml((dir / "calibration.yaml").string(), file);
+  io::RunStatus status;
+  status.tool = "autocal_calibrate";
+  status.vehicle = name;
+  status.datasets = {"/logs/" + name};
+  io::WriteRunStatus((dir / "status.yaml").string(), status);
+  return dir.string();
+}
+
+TEST(FleetReport, GathersValuesFailuresAndOutliers) {
+  const fs::path root = test::OutputDir("fleet");
+  std::vector<std::string> dirs;
+  const double radii[] = {0.33260, 0.33262, 0.33258, 0.33261, 0.33594};  // the last 1 % larger
+  for (int i = 0; i < 5; ++i) dirs.push_back(Succeeded(root, "car_" + std::to_string(i), radii[i]));
+  // A run that failed, one that never finished, one whose status is damaged.
+  fs::create_directories(root / "failed");
+  io::RunStatus failed;
+  failed.tool = "autocal_calibrate";
+  failed.vehicle = "car_failed";
+  failed.exit_status = 1;
+  failed.message = "dataset /logs/x: the GNSS <track> is too short";
+  io::WriteRunStatus((root / "failed" / "status.yaml").string(), failed);
+  fs::create_directories(root / "killed");
+  fs::create_directories(root / "damaged");
+  std::ofstream(root / "damaged" / "status.yaml") << "format: autocal_status_1\ntool: [\n";
+  dirs.push_back((root / "failed").string());
+  dirs.push_back((root / "killed").string());
+  dirs.push_back((root / "damaged").string());
+
+  const FleetReport report = GatherFleet(dirs);
+  ASSERT_EQ(report.entries.size(), 8u);
+  EXPECT_EQ(report.succeeded, 5u);
+  EXPECT_EQ(report.entries[5].vehicle, "car_failed");
+  EXPECT_THAT(report.entries[5].failure, ::testing::HasSubstr("too short"));
+  EXPECT_THAT(report.entries[6].failure, ::testing::HasSubstr("no status.yaml"));
+  EXPECT_THAT(report.entries[7].failure, ::testing::HasSubstr("status.yaml:"));
+  // Columns: the estimated blocks only, in file units, the mount as roll, pitch and yaw.
+  std::vector<std::string> names;
+  for (const FleetColumn& c : report.columns) names.push_back(c.name);
+  EXPECT_THAT(names,
+              ::testing::ElementsAre("wheel_radius_left_m", "wheel_radius_right_m", "track_width_m",
+                                     "q_I_V_roll_deg", "q_I_V_pitch_deg", "q_I_V_yaw_deg"));
+  EXPECT_NEAR(report.values[0][5], -0.01 * 180.0 / M_PI, 1e-5);  // R_V_I = R_I_V^T
+  ASSERT_EQ(report.outliers.size(), 1u);
+  EXPECT_EQ(report.outliers[0].entry, 4u);
+  EXPECT_EQ(report.outliers[0].column, 1u);
+  EXPECT_THAT(report.outliers[0].text, ::testing::HasSubstr("car_4"));
+
+  const std::string csv = FleetCsv(report);
+  EXPECT_THAT(csv,
+              ::testing::StartsWith("vehicle,directory,exit_status,message,wheel_radius_left_m,"
+                                    "wheel_radius_left_m_sigma,"));
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 9);
+  const std::string html = FleetReportHtml(report);
+  EXPECT_THAT(html, ::testing::HasSubstr("GNSS &lt;track&gt; is too short"));
+  EXPECT_THAT(html, ::testing::HasSubstr("8 runs: 5 calibrated, 3 failed"));
+  EXPECT_THAT(html, ::testing::EndsWith("</html>\n"));
+}
+
+// Fewer than three calibrations give no median to judge against.
+TEST(FleetReport, NoOutliersFromTwoRuns) {
+  const fs::path root = test::OutputDir("fleet");
+  const FleetReport report =
+      GatherFleet({Succeeded(root, "a", 0.3326), Succeeded(root, "b", 0.34)});
+  EXPECT_TRUE(report.outliers.empty());
+  EXPECT_EQ(report.succeeded, 2u);
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal

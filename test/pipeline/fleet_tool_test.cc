@@ -1,0 +1,138 @@
+// autocal_calibrate and autocal_fleet_report as a fleet's batch runs them (docs/fleet.md):
+// stateless runs that each leave a result directory with status.yaml, also when they fail;
+// several logs of one vehicle in one run; the gathered table and overview with its exit
+// status.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/run_status.h"
+#include "support/test_paths.h"
+#include "support/tool_runner.h"
+
+namespace autocal {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Problem() {
+  return (fs::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string();
+}
+
+// A 25 s urban log without the LiDAR of one vehicle (its right tyre `right_change_pct` %
+// larger), simulated into `dir`.
+void Simulate(const fs::path& dir, int seed, double right_change_pct = 0.0) {
+  const test::ToolOutput run = test::RunTool(
+      "autocal_simulate",
+      "--scenario=urban --duration_s=25 --lidar=false --seed=" + std::to_string(seed) +
+          " --right_wheel_radius_change_pct=" + std::to_string(right_change_pct) +
+          " --out=" + dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.text;
+}
+
+test::ToolOutput Calibrate(const std::string& datasets, const fs::path& out,
+                           const std::string& extra = "") {
+  return test::RunTool("autocal_calibrate", datasets + " --problem=" + Problem() + " --output=" +
+                                                out.string() + " --progress=false " + extra);
+}
+
+std::string Read(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(FleetTools, RunsLeaveStatusAndTheReportGathersThem) {
+  const fs::path root = test::OutputDir("fleet");
+  Simulate(root / "log_a", 41);
+  Simulate(root / "log_b", 42);
+  Simulate(root / "log_c", 43, 1.0);
+  fs::create_directories(root / "broken");
+  std::ofstream(root / "broken" / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n1,2\n";
+  fs::create_directories(root / "results");
+
+  for (const char* log : {"log_a", "log_b", "log_c"}) {
+    const test::ToolOutput run = Calibrate("--dataset=" + (root / log).string(),
+                                           root / "results" / log, std::string("--vehicle=") + log);
+    ASSERT_EQ(run.exit_code, 0) << run.text;
+    const io::RunStatus status =
+        io::ReadRunStatus((root / "results" / log / "status.yaml").string());
+    EXPECT_EQ(status.exit_status, 0);
+    EXPECT_EQ(status.vehicle, log);
+    EXPECT_TRUE(fs::is_regular_file(root / "results" / log / "calibration.yaml"));
+  }
+  // A failed run leaves status.yaml alone, with the message it printed.
+  const fs::path failed = root / "results" / "broken";
+  const test::ToolOutput run = Calibrate("--dataset=" + (root / "broken").string(), failed);
+  EXPECT_EQ(run.exit_code, 1) << run.text;
+  const io::RunStatus status = io::ReadRunStatus((failed / "status.yaml").string());
+  EXPECT_EQ(status.exit_status, 1);
+  EXPECT_EQ(status.vehicle, "broken");
+  EXPECT_THAT(run.text, ::testing::HasSubstr(status.message));
+  EXPECT_FALSE(fs::exists(failed / "calibration.yaml"));
+  // Rerun into the same directory: a failure's directory is replaced by the next result.
+  EXPECT_EQ(Calibrate("--dataset=" + (root / "log_a").string(), failed).exit_code, 0);
+  EXPECT_EQ(Calibrate("--dataset=" + (root / "broken").string(), failed).exit_code, 1);
+
+  const fs::path report = root / "report";
+  test::ToolOutput gathered =
+      test::RunTool("autocal_fleet_report",
+                    "--output=" + report.string() + " " + (root / "results" / "log_a").string() +
+                        " " + (root / "results" / "log_b").string() + " " +
+                        (root / "results" / "log_c").string() + " " + failed.string());
+  EXPECT_EQ(gathered.exit_code, 2) << gathered.text;  // one run failed
+  EXPECT_THAT(gathered.text, ::testing::HasSubstr("4 runs: 3 calibrated, 1 failed"));
+  EXPECT_THAT(gathered.text, ::testing::HasSubstr("outlier: log_c: right rear wheel radius"));
+  EXPECT_THAT(Read(report / "fleet.csv"), ::testing::HasSubstr("\"broken\""));
+  EXPECT_THAT(Read(report / "fleet.html"), ::testing::HasSubstr("Failures"));
+  // From a list file, the succeeded runs only: exit 0.
+  std::ofstream(root / "results.txt") << "# the fleet\n"
+                                      << (root / "results" / "log_a").string() << "\n\n"
+                                      << (root / "results" / "log_b").string() << "\n";
+  gathered = test::RunTool(
+      "autocal_fleet_report",
+      "--output=" + report.string() + " --results_file=" + (root / "results.txt").string());
+  EXPECT_EQ(gathered.exit_code, 0) << gathered.text;
+  // Bad input: exit 1, one line.
+  gathered = test::RunTool("autocal_fleet_report", "--output=" + report.string());
+  EXPECT_EQ(gathered.exit_code, 1);
+  EXPECT_THAT(gathered.text, ::testing::HasSubstr("at least one result directory"));
+}
+
+// Two logs of one vehicle in one run (--dataset twice and a list file): the shared
+// calibration, the repeatability table and each log's files.
+TEST(FleetTools, CalibratesSeveralLogsOfOneVehicle) {
+  const fs::path root = test::OutputDir("several");
+  Simulate(root / "day1", 44);
+  Simulate(root / "day2", 45);
+  Simulate(root / "day3", 46);
+  std::ofstream(root / "more.txt") << (root / "day3").string() << "\n";
+  const fs::path out = root / "result";
+  const test::ToolOutput run =
+      Calibrate("--dataset=" + (root / "day1").string() + " --dataset " + (root / "day2").string() +
+                    " --datasets_file=" + (root / "more.txt").string(),
+                out, "--vehicle=car_1");
+  ASSERT_EQ(run.exit_code, 0) << run.text;
+  EXPECT_THAT(run.text, ::testing::HasSubstr("shared calibration of 3 logs"));
+  EXPECT_TRUE(fs::is_regular_file(out / "calibration.yaml"));
+  EXPECT_THAT(Read(out / "repeatability.csv"), ::testing::HasSubstr(",day2,"));
+  for (const char* day : {"day1", "day2", "day3"}) {
+    EXPECT_TRUE(fs::is_regular_file(out / "logs" / day / "trajectory.tum")) << day;
+    EXPECT_TRUE(fs::is_regular_file(out / "logs" / day / "own" / "calibration.yaml")) << day;
+  }
+  const io::RunStatus status = io::ReadRunStatus((out / "status.yaml").string());
+  EXPECT_EQ(status.datasets.size(), 3u);
+  EXPECT_EQ(status.vehicle, "car_1");
+  // A missing list file is refused before any work, and leaves its status.
+  const test::ToolOutput bad = Calibrate("--datasets_file=" + (root / "absent.txt").string(), out);
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_THAT(bad.text, ::testing::HasSubstr("--datasets_file: cannot read"));
+}
+
+}  // namespace
+}  // namespace autocal

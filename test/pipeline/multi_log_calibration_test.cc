@@ -1,0 +1,190 @@
+// Several logs of one vehicle (pipeline/multi_log_calibration.h): three simulated urban drives
+// without the LiDAR, one vehicle (one true calibration), seeds no other test uses. The shared
+// calibration knows more than any log, covers the truth, and the repeatability test agrees
+// on them; a right rear tyre 0.4 % larger in one log is found and named.
+
+#include "autocal/pipeline/multi_log_calibration.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "autocal/common/error.h"
+#include "autocal/io/calibration_yaml.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "pipeline/simulated_urban_dataset.h"
+#include "support/test_paths.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+io::Problem ImuWheelGnssProblem() {
+  return io::ReadProblemYaml(
+      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
+}
+
+// Urban drive `seed`, 30 s, no LiDAR; the right rear tyre `right_change_pct` % larger.
+std::unique_ptr<test::SimulatedUrbanDataset> Log(uint64_t seed, double right_change_pct = 0.0) {
+  sim::SimulationOptions options = test::UrbanDriveOptions(30.0);
+  options.seed = seed;
+  options.lidar.enabled = false;
+  options.true_calibration.wheel_radius_right_m *= 1.0 + right_change_pct / 100.0;
+  return std::make_unique<test::SimulatedUrbanDataset>(options, "multi_log");
+}
+
+class MultiLogCalibration : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    for (uint64_t seed : {31, 32, 33}) logs_.push_back(Log(seed));
+    std::vector<io::Dataset> datasets;
+    for (const auto& log : logs_) datasets.push_back(io::ReadDataset(log->directory));
+    result_ = new MultiLogCalibrationResult(CalibrateDatasets(datasets, ImuWheelGnssProblem()));
+    std::cout << FormatMultiLogSummary(*result_);
+  }
+  static void TearDownTestSuite() {
+    delete result_;
+    logs_.clear();
+  }
+  static std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> logs_;
+  static MultiLogCalibrationResult* result_;
+};
+std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> MultiLogCalibration::logs_;
+MultiLogCalibrationResult* MultiLogCalibration::result_ = nullptr;
+
+// Each observed scalar: the shared sigma below every log's own, the shared value within 3
+// sigma of the truth.
+TEST_F(MultiLogCalibration, SharedCalibrationKnowsMoreAndCoversTheTruth) {
+  const sensors::Calibration& truth = logs_[0]->simulator.true_calibration();
+  const sensors::Calibration& shared = result_->calibration.value;
+  const io::CalibrationUncertainty& u = result_->calibration.uncertainty;
+  struct Scalar {
+    const char* name;
+    double shared, truth;
+    const io::ScalarBlockInfo& (*own)(const io::CalibrationUncertainty&);
+    const io::ScalarBlockInfo& info;
+  };
+  const std::vector<Scalar> scalars = {
+      {"left radius", shared.wheel_radius_left_m, truth.wheel_radius_left_m,
+       [](const io::CalibrationUncertainty& o) -> const io::ScalarBlockInfo& {
+         return o.wheel_radius_left_m;
+       },
+       u.wheel_radius_left_m},
+      {"right radius", shared.wheel_radius_right_m, truth.wheel_radius_right_m,
+       [](const io::CalibrationUncertainty& o) -> const io::ScalarBlockInfo& {
+         return o.wheel_radius_right_m;
+       },
+       u.wheel_radius_right_m},
+      {"track width", shared.track_width_m, truth.track_width_m,
+       [](const io::CalibrationUncertainty& o) -> const io::ScalarBlockInfo& {
+         return o.track_width_m;
+       },
+       u.track_width_m}};
+  for (const Scalar& s : scalars) {
+    ASSERT_TRUE(s.info.sigma) << s.name;
+    std::cout << s.name << ": shared " << s.shared << " truth " << s.truth << " sigma "
+              << *s.info.sigma << '\n';
+    EXPECT_LE(std::abs(s.shared - s.truth), 3.0 * *s.info.sigma) << s.name;
+    for (const LogCalibration& log : result_->logs) {
+      ASSERT_TRUE(s.own(log.own.calibration.uncertainty).sigma) << s.name;
+      EXPECT_LT(*s.info.sigma, *s.own(log.own.calibration.uncertainty).sigma) << s.name;
+    }
+  }
+  // Three logs of the radius's information: its sigma near 1/sqrt(3) of one log's.
+  const double own = *result_->logs[0].own.calibration.uncertainty.wheel_radius_left_m.sigma;
+  EXPECT_LT(*u.wheel_radius_left_m.sigma, 0.75 * own);
+}
+
+TEST_F(MultiLogCalibration, LogsOfOneVehicleAgree) {
+  ASSERT_FALSE(result_->repeatability.empty());
+  for (const BlockRepeatability& r : result_->repeatability) {
+    EXPECT_TRUE(r.agree) << r.name << " p " << r.agreement.p_value;
+    EXPECT_TRUE(r.finding.empty());
+    EXPECT_EQ(r.agreement.logs.size(), 3u);
+  }
+}
+
+// Each log's trajectory is solved at the shared calibration, with every keyframe of its own
+// solve.
+TEST_F(MultiLogCalibration, TrajectoriesFollowTheSharedCalibration) {
+  ASSERT_EQ(result_->logs.size(), 3u);
+  for (const LogCalibration& log : result_->logs) {
+    EXPECT_EQ(log.at_shared.calibration.value.wheel_radius_left_m,
+              result_->calibration.value.wheel_radius_left_m);
+    EXPECT_TRUE(log.at_shared.calibration.value.p_I_A.isApprox(result_->calibration.value.p_I_A));
+    EXPECT_EQ(log.at_shared.trajectory.size(), log.own.trajectory.size());
+    EXPECT_TRUE(log.at_shared.posterior.blocks.empty());  // nothing estimated
+  }
+}
+
+TEST_F(MultiLogCalibration, WritesSharedRepeatabilityAndEveryLog) {
+  const std::filesystem::path out = test::OutputDir("multi_log") / "result";
+  std::filesystem::remove_all(out);
+  WriteMultiLogResult(out.string(), *result_);
+  const io::CalibrationFile read = io::ReadCalibrationYaml((out / "calibration.yaml").string());
+  EXPECT_EQ(read.value.wheel_radius_right_m, result_->calibration.value.wheel_radius_right_m);
+  std::ifstream csv(out / "repeatability.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header,
+            "block,direction,unit,log,value,sigma,chi_square,degrees_of_freedom,p_value,agree");
+  int rows = 0;
+  for (std::string line; std::getline(csv, line);) ++rows;
+  int directions = 0;
+  for (const BlockRepeatability& r : result_->repeatability) {
+    directions += sensors::CalibrationBlock(r.agreement.id).tangent_size;
+  }
+  EXPECT_EQ(rows, directions * 4);  // three logs and the shared value
+  for (const LogCalibration& log : result_->logs) {
+    EXPECT_TRUE(std::filesystem::is_regular_file(out / "logs" / log.name / "trajectory.tum"));
+    EXPECT_TRUE(
+        std::filesystem::is_regular_file(out / "logs" / log.name / "own" / "calibration.yaml"));
+    EXPECT_TRUE(std::filesystem::is_regular_file(out / "logs" / log.name / "own" / "report.html"));
+  }
+  std::ifstream html(out / "report.html");
+  std::stringstream text;
+  text << html.rdbuf();
+  EXPECT_THAT(text.str(), ::testing::HasSubstr("<h2>Repeatability</h2>"));
+  EXPECT_THAT(text.str(), ::testing::HasSubstr("</html>"));
+}
+
+// The course's example: a tyre whose pressure changed between two days.
+TEST(MultiLogRepeatability, FindsTheChangedTyre) {
+  std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> logs;
+  logs.push_back(Log(31));
+  logs.push_back(Log(32));
+  logs.push_back(Log(34, 0.4));
+  std::vector<io::Dataset> datasets;
+  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  const MultiLogCalibrationResult result = CalibrateDatasets(datasets, ImuWheelGnssProblem());
+  std::cout << FormatMultiLogSummary(result);
+  for (const BlockRepeatability& r : result.repeatability) {
+    if (r.agreement.id != sensors::CalibrationBlockId::kWheelRadiusRight) continue;
+    EXPECT_FALSE(r.agree);
+    EXPECT_LT(r.agreement.p_value, 1e-6);
+    EXPECT_EQ(r.agreement.log_b, 2u);
+    const double change_pct =
+        100.0 * r.agreement.difference /
+        result.logs[r.agreement.log_a].own.posterior.solved.wheel_radius_right_m;
+    EXPECT_NEAR(change_pct, 0.4, 0.05);
+    EXPECT_THAT(r.finding, ::testing::HasSubstr("tyre pressure or wear?"));
+    EXPECT_THAT(r.finding, ::testing::HasSubstr(result.logs[2].name));
+  }
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::HasSubstr("calibrate those logs apart")));
+}
+
+TEST(MultiLogRepeatability, RefusesFewerThanTwoLogs) {
+  EXPECT_THROW(CalibrateDatasets({}, ImuWheelGnssProblem()), Error);
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal
