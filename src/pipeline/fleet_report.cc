@@ -1,5 +1,6 @@
 #include "autocal/pipeline/fleet_report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -114,7 +115,7 @@ void FindOutliers(FleetReport* report) {
       const double value = report->values[e][c], sigma = report->sigmas[e][c];
       if (!std::isfinite(value)) continue;
       const double deviation = std::abs(value - median);
-      if (deviation <= kFleetOutlierRobustSigmas * robust_sigma || deviation <= 3.0 * sigma) {
+      if (deviation <= kFleetOutlierSigmas * std::max(robust_sigma, sigma)) {
         continue;
       }
       const FleetColumn& col = report->columns[c];

@@ -31,9 +31,11 @@ struct FleetColumn {
   std::string direction;  // in words
 };
 
-// A vehicle whose value lies more than kFleetOutlierRobustSigmas robust sigmas (1.4826 MAD)
-// from the fleet's median and more than 3 of its own sigma from it.
-constexpr double kFleetOutlierRobustSigmas = 5.0;
+// A vehicle whose value lies more than kFleetOutlierSigmas robust sigmas (1.4826 MAD) of the
+// fleet from the fleet's median, and as many of its own sigma: far from the other vehicles
+// and farther than its own estimate's error explains. At 5 a vehicle of an honest fleet is
+// flagged in about one of 10^6 values (its own sigma) however the vehicles differ.
+constexpr double kFleetOutlierSigmas = 5.0;
 struct FleetOutlier {
   size_t entry = 0;
   size_t column = 0;
