@@ -415,6 +415,8 @@ std::string FormatCalibrationValues(const io::CalibrationFile& file) {
          100.0, 3);
   scalar("odometry speed scale (%)", c.odometry_speed_scale, u.odometry_speed_scale, 100.0, 3);
   scalar("effective track (mm)", c.effective_track_m, u.effective_track_m, 1e3, 1);
+  scalar("wheel clock offset (ms)", c.time_offset_wheel_imu_s, u.time_offset_wheel_imu_s, 1e3, 1);
+  scalar("GNSS clock offset (ms)", c.time_offset_gnss_imu_s, u.time_offset_gnss_imu_s, 1e3, 1);
   pose("T_I_V", "IMU mount roll pitch yaw (deg)", ImuMountInVehicle(c.q_I_V), c.p_I_V, u.T_I_V, 3);
   if (u.p_I_A_m.sigma) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
