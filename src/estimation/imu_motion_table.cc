@@ -52,38 +52,53 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
             Eigen::Vector3d::Zero(),
             Eigen::Vector3d::Zero(),
             Eigen::Vector3d::Zero(),
+            Eigen::Vector3d::Zero(),
+            Eigen::Vector3d::Zero(),
             Eigen::Vector3d::Zero()};
   for (size_t i = 0; i + 1 < knots.size(); ++i) {
-    node.t_ns = knots[i].t_ns;
-    node.gyro = 0.5 * (knots[i].gyro_rad_s + knots[i + 1].gyro_rad_s) - b_g;
-    node.accel = 0.5 * (knots[i].accel_m_s2 + knots[i + 1].accel_m_s2) - b_a;
-    nodes_.push_back(node);
     const double dt = SecondsBetween(knots[i].t_ns, knots[i + 1].t_ns);
-    // The specific force is rotated with the attitude at mid-step (midpoint rule).
-    const Eigen::Vector3d a_k =
-        node.delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * node.gyro)) * node.accel);
-    node.delta_p += node.delta_v * dt + 0.5 * a_k * dt * dt;
-    node.delta_v += a_k * dt;
-    node.delta_q = geometry::QuaternionPlus(node.delta_q, Eigen::Vector3d(node.gyro * dt));
+    node.t_ns = knots[i].t_ns;
+    node.gyro = knots[i].gyro_rad_s - b_g;
+    node.accel = knots[i].accel_m_s2 - b_a;
+    node.gyro_slope = (knots[i + 1].gyro_rad_s - knots[i].gyro_rad_s) / dt;
+    node.accel_slope = (knots[i + 1].accel_m_s2 - knots[i].accel_m_s2) / dt;
+    nodes_.push_back(node);
+    Step(dt, &node);
   }
   node.t_ns = knots.back().t_ns;
-  nodes_.push_back(node);  // terminal node: rates of the last step
+  node.gyro = knots.back().gyro_rad_s - b_g;
+  node.accel = knots.back().accel_m_s2 - b_a;
+  node.gyro_slope.setZero();
+  node.accel_slope.setZero();
+  nodes_.push_back(node);  // terminal node
+}
+
+// The motion `dt` seconds past node n's start: the step's mean rate and specific force over
+// [0, dt] (a linear signal's mean is that of its ends), the force rotated with the attitude
+// at the middle of the interval (midpoint rule).
+void ImuMotionTable::Step(double dt, Node* n) {
+  const Eigen::Vector3d gyro = n->gyro + 0.5 * dt * n->gyro_slope;
+  const Eigen::Vector3d accel = n->accel + 0.5 * dt * n->accel_slope;
+  const Eigen::Vector3d a_k =
+      n->delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * gyro)) * accel);
+  n->delta_p += n->delta_v * dt + 0.5 * a_k * dt * dt;
+  n->delta_v += a_k * dt;
+  n->delta_q = geometry::QuaternionPlus(n->delta_q, Eigen::Vector3d(gyro * dt));
 }
 
 factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
   t_ns = std::clamp(t_ns, t_begin_ns_, t_end_ns_);
   auto it = std::upper_bound(nodes_.begin(), nodes_.end(), t_ns,
                              [](int64_t t, const Node& n) { return t < n.t_ns; });
-  const Node& n = *(it - 1);
+  Node n = *(it - 1);
   const double dt = SecondsBetween(n.t_ns, t_ns);
-  const Eigen::Vector3d a_k =
-      n.delta_q * (geometry::Exp(Eigen::Vector3d(0.5 * dt * n.gyro)) * n.accel);
+  Step(dt, &n);
   factors::PointMotion m;
   m.dt_s = SecondsBetween(t_begin_ns_, t_ns);
-  m.delta_q = geometry::QuaternionPlus(n.delta_q, Eigen::Vector3d(n.gyro * dt));
-  m.delta_v = n.delta_v + a_k * dt;
-  m.delta_p = n.delta_p + n.delta_v * dt + 0.5 * a_k * dt * dt;
-  m.omega_rad_s = n.gyro;
+  m.delta_q = n.delta_q;
+  m.delta_v = n.delta_v;
+  m.delta_p = n.delta_p;
+  m.omega_rad_s = n.gyro + dt * n.gyro_slope;
   return m;
 }
 

@@ -67,7 +67,7 @@ TEST(ImuMotionTable, MatchesTrueMotionInsideASweep) {
     EXPECT_LT(geometry::AngularDistance(m.delta_q, dq_true), 2e-6) << "dt " << dt;
     EXPECT_LT((m.delta_v - dv_true).norm(), 1e-4) << "dt " << dt;
     EXPECT_LT((m.delta_p - dp_true).norm(), 1e-5) << "dt " << dt;
-    EXPECT_LT((m.omega_rad_s - motion.omega(t)).norm(), 5e-3) << "dt " << dt;
+    EXPECT_LT((m.omega_rad_s - motion.omega(t)).norm(), 1e-5) << "dt " << dt;
   }
 }
 

@@ -27,7 +27,9 @@ class ImuMotionTable {
   int64_t t_end_ns() const { return t_end_ns_; }
 
   // Motion from t_begin_ns to t_ns (clamped into the tabulated interval), with the
-  // bias-corrected body rate at t_ns.
+  // bias-corrected body rate at t_ns. The signal is linear between samples, so inside a step
+  // the partial step integrates the mean of the rates at its two ends, and the rate at t_ns is
+  // interpolated.
   factors::PointMotion At(int64_t t_ns) const;
 
  private:
@@ -36,9 +38,14 @@ class ImuMotionTable {
     Eigen::Quaterniond delta_q;
     Eigen::Vector3d delta_v;
     Eigen::Vector3d delta_p;
-    Eigen::Vector3d gyro;   // bias-corrected mean rate over the step that starts here
-    Eigen::Vector3d accel;  // bias-corrected mean specific force over that step
+    // Bias-corrected rate and specific force where the step starting here begins, and their
+    // change per second along the step (zero on the terminal node).
+    Eigen::Vector3d gyro, accel;
+    Eigen::Vector3d gyro_slope, accel_slope;
   };
+  // Advances n's deltas by dt seconds along its step.
+  static void Step(double dt, Node* n);
+
   int64_t t_begin_ns_;
   int64_t t_end_ns_;
   std::vector<Node> nodes_;
