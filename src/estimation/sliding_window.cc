@@ -26,13 +26,15 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-AttachedFactor QuaternionPrior(Eigen::Quaterniond* q, const Eigen::Quaterniond& mean,
-                               double sigma_rad, ceres::LossFunction* loss) {
+// q and mean: quaternions [x, y, z, w].
+AttachedFactor QuaternionPrior(double* q, const double* mean, double sigma_rad,
+                               ceres::LossFunction* loss) {
   AttachedFactor f;
   f.cost = std::make_unique<factors::QuaternionPriorFactor>(
-      mean.normalized(), Eigen::Matrix3d::Identity() / sigma_rad);
+      Eigen::Map<const Eigen::Quaterniond>(mean).normalized(),
+      Eigen::Matrix3d::Identity() / sigma_rad);
   f.loss = loss;
-  f.blocks = {q->coeffs().data()};
+  f.blocks = {q};
   return f;
 }
 
@@ -168,61 +170,22 @@ SlidingWindowEstimator::Impl::Impl(const SlidingWindowOptions& options,
   AddCalibrationPriors(initial_calibration);
 }
 
-// Calibration priors (never marginalized: they touch no keyframe).
+// Calibration priors (never marginalized: they touch no keyframe), one per estimated block.
 void SlidingWindowEstimator::Impl::AddCalibrationPriors(
     const sensors::Calibration& initial_calibration) {
   const SlidingWindowCalibrationPrior& c = options_.calibration_prior;
-  const SlidingWindowEstimatedBlocks& e = options_.estimate;
-  ceres::LossFunction* loss = prior_loss_.get();
-  sensors::Calibration& x = calibration_;
-  const sensors::Calibration& m = c.mean ? *c.mean : initial_calibration;
-  if (e.extrinsic_rotation) {
+  const sensors::Calibration& mean = c.mean ? *c.mean : initial_calibration;
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    if (!Estimated(info.id, options_.estimate)) continue;
+    double* x = info.values(&calibration_);
+    const double* m = info.const_values(mean);
     calibration_priors_.push_back(
-        QuaternionPrior(&x.q_I_L, m.q_I_L, c.extrinsic_rotation_deg * kDegToRad, loss));
-  }
-  if (e.extrinsic_translation) {
-    calibration_priors_.push_back(
-        VectorPrior(x.p_I_L.data(), m.p_I_L.data(), 3, c.extrinsic_translation_m, loss));
-  }
-  if (e.time_offset) {
-    calibration_priors_.push_back(VectorPrior(
-        &x.time_offset_lidar_imu_s, &m.time_offset_lidar_imu_s, 1, c.time_offset_s, loss));
-  }
-  if (e.wheel_radii) {
-    calibration_priors_.push_back(
-        VectorPrior(&x.wheel_radius_left_m, &m.wheel_radius_left_m, 1, c.wheel_radius_m, loss));
-    calibration_priors_.push_back(
-        VectorPrior(&x.wheel_radius_right_m, &m.wheel_radius_right_m, 1, c.wheel_radius_m, loss));
-  }
-  if (e.track_width) {
-    calibration_priors_.push_back(
-        VectorPrior(&x.track_width_m, &m.track_width_m, 1, c.track_width_m, loss));
-  }
-  if (e.wheel_speed_scales) {
-    calibration_priors_.push_back(VectorPrior(&x.wheel_speed_scale_left, &m.wheel_speed_scale_left,
-                                              1, c.wheel_speed_scale, loss));
-    calibration_priors_.push_back(VectorPrior(
-        &x.wheel_speed_scale_right, &m.wheel_speed_scale_right, 1, c.wheel_speed_scale, loss));
-  }
-  if (e.odometry_speed_scale) {
-    calibration_priors_.push_back(VectorPrior(&x.odometry_speed_scale, &m.odometry_speed_scale, 1,
-                                              c.odometry_speed_scale, loss));
-  }
-  if (e.effective_track) {
-    calibration_priors_.push_back(
-        VectorPrior(&x.effective_track_m, &m.effective_track_m, 1, c.effective_track_m, loss));
-  }
-  if (e.vehicle_frame) {
-    calibration_priors_.push_back(
-        QuaternionPrior(&x.q_I_V, m.q_I_V, c.vehicle_rotation_deg * kDegToRad, loss));
-    calibration_priors_.push_back(
-        VectorPrior(x.p_I_V.data(), m.p_I_V.data(), 3, c.vehicle_translation_m, loss));
-  }
-  if (e.gnss_lever_arm) {
-    calibration_priors_.push_back(
-        VectorPrior(x.p_I_A.data(), m.p_I_A.data(), 3, c.gnss_lever_arm_m, loss));
+        info.manifold == sensors::BlockManifold::kRightQuaternion
+            ? QuaternionPrior(x, m, PriorSigmaOf(info.id, c) * kDegToRad, prior_loss_.get())
+            : VectorPrior(x, m, info.tangent_size, PriorSigmaOf(info.id, c), prior_loss_.get()));
   }
 }
+
 bool SlidingWindowEstimator::Impl::AddImu(const sensors::ImuSample& sample) {
   if (!AllFinite(sample.gyro_rad_s, sample.accel_m_s2)) {
     throw Error("SlidingWindowEstimator::AddImu: non-finite sample at t_ns " +

@@ -45,6 +45,12 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
               "the IMU clock; estimate the offsets offline)");
 }
 
+double PriorSigmaOf(sensors::CalibrationBlockId id, const SlidingWindowCalibrationPrior& prior) {
+  SlidingWindowEstimatedBlocks unused;
+  SlidingWindowCalibrationPrior p = prior;
+  return *BlockSettingOf(id, &unused, &p).prior_sigma;
+}
+
 bool WindowSupports(sensors::CalibrationBlockId id) {
   using Id = sensors::CalibrationBlockId;
   return id != Id::kWheelTimeOffset && id != Id::kGnssTimeOffset;

@@ -20,6 +20,10 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
                                          SlidingWindowEstimatedBlocks* estimate,
                                          SlidingWindowCalibrationPrior* prior);
 
+// Block `id`'s prior sigma in `prior` (degrees for a rotation, else the block's SI unit).
+// Throws as BlockSettingOf.
+double PriorSigmaOf(sensors::CalibrationBlockId id, const SlidingWindowCalibrationPrior& prior);
+
 // Whether the window has a setting for block `id`: not yet for the blocks of the wheel forms
 // linear_speeds and speed_yaw_rate (speed scales, odometry speed scale, effective track), nor
 // the wheel and GNSS time offsets.
