@@ -46,6 +46,9 @@ DEFINE_double(imu_rate_hz, 200.0, "IMU sample rate, Hz (20..2000)");
 DEFINE_double(imu_stamp_jitter_s, 0.0, "IMU sample instants jitter by +-this, seconds");
 DEFINE_double(imu_noise_scale, 1.0,
               "scale of the IMU noise densities and random walks (EuRoC-class MEMS at 1)");
+DEFINE_double(imu_random_walk_scale, -1.0,
+              "scale of the IMU bias random walks when it differs from --imu_noise_scale "
+              "(vibration raises the white noise only); negative: --imu_noise_scale");
 DEFINE_string(imu_mount_rpy_deg, "",
               "true IMU mount R_V_I as roll,pitch,yaw degrees (e.g. 180,0,0: z down); LiDAR "
               "and antenna stay where they are in the vehicle");
@@ -154,6 +157,7 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   set("imu_rate_hz", FLAGS_imu_rate_hz, &o.imu.noise.update_rate_hz);
   set("imu_stamp_jitter_s", FLAGS_imu_stamp_jitter_s, &o.imu.stamp_jitter_s);
   set("imu_noise_scale", FLAGS_imu_noise_scale, &o.imu.noise_scale);
+  if (FLAGS_imu_random_walk_scale >= 0.0) o.imu.random_walk_scale = FLAGS_imu_random_walk_scale;
   if (!FLAGS_imu_mount_rpy_deg.empty()) {
     o.true_calibration = autocal::sim::WithImuMount(
         o.true_calibration, ParseRollPitchYaw(FLAGS_imu_mount_rpy_deg, "imu_mount_rpy_deg"));

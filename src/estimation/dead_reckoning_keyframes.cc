@@ -1,5 +1,6 @@
 #include "autocal/estimation/dead_reckoning_keyframes.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -11,8 +12,25 @@
 namespace autocal {
 namespace estimation {
 
+namespace {
+
+// The gyro at t_ns, linear between the samples around it (clamped at the ends).
+Eigen::Vector3d GyroAt(const sensors::ImuSamples& imu, int64_t t_ns) {
+  const auto after =
+      std::upper_bound(imu.begin(), imu.end(), t_ns,
+                       [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
+  if (after == imu.begin()) return imu.front().gyro_rad_s;
+  if (after == imu.end()) return imu.back().gyro_rad_s;
+  const sensors::ImuSample& a = *(after - 1);
+  const double s = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(after->t_ns - a.t_ns);
+  return (1.0 - s) * a.gyro_rad_s + s * after->gyro_rad_s;
+}
+
+}  // namespace
+
 void PlaceKeyframesByDeadReckoning(std::vector<Keyframe>* keyframes, const sensors::ImuSamples& imu,
-                                   const ScalarSeries& speed_m_s, const Eigen::Quaterniond& q_I_V) {
+                                   const ScalarSeries& speed_m_s, const Eigen::Quaterniond& q_I_V,
+                                   const Eigen::Vector3d& p_I_V) {
   std::vector<Keyframe>& kfs = *keyframes;
   if (kfs.size() < 2) throw Error("PlaceKeyframesByDeadReckoning: need at least two keyframes");
   if (imu.empty() || imu.front().t_ns > kfs.front().t_ns || imu.back().t_ns < kfs.back().t_ns) {
@@ -26,7 +44,10 @@ void PlaceKeyframesByDeadReckoning(std::vector<Keyframe>* keyframes, const senso
     Keyframe& kf = kfs[k];
     const Eigen::Quaterniond q_W_V(Eigen::AngleAxisd(yaw_rad[k], Eigen::Vector3d::UnitZ()));
     kf.q_W_I = (q_W_V * q_V_I).normalized();
-    kf.v_W_I = q_W_V * Eigen::Vector3d(InterpolateSeries(speed_m_s, kf.t_ns), 0.0, 0.0);
+    // The IMU moves with the rear axle plus the turn about it: v_I = v_V + w x p_V_I, with
+    // p_V_I = -p_I_V seen in I.
+    kf.v_W_I = q_W_V * Eigen::Vector3d(InterpolateSeries(speed_m_s, kf.t_ns), 0.0, 0.0) -
+               kf.q_W_I * GyroAt(imu, kf.t_ns).cross(p_I_V);
     kf.p_W_I =
         k == 0 ? Eigen::Vector3d::Zero()
                : Eigen::Vector3d(kfs[k - 1].p_W_I + 0.5 * (kfs[k - 1].v_W_I + kf.v_W_I) *

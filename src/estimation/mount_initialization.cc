@@ -18,14 +18,19 @@ namespace {
 
 // Mean specific force over the samples that `use` accepts; the count in *n.
 template <typename Use>
-Eigen::Vector3d MeanSpecificForce(const sensors::ImuSamples& imu, Use use, size_t* n) {
+Eigen::Vector3d MeanSpecificForce(const sensors::ImuSamples& imu, Use use, size_t* n,
+                                  double* span_s) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   *n = 0;
+  int64_t first_ns = 0, last_ns = 0;
   for (const sensors::ImuSample& s : imu) {
     if (!use(s)) continue;
     sum += s.accel_m_s2;
+    if (*n == 0) first_ns = s.t_ns;
+    last_ns = s.t_ns;
     ++*n;
   }
+  *span_s = SecondsBetween(first_ns, last_ns);
   return *n > 0 ? Eigen::Vector3d(sum / static_cast<double>(*n)) : Eigen::Vector3d::Zero();
 }
 
@@ -163,7 +168,7 @@ UpAxisEstimate EstimateUpAxis(const sensors::ImuSamples& imu,
         [&](const sensors::ImuSample& s) {
           return s.t_ns >= still.t_begin_ns && s.t_ns <= still.t_end_ns;
         },
-        &out.samples);
+        &out.samples, &out.span_s);
     out.source = "the still period " +
                  FormatFixed(SecondsBetween(imu.front().t_ns, still.t_begin_ns), 1) + "-" +
                  FormatFixed(SecondsBetween(imu.front().t_ns, still.t_end_ns), 1) + " s";
@@ -173,12 +178,12 @@ UpAxisEstimate EstimateUpAxis(const sensors::ImuSamples& imu,
         [&](const sensors::ImuSample& s) {
           return s.gyro_rad_s.norm() <= options.max_low_dynamics_rate_rad_s;
         },
-        &out.samples);
+        &out.samples, &out.span_s);
     out.source = std::to_string(out.samples) + " samples turning slower than " +
                  FormatFixed(options.max_low_dynamics_rate_rad_s, 3) + " rad/s";
     if (out.samples < imu.size() / 10) {
       mean = MeanSpecificForce(
-          imu, [](const sensors::ImuSample&) { return true; }, &out.samples);
+          imu, [](const sensors::ImuSample&) { return true; }, &out.samples, &out.span_s);
       out.source = "all " + std::to_string(out.samples) + " samples";
     }
   }

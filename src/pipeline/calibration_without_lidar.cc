@@ -83,7 +83,8 @@ std::vector<estimation::Keyframe> KeyframesByDeadReckoning(
   std::vector<estimation::Keyframe> keyframes =
       KeyframeGrid(dataset, options, timing, std::max(dataset.imu.front().t_ns, speed.front().t_ns),
                    std::min(dataset.imu.back().t_ns, speed.back().t_ns), "the wheels");
-  estimation::PlaceKeyframesByDeadReckoning(&keyframes, dataset.imu, speed, calibration.q_I_V);
+  estimation::PlaceKeyframesByDeadReckoning(&keyframes, dataset.imu, speed, calibration.q_I_V,
+                                            calibration.p_I_V);
   return keyframes;
 }
 
@@ -157,6 +158,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, priors, options, use_wheel, use_gnss, &calibration);
   FuseUpAxisIntoMountPrior(initialization, problem, bias_priors.accel_bias_prior_sigma_m_s2,
+                           dataset.sensors.imu.noise.accelerometer_random_walk,
                            dataset.sensors.imu.gravity_m_s2, &blocks_estimated,
                            &priors.nominal_calibration);
   result.prior_centre = priors.nominal_calibration;

@@ -247,8 +247,8 @@ double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& c
 }
 
 void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem& problem,
-                              double accel_bias_sigma_m_s2, double gravity_m_s2,
-                              std::vector<estimation::EstimatedBlock>* blocks,
+                              double accel_bias_sigma_m_s2, double accel_random_walk_m_s3,
+                              double gravity_m_s2, std::vector<estimation::EstimatedBlock>* blocks,
                               sensors::Calibration* prior_centre) {
   if (!init.up || !problem.calibration.ground_tilt_sigma_deg) return;
   const auto block =
@@ -257,7 +257,10 @@ void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem
       });
   if (block == blocks->end()) return;
   const double ground_rad = *problem.calibration.ground_tilt_sigma_deg / kRadToDeg;
-  const double bias_rad = accel_bias_sigma_m_s2 / gravity_m_s2;
+  const double bias_m_s2 =
+      std::sqrt(accel_bias_sigma_m_s2 * accel_bias_sigma_m_s2 +
+                accel_random_walk_m_s3 * accel_random_walk_m_s3 * init.up->span_s / 3.0);
+  const double bias_rad = bias_m_s2 / gravity_m_s2;
   estimation::MountPrior prior;
   prior.q_I_V = Eigen::Quaterniond(block->prior.data()).normalized();
   prior.sigma_rad = block->prior_sigma;

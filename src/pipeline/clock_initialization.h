@@ -82,11 +82,14 @@ double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& c
 // Eq. C4: the mount's prior (the kVehicleRotation block of *blocks: centre and sigmas) fused
 // with gravity's up axis of `init` (estimation::FuseUpAxis), when there is one and the
 // problem gives calibration.ground_tilt_sigma_deg. The up axis's sigma is
-// sqrt(ground_tilt^2 + (accel_bias_sigma / g)^2): the accelerometer's bias tilts the mean
-// specific force. The block's start and prior_centre->q_I_V move to the fused centre.
+// sqrt(ground_tilt^2 + (b / g)^2): the accelerometer's bias b tilts the mean specific force.
+// b is the bias's mean over the span T averaged: its start (accel_bias_sigma) and its random
+// walk (density q), whose mean over T has variance q^2 T / 3, so
+// b^2 = accel_bias_sigma^2 + q^2 T / 3. The block's start and prior_centre->q_I_V move to the
+// fused centre.
 void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem& problem,
-                              double accel_bias_sigma_m_s2, double gravity_m_s2,
-                              std::vector<estimation::EstimatedBlock>* blocks,
+                              double accel_bias_sigma_m_s2, double accel_random_walk_m_s3,
+                              double gravity_m_s2, std::vector<estimation::EstimatedBlock>* blocks,
                               sensors::Calibration* prior_centre);
 
 }  // namespace pipeline

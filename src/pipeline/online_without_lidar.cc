@@ -44,6 +44,7 @@ io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
                       problem->sensors.gnss, &scratch);
   FuseUpAxisIntoMountPrior(initialization, *problem,
                            estimation::GnssInertialKeyframesOptions().accel_bias_prior_sigma_m_s2,
+                           dataset.sensors.imu.noise.accelerometer_random_walk,
                            dataset.sensors.imu.gravity_m_s2, &blocks,
                            &out.sensors.nominal_calibration);
   applied->q_I_V = out.sensors.nominal_calibration.q_I_V;

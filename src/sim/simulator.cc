@@ -61,6 +61,8 @@ void Validate(const SimulationOptions& o) {
           "imu update_rate_hz must be in [20, 2000]");
   Require(o.imu.noise_scale >= 0.0 && std::isfinite(o.imu.noise_scale),
           "imu noise_scale must be >= 0");
+  Require(o.imu.RandomWalkScale() >= 0.0 && std::isfinite(o.imu.RandomWalkScale()),
+          "imu random_walk_scale must be >= 0");
   const sensors::LidarConfig& l = o.lidar.config;
   Require(l.num_beams >= 1 && l.num_beams <= 256, "lidar num_beams must be in [1, 256]");
   Require(l.rate_hz >= 1.0 && l.rate_hz <= 50.0, "lidar rate_hz must be in [1, 50]");
@@ -268,9 +270,9 @@ io::SensorsConfig Simulator::sensors_config() const {
   io::SensorsConfig config;
   config.imu.noise = options_.imu.noise;
   config.imu.noise.gyroscope_noise_density *= options_.imu.noise_scale;
-  config.imu.noise.gyroscope_random_walk *= options_.imu.noise_scale;
+  config.imu.noise.gyroscope_random_walk *= options_.imu.RandomWalkScale();
   config.imu.noise.accelerometer_noise_density *= options_.imu.noise_scale;
-  config.imu.noise.accelerometer_random_walk *= options_.imu.noise_scale;
+  config.imu.noise.accelerometer_random_walk *= options_.imu.RandomWalkScale();
   config.imu.gravity_m_s2 = options_.imu.gravity_m_s2;
   if (options_.lidar.enabled) config.lidar = options_.lidar.config;
   if (options_.wheel.enabled) config.wheel = options_.wheel.config;
@@ -314,8 +316,9 @@ ImuLog Simulator::GenerateImu() const {
   // Discrete white noise sigma_d = sigma_c sqrt(rate); bias step sigma_b = sigma_bc sqrt(dt).
   const double gyro_sigma = scale * o.noise.gyroscope_noise_density * std::sqrt(1.0 / dt);
   const double accel_sigma = scale * o.noise.accelerometer_noise_density * std::sqrt(1.0 / dt);
-  const double gyro_walk = scale * o.noise.gyroscope_random_walk * std::sqrt(dt);
-  const double accel_walk = scale * o.noise.accelerometer_random_walk * std::sqrt(dt);
+  const double walk_scale = o.add_noise ? o.RandomWalkScale() : 0.0;
+  const double gyro_walk = walk_scale * o.noise.gyroscope_random_walk * std::sqrt(dt);
+  const double accel_walk = walk_scale * o.noise.accelerometer_random_walk * std::sqrt(dt);
   std::mt19937_64 rng = RandomStream(options_.seed, Stream::kImu);
   std::normal_distribution<double> normal(0.0, 1.0);
   auto draw = [&](double sigma) -> Eigen::Vector3d {

@@ -49,7 +49,7 @@ TEST(PlaceKeyframesByDeadReckoning, FollowsACircle) {
   ScalarSeries speed;
   for (double t = 0.0; t <= 11.0; t += 0.1) speed.push_back({SecondsToNs(t), c.v_m_s});
   std::vector<Keyframe> kfs = Keyframes(0.1, 10.0);
-  PlaceKeyframesByDeadReckoning(&kfs, imu, speed, c.q_I_V);
+  PlaceKeyframesByDeadReckoning(&kfs, imu, speed, c.q_I_V, Eigen::Vector3d::Zero());
   const double t0 = NsToSeconds(kfs.front().t_ns);
   const double radius_m = c.v_m_s / c.w_rad_s;
   for (const Keyframe& kf : kfs) {
@@ -61,13 +61,44 @@ TEST(PlaceKeyframesByDeadReckoning, FollowsACircle) {
     EXPECT_LT((kf.p_W_I - on_arc).norm(), 1e-3);
     EXPECT_EQ(kf.b_g, Eigen::Vector3d::Zero());
   }
-  EXPECT_THROW(PlaceKeyframesByDeadReckoning(&kfs, imu, ScalarSeries(), c.q_I_V), Error);
+  EXPECT_THROW(
+      PlaceKeyframesByDeadReckoning(&kfs, imu, ScalarSeries(), c.q_I_V, Eigen::Vector3d::Zero()),
+      Error);
   std::vector<Keyframe> late = Keyframes(0.1, 20.0);
-  EXPECT_THROW(PlaceKeyframesByDeadReckoning(&late, imu, speed, c.q_I_V), Error);
+  EXPECT_THROW(PlaceKeyframesByDeadReckoning(&late, imu, speed, c.q_I_V, Eigen::Vector3d::Zero()),
+               Error);
 }
 
 // The gauge holds the first keyframe's position and its turn about the world's vertical, and
 // nothing else: its roll and pitch stay free for gravity to set.
+// With the IMU away from the rear axle (p_I_V), it moves with the axle plus the turn about it:
+// v_W_I = v_W_V + w x p_V_I, the gyro's w constant on the circle.
+TEST(PlaceKeyframesByDeadReckoning, AddsTheTurnAboutTheRearAxle) {
+  const Circle c;
+  sensors::ImuSamples imu;
+  for (double t = 0.0; t <= 11.0; t += 0.005) {
+    sensors::ImuSample s;
+    s.t_ns = SecondsToNs(t);
+    s.gyro_rad_s = c.q_I_V * Eigen::Vector3d(0.0, 0.0, c.w_rad_s);
+    imu.push_back(s);
+  }
+  ScalarSeries speed;
+  for (double t = 0.0; t <= 11.0; t += 0.1) speed.push_back({SecondsToNs(t), c.v_m_s});
+  const Eigen::Vector3d p_I_V(0.4, -1.3, 0.2);
+  std::vector<Keyframe> kfs = Keyframes(0.1, 10.0);
+  PlaceKeyframesByDeadReckoning(&kfs, imu, speed, c.q_I_V, p_I_V);
+  const Eigen::Vector3d p_V_I = -(c.q_I_V.conjugate() * p_I_V);  // the IMU in V
+  const Eigen::Vector3d w_V(0.0, 0.0, c.w_rad_s);
+  const double t0 = NsToSeconds(kfs.front().t_ns);
+  for (const Keyframe& kf : kfs) {
+    const double psi = c.w_rad_s * (NsToSeconds(kf.t_ns) - t0);
+    const Eigen::Quaterniond q_W_V(Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()));
+    const Eigen::Vector3d expected =
+        q_W_V * (Eigen::Vector3d(c.v_m_s, 0.0, 0.0) + w_V.cross(p_V_I));
+    EXPECT_LT((kf.v_W_I - expected).norm(), 1e-9);
+  }
+}
+
 TEST(AddDeadReckoningGauge, HoldsPositionAndYawOnly) {
   Keyframe kf;
   kf.q_W_I = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()));

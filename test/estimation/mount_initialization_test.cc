@@ -162,6 +162,18 @@ TEST(InitializeMount, AVehicleThatNeverMovesHasNoForwardAxis) {
   EXPECT_LT((m.up.up_I - q_I_V * Eigen::Vector3d::UnitZ()).norm(), 0.01);
 }
 
+// The span of the samples averaged, which the accelerometer bias's random walk drifts over
+// (pipeline FuseUpAxisIntoMountPrior): the still start when there is one, within the log.
+TEST(EstimateUpAxis, ReportsTheSpanAveraged) {
+  const SimulatedLog log = Simulate(Drive{}, Eigen::Quaterniond::Identity(), 0.0, 15);
+  const UpAxisEstimate up = EstimateUpAxis(log.imu);
+  ASSERT_TRUE(up.ok) << up.problem;
+  EXPECT_GT(up.span_s, 0.5);
+  EXPECT_LE(up.span_s, NsToSeconds(log.imu.back().t_ns - log.imu.front().t_ns));
+  EXPECT_NEAR(up.span_s, (up.samples - 1) * NsToSeconds(log.imu[1].t_ns - log.imu[0].t_ns), 0.5)
+      << up.source;
+}
+
 TEST(EstimateUpAxis, AnAccelerometerInGIsNotGravity) {
   SimulatedLog log = Simulate(Drive{}, Eigen::Quaterniond::Identity(), 0.0, 15);
   for (sensors::ImuSample& s : log.imu) s.accel_m_s2 /= kGravity;

@@ -160,3 +160,44 @@ TEST_F(ClockOffsetsTest, CalibratesBothOffsetsWithSigmaInCalibrationYaml) {
 }  // namespace
 }  // namespace pipeline
 }  // namespace autocal
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+// Eq. C4 with the bias's random walk: the up axis's sigma is sqrt(ground^2 + (b / g)^2) with
+// b^2 = sigma_b0^2 + q^2 T / 3, and the fused roll and pitch combine it with the prior's as two
+// Gaussians. A strong random walk over a long span widens the up axis (a 30x accelerometer
+// over 120 s: 3.9 deg instead of 2.0 deg).
+TEST(FuseUpAxisIntoMountPrior, WidensTheUpAxisByTheBiasRandomWalk) {
+  io::Problem problem;
+  problem.calibration.ground_tilt_sigma_deg = 1.0;
+  ClockInitialization init;
+  init.up = estimation::UpAxisEstimate();
+  init.up->ok = true;
+  init.up->up_I = Eigen::Vector3d::UnitZ();
+  init.up->span_s = 120.0;
+  const double g = 9.80665, b0 = 0.3, q = 0.09, prior_deg = 5.0;
+  for (double walk : {0.0, q}) {
+    sensors::Calibration centre;
+    std::vector<estimation::EstimatedBlock> blocks = {
+        estimation::BlockOf(sensors::CalibrationBlockId::kVehicleRotation, &centre)};
+    blocks[0].prior = Eigen::Vector4d(0.0, 0.0, 0.0, 1.0);
+    blocks[0].prior_sigma = Eigen::Vector3d::Constant(prior_deg * M_PI / 180.0);
+    FuseUpAxisIntoMountPrior(init, problem, b0, walk, g, &blocks, &centre);
+    const double bias = std::sqrt(b0 * b0 + walk * walk * init.up->span_s / 3.0);
+    const double up_deg = std::hypot(1.0, bias / g * 180.0 / M_PI);
+    const double fused_deg =
+        1.0 / std::sqrt(1.0 / (prior_deg * prior_deg) + 1.0 / (up_deg * up_deg));
+    EXPECT_NEAR(blocks[0].prior_sigma(0) * 180.0 / M_PI, fused_deg, 1e-6) << walk;
+    EXPECT_NEAR(blocks[0].prior_sigma(1) * 180.0 / M_PI, fused_deg, 1e-6) << walk;
+    EXPECT_NEAR(blocks[0].prior_sigma(2) * 180.0 / M_PI, prior_deg, 1e-9) << walk;
+    if (walk > 0.0) {
+      EXPECT_NEAR(up_deg, 3.89, 0.01);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal

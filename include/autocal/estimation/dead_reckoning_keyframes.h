@@ -4,7 +4,8 @@
 // reckoning"), for logs with the IMU and the wheels alone: the first keyframe sits at the
 // origin with yaw zero; each keyframe is level and turned by the gyro's yaw about the vehicle's
 // up axis, R_W_I = R_z(psi_k) R_V_I (Eq. K12); it moves at the wheel speed along the vehicle's
-// x axis, v_W_I = R_z(psi_k) (v_k, 0, 0); positions follow by the trapezoid rule between
+// x axis, with the IMU's turn about it, v_W_I = R_z(psi_k) (v_k, 0, 0) - R_W_I (w_k x p_I_V)
+// (w_k the gyro at the keyframe); positions follow by the trapezoid rule between
 // keyframes. Biases start at zero. A solve with the IMU and wheel factors refines them, with
 // the first keyframe's position and yaw as the gauge (AddDeadReckoningGauge): nothing in such a
 // log observes where the platform is or which way it faces.
@@ -26,7 +27,8 @@ namespace estimation {
 // autocal::Error for fewer than two keyframes, IMU samples that do not cover them or an empty
 // speed series.
 void PlaceKeyframesByDeadReckoning(std::vector<Keyframe>* keyframes, const sensors::ImuSamples& imu,
-                                   const ScalarSeries& speed_m_s, const Eigen::Quaterniond& q_I_V);
+                                   const ScalarSeries& speed_m_s, const Eigen::Quaterniond& q_I_V,
+                                   const Eigen::Vector3d& p_I_V);
 
 // The gauge of a log without a position reference: the first keyframe's position (sigma
 // position_sigma_m per axis) and its rotation about the world's vertical (sigma yaw_sigma_rad)

@@ -52,6 +52,7 @@ struct UpAxisEstimate {
   std::string source;                               // which samples were averaged
   double specific_force_m_s2 = 0.0;                 // |mean specific force| there
   size_t samples = 0;
+  double span_s = 0.0;  // from the first to the last sample averaged
 };
 
 struct MountInitialization {

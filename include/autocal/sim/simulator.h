@@ -38,6 +38,10 @@ struct ImuSimOptions {
   // and sensors.yaml states the scaled values.
   sensors::ImuNoise noise;
   double noise_scale = 1.0;
+  // The random walks' scale when it differs from noise_scale: vibration raises the white
+  // noise of a mounted IMU, not its bias instability.
+  std::optional<double> random_walk_scale;
+  double RandomWalkScale() const { return random_walk_scale.value_or(noise_scale); }
   // Turn-on biases are drawn per axis from N(0, sigma^2), then random-walk.
   double initial_gyro_bias_sigma_rad_s = 2e-3;
   double initial_accel_bias_sigma_m_s2 = 3e-2;
