@@ -454,7 +454,8 @@ void SolveAgainAfterHolding(const io::Problem& problem,
                             const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                             const estimation::BlockObservability& observability,
                             const sensors::Calibration& solved, sensors::Calibration* calibration,
-                            ceres::Problem* p, OfflineCalibrationResult* result) {
+                            ceres::Problem* p, OfflineCalibrationResult* result,
+                            int max_iterations) {
   if (!estimation::AnyHeld(observability)) return;
   // From the solve's values with the held directions at their prior: the start does not depend
   // on the covariance's last digits (Eq. C1's step does), so identical runs give identical
@@ -463,12 +464,21 @@ void SolveAgainAfterHolding(const io::Problem& problem,
   estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
   estimation::AddHeldDirectionPriors(blocks_estimated, observability, p);
   ceres::Solver::Summary summary;
-  ceres::Solve(JointSolverOptions(problem, problem.solver.max_iterations), p, &summary);
+  ceres::Solve(JointSolverOptions(
+                   problem, max_iterations > 0 ? max_iterations : problem.solver.max_iterations),
+               p, &summary);
   if (!summary.IsSolutionUsable()) {
     throw Error("the solve with the unobservable directions held failed: " + summary.message);
   }
   result->calibration.solver["iterations_after_holding"] =
       std::to_string(summary.iterations.size());
+  if (summary.termination_type == ceres::NO_CONVERGENCE) {
+    result->warnings.push_back(
+        "the solve with the unobservable directions held stopped at its iteration limit (" +
+        std::to_string(summary.iterations.size() - 1) +
+        ") before converging: the trajectory and the kept directions may be off; raise "
+        "solver.max_iterations");
+  }
   estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
 }
 

@@ -158,12 +158,14 @@ ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_it
 // are the keyframes and `calibration`) and solves it again from `solved` (the calibration
 // before Observe) with the held directions at their prior, so that the trajectory, the
 // residuals and the other blocks follow the calibration that is reported. Throws
-// autocal::Error when that solve fails.
+// autocal::Error when that solve fails; warns when it stops at its iteration limit
+// (max_iterations, 0: the problem's solver.max_iterations).
 void SolveAgainAfterHolding(const io::Problem& problem,
                             const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                             const estimation::BlockObservability& observability,
                             const sensors::Calibration& solved, sensors::Calibration* calibration,
-                            ceres::Problem* p, OfflineCalibrationResult* result);
+                            ceres::Problem* p, OfflineCalibrationResult* result,
+                            int max_iterations = 0);
 
 // Throws one autocal::Error naming every direction the data inform that lies more than
 // options.max_prior_deviation_sigmas prior sigmas from its prior (ImplausibleDirections):

@@ -217,8 +217,10 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   RecordPosterior(blocks_estimated, covariance, solved, &result);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
+  // The same budget as the first solve: pinning the held directions can move a long
+  // dead-reckoned trajectory as far as the first solve did.
   SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration, &p,
-                         &result);
+                         &result, problem.solver.max_iterations * problem.solver.outer_iterations);
   RequirePlausible(dataset, options, blocks_estimated, covariance);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
   RecordResidualsAfterSolve(&p, &result.whitened_residuals);
