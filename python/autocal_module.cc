@@ -24,6 +24,8 @@
 #include "autocal/io/problem_yaml.h"
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/lidar/registration.h"
+#include "autocal/pipeline/fleet_report.h"
+#include "autocal/pipeline/multi_log_calibration.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sensors/imu_preintegration.h"
@@ -397,6 +399,86 @@ void BindPipeline(py::module_& m) {
       },
       py::arg("dataset"), py::arg("problem"), py::arg("progress") = nullptr,
       "autocal_calibrate as a call: dataset directory, problem file, optional progress(p)");
+  py::class_<pipeline::BlockRepeatability>(m, "BlockRepeatability")
+      .def_readonly("name", &pipeline::BlockRepeatability::name)
+      .def_readonly("agree", &pipeline::BlockRepeatability::agree)
+      .def_readonly("finding", &pipeline::BlockRepeatability::finding)
+      .def_property_readonly(
+          "chi_square",
+          [](const pipeline::BlockRepeatability& r) { return r.agreement.chi_square; })
+      .def_property_readonly(
+          "degrees_of_freedom",
+          [](const pipeline::BlockRepeatability& r) { return r.agreement.degrees_of_freedom; })
+      .def_property_readonly(
+          "p_value", [](const pipeline::BlockRepeatability& r) { return r.agreement.p_value; });
+  py::class_<pipeline::MultiLogCalibrationResult>(m, "MultiLogCalibrationResult")
+      .def_readonly("calibration", &pipeline::MultiLogCalibrationResult::calibration)
+      .def_readonly("repeatability", &pipeline::MultiLogCalibrationResult::repeatability)
+      .def_readonly("warnings", &pipeline::MultiLogCalibrationResult::warnings)
+      .def_property_readonly("logs",
+                             [](const pipeline::MultiLogCalibrationResult& r) {
+                               py::list logs;
+                               for (const pipeline::LogCalibration& log : r.logs) {
+                                 py::dict d;
+                                 d["name"] = log.name;
+                                 d["own"] = log.own;
+                                 d["trajectory"] = TrajectoryDict(log.at_shared.trajectory);
+                                 logs.append(d);
+                               }
+                               return logs;
+                             })
+      .def(
+          "write",
+          [](const pipeline::MultiLogCalibrationResult& r, const std::string& directory) {
+            pipeline::WriteMultiLogResult(directory, r);
+          },
+          py::arg("directory"),
+          "writes the result files autocal_calibrate writes for several logs");
+  m.def(
+      "calibrate_logs",
+      [](const std::vector<std::string>& datasets, const std::string& problem,
+         std::function<void(const pipeline::CalibrationProgress&)> progress) {
+        std::vector<io::Dataset> d;
+        for (const std::string& directory : datasets) d.push_back(io::ReadDataset(directory));
+        const io::Problem p = io::ReadProblemYaml(problem);
+        pipeline::MultiLogCalibrationOptions options;
+        options.calibration.progress = WithGil(std::move(progress));
+        py::gil_scoped_release release;
+        return pipeline::CalibrateDatasets(d, p, options);
+      },
+      py::arg("datasets"), py::arg("problem"), py::arg("progress") = nullptr,
+      "several logs of one vehicle: one shared calibration, each log's own, their repeatability");
+  m.def(
+      "fleet_report",
+      [](const std::vector<std::string>& result_directories) {
+        const pipeline::FleetReport report = pipeline::GatherFleet(result_directories);
+        py::dict out;
+        py::list runs;
+        for (size_t e = 0; e < report.entries.size(); ++e) {
+          const pipeline::FleetEntry& entry = report.entries[e];
+          py::dict run;
+          run["vehicle"] = entry.vehicle;
+          run["directory"] = entry.directory;
+          run["failure"] = entry.failure;
+          py::dict values;
+          for (size_t c = 0; c < report.columns.size(); ++c) {
+            values[py::str(report.columns[c].name)] =
+                py::make_tuple(report.values[e][c], report.sigmas[e][c]);
+          }
+          run["values"] = values;
+          runs.append(run);
+        }
+        py::list outliers;
+        for (const pipeline::FleetOutlier& o : report.outliers) outliers.append(o.text);
+        out["runs"] = runs;
+        out["outliers"] = outliers;
+        out["csv"] = pipeline::FleetCsv(report);
+        out["html"] = pipeline::FleetReportHtml(report);
+        return out;
+      },
+      py::arg("result_directories"),
+      "autocal_fleet_report as a call: per run its vehicle, failure and (value, sigma) by column; "
+      "the outliers in words; the table and overview as text");
   m.def(
       "estimate_online",
       [](const std::string& dataset, const std::string& problem,

@@ -196,6 +196,38 @@ class Pipeline(unittest.TestCase):
         self.assertGreater(ate["matched_poses"], 100)
         self.assertLess(ate["ate_translation_rmse_m"], 0.10)
 
+    def test_calibrates_several_logs_and_gathers_a_fleet(self):
+        tool = os.path.join(os.environ["AUTOCAL_TOOL_DIR"], "autocal_simulate")
+        second = output_dir("urban_30s_seed6")
+        subprocess.run([tool, "--scenario=urban", "--duration_s=30", "--seed=6", "--lidar=false",
+                        "--right_wheel_radius_change_pct=0.4", "--out=" + second],
+                       check=True, capture_output=True)
+        result = autocal.calibrate_logs([self.dataset, second], self.problem)
+        self.assertEqual([log["name"] for log in result.logs], ["urban_30s", "urban_30s_seed6"])
+        right = [r for r in result.repeatability if r.name == "right rear wheel radius"][0]
+        self.assertFalse(right.agree)
+        self.assertIn("tyre pressure or wear?", right.finding)
+        self.assertLess(right.p_value, 1e-6)
+        left = [r for r in result.repeatability if r.name == "left rear wheel radius"][0]
+        self.assertEqual(left.degrees_of_freedom, 1)
+        out = output_dir("two_logs_result")
+        result.write(out)
+        self.assertTrue(os.path.exists(os.path.join(out, "repeatability.csv")))
+        # A fleet of one calibrated run and one that never ran.
+        run_dir = os.path.join(output_dir("fleet"), "car_1")
+        calibrate = os.path.join(os.environ["AUTOCAL_TOOL_DIR"], "autocal_calibrate")
+        subprocess.run([calibrate, "--dataset=" + second, "--problem=" + self.problem,
+                        "--vehicle=car_1", "--output=" + run_dir, "--progress=false"],
+                       check=True, capture_output=True)
+        report = autocal.fleet_report([run_dir, output_dir("never_ran")])
+        self.assertEqual([run["vehicle"] for run in report["runs"]], ["car_1", "never_ran"])
+        self.assertEqual(report["runs"][0]["failure"], "")
+        self.assertIn("no status.yaml", report["runs"][1]["failure"])
+        value, sigma = report["runs"][0]["values"]["wheel_radius_right_m"]
+        own = result.logs[1]["own"].calibration.value.wheel_radius_right_m
+        self.assertAlmostEqual(value, own, delta=3 * sigma)
+        self.assertTrue(report["csv"].startswith("vehicle,directory,exit_status,message,"))
+
     def test_an_exception_in_the_callback_stops_the_run(self):
         def stop(progress):
             raise KeyboardInterrupt("stopped by the user")
