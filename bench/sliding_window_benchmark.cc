@@ -235,7 +235,7 @@ void BM_PlaneLookup(benchmark::State& bench) {
   int64_t found = 0;
   for (auto _ : bench) {
     found = 0;
-    lidar::Plane plane;
+    geometry::Plane plane;
     for (Eigen::Index i = 0; i < count; ++i) found += map.FindPlane(queries.col(i), &plane);
     benchmark::DoNotOptimize(found);
   }

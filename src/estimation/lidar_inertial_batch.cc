@@ -242,7 +242,7 @@ std::vector<std::vector<Association>> AssociatePoints(const BatchInputs& in,
       const Eigen::Vector3d p_W = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, m.p_L);
       const size_t first = point_counter++;
       int partner = -1;
-      lidar::Plane plane_W;
+      geometry::Plane plane_W;
       for (size_t attempt = 0; attempt < P && partner < 0; ++attempt) {
         const int j = k + partners[internal::PartnerPosition(first, attempt, P, P)];
         if (j < 0 || j >= in.num_sweeps() || j == k) continue;

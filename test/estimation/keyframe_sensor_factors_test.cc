@@ -585,7 +585,7 @@ TEST_F(KeyframeSensorFactorsTest, GnssLeverArmWithCauchyLoss) {
       static_cast<int>(TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS).size());
 
   int added = 0;
-  const Eigen::Vector3d error_m = LeverArmError({lidar::RobustLoss::kCauchy, 3.0}, &added);
+  const Eigen::Vector3d error_m = LeverArmError({factors::RobustLoss::kCauchy, 3.0}, &added);
   std::cout << added << " of " << num_keyframes << " keyframes with a fix (" << outage_s
             << " s of outages), " << outliers << " outlier fixes; lever-arm error "
             << error_m.transpose() << " m (norm " << error_m.norm() << ")\n";
@@ -598,8 +598,8 @@ TEST_F(KeyframeSensorFactorsTest, GnssLeverArmWithCauchyLoss) {
 // Without a robust loss the same outliers pull the lever arm far off.
 TEST_F(KeyframeSensorFactorsTest, GnssOutliersDamageTheLeverArmWithoutLoss) {
   int added = 0;
-  const Eigen::Vector3d robust_m = LeverArmError({lidar::RobustLoss::kCauchy, 3.0}, &added);
-  const Eigen::Vector3d plain_m = LeverArmError({lidar::RobustLoss::kNone, 1.0}, &added);
+  const Eigen::Vector3d robust_m = LeverArmError({factors::RobustLoss::kCauchy, 3.0}, &added);
+  const Eigen::Vector3d plain_m = LeverArmError({factors::RobustLoss::kNone, 1.0}, &added);
   std::cout << "lever-arm error without loss " << plain_m.transpose() << " m (norm "
             << plain_m.norm() << "), with Cauchy " << robust_m.norm() << " m\n";
   EXPECT_GT(plain_m.norm(), 0.1);  // measured 0.157 m, against 3.5 mm

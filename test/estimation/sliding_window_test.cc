@@ -578,7 +578,7 @@ TEST(SlidingWindowCompressedPointGroup, KeepsCostGradientAndGaussNewtonMatrix) {
   }
   // Huber: some points are beyond 1 sigma, so the loss rows matter as well.
   const factors::PointToSweepPlaneGroupFactor group(points, Eigen::Vector3d(0.0, 0.0, -kGravity),
-                                                    {lidar::RobustLoss::kHuber, 1.0});
+                                                    {factors::RobustLoss::kHuber, 1.0});
   const internal::CompressedPointGroup compressed(&group);
   ASSERT_EQ(compressed.parameter_block_sizes(), group.parameter_block_sizes());
 

@@ -61,7 +61,7 @@ TEST(PlaneFittingTest, HeightModelRecoversARoadWithinItsStatisticalError) {
         << "coefficient " << k << " error " << error(k) << " sigma " << std::sqrt(covariance(k, k));
   }
   // The normal form describes the same plane.
-  const Plane plane = fit.ToPlane();
+  const geometry::Plane plane = fit.ToPlane();
   EXPECT_NEAR(plane.SignedDistance(Eigen::Vector3d(10.0, 2.0, fit.Height(10.0, 2.0))), 0.0, 1e-12);
   EXPECT_GT(plane.normal.z(), 0.0);
   // Total least squares agrees on this well-posed case.

@@ -36,7 +36,7 @@ Eigen::Matrix3Xd Scene(double noise_m) {
 
 TEST(PlaneMap, FindsGroundAndWallPlanes) {
   const PlaneMap map(Scene(0.005));
-  Plane plane;
+  geometry::Plane plane;
   ASSERT_TRUE(map.FindPlane(Eigen::Vector3d(7.3, -1.2, 0.05), &plane));
   EXPECT_GT(std::abs(plane.normal.z()), 0.999);
   EXPECT_NEAR(plane.SignedDistance(Eigen::Vector3d(7.3, -1.2, 0.0)), 0.0, 0.01);
@@ -47,7 +47,7 @@ TEST(PlaneMap, FindsGroundAndWallPlanes) {
 
 TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
   const PlaneMap map(Scene(0.0));
-  Plane plane;
+  geometry::Plane plane;
   EXPECT_FALSE(map.FindPlane(Eigen::Vector3d(5.0, 3.0, 3.0), &plane)) << "pole";
   EXPECT_FALSE(map.FindPlane(Eigen::Vector3d(40.0, 0.0, 0.0), &plane)) << "far from the map";
   // At the foot of the wall the neighbours span both planes: too thick to be one plane.
@@ -62,7 +62,7 @@ TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
 // neighbourhoods and the iterative eigen-solver, its normal facing the origin: the reference
 // the stack-buffered FindPlane, which mostly takes the closed-form solution, must reproduce.
 bool ReferencePlane(const KdTree& tree, const PlaneMapOptions& o, const Eigen::Vector3d& q,
-                    Plane* plane) {
+                    geometry::Plane* plane) {
   const std::vector<Neighbor> nn = tree.Knn(q, o.num_neighbors);
   if (static_cast<int>(nn.size()) < o.num_neighbors) return false;
   if (nn.back().squared_distance_m2 > o.max_neighbor_distance_m * o.max_neighbor_distance_m) {
@@ -101,7 +101,7 @@ TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
     int found = 0;
     for (int trial = 0; trial < 2000; ++trial) {
       const Eigen::Vector3d q(x(rng), y(rng), z(rng));
-      Plane plane, reference;
+      geometry::Plane plane, reference;
       const bool ok = map.FindPlane(q, &plane);
       ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference))
           << "k " << k << " at " << q.transpose();
@@ -147,7 +147,7 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   for (int trial = 0; trial < 20000; ++trial) {
     const Eigen::Vector3d q =
         scene.col(pick(rng)) + Eigen::Vector3d(offset(rng), offset(rng), offset(rng));
-    Plane plane, reference;
+    geometry::Plane plane, reference;
     const bool ok = map.FindPlane(q, &plane);
     ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference)) << "at " << q.transpose();
     if (ok) {
