@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/lidar/plane_map.h"
@@ -159,8 +160,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       if (timing.extrinsic_settled) settled.Add(timing);
       update_cpu_ms.push_back(1e3 * (ThreadCpuSeconds() - cpu_start_s));
       const sensors::Calibration& c = estimator.calibration();
-      rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * 180.0 /
-                                  M_PI);
+      rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * kRadToDeg);
       translation_step_mm.push_back(1e3 * (c.p_I_L - previous.p_I_L).norm());
       offset_step_ms.push_back(
           1e3 * std::abs(c.time_offset_lidar_imu_s - previous.time_offset_lidar_imu_s));
@@ -173,7 +173,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
     }
     q_I_L_error_deg = geometry::AngularDistance(estimator.calibration().q_I_L,
                                                 log.simulator->true_calibration().q_I_L) *
-                      180.0 / M_PI;
+                      kRadToDeg;
   }
   bench.counters["updates"] = static_cast<double>(all.update_ms.size());
   all.Report("", &bench);

@@ -12,6 +12,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/point_to_plane_factor.h"
@@ -366,7 +367,7 @@ ceres::Solver::Summary SolveProblem(const LidarInertialBatchOptions& options,
 
 bool Converged(const LidarInertialBatchOptions& options, const sensors::Calibration& before,
                const sensors::Calibration& after) {
-  return geometry::AngularDistance(before.q_I_L, after.q_I_L) * 180.0 / M_PI <
+  return geometry::AngularDistance(before.q_I_L, after.q_I_L) * kRadToDeg <
              options.converged_rotation_deg &&
          (before.p_I_L - after.p_I_L).norm() < options.converged_translation_m &&
          std::abs(before.time_offset_lidar_imu_s - after.time_offset_lidar_imu_s) <

@@ -92,7 +92,7 @@ GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
         "ExtractGround: invalid setting (threshold > 0, iterations >= 1, 0 < confidence < 1)");
   }
   RequireFinite(points, "ExtractGround");
-  const double min_normal_z = std::cos(setting.max_tilt_deg * kPi / 180.0);
+  const double min_normal_z = std::cos(setting.max_tilt_deg * kDegToRad);
   std::mt19937_64 rng(setting.seed);
   std::uniform_int_distribution<int> pick(0, n - 1);
 

@@ -17,6 +17,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/factors/loss.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -31,7 +32,6 @@ namespace autocal {
 namespace estimation {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kGravity = 9.80665;
 constexpr int64_t kStart = 1'700'000'000'000'000'000;
 constexpr int64_t kImuStep = 5'000'000;  // 200 Hz
@@ -1213,9 +1213,9 @@ TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
       geometry::AngularDistance(capped.calibration.q_I_L, simulator_->true_calibration().q_I_L);
   const double every_q =
       geometry::AngularDistance(every.calibration.q_I_L, simulator_->true_calibration().q_I_L);
-  std::cout << "q_I_L error " << capped_q * 180.0 / M_PI << " against " << every_q * 180.0 / M_PI
+  std::cout << "q_I_L error " << capped_q * kRadToDeg << " against " << every_q * kRadToDeg
             << " deg\n";
-  EXPECT_LT(capped_q, every_q + 0.01 * M_PI / 180.0);
+  EXPECT_LT(capped_q, every_q + 0.01 * kDegToRad);
 }
 
 TEST(SlidingWindowSmoothing, NeedsTheOption) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/lidar/kd_tree.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/lidar/voxel_grid.h"
@@ -122,8 +123,8 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   std::normal_distribution<double> noise(0.0, 0.01);
   std::vector<Eigen::Vector3d> points;
   for (int beam = 0; beam < 30; ++beam) {
-    const double elevation = (-15.0 + 0.7 * beam) * M_PI / 180.0;
-    for (double azimuth = -M_PI; azimuth < M_PI; azimuth += 0.2 * M_PI / 180.0) {
+    const double elevation = (-15.0 + 0.7 * beam) * kDegToRad;
+    for (double azimuth = -M_PI; azimuth < M_PI; azimuth += 0.2 * kDegToRad) {
       const Eigen::Vector3d ray(std::cos(elevation) * std::cos(azimuth),
                                 std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
       // The ground 1.8 m below the sensor, a wall at x = 25 m, else nothing.
