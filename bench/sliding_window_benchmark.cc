@@ -128,7 +128,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
 
   std::vector<double> update_cpu_ms, marginalization_ms, points, iterations, passes,
       rotation_step_deg, translation_step_mm, offset_step_ms;
-  // Every update, and those whose extrinsic had settled (Eq. SW15: points try
+  // Every update, and those whose extrinsic had settled (the settled partner walk: points try
   // settled_partner_count partners).
   UpdateSplit all, settled;
   double q_I_L_error_deg = 0.0;
@@ -248,7 +248,7 @@ void BM_PlaneLookup(benchmark::State& bench) {
 }
 BENCHMARK(BM_PlaneLookup)->ArgName("offset")->Arg(-5)->Arg(5)->Unit(benchmark::kMicrosecond);
 
-// A compressed point group's J_T^T J_T and J_T^T r (Eq. SW5): 2000 points in the 22 tangent
+// A compressed point group's J_T^T J_T and J_T^T r (Eq. W3): 2000 points in the 22 tangent
 // columns, column-major, by the window's kernel (simd 1: AVX2 where the processor has it; 0:
 // the plain loops, the same bits) and by Eigen's blocked rank update, which it replaced.
 constexpr int kGramRows = 2000;
