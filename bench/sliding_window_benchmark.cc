@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/lidar/plane_map.h"
@@ -127,7 +128,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
 
   std::vector<double> update_cpu_ms, marginalization_ms, points, iterations, passes,
       rotation_step_deg, translation_step_mm, offset_step_ms;
-  // Every update, and those whose extrinsic had settled (Eq. SW15: points try
+  // Every update, and those whose extrinsic had settled (the settled partner walk: points try
   // settled_partner_count partners).
   UpdateSplit all, settled;
   double q_I_L_error_deg = 0.0;
@@ -159,8 +160,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
       if (timing.extrinsic_settled) settled.Add(timing);
       update_cpu_ms.push_back(1e3 * (ThreadCpuSeconds() - cpu_start_s));
       const sensors::Calibration& c = estimator.calibration();
-      rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * 180.0 /
-                                  M_PI);
+      rotation_step_deg.push_back(geometry::AngularDistance(c.q_I_L, previous.q_I_L) * kRadToDeg);
       translation_step_mm.push_back(1e3 * (c.p_I_L - previous.p_I_L).norm());
       offset_step_ms.push_back(
           1e3 * std::abs(c.time_offset_lidar_imu_s - previous.time_offset_lidar_imu_s));
@@ -173,7 +173,7 @@ void BM_SlidingWindowUrban(benchmark::State& bench) {
     }
     q_I_L_error_deg = geometry::AngularDistance(estimator.calibration().q_I_L,
                                                 log.simulator->true_calibration().q_I_L) *
-                      180.0 / M_PI;
+                      kRadToDeg;
   }
   bench.counters["updates"] = static_cast<double>(all.update_ms.size());
   all.Report("", &bench);
@@ -235,7 +235,7 @@ void BM_PlaneLookup(benchmark::State& bench) {
   int64_t found = 0;
   for (auto _ : bench) {
     found = 0;
-    lidar::Plane plane;
+    geometry::Plane plane;
     for (Eigen::Index i = 0; i < count; ++i) found += map.FindPlane(queries.col(i), &plane);
     benchmark::DoNotOptimize(found);
   }
@@ -248,7 +248,7 @@ void BM_PlaneLookup(benchmark::State& bench) {
 }
 BENCHMARK(BM_PlaneLookup)->ArgName("offset")->Arg(-5)->Arg(5)->Unit(benchmark::kMicrosecond);
 
-// A compressed point group's J_T^T J_T and J_T^T r (Eq. SW5): 2000 points in the 22 tangent
+// A compressed point group's J_T^T J_T and J_T^T r (Eq. W3): 2000 points in the 22 tangent
 // columns, column-major, by the window's kernel (simd 1: AVX2 where the processor has it; 0:
 // the plain loops, the same bits) and by Eigen's blocked rank update, which it replaced.
 constexpr int kGramRows = 2000;

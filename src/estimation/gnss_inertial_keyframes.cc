@@ -8,6 +8,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "estimation/keyframe_interpolation.h"
@@ -80,8 +81,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
     wheel_options.estimate_vehicle_rotation = true;
     problem.AddResidualBlock(
         new factors::QuaternionPriorFactor(
-            held.q_I_V, Eigen::Matrix3d::Identity() /
-                            (options.vehicle_rotation_prior_sigma_deg * M_PI / 180.0)),
+            held.q_I_V,
+            Eigen::Matrix3d::Identity() / (options.vehicle_rotation_prior_sigma_deg * kDegToRad)),
         nullptr, held.q_I_V.coeffs().data());
     wheel_options.estimate_vehicle_translation = false;
     wheel_options.estimate_radii = true;

@@ -70,7 +70,7 @@ void SetConstantUnless(bool estimate, double* block, ceres::Problem* problem) {
   if (!estimate) problem->SetParameterBlockConstant(block);
 }
 
-// Eq. K6 at the keyframes' mean spacing.
+// The correlated-error scaling (NonHolonomicSigmaScale) at the keyframes' mean spacing.
 double KeyframeNonHolonomicSigmaScale(const std::vector<Keyframe>& keyframes, double tau_s) {
   if (keyframes.size() < 2) return 1.0;
   return NonHolonomicSigmaScale(tau_s, NsToSeconds(keyframes.back().t_ns - keyframes.front().t_ns) /

@@ -46,22 +46,21 @@ struct WalkContext {
   PointGroupPool* pool = nullptr;
 
   // Whether a try still holds for a point at range_m: its pose change (|dp|, angle) moves the
-  // point by at most the tolerance (Eq. SW4).
+  // point by at most the tolerance (Eq. W1).
   bool TryHolds(const std::pair<double, double>& d, double range_m) const {
     const double tolerance_m = window.reassociation_tolerance_m;
     return tolerance_m > 0.0 && d.first + d.second * range_m <= tolerance_m;
   }
 };
 
-// One keyframe's pairing at one update (docs/sliding_window.md, "Association" and "Reuse
-// between updates"): residual point r tries the partner positions in the order of
-// PartnerPosition and is paired with the first sweep k + o in the window that holds a plane
-// within the gate of T_Lj_W p_W, p_W the point in W at the current estimate. The plane is kept
-// in L_j (Eq. SW3), so in the solve it moves with keyframe j and the extrinsic. What a try
-// found (a plane, or none) is kept with the relative pose T_Lj_Lk it was made at and holds
-// while that pose moved by at most reassociation_tolerance_m at the point's range (Eq. SW4);
-// only tries that are missing or stale are made again, and only the groups that changed are
-// rebuilt.
+// One keyframe's pairing at one update (docs/sliding_window.md, "Partner walk" and "Reuse between
+// updates"): residual point r tries the partner positions in the order of PartnerPosition and is
+// paired with the first sweep k + o in the window that holds a plane within the gate of T_Lj_W p_W,
+// p_W the point in W at the current estimate. The plane is kept in L_j ("The point group factor"),
+// so in the solve it moves with keyframe j and the extrinsic. What a try found (a plane, or none)
+// is kept with the relative pose T_Lj_Lk it was made at and holds while that pose moved by at most
+// reassociation_tolerance_m at the point's range (Eq. W1); only tries that are missing or stale are
+// made again, and only the groups that changed are rebuilt.
 class KeyframeWalk {
  public:
   KeyframeWalk(const WalkContext& ctx, int k, PointGroupPool::Storage* fresh_terms)
@@ -115,7 +114,7 @@ class KeyframeWalk {
   size_t walk_ = 0;
   int lookups_ = 0;
   // Per partner position q: its window position (-1: not in the window), the relative pose
-  // now, and per earlier try the change to now, (|dp|, angle) of Eq. SW4 (infinite when either
+  // now, and per earlier try the change to now, (|dp|, angle) of Eq. W1 (infinite when either
   // sweep's map was rebuilt since: the deskew moved).
   std::vector<int> partner_of_;
   std::vector<geometry::Pose3d> T_Lj_Lk_;

@@ -12,6 +12,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/point_to_plane_factor.h"
@@ -242,7 +243,7 @@ std::vector<std::vector<Association>> AssociatePoints(const BatchInputs& in,
       const Eigen::Vector3d p_W = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, m.p_L);
       const size_t first = point_counter++;
       int partner = -1;
-      lidar::Plane plane_W;
+      geometry::Plane plane_W;
       for (size_t attempt = 0; attempt < P && partner < 0; ++attempt) {
         const int j = k + partners[internal::PartnerPosition(first, attempt, P, P)];
         if (j < 0 || j >= in.num_sweeps() || j == k) continue;
@@ -366,7 +367,7 @@ ceres::Solver::Summary SolveProblem(const LidarInertialBatchOptions& options,
 
 bool Converged(const LidarInertialBatchOptions& options, const sensors::Calibration& before,
                const sensors::Calibration& after) {
-  return geometry::AngularDistance(before.q_I_L, after.q_I_L) * 180.0 / M_PI <
+  return geometry::AngularDistance(before.q_I_L, after.q_I_L) * kRadToDeg <
              options.converged_rotation_deg &&
          (before.p_I_L - after.p_I_L).norm() < options.converged_translation_m &&
          std::abs(before.time_offset_lidar_imu_s - after.time_offset_lidar_imu_s) <

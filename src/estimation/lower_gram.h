@@ -1,7 +1,7 @@
 #pragma once
 
 // J^T J and J^T r of a tall column-major J (n x c, c <= kMaxLowerGramColumns), the inner step
-// of a compressed point group's linearization (docs/sliding_window.md, Eq. SW5): about 250
+// of a compressed point group's linearization (docs/sliding_window.md, Eq. W3): about 250
 // products per point for c = 22, the largest part of the build after the points' own rows.
 //
 // Every sum runs in one fixed order: row i goes to lane i mod 4, the lanes are summed in rows'

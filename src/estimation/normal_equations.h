@@ -1,7 +1,7 @@
 #pragma once
 
 // The Gauss-Newton normal equations of a set of Ceres residual blocks in tangent coordinates,
-// shared by marginalization (Eq. M1) and the window's solver (docs/sliding_window.md, Eq. SW11).
+// shared by marginalization (Eq. M1) and the window's solver (docs/sliding_window.md, Eq. W5).
 
 #include <ceres/ceres.h>
 

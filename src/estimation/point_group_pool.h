@@ -31,12 +31,12 @@ struct SweepPointGroup {
   std::unique_ptr<factors::PointToSweepPlaneGroupFactor> factor;
   // The residual point (index in its keyframe's residual points) of each of factor's points.
   std::vector<int> point_index;
-  // The block the solver sees: `factor` compressed (Eq. SW5) when it has more rows than that.
+  // The block the solver sees: `factor` compressed (Eq. W3) when it has more rows than that.
   std::unique_ptr<CompressedPointGroup> compressed;
   std::vector<double*> parameters;
-  // Its linearization (Eq. SW7), made at an update's first pass and kept by later ones while
-  // its points moved by at most relinearization_tolerance_m since (Eq. SW12), with what that
-  // bound compares: both sweeps' LiDAR poses and velocities and the time offset then. A
+  // Its linearization ("Linearized once per pass"), made at an update's first pass and kept by
+  // later ones while its points moved by at most relinearization_tolerance_m since (Eq. W6), with
+  // what that bound compares: both sweeps' LiDAR poses and velocities and the time offset then. A
   // problem that holds `cost` must be dropped before the next BuildProblem replaces it.
   struct Linearization {
     std::unique_ptr<ceres::CostFunction> cost;

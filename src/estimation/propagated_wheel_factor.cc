@@ -68,7 +68,7 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
                                                   parameters[7],      parameters[8]};
   const int rows = num_residuals();
 
-  // Eq. SW1-SW2: rows 0 and 1 scaled at the current radii and track width.
+  // Rows 0 and 1 whitened at the current radii and track width ("Wheel rows").
   const double s_w = encoder_sigma_rad_s_, s_g = gyro_sigma_rad_s_;
   const double radius_sq = r_l * r_l + r_r * r_r;
   const double speed_scale = 2.0 * speed_sigma_m_s_ / (s_w * std::sqrt(radius_sq));

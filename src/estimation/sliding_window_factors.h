@@ -3,7 +3,7 @@
 // Private building blocks of the sliding window (docs/sliding_window.md, "Factors"): wheel and
 // GNSS residuals at an instant between keyframes, attached to the earlier keyframe through
 // IMU propagation (sensors::ImuPreintegration::Predict, Eq. F8), and the compressed form of a
-// point group the solver sees (Eq. SW5).
+// point group the solver sees (Eq. W3).
 
 #include <ceres/ceres.h>
 
@@ -36,9 +36,9 @@ struct AttachedFactor {
   std::unique_ptr<ceres::CostFunction> cost;
   ceres::LossFunction* loss = nullptr;
   std::vector<double*> blocks;
-  // Given to the solver linearized at the start of each pass (LinearizedCost, Eq. SW7), with
-  // its loss's weight held for the pass (Eq. SW13), when the points are; what it names on an
-  // evaluation failure.
+  // Given to the solver linearized at the start of each pass (LinearizedCost, "Linearized once per
+  // pass"), with its loss's weight held for the pass (Eq. W4), when the points are; what it names
+  // on an evaluation failure.
   const char* linearized_per_pass = nullptr;
 };
 
@@ -75,16 +75,16 @@ void PropagatedBodyInputs(const sensors::ImuPreintegration& pim, const T* q, con
   *v_in_k = q_k.conjugate() * Vec3(Eigen::Map<const Vec3>(v) + g_dt) + dv;
 }
 
-// Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened
-// at the current radii and track width (docs/sliding_window.md, "Wheel rows", Eq. SW1-SW2).
-// The encoder noise s_w enters the wheel speed as w r and the wheel yaw rate as w r / b, and
-// the gyro's sample noise s_g enters the predicted yaw rate; with the sigmas fixed at nominal
-// values the estimate of r and b drifts wherever the wheels barely turn (errors in variables).
-// Row 0 is whitened by s_v = s_w sqrt(r_l^2 + r_r^2) / 2; row 1 is taken in wheel-speed units,
-// (w_z b - (w_r r_r - w_l r_l)), and whitened by sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2), the
-// Deming-regression weighting that stays unbiased with noise on both sides.
-// Parameter blocks: q_W_I, v_W_I, b_g, b_a of the keyframe (its position does not enter the
-// wheel rows), then q_I_V, p_I_V, r_l, r_r, track width.
+// Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened at
+// the current radii and track width (docs/sliding_window.md, "Wheel rows": whitening at the current
+// radii and track width). The encoder noise s_w enters the wheel speed as w r and the wheel yaw
+// rate as w r / b, and the gyro's sample noise s_g enters the predicted yaw rate; with the sigmas
+// fixed at nominal values the estimate of r and b drifts wherever the wheels barely turn (errors in
+// variables). Row 0 is whitened by s_v = s_w sqrt(r_l^2 + r_r^2) / 2; row 1 is taken in wheel-speed
+// units, (w_z b - (w_r r_r - w_l r_l)), and whitened by sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2),
+// the Deming-regression weighting that stays unbiased with noise on both sides. Parameter blocks:
+// q_W_I, v_W_I, b_g, b_a of the keyframe (its position does not enter the wheel rows), then q_I_V,
+// p_I_V, r_l, r_r, track width.
 class PropagatedWheelResidual {
  public:
   PropagatedWheelResidual(sensors::ImuPreintegration pim,
@@ -125,9 +125,9 @@ class PropagatedWheelResidual {
     using std::sqrt;
     const T radius_sq = r_l[0] * r_l[0] + r_r[0] * r_r[0];
     const T s_w(encoder_sigma_rad_s_), s_g(gyro_sigma_rad_s_);
-    // Eq. SW1: back to metres per second, over s_v at the current radii.
+    // Speed row: back to metres per second, over s_v at the current radii.
     residual[0] *= T(2.0 * speed_sigma_m_s_) / (s_w * sqrt(radius_sq));
-    // Eq. SW2: (w_z - y / b) / s_yaw0 times s_yaw0 b is w_z b - y.
+    // Yaw-rate row: (w_z - y / b) / s_yaw0 times s_yaw0 b is w_z b - y.
     const T b = track_width[0];
     residual[1] *= T(yaw_rate_sigma_rad_s_) * b / sqrt(s_w * s_w * radius_sq + b * b * s_g * s_g);
     return true;
@@ -148,9 +148,9 @@ class PropagatedWheelResidual {
 // (ImuPreintegration::CorrectedDeltas), its rows chained to the keyframe's blocks:
 //   d/d(theta_k) = J_u Hat(R_k^T (v_k + g dt)),   d/dv_k = J_u R_k^T,
 //   d/db_g = J_bg + J_dR Jr(A (b_g - b_g0)) A + J_u B_g,   d/db_a = J_u B_a,
-// then whitened as Eq. SW1-SW2 (the scales' own derivatives in r_l, r_r and b added). The
-// same blocks as PropagatedWheelResidual. Linearizing a window's wheel rows through Jets of 23
-// took about a tenth of its update.
+// then whitened at the current radii and track width as PropagatedWheelResidual (the scales' own
+// derivatives in r_l, r_r and b added). The same blocks as PropagatedWheelResidual. Linearizing a
+// window's wheel rows through Jets of 23 took about a tenth of its update.
 class PropagatedWheelFactor final : public ceres::CostFunction {
  public:
   PropagatedWheelFactor(sensors::ImuPreintegration pim,
@@ -171,12 +171,13 @@ class PropagatedWheelFactor final : public ceres::CostFunction {
 };
 
 // Wheels reported as the rear pair's linear speeds (factors::WheelSpeedResidual, Eq. F25) at
-// the propagated state, whitened as Eq. SW1-SW2 with the per-wheel speed noise s and the
-// gyro's: the speed row by s sqrt(s_l^2 + s_r^2) / 2 at the current scales, the yaw-rate row
-// taken in speed units, w_z b - (s_r v_r - s_l v_l), over sqrt(s^2 (s_l^2 + s_r^2) + b^2 s_g^2)
-// (Deming: with the yaw row's sigma fixed, the wheels' own noise attenuated 1 / b and the track
-// ended 1.9 % long on the simulated urban drive). Parameter blocks: q_W_I, v_W_I, b_g, b_a of
-// the keyframe, then q_I_V, p_I_V, s_l, s_r, b.
+// the propagated state, whitened at the current scales as the wheel rows are ("Wheel rows")
+// with the per-wheel speed noise s and the gyro's: the speed row by s sqrt(s_l^2 + s_r^2) / 2
+// at the current scales, the yaw-rate row taken in speed units, w_z b - (s_r v_r - s_l v_l),
+// over sqrt(s^2 (s_l^2 + s_r^2) + b^2 s_g^2) (Deming: with the yaw row's sigma fixed, the
+// wheels' own noise attenuated 1 / b and the track ended 1.9 % long on the simulated urban
+// drive). Parameter blocks: q_W_I, v_W_I, b_g, b_a of the keyframe, then q_I_V, p_I_V, s_l,
+// s_r, b.
 class PropagatedWheelSpeedResidual {
  public:
   PropagatedWheelSpeedResidual(sensors::ImuPreintegration pim,
@@ -304,7 +305,7 @@ class PropagatedGnssResidual {
 };
 
 // A point group (factors::PointToSweepPlaneGroupFactor, n rows) compressed to kRows rows with
-// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. SW5). The
+// the same cost, gradient and Gauss-Newton matrix (docs/sliding_window.md, Eq. W3). The
 // group's Jacobian has 22 independent columns, T: the tangents of its three quaternions, p_k,
 // v_k, v_j, p_I_L and the offset (its p_j columns are minus its p_k columns). With its residual
 // r and Jacobian J_T (n x 22) in those columns and the pivoted factorization
@@ -405,12 +406,12 @@ class CompressedPointGroup final : public ceres::CostFunction {
   const factors::PointToSweepPlaneGroupFactor* group_;
 };
 
-// A cost function linearized once per solve pass (docs/sliding_window.md, Eq. SW7): its rows
-// r and Jacobian J (ambient coordinates of its blocks) are evaluated at the parameters x0 it is
-// built at, and the solver sees the first-order model
+// A cost function linearized once per solve pass (docs/sliding_window.md, "Linearized once per
+// pass"): its rows r and Jacobian J (ambient coordinates of its blocks) are evaluated at the
+// parameters x0 it is built at, and the solver sees the first-order model
 //   r(x) = r(x0) + J (x - x0),
 // so that a Levenberg-Marquardt iteration costs one product instead of an evaluation of the
-// cost function. Given a robust loss rho, the rows are weighted as at x0 (Eq. SW13):
+// cost function. Given a robust loss rho, the rows are weighted as at x0 (Eq. W4):
 //   r(x) = sqrt(rho'(|r0|^2)) (r0 + J (x - x0)),
 // the loss's weight held for the pass as the point groups' is (Ceres' correction of a row
 // block for a loss with rho'' <= 0, as Huber and Cauchy, is this weight). The parameters must
@@ -482,7 +483,7 @@ class LinearizedCost final : public ceres::CostFunction {
   Eigen::Matrix<double, kAmbient, 1> x0_;
 };
 
-// A point group linearized per pass: its compressed rows (Eq. SW5, a 29 x 28 product per group
+// A point group linearized per pass: its compressed rows (Eq. W3, a 29 x 28 product per group
 // instead of the group's n point Jacobians and their compression at every iteration; row 28
 // stays constant).
 using LinearizedPointGroup =

@@ -34,7 +34,7 @@ using internal::StateBlocks;
 namespace {
 
 // A keyframe's LiDAR pose T_W_I T_I_L, its IMU pose moved by dt_s at its velocity and at the
-// angular rate w_I (Eq. SW12).
+// angular rate w_I (Eq. W6).
 geometry::Pose3d LidarPose(const SlidingWindowState& x, const sensors::Calibration& c,
                            const Eigen::Vector3d& w_I, double dt_s) {
   const Eigen::Quaterniond q_W_I = x.q_W_I * geometry::Exp(Eigen::Vector3d(w_I * dt_s));
@@ -95,7 +95,7 @@ SlidingWindowEstimator::Impl::BuildProblem(const std::vector<double>* group_moti
   };
   const auto add = [&problem, &build, linearize, &relinearized](const AttachedFactor& f) {
     if (linearize && f.linearized_per_pass != nullptr) {
-      // Its loss's weight is held for the pass (Eq. SW13).
+      // Its loss's weight is held for the pass (Eq. W4).
       build->owned.push_back(std::make_unique<internal::LinearizedCost<>>(
           *f.cost, f.blocks, f.linearized_per_pass, f.loss));
       relinearized(problem.AddResidualBlock(build->owned.back().get(), nullptr, f.blocks), false);
@@ -123,7 +123,7 @@ SlidingWindowEstimator::Impl::BuildProblem(const std::vector<double>* group_moti
 }
 
 // The point groups carry the LiDAR loss themselves (Eq. P9); in a later pass each keeps its
-// linearization while its sweeps stay within relinearization_tolerance_m of it (Eq. SW12).
+// linearization while its sweeps stay within relinearization_tolerance_m of it (Eq. W6).
 void SlidingWindowEstimator::Impl::AddPointGroups(ProblemBuild* build,
                                                   const std::vector<double>* group_motions) {
   ceres::Problem& problem = *build->problem;
@@ -180,8 +180,8 @@ double SlidingWindowEstimator::Impl::last_point_rms_m() const {
   return *last_point_rms_m_;
 }
 
-// Eq. SW12: how far each point group's points moved since the group was linearized: its two
-// sweeps' relative motion, bounded as in Eq. SW4 at the range of the keyframe's farthest
+// Eq. W6: how far each point group's points moved since the group was linearized: its two
+// sweeps' relative motion, bounded as in Eq. W1 at the range of the keyframe's farthest
 // residual point, plus the change of each sweep's deskew (its velocity's change times its
 // duration). A sweep's LiDAR pose is T_W_I T_I_L at its keyframe, moved by the change of the
 // time offset since at the keyframe's velocity and at its mean angular rate over the interval
@@ -225,12 +225,12 @@ std::vector<double> SlidingWindowEstimator::Impl::PointGroupMotions() const {
   return motions;
 }
 
-// With the points linearized per pass (Eq. SW7) the solve runs up to
-// point_linearizations_per_update passes, each on the point groups relinearized where the
-// previous pass ended, and stops early once no group's sweeps moved by more than
-// relinearization_tolerance_m since its linearization (Eq. SW12).
+// With the points linearized per pass ("Linearized once per pass") the solve runs up to
+// point_linearizations_per_update passes, each on the point groups relinearized where the previous
+// pass ended, and stops early once no group's sweeps moved by more than relinearization_tolerance_m
+// since its linearization (Eq. W6).
 void SlidingWindowEstimator::Impl::Solve(std::unique_ptr<ProblemBuild>* build) {
-  // The window's own Levenberg-Marquardt (Eq. SW11): the rows fixed for the pass enter by
+  // The window's own Levenberg-Marquardt (Eq. W5): the rows fixed for the pass enter by
   // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
   // with a loss and factors the dense system. It runs on one thread (docs/sliding_window.md,
   // "Solver: threads").

@@ -67,7 +67,7 @@ double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& af
 namespace {
 
 // Propagates the sweep with the current estimate and rebuilds its plane map when the deskew
-// moved a map point by more than `rebuild_tolerance_m` (Eq. SW4). The map holds the map
+// moved a map point by more than `rebuild_tolerance_m` (Eq. W1). The map holds the map
 // points deskewed into L_j at the reference instant.
 void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingSetting& setting,
                 double rebuild_tolerance_m) {

@@ -55,7 +55,7 @@ Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const Keyframe&
                                     const lidar::LidarSweep& sweep, const std::vector<int>& indices,
                                     const Eigen::Vector3d& g_W, const sensors::Calibration& c);
 
-// Eq. SW4: the largest displacement of a point within `range_m` of the origin between the
+// Eq. W1: the largest displacement of a point within `range_m` of the origin between the
 // poses `before` and `after` of its frame, |dp| + angle(dq) range_m with (dq, dp) = before^-1
 // after.
 double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& after,
@@ -83,7 +83,7 @@ struct ResidualPoints {
 
 // A sweep's plane map in its LiDAR frame at the reference instant (point time 0), and the
 // sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
-// (Eq. SW4).
+// (Eq. W1).
 struct SweepMap {
   std::unique_ptr<lidar::PlaneMap> planes;
   geometry::Pose3d deskew_end;

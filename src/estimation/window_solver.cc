@@ -79,7 +79,7 @@ PassVariables CollectVariables(ceres::Problem* problem,
   return vars;
 }
 
-// The first-order model of the rows fixed for the pass (Eq. SW11):
+// The first-order model of the rows fixed for the pass (Eq. W5):
 // cost(delta) = c0 + b0^T delta + 1/2 delta^T H0 delta. Only the lower triangles of the
 // normal equations are formed and read (Cholesky and the symmetric products need no more).
 // Returns c0.

@@ -1,10 +1,10 @@
 #pragma once
 
-// The window's Levenberg-Marquardt solve of one pass (docs/sliding_window.md, "Solver: the
-// window's own", Eq. SW11). Within a pass most rows are first-order models fixed at the pass's
-// start (Eq. SW7): their normal equations are formed once per pass, and an iteration only
-// evaluates the rows that are relinearized (the IMU factors, rows with a robust loss) and
-// solves the dense system.
+// The window's Levenberg-Marquardt solve of one pass (docs/sliding_window.md, "The window's
+// Levenberg-Marquardt", Eq. W5). Within a pass most rows are first-order models fixed at the pass's
+// start ("Linearized once per pass"): their normal equations are formed once per pass, and an
+// iteration only evaluates the rows that are relinearized (the IMU factors, rows with a robust
+// loss) and solves the dense system.
 
 #include <ceres/ceres.h>
 

@@ -38,7 +38,7 @@ LossOptions ParseLossOptions(const std::string& text) {
   const std::string trimmed = Trim(text);
   const size_t split = trimmed.find_first_of(": \t");
   LossOptions options;
-  options.type = lidar::ParseRobustLoss(trimmed.substr(0, split));
+  options.type = ParseRobustLoss(trimmed.substr(0, split));
   if (split == std::string::npos) return options;
   const std::string scale_text = Trim(trimmed.substr(split + 1));
   char* end = nullptr;
@@ -53,13 +53,13 @@ LossOptions ParseLossOptions(const std::string& text) {
 }
 
 ceres::LossFunction* MakeLossFunction(const LossOptions& options) {
-  CheckScale(options.scale, lidar::RobustLossName(options.type));
+  CheckScale(options.scale, RobustLossName(options.type));
   switch (options.type) {
-    case lidar::RobustLoss::kNone:
+    case RobustLoss::kNone:
       return nullptr;
-    case lidar::RobustLoss::kHuber:
+    case RobustLoss::kHuber:
       return new ceres::HuberLoss(options.scale);
-    case lidar::RobustLoss::kCauchy:
+    case RobustLoss::kCauchy:
       return new ceres::CauchyLoss(options.scale);
   }
   return nullptr;

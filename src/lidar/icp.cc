@@ -423,7 +423,7 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   if (!(setting.max_correspondence_m > 0.0) || setting.convergence.max_iterations < 1) {
     throw Error("ICP setting: max_correspondence_m must be > 0 and max_iterations >= 1");
   }
-  if (setting.robust.loss != RobustLoss::kNone && !(setting.robust.scale_m > 0.0)) {
+  if (setting.robust.loss != factors::RobustLoss::kNone && !(setting.robust.scale_m > 0.0)) {
     throw Error("ICP setting: the robust loss scale must be > 0");
   }
   const bool point_to_plane = setting.method == IcpMethod::kPointToPlane;

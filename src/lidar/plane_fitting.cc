@@ -21,11 +21,11 @@ void RequireFinite(const Eigen::Matrix3Xd& points, const char* what) {
 
 }  // namespace
 
-Plane HeightPlane::ToPlane() const {
+geometry::Plane HeightPlane::ToPlane() const {
   // z = a + b x + c y  <=>  (-b, -c, 1) . p - a = 0.
   const Eigen::Vector3d n(-b, -c, 1.0);
   const double norm = n.norm();
-  return Plane{n / norm, -a / norm};
+  return geometry::Plane{n / norm, -a / norm};
 }
 
 HeightPlane FitHeightPlane(const Eigen::Matrix3Xd& points) {
@@ -92,11 +92,11 @@ GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
         "ExtractGround: invalid setting (threshold > 0, iterations >= 1, 0 < confidence < 1)");
   }
   RequireFinite(points, "ExtractGround");
-  const double min_normal_z = std::cos(setting.max_tilt_deg * kPi / 180.0);
+  const double min_normal_z = std::cos(setting.max_tilt_deg * kDegToRad);
   std::mt19937_64 rng(setting.seed);
   std::uniform_int_distribution<int> pick(0, n - 1);
 
-  auto count_inliers = [&](const Plane& plane) {
+  auto count_inliers = [&](const geometry::Plane& plane) {
     int count = 0;
     for (int i = 0; i < n; ++i) {
       count += std::abs(plane.SignedDistance(points.col(i))) <= setting.distance_threshold_m;
@@ -104,7 +104,7 @@ GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
     return count;
   };
 
-  Plane best;
+  geometry::Plane best;
   int best_count = 0;
   int iterations = 0;
   double needed_iterations = setting.max_iterations;
@@ -119,7 +119,7 @@ GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
     normal /= norm;
     if (normal.z() < 0.0) normal = -normal;
     if (normal.z() < min_normal_z) continue;
-    const Plane hypothesis{normal, -normal.dot(a)};
+    const geometry::Plane hypothesis{normal, -normal.dot(a)};
     const int count = count_inliers(hypothesis);
     if (count > best_count) {
       best_count = count;
@@ -139,7 +139,7 @@ GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
                 " deg of horizontal has 3 or more inliers");
   }
 
-  auto collect = [&](const Plane& plane) {
+  auto collect = [&](const geometry::Plane& plane) {
     std::vector<int> inliers;
     inliers.reserve(static_cast<size_t>(best_count));
     for (int i = 0; i < n; ++i) {

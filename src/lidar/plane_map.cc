@@ -39,7 +39,7 @@ PlaneMap::PlaneMap(const Eigen::Matrix3Xd& points_W, const PlaneMapOptions& opti
     : options_(Checked(options)),
       grid_(Downsample(points_W, options.voxel_m), options.max_neighbor_distance_m) {}
 
-bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, Plane* plane) const {
+bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, geometry::Plane* plane) const {
   const int k = options_.num_neighbors;
   // Buffers sized for the usual neighbour counts when they suffice: constructing the
   // kMaxNeighbors entries of the larger one took a fifth of a lookup's own time.
@@ -56,7 +56,7 @@ bool PlaneMap::FindPlane(const Eigen::Vector3d& p_W, Plane* plane) const {
   return fit(neighbors.data());
 }
 
-bool PlaneMap::FitLocalPlane(const Neighborhood& local, Plane* plane) const {
+bool PlaneMap::FitLocalPlane(const Neighborhood& local, geometry::Plane* plane) const {
   const Eigen::Vector3d centroid = local.rowwise().mean();
   const Neighborhood centered = local.colwise() - centroid;
   // The scatter's six distinct entries summed point by point (Eigen's product of a dynamic

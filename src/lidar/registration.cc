@@ -38,7 +38,7 @@ RegistrationSetting MakeRegistrationSetting(const std::string& method, const std
                                             double max_correspondence_m) {
   RegistrationSetting setting;
   setting.icp.method = ParseIcpMethod(method);
-  setting.icp.robust.loss = ParseRobustLoss(loss);
+  setting.icp.robust.loss = factors::ParseRobustLoss(loss);
   if (!(loss_scale_m > 0.0) || !std::isfinite(loss_scale_m)) {
     throw Error("loss_scale_m must be a positive number of metres, got " +
                 std::to_string(loss_scale_m));
@@ -158,8 +158,8 @@ std::string FormatRegistrationReport(const RegistrationResult& result,
   out << std::setprecision(9);
   const Eigen::IOFormat matrix_format(Eigen::FullPrecision, 0, " ", "\n", "  ", "");
   out << "method: " << IcpMethodName(setting.icp.method)
-      << "  loss: " << RobustLossName(setting.icp.robust.loss);
-  if (setting.icp.robust.loss != RobustLoss::kNone)
+      << "  loss: " << factors::RobustLossName(setting.icp.robust.loss);
+  if (setting.icp.robust.loss != factors::RobustLoss::kNone)
     out << " (scale " << setting.icp.robust.scale_m << " m)";
   out << "  voxel: " << setting.voxel_m
       << " m  max correspondence: " << setting.icp.max_correspondence_m << " m\n";
@@ -186,7 +186,7 @@ std::string FormatRegistrationYaml(const RegistrationResult& result,
   std::ostringstream out;
   out << std::setprecision(12);
   out << "method: " << IcpMethodName(setting.icp.method) << "\n";
-  out << "loss: " << RobustLossName(setting.icp.robust.loss) << "\n";
+  out << "loss: " << factors::RobustLossName(setting.icp.robust.loss) << "\n";
   out << "loss_scale_m: " << setting.icp.robust.scale_m << "\n";
   out << "voxel_m: " << setting.voxel_m << "\n";
   out << "max_correspondence_m: " << setting.icp.max_correspondence_m << "\n";

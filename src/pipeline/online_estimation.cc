@@ -39,14 +39,14 @@ io::TrajectorySample TrajectorySampleOf(const estimation::SlidingWindowState& x)
   return s;
 }
 
-// With GNSS, the start the window is given (docs/sliding_window.md, "Streaming a dataset",
-// Eq. SW8). The initializer's IMU orientations are its LiDAR odometry's turned by its q_I_L,
-// whose rotation about the vertical planar driving hardly determines (1.0 deg off on the
-// 60 s urban log): every aligned keyframe's yaw was off by 1.4 deg, and the window's first
-// keyframes kept that. The GNSS-inertial solve over the same keyframes (IMU, fixes, wheels)
-// gives each IMU orientation from gravity and the track's accelerations instead (0.17 deg at
-// the start of that log, 0.05 deg later). Returns that solve's first keyframe and, in *q_I_L,
-// the extrinsic turned about the IMU's vertical by the median of
+// With GNSS, the start the window is given (docs/sliding_window.md, "Streaming a dataset": GNSS yaw
+// of the extrinsic). The initializer's IMU orientations are its LiDAR odometry's turned by its
+// q_I_L, whose rotation about the vertical planar driving hardly determines (1.0 deg off on the 60
+// s urban log): every aligned keyframe's yaw was off by 1.4 deg, and the window's first keyframes
+// kept that. The GNSS-inertial solve over the same keyframes (IMU, fixes, wheels) gives each IMU
+// orientation from gravity and the track's accelerations instead (0.17 deg at the start of that
+// log, 0.05 deg later). Returns that solve's first keyframe and, in *q_I_L, the extrinsic turned
+// about the IMU's vertical by the median of
 //   phi_k = u_k . Log(R_W_I,gnss_k^T R_W_I,aligned_k),  u_k = R_W_I,gnss_k^T z_W,
 // so that the LiDAR keeps the orientation its odometry gave it: R_W_L = R_W_I R_I_L with
 // R_I_L <- Exp(phi u) R_I_L, where the aligned keyframes' R_W_I = R_W_L R_I_L^T.

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "autocal/common/units.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
@@ -22,8 +23,8 @@ SimulationOptions SkidSteerRobotOptions() {
   o.duration_s = 300.0;
   // A stiff body on small wheels; V's origin is the centre between the four wheels (the
   // pivot centre), 0.17 m above the ground.
-  o.dynamics.roll_per_lateral_accel = 0.1 * M_PI / 180.0;
-  o.dynamics.pitch_per_longitudinal_accel = 0.1 * M_PI / 180.0;
+  o.dynamics.roll_per_lateral_accel = 0.1 * kDegToRad;
+  o.dynamics.pitch_per_longitudinal_accel = 0.1 * kDegToRad;
   o.dynamics.rear_axle_height_m = 0.17;
   o.imu.noise.update_rate_hz = 30.0;
   o.imu.stamp_jitter_s = 0.002;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
 #include "autocal/pipeline/offline_calibration.h"
@@ -30,7 +31,6 @@
 namespace autocal {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr int kSeeds = 20;
 
 // Normalized squared errors per component name, one entry per drive that observed it.

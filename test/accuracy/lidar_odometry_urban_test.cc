@@ -6,14 +6,13 @@
 #include <iostream>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/lidar_odometry.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 TEST(LidarOdometryUrban, TracksTheTrueTrajectory) {
   sim::SimulationOptions options;

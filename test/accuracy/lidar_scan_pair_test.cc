@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 
+#include "autocal/common/units.h"
 #include "autocal/io/point_cloud_file.h"
 #include "autocal/lidar/registration.h"
 #include "lidar/synthetic_scene.h"
@@ -94,11 +95,11 @@ TEST_F(ScanPairAccuracyTest, PointToPlaneFromPerturbedStarts) {
                        10.0 * unit(rng), 10.0 * unit(rng));
     const Pose3d start = perturbation * references_[0];
     const RegistrationResult result = RegisterPointClouds(source_, target_, start, setting);
-    ExpectNearBothReferences(
-        result.icp.T_target_source,
-        "perturbed start " + std::to_string(trial) + " (offset " +
-            std::to_string(perturbation.p.norm()) + " m, " +
-            std::to_string(geometry::AngleOf(perturbation.q) / test::kDegToRad) + " deg)");
+    ExpectNearBothReferences(result.icp.T_target_source,
+                             "perturbed start " + std::to_string(trial) + " (offset " +
+                                 std::to_string(perturbation.p.norm()) + " m, " +
+                                 std::to_string(geometry::AngleOf(perturbation.q) * kRadToDeg) +
+                                 " deg)");
   }
 }
 

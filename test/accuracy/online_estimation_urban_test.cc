@@ -82,7 +82,8 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
   EXPECT_LT(std::abs(c.wheel_radius_right_percent), 0.1);
   EXPECT_LT(c.p_I_A_mm.norm(), 20.0);
   EXPECT_LT(c.T_I_V.RotationAngleDeg(), 1.0);
-  // One gyro sample per wheel row put the rear axle 40 cm too high (Eq. SW10).
+  // One gyro sample per wheel row put the rear axle 40 cm too high (docs/sliding_window.md, "Wheel
+  // rows": gyro mean).
   EXPECT_LT(c.T_I_V.translation_mm.norm(), 100.0);
   EXPECT_EQ(t.unmatched_poses, 0);
   // The trajectory goals hold for the smoothed trajectory (docs/sliding_window.md,

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
@@ -35,7 +36,6 @@
 namespace autocal {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr int kSeeds = 20;
 
 // How a drive reported a direction: observable (posterior sigma within its limit), kept (its

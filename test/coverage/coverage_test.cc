@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/io/coverage_yaml.h"
 
 namespace autocal {
@@ -16,8 +17,6 @@ namespace coverage {
 namespace {
 
 using ::testing::HasSubstr;
-
-constexpr double kDeg = M_PI / 180.0;
 
 std::string Shipped(const std::string& file) {
   return (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "coverage" / file).string();
@@ -63,25 +62,25 @@ TEST(CoverageRequirements, PlaceEachManeuversRegions) {
 TEST(CoverageSees, RangeFieldsOfViewAndTheBody) {
   const Body body;  // x -1 ... 3.8, |y| <= 0.95, z <= 1.5
   Sensor lidar{"roof lidar", SensorType::kLidar, {1.3, 0.0, 1.95}, 0.0,   0.0,
-               2.0 * M_PI,   -25.0 * kDeg,       15.0 * kDeg,      120.0, 0.0};
+               2.0 * M_PI,   -25.0 * kDegToRad,  15.0 * kDegToRad, 120.0, 0.0};
   EXPECT_TRUE(Sees(lidar, body, {20.0, 0.0, 0.5}));
   EXPECT_FALSE(Sees(lidar, body, {130.0, 0.0, 0.5}));  // out of range
   // A point 0.5 m in front of the bumper: the hood and the roof edge hide it.
   EXPECT_FALSE(Sees(lidar, body, {4.3, 0.0, 0.5}));
   // A forward camera sees 30 deg to each side, not 40.
-  Sensor camera{"camera",    SensorType::kCamera, {1.9, 0.0, 1.4}, 0.0,   0.0,
-                60.0 * kDeg, -20.0 * kDeg,        20.0 * kDeg,     100.0, 0.0};
-  EXPECT_TRUE(Sees(camera, body, {50.0, 50.0 * std::tan(25.0 * kDeg), 0.5}));
-  EXPECT_FALSE(Sees(camera, body, {50.0, 50.0 * std::tan(35.0 * kDeg), 0.5}));
+  Sensor camera{"camera",         SensorType::kCamera, {1.9, 0.0, 1.4},  0.0,   0.0,
+                60.0 * kDegToRad, -20.0 * kDegToRad,   20.0 * kDegToRad, 100.0, 0.0};
+  EXPECT_TRUE(Sees(camera, body, {50.0, 50.0 * std::tan(25.0 * kDegToRad), 0.5}));
+  EXPECT_FALSE(Sees(camera, body, {50.0, 50.0 * std::tan(35.0 * kDegToRad), 0.5}));
   // Behind the windscreen (inside the body) it looks out; it sees nothing behind anyway.
   EXPECT_FALSE(Sees(camera, body, {-20.0, 0.0, 0.5}));
   // Pitched down by 30 deg it sees the near ground and loses the horizon.
-  camera.pitch_rad = 30.0 * kDeg;
+  camera.pitch_rad = 30.0 * kDegToRad;
   EXPECT_TRUE(Sees(camera, body, {5.0, 0.0, 0.0}));
   EXPECT_FALSE(Sees(camera, body, {50.0, 0.0, 1.4}));
   // A rear-facing sensor just outside the front bumper: the body hides everything behind.
-  Sensor backwards{"rear view", SensorType::kRadar, {3.9, 0.0, 0.5}, M_PI, 0.0,
-                   60.0 * kDeg, -10.0 * kDeg,       10.0 * kDeg,     80.0, 0.0};
+  Sensor backwards{"rear view",      SensorType::kRadar, {3.9, 0.0, 0.5},  M_PI, 0.0,
+                   60.0 * kDegToRad, -10.0 * kDegToRad,  10.0 * kDegToRad, 80.0, 0.0};
   EXPECT_FALSE(Sees(backwards, body, {-20.0, 0.0, 0.5}));
 }
 

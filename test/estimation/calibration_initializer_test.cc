@@ -11,6 +11,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
@@ -20,8 +21,6 @@
 namespace autocal {
 namespace estimation {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 sim::SimulationOptions UrbanOptions(double duration_s, uint64_t seed) {
   sim::SimulationOptions options;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <memory>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 
@@ -139,7 +140,7 @@ TEST(CalibrationObservability, RotationBlocksUseTheTangent) {
   b.prior_sigma = Eigen::Vector3d::Constant(0.05);
   b.max_observable_sigma = 0.01;
   b.direction_names = {"roll", "pitch", "yaw"};
-  b.display_scale = 180.0 / M_PI;
+  b.display_scale = kRadToDeg;
   b.display_unit = "deg";
   EXPECT_THAT(ImplausibleDirections({b}, BlockCovariance(), 3.0),
               ::testing::ElementsAre(::testing::HasSubstr("yaw")));
@@ -162,7 +163,7 @@ TEST(CalibrationObservability, BlockOfTakesTheTableRow) {
   EXPECT_THAT(rotation.direction_names, ::testing::ElementsAre(::testing::HasSubstr("mount roll"),
                                                                ::testing::HasSubstr("mount pitch"),
                                                                ::testing::HasSubstr("mount yaw")));
-  EXPECT_DOUBLE_EQ(rotation.display_scale, 180.0 / M_PI);
+  EXPECT_DOUBLE_EQ(rotation.display_scale, kRadToDeg);
   const EstimatedBlock track = BlockOf(sensors::CalibrationBlockId::kTrackWidth, &c);
   EXPECT_EQ(track.data, &c.track_width_m);
   EXPECT_EQ(track.size, 1);

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
@@ -14,8 +15,6 @@
 namespace autocal {
 namespace estimation {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 struct StateErrors {
   double position_rms_m = 0.0;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -15,7 +16,6 @@ namespace estimation {
 namespace {
 
 using geometry::Exp;
-constexpr double kDeg = M_PI / 180.0;
 constexpr double kGravity = 9.80665;
 
 // An IMU orientation R_W_I(t) = Exp(phi(t)) with exact body rate Jr(phi) phi'.
@@ -85,7 +85,7 @@ TEST(DetectStillStart, FindsBiasAndGravityDirection) {
   // Roll and pitch agree with the truth: gravity maps to -z in W.
   const Eigen::Vector3d up_in_I_true = motion.At(0.0).conjugate() * Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d up_in_I_est = still.q_W_I.conjugate() * Eigen::Vector3d::UnitZ();
-  EXPECT_LT(std::acos(std::min(1.0, up_in_I_true.dot(up_in_I_est))), 0.05 * kDeg);
+  EXPECT_LT(std::acos(std::min(1.0, up_in_I_true.dot(up_in_I_est))), 0.05 * kDegToRad);
 }
 
 TEST(DetectStillStart, ReportsWhenThereIsNoStillPeriod) {
@@ -169,7 +169,7 @@ TEST(SolveHandEyeRotation, RecoversExtrinsicRotation) {
     RotationPairs(motion, imu, q_I_L, 0.02, noise_rad, &a, &b);
     const HandEyeRotation result = SolveHandEyeRotation(a, b);
     ASSERT_TRUE(result.observable) << result.reason;
-    const double error_deg = geometry::AngularDistance(result.q_I_L, q_I_L) / kDeg;
+    const double error_deg = geometry::AngularDistance(result.q_I_L, q_I_L) * kRadToDeg;
     // Noise-free: only gyro integration error remains. With 1 mrad per axis on every LiDAR
     // rotation, the extrinsic's rotation about z is seen only through roll/pitch turns of
     // ~0.1 rad per 1 s interval: ~1 deg per pair, ~20 independent intervals -> ~0.2 deg.

@@ -13,6 +13,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
@@ -23,7 +24,6 @@ namespace autocal {
 namespace estimation {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kKeyframeSpacingS = 0.1;
 
 using test::TrueKeyframe;
@@ -509,7 +509,7 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
 TEST_F(KeyframeSensorFactorsTest, PlacesKeyframesOnTheGnssTrack) {
   const std::vector<Keyframe> truth = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
   std::vector<Keyframe> keyframes = truth;
-  const Eigen::Quaterniond turn(Eigen::AngleAxisd(30.0 / kRadToDeg, Eigen::Vector3d::UnitZ()));
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(30.0 * kDegToRad, Eigen::Vector3d::UnitZ()));
   for (Keyframe& kf : keyframes) {
     kf.q_W_I = turn * kf.q_W_I;
     kf.p_W_I.setZero();
@@ -585,7 +585,7 @@ TEST_F(KeyframeSensorFactorsTest, GnssLeverArmWithCauchyLoss) {
       static_cast<int>(TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS).size());
 
   int added = 0;
-  const Eigen::Vector3d error_m = LeverArmError({lidar::RobustLoss::kCauchy, 3.0}, &added);
+  const Eigen::Vector3d error_m = LeverArmError({factors::RobustLoss::kCauchy, 3.0}, &added);
   std::cout << added << " of " << num_keyframes << " keyframes with a fix (" << outage_s
             << " s of outages), " << outliers << " outlier fixes; lever-arm error "
             << error_m.transpose() << " m (norm " << error_m.norm() << ")\n";
@@ -598,8 +598,8 @@ TEST_F(KeyframeSensorFactorsTest, GnssLeverArmWithCauchyLoss) {
 // Without a robust loss the same outliers pull the lever arm far off.
 TEST_F(KeyframeSensorFactorsTest, GnssOutliersDamageTheLeverArmWithoutLoss) {
   int added = 0;
-  const Eigen::Vector3d robust_m = LeverArmError({lidar::RobustLoss::kCauchy, 3.0}, &added);
-  const Eigen::Vector3d plain_m = LeverArmError({lidar::RobustLoss::kNone, 1.0}, &added);
+  const Eigen::Vector3d robust_m = LeverArmError({factors::RobustLoss::kCauchy, 3.0}, &added);
+  const Eigen::Vector3d plain_m = LeverArmError({factors::RobustLoss::kNone, 1.0}, &added);
   std::cout << "lever-arm error without loss " << plain_m.transpose() << " m (norm "
             << plain_m.norm() << "), with Cauchy " << robust_m.norm() << " m\n";
   EXPECT_GT(plain_m.norm(), 0.1);  // measured 0.157 m, against 3.5 mm
@@ -610,7 +610,7 @@ TEST_F(KeyframeSensorFactorsTest, GnssOutliersDamageTheLeverArmWithoutLoss) {
 // noise-free fixes (keyframes on fix stamps: no interpolation error).
 TEST_F(KeyframeSensorFactorsTest, AlignmentRecoversKnownYawAndShift) {
   const std::vector<Keyframe> truth = TrueKeyframes(*exact_simulator_, exact_->imu, 0.0);
-  const double yaw_rad = 40.0 / kRadToDeg;
+  const double yaw_rad = 40.0 * kDegToRad;
   const Eigen::Vector3d shift_m(250.0, -80.0, 2.5);
   const Eigen::Quaterniond q_z(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()));
   std::vector<Keyframe> keyframes = truth;
@@ -646,7 +646,7 @@ TEST_F(KeyframeSensorFactorsTest, AlignmentRecoversKnownYawAndShift) {
 // is as good as the fix noise allows.
 TEST_F(KeyframeSensorFactorsTest, AlignmentRejectsMultipathOutliers) {
   const std::vector<Keyframe> truth = TrueKeyframes(*noisy_simulator_, noisy_->imu, 0.0);
-  const double yaw_rad = -120.0 / kRadToDeg;
+  const double yaw_rad = -120.0 * kDegToRad;
   const Eigen::Vector3d shift_m(-30.0, 400.0, -1.0);
   const Eigen::Quaterniond q_z(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()));
   std::vector<Keyframe> keyframes = truth;
@@ -701,7 +701,7 @@ SlowPlatform SlowPlatformLog(double speed_m_s, double turn_rate_rad_s, double du
   std::mt19937_64 random(11);
   std::normal_distribution<double> noise(0.0, 1.0);
   const int64_t start_ns = 1'700'000'000'000'000'000;
-  const auto heading = [&](double t_s) { return 40.0 / kRadToDeg + turn_rate_rad_s * t_s; };
+  const auto heading = [&](double t_s) { return 40.0 * kDegToRad + turn_rate_rad_s * t_s; };
   const auto position = [&](double t_s) {  // the integral of the speed along the heading
     if (turn_rate_rad_s == 0.0) {
       return Eigen::Vector3d(speed_m_s * t_s * std::cos(heading(0)),
@@ -725,7 +725,7 @@ SlowPlatform SlowPlatformLog(double speed_m_s, double turn_rate_rad_s, double du
   for (double t_s = 3.0; t_s <= duration_s - 3.0; t_s += 0.4) {
     Keyframe kf;
     kf.t_ns = start_ns + SecondsToNs(t_s + 0.13);
-    kf.q_W_I = Eigen::AngleAxisd(heading(t_s + 0.13) - 30.0 / kRadToDeg, Eigen::Vector3d::UnitZ());
+    kf.q_W_I = Eigen::AngleAxisd(heading(t_s + 0.13) - 30.0 * kDegToRad, Eigen::Vector3d::UnitZ());
     log.keyframes.push_back(kf);
   }
   return log;

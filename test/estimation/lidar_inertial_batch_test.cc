@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
@@ -15,7 +16,6 @@ namespace autocal {
 namespace estimation {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kFirstSweepS = 14.0;
 
 using test::TrueKeyframe;

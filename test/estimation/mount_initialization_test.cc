@@ -7,6 +7,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/real_vehicle_logs.h"
 
@@ -14,17 +15,16 @@ namespace autocal {
 namespace estimation {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
 constexpr double kGravity = 9.80665;
 
 Eigen::Quaterniond Rx(double deg) {
-  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kDeg, Eigen::Vector3d::UnitX()));
+  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kDegToRad, Eigen::Vector3d::UnitX()));
 }
 Eigen::Quaterniond Ry(double deg) {
-  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kDeg, Eigen::Vector3d::UnitY()));
+  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kDegToRad, Eigen::Vector3d::UnitY()));
 }
 Eigen::Quaterniond Rz(double deg) {
-  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kDeg, Eigen::Vector3d::UnitZ()));
+  return Eigen::Quaterniond(Eigen::AngleAxisd(deg * kDegToRad, Eigen::Vector3d::UnitZ()));
 }
 
 // 0 before 3 s, rising smoothly to 1 at 7 s: a still start, then driving.
@@ -87,7 +87,7 @@ SimulatedLog Simulate(const Drive& drive, const Eigen::Quaterniond& q_I_V, doubl
 }
 
 double ErrorDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
-  return geometry::AngularDistance(a, b) / kDeg;
+  return geometry::AngularDistance(a, b) * kRadToDeg;
 }
 
 struct Mount {
@@ -101,8 +101,9 @@ TEST(InitializeMount, RecoversMountsFromGravityAndMotion) {
   // x forward, y right, z down: R_V_I = Rx(180).
   const Eigen::Quaterniond z_down = Rx(180).conjugate();
   // 30 deg off the y-up mount about a skew axis.
-  const Eigen::Quaterniond skew = y_up * Eigen::Quaterniond(Eigen::AngleAxisd(
-                                             30 * kDeg, Eigen::Vector3d(1, 2, 3).normalized()));
+  const Eigen::Quaterniond skew =
+      y_up *
+      Eigen::Quaterniond(Eigen::AngleAxisd(30 * kDegToRad, Eigen::Vector3d(1, 2, 3).normalized()));
   for (const Mount& mount :
        {Mount{"y up", y_up}, Mount{"z down", z_down}, Mount{"30 deg off", skew}}) {
     SCOPED_TRACE(mount.name);

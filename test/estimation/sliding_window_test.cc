@@ -17,6 +17,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/factors/loss.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -31,7 +32,6 @@ namespace autocal {
 namespace estimation {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kGravity = 9.80665;
 constexpr int64_t kStart = 1'700'000'000'000'000'000;
 constexpr int64_t kImuStep = 5'000'000;  // 200 Hz
@@ -329,8 +329,9 @@ TEST(SlidingWindowMarginalization, KeepsAtMostNKeyframesAndAPrior) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The window's wheel rows (Eq. SW1-SW2) are the wheel factor's rows (Eq. F22) at the state
-// ImuPreintegration::Predict gives, whitened at the current radii and track width.
+// The window's wheel rows (docs/sliding_window.md, "Wheel rows") are the wheel factor's rows
+// (Eq. F22) at the state ImuPreintegration::Predict gives, whitened at the current radii and
+// track width.
 
 // 0.1 s of a turning, accelerating drive preintegrated from the biases b_g_lin, b_a_lin, its
 // samples drawn after std::srand(seed).
@@ -393,9 +394,9 @@ TEST(SlidingWindowPropagatedWheelResidual, IsTheWheelResidualAtThePredictedState
   }
 }
 
-// The other wheel forms' window rows (linear speeds, Eq. F25; the controller's twist, Eq. F26)
-// are their factor's rows at the state ImuPreintegration::Predict gives, the yaw-rate row in
-// the Deming form of Eq. SW2 (and the linear speeds' speed row at the current scales); zero
+// The other wheel forms' window rows (linear speeds, Eq. F25; the controller's twist, Eq. F26) are
+// their factor's rows at the state ImuPreintegration::Predict gives, the yaw-rate row in the Deming
+// form of the window's wheel rows (and the linear speeds' speed row at the current scales); zero
 // where the measurement is what the predicted state gives; their autodiff Jacobians pass the
 // GradientChecker on random states, with and without the non-holonomic rows.
 struct FormTrial {
@@ -558,7 +559,7 @@ TEST(SlidingWindowPropagatedWheelFactor, JacobiansMatchAutodiffAndGradientChecke
 }
 
 // ---------------------------------------------------------------------------------------------
-// The compressed point group (Eq. SW5) against the group it compresses.
+// The compressed point group (Eq. W3) against the group it compresses.
 
 TEST(SlidingWindowCompressedPointGroup, KeepsCostGradientAndGaussNewtonMatrix) {
   std::srand(5);
@@ -578,7 +579,7 @@ TEST(SlidingWindowCompressedPointGroup, KeepsCostGradientAndGaussNewtonMatrix) {
   }
   // Huber: some points are beyond 1 sigma, so the loss rows matter as well.
   const factors::PointToSweepPlaneGroupFactor group(points, Eigen::Vector3d(0.0, 0.0, -kGravity),
-                                                    {lidar::RobustLoss::kHuber, 1.0});
+                                                    {factors::RobustLoss::kHuber, 1.0});
   const internal::CompressedPointGroup compressed(&group);
   ASSERT_EQ(compressed.parameter_block_sizes(), group.parameter_block_sizes());
 
@@ -650,8 +651,8 @@ struct NeverEvaluates {
   }
 };
 
-// Eq. SW7 for any cost function: at the parameters it is built at it returns the cost
-// function's rows and Jacobians; elsewhere the first-order model, which agrees with the cost
+// "Linearized once per pass" for any cost function: at the parameters it is built at it returns the
+// cost function's rows and Jacobians; elsewhere the first-order model, which agrees with the cost
 // function to second order.
 TEST(SlidingWindowLinearizedCost, IsTheFirstOrderModelAtItsParameters) {
   ceres::AutoDiffCostFunction<RotatedOffset, 3, 4, 3> cost(new RotatedOffset);
@@ -713,7 +714,7 @@ TEST(SlidingWindowLinearizedCost, IsTheFirstOrderModelAtItsParameters) {
   }
 }
 
-// Eq. SW13: with a loss, the rows and Jacobian at x0 are those Ceres gives the solver for the
+// Eq. W4: with a loss, the rows and Jacobian at x0 are those Ceres gives the solver for the
 // block with that loss (its correction for rho'' <= 0), so the cost's gradient and Gauss-Newton
 // matrix at x0 are the robust ones; away from x0 the weight stays the one at x0.
 TEST(SlidingWindowLinearizedCost, HoldsTheLossWeightOfItsParameters) {
@@ -811,8 +812,8 @@ class SlidingWindowUrban : public ::testing::Test {
     CalibrationCovariance covariance;
     SlidingWindowCounters counters;
     int max_window = 0;
-    // Per update: solve passes (Eq. SW12), plane lookups, associated points and whether the
-    // extrinsic had settled (Eq. SW15).
+    // Per update: solve passes (Eq. W6), plane lookups, associated points and whether the
+    // extrinsic had settled (the settled partner walk).
     std::vector<int> passes;
     std::vector<int> lookups;
     std::vector<int> points;
@@ -1019,7 +1020,7 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
 
   // The smoothed trajectory (docs/sliding_window.md, "Smoothing"): the same keyframes, the
   // window's unchanged, the marginalized ones carried back from the final window. With the
-  // gate of Eq. SW14 the filtered trajectory from the nominal start is nearly as close to the
+  // extrinsic-aware gate the filtered trajectory from the nominal start is nearly as close to the
   // truth as from the true calibration; the smoother takes it closer still: measured position
   // rms 3.14 -> 2.13 cm, rotation rms 0.051 -> 0.027 deg. Its conditionals were
   // formed while the calibration was still degrees off, and with other residual counts the
@@ -1038,11 +1039,10 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   EXPECT_LT(run.smoothed_errors.rms_rotation_error_deg, 0.1);
 }
 
-// Eq. SW14 (docs/sliding_window.md, "Association"): from the nominal calibration the window
-// converges whatever the residual count. With the gate fixed at max_point_to_plane_m the
-// outcome was chance: 370 and 430 residual points per sweep ended 1.49 and 1.55 m rms from
-// the truth, with q_I_L still 2-2.6 deg off. Measured: 0.035 / 0.031 m rms, q_I_L 0.052 /
-// 0.055 deg.
+// The extrinsic-aware gate (docs/sliding_window.md, "Partner walk"): from the nominal calibration
+// the window converges whatever the residual count. With the gate fixed at max_point_to_plane_m the
+// outcome was chance: 370 and 430 residual points per sweep ended 1.49 and 1.55 m rms from the
+// truth, with q_I_L still 2-2.6 deg off. Measured: 0.035 / 0.031 m rms, q_I_L 0.052 / 0.055 deg.
 TEST_F(SlidingWindowUrban, ConvergesFromNominalWhateverTheResidualCount) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   for (int residuals : {370, 430}) {
@@ -1064,10 +1064,10 @@ double Mean(const std::vector<int>& values, size_t begin, size_t end) {
   return sum / static_cast<double>(end - begin);
 }
 
-// Eq. SW12 (docs/sliding_window.md, "Solver: a second pass only when needed"): from the
-// nominal calibration, with the tolerance 0 every update takes both passes; with the default
-// some do and some do not, and more of them while the extrinsic converges than at the end.
-// Measured: all 2; 1.07 passes per update, 1.20 over the first quarter, 1.00 over the last.
+// Eq. W6 (docs/sliding_window.md, "A second pass only for the groups that moved"): from the nominal
+// calibration, with the tolerance 0 every update takes both passes; with the default some do and
+// some do not, and more of them while the extrinsic converges than at the end. Measured: all 2;
+// 1.07 passes per update, 1.20 over the first quarter, 1.00 over the last.
 TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions options = Options();
@@ -1136,17 +1136,16 @@ TEST_F(SlidingWindowUrban, SkipsOnlyKeyframesWithNothingToRepair) {
   EXPECT_EQ(skipped.calibration.q_I_L.coeffs(), walked.calibration.q_I_L.coeffs());
 }
 
-// Eq. SW15 (docs/sliding_window.md): once the extrinsic rotation has settled, a new
-// keyframe's points try only the first settled_partner_count partner offsets (five sweeps
-// back and ahead). From the true calibration the window settles once it is full and stays so;
-// against every partner tried throughout (the count at the list's size) it makes a third of
-// the lookups and tracks the truth at least as well. From the nominal calibration it settles
-// only once the extrinsic stops moving. Measured: settled in 0.90 of the updates after the
-// first window_size; lookups 0.88k against 2.5k per update (from the second quarter on),
-// position rms 0.031 against 0.050 m; from nominal, settled in 0.43 of the first quarter's
-// updates and all of the last quarter's. Both walks look up every point in every partner
-// they walk (max_plane_misses 0): the rule below takes most of the lookups that the
-// settled walk saves.
+// The settled partner walk (docs/sliding_window.md, "Partner walk"): once the extrinsic rotation
+// has settled, a new keyframe's points try only the first settled_partner_count partner offsets
+// (five sweeps back and ahead). From the true calibration the window settles once it is full and
+// stays so; against every partner tried throughout (the count at the list's size) it makes a third
+// of the lookups and tracks the truth at least as well. From the nominal calibration it settles
+// only once the extrinsic stops moving. Measured: settled in 0.90 of the updates after the first
+// window_size; lookups 0.88k against 2.5k per update (from the second quarter on), position rms
+// 0.031 against 0.050 m; from nominal, settled in 0.43 of the first quarter's updates and all of
+// the last quarter's. Both walks look up every point in every partner they walk (max_plane_misses
+// 0): the rule below takes most of the lookups that the settled walk saves.
 TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions settled_options = Options();
@@ -1213,9 +1212,9 @@ TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
       geometry::AngularDistance(capped.calibration.q_I_L, simulator_->true_calibration().q_I_L);
   const double every_q =
       geometry::AngularDistance(every.calibration.q_I_L, simulator_->true_calibration().q_I_L);
-  std::cout << "q_I_L error " << capped_q * 180.0 / M_PI << " against " << every_q * 180.0 / M_PI
+  std::cout << "q_I_L error " << capped_q * kRadToDeg << " against " << every_q * kRadToDeg
             << " deg\n";
-  EXPECT_LT(capped_q, every_q + 0.01 * M_PI / 180.0);
+  EXPECT_LT(capped_q, every_q + 0.01 * kDegToRad);
 }
 
 TEST(SlidingWindowSmoothing, NeedsTheOption) {

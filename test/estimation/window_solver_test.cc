@@ -81,9 +81,9 @@ TEST(WindowSolver, WithEveryRowRelinearizedFindsTheCeresOptimum) {
 }
 
 // The relative-pose rows fixed at their first-order model, the antenna rows (with the loss)
-// relinearized: one pass minimizes the model, not the chain, so its result is off the
-// optimum; passes that start where the previous one ended (Gauss-Newton on the fixed rows, as
-// the window's passes, Eq. SW7) converge to it. This needs the model's gradient and Hessian
+// relinearized: one pass minimizes the model, not the chain, so its result is off the optimum;
+// passes that start where the previous one ended (Gauss-Newton on the fixed rows, as the window's
+// passes, "Linearized once per pass") converge to it. This needs the model's gradient and Hessian
 // at delta = 0 and the Jacobians of the relinearized rows in delta coordinates to be right.
 TEST(WindowSolver, PassesOnFixedFirstOrderRowsConvergeToTheOptimum) {
   for (uint32_t seed : {1u, 2u, 3u}) {

@@ -13,6 +13,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/csv_files.h"
@@ -26,7 +27,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-constexpr double kDegToRad = M_PI / 180.0;
 constexpr int64_t kStartNs = 1'700'000'000'000'000'000;
 constexpr int64_t kStepNs = 10'000'000;  // truth at 100 Hz
 

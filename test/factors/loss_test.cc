@@ -7,28 +7,40 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/factors/robust_loss.h"
 
 namespace autocal {
 namespace factors {
 namespace {
 
 TEST(Loss, ParsesTypesAndScales) {
-  EXPECT_EQ(lidar::ParseRobustLoss("none"), lidar::RobustLoss::kNone);
-  EXPECT_EQ(lidar::ParseRobustLoss(" Huber "), lidar::RobustLoss::kHuber);
-  EXPECT_EQ(lidar::ParseRobustLoss("CAUCHY"), lidar::RobustLoss::kCauchy);
-  for (lidar::RobustLoss type :
-       {lidar::RobustLoss::kNone, lidar::RobustLoss::kHuber, lidar::RobustLoss::kCauchy}) {
-    EXPECT_EQ(lidar::ParseRobustLoss(lidar::RobustLossName(type)), type);
+  EXPECT_EQ(ParseRobustLoss("none"), RobustLoss::kNone);
+  EXPECT_EQ(ParseRobustLoss(" Huber "), RobustLoss::kHuber);
+  EXPECT_EQ(ParseRobustLoss("CAUCHY"), RobustLoss::kCauchy);
+  for (RobustLoss type : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    EXPECT_EQ(ParseRobustLoss(RobustLossName(type)), type);
   }
   const LossOptions plain = ParseLossOptions("cauchy");
-  EXPECT_EQ(plain.type, lidar::RobustLoss::kCauchy);
+  EXPECT_EQ(plain.type, RobustLoss::kCauchy);
   EXPECT_EQ(plain.scale, 1.0);
   const LossOptions colon = ParseLossOptions("huber:1.5");
-  EXPECT_EQ(colon.type, lidar::RobustLoss::kHuber);
+  EXPECT_EQ(colon.type, RobustLoss::kHuber);
   EXPECT_EQ(colon.scale, 1.5);
   const LossOptions space = ParseLossOptions("cauchy 0.25");
-  EXPECT_EQ(space.type, lidar::RobustLoss::kCauchy);
+  EXPECT_EQ(space.type, RobustLoss::kCauchy);
   EXPECT_EQ(space.scale, 0.25);
+}
+
+TEST(RobustKernelTest, WeightIsLossDerivativeOverResidual) {
+  for (RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    const RobustKernel kernel{loss, 0.2};
+    for (double r : {-3.0, -0.5, -0.1, 0.05, 0.19, 0.21, 0.7, 4.0}) {
+      const double h = 1e-6;
+      const double derivative = (kernel.Loss(r + h) - kernel.Loss(r - h)) / (2 * h);
+      EXPECT_NEAR(kernel.Weight(r), derivative / r, 1e-6)
+          << RobustLossName(loss) << " at r = " << r;
+    }
+  }
 }
 
 TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
@@ -46,17 +58,17 @@ TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
     }
   }
   try {
-    lidar::ParseRobustLoss("tukey");
+    ParseRobustLoss("tukey");
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("expected none, huber or cauchy"), std::string::npos);
   }
-  EXPECT_THROW(MakeLossFunction(LossOptions{lidar::RobustLoss::kHuber, 0.0}), Error);
-  EXPECT_THROW(MakeLossFunction(LossOptions{lidar::RobustLoss::kCauchy, 1e300}), Error);
+  EXPECT_THROW(MakeLossFunction(LossOptions{RobustLoss::kHuber, 0.0}), Error);
+  EXPECT_THROW(MakeLossFunction(LossOptions{RobustLoss::kCauchy, 1e300}), Error);
 }
 
 // At both ends of the accepted range every loss stays finite, whatever the residual.
 TEST(Loss, StaysFiniteAcrossTheAcceptedScales) {
-  for (const lidar::RobustLoss type : {lidar::RobustLoss::kHuber, lidar::RobustLoss::kCauchy}) {
+  for (const RobustLoss type : {RobustLoss::kHuber, RobustLoss::kCauchy}) {
     for (const double scale : {kMinLossScale, kMaxLossScale}) {
       std::unique_ptr<ceres::LossFunction> loss(MakeLossFunction({type, scale}));
       for (const double s : {0.0, 1e-12, 1.0, 1e12, 1e300}) {
@@ -73,8 +85,8 @@ TEST(Loss, StaysFiniteAcrossTheAcceptedScales) {
 TEST(Loss, MakesTheSelectedLoss) {
   EXPECT_EQ(MakeLossFunction(LossOptions{}), nullptr);
   const double a = 2.0;
-  std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({lidar::RobustLoss::kHuber, a}));
-  std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({lidar::RobustLoss::kCauchy, a}));
+  std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({RobustLoss::kHuber, a}));
+  std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({RobustLoss::kCauchy, a}));
   ASSERT_NE(huber, nullptr);
   ASSERT_NE(cauchy, nullptr);
   double rho[3];
@@ -85,8 +97,8 @@ TEST(Loss, MakesTheSelectedLoss) {
   cauchy->Evaluate(25.0, rho);
   EXPECT_NEAR(rho[0], a * a * std::log1p(25.0 / (a * a)), 1e-12);
   const FactorLossOptions defaults;
-  EXPECT_EQ(defaults.imu.type, lidar::RobustLoss::kNone);
-  EXPECT_EQ(defaults.gnss.type, lidar::RobustLoss::kCauchy);
+  EXPECT_EQ(defaults.imu.type, RobustLoss::kNone);
+  EXPECT_EQ(defaults.gnss.type, RobustLoss::kCauchy);
 }
 
 }  // namespace

@@ -41,7 +41,7 @@ struct Scene {
   double t_k = 2.0;
   double t_sweep_lidar = 1.96;  // LiDAR clock
   Eigen::Vector3d p_L;
-  lidar::Plane plane;
+  geometry::Plane plane;
   double tau = 0.0;
 
   Scene(std::mt19937* rng, double tau_s) : tau(tau_s) {

@@ -49,7 +49,7 @@ struct Scene {
   double t_k = 2.0, t_j = 3.3;
   double sweep_k_lidar = 1.97, sweep_j_lidar = 3.27;  // LiDAR clock
   Eigen::Vector3d p_L;
-  lidar::Plane plane_L;  // in sweep j's LiDAR frame
+  geometry::Plane plane_L;  // in sweep j's LiDAR frame
   double tau;
 
   Scene(std::mt19937* rng, double tau_s) : tau(tau_s) {
@@ -261,8 +261,8 @@ TEST(PointToSweepPlaneGroupFactor, WithoutLossItStacksThePointFactors) {
 TEST(PointToSweepPlaneGroupFactor, RobustRowsCarryTheRobustCostAndExactJacobians) {
   std::mt19937 rng(6);
   const geometry::RightQuaternionManifold quaternion;
-  for (const LossOptions& loss : {LossOptions{lidar::RobustLoss::kHuber, 1.0},
-                                  LossOptions{lidar::RobustLoss::kCauchy, 2.0}}) {
+  for (const LossOptions& loss :
+       {LossOptions{RobustLoss::kHuber, 1.0}, LossOptions{RobustLoss::kCauchy, 2.0}}) {
     for (int trial = 0; trial < 10; ++trial) {
       std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(5, &rng);
       // Inliers too: a point on its plane within a fraction of a sigma.
@@ -276,7 +276,7 @@ TEST(PointToSweepPlaneGroupFactor, RobustRowsCarryTheRobustCostAndExactJacobians
       for (size_t i = 2; i < points.size(); ++i) {
         const PointToSweepPlaneFactor single(points[i], kGravity);
         const double r = Residual(single, state);
-        if (loss.type == lidar::RobustLoss::kHuber && std::abs(std::abs(r) - loss.scale) < 0.25) {
+        if (loss.type == RobustLoss::kHuber && std::abs(std::abs(r) - loss.scale) < 0.25) {
           points[i].plane_L.d += std::copysign(0.5, r) * points[i].sigma_m;
         }
       }
@@ -310,7 +310,7 @@ TEST(PointToSweepPlaneGroupFactor, TangentJacobianLiftsToTheBlocks) {
   constexpr int kTangent = PointToSweepPlaneGroupFactor::kTangentColumns;
   // Each block's first column in the tangent columns (p_j: p_k's), and its sign.
   const int first_column[9] = {0, 3, 6, 9, 3, 12, 15, 18, 21};
-  for (const LossOptions& loss : {LossOptions(), LossOptions{lidar::RobustLoss::kHuber, 1.0}}) {
+  for (const LossOptions& loss : {LossOptions(), LossOptions{RobustLoss::kHuber, 1.0}}) {
     const std::vector<PointToSweepPlaneMeasurement> points = RandomGroup(6, &rng);
     const PointToSweepPlaneGroupFactor group(points, kGravity, loss);
     State state = RandomState(&rng);
@@ -386,7 +386,7 @@ TEST(PointToSweepPlaneGroupFactor, APlaneSideOutOfRangeIsRefused) {
 // carries nothing over.
 TEST(PointToSweepPlaneGroupFactor, ReleasedPointsServeANewGroup) {
   std::mt19937 rng(9);
-  const LossOptions loss{lidar::RobustLoss::kHuber, 1.0};
+  const LossOptions loss{RobustLoss::kHuber, 1.0};
   const std::vector<PointToSweepPlaneMeasurement> first = RandomGroup(40, &rng);
   const std::vector<PointToSweepPlaneMeasurement> second = RandomGroup(25, &rng);
   State state = RandomState(&rng);

@@ -8,13 +8,12 @@
 #include <cmath>
 #include <random>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
 namespace geometry {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 double AngleBetween(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
   return AngularDistance(a, b);
@@ -34,9 +33,9 @@ TEST(RollPitchYaw, InvertsFromRollPitchYawInsideTheRanges) {
 
 TEST(RollPitchYaw, NamesTheYUpMountOfTheSkidSteerLog) {
   // R_V_I = Rz(-90 deg) Rx(+90 deg): the IMU rolled 90 deg, then turned -90 deg about up.
-  const Eigen::Quaterniond R_V_I(Eigen::AngleAxisd(-90 * kDeg, Eigen::Vector3d::UnitZ()) *
-                                 Eigen::AngleAxisd(90 * kDeg, Eigen::Vector3d::UnitX()));
-  const Eigen::Vector3d rpy = RollPitchYaw(R_V_I) / kDeg;
+  const Eigen::Quaterniond R_V_I(Eigen::AngleAxisd(-90 * kDegToRad, Eigen::Vector3d::UnitZ()) *
+                                 Eigen::AngleAxisd(90 * kDegToRad, Eigen::Vector3d::UnitX()));
+  const Eigen::Vector3d rpy = RollPitchYaw(R_V_I) * kRadToDeg;
   EXPECT_NEAR(rpy.x(), 90.0, 1e-9);
   EXPECT_NEAR(rpy.y(), 0.0, 1e-9);
   EXPECT_NEAR(rpy.z(), -90.0, 1e-9);

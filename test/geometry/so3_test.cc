@@ -7,11 +7,11 @@
 #include <random>
 #include <vector>
 
+#include "autocal/common/units.h"
+
 namespace autocal {
 namespace geometry {
 namespace {
-
-constexpr double kPi = M_PI;
 
 // Rotation vectors that stress every branch: zero, tiny, moderate, large and near pi.
 std::vector<Eigen::Vector3d> TestRotationVectors() {

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/io/dataset.h"
 #include "import/ros1_bag_writer.h"
 #include "import/ros_message_writer.h"
@@ -296,7 +297,7 @@ TEST_F(ImportBagTest, FailedImportLeavesNoDirectory) {
 
 TEST_F(ImportBagTest, DataTheDatasetReaderRefusesIsNotWritten) {
   RigOptions rig;
-  rig.gyro_scale = 180.0 / M_PI;
+  rig.gyro_scale = kRadToDeg;
   const ImportOptions options = Options(Bag(rig));
   try {
     ImportBag(options);

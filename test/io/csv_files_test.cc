@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "io/io_test_data.h"
 #include "support/test_paths.h"
 
@@ -267,7 +268,7 @@ TEST(CsvFilesTest, EmptyLineInData) {
 
 TEST(CsvFilesTest, GyroInDegreesPerSecond) {
   sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
-  for (sensors::ImuSample& s : imu) s.gyro_rad_s *= 180.0 / M_PI;
+  for (sensors::ImuSample& s : imu) s.gyro_rad_s *= kRadToDeg;
   WriteImuCsv(OutPath("deg_s.csv"), imu);
   const std::vector<std::string> lines = Lines(ReadText(OutPath("deg_s.csv")));
   // The reference drive turns at 0.25 rad/s = 14.3 "rad/s" in deg/s, from the first row.
@@ -422,7 +423,7 @@ TEST(CsvFilesTest, GyroInDegreesPerSecondOnADriveThatNeverTurnsFast) {
   EXPECT_NO_THROW(ReadImuCsv(OutPath("gentle_rad_s.csv")));
   // In deg/s the 99th percentile of |omega| stays below 3 (the drive never turns fast): the
   // still start tells.
-  WriteImuCsv(OutPath("gentle_deg_s.csv"), GentleDrive(2.0, 180.0 / M_PI));
+  WriteImuCsv(OutPath("gentle_deg_s.csv"), GentleDrive(2.0, kRadToDeg));
   const std::vector<std::string> lines = Lines(ReadText(OutPath("gentle_deg_s.csv")));
   ExpectParseError(OutPath("gentle_deg_s.csv"), kReadImu,
                    {2, FieldColumn(lines[1], 1),

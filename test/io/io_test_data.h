@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/io/dataset.h"
 
 namespace autocal {
@@ -106,9 +107,8 @@ inline Drive MakeDrive(double duration_s) {
     const Eigen::Vector3d p_W_A = s.T_W_I * d.calibration.p_I_A;
     sensors::GnssFix fix;
     fix.t_ns = kStartNs + dt;
-    fix.lat_deg = 48.137 + p_W_A.y() / kEarthRadius * 180.0 / M_PI;
-    fix.lon_deg =
-        11.575 + p_W_A.x() / (kEarthRadius * std::cos(48.137 * M_PI / 180.0)) * 180.0 / M_PI;
+    fix.lat_deg = 48.137 + p_W_A.y() / kEarthRadius * kRadToDeg;
+    fix.lon_deg = 11.575 + p_W_A.x() / (kEarthRadius * std::cos(48.137 * kDegToRad)) * kRadToDeg;
     fix.alt_m = 519.0 + p_W_A.z();
     fix.std_enu_m << 0.02, 0.02, 0.05;
     d.gnss.push_back(fix);

@@ -249,13 +249,13 @@ TEST(ProblemYamlTest, EveryKeyIsRead) {
   EXPECT_EQ(c.p_I_A_m.prior_sigma, Eigen::Vector3d::Constant(0.1));
   EXPECT_EQ(c.T_I_V.rotation.mode, BlockMode::kFixed);
   EXPECT_EQ(c.T_I_V.translation.mode, BlockMode::kEstimate);
-  EXPECT_EQ(p.loss.imu.type, lidar::RobustLoss::kHuber);
+  EXPECT_EQ(p.loss.imu.type, factors::RobustLoss::kHuber);
   EXPECT_EQ(p.loss.imu.scale, 4.0);
-  EXPECT_EQ(p.loss.wheel.type, lidar::RobustLoss::kCauchy);
+  EXPECT_EQ(p.loss.wheel.type, factors::RobustLoss::kCauchy);
   EXPECT_EQ(p.loss.wheel.scale, 1.0);
-  EXPECT_EQ(p.loss.gnss.type, lidar::RobustLoss::kHuber);
+  EXPECT_EQ(p.loss.gnss.type, factors::RobustLoss::kHuber);
   EXPECT_EQ(p.loss.gnss.scale, 2.5);
-  EXPECT_EQ(p.loss.lidar.type, lidar::RobustLoss::kNone);
+  EXPECT_EQ(p.loss.lidar.type, factors::RobustLoss::kNone);
   EXPECT_EQ(p.window_size, 7);
   EXPECT_EQ(p.window_max_range_m, 60.0);
   EXPECT_EQ(p.solver.max_iterations, 30);

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "lidar/synthetic_scene.h"
 #include "support/simulation_cache.h"
 
@@ -29,7 +30,7 @@ struct ArcTrajectory {
     const double yaw = arc_m / radius_m;
     const double pitch_deg = 0.3 * std::sin(2.0 * t);
     return test::MakePose(radius_m * std::sin(yaw) - 40.0, radius_m * (1.0 - std::cos(yaw)), 1.8,
-                          yaw / test::kDegToRad, pitch_deg, 0.0);
+                          yaw * kRadToDeg, pitch_deg, 0.0);
   }
   Eigen::Vector3d AngularVelocityL(double t) const {
     // Body rate of yaw(t) then pitch(t): R^T dR/dt, numerically.

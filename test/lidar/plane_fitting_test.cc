@@ -7,13 +7,12 @@
 #include <random>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "lidar/synthetic_scene.h"
 
 namespace autocal {
 namespace lidar {
 namespace {
-
-using test::kDegToRad;
 
 // Points on a square patch of the plane through `centre` with unit normal `normal`, with
 // isotropic Gaussian noise of sigma_m on every coordinate (a LiDAR's error is not only
@@ -34,7 +33,7 @@ Eigen::Matrix3Xd NoisyPatch(const Eigen::Vector3d& centre, const Eigen::Vector3d
 }
 
 double NormalAngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::min(1.0, std::abs(a.dot(b)))) / kDegToRad;
+  return std::acos(std::min(1.0, std::abs(a.dot(b)))) * kRadToDeg;
 }
 
 TEST(PlaneFittingTest, HeightModelRecoversARoadWithinItsStatisticalError) {
@@ -61,7 +60,7 @@ TEST(PlaneFittingTest, HeightModelRecoversARoadWithinItsStatisticalError) {
         << "coefficient " << k << " error " << error(k) << " sigma " << std::sqrt(covariance(k, k));
   }
   // The normal form describes the same plane.
-  const Plane plane = fit.ToPlane();
+  const geometry::Plane plane = fit.ToPlane();
   EXPECT_NEAR(plane.SignedDistance(Eigen::Vector3d(10.0, 2.0, fit.Height(10.0, 2.0))), 0.0, 1e-12);
   EXPECT_GT(plane.normal.z(), 0.0);
   // Total least squares agrees on this well-posed case.
@@ -87,7 +86,7 @@ TEST(PlaneFittingTest, HeightModelFailsOnSteepPlanesWhereTotalLeastSquaresDoesNo
     const Eigen::VectorXd x = points.row(0).transpose();
     const double var_x = (x.array() - x.mean()).square().mean();
     const double lambda = std::max(0.0, var_x - sigma_m * sigma_m) / var_x;
-    const double predicted_error_deg = (tilt - std::atan(lambda * std::tan(tilt))) / kDegToRad;
+    const double predicted_error_deg = (tilt - std::atan(lambda * std::tan(tilt))) * kRadToDeg;
     SCOPED_TRACE("tilt " + std::to_string(tilt_deg) + " deg: height model error " +
                  std::to_string(height_error_deg) + " deg (attenuation predicts " +
                  std::to_string(predicted_error_deg) + "), TLS error " +

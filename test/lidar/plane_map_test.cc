@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/lidar/kd_tree.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/lidar/voxel_grid.h"
@@ -36,7 +37,7 @@ Eigen::Matrix3Xd Scene(double noise_m) {
 
 TEST(PlaneMap, FindsGroundAndWallPlanes) {
   const PlaneMap map(Scene(0.005));
-  Plane plane;
+  geometry::Plane plane;
   ASSERT_TRUE(map.FindPlane(Eigen::Vector3d(7.3, -1.2, 0.05), &plane));
   EXPECT_GT(std::abs(plane.normal.z()), 0.999);
   EXPECT_NEAR(plane.SignedDistance(Eigen::Vector3d(7.3, -1.2, 0.0)), 0.0, 0.01);
@@ -47,7 +48,7 @@ TEST(PlaneMap, FindsGroundAndWallPlanes) {
 
 TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
   const PlaneMap map(Scene(0.0));
-  Plane plane;
+  geometry::Plane plane;
   EXPECT_FALSE(map.FindPlane(Eigen::Vector3d(5.0, 3.0, 3.0), &plane)) << "pole";
   EXPECT_FALSE(map.FindPlane(Eigen::Vector3d(40.0, 0.0, 0.0), &plane)) << "far from the map";
   // At the foot of the wall the neighbours span both planes: too thick to be one plane.
@@ -62,7 +63,7 @@ TEST(PlaneMap, RejectsLinesCornersAndEmptySpace) {
 // neighbourhoods and the iterative eigen-solver, its normal facing the origin: the reference
 // the stack-buffered FindPlane, which mostly takes the closed-form solution, must reproduce.
 bool ReferencePlane(const KdTree& tree, const PlaneMapOptions& o, const Eigen::Vector3d& q,
-                    Plane* plane) {
+                    geometry::Plane* plane) {
   const std::vector<Neighbor> nn = tree.Knn(q, o.num_neighbors);
   if (static_cast<int>(nn.size()) < o.num_neighbors) return false;
   if (nn.back().squared_distance_m2 > o.max_neighbor_distance_m * o.max_neighbor_distance_m) {
@@ -101,7 +102,7 @@ TEST(PlaneMap, MatchesTheReferenceFitEverywhere) {
     int found = 0;
     for (int trial = 0; trial < 2000; ++trial) {
       const Eigen::Vector3d q(x(rng), y(rng), z(rng));
-      Plane plane, reference;
+      geometry::Plane plane, reference;
       const bool ok = map.FindPlane(q, &plane);
       ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference))
           << "k " << k << " at " << q.transpose();
@@ -122,8 +123,8 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   std::normal_distribution<double> noise(0.0, 0.01);
   std::vector<Eigen::Vector3d> points;
   for (int beam = 0; beam < 30; ++beam) {
-    const double elevation = (-15.0 + 0.7 * beam) * M_PI / 180.0;
-    for (double azimuth = -M_PI; azimuth < M_PI; azimuth += 0.2 * M_PI / 180.0) {
+    const double elevation = (-15.0 + 0.7 * beam) * kDegToRad;
+    for (double azimuth = -M_PI; azimuth < M_PI; azimuth += 0.2 * kDegToRad) {
       const Eigen::Vector3d ray(std::cos(elevation) * std::cos(azimuth),
                                 std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
       // The ground 1.8 m below the sensor, a wall at x = 25 m, else nothing.
@@ -147,7 +148,7 @@ TEST(PlaneMap, RejectsRingLinesLikeTheReference) {
   for (int trial = 0; trial < 20000; ++trial) {
     const Eigen::Vector3d q =
         scene.col(pick(rng)) + Eigen::Vector3d(offset(rng), offset(rng), offset(rng));
-    Plane plane, reference;
+    geometry::Plane plane, reference;
     const bool ok = map.FindPlane(q, &plane);
     ASSERT_EQ(ok, ReferencePlane(tree, options, q, &reference)) << "at " << q.transpose();
     if (ok) {

@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/lidar/kd_tree.h"
 #include "autocal/lidar/normals.h"
 #include "autocal/lidar/voxel_grid.h"
@@ -162,7 +163,7 @@ TEST(NormalsTest, SimulatedScanNormalsMatchTheSurfaces) {
     }
     if (near_edge) continue;
     const Eigen::Vector3d n_W = T_W_L.q * Eigen::Vector3d(normals.normals.col(i));
-    EXPECT_GT(std::abs(n_W.dot(truth)), std::cos(1.0 * test::kDegToRad))
+    EXPECT_GT(std::abs(n_W.dot(truth)), std::cos(1.0 * kDegToRad))
         << "point " << p_W.transpose() << " normal " << n_W.transpose() << " truth "
         << truth.transpose();
     // Oriented towards the sensor.

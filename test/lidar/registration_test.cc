@@ -20,7 +20,7 @@ TEST(RegistrationTest, SettingValidatesEveryOption) {
   const RegistrationSetting setting =
       MakeRegistrationSetting("point_to_point", "huber", 0.2, 0.5, 2.0);
   EXPECT_EQ(setting.icp.method, IcpMethod::kPointToPoint);
-  EXPECT_EQ(setting.icp.robust.loss, RobustLoss::kHuber);
+  EXPECT_EQ(setting.icp.robust.loss, factors::RobustLoss::kHuber);
   EXPECT_EQ(setting.icp.robust.scale_m, 0.2);
   EXPECT_EQ(setting.voxel_m, 0.5);
   EXPECT_EQ(setting.icp.max_correspondence_m, 2.0);

@@ -5,11 +5,11 @@
 #include <cmath>
 #include <random>
 
+#include "autocal/common/units.h"
+
 namespace autocal {
 namespace lidar {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Points over every azimuth quadrant and the full elevation range of a 3D LiDAR.
 std::vector<SphericalPoint> SampleSpherical(int count, uint64_t seed) {
@@ -120,7 +120,7 @@ Eigen::Matrix3d MonteCarloCovariance(const SphericalPoint& s, const SphericalNoi
 
 TEST(SensorModelTest, FirstOrderCovarianceMatchesMonteCarlo) {
   // Range noise dominates near the sensor, angular noise far away: both regimes.
-  const SphericalNoise noise{0.02, 0.2 * kPi / 180.0, 0.1 * kPi / 180.0};
+  const SphericalNoise noise{0.02, 0.2 * kDegToRad, 0.1 * kDegToRad};
   constexpr int kSamples = 200000;
   for (const SphericalPoint& s : SampleSpherical(6, 21)) {
     const Eigen::Matrix3d predicted = CartesianCovariance(s, noise);

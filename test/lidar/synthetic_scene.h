@@ -13,14 +13,12 @@
 #include <random>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/point_cloud.h"
 
 namespace autocal {
 namespace test {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
 
 struct Box {
   Eigen::Vector3d min_corner;
@@ -160,7 +158,7 @@ inline geometry::Pose3d MakePose(double x, double y, double z, double yaw_deg, d
 }
 
 inline double RotationErrorDeg(const geometry::Pose3d& a, const geometry::Pose3d& b) {
-  return geometry::RotationErrorRad(a, b) / kDegToRad;
+  return geometry::RotationErrorRad(a, b) * kRadToDeg;
 }
 
 }  // namespace test

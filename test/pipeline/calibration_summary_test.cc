@@ -7,6 +7,7 @@
 #include <cmath>
 #include <string>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/pipeline/offline_calibration.h"
@@ -17,8 +18,6 @@ namespace {
 
 using ::testing::HasSubstr;
 using ::testing::Not;
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // A result whose only estimated block is T_I_V, with R_V_I a half turn -+ 0.0001 deg about an
 // axis 1.3 deg from the vehicle's up axis (an IMU mounted upside down).

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/problem_yaml.h"
@@ -24,8 +25,6 @@
 namespace autocal {
 namespace pipeline {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // A problem file shipped in problems/.
 io::Problem ShippedProblem(const std::string& name) {
@@ -380,7 +379,7 @@ TEST_F(OfflineCalibrationTest, WithoutGnssTheWheelsDeadReckon) {
   const Eigen::Vector3d mount_error =
       -geometry::Log(Eigen::Quaterniond(estimate.q_I_V.conjugate() * truth.q_I_V));
   for (int a = 0; a < 3; ++a) {
-    within(mount_error(a), (*u.T_I_V.sigma_rot_deg)(a) / kRadToDeg, "mount");
+    within(mount_error(a), kDegToRad * (*u.T_I_V.sigma_rot_deg)(a), "mount");
   }
   // The ratio of radius to track is what the yaw rows see: better than either.
   const double ratio_error = estimate.wheel_radius_left_m / estimate.track_width_m /

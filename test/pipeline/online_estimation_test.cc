@@ -11,6 +11,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/evaluation/trajectory_errors.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
@@ -22,8 +23,6 @@
 namespace autocal {
 namespace pipeline {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // Every sensor, every block but the vehicle frame (problems/urban_full.yaml with fewer points
 // per sweep, to keep the test short).

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/evaluation/trajectory_errors.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
@@ -105,7 +106,7 @@ void ExpectWithinSigmas(const OnlineEstimationResult& result, const io::Dataset&
   // sigma of 0.90, the dataset's prior 1.5), and it is not reported observable.
   ASSERT_TRUE(u.T_I_V.sigma_rot_deg.has_value());
   const Eigen::Vector3d rotation_error_deg =
-      geometry::Log(truth.q_I_V.conjugate() * estimate.q_I_V) * 180.0 / M_PI;
+      geometry::Log(truth.q_I_V.conjugate() * estimate.q_I_V) * kRadToDeg;
   const Eigen::Vector3d max_sigma_deg(1.5, 2.0 / 3.0, 2.0 / 3.0);
   for (int i = 0; i < 3; ++i) {
     ExpectCovered("T_I_V rotation " + std::to_string(i) + " (deg)", rotation_error_deg(i), 0.0,

@@ -8,6 +8,7 @@
 
 #include <cmath>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -109,12 +110,11 @@ TEST(ProblemBlocks, PriorsComeFromTheProblemTheDatasetOrTheDefaults) {
   const OfflineCalibrationOptions options;
   const std::vector<estimation::EstimatedBlock> blocks =
       EstimatedBlocks(problem, sensors, options, true, true, &c);
-  const double deg = M_PI / 180.0;
   const estimation::EstimatedBlock& rotation = blocks[0];
   EXPECT_EQ(rotation.data, c.q_I_L.coeffs().data());
   EXPECT_EQ(rotation.prior, Eigen::VectorXd(sensors.nominal_calibration.q_I_L.coeffs()));
-  EXPECT_TRUE(rotation.prior_sigma.isApprox(Eigen::Vector3d(1.0, 2.0, 4.0) * deg, 1e-15));
-  EXPECT_NEAR(rotation.max_observable_sigma, options.max_observable_rotation_sigma_deg * deg,
+  EXPECT_TRUE(rotation.prior_sigma.isApprox(Eigen::Vector3d(1.0, 2.0, 4.0) * kDegToRad, 1e-15));
+  EXPECT_NEAR(rotation.max_observable_sigma, options.max_observable_rotation_sigma_deg * kDegToRad,
               1e-18);
   const estimation::EstimatedBlock& translation = blocks[1];
   EXPECT_EQ(translation.data, c.p_I_L.data());
@@ -155,7 +155,7 @@ TEST(ProblemBlocks, FillUncertaintyWritesEachBlocksSection) {
   EXPECT_EQ(*u.T_I_L.sigma_p_m, Eigen::Vector3d(0.001, 0.002, 0.003));
   EXPECT_THAT(u.T_I_L.observable, ::testing::ElementsAre(true, true, true, true, true, false));
   ASSERT_TRUE(u.T_I_V.sigma_rot_deg.has_value());
-  EXPECT_NEAR((*u.T_I_V.sigma_rot_deg)(2), 0.003 * 180.0 / M_PI, 1e-15);
+  EXPECT_NEAR((*u.T_I_V.sigma_rot_deg)(2), 0.003 * kRadToDeg, 1e-15);
   EXPECT_EQ(u.track_width_m.sigma, 0.004);
   EXPECT_EQ(u.track_width_m.observable, true);
   EXPECT_THAT(u.p_I_A_m.observable, ::testing::ElementsAre(true, false, true));

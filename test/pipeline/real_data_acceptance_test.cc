@@ -22,6 +22,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/import/import_bag.h"
 #include "autocal/io/dataset.h"
@@ -34,8 +35,6 @@
 namespace autocal {
 namespace pipeline {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 io::Dataset Import(const std::filesystem::path& bag) {
   const std::filesystem::path directory = test::OutputDir("dataset") / bag.stem();
@@ -62,7 +61,7 @@ Eigen::Quaterniond LaunchFileMount() {
 io::Dataset SkidSteerFromTenDegreesOff() {
   io::Dataset dataset = Import(test::SharedDataDir("ros1_bags") / "test1.bag");
   const Eigen::Quaterniond ten_degrees_off(
-      Eigen::AngleAxisd(10.0 / kRadToDeg, Eigen::Vector3d(1.0, 1.0, 1.0).normalized()));
+      Eigen::AngleAxisd(10.0 * kDegToRad, Eigen::Vector3d(1.0, 1.0, 1.0).normalized()));
   dataset.sensors.nominal_calibration.q_I_V = (LaunchFileMount() * ten_degrees_off).conjugate();
   return dataset;
 }

@@ -15,6 +15,7 @@
 #include <iostream>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/import/import_bag.h"
 #include "autocal/io/dataset.h"
@@ -27,8 +28,6 @@
 namespace autocal {
 namespace pipeline {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 // test1.bag imported into a fresh directory below the test's output.
 io::Dataset ImportTest1(const std::filesystem::path& bag) {

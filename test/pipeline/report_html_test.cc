@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/geometry/so3.h"
 
@@ -23,8 +24,6 @@ namespace {
 
 using ::testing::HasSubstr;
 using ::testing::Not;
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 std::vector<double> Normal(int count, double sigma, unsigned seed) {
   std::mt19937 rng(seed);

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <string>
 
+#include "autocal/common/units.h"
 #include "autocal/io/dataset.h"
 #include "autocal/sim/simulator.h"
 #include "support/simulation_cache.h"
@@ -48,8 +49,8 @@ inline void UseOdometryTwist(sim::SimulationOptions* options) {
 inline void SpoilNominalGuess(io::SensorsConfig* config) {
   sensors::Calibration& nominal = config->nominal_calibration;
   const Eigen::Vector3d axis = Eigen::Vector3d(1.0, -2.0, 3.0).normalized();
-  nominal.q_I_L = (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * M_PI / 180.0, axis)))
-                      .normalized();
+  nominal.q_I_L =
+      (nominal.q_I_L * Eigen::Quaterniond(Eigen::AngleAxisd(20.0 * kDegToRad, axis))).normalized();
   nominal.p_I_L += 0.3 * Eigen::Vector3d(1.0, -1.0, 1.0).normalized();
   nominal.time_offset_lidar_imu_s += 0.040;
   config->nominal_uncertainty.T_I_L = io::PoseBlockInfo();

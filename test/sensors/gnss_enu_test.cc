@@ -10,12 +10,11 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 
 namespace autocal {
 namespace sensors {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // Origins across the globe; points up to ~5 km away in every direction and height.
 TEST(EnuConverter, MatchesGeographicLibLocalCartesian) {

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "autocal/common/units.h"
 #include "autocal/sim/scenario.h"
 #include "autocal/sim/simulator.h"
 #include "sim/sim_test_util.h"
@@ -12,8 +13,6 @@
 namespace autocal {
 namespace sim {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / M_PI;
 
 class DriveTest : public ::testing::TestWithParam<ScenarioType> {};
 

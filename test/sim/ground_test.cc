@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "autocal/common/units.h"
 #include "autocal/sim/scenario.h"
 
 namespace autocal {
@@ -55,7 +56,7 @@ TEST_P(GroundTest, TheDriveStaysOnTheGround) {
     const Eigen::Vector3d normal = Eigen::Vector3d(-g.x(), -g.y(), 1.0).normalized();
     const Eigen::Vector3d road = T_W_V.p - axle * normal;
     EXPECT_NEAR(road.z(), ground.Height(road.x(), road.y()), 1e-4) << "at t = " << t;
-    const double tilt_deg = std::acos(std::min(1.0, normal.dot(T_W_V.R().col(2)))) * 180.0 / M_PI;
+    const double tilt_deg = std::acos(std::min(1.0, normal.dot(T_W_V.R().col(2)))) * kRadToDeg;
     EXPECT_LT(tilt_deg, 3.0) << "at t = " << t;
   }
 }

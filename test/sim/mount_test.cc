@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "sim/sim_test_util.h"
@@ -13,8 +14,6 @@
 namespace autocal {
 namespace sim {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // The mounts of the real platforms: y up (R_V_I = Rz(-90) Rx(+90)) and z down (Rx(180)).
 Eigen::Quaterniond YUp() { return RotationFromRollPitchYawDeg(90.0, 0.0, -90.0); }

@@ -9,6 +9,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "sim/sim_test_util.h"
@@ -214,7 +215,7 @@ TEST(SimulatorTest, NominalCalibrationIsTheTruthPerturbed) {
     const Simulator simulator(options);
     const sensors::Calibration& t = simulator.true_calibration();
     const sensors::Calibration& n = simulator.nominal_calibration();
-    const double rotation_deg = geometry::AngularDistance(t.q_I_L, n.q_I_L) * 180.0 / M_PI;
+    const double rotation_deg = geometry::AngularDistance(t.q_I_L, n.q_I_L) * kRadToDeg;
     // Per-axis sigma 1.5 deg: the angle is a chi(3) draw times 1.5 deg.
     EXPECT_GT(rotation_deg, 0.05) << "seed " << seed;
     EXPECT_LT(rotation_deg, 8.0) << "seed " << seed;

@@ -50,7 +50,7 @@ struct LidarInertialBatchOptions {
   // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
   int map_neighbor_sweeps = 0;
   // Robust loss on point residuals, scale in units of sigma.
-  factors::LossOptions point_loss{lidar::RobustLoss::kCauchy, 2.0};
+  factors::LossOptions point_loss{factors::RobustLoss::kCauchy, 2.0};
   // The first iterations accept planes 2^(steps - iteration) times thicker and points that
   // much noisier, so that a calibration still far off finds associations.
   int coarse_to_fine_steps = 3;

@@ -61,7 +61,7 @@ struct SlidingWindowInitialStateSigmas {
   double accel_bias_m_s2 = 3e-2;
 };
 
-// The wheel rows (docs/sliding_window.md, "Wheel factors"): speed and yaw rate whitened with
+// The wheel rows (docs/sliding_window.md, "Wheel rows"): speed and yaw rate whitened with
 // the encoder and gyro noise, optionally the rear axle's lateral and vertical speed.
 struct WheelRowSetting {
   // Non-holonomic rows; their sigma is scaled for the model error's correlation time
@@ -75,7 +75,7 @@ struct WheelRowSetting {
   double gyro_mean_span_s = 0.05;
 };
 
-// Rows linearized per solve pass (docs/sliding_window.md, "Linearization per pass").
+// Rows linearized per solve pass (docs/sliding_window.md, "Linearized once per pass").
 struct LinearizationSetting {
   // Passes per update: the first on every point group, wheel and GNSS row linearized afresh,
   // a later one on the groups that moved. 0: one pass evaluating them at every iteration.

@@ -7,14 +7,14 @@
 
 #include <string>
 
-#include "autocal/lidar/robust_loss.h"
+#include "autocal/factors/robust_loss.h"
 
 namespace autocal {
 namespace factors {
 
 struct LossOptions {
-  // The kinds are ICP's (lidar/robust_loss.h); here they act on whitened residuals.
-  lidar::RobustLoss type = lidar::RobustLoss::kNone;
+  // The kinds are ICP's (factors/robust_loss.h); here they act on whitened residuals.
+  RobustLoss type = RobustLoss::kNone;
   double scale = 1.0;  // > 0, in whitened units (sigmas)
 };
 
@@ -23,9 +23,9 @@ struct LossOptions {
 struct FactorLossOptions {
   LossOptions imu;
   LossOptions prior;
-  LossOptions wheel{lidar::RobustLoss::kHuber, 2.0};
-  LossOptions gnss{lidar::RobustLoss::kCauchy, 3.0};
-  LossOptions lidar{lidar::RobustLoss::kHuber, 1.0};
+  LossOptions wheel{RobustLoss::kHuber, 2.0};
+  LossOptions gnss{RobustLoss::kCauchy, 3.0};
+  LossOptions lidar{RobustLoss::kHuber, 1.0};
 };
 
 // The scales a loss accepts, in sigmas: wider ones are no robust loss at all, narrower ones
@@ -34,7 +34,7 @@ constexpr double kMinLossScale = 1e-3;
 constexpr double kMaxLossScale = 1e3;
 
 // "none", "<type>" (scale 1) or "<type>:<scale>" / "<type> <scale>", e.g. "huber:1.5";
-// <type> as lidar::ParseRobustLoss reads it (case-insensitive).
+// <type> as ParseRobustLoss reads it (case-insensitive).
 // Throws autocal::Error on an unknown type or a scale outside [kMinLossScale, kMaxLossScale].
 LossOptions ParseLossOptions(const std::string& text);
 

@@ -23,8 +23,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "autocal/geometry/plane.h"
 #include "autocal/geometry/so3.h"
-#include "autocal/lidar/plane_fitting.h"
 
 namespace autocal {
 namespace factors {
@@ -42,7 +42,7 @@ struct PointMotion {
 struct PointToPlaneMeasurement {
   Eigen::Vector3d p_L = Eigen::Vector3d::Zero();  // the point in the LiDAR frame
   PointMotion motion;
-  lidar::Plane plane;                   // in W: normal . x + d = 0
+  geometry::Plane plane;                // in W: normal . x + d = 0
   double sigma_m = 0.02;                // 1-sigma of the point-to-plane distance
   double offset_linearization_s = 0.0;  // offset_0
 };

@@ -23,7 +23,7 @@
 #include <cstdint>
 
 #include "autocal/factors/point_to_plane_factor.h"
-#include "autocal/lidar/plane_fitting.h"
+#include "autocal/geometry/plane.h"
 
 namespace autocal {
 namespace factors {
@@ -32,7 +32,7 @@ struct PointToSweepPlaneMeasurement {
   Eigen::Vector3d p_L = Eigen::Vector3d::Zero();  // the point in sweep k's LiDAR frame
   PointMotion motion;                             // keyframe k to the point's instant
   PointMotion plane_motion;                       // keyframe j to sweep j's reference instant
-  lidar::Plane plane_L;                           // in sweep j's LiDAR frame at that instant
+  geometry::Plane plane_L;                        // in sweep j's LiDAR frame at that instant
   double sigma_m = 0.02;                          // 1-sigma of the point-to-plane distance
   double offset_linearization_s = 0.0;            // offset_0 of both motions
 };

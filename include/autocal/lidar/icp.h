@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
+#include "autocal/factors/robust_loss.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/kd_tree.h"
 #include "autocal/lidar/normals.h"
-#include "autocal/lidar/robust_loss.h"
 
 namespace autocal {
 namespace lidar {
@@ -57,7 +57,7 @@ struct IcpSetting {
   // surfaces.
   double max_correspondence_m = 1.0;
   // Robust loss on the residual (point-to-plane distance, or point-to-point distance).
-  RobustKernel robust;
+  factors::RobustKernel robust;
   IcpConvergenceSetting convergence;
   // Target points whose neighbourhood planarity is below this carry no plane
   // (point-to-plane only); 0 keeps every point with a defined normal.

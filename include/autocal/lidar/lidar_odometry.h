@@ -42,7 +42,7 @@ struct LidarOdometrySetting {
   // Point-to-plane, Huber with 0.1 m scale: moving objects and map clutter are down-weighted.
   IcpSetting icp = [] {
     IcpSetting setting;
-    setting.robust = RobustKernel{RobustLoss::kHuber, 0.1};
+    setting.robust = factors::RobustKernel{factors::RobustLoss::kHuber, 0.1};
     return setting;
   }();
   geometry::Pose3d initial_T_W_L;

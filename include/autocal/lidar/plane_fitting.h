@@ -16,17 +16,10 @@
 #include <cstdint>
 #include <vector>
 
+#include "autocal/geometry/plane.h"
+
 namespace autocal {
 namespace lidar {
-
-// The plane {p : normal . p + d = 0} with a unit normal; SignedDistance is positive on the
-// side the normal points to.
-struct Plane {
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
-  double d = 0.0;
-
-  double SignedDistance(const Eigen::Vector3d& p) const { return normal.dot(p) + d; }
-};
 
 // Coefficients of z = a + b x + c y.
 struct HeightPlane {
@@ -36,7 +29,7 @@ struct HeightPlane {
 
   double Height(double x, double y) const { return a + b * x + c * y; }
   // The same plane in normal form, normal pointing up (+z).
-  Plane ToPlane() const;
+  geometry::Plane ToPlane() const;
 };
 
 // Least-squares fit of eq. (3.1). Throws autocal::Error with fewer than 3 points or when the
@@ -45,7 +38,7 @@ struct HeightPlane {
 HeightPlane FitHeightPlane(const Eigen::Matrix3Xd& points);
 
 struct PlaneFit {
-  Plane plane;
+  geometry::Plane plane;
   double rms_m = 0.0;      // RMS orthogonal distance of the points to the plane
   double planarity = 0.0;  // (l1 - l0) / l2 of the points' covariance
 };
@@ -68,7 +61,7 @@ struct GroundExtractionSetting {
 };
 
 struct GroundExtraction {
-  Plane plane;                      // least-squares refit on the inliers, normal up
+  geometry::Plane plane;            // least-squares refit on the inliers, normal up
   std::vector<int> inlier_indices;  // of the refitted plane, ascending
   int iterations = 0;               // hypotheses drawn
 };

@@ -9,8 +9,8 @@
 #include <Eigen/Core>
 #include <cstdint>
 
+#include "autocal/geometry/plane.h"
 #include "autocal/lidar/neighbor_grid.h"
-#include "autocal/lidar/plane_fitting.h"
 
 namespace autocal {
 namespace lidar {
@@ -47,13 +47,13 @@ class PlaneMap {
   // The local plane around p_W, or false when the neighbourhood is not a clean plane. Its
   // normal faces the map frame's origin (plane->d >= 0). Safe to call from several threads
   // at once.
-  bool FindPlane(const Eigen::Vector3d& p_W, Plane* plane) const;
+  bool FindPlane(const Eigen::Vector3d& p_W, geometry::Plane* plane) const;
 
   int64_t size() const { return grid_.size(); }
 
  private:
   using Neighborhood = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, kMaxNeighbors>;
-  bool FitLocalPlane(const Neighborhood& local, Plane* plane) const;
+  bool FitLocalPlane(const Neighborhood& local, geometry::Plane* plane) const;
 
   PlaneMapOptions options_;
   NeighborGrid grid_;

@@ -15,6 +15,8 @@
 
 #include <Eigen/Core>
 
+#include "autocal/common/units.h"
+
 namespace autocal {
 namespace lidar {
 
@@ -48,8 +50,8 @@ Eigen::Matrix3d InverseModelJacobian(const SphericalPoint& s);
 // angle uncertainty).
 struct SphericalNoise {
   double range_sigma_m = 0.02;
-  double azimuth_sigma_rad = 0.1 * 3.14159265358979323846 / 180.0;
-  double elevation_sigma_rad = 0.1 * 3.14159265358979323846 / 180.0;
+  double azimuth_sigma_rad = 0.1 * kDegToRad;
+  double elevation_sigma_rad = 0.1 * kDegToRad;
 };
 
 // First-order Cartesian covariance of a point measured at s, eq. (1.5):

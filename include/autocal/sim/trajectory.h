@@ -12,6 +12,7 @@
 #include <memory>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/sim/ground.h"
 #include "autocal/sim/smooth_step.h"
@@ -197,9 +198,9 @@ class PivotProfile {
 // How the body moves on its suspension, and where the rear axle sits.
 struct VehicleDynamicsOptions {
   // Body roll per lateral acceleration (rolls out of the turn), rad per m/s^2 (0.4 deg).
-  double roll_per_lateral_accel = 0.4 * M_PI / 180.0;
+  double roll_per_lateral_accel = 0.4 * kDegToRad;
   // Body pitch per longitudinal acceleration (nose up when accelerating), rad per m/s^2.
-  double pitch_per_longitudinal_accel = 0.3 * M_PI / 180.0;
+  double pitch_per_longitudinal_accel = 0.3 * kDegToRad;
   // Height of the rear-axle centre (V origin) above the road along the road normal, m.
   double rear_axle_height_m = 0.33;
 };

@@ -1,4 +1,4 @@
-#include "autocal/lidar/robust_loss.h"
+#include "autocal/factors/robust_loss.h"
 
 #include <algorithm>
 #include <cctype>
@@ -7,7 +7,7 @@
 #include "autocal/common/error.h"
 
 namespace autocal {
-namespace lidar {
+namespace factors {
 
 double RobustKernel::Weight(double residual_m) const {
   const double abs_r = std::abs(residual_m);
@@ -65,5 +65,5 @@ const char* RobustLossName(RobustLoss loss) {
   return "none";
 }
 
-}  // namespace lidar
+}  // namespace factors
 }  // namespace autocal

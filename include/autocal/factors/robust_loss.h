@@ -1,6 +1,7 @@
 #pragma once
 
-// Robust losses for ICP as iteratively reweighted least squares (docs/lidar.md §4.4).
+// Robust losses: the kinds that ICP (lidar/icp.h) applies as iteratively reweighted least
+// squares (docs/lidar.md §4.4) and that the factors hand to Ceres (factors/loss.h).
 // A residual r (metres) with scale k contributes rho(r) instead of r^2 / 2; each
 // Gauss-Newton step solves a weighted least-squares problem with w(r) = rho'(r) / r
 // (eq. 4.12):
@@ -11,7 +12,7 @@
 #include <string>
 
 namespace autocal {
-namespace lidar {
+namespace factors {
 
 enum class RobustLoss { kNone, kHuber, kCauchy };
 
@@ -32,5 +33,5 @@ struct RobustKernel {
 RobustLoss ParseRobustLoss(const std::string& name);
 const char* RobustLossName(RobustLoss loss);
 
-}  // namespace lidar
+}  // namespace factors
 }  // namespace autocal
