@@ -43,8 +43,8 @@ geometry::Pose3d LidarPose(const SlidingWindowState& x, const sensors::Calibrati
 
 }  // namespace
 
-// Step 3 (docs/sliding_window.md, "Association" and "Reuse between updates"): the window's
-// sweeps paired by the pairing engine, which keeps their maps, tries and groups between
+// Step 3 (docs/sliding_window.md, "Pairing points with planes" and "Reuse between updates"): the
+// window's sweeps paired by the pairing engine, which keeps their maps, tries and groups between
 // updates.
 void SlidingWindowEstimator::Impl::AssociatePoints() {
   std::vector<internal::PairingSweep> sweeps;
@@ -233,7 +233,7 @@ void SlidingWindowEstimator::Impl::Solve(std::unique_ptr<ProblemBuild>* build) {
   // The window's own Levenberg-Marquardt (Eq. W5): the rows fixed for the pass enter by
   // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
   // with a loss and factors the dense system. It runs on one thread (docs/sliding_window.md,
-  // "Solver: threads").
+  // "Settings": num_threads).
   internal::WindowSolverOptions solver_options;
   solver_options.max_iterations = options_.solver.max_iterations;
   solver_options.function_tolerance = options_.solver.function_tolerance;

@@ -1,8 +1,8 @@
 #pragma once
 
-// Sweep pairing (docs/estimation.md, Eq. P6-P9; docs/sliding_window.md, "Association" and
-// "Reuse between updates"): the residual points of a LiDAR sweep paired with planes of other
-// sweeps, the points of sweep k on planes of sweep j forming one group factor.
+// Sweep pairing (docs/estimation.md, Eq. P6-P9; docs/sliding_window.md, "Pairing points with
+// planes" and "Reuse between updates"): the residual points of a LiDAR sweep paired with planes of
+// other sweeps, the points of sweep k on planes of sweep j forming one group factor.
 //
 // The batch solver and the sliding window share the point selection, the deskew into W, the
 // sweeps' LiDAR poses and the order in which a point tries its partners. The window pairs

@@ -991,7 +991,7 @@ TEST_F(SlidingWindowUrban, TracksTruthFromTrueCalibration) {
 
 // Started at the simulator's nominal calibration (3.6 deg, 2 cm, 2.8 ms off): the point pairs
 // between window sweeps move with the extrinsic and offset (docs/sliding_window.md,
-// "Association"), so the window tracks the truth and moves the calibration to it.
+// "Pairing points with planes"), so the window tracks the truth and moves the calibration to it.
 TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   const sensors::Calibration& nominal = simulator_->nominal_calibration();

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <string>
 
+#include "autocal/common/units.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
@@ -183,15 +184,15 @@ TEST(FuseUpAxisIntoMountPrior, WidensTheUpAxisByTheBiasRandomWalk) {
     std::vector<estimation::EstimatedBlock> blocks = {
         estimation::BlockOf(sensors::CalibrationBlockId::kVehicleRotation, &centre)};
     blocks[0].prior = Eigen::Vector4d(0.0, 0.0, 0.0, 1.0);
-    blocks[0].prior_sigma = Eigen::Vector3d::Constant(prior_deg * M_PI / 180.0);
+    blocks[0].prior_sigma = Eigen::Vector3d::Constant(prior_deg * kDegToRad);
     FuseUpAxisIntoMountPrior(init, problem, b0, walk, g, &blocks, &centre);
     const double bias = std::sqrt(b0 * b0 + walk * walk * init.up->span_s / 3.0);
-    const double up_deg = std::hypot(1.0, bias / g * 180.0 / M_PI);
+    const double up_deg = std::hypot(1.0, bias / g * kRadToDeg);
     const double fused_deg =
         1.0 / std::sqrt(1.0 / (prior_deg * prior_deg) + 1.0 / (up_deg * up_deg));
-    EXPECT_NEAR(blocks[0].prior_sigma(0) * 180.0 / M_PI, fused_deg, 1e-6) << walk;
-    EXPECT_NEAR(blocks[0].prior_sigma(1) * 180.0 / M_PI, fused_deg, 1e-6) << walk;
-    EXPECT_NEAR(blocks[0].prior_sigma(2) * 180.0 / M_PI, prior_deg, 1e-9) << walk;
+    EXPECT_NEAR(blocks[0].prior_sigma(0) * kRadToDeg, fused_deg, 1e-6) << walk;
+    EXPECT_NEAR(blocks[0].prior_sigma(1) * kRadToDeg, fused_deg, 1e-6) << walk;
+    EXPECT_NEAR(blocks[0].prior_sigma(2) * kRadToDeg, prior_deg, 1e-9) << walk;
     if (walk > 0.0) {
       EXPECT_NEAR(up_deg, 3.89, 0.01);
     }

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "autocal/common/units.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/run_status.h"
 #include "support/test_paths.h"
@@ -71,7 +72,7 @@ TEST(FleetReport, GathersValuesFailuresAndOutliers) {
   EXPECT_THAT(names,
               ::testing::ElementsAre("wheel_radius_left_m", "wheel_radius_right_m", "track_width_m",
                                      "q_I_V_roll_deg", "q_I_V_pitch_deg", "q_I_V_yaw_deg"));
-  EXPECT_NEAR(report.values[0][5], -0.01 * 180.0 / M_PI, 1e-5);  // R_V_I = R_I_V^T
+  EXPECT_NEAR(report.values[0][5], -0.01 * kRadToDeg, 1e-5);  // R_V_I = R_I_V^T
   ASSERT_EQ(report.outliers.size(), 1u);
   EXPECT_EQ(report.outliers[0].entry, 4u);
   EXPECT_EQ(report.outliers[0].column, 1u);
