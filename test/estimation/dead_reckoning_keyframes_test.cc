@@ -34,10 +34,9 @@ std::vector<Keyframe> Keyframes(double period_s, double duration_s) {
   return kfs;
 }
 
-// (K12) on the circle: each keyframe's yaw is w t from the first, its velocity the speed along
-// its heading, its position on the arc (the trapezoid rule's error is below a millimetre).
-TEST(PlaceKeyframesByDeadReckoning, FollowsACircle) {
-  const Circle c;
+// The IMU of the circle at 200 Hz for 11 s (its centripetal force and gravity) and the wheel
+// speed at 10 Hz.
+sensors::ImuSamples ImuOnCircle(const Circle& c) {
   sensors::ImuSamples imu;
   for (double t = 0.0; t <= 11.0; t += 0.005) {
     sensors::ImuSample s;
@@ -46,8 +45,21 @@ TEST(PlaceKeyframesByDeadReckoning, FollowsACircle) {
     s.accel_m_s2 = c.q_I_V * Eigen::Vector3d(0.0, c.v_m_s * c.w_rad_s, 9.80665);
     imu.push_back(s);
   }
+  return imu;
+}
+
+ScalarSeries SpeedOnCircle(const Circle& c) {
   ScalarSeries speed;
   for (double t = 0.0; t <= 11.0; t += 0.1) speed.push_back({SecondsToNs(t), c.v_m_s});
+  return speed;
+}
+
+// (K12) on the circle: each keyframe's yaw is w t from the first, its velocity the speed along
+// its heading, its position on the arc (the trapezoid rule's error is below a millimetre).
+TEST(PlaceKeyframesByDeadReckoning, FollowsACircle) {
+  const Circle c;
+  const sensors::ImuSamples imu = ImuOnCircle(c);
+  const ScalarSeries speed = SpeedOnCircle(c);
   std::vector<Keyframe> kfs = Keyframes(0.1, 10.0);
   PlaceKeyframesByDeadReckoning(&kfs, imu, speed, c.q_I_V, Eigen::Vector3d::Zero());
   const double t0 = NsToSeconds(kfs.front().t_ns);
@@ -69,21 +81,12 @@ TEST(PlaceKeyframesByDeadReckoning, FollowsACircle) {
                Error);
 }
 
-// The gauge holds the first keyframe's position and its turn about the world's vertical, and
-// nothing else: its roll and pitch stay free for gravity to set.
 // With the IMU away from the rear axle (p_I_V), it moves with the axle plus the turn about it:
 // v_W_I = v_W_V + w x p_V_I, the gyro's w constant on the circle.
 TEST(PlaceKeyframesByDeadReckoning, AddsTheTurnAboutTheRearAxle) {
   const Circle c;
-  sensors::ImuSamples imu;
-  for (double t = 0.0; t <= 11.0; t += 0.005) {
-    sensors::ImuSample s;
-    s.t_ns = SecondsToNs(t);
-    s.gyro_rad_s = c.q_I_V * Eigen::Vector3d(0.0, 0.0, c.w_rad_s);
-    imu.push_back(s);
-  }
-  ScalarSeries speed;
-  for (double t = 0.0; t <= 11.0; t += 0.1) speed.push_back({SecondsToNs(t), c.v_m_s});
+  const sensors::ImuSamples imu = ImuOnCircle(c);
+  const ScalarSeries speed = SpeedOnCircle(c);
   const Eigen::Vector3d p_I_V(0.4, -1.3, 0.2);
   std::vector<Keyframe> kfs = Keyframes(0.1, 10.0);
   PlaceKeyframesByDeadReckoning(&kfs, imu, speed, c.q_I_V, p_I_V);
@@ -99,6 +102,8 @@ TEST(PlaceKeyframesByDeadReckoning, AddsTheTurnAboutTheRearAxle) {
   }
 }
 
+// The gauge holds the first keyframe's position and its turn about the world's vertical, and
+// nothing else: its roll and pitch stay free for gravity to set.
 TEST(AddDeadReckoningGauge, HoldsPositionAndYawOnly) {
   Keyframe kf;
   kf.q_W_I = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()));
