@@ -8,6 +8,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <system_error>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
@@ -37,6 +38,20 @@ std::vector<std::string> LogNames(const std::vector<io::Dataset>& datasets) {
     names.push_back(name);
   }
   return names;
+}
+
+// One log given twice would count its data twice: a sigma 1/sqrt(2) of the truth's.
+void RequireDistinct(const std::vector<io::Dataset>& datasets) {
+  std::set<std::string> seen;
+  for (const io::Dataset& d : datasets) {
+    std::error_code error;
+    std::filesystem::path path = std::filesystem::weakly_canonical(d.directory, error);
+    if (error) path = std::filesystem::absolute(d.directory).lexically_normal();
+    if (!seen.insert(path.string()).second) {
+      throw Error("dataset " + d.directory +
+                  " is given twice: one log counted twice would claim the certainty of two");
+    }
+  }
 }
 
 // What a change of a block between logs may mean, after the course's notes on each sensor.
@@ -151,6 +166,7 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
   if (datasets.size() < 2) {
     throw Error("several logs need at least two datasets, got " + std::to_string(datasets.size()));
   }
+  RequireDistinct(datasets);
   MultiLogCalibrationResult result;
   const std::vector<std::string> names = LogNames(datasets);
   std::vector<estimation::CalibrationPosterior> posteriors;

@@ -185,6 +185,19 @@ TEST(MultiLogRepeatability, RefusesFewerThanTwoLogs) {
   EXPECT_THROW(CalibrateDatasets({}, ImuWheelGnssProblem()), Error);
 }
 
+// The same log twice would halve its variance without new data.
+TEST(MultiLogRepeatability, RefusesALogGivenTwice) {
+  const std::unique_ptr<test::SimulatedUrbanDataset> log = Log(31);
+  io::Dataset again = io::ReadDataset(log->directory);
+  again.directory = log->directory + "/.";
+  try {
+    CalibrateDatasets({io::ReadDataset(log->directory), again}, ImuWheelGnssProblem());
+    ADD_FAILURE() << "a log given twice was calibrated";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("is given twice"));
+  }
+}
+
 }  // namespace
 }  // namespace pipeline
 }  // namespace autocal

@@ -56,7 +56,8 @@ struct MultiLogCalibrationResult {
 };
 
 // Throws autocal::Error naming the log when one cannot be calibrated, or when the logs
-// cannot be combined (no covariance). Fewer than two datasets are refused.
+// cannot be combined (no covariance). Fewer than two datasets, or one directory given twice
+// (its data would count twice), are refused.
 MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& datasets,
                                             const io::Problem& problem,
                                             const MultiLogCalibrationOptions& options = {});
