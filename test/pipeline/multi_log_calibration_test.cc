@@ -26,10 +26,7 @@ namespace autocal {
 namespace pipeline {
 namespace {
 
-io::Problem ImuWheelGnssProblem() {
-  return io::ReadProblemYaml(
-      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
-}
+io::Problem ImuWheelGnssProblem() { return test::ShippedProblem("imu_wheel_gnss.yaml"); }
 
 // Urban drive `seed`, 30 s, no LiDAR; the right rear tyre `right_change_pct` % larger.
 std::unique_ptr<test::SimulatedUrbanDataset> Log(uint64_t seed, double right_change_pct = 0.0) {

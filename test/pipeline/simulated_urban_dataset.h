@@ -14,12 +14,19 @@
 
 #include "autocal/common/units.h"
 #include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
 #include "autocal/sim/simulator.h"
 #include "support/simulation_cache.h"
 #include "support/test_paths.h"
 
 namespace autocal {
 namespace test {
+
+// A problem file shipped in problems/, e.g. "imu_wheel_gnss.yaml".
+inline io::Problem ShippedProblem(const std::string& file) {
+  return io::ReadProblemYaml(
+      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / file).string());
+}
 
 inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
   sim::SimulationOptions options;

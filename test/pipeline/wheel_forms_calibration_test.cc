@@ -21,10 +21,7 @@ namespace autocal {
 namespace pipeline {
 namespace {
 
-io::Problem ImuWheelGnssProblem() {
-  return io::ReadProblemYaml(
-      (std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" / "imu_wheel_gnss.yaml").string());
-}
+io::Problem ImuWheelGnssProblem() { return test::ShippedProblem("imu_wheel_gnss.yaml"); }
 
 // The urban drive (its roundabout excites the yaw rate) without the LiDAR, the wheels in
 // `form`.
