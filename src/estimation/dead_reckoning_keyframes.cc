@@ -1,32 +1,16 @@
 #include "autocal/estimation/dead_reckoning_keyframes.h"
 
-#include <algorithm>
 #include <cmath>
 #include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/factors/prior_factors.h"
+#include "autocal/sensors/imu_preintegration.h"
 #include "estimation/keyframe_interpolation.h"
 
 namespace autocal {
 namespace estimation {
-
-namespace {
-
-// The gyro at t_ns, linear between the samples around it (clamped at the ends).
-Eigen::Vector3d GyroAt(const sensors::ImuSamples& imu, int64_t t_ns) {
-  const auto after =
-      std::upper_bound(imu.begin(), imu.end(), t_ns,
-                       [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
-  if (after == imu.begin()) return imu.front().gyro_rad_s;
-  if (after == imu.end()) return imu.back().gyro_rad_s;
-  const sensors::ImuSample& a = *(after - 1);
-  const double s = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(after->t_ns - a.t_ns);
-  return (1.0 - s) * a.gyro_rad_s + s * after->gyro_rad_s;
-}
-
-}  // namespace
 
 void PlaceKeyframesByDeadReckoning(std::vector<Keyframe>* keyframes, const sensors::ImuSamples& imu,
                                    const ScalarSeries& speed_m_s, const Eigen::Quaterniond& q_I_V,
@@ -47,7 +31,7 @@ void PlaceKeyframesByDeadReckoning(std::vector<Keyframe>* keyframes, const senso
     // The IMU moves with the rear axle plus the turn about it: v_I = v_V + w x p_V_I, with
     // p_V_I = -p_I_V seen in I.
     kf.v_W_I = q_W_V * Eigen::Vector3d(InterpolateSeries(speed_m_s, kf.t_ns), 0.0, 0.0) -
-               kf.q_W_I * GyroAt(imu, kf.t_ns).cross(p_I_V);
+               kf.q_W_I * sensors::InterpolateImu(imu, kf.t_ns).gyro_rad_s.cross(p_I_V);
     kf.p_W_I =
         k == 0 ? Eigen::Vector3d::Zero()
                : Eigen::Vector3d(kfs[k - 1].p_W_I + 0.5 * (kfs[k - 1].v_W_I + kf.v_W_I) *
