@@ -2,24 +2,19 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
 #include <sstream>
 
 #include "autocal/common/format.h"
 #include "html_page.h"
+#include "svg_chart.h"
 
 namespace autocal {
 namespace pipeline {
 namespace {
 
-std::string Number(double value, int decimals) {
+// `decimals` after the point; "–" for a non-finite value, as svg_chart.h's Number.
+std::string Fixed(double value, int decimals) {
   return std::isfinite(value) ? FormatFixed(value, decimals) : "–";
-}
-
-std::string Significant(double value) {
-  std::ostringstream out;
-  out << std::setprecision(2) << value;
-  return out.str();
 }
 
 // Decimals that show a value of this sigma to about two significant digits of the sigma.
@@ -45,15 +40,15 @@ std::string RepeatabilitySection(const MultiLogCalibrationResult& result) {
       html << "<td>";
       for (const RepeatabilityEntry& e : row.logs) {
         if (e.log == log.name) {
-          html << Number(e.value, decimals) << " ± " << Number(e.sigma, decimals);
+          html << Fixed(e.value, decimals) << " ± " << Fixed(e.sigma, decimals);
         }
       }
       html << "</td>";
     }
     const estimation::BlockAgreement& a = row.block->agreement;
-    html << "<td>" << Number(row.shared.value, decimals) << " ± "
-         << Number(row.shared.sigma, decimals) << "</td><td>" << Number(a.chi_square, 1) << " / "
-         << a.degrees_of_freedom << "</td><td>" << Significant(a.p_value) << "</td><td"
+    html << "<td>" << Fixed(row.shared.value, decimals) << " ± "
+         << Fixed(row.shared.sigma, decimals) << "</td><td>" << Fixed(a.chi_square, 1) << " / "
+         << a.degrees_of_freedom << "</td><td>" << Number(a.p_value) << "</td><td"
          << (row.block->agree ? ">agree" : " class='warn'>differ") << "</td></tr>\n";
   }
   html << "</table>\n";
