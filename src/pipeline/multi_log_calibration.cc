@@ -25,16 +25,20 @@ namespace {
 
 using sensors::CalibrationBlockId;
 
-// The dataset directories' last components, made unique by their position where they repeat.
+// The dataset directories' last components, made unique where they repeat.
 std::vector<std::string> LogNames(const std::vector<io::Dataset>& datasets) {
   std::vector<std::string> names;
   std::set<std::string> seen;
   for (size_t i = 0; i < datasets.size(); ++i) {
-    std::string name =
+    std::string base =
         std::filesystem::path(datasets[i].directory).lexically_normal().filename().string();
-    if (name.empty() || name == "." || name == "..") name = "log";
-    if (!seen.insert(name).second) name += "_" + std::to_string(i + 1);
-    seen.insert(name);
+    if (base.empty() || base == "." || base == "..") base = "log";
+    // A taken name gets the log's position, then further numbers while that is taken too
+    // ("day", "day", "day_2" gives day, day_2, day_2_3).
+    std::string name = base;
+    for (size_t n = i + 1; !seen.insert(name).second; ++n) {
+      name = base + "_" + std::to_string(n);
+    }
     names.push_back(name);
   }
   return names;
@@ -210,37 +214,34 @@ std::vector<RepeatabilityRow> RepeatabilityRows(const MultiLogCalibrationResult&
   std::vector<RepeatabilityRow> rows;
   for (const BlockRepeatability& r : result.repeatability) {
     const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(r.agreement.id);
-    estimation::EstimatedBlock block;  // for BlockMinus
-    block.id = info.id;
-    block.size = info.tangent_size;
-    block.manifold = info.manifold;
     const double* shared = info.const_values(result.calibration.value);
-    // A rotation's value is its rotation vector from the shared rotation; else the value.
-    const auto entry = [&](const std::string& log, const estimation::CalibrationPosterior& p,
-                           const double* values, int k) -> std::optional<RepeatabilityEntry> {
-      for (size_t b = 0; b < p.blocks.size(); ++b) {
-        if (p.blocks[b].id != info.id) continue;
+    // Direction k of the block among `blocks` (values, covariance): a rotation's value is its
+    // rotation vector from the shared rotation, another block's its value.
+    const auto entry = [&](const std::string& log,
+                           const std::vector<estimation::EstimatedBlock>& blocks,
+                           const estimation::BlockCovariance& covariance, const double* values,
+                           int k) -> std::optional<RepeatabilityEntry> {
+      for (size_t b = 0; b < blocks.size(); ++b) {
+        if (blocks[b].id != info.id) continue;
         const double value = info.manifold == sensors::BlockManifold::kRightQuaternion
-                                 ? estimation::BlockMinus(block, values, shared)(k)
+                                 ? estimation::BlockMinus(blocks[b], values, shared)(k)
                                  : values[k];
-        const int row = p.covariance.offsets[b] + k;
+        const int row = covariance.offsets[b] + k;
         return RepeatabilityEntry{log, value * info.display_scale,
-                                  std::sqrt(p.covariance.matrix(row, row)) * info.display_scale};
+                                  std::sqrt(covariance.matrix(row, row)) * info.display_scale};
       }
       return std::nullopt;
     };
-    estimation::CalibrationPosterior fused;
-    fused.blocks = result.fused.blocks;
-    fused.covariance = result.fused.covariance;
     for (int k = 0; k < info.tangent_size; ++k) {
       RepeatabilityRow row{&r, info.key, info.direction_names[k], info.display_unit, {}, {}};
       for (size_t i : r.agreement.logs) {
         const estimation::CalibrationPosterior& p = result.logs[i].own.posterior;
-        if (auto e = entry(result.logs[i].name, p, info.const_values(p.solved), k)) {
+        if (auto e = entry(result.logs[i].name, p.blocks, p.covariance, info.const_values(p.solved),
+                           k)) {
           row.logs.push_back(*e);
         }
       }
-      row.shared = *entry("shared", fused, shared, k);
+      row.shared = *entry("shared", result.fused.blocks, result.fused.covariance, shared, k);
       rows.push_back(row);
     }
   }

@@ -182,6 +182,21 @@ TEST(MultiLogRepeatability, RefusesFewerThanTwoLogs) {
   EXPECT_THROW(CalibrateDatasets({}, ImuWheelGnssProblem()), Error);
 }
 
+// Logs are named after their directories, made unique: a log's position, then further
+// numbers while the name is taken ("day_3", "day", "day" gives day_3, day, day_4).
+TEST(MultiLogRepeatability, NamesEveryLogApart) {
+  std::vector<io::Dataset> datasets;
+  for (uint64_t seed : {31, 32, 33}) datasets.push_back(io::ReadDataset(Log(seed)->directory));
+  datasets[0].directory += "/../day_3";  // read already: the name is all that changes
+  datasets[1].directory += "/../a/day";
+  datasets[2].directory += "/../b/day";
+  const MultiLogCalibrationResult result = CalibrateDatasets(datasets, ImuWheelGnssProblem());
+  ASSERT_EQ(result.logs.size(), 3u);
+  EXPECT_EQ(result.logs[0].name, "day_3");
+  EXPECT_EQ(result.logs[1].name, "day");
+  EXPECT_EQ(result.logs[2].name, "day_4");
+}
+
 // The same log twice would halve its variance without new data.
 TEST(MultiLogRepeatability, RefusesALogGivenTwice) {
   const std::unique_ptr<test::SimulatedUrbanDataset> log = Log(31);
