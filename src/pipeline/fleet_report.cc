@@ -79,24 +79,27 @@ std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
   return out;
 }
 
+// One column per direction of every block a run reports a sigma for; NaN where a run has none.
 void Tabulate(FleetReport* report) {
+  report->values.assign(report->entries.size(), {});
+  report->sigmas.assign(report->entries.size(), {});
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
-    bool any = false;
+    std::vector<std::optional<BlockValues>> per_run;
+    const BlockValues* named = nullptr;
     for (const FleetEntry& e : report->entries) {
-      any = any || (e.calibration && ValuesOf(info, *e.calibration));
+      per_run.push_back(e.calibration ? ValuesOf(info, *e.calibration) : std::nullopt);
     }
-    if (!any) continue;
-    const size_t first_column = report->columns.size();
-    for (int k = 0; k < info.tangent_size; ++k) report->columns.push_back({});
-    for (size_t e = 0; e < report->entries.size(); ++e) {
-      const FleetEntry& entry = report->entries[e];
-      const std::optional<BlockValues> values =
-          entry.calibration ? ValuesOf(info, *entry.calibration) : std::nullopt;
-      if (!values) continue;
+    for (const std::optional<BlockValues>& v : per_run) {
+      if (v && named == nullptr) named = &*v;
+    }
+    if (named == nullptr) continue;
+    for (int k = 0; k < info.tangent_size; ++k) {
+      report->columns.push_back({named->names[k], named->directions[k]});
+    }
+    for (size_t e = 0; e < per_run.size(); ++e) {
       for (int k = 0; k < info.tangent_size; ++k) {
-        report->columns[first_column + k] = {values->names[k], values->directions[k]};
-        report->values[e][first_column + k] = values->values[k];
-        report->sigmas[e][first_column + k] = values->sigmas[k];
+        report->values[e].push_back(per_run[e] ? per_run[e]->values[k] : kNaN);
+        report->sigmas[e].push_back(per_run[e] ? per_run[e]->sigmas[k] : kNaN);
       }
     }
   }
@@ -106,7 +109,7 @@ void FindOutliers(FleetReport* report) {
   for (size_t c = 0; c < report->columns.size(); ++c) {
     std::vector<double> column;
     for (const std::vector<double>& row : report->values) {
-      if (c < row.size() && std::isfinite(row[c])) column.push_back(row[c]);
+      if (std::isfinite(row[c])) column.push_back(row[c]);
     }
     if (column.size() < 3) continue;
     const double median = internal::Median(column);
@@ -144,12 +147,7 @@ FleetReport GatherFleet(const std::vector<std::string>& result_directories) {
     report.entries.push_back(ReadEntry(directory));
     if (report.entries.back().calibration) ++report.succeeded;
   }
-  const size_t max_columns = 3 * sensors::kNumCalibrationBlocks;
-  report.values.assign(report.entries.size(), std::vector<double>(max_columns, kNaN));
-  report.sigmas = report.values;
   Tabulate(&report);
-  for (std::vector<double>& row : report.values) row.resize(report.columns.size());
-  for (std::vector<double>& row : report.sigmas) row.resize(report.columns.size());
   FindOutliers(&report);
   return report;
 }
