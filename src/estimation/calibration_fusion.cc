@@ -35,6 +35,20 @@ std::vector<EstimatedBlock> UnionOfBlocks(const std::vector<CalibrationPosterior
   return blocks;
 }
 
+// A block's prior as information: P = diag(sigma^-2) and P p, p its centre in the tangent at
+// `reference` (Eq. M1-M2).
+struct PriorTerms {
+  Eigen::VectorXd information;
+  Eigen::VectorXd vector;
+};
+PriorTerms PriorOf(const EstimatedBlock& block, const sensors::Calibration& reference) {
+  PriorTerms out;
+  out.information = block.prior_sigma.array().square().inverse();
+  out.vector = out.information.cwiseProduct(
+      BlockMinus(block, block.prior.data(), ValuesIn(reference, block)));
+  return out;
+}
+
 // The row of each block of `blocks` in the union (`fused`).
 std::vector<int> RowsInUnion(const std::vector<EstimatedBlock>& blocks,
                              const std::vector<EstimatedBlock>& fused,
@@ -65,12 +79,11 @@ void AddLogTerms(const CalibrationPosterior& log, const sensors::Calibration& re
   for (size_t b = 0; b < log.blocks.size(); ++b) {
     const EstimatedBlock& block = log.blocks[b];
     const int first = log.covariance.offsets[b];
-    const double* ref = ValuesIn(reference, block);
-    x.segment(first, block.size) = BlockMinus(block, ValuesIn(log.solved, block), ref);
-    const Eigen::VectorXd p = BlockMinus(block, block.prior.data(), ref);
-    const Eigen::VectorXd weight = block.prior_sigma.array().square().inverse();
-    prior_information.segment(first, block.size) = weight;
-    prior_term.segment(first, block.size) = weight.cwiseProduct(p);
+    x.segment(first, block.size) =
+        BlockMinus(block, ValuesIn(log.solved, block), ValuesIn(reference, block));
+    const PriorTerms prior = PriorOf(block, reference);
+    prior_information.segment(first, block.size) = prior.information;
+    prior_term.segment(first, block.size) = prior.vector;
   }
   Eigen::MatrixXd data_information = posterior_information;
   data_information.diagonal() -= prior_information;
@@ -117,10 +130,9 @@ FusedCalibration FuseCalibrationPosteriors(const std::vector<CalibrationPosterio
   for (size_t b = 0; b < out.blocks.size(); ++b) {
     const EstimatedBlock& block = out.blocks[b];
     const int first = out.covariance.offsets[b];
-    const Eigen::VectorXd weight = block.prior_sigma.array().square().inverse();
-    information.diagonal().segment(first, block.size) += weight;
-    vector.segment(first, block.size) +=
-        weight.cwiseProduct(BlockMinus(block, block.prior.data(), ValuesIn(reference, block)));
+    const PriorTerms prior = PriorOf(block, reference);
+    information.diagonal().segment(first, block.size) += prior.information;
+    vector.segment(first, block.size) += prior.vector;
   }
   for (size_t i = 0; i < logs.size(); ++i) {
     AddLogTerms(logs[i], reference, RowsInUnion(logs[i].blocks, out.blocks, out.covariance.offsets),
