@@ -160,6 +160,22 @@ abs_dir() {
     (cd "$1" && pwd -P)
 }
 
+# start_daemon NAME DIR ARGS...: starts the Slurm daemon NAME with ARGS, waits for its pid
+# file; on failure prints its logs, stops what was started and returns 1.
+start_daemon() {
+    local name=$1 dir=$2 rc
+    shift 2
+    "$name" "$@" > "$dir/log/$name.start.log" 2>&1
+    rc=$?
+    if [ $rc -ne 0 ]; then
+        err "$name failed to start (rc=$rc)"
+        show_log "$dir/log/$name.start.log"; show_log "$dir/log/$name.log"
+        cmd_stop "$dir"; return 1
+    fi
+    wait_pidfile "$name" "$dir" "$dir/log/$name.log" || { cmd_stop "$dir"; return 1; }
+    log "$name up (pid $(pid_alive "$name" "$dir"))"
+}
+
 # ------------------------------------------------------------------- start --
 cmd_start() {
     need_root
@@ -283,27 +299,9 @@ EOF
     printf 'export SLURM_CONF=%s\n' "$dir/slurm.conf" > "$dir/env.sh"
     export SLURM_CONF=$dir/slurm.conf
 
-    # ---- slurmctld (-c: forget jobs of any previous run)
-    slurmctld -c -f "$dir/slurm.conf" > "$dir/log/slurmctld.start.log" 2>&1
-    rc=$?
-    if [ $rc -ne 0 ]; then
-        err "slurmctld failed to start (rc=$rc)"
-        show_log "$dir/log/slurmctld.start.log"; show_log "$dir/log/slurmctld.log"
-        cmd_stop "$dir"; return 1
-    fi
-    wait_pidfile slurmctld "$dir" "$dir/log/slurmctld.log" || { cmd_stop "$dir"; return 1; }
-    log "slurmctld up (pid $(pid_alive slurmctld "$dir"))"
-
-    # ---- slurmd
-    slurmd -c -N "$host" -f "$dir/slurm.conf" > "$dir/log/slurmd.start.log" 2>&1
-    rc=$?
-    if [ $rc -ne 0 ]; then
-        err "slurmd failed to start (rc=$rc)"
-        show_log "$dir/log/slurmd.start.log"; show_log "$dir/log/slurmd.log"
-        cmd_stop "$dir"; return 1
-    fi
-    wait_pidfile slurmd "$dir" "$dir/log/slurmd.log" || { cmd_stop "$dir"; return 1; }
-    log "slurmd up (pid $(pid_alive slurmd "$dir"))"
+    # ---- slurmctld, then slurmd (-c: forget jobs of any previous run)
+    start_daemon slurmctld "$dir" -c -f "$dir/slurm.conf" || return 1
+    start_daemon slurmd "$dir" -c -N "$host" -f "$dir/slurm.conf" || return 1
 
     # ---- wait for the node to be idle
     local i state=""
