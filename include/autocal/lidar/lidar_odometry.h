@@ -14,12 +14,12 @@
 
 #include <Eigen/Core>
 #include <cstdint>
-#include <deque>
 #include <optional>
 #include <vector>
 
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/icp.h"
+#include "autocal/lidar/local_voxel_map.h"
 #include "autocal/lidar/normals.h"
 #include "autocal/lidar/point_cloud.h"
 
@@ -73,24 +73,25 @@ class LidarOdometry {
   const std::vector<OdometryFrame>& frames() const { return frames_; }
 
  private:
-  Eigen::Matrix3Xd Deskew(const PointCloud& cloud,
-                          const std::optional<Eigen::Vector3d>& angular_velocity) const;
-  // The sweep deskewed (if enabled) into its stamp's frame and voxel-downsampled.
-  Eigen::Matrix3Xd Downsampled(const PointCloud& cloud,
-                               const std::optional<Eigen::Vector3d>& angular_velocity) const;
-  // The points that register the sweep (registration_voxel_m).
-  Eigen::Matrix3Xd RegistrationPoints(const Eigen::Matrix3Xd& points) const;
+  // A sweep's voxel grids in L, before deskewing: the centroids keep their points' mean time.
+  struct SweepGrids {
+    PointCloud map;           // voxel_m
+    PointCloud registration;  // registration_voxel_m (the map grid when not coarser)
+  };
+  SweepGrids Grids(const PointCloud& cloud) const;
+  // The grid's points in the frame at the sweep stamp (as they are without deskewing).
+  Eigen::Matrix3Xd Deskewed(const PointCloud& grid,
+                            const std::optional<Eigen::Vector3d>& angular_velocity) const;
   IcpTarget BuildMap(const Eigen::Vector3d& viewpoint_W) const;
   static Eigen::Matrix3Xd ToWorld(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
-  void AddToMap(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
 
   LidarOdometrySetting setting_;
   std::vector<OdometryFrame> frames_;
   // Body-frame twist [v; w] per second from the last two poses (eq. 5.1).
   Eigen::Matrix<double, 6, 1> velocity_ = Eigen::Matrix<double, 6, 1>::Zero();
-  std::deque<Eigen::Matrix3Xd> map_sweeps_W_;
-  // The first sweep is kept until a velocity is known to deskew it.
-  PointCloud first_sweep_;
+  LocalVoxelMap map_;
+  // The first sweep's grid is kept until a velocity is known to deskew it.
+  PointCloud first_grid_;
   std::optional<Eigen::Vector3d> first_angular_velocity_;
 };
 
