@@ -95,14 +95,19 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   return false;
 }
 
-// Every sweep of the log, read on num_threads threads.
-std::vector<lidar::LidarSweep> LoadSweeps(const io::Dataset& dataset, int num_threads,
-                                          const OfflineCalibrationOptions& options) {
-  const int64_t num_sweeps = static_cast<int64_t>(dataset.lidar_sweeps.size());
+// Every sweep_stride-th sweep of the log (the batch's keyframes), read on num_threads threads.
+// The sweeps between them are never read: the initializer registers the sweeps the solve
+// uses, and a log's memory is that of its keyframe sweeps.
+std::vector<lidar::LidarSweep> LoadKeyframeSweeps(const io::Dataset& dataset,
+                                                  const io::Problem& problem,
+                                                  const OfflineCalibrationOptions& options) {
+  const int64_t stride = problem.lidar.sweep_stride;
+  const int64_t num_sweeps =
+      (static_cast<int64_t>(dataset.lidar_sweeps.size()) + stride - 1) / stride;
   std::vector<lidar::LidarSweep> sweeps(static_cast<size_t>(num_sweeps));
-  ParallelFor(0, num_sweeps, num_threads, [&](int64_t begin, int64_t end, int chunk) {
+  ParallelFor(0, num_sweeps, problem.solver.num_threads, [&](int64_t begin, int64_t end, int chunk) {
     for (int64_t i = begin; i < end; ++i) {
-      sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i));
+      sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i * stride));
       // The first chunk's progress stands for all of them.
       if (chunk == 0 && (i - begin) % 50 == 0) {
         Report(options, "loading sweeps",
@@ -113,7 +118,7 @@ std::vector<lidar::LidarSweep> LoadSweeps(const io::Dataset& dataset, int num_th
   return sweeps;
 }
 
-// The initializer on every sweep, into result->initialization; throws when the drive
+// The initializer on the keyframe sweeps, into result->initialization; throws when the drive
 // cannot initialize the calibration.
 void Initialize(const io::Dataset& dataset, const io::Problem& problem,
                 const OfflineCalibrationOptions& options,
@@ -145,22 +150,21 @@ struct BatchKeyframes {
   std::vector<estimation::Keyframe> keyframes;
 };
 
-// Every sweep_stride-th keyframe of the initializer; their sweeps are moved out of *sweeps
-// (not needed elsewhere any more). Throws when fewer than two remain.
-BatchKeyframes EveryStrideKeyframe(const io::Problem& problem,
-                                   const estimation::CalibrationInitialization& init,
-                                   std::vector<lidar::LidarSweep>* sweeps) {
+// The initializer's keyframes and their sweeps, moved out of *sweeps (not needed elsewhere any
+// more). Throws when fewer than two remain.
+BatchKeyframes InitializerKeyframes(const io::Problem& problem,
+                                    const estimation::CalibrationInitialization& init,
+                                    std::vector<lidar::LidarSweep>* sweeps) {
   BatchKeyframes out;
-  const size_t stride = static_cast<size_t>(problem.lidar.sweep_stride);
-  for (size_t k = 0; k < init.keyframe_sweeps.size(); k += stride) {
+  for (size_t k = 0; k < init.keyframe_sweeps.size(); ++k) {
     out.sweeps.push_back(std::move((*sweeps)[static_cast<size_t>(init.keyframe_sweeps[k])]));
     out.keyframes.push_back(init.keyframes[k]);
   }
   if (out.keyframes.size() < 2) {
     throw Error("problem " + problem.path + ": lidar.sweep_stride " +
                 std::to_string(problem.lidar.sweep_stride) + " leaves " +
-                std::to_string(out.keyframes.size()) + " keyframe(s) of the " +
-                std::to_string(init.keyframes.size()) + " the log gives; the solve needs two");
+                std::to_string(out.keyframes.size()) +
+                " keyframe(s) in the log; the solve needs two");
   }
   return out;
 }
@@ -293,8 +297,8 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
   result.nominal = dataset.sensors.nominal_calibration;
   result.prior_centre = result.nominal;
 
-  // 1. Sweeps.
-  std::vector<lidar::LidarSweep> sweeps = LoadSweeps(dataset, problem.solver.num_threads, options);
+  // 1. The keyframe sweeps.
+  std::vector<lidar::LidarSweep> sweeps = LoadKeyframeSweeps(dataset, problem, options);
   result.seconds_loading = SecondsSince(start);
 
   // 2. Initialization: no hand-measured guess needed.
@@ -309,7 +313,7 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
       InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
   result.wheel_clock_initialization = clocks.wheel;
   result.gnss_clock_initialization = clocks.gnss;
-  BatchKeyframes keyframes = EveryStrideKeyframe(problem, result.initialization, &sweeps);
+  BatchKeyframes keyframes = InitializerKeyframes(problem, result.initialization, &sweeps);
   sweeps.clear();
   const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
