@@ -86,5 +86,38 @@ TEST(ParallelForTest, RethrowsTheFirstChunksExceptionAfterAllFinish) {
   EXPECT_EQ(finished, chunks);
 }
 
+TEST(ParallelForTest, RunsChunkZeroOnTheCaller) {
+  const std::thread::id caller = std::this_thread::get_id();
+  std::thread::id chunk_zero;
+  ParallelFor(0, 100, 8, [&](int64_t, int64_t, int chunk) {
+    if (chunk == 0) chunk_zero = std::this_thread::get_id();
+  });
+  EXPECT_EQ(chunk_zero, caller);
+}
+
+// A ParallelFor inside every chunk of another, from several threads at once, so that the
+// pool's workers are all busy: each call still finishes, visiting every index once.
+TEST(ParallelForTest, NestedAndConcurrentCallsComplete) {
+  constexpr int kOuter = 64;
+  constexpr int kInner = 1000;
+  const auto nested_sum = [&]() {
+    std::atomic<int64_t> sum{0};
+    ParallelFor(0, kOuter, 8, [&](int64_t begin, int64_t end, int) {
+      for (int64_t i = begin; i < end; ++i) {
+        ParallelFor(0, kInner, 8, [&](int64_t b, int64_t e, int) {
+          for (int64_t j = b; j < e; ++j) sum += j;
+        });
+      }
+    });
+    return sum.load();
+  };
+  const int64_t expected = int64_t{kOuter} * kInner * (kInner - 1) / 2;
+  std::vector<int64_t> sums(4);
+  std::vector<std::thread> callers;
+  for (size_t t = 0; t < sums.size(); ++t) callers.emplace_back([&, t] { sums[t] = nested_sum(); });
+  for (std::thread& caller : callers) caller.join();
+  for (const int64_t sum : sums) EXPECT_EQ(sum, expected);
+}
+
 }  // namespace
 }  // namespace autocal
