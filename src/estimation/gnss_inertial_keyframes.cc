@@ -9,6 +9,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/keyframe_solver_options.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
 #include "estimation/keyframe_interpolation.h"
@@ -92,10 +93,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
   AddBiasPriors(&problem, &kfs.front(), options.gyro_bias_prior_sigma_rad_s,
                 options.accel_bias_prior_sigma_m_s2);
 
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.num_threads = options.num_threads;
+  const ceres::Solver::Options solver_options =
+      KeyframeSolverOptions(options.max_iterations, options.num_threads);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   if (!summary.IsSolutionUsable()) {

@@ -15,6 +15,7 @@
 #include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/estimation/keyframe_solver_options.h"
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
@@ -353,10 +354,8 @@ std::vector<double> PointDistances(const std::vector<PointGroup>& point_groups,
 // Step 5: Ceres on the iteration's problem.
 ceres::Solver::Summary SolveProblem(const LidarInertialBatchOptions& options,
                                     ceres::Problem* problem) {
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = options.solver_iterations;
-  solver_options.num_threads = options.num_threads;
+  const ceres::Solver::Options solver_options =
+      KeyframeSolverOptions(options.solver_iterations, options.num_threads);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, problem, &summary);
   if (!summary.IsSolutionUsable()) {

@@ -9,6 +9,7 @@
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/estimation/keyframe_solver_options.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/wheel_factor.h"
@@ -443,11 +444,7 @@ void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
 }
 
 ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_iterations) {
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.max_num_iterations = max_iterations;
-  options.num_threads = problem.solver.num_threads;
-  return options;
+  return estimation::KeyframeSolverOptions(max_iterations, problem.solver.num_threads);
 }
 
 void SolveAgainAfterHolding(const io::Problem& problem,
