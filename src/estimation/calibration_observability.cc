@@ -1,10 +1,13 @@
 #include "autocal/estimation/calibration_observability.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <map>
 #include <sstream>
 #include <utility>
 
@@ -156,6 +159,43 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
   out->sigma.push_back(sigma);
 }
 
+// J^T J of every residual block at the current values (robust losses applied as the solver
+// applies them), over the tangent coordinates of the problem's variable blocks.
+struct GaussNewtonHessian {
+  Eigen::SparseMatrix<double> H;
+  std::map<const double*, int> offsets;  // first tangent column of each variable block
+};
+
+GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
+  GaussNewtonHessian out;
+  ceres::Problem::EvaluateOptions options;
+  int columns = 0;
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  for (double* block : all) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    options.parameter_blocks.push_back(block);
+    out.offsets[block] = columns;
+    columns += problem->ParameterBlockTangentSize(block);
+  }
+  ceres::CRSMatrix crs;
+  problem->Evaluate(options, nullptr, nullptr, nullptr, &crs);
+  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> J(
+      crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()), crs.rows.data(),
+      crs.cols.data(), crs.values.data());
+  const Eigen::SparseMatrix<double> J_col(J);
+  out.H = (J_col.transpose() * J_col).pruned();
+  return out;
+}
+
+// Whether an LDL^T factorization's pivots show a positive definite matrix: each pivot above
+// a relative floor at the rounding level (a rank-deficient Jacobian leaves pivots there).
+bool FullRank(const Eigen::VectorXd& pivots) {
+  if (pivots.size() == 0) return true;
+  const double floor = 1e-14 * pivots.cwiseAbs().maxCoeff();
+  return (pivots.array() > floor).all();
+}
+
 }  // namespace
 
 Eigen::VectorXd BlockMinus(const EstimatedBlock& block, const double* x, const double* x0) {
@@ -217,26 +257,25 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     out.ok = true;
     return out;
   }
-  std::vector<std::pair<const double*, const double*>> pairs;
+  const GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem);
+  // Columns of H^-1 at the blocks' tangent coordinates (a block held constant keeps zeros).
+  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), size);
+  std::vector<std::pair<int, int>> rows;  // (row of H, row of out.matrix)
   for (size_t a = 0; a < blocks.size(); ++a) {
-    for (size_t b = a; b < blocks.size(); ++b) pairs.emplace_back(blocks[a].data, blocks[b].data);
-  }
-  ceres::Covariance::Options options;
-  options.algorithm_type = ceres::SPARSE_QR;
-  ceres::Covariance covariance(options);
-  if (!covariance.Compute(pairs, problem)) return out;
-  for (size_t a = 0; a < blocks.size(); ++a) {
-    for (size_t b = a; b < blocks.size(); ++b) {
-      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(blocks[a].size,
-                                                                               blocks[b].size);
-      if (!covariance.GetCovarianceBlockInTangentSpace(blocks[a].data, blocks[b].data, c.data())) {
-        return out;
-      }
-      out.matrix.block(out.offsets[a], out.offsets[b], blocks[a].size, blocks[b].size) = c;
-      out.matrix.block(out.offsets[b], out.offsets[a], blocks[b].size, blocks[a].size) =
-          c.transpose();
+    const auto it = hessian.offsets.find(blocks[a].data);
+    if (it == hessian.offsets.end()) continue;
+    for (int i = 0; i < blocks[a].size; ++i) {
+      unit(it->second + i, out.offsets[a] + i) = 1.0;
+      rows.emplace_back(it->second + i, out.offsets[a] + i);
     }
   }
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(hessian.H);
+  if (ldlt.info() != Eigen::Success || !FullRank(ldlt.vectorD())) return out;
+  const Eigen::MatrixXd columns = ldlt.solve(unit);
+  for (const auto& [h_row, row] : rows) {
+    for (const auto& [h_col, col] : rows) out.matrix(row, col) = columns(h_row, col);
+  }
+  out.matrix = 0.5 * (out.matrix + out.matrix.transpose()).eval();
   out.ok = out.matrix.allFinite();
   return out;
 }

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 
 #include "autocal/common/units.h"
 #include "autocal/geometry/manifolds.h"
@@ -253,6 +254,88 @@ TEST(CalibrationObservability, SolvingAgainWithTheHeldDirectionsPinnedKeepsTheSt
   EXPECT_NEAR(p.x(), conditioned.x(), 1e-9);
   EXPECT_NEAR(p.y(), conditioned.y(), 1e-9);
   EXPECT_NEAR(s - p.x(), 1.5, 1e-4);  // within the row's sigma of 0.01 times the prior's pull
+}
+
+// A nonlinear problem with a rotation block, a nuisance state that is marginalized and a robust
+// loss: the covariance equals ceres::Covariance's on the same problem.
+struct RotatedPointRow {
+  Eigen::Vector3d u, m;
+  template <typename T>
+  bool operator()(const T* q_xyzw, const T* p, const T* s, T* r) const {
+    const Eigen::Quaternion<T> q(q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]);
+    const Eigen::Matrix<T, 3, 1> predicted =
+        q * u.cast<T>() + Eigen::Map<const Eigen::Matrix<T, 3, 1>>(p) +
+        Eigen::Matrix<T, 3, 1>::Constant(s[0]);
+    for (int i = 0; i < 3; ++i) r[i] = T(10.0) * (predicted(i) - T(m(i)));
+    return true;
+  }
+};
+
+TEST(CalibrationObservability, CovarianceEqualsCeresCovarianceWithRobustLossesAndNuisances) {
+  sensors::Calibration c;
+  c.q_I_L = geometry::Exp(Eigen::Vector3d(0.2, -0.1, 0.4));
+  c.p_I_L = Eigen::Vector3d(0.5, -0.2, 0.1);
+  std::vector<EstimatedBlock> blocks = {BlockOf(sensors::CalibrationBlockId::kLidarRotation, &c),
+                                        BlockOf(sensors::CalibrationBlockId::kLidarTranslation, &c)};
+  blocks[0].prior = c.q_I_L.coeffs();
+  blocks[0].prior_sigma = Eigen::Vector3d::Constant(0.1);
+  blocks[1].prior = c.p_I_L;
+  blocks[1].prior_sigma = Eigen::Vector3d::Constant(0.3);
+  geometry::RightQuaternionManifold manifold;
+  ceres::Problem::Options options;
+  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(options);
+  problem.AddParameterBlock(c.q_I_L.coeffs().data(), 4, &manifold);
+  std::vector<double> states(6, 0.05);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  for (int k = 0; k < 30; ++k) {
+    RotatedPointRow row{Eigen::Vector3d(noise(rng), noise(rng), 1.0 + noise(rng)),
+                        Eigen::Vector3d(noise(rng), noise(rng), noise(rng))};
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<RotatedPointRow, 3, 4, 3, 1>(new RotatedPointRow(row)),
+        new ceres::HuberLoss(1.0), c.q_I_L.coeffs().data(), c.p_I_L.data(),
+        &states[static_cast<size_t>(k % 6)]);
+  }
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  const BlockCovariance covariance = ComputeBlockCovariance(blocks, &problem);
+  ASSERT_TRUE(covariance.ok);
+
+  ceres::Covariance::Options ceres_options;
+  ceres_options.algorithm_type = ceres::DENSE_SVD;
+  ceres::Covariance reference(ceres_options);
+  const std::vector<const double*> parameters = {c.q_I_L.coeffs().data(), c.p_I_L.data()};
+  ASSERT_TRUE(reference.Compute(parameters, &problem));
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> expected;
+  ASSERT_TRUE(reference.GetCovarianceMatrixInTangentSpace(parameters, expected.data()));
+  EXPECT_TRUE(covariance.matrix.isApprox(expected, 1e-9)) << covariance.matrix << "\n\n"
+                                                          << expected;
+}
+
+TEST(CalibrationObservability, CovarianceOfASingularProblemIsRefusedAndConstantBlocksAreZero) {
+  Eigen::Vector3d p(0.1, 0.2, 0.3);
+  Eigen::Vector3d held(1.0, 2.0, 3.0);
+  std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.05),
+                                        VectorBlock(held.data(), held, 0.3, 0.05)};
+  ceres::Problem problem;
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  problem.SetParameterBlockConstant(held.data());
+  BlockCovariance covariance = ComputeBlockCovariance(blocks, &problem);
+  ASSERT_TRUE(covariance.ok);
+  const Eigen::Matrix3d variance_p = covariance.matrix.topLeftCorner(3, 3);
+  EXPECT_TRUE(variance_p.isApprox(Eigen::Matrix3d::Identity() * 0.09)) << variance_p;
+  EXPECT_TRUE(covariance.matrix.rightCols(3).isZero());
+  EXPECT_TRUE(covariance.matrix.bottomRows(3).isZero());
+
+  // A state that enters a residual without moving it: J^T J is singular and no covariance
+  // is claimed.
+  double lone = 0.0;
+  problem.AddResidualBlock(
+      new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(
+          new LinearRow{1.0, 1.0, 0.0, 0.0, 0.0, 0.0}),
+      nullptr, p.data(), &lone);
+  covariance = ComputeBlockCovariance(blocks, &problem);
+  EXPECT_FALSE(covariance.ok);
 }
 
 }  // namespace

@@ -59,10 +59,13 @@ void BlockPlus(const EstimatedBlock& block, const Eigen::VectorXd& step, double*
 void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::LossOptions& loss,
                     ceres::Problem* problem);
 
-// The joint covariance of the blocks' tangent coordinates, blocks in order. A rotation block
-// must carry geometry::RightQuaternionManifold in `problem`.
+// The joint covariance of the blocks' tangent coordinates, blocks in order: the blocks' part
+// of (J^T J)^-1 over every variable block of `problem` (robust losses applied as the solver
+// applies them), from a sparse LDL^T with the blocks in problem order, so the result does not
+// depend on where they live in memory. A rotation block must carry
+// geometry::RightQuaternionManifold in `problem`; a block held constant gets zeros.
 struct BlockCovariance {
-  bool ok = false;  // false when Ceres could not compute it or it is not finite
+  bool ok = false;  // false when J^T J is singular (a pivot at the rounding level) or not finite
   Eigen::MatrixXd matrix;
   std::vector<int> offsets;  // first row of each block
 };
