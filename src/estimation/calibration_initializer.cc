@@ -247,7 +247,7 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
 
 CalibrationInitializerOptions RefinedLaterInitializerOptions() {
   CalibrationInitializerOptions o;
-  o.odometry.registration_voxel_m = 0.5;
+  o.odometry.registration_voxel_m = 1.0;
   o.odometry.icp.convergence.translation_m = 1e-3;
   o.odometry.icp.convergence.rotation_rad = 1e-4;
   o.gyro_deskew_pass = false;
