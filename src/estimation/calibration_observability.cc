@@ -162,9 +162,54 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
 // J^T J of every residual block at the current values (robust losses applied as the solver
 // applies them), over the tangent coordinates of the problem's variable blocks.
 struct GaussNewtonHessian {
-  Eigen::SparseMatrix<double> H;
+  Eigen::SparseMatrix<double> H;  // lower triangle
   std::map<const double*, int> offsets;  // first tangent column of each variable block
 };
+
+// The lower triangle of J^T J, column by column (Gustavson's product with a dense
+// accumulator): column j sums J(k, j) J(k, c) over the rows k that hold column j, for c >= j.
+// Its cost is the sum over rows of their nonzeros squared, whatever the columns' fill.
+Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J) {
+  const int n = J.num_cols;
+  // Rows holding each column (J column-major, pattern and values).
+  std::vector<int> column_start(static_cast<size_t>(n) + 1, 0);
+  for (const int c : J.cols) ++column_start[static_cast<size_t>(c) + 1];
+  for (int c = 0; c < n; ++c) column_start[c + 1] += column_start[c];
+  std::vector<int> row_of(J.cols.size());
+  std::vector<double> value_of(J.cols.size());
+  std::vector<int> fill(column_start.begin(), column_start.end() - 1);
+  for (int k = 0; k < J.num_rows; ++k) {
+    for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
+      const int at = fill[static_cast<size_t>(J.cols[e])]++;
+      row_of[at] = k;
+      value_of[at] = J.values[e];
+    }
+  }
+  std::vector<Eigen::Triplet<double>> entries;
+  std::vector<double> sum(static_cast<size_t>(n), 0.0);
+  std::vector<int> seen(static_cast<size_t>(n), -1);
+  std::vector<int> touched;
+  for (int j = 0; j < n; ++j) {
+    touched.clear();
+    for (int a = column_start[j]; a < column_start[j + 1]; ++a) {
+      const int k = row_of[a];
+      for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
+        const int c = J.cols[e];
+        if (c < j) continue;
+        if (seen[c] != j) {
+          seen[c] = j;
+          sum[c] = 0.0;
+          touched.push_back(c);
+        }
+        sum[c] += value_of[a] * J.values[e];
+      }
+    }
+    for (const int c : touched) entries.emplace_back(c, j, sum[c]);
+  }
+  Eigen::SparseMatrix<double> lower(n, n);
+  lower.setFromTriplets(entries.begin(), entries.end());
+  return lower;
+}
 
 GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
   GaussNewtonHessian out;
@@ -180,11 +225,7 @@ GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
   }
   ceres::CRSMatrix crs;
   problem->Evaluate(options, nullptr, nullptr, nullptr, &crs);
-  const Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor, int>> J(
-      crs.num_rows, crs.num_cols, static_cast<int>(crs.values.size()), crs.rows.data(),
-      crs.cols.data(), crs.values.data());
-  const Eigen::SparseMatrix<double> J_col(J);
-  out.H = (J_col.transpose() * J_col).pruned();
+  out.H = LowerGram(crs);
   return out;
 }
 
