@@ -1,0 +1,78 @@
+// Wall time of autocal_calibrate's pipeline on simulated urban logs (32 beams, every sensor,
+// problems/urban_full.yaml), per stage. Goals (issue "speed and scale"): the 60 s log in at
+// most 6 s on 2 cores; a 600 s log within 10x the 60 s time and 2 GB of peak memory.
+//
+// Each duration is its own benchmark; run one per process for its peak memory (the counter
+// is the process's maximum resident set so far):
+//   build/bench/pipeline_benchmark --benchmark_filter='BM_CalibrateUrban/60$'
+// The log is simulated into $TMPDIR/autocal_pipeline_benchmark/urban_<s>s once and reused.
+
+#include <benchmark/benchmark.h>
+#include <sys/resource.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/offline_calibration.h"
+#include "autocal/sim/simulator.h"
+
+namespace autocal {
+namespace {
+
+std::string UrbanLog(int duration_s) {
+  const char* tmp = std::getenv("TMPDIR");
+  const std::filesystem::path dir = std::filesystem::path(tmp != nullptr ? tmp : "/tmp") /
+                                    "autocal_pipeline_benchmark" /
+                                    ("urban_" + std::to_string(duration_s) + "s");
+  if (!std::filesystem::exists(dir / "lidar.csv")) {
+    sim::SimulationOptions options;
+    options.scenario = sim::ScenarioType::kUrban;
+    options.duration_s = duration_s;
+    options.seed = 1;
+    options.lidar.config.num_beams = 32;
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir.parent_path());
+    sim::WriteDataset(sim::Simulator(options), dir.string());
+  }
+  return dir.string();
+}
+
+double PeakResidentMegabytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+void BM_CalibrateUrban(benchmark::State& state) {
+  const int duration_s = static_cast<int>(state.range(0));
+  const std::string log = UrbanLog(duration_s);
+  const io::Problem problem = io::ReadProblemYaml(AUTOCAL_SOURCE_DIR "/problems/urban_full.yaml");
+  pipeline::OfflineCalibrationResult result;
+  for (auto _ : state) {
+    const io::Dataset dataset = io::ReadDataset(log);
+    result = pipeline::CalibrateDataset(dataset, problem);
+  }
+  state.counters["loading_s"] = result.seconds_loading;
+  state.counters["initialization_s"] = result.seconds_initialization;
+  state.counters["solve_s"] = result.seconds_solve;
+  state.counters["association_s"] = result.batch.seconds_association;
+  state.counters["ceres_s"] = result.batch.seconds_solver;
+  state.counters["peak_MB"] = PeakResidentMegabytes();
+}
+BENCHMARK(BM_CalibrateUrban)
+    ->ArgName("duration_s")
+    ->Arg(60)
+    ->Arg(120)
+    ->Arg(300)
+    ->Arg(600)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace autocal
+
+BENCHMARK_MAIN();
