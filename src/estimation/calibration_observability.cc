@@ -1,9 +1,9 @@
 #include "autocal/estimation/calibration_observability.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
@@ -162,7 +162,7 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
 // J^T J of every residual block at the current values (robust losses applied as the solver
 // applies them), over the tangent coordinates of the problem's variable blocks.
 struct GaussNewtonHessian {
-  Eigen::SparseMatrix<double> H;  // lower triangle
+  Eigen::SparseMatrix<double> H;         // lower triangle
   std::map<const double*, int> offsets;  // first tangent column of each variable block
 };
 
