@@ -103,13 +103,12 @@ const OdometryFrame& LidarOdometry::AddSweep(
       previous.T_W_L * geometry::ExpSE3(Vector6d(velocity_ * dt_s));  // eq. (5.1)
   const int passes = setting_.deskew ? 2 : 1;
   for (int pass = 0; pass < passes; ++pass) {
-    frame.icp = AlignIcp(Deskewed(grids.registration, angular_velocity_L_rad_s), *map, T_W_L,
-                         setting_.icp);
+    frame.icp =
+        AlignIcp(Deskewed(grids.registration, angular_velocity_L_rad_s), *map, T_W_L, setting_.icp);
     T_W_L = frame.icp.T_target_source;
     velocity_ = geometry::LogSE3(geometry::Pose3d(previous.T_W_L.Inverse() * T_W_L)) / dt_s;
     if (frames_.size() == 1 && setting_.deskew && pass == 0) {
-      map_.ReplaceOldest(
-          ToWorld(Deskewed(first_grid_, first_angular_velocity_), frames_[0].T_W_L));
+      map_.ReplaceOldest(ToWorld(Deskewed(first_grid_, first_angular_velocity_), frames_[0].T_W_L));
       first_grid_ = PointCloud();
       map.emplace(BuildMap(previous.T_W_L.p));
     }

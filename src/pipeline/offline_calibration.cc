@@ -105,16 +105,17 @@ std::vector<lidar::LidarSweep> LoadKeyframeSweeps(const io::Dataset& dataset,
   const int64_t num_sweeps =
       (static_cast<int64_t>(dataset.lidar_sweeps.size()) + stride - 1) / stride;
   std::vector<lidar::LidarSweep> sweeps(static_cast<size_t>(num_sweeps));
-  ParallelFor(0, num_sweeps, problem.solver.num_threads, [&](int64_t begin, int64_t end, int chunk) {
-    for (int64_t i = begin; i < end; ++i) {
-      sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i * stride));
-      // The first chunk's progress stands for all of them.
-      if (chunk == 0 && (i - begin) % 50 == 0) {
-        Report(options, "loading sweeps",
-               static_cast<double>(i - begin + 1) / static_cast<double>(end - begin), 0.0, 0.0);
-      }
-    }
-  });
+  ParallelFor(
+      0, num_sweeps, problem.solver.num_threads, [&](int64_t begin, int64_t end, int chunk) {
+        for (int64_t i = begin; i < end; ++i) {
+          sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i * stride));
+          // The first chunk's progress stands for all of them.
+          if (chunk == 0 && (i - begin) % 50 == 0) {
+            Report(options, "loading sweeps",
+                   static_cast<double>(i - begin + 1) / static_cast<double>(end - begin), 0.0, 0.0);
+          }
+        }
+      });
   return sweeps;
 }
 

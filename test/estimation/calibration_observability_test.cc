@@ -263,9 +263,9 @@ struct RotatedPointRow {
   template <typename T>
   bool operator()(const T* q_xyzw, const T* p, const T* s, T* r) const {
     const Eigen::Quaternion<T> q(q_xyzw[3], q_xyzw[0], q_xyzw[1], q_xyzw[2]);
-    const Eigen::Matrix<T, 3, 1> predicted =
-        q * u.cast<T>() + Eigen::Map<const Eigen::Matrix<T, 3, 1>>(p) +
-        Eigen::Matrix<T, 3, 1>::Constant(s[0]);
+    const Eigen::Matrix<T, 3, 1> predicted = q * u.cast<T>() +
+                                             Eigen::Map<const Eigen::Matrix<T, 3, 1>>(p) +
+                                             Eigen::Matrix<T, 3, 1>::Constant(s[0]);
     for (int i = 0; i < 3; ++i) r[i] = T(10.0) * (predicted(i) - T(m(i)));
     return true;
   }
@@ -275,8 +275,9 @@ TEST(CalibrationObservability, CovarianceEqualsCeresCovarianceWithRobustLossesAn
   sensors::Calibration c;
   c.q_I_L = geometry::Exp(Eigen::Vector3d(0.2, -0.1, 0.4));
   c.p_I_L = Eigen::Vector3d(0.5, -0.2, 0.1);
-  std::vector<EstimatedBlock> blocks = {BlockOf(sensors::CalibrationBlockId::kLidarRotation, &c),
-                                        BlockOf(sensors::CalibrationBlockId::kLidarTranslation, &c)};
+  std::vector<EstimatedBlock> blocks = {
+      BlockOf(sensors::CalibrationBlockId::kLidarRotation, &c),
+      BlockOf(sensors::CalibrationBlockId::kLidarTranslation, &c)};
   blocks[0].prior = c.q_I_L.coeffs();
   blocks[0].prior_sigma = Eigen::Vector3d::Constant(0.1);
   blocks[1].prior = c.p_I_L;
@@ -330,10 +331,9 @@ TEST(CalibrationObservability, CovarianceOfASingularProblemIsRefusedAndConstantB
   // A state that enters a residual without moving it: J^T J is singular and no covariance
   // is claimed.
   double lone = 0.0;
-  problem.AddResidualBlock(
-      new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(
-          new LinearRow{1.0, 1.0, 0.0, 0.0, 0.0, 0.0}),
-      nullptr, p.data(), &lone);
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(
+                               new LinearRow{1.0, 1.0, 0.0, 0.0, 0.0, 0.0}),
+                           nullptr, p.data(), &lone);
   covariance = ComputeBlockCovariance(blocks, &problem);
   EXPECT_FALSE(covariance.ok);
 }

@@ -19,8 +19,8 @@ int ParallelChunks(int64_t count, int num_threads);
 
 // Calls body(chunk_begin, chunk_end, chunk) for every chunk, concurrently, and returns
 // when all have finished. Chunks no worker has taken (none could be started, or all are
-// busy, e.g. in a ParallelFor inside a chunk) run on the calling thread. An exception thrown by a body is rethrown on the caller after
-// every chunk has finished (the first one, by chunk order).
+// busy, e.g. in a ParallelFor inside a chunk) run on the calling thread. An exception thrown by a
+// body is rethrown on the caller after every chunk has finished (the first one, by chunk order).
 void ParallelFor(int64_t begin, int64_t end, int num_threads,
                  const std::function<void(int64_t, int64_t, int)>& body);
 
