@@ -48,15 +48,20 @@ double PeakResidentMegabytes() {
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
 }
 
-void BM_CalibrateUrban(benchmark::State& state) {
-  const int duration_s = static_cast<int>(state.range(0));
-  const std::string log = UrbanLog(duration_s);
+// run(dataset, problem) on the log of state.range(0) seconds, timed with reading the dataset.
+template <typename Run>
+auto TimeOnUrbanLog(benchmark::State& state, Run run) {
+  const std::string log = UrbanLog(static_cast<int>(state.range(0)));
   const io::Problem problem = io::ReadProblemYaml(AUTOCAL_SOURCE_DIR "/problems/urban_full.yaml");
-  pipeline::OfflineCalibrationResult result;
-  for (auto _ : state) {
-    const io::Dataset dataset = io::ReadDataset(log);
-    result = pipeline::CalibrateDataset(dataset, problem);
-  }
+  decltype(run(io::Dataset(), problem)) result;
+  for (auto _ : state) result = run(io::ReadDataset(log), problem);
+  return result;
+}
+
+void BM_CalibrateUrban(benchmark::State& state) {
+  const pipeline::OfflineCalibrationResult result = TimeOnUrbanLog(
+      state,
+      [](const io::Dataset& d, const io::Problem& p) { return pipeline::CalibrateDataset(d, p); });
   state.counters["loading_s"] = result.seconds_loading;
   state.counters["initialization_s"] = result.seconds_initialization;
   state.counters["solve_s"] = result.seconds_solve;
@@ -77,16 +82,12 @@ BENCHMARK(BM_CalibrateUrban)
 // The online estimator over the whole log; real_time_factor is the log's length over the wall
 // time.
 void BM_EstimateUrban(benchmark::State& state) {
-  const int duration_s = static_cast<int>(state.range(0));
-  const std::string log = UrbanLog(duration_s);
-  const io::Problem problem = io::ReadProblemYaml(AUTOCAL_SOURCE_DIR "/problems/urban_full.yaml");
-  pipeline::OnlineEstimationResult result;
-  for (auto _ : state) {
-    const io::Dataset dataset = io::ReadDataset(log);
-    result = pipeline::EstimateDatasetOnline(dataset, problem);
-  }
+  const pipeline::OnlineEstimationResult result =
+      TimeOnUrbanLog(state, [](const io::Dataset& d, const io::Problem& p) {
+        return pipeline::EstimateDatasetOnline(d, p);
+      });
   state.counters["initialization_s"] = result.seconds_initialization;
-  state.counters["real_time_factor"] = duration_s / result.seconds_total;
+  state.counters["real_time_factor"] = static_cast<double>(state.range(0)) / result.seconds_total;
   state.counters["peak_MB"] = PeakResidentMegabytes();
 }
 BENCHMARK(BM_EstimateUrban)
