@@ -75,8 +75,12 @@ bool RunOdometry(const sensors::ImuSamples& imu, const std::vector<lidar::LidarS
     try {
       odometry.AddSweep(sweeps[k], rate_L);
     } catch (const Error& e) {
+      // The stamp names the sweep in the log also when the caller passed every n-th sweep.
       out->problems.push_back("LiDAR odometry failed at sweep " + std::to_string(k) + " of " +
-                              std::to_string(sweeps.size()) + ": " + e.what());
+                              std::to_string(sweeps.size()) + " (stamp " +
+                              std::to_string(sweeps[k].t_ns) + " ns, " +
+                              Format(NsToSeconds(sweeps[k].t_ns - sweeps.front().t_ns)) +
+                              " s after the first): " + e.what());
       if (failed_sweep != nullptr) *failed_sweep = k;
       return false;
     }

@@ -275,6 +275,25 @@ TEST(CalibrationInitializer, ReportsAStationaryLog) {
   EXPECT_TRUE(init.keyframes.empty());
 }
 
+// A sweep the odometry cannot register (three points: too few correspondences) is named by
+// its index among the sweeps given and by its stamp, which also names it in the log when the
+// caller passed only every n-th sweep.
+TEST(CalibrationInitializer, NamesTheSweepTheOdometryFailedAtByItsStamp) {
+  const sim::SimulatedLog log = sim::Simulate(UrbanOptions(3.0, 3));
+  std::vector<lidar::LidarSweep> sweeps = log.sweeps;
+  ASSERT_GT(sweeps.size(), 2u);
+  lidar::PointCloud& sparse = sweeps[1].cloud;
+  sparse.points.conservativeResize(3, 3);
+  sparse.time_s.conservativeResize(3);
+  if (sparse.intensity.size() > 0) sparse.intensity.conservativeResize(3);
+  const CalibrationInitialization init = InitializeLidarImu(log.imu.samples, sweeps);
+  EXPECT_FALSE(init.ok);
+  const std::string expected = "LiDAR odometry failed at sweep 1 of " +
+                               std::to_string(sweeps.size()) + " (stamp " +
+                               std::to_string(sweeps[1].t_ns) + " ns, 0.1 s after the first)";
+  EXPECT_TRUE(Mentions(init, expected)) << Problems(init);
+}
+
 // A lever arm the drive does not determine is not claimed. In a turn at rate w the lever
 // arm's centripetal acceleration w^2 p_I_L, a few hundredths of m/s^2, competes with the
 // accelerometer bias that the same rotation turns alike. On 30 s of urban driving (seed 4,
