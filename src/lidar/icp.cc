@@ -100,9 +100,9 @@ struct NormalEquations {
 };
 
 // Point-to-plane linearization at T (eqs. 4.6-4.10): r = n . (T p - q) and, for the left
-// perturbation, dr/d[rho; phi] = [n; (T p) x n]. Correspondences are searched first, then
-// the target's normals for them are prepared, then the equations are summed per chunk and
-// combined in chunk order.
+// perturbation about the centre c, dr/d[rho; phi] = [n; (T p - c) x n] (eq. 4.7c).
+// Correspondences are searched first, then the target's normals for them are prepared, then
+// the equations are summed per chunk and combined in chunk order.
 //
 // `matches_io` holds each source point's match of the previous iteration (-1: none; empty on
 // the first) and returns this one's. The nearest target point is no farther than the previous
@@ -178,8 +178,8 @@ NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTa
 }
 
 NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                                      const geometry::Pose3d& T, const IcpSetting& setting,
-                                      std::vector<int>* matches_io) {
+                                      const geometry::Pose3d& T, const Eigen::Vector3d& centre,
+                                      const IcpSetting& setting, std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   return SumOverMatchedPlanes(
       source, target, T, setting, matches_io,
@@ -188,7 +188,7 @@ NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpT
         const double r = normal.dot(p - target.points().col(match));
         Vector6d J;
         J.head<3>() = normal;
-        J.tail<3>() = p.cross(normal);
+        J.tail<3>() = (p - centre).cross(normal);
         const double w = setting.robust.Weight(r);
         eq.H.noalias() += (w * J) * J.transpose();
         if (setting.source_range_sigma_m > 0.0) {
@@ -212,11 +212,11 @@ Eigen::Matrix3d PlaneCovariance(const Eigen::Vector3d& normal, double epsilon) {
 // Generalized-ICP at T (eqs. 4.17-4.18): d = T p - q with the information
 // M = 2 epsilon (C_q + R C_p R^T)^-1, scaled so that sqrt(d^T M d) is the point-to-plane
 // distance in metres for coplanar neighbourhoods (the robust loss and the statistics use it);
-// dd/d[rho; phi] = [I, -(T p)^] for the left perturbation.
+// dd/d[rho; phi] = [I, -(T p - c)^] for the left perturbation about the centre c (eq. 4.7c).
 NormalEquations LinearizeGeneralized(const Eigen::Matrix3Xd& source,
                                      const SurfaceNormals& source_normals, const IcpTarget& target,
-                                     const geometry::Pose3d& T, const IcpSetting& setting,
-                                     std::vector<int>* matches_io) {
+                                     const geometry::Pose3d& T, const Eigen::Vector3d& centre,
+                                     const IcpSetting& setting, std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   const double epsilon = setting.gicp_epsilon;
   return SumOverMatchedPlanes(
@@ -231,7 +231,7 @@ NormalEquations LinearizeGeneralized(const Eigen::Matrix3Xd& source,
         const double r = std::sqrt(std::max(d.dot(M * d), 0.0));
         Eigen::Matrix<double, 3, 6> J;
         J.leftCols<3>().setIdentity();
-        J.rightCols<3>() = -geometry::Hat(p);
+        J.rightCols<3>() = -geometry::Hat(Eigen::Vector3d(p - centre));
         const double w = setting.robust.Weight(r);
         eq.H.noalias() += w * J.transpose() * M * J;
         eq.g.noalias() += w * J.transpose() * (M * d);
@@ -258,9 +258,9 @@ void CollectPointPairs(const Eigen::Matrix3Xd& source, const IcpTarget& target,
 }
 
 // Point-to-point normal equations at T for the covariance: r = T p - q (3 rows) with
-// dr/d[rho; phi] = [I, -(T p)^].
+// dr/d[rho; phi] = [I, -(T p - c)^] about the centre c (eq. 4.7c).
 NormalEquations LinearizePointPairs(const std::vector<WeightedPair>& pairs,
-                                    const geometry::Pose3d& T) {
+                                    const geometry::Pose3d& T, const Eigen::Vector3d& centre) {
   const Eigen::Matrix3d R = T.R();
   NormalEquations eq;
   Eigen::Matrix<double, 3, 6> J;
@@ -268,7 +268,7 @@ NormalEquations LinearizePointPairs(const std::vector<WeightedPair>& pairs,
   for (const WeightedPair& pair : pairs) {
     const Eigen::Vector3d p = R * pair.source + T.p;
     const Eigen::Vector3d r = p - pair.target;
-    J.rightCols<3>() = -geometry::Hat(p);
+    J.rightCols<3>() = -geometry::Hat(Eigen::Vector3d(p - centre));
     eq.H.noalias() += pair.weight * J.transpose() * J;
     eq.g.noalias() += pair.weight * J.transpose() * r;
     eq.weighted_squared_residuals += pair.weight * r.squaredNorm();
@@ -304,8 +304,8 @@ void RequireEnough(int count, const IcpSetting& setting, Eigen::Index source_siz
 
 // Eqs. (4.14)-(4.15): Cov = sigma^2 H^-1 with sigma^2 estimated from the weighted residuals
 // when not given.
-void FillStatistics(const NormalEquations& eq, const IcpSetting& setting, Eigen::Index source_size,
-                    IcpResult* result) {
+void FillStatistics(const NormalEquations& eq, const Eigen::Vector3d& centre,
+                    const IcpSetting& setting, Eigen::Index source_size, IcpResult* result) {
   result->num_correspondences = eq.count;
   result->fitness = source_size > 0 ? static_cast<double>(eq.count) / source_size : 0.0;
   const int num_residuals = eq.count * eq.residual_dimension;
@@ -317,11 +317,25 @@ void FillStatistics(const NormalEquations& eq, const IcpSetting& setting, Eigen:
   }
   result->residual_sigma_m = sigma;
   const Matrix6d H_inverse = eq.H.inverse();
+  Matrix6d covariance_centred;
   if (setting.source_range_sigma_m > 0.0 && eq.residual_dimension == 1) {
-    result->covariance = H_inverse * eq.propagated * H_inverse;  // eq. (4.16)
+    covariance_centred = H_inverse * eq.propagated * H_inverse;  // eq. (4.16)
   } else {
-    result->covariance = sigma * sigma * H_inverse;  // eq. (4.14)
+    covariance_centred = sigma * sigma * H_inverse;  // eq. (4.14)
   }
+  // eq. (4.11c): delta = A delta_c with A = [I, c^; 0, I].
+  Matrix6d A = Matrix6d::Identity();
+  A.topRightCorner<3, 3>() = geometry::Hat(centre);
+  result->covariance = A * covariance_centred * A.transpose();
+}
+
+// T <- Exp(delta_c) applied about the centre c, Tc Exp(delta_c) Tc^-1 T (eq. 4.11c).
+geometry::Pose3d StepAbout(const Vector6d& delta_c, const Eigen::Vector3d& centre,
+                           const geometry::Pose3d& T) {
+  const geometry::Pose3d step = geometry::ExpSE3(delta_c);
+  geometry::Pose3d out(step.q * T.q, step.q * (T.p - centre) + step.p + centre);
+  out.q.normalize();
+  return out;
 }
 
 }  // namespace
@@ -442,6 +456,11 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   IcpResult result;
   geometry::Pose3d T = T_target_source_guess;
   T.q.normalize();
+  // The perturbation is linearized about the guessed source origin (eq. 4.7c): about the
+  // target's origin, which a long drive leaves kilometres behind, a tilt and a translation
+  // move the sensor's surroundings almost alike, J^T W J is conditioned by the squared
+  // distance and the degeneracy test fires on a well-constrained sweep.
+  const Eigen::Vector3d centre = T.p;
   NormalEquations last;
   std::vector<int> matches;  // of the last point-to-plane or GICP iteration
   std::vector<WeightedPair> pairs;
@@ -452,17 +471,16 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
     double step_translation_m = 0.0;
     double step_rotation_rad = 0.0;
     if (point_to_plane || generalized) {
-      last = generalized
-                 ? LinearizeGeneralized(source, source_normals, target, T, setting, &matches)
-                 : LinearizePointToPlane(source, target, T, setting, &matches);
+      last = generalized ? LinearizeGeneralized(source, source_normals, target, T, centre, setting,
+                                                &matches)
+                         : LinearizePointToPlane(source, target, T, centre, setting, &matches);
       RequireEnough(last.count, setting, source.cols());
       RequireConstrained(last);
       // Gauss-Newton step of eq. (4.11); LDLT on the 6x6 system, no explicit inverse.
-      const Vector6d delta = -last.H.ldlt().solve(last.g);
-      T = geometry::ExpSE3(delta) * T;
-      T.q.normalize();
-      step_translation_m = delta.head<3>().norm();
-      step_rotation_rad = delta.tail<3>().norm();
+      const Vector6d delta_c = -last.H.ldlt().solve(last.g);
+      T = StepAbout(delta_c, centre, T);
+      step_translation_m = delta_c.head<3>().norm();
+      step_rotation_rad = delta_c.tail<3>().norm();
     } else {
       CollectPointPairs(source, target, T, setting, &pairs);
       RequireEnough(static_cast<int>(pairs.size()), setting, source.cols());
@@ -470,7 +488,7 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
       step_translation_m = (T_new.p - T.p).norm();
       step_rotation_rad = geometry::AngularDistance(T.q, T_new.q);
       T = T_new;
-      last = LinearizePointPairs(pairs, T);
+      last = LinearizePointPairs(pairs, T, centre);
       RequireConstrained(last);
     }
     if (step_translation_m < setting.convergence.translation_m &&
@@ -482,7 +500,7 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   // The statistics use the last linearization; after convergence it is one step (below the
   // tolerances) from the returned pose, which changes nothing at the noise level.
   result.T_target_source = T;
-  FillStatistics(last, setting, source.cols(), &result);
+  FillStatistics(last, centre, setting, source.cols(), &result);
   return result;
 }
 

@@ -223,6 +223,39 @@ TEST(IcpTest, GeneralizedIcpRecoversSimulatedMotionWithRangeNoise) {
                Error);
 }
 
+// The same pair with its target frame kilometres from the origin and tilted, as a long drive's
+// odometry map is: the same alignment, and the covariance moved by the adjoint. About the
+// origin (eq. 4.7) the tilt and the translation were nearly collinear at this distance and the
+// degeneracy test refused the pair.
+TEST(IcpTest, AlignmentDoesNotDependOnWhereTheOriginIs) {
+  const SweepPair pair = StreetPair(22);
+  const IcpSetting setting = StreetSetting();
+  const IcpResult near =
+      AlignIcp(pair.source, IcpTarget(pair.target, TargetNormals::kOnDemand, StreetNormals()),
+               Pose3d::Identity(), setting);
+  const Pose3d T_far = MakePose(3200.0, -2100.0, 45.0, 37.0, 2.0, -1.5);
+  const IcpResult far = AlignIcp(
+      pair.source,
+      IcpTarget(TransformPoints(T_far, pair.target), TargetNormals::kOnDemand, StreetNormals()),
+      T_far, setting);
+  const Pose3d moved_back = T_far.Inverse() * far.T_target_source;
+  EXPECT_LT(geometry::TranslationError(moved_back, near.T_target_source),
+            2.0 * setting.convergence.translation_m);
+  EXPECT_LT(geometry::AngularDistance(moved_back.q, near.T_target_source.q),
+            2.0 * setting.convergence.rotation_rad);
+  // A left perturbation in the far frame is Ad(T_far) times one in the near frame.
+  Matrix6d adjoint = Matrix6d::Zero();
+  adjoint.topLeftCorner<3, 3>() = T_far.R();
+  adjoint.topRightCorner<3, 3>() = geometry::Hat(T_far.p) * T_far.R();
+  adjoint.bottomRightCorner<3, 3>() = T_far.R();
+  const Matrix6d expected = adjoint * near.covariance * adjoint.transpose();
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(std::sqrt(far.covariance(i, i)), std::sqrt(expected(i, i)),
+                1e-3 * std::sqrt(expected(i, i)))
+        << "axis " << i;
+  }
+}
+
 TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
   const test::Scene scene = test::MakeStreetScene(24);
   const SweepPair pair = SimulatePair(scene, MakePose(0.0, 0.0, 1.8, 0.0, 0.0, 0.0),
