@@ -59,29 +59,45 @@ struct GyroDeskew {
   Eigen::Vector3d gyro_bias_rad_s;
 };
 
-bool RunOdometry(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
+// A sweep's stamp and the time of its last point, recorded while the odometry reads it.
+struct SweepTimes {
+  int64_t t_ns = 0;
+  double end_s = 0.0;
+};
+
+double LastPointTime(const lidar::PointCloud& cloud) {
+  return cloud.has_time() ? cloud.time_s.maxCoeff() : 0.0;
+}
+
+bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
                  const lidar::LidarOdometrySetting& setting, const std::optional<GyroDeskew>& gyro,
-                 CalibrationInitialization* out, size_t* failed_sweep = nullptr) {
+                 CalibrationInitialization* out, std::vector<SweepTimes>* times,
+                 size_t* failed_sweep) {
   lidar::LidarOdometry odometry(setting);
-  for (size_t k = 0; k < sweeps.size(); ++k) {
+  times->clear();
+  for (size_t k = 0; k < sweeps->size(); ++k) {
+    const lidar::LidarSweep& sweep = sweeps->Sweep(k);
+    if (!times->empty() && sweep.t_ns <= times->back().t_ns) {
+      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) +
+                  ")");
+    }
+    times->push_back({sweep.t_ns, LastPointTime(sweep.cloud)});
     std::optional<Eigen::Vector3d> rate_L;
     if (gyro) {
-      const lidar::PointCloud& cloud = sweeps[k].cloud;
-      const double duration_s = cloud.has_time() ? cloud.time_s.maxCoeff() : 0.0;
-      const int64_t t0_ns = sweeps[k].t_ns + SecondsToNs(gyro->offset_s);
-      rate_L = gyro->q_I_L.conjugate() *
-               MeanRate(imu, gyro->gyro_bias_rad_s, t0_ns, t0_ns + SecondsToNs(duration_s));
+      const int64_t t0_ns = sweep.t_ns + SecondsToNs(gyro->offset_s);
+      rate_L = gyro->q_I_L.conjugate() * MeanRate(imu, gyro->gyro_bias_rad_s, t0_ns,
+                                                  t0_ns + SecondsToNs(times->back().end_s));
     }
     try {
-      odometry.AddSweep(sweeps[k], rate_L);
+      odometry.AddSweep(sweep, rate_L);
     } catch (const Error& e) {
       // The stamp names the sweep in the log also when the caller passed every n-th sweep.
       out->problems.push_back("LiDAR odometry failed at sweep " + std::to_string(k) + " of " +
-                              std::to_string(sweeps.size()) + " (stamp " +
-                              std::to_string(sweeps[k].t_ns) + " ns, " +
-                              Format(NsToSeconds(sweeps[k].t_ns - sweeps.front().t_ns)) +
+                              std::to_string(sweeps->size()) + " (stamp " +
+                              std::to_string(sweep.t_ns) + " ns, " +
+                              Format(NsToSeconds(sweep.t_ns - times->front().t_ns)) +
                               " s after the first): " + e.what());
-      if (failed_sweep != nullptr) *failed_sweep = k;
+      *failed_sweep = k;
       return false;
     }
   }
@@ -181,7 +197,7 @@ void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerO
 // The keyframes of steps 5 and 6 (internal::KeyframeSlot): one per sweep that lies inside the
 // IMU log with its margins.
 std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
-                                        const std::vector<lidar::LidarSweep>& sweeps,
+                                        const std::vector<SweepTimes>& sweeps,
                                         const CalibrationInitializerOptions& options,
                                         const CalibrationInitialization& out) {
   LidarInertialBatchOptions batch;
@@ -191,10 +207,9 @@ std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
   std::vector<KeyframeSlot> slots;
   for (size_t k = 0; k < sweeps.size(); ++k) {
     const int64_t t_ns = KeyframeTime(sweeps[k].t_ns, offset_s, batch);
-    const double sweep_end_s = sweeps[k].cloud.has_time() ? sweeps[k].cloud.time_s.maxCoeff() : 0.0;
     // The whole sweep (and the lead again as a margin) must be inside the IMU log.
     const int64_t end_ns =
-        sweeps[k].t_ns + offset_ns + SecondsToNs(sweep_end_s + options.keyframe_lead_s);
+        sweeps[k].t_ns + offset_ns + SecondsToNs(sweeps[k].end_s + options.keyframe_lead_s);
     if (t_ns < imu.front().t_ns || end_ns > imu.back().t_ns) continue;
     slots.push_back({static_cast<int>(k), t_ns, PoseAt(out.odometry, t_ns - offset_ns)});
   }
@@ -218,13 +233,7 @@ geometry::Pose3d GravityAlignedWorld(const Eigen::Vector3d& g_O, const Eigen::Ma
 
 namespace {
 
-void CheckStamps(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps) {
-  for (size_t k = 1; k < sweeps.size(); ++k) {
-    if (sweeps[k].t_ns <= sweeps[k - 1].t_ns) {
-      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) +
-                  ")");
-    }
-  }
+void CheckImuStamps(const sensors::ImuSamples& imu) {
   for (size_t i = 1; i < imu.size(); ++i) {
     if (imu[i].t_ns <= imu[i - 1].t_ns) {
       throw Error("InitializeLidarImu: IMU stamps must increase (sample " + std::to_string(i) +
@@ -233,17 +242,15 @@ void CheckStamps(const sensors::ImuSamples& imu, const std::vector<lidar::LidarS
   }
 }
 
-bool TooShort(const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
-              CalibrationInitialization* out) {
-  if (imu.size() >= 2 && sweeps.size() >= 2) return false;
+bool TooShort(const sensors::ImuSamples& imu, size_t num_sweeps, CalibrationInitialization* out) {
+  if (imu.size() >= 2 && num_sweeps >= 2) return false;
   out->problems.push_back("the log holds " + std::to_string(imu.size()) + " IMU samples and " +
-                          std::to_string(sweeps.size()) + " sweeps: too short to initialize");
+                          std::to_string(num_sweeps) + " sweeps: too short to initialize");
   return true;
 }
 
 // Steps 5 and 6 on out's odometry, rest period, offset and rotation.
-void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
-                            const std::vector<lidar::LidarSweep>& sweeps,
+void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<SweepTimes>& sweeps,
                             const CalibrationInitializerOptions& options,
                             CalibrationInitialization* out_ptr);
 
@@ -261,22 +268,28 @@ CalibrationInitializerOptions RefinedLaterInitializerOptions() {
 CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
                                              const std::vector<lidar::LidarSweep>& sweeps,
                                              const CalibrationInitializerOptions& options) {
-  CheckStamps(imu, sweeps);
+  lidar::SweepVector source(sweeps);
+  return InitializeLidarImu(imu, &source, options);
+}
+
+CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
+                                             lidar::SweepSource* sweeps,
+                                             const CalibrationInitializerOptions& options) {
+  CheckImuStamps(imu);
   CalibrationInitialization out;
-  if (TooShort(imu, sweeps, &out)) return out;
+  if (TooShort(imu, sweeps->size(), &out)) return out;
   // A long enough log before a stretch the odometry cannot follow (a featureless road) still
   // initializes: the chain runs again on the sweeps before it.
   size_t failed_sweep = 0;
   const auto on_sweeps_before_failure = [&]() {
     if (failed_sweep < 2 ||
         static_cast<double>(failed_sweep) <
-            options.min_odometry_fraction * static_cast<double>(sweeps.size())) {
+            options.min_odometry_fraction * static_cast<double>(sweeps->size())) {
       return out;
     }
     const std::string why = out.problems.back();
-    CalibrationInitialization prefix = InitializeLidarImu(
-        imu, std::vector<lidar::LidarSweep>(sweeps.begin(), sweeps.begin() + failed_sweep),
-        options);
+    lidar::SweepPrefix before_failure(sweeps, failed_sweep);
+    CalibrationInitialization prefix = InitializeLidarImu(imu, &before_failure, options);
     prefix.fallbacks.insert(prefix.fallbacks.begin(), why + "; the sweeps before it are used");
     return prefix;
   };
@@ -285,7 +298,8 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
     first_pass.registration_voxel_m =
         std::max(first_pass.registration_voxel_m, options.first_pass_registration_voxel_m);
   }
-  if (!RunOdometry(imu, sweeps, first_pass, std::nullopt, &out, &failed_sweep)) {
+  std::vector<SweepTimes> times;
+  if (!RunOdometry(imu, sweeps, first_pass, std::nullopt, &out, &times, &failed_sweep)) {
     return on_sweeps_before_failure();
   }
   FindRestPeriod(imu, options, &out);
@@ -303,14 +317,14 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
     out.fallbacks.clear();
     out.hand_eye_imu_rotations.clear();
     out.hand_eye_lidar_rotations.clear();
-    if (!RunOdometry(imu, sweeps, options.odometry, gyro, &out, &failed_sweep)) {
+    if (!RunOdometry(imu, sweeps, options.odometry, gyro, &out, &times, &failed_sweep)) {
       return on_sweeps_before_failure();
     }
     EstimateOffset(imu, options, &out);
     SolveRotation(imu, options, &out);
     if (!out.problems.empty()) return out;
   }
-  AlignAndBuildKeyframes(imu, sweeps, options, &out);
+  AlignAndBuildKeyframes(imu, times, options, &out);
   return out;
 }
 
@@ -318,7 +332,15 @@ CalibrationInitialization InitializeLidarImuFromOdometry(
     const sensors::ImuSamples& imu, const std::vector<lidar::LidarSweep>& sweeps,
     const std::vector<lidar::OdometryFrame>& odometry,
     const CalibrationInitializerOptions& options) {
-  CheckStamps(imu, sweeps);
+  CheckImuStamps(imu);
+  std::vector<SweepTimes> times;
+  for (size_t k = 0; k < sweeps.size(); ++k) {
+    if (k > 0 && sweeps[k].t_ns <= sweeps[k - 1].t_ns) {
+      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) +
+                  ")");
+    }
+    times.push_back({sweeps[k].t_ns, LastPointTime(sweeps[k].cloud)});
+  }
   if (odometry.size() != sweeps.size()) {
     throw Error("InitializeLidarImuFromOdometry: " + std::to_string(odometry.size()) +
                 " odometry frames for " + std::to_string(sweeps.size()) + " sweeps");
@@ -330,20 +352,19 @@ CalibrationInitialization InitializeLidarImuFromOdometry(
     }
   }
   CalibrationInitialization out;
-  if (TooShort(imu, sweeps, &out)) return out;
+  if (TooShort(imu, sweeps.size(), &out)) return out;
   out.odometry = odometry;
   FindRestPeriod(imu, options, &out);
   EstimateOffset(imu, options, &out);
   SolveRotation(imu, options, &out);
   if (!out.problems.empty()) return out;
-  AlignAndBuildKeyframes(imu, sweeps, options, &out);
+  AlignAndBuildKeyframes(imu, times, options, &out);
   return out;
 }
 
 namespace {
 
-void AlignAndBuildKeyframes(const sensors::ImuSamples& imu,
-                            const std::vector<lidar::LidarSweep>& sweeps,
+void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<SweepTimes>& sweeps,
                             const CalibrationInitializerOptions& options,
                             CalibrationInitialization* out_ptr) {
   CalibrationInitialization& out = *out_ptr;

@@ -36,6 +36,9 @@ using internal::SweepSelection;
 // 1-sigma of the gauge prior on the first keyframe's yaw: a direction no factor informs, so
 // any weight fixes it without pulling on the data.
 constexpr double kGaugeYawSigmaRad = 1e-6;
+// Sweeps associated together per thread: their plane maps, and those of the partners they
+// reach, are held at once.
+constexpr int kAssociationStretchPerThread = 32;
 
 // Fills report->covariance for the calibration blocks that the problem estimates; held
 // blocks and axes keep zero rows.
@@ -90,13 +93,11 @@ void ComputeCovariance(ceres::Problem* problem, sensors::Calibration* calibratio
 // The inputs of the solve and what every outer iteration shares.
 struct BatchInputs {
   const sensors::ImuSamples& imu;
-  const std::vector<lidar::LidarSweep>& sweeps;
+  const std::vector<SelectedSweep>& sweeps;
   std::vector<Keyframe>* keyframes;
   sensors::Calibration* calibration;
   const LidarInertialBatchOptions& options;
   Eigen::Vector3d g_W;
-  std::vector<SweepSelection> selection;
-  std::vector<double> max_point_time_s;
 
   int num_sweeps() const { return static_cast<int>(sweeps.size()); }
   // Runs body(k) for every sweep, on options.num_threads threads.
@@ -107,13 +108,12 @@ struct BatchInputs {
   }
 };
 
-// The sweeps at one outer iteration's estimate: their IMU motion tables, their LiDAR poses at
-// the reference instant and their plane maps in W.
+// The sweeps at one outer iteration's estimate: their IMU motion tables and their LiDAR poses
+// at the reference instant.
 struct PropagatedSweeps {
   std::vector<std::optional<ImuMotionTable>> tables;
   std::vector<factors::PointMotion> reference_motion;
   std::vector<geometry::Pose3d> T_W_L;
-  std::vector<std::unique_ptr<lidar::PlaneMap>> maps;
 };
 
 // What one outer iteration associated (Eq. P6): per sweep its points' measurements and their
@@ -148,121 +148,183 @@ IterationScale ScaleOf(const LidarInertialBatchOptions& options, int iteration) 
   return scale;
 }
 
-BatchInputs SelectPoints(const sensors::ImuSamples& imu,
-                         const std::vector<lidar::LidarSweep>& sweeps,
-                         std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
-                         const LidarInertialBatchOptions& options) {
+BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSweep>& sweeps,
+                   std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
+                   const LidarInertialBatchOptions& options) {
   if (keyframes->size() != sweeps.size() || sweeps.size() < 2) {
     throw Error("SolveLidarInertialBatch: need one keyframe per sweep and at least two sweeps");
   }
-  BatchInputs in{imu,         sweeps,  keyframes,
-                 calibration, options, Eigen::Vector3d(0.0, 0.0, -options.gravity_m_s2),
-                 {},          {}};
-  in.selection.resize(sweeps.size());
-  in.max_point_time_s.resize(sweeps.size());
-  for (size_t k = 0; k < sweeps.size(); ++k) {
-    if (!sweeps[k].cloud.has_time()) {
-      throw Error("SolveLidarInertialBatch: sweeps need per-point time");
-    }
-    in.max_point_time_s[k] = sweeps[k].cloud.size() > 0 ? sweeps[k].cloud.time_s.maxCoeff() : 0.0;
-    in.selection[k] = internal::SelectSweepPoints(sweeps[k].cloud, options.pairing);
-  }
-  return in;
+  return BatchInputs{imu,         sweeps,  keyframes,
+                     calibration, options, Eigen::Vector3d(0.0, 0.0, -options.gravity_m_s2)};
 }
 
-// Steps 1-2: every sweep propagated with the current estimate, its map points deskewed into
-// W, and one plane map per sweep from it and its map_neighbor_sweeps neighbours on each side
-// (a denser local map, whose parts are too close in time to disagree much).
-PropagatedSweeps PropagateSweeps(const BatchInputs& in, const lidar::PlaneMapOptions& map_options) {
+// Step 1: every sweep propagated with the current estimate.
+PropagatedSweeps PropagateSweeps(const BatchInputs& in) {
   const size_t n = in.sweeps.size();
   const double offset_lin = in.calibration->time_offset_lidar_imu_s;
   PropagatedSweeps out;
   out.tables.resize(n);
+  out.reference_motion.resize(n);
+  out.T_W_L.resize(n);
   in.ForEachSweep([&](size_t k) {
     const Keyframe& kf = (*in.keyframes)[k];
-    const int64_t end_ns = in.sweeps[k].t_ns + SecondsToNs(in.max_point_time_s[k] + offset_lin);
+    const int64_t end_ns = in.sweeps[k].sweep.t_ns + SecondsToNs(in.sweeps[k].end_s + offset_lin);
     if (end_ns < kf.t_ns) {
       throw Error("SolveLidarInertialBatch: the time offset moved beyond the keyframe lead");
     }
     out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
-  });
-  std::vector<Eigen::Matrix3Xd> map_points_W(n);
-  out.reference_motion.resize(n);
-  out.T_W_L.resize(n);
-  in.ForEachSweep([&](size_t j) {
-    const Keyframe& kf = (*in.keyframes)[j];
-    map_points_W[j] = internal::SweepPointsInWorld(
-        *out.tables[j], kf, in.sweeps[j], in.selection[j].map_points, in.g_W, *in.calibration);
-    out.reference_motion[j] = out.tables[j]->At(in.sweeps[j].t_ns + SecondsToNs(offset_lin));
-    out.T_W_L[j] = internal::SweepLidarPose(kf, out.reference_motion[j], in.g_W,
+    out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].sweep.t_ns + SecondsToNs(offset_lin));
+    out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,
                                             in.calibration->q_I_L, in.calibration->p_I_L);
-  });
-  out.maps.resize(n);
-  const int neighbors = in.options.map_neighbor_sweeps;
-  in.ForEachSweep([&](size_t sweep) {
-    const int j = static_cast<int>(sweep);
-    const int first = std::max(0, j - neighbors);
-    const int last = std::min(in.num_sweeps() - 1, j + neighbors);
-    Eigen::Index size = 0;
-    for (int i = first; i <= last; ++i) size += map_points_W[static_cast<size_t>(i)].cols();
-    Eigen::Matrix3Xd local(3, size);
-    Eigen::Index column = 0;
-    for (int i = first; i <= last; ++i) {
-      const Eigen::Matrix3Xd& part = map_points_W[static_cast<size_t>(i)];
-      local.middleCols(column, part.cols()) = part;
-      column += part.cols();
-    }
-    out.maps[sweep] = std::make_unique<lidar::PlaneMap>(local, map_options);
   });
   return out;
 }
 
-// Step 3: each point is paired with a plane of another sweep (Eq. P6), the partners tried in
-// the order of pairing.partner_offsets, starting at a different one for consecutive points,
-// so that every sweep is tied to sweeps before and after it.
-std::vector<std::vector<Association>> AssociatePoints(const BatchInputs& in,
-                                                      const PropagatedSweeps& at,
-                                                      const IterationScale& scale) {
+// Step 2: plane map j from sweep j's map points deskewed into W and those of its
+// map_neighbor_sweeps neighbours on each side (a denser local map, whose parts are too close
+// in time to disagree much). Maps are built for the stretch of sweeps that the next points
+// pair with and dropped once no later point can reach them, so that a long log never holds
+// them all.
+class StretchMaps {
+ public:
+  StretchMaps(const BatchInputs& in, const PropagatedSweeps& at,
+              const lidar::PlaneMapOptions& options)
+      : in_(in), at_(at), options_(options), points_W_(in.sweeps.size()), maps_(in.sweeps.size()) {}
+
+  // Builds the missing maps of sweeps first..last (clamped to the log).
+  void Cover(int first, int last) {
+    const int n = in_.num_sweeps();
+    const int reach = in_.options.map_neighbor_sweeps;
+    first = std::max(first, 0);
+    last = std::min(last, n - 1);
+    Build(
+        std::max(0, first - reach), std::min(n - 1, last + reach),
+        [&](int j) { return points_W_[static_cast<size_t>(j)].cols() == 0; },
+        [&](int j) { points_W_[static_cast<size_t>(j)] = PointsInWorld(j); });
+    Build(
+        first, last, [&](int j) { return !maps_[static_cast<size_t>(j)]; },
+        [&](int j) { maps_[static_cast<size_t>(j)] = MapOf(j); });
+  }
+  // Drops the maps before sweep j and the points no later map needs.
+  void DropBefore(int j) {
+    const int reach = in_.options.map_neighbor_sweeps;
+    for (int i = 0; i < std::min(j, in_.num_sweeps()); ++i) maps_[static_cast<size_t>(i)].reset();
+    for (int i = 0; i < std::min(j - reach, in_.num_sweeps()); ++i) {
+      points_W_[static_cast<size_t>(i)] = Eigen::Matrix3Xd();
+    }
+  }
+  const lidar::PlaneMap& map(int j) const { return *maps_[static_cast<size_t>(j)]; }
+
+ private:
+  template <typename Missing, typename Make>
+  void Build(int first, int last, Missing missing, Make make) const {
+    std::vector<int> todo;
+    for (int j = first; j <= last; ++j) {
+      if (missing(j)) todo.push_back(j);
+    }
+    ParallelFor(0, static_cast<int64_t>(todo.size()), in_.options.num_threads,
+                [&](int64_t begin, int64_t end, int) {
+                  for (int64_t i = begin; i < end; ++i) make(todo[static_cast<size_t>(i)]);
+                });
+  }
+  Eigen::Matrix3Xd PointsInWorld(int j) const {
+    const size_t k = static_cast<size_t>(j);
+    return internal::SweepPointsInWorld(*at_.tables[k], (*in_.keyframes)[k], in_.sweeps[k].sweep,
+                                        in_.sweeps[k].map_points, in_.g_W, *in_.calibration);
+  }
+  std::unique_ptr<lidar::PlaneMap> MapOf(int j) const {
+    const int first = std::max(0, j - in_.options.map_neighbor_sweeps);
+    const int last = std::min(in_.num_sweeps() - 1, j + in_.options.map_neighbor_sweeps);
+    if (first == last)
+      return std::make_unique<lidar::PlaneMap>(points_W_[static_cast<size_t>(j)], options_);
+    Eigen::Index size = 0;
+    for (int i = first; i <= last; ++i) size += points_W_[static_cast<size_t>(i)].cols();
+    Eigen::Matrix3Xd local(3, size);
+    Eigen::Index column = 0;
+    for (int i = first; i <= last; ++i) {
+      const Eigen::Matrix3Xd& part = points_W_[static_cast<size_t>(i)];
+      local.middleCols(column, part.cols()) = part;
+      column += part.cols();
+    }
+    return std::make_unique<lidar::PlaneMap>(local, options_);
+  }
+
+  const BatchInputs& in_;
+  const PropagatedSweeps& at_;
+  lidar::PlaneMapOptions options_;
+  std::vector<Eigen::Matrix3Xd> points_W_;  // empty when not computed or dropped
+  std::vector<std::unique_ptr<lidar::PlaneMap>> maps_;
+};
+
+// Step 3 for the residual points of sweep k.
+std::vector<Association> AssociateSweep(const BatchInputs& in, const PropagatedSweeps& at,
+                                        const StretchMaps& maps, const IterationScale& scale,
+                                        int k) {
   const sensors::Calibration& c = *in.calibration;
   const double offset_lin = c.time_offset_lidar_imu_s;
   const std::vector<int>& partners = in.options.pairing.partner_offsets;
   const size_t P = partners.size();
-  std::vector<std::vector<Association>> associations(in.sweeps.size());
-  in.ForEachSweep([&](size_t sweep) {
-    const int k = static_cast<int>(sweep);
-    const Keyframe& kf = (*in.keyframes)[sweep];
-    const lidar::LidarSweep& s = in.sweeps[sweep];
-    size_t point_counter = 0;
-    internal::FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, in.g_W);
-    for (int i : in.selection[sweep].residual_points) {
-      const double tau = s.cloud.time_s(i);
-      const factors::PropagatedPose<double>& pose = poses.At(
-          tau, [&] { return at.tables[sweep]->At(s.t_ns + SecondsToNs(tau + offset_lin)); });
-      factors::PointToSweepPlaneMeasurement m;
-      m.p_L = s.cloud.points.col(i);
-      m.motion = poses.motion();
-      const Eigen::Vector3d p_W = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, m.p_L);
-      const size_t first = point_counter++;
-      int partner = -1;
-      geometry::Plane plane_W;
-      for (size_t attempt = 0; attempt < P && partner < 0; ++attempt) {
-        const int j = k + partners[internal::PartnerPosition(first, attempt, P, P)];
-        if (j < 0 || j >= in.num_sweeps() || j == k) continue;
-        if (at.maps[static_cast<size_t>(j)]->FindPlane(p_W, &plane_W) &&
-            std::abs(plane_W.SignedDistance(p_W)) <= scale.max_point_to_plane_m) {
-          partner = j;
-        }
+  const size_t sweep = static_cast<size_t>(k);
+  const Keyframe& kf = (*in.keyframes)[sweep];
+  const lidar::LidarSweep& s = in.sweeps[sweep].sweep;
+  std::vector<Association> associations;
+  size_t point_counter = 0;
+  internal::FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, in.g_W);
+  for (int i : in.sweeps[sweep].residual_points) {
+    const double tau = s.cloud.time_s(i);
+    const factors::PropagatedPose<double>& pose =
+        poses.At(tau, [&] { return at.tables[sweep]->At(s.t_ns + SecondsToNs(tau + offset_lin)); });
+    factors::PointToSweepPlaneMeasurement m;
+    m.p_L = s.cloud.points.col(i);
+    m.motion = poses.motion();
+    const Eigen::Vector3d p_W = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, m.p_L);
+    const size_t first = point_counter++;
+    int partner = -1;
+    geometry::Plane plane_W;
+    for (size_t attempt = 0; attempt < P && partner < 0; ++attempt) {
+      const int j = k + partners[internal::PartnerPosition(first, attempt, P, P)];
+      if (j < 0 || j >= in.num_sweeps() || j == k) continue;
+      if (maps.map(j).FindPlane(p_W, &plane_W) &&
+          std::abs(plane_W.SignedDistance(p_W)) <= scale.max_point_to_plane_m) {
+        partner = j;
       }
-      if (partner < 0) continue;
-      const geometry::Pose3d& T = at.T_W_L[static_cast<size_t>(partner)];
-      m.plane_L.normal = T.q.conjugate() * plane_W.normal;
-      m.plane_L.d = plane_W.d + plane_W.normal.dot(T.p);
-      m.plane_motion = at.reference_motion[static_cast<size_t>(partner)];
-      m.sigma_m = scale.point_sigma_m;
-      m.offset_linearization_s = offset_lin;
-      associations[sweep].push_back({m, partner});
     }
-  });
+    if (partner < 0) continue;
+    const geometry::Pose3d& T = at.T_W_L[static_cast<size_t>(partner)];
+    m.plane_L.normal = T.q.conjugate() * plane_W.normal;
+    m.plane_L.d = plane_W.d + plane_W.normal.dot(T.p);
+    m.plane_motion = at.reference_motion[static_cast<size_t>(partner)];
+    m.sigma_m = scale.point_sigma_m;
+    m.offset_linearization_s = offset_lin;
+    associations.push_back({m, partner});
+  }
+  return associations;
+}
+
+// Step 3: each point is paired with a plane of another sweep (Eq. P6), the partners tried in
+// the order of pairing.partner_offsets, starting at a different one for consecutive points,
+// so that every sweep is tied to sweeps before and after it. Sweeps are associated in
+// stretches, each with the maps of the sweeps its partners reach.
+std::vector<std::vector<Association>> AssociatePoints(const BatchInputs& in,
+                                                      const PropagatedSweeps& at,
+                                                      const IterationScale& scale) {
+  const std::vector<int>& partners = in.options.pairing.partner_offsets;
+  int reach = 0;
+  for (const int offset : partners) reach = std::max(reach, std::abs(offset));
+  const int stretch = kAssociationStretchPerThread * std::max(1, in.options.num_threads);
+  StretchMaps maps(in, at, scale.map_options);
+  std::vector<std::vector<Association>> associations(in.sweeps.size());
+  for (int first = 0; first < in.num_sweeps(); first += stretch) {
+    const int end = std::min(in.num_sweeps(), first + stretch);
+    maps.DropBefore(first - reach);
+    maps.Cover(first - reach, end - 1 + reach);
+    ParallelFor(first, end, in.options.num_threads, [&](int64_t begin, int64_t stop, int) {
+      for (int64_t k = begin; k < stop; ++k) {
+        associations[static_cast<size_t>(k)] =
+            AssociateSweep(in, at, maps, scale, static_cast<int>(k));
+      }
+    });
+  }
   return associations;
 }
 
@@ -387,8 +449,10 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   const sensors::Calibration before = *calibration;
   const auto iteration_start = std::chrono::steady_clock::now();
   const IterationScale scale = ScaleOf(options, iteration);
-  const PropagatedSweeps at = PropagateSweeps(in, scale.map_options);
-  const std::vector<std::vector<Association>> associations = AssociatePoints(in, at, scale);
+  // The maps go before the problem is built: a long log's maps and its problem need not
+  // share the memory.
+  const std::vector<std::vector<Association>> associations =
+      AssociatePoints(in, PropagateSweeps(in), scale);
 
   // 4. The problem: IMU factors between keyframes, point-to-plane factors per pair of sweeps.
   geometry::RightQuaternionManifold quaternion_manifold;
@@ -459,12 +523,59 @@ int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s,
   return t_sweep_ns + SecondsToNs(offset_s - options.keyframe_lead_s);
 }
 
+SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSetting& pairing) {
+  const lidar::PointCloud& cloud = sweep.cloud;
+  if (!cloud.has_time()) throw Error("SolveLidarInertialBatch: sweeps need per-point time");
+  const internal::SweepSelection selection = internal::SelectSweepPoints(cloud, pairing);
+  // The union of both selections in sweep order, and each index remapped into it.
+  std::vector<int> kept(selection.residual_points);
+  kept.insert(kept.end(), selection.map_points.begin(), selection.map_points.end());
+  std::sort(kept.begin(), kept.end());
+  kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+  const auto remapped = [&](const std::vector<int>& indices) {
+    std::vector<int> out(indices.size());
+    for (size_t i = 0; i < indices.size(); ++i) {
+      out[i] =
+          static_cast<int>(std::lower_bound(kept.begin(), kept.end(), indices[i]) - kept.begin());
+    }
+    return out;
+  };
+  SelectedSweep out;
+  out.sweep.t_ns = sweep.t_ns;
+  out.end_s = cloud.time_s.maxCoeff();
+  out.sweep.cloud.points.resize(3, static_cast<Eigen::Index>(kept.size()));
+  out.sweep.cloud.time_s.resize(static_cast<Eigen::Index>(kept.size()));
+  for (size_t i = 0; i < kept.size(); ++i) {
+    out.sweep.cloud.points.col(static_cast<Eigen::Index>(i)) = cloud.points.col(kept[i]);
+    out.sweep.cloud.time_s(static_cast<Eigen::Index>(i)) = cloud.time_s(kept[i]);
+  }
+  out.residual_points = remapped(selection.residual_points);
+  out.map_points = remapped(selection.map_points);
+  return out;
+}
+
 LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                                  const std::vector<lidar::LidarSweep>& sweeps,
                                                  std::vector<Keyframe>* keyframes,
                                                  sensors::Calibration* calibration,
                                                  const LidarInertialBatchOptions& options) {
-  const BatchInputs in = SelectPoints(imu, sweeps, keyframes, calibration, options);
+  std::vector<SelectedSweep> selected(sweeps.size());
+  ParallelFor(0, static_cast<int64_t>(sweeps.size()), options.num_threads,
+              [&](int64_t begin, int64_t end, int) {
+                for (int64_t k = begin; k < end; ++k) {
+                  selected[static_cast<size_t>(k)] =
+                      SelectForBatch(sweeps[static_cast<size_t>(k)], options.pairing);
+                }
+              });
+  return SolveLidarInertialBatch(imu, selected, keyframes, calibration, options);
+}
+
+LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
+                                                 const std::vector<SelectedSweep>& sweeps,
+                                                 std::vector<Keyframe>* keyframes,
+                                                 sensors::Calibration* calibration,
+                                                 const LidarInertialBatchOptions& options) {
+  const BatchInputs in = Inputs(imu, sweeps, keyframes, calibration, options);
   LidarInertialBatchReport report;
   const auto start = std::chrono::steady_clock::now();
   for (int iteration = 0; iteration < options.outer_iterations; ++iteration) {

@@ -23,6 +23,7 @@
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
 #include "clock_initialization.h"
+#include "keyframe_sweep_reader.h"
 #include "mount_angles.h"
 #include "problem_blocks.h"
 
@@ -95,35 +96,11 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   return false;
 }
 
-// Every sweep_stride-th sweep of the log (the batch's keyframes), read on num_threads threads.
-// The sweeps between them are never read: the initializer registers the sweeps the solve
-// uses, and a log's memory is that of its keyframe sweeps.
-std::vector<lidar::LidarSweep> LoadKeyframeSweeps(const io::Dataset& dataset,
-                                                  const io::Problem& problem,
-                                                  const OfflineCalibrationOptions& options) {
-  const int64_t stride = problem.lidar.sweep_stride;
-  const int64_t num_sweeps =
-      (static_cast<int64_t>(dataset.lidar_sweeps.size()) + stride - 1) / stride;
-  std::vector<lidar::LidarSweep> sweeps(static_cast<size_t>(num_sweeps));
-  ParallelFor(
-      0, num_sweeps, problem.solver.num_threads, [&](int64_t begin, int64_t end, int chunk) {
-        for (int64_t i = begin; i < end; ++i) {
-          sweeps[static_cast<size_t>(i)] = dataset.LoadSweep(static_cast<size_t>(i * stride));
-          // The first chunk's progress stands for all of them.
-          if (chunk == 0 && (i - begin) % 50 == 0) {
-            Report(options, "loading sweeps",
-                   static_cast<double>(i - begin + 1) / static_cast<double>(end - begin), 0.0, 0.0);
-          }
-        }
-      });
-  return sweeps;
-}
-
 // The initializer on the keyframe sweeps, into result->initialization; throws when the drive
 // cannot initialize the calibration.
 void Initialize(const io::Dataset& dataset, const io::Problem& problem,
-                const OfflineCalibrationOptions& options,
-                const std::vector<lidar::LidarSweep>& sweeps, OfflineCalibrationResult* result) {
+                const OfflineCalibrationOptions& options, lidar::SweepSource* sweeps,
+                OfflineCalibrationResult* result) {
   Report(options, "initializing", 0.0, 0.0, 0.0);
   estimation::CalibrationInitializerOptions init_options = options.initializer;
   init_options.imu_noise = dataset.sensors.imu.noise;
@@ -147,18 +124,18 @@ void Initialize(const io::Dataset& dataset, const io::Problem& problem,
 
 // The keyframes of the batch solve and their sweeps.
 struct BatchKeyframes {
-  std::vector<lidar::LidarSweep> sweeps;
+  std::vector<estimation::SelectedSweep> sweeps;
   std::vector<estimation::Keyframe> keyframes;
 };
 
-// The initializer's keyframes and their sweeps, moved out of *sweeps (not needed elsewhere any
-// more). Throws when fewer than two remain.
+// The initializer's keyframes and their reduced sweeps, taken from the reader. Throws when
+// fewer than two remain.
 BatchKeyframes InitializerKeyframes(const io::Problem& problem,
                                     const estimation::CalibrationInitialization& init,
-                                    std::vector<lidar::LidarSweep>* sweeps) {
+                                    internal::KeyframeSweepReader* sweeps) {
   BatchKeyframes out;
   for (size_t k = 0; k < init.keyframe_sweeps.size(); ++k) {
-    out.sweeps.push_back(std::move((*sweeps)[static_cast<size_t>(init.keyframe_sweeps[k])]));
+    out.sweeps.push_back(sweeps->TakeSelected(static_cast<size_t>(init.keyframe_sweeps[k])));
     out.keyframes.push_back(init.keyframes[k]);
   }
   if (out.keyframes.size() < 2) {
@@ -298,12 +275,16 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
   result.nominal = dataset.sensors.nominal_calibration;
   result.prior_centre = result.nominal;
 
-  // 1. The keyframe sweeps.
-  std::vector<lidar::LidarSweep> sweeps = LoadKeyframeSweeps(dataset, problem, options);
-  result.seconds_loading = SecondsSince(start);
-
-  // 2. Initialization: no hand-measured guess needed.
-  Initialize(dataset, problem, options, sweeps, &result);
+  // 1-2. Initialization on the keyframe sweeps, read as the odometry reaches them (no
+  //      hand-measured guess needed); each is kept reduced for the batch.
+  const double seconds_before = SecondsSince(start);
+  internal::KeyframeSweepReader sweeps(
+      dataset, problem.lidar.sweep_stride, BatchOptions(dataset, problem).pairing,
+      problem.solver.num_threads,
+      [&](double fraction) { Report(options, "initializing", fraction, 0.0, 0.0); });
+  Initialize(dataset, problem, options, &sweeps, &result);
+  // Loading: the log's files before, and the sweeps' reading and reduction during it.
+  result.seconds_loading = seconds_before + sweeps.seconds_reading();
   result.seconds_initialization = SecondsSince(start) - result.seconds_loading;
 
   // 3. Batch solve from the initializer's calibration (fixed blocks keep the nominal value),
@@ -315,7 +296,6 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
   result.wheel_clock_initialization = clocks.wheel;
   result.gnss_clock_initialization = clocks.gnss;
   BatchKeyframes keyframes = InitializerKeyframes(problem, result.initialization, &sweeps);
-  sweeps.clear();
   const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
@@ -105,6 +106,65 @@ TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
             << sigma.segment<3>(3).transpose() << " m, offset " << sigma(6) * 1e3 << " ms\n";
   EXPECT_TRUE(sigma.allFinite());
   EXPECT_GT(sigma.minCoeff(), 0.0);
+}
+
+// A reduced sweep holds exactly the selected points, each index pointing at the point the
+// whole sweep's selection names, and the whole sweep's last point time.
+TEST_F(LidarInertialBatchTest, SelectForBatchKeepsTheSelectedPointsOnly) {
+  const lidar::LidarSweep& whole = log_->sweeps[200];
+  const PairingSetting pairing = BatchPairingDefaults();
+  const SelectedSweep reduced = SelectForBatch(whole, pairing);
+  EXPECT_EQ(reduced.sweep.t_ns, whole.t_ns);
+  EXPECT_EQ(reduced.end_s, whole.cloud.time_s.maxCoeff());
+  EXPECT_LT(reduced.sweep.cloud.size(), whole.cloud.size() / 2);
+  EXPECT_FALSE(reduced.residual_points.empty());
+  EXPECT_GT(reduced.map_points.size(), reduced.residual_points.size());
+  // Every kept point is some selected point: the kept count is at most the two selections'.
+  EXPECT_LE(reduced.sweep.cloud.size(),
+            static_cast<int64_t>(reduced.residual_points.size() + reduced.map_points.size()));
+  for (const std::vector<int>* indices : {&reduced.residual_points, &reduced.map_points}) {
+    for (size_t i = 1; i < indices->size(); ++i) EXPECT_LT((*indices)[i - 1], (*indices)[i]);
+  }
+  // The same points as a solve on the whole sweep reads: each reduced point is a whole point
+  // with the same time.
+  for (const int i : reduced.residual_points) {
+    const Eigen::Vector3d p = reduced.sweep.cloud.points.col(i);
+    bool found = false;
+    for (Eigen::Index j = 0; j < whole.cloud.size() && !found; ++j) {
+      found =
+          whole.cloud.points.col(j) == p && whole.cloud.time_s(j) == reduced.sweep.cloud.time_s(i);
+    }
+    EXPECT_TRUE(found) << i;
+  }
+  lidar::LidarSweep no_time = whole;
+  no_time.cloud.time_s.resize(0);
+  EXPECT_THROW(SelectForBatch(no_time, pairing), Error);
+}
+
+// The solve on reduced sweeps is the solve on whole ones, to the last bit.
+TEST_F(LidarInertialBatchTest, ReducedSweepsGiveTheSameSolve) {
+  LidarInertialBatchOptions options;
+  options.imu_noise = simulator_->sensors_config().imu.noise;
+  options.outer_iterations = 2;
+  options.compute_covariance = false;
+  sensors::Calibration whole_calibration = simulator_->nominal_calibration();
+  Setup(whole_calibration, options);
+  std::vector<Keyframe> reduced_keyframes = keyframes_;
+  sensors::Calibration reduced_calibration = whole_calibration;
+  std::vector<SelectedSweep> reduced;
+  for (const lidar::LidarSweep& sweep : sweeps_) {
+    reduced.push_back(SelectForBatch(sweep, options.pairing));
+  }
+  const LidarInertialBatchReport whole_report =
+      SolveLidarInertialBatch(log_->imu.samples, sweeps_, &keyframes_, &whole_calibration, options);
+  const LidarInertialBatchReport reduced_report = SolveLidarInertialBatch(
+      log_->imu.samples, reduced, &reduced_keyframes, &reduced_calibration, options);
+  EXPECT_EQ(reduced_report.final_cost, whole_report.final_cost);
+  EXPECT_EQ(reduced_report.associated_points, whole_report.associated_points);
+  EXPECT_EQ(reduced_calibration.q_I_L.coeffs(), whole_calibration.q_I_L.coeffs());
+  EXPECT_EQ(reduced_calibration.p_I_L, whole_calibration.p_I_L);
+  EXPECT_EQ(reduced_calibration.time_offset_lidar_imu_s, whole_calibration.time_offset_lidar_imu_s);
+  EXPECT_EQ(reduced_keyframes.back().p_W_I, keyframes_.back().p_W_I);
 }
 
 }  // namespace

@@ -30,6 +30,7 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/lidar_odometry.h"
 #include "autocal/lidar/point_cloud.h"
+#include "autocal/lidar/sweep_source.h"
 #include "autocal/sensors/measurements.h"
 #include "autocal/sensors/sensor_config.h"
 
@@ -178,6 +179,11 @@ CalibrationInitializerOptions RefinedLaterInitializerOptions();
 // motion or a failing odometry is reported in problems.
 CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
                                              const std::vector<lidar::LidarSweep>& sweeps,
+                                             const CalibrationInitializerOptions& options = {});
+// The same on sweeps read as the odometry reaches them (each once, twice with
+// gyro_deskew_pass), so that a long log is never held whole.
+CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
+                                             lidar::SweepSource* sweeps,
                                              const CalibrationInitializerOptions& options = {});
 
 // Steps 2-6 on a given odometry (one frame per sweep, e.g. a previous result's `odometry`,

@@ -107,6 +107,18 @@ struct LidarInertialBatchReport {
   Eigen::Matrix<double, 7, 7> covariance = Eigen::Matrix<double, 7, 7>::Zero();
 };
 
+// A sweep reduced to what the batch reads of it: its residual and map points (pairing's
+// selection, with their times, in their order in the sweep) and the time of its last point.
+// A long log's sweeps are held this way, a third of their size, instead of whole.
+struct SelectedSweep {
+  lidar::LidarSweep sweep;           // the selected points only
+  double end_s = 0.0;                // the whole sweep's last point time
+  std::vector<int> residual_points;  // indices into sweep.cloud
+  std::vector<int> map_points;       // indices into sweep.cloud
+};
+// Throws autocal::Error for a sweep without per-point time.
+SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSetting& pairing);
+
 // Refines `keyframes` (one per sweep, in sweep order) and the LiDAR-IMU part of
 // `calibration` (q_I_L, p_I_L, time_offset_lidar_imu_s, and whatever blocks the factors of
 // options.add_factors touch) in place. Unless options.hold_first_pose is off, the first
@@ -115,6 +127,13 @@ struct LidarInertialBatchReport {
 // Throws autocal::Error when the inputs do not fit (sizes, IMU coverage).
 LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                                  const std::vector<lidar::LidarSweep>& sweeps,
+                                                 std::vector<Keyframe>* keyframes,
+                                                 sensors::Calibration* calibration,
+                                                 const LidarInertialBatchOptions& options = {});
+// The same on sweeps already reduced by SelectForBatch with options.pairing (the results are
+// identical).
+LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
+                                                 const std::vector<SelectedSweep>& sweeps,
                                                  std::vector<Keyframe>* keyframes,
                                                  sensors::Calibration* calibration,
                                                  const LidarInertialBatchOptions& options = {});
