@@ -166,6 +166,9 @@ struct GaussNewtonHessian {
   std::map<const double*, int> offsets;  // first tangent column of each variable block
 };
 
+// Residual blocks whose Jacobian is evaluated at once for J^T J.
+constexpr size_t kResidualBlocksPerStretch = 16384;
+
 // The lower triangle of J^T J, column by column (Gustavson's product with a dense
 // accumulator): column j sums J(k, j) J(k, c) over the rows k that hold column j, for c >= j.
 // Its cost is the sum over rows of their nonzeros squared, whatever the columns' fill.
@@ -223,9 +226,24 @@ GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
     out.offsets[block] = columns;
     columns += problem->ParameterBlockTangentSize(block);
   }
-  ceres::CRSMatrix crs;
-  problem->Evaluate(options, nullptr, nullptr, nullptr, &crs);
-  out.H = LowerGram(crs);
+  // J is evaluated for a stretch of residual blocks at a time and the stretches' grams are
+  // summed: a long log's Jacobian is never held whole (on a 10-minute log it and its copies
+  // were a third of the calibration's peak memory).
+  std::vector<ceres::ResidualBlockId> residual_blocks;
+  problem->GetResidualBlocks(&residual_blocks);
+  for (size_t first = 0; first < residual_blocks.size(); first += kResidualBlocksPerStretch) {
+    const size_t end = std::min(residual_blocks.size(), first + kResidualBlocksPerStretch);
+    options.residual_blocks.assign(residual_blocks.begin() + static_cast<std::ptrdiff_t>(first),
+                                   residual_blocks.begin() + static_cast<std::ptrdiff_t>(end));
+    ceres::CRSMatrix crs;
+    problem->Evaluate(options, nullptr, nullptr, nullptr, &crs);
+    if (first == 0) {
+      out.H = LowerGram(crs);
+    } else {
+      out.H = Eigen::SparseMatrix<double>(out.H + LowerGram(crs));
+    }
+  }
+  if (residual_blocks.empty()) out.H.resize(columns, columns);
   return out;
 }
 

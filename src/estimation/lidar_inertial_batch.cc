@@ -168,12 +168,12 @@ PropagatedSweeps PropagateSweeps(const BatchInputs& in) {
   out.T_W_L.resize(n);
   in.ForEachSweep([&](size_t k) {
     const Keyframe& kf = (*in.keyframes)[k];
-    const int64_t end_ns = in.sweeps[k].sweep.t_ns + SecondsToNs(in.sweeps[k].end_s + offset_lin);
+    const int64_t end_ns = in.sweeps[k].t_ns + SecondsToNs(in.sweeps[k].end_s + offset_lin);
     if (end_ns < kf.t_ns) {
       throw Error("SolveLidarInertialBatch: the time offset moved beyond the keyframe lead");
     }
     out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
-    out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].sweep.t_ns + SecondsToNs(offset_lin));
+    out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,
                                             in.calibration->q_I_L, in.calibration->p_I_L);
   });
@@ -229,7 +229,7 @@ class StretchMaps {
   }
   Eigen::Matrix3Xd PointsInWorld(int j) const {
     const size_t k = static_cast<size_t>(j);
-    return internal::SweepPointsInWorld(*at_.tables[k], (*in_.keyframes)[k], in_.sweeps[k].sweep,
+    return internal::SweepPointsInWorld(*at_.tables[k], (*in_.keyframes)[k], in_.sweeps[k],
                                         in_.sweeps[k].map_points, in_.g_W, *in_.calibration);
   }
   std::unique_ptr<lidar::PlaneMap> MapOf(int j) const {
@@ -266,16 +266,16 @@ std::vector<Association> AssociateSweep(const BatchInputs& in, const PropagatedS
   const size_t P = partners.size();
   const size_t sweep = static_cast<size_t>(k);
   const Keyframe& kf = (*in.keyframes)[sweep];
-  const lidar::LidarSweep& s = in.sweeps[sweep].sweep;
+  const SelectedSweep& s = in.sweeps[sweep];
   std::vector<Association> associations;
   size_t point_counter = 0;
   internal::FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, in.g_W);
-  for (int i : in.sweeps[sweep].residual_points) {
-    const double tau = s.cloud.time_s(i);
+  for (int i : s.residual_points) {
+    const double tau = s.time(i);
     const factors::PropagatedPose<double>& pose =
         poses.At(tau, [&] { return at.tables[sweep]->At(s.t_ns + SecondsToNs(tau + offset_lin)); });
     factors::PointToSweepPlaneMeasurement m;
-    m.p_L = s.cloud.points.col(i);
+    m.p_L = s.point(i);
     m.motion = poses.motion();
     const Eigen::Vector3d p_W = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, m.p_L);
     const size_t first = point_counter++;
@@ -449,10 +449,6 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   const sensors::Calibration before = *calibration;
   const auto iteration_start = std::chrono::steady_clock::now();
   const IterationScale scale = ScaleOf(options, iteration);
-  // The maps go before the problem is built: a long log's maps and its problem need not
-  // share the memory.
-  const std::vector<std::vector<Association>> associations =
-      AssociatePoints(in, PropagateSweeps(in), scale);
 
   // 4. The problem: IMU factors between keyframes, point-to-plane factors per pair of sweeps.
   geometry::RightQuaternionManifold quaternion_manifold;
@@ -469,7 +465,10 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   imu_options.num_threads = options.num_threads;
   AddImuFactors(&problem, in.imu, in.keyframes, imu_options);
   std::vector<PointGroup> point_groups;
-  const int associated_points = AddPointGroups(in, associations, &problem, &point_groups);
+  // The associations (and the maps before them) go once the factors hold the measurements: a
+  // long log's maps, associations and problem need not share the memory.
+  const int associated_points =
+      AddPointGroups(in, AssociatePoints(in, PropagateSweeps(in), scale), &problem, &point_groups);
   // Other sensors' factors and priors, from the caller.
   if (options.add_factors) options.add_factors(&problem, in.keyframes, calibration);
   const std::vector<int> held_axes = HoldGaugeAndBlocks(in, &problem);
@@ -541,13 +540,13 @@ SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSettin
     return out;
   };
   SelectedSweep out;
-  out.sweep.t_ns = sweep.t_ns;
+  out.t_ns = sweep.t_ns;
   out.end_s = cloud.time_s.maxCoeff();
-  out.sweep.cloud.points.resize(3, static_cast<Eigen::Index>(kept.size()));
-  out.sweep.cloud.time_s.resize(static_cast<Eigen::Index>(kept.size()));
+  out.points.resize(3, static_cast<Eigen::Index>(kept.size()));
+  out.time_s.resize(static_cast<Eigen::Index>(kept.size()));
   for (size_t i = 0; i < kept.size(); ++i) {
-    out.sweep.cloud.points.col(static_cast<Eigen::Index>(i)) = cloud.points.col(kept[i]);
-    out.sweep.cloud.time_s(static_cast<Eigen::Index>(i)) = cloud.time_s(kept[i]);
+    out.points.col(static_cast<Eigen::Index>(i)) = cloud.points.col(kept[i]).cast<float>();
+    out.time_s(static_cast<Eigen::Index>(i)) = static_cast<float>(cloud.time_s(kept[i]));
   }
   out.residual_points = remapped(selection.residual_points);
   out.map_points = remapped(selection.map_points);

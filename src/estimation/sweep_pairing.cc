@@ -40,21 +40,43 @@ geometry::Pose3d SweepLidarPose(const Keyframe& kf, const factors::PointMotion& 
   return geometry::Pose3d(q_W_I * q_I_L, q_W_I * p_I_L + pose.p_W_I);
 }
 
-Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const Keyframe& kf,
-                                    const lidar::LidarSweep& sweep, const std::vector<int>& indices,
-                                    const Eigen::Vector3d& g_W, const sensors::Calibration& c) {
+namespace {
+
+// SweepPointsInWorld on a sweep stamped t_ns whose point i in L is point(i), fired time_s(i)
+// after t_ns.
+template <typename PointAt, typename TimeAt>
+Eigen::Matrix3Xd PointsInWorld(const ImuMotionTable& table, const Keyframe& kf, int64_t t_ns,
+                               const std::vector<int>& indices, const Eigen::Vector3d& g_W,
+                               const sensors::Calibration& c, PointAt point, TimeAt time_s) {
   Eigen::Matrix3Xd points_W(3, static_cast<Eigen::Index>(indices.size()));
   Eigen::Index column = 0;
   FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, g_W);
   for (int i : indices) {
-    const double time_s = sweep.cloud.time_s(i);
-    const factors::PropagatedPose<double>& pose = poses.At(time_s, [&] {
-      return table.At(sweep.t_ns + SecondsToNs(time_s + c.time_offset_lidar_imu_s));
-    });
-    points_W.col(column++) =
-        factors::PointInWorld(pose, c.q_I_L, c.p_I_L, sweep.cloud.points.col(i));
+    const double tau = time_s(i);
+    const factors::PropagatedPose<double>& pose = poses.At(
+        tau, [&] { return table.At(t_ns + SecondsToNs(tau + c.time_offset_lidar_imu_s)); });
+    points_W.col(column++) = factors::PointInWorld(pose, c.q_I_L, c.p_I_L, point(i));
   }
   return points_W;
+}
+
+}  // namespace
+
+Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const Keyframe& kf,
+                                    const lidar::LidarSweep& sweep, const std::vector<int>& indices,
+                                    const Eigen::Vector3d& g_W, const sensors::Calibration& c) {
+  return PointsInWorld(
+      table, kf, sweep.t_ns, indices, g_W, c,
+      [&](int i) { return Eigen::Vector3d(sweep.cloud.points.col(i)); },
+      [&](int i) { return sweep.cloud.time_s(i); });
+}
+
+Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const Keyframe& kf,
+                                    const SelectedSweep& sweep, const std::vector<int>& indices,
+                                    const Eigen::Vector3d& g_W, const sensors::Calibration& c) {
+  return PointsInWorld(
+      table, kf, sweep.t_ns, indices, g_W, c, [&](int i) { return sweep.point(i); },
+      [&](int i) { return sweep.time(i); });
 }
 
 double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& after,

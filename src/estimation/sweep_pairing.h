@@ -54,6 +54,10 @@ geometry::Pose3d SweepLidarPose(const Keyframe& kf, const factors::PointMotion& 
 Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const Keyframe& kf,
                                     const lidar::LidarSweep& sweep, const std::vector<int>& indices,
                                     const Eigen::Vector3d& g_W, const sensors::Calibration& c);
+// The same for a reduced sweep, `indices` into its points.
+Eigen::Matrix3Xd SweepPointsInWorld(const ImuMotionTable& table, const Keyframe& kf,
+                                    const SelectedSweep& sweep, const std::vector<int>& indices,
+                                    const Eigen::Vector3d& g_W, const sensors::Calibration& c);
 
 // Eq. W1: the largest displacement of a point within `range_m` of the origin between the
 // poses `before` and `after` of its frame, |dp| + angle(dq) range_m with (dq, dp) = before^-1

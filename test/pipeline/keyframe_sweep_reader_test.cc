@@ -54,7 +54,7 @@ TEST(KeyframeSweepReader, ReadsEveryStrideThSweepAndKeepsItReduced) {
   // Read again (a second odometry pass): the same sweeps.
   EXPECT_EQ(reader.Sweep(5).t_ns, dataset.lidar_sweeps[10].t_ns);
   const estimation::SelectedSweep reduced = reader.TakeSelected(7);
-  EXPECT_EQ(reduced.sweep.t_ns, dataset.lidar_sweeps[14].t_ns);
+  EXPECT_EQ(reduced.t_ns, dataset.lidar_sweeps[14].t_ns);
   EXPECT_FALSE(reduced.map_points.empty());
   EXPECT_THROW(reader.TakeSelected(7), Error);
   EXPECT_THROW(reader.TakeSelected(38), Error);
@@ -76,7 +76,7 @@ TEST(KeyframeSweepReader, NamesAMissingSweepAndTakesOnlyReadOnes) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("50.ply"));
   }
   EXPECT_EQ(reader.Sweep(3).t_ns, dataset.lidar_sweeps[3].t_ns);
-  EXPECT_EQ(reader.TakeSelected(3).sweep.t_ns, dataset.lidar_sweeps[3].t_ns);
+  EXPECT_EQ(reader.TakeSelected(3).t_ns, dataset.lidar_sweeps[3].t_ns);
 }
 
 }  // namespace

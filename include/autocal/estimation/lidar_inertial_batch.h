@@ -108,13 +108,20 @@ struct LidarInertialBatchReport {
 };
 
 // A sweep reduced to what the batch reads of it: its residual and map points (pairing's
-// selection, with their times, in their order in the sweep) and the time of its last point.
-// A long log's sweeps are held this way, a third of their size, instead of whole.
+// selection, in their order in the sweep) with their times, and the time of its last point.
+// Points and times are held in single precision, as sweep files (PLY) and LiDAR drivers give
+// them, so that for them the reduction is exact; a long log's sweeps are held this way, a
+// sixth of their size, instead of whole.
 struct SelectedSweep {
-  lidar::LidarSweep sweep;           // the selected points only
-  double end_s = 0.0;                // the whole sweep's last point time
-  std::vector<int> residual_points;  // indices into sweep.cloud
-  std::vector<int> map_points;       // indices into sweep.cloud
+  int64_t t_ns = 0;
+  double end_s = 0.0;                // the whole sweep's last point time after t_ns
+  Eigen::Matrix3Xf points;           // in L
+  Eigen::VectorXf time_s;            // after t_ns
+  std::vector<int> residual_points;  // indices into points
+  std::vector<int> map_points;       // indices into points
+
+  Eigen::Vector3d point(int i) const { return points.col(i).cast<double>(); }
+  double time(int i) const { return static_cast<double>(time_s(i)); }
 };
 // Throws autocal::Error for a sweep without per-point time.
 SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSetting& pairing);
