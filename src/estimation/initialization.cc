@@ -253,11 +253,22 @@ StillStart DetectStillStart(const sensors::ImuSamples& imu, const StillStartOpti
 
 Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Vector3d& gyro_bias,
                                  int64_t t0_ns, int64_t t1_ns) {
-  const GyroOrientationTable table(imu, gyro_bias);
-  if (!table.Covers(t0_ns) || !table.Covers(t1_ns)) {
+  if (imu.empty() || t0_ns < imu.front().t_ns || t1_ns > imu.back().t_ns || t1_ns < t0_ns) {
     throw Error("IntegrateGyro: the IMU samples do not cover the requested interval");
   }
-  return table.At(t0_ns).conjugate() * table.At(t1_ns);
+  // Only the steps inside [t0, t1], each at its mean rate (as GyroOrientationTable): a
+  // hand-eye pair costs its own samples, not the log's.
+  auto it = std::upper_bound(imu.begin(), imu.end(), t0_ns,
+                             [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
+  size_t i = static_cast<size_t>(std::max<std::ptrdiff_t>(0, (it - imu.begin()) - 1));
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  for (int64_t t_ns = t0_ns; t_ns < t1_ns && i + 1 < imu.size(); ++i) {
+    const int64_t next_ns = std::min(imu[i + 1].t_ns, t1_ns);
+    const Eigen::Vector3d w = 0.5 * (imu[i].gyro_rad_s + imu[i + 1].gyro_rad_s) - gyro_bias;
+    q = geometry::QuaternionPlus(q, Eigen::Vector3d(w * SecondsBetween(t_ns, next_ns)));
+    t_ns = next_ns;
+  }
+  return q;
 }
 
 TimeOffsetEstimate EstimateTimeOffset(const std::vector<RelativeRotation>& lidar_rotations,

@@ -83,7 +83,9 @@ TimeOffsetEstimate EstimateTimeOffset(const std::vector<RelativeRotation>& lidar
                                       const Eigen::Vector3d& gyro_bias_rad_s,
                                       const TimeOffsetOptions& options = {});
 
-// The IMU's rotation R_I(t0)_I(t1) from gyro integration (bias removed), t in IMU time.
+// The IMU's rotation R_I(t0)_I(t1) from gyro integration (bias removed, each step at its mean
+// rate), t in IMU time; costs the samples in [t0, t1]. Throws autocal::Error when the samples
+// do not cover [t0, t1] or t1 < t0.
 Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Vector3d& gyro_bias,
                                  int64_t t0_ns, int64_t t1_ns);
 
