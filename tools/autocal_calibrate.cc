@@ -44,8 +44,9 @@ DEFINE_string(vehicle, "",
               "dataset directory's name");
 DEFINE_int32(threads, 0,
              "threads for reading sweeps, the odometry and the Ceres solves; 0: the problem "
-             "file's solver.num_threads. Byte-identical results run to run on one thread; other "
-             "counts differ slightly (docs/calibration.md, \"Reproducibility and threads\")");
+             "file's solver.num_threads. autocal's own sums do not depend on the count; Ceres' "
+             "per-thread sums can, at rounding level (docs/calibration.md, \"Reproducibility "
+             "and threads\")");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
 
 namespace {

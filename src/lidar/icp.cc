@@ -20,6 +20,8 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 // A Gauss-Newton system needs 6 independent constraints; below this a solve is noise.
 constexpr int kMinCorrespondences = 6;
+// Source points summed together in a linearization's partial sums (SumOverMatchedPlanes).
+constexpr int64_t kPointsPerPartialSum = 256;
 // Relative size of the smallest eigenvalue of J^T W J below which a motion direction is
 // treated as unconstrained.
 constexpr double kDegenerateEigenRatio = 1e-10;
@@ -133,8 +135,7 @@ void MatchNearest(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   target.PrepareNormals(matches, setting.num_threads);
 }
 
-// The per-chunk sums of a linearization, combined in chunk order (deterministic for a given
-// thread count).
+// The per-block sums of a linearization, combined in block order.
 NormalEquations Combined(const std::vector<NormalEquations>& partial, int residual_dimension) {
   NormalEquations eq = partial.front();
   for (size_t chunk = 1; chunk < partial.size(); ++chunk) {
@@ -151,8 +152,9 @@ NormalEquations Combined(const std::vector<NormalEquations>& partial, int residu
 
 // The sums of one linearization over the source points matched at T to a target point with a
 // plane (planarity above 0 and min_target_planarity): `add(eq, i, match, p)` adds source point
-// i, at p = T source_i, to its chunk's sums, or returns without adding to skip it. The chunks
-// are combined in order (deterministic for a given thread count).
+// i, at p = T source_i, to its block's sums, or returns without adding to skip it. The points
+// are summed in fixed blocks of kPointsPerPartialSum, whatever the thread count, and the
+// blocks combined in order: the sums, and so the alignment, do not depend on the threads.
 template <typename Add>
 NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTarget& target,
                                      const geometry::Pose3d& T, const IcpSetting& setting,
@@ -162,16 +164,21 @@ NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTa
   const Eigen::Matrix3d R = T.R();
   const Eigen::Index n = source.cols();
   const Eigen::VectorXd& planarity = target.normals().planarity;
-  std::vector<NormalEquations> partial(static_cast<size_t>(ParallelChunks(n, setting.num_threads)));
-  ParallelFor(0, n, setting.num_threads, [&](int64_t begin, int64_t end, int chunk) {
-    NormalEquations& eq = partial[static_cast<size_t>(chunk)];
-    for (int64_t i = begin; i < end; ++i) {
-      const int match = matches[static_cast<size_t>(i)];
-      if (match < 0) continue;
-      // Planarity 0 marks a target point without a normal (EstimateNormals).
-      const double target_planarity = planarity(match);
-      if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
-      add(eq, i, match, Eigen::Vector3d(R * source.col(i) + T.p));
+  const int64_t blocks =
+      std::max<int64_t>(1, (n + kPointsPerPartialSum - 1) / kPointsPerPartialSum);
+  std::vector<NormalEquations> partial(static_cast<size_t>(blocks));
+  ParallelFor(0, blocks, setting.num_threads, [&](int64_t first_block, int64_t end_block, int) {
+    for (int64_t block = first_block; block < end_block; ++block) {
+      NormalEquations& eq = partial[static_cast<size_t>(block)];
+      const int64_t end = std::min<int64_t>(n, (block + 1) * kPointsPerPartialSum);
+      for (int64_t i = block * kPointsPerPartialSum; i < end; ++i) {
+        const int match = matches[static_cast<size_t>(i)];
+        if (match < 0) continue;
+        // Planarity 0 marks a target point without a normal (EstimateNormals).
+        const double target_planarity = planarity(match);
+        if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
+        add(eq, i, match, Eigen::Vector3d(R * source.col(i) + T.p));
+      }
     }
   });
   return Combined(partial, 1);
