@@ -3,6 +3,9 @@
 
 #include <benchmark/benchmark.h>
 
+#include <cstdlib>
+#include <filesystem>
+
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
@@ -41,6 +44,27 @@ void BM_HighwayLog60s32Beams(benchmark::State& state) {
   GenerateLog(Options(ScenarioType::kHighway, 60.0, 32), state);
 }
 BENCHMARK(BM_HighwayLog60s32Beams)->Unit(benchmark::kSecond)->Iterations(2);
+
+// The 60 s urban log written as a dataset (PLY sweeps and CSV files) into $TMPDIR, its
+// sweeps generated on 1 and 2 threads (WriteDataset).
+void BM_WriteUrbanLog60s32Beams(benchmark::State& state) {
+  const char* tmp = std::getenv("TMPDIR");
+  const std::filesystem::path dir =
+      std::filesystem::path(tmp != nullptr ? tmp : "/tmp") / "autocal_simulator_benchmark";
+  const Simulator simulator(Options(ScenarioType::kUrban, 60.0, 32));
+  for (auto _ : state) {
+    std::filesystem::remove_all(dir);
+    WriteDataset(simulator, dir.string(), static_cast<int>(state.range(0)));
+  }
+  std::filesystem::remove_all(dir);
+}
+BENCHMARK(BM_WriteUrbanLog60s32Beams)
+    ->ArgName("threads")
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 // One sweep (900 columns) for 16, 32 and 64 beams.
 void BM_Sweep(benchmark::State& state) {

@@ -3,14 +3,17 @@
 
 #include <gflags/gflags.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <exception>
 #include <string>
+#include <thread>
 
 #include "autocal/common/error.h"
 #include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
+#include "tool_checks.h"
 #include "tool_help.h"
 
 DEFINE_string(preset, "",
@@ -74,6 +77,9 @@ DEFINE_double(left_wheel_radius_change_pct, 0.0,
               "or wear between logs of one vehicle)");
 DEFINE_double(right_wheel_radius_change_pct, 0.0,
               "true right rear wheel radius this many percent above the vehicle's");
+DEFINE_int32(threads, 0,
+             "threads generating the LiDAR sweeps; 0: every core. The dataset is the same "
+             "whatever the count");
 DEFINE_bool(noise, true, "false: every sensor exact (no noise, bias, dropouts or outliers)");
 
 namespace {
@@ -136,6 +142,17 @@ void SetLidar(autocal::sim::SimulationOptions* o, bool all) {
 
 // The options of the preset (or the defaults), then every flag given; without a preset every
 // flag applies (their defaults are the options' defaults).
+// --threads: 0 is every core.
+int ThreadsFromFlag() {
+  if (FLAGS_threads < 0 || FLAGS_threads > autocal::tools::kMaxThreads) {
+    throw autocal::Error("--threads must be 0 (every core) or 1.." +
+                         std::to_string(autocal::tools::kMaxThreads) + ", got " +
+                         std::to_string(FLAGS_threads));
+  }
+  if (FLAGS_threads > 0) return FLAGS_threads;
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
 autocal::sim::SimulationOptions OptionsFromFlags() {
   autocal::sim::SimulationOptions o = PresetFromFlag();
   const bool all = FLAGS_preset.empty();
@@ -206,7 +223,7 @@ int main(int argc, char** argv) {
     autocal::io::CheckOutputDirectory(FLAGS_out, autocal::io::OutputKind::kDataset);
     const autocal::sim::Simulator simulator(OptionsFromFlags());
     const autocal::sim::SimulationSummary summary =
-        autocal::sim::WriteDataset(simulator, FLAGS_out);
+        autocal::sim::WriteDataset(simulator, FLAGS_out, ThreadsFromFlag());
     std::printf("wrote %s\n%s", FLAGS_out.c_str(), autocal::sim::FormatSummary(summary).c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "autocal_simulate: %s\n", e.what());

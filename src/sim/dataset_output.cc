@@ -1,18 +1,24 @@
 // Writes a simulated log as a dataset directory. Kept apart from simulator.cc so that code
 // generating logs in memory does not pull in the dataset writer.
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
 
 namespace autocal {
 namespace sim {
 namespace {
+
+// Sweeps generated together per thread (about 1 MB each).
+constexpr int kSweepsPerThread = 8;
 
 std::ostringstream Text() {
   std::ostringstream out;
@@ -88,7 +94,11 @@ void WriteWheelForm(const Simulator& simulator, const WheelLog& log, io::Dataset
 // The dataset is written into a staging directory beside `directory` and renamed to it only
 // when every file is written (io/output_files.h): a run stopped midway leaves no directory
 // that looks like a dataset.
-SimulationSummary WriteDataset(const Simulator& simulator, const std::string& final_directory) {
+SimulationSummary WriteDataset(const Simulator& simulator, const std::string& final_directory,
+                               int num_threads) {
+  if (num_threads < 1) {
+    throw Error("WriteDataset: num_threads must be at least 1, got " + std::to_string(num_threads));
+  }
   io::StagedDirectory staged(final_directory, io::OutputKind::kDataset);
   const std::string& directory = staged.staging();
   io::DatasetWriter writer(directory);
@@ -100,11 +110,24 @@ SimulationSummary WriteDataset(const Simulator& simulator, const std::string& fi
   if (simulator.options().wheel.enabled) WriteWheelForm(simulator, wheel_log, &writer);
   const GnssLog gnss = simulator.GenerateGnss();
   if (simulator.options().gnss.enabled) writer.WriteGnss(gnss.fixes);
+  // Sweeps are generated a stretch at a time on every thread (each from its own random
+  // stream, so the files do not depend on the count) and written in order.
   int64_t points = 0;
-  for (int k = 0; k < simulator.num_sweeps(); ++k) {
-    const lidar::LidarSweep sweep = simulator.GenerateSweep(k);
-    points += sweep.cloud.size();
-    writer.AddSweep(sweep);
+  const int stretch = kSweepsPerThread * num_threads;
+  std::vector<lidar::LidarSweep> sweeps;
+  for (int first = 0; first < simulator.num_sweeps(); first += stretch) {
+    sweeps.assign(static_cast<size_t>(std::min(stretch, simulator.num_sweeps() - first)),
+                  lidar::LidarSweep());
+    ParallelFor(
+        0, static_cast<int64_t>(sweeps.size()), num_threads, [&](int64_t begin, int64_t end, int) {
+          for (int64_t i = begin; i < end; ++i) {
+            sweeps[static_cast<size_t>(i)] = simulator.GenerateSweep(first + static_cast<int>(i));
+          }
+        });
+    for (const lidar::LidarSweep& sweep : sweeps) {
+      points += sweep.cloud.size();
+      writer.AddSweep(sweep);
+    }
   }
   writer.WriteGroundTruth(imu.truth, simulator.true_calibration());
   writer.Close();

@@ -5,8 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
+#include "autocal/common/error.h"
 #include "autocal/sim/simulator.h"
 #include "sim/sim_test_util.h"
 #include "support/test_paths.h"
@@ -98,6 +102,34 @@ TEST(DatasetWheelForms, WritesTheFormsFileAndItsTruth) {
     EXPECT_EQ(dataset.groundtruth_calibration->wheel_speed_scale_right, 1.01);
     EXPECT_EQ(dataset.sensors.nominal_calibration.odometry_speed_scale, 1.0);
   }
+}
+
+// Sweeps generated on several threads give the same files as on one, byte for byte; a thread
+// count below 1 is refused.
+TEST(WriteDataset, FilesDoNotDependOnTheThreadCount) {
+  SimulationOptions options = test::SmallLog(ScenarioType::kUrban, 4.0);
+  options.lidar.config.azimuth_resolution_deg = 1.0;  // small files
+  const Simulator simulator(options);
+  const std::filesystem::path one = autocal::test::OutputDir("sim_dataset") / "threads_1";
+  const std::filesystem::path three = autocal::test::OutputDir("sim_dataset") / "threads_3";
+  WriteDataset(simulator, one.string(), 1);
+  WriteDataset(simulator, three.string(), 3);
+  const auto bytes = [](const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  int compared = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(one)) {
+    if (!entry.is_regular_file()) continue;
+    const std::filesystem::path relative = std::filesystem::relative(entry.path(), one);
+    ASSERT_TRUE(std::filesystem::exists(three / relative)) << relative;
+    EXPECT_EQ(bytes(entry.path()), bytes(three / relative)) << relative;
+    ++compared;
+  }
+  EXPECT_GT(compared, simulator.num_sweeps());  // every sweep and the other files
+  EXPECT_THROW(
+      WriteDataset(simulator, (autocal::test::OutputDir("sim_dataset") / "threads_0").string(), 0),
+      Error);
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, DatasetTest,

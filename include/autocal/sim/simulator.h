@@ -293,9 +293,11 @@ std::string FormatSummary(const SimulationSummary& summary);
 // Simulates and writes a dataset directory (DESIGN.md "Data formats") through
 // io::DatasetWriter, sweep by sweep; adds groundtruth/imu_bias.csv and groundtruth/gnss.csv
 // (true antenna position and outlier flag per fix) and groundtruth/timing.yaml (the
-// sensor clock offsets and stamp models, truth an estimator of them compares with).
-// Throws autocal::Error on I/O failure.
-SimulationSummary WriteDataset(const Simulator& simulator, const std::string& directory);
+// sensor clock offsets and stamp models, truth an estimator of them compares with). Sweeps
+// are generated on num_threads threads; the files are the same whatever the count. Throws
+// autocal::Error on I/O failure or num_threads < 1.
+SimulationSummary WriteDataset(const Simulator& simulator, const std::string& directory,
+                               int num_threads = 1);
 
 }  // namespace sim
 }  // namespace autocal
