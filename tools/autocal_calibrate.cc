@@ -81,8 +81,7 @@ void CalibrateOne(const std::string& directory, const autocal::io::Problem& prob
       autocal::pipeline::CalibrateDataset(dataset, problem, options);
   EndProgressLine();
   status->seconds = result.seconds_total;
-  autocal::pipeline::WriteCalibrationResult(FLAGS_output, result);
-  autocal::io::WriteRunStatus(FLAGS_output + "/status.yaml", *status);
+  autocal::pipeline::WriteCalibrationResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatCalibrationSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
             << "calibration_per_iteration.csv, timings.yaml, report.html, status.yaml\n";
@@ -100,8 +99,7 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
       autocal::pipeline::CalibrateDatasets(datasets, problem, multi);
   EndProgressLine();
   status->seconds = result.seconds_total;
-  autocal::pipeline::WriteMultiLogResult(FLAGS_output, result);
-  autocal::io::WriteRunStatus(FLAGS_output + "/status.yaml", *status);
+  autocal::pipeline::WriteMultiLogResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatMultiLogSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, repeatability.csv, report.html, "
             << "status.yaml, logs/<log>/trajectory.tum and logs/<log>/own/\n";

@@ -265,7 +265,8 @@ std::string RepeatabilityCsv(const MultiLogCalibrationResult& result) {
   return csv.str();
 }
 
-void WriteMultiLogResult(const std::string& directory, const MultiLogCalibrationResult& result) {
+void WriteMultiLogResult(const std::string& directory, const MultiLogCalibrationResult& result,
+                         const io::RunStatus* status) {
   io::StagedDirectory out(directory, io::OutputKind::kResult);
   io::WriteCalibrationYaml(out.File("calibration.yaml"), result.calibration);
   io::WriteFileAtomically(out.File("repeatability.csv"), RepeatabilityCsv(result));
@@ -276,6 +277,7 @@ void WriteMultiLogResult(const std::string& directory, const MultiLogCalibration
     io::WriteTumTrajectory(log_directory + "/trajectory.tum", log.at_shared.trajectory);
     WriteCalibrationResult(log_directory + "/own", log.own);
   }
+  if (status != nullptr) io::WriteRunStatus(out.File("status.yaml"), *status);
   out.Commit();
 }
 

@@ -333,7 +333,8 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& input, const io::Pr
   return result;
 }
 
-void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result) {
+void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result,
+                            const io::RunStatus* status) {
   io::StagedDirectory out(directory, io::OutputKind::kResult);
   io::WriteCalibrationYaml(out.File("calibration.yaml"), WithoutTimings(result.calibration));
   io::WriteTumTrajectory(out.File("trajectory.tum"), result.trajectory);
@@ -341,6 +342,7 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
                           PerIterationCsv(result.batch.calibration_per_iteration));
   io::WriteFileAtomically(out.File("timings.yaml"), TimingsYaml(result));
   io::WriteFileAtomically(out.File("report.html"), CalibrationReportHtml(result));
+  if (status != nullptr) io::WriteRunStatus(out.File("status.yaml"), *status);
   out.Commit();
 }
 

@@ -81,10 +81,35 @@ class ResultFilesTest : public ::testing::Test {
 test::SimulatedUrbanDataset* ResultFilesTest::data_ = nullptr;
 io::Dataset* ResultFilesTest::dataset_ = nullptr;
 
+// The run's status is written with the result, inside the directory that appears at once:
+// no complete result without its status.yaml, as a run stopped in between could leave.
+TEST_F(ResultFilesTest, TheStatusIsWrittenWithTheResult) {
+  const OfflineCalibrationResult result = CalibrateDataset(*dataset_, SmallProblem(2));
+  io::RunStatus status;
+  status.tool = "autocal_calibrate";
+  status.vehicle = "car_1";
+  status.datasets = {data_->directory};
+  status.seconds = result.seconds_total;
+  const fs::path out = test::OutputDir("with_status") / "result";
+  WriteCalibrationResult(out.string(), result, &status);
+  const io::RunStatus read = io::ReadRunStatus((out / "status.yaml").string());
+  EXPECT_EQ(read.vehicle, "car_1");
+  EXPECT_EQ(read.exit_status, 0);
+  EXPECT_EQ(read.datasets, status.datasets);
+  for (const char* file : kValueFiles) EXPECT_TRUE(fs::exists(out / file)) << file;
+  // Nothing staged is left beside it.
+  int entries = 0;
+  for (const auto& entry : fs::directory_iterator(out.parent_path())) {
+    (void)entry;
+    ++entries;
+  }
+  EXPECT_EQ(entries, 1);
+}
+
 // The promise (docs/calibration.md, "Reproducibility"): on one thread the same input and
-// options give the same bytes. Between thread counts the parallel reductions are summed in
-// other groupings and Ceres sums its cost per thread; the nonlinear solve carries those
-// last-bit differences on (printed here, not promised). Then every sampled prefix of the real
+// options give the same bytes. Between thread counts autocal's own sums are the same, and
+// Ceres sums its cost per thread, which could move a decision at its threshold (printed here,
+// not promised). Then every sampled prefix of the real
 // calibration.yaml and trajectory.tum is refused with a ParseError naming the file.
 TEST_F(ResultFilesTest, OneThreadGivesByteIdenticalFilesAndNoPrefixReads) {
   const fs::path one_a = CalibrateInto(1, "one_a");

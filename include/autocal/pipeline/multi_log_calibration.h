@@ -17,6 +17,7 @@
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/io/run_status.h"
 #include "autocal/pipeline/offline_calibration.h"
 
 namespace autocal {
@@ -65,8 +66,9 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
 // Into `directory` (written whole): calibration.yaml (shared), repeatability.csv (every log's
 // estimate, the shared one and the test per block), report.html, and per log
 // logs/<name>/trajectory.tum (at the shared calibration) and logs/<name>/own/ (the log alone,
-// as WriteCalibrationResult writes it).
-void WriteMultiLogResult(const std::string& directory, const MultiLogCalibrationResult& result);
+// as WriteCalibrationResult writes it), and status.yaml when `status` is given.
+void WriteMultiLogResult(const std::string& directory, const MultiLogCalibrationResult& result,
+                         const io::RunStatus* status = nullptr);
 
 // repeatability.csv: one row per log (and "shared") and block direction: value and sigma in
 // display units, then the block's chi-square, degrees of freedom, p-value and agreement.

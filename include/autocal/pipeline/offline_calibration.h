@@ -18,6 +18,7 @@
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/io/run_status.h"
 
 namespace autocal {
 namespace pipeline {
@@ -135,9 +136,12 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::
                                           const OfflineCalibrationOptions& options = {});
 
 // Writes calibration.yaml, trajectory.tum (TUM format, seconds),
-// calibration_per_iteration.csv and report.html into `directory` (created). Throws autocal::Error
-// on I/O failure.
-void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result);
+// calibration_per_iteration.csv, timings.yaml, report.html and, when `status` is given,
+// status.yaml into `directory` (created), all at once: the directory appears whole or not at
+// all (io/output_files.h), so a run stopped while writing never leaves a complete result
+// without its status. Throws autocal::Error on I/O failure.
+void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result,
+                            const io::RunStatus* status = nullptr);
 
 // A plain-text summary table (values, sigma, observability, warnings) for terminals.
 std::string FormatCalibrationSummary(const OfflineCalibrationResult& result);
