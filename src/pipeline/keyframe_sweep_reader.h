@@ -4,7 +4,7 @@
 // lidar::SweepSource for the initializer (docs/calibration.md, "Speed"). They are read in
 // stretches on several threads; the first time a sweep is read it is also reduced to the
 // points the batch solve uses (estimation::SelectForBatch). Only the current stretch is held
-// whole, so a log's memory is that of its reduced sweeps, about a sixth of their size.
+// whole, so a log's memory is that of its reduced sweeps, under a quarter of their size.
 
 #include <cstddef>
 #include <functional>
