@@ -65,8 +65,13 @@ struct SweepTimes {
   double end_s = 0.0;
 };
 
-double LastPointTime(const lidar::PointCloud& cloud) {
-  return cloud.has_time() ? cloud.time_s.maxCoeff() : 0.0;
+// Appends sweep k's times; throws autocal::Error when its stamp does not follow the last.
+void AppendSweepTimes(const lidar::LidarSweep& sweep, size_t k, std::vector<SweepTimes>* times) {
+  if (!times->empty() && sweep.t_ns <= times->back().t_ns) {
+    throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) + ")");
+  }
+  const lidar::PointCloud& cloud = sweep.cloud;
+  times->push_back({sweep.t_ns, cloud.has_time() ? cloud.time_s.maxCoeff() : 0.0});
 }
 
 bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
@@ -77,11 +82,7 @@ bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
   times->clear();
   for (size_t k = 0; k < sweeps->size(); ++k) {
     const lidar::LidarSweep& sweep = sweeps->Sweep(k);
-    if (!times->empty() && sweep.t_ns <= times->back().t_ns) {
-      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) +
-                  ")");
-    }
-    times->push_back({sweep.t_ns, LastPointTime(sweep.cloud)});
+    AppendSweepTimes(sweep, k, times);
     std::optional<Eigen::Vector3d> rate_L;
     if (gyro) {
       const int64_t t0_ns = sweep.t_ns + SecondsToNs(gyro->offset_s);
@@ -334,13 +335,7 @@ CalibrationInitialization InitializeLidarImuFromOdometry(
     const CalibrationInitializerOptions& options) {
   CheckImuStamps(imu);
   std::vector<SweepTimes> times;
-  for (size_t k = 0; k < sweeps.size(); ++k) {
-    if (k > 0 && sweeps[k].t_ns <= sweeps[k - 1].t_ns) {
-      throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) +
-                  ")");
-    }
-    times.push_back({sweeps[k].t_ns, LastPointTime(sweeps[k].cloud)});
-  }
+  for (size_t k = 0; k < sweeps.size(); ++k) AppendSweepTimes(sweeps[k], k, &times);
   if (odometry.size() != sweeps.size()) {
     throw Error("InitializeLidarImuFromOdometry: " + std::to_string(odometry.size()) +
                 " odometry frames for " + std::to_string(sweeps.size()) + " sweeps");

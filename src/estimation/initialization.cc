@@ -63,6 +63,19 @@ bool ScatterLooksLikeNoise(const sensors::ImuSamples& imu, size_t begin, size_t 
   return std::sqrt(sum_sq / pairs) > 0.5 * gyro.std[axis];
 }
 
+// The IMU step [t_i, t_i+1] holding t: i of the last sample at or before t (0 before the
+// first).
+size_t StepAt(const sensors::ImuSamples& imu, int64_t t_ns) {
+  auto it = std::upper_bound(imu.begin(), imu.end(), t_ns,
+                             [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
+  return static_cast<size_t>(std::max<std::ptrdiff_t>(0, (it - imu.begin()) - 1));
+}
+
+// The mean rate of step i (i + 1 < imu.size()), bias removed.
+Eigen::Vector3d StepRate(const sensors::ImuSamples& imu, size_t i, const Eigen::Vector3d& bias) {
+  return 0.5 * (imu[i].gyro_rad_s + imu[i + 1].gyro_rad_s) - bias;
+}
+
 // Orientation of the IMU at every sample time relative to the first sample, integrated with
 // the mean rate of each step (bias removed), so that the rotation between any two instants
 // is a lookup and one interpolation.
@@ -73,7 +86,7 @@ class GyroOrientationTable {
     rate_.reserve(imu.size());
     q_.push_back(Eigen::Quaterniond::Identity());
     for (size_t i = 0; i + 1 < imu.size(); ++i) {
-      const Eigen::Vector3d w = 0.5 * (imu[i].gyro_rad_s + imu[i + 1].gyro_rad_s) - bias;
+      const Eigen::Vector3d w = StepRate(imu, i, bias);
       rate_.push_back(w);
       const double dt = SecondsBetween(imu[i].t_ns, imu[i + 1].t_ns);
       q_.push_back(geometry::QuaternionPlus(q_.back(), Eigen::Vector3d(w * dt)));
@@ -85,9 +98,7 @@ class GyroOrientationTable {
   }
 
   Eigen::Quaterniond At(int64_t t_ns) const {
-    auto it = std::upper_bound(imu_.begin(), imu_.end(), t_ns,
-                               [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
-    size_t i = static_cast<size_t>(std::max<std::ptrdiff_t>(0, (it - imu_.begin()) - 1));
+    const size_t i = StepAt(imu_, t_ns);
     if (i + 1 >= imu_.size()) return q_.back();
     const double dt = SecondsBetween(imu_[i].t_ns, t_ns);
     return q_[i] * Exp(Eigen::Vector3d(rate_[i] * dt));
@@ -258,13 +269,11 @@ Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Ve
   }
   // Only the steps inside [t0, t1], each at its mean rate (as GyroOrientationTable): a
   // hand-eye pair costs its own samples, not the log's.
-  auto it = std::upper_bound(imu.begin(), imu.end(), t0_ns,
-                             [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
-  size_t i = static_cast<size_t>(std::max<std::ptrdiff_t>(0, (it - imu.begin()) - 1));
   Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
-  for (int64_t t_ns = t0_ns; t_ns < t1_ns && i + 1 < imu.size(); ++i) {
+  int64_t t_ns = t0_ns;
+  for (size_t i = StepAt(imu, t0_ns); t_ns < t1_ns && i + 1 < imu.size(); ++i) {
     const int64_t next_ns = std::min(imu[i + 1].t_ns, t1_ns);
-    const Eigen::Vector3d w = 0.5 * (imu[i].gyro_rad_s + imu[i + 1].gyro_rad_s) - gyro_bias;
+    const Eigen::Vector3d w = StepRate(imu, i, gyro_bias);
     q = geometry::QuaternionPlus(q, Eigen::Vector3d(w * SecondsBetween(t_ns, next_ns)));
     t_ns = next_ns;
   }

@@ -235,8 +235,6 @@ class StretchMaps {
   std::unique_ptr<lidar::PlaneMap> MapOf(int j) const {
     const int first = std::max(0, j - in_.options.map_neighbor_sweeps);
     const int last = std::min(in_.num_sweeps() - 1, j + in_.options.map_neighbor_sweeps);
-    if (first == last)
-      return std::make_unique<lidar::PlaneMap>(points_W_[static_cast<size_t>(j)], options_);
     Eigen::Index size = 0;
     for (int i = first; i <= last; ++i) size += points_W_[static_cast<size_t>(i)].cols();
     Eigen::Matrix3Xd local(3, size);
@@ -525,7 +523,7 @@ int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s,
 SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSetting& pairing) {
   const lidar::PointCloud& cloud = sweep.cloud;
   if (!cloud.has_time()) throw Error("SolveLidarInertialBatch: sweeps need per-point time");
-  const internal::SweepSelection selection = internal::SelectSweepPoints(cloud, pairing);
+  const SweepSelection selection = internal::SelectSweepPoints(cloud, pairing);
   // The union of both selections in sweep order, and each index remapped into it.
   std::vector<int> kept(selection.residual_points);
   kept.insert(kept.end(), selection.map_points.begin(), selection.map_points.end());

@@ -104,7 +104,7 @@ struct NormalEquations {
 // Point-to-plane linearization at T (eqs. 4.6-4.10): r = n . (T p - q) and, for the left
 // perturbation about the centre c, dr/d[rho; phi] = [n; (T p - c) x n] (eq. 4.7c).
 // Correspondences are searched first, then the target's normals for them are prepared, then
-// the equations are summed per chunk and combined in chunk order.
+// the equations are summed in fixed blocks of points and combined in block order.
 //
 // `matches_io` holds each source point's match of the previous iteration (-1: none; empty on
 // the first) and returns this one's. The nearest target point is no farther than the previous
@@ -138,13 +138,13 @@ void MatchNearest(const Eigen::Matrix3Xd& source, const IcpTarget& target,
 // The per-block sums of a linearization, combined in block order.
 NormalEquations Combined(const std::vector<NormalEquations>& partial, int residual_dimension) {
   NormalEquations eq = partial.front();
-  for (size_t chunk = 1; chunk < partial.size(); ++chunk) {
-    eq.H += partial[chunk].H;
-    eq.propagated += partial[chunk].propagated;
-    eq.g += partial[chunk].g;
-    eq.weighted_squared_residuals += partial[chunk].weighted_squared_residuals;
-    eq.squared_residuals += partial[chunk].squared_residuals;
-    eq.count += partial[chunk].count;
+  for (size_t block = 1; block < partial.size(); ++block) {
+    eq.H += partial[block].H;
+    eq.propagated += partial[block].propagated;
+    eq.g += partial[block].g;
+    eq.weighted_squared_residuals += partial[block].weighted_squared_residuals;
+    eq.squared_residuals += partial[block].squared_residuals;
+    eq.count += partial[block].count;
   }
   eq.residual_dimension = residual_dimension;
   return eq;
