@@ -15,6 +15,8 @@
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
+#include "autocal/geometry/so3.h"
+#include "autocal/sensors/body_rate.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/keyframe_interpolation.h"
 #include "estimation/time_offset_factors.h"
@@ -153,41 +155,69 @@ struct WheelFormBlocks {
   std::vector<double*> tracks;
 };
 
-// The body rate the wheel rows take at t_k (Eq. K10): the mean gyro over gyro_mean_span_s
-// around it (the sample interpolated at t_k when the span holds none), and the 1-sigma of
-// that mean per axis.
-struct KeyframeGyro {
-  Eigen::Vector3d rate_rad_s = Eigen::Vector3d::Zero();
-  double sigma_rad_s = 0.0;
-};
-KeyframeGyro GyroAt(const sensors::ImuSamples& imu, int64_t t_ns, const Bracket& g,
-                    const KeyframeWheelOptions& options) {
+// The gyro reading the wheel rows start from at t_k (Eq. K13): the mean gyro over
+// gyro_mean_span_s around it (the sample interpolated at t_k when the span holds none), and
+// the variance of that mean's noise per axis.
+sensors::GyroReading GyroAt(const sensors::ImuSamples& imu, int64_t t_ns, const Bracket& g,
+                            const KeyframeWheelOptions& options) {
   const int64_t half_ns = SecondsToNs(0.5 * options.gyro_mean_span_s);
   const sensors::GyroMean mean =
       half_ns > 0 ? sensors::MeanGyro(imu, t_ns - half_ns, t_ns + half_ns) : sensors::GyroMean();
-  KeyframeGyro out;
+  sensors::GyroReading out;
   out.rate_rad_s =
       mean.samples > 0
           ? mean.rate_rad_s
           : Eigen::Vector3d((1.0 - g.s) * imu[g.first].gyro_rad_s + g.s * imu[g.second].gyro_rad_s);
-  out.sigma_rad_s = options.gyro_sample_sigma_rad_s / std::sqrt(std::max(1, mean.samples));
+  const double sigma = options.gyro_sample_sigma_rad_s;
+  out.noise_variance = sigma * sigma / std::max(1, mean.samples);
   return out;
 }
 
-// Eq. K10: gyro noise of sigma per axis (isotropic) reaches the rows through w x p, p = p_I_V
-// in V: row i (forward, lateral, vertical speed) gets sigma^2 (|p|^2 - p_i^2), the yaw-rate
-// row sigma^2, added to their variances.
-factors::WheelFactorOptions WithGyroNoise(factors::WheelFactorOptions rows, double sigma_rad_s,
-                                          const Eigen::Vector3d& p_V) {
-  const auto add = [&](double* row_sigma, double lever_sq) {
-    *row_sigma = std::sqrt(*row_sigma * *row_sigma + sigma_rad_s * sigma_rad_s * lever_sq);
+// The body rates the rows take (Eq. K14): every keyframe's reading conditioned on the spread
+// of all of them; readings without noise are taken as they are.
+std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamples& imu,
+                                                          const std::vector<Keyframe>& keyframes,
+                                                          int64_t max_imu_gap_ns,
+                                                          const KeyframeWheelOptions& options) {
+  std::vector<std::optional<sensors::GyroReading>> readings(keyframes.size());
+  std::vector<sensors::GyroReading> present;
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    const std::optional<Bracket> g = FindBracket(imu, keyframes[k].t_ns, max_imu_gap_ns);
+    if (!g) continue;
+    readings[k] = GyroAt(imu, keyframes[k].t_ns, *g, options);
+    present.push_back(*readings[k]);
+  }
+  std::vector<std::optional<sensors::BodyRate>> rates(keyframes.size());
+  const bool condition = options.gyro_sample_sigma_rad_s > 0.0 && present.size() >= 2;
+  const sensors::BodyRatePrior prior =
+      condition ? sensors::BodyRatePrior::Fit(present) : sensors::BodyRatePrior();
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    if (!readings[k]) continue;
+    rates[k] = condition ? prior.Condition(*readings[k])
+                         : sensors::BodyRate{readings[k]->rate_rad_s, Eigen::Matrix3d::Zero()};
+  }
+  return rates;
+}
+
+// Eq. K13: the rate's remaining error e (covariance P in I) reaches the rows through w x p,
+// p = p_I_V: with R = R_I_V, the speed rows get the diagonal of R^T [p]x P [p]x^T R, the
+// yaw-rate row (R^T P R)_zz, added to their variances.
+factors::WheelFactorOptions WithGyroNoise(factors::WheelFactorOptions rows,
+                                          const Eigen::Matrix3d& rate_covariance,
+                                          const Eigen::Quaterniond& q_I_V,
+                                          const Eigen::Vector3d& p_I_V) {
+  if (rate_covariance.isZero(0.0)) return rows;
+  const Eigen::Matrix3d r = q_I_V.toRotationMatrix();
+  const Eigen::Matrix3d lever = r.transpose() * geometry::Hat(p_I_V);
+  const Eigen::Matrix3d speed = lever * rate_covariance * lever.transpose();
+  const double yaw = (r.transpose() * rate_covariance * r)(2, 2);
+  const auto add = [](double* row_sigma, double variance) {
+    *row_sigma = std::sqrt(*row_sigma * *row_sigma + variance);
   };
-  if (sigma_rad_s == 0.0) return rows;
-  const double p_sq = p_V.squaredNorm();
-  add(&rows.speed_sigma_m_s, p_sq - p_V.x() * p_V.x());
-  add(&rows.lateral_sigma_m_s, p_sq - p_V.y() * p_V.y());
-  add(&rows.vertical_sigma_m_s, p_sq - p_V.z() * p_V.z());
-  add(&rows.yaw_rate_sigma_rad_s, 1.0);
+  add(&rows.speed_sigma_m_s, speed(0, 0));
+  add(&rows.lateral_sigma_m_s, speed(1, 1));
+  add(&rows.vertical_sigma_m_s, speed(2, 2));
+  add(&rows.yaw_rate_sigma_rad_s, yaw);
   return rows;
 }
 
@@ -250,14 +280,15 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_sample_sigma_rad_s >= 0.0)) {
     throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
   }
-  const Eigen::Vector3d p_I_V_in_V = c.q_I_V.conjugate() * c.p_I_V;
+  const std::vector<std::optional<sensors::BodyRate>> rates =
+      BodyRatesAt(imu, *keyframes, max_imu_gap_ns, options);
   int added = 0;
-  for (Keyframe& kf : *keyframes) {
-    const std::optional<Bracket> g = FindBracket(imu, kf.t_ns, max_imu_gap_ns);
-    if (!g) continue;
-    const KeyframeGyro gyro = GyroAt(imu, kf.t_ns, *g, options);
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    if (!rates[k]) continue;
+    Keyframe& kf = (*keyframes)[k];
+    const sensors::BodyRate& gyro = *rates[k];
     const factors::WheelFactorOptions rows =
-        WithGyroNoise(factor_options, gyro.sigma_rad_s, p_I_V_in_V);
+        WithGyroNoise(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
     WheelCost factor{nullptr, {}};
     if (!shifted) {
       const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);

@@ -141,7 +141,7 @@ void EstimateFormBlocks(sensors::WheelForm form, const io::ProblemCalibration& b
 }
 
 // Whether `f` is a wheel factor of any form (Eqs. F22, F25, F26).
-// The span of the mean gyro the wheel rows take (Eq. K10): a vehicle's body rates change over
+// The span of the mean gyro the wheel rows take (Eq. K13): a vehicle's body rates change over
 // more than 0.2 s, and 0.1 s left the straight-drive suite's pitch NEES at the band's edge.
 constexpr double kWheelGyroMeanSpanS = 0.2;
 

@@ -59,11 +59,12 @@ struct KeyframeWheelOptions {
   // is not): Eq. T1 for a 100 Hz encoder; the offline calibration derives it from the log.
   double max_wheel_gap_s = 0.025;
   double max_imu_gap_s = 0.0125;  // the same for the raw gyro at t_k (Eq. T1 at 200 Hz)
-  // The rows take the mean gyro over this span around t_k (Eq. K10), which keeps the gyro's
+  // The rows take the mean gyro over this span around t_k (Eq. K13), which keeps the gyro's
   // white noise out of the lever-arm term w x p_I_V; 0 takes the interpolated sample.
   double gyro_mean_span_s = 0.0;
-  // 1-sigma of one gyro sample (density * sqrt(rate)); the mean's noise enters the rows' sigma
-  // through the lever arm (Eq. K10). 0 adds nothing.
+  // 1-sigma of one gyro sample (density * sqrt(rate)). With it the rows take the rate given the
+  // mean (conditioned on the spread of all keyframes' means, Eq. K14) and its remaining error
+  // enters their sigma (Eq. K13). 0: the mean as exact.
   double gyro_sample_sigma_rad_s = 0.0;
   // Correlation time of the non-holonomic rows' model error (the body's roll and pitch): their
   // sigma is scaled by NonHolonomicSigmaScale at the mean keyframe spacing; 0: white rows.
