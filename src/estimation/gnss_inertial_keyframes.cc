@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -17,13 +19,34 @@
 namespace autocal {
 namespace estimation {
 
-GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
-                                              const sensors::ImuSamples& imu,
-                                              const sensors::WheelSamples& wheel,
-                                              const sensors::GnssFixes& fixes,
-                                              const sensors::EnuConverter& converter,
-                                              const sensors::Calibration& calibration,
-                                              const GnssInertialKeyframesOptions& options) {
+namespace {
+
+// The marginal covariance of kf's five state blocks in their tangent spaces, or empty when the
+// problem leaves one of their directions undetermined (a rank-deficient Jacobian).
+std::optional<Eigen::Matrix<double, 15, 15>> FirstKeyframeCovariance(ceres::Problem* problem,
+                                                                     Keyframe* kf,
+                                                                     int num_threads) {
+  const std::vector<const double*> blocks = {kf->q_W_I.coeffs().data(), kf->p_W_I.data(),
+                                             kf->v_W_I.data(), kf->b_g.data(), kf->b_a.data()};
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    for (size_t j = i; j < blocks.size(); ++j) pairs.emplace_back(blocks[i], blocks[j]);
+  }
+  ceres::Covariance::Options options;
+  options.num_threads = num_threads;
+  ceres::Covariance covariance(options);
+  if (!covariance.Compute(pairs, problem)) return std::nullopt;
+  Eigen::Matrix<double, 15, 15, Eigen::RowMajor> out;
+  if (!covariance.GetCovarianceMatrixInTangentSpace(blocks, out.data())) return std::nullopt;
+  return Eigen::Matrix<double, 15, 15>(out);
+}
+
+}  // namespace
+
+GnssInertialKeyframes KeyframesFromGnssAndImu(
+    std::vector<Keyframe>* keyframes, const sensors::ImuSamples& imu, const WheelData& wheel,
+    const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
+    const sensors::Calibration& calibration, const GnssInertialKeyframesOptions& options) {
   std::vector<Keyframe>& kfs = *keyframes;
   if (kfs.size() < 2) throw Error("KeyframesFromGnssAndImu: need at least two keyframes");
   if (imu.empty() || imu.front().t_ns > kfs.front().t_ns || imu.back().t_ns < kfs.back().t_ns) {
@@ -87,7 +110,8 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
         nullptr, held.q_I_V.coeffs().data());
     wheel_options.estimate_vehicle_translation = false;
     wheel_options.estimate_radii = true;
-    wheel_options.estimate_track_width = false;
+    // An odometry twist's effective track: a skid steer's slip puts it far from any nominal.
+    wheel_options.estimate_track_width = wheel.form == sensors::WheelForm::kSpeedYawRate;
     result.wheel_factors = AddWheelFactors(&problem, imu, wheel, keyframes, &held, wheel_options);
   }
   AddBiasPriors(&problem, &kfs.front(), options.gyro_bias_prior_sigma_rad_s,
@@ -99,6 +123,9 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
   ceres::Solve(solver_options, &problem, &summary);
   if (!summary.IsSolutionUsable()) {
     throw Error("KeyframesFromGnssAndImu: the GNSS-inertial solve failed: " + summary.message);
+  }
+  if (options.first_keyframe_covariance) {
+    result.first_covariance = FirstKeyframeCovariance(&problem, &kfs.front(), options.num_threads);
   }
   for (Keyframe& kf : kfs) kf.q_W_I.normalize();
   result.initial_cost = summary.initial_cost;

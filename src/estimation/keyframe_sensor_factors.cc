@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -349,6 +350,25 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
         return WheelCost{factors::WheelFactor::Create(m, factor_options), blocks.intrinsics};
       },
       [](const sensors::WheelSample& w) { return Eigen::Vector2d(w.left_rad_s, w.right_rad_s); });
+}
+
+WheelData WheelData::AngularRates(sensors::WheelSamples samples) {
+  WheelData data;
+  data.form = sensors::WheelForm::kAngularRates;
+  data.rates = std::move(samples);
+  return data;
+}
+
+bool WheelData::empty() const {
+  switch (form) {
+    case sensors::WheelForm::kLinearSpeeds:
+      return speeds.empty();
+    case sensors::WheelForm::kSpeedYawRate:
+      return odometry.empty();
+    case sensors::WheelForm::kAngularRates:
+      break;
+  }
+  return rates.empty();
 }
 
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, const WheelData& wheel,

@@ -1,5 +1,6 @@
 #include "autocal/estimation/sliding_window.h"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -155,11 +156,18 @@ SlidingWindowEstimator::Impl::Impl(const SlidingWindowOptions& options,
   prior.state.v_W_I = kf->state.v_W_I;
   prior.b_g = kf->state.b_g;
   prior.b_a = kf->state.b_a;
-  Eigen::Matrix<double, 15, 1> sigmas;
-  sigmas << Eigen::Vector3d::Constant(s.rotation_deg * kDegToRad),
-      Eigen::Vector3d::Constant(s.position_m), Eigen::Vector3d::Constant(s.velocity_m_s),
-      Eigen::Vector3d::Constant(s.gyro_bias_rad_s), Eigen::Vector3d::Constant(s.accel_bias_m_s2);
-  prior.sqrt_information = sigmas.cwiseInverse().asDiagonal();
+  if (options_.initial_state_covariance) {
+    // Sigma = L L^T, so Sigma^-1 = L^-T L^-1 and the square root of the information is L^-1.
+    const Eigen::Matrix<double, 15, 15> l = options_.initial_state_covariance->llt().matrixL();
+    prior.sqrt_information =
+        l.triangularView<Eigen::Lower>().solve(Eigen::Matrix<double, 15, 15>::Identity());
+  } else {
+    Eigen::Matrix<double, 15, 1> sigmas;
+    sigmas << Eigen::Vector3d::Constant(s.rotation_deg * kDegToRad),
+        Eigen::Vector3d::Constant(s.position_m), Eigen::Vector3d::Constant(s.velocity_m_s),
+        Eigen::Vector3d::Constant(s.gyro_bias_rad_s), Eigen::Vector3d::Constant(s.accel_bias_m_s2);
+    prior.sqrt_information = sigmas.cwiseInverse().asDiagonal();
+  }
   AttachedFactor state_prior;
   state_prior.cost = std::make_unique<factors::StatePriorFactor>(prior);
   state_prior.loss = prior_loss_.get();

@@ -1,4 +1,5 @@
 // Validation of SlidingWindowOptions: one clear message naming the first invalid option.
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -112,6 +113,14 @@ void CheckOptions(const SlidingWindowOptions& o) {
         "min_keyframe_interval_s must be >= 0");
   }
   CheckPriors(o.calibration_prior, o.initial_state_sigmas);
+  if (o.initial_state_covariance) {
+    const Eigen::Matrix<double, 15, 15>& c = *o.initial_state_covariance;
+    if (!c.allFinite() || !c.isApprox(c.transpose(), 1e-9) || c.llt().info() != Eigen::Success) {
+      throw Error(
+          "SlidingWindowOptions: initial_state_covariance must be finite, symmetric and "
+          "positive definite");
+    }
+  }
 }
 
 }  // namespace internal

@@ -234,12 +234,24 @@ void RecordTiming(const TimingLimits& timing, bool without_lidar, io::Calibratio
   if (without_lidar) solver["timing_keyframe_period_s"] = FormatFixed(timing.keyframe_period_s, 4);
 }
 
-void ApplyTimingLimits(const TimingLimits& timing,
-                       estimation::GnssInertialKeyframesOptions* options) {
-  options->placement.half_width_s = timing.gnss_track_half_width_s;
-  options->gnss.max_fix_gap_s = timing.max_fix_gap_s;
-  if (timing.wheel) options->wheel.max_wheel_gap_s = timing.max_wheel_gap_s;
-  options->wheel.max_imu_gap_s = timing.max_imu_gap_s;
+estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& dataset,
+                                                           const io::Problem& problem,
+                                                           const TimingLimits& timing) {
+  estimation::GnssInertialKeyframesOptions options;
+  options.imu_noise = dataset.sensors.imu.noise;
+  options.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  options.num_threads = problem.solver.num_threads;
+  options.placement.half_width_s = timing.gnss_track_half_width_s;
+  options.gnss.max_fix_gap_s = timing.max_fix_gap_s;
+  if (timing.wheel) options.wheel.max_wheel_gap_s = timing.max_wheel_gap_s;
+  options.wheel.max_imu_gap_s = timing.max_imu_gap_s;
+  options.wheel.factor = WheelNoise(dataset, dataset.sensors.nominal_calibration);
+  return options;
+}
+
+estimation::WheelData StartWheelData(const io::Dataset& dataset, bool use_wheel) {
+  return use_wheel ? FormData(dataset, dataset.sensors.nominal_calibration)
+                   : estimation::WheelData();
 }
 
 void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,

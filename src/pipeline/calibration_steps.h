@@ -74,10 +74,15 @@ TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& p
 // timing_<sensor>_rate_hz and timing_<limit> (keyframe_period_s only without the LiDAR).
 void RecordTiming(const TimingLimits& timing, bool without_lidar, io::CalibrationFile* file);
 
-// The gaps and the track window of the GNSS-inertial keyframes (placement, GNSS and wheel
-// factors) from `timing`.
-void ApplyTimingLimits(const TimingLimits& timing,
-                       estimation::GnssInertialKeyframesOptions* options);
+// The GNSS-inertial keyframes (estimation::KeyframesFromGnssAndImu) as every start runs them:
+// the dataset's IMU noise and gravity, the gaps and track window of `timing`, the wheel form's
+// row sigmas (WheelNoise) and the problem's threads.
+estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& dataset,
+                                                           const io::Problem& problem,
+                                                           const TimingLimits& timing);
+
+// The wheel samples of the form the dataset holds, when the problem uses the wheels (else none).
+estimation::WheelData StartWheelData(const io::Dataset& dataset, bool use_wheel);
 
 // The sigmas of the form's factor rows from sensors.yaml's wheel noise (a sensors.yaml without
 // a wheel: section, or no sensors.yaml, means the encoder defaults of sensors/sensor_config.h;

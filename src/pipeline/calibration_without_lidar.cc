@@ -18,19 +18,6 @@ namespace pipeline {
 
 namespace {
 
-// The GNSS-inertial placement with the dataset's IMU, the limits of its timing and the
-// problem's threads.
-estimation::GnssInertialKeyframesOptions GnssInertialOptions(const io::Dataset& dataset,
-                                                             const io::Problem& problem,
-                                                             const TimingLimits& timing) {
-  estimation::GnssInertialKeyframesOptions options;
-  options.imu_noise = dataset.sensors.imu.noise;
-  options.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  options.num_threads = problem.solver.num_threads;
-  ApplyTimingLimits(timing, &options);
-  return options;
-}
-
 // Keyframes every keyframe period (the caller's inertial_keyframe_period_s, else the timing's)
 // over [first_ns, last_ns], the span the IMU shares with `other` (named in the error).
 std::vector<estimation::Keyframe> KeyframeGrid(const io::Dataset& dataset,
@@ -64,8 +51,8 @@ std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
       dataset, options, timing, std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns),
       std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns), "the GNSS fixes");
   *placed = estimation::KeyframesFromGnssAndImu(
-      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
-      enu, calibration, GnssInertialOptions(dataset, problem, timing));
+      &keyframes, dataset.imu, StartWheelData(dataset, use_wheel), dataset.gnss, enu, calibration,
+      GnssInertialStart(dataset, problem, timing));
   return keyframes;
 }
 
@@ -154,7 +141,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
 
   // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors.
   const estimation::GnssInertialKeyframesOptions bias_priors =
-      GnssInertialOptions(dataset, problem, timing);
+      GnssInertialStart(dataset, problem, timing);
   std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, priors, options, use_wheel, use_gnss, &calibration);
   FuseUpAxisIntoMountPrior(initialization, problem, bias_priors.accel_bias_prior_sigma_m_s2,

@@ -57,11 +57,10 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
 // state the initializer derived from that track is unusable: the keyframes are rebuilt from
 // GNSS, the IMU and the problem's wheels (estimation/gnss_inertial_keyframes.h), a warning says so,
 // and false is returned (the caller then starts the LiDAR blocks from their nominal values).
-bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter& enu,
-                         const sensors::Calibration& calibration,
-                         const OfflineCalibrationOptions& options, int num_threads,
-                         const sensors::WheelSamples& wheel, const TimingLimits& timing,
-                         std::vector<estimation::Keyframe>* keyframes,
+bool PlaceKeyframesInEnu(const io::Dataset& dataset, const io::Problem& problem,
+                         const sensors::EnuConverter& enu, const sensors::Calibration& calibration,
+                         const OfflineCalibrationOptions& options, bool use_wheel,
+                         const TimingLimits& timing, std::vector<estimation::Keyframe>* keyframes,
                          std::vector<std::string>* warnings) {
   std::vector<estimation::Keyframe> aligned = *keyframes;
   std::string failure;
@@ -79,12 +78,9 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const sensors::EnuConverter
   } catch (const Error& e) {
     failure = e.what();
   }
-  estimation::GnssInertialKeyframesOptions gnss_inertial;
-  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
-  gnss_inertial.num_threads = num_threads;
-  ApplyTimingLimits(timing, &gnss_inertial);
   const estimation::GnssInertialKeyframes rebuilt = estimation::KeyframesFromGnssAndImu(
-      keyframes, dataset.imu, wheel, dataset.gnss, enu, calibration, gnss_inertial);
+      keyframes, dataset.imu, StartWheelData(dataset, use_wheel), dataset.gnss, enu, calibration,
+      GnssInertialStart(dataset, problem, timing));
   warnings->push_back(
       "the LiDAR odometry did not follow the drive (" + failure +
       "): the keyframes were "
@@ -154,9 +150,8 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
                 bool use_wheel, const TimingLimits& timing,
                 std::vector<estimation::Keyframe>* keyframes, sensors::Calibration* calibration,
                 OfflineCalibrationResult* result) {
-  if (!PlaceKeyframesInEnu(dataset, enu, *calibration, options, problem.solver.num_threads,
-                           use_wheel ? dataset.wheel : sensors::WheelSamples(), timing, keyframes,
-                           &result->warnings)) {
+  if (!PlaceKeyframesInEnu(dataset, problem, enu, *calibration, options, use_wheel, timing,
+                           keyframes, &result->warnings)) {
     calibration->q_I_L = result->nominal.q_I_L;
     calibration->p_I_L = result->nominal.p_I_L;
     calibration->time_offset_lidar_imu_s = result->nominal.time_offset_lidar_imu_s;

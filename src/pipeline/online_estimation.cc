@@ -51,13 +51,11 @@ io::TrajectorySample TrajectorySampleOf(const estimation::SlidingWindowState& x)
 // so that the LiDAR keeps the orientation its odometry gave it: R_W_L = R_W_I R_I_L with
 // R_I_L <- Exp(phi u) R_I_L, where the aligned keyframes' R_W_I = R_W_L R_I_L^T.
 estimation::Keyframe StartFromGnssAndImu(
-    const io::Dataset& dataset, const sensors::WheelSamples& wheel,
-    const sensors::EnuConverter& enu, const std::vector<estimation::Keyframe>& aligned,
-    bool estimate_q_I_L, const sensors::Calibration& calibration, Eigen::Quaterniond* q_I_L) {
+    const io::Dataset& dataset, const estimation::WheelData& wheel,
+    const estimation::GnssInertialKeyframesOptions& options, const sensors::EnuConverter& enu,
+    const std::vector<estimation::Keyframe>& aligned, bool estimate_q_I_L,
+    const sensors::Calibration& calibration, Eigen::Quaterniond* q_I_L) {
   std::vector<estimation::Keyframe> refined = aligned;
-  estimation::GnssInertialKeyframesOptions options;
-  options.imu_noise = dataset.sensors.imu.noise;
-  options.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
   estimation::KeyframesFromGnssAndImu(&refined, dataset.imu, wheel, dataset.gnss, enu, calibration,
                                       options);
   if (estimate_q_I_L) {
@@ -151,7 +149,7 @@ struct WindowStart {
 // are moved there by the 4-DoF alignment, the first one refined by StartFromGnssAndImu, and
 // *window_options gets the ENU origin and the initial sigmas for a GNSS start.
 WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
-                        const OnlineEstimationOptions& options,
+                        const OnlineEstimationOptions& options, const TimingLimits& timing,
                         const estimation::CalibrationInitialization& init, bool use_wheel,
                         bool use_gnss, estimation::SlidingWindowOptions* window_options) {
   WindowStart out;
@@ -161,10 +159,10 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
   if (use_gnss) {
     const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, enu, out.calibration.p_I_A);
-    keyframes.front() =
-        StartFromGnssAndImu(dataset, use_wheel ? dataset.wheel : sensors::WheelSamples(), enu,
-                            keyframes, Estimated(problem.calibration.T_I_L.rotation.mode),
-                            out.calibration, &out.calibration.q_I_L);
+    keyframes.front() = StartFromGnssAndImu(
+        dataset, StartWheelData(dataset, use_wheel), GnssInertialStart(dataset, problem, timing),
+        enu, keyframes, Estimated(problem.calibration.T_I_L.rotation.mode), out.calibration,
+        &out.calibration.q_I_L);
     window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
     window_options->initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
     window_options->initial_state_sigmas.accel_bias_m_s2 =
@@ -428,6 +426,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   estimation::SlidingWindowOptions window_options =
       WindowOptions(dataset, problem, use_wheel, use_gnss, options);
+  const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);
   OnlineEstimationResult result;
 
   // 1. The initial state. With the LiDAR: the initializer on the first seconds of the log,
@@ -439,12 +438,12 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   if (use_lidar) {
     first = InitializeOnFirstSeconds(dataset, problem, options);
     result.seconds_initialization = SecondsSince(start);
-    window_start =
-        StartWindow(dataset, problem, options, first.init, use_wheel, use_gnss, &window_options);
+    window_start = StartWindow(dataset, problem, options, timing, first.init, use_wheel, use_gnss,
+                               &window_options);
   } else {
     keyframe_period_ns = KeyframePeriodWithoutLidar(dataset, options);
     window_start.calibration = dataset.sensors.nominal_calibration;
-    window_start.keyframe = StartWithoutLidar(dataset, problem, options, keyframe_period_ns,
+    window_start.keyframe = StartWithoutLidar(dataset, problem, options, timing, keyframe_period_ns,
                                               use_wheel, &window_options);
     result.seconds_initialization = SecondsSince(start);
   }

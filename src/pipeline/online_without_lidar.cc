@@ -7,6 +7,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "calibration_steps.h"
@@ -26,6 +27,21 @@ template <typename Samples>
 void Shift(double offset_s, Samples* samples) {
   const int64_t shift_ns = SecondsToNs(offset_s);
   for (auto& s : *samples) s.t_ns += shift_ns;
+}
+
+// The window's initial-state covariance: the start's own (its yaw on a slow platform is worth
+// degrees, a car's tenths) plus the initial sigmas that stand for what the start's model leaves
+// out; those alone when the start left a direction undetermined.
+Eigen::Matrix<double, 15, 15> InitialStateCovariance(
+    const std::optional<Eigen::Matrix<double, 15, 15>>& start,
+    const estimation::SlidingWindowInitialStateSigmas& s) {
+  Eigen::Matrix<double, 15, 1> sigmas;
+  sigmas << Eigen::Vector3d::Constant(s.rotation_deg * kDegToRad),
+      Eigen::Vector3d::Constant(s.position_m), Eigen::Vector3d::Constant(s.velocity_m_s),
+      Eigen::Vector3d::Constant(s.gyro_bias_rad_s), Eigen::Vector3d::Constant(s.accel_bias_m_s2);
+  Eigen::Matrix<double, 15, 15> covariance = sigmas.cwiseAbs2().asDiagonal();
+  if (start) covariance += 0.5 * (*start + start->transpose());
+  return covariance;
 }
 
 }  // namespace
@@ -92,7 +108,8 @@ int64_t KeyframePeriodWithoutLidar(const io::Dataset& dataset,
 }
 
 estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Problem& problem,
-                                       const OnlineEstimationOptions& options, int64_t period_ns,
+                                       const OnlineEstimationOptions& options,
+                                       const TimingLimits& timing, int64_t period_ns,
                                        bool use_wheel,
                                        estimation::SlidingWindowOptions* window_options) {
   if (dataset.imu.empty() || dataset.gnss.empty()) {
@@ -116,17 +133,18 @@ estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Pro
                 " s apart; the online estimator without the LiDAR starts from them");
   }
   const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-  estimation::GnssInertialKeyframesOptions gnss_inertial;
-  gnss_inertial.imu_noise = dataset.sensors.imu.noise;
-  gnss_inertial.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  gnss_inertial.num_threads = problem.solver.num_threads;
-  estimation::KeyframesFromGnssAndImu(
-      &keyframes, dataset.imu, use_wheel ? dataset.wheel : sensors::WheelSamples(), dataset.gnss,
-      enu, dataset.sensors.nominal_calibration, gnss_inertial);
+  estimation::GnssInertialKeyframesOptions gnss_inertial =
+      GnssInertialStart(dataset, problem, timing);
+  gnss_inertial.first_keyframe_covariance = true;
+  const estimation::GnssInertialKeyframes start = estimation::KeyframesFromGnssAndImu(
+      &keyframes, dataset.imu, StartWheelData(dataset, use_wheel), dataset.gnss, enu,
+      dataset.sensors.nominal_calibration, gnss_inertial);
   window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
   window_options->initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
   window_options->initial_state_sigmas.accel_bias_m_s2 =
       options.initial_accel_bias_sigma_with_gnss_m_s2;
+  window_options->initial_state_covariance =
+      InitialStateCovariance(start.first_covariance, window_options->initial_state_sigmas);
   return keyframes.front();
 }
 

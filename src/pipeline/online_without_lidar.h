@@ -13,6 +13,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/online_estimation.h"
+#include "calibration_steps.h"
 
 namespace autocal {
 namespace pipeline {
@@ -43,7 +44,8 @@ io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
 // *window_options' ENU origin and the initial sigmas of a GNSS start. Throws autocal::Error
 // when that span holds fewer than two keyframes, or as KeyframesFromGnssAndImu.
 estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Problem& problem,
-                                       const OnlineEstimationOptions& options, int64_t period_ns,
+                                       const OnlineEstimationOptions& options,
+                                       const TimingLimits& timing, int64_t period_ns,
                                        bool use_wheel,
                                        estimation::SlidingWindowOptions* window_options);
 

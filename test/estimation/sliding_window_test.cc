@@ -173,6 +173,15 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
                   [](SlidingWindowOptions* o) { o->wheel_rows.gyro_mean_span_s = -0.01; });
   expect_rejected("min_keyframe_interval_s < 0",
                   [](SlidingWindowOptions* o) { o->min_keyframe_interval_s = -0.01; });
+  expect_rejected("an initial state covariance that is not positive definite",
+                  [](SlidingWindowOptions* o) {
+                    o->initial_state_covariance = Eigen::Matrix<double, 15, 15>::Identity();
+                    (*o->initial_state_covariance)(4, 4) = -1.0;
+                  });
+  expect_rejected("an initial state covariance that is not symmetric", [](SlidingWindowOptions* o) {
+    o->initial_state_covariance = Eigen::Matrix<double, 15, 15>::Identity();
+    (*o->initial_state_covariance)(0, 1) = 0.5;
+  });
   expect_rejected("gate_extrinsic_factor < 0",
                   [](SlidingWindowOptions* o) { o->window_pairing.gate_extrinsic_factor = -0.25; });
   expect_rejected("gate_extrinsic_free_deg NaN", [](SlidingWindowOptions* o) {

@@ -50,17 +50,17 @@ io::Problem ImuGnssProblem() {
 // The placement's yaw (Eq. K8 or K11) of keyframes every 0.4 s rebuilt from the fixes and
 // the IMU, with the fixes within half_width_s of each keyframe.
 estimation::GnssPlacement PlacementWithWindow(const io::Dataset& dataset,
+                                              const io::Problem& problem,
                                               const TimingLimits& timing, double half_width_s) {
   std::vector<estimation::Keyframe> keyframes;
   for (int64_t t = dataset.gnss.front().t_ns; t <= dataset.gnss.back().t_ns; t += 400'000'000) {
     keyframes.emplace_back();
     keyframes.back().t_ns = t;
   }
-  estimation::GnssInertialKeyframesOptions options;
-  ApplyTimingLimits(timing, &options);
+  estimation::GnssInertialKeyframesOptions options = GnssInertialStart(dataset, problem, timing);
   options.placement.half_width_s = half_width_s;
-  options.imu_noise = dataset.sensors.imu.noise;
-  return estimation::KeyframesFromGnssAndImu(&keyframes, dataset.imu, {}, dataset.gnss,
+  return estimation::KeyframesFromGnssAndImu(&keyframes, dataset.imu, estimation::WheelData(),
+                                             dataset.gnss,
                                              sensors::EnuConverter::AtFirstFix(dataset.gnss),
                                              dataset.sensors.nominal_calibration, options)
       .placement;
@@ -88,8 +88,8 @@ TEST(RealLogTiming, SkidSteerRobotCalibratesFromItsOwnRates) {
   // speed: the yaw comes from the track's geometry. Over +-5 s most keyframes give a heading,
   // and the two yaws agree (measured: 113.8 and 113.6 deg).
   const estimation::GnssPlacement narrow =
-      PlacementWithWindow(dataset, timing, timing.gnss_track_half_width_s);
-  const estimation::GnssPlacement wide = PlacementWithWindow(dataset, timing, 5.0);
+      PlacementWithWindow(dataset, problem, timing, timing.gnss_track_half_width_s);
+  const estimation::GnssPlacement wide = PlacementWithWindow(dataset, problem, timing, 5.0);
   std::cout << "yaw from the track geometry " << narrow.yaw_rad * kRadToDeg << " deg; from "
             << wide.num_headings << " headings over +-5 s " << wide.yaw_rad * kRadToDeg << " deg\n";
   EXPECT_TRUE(narrow.yaw_from_track_geometry);

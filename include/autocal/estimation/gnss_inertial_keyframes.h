@@ -13,13 +13,16 @@
 //    a keyframe with a trusted heading gets its vehicle x axis along it (Eq. K9).
 // 2. A GNSS-inertial least-squares problem refines every state: IMU factors (Eq. F10) between
 //    consecutive keyframes, GNSS factors (Eq. F30, Cauchy loss) on each keyframe, wheel
-//    factors (Eq. F22) when wheel samples are given, and a weak prior on the first keyframe's
-//    biases. Roll and pitch follow from gravity against the track's acceleration. The yaw
-//    follows from the track only where the car accelerates sideways; on a straight road the
-//    wheel factor's non-holonomic rows hold the vehicle's x axis along the track (the wheel
-//    radii and q_I_V are estimated with the states, q_I_V about its given value; the track
-//    width and p_I_V are held), and without wheels the yaw drifts with the gyro bias.
+//    factors (Eq. F22, F25 or F26: the form's) when wheel samples are given, and a weak prior on
+//    the first keyframe's biases. Roll and pitch follow from gravity against the track's
+//    acceleration. The yaw follows from the track only where the car accelerates sideways; on a
+//    straight road the wheel factor's non-holonomic rows hold the vehicle's x axis along the track
+//    (the form's scales, an odometry twist's effective track and q_I_V are estimated with the
+//    states, q_I_V about its given value; p_I_V and a track width are held), and without wheels the
+//    yaw drifts with the gyro bias.
 
+#include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +49,8 @@ struct GnssInertialKeyframesOptions {
   double vehicle_rotation_prior_sigma_deg = 3.0;
   int max_iterations = 30;
   int num_threads = 1;
+  // Also compute the first keyframe's covariance (GnssInertialKeyframes::first_covariance).
+  bool first_keyframe_covariance = false;
 };
 
 struct GnssInertialKeyframes {
@@ -55,20 +60,21 @@ struct GnssInertialKeyframes {
   double initial_cost = 0.0;
   double final_cost = 0.0;
   std::string termination;  // Ceres's message
+  // With options.first_keyframe_covariance: the first keyframe's marginal covariance after the
+  // solve, ordered [dphi (right perturbation of q_W_I), dp, dv, db_g, db_a] like a state prior
+  // (Eq. F42); empty when the solve leaves a direction of it undetermined.
+  std::optional<Eigen::Matrix<double, 15, 15>> first_covariance;
 };
 
 // Replaces q, p, v, b_g, b_a of every keyframe (their times are kept) with the estimate from
-// the fixes, the IMU samples and the wheel samples (may be empty); the calibration is used as
-// given (its radii only as the start of their estimate; it is not changed). Throws
-// autocal::Error as PlaceKeyframesOnGnss, for fewer than two keyframes, IMU samples that do
+// the fixes, the IMU samples and the wheel samples of any form (may be empty); the calibration
+// is used as given (its wheel blocks only as the start of their estimate; it is not changed).
+// Throws autocal::Error as PlaceKeyframesOnGnss, for fewer than two keyframes, IMU samples that do
 // not cover the keyframes, or a failed solve.
-GnssInertialKeyframes KeyframesFromGnssAndImu(std::vector<Keyframe>* keyframes,
-                                              const sensors::ImuSamples& imu,
-                                              const sensors::WheelSamples& wheel,
-                                              const sensors::GnssFixes& fixes,
-                                              const sensors::EnuConverter& converter,
-                                              const sensors::Calibration& calibration,
-                                              const GnssInertialKeyframesOptions& options = {});
+GnssInertialKeyframes KeyframesFromGnssAndImu(
+    std::vector<Keyframe>* keyframes, const sensors::ImuSamples& imu, const WheelData& wheel,
+    const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
+    const sensors::Calibration& calibration, const GnssInertialKeyframesOptions& options = {});
 
 }  // namespace estimation
 }  // namespace autocal

@@ -98,6 +98,11 @@ struct WheelData {
   sensors::WheelSpeedSamples speeds;  // linear_speeds: the rear pair is used
   sensors::OdometrySamples odometry;  // speed_yaw_rate
   double controller_track_m = 1.0;    // speed_yaw_rate: b_ctrl (> 0)
+
+  // The samples of the form, as angular rates when given so.
+  static WheelData AngularRates(sensors::WheelSamples samples);
+  // Whether the form holds no sample.
+  bool empty() const;
 };
 
 // The same for any form: WheelFactor for angular rates, WheelSpeedResidual (Eq. F25) for

@@ -99,6 +99,10 @@ struct SlidingWindowOptions {
   SlidingWindowEstimatedBlocks estimate;
   SlidingWindowCalibrationPrior calibration_prior;
   SlidingWindowInitialStateSigmas initial_state_sigmas;
+  // The initial state's covariance, ordered [dphi, dp, dv, db_g, db_a] as the state prior
+  // (Eq. F42), when an initializer knows it (a GNSS-inertial start); it replaces
+  // initial_state_sigmas. Must be symmetric positive definite.
+  std::optional<Eigen::Matrix<double, 15, 15>> initial_state_covariance;
   WheelRowSetting wheel_rows;
   // Origin of W for AddGnss(GnssFix) (latitude, longitude, ellipsoidal height); unset: the ENU
   // frame at the first fix, so the initial state must be given in that frame.

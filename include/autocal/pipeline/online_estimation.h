@@ -64,7 +64,7 @@ struct OnlineEstimationOptions {
   }();
   // 1-sigma of the prior on the initial state: the initializer's first keyframe is good to a
   // few centimetres and tenths of a degree, not to the window's defaults (meant for a known
-  // start).
+  // start). Without the LiDAR they add to the GNSS-inertial start's own covariance.
   estimation::SlidingWindowInitialStateSigmas initial_state_sigmas = [] {
     estimation::SlidingWindowInitialStateSigmas s;
     s.rotation_deg = 0.5;
