@@ -375,26 +375,17 @@ void WriteStatesCsv(const std::string& path,
   io::WriteFileAtomically(path, csv.str());
 }
 
-// The blocks in calibration_over_time.csv: all but the vehicle frame, which the file has not
-// carried since before the window could estimate it (adding its columns changes the format).
-bool InCalibrationOverTime(const sensors::CalibrationBlockInfo& block) {
-  return block.id != sensors::CalibrationBlockId::kVehicleRotation &&
-         block.id != sensors::CalibrationBlockId::kVehicleTranslation;
-}
-
 // calibration_over_time.csv: the keyframe time, then the blocks' values in table order.
 std::string CalibrationOverTimeCsv(const std::vector<CalibrationSample>& samples) {
   std::ostringstream csv;
   csv << "t_s";
   for (const sensors::CalibrationBlockInfo& block : sensors::CalibrationBlocks()) {
-    if (!InCalibrationOverTime(block)) continue;
     for (const std::string& column : sensors::ValueColumns(block)) csv << ',' << column;
   }
   csv << '\n' << std::setprecision(12);
   for (const CalibrationSample& s : samples) {
     csv << FormatSeconds(s.t_ns);
     for (const sensors::CalibrationBlockInfo& block : sensors::CalibrationBlocks()) {
-      if (!InCalibrationOverTime(block)) continue;
       const double* values = block.const_values(s.calibration);
       for (int k = 0; k < block.ambient_size; ++k) csv << ',' << values[k];
     }

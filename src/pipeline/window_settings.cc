@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/estimation/sliding_window_blocks.h"
@@ -19,12 +20,15 @@ namespace {
 // fix it. The window's priors are one sigma per block: the problem's in prior mode, else the
 // sigma the dataset states, else the window's default; a per-axis sigma takes its widest
 // axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that share a
-// switch are estimated when one of them is, and the radii share the wider sigma.
-void SetWindowBlocks(const io::ProblemCalibration& problem,
+// switch (the vehicle frame's rotation and translation, the two radii or speed scales) share
+// the wider sigma; a problem that estimates one and fixes the other is an autocal::Error, since
+// the window would estimate both.
+void SetWindowBlocks(const std::string& problem_path, const io::ProblemCalibration& problem,
                      const io::CalibrationUncertainty& nominal, sensors::WheelForm form,
                      bool use_wheel, bool use_gnss, estimation::SlidingWindowOptions* w) {
   estimation::SlidingWindowOptions defaults = *w;
   estimation::SlidingWindowBlockSetting previous{nullptr, nullptr};
+  const char* previous_name = "";
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     // The wheel forms the window cannot take are refused in WindowOptions.
     if (!estimation::WindowSupports(info.id)) continue;
@@ -39,8 +43,13 @@ void SetWindowBlocks(const io::ProblemCalibration& problem,
                                                          : default_sigma;
     const estimation::SlidingWindowBlockSetting block =
         estimation::BlockSettingOf(info.id, &w->estimate, &w->calibration_prior);
-    *block.estimate =
-        block.estimate == previous.estimate ? *block.estimate || estimated : estimated;
+    if (block.estimate == previous.estimate && *block.estimate != estimated) {
+      throw Error("problem " + problem_path + ": the online estimator estimates the " +
+                  previous_name + " and the " + info.name +
+                  " together; the problem fixes one and estimates the other");
+    }
+    *block.estimate = estimated;
+    previous_name = info.name;
     *block.prior_sigma =
         block.prior_sigma == previous.prior_sigma ? std::max(*block.prior_sigma, sigma) : sigma;
     previous = block;
@@ -118,8 +127,8 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's
   // values only start the window.
   w.calibration_prior.mean = dataset.sensors.nominal_calibration;
-  SetWindowBlocks(problem.calibration, dataset.sensors.nominal_uncertainty, dataset.wheel_form(),
-                  use_wheel, use_gnss, &w);
+  SetWindowBlocks(problem.path, problem.calibration, dataset.sensors.nominal_uncertainty,
+                  dataset.wheel_form(), use_wheel, use_gnss, &w);
   return w;
 }
 

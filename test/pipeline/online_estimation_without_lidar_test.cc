@@ -304,6 +304,17 @@ TEST_F(OnlineEstimationWithoutLidarTest, NamesWhatIsMissing) {
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), HasSubstr("without the LiDAR needs GNSS"));
   }
+  // The vehicle frame's rotation fixed and its translation estimated: the window estimates the
+  // two together, so it refuses rather than estimating a block the problem fixed.
+  io::Problem fixed_rotation = ProblemWithoutLidar();
+  fixed_rotation.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
+  try {
+    EstimateDatasetOnline(full, fixed_rotation);
+    FAIL() << "a fixed vehicle rotation with an estimated translation was accepted";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("estimates the T_I_V rotation and the T_I_V translation "
+                                    "together; the problem fixes one and estimates the other"));
+  }
   // One fix: no GNSS rate to derive the timing (and the keyframe period) from.
   io::Dataset one_fix = full;
   one_fix.gnss.resize(1);

@@ -74,15 +74,11 @@ TEST(CalibrationBlocks, AccessorsReachTheNamedField) {
 }
 
 // The result files keep their column names: calibration_per_iteration.csv its short ones,
-// calibration_over_time.csv the keys (without the vehicle frame).
+// calibration_over_time.csv the keys.
 TEST(CalibrationBlocks, ColumnsAreTheResultFilesNames) {
   std::vector<std::string> iteration, over_time;
   for (const CalibrationBlockInfo& block : CalibrationBlocks()) {
     for (const std::string& c : IterationColumns(block)) iteration.push_back(c);
-    if (block.id == CalibrationBlockId::kVehicleRotation ||
-        block.id == CalibrationBlockId::kVehicleTranslation) {
-      continue;
-    }
     for (const std::string& c : ValueColumns(block)) over_time.push_back(c);
   }
   EXPECT_EQ(Joined(iteration),
@@ -93,6 +89,7 @@ TEST(CalibrationBlocks, ColumnsAreTheResultFilesNames) {
   EXPECT_EQ(Joined(over_time),
             "q_I_L_x,q_I_L_y,q_I_L_z,q_I_L_w,p_I_L_x_m,p_I_L_y_m,p_I_L_z_m,"
             "time_offset_lidar_imu_s,wheel_radius_left_m,wheel_radius_right_m,track_width_m,"
+            "q_I_V_x,q_I_V_y,q_I_V_z,q_I_V_w,p_I_V_x_m,p_I_V_y_m,p_I_V_z_m,"
             "p_I_A_x_m,p_I_A_y_m,p_I_A_z_m,wheel_speed_scale_left,wheel_speed_scale_right,"
             "odometry_speed_scale,effective_track_m,time_offset_wheel_imu_s,"
             "time_offset_gnss_imu_s");
