@@ -151,6 +151,7 @@ TEST(OnlineEstimationInputs, WithoutTheLidarTheStatedClockOffsetsMoveTheStamps) 
   io::Problem problem;
   problem.sensors.lidar = false;
   problem.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
+  problem.calibration.T_I_V.translation.mode = io::BlockMode::kFixed;
   sensors::Calibration applied;
   std::vector<std::string> warnings;
   const io::Dataset moved = OnImuClock(dataset, &problem, &applied, &warnings);
