@@ -11,6 +11,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
+#include "support/skid_steer_options.h"
 
 namespace autocal {
 namespace estimation {
@@ -101,10 +102,7 @@ TEST(GnssInertialKeyframes, RebuildsAnUrbanDrive) {
 // error (a chi-square of 3 degrees at 99.9 %: 16.3). Without the odometry the start took the
 // yaw 19 deg off, and the window trusted it.
 TEST(GnssInertialKeyframes, SlowSkidSteerWithOdometryStatesWhatItKnows) {
-  sim::SimulationOptions options = sim::SkidSteerRobotOptions();
-  options.duration_s = 30.0;
-  options.seed = 3;
-  options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
+  sim::SimulationOptions options = test::SkidSteerOdometryOptions(30.0, 3);
   options.wheel.time_offset_wheel_imu_s = 0.0;
   const sim::Simulator simulator(options);
   const sim::ImuLog imu = simulator.GenerateImu();

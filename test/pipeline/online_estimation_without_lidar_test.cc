@@ -22,6 +22,7 @@
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sim/simulator.h"
 #include "pipeline/simulated_urban_dataset.h"
+#include "support/skid_steer_options.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -238,11 +239,8 @@ TEST(OnlineEstimationWithoutLidar, EstimatesTheOdometrysSpeedScaleAndEffectiveTr
 // ended 12.3 deg off at a stated 1.5 deg (ATE 17 deg). Now: the trajectory within 5 deg RMS
 // and every axis of the mount within 3 of its sigmas.
 TEST(OnlineEstimationWithoutLidar, SlowSkidSteerStartsFromItsOdometryAndStatesItsYaw) {
-  sim::SimulationOptions options = sim::SkidSteerRobotOptions();
-  options.duration_s = 100.0;
-  options.seed = 3;
-  options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
-  const test::SimulatedUrbanDataset data(options, "skid_steer_100s_online");
+  const test::SimulatedUrbanDataset data(test::SkidSteerOdometryOptions(100.0, 3),
+                                         "skid_steer_100s_online");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   const OnlineEstimationResult result = EstimateDatasetOnline(
       dataset, io::ReadProblemYaml((std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" /

@@ -19,6 +19,7 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/sim/simulator.h"
 #include "pipeline/simulated_urban_dataset.h"
+#include "support/skid_steer_options.h"
 
 namespace autocal {
 namespace pipeline {
@@ -119,10 +120,7 @@ TEST(WheelFormsCalibration, SlowSkidSteerOdometryKeepsItsSpeedScaleAndEffectiveT
 // above the IMU (its y; the flat drive never pitches or rolls) is not reported determined.
 // Taking the noisy gyro as the rate put that y 32 cm from the truth at a stated 5.9 cm.
 TEST(WheelFormsCalibration, NoisyGyroDoesNotPassForExcitationOfTheRearAxle) {
-  sim::SimulationOptions options = sim::SkidSteerRobotOptions();
-  options.duration_s = 120.0;
-  options.seed = 3;
-  options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
+  sim::SimulationOptions options = test::SkidSteerOdometryOptions(120.0, 3);
   options.imu.noise_scale = 30.0;
   options.imu.random_walk_scale = 1.0;
   const test::SimulatedUrbanDataset data(options, "skid_steer_noisy_gyro");
