@@ -93,7 +93,11 @@ std::vector<SlidingWindowState> SlidingWindowEstimator::Trajectory() const {
   return impl_->Trajectory();
 }
 std::vector<SlidingWindowState> SlidingWindowEstimator::SmoothedTrajectory() const {
-  return impl_->SmoothedTrajectory();
+  return impl_->SmoothedTrajectory(impl_->calibration());
+}
+std::vector<SlidingWindowState> SlidingWindowEstimator::SmoothedTrajectory(
+    const sensors::Calibration& calibration) const {
+  return impl_->SmoothedTrajectory(calibration);
 }
 const sensors::Calibration& SlidingWindowEstimator::calibration() const {
   return impl_->calibration();

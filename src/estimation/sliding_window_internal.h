@@ -49,7 +49,7 @@ class SlidingWindowEstimator::Impl {
 
   const SlidingWindowState& latest_state() const;
   std::vector<SlidingWindowState> Trajectory() const;
-  std::vector<SlidingWindowState> SmoothedTrajectory() const;
+  std::vector<SlidingWindowState> SmoothedTrajectory(const sensors::Calibration& calibration) const;
   const sensors::Calibration& calibration() const { return calibration_; }
   CalibrationCovariance ComputeCalibrationCovariance(double min_reciprocal_condition_number);
   int window_size() const { return static_cast<int>(window_.size()); }

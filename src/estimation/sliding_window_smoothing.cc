@@ -55,8 +55,10 @@ void SlidingWindowEstimator::Impl::RecordSmoothingStep(MarginalConditional condi
   smoothing_.push_back(std::move(step));
 }
 
-// The Rauch-Tung-Striebel pass: Eq. M4 backwards.
-std::vector<SlidingWindowState> SlidingWindowEstimator::Impl::SmoothedTrajectory() const {
+// The Rauch-Tung-Striebel pass: Eq. M4 backwards, at `calibration` (a conditional names the
+// window's calibration blocks; the same block of `calibration` stands in for each).
+std::vector<SlidingWindowState> SlidingWindowEstimator::Impl::SmoothedTrajectory(
+    const sensors::Calibration& calibration) const {
   if (!options_.smoothing) {
     throw Error("SlidingWindowEstimator::SmoothedTrajectory needs SlidingWindowOptions::smoothing");
   }
@@ -66,6 +68,18 @@ std::vector<SlidingWindowState> SlidingWindowEstimator::Impl::SmoothedTrajectory
                 " marginalized keyframes");
   }
   std::vector<SlidingWindowState> out = Trajectory();
+  sensors::Calibration given = calibration;
+  // The window's blocks by address only (nothing is written through them).
+  const std::vector<internal::CalibrationBlock> window_blocks = internal::CalibrationBlocks(
+      const_cast<sensors::Calibration*>(&calibration_), options_.estimate);
+  const std::vector<internal::CalibrationBlock> given_blocks =
+      internal::CalibrationBlocks(&given, options_.estimate);
+  const auto stand_in = [&](const double* window_block) -> const double* {
+    for (size_t b = 0; b < window_blocks.size(); ++b) {
+      if (window_blocks[b].values == window_block) return given_blocks[b].values;
+    }
+    throw Error("SlidingWindowEstimator: a smoothing step names an unknown calibration block");
+  };
   std::unordered_map<int, size_t> index_of_id;
   for (size_t i = 0; i < smoothing_.size(); ++i) index_of_id[smoothing_[i].keyframe_id] = i;
   for (size_t j = 0; j < window_.size(); ++j) {
@@ -78,7 +92,7 @@ std::vector<SlidingWindowState> SlidingWindowEstimator::Impl::SmoothedTrajectory
     kept.clear();
     for (const SmoothingStep::BlockRef& ref : step.kept) {
       kept.push_back(ref.keyframe_id < 0
-                         ? ref.calibration
+                         ? stand_in(ref.calibration)
                          : StateBlocks(&out[index_of_id.at(ref.keyframe_id)])[ref.state_block]);
     }
     const std::vector<double*> blocks = StateBlocks(&out[i]);

@@ -319,17 +319,24 @@ estimation::CalibrationCovariance CollectResult(
 }
 
 // Observability per direction by the offline calibration's rule (docs/calibration.md,
-// "Observability and uncertainty"), nothing held: a direction is observable when its window
-// sigma is positive (the covariance's pseudo-inverse gives an unobservable one zero), within
-// its block's limit (OfflineCalibrationOptions) and below max_posterior_to_prior_sigma of the
-// window's prior sigma on the block (the data, not the prior, set it).
-void FillWindowObservability(const io::Dataset& dataset, const io::Problem& problem,
-                             estimation::SlidingWindowOptions window_options, bool use_wheel,
-                             bool use_gnss, const estimation::CalibrationCovariance& covariance,
-                             io::CalibrationUncertainty* uncertainty) {
+// "Observability and uncertainty", Eqs. C1-C2) on the window's final covariance: a direction
+// the stream left near the window's prior (posterior sigma above max_posterior_to_prior_sigma
+// of the window's prior sigma, above max_kept_sigma_to_limit times its limit, or zero: the
+// covariance's pseudo-inverse drops an unobservable one) is held at the prior's centre, and
+// the others are conditioned on it. Moves *value (Eq. C1), fills *uncertainty (Eq. C2);
+// returns whether any direction was held.
+bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& problem,
+                           estimation::SlidingWindowOptions window_options, bool use_wheel,
+                           bool use_gnss, const estimation::CalibrationCovariance& covariance,
+                           sensors::Calibration* value, io::CalibrationUncertainty* uncertainty,
+                           std::vector<std::string>* warnings) {
   sensors::Calibration scratch = dataset.sensors.nominal_calibration;
   const std::vector<estimation::EstimatedBlock> limits = EstimatedBlocks(
       problem, dataset.sensors, OfflineCalibrationOptions(), use_wheel, use_gnss, &scratch);
+  const sensors::Calibration prior_mean =
+      window_options.calibration_prior.mean.value_or(dataset.sensors.nominal_calibration);
+  std::vector<estimation::EstimatedBlock> blocks;
+  std::vector<int> rows;  // the covariance's rows of the blocks, in order
   for (size_t b = 0; b < covariance.names.size(); ++b) {
     const sensors::CalibrationBlockInfo* info = sensors::FindCalibrationBlock(covariance.names[b]);
     if (info == nullptr) continue;
@@ -337,20 +344,42 @@ void FillWindowObservability(const io::Dataset& dataset, const io::Problem& prob
         std::find_if(limits.begin(), limits.end(),
                      [info](const estimation::EstimatedBlock& e) { return e.id == info->id; });
     if (limit == limits.end()) continue;
-    const double prior_sigma = *estimation::BlockSettingOf(info->id, &window_options.estimate,
-                                                           &window_options.calibration_prior)
+    estimation::EstimatedBlock block = *limit;
+    block.data = info->values(value);
+    block.prior =
+        Eigen::Map<const Eigen::VectorXd>(info->const_values(prior_mean), info->ambient_size);
+    block.prior_source = "the window's prior centre";
+    block.prior_sigma = Eigen::VectorXd::Constant(
+        info->tangent_size, *estimation::BlockSettingOf(info->id, &window_options.estimate,
+                                                        &window_options.calibration_prior)
                                     .prior_sigma *
-                               FileToTangent(*info);
-    Eigen::VectorXd sigma(info->tangent_size);
-    std::vector<bool> observable;
-    for (int k = 0; k < info->tangent_size; ++k) {
-      const int i = covariance.offsets[b] + k;
-      sigma(k) = std::sqrt(std::max(0.0, covariance.covariance(i, i)));
-      observable.push_back(sigma(k) > 0.0 && sigma(k) <= limit->max_observable_sigma &&
-                           sigma(k) <= limit->max_posterior_to_prior_sigma * prior_sigma);
-    }
-    SetUncertainty(info->id, sigma, &observable, uncertainty);
+                                FileToTangent(*info));
+    blocks.push_back(block);
+    for (int k = 0; k < info->tangent_size; ++k) rows.push_back(covariance.offsets[b] + k);
   }
+  estimation::BlockCovariance held;
+  held.ok = true;
+  const int n = static_cast<int>(rows.size());
+  held.matrix.resize(n, n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) held.matrix(i, j) = covariance.covariance(rows[i], rows[j]);
+  }
+  int row = 0;
+  for (const estimation::EstimatedBlock& block : blocks) {
+    held.offsets.push_back(row);
+    for (int k = 0; k < block.size; ++k, ++row) {
+      if (held.matrix(row, row) > 0.0) continue;
+      // Dropped by the pseudo-inverse: the data left it at its prior.
+      held.matrix.row(row).setZero();
+      held.matrix.col(row).setZero();
+      held.matrix(row, row) = block.prior_sigma(k) * block.prior_sigma(k);
+    }
+  }
+  const estimation::BlockObservability observability =
+      estimation::HoldUnobservableDirections(blocks, held);
+  FillUncertainty(blocks, observability, uncertainty);
+  warnings->insert(warnings->end(), observability.warnings.begin(), observability.warnings.end());
+  return estimation::AnyHeld(observability);
 }
 
 void WriteStatesCsv(const std::string& path,
@@ -456,14 +485,25 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   // 3. The result.
   const estimation::CalibrationCovariance covariance =
       CollectResult(window_options, use_lidar, &estimator, &result);
-  FillWindowObservability(dataset, problem, window_options, use_wheel, use_gnss, covariance,
-                          &result.calibration.uncertainty);
+  std::vector<std::string> held_warnings;
+  if (HoldWhatTheStreamLeft(dataset, problem, window_options, use_wheel, use_gnss, covariance,
+                            &result.calibration.value, &result.calibration.uncertainty,
+                            &held_warnings) &&
+      window_options.smoothing) {
+    // The smoothed trajectory at the calibration that is reported.
+    result.smoothed_trajectory.clear();
+    for (const estimation::SlidingWindowState& x :
+         estimator.SmoothedTrajectory(result.calibration.value)) {
+      result.smoothed_trajectory.push_back(TrajectorySampleOf(x));
+    }
+  }
   if (!use_lidar) {
     result.calibration.solver["keyframe_period_s"] = FormatSeconds(keyframe_period_ns);
     result.calibration.value.time_offset_wheel_imu_s = applied.time_offset_wheel_imu_s;
     result.calibration.value.time_offset_gnss_imu_s = applied.time_offset_gnss_imu_s;
   }
   result.warnings = start_warnings;
+  result.warnings.insert(result.warnings.end(), held_warnings.begin(), held_warnings.end());
   result.seconds_total = SecondsSince(start);
   return result;
 }

@@ -816,6 +816,9 @@ class SlidingWindowUrban : public ::testing::Test {
   struct Run : TrajectoryErrors {
     std::vector<SlidingWindowState> trajectory;
     std::vector<SlidingWindowState> smoothed;  // with options.smoothing
+    // With options.smoothing: smoothed at the window's own calibration given explicitly, and
+    // at it with the lever arm moved 10 cm along x.
+    std::vector<SlidingWindowState> smoothed_at_own, smoothed_at_moved;
     TrajectoryErrors smoothed_errors;
     sensors::Calibration calibration;
     CalibrationCovariance covariance;
@@ -942,6 +945,10 @@ class SlidingWindowUrban : public ::testing::Test {
     Print(std::cout << run.trajectory.size() << " keyframes, ", run) << "\n";
     if (options.smoothing) {
       run.smoothed = estimator.SmoothedTrajectory();
+      run.smoothed_at_own = estimator.SmoothedTrajectory(estimator.calibration());
+      sensors::Calibration moved = estimator.calibration();
+      moved.p_I_A.x() += 0.1;
+      run.smoothed_at_moved = estimator.SmoothedTrajectory(moved);
       run.smoothed_errors = TrajectoryErrorsOf(run.smoothed);
       Print(std::cout << "smoothed: ", run.smoothed_errors) << "\n";
     }
@@ -1046,6 +1053,24 @@ TEST_F(SlidingWindowUrban, TracksTruthAndCalibratesFromNominal) {
   EXPECT_LT(run.smoothed_errors.rms_position_error_m, 1.1 * run.rms_position_error_m);
   EXPECT_LT(run.smoothed_errors.rms_rotation_error_deg, 1.1 * run.rms_rotation_error_deg);
   EXPECT_LT(run.smoothed_errors.rms_rotation_error_deg, 0.1);
+  // Given a calibration (a held one, Eq. C1): at the window's own the same pass to the bit; at
+  // one whose lever arm moved, every marginalized keyframe follows through its conditional
+  // while the window's keyframes stay.
+  ASSERT_EQ(run.smoothed_at_own.size(), run.smoothed.size());
+  ASSERT_EQ(run.smoothed_at_moved.size(), run.smoothed.size());
+  const size_t marginalized = run.smoothed.size() - static_cast<size_t>(options.window_size);
+  double moved_m = 0.0;
+  for (size_t i = 0; i < run.smoothed.size(); ++i) {
+    EXPECT_EQ(run.smoothed_at_own[i].p_W_I, run.smoothed[i].p_W_I);
+    EXPECT_EQ(run.smoothed_at_own[i].q_W_I.coeffs(), run.smoothed[i].q_W_I.coeffs());
+    const double d = (run.smoothed_at_moved[i].p_W_I - run.smoothed[i].p_W_I).norm();
+    if (i >= marginalized) {
+      EXPECT_EQ(d, 0.0) << i;
+    } else {
+      moved_m = std::max(moved_m, d);
+    }
+  }
+  EXPECT_GT(moved_m, 0.001);
 }
 
 // The extrinsic-aware gate (docs/sliding_window.md, "Partner walk"): from the nominal calibration

@@ -104,12 +104,17 @@ void ExpectWithinSigmas(const OnlineEstimationResult& result, const io::Dataset&
                   (*u.p_I_A_m.sigma)(i), 0.2 / 3.0);
   }
   // The vehicle frame's rotation, per axis of its right perturbation (degrees). The IMU's x
-  // axis is about the vehicle's: the wheels barely see that roll (measured 0.70 deg off at a
-  // sigma of 0.90, the dataset's prior 1.5), and it is not reported observable.
+  // axis is about the vehicle's: the wheels barely see that roll (a sigma of 0.90 after the
+  // stream against the dataset's prior 1.5), so it is held at the prior's centre and reported
+  // with the prior's sigma (Eq. C1-C2), as the offline calibration holds it.
   ASSERT_TRUE(u.T_I_V.sigma_rot_deg.has_value());
   const Eigen::Vector3d rotation_error_deg =
       geometry::Log(truth.q_I_V.conjugate() * estimate.q_I_V) * kRadToDeg;
-  const Eigen::Vector3d max_sigma_deg(1.5, 2.0 / 3.0, 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ((*u.T_I_V.sigma_rot_deg)(0), 1.5);
+  EXPECT_THAT(
+      result.warnings,
+      ::testing::Contains(HasSubstr("mount roll (about the vehicle's forward axis): not excited")));
+  const Eigen::Vector3d max_sigma_deg(1.5 + 1e-9, 2.0 / 3.0, 2.0 / 3.0);
   for (int i = 0; i < 3; ++i) {
     ExpectCovered("T_I_V rotation " + std::to_string(i) + " (deg)", rotation_error_deg(i), 0.0,
                   (*u.T_I_V.sigma_rot_deg)(i), max_sigma_deg(i));
@@ -237,7 +242,9 @@ TEST(OnlineEstimationWithoutLidar, EstimatesTheOdometrysSpeedScaleAndEffectiveTr
 // tenths of a car's start. Before, the start had no wheel rows (its gaps were a 100 Hz
 // encoder's), took the yaw 21 deg off, the window held it at 0.5 deg, and the mount's yaw
 // ended 12.3 deg off at a stated 1.5 deg (ATE 17 deg). Now: the trajectory within 5 deg RMS
-// and every axis of the mount within 3 of its sigmas.
+// and every axis of the mount within 3 of its sigmas. The stream leaves the mount's yaw near
+// its prior (sigma 2.0 deg against 5), so it is held at the prior's centre (0.5 deg from the
+// truth; 3.1 deg when it was kept).
 TEST(OnlineEstimationWithoutLidar, SlowSkidSteerStartsFromItsOdometryAndStatesItsYaw) {
   const test::SimulatedUrbanDataset data(test::SkidSteerOdometryOptions(100.0, 3),
                                          "skid_steer_100s_online");
@@ -261,6 +268,9 @@ TEST(OnlineEstimationWithoutLidar, SlowSkidSteerStartsFromItsOdometryAndStatesIt
   for (int i = 0; i < 3; ++i) {
     EXPECT_LE(std::abs(error_deg[i]), 3.0 * (*u.sigma_rot_deg)[i]) << i;
   }
+  EXPECT_THAT(
+      result.warnings,
+      ::testing::Contains(HasSubstr("mount yaw (about the vehicle's up axis): not excited")));
 }
 
 // The same drive with the wheels reported as the rear pair's linear speeds (wheel_speed.csv,

@@ -116,6 +116,10 @@ class SlidingWindowEstimator {
   // The same keyframes smoothed by a backward pass over the marginalizations
   // (docs/sliding_window.md, "Smoothing"). Needs options.smoothing (throws otherwise).
   std::vector<SlidingWindowState> SmoothedTrajectory() const;
+  // The same pass given another calibration than the window's (one with held directions,
+  // Eq. C1): every marginalized keyframe follows it through its conditional. The window's
+  // keyframes stay at their estimate.
+  std::vector<SlidingWindowState> SmoothedTrajectory(const sensors::Calibration& calibration) const;
   const sensors::Calibration& calibration() const;
   // Covariance of the estimated calibration blocks given the window problem (point groups
   // linearized afresh at the current estimate), a pseudo-inverse that gives unobservable directions
