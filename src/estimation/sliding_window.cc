@@ -166,11 +166,7 @@ SlidingWindowEstimator::Impl::Impl(const SlidingWindowOptions& options,
     prior.sqrt_information =
         l.triangularView<Eigen::Lower>().solve(Eigen::Matrix<double, 15, 15>::Identity());
   } else {
-    Eigen::Matrix<double, 15, 1> sigmas;
-    sigmas << Eigen::Vector3d::Constant(s.rotation_deg * kDegToRad),
-        Eigen::Vector3d::Constant(s.position_m), Eigen::Vector3d::Constant(s.velocity_m_s),
-        Eigen::Vector3d::Constant(s.gyro_bias_rad_s), Eigen::Vector3d::Constant(s.accel_bias_m_s2);
-    prior.sqrt_information = sigmas.cwiseInverse().asDiagonal();
+    prior.sqrt_information = s.InStatePriorOrder().cwiseInverse().asDiagonal();
   }
   AttachedFactor state_prior;
   state_prior.cost = std::make_unique<factors::StatePriorFactor>(prior);

@@ -1,4 +1,5 @@
-// Validation of SlidingWindowOptions: one clear message naming the first invalid option.
+// Validation of SlidingWindowOptions (one clear message naming the first invalid option), and
+// the initial sigmas in the state prior's order.
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
@@ -6,10 +7,19 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "estimation/sliding_window_internal.h"
 
 namespace autocal {
 namespace estimation {
+
+Eigen::Matrix<double, 15, 1> SlidingWindowInitialStateSigmas::InStatePriorOrder() const {
+  Eigen::Matrix<double, 15, 1> sigmas;
+  sigmas << Eigen::Vector3d::Constant(rotation_deg * kDegToRad),
+      Eigen::Vector3d::Constant(position_m), Eigen::Vector3d::Constant(velocity_m_s),
+      Eigen::Vector3d::Constant(gyro_bias_rad_s), Eigen::Vector3d::Constant(accel_bias_m_s2);
+  return sigmas;
+}
 namespace internal {
 namespace {
 

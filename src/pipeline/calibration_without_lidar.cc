@@ -139,9 +139,9 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   result.seconds_initialization = SecondsSince(start);
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
-  // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors.
-  const estimation::GnssInertialKeyframesOptions bias_priors =
-      GnssInertialStart(dataset, problem, timing);
+  // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors. The first keyframe's
+  //    bias priors are the GNSS-inertial start's.
+  const estimation::GnssInertialKeyframesOptions bias_priors;
   std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, priors, options, use_wheel, use_gnss, &calibration);
   FuseUpAxisIntoMountPrior(initialization, problem, bias_priors.accel_bias_prior_sigma_m_s2,

@@ -7,7 +7,6 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
-#include "autocal/common/units.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "calibration_steps.h"
@@ -35,11 +34,7 @@ void Shift(double offset_s, Samples* samples) {
 Eigen::Matrix<double, 15, 15> InitialStateCovariance(
     const std::optional<Eigen::Matrix<double, 15, 15>>& start,
     const estimation::SlidingWindowInitialStateSigmas& s) {
-  Eigen::Matrix<double, 15, 1> sigmas;
-  sigmas << Eigen::Vector3d::Constant(s.rotation_deg * kDegToRad),
-      Eigen::Vector3d::Constant(s.position_m), Eigen::Vector3d::Constant(s.velocity_m_s),
-      Eigen::Vector3d::Constant(s.gyro_bias_rad_s), Eigen::Vector3d::Constant(s.accel_bias_m_s2);
-  Eigen::Matrix<double, 15, 15> covariance = sigmas.cwiseAbs2().asDiagonal();
+  Eigen::Matrix<double, 15, 15> covariance = s.InStatePriorOrder().cwiseAbs2().asDiagonal();
   if (start) covariance += 0.5 * (*start + start->transpose());
   return covariance;
 }

@@ -59,6 +59,9 @@ struct SlidingWindowInitialStateSigmas {
   double velocity_m_s = 0.01;
   double gyro_bias_rad_s = 2e-3;
   double accel_bias_m_s2 = 3e-2;
+
+  // The 15 sigmas in the state prior's order [dphi (rad), dp, dv, db_g, db_a] (Eq. F42).
+  Eigen::Matrix<double, 15, 1> InStatePriorOrder() const;
 };
 
 // The wheel rows (docs/sliding_window.md, "Wheel rows"): speed and yaw rate whitened with
