@@ -89,6 +89,7 @@ class SlidingWindowEstimator::Impl {
   // Wheel (every form) and GNSS factors for the buffered samples in (from, t_end_ns],
   // attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
+  void AttachPlanarRotationFactor(WindowKeyframe* from);
   void AttachWheelFactors(WindowKeyframe* from, int64_t t_end_ns);
   void AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns);
   void AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns);

@@ -7,6 +7,7 @@
 
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
+#include "autocal/factors/planar_rotation_factor.h"
 #include "estimation/point_selection.h"
 #include "estimation/sliding_window_internal.h"
 
@@ -222,6 +223,22 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
       });
 }
 
+// The planar-rotation row (Eq. F27) of keyframe `from`, once the IMU covers the gyro span around
+// it (the interval after it is attached when the next keyframe arrives).
+void SlidingWindowEstimator::Impl::AttachPlanarRotationFactor(WindowKeyframe* from) {
+  const Eigen::Vector2d& sigma = options_.wheel_rows.planar_rotation_sigma_rad_s;
+  if (sigma.isZero(0.0)) return;
+  factors::PlanarRotationMeasurement m;
+  m.gyro_rad_s = GyroAround(from->state.t_ns).rate_rad_s;
+  m.sigma_rad_s = sigma;
+  AttachedFactor f;
+  f.cost.reset(factors::PlanarRotationFactor::Create(m));
+  f.loss = wheel_loss_.get();
+  f.linearized_per_pass = "a planar-rotation factor";
+  f.blocks = {from->state.b_g.data(), calibration_.q_I_V.coeffs().data()};
+  from->factors.push_back(std::move(f));
+}
+
 void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* from,
                                                               int64_t t_end_ns) {
   sensors::PreintegrationOptions preintegration;
@@ -232,6 +249,7 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
   AttachWheelFactors(from, t_end_ns);
   AttachWheelSpeedFactors(from, t_end_ns);
   AttachOdometryFactors(from, t_end_ns);
+  AttachPlanarRotationFactor(from);
 
   // GNSS fixes of (t_from, t_end].
   sensors::ImuPreintegration gnss_pim(options_.imu.noise, preintegration, s.b_g, s.b_a);

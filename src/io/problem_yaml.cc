@@ -181,18 +181,19 @@ void FixBlocksOfAbsentSensors(const ProblemSensors& sensors, ProblemCalibration*
 ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node,
                                     const ProblemSensors& sensors) {
   const std::string what = "calibration";
-  file.ExpectMap(
-      node, what,
-      {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
-       "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V", "wheel_speed_scale_left",
-       "wheel_speed_scale_right", "odometry_speed_scale", "effective_track_m",
-       "time_offset_wheel_imu_s", "time_offset_gnss_imu_s", "ground_tilt_sigma_deg"});
+  file.ExpectMap(node, what,
+                 {"T_I_L", "time_offset_lidar_imu_s", "wheel_radius_left_m", "wheel_radius_right_m",
+                  "wheel_radius_shared", "track_width_m", "p_I_A_m", "T_I_V",
+                  "wheel_speed_scale_left", "wheel_speed_scale_right", "odometry_speed_scale",
+                  "effective_track_m", "time_offset_wheel_imu_s", "time_offset_gnss_imu_s",
+                  "ground_tilt_sigma_deg", "roll_pitch_rate_sigma_rad_s"});
   for (const char* key : {"T_I_L", "time_offset_lidar_imu_s"})
     RejectWithoutSensor(file, node, what, key, sensors.lidar, "lidar");
   for (const char* key :
        {"wheel_radius_left_m", "wheel_radius_right_m", "wheel_radius_shared", "track_width_m",
         "T_I_V", "wheel_speed_scale_left", "wheel_speed_scale_right", "odometry_speed_scale",
-        "effective_track_m", "time_offset_wheel_imu_s", "ground_tilt_sigma_deg"})
+        "effective_track_m", "time_offset_wheel_imu_s", "ground_tilt_sigma_deg",
+        "roll_pitch_rate_sigma_rad_s"})
     RejectWithoutSensor(file, node, what, key, sensors.wheel, "wheel");
   for (const char* key : {"p_I_A_m", "time_offset_gnss_imu_s"})
     RejectWithoutSensor(file, node, what, key, sensors.gnss, "gnss");
@@ -256,6 +257,14 @@ ProblemCalibration ParseCalibration(const YamlFile& file, const YAML::Node& node
     } else {
       c.ground_tilt_sigma_deg =
           file.DoubleInRange(n, "calibration.ground_tilt_sigma_deg", 0.01, 30.0, "deg (or none)");
+    }
+  }
+  if (const YAML::Node n = node["roll_pitch_rate_sigma_rad_s"]) {
+    if (n.IsScalar() && n.Scalar() == "measured") {
+      c.roll_pitch_rate_sigma_rad_s = 0.0;
+    } else if (!(n.IsScalar() && n.Scalar() == "none")) {
+      c.roll_pitch_rate_sigma_rad_s = file.DoubleInRange(
+          n, "calibration.roll_pitch_rate_sigma_rad_s", 1e-4, 10.0, "rad/s (or measured, none)");
     }
   }
   return c;

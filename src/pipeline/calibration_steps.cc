@@ -10,6 +10,7 @@
 #include "autocal/common/time.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/estimation/keyframe_solver_options.h"
+#include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/wheel_factor.h"
@@ -297,6 +298,14 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
       case sensors::WheelForm::kAngularRates:
         require(dataset->wheel);
         break;
+    }
+    if (b.roll_pitch_rate_sigma_rad_s) {
+      estimation::PlanarRotationOptions planar;
+      planar.sigma_rad_s = *b.roll_pitch_rate_sigma_rad_s;
+      planar.max_imu_gap_s = wheel.max_imu_gap_s;
+      planar.gyro_mean_span_s = wheel.gyro_mean_span_s;
+      planar.loss = wheel.loss;
+      estimation::AddPlanarRotationFactors(p, dataset->imu, keyframes, c, planar);
     }
   }
   if (use_gnss) {

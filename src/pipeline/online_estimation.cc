@@ -469,6 +469,12 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   }
   result.initial = window_start.calibration;
   result.keyframe_period_s = NsToSeconds(keyframe_period_ns);
+  window_options.wheel_rows.planar_rotation_sigma_rad_s =
+      PlanarRotationSigma(dataset, problem, use_wheel,
+                          !use_lidar              ? result.keyframe_period_s
+                          : dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz
+                                                  : 0.1,
+                          window_start.calibration.q_I_V, window_options.wheel_rows);
   estimation::SlidingWindowEstimator estimator(window_options, window_start.calibration,
                                                window_start.keyframe);
 

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/estimation/sliding_window_blocks.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
@@ -130,6 +131,18 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   SetWindowBlocks(problem.path, problem.calibration, dataset.sensors.nominal_uncertainty,
                   dataset.wheel_form(), use_wheel, use_gnss, &w);
   return w;
+}
+
+Eigen::Vector2d PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem,
+                                    bool use_wheel, double keyframe_period_s,
+                                    const Eigen::Quaterniond& q_I_V,
+                                    const estimation::WheelRowSetting& wheel_rows) {
+  const std::optional<double>& setting = problem.calibration.roll_pitch_rate_sigma_rad_s;
+  if (!use_wheel || !setting) return Eigen::Vector2d::Zero();
+  if (*setting > 0.0) return Eigen::Vector2d::Constant(*setting);
+  return estimation::MeasurePlanarRotationSpreadOfLog(dataset.imu, q_I_V, keyframe_period_s,
+                                                      wheel_rows.gyro_mean_span_s)
+      .RowSigmaRadS();
 }
 
 void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,

@@ -217,6 +217,26 @@ TEST(ProblemYamlTest, GroundTiltSigmaIsReadOrSwitchedOff) {
                    .calibration.ground_tilt_sigma_deg);
 }
 
+TEST(ProblemYamlTest, RollPitchRateSigmaIsMeasuredGivenOrLeftOut) {
+  const auto read = [](const char* name, const std::string& value) {
+    return ReadProblemYaml(
+               WriteProblem(name, "calibration: {roll_pitch_rate_sigma_rad_s: " + value + "}\n"))
+        .calibration.roll_pitch_rate_sigma_rad_s;
+  };
+  EXPECT_FALSE(ReadProblemYaml(WriteProblem("rate_default.yaml", "sensors: {lidar: false}\n"))
+                   .calibration.roll_pitch_rate_sigma_rad_s);
+  EXPECT_EQ(read("rate_measured.yaml", "measured"), std::optional<double>(0.0));
+  EXPECT_EQ(read("rate_given.yaml", "0.02"), std::optional<double>(0.02));
+  EXPECT_FALSE(read("rate_none.yaml", "none"));
+  EXPECT_THROW(read("rate_zero.yaml", "0"), ParseError);
+  EXPECT_THROW(read("rate_word.yaml", "measure"), ParseError);
+  EXPECT_THROW(
+      ReadProblemYaml(WriteProblem(
+          "rate_no_wheel.yaml",
+          "sensors: {wheel: false}\ncalibration: {roll_pitch_rate_sigma_rad_s: measured}\n")),
+      ParseError);
+}
+
 TEST(ProblemYamlTest, EveryKeyIsRead) {
   const std::string text =
       "description: test rig\n"

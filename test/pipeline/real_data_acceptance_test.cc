@@ -3,13 +3,12 @@
 // 1 m/s over 395 s) imported and calibrated from problems/skid_steer_imu_odometry_gnss.yaml,
 // starting from a mount 10 deg off the launch file's R_V_I = Rz(-90 deg) Rx(+90 deg).
 // Checked: the odometry's clock -0.39 +- 0.05 s (t_imu = t_odometry + offset), the odometry
-// speed scale in [0.93, 1.00], a run under 30 s, the mount's roll (which only gravity sees,
-// Eq. C4) within 2 deg, the antenna within 1.5 m RMS of the fixes (the IMU's noise measured
-// from its samples: 37 times the accelerometer's default density on this robot). Not met:
-// the mount within 2 deg of the launch file's. Its yaw is not determined by this drive and is
-// held at the nominal's (checked: within three reported sigmas); its pitch follows the
-// receiver's altitude, which drifts 32 m (docs/calibration.md). The robot without GPS
-// (test2.bag) is dead reckoned and reports what it cannot observe.
+// speed scale in [0.93, 1.00], a run under 30 s, the mount's roll and pitch (from the turns,
+// Eq. F27) within 2 deg and reported observable, the antenna within 1.5 m RMS of the fixes
+// (the IMU's noise measured from its samples: 37 times the accelerometer's default density on
+// this robot). Not met: the whole mount within 2 deg of the launch file's. Its yaw is only
+// partly determined by this drive (checked: within three reported sigmas). The robot without
+// GPS (test2.bag) is dead reckoned and reports what it cannot observe.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -113,16 +112,18 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
   EXPECT_LT(rms_m, 1.5);
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr("IMU accelerometer: its samples scatter")));
-  // The mount: the roll from gravity; the yaw, which this slow drive does not determine once
-  // the IMU's vibration is counted, held at its prior and within three of its sigmas.
+  // The mount: roll and pitch from the turns; the yaw, which this slow drive determines only
+  // partly once the IMU's vibration is counted, within three of its sigmas.
   const io::PoseBlockInfo& mount = result.calibration.uncertainty.T_I_V;
   ASSERT_TRUE(mount.sigma_rot_deg.has_value());
   ASSERT_EQ(mount.observable.size(), 6u);
   std::cout << "mount sigma (roll, pitch, yaw) " << mount.sigma_rot_deg->transpose() << " deg\n";
-  EXPECT_LT(std::abs(mount_error_rad.x()) * kRadToDeg, 2.0);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_LT(std::abs(mount_error_rad[i]) * kRadToDeg, 2.0) << i;
+    EXPECT_TRUE(mount.observable[i]) << i;
+  }
   EXPECT_FALSE(mount.observable[2]);
   EXPECT_LT(std::abs(mount_error_rad.z()) * kRadToDeg, 3.0 * mount.sigma_rot_deg->z());
-  EXPECT_LT(std::abs(mount_error_rad.y()) * kRadToDeg, 2.5);  // the receiver's altitude
 }
 
 // autocal_estimate streams the same log: the window without the LiDAR, keyframes at the

@@ -76,6 +76,9 @@ struct WheelRowSetting {
   // The angular rate the rows take: the mean gyro over this span around the sample (0: the
   // gyro interpolated at the sample), which keeps gyro noise out of the lever-arm regressor.
   double gyro_mean_span_s = 0.05;
+  // Planar-rotation rows (Eq. F27): one per keyframe, on its b_g and q_I_V, with these sigmas
+  // of the roll and pitch rates in V (MeasurePlanarRotationSpread); zero: no such rows.
+  Eigen::Vector2d planar_rotation_sigma_rad_s = Eigen::Vector2d::Zero();
 };
 
 // Rows linearized per solve pass (docs/sliding_window.md, "Linearized once per pass").

@@ -112,6 +112,12 @@ struct ProblemCalibration {
   // (docs/calibration.md, Eq. C4), within [0.01, 30] deg; empty ("none" in the file): the
   // mount's prior is the nominal's alone.
   std::optional<double> ground_tilt_sigma_deg = 1.0;
+  // Planar-rotation rows (Eq. F27, estimation/planar_rotation_rows.h): the vehicle turns about
+  // its own up axis, and the 1-sigma of its roll and pitch rates in rad/s, within [1e-4, 10];
+  // 0 ("measured" in the file): measured from the log (Eq. K15); empty ("none", the default):
+  // no such rows. For rigid platforms: a car's body pitches with its yaw rate when it brakes
+  // into a turn.
+  std::optional<double> roll_pitch_rate_sigma_rad_s;
 };
 
 // `calibration` with every block fixed (no prior): a solve then estimates the trajectory alone,

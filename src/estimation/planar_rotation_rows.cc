@@ -1,0 +1,158 @@
+#include "autocal/estimation/planar_rotation_rows.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/factors/planar_rotation_factor.h"
+#include "autocal/geometry/manifolds.h"
+#include "autocal/sensors/imu_preintegration.h"
+#include "common/order_statistics.h"
+#include "estimation/keyframe_interpolation.h"
+
+namespace autocal {
+namespace estimation {
+namespace {
+
+// sqrt(1 + 2 sum_{L >= 1} rho(L)), the sum up to the first lag whose autocorrelation is not
+// positive (at most a quarter of the series).
+double CorrelationScale(const std::vector<double>& e) {
+  const size_t n = e.size();
+  double c0 = 0.0;
+  for (double v : e) c0 += v * v;
+  if (!(c0 > 0.0)) return 1.0;
+  double sum = 0.0;
+  for (size_t lag = 1; lag < n / 4; ++lag) {
+    double c = 0.0;
+    for (size_t i = 0; i + lag < n; ++i) c += e[i] * e[i + lag];
+    const double rho = c / c0;
+    if (rho <= 0.0) break;
+    sum += rho;
+  }
+  return std::sqrt(1.0 + 2.0 * sum);
+}
+
+// The gyro reading at t_k: the mean over span_ns around it, or the sample interpolated there.
+std::optional<Eigen::Vector3d> GyroAt(const sensors::ImuSamples& imu, int64_t t_ns,
+                                      int64_t max_gap_ns, int64_t span_ns) {
+  const std::optional<internal::Bracket> g = internal::FindBracket(imu, t_ns, max_gap_ns);
+  if (!g) return std::nullopt;
+  if (span_ns > 0) {
+    const sensors::GyroMean mean = sensors::MeanGyro(imu, t_ns - span_ns / 2, t_ns + span_ns / 2);
+    if (mean.samples > 0) return mean.rate_rad_s;
+  }
+  return Eigen::Vector3d((1.0 - g->s) * imu[g->first].gyro_rad_s +
+                         g->s * imu[g->second].gyro_rad_s);
+}
+
+}  // namespace
+
+PlanarRotationSpread MeasurePlanarRotationSpread(const std::vector<Eigen::Vector3d>& rates_V) {
+  const size_t n = rates_V.size();
+  if (n < 10) {
+    throw Error("planar-rotation rows: " + std::to_string(n) +
+                " keyframe body rates are too few to measure their spread (10 or more)");
+  }
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& w : rates_V) {
+    if (!w.allFinite()) throw Error("planar-rotation rows: a body rate is not finite");
+    mean += w;
+  }
+  mean /= static_cast<double>(n);
+  double zz = 0.0;
+  Eigen::Vector2d xz = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector3d& w : rates_V) {
+    const Eigen::Vector3d d = w - mean;
+    zz += d.z() * d.z();
+    xz += d.z() * d.head<2>();
+  }
+  PlanarRotationSpread spread;
+  spread.samples = static_cast<int>(n);
+  spread.slope = zz > 0.0 ? Eigen::Vector2d(xz / zz) : Eigen::Vector2d::Zero();
+  for (int axis = 0; axis < 2; ++axis) {
+    std::vector<double> e(n);
+    for (size_t k = 0; k < n; ++k) {
+      const Eigen::Vector3d d = rates_V[k] - mean;
+      e[k] = d(axis) - spread.slope(axis) * d.z();
+    }
+    spread.correlation_scale(axis) = CorrelationScale(e);
+    spread.sigma_rad_s(axis) = autocal::internal::MadSigma(e);
+  }
+  return spread;
+}
+
+Eigen::Vector2d PlanarRotationSpread::RowSigmaRadS() const {
+  return sigma_rad_s.cwiseProduct(correlation_scale).cwiseMax(Eigen::Vector2d::Constant(1e-6));
+}
+
+PlanarRotationSpread MeasurePlanarRotationSpreadOfLog(const sensors::ImuSamples& imu,
+                                                      const Eigen::Quaterniond& q_I_V,
+                                                      double period_s, double gyro_mean_span_s) {
+  if (!(period_s > 0.0) || !std::isfinite(period_s)) {
+    throw Error("planar-rotation rows: the keyframe period must be positive");
+  }
+  const Eigen::Matrix3d R_V_I = q_I_V.toRotationMatrix().transpose();
+  const int64_t period_ns = std::max<int64_t>(1, SecondsToNs(period_s));
+  const int64_t max_gap_ns = std::numeric_limits<int64_t>::max();
+  std::vector<Eigen::Vector3d> rates_V;
+  for (int64_t t = imu.empty() ? 0 : imu.front().t_ns; !imu.empty() && t <= imu.back().t_ns;
+       t += period_ns) {
+    const std::optional<Eigen::Vector3d> w =
+        GyroAt(imu, t, max_gap_ns, SecondsToNs(gyro_mean_span_s));
+    if (w) rates_V.push_back(R_V_I * *w);
+  }
+  return MeasurePlanarRotationSpread(rates_V);
+}
+
+PlanarRotationRows AddPlanarRotationFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                                            std::vector<Keyframe>* keyframes,
+                                            sensors::Calibration* calibration,
+                                            const PlanarRotationOptions& options) {
+  if (!(options.sigma_rad_s >= 0.0) || !std::isfinite(options.sigma_rad_s) ||
+      !(options.gyro_mean_span_s >= 0.0)) {
+    throw Error("planar-rotation rows: sigma_rad_s and gyro_mean_span_s must be finite and >= 0");
+  }
+  const double* q_I_V = calibration->q_I_V.coeffs().data();
+  if (!problem->HasParameterBlock(q_I_V) || dynamic_cast<const geometry::RightQuaternionManifold*>(
+                                                problem->GetManifold(q_I_V)) == nullptr) {
+    throw Error("planar-rotation rows: q_I_V must be in the problem with RightQuaternionManifold");
+  }
+  const int64_t max_gap_ns = internal::GapNs(options.max_imu_gap_s, "max_imu_gap_s");
+  const int64_t span_ns = SecondsToNs(options.gyro_mean_span_s);
+  const Eigen::Matrix3d R_V_I = calibration->q_I_V.toRotationMatrix().transpose();
+  std::vector<std::optional<Eigen::Vector3d>> readings(keyframes->size());
+  std::vector<Eigen::Vector3d> rates_V;
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    const Keyframe& kf = (*keyframes)[k];
+    readings[k] = GyroAt(imu, kf.t_ns, max_gap_ns, span_ns);
+    if (readings[k]) rates_V.push_back(R_V_I * (*readings[k] - kf.b_g));
+  }
+  PlanarRotationRows rows;
+  if (options.sigma_rad_s > 0.0) {
+    rows.sigma_rad_s.setConstant(options.sigma_rad_s);
+  } else {
+    rows.spread = MeasurePlanarRotationSpread(rates_V);
+    rows.sigma_rad_s = rows.spread.RowSigmaRadS();
+  }
+  std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
+  ceres::LossFunction* loss = unused_loss.get();
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    if (!readings[k]) continue;
+    factors::PlanarRotationMeasurement m;
+    m.gyro_rad_s = *readings[k];
+    m.sigma_rad_s = rows.sigma_rad_s;
+    problem->AddResidualBlock(factors::PlanarRotationFactor::Create(m), loss,
+                              (*keyframes)[k].b_g.data(), calibration->q_I_V.coeffs().data());
+    unused_loss.release();
+    ++rows.added;
+  }
+  return rows;
+}
+
+}  // namespace estimation
+}  // namespace autocal
