@@ -42,6 +42,8 @@ DEFINE_double(gnss_time_offset_s, 0.0,
 DEFINE_int32(gnss_outages, 2, "number of GNSS outages");
 DEFINE_double(gnss_outage_s, 4.0, "length of each GNSS outage, seconds");
 DEFINE_double(gnss_outlier_probability, 0.02, "probability that a fix is a multipath outlier");
+DEFINE_double(gnss_error_correlation_s, 0.0,
+              "correlation time of the fixes' errors, seconds (Gauss-Markov; 0: independent)");
 DEFINE_double(origin_lat_deg, 49.0110, "latitude of the world origin, degrees (WGS84)");
 DEFINE_double(origin_lon_deg, 8.4170, "longitude of the world origin, degrees (WGS84)");
 DEFINE_double(origin_alt_m, 165.0, "ellipsoidal height of the world origin, metres");
@@ -168,6 +170,7 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   set("gnss_outages", FLAGS_gnss_outages, &o.gnss.num_outages);
   set("gnss_outage_s", FLAGS_gnss_outage_s, &o.gnss.outage_duration_s);
   set("gnss_outlier_probability", FLAGS_gnss_outlier_probability, &o.gnss.outlier_probability);
+  set("gnss_error_correlation_s", FLAGS_gnss_error_correlation_s, &o.gnss.error_correlation_time_s);
   set("origin_lat_deg", FLAGS_origin_lat_deg, &o.gnss.origin_lat_deg);
   set("origin_lon_deg", FLAGS_origin_lon_deg, &o.gnss.origin_lon_deg);
   set("origin_alt_m", FLAGS_origin_alt_m, &o.gnss.origin_alt_m);

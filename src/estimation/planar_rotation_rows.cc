@@ -12,30 +12,13 @@
 #include "autocal/factors/planar_rotation_factor.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/sensors/imu_preintegration.h"
+#include "common/correlation.h"
 #include "common/order_statistics.h"
 #include "estimation/keyframe_interpolation.h"
 
 namespace autocal {
 namespace estimation {
 namespace {
-
-// sqrt(1 + 2 sum_{L >= 1} rho(L)), the sum up to the first lag whose autocorrelation is not
-// positive (at most a quarter of the series).
-double CorrelationScale(const std::vector<double>& e) {
-  const size_t n = e.size();
-  double c0 = 0.0;
-  for (double v : e) c0 += v * v;
-  if (!(c0 > 0.0)) return 1.0;
-  double sum = 0.0;
-  for (size_t lag = 1; lag < n / 4; ++lag) {
-    double c = 0.0;
-    for (size_t i = 0; i + lag < n; ++i) c += e[i] * e[i + lag];
-    const double rho = c / c0;
-    if (rho <= 0.0) break;
-    sum += rho;
-  }
-  return std::sqrt(1.0 + 2.0 * sum);
-}
 
 // The gyro reading at t_k: the mean over span_ns around it, or the sample interpolated there.
 std::optional<Eigen::Vector3d> GyroAt(const sensors::ImuSamples& imu, int64_t t_ns,
@@ -80,7 +63,7 @@ PlanarRotationSpread MeasurePlanarRotationSpread(const std::vector<Eigen::Vector
       const Eigen::Vector3d d = rates_V[k] - mean;
       e[k] = d(axis) - spread.slope(axis) * d.z();
     }
-    spread.correlation_scale(axis) = CorrelationScale(e);
+    spread.correlation_scale(axis) = autocal::internal::CorrelationScale(e);
     spread.sigma_rad_s(axis) = autocal::internal::MadSigma(e);
   }
   return spread;

@@ -81,6 +81,8 @@ void Validate(const SimulationOptions& o) {
           "gnss rate_hz must be in (0, 100]");
   ValidateClocks(o);
   Require((o.gnss.std_enu_m.array() > 0.0).all(), "gnss std_enu_m must be positive");
+  Require(o.gnss.error_correlation_time_s >= 0.0 && std::isfinite(o.gnss.error_correlation_time_s),
+          "gnss error_correlation_time_s must be finite and >= 0");
   Require(o.gnss.outlier_probability >= 0.0 && o.gnss.outlier_probability <= 1.0,
           "gnss outlier_probability must be in [0, 1]");
   Require(o.gnss.num_outages >= 0 && o.gnss.outage_duration_s >= 0.0, "gnss outages invalid");
@@ -456,6 +458,10 @@ GnssLog Simulator::GenerateGnss() const {
   const int64_t n = static_cast<int64_t>(std::floor(duration / NsToSeconds(dt_ns))) + 1;
   const double noise_on = o.add_noise ? 1.0 : 0.0;
   const int64_t offset_ns = SecondsToNs(o.time_offset_gnss_imu_s);
+  const double a = o.error_correlation_time_s > 0.0
+                       ? std::exp(-NsToSeconds(dt_ns) / o.error_correlation_time_s)
+                       : 0.0;
+  Eigen::Vector3d unit_error = Eigen::Vector3d::Zero();
   for (int64_t k = 0; k < n; ++k) {
     // Measured at IMU time t, stamped t - offset on the receiver's clock.
     const int64_t t_ns = options_.start_time_ns + k * dt_ns;
@@ -463,6 +469,8 @@ GnssLog Simulator::GenerateGnss() const {
     // Draw every random number of the epoch even when it falls in an outage, so that an
     // outage does not shift the noise of the fixes after it.
     const Eigen::Vector3d unit_noise(normal(rng), normal(rng), normal(rng));
+    unit_error =
+        k == 0 ? unit_noise : Eigen::Vector3d(a * unit_error + std::sqrt(1.0 - a * a) * unit_noise);
     const bool outlier = uniform(rng) < o.outlier_probability;
     const double outlier_angle = 2.0 * M_PI * uniform(rng);
     const double outlier_horizontal = 3.0 + 12.0 * uniform(rng);
@@ -473,7 +481,7 @@ GnssLog Simulator::GenerateGnss() const {
     const double sigma_scale = 1.5 + 0.5 * std::sin(2.0 * M_PI * t / sigma_period_s + sigma_phase);
     const Eigen::Vector3d sigma = sigma_scale * o.std_enu_m;
     const Eigen::Vector3d p_W_A = ImuPoseAt(t) * options_.true_calibration.p_I_A;
-    Eigen::Vector3d measured = p_W_A + noise_on * sigma.cwiseProduct(unit_noise);
+    Eigen::Vector3d measured = p_W_A + noise_on * sigma.cwiseProduct(unit_error);
     if (outlier) {
       measured += Eigen::Vector3d(outlier_horizontal * std::cos(outlier_angle),
                                   outlier_horizontal * std::sin(outlier_angle), outlier_vertical);

@@ -6,6 +6,7 @@
 #include <GeographicLib/LocalCartesian.hpp>
 #include <cmath>
 #include <map>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -206,6 +207,46 @@ TEST(SimulatorTest, WheelFormsFollowTheTruthOfEachSample) {
   options.wheel.config.form = sensors::WheelForm::kSpeedYawRate;
   EXPECT_EQ(Simulator(options).sensors_config().wheel->form, sensors::WheelForm::kSpeedYawRate);
   options.true_calibration.odometry_speed_scale = 0.0;
+  EXPECT_THROW(Simulator{options}, Error);
+}
+
+// Correlated receiver errors (GnssSimOptions::error_correlation_time_s): per axis a first-order
+// Gauss-Markov process in units of the reported sigma, so the whitened errors keep unit variance
+// while neighbouring fixes' correlate by a = exp(-dt / tau). Off, they are independent.
+TEST(SimulatorTest, GnssErrorsCorrelateOverTheirCorrelationTime) {
+  SimulationOptions options = test::SmallLog(ScenarioType::kSkidSteer, 600.0);
+  options.gnss.config.rate_hz = 2.0;
+  options.gnss.outlier_probability = 0.0;
+  options.gnss.num_outages = 0;
+  for (double tau_s : {0.0, 5.0}) {
+    options.gnss.error_correlation_time_s = tau_s;
+    const Simulator simulator(options);
+    const GnssLog gnss = simulator.GenerateGnss();
+    const GeographicLib::LocalCartesian enu(options.gnss.origin_lat_deg,
+                                            options.gnss.origin_lon_deg, options.gnss.origin_alt_m);
+    std::vector<Eigen::Vector3d> unit;
+    for (size_t i = 0; i < gnss.fixes.size(); ++i) {
+      const sensors::GnssFix& fix = gnss.fixes[i];
+      Eigen::Vector3d measured;
+      enu.Forward(fix.lat_deg, fix.lon_deg, fix.alt_m, measured.x(), measured.y(), measured.z());
+      unit.push_back((measured - gnss.true_p_W_A[i]).cwiseQuotient(fix.std_enu_m));
+    }
+    ASSERT_GT(unit.size(), 1000u);
+    const double expected_lag1 = tau_s > 0.0 ? std::exp(-0.5 / tau_s) : 0.0;
+    for (int a = 0; a < 3; ++a) {
+      double c0 = 0.0, c1 = 0.0;
+      for (size_t i = 0; i < unit.size(); ++i) {
+        c0 += unit[i](a) * unit[i](a);
+        if (i > 0) c1 += unit[i](a) * unit[i - 1](a);
+      }
+      const double n = static_cast<double>(unit.size());
+      // 1200 fixes: the variance within about 15 %, the lag-1 correlation within 0.07 of a.
+      EXPECT_NEAR(c0 / n, 1.0, 0.15 + (tau_s > 0.0 ? 0.35 : 0.0))
+          << "tau " << tau_s << ", axis " << a;
+      EXPECT_NEAR(c1 / c0, expected_lag1, 0.07) << "tau " << tau_s << ", axis " << a;
+    }
+  }
+  options.gnss.error_correlation_time_s = -1.0;
   EXPECT_THROW(Simulator{options}, Error);
 }
 

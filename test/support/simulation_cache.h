@@ -336,6 +336,7 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.gnss.origin_lon_deg);
   a(o.gnss.origin_alt_m);
   a(o.gnss.time_offset_gnss_imu_s);
+  a(o.gnss.error_correlation_time_s);
   a(o.true_calibration);
   a(o.nominal_perturbation.rotation_deg);
   a(o.nominal_perturbation.translation_m);

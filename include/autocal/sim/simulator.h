@@ -98,6 +98,11 @@ struct GnssSimOptions {
   // Receiver-reported 1-sigma (east, north, up); each fix scales it by a factor in [1, 2]
   // that drifts slowly, and the error is drawn with the reported sigma.
   Eigen::Vector3d std_enu_m = Eigen::Vector3d(0.03, 0.03, 0.06);
+  // Correlation time of the errors, s: each axis's error (in units of the reported sigma) is
+  // a first-order Gauss-Markov process, e_k = a e_(k-1) + sqrt(1 - a^2) n_k with
+  // a = exp(-dt / tau), so the reported sigma stays the error's marginal sigma while
+  // neighbouring fixes err alike, as a real receiver's do. 0: independent errors.
+  double error_correlation_time_s = 0.0;
   bool add_noise = true;  // off: fixes are exact (sigma is still reported)
   // Outages: this many gaps without fixes, each outage_duration_s long, placed at random.
   int num_outages = 2;
