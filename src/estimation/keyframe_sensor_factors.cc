@@ -87,6 +87,25 @@ double NonHolonomicSigmaScale(double tau_s, double dt_s) {
   return std::sqrt(std::max(1.0, 2.0 * tau_s / dt_s));
 }
 
+factors::WheelFactorOptions WithBodyRateCovariance(factors::WheelFactorOptions rows,
+                                                   const Eigen::Matrix3d& rate_covariance,
+                                                   const Eigen::Quaterniond& q_I_V,
+                                                   const Eigen::Vector3d& p_I_V) {
+  if (rate_covariance.isZero(0.0)) return rows;
+  const Eigen::Matrix3d r = q_I_V.toRotationMatrix();
+  const Eigen::Matrix3d lever = r.transpose() * geometry::Hat(p_I_V);
+  const Eigen::Matrix3d speed = lever * rate_covariance * lever.transpose();
+  const double yaw = (r.transpose() * rate_covariance * r)(2, 2);
+  const auto add = [](double* row_sigma, double variance) {
+    *row_sigma = std::sqrt(*row_sigma * *row_sigma + variance);
+  };
+  add(&rows.speed_sigma_m_s, speed(0, 0));
+  add(&rows.lateral_sigma_m_s, speed(1, 1));
+  add(&rows.vertical_sigma_m_s, speed(2, 2));
+  add(&rows.yaw_rate_sigma_rad_s, yaw);
+  return rows;
+}
+
 int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                   std::vector<Keyframe>* keyframes, const KeyframeImuOptions& options) {
   std::vector<Keyframe>& kfs = *keyframes;
@@ -200,28 +219,6 @@ std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamp
   return rates;
 }
 
-// Eq. K13: the rate's remaining error e (covariance P in I) reaches the rows through w x p,
-// p = p_I_V: with R = R_I_V, the speed rows get the diagonal of R^T [p]x P [p]x^T R, the
-// yaw-rate row (R^T P R)_zz, added to their variances.
-factors::WheelFactorOptions WithGyroNoise(factors::WheelFactorOptions rows,
-                                          const Eigen::Matrix3d& rate_covariance,
-                                          const Eigen::Quaterniond& q_I_V,
-                                          const Eigen::Vector3d& p_I_V) {
-  if (rate_covariance.isZero(0.0)) return rows;
-  const Eigen::Matrix3d r = q_I_V.toRotationMatrix();
-  const Eigen::Matrix3d lever = r.transpose() * geometry::Hat(p_I_V);
-  const Eigen::Matrix3d speed = lever * rate_covariance * lever.transpose();
-  const double yaw = (r.transpose() * rate_covariance * r)(2, 2);
-  const auto add = [](double* row_sigma, double variance) {
-    *row_sigma = std::sqrt(*row_sigma * *row_sigma + variance);
-  };
-  add(&rows.speed_sigma_m_s, speed(0, 0));
-  add(&rows.lateral_sigma_m_s, speed(1, 1));
-  add(&rows.vertical_sigma_m_s, speed(2, 2));
-  add(&rows.yaw_rate_sigma_rad_s, yaw);
-  return rows;
-}
-
 // The form's two values of every sample (internal::WheelSeries), stamped on the wheel clock;
 // null with fewer than two samples.
 template <typename Samples, typename ToValue>
@@ -289,7 +286,7 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     Keyframe& kf = (*keyframes)[k];
     const sensors::BodyRate& gyro = *rates[k];
     const factors::WheelFactorOptions rows =
-        WithGyroNoise(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
+        WithBodyRateCovariance(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
     WheelCost factor{nullptr, {}};
     if (!shifted) {
       const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);

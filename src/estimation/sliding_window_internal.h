@@ -94,6 +94,12 @@ class SlidingWindowEstimator::Impl {
   void AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns);
   void AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns);
   sensors::GyroMean GyroAround(int64_t t_ns) const;
+  struct RowBodyRate {
+    Eigen::Vector3d rate_rad_s;
+    factors::WheelFactorOptions rows;
+    double yaw_sigma_rad_s = 0.0;
+  };
+  RowBodyRate BodyRateAround(int64_t t_ns, const factors::WheelFactorOptions& rows) const;
   double GyroSampleSigma() const;
   double GyroMeanSigma(const sensors::GyroMean& gyro) const;
   internal::AttachedFactor WheelRowFactor(ceres::CostFunction* cost, SlidingWindowState* s,

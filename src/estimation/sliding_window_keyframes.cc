@@ -78,6 +78,27 @@ double SlidingWindowEstimator::Impl::GyroMeanSigma(const sensors::GyroMean& gyro
   return GyroSampleSigma() / std::sqrt(std::max(1, gyro.samples));
 }
 
+// The body rate the wheel rows take at t_ns, their sigmas and the 1-sigma of its yaw part for
+// the yaw-rate row: the gyro mean (GyroAround, GyroMeanSigma) or, with the log's spread of
+// rates, the rate given that mean (Eq. K14) with its remaining error through the lever arm
+// (Eq. K13, at the current mount and lever arm).
+SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRateAround(
+    int64_t t_ns, const factors::WheelFactorOptions& rows) const {
+  const sensors::GyroMean gyro = GyroAround(t_ns);
+  const double sigma = GyroMeanSigma(gyro);
+  const std::optional<sensors::BodyRatePrior>& prior = options_.wheel_rows.body_rate_prior;
+  if (!prior) return {gyro.rate_rad_s, rows, sigma};
+  const sensors::BodyRate rate = prior->Condition({gyro.rate_rad_s, sigma * sigma});
+  RowBodyRate out{
+      rate.rate_rad_s,
+      WithBodyRateCovariance(rows, rate.covariance, calibration_.q_I_V, calibration_.p_I_V), 0.0};
+  out.rows.yaw_rate_sigma_rad_s = rows.yaw_rate_sigma_rad_s;  // the gyro's part comes below
+  const Eigen::Matrix3d R = calibration_.q_I_V.toRotationMatrix();
+  // Floored: a log that never turns leaves no yaw error, and the rows need a positive sigma.
+  out.yaw_sigma_rad_s = std::sqrt(std::max(1e-24, (R.transpose() * rate.covariance * R)(2, 2)));
+  return out;
+}
+
 // A wheel-row factor (any form) on the keyframe's q_W_I, v_W_I, b_g, b_a and the calibration's
 // `blocks`, linearized per pass under the name `what`.
 internal::AttachedFactor SlidingWindowEstimator::Impl::WheelRowFactor(
@@ -160,21 +181,21 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
       factors::WheelFactorOptions::FromEncoderNoise(
           options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
-  AttachPropagated(
-      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
-        factors::WheelMeasurement m;
-        m.left_rad_s = w.left_rad_s;
-        m.right_rad_s = w.right_rad_s;
-        const sensors::GyroMean gyro = GyroAround(w.t_ns);
-        m.gyro_rad_s = gyro.rate_rad_s;
-        return WheelRowFactor(
-            new internal::PropagatedWheelFactor(pim, m, wheel_options, options_.wheel.noise_rad_s,
-                                                GyroMeanSigma(gyro)),
-            &s,
-            {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
-             &c.wheel_radius_right_m, &c.track_width_m},
-            "a wheel factor");
-      });
+  AttachPropagated(from, used,
+                   [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
+                     factors::WheelMeasurement m;
+                     m.left_rad_s = w.left_rad_s;
+                     m.right_rad_s = w.right_rad_s;
+                     const RowBodyRate gyro = BodyRateAround(w.t_ns, wheel_options);
+                     m.gyro_rad_s = gyro.rate_rad_s;
+                     return WheelRowFactor(
+                         new internal::PropagatedWheelFactor(
+                             pim, m, gyro.rows, options_.wheel.noise_rad_s, gyro.yaw_sigma_rad_s),
+                         &s,
+                         {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
+                          &c.wheel_radius_right_m, &c.track_width_m},
+                         "a wheel factor");
+                   });
 }
 
 void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns) {
@@ -184,20 +205,21 @@ void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from,
   const factors::WheelFactorOptions options = NonHolonomicRows(
       factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
-  AttachPropagated(
-      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w) {
-        factors::WheelSpeedMeasurement m;
-        m.left_m_s = w.left_m_s;
-        m.right_m_s = w.right_m_s;
-        const sensors::GyroMean gyro = GyroAround(w.t_ns);
-        m.gyro_rad_s = gyro.rate_rad_s;
-        return WheelRowFactor(internal::PropagatedWheelSpeedResidual::Create(
-                                  pim, m, options, options_.wheel.noise_m_s, GyroMeanSigma(gyro)),
-                              &s,
-                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
-                               &c.wheel_speed_scale_right, &c.track_width_m},
-                              "a wheel speed factor");
-      });
+  AttachPropagated(from, used,
+                   [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w) {
+                     factors::WheelSpeedMeasurement m;
+                     m.left_m_s = w.left_m_s;
+                     m.right_m_s = w.right_m_s;
+                     const RowBodyRate gyro = BodyRateAround(w.t_ns, options);
+                     m.gyro_rad_s = gyro.rate_rad_s;
+                     return WheelRowFactor(
+                         internal::PropagatedWheelSpeedResidual::Create(
+                             pim, m, gyro.rows, options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s),
+                         &s,
+                         {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
+                          &c.wheel_speed_scale_right, &c.track_width_m},
+                         "a wheel speed factor");
+                   });
 }
 
 void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns) {
@@ -213,10 +235,11 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
         m.speed_m_s = o.speed_m_s;
         m.yaw_rate_rad_s = o.yaw_rate_rad_s;
         m.controller_track_m = *options_.wheel.controller_track_m;
-        const sensors::GyroMean gyro = GyroAround(o.t_ns);
+        const RowBodyRate gyro = BodyRateAround(o.t_ns, options);
         m.gyro_rad_s = gyro.rate_rad_s;
         return WheelRowFactor(
-            internal::PropagatedOdometryResidual::Create(pim, m, options, GyroMeanSigma(gyro)), &s,
+            internal::PropagatedOdometryResidual::Create(pim, m, gyro.rows, gyro.yaw_sigma_rad_s),
+            &s,
             {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
              &c.effective_track_m},
             "an odometry factor");

@@ -124,6 +124,13 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   // as the radii do: on the 60 s urban log the window drifted along that valley to 5.7 deg and
   // -0.47 % (docs/sliding_window.md).
   w.wheel_rows.non_holonomic = use_wheel;
+  // The rows' body rate given the gyro (Eq. K14), from the spread of the log's rates sampled at
+  // the wheels' rate, as the offline calibration conditions its rows.
+  if (use_wheel && dataset.sensors.wheel && dataset.sensors.wheel->rate_hz > 0.0) {
+    w.wheel_rows.body_rate_prior = sensors::BodyRatePrior::FitToLog(
+        dataset.imu, 1.0 / dataset.sensors.wheel->rate_hz, w.wheel_rows.gyro_mean_span_s,
+        w.imu.noise.gyroscope_noise_density * std::sqrt(w.imu.noise.update_rate_hz));
+  }
 
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's
   // values only start the window.

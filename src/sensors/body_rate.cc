@@ -5,6 +5,8 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/time.h"
+#include "autocal/sensors/imu_preintegration.h"
 
 namespace autocal {
 namespace sensors {
@@ -39,6 +41,27 @@ BodyRatePrior BodyRatePrior::Fit(const std::vector<GyroReading>& readings) {
   prior.signal_covariance_ =
       eig.eigenvectors() * signal.asDiagonal() * eig.eigenvectors().transpose();
   return prior;
+}
+
+BodyRatePrior BodyRatePrior::FitToLog(const ImuSamples& imu, double period_s, double span_s,
+                                      double sample_sigma) {
+  if (!(period_s > 0.0) || !std::isfinite(period_s) || !(span_s >= 0.0) || !(sample_sigma >= 0.0) ||
+      !std::isfinite(sample_sigma)) {
+    throw Error("BodyRatePrior: the period must be positive, the span and sigma >= 0");
+  }
+  std::vector<GyroReading> readings;
+  if (imu.empty()) return Fit(readings);
+  const int64_t period_ns = std::max<int64_t>(1, SecondsToNs(period_s));
+  const int64_t half_ns = SecondsToNs(0.5 * span_s);
+  for (int64_t t = imu.front().t_ns; t <= imu.back().t_ns; t += period_ns) {
+    GyroMean mean = MeanGyro(imu, t - half_ns, t + half_ns);
+    if (mean.samples == 0) {
+      mean.rate_rad_s = InterpolateImu(imu, t).gyro_rad_s;
+      mean.samples = 1;
+    }
+    readings.push_back({mean.rate_rad_s, sample_sigma * sample_sigma / mean.samples});
+  }
+  return Fit(readings);
 }
 
 BodyRate BodyRatePrior::Condition(const GyroReading& reading) const {

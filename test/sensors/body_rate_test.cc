@@ -108,6 +108,29 @@ TEST(BodyRatePrior, RejectsTooFewOrInvalidReadings) {
   EXPECT_THROW(BodyRatePrior::Fit(readings), Error);
 }
 
+// A 100 Hz log turning about z (0.5 rad/s amplitude) with white noise of 0.05 rad/s per
+// sample: averaged over 0.1 s (10 samples) every 0.2 s, the spread less the means' noise is the
+// turning's 0.125 (rad/s)^2 about z and nothing about x and y.
+TEST(BodyRatePrior, FitsToAWholeLog) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  ImuSamples imu;
+  for (int k = 0; k < 60000; ++k) {
+    ImuSample s;
+    s.t_ns = static_cast<int64_t>(k) * 10'000'000;
+    s.gyro_rad_s = Eigen::Vector3d(noise(rng), noise(rng), 0.5 * std::sin(0.01 * k) + noise(rng));
+    imu.push_back(s);
+  }
+  const BodyRatePrior prior = BodyRatePrior::FitToLog(imu, 0.2, 0.1, 0.05);
+  const Eigen::Matrix3d& c = prior.signal_covariance();
+  EXPECT_NEAR(c(2, 2), 0.125, 0.01);
+  EXPECT_LT(c(0, 0), 1e-4);
+  EXPECT_LT(c(1, 1), 1e-4);
+  EXPECT_LT(prior.mean_rad_s().norm(), 0.01);
+  EXPECT_THROW(BodyRatePrior::FitToLog(imu, 0.0, 0.1, 0.05), Error);
+  EXPECT_THROW(BodyRatePrior::FitToLog(imu, 0.2, -0.1, 0.05), Error);
+}
+
 }  // namespace
 }  // namespace sensors
 }  // namespace autocal

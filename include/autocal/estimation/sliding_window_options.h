@@ -10,6 +10,7 @@
 #include "autocal/estimation/marginalization.h"
 #include "autocal/estimation/pairing_setting.h"
 #include "autocal/factors/loss.h"
+#include "autocal/sensors/body_rate.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/sensor_config.h"
 
@@ -79,6 +80,10 @@ struct WheelRowSetting {
   // Planar-rotation rows (Eq. F27): one per keyframe, on its b_g and q_I_V, with these sigmas
   // of the roll and pitch rates in V (MeasurePlanarRotationSpread); zero: no such rows.
   Eigen::Vector2d planar_rotation_sigma_rad_s = Eigen::Vector2d::Zero();
+  // The spread of the log's body rates (Eq. K14): with it the rows take the rate given the
+  // gyro mean instead of the mean itself (whose noise would pass for excitation of the lever
+  // arm and the mount's tilt), and its remaining error enters their sigmas (Eq. K13).
+  std::optional<sensors::BodyRatePrior> body_rate_prior;
 };
 
 // Rows linearized per solve pass (docs/sliding_window.md, "Linearized once per pass").

@@ -14,6 +14,8 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "autocal/sensors/measurements.h"
+
 namespace autocal {
 namespace sensors {
 
@@ -37,6 +39,13 @@ class BodyRatePrior {
 
   // E[w_true | reading] and P (Eq. K14). A reading without noise is returned as it is.
   BodyRate Condition(const GyroReading& reading) const;
+
+  // Fit to a whole log: the gyro averaged over span_s around every period_s from the first
+  // sample to the last, each mean's noise variance sample_sigma^2 / n for n samples averaged
+  // (sample_sigma: the 1-sigma of one sample, density * sqrt(rate)). Throws as Fit, and for a
+  // non-positive period or a negative span or sigma.
+  static BodyRatePrior FitToLog(const ImuSamples& imu, double period_s, double span_s,
+                                double sample_sigma);
 
   const Eigen::Vector3d& mean_rad_s() const { return mean_rad_s_; }
   const Eigen::Matrix3d& signal_covariance() const { return signal_covariance_; }
