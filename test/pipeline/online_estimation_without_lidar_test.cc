@@ -285,10 +285,8 @@ TEST(OnlineEstimationWithoutLidar, SlowSkidSteerStartsFromItsOdometryAndStatesIt
 // (0.15 m at a stated 0.13 m: 3.6 sigma off; docs/sliding_window.md). The mount's roll and
 // pitch stay within 3 of their sigmas.
 TEST(OnlineEstimationWithoutLidar, NoisyGyroDoesNotPassForExcitationOfTheRearAxle) {
-  sim::SimulationOptions options = test::SkidSteerOdometryOptions(120.0, 3);
-  options.imu.noise_scale = 30.0;
-  options.imu.random_walk_scale = 1.0;
-  const test::SimulatedUrbanDataset data(options, "skid_steer_noisy_gyro_online");
+  const test::SimulatedUrbanDataset data(test::VibratingSkidSteerOdometryOptions(120.0, 3),
+                                         "skid_steer_noisy_gyro_online");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   const OnlineEstimationResult result = EstimateDatasetOnline(
       dataset, io::ReadProblemYaml((std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" /

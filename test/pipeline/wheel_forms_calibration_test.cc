@@ -121,10 +121,8 @@ TEST(WheelFormsCalibration, SlowSkidSteerOdometryKeepsItsSpeedScaleAndEffectiveT
 // above the IMU (its y; the flat drive never pitches or rolls) is not reported determined.
 // Taking the noisy gyro as the rate put that y 32 cm from the truth at a stated 5.9 cm.
 TEST(WheelFormsCalibration, NoisyGyroDoesNotPassForExcitationOfTheRearAxle) {
-  sim::SimulationOptions options = test::SkidSteerOdometryOptions(120.0, 3);
-  options.imu.noise_scale = 30.0;
-  options.imu.random_walk_scale = 1.0;
-  const test::SimulatedUrbanDataset data(options, "skid_steer_noisy_gyro");
+  const test::SimulatedUrbanDataset data(test::VibratingSkidSteerOdometryOptions(120.0, 3),
+                                         "skid_steer_noisy_gyro");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   const OfflineCalibrationResult result =
       CalibrateDataset(dataset, test::ShippedProblem("skid_steer_imu_odometry.yaml"));
@@ -155,10 +153,8 @@ TEST(WheelFormsCalibration, NoisyGyroDoesNotPassForExcitationOfTheRearAxle) {
 // of the truth (measured: 0.17 and -0.47 deg at 0.33 and 0.29 deg), at less than half the
 // sigmas that gravity's up axis and the altitude leave without the rows (1.9 and 0.85 deg).
 TEST(WheelFormsCalibration, TurnsGiveTheRigidRobotsMountTilt) {
-  sim::SimulationOptions options = test::SkidSteerOdometryOptions(120.0, 5);
-  options.imu.noise_scale = 30.0;
-  options.imu.random_walk_scale = 1.0;
-  const test::SimulatedUrbanDataset data(options, "skid_steer_turns");
+  const test::SimulatedUrbanDataset data(test::VibratingSkidSteerOdometryOptions(120.0, 5),
+                                         "skid_steer_turns");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   const io::Problem with_rows = test::ShippedProblem("skid_steer_imu_odometry_gnss.yaml");
   ASSERT_EQ(with_rows.calibration.roll_pitch_rate_sigma_rad_s, std::optional<double>(0.0));

@@ -19,5 +19,14 @@ inline sim::SimulationOptions SkidSteerOdometryOptions(double duration_s, uint64
   return options;
 }
 
+// The same with the real robot's vibration: the IMU's white noise 30 times the bench densities,
+// its bias random walks at the bench values (test1.bag's samples scatter so).
+inline sim::SimulationOptions VibratingSkidSteerOdometryOptions(double duration_s, uint64_t seed) {
+  sim::SimulationOptions options = SkidSteerOdometryOptions(duration_s, seed);
+  options.imu.noise_scale = 30.0;
+  options.imu.random_walk_scale = 1.0;
+  return options;
+}
+
 }  // namespace test
 }  // namespace autocal
