@@ -31,7 +31,7 @@ void SetWindowBlocks(const std::string& problem_path, const io::ProblemCalibrati
   estimation::SlidingWindowBlockSetting previous{nullptr, nullptr};
   const char* previous_name = "";
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
-    // The wheel forms the window cannot take are refused in WindowOptions.
+    // The blocks the window cannot estimate are refused in WindowOptions.
     if (!estimation::WindowSupports(info.id)) continue;
     const BlockSetting s = SettingOf(info.id, problem, nominal);
     const bool estimated = SensorUsed(info, use_wheel, use_gnss) &&

@@ -15,9 +15,9 @@ namespace pipeline {
 
 // The window options of a problem: what it estimates, its priors (centred at the dataset's
 // nominal calibration), losses, residual points and solver; the rest from options.window.
-// Throws autocal::Error for a shared wheel radius, a problem that fixes only one radius,
-// wheels in another form than angular rates, a block the window cannot estimate (the wheel and
-// GNSS clocks) that the problem estimates, or a nonzero nominal wheel or GNSS clock offset.
+// Throws autocal::Error for a shared wheel radius, a problem that fixes only one radius, a
+// block the window cannot estimate (the wheel and GNSS clocks) that the problem estimates, or
+// a nonzero nominal wheel or GNSS clock offset.
 estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
                                                const io::Problem& problem, bool use_wheel,
                                                bool use_gnss,
