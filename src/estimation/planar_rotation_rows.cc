@@ -23,14 +23,8 @@ namespace {
 // The gyro reading at t_k: the mean over span_ns around it, or the sample interpolated there.
 std::optional<Eigen::Vector3d> GyroAt(const sensors::ImuSamples& imu, int64_t t_ns,
                                       int64_t max_gap_ns, int64_t span_ns) {
-  const std::optional<internal::Bracket> g = internal::FindBracket(imu, t_ns, max_gap_ns);
-  if (!g) return std::nullopt;
-  if (span_ns > 0) {
-    const sensors::GyroMean mean = sensors::MeanGyro(imu, t_ns - span_ns / 2, t_ns + span_ns / 2);
-    if (mean.samples > 0) return mean.rate_rad_s;
-  }
-  return Eigen::Vector3d((1.0 - g->s) * imu[g->first].gyro_rad_s +
-                         g->s * imu[g->second].gyro_rad_s);
+  if (!internal::FindBracket(imu, t_ns, max_gap_ns)) return std::nullopt;
+  return sensors::GyroAround(imu, t_ns, span_ns / 2).rate_rad_s;
 }
 
 }  // namespace

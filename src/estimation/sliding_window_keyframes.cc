@@ -116,10 +116,7 @@ internal::AttachedFactor SlidingWindowEstimator::Impl::WheelRowFactor(
 // The mean gyro over the span around t_ns (wheel_rows.gyro_mean_span_s) and how many samples
 // it averaged; the interpolated sample when the span holds none.
 sensors::GyroMean SlidingWindowEstimator::Impl::GyroAround(int64_t t_ns) const {
-  const int64_t half_span_ns = SecondsToNs(0.5 * options_.wheel_rows.gyro_mean_span_s);
-  sensors::GyroMean gyro = sensors::MeanGyro(imu_, t_ns - half_span_ns, t_ns + half_span_ns);
-  if (gyro.samples == 0) gyro.rate_rad_s = sensors::InterpolateImu(imu_, t_ns).gyro_rad_s;
-  return gyro;
+  return sensors::GyroAround(imu_, t_ns, SecondsToNs(0.5 * options_.wheel_rows.gyro_mean_span_s));
 }
 
 // The wheel rows' options with the non-holonomic sigma scaled for the spacing of `used`

@@ -1,6 +1,7 @@
 #include "autocal/sensors/body_rate.h"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -54,12 +55,8 @@ BodyRatePrior BodyRatePrior::FitToLog(const ImuSamples& imu, double period_s, do
   const int64_t period_ns = std::max<int64_t>(1, SecondsToNs(period_s));
   const int64_t half_ns = SecondsToNs(0.5 * span_s);
   for (int64_t t = imu.front().t_ns; t <= imu.back().t_ns; t += period_ns) {
-    GyroMean mean = MeanGyro(imu, t - half_ns, t + half_ns);
-    if (mean.samples == 0) {
-      mean.rate_rad_s = InterpolateImu(imu, t).gyro_rad_s;
-      mean.samples = 1;
-    }
-    readings.push_back({mean.rate_rad_s, sample_sigma * sample_sigma / mean.samples});
+    const GyroMean mean = GyroAround(imu, t, half_ns);
+    readings.push_back({mean.rate_rad_s, sample_sigma * sample_sigma / std::max(1, mean.samples)});
   }
   return Fit(readings);
 }

@@ -218,6 +218,12 @@ GyroMean MeanGyro(const ImuSamples& samples, int64_t t0_ns, int64_t t1_ns) {
   return mean;
 }
 
+GyroMean GyroAround(const ImuSamples& samples, int64_t t_ns, int64_t half_span_ns) {
+  GyroMean gyro = MeanGyro(samples, t_ns - half_span_ns, t_ns + half_span_ns);
+  if (gyro.samples == 0) gyro.rate_rad_s = InterpolateImu(samples, t_ns).gyro_rad_s;
+  return gyro;
+}
+
 ImuPreintegration::ImuPreintegration(const ImuNoise& noise, const PreintegrationOptions& options,
                                      const Eigen::Vector3d& b_g_lin, const Eigen::Vector3d& b_a_lin)
     : noise_(noise), options_(options), b_g_lin_(b_g_lin), b_a_lin_(b_a_lin) {
