@@ -251,10 +251,8 @@ TEST(OnlineEstimationWithoutLidar, SlowSkidSteerStartsFromItsOdometryAndStatesIt
   const test::SimulatedUrbanDataset data(test::SkidSteerOdometryOptions(100.0, 3),
                                          "skid_steer_100s_online");
   const io::Dataset dataset = io::ReadDataset(data.directory);
-  const OnlineEstimationResult result = EstimateDatasetOnline(
-      dataset, io::ReadProblemYaml((std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" /
-                                    "skid_steer_imu_odometry_gnss.yaml")
-                                       .string()));
+  const OnlineEstimationResult result =
+      EstimateDatasetOnline(dataset, test::ShippedProblem("skid_steer_imu_odometry_gnss.yaml"));
   const evaluation::TrajectoryErrors ate =
       evaluation::CompareTrajectory(result.trajectory, dataset.groundtruth_trajectory);
   const io::PoseBlockInfo& u = result.calibration.uncertainty.T_I_V;
@@ -288,10 +286,8 @@ TEST(OnlineEstimationWithoutLidar, NoisyGyroDoesNotPassForExcitationOfTheRearAxl
   const test::SimulatedUrbanDataset data(test::VibratingSkidSteerOdometryOptions(120.0, 3),
                                          "skid_steer_noisy_gyro_online");
   const io::Dataset dataset = io::ReadDataset(data.directory);
-  const OnlineEstimationResult result = EstimateDatasetOnline(
-      dataset, io::ReadProblemYaml((std::filesystem::path(AUTOCAL_SOURCE_DIR) / "problems" /
-                                    "skid_steer_imu_odometry_gnss.yaml")
-                                       .string()));
+  const OnlineEstimationResult result =
+      EstimateDatasetOnline(dataset, test::ShippedProblem("skid_steer_imu_odometry_gnss.yaml"));
   const sensors::Calibration& truth = data.simulator.true_calibration();
   const io::PoseBlockInfo& u = result.calibration.uncertainty.T_I_V;
   ASSERT_TRUE(u.sigma_p_m.has_value());
