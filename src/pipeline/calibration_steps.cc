@@ -13,6 +13,7 @@
 #include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
+#include "autocal/factors/planar_rotation_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "common/order_statistics.h"
 #include "estimation/time_offset_factors.h"
@@ -305,7 +306,9 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
       planar.max_imu_gap_s = wheel.max_imu_gap_s;
       planar.gyro_mean_span_s = wheel.gyro_mean_span_s;
       planar.loss = wheel.loss;
-      estimation::AddPlanarRotationFactors(p, dataset->imu, keyframes, c, planar);
+      const estimation::PlanarRotationRows rows =
+          estimation::AddPlanarRotationFactors(p, dataset->imu, keyframes, c, planar);
+      if (planar_rotation != nullptr) *planar_rotation = rows;
     }
   }
   if (use_gnss) {
@@ -350,6 +353,18 @@ std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows
       outliers < rows.size() ? std::sqrt(inlier_sum / (rows_n - static_cast<double>(outliers)))
                              : 0.0;
   return out;
+}
+
+void RecordPlanarRotation(const estimation::PlanarRotationRows& rows, io::CalibrationFile* file) {
+  if (rows.added == 0) return;
+  const auto pair = [](const Eigen::Vector2d& v, int digits) {
+    return FormatFixed(v.x(), digits) + " " + FormatFixed(v.y(), digits);
+  };
+  file->solver["planar_rotation_rows"] = std::to_string(rows.added);
+  file->solver["planar_rotation_sigma_rad_s"] = pair(rows.sigma_rad_s, 5);
+  if (rows.spread.samples == 0) return;
+  file->solver["planar_rotation_spread_rad_s"] = pair(rows.spread.sigma_rad_s, 5);
+  file->solver["planar_rotation_correlation_scale"] = pair(rows.spread.correlation_scale, 2);
 }
 
 void RequireSamplesAfter(const io::Dataset& dataset, bool use_wheel, bool use_gnss, int64_t t0_ns) {
@@ -406,6 +421,9 @@ std::map<std::string, std::vector<ceres::ResidualBlockId>> BlocksBySensor(ceres:
     if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
     if (IsWheelCost(f)) ids["wheel"].push_back(id);
     if (IsGnssCost(f)) ids["gnss"].push_back(id);
+    if (dynamic_cast<const factors::PlanarRotationFactor*>(f)) {
+      ids["planar_rotation"].push_back(id);
+    }
   }
   return ids;
 }

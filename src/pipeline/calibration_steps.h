@@ -18,6 +18,7 @@
 #include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
+#include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/manifolds.h"
@@ -111,10 +112,18 @@ struct SensorFactors {
   // Every wheel row's sigma times this: the data's noise when it exceeds the stated one
   // (pipeline/clock_initialization.h, WheelNoiseScale).
   double wheel_noise_scale = 1.0;
+  // When set, receives what the planar-rotation rows (Eq. F27) measured and used.
+  estimation::PlanarRotationRows* planar_rotation = nullptr;
 
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
            sensors::Calibration* c) const;
 };
+
+// The planar-rotation rows' count and sigmas (and, when measured, the spread and correlation
+// scale behind them, Eq. K15) into the solver summary: planar_rotation_rows,
+// planar_rotation_sigma_rad_s, planar_rotation_spread_rad_s, planar_rotation_correlation_scale.
+// Nothing without rows.
+void RecordPlanarRotation(const estimation::PlanarRotationRows& rows, io::CalibrationFile* file);
 
 // Before the online estimator streams the log: throws one autocal::Error naming the file when
 // the wheels or GNSS (use_wheel, use_gnss) have no sample after the initial state at t0_ns

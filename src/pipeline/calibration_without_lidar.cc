@@ -180,7 +180,10 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
     sensor_factors.wheel_noise_scale =
         WheelNoiseScale(dataset, calibration, result.nominal, &result.warnings);
   }
+  estimation::PlanarRotationRows planar_rotation;
+  sensor_factors.planar_rotation = &planar_rotation;
   sensor_factors.Add(&p, &keyframes, &calibration);
+  RecordPlanarRotation(planar_rotation, &result.calibration);
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].before = std::move(rows);
   }

@@ -187,6 +187,8 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     sensor_factors.wheel_noise_scale =
         WheelNoiseScale(dataset, *calibration, result->nominal, &result->warnings);
   }
+  estimation::PlanarRotationRows planar_rotation;
+  sensor_factors.planar_rotation = &planar_rotation;
   bool first_problem = true;
   batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
                                   sensors::Calibration* c) {
@@ -218,6 +220,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   file.solver["final_cost"] = std::to_string(batch.final_cost);
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
   file.residuals["lidar"]["associated_points"] = batch.associated_points;
+  RecordPlanarRotation(planar_rotation, &file);
 }
 
 // `file` without the wall-clock entries of its solver summary ("seconds", "seconds_*"): they

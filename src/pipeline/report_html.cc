@@ -50,6 +50,7 @@ std::string SensorName(const std::string& key) {
   if (key == "imu") return "IMU";
   if (key == "wheel") return "Wheel odometry";
   if (key == "gnss") return "GNSS";
+  if (key == "planar_rotation") return "Planar rotation (Eq. F27)";
   return key;
 }
 

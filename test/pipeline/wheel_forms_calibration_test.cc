@@ -173,6 +173,9 @@ TEST(WheelFormsCalibration, TurnsGiveTheRigidRobotsMountTilt) {
         kRadToDeg;
     const bool rows = problem == &with_rows;
     (rows ? sigma_with_deg : sigma_without_deg) = u.sigma_rot_deg->head<2>();
+    // The rows are reported as a residual group of their own, with the sigmas they used.
+    EXPECT_EQ(result.whitened_residuals.count("planar_rotation"), rows ? 1u : 0u);
+    EXPECT_EQ(result.calibration.solver.count("planar_rotation_sigma_rad_s"), rows ? 1u : 0u);
     std::cout << (rows ? "with" : "without") << " the rows: mount error (roll, pitch) "
               << error_deg.head<2>().transpose() << " deg, sigma "
               << u.sigma_rot_deg->head<2>().transpose() << " deg\n";
