@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -74,14 +73,10 @@ PlanarRotationSpread MeasurePlanarRotationSpreadOfLog(const sensors::ImuSamples&
     throw Error("planar-rotation rows: the keyframe period must be positive");
   }
   const Eigen::Matrix3d R_V_I = q_I_V.toRotationMatrix().transpose();
-  const int64_t period_ns = std::max<int64_t>(1, SecondsToNs(period_s));
-  const int64_t max_gap_ns = std::numeric_limits<int64_t>::max();
   std::vector<Eigen::Vector3d> rates_V;
-  for (int64_t t = imu.empty() ? 0 : imu.front().t_ns; !imu.empty() && t <= imu.back().t_ns;
-       t += period_ns) {
-    const std::optional<Eigen::Vector3d> w =
-        GyroAt(imu, t, max_gap_ns, SecondsToNs(gyro_mean_span_s));
-    if (w) rates_V.push_back(R_V_I * *w);
+  for (const sensors::GyroMean& mean : sensors::GyroAroundOverLog(
+           imu, std::max<int64_t>(1, SecondsToNs(period_s)), SecondsToNs(gyro_mean_span_s) / 2)) {
+    rates_V.push_back(R_V_I * mean.rate_rad_s);
   }
   return MeasurePlanarRotationSpread(rates_V);
 }

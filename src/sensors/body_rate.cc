@@ -51,11 +51,8 @@ BodyRatePrior BodyRatePrior::FitToLog(const ImuSamples& imu, double period_s, do
     throw Error("BodyRatePrior: the period must be positive, the span and sigma >= 0");
   }
   std::vector<GyroReading> readings;
-  if (imu.empty()) return Fit(readings);
-  const int64_t period_ns = std::max<int64_t>(1, SecondsToNs(period_s));
-  const int64_t half_ns = SecondsToNs(0.5 * span_s);
-  for (int64_t t = imu.front().t_ns; t <= imu.back().t_ns; t += period_ns) {
-    const GyroMean mean = GyroAround(imu, t, half_ns);
+  for (const GyroMean& mean : GyroAroundOverLog(imu, std::max<int64_t>(1, SecondsToNs(period_s)),
+                                                SecondsToNs(0.5 * span_s))) {
     readings.push_back({mean.rate_rad_s, sample_sigma * sample_sigma / std::max(1, mean.samples)});
   }
   return Fit(readings);

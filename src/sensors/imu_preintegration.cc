@@ -224,6 +224,16 @@ GyroMean GyroAround(const ImuSamples& samples, int64_t t_ns, int64_t half_span_n
   return gyro;
 }
 
+std::vector<GyroMean> GyroAroundOverLog(const ImuSamples& samples, int64_t period_ns,
+                                        int64_t half_span_ns) {
+  std::vector<GyroMean> out;
+  if (samples.empty()) return out;
+  for (int64_t t = samples.front().t_ns; t <= samples.back().t_ns; t += period_ns) {
+    out.push_back(GyroAround(samples, t, half_span_ns));
+  }
+  return out;
+}
+
 ImuPreintegration::ImuPreintegration(const ImuNoise& noise, const PreintegrationOptions& options,
                                      const Eigen::Vector3d& b_g_lin, const Eigen::Vector3d& b_a_lin)
     : noise_(noise), options_(options), b_g_lin_(b_g_lin), b_a_lin_(b_a_lin) {

@@ -184,6 +184,9 @@ GyroMean MeanGyro(const ImuSamples& samples, int64_t t0_ns, int64_t t1_ns);
 // The mean gyro over half_span_ns on either side of t_ns, or, when that holds no sample, the
 // gyro interpolated at t_ns with samples 0 (InterpolateImu, which throws outside the samples).
 GyroMean GyroAround(const ImuSamples& samples, int64_t t_ns, int64_t half_span_ns);
+// GyroAround at every period_ns (> 0) from the first sample to the last; empty without samples.
+std::vector<GyroMean> GyroAroundOverLog(const ImuSamples& samples, int64_t period_ns,
+                                        int64_t half_span_ns);
 
 template <typename T>
 void ImuPreintegration::CorrectedDeltas(const geometry::Vector3<T>& b_g,
