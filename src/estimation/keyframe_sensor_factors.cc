@@ -73,6 +73,11 @@ void SetConstantUnless(bool estimate, double* block, ceres::Problem* problem) {
   if (!estimate) problem->SetParameterBlockConstant(block);
 }
 
+// sigma <- sqrt(sigma^2 + variance): an independent error added to a row.
+void AddVariance(double* row_sigma, double variance) {
+  *row_sigma = std::sqrt(*row_sigma * *row_sigma + variance);
+}
+
 // The correlated-error scaling (NonHolonomicSigmaScale) at the keyframes' mean spacing.
 double KeyframeNonHolonomicSigmaScale(const std::vector<Keyframe>& keyframes, double tau_s) {
   if (keyframes.size() < 2) return 1.0;
@@ -87,23 +92,22 @@ double NonHolonomicSigmaScale(double tau_s, double dt_s) {
   return std::sqrt(std::max(1.0, 2.0 * tau_s / dt_s));
 }
 
-factors::WheelFactorOptions WithBodyRateCovariance(factors::WheelFactorOptions rows,
-                                                   const Eigen::Matrix3d& rate_covariance,
-                                                   const Eigen::Quaterniond& q_I_V,
-                                                   const Eigen::Vector3d& p_I_V) {
+factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptions rows,
+                                                       const Eigen::Matrix3d& rate_covariance,
+                                                       const Eigen::Quaterniond& q_I_V,
+                                                       const Eigen::Vector3d& p_I_V) {
   if (rate_covariance.isZero(0.0)) return rows;
-  const Eigen::Matrix3d r = q_I_V.toRotationMatrix();
-  const Eigen::Matrix3d lever = r.transpose() * geometry::Hat(p_I_V);
+  const Eigen::Matrix3d lever = q_I_V.toRotationMatrix().transpose() * geometry::Hat(p_I_V);
   const Eigen::Matrix3d speed = lever * rate_covariance * lever.transpose();
-  const double yaw = (r.transpose() * rate_covariance * r)(2, 2);
-  const auto add = [](double* row_sigma, double variance) {
-    *row_sigma = std::sqrt(*row_sigma * *row_sigma + variance);
-  };
-  add(&rows.speed_sigma_m_s, speed(0, 0));
-  add(&rows.lateral_sigma_m_s, speed(1, 1));
-  add(&rows.vertical_sigma_m_s, speed(2, 2));
-  add(&rows.yaw_rate_sigma_rad_s, yaw);
+  AddVariance(&rows.speed_sigma_m_s, speed(0, 0));
+  AddVariance(&rows.lateral_sigma_m_s, speed(1, 1));
+  AddVariance(&rows.vertical_sigma_m_s, speed(2, 2));
   return rows;
+}
+
+double YawRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V) {
+  const Eigen::Matrix3d r = q_I_V.toRotationMatrix();
+  return (r.transpose() * rate_covariance * r)(2, 2);
 }
 
 int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
@@ -285,8 +289,11 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     if (!rates[k]) continue;
     Keyframe& kf = (*keyframes)[k];
     const sensors::BodyRate& gyro = *rates[k];
-    const factors::WheelFactorOptions rows =
-        WithBodyRateCovariance(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
+    factors::WheelFactorOptions rows =
+        WithLeverArmRateCovariance(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
+    if (!gyro.covariance.isZero(0.0)) {
+      AddVariance(&rows.yaw_rate_sigma_rad_s, YawRateVariance(gyro.covariance, c.q_I_V));
+    }
     WheelCost factor{nullptr, {}};
     if (!shifted) {
       const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);

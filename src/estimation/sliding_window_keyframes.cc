@@ -89,14 +89,11 @@ SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRate
   const std::optional<sensors::BodyRatePrior>& prior = options_.wheel_rows.body_rate_prior;
   if (!prior) return {gyro.rate_rad_s, rows, sigma};
   const sensors::BodyRate rate = prior->Condition({gyro.rate_rad_s, sigma * sigma});
-  RowBodyRate out{
-      rate.rate_rad_s,
-      WithBodyRateCovariance(rows, rate.covariance, calibration_.q_I_V, calibration_.p_I_V), 0.0};
-  out.rows.yaw_rate_sigma_rad_s = rows.yaw_rate_sigma_rad_s;  // the gyro's part comes below
-  const Eigen::Matrix3d R = calibration_.q_I_V.toRotationMatrix();
-  // Floored: a log that never turns leaves no yaw error, and the rows need a positive sigma.
-  out.yaw_sigma_rad_s = std::sqrt(std::max(1e-24, (R.transpose() * rate.covariance * R)(2, 2)));
-  return out;
+  // The yaw part is the yaw-rate row's gyro sigma, floored: a log that never turns leaves no
+  // yaw error, and the rows need a positive sigma.
+  return {rate.rate_rad_s,
+          WithLeverArmRateCovariance(rows, rate.covariance, calibration_.q_I_V, calibration_.p_I_V),
+          std::sqrt(std::max(1e-24, YawRateVariance(rate.covariance, calibration_.q_I_V)))};
 }
 
 // A wheel-row factor (any form) on the keyframe's q_W_I, v_W_I, b_g, b_a and the calibration's

@@ -50,13 +50,14 @@ void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias
 // T / (2 tau_s) samples' information, not T / dt_s. 1 for tau_s = 0 or dt_s <= 0.
 double NonHolonomicSigmaScale(double tau_s, double dt_s);
 
-// Eq. K13: the rows' sigmas with the body rate's remaining error (covariance P in I, Eq. K14)
-// added through the lever arm w x p_I_V: the speed rows get the diagonal of
-// R^T [p]x P [p]x^T R, the yaw-rate row (R^T P R)_zz, with R = R_I_V and p = p_I_V.
-factors::WheelFactorOptions WithBodyRateCovariance(factors::WheelFactorOptions rows,
-                                                   const Eigen::Matrix3d& rate_covariance,
-                                                   const Eigen::Quaterniond& q_I_V,
-                                                   const Eigen::Vector3d& p_I_V);
+// Eq. K13: the body rate's remaining error (covariance P in I, Eq. K14) in the wheel rows. The
+// speed rows see it through the lever arm w x p_I_V: their variances grow by the diagonal of
+// R^T [p]x P [p]x^T R (R = R_I_V, p = p_I_V); the yaw-rate row sees (R^T P R)_zz.
+factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptions rows,
+                                                       const Eigen::Matrix3d& rate_covariance,
+                                                       const Eigen::Quaterniond& q_I_V,
+                                                       const Eigen::Vector3d& p_I_V);
+double YawRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V);
 
 struct KeyframeWheelOptions {
   // Sigmas and rows of each factor. With factor.shared_radius the left radius block
