@@ -183,6 +183,11 @@ struct Arrival {
   size_t index;
 };
 
+// The LiDAR's sweep period: sensors.yaml's rate, else 10 Hz.
+double SweepPeriodS(const io::Dataset& dataset) {
+  return dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
+}
+
 // Every datum after the initial state at t0_ns in arrival order: a sweep arrives when its last
 // point is measured (its stamp plus the sweep period), IMU samples from the last one at or
 // before t0_ns on. A sweep's keyframe precedes its stamp by less than keyframe_lead_s plus the
@@ -212,7 +217,7 @@ std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bo
   for (size_t i = 0; use_gnss && i < dataset.gnss.size(); ++i) {
     if (dataset.gnss[i].t_ns > t0_ns) out.push_back({dataset.gnss[i].t_ns, Source::kGnss, i});
   }
-  const double sweep_period_s = dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz : 0.1;
+  const double sweep_period_s = SweepPeriodS(dataset);
   for (size_t i = 0; keyframe_period_ns == 0 && i < dataset.lidar_sweeps.size(); ++i) {
     const int64_t t = dataset.lidar_sweeps[i].t_ns;
     if (t + SecondsToNs(sweep_to_keyframe_s) <= t0_ns) continue;
@@ -469,12 +474,9 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   }
   result.initial = window_start.calibration;
   result.keyframe_period_s = NsToSeconds(keyframe_period_ns);
-  window_options.wheel_rows.planar_rotation_sigma_rad_s =
-      PlanarRotationSigma(dataset, problem, use_wheel,
-                          !use_lidar              ? result.keyframe_period_s
-                          : dataset.sensors.lidar ? 1.0 / dataset.sensors.lidar->rate_hz
-                                                  : 0.1,
-                          window_start.calibration.q_I_V, window_options.wheel_rows);
+  window_options.wheel_rows.planar_rotation_sigma_rad_s = PlanarRotationSigma(
+      dataset, problem, use_wheel, use_lidar ? SweepPeriodS(dataset) : result.keyframe_period_s,
+      window_start.calibration.q_I_V, window_options.wheel_rows);
   estimation::SlidingWindowEstimator estimator(window_options, window_start.calibration,
                                                window_start.keyframe);
 
