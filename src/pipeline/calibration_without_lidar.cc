@@ -12,6 +12,7 @@
 #include "calibration_steps.h"
 #include "clock_initialization.h"
 #include "problem_blocks.h"
+#include "residual_groups.h"
 
 namespace autocal {
 namespace pipeline {
@@ -93,6 +94,30 @@ ceres::Solver::Summary Solve(const io::Dataset& dataset, const io::Problem& prob
   return summary;
 }
 
+// The joint problem's factors on `keyframes` and `calibration`: IMU factors, the first
+// keyframe's bias priors (the GNSS-inertial start's), the dead-reckoning gauge without GNSS,
+// and the sensors' factors with the blocks' priors.
+void AddJointFactors(const io::Dataset& dataset, const SensorFactors& sensor_factors,
+                     std::vector<estimation::Keyframe>* keyframes,
+                     sensors::Calibration* calibration, ceres::Problem* p) {
+  for (estimation::Keyframe& kf : *keyframes) {
+    p->AddParameterBlock(kf.q_W_I.coeffs().data(), 4, sensor_factors.quaternion_manifold);
+  }
+  estimation::KeyframeImuOptions imu;
+  imu.noise = dataset.sensors.imu.noise;
+  imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
+  imu.num_threads = sensor_factors.problem->solver.num_threads;
+  estimation::AddImuFactors(p, dataset.imu, keyframes, imu);
+  const estimation::GnssInertialKeyframesOptions bias_priors;
+  estimation::AddBiasPriors(p, &keyframes->front(), bias_priors.gyro_bias_prior_sigma_rad_s,
+                            bias_priors.accel_bias_prior_sigma_m_s2);
+  if (!sensor_factors.use_gnss) {
+    estimation::AddDeadReckoningGauge(p, &keyframes->front(), kGaugePositionSigmaM,
+                                      kGaugeYawSigmaRad);
+  }
+  sensor_factors.Add(p, keyframes, calibration);
+}
+
 }  // namespace
 
 OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
@@ -150,23 +175,6 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                            &priors.nominal_calibration);
   result.prior_centre = priors.nominal_calibration;
   geometry::RightQuaternionManifold quaternion_manifold;
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem p(problem_options);
-  for (estimation::Keyframe& kf : keyframes) {
-    p.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
-  }
-  estimation::KeyframeImuOptions imu;
-  imu.noise = dataset.sensors.imu.noise;
-  imu.gravity_m_s2 = dataset.sensors.imu.gravity_m_s2;
-  imu.num_threads = problem.solver.num_threads;
-  estimation::AddImuFactors(&p, dataset.imu, &keyframes, imu);
-  estimation::AddBiasPriors(&p, &keyframes.front(), bias_priors.gyro_bias_prior_sigma_rad_s,
-                            bias_priors.accel_bias_prior_sigma_m_s2);
-  if (!use_gnss) {
-    estimation::AddDeadReckoningGauge(&p, &keyframes.front(), kGaugePositionSigmaM,
-                                      kGaugeYawSigmaRad);
-  }
   SensorFactors sensor_factors{&dataset,
                                &problem,
                                &result.nominal,
@@ -182,7 +190,10 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   estimation::PlanarRotationRows planar_rotation;
   sensor_factors.planar_rotation = &planar_rotation;
-  sensor_factors.Add(&p, &keyframes, &calibration);
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem p(problem_options);
+  AddJointFactors(dataset, sensor_factors, &keyframes, &calibration, &p);
   RecordPlanarRotation(planar_rotation, &result.calibration);
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(&p)) {
     result.whitened_residuals[sensor].before = std::move(rows);

@@ -26,6 +26,7 @@
 #include "keyframe_sweep_reader.h"
 #include "mount_angles.h"
 #include "problem_blocks.h"
+#include "residual_groups.h"
 
 namespace autocal {
 namespace pipeline {

@@ -15,6 +15,7 @@
 #include "autocal/io/dataset.h"
 #include "pipeline/calibration_steps.h"
 #include "pipeline/online_without_lidar.h"
+#include "pipeline/residual_groups.h"
 #include "pipeline/window_settings.h"
 
 namespace autocal {

@@ -1,0 +1,129 @@
+#include "residual_groups.h"
+
+#include <cmath>
+
+#include "autocal/factors/gnss_factor.h"
+#include "autocal/factors/imu_factor.h"
+#include "autocal/factors/planar_rotation_factor.h"
+#include "autocal/factors/wheel_factor.h"
+#include "common/order_statistics.h"
+#include "estimation/time_offset_factors.h"
+
+namespace autocal {
+namespace pipeline {
+
+namespace {
+
+// Whether `f` is a wheel factor of any form (Eqs. F22, F25, F26).
+bool IsWheelCost(const ceres::CostFunction* f) {
+  using SpeedCost = ceres::AutoDiffCostFunction<factors::WheelSpeedResidual, ceres::DYNAMIC, 4, 3,
+                                                3, 4, 3, 1, 1, 1>;
+  using TwistCost = ceres::AutoDiffCostFunction<factors::OdometryTwistResidual, ceres::DYNAMIC, 4,
+                                                3, 3, 4, 3, 1, 1>;
+  using ShiftedCost =
+      ceres::DynamicAutoDiffCostFunction<estimation::internal::ShiftedWheelResidual,
+                                         estimation::internal::ShiftedWheelResidual::kStride>;
+  return dynamic_cast<const factors::WheelFactor*>(f) || dynamic_cast<const SpeedCost*>(f) ||
+         dynamic_cast<const TwistCost*>(f) || dynamic_cast<const ShiftedCost*>(f);
+}
+
+bool IsGnssCost(const ceres::CostFunction* f) {
+  using ShiftedCost =
+      ceres::AutoDiffCostFunction<estimation::internal::ShiftedGnssResidual, 3, 4, 3, 3, 1>;
+  return dynamic_cast<const factors::GnssFactor*>(f) || dynamic_cast<const ShiftedCost*>(f);
+}
+
+// The residual blocks of the IMU, wheel and GNSS factors in `problem`, by sensor.
+std::map<std::string, std::vector<ceres::ResidualBlockId>> BlocksBySensor(ceres::Problem* problem) {
+  std::vector<ceres::ResidualBlockId> all;
+  problem->GetResidualBlocks(&all);
+  std::map<std::string, std::vector<ceres::ResidualBlockId>> ids;
+  for (ceres::ResidualBlockId id : all) {
+    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
+    if (dynamic_cast<const factors::ImuFactor*>(f)) ids["imu"].push_back(id);
+    if (IsWheelCost(f)) ids["wheel"].push_back(id);
+    if (IsGnssCost(f)) ids["gnss"].push_back(id);
+    if (dynamic_cast<const factors::PlanarRotationFactor*>(f)) {
+      ids["planar_rotation"].push_back(id);
+    }
+  }
+  return ids;
+}
+
+}  // namespace
+
+std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows, bool alike_rows) {
+  std::map<std::string, double> out;
+  if (rows.empty()) return out;
+  const double rows_n = static_cast<double>(rows.size());
+  double sum = 0.0;
+  for (double r : rows) sum += r * r;
+  out["rows"] = rows_n;
+  out["whitened_rms"] = std::sqrt(sum / rows_n);
+  if (!alike_rows) return out;
+  std::vector<double> magnitudes;
+  magnitudes.reserve(rows.size());
+  for (double r : rows) magnitudes.push_back(std::abs(r));
+  const double robust_sigma = 1.4826 * autocal::internal::Median(magnitudes);
+  double inlier_sum = 0.0;
+  size_t outliers = 0;
+  for (double r : rows) {
+    if (std::abs(r) > kOutlierRobustSigmas * robust_sigma) {
+      ++outliers;
+    } else {
+      inlier_sum += r * r;
+    }
+  }
+  out["whitened_robust_sigma"] = robust_sigma;
+  out["outlier_rows"] = static_cast<double>(outliers);
+  out["whitened_rms_without_outliers"] =
+      outliers < rows.size() ? std::sqrt(inlier_sum / (rows_n - static_cast<double>(outliers)))
+                             : 0.0;
+  return out;
+}
+
+void RecordResidualsAfterSolve(ceres::Problem* problem,
+                               std::map<std::string, SensorResiduals>* residuals) {
+  for (const auto& [sensor, blocks] : BlocksBySensor(problem)) {
+    SensorResiduals& r = (*residuals)[sensor];
+    r.after.clear();
+    r.factors = blocks.size();
+    r.factors_downweighted = 0;
+    double kept_sum = 0.0;
+    size_t kept_rows = 0;
+    for (ceres::ResidualBlockId id : blocks) {
+      const size_t first = r.after.size();
+      r.after.resize(first + static_cast<size_t>(
+                                 problem->GetCostFunctionForResidualBlock(id)->num_residuals()));
+      double cost = 0.0;
+      problem->EvaluateResidualBlock(id, false, &cost, r.after.data() + first, nullptr);
+      const ceres::LossFunction* loss = problem->GetLossFunctionForResidualBlock(id);
+      if (loss != nullptr) {
+        double rho[3];
+        loss->Evaluate(2.0 * cost, rho);  // s = |r|^2; Ceres' cost is s / 2
+        if (rho[1] < kDownweightedBelow) {
+          ++r.factors_downweighted;
+          continue;
+        }
+      }
+      for (size_t k = first; k < r.after.size(); ++k) kept_sum += r.after[k] * r.after[k];
+      kept_rows += r.after.size() - first;
+    }
+    r.rms_not_downweighted =
+        kept_rows > 0 ? std::sqrt(kept_sum / static_cast<double>(kept_rows)) : 0.0;
+  }
+}
+
+std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Problem* problem) {
+  std::map<std::string, std::vector<double>> out;
+  for (const auto& [sensor, blocks] : BlocksBySensor(problem)) {
+    ceres::Problem::EvaluateOptions evaluate;
+    evaluate.residual_blocks = blocks;
+    evaluate.apply_loss_function = false;
+    problem->Evaluate(evaluate, nullptr, &out[sensor], nullptr, nullptr);
+  }
+  return out;
+}
+
+}  // namespace pipeline
+}  // namespace autocal
