@@ -131,6 +131,19 @@ inline GradeProfile RandomGrades(std::mt19937_64* rng, double extent_m, double m
   return GradeProfile(std::move(transitions));
 }
 
+// Ground whose grade along x and along y are independent RandomGrades with one setting. The
+// profile along y is drawn first (the order the simulated datasets were generated with).
+inline std::shared_ptr<GroundSurface> RandomGround(std::mt19937_64* rng, double extent_m,
+                                                   double max_grade, double min_gap_m,
+                                                   double max_gap_m, double min_width_m,
+                                                   double max_width_m) {
+  GradeProfile along_y =
+      RandomGrades(rng, extent_m, max_grade, min_gap_m, max_gap_m, min_width_m, max_width_m);
+  GradeProfile along_x =
+      RandomGrades(rng, extent_m, max_grade, min_gap_m, max_gap_m, min_width_m, max_width_m);
+  return std::make_shared<GroundSurface>(std::move(along_x), std::move(along_y));
+}
+
 // Path samples in a coarse grid, to keep placed objects off the road.
 class Corridor {
  public:

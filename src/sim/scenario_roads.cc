@@ -95,9 +95,7 @@ Scenario BuildUrban(const ScenarioOptions& options, std::mt19937_64* rng) {
   drive.Cruise(50.0);
 
   const double extent = drive.distance_m() + 400.0;
-  auto ground =
-      std::make_shared<GroundSurface>(RandomGrades(rng, extent, 0.04, 60.0, 160.0, 40.0, 70.0),
-                                      RandomGrades(rng, extent, 0.04, 60.0, 160.0, 40.0, 70.0));
+  auto ground = RandomGround(rng, extent, 0.04, 60.0, 160.0, 40.0, 70.0);
   auto trajectory =
       std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
   auto world = std::make_shared<World>(ground);
@@ -177,9 +175,7 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
   drive.Cruise(200.0);
 
   const double extent = drive.distance_m() + 600.0;
-  auto ground =
-      std::make_shared<GroundSurface>(RandomGrades(rng, extent, 0.03, 200.0, 500.0, 150.0, 250.0),
-                                      RandomGrades(rng, extent, 0.03, 200.0, 500.0, 150.0, 250.0));
+  auto ground = RandomGround(rng, extent, 0.03, 200.0, 500.0, 150.0, 250.0);
   auto trajectory =
       std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
   auto world = std::make_shared<World>(ground);
@@ -262,9 +258,7 @@ Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
   drive.Cruise(100.0);
 
   const double extent = drive.distance_m() + 400.0;
-  auto ground =
-      std::make_shared<GroundSurface>(RandomGrades(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0),
-                                      RandomGrades(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0));
+  auto ground = RandomGround(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0);
   auto trajectory =
       std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
   auto world = std::make_shared<World>(ground);

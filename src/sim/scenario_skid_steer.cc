@@ -77,9 +77,7 @@ Scenario BuildSkidSteer(const ScenarioOptions& options, std::mt19937_64* rng) {
   while (drive.time_s() < options.duration_s + 5.0) SkidSteerLap(&drive, rng);
 
   const double extent = 300.0;
-  auto ground =
-      std::make_shared<GroundSurface>(RandomGrades(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0),
-                                      RandomGrades(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0));
+  auto ground = RandomGround(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0);
   auto trajectory = std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground,
                                                         options.dynamics, drive.pivots());
   auto world = std::make_shared<World>(ground);
