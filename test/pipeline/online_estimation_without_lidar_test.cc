@@ -13,9 +13,8 @@
 #include <string>
 
 #include "autocal/common/error.h"
-#include "autocal/common/units.h"
+#include "autocal/evaluation/calibration_errors.h"
 #include "autocal/evaluation/trajectory_errors.h"
-#include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/io/tum_trajectory.h"
@@ -109,7 +108,7 @@ void ExpectWithinSigmas(const OnlineEstimationResult& result, const io::Dataset&
   // with the prior's sigma (Eq. C1-C2), as the offline calibration holds it.
   ASSERT_TRUE(u.T_I_V.sigma_rot_deg.has_value());
   const Eigen::Vector3d rotation_error_deg =
-      geometry::Log(truth.q_I_V.conjugate() * estimate.q_I_V) * kRadToDeg;
+      evaluation::CompareCalibration(estimate, truth).T_I_V.rotation_deg;
   EXPECT_DOUBLE_EQ((*u.T_I_V.sigma_rot_deg)(0), 1.5);
   EXPECT_THAT(
       result.warnings,
@@ -258,9 +257,8 @@ TEST(OnlineEstimationWithoutLidar, SlowSkidSteerStartsFromItsOdometryAndStatesIt
   const io::PoseBlockInfo& u = result.calibration.uncertainty.T_I_V;
   ASSERT_TRUE(u.sigma_rot_deg.has_value());
   const Eigen::Vector3d error_deg =
-      geometry::Log(Eigen::Quaterniond(data.simulator.true_calibration().q_I_V.conjugate() *
-                                       result.calibration.value.q_I_V)) *
-      kRadToDeg;
+      evaluation::CompareCalibration(result.calibration.value, data.simulator.true_calibration())
+          .T_I_V.rotation_deg;
   std::cout << "ATE " << ate.ate_translation_rmse_m << " m / " << ate.ate_rotation_rmse_deg
             << " deg; mount error " << error_deg.transpose() << " deg, sigma "
             << u.sigma_rot_deg->transpose() << " deg\n";
@@ -295,8 +293,7 @@ TEST(OnlineEstimationWithoutLidar, NoisyGyroDoesNotPassForExcitationOfTheRearAxl
   ASSERT_EQ(u.observable.size(), 6u);
   const Eigen::Vector3d p_error_m = result.calibration.value.p_I_V - truth.p_I_V;
   const Eigen::Vector3d rot_error_deg =
-      geometry::Log(Eigen::Quaterniond(truth.q_I_V.conjugate() * result.calibration.value.q_I_V)) *
-      kRadToDeg;
+      evaluation::CompareCalibration(result.calibration.value, truth).T_I_V.rotation_deg;
   std::cout << "rear axle error " << p_error_m.transpose() << " m, sigma "
             << u.sigma_p_m->transpose() << " m; mount error " << rot_error_deg.transpose()
             << " deg, sigma " << u.sigma_rot_deg->transpose() << " deg\n";

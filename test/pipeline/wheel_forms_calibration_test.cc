@@ -13,8 +13,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
-#include "autocal/common/units.h"
-#include "autocal/geometry/so3.h"
+#include "autocal/evaluation/calibration_errors.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
@@ -135,7 +134,7 @@ TEST(WheelFormsCalibration, NoisyGyroDoesNotPassForExcitationOfTheRearAxle) {
   ASSERT_EQ(u.observable.size(), 6u);
   const Eigen::Vector3d p_error_m = estimate.p_I_V - truth.p_I_V;
   const Eigen::Vector3d rot_error_deg =
-      geometry::Log(Eigen::Quaterniond(truth.q_I_V.conjugate() * estimate.q_I_V)) * kRadToDeg;
+      evaluation::CompareCalibration(estimate, truth).T_I_V.rotation_deg;
   for (int i = 0; i < 3; ++i) {
     std::cout << "axis " << i << ": p error " << p_error_m[i] << " m, sigma " << (*u.sigma_p_m)[i]
               << " m; rotation error " << rot_error_deg[i] << " deg, sigma "
@@ -168,9 +167,7 @@ TEST(WheelFormsCalibration, TurnsGiveTheRigidRobotsMountTilt) {
     ASSERT_TRUE(u.sigma_rot_deg.has_value());
     ASSERT_EQ(u.observable.size(), 6u);
     const Eigen::Vector3d error_deg =
-        geometry::Log(
-            Eigen::Quaterniond(truth.q_I_V.conjugate() * result.calibration.value.q_I_V)) *
-        kRadToDeg;
+        evaluation::CompareCalibration(result.calibration.value, truth).T_I_V.rotation_deg;
     const bool rows = problem == &with_rows;
     (rows ? sigma_with_deg : sigma_without_deg) = u.sigma_rot_deg->head<2>();
     // The rows are reported as a residual group of their own, with the sigmas they used.
