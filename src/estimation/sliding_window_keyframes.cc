@@ -68,9 +68,9 @@ void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
   kf->sweep = std::move(sweep);
 }
 
-// 1-sigma of one gyro sample: the noise density times the square root of the IMU rate.
+// 1-sigma of one gyro sample at the stated IMU rate.
 double SlidingWindowEstimator::Impl::GyroSampleSigma() const {
-  return options_.imu.noise.gyroscope_noise_density * std::sqrt(options_.imu.noise.update_rate_hz);
+  return options_.imu.noise.GyroSampleSigmaRadS(options_.imu.noise.update_rate_hz);
 }
 
 // 1-sigma of the mean of gyro.samples samples (at least one).

@@ -254,7 +254,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     wheel.estimate_time_offset = Estimated(b.time_offset_wheel_imu_s.mode);
     wheel.gyro_mean_span_s = kWheelGyroMeanSpanS;
     wheel.gyro_sample_sigma_rad_s =
-        dataset->sensors.imu.noise.gyroscope_noise_density * std::sqrt(timing->imu.rate_hz());
+        dataset->sensors.imu.noise.GyroSampleSigmaRadS(timing->imu.rate_hz());
     const int n = estimation::AddWheelFactors(p, dataset->imu, FormData(*dataset, *nominal),
                                               keyframes, c, wheel);
     const char* file = sensors::WheelFormFile(dataset->wheel_form());

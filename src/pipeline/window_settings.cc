@@ -129,7 +129,7 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   if (use_wheel && dataset.sensors.wheel && dataset.sensors.wheel->rate_hz > 0.0) {
     w.wheel_rows.body_rate_prior = sensors::BodyRatePrior::FitToLog(
         dataset.imu, 1.0 / dataset.sensors.wheel->rate_hz, w.wheel_rows.gyro_mean_span_s,
-        w.imu.noise.gyroscope_noise_density * std::sqrt(w.imu.noise.update_rate_hz));
+        w.imu.noise.GyroSampleSigmaRadS(w.imu.noise.update_rate_hz));
   }
 
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's

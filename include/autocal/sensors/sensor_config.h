@@ -2,6 +2,7 @@
 
 // Sensor descriptions that sensors.yaml carries besides the calibration.
 
+#include <cmath>
 #include <optional>
 #include <string>
 
@@ -16,6 +17,11 @@ struct ImuNoise {
   double accelerometer_noise_density = 2.0000e-3;  // m/s^2/sqrt(Hz)
   double accelerometer_random_walk = 3.0000e-3;    // m/s^3/sqrt(Hz)
   double update_rate_hz = 200.0;                   // Hz
+
+  // 1-sigma of one gyro sample's white noise (rad/s) when sampled at sample_rate_hz.
+  double GyroSampleSigmaRadS(double sample_rate_hz) const {
+    return gyroscope_noise_density * std::sqrt(sample_rate_hz);
+  }
 };
 
 struct ImuConfig {
