@@ -7,6 +7,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "sensors/padded_block.h"
 
 namespace autocal {
 namespace sensors {
@@ -69,86 +70,13 @@ Eigen::Quaterniond StepExp(const Eigen::Vector3d& phi) {
   return Eigen::Quaterniond(w, k * phi.x(), k * phi.y(), k * phi.z());
 }
 
-using Block = Eigen::Matrix<double, 4, 3>;
-
-// Blocks are written a whole column (4-vector) at a time: a column assembled from separate
-// scalar stores and read back as packets would stall store-to-load forwarding.
-
-// Column j of *out = (x, y, z, 0), as two packets built in registers.
-EIGEN_ALWAYS_INLINE void SetColumn(int j, double x, double y, double z, Block* out) {
-#ifdef EIGEN_VECTORIZE_SSE2
-  double* o = out->data() + 4 * j;
-  _mm_storeu_pd(o, _mm_set_pd(y, x));
-  _mm_storeu_pd(o + 2, _mm_set_sd(z));
-#else
-  out->col(j) = Eigen::Vector4d(x, y, z, 0.0);
-#endif
-}
-
-// The 3x3 matrix m as a Block (zero last row).
-inline Block Padded(const Eigen::Matrix3d& m) {
-  Block out;
-  for (int j = 0; j < 3; ++j) SetColumn(j, m(0, j), m(1, j), m(2, j), &out);
-  return out;
-}
-
-// X^T.
-EIGEN_ALWAYS_INLINE Block Transposed(const Block& X) {
-  Block out;
-#ifdef EIGEN_VECTORIZE_SSE2
-  // Register shuffles of the packets (x0j, x1j) and (x2j, 0) of the columns.
-  const double* x = X.data();
-  const __m128d top0 = _mm_loadu_pd(x), top1 = _mm_loadu_pd(x + 4), top2 = _mm_loadu_pd(x + 8);
-  const __m128d low0 = _mm_loadu_pd(x + 2), low1 = _mm_loadu_pd(x + 6);
-  const __m128d zero = _mm_setzero_pd();
-  double* o = out.data();
-  _mm_storeu_pd(o, _mm_unpacklo_pd(top0, top1));      // (x00, x01)
-  _mm_storeu_pd(o + 2, _mm_unpacklo_pd(top2, zero));  // (x02, 0)
-  _mm_storeu_pd(o + 4, _mm_unpackhi_pd(top0, top1));  // (x10, x11)
-  _mm_storeu_pd(o + 6, _mm_unpackhi_pd(top2, zero));  // (x12, 0)
-  _mm_storeu_pd(o + 8, _mm_unpacklo_pd(low0, low1));  // (x20, x21)
-  _mm_storeu_pd(o + 10, _mm_loadu_pd(x + 10));        // (x22, 0)
-#else
-  for (int j = 0; j < 3; ++j) SetColumn(j, X(j, 0), X(j, 1), X(j, 2), &out);
-#endif
-  return out;
-}
-
-// X Y^T as column combinations of X: column j is sum_k X_k Y(j, k).
-EIGEN_ALWAYS_INLINE Block TimesTransposed(const Block& X, const Block& Y) {
-  Block out;
-  out.col(0) = X.col(0) * Y(0, 0) + X.col(1) * Y(0, 1) + X.col(2) * Y(0, 2);
-  out.col(1) = X.col(0) * Y(1, 0) + X.col(1) * Y(1, 1) + X.col(2) * Y(1, 2);
-  out.col(2) = X.col(0) * Y(2, 0) + X.col(1) * Y(2, 1) + X.col(2) * Y(2, 2);
-  return out;
-}
-
-// X Hat(a), column by column: row r of the product is (r x a)^T. A third fewer operations
-// than the dense product with the skew matrix.
-EIGEN_ALWAYS_INLINE Block TimesHat(const Block& X, const Eigen::Vector3d& a) {
-  Block out;
-  out.col(0) = a.z() * X.col(1) - a.y() * X.col(2);
-  out.col(1) = a.x() * X.col(2) - a.z() * X.col(0);
-  out.col(2) = a.y() * X.col(0) - a.x() * X.col(1);
-  return out;
-}
-
-// -Hat(a) X: column j is x_j x a, as a Block (Rows = 4) or a plain 3x3 matrix (Rows = 3).
-// It mixes rows, so it does not vectorize; the propagation uses it only where no
-// transposed form is at hand.
-template <int Rows>
-inline Eigen::Matrix<double, Rows, 3> MinusHatTimes(const Eigen::Vector3d& a, const Block& X) {
-  Eigen::Matrix<double, Rows, 3> out;
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::Vector3d c = X.col(j).head<3>().cross(a);
-    if constexpr (Rows == 4) {
-      SetColumn(j, c.x(), c.y(), c.z(), &out);
-    } else {
-      out.col(j) = c;
-    }
-  }
-  return out;
-}
+using Block = internal::PaddedBlock;
+using internal::MinusHatTimes;
+using internal::Padded;
+using internal::SetColumn;
+using internal::TimesHat;
+using internal::TimesTransposed;
+using internal::Transposed;
 
 // P <- E P E^T for E: p += h v on the blocks D (9x9, symmetric) and B (9x6) of the
 // covariance, by columns (contiguous): the p columns, then the p-p block takes the row
