@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -12,12 +11,13 @@
 #include <vector>
 
 #include "autocal/common/format.h"
-#include "autocal/common/units.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "html_page.h"
 #include "mount_angles.h"
+#include "problem_blocks.h"
 #include "svg_chart.h"
 
 namespace autocal {
@@ -73,86 +73,49 @@ std::vector<std::string> SensorsWithResiduals(const std::map<std::string, Sensor
   return keys;
 }
 
-// One calibration block's convergence: the change of each component from the first outer
-// iteration, in display units (Eq. R3).
-struct BlockTrace {
-  std::string title;
-  std::string unit;
-  std::vector<std::string> components;
-  bool has_sigma = false;  // the result carries its uncertainty: it was estimated
-  std::function<std::vector<double>(const sensors::Calibration& first,
-                                    const sensors::Calibration& c)>
-      change;
-};
+// The change of block `info` from the first outer iteration to `c`, in display units (Eq.
+// R3): Log(q_1^-1 q_k) for a rotation (about the block's own axes, the right perturbation),
+// the difference otherwise.
+std::vector<double> ChangeFromFirst(const sensors::CalibrationBlockInfo& info,
+                                    const sensors::Calibration& first,
+                                    const sensors::Calibration& c) {
+  const double* v1 = info.const_values(first);
+  const double* vk = info.const_values(c);
+  Eigen::VectorXd change(info.tangent_size);
+  if (info.manifold == sensors::BlockManifold::kRightQuaternion) {
+    const Eigen::Quaterniond q1(v1[3], v1[0], v1[1], v1[2]), qk(vk[3], vk[0], vk[1], vk[2]);
+    change = geometry::Log(Eigen::Quaterniond(q1.conjugate() * qk));
+  } else {
+    for (int i = 0; i < info.tangent_size; ++i) change(i) = vk[i] - v1[i];
+  }
+  change *= info.display_scale;
+  return std::vector<double>(change.data(), change.data() + change.size());
+}
 
-std::vector<double> Components(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
-
-std::vector<BlockTrace> CalibrationBlockTraces(const io::CalibrationUncertainty& u) {
-  using C = sensors::Calibration;
-  const std::vector<std::string> xyz = {"x", "y", "z"};
-  // Rotation change about the block's own axes (right perturbation): Log(q_1^-1 q_k).
-  const auto rotation_deg = [](const Eigen::Quaterniond& first, const Eigen::Quaterniond& q) {
-    return Components(geometry::Log(Eigen::Quaterniond(first.conjugate() * q)) * kRadToDeg);
-  };
-  return {
-      {"LiDAR–IMU rotation T_I_L", "deg", xyz, u.T_I_L.sigma_rot_deg.has_value(),
-       [=](const C& first, const C& c) { return rotation_deg(first.q_I_L, c.q_I_L); }},
-      {"LiDAR–IMU translation T_I_L", "cm", xyz, u.T_I_L.sigma_p_m.has_value(),
-       [](const C& first, const C& c) { return Components((c.p_I_L - first.p_I_L) * 100.0); }},
-      {"time offset LiDAR→IMU",
-       "ms",
-       {"offset"},
-       u.time_offset_lidar_imu_s.sigma.has_value(),
-       [](const C& first, const C& c) {
-         return std::vector<double>{(c.time_offset_lidar_imu_s - first.time_offset_lidar_imu_s) *
-                                    1e3};
-       }},
-      {"wheel radii, relative",
-       "%",
-       {"left", "right"},
-       u.wheel_radius_left_m.sigma.has_value() || u.wheel_radius_right_m.sigma.has_value(),
-       [](const C& first, const C& c) {
-         return std::vector<double>{
-             100.0 * (c.wheel_radius_left_m / first.wheel_radius_left_m - 1.0),
-             100.0 * (c.wheel_radius_right_m / first.wheel_radius_right_m - 1.0)};
-       }},
-      {"track width",
-       "mm",
-       {"track width"},
-       u.track_width_m.sigma.has_value(),
-       [](const C& first, const C& c) {
-         return std::vector<double>{(c.track_width_m - first.track_width_m) * 1e3};
-       }},
-      {"wheel speed scales",
-       "%",
-       {"left", "right"},
-       u.wheel_speed_scale_left.sigma.has_value() || u.wheel_speed_scale_right.sigma.has_value(),
-       [](const C& first, const C& c) {
-         return std::vector<double>{
-             100.0 * (c.wheel_speed_scale_left - first.wheel_speed_scale_left),
-             100.0 * (c.wheel_speed_scale_right - first.wheel_speed_scale_right)};
-       }},
-      {"odometry speed scale",
-       "%",
-       {"k_v"},
-       u.odometry_speed_scale.sigma.has_value(),
-       [](const C& first, const C& c) {
-         return std::vector<double>{100.0 * (c.odometry_speed_scale - first.odometry_speed_scale)};
-       }},
-      {"effective track",
-       "mm",
-       {"b_eff"},
-       u.effective_track_m.sigma.has_value(),
-       [](const C& first, const C& c) {
-         return std::vector<double>{(c.effective_track_m - first.effective_track_m) * 1e3};
-       }},
-      {"vehicle–IMU rotation T_I_V", "deg", xyz, u.T_I_V.sigma_rot_deg.has_value(),
-       [=](const C& first, const C& c) { return rotation_deg(first.q_I_V, c.q_I_V); }},
-      {"vehicle–IMU translation T_I_V", "cm", xyz, u.T_I_V.sigma_p_m.has_value(),
-       [](const C& first, const C& c) { return Components((c.p_I_V - first.p_I_V) * 100.0); }},
-      {"GNSS lever arm p_I_A", "cm", xyz, u.p_I_A_m.sigma.has_value(),
-       [](const C& first, const C& c) { return Components((c.p_I_A - first.p_I_A) * 100.0); }},
-  };
+// One chart of `info`'s change over the outer iterations, or "" when the block neither moved
+// nor carries a sigma (it was held).
+std::string BlockChart(const sensors::CalibrationBlockInfo& info,
+                       const std::vector<sensors::Calibration>& history, bool has_sigma) {
+  const char* colors[3] = {"#c33", "#3a3", "#36c"};
+  std::vector<Series> series;
+  for (int j = 0; j < info.tangent_size; ++j) {
+    Series s{info.direction_names[static_cast<size_t>(j)], colors[j % 3], {}, {}};
+    s.markers = true;
+    series.push_back(s);
+  }
+  bool changed = false;
+  for (size_t i = 0; i < history.size(); ++i) {
+    const std::vector<double> change = ChangeFromFirst(info, history.front(), history[i]);
+    for (size_t j = 0; j < change.size(); ++j) {
+      series[j].x.push_back(static_cast<double>(i + 1));
+      series[j].y.push_back(change[j]);
+      changed = changed || std::abs(change[j]) > kUnchangedTolerance;
+    }
+  }
+  if (!changed && !has_sigma) return "";
+  const std::string unit = info.display_unit;
+  return LineChart(std::string(info.name) + " (" + unit + ")", "outer iteration",
+                   "change (" + unit + ")", series);
 }
 
 // The convergence section: one chart per estimated block, or a sentence saying why none.
@@ -168,27 +131,12 @@ std::string ConvergenceSection(const OfflineCalibrationResult& result) {
     return html.str();
   }
   html << "<p>Change of each estimated block from the first outer iteration.</p>\n";
-  const char* colors[3] = {"#c33", "#3a3", "#36c"};
   int charts = 0;
-  for (const BlockTrace& block : CalibrationBlockTraces(result.calibration.uncertainty)) {
-    std::vector<Series> series;
-    for (size_t j = 0; j < block.components.size(); ++j) {
-      Series s{block.components[j], colors[j % 3], {}, {}};
-      s.markers = true;
-      series.push_back(s);
-    }
-    bool changed = false;
-    for (size_t i = 0; i < history.size(); ++i) {
-      const std::vector<double> change = block.change(history.front(), history[i]);
-      for (size_t j = 0; j < change.size(); ++j) {
-        series[j].x.push_back(static_cast<double>(i + 1));
-        series[j].y.push_back(change[j]);
-        changed = changed || std::abs(change[j]) > kUnchangedTolerance;
-      }
-    }
-    if (!changed && !block.has_sigma) continue;
-    const std::string chart = LineChart(block.title + " (" + block.unit + ")", "outer iteration",
-                                        "change (" + block.unit + ")", series);
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    const bool has_sigma =
+        SettingOf(info.id, io::ProblemCalibration{}, result.calibration.uncertainty)
+            .nominal_sigma.has_value();
+    const std::string chart = BlockChart(info, history, has_sigma);
     html << chart;
     if (!chart.empty()) ++charts;
   }
