@@ -476,17 +476,21 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
   ceres::LossFunction* loss = unused_loss.get();
   int added = 0;
   for (Keyframe& kf : *keyframes) {
-    if (!shifted) {
-      factors::GnssMeasurement m;
-      if (!InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
-      problem->AddResidualBlock(factors::GnssFactor::Create(m), loss, kf.q_W_I.coeffs().data(),
-                                kf.p_W_I.data(), calibration->p_I_A.data());
-    } else {
-      // The gap rule of Eq. K9: the fixes around t_k - offset within the maximum gap.
-      if (!series || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_fix_gap_s)) continue;
-      problem->AddResidualBlock(internal::ShiftedGnssResidual::Create(series, kf.t_ns), loss,
-                                kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
-                                calibration->p_I_A.data(), offset);
+    factors::GnssMeasurement m;
+    if (!shifted && !InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
+    // The gap rule of Eq. K9: the fixes around t_k - offset within the maximum gap.
+    if (shifted && !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_fix_gap_s)) continue;
+    for (const factors::GnssAxes axes :
+         {factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
+      if (!shifted) {
+        problem->AddResidualBlock(factors::GnssFactor::Create(m, axes), loss,
+                                  kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
+                                  calibration->p_I_A.data());
+      } else {
+        problem->AddResidualBlock(internal::ShiftedGnssResidual::Create(series, kf.t_ns, axes),
+                                  loss, kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
+                                  calibration->p_I_A.data(), offset);
+      }
     }
     unused_loss.release();
     ++added;

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/sensor_config.h"
@@ -26,16 +27,18 @@ namespace internal {
 // The antenna position in ENU and its per-axis sigma, one row of the series per fix.
 using GnssSeries = TimeShiftedSeries<6>;
 
-// Eq. F30 with p_W_A and sigma read at t_k - offset_gnss. Parameter blocks: q_W_I (4,
-// RightQuaternionManifold), p_W_I (3), p_I_A (3), time_offset_gnss_imu_s (1).
+// Eq. F30 with p_W_A and sigma read at t_k - offset_gnss, the rows of `axes`. Parameter
+// blocks: q_W_I (4, RightQuaternionManifold), p_W_I (3), p_I_A (3), time_offset_gnss_imu_s (1).
 class ShiftedGnssResidual {
  public:
-  ShiftedGnssResidual(std::shared_ptr<const GnssSeries> series, int64_t t_ns)
-      : series_(std::move(series)), t_ns_(t_ns) {}
+  ShiftedGnssResidual(std::shared_ptr<const GnssSeries> series, int64_t t_ns,
+                      factors::GnssAxes axes = factors::GnssAxes::kAll)
+      : series_(std::move(series)), t_ns_(t_ns), axes_(axes) {}
 
-  static ceres::CostFunction* Create(std::shared_ptr<const GnssSeries> series, int64_t t_ns) {
-    return new ceres::AutoDiffCostFunction<ShiftedGnssResidual, 3, 4, 3, 3, 1>(
-        new ShiftedGnssResidual(std::move(series), t_ns));
+  static ceres::CostFunction* Create(std::shared_ptr<const GnssSeries> series, int64_t t_ns,
+                                     factors::GnssAxes axes = factors::GnssAxes::kAll) {
+    return new ceres::AutoDiffCostFunction<ShiftedGnssResidual, ceres::DYNAMIC, 4, 3, 3, 1>(
+        new ShiftedGnssResidual(std::move(series), t_ns, axes), factors::NumRows(axes));
   }
 
   template <typename T>
@@ -47,13 +50,17 @@ class ShiftedGnssResidual {
     const Eigen::Matrix<T, 6, 1> fix = series_->At(t_ns_, offset_s[0]);
     const Vec3 e = p_W_I + q_W_I * p_I_A - fix.template head<3>();
     // The sigma weights the row; its slope in the offset is not information about it.
-    for (int k = 0; k < 3; ++k) residual[k] = e(k) / T(ScalarPart(fix(3 + k)));
+    const int first = factors::FirstRow(axes_);
+    for (int k = 0; k < factors::NumRows(axes_); ++k) {
+      residual[k] = e(first + k) / T(ScalarPart(fix(3 + first + k)));
+    }
     return true;
   }
 
  private:
   std::shared_ptr<const GnssSeries> series_;
   int64_t t_ns_;
+  factors::GnssAxes axes_;
 };
 
 // The wheel data of any form as two values per sample: left and right angular rates (rad/s),

@@ -28,8 +28,8 @@ bool IsWheelCost(const ceres::CostFunction* f) {
 }
 
 bool IsGnssCost(const ceres::CostFunction* f) {
-  using ShiftedCost =
-      ceres::AutoDiffCostFunction<estimation::internal::ShiftedGnssResidual, 3, 4, 3, 3, 1>;
+  using ShiftedCost = ceres::AutoDiffCostFunction<estimation::internal::ShiftedGnssResidual,
+                                                  ceres::DYNAMIC, 4, 3, 3, 1>;
   return dynamic_cast<const factors::GnssFactor*>(f) || dynamic_cast<const ShiftedCost*>(f);
 }
 

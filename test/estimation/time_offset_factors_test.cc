@@ -84,10 +84,14 @@ TEST(ShiftedGnssResidual, JacobiansPassGradientChecker) {
     // piecewise linear in the offset; the checker's steps stay within 0.005 s).
     const int64_t t_ns = kStartNs + int64_t{2'200'000'000} + int64_t{400'000'000} * trial;
     double offset_s = 0.4 + 0.03 * u(rng);
-    std::unique_ptr<ceres::CostFunction> cost(ShiftedGnssResidual::Create(series, t_ns));
     const std::vector<double*> blocks = {q.coeffs().data(), p.data(), p_I_A.data(), &offset_s};
-    test::ExpectGradientCheckPasses(*cost, manifolds, blocks, 1e-6,
-                                    "trial " + std::to_string(trial));
+    for (const factors::GnssAxes axes :
+         {factors::GnssAxes::kAll, factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
+      std::unique_ptr<ceres::CostFunction> cost(ShiftedGnssResidual::Create(series, t_ns, axes));
+      EXPECT_EQ(cost->num_residuals(), factors::NumRows(axes));
+      test::ExpectGradientCheckPasses(*cost, manifolds, blocks, 1e-6,
+                                      "trial " + std::to_string(trial));
+    }
   }
 }
 

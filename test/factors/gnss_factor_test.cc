@@ -56,13 +56,60 @@ TEST(GnssFactor, JacobiansPassGradientCheckerAndMatchAutodiff) {
     GnssMeasurement m;
     m.p_W_A = Eigen::Vector3d(u(rng), u(rng), u(rng)) * 100.0;
     m.sigma_enu_m = Eigen::Vector3d(1.0 + 0.5 * u(rng), 1.0 + 0.5 * u(rng), 2.0 + u(rng)) * 0.1;
-    const GnssFactor analytic(m);
-    std::unique_ptr<ceres::CostFunction> autodiff(GnssResidual::CreateAutoDiff(m));
     const std::vector<double*> blocks = {q.coeffs().data(), p.data(), p_I_A.data()};
-    const std::string context = "trial " + std::to_string(trial);
-    test::ExpectGradientCheckPasses(analytic, Manifolds(&quaternion), blocks, 1e-6, context);
-    test::ExpectSameJacobians(analytic, *autodiff, Manifolds(&quaternion), blocks, 1e-9, context);
+    for (const GnssAxes axes : {GnssAxes::kAll, GnssAxes::kHorizontal, GnssAxes::kVertical}) {
+      const GnssFactor analytic(m, axes);
+      std::unique_ptr<ceres::CostFunction> autodiff(GnssResidual::CreateAutoDiff(m, axes));
+      const std::string context =
+          "trial " + std::to_string(trial) + ", rows " + std::to_string(NumRows(axes));
+      test::ExpectGradientCheckPasses(analytic, Manifolds(&quaternion), blocks, 1e-6, context);
+      test::ExpectSameJacobians(analytic, *autodiff, Manifolds(&quaternion), blocks, 1e-9, context);
+    }
   }
+}
+
+// The horizontal and vertical factors carry the all-rows factor's rows: east and north, up.
+TEST(GnssFactor, AxesSelectTheRowsOfTheWholeFactor) {
+  Eigen::Quaterniond q = Eigen::Quaterniond::UnitRandom();
+  Eigen::Vector3d p(3.0, -4.0, 5.0), p_I_A(0.2, -0.1, 1.4);
+  GnssMeasurement m;
+  m.p_W_A = Eigen::Vector3d(2.5, -3.0, 7.0);
+  m.sigma_enu_m = Eigen::Vector3d(0.5, 0.7, 1.5);
+  const std::vector<double*> blocks = {q.coeffs().data(), p.data(), p_I_A.data()};
+  Eigen::Vector3d all, horizontal;
+  double vertical = 0.0;
+  ASSERT_TRUE(GnssFactor(m).Evaluate(blocks.data(), all.data(), nullptr));
+  const GnssFactor h(m, GnssAxes::kHorizontal), v(m, GnssAxes::kVertical);
+  EXPECT_EQ(h.num_residuals(), 2);
+  EXPECT_EQ(v.num_residuals(), 1);
+  ASSERT_TRUE(h.Evaluate(blocks.data(), horizontal.data(), nullptr));
+  ASSERT_TRUE(v.Evaluate(blocks.data(), &vertical, nullptr));
+  EXPECT_EQ(horizontal.head<2>(), all.head<2>());
+  EXPECT_EQ(vertical, all.z());
+}
+
+// A fix whose altitude is far off: with its rows split, the robust loss down-weights only the
+// vertical block and keeps the horizontal position at full weight.
+TEST(GnssFactor, AnAltitudeOutlierLeavesTheHorizontalRowsTheirWeight) {
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d p = Eigen::Vector3d::Zero(), p_I_A = Eigen::Vector3d::Zero();
+  GnssMeasurement m;
+  m.p_W_A = Eigen::Vector3d(0.5, -0.5, 20.0);  // 0.5 sigma east and north, 10 sigma up
+  m.sigma_enu_m = Eigen::Vector3d(1.0, 1.0, 2.0);
+  ceres::CauchyLoss cauchy(3.0);
+  const auto weight = [&](GnssAxes axes) {
+    const GnssFactor factor(m, axes);
+    const std::vector<double*> blocks = {q.coeffs().data(), p.data(), p_I_A.data()};
+    double r[3] = {0.0, 0.0, 0.0};
+    EXPECT_TRUE(factor.Evaluate(blocks.data(), r, nullptr));
+    const double squared_norm = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    double rho[3];
+    cauchy.Evaluate(squared_norm, rho);
+    return rho[1];  // the IRLS weight of the block's rows
+  };
+  EXPECT_GT(weight(GnssAxes::kHorizontal), 0.9);  // 1 / (1 + 0.5 / 9) for its 0.7 sigma
+  EXPECT_LT(weight(GnssAxes::kVertical), 0.1);
+  EXPECT_LT(weight(GnssAxes::kAll), 0.1);  // one block: the horizontal rows lose it too
 }
 
 // The lever arm is observable once the vehicle rotates: recovered from noisy fixes along a

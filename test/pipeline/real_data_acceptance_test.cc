@@ -112,8 +112,10 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
   EXPECT_LT(rms_m, 1.5);
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr("IMU accelerometer: its samples scatter")));
-  // The mount: roll and pitch from the turns; the yaw, which this slow drive determines only
-  // partly once the IMU's vibration is counted, within three of its sigmas.
+  // The mount within 2 deg of the launch file's as a whole: roll and pitch from the turns; the
+  // yaw, which this slow drive determines only partly once the IMU's vibration is counted,
+  // within three of its sigmas.
+  EXPECT_LT(mount_error_deg, 2.0);
   const io::PoseBlockInfo& mount = result.calibration.uncertainty.T_I_V;
   ASSERT_TRUE(mount.sigma_rot_deg.has_value());
   ASSERT_EQ(mount.observable.size(), 6u);

@@ -140,10 +140,11 @@ struct KeyframeGnssOptions {
 bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
                      int64_t t_ns, double max_fix_gap_s, factors::GnssMeasurement* measurement);
 
-// Adds one GnssFactor (Eq. F30) per keyframe with an interpolated fix, on its q_W_I, p_W_I and
-// the calibration's p_I_A, reading a GNSS clock offset as the wheels' (Eq. K9). Returns the
-// number added (ownership as AddWheelFactors). Throws autocal::Error as InterpolateGnss, or
-// for a keyframe q_W_I missing from the problem or without a manifold.
+// Adds a GnssFactor (Eq. F30) per keyframe with an interpolated fix, on its q_W_I, p_W_I and
+// the calibration's p_I_A, reading a GNSS clock offset as the wheels' (Eq. K9): two residual
+// blocks under the loss, the horizontal rows and the vertical row (factors::GnssAxes). Returns
+// the number of keyframes with a fix (ownership as AddWheelFactors). Throws autocal::Error as
+// InterpolateGnss, or for a keyframe q_W_I missing from the problem or without a manifold.
 int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
                    const sensors::EnuConverter& converter, std::vector<Keyframe>* keyframes,
                    sensors::Calibration* calibration, const KeyframeGnssOptions& options = {});
