@@ -9,6 +9,7 @@
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -274,7 +275,7 @@ MountPrior FuseUpAxis(const MountPrior& prior, const Eigen::Vector3d& up_I, doub
     delta(i) = p2 / (p2 + g2) * delta_g(i);
     fused.sigma_rad(i) = std::sqrt(p2 * g2 / (p2 + g2));
   }
-  fused.q_I_V = (prior.q_I_V * geometry::Exp(delta)).normalized();
+  fused.q_I_V = geometry::QuaternionPlus(prior.q_I_V, delta);
   return fused;
 }
 

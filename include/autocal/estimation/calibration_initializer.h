@@ -170,9 +170,7 @@ struct CalibrationInitialization {
 // offline batch, the sliding window): the odometry runs once, without the gyro-deskewed
 // repetition, registering each sweep on a 1 m grid of its points (the map keeps 0.25 m) and
 // stopping its ICP at steps below 1 mm and 0.1 mrad: a start the caller refines anyway
-// (figures in docs/history/initialization.md). On the 60 s urban logs the 1 m grid took the
-// odometry from 4.9 to 3.4 s against 0.5 m, and the batch's results moved by at most
-// 0.002 deg, 0.02 mm and 0.001 ms.
+// (figures in docs/history/initialization.md, "Figures formerly in calibration_initializer.h").
 CalibrationInitializerOptions RefinedLaterInitializerOptions();
 
 // Runs the chain. Throws autocal::Error only on malformed input (unsorted stamps); poor

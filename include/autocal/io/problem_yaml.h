@@ -135,11 +135,10 @@ struct ProblemLidar {
   int max_points_per_sweep = 400;  // residuals per sweep at most, >= 1
   double voxel_m = 0.6;            // one residual point per voxel of this size, [0.01, 20]
   // Every sweep_stride-th sweep becomes a keyframe of the batch solve, >= 1; only these
-  // sweeps are read, and the initializer's odometry registers them alone. Consecutive sweeps
-  // 0.1 s apart see nearly the same scene: on the 60 s urban log a stride of 2 halved the
-  // solve and kept every block within its goal. What counts keyframes scales with it: the
-  // batch's partner sweeps (+-3 .. +-20 keyframes) span twice the time, and wheel and GNSS
-  // factors, attached at keyframes, use half the samples.
+  // sweeps are read, and the initializer's odometry registers them alone (consecutive sweeps
+  // 0.1 s apart see nearly the same scene; docs/calibration.md). What counts keyframes scales
+  // with it: the batch's partner sweeps span stride times the time, and wheel and GNSS
+  // factors, attached at keyframes, use 1 / stride of the samples.
   int sweep_stride = 1;
 };
 
