@@ -19,6 +19,7 @@
 #include <iostream>
 
 #include "autocal/common/error.h"
+#include "autocal/evaluation/information_bound.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/output_files.h"
 #include "autocal/io/problem_yaml.h"
@@ -48,6 +49,9 @@ DEFINE_int32(threads, 0,
              "per-thread sums can, at rounding level (docs/calibration.md, \"Reproducibility "
              "and threads\")");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
+DEFINE_bool(bound, true,
+            "with a ground truth in the dataset (a simulated log): the Cramer-Rao bound of the "
+            "estimated blocks in the report, next to their sigma (docs/evaluation.md)");
 
 namespace {
 
@@ -74,9 +78,10 @@ std::string VehicleLabel(const std::vector<std::string>& datasets) {
 }
 
 void CalibrateOne(const std::string& directory, const autocal::io::Problem& problem,
-                  const autocal::pipeline::OfflineCalibrationOptions& options,
+                  autocal::pipeline::OfflineCalibrationOptions options,
                   autocal::io::RunStatus* status) {
   const autocal::io::Dataset dataset = autocal::io::ReadDataset(directory);
+  if (FLAGS_bound) options.set_to_truth = autocal::evaluation::TruthSetter(dataset);
   const autocal::pipeline::OfflineCalibrationResult result =
       autocal::pipeline::CalibrateDataset(dataset, problem, options);
   EndProgressLine();

@@ -18,8 +18,8 @@ Eigen::Matrix3d YawRotation(double yaw_rad) {
   return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
 }
 
-// The truth at `t_ns`: the sample with that stamp, else the interpolation of its neighbours
-// when they are at most `max_gap_ns` apart. Returns false outside the truth's span or in a gap.
+}  // namespace
+
 bool TruthAt(const io::Trajectory& truth, int64_t t_ns, int64_t max_gap_ns,
              io::TrajectorySample* sample, bool* exact) {
   const auto after =
@@ -42,8 +42,6 @@ bool TruthAt(const io::Trajectory& truth, int64_t t_ns, int64_t max_gap_ns,
   *exact = false;
   return true;
 }
-
-}  // namespace
 
 Alignment4Dof AlignYawAndTranslation(const io::Trajectory& estimate, const io::Trajectory& truth,
                                      double min_horizontal_spread_m) {

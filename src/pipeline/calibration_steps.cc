@@ -425,6 +425,28 @@ void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estim
   posterior.covariance = covariance;
 }
 
+void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
+                        const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                        std::vector<estimation::Keyframe>* keyframes,
+                        sensors::Calibration* calibration, ceres::Problem* problem,
+                        OfflineCalibrationResult* result) {
+  if (!options.set_to_truth) return;
+  const std::vector<estimation::Keyframe> solved_keyframes = *keyframes;
+  const sensors::Calibration solved = *calibration;
+  options.set_to_truth(keyframes, calibration);
+  const estimation::BlockCovariance bound =
+      estimation::ComputeBlockCovariance(blocks_estimated, problem);
+  // Element by element: the problem's blocks point into these objects.
+  for (size_t k = 0; k < keyframes->size(); ++k) (*keyframes)[k] = solved_keyframes[k];
+  *calibration = solved;
+  if (!bound.ok) {
+    result->warnings.push_back(
+        "the information at the truth is singular: no Cramer-Rao bound is reported");
+    return;
+  }
+  result->bound = bound;
+}
+
 estimation::BlockObservability Observe(
     const io::Dataset& dataset, const OfflineCalibrationOptions& options,
     const std::vector<estimation::EstimatedBlock>& blocks_estimated,

@@ -172,6 +172,16 @@ void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estim
                      const estimation::BlockCovariance& covariance,
                      const sensors::Calibration& solved, OfflineCalibrationResult* result);
 
+// With options.set_to_truth: result->bound, the covariance of the estimated blocks from
+// `problem` at the truth (the Cramer-Rao bound). The keyframes and the
+// calibration, the problem's blocks, are set to the truth for it and restored after. A bound
+// that cannot be computed (a singular information matrix) is a warning.
+void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
+                        const std::vector<estimation::EstimatedBlock>& blocks_estimated,
+                        std::vector<estimation::Keyframe>* keyframes,
+                        sensors::Calibration* calibration, ceres::Problem* problem,
+                        OfflineCalibrationResult* result);
+
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
 // data point into it); sigma, flags and warnings go into the result. Returns the flags (empty

@@ -216,6 +216,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   RecordTiming(timing, true, &file);
   const sensors::Calibration solved = calibration;
   RecordPosterior(blocks_estimated, covariance, solved, &result);
+  RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, &p, &result);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
   // The same budget as the first solve: pinning the held directions can move a long

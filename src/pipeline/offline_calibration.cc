@@ -205,6 +205,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     const estimation::BlockCovariance covariance = estimation::ComputeBlockCovariance(blocks, p);
     const sensors::Calibration solved = *calibration;
     RecordPosterior(blocks, covariance, solved, result);
+    RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p, result);
     const estimation::BlockObservability observability =
         Observe(dataset, options, blocks, covariance, result);
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);

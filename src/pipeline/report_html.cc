@@ -18,6 +18,7 @@
 #include "html_page.h"
 #include "mount_angles.h"
 #include "problem_blocks.h"
+#include "report_bound.h"
 #include "svg_chart.h"
 
 namespace autocal {
@@ -481,6 +482,7 @@ std::string CalibrationReportHtml(const OfflineCalibrationResult& result) {
   html << HtmlPageStart("autocal calibration report");
   html << SummaryTable(result, lidar_used) << RunSummary(result, lidar_used, whitened_sensors);
   html << HtmlWarnings("Warnings", result.warnings);
+  html << BoundSection(result);
   html << ResidualSection(result, lidar_used, whitened_sensors) << ConvergenceSection(result)
        << ClockSection(result) << RigSection(result, lidar_used) << TrajectorySection(result);
   html << HtmlPageEnd();

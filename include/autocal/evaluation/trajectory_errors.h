@@ -41,6 +41,12 @@ struct TrajectoryErrors {
   double max_rotation_error_deg = 0.0;
 };
 
+// The truth at `t_ns`: the sample with that stamp (*exact true), else the interpolation of its
+// neighbours (linear in position and velocity, slerp in rotation) when they are at most
+// `max_gap_ns` apart. Returns false outside the truth's span or in a gap.
+bool TruthAt(const io::Trajectory& truth, int64_t t_ns, int64_t max_gap_ns,
+             io::TrajectorySample* sample, bool* exact);
+
 // Least-squares 4-DoF alignment of `estimate` onto `truth` (equal lengths, matched pairs).
 // Throws autocal::Error when the lists are empty or differ in length.
 Alignment4Dof AlignYawAndTranslation(const io::Trajectory& estimate, const io::Trajectory& truth,

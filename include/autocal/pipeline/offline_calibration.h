@@ -14,6 +14,7 @@
 #include "autocal/estimation/calibration_fusion.h"
 #include "autocal/estimation/calibration_initializer.h"
 #include "autocal/estimation/clock_offsets.h"
+#include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
@@ -80,6 +81,10 @@ struct OfflineCalibrationOptions {
   double max_prior_deviation_sigmas = 5.0;
   // Called as the stages advance; may be empty.
   std::function<void(const CalibrationProgress&)> progress;
+  // When set, sets the keyframes and the calibration to the truth (a simulated log:
+  // evaluation::TruthSetter), and the final problem's covariance is computed there as well:
+  // the Cramer-Rao bound of the estimated blocks, in OfflineCalibrationResult::bound.
+  std::function<void(std::vector<estimation::Keyframe>*, sensors::Calibration*)> set_to_truth;
 };
 
 // Whitened residuals of one sensor's factors (each row over its sigma, before any robust
@@ -121,6 +126,10 @@ struct OfflineCalibrationResult {
   // initialization replaced the mount (a nominal no guess) or fused gravity into its roll and
   // pitch (docs/calibration.md, Eq. C4).
   sensors::Calibration prior_centre;
+  // With OfflineCalibrationOptions::set_to_truth: the covariance of posterior.blocks from the
+  // final problem's information at the truth instead of the estimate (the Cramer-Rao bound,
+  // docs/evaluation.md "Information bound"), laid out as posterior.covariance.
+  std::optional<estimation::BlockCovariance> bound;
   double seconds_total = 0.0;  // wall time, and its stages
   double seconds_loading = 0.0;
   double seconds_initialization = 0.0;

@@ -1,0 +1,61 @@
+#include "autocal/evaluation/information_bound.h"
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <utility>
+
+#include "autocal/common/error.h"
+#include "autocal/evaluation/trajectory_errors.h"
+
+namespace autocal {
+namespace evaluation {
+
+namespace {
+
+// Truth samples farther apart than this are a gap: no keyframe is set inside it.
+constexpr int64_t kMaxTruthGapNs = 100'000'000;
+
+}  // namespace
+
+TruthSetterFn TruthSetter(const io::Dataset& dataset) {
+  if (dataset.groundtruth_trajectory.empty() || !dataset.groundtruth_calibration) return {};
+  auto truth = std::make_shared<const io::Trajectory>(dataset.groundtruth_trajectory);
+  const sensors::Calibration calibration = *dataset.groundtruth_calibration;
+  return [truth, calibration](std::vector<estimation::Keyframe>* keyframes,
+                              sensors::Calibration* c) {
+    // Matched pairs: the keyframes' poses and the truth at their stamps.
+    std::vector<size_t> matched;
+    io::Trajectory estimate, at_keyframes;
+    for (size_t k = 0; k < keyframes->size(); ++k) {
+      const estimation::Keyframe& kf = (*keyframes)[k];
+      io::TrajectorySample sample;
+      bool exact = false;
+      if (!TruthAt(*truth, kf.t_ns, kMaxTruthGapNs, &sample, &exact)) continue;
+      io::TrajectorySample e;
+      e.t_ns = kf.t_ns;
+      e.T_W_I.q = kf.q_W_I;
+      e.T_W_I.p = kf.p_W_I;
+      estimate.push_back(e);
+      at_keyframes.push_back(sample);
+      matched.push_back(k);
+    }
+    if (matched.size() < 2) {
+      throw Error("information bound: fewer than two keyframes lie within the ground truth");
+    }
+    // p_true = Rz p_est + t, so p_est = Rz^T (p_true - t).
+    const Alignment4Dof a = AlignYawAndTranslation(estimate, at_keyframes);
+    const Eigen::Quaterniond Rz_inverse(Eigen::AngleAxisd(-a.yaw_rad, Eigen::Vector3d::UnitZ()));
+    for (size_t i = 0; i < matched.size(); ++i) {
+      estimation::Keyframe& kf = (*keyframes)[matched[i]];
+      const io::TrajectorySample& t = at_keyframes[i];
+      kf.q_W_I = (Rz_inverse * t.T_W_I.q).normalized();
+      kf.p_W_I = Rz_inverse * (t.T_W_I.p - a.translation_m);
+      kf.v_W_I = Rz_inverse * t.v_W_I;
+    }
+    *c = calibration;
+  };
+}
+
+}  // namespace evaluation
+}  // namespace autocal

@@ -1,0 +1,95 @@
+// The Cramer-Rao bound of the offline calibration on a simulated log (docs/evaluation.md,
+// "Information bound"): computed at the truth on the final problem, it changes nothing of the
+// result, and an efficient solve's sigma is the bound.
+#include "autocal/evaluation/information_bound.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <string>
+
+#include "autocal/pipeline/offline_calibration.h"
+#include "autocal/pipeline/report_html.h"
+#include "autocal/sensors/calibration_blocks.h"
+#include "pipeline/simulated_urban_dataset.h"
+
+namespace autocal {
+namespace pipeline {
+namespace {
+
+using test::ShippedProblem;
+
+// The 34 s urban drive, simulated once per test program and build.
+const test::SimulatedUrbanDataset& Drive() {
+  static const test::SimulatedUrbanDataset* const drive =
+      new test::SimulatedUrbanDataset(34.0, "urban_34s");
+  return *drive;
+}
+
+// sigma / bound per direction the data inform (bound below half the prior's sigma).
+void ExpectSigmaAtTheBound(const OfflineCalibrationResult& result, double low, double high) {
+  const estimation::CalibrationPosterior& posterior = result.posterior;
+  ASSERT_TRUE(posterior.covariance.ok);
+  int informed = 0;
+  for (size_t b = 0; b < posterior.blocks.size(); ++b) {
+    const estimation::EstimatedBlock& block = posterior.blocks[b];
+    for (int i = 0; i < block.size; ++i) {
+      const int row = posterior.covariance.offsets[b] + i;
+      const double sigma = std::sqrt(posterior.covariance.matrix(row, row));
+      const double bound = std::sqrt(result.bound->matrix(row, row));
+      if (!(bound < 0.5 * block.prior_sigma(i))) continue;
+      ++informed;
+      const std::string& name = block.direction_names[static_cast<size_t>(i)];
+      std::cout << name << ": sigma / bound " << sigma / bound << "\n";
+      EXPECT_GT(sigma / bound, low) << name;
+      EXPECT_LT(sigma / bound, high) << name;
+    }
+  }
+  EXPECT_GE(informed, 5);
+}
+
+TEST(InformationBound, ChangesNothingAndMatchesTheSolvesSigma) {
+  const io::Dataset dataset = io::ReadDataset(Drive().directory);
+  const io::Problem problem = ShippedProblem("urban_full.yaml");
+  const OfflineCalibrationResult plain = CalibrateDataset(dataset, problem);
+  OfflineCalibrationOptions options;
+  options.set_to_truth = evaluation::TruthSetter(dataset);
+  ASSERT_TRUE(options.set_to_truth);
+  const OfflineCalibrationResult bounded = CalibrateDataset(dataset, problem, options);
+  EXPECT_FALSE(plain.bound.has_value());
+  ASSERT_TRUE(bounded.bound.has_value());
+
+  // The states and the calibration come back exactly: the same result.
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    const double* a = info.const_values(plain.calibration.value);
+    const double* b = info.const_values(bounded.calibration.value);
+    for (int k = 0; k < info.ambient_size; ++k) EXPECT_EQ(a[k], b[k]) << info.key;
+  }
+  ASSERT_EQ(plain.trajectory.size(), bounded.trajectory.size());
+  for (size_t k = 0; k < plain.trajectory.size(); ++k) {
+    EXPECT_EQ(plain.trajectory[k].T_W_I.p, bounded.trajectory[k].T_W_I.p) << k;
+  }
+  // Laid out as the posterior, whose blocks it bounds.
+  EXPECT_EQ(bounded.bound->offsets, bounded.posterior.covariance.offsets);
+  // At a solve this close to the truth the information hardly moves: sigma = bound within
+  // 10 % (measured: 1.000 within 0.3 %, the track width 1.06).
+  ExpectSigmaAtTheBound(bounded, 0.9, 1.1);
+  EXPECT_NE(CalibrationReportHtml(bounded).find("Against the Cramér–Rao bound"), std::string::npos);
+  EXPECT_EQ(CalibrationReportHtml(plain).find("Cramér–Rao"), std::string::npos);
+}
+
+TEST(InformationBound, BoundsTheRunWithoutTheLidar) {
+  const io::Dataset dataset = io::ReadDataset(Drive().directory);
+  OfflineCalibrationOptions options;
+  options.set_to_truth = evaluation::TruthSetter(dataset);
+  const OfflineCalibrationResult result =
+      CalibrateDataset(dataset, ShippedProblem("imu_wheel_gnss.yaml"), options);
+  ASSERT_TRUE(result.bound.has_value());
+  ExpectSigmaAtTheBound(result, 0.9, 1.1);
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace autocal
