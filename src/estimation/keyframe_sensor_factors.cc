@@ -279,6 +279,13 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
       KeyframeNonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
   factor_options.lateral_sigma_m_s *= scale;
   factor_options.vertical_sigma_m_s *= scale;
+  // The yaw-rate rows' sigma follows the track (Eq. F22b), stated at the track's start, where
+  // the wheels' rates carry the encoders' white noise. Not for the controller's twist: its yaw
+  // rate errs by the platform's slip, which b_eff models, not by noise in its rate.
+  if (factor_options.yaw_row_track_m == 0.0 && !form_blocks.tracks.empty() &&
+      form_blocks.form.form != sensors::WheelForm::kSpeedYawRate) {
+    factor_options.yaw_row_track_m = *form_blocks.tracks.front();
+  }
   if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_sample_sigma_rad_s >= 0.0)) {
     throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
   }
@@ -292,7 +299,9 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     factors::WheelFactorOptions rows =
         WithLeverArmRateCovariance(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
     if (!gyro.covariance.isZero(0.0)) {
-      AddVariance(&rows.yaw_rate_sigma_rad_s, YawRateVariance(gyro.covariance, c.q_I_V));
+      const double variance = YawRateVariance(gyro.covariance, c.q_I_V);
+      AddVariance(&rows.yaw_rate_sigma_rad_s, variance);
+      AddVariance(&rows.yaw_rate_gyro_sigma_rad_s, variance);  // its gyro part (Eq. F22b)
     }
     WheelCost factor{nullptr, {}};
     if (!shifted) {

@@ -119,17 +119,15 @@ class ShiftedWheelResidual {
     const int n = form_.NumIntrinsics();
     const Eigen::Matrix<T, 2, 1> x = series_->At(t_ns_, p[5 + n][0]);
     T speed, yaw_rate;
+    const T& track = form_.form == sensors::WheelForm::kSpeedYawRate ? p[6][0] : p[4 + n][0];
+    if (!(track > T(0.0))) return false;
     if (form_.form == sensors::WheelForm::kSpeedYawRate) {
       const T& k_v = p[5][0];
-      const T& b_eff = p[6][0];
-      if (!(b_eff > T(0.0))) return false;
       speed = k_v * x(0);
-      yaw_rate = k_v * x(1) * T(form_.controller_track_m) / b_eff;
+      yaw_rate = k_v * x(1) * T(form_.controller_track_m) / track;  // track: b_eff
     } else {
       const T& scale_left = p[5][0];
       const T& scale_right = n == 2 ? p[5][0] : p[6][0];
-      const T& track = p[4 + n][0];
-      if (!(track > T(0.0))) return false;
       const T left = x(0) * scale_left;
       const T right = x(1) * scale_right;
       speed = T(0.5) * (left + right);
@@ -137,7 +135,7 @@ class ShiftedWheelResidual {
     }
     const factors::VehicleMotion<T> motion =
         factors::PredictVehicleMotion(p[0], p[1], p[2], p[3], p[4], gyro_rad_s_);
-    factors::WheelRows(motion, speed, yaw_rate, options_, residual);
+    factors::WheelRows(motion, speed, yaw_rate, track, options_, residual);
     return true;
   }
 

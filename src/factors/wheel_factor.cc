@@ -21,6 +21,13 @@ void CheckSigma(double sigma, const char* name) {
 void CheckRowSigmas(const WheelFactorOptions& options) {
   CheckSigma(options.speed_sigma_m_s, "speed_sigma_m_s");
   CheckSigma(options.yaw_rate_sigma_rad_s, "yaw_rate_sigma_rad_s");
+  if (options.yaw_row_track_m != 0.0) {
+    CheckSigma(options.yaw_row_track_m, "yaw_row_track_m");
+    if (!(options.yaw_rate_gyro_sigma_rad_s >= 0.0) ||
+        !(options.yaw_rate_gyro_sigma_rad_s < options.yaw_rate_sigma_rad_s)) {
+      throw Error("wheel factor: yaw_rate_gyro_sigma_rad_s must be in [0, yaw_rate_sigma_rad_s)");
+    }
+  }
   if (options.non_holonomic) {
     CheckSigma(options.lateral_sigma_m_s, "lateral_sigma_m_s");
     CheckSigma(options.vertical_sigma_m_s, "vertical_sigma_m_s");
@@ -126,7 +133,8 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
   const double right = m_.right_rad_s * r_r;
   const double yaw_wheel = (right - left) / b;
   const double inv_s_v = 1.0 / options_.speed_sigma_m_s;
-  const double inv_s_yaw = 1.0 / options_.yaw_rate_sigma_rad_s;
+  const double s_yaw = YawRowSigma(options_, b);  // Eq. F22b
+  const double inv_s_yaw = 1.0 / s_yaw;
   const double inv_s_lat = options_.non_holonomic ? 1.0 / options_.lateral_sigma_m_s : 0.0;
   const double inv_s_vert = options_.non_holonomic ? 1.0 / options_.vertical_sigma_m_s : 0.0;
   residuals[0] = (v_V.x() - 0.5 * (left + right)) * inv_s_v;
@@ -202,7 +210,15 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
     store_scalar(d_r_l, jacobians[5]);
     store_scalar(d_r_r, jacobians[6]);
   }
-  store_scalar(Eigen::Vector4d(0.0, yaw_wheel / b * inv_s_yaw, 0.0, 0.0), jacobians[track_index]);
+  // d/db of (w_V.z - yaw_wheel) / s(b): yaw_wheel / (b s) - r s'(b) / s, with
+  // s'(b) = -(s^2 - s_g^2) / (b s) when the sigma follows the track (Eq. F22b).
+  double d_yaw_d_b = yaw_wheel / b * inv_s_yaw;
+  if (options_.yaw_row_track_m > 0.0) {
+    const double s_g = options_.yaw_rate_gyro_sigma_rad_s;
+    const double d_s_d_b = -(s_yaw * s_yaw - s_g * s_g) / (b * s_yaw);
+    d_yaw_d_b -= residuals[1] * d_s_d_b * inv_s_yaw;
+  }
+  store_scalar(Eigen::Vector4d(0.0, d_yaw_d_b, 0.0, 0.0), jacobians[track_index]);
   return true;
 }
 

@@ -3,6 +3,8 @@
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <iostream>
 #include <limits>
 #include <memory>
 #include <random>
@@ -131,6 +133,10 @@ TEST(WheelFactor, JacobiansPassGradientCheckerAndMatchAutodiff) {
     options.shared_radius = trial % 4 == 1;
     options.lateral_sigma_m_s = 0.03;  // distinct rows: a swapped sigma fails the comparison
     options.vertical_sigma_m_s = 0.11;
+    if (trial % 3 != 0) {  // the yaw row's sigma following the track (Eq. F22b)
+      options.yaw_row_track_m = 1.5 + 0.2 * u(rng);
+      options.yaw_rate_gyro_sigma_rad_s = trial % 3 == 1 ? 0.0 : 0.006;
+    }
     const std::string context = "trial " + std::to_string(trial);
     const WheelFactor analytic(m, options);
     std::vector<double*> blocks = state.Pointers(options.shared_radius);
@@ -198,6 +204,70 @@ TEST(WheelFactor, RecoversRadiiAndTrackWidth) {
   EXPECT_NEAR(r_l, truth.r_l, 1e-3) << summary.BriefReport();
   EXPECT_NEAR(r_r, truth.r_r, 1e-3) << summary.BriefReport();
   EXPECT_NEAR(track_width, truth.track_width, 1e-2) << summary.BriefReport();
+}
+
+// Errors in variables (Eq. F22b): wheels far noisier than the gyro (0.3 rad/s per wheel, an
+// exact gyro) and the track alone free. With the yaw row's sigma fixed the wheels' noise
+// attenuates 1 / b: the track comes out long by about the noise's share of the rate
+// difference's power. With the sigma following the track it comes out within 3 of its sigma.
+TEST(WheelFactor, ASigmaFollowingTheTrackRemovesTheAttenuation) {
+  std::mt19937 rng(47);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  sensors::WheelConfig config;
+  config.noise_rad_s = 0.3;
+  std::normal_distribution<double> noise(0.0, config.noise_rad_s);
+  const WheelBlocks truth;  // r 0.33 m, b 1.6 m, identity mount
+  std::vector<WheelBlocks> states;
+  std::vector<WheelMeasurement> measurements;
+  double power = 0.0;  // mean square of the true rate difference r (w_r - w_l), (m/s)^2
+  for (int k = 0; k < 4000; ++k) {
+    const double yaw_rate = 0.3 * u(rng);
+    CarInstant car = SimulateCar(Eigen::Quaterniond::Identity(), 8.0, yaw_rate, truth);
+    power += std::pow(yaw_rate * truth.track_width, 2) / 4000.0;
+    car.measurement.left_rad_s += noise(rng);
+    car.measurement.right_rad_s += noise(rng);
+    WheelBlocks state = truth;
+    state.q_W_I = car.q_W_I;
+    state.v_W_I = car.v_W_I;
+    states.push_back(state);
+    measurements.push_back(car.measurement);
+  }
+  const auto solve = [&](const WheelFactorOptions& options, double* sigma_m) {
+    double r_l = truth.r_l, r_r = truth.r_r, track_width = truth.track_width;
+    ceres::Problem problem;
+    for (size_t k = 0; k < states.size(); ++k) {
+      std::vector<double*> blocks = states[k].Pointers(false);
+      blocks[5] = &r_l;
+      blocks[6] = &r_r;
+      blocks[7] = &track_width;
+      problem.AddResidualBlock(WheelFactor::Create(measurements[k], options), nullptr, blocks);
+      for (int b = 0; b < 7; ++b) problem.SetParameterBlockConstant(blocks[b]);
+    }
+    ceres::Solver::Options solver;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, &problem, &summary);
+    ceres::Covariance covariance{ceres::Covariance::Options()};
+    std::vector<std::pair<const double*, const double*>> pairs = {{&track_width, &track_width}};
+    EXPECT_TRUE(covariance.Compute(pairs, &problem));
+    covariance.GetCovarianceBlock(&track_width, &track_width, sigma_m);
+    *sigma_m = std::sqrt(*sigma_m);
+    return track_width;
+  };
+  WheelFactorOptions fixed = WheelFactorOptions::FromEncoderNoise(config, 0.33, 1.6);
+  WheelFactorOptions following = fixed;
+  following.yaw_row_track_m = 1.6;
+  double sigma_fixed = 0.0, sigma_following = 0.0;
+  const double b_fixed = solve(fixed, &sigma_fixed);
+  const double b_following = solve(following, &sigma_following);
+  // Attenuation of 1 / b: noise power 2 (r s)^2 against the signal's.
+  const double noise_power = 2.0 * std::pow(truth.r_l * config.noise_rad_s, 2);
+  const double expected_long = truth.track_width * noise_power / power;
+  std::cout << "track " << b_fixed << " m (sigma " << sigma_fixed << ") with a fixed sigma, "
+            << b_following << " m (sigma " << sigma_following << ") following the track; "
+            << "expected attenuation " << expected_long << " m\n";
+  EXPECT_GT(b_fixed - truth.track_width, 5.0 * sigma_fixed);
+  EXPECT_NEAR(b_fixed - truth.track_width, expected_long, 0.3 * expected_long);
+  EXPECT_LT(std::abs(b_following - truth.track_width), 3.0 * sigma_following);
 }
 
 // The course's intrinsic-calibration example: a car moving along a line, an encoder on the

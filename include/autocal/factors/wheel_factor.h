@@ -49,6 +49,14 @@ struct WheelFactorOptions {
   double lateral_sigma_m_s = 0.05;
   double vertical_sigma_m_s = 0.05;
   bool shared_radius = false;  // one radius block for both wheels
+  // When positive, the yaw-rate row's sigma follows the track (Deming, Eq. F22b): with b the
+  // factor's track (b, or b_eff for the controller's twist) and b0 this value, the track at
+  // which yaw_rate_sigma_rad_s holds, the wheels' part of it scales as b0 / b and the gyro's
+  // part (yaw_rate_gyro_sigma_rad_s, included in yaw_rate_sigma_rad_s) stays. With both sides
+  // noisy, a fixed sigma would let the wheels' noise attenuate 1 / b and lengthen the track
+  // (errors in variables). 0: the sigma is fixed.
+  double yaw_row_track_m = 0.0;
+  double yaw_rate_gyro_sigma_rad_s = 0.0;
 
   // Sigmas of speed and yaw rate from the encoders' rate noise (Eq. F23) at nominal
   // radius and track width; the other fields keep their defaults.
@@ -101,13 +109,25 @@ VehicleMotion<T> PredictVehicleMotion(const T* q_W_I_ptr, const T* v_W_I_ptr, co
           q_I_V.conjugate() * w_I};
 }
 
-// Eq. F22 for any form: the state's speed and yaw rate minus the wheels' (`speed`,
-// `yaw_rate`), then the non-holonomic rows when enabled; whitened by the options' sigmas.
+// The yaw-rate row's sigma at track b (Eq. F22b): sqrt(s_w^2 (b0 / b)^2 + s_g^2) with
+// s_w^2 = yaw_rate_sigma^2 - s_g^2 the wheels' part at b0 = yaw_row_track_m; fixed without b0.
 template <typename T>
-void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate,
+T YawRowSigma(const WheelFactorOptions& options, const T& track) {
+  if (!(options.yaw_row_track_m > 0.0)) return T(options.yaw_rate_sigma_rad_s);
+  const double s_g2 = options.yaw_rate_gyro_sigma_rad_s * options.yaw_rate_gyro_sigma_rad_s;
+  const double s_w2 = options.yaw_rate_sigma_rad_s * options.yaw_rate_sigma_rad_s - s_g2;
+  const T ratio = T(options.yaw_row_track_m) / track;
+  return sqrt(T(s_w2) * ratio * ratio + T(s_g2));
+}
+
+// Eq. F22 for any form: the state's speed and yaw rate minus the wheels' (`speed`,
+// `yaw_rate` through the factor's `track`), then the non-holonomic rows when enabled; whitened
+// by the options' sigmas, the yaw-rate row in speed units with options.yaw_row_track_m.
+template <typename T>
+void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate, const T& track,
                const WheelFactorOptions& options, T* residual) {
   residual[0] = (motion.v_V.x() - speed) / T(options.speed_sigma_m_s);
-  residual[1] = (motion.w_V.z() - yaw_rate) / T(options.yaw_rate_sigma_rad_s);
+  residual[1] = (motion.w_V.z() - yaw_rate) / YawRowSigma(options, track);
   if (options.non_holonomic) {
     residual[2] = motion.v_V.y() / T(options.lateral_sigma_m_s);
     residual[3] = motion.v_V.z() / T(options.vertical_sigma_m_s);
@@ -134,7 +154,8 @@ class WheelResidual {
         PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const T left = T(m_.left_rad_s) * r_l[0];
     const T right = T(m_.right_rad_s) * r_r[0];
-    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], options_, residual);
+    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], track_width[0],
+              options_, residual);
     return true;
   }
 
@@ -174,7 +195,8 @@ class WheelSpeedResidual {
         PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const T left = T(m_.left_m_s) * scale_left[0];
     const T right = T(m_.right_m_s) * scale_right[0];
-    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], options_, residual);
+    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], track_width[0],
+              options_, residual);
     return true;
   }
 
@@ -218,7 +240,7 @@ class OdometryTwistResidual {
     const T speed = speed_scale[0] * T(m_.speed_m_s);
     const T yaw_rate =
         speed_scale[0] * T(m_.yaw_rate_rad_s * m_.controller_track_m) / effective_track[0];
-    WheelRows(motion, speed, yaw_rate, options_, residual);
+    WheelRows(motion, speed, yaw_rate, effective_track[0], options_, residual);
     return true;
   }
 
