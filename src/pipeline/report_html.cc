@@ -210,6 +210,15 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
     scalar_row("time offset lidar→imu (ms)", c.time_offset_lidar_imu_s,
                result.nominal.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3);
   }
+  // The wheels' and the receiver's clocks, when estimated.
+  if (u.time_offset_wheel_imu_s.sigma) {
+    scalar_row("time offset wheels→imu (ms)", c.time_offset_wheel_imu_s,
+               result.nominal.time_offset_wheel_imu_s, u.time_offset_wheel_imu_s, 1e3);
+  }
+  if (u.time_offset_gnss_imu_s.sigma) {
+    scalar_row("time offset gnss→imu (ms)", c.time_offset_gnss_imu_s,
+               result.nominal.time_offset_gnss_imu_s, u.time_offset_gnss_imu_s, 1e3);
+  }
   if (u.wheel_radius_left_m.sigma) {
     scalar_row("wheel radius left (mm)", c.wheel_radius_left_m, result.nominal.wheel_radius_left_m,
                u.wheel_radius_left_m, 1e3);

@@ -318,6 +318,21 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   EXPECT_FALSE(HasNonFiniteText(html));
 }
 
+// The wheels' and the receiver's clocks get result rows when estimated, and none otherwise.
+TEST(ReportHtml, ShowsTheEstimatedClocksInTheResultTable) {
+  OfflineCalibrationResult result = FullResult();
+  EXPECT_THAT(CalibrationReportHtml(result), Not(HasSubstr("time offset wheels")));
+  result.calibration.value.time_offset_wheel_imu_s = -0.39;
+  result.calibration.uncertainty.time_offset_wheel_imu_s.sigma = 0.002;
+  result.calibration.value.time_offset_gnss_imu_s = 0.15;
+  result.calibration.uncertainty.time_offset_gnss_imu_s.sigma = 0.01;
+  result.calibration.uncertainty.time_offset_gnss_imu_s.observable = false;
+  const std::string html = CalibrationReportHtml(result);
+  EXPECT_THAT(html, HasSubstr("<td>time offset wheels→imu (ms)</td><td>-390</td><td>2</td>"));
+  EXPECT_THAT(html, HasSubstr("<td>time offset gnss→imu (ms)</td><td>150</td><td>10</td><td>0"
+                              "</td><td><b>no</b></td>"));
+}
+
 // Wheels as odometry twist or wheel speeds: the form's blocks get their rows and charts, the
 // radii and the track width (not estimated) none.
 TEST(ReportHtml, ShowsTheBlocksOfTheWheelForm) {
