@@ -167,6 +167,35 @@ TEST(WheelFactor, RejectsBadInputAndInvalidTrackWidth) {
 
 // Left/right radii and track width recovered from noisy encoder rates with known states,
 // the car driving straight and through left and right turns at several speeds.
+// `car` with noise on its wheel rates, as a state (the truth's calibration at its pose) and a
+// measurement.
+void AddNoisyInstant(CarInstant car, const WheelBlocks& truth,
+                     std::normal_distribution<double>* noise, std::mt19937* rng,
+                     std::vector<WheelBlocks>* states, std::vector<WheelMeasurement>* measured) {
+  car.measurement.left_rad_s += (*noise)(*rng);
+  car.measurement.right_rad_s += (*noise)(*rng);
+  WheelBlocks state = truth;
+  state.q_W_I = car.q_W_I;
+  state.v_W_I = car.v_W_I;
+  states->push_back(state);
+  measured->push_back(car.measurement);
+}
+
+// One WheelFactor per state on the shared radius and track blocks; the blocks before
+// `first_free` (5: radii and track free; 7: the track alone) held.
+void AddWheelRows(std::vector<WheelBlocks>* states, const std::vector<WheelMeasurement>& measured,
+                  const WheelFactorOptions& options, int first_free, double* r_l, double* r_r,
+                  double* track_width, ceres::Problem* problem) {
+  for (size_t k = 0; k < states->size(); ++k) {
+    std::vector<double*> blocks = (*states)[k].Pointers(false);
+    blocks[5] = r_l;
+    blocks[6] = r_r;
+    blocks[7] = track_width;
+    problem->AddResidualBlock(WheelFactor::Create(measured[k], options), nullptr, blocks);
+    for (int b = 0; b < first_free; ++b) problem->SetParameterBlockConstant(blocks[b]);
+  }
+}
+
 TEST(WheelFactor, RecoversRadiiAndTrackWidth) {
   std::mt19937 rng(31);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -180,24 +209,11 @@ TEST(WheelFactor, RecoversRadiiAndTrackWidth) {
     const double speed = 2.0 + 12.0 * (0.5 + 0.5 * u(rng));
     const double yaw_rate = 0.4 * u(rng);
     CarInstant car = SimulateCar(Eigen::Quaterniond::UnitRandom(), speed, yaw_rate, truth);
-    car.measurement.left_rad_s += noise(rng);
-    car.measurement.right_rad_s += noise(rng);
-    WheelBlocks state = truth;
-    state.q_W_I = car.q_W_I;
-    state.v_W_I = car.v_W_I;
-    states.push_back(state);
-    measurements.push_back(car.measurement);
+    AddNoisyInstant(car, truth, &noise, &rng, &states, &measurements);
   }
   double r_l = 0.33, r_r = 0.33, track_width = 1.6;
   ceres::Problem problem;
-  for (size_t k = 0; k < states.size(); ++k) {
-    std::vector<double*> blocks = states[k].Pointers(false);
-    blocks[5] = &r_l;
-    blocks[6] = &r_r;
-    blocks[7] = &track_width;
-    problem.AddResidualBlock(WheelFactor::Create(measurements[k], options), nullptr, blocks);
-    for (int b = 0; b < 5; ++b) problem.SetParameterBlockConstant(blocks[b]);
-  }
+  AddWheelRows(&states, measurements, options, 5, &r_l, &r_r, &track_width, &problem);
   ceres::Solver::Options solver;
   ceres::Solver::Summary summary;
   ceres::Solve(solver, &problem, &summary);
@@ -224,25 +240,12 @@ TEST(WheelFactor, ASigmaFollowingTheTrackRemovesTheAttenuation) {
     const double yaw_rate = 0.3 * u(rng);
     CarInstant car = SimulateCar(Eigen::Quaterniond::Identity(), 8.0, yaw_rate, truth);
     power += std::pow(yaw_rate * truth.track_width, 2) / 4000.0;
-    car.measurement.left_rad_s += noise(rng);
-    car.measurement.right_rad_s += noise(rng);
-    WheelBlocks state = truth;
-    state.q_W_I = car.q_W_I;
-    state.v_W_I = car.v_W_I;
-    states.push_back(state);
-    measurements.push_back(car.measurement);
+    AddNoisyInstant(car, truth, &noise, &rng, &states, &measurements);
   }
   const auto solve = [&](const WheelFactorOptions& options, double* sigma_m) {
     double r_l = truth.r_l, r_r = truth.r_r, track_width = truth.track_width;
     ceres::Problem problem;
-    for (size_t k = 0; k < states.size(); ++k) {
-      std::vector<double*> blocks = states[k].Pointers(false);
-      blocks[5] = &r_l;
-      blocks[6] = &r_r;
-      blocks[7] = &track_width;
-      problem.AddResidualBlock(WheelFactor::Create(measurements[k], options), nullptr, blocks);
-      for (int b = 0; b < 7; ++b) problem.SetParameterBlockConstant(blocks[b]);
-    }
+    AddWheelRows(&states, measurements, options, 7, &r_l, &r_r, &track_width, &problem);
     ceres::Solver::Options solver;
     ceres::Solver::Summary summary;
     ceres::Solve(solver, &problem, &summary);
