@@ -92,8 +92,8 @@ class DriveBuilder {
 
   const LaneOffsets& lane_offsets() const { return lane_offsets_; }
 
-  PathProfile& path() { return path_; }
-  SpeedProfile& speed() { return speed_; }
+  const PathProfile& path() const { return path_; }
+  const SpeedProfile& speed() const { return speed_; }
   const PivotProfile& pivots() const { return pivots_; }
 
  private:
@@ -258,6 +258,33 @@ class Placer {
   const Corridor& corridor_;
   World* world_;
 };
+
+// What a builder places its objects in: the drive on its ground, and a world holding that
+// ground.
+struct Scene {
+  std::shared_ptr<GroundSurface> ground;
+  std::shared_ptr<VehicleTrajectory> trajectory;
+  std::shared_ptr<World> world;
+
+  Scenario Of(ScenarioType type, const DriveLimits& limits) const {
+    Scenario scenario;
+    scenario.type = type;
+    scenario.ground = ground;
+    scenario.trajectory = trajectory;
+    scenario.world = world;
+    scenario.limits = limits;
+    return scenario;
+  }
+};
+
+// The drive (with its turns on the spot, if any) on `ground`, the world empty but for it.
+inline Scene SceneOf(const DriveBuilder& drive, std::shared_ptr<GroundSurface> ground,
+                     const VehicleDynamicsOptions& dynamics) {
+  auto trajectory = std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground,
+                                                        dynamics, drive.pivots());
+  auto world = std::make_shared<World>(ground);
+  return {std::move(ground), std::move(trajectory), std::move(world)};
+}
 
 // The scenarios of ScenarioType, each drawing from `rng`.
 Scenario BuildUrban(const ScenarioOptions& options, std::mt19937_64* rng);

@@ -95,19 +95,18 @@ Scenario BuildUrban(const ScenarioOptions& options, std::mt19937_64* rng) {
   drive.Cruise(50.0);
 
   const double extent = drive.distance_m() + 400.0;
-  auto ground = RandomGround(rng, extent, 0.04, 60.0, 160.0, 40.0, 70.0);
-  auto trajectory =
-      std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
-  auto world = std::make_shared<World>(ground);
+  const Scene scene =
+      SceneOf(drive, RandomGround(rng, extent, 0.04, 60.0, 160.0, 40.0, 70.0), options.dynamics);
+  const auto& trajectory = scene.trajectory;
   const double s_end = drive.distance_m() + 150.0;
   const Corridor corridor(trajectory->path(), -60.0, s_end);
-  Placer placer(*trajectory, corridor, world.get());
+  Placer placer(*trajectory, corridor, scene.world.get());
 
   for (const Island& island : islands) {
     const Eigen::Vector3d center = trajectory->GroundPointBeside(island.s, island.radius_m);
-    world->AddCylinder(
+    scene.world->AddCylinder(
         {center.head<2>(), island.radius_m - 4.5, center.z() - 0.5, center.z() + 0.8, 0.4f});
-    world->AddCylinder({center.head<2>(), 0.4, center.z(), center.z() + 7.0, 0.5f});
+    scene.world->AddCylinder({center.head<2>(), 0.4, center.z(), center.z() + 7.0, 0.5f});
   }
   for (const ParkedObstacle& o : obstacles) {
     placer.AddBox(o.s, o.lateral_m, {4.5, 1.8, 1.5}, 0.0, 0.8, 0.7f, 0.2);
@@ -136,13 +135,7 @@ Scenario BuildUrban(const ScenarioOptions& options, std::mt19937_64* rng) {
                       [](double) { return 4.2; }, {4.5, 1.8, 1.5}, true, 0.7f, trajectory);
   }
 
-  Scenario scenario;
-  scenario.type = ScenarioType::kUrban;
-  scenario.ground = ground;
-  scenario.trajectory = trajectory;
-  scenario.world = world;
-  scenario.limits = {50.0 * kKmh, 0.0, 4.0, 5.0};
-  return scenario;
+  return scene.Of(ScenarioType::kUrban, {50.0 * kKmh, 0.0, 4.0, 5.0});
 }
 
 Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
@@ -175,13 +168,12 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
   drive.Cruise(200.0);
 
   const double extent = drive.distance_m() + 600.0;
-  auto ground = RandomGround(rng, extent, 0.03, 200.0, 500.0, 150.0, 250.0);
-  auto trajectory =
-      std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
-  auto world = std::make_shared<World>(ground);
+  const Scene scene =
+      SceneOf(drive, RandomGround(rng, extent, 0.03, 200.0, 500.0, 150.0, 250.0), options.dynamics);
+  const auto& trajectory = scene.trajectory;
   const double s_end = drive.distance_m() + 300.0;
   const Corridor corridor(trajectory->path(), -150.0, s_end);
-  Placer placer(*trajectory, corridor, world.get());
+  Placer placer(*trajectory, corridor, scene.world.get());
   // Lateral position of the road's middle lane relative to the drive.
   auto road = [lanes = drive.lane_offsets()](double s) { return -lanes(s); };
 
@@ -221,13 +213,7 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
                     [road](double s) { return road(s) - kLane; }, {12.0, 2.5, 3.8}, false, 0.6f,
                     trajectory);
 
-  Scenario scenario;
-  scenario.type = ScenarioType::kHighway;
-  scenario.ground = ground;
-  scenario.trajectory = trajectory;
-  scenario.world = world;
-  scenario.limits = {130.0 * kKmh, 100.0 * kKmh, 2.5, 3.0};
-  return scenario;
+  return scene.Of(ScenarioType::kHighway, {130.0 * kKmh, 100.0 * kKmh, 2.5, 3.0});
 }
 
 // A straight road at one heading: away from a standstill, then speed changes between 30 and
@@ -258,13 +244,12 @@ Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
   drive.Cruise(100.0);
 
   const double extent = drive.distance_m() + 400.0;
-  auto ground = RandomGround(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0);
-  auto trajectory =
-      std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground, options.dynamics);
-  auto world = std::make_shared<World>(ground);
+  const Scene scene =
+      SceneOf(drive, RandomGround(rng, extent, 0.04, 80.0, 200.0, 50.0, 90.0), options.dynamics);
+  const auto& trajectory = scene.trajectory;
   const double s_end = drive.distance_m() + 150.0;
   const Corridor corridor(trajectory->path(), -60.0, s_end);
-  Placer placer(*trajectory, corridor, world.get());
+  Placer placer(*trajectory, corridor, scene.world.get());
   for (double s = -50.0; s < s_end; s += between(14.0, 30.0)) {
     for (double side : {-1.0, 1.0}) {
       const Eigen::Vector3d size(between(12.0, 26.0), between(8.0, 16.0), between(6.0, 20.0));
@@ -277,13 +262,7 @@ Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
     placer.AddPole(s, side * between(5.5, 7.0), between(0.1, 0.2), between(5.0, 9.0), 3.5, 0.6f);
   }
 
-  Scenario scenario;
-  scenario.type = ScenarioType::kStraight;
-  scenario.ground = ground;
-  scenario.trajectory = trajectory;
-  scenario.world = world;
-  scenario.limits = {95.0 * kKmh, 0.0, 3.0, 5.0};
-  return scenario;
+  return scene.Of(ScenarioType::kStraight, {95.0 * kKmh, 0.0, 3.0, 5.0});
 }
 
 }  // namespace internal

@@ -77,23 +77,15 @@ Scenario BuildSkidSteer(const ScenarioOptions& options, std::mt19937_64* rng) {
   while (drive.time_s() < options.duration_s + 5.0) SkidSteerLap(&drive, rng);
 
   const double extent = 300.0;
-  auto ground = RandomGround(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0);
-  auto trajectory = std::make_shared<VehicleTrajectory>(drive.path(), drive.speed(), ground,
-                                                        options.dynamics, drive.pivots());
-  auto world = std::make_shared<World>(ground);
+  const Scene scene =
+      SceneOf(drive, RandomGround(rng, extent, 0.03, 15.0, 40.0, 8.0, 15.0), options.dynamics);
   // Objects beside the first 250 m (every lap starts at the same point), kept clear of the
   // whole drive: later laps are drawn anew and pass elsewhere.
-  const Corridor corridor(trajectory->path(), -5.0, drive.distance_m() + 5.0);
-  Placer placer(*trajectory, corridor, world.get());
+  const Corridor corridor(scene.trajectory->path(), -5.0, drive.distance_m() + 5.0);
+  Placer placer(*scene.trajectory, corridor, scene.world.get());
   AddOpenGroundObjects(&placer, -5.0, std::min(drive.distance_m(), 250.0), rng);
 
-  Scenario scenario;
-  scenario.type = ScenarioType::kSkidSteer;
-  scenario.ground = ground;
-  scenario.trajectory = trajectory;
-  scenario.world = world;
-  scenario.limits = {1.0, 0.0, 1.0, 2.0};
-  return scenario;
+  return scene.Of(ScenarioType::kSkidSteer, {1.0, 0.0, 1.0, 2.0});
 }
 
 }  // namespace internal
