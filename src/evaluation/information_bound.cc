@@ -3,27 +3,23 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
-#include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/time.h"
 #include "autocal/evaluation/trajectory_errors.h"
 
 namespace autocal {
 namespace evaluation {
 
-namespace {
-
-// Truth samples farther apart than this are a gap: no keyframe is set inside it.
-constexpr int64_t kMaxTruthGapNs = 100'000'000;
-
-}  // namespace
-
 TruthSetterFn TruthSetter(const io::Dataset& dataset) {
   if (dataset.groundtruth_trajectory.empty() || !dataset.groundtruth_calibration) return {};
   auto truth = std::make_shared<const io::Trajectory>(dataset.groundtruth_trajectory);
   const sensors::Calibration calibration = *dataset.groundtruth_calibration;
-  return [truth, calibration](std::vector<estimation::Keyframe>* keyframes,
-                              sensors::Calibration* c) {
+  // Truth samples farther apart than the evaluation's interpolation gap leave the keyframes
+  // between them as they are.
+  const int64_t max_gap_ns = SecondsToNs(TrajectoryErrorOptions().max_interpolation_gap_s);
+  return [truth, calibration, max_gap_ns](std::vector<estimation::Keyframe>* keyframes,
+                                          sensors::Calibration* c) {
     // Matched pairs: the keyframes' poses and the truth at their stamps.
     std::vector<size_t> matched;
     io::Trajectory estimate, at_keyframes;
@@ -31,7 +27,7 @@ TruthSetterFn TruthSetter(const io::Dataset& dataset) {
       const estimation::Keyframe& kf = (*keyframes)[k];
       io::TrajectorySample sample;
       bool exact = false;
-      if (!TruthAt(*truth, kf.t_ns, kMaxTruthGapNs, &sample, &exact)) continue;
+      if (!TruthAt(*truth, kf.t_ns, max_gap_ns, &sample, &exact)) continue;
       io::TrajectorySample e;
       e.t_ns = kf.t_ns;
       e.T_W_I.q = kf.q_W_I;

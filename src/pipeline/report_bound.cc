@@ -1,5 +1,6 @@
 #include "report_bound.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 

@@ -122,7 +122,7 @@ T YawRowSigma(const WheelFactorOptions& options, const T& track) {
 
 // Eq. F22 for any form: the state's speed and yaw rate minus the wheels' (`speed`,
 // `yaw_rate` through the factor's `track`), then the non-holonomic rows when enabled; whitened
-// by the options' sigmas, the yaw-rate row in speed units with options.yaw_row_track_m.
+// by the options' sigmas, the yaw-rate row's at `track` (YawRowSigma).
 template <typename T>
 void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate, const T& track,
                const WheelFactorOptions& options, T* residual) {
