@@ -104,6 +104,10 @@ TEST(WheelFactor, ResidualVanishesAtGroundTruth) {
       if (shared) state.r_r = state.r_l;
       WheelFactorOptions options;
       options.shared_radius = shared;
+      if (trial % 2 == 1) {  // the yaw row's sigma following the track (Eq. F22b)
+        options.yaw_row_track_m = 1.5;
+        options.yaw_rate_gyro_sigma_rad_s = 0.004;
+      }
       WheelMeasurement m = car.measurement;
       if (shared) m.right_rad_s *= truth.r_r / truth.r_l;
       const WheelFactor factor(m, options);
