@@ -212,7 +212,7 @@ void BM_AlignPreparedTarget(benchmark::State& state) {
   const Eigen::Matrix3Xd source = autocal::lidar::VoxelDownsample(pair.source, 0.25).points;
   const autocal::lidar::IcpTarget target(autocal::lidar::VoxelDownsample(pair.target, 0.25).points,
                                          true);
-  const autocal::lidar::IcpSetting setting;
+  const autocal::lidar::IcpOptions setting;
   int iterations = 0;
   for (auto _ : state) {
     const autocal::lidar::IcpResult result =
@@ -227,7 +227,7 @@ BENCHMARK(BM_AlignPreparedTarget)->Unit(benchmark::kMillisecond);
 // Argument 0: point-to-plane, 1: GICP (source normals too).
 void BM_RegisterScanPair(benchmark::State& state) {
   REQUIRE_PAIR(state);
-  autocal::lidar::RegistrationSetting setting;
+  autocal::lidar::RegistrationOptions setting;
   setting.voxel_m = 0.25;
   if (state.range(0) == 1) setting.icp.method = autocal::lidar::IcpMethod::kGeneralized;
   for (auto _ : state) {

@@ -533,7 +533,7 @@ void BindAlgorithms(py::module_& m) {
       [](const RowsX3& source, const RowsX3& target, const Eigen::Matrix4d& init,
          const std::string& method, const std::string& loss, double loss_scale_m, double voxel_m,
          double max_correspondence_m, int max_iterations, int num_threads) {
-        lidar::RegistrationSetting setting = lidar::MakeRegistrationSetting(
+        lidar::RegistrationOptions setting = lidar::MakeRegistrationOptions(
             method, loss, loss_scale_m, voxel_m, max_correspondence_m);
         if (max_iterations < 1 || num_threads < 1) {
           throw Error("register: max_iterations and num_threads must be at least 1");

@@ -54,8 +54,8 @@ autocal::geometry::Pose3d InitialGuess() {
   return autocal::lidar::ParsePoseGuess(FLAGS_init, "--init");
 }
 
-autocal::lidar::RegistrationSetting Setting() {
-  autocal::lidar::RegistrationSetting setting = autocal::lidar::MakeRegistrationSetting(
+autocal::lidar::RegistrationOptions OptionsFromFlags() {
+  autocal::lidar::RegistrationOptions setting = autocal::lidar::MakeRegistrationOptions(
       FLAGS_method, FLAGS_loss, FLAGS_loss_scale_m, FLAGS_voxel_m, FLAGS_max_correspondence_m);
   if (FLAGS_max_iterations < 1) throw autocal::Error("--max_iterations must be at least 1");
   if (FLAGS_num_threads < 1) throw autocal::Error("--num_threads must be at least 1");
@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
       throw autocal::Error("both --source and --target are required");
     }
     if (!FLAGS_output.empty()) autocal::io::CheckOutputFile(FLAGS_output);
-    const autocal::lidar::RegistrationSetting setting = Setting();
+    const autocal::lidar::RegistrationOptions setting = OptionsFromFlags();
     const autocal::geometry::Pose3d guess = InitialGuess();
     // Organized PCD clouds mark missing returns with NaN; they carry no geometry.
     autocal::io::PointCloudReadOptions read_options;

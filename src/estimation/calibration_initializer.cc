@@ -75,7 +75,7 @@ void AppendSweepTimes(const lidar::LidarSweep& sweep, size_t k, std::vector<Swee
 }
 
 bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
-                 const lidar::LidarOdometrySetting& setting, const std::optional<GyroDeskew>& gyro,
+                 const lidar::LidarOdometryOptions& setting, const std::optional<GyroDeskew>& gyro,
                  CalibrationInitialization* out, std::vector<SweepTimes>* times,
                  size_t* failed_sweep) {
   lidar::LidarOdometry odometry(setting);
@@ -294,7 +294,7 @@ CalibrationInitialization InitializeLidarImu(const sensors::ImuSamples& imu,
     prefix.fallbacks.insert(prefix.fallbacks.begin(), why + "; the sweeps before it are used");
     return prefix;
   };
-  lidar::LidarOdometrySetting first_pass = options.odometry;
+  lidar::LidarOdometryOptions first_pass = options.odometry;
   if (options.gyro_deskew_pass) {
     first_pass.registration_voxel_m =
         std::max(first_pass.registration_voxel_m, options.first_pass_registration_voxel_m);

@@ -34,8 +34,8 @@ struct SweepFrame {
 
 // What the walks of one update share.
 struct WalkContext {
-  const PairingSetting& pairing;
-  const WindowPairingSetting& window;
+  const PairingOptions& pairing;
+  const WindowPairingOptions& window;
   const factors::LossOptions& point_loss;
   const std::vector<SweepFrame>& sweeps;
   std::map<int, int> sweep_of_id;  // window keyframe id -> index in sweeps

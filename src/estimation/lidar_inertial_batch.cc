@@ -333,7 +333,7 @@ int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s,
   return t_sweep_ns + SecondsToNs(offset_s - options.keyframe_lead_s);
 }
 
-SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSetting& pairing) {
+SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingOptions& pairing) {
   const lidar::PointCloud& cloud = sweep.cloud;
   if (!cloud.has_time()) throw Error("SolveLidarInertialBatch: sweeps need per-point time");
   const SweepSelection selection = internal::SelectSweepPoints(cloud, pairing);

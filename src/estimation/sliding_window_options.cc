@@ -35,7 +35,7 @@ void CheckNonNegative(double value, const char* name) {
   }
 }
 
-void CheckPairing(const PairingSetting& p, const WindowPairingSetting& w) {
+void CheckPairing(const PairingOptions& p, const WindowPairingOptions& w) {
   if (p.max_residuals_per_sweep < 0) {
     throw Error("SlidingWindowOptions: pairing.max_residuals_per_sweep must not be negative");
   }
@@ -67,7 +67,7 @@ void CheckPairing(const PairingSetting& p, const WindowPairingSetting& w) {
   }
 }
 
-void CheckWheelRows(const WheelRowSetting& w) {
+void CheckWheelRows(const WheelRowOptions& w) {
   if (w.max_samples_per_interval < 0) {
     throw Error("SlidingWindowOptions: wheel_rows.max_samples_per_interval must not be negative");
   }

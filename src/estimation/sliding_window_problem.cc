@@ -234,15 +234,12 @@ void SlidingWindowEstimator::Impl::Solve(std::unique_ptr<ProblemBuild>* build) {
   // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
   // with a loss and factors the dense system. It runs on one thread (docs/sliding_window.md,
   // "Settings": num_threads).
-  internal::WindowSolverOptions solver_options;
-  solver_options.max_iterations = options_.solver.max_iterations;
-  solver_options.function_tolerance = options_.solver.function_tolerance;
   timing_.solver_iterations = 0;
   timing_.solver_passes = 0;
   const int max_passes = std::max(1, options_.linearization.passes_per_update);
   for (int pass = 0; pass < max_passes; ++pass) {
     const internal::WindowSolverSummary summary = internal::SolveWindowPass(
-        (*build)->problem.get(), (*build)->relinearized, solver_options, &solver_workspace_);
+        (*build)->problem.get(), (*build)->relinearized, options_.solver, &solver_workspace_);
     timing_.solver_iterations += summary.iterations;
     ++timing_.solver_passes;
     for (auto& kf : window_) kf->state.q_W_I.normalize();

@@ -21,7 +21,7 @@ namespace autocal {
 namespace estimation {
 namespace internal {
 
-SweepSelection SelectSweepPoints(const lidar::PointCloud& cloud, const PairingSetting& setting) {
+SweepSelection SelectSweepPoints(const lidar::PointCloud& cloud, const PairingOptions& setting) {
   SweepSelection selection;
   selection.residual_points =
       Thin(OnePointPerVoxel(cloud, setting.residual_voxel_m, setting.min_range_m,
@@ -91,7 +91,7 @@ namespace {
 // Propagates the sweep with the current estimate and rebuilds its plane map when the deskew
 // moved a map point by more than `rebuild_tolerance_m` (Eq. W1). The map holds the map
 // points deskewed into L_j at the reference instant.
-void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingSetting& setting,
+void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingOptions& setting,
                 double rebuild_tolerance_m) {
   const sensors::Calibration& c = *u.calibration;
   const double offset_s = c.time_offset_lidar_imu_s;
@@ -128,7 +128,7 @@ void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingSetting& set
 }
 }  // namespace
 
-SweepPairing::SweepPairing(const PairingSetting& pairing, const WindowPairingSetting& window,
+SweepPairing::SweepPairing(const PairingOptions& pairing, const WindowPairingOptions& window,
                            const factors::LossOptions& point_loss, int num_threads)
     : pairing_(pairing), window_(window), point_loss_(point_loss), num_threads_(num_threads) {}
 

@@ -19,7 +19,7 @@
 
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
-#include "autocal/estimation/pairing_setting.h"
+#include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 #include "autocal/geometry/se3.h"
@@ -41,7 +41,7 @@ struct SweepSelection {
   std::vector<int> residual_points;
   std::vector<int> map_points;
 };
-SweepSelection SelectSweepPoints(const lidar::PointCloud& cloud, const PairingSetting& setting);
+SweepSelection SelectSweepPoints(const lidar::PointCloud& cloud, const PairingOptions& setting);
 
 // The LiDAR pose of a sweep at its reference instant (point time 0) under the current
 // estimate: T_W_L = T_W_I(t) T_I_L, T_W_I(t) from Eq. P1-P3 at delta = 0.
@@ -153,7 +153,7 @@ struct PairingResult {
 
 class SweepPairing {
  public:
-  SweepPairing(const PairingSetting& pairing, const WindowPairingSetting& window,
+  SweepPairing(const PairingOptions& pairing, const WindowPairingOptions& window,
                const factors::LossOptions& point_loss, int num_threads);
 
   // Refreshes the plane maps whose deskew moved and makes the tries that are missing or
@@ -164,8 +164,8 @@ class SweepPairing {
   PointGroupPool& pool() { return pool_; }
 
  private:
-  PairingSetting pairing_;
-  WindowPairingSetting window_;
+  PairingOptions pairing_;
+  WindowPairingOptions window_;
   factors::LossOptions point_loss_;
   int num_threads_;
   PointGroupPool pool_;

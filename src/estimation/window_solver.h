@@ -12,22 +12,11 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "autocal/estimation/sliding_window_options.h"
+
 namespace autocal {
 namespace estimation {
 namespace internal {
-
-struct WindowSolverOptions {
-  // Iterations (accepted and rejected steps) at most.
-  int max_iterations = 10;
-  // Stop once an accepted step lowers the cost by less than this fraction of it.
-  double function_tolerance = 1e-6;
-  // Stop when the largest gradient entry is below this, or the step below this fraction of
-  // |delta|.
-  double gradient_tolerance = 1e-10;
-  double parameter_tolerance = 1e-8;
-  // Levenberg-Marquardt damping: (H + diag(H) / radius) step = -g.
-  double initial_trust_region_radius = 1e4;
-};
 
 struct WindowSolverSummary {
   int iterations = 0;  // accepted + rejected steps

@@ -112,7 +112,7 @@ struct NormalEquations {
 // previous match itself still counts: the same match as with max_correspondence_m, found
 // with less of the tree searched.
 void MatchNearest(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                  const geometry::Pose3d& T, const IcpSetting& setting,
+                  const geometry::Pose3d& T, const IcpOptions& setting,
                   std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   const Eigen::Index n = source.cols();
@@ -157,7 +157,7 @@ NormalEquations Combined(const std::vector<NormalEquations>& partial, int residu
 // blocks combined in order: the sums, and so the alignment, do not depend on the threads.
 template <typename Add>
 NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                                     const geometry::Pose3d& T, const IcpSetting& setting,
+                                     const geometry::Pose3d& T, const IcpOptions& setting,
                                      std::vector<int>* matches_io, Add add) {
   MatchNearest(source, target, T, setting, matches_io);
   const std::vector<int>& matches = *matches_io;
@@ -186,7 +186,7 @@ NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTa
 
 NormalEquations LinearizePointToPlane(const Eigen::Matrix3Xd& source, const IcpTarget& target,
                                       const geometry::Pose3d& T, const Eigen::Vector3d& centre,
-                                      const IcpSetting& setting, std::vector<int>* matches_io) {
+                                      const IcpOptions& setting, std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   return SumOverMatchedPlanes(
       source, target, T, setting, matches_io,
@@ -223,7 +223,7 @@ Eigen::Matrix3d PlaneCovariance(const Eigen::Vector3d& normal, double epsilon) {
 NormalEquations LinearizeGeneralized(const Eigen::Matrix3Xd& source,
                                      const SurfaceNormals& source_normals, const IcpTarget& target,
                                      const geometry::Pose3d& T, const Eigen::Vector3d& centre,
-                                     const IcpSetting& setting, std::vector<int>* matches_io) {
+                                     const IcpOptions& setting, std::vector<int>* matches_io) {
   const Eigen::Matrix3d R = T.R();
   const double epsilon = setting.gicp_epsilon;
   return SumOverMatchedPlanes(
@@ -250,7 +250,7 @@ NormalEquations LinearizeGeneralized(const Eigen::Matrix3Xd& source,
 
 // Point-to-point correspondences at T with IRLS weights of the point distance.
 void CollectPointPairs(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                       const geometry::Pose3d& T, const IcpSetting& setting,
+                       const geometry::Pose3d& T, const IcpOptions& setting,
                        std::vector<WeightedPair>* pairs) {
   const Eigen::Matrix3d R = T.R();
   pairs->clear();
@@ -299,7 +299,7 @@ void RequireConstrained(const NormalEquations& eq) {
   }
 }
 
-void RequireEnough(int count, const IcpSetting& setting, Eigen::Index source_size) {
+void RequireEnough(int count, const IcpOptions& setting, Eigen::Index source_size) {
   if (count < kMinCorrespondences) {
     throw Error("ICP found only " + std::to_string(count) + " correspondences for " +
                 std::to_string(source_size) + " source points within max_correspondence_m = " +
@@ -312,7 +312,7 @@ void RequireEnough(int count, const IcpSetting& setting, Eigen::Index source_siz
 // Eqs. (4.14)-(4.15): Cov = sigma^2 H^-1 with sigma^2 estimated from the weighted residuals
 // when not given.
 void FillStatistics(const NormalEquations& eq, const Eigen::Vector3d& centre,
-                    const IcpSetting& setting, Eigen::Index source_size, IcpResult* result) {
+                    const IcpOptions& setting, Eigen::Index source_size, IcpResult* result) {
   result->num_correspondences = eq.count;
   result->fitness = source_size > 0 ? static_cast<double>(eq.count) / source_size : 0.0;
   const int num_residuals = eq.count * eq.residual_dimension;
@@ -390,7 +390,7 @@ geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
 }
 
 IcpTarget::IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
-                     const NormalEstimationSetting& normal_setting, int num_threads)
+                     const NormalEstimationOptions& normal_setting, int num_threads)
     : tree_(std::move(points)), mode_(normals), normal_setting_(normal_setting) {
   if (mode_ == TargetNormals::kAll) {
     normals_ = EstimateNormals(tree_, normal_setting_, num_threads);
@@ -436,7 +436,7 @@ void IcpTarget::PrepareNormals(const std::vector<int>& indices, int num_threads)
 }
 
 IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                   const geometry::Pose3d& T_target_source_guess, const IcpSetting& setting) {
+                   const geometry::Pose3d& T_target_source_guess, const IcpOptions& setting) {
   RequireFinite(source, "ICP source");
   if (!T_target_source_guess.p.allFinite() || !T_target_source_guess.q.coeffs().allFinite()) {
     throw Error("ICP initial guess is not finite");

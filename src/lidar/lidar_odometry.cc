@@ -13,7 +13,7 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 namespace {
 
-LocalVoxelMap MapOf(const LidarOdometrySetting& setting) {
+LocalVoxelMap MapOf(const LidarOdometryOptions& setting) {
   if (!(setting.voxel_m > 0.0) || setting.local_map_sweeps < 1 || setting.num_threads < 1) {
     throw Error("LidarOdometry: voxel_m must be > 0, local_map_sweeps >= 1 and num_threads >= 1");
   }
@@ -22,7 +22,7 @@ LocalVoxelMap MapOf(const LidarOdometrySetting& setting) {
 
 }  // namespace
 
-LidarOdometry::LidarOdometry(LidarOdometrySetting setting)
+LidarOdometry::LidarOdometry(LidarOdometryOptions setting)
     : setting_(std::move(setting)), map_(MapOf(setting_)) {
   setting_.icp.num_threads = setting_.num_threads;
 }
@@ -59,7 +59,7 @@ Eigen::Matrix3Xd LidarOdometry::ToWorld(const Eigen::Matrix3Xd& points_L,
 }
 
 IcpTarget LidarOdometry::BuildMap(const Eigen::Vector3d& viewpoint_W) const {
-  NormalEstimationSetting normals = setting_.map_normals;
+  NormalEstimationOptions normals = setting_.map_normals;
   normals.viewpoint = viewpoint_W;  // normals face the sensor at its last pose
   // Each map is registered against once or twice; most of its points never pair with a
   // sweep point, so their normals are not computed.

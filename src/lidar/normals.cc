@@ -50,7 +50,7 @@ bool PcaNormal(const Eigen::Matrix3Xd& neighbourhood, Eigen::Vector3d* normal, d
 
 namespace {
 
-void RequireNeighbors(const NormalEstimationSetting& setting) {
+void RequireNeighbors(const NormalEstimationOptions& setting) {
   if (setting.num_neighbors < 3) {
     throw Error("EstimateNormals: num_neighbors must be at least 3, got " +
                 std::to_string(setting.num_neighbors));
@@ -58,7 +58,7 @@ void RequireNeighbors(const NormalEstimationSetting& setting) {
 }
 
 // EstimateNormal with the caller's scratch space for the neighbours.
-bool NormalOfPoint(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
+bool NormalOfPoint(const KdTree& tree, int64_t index, const NormalEstimationOptions& setting,
                    Neighbor* neighbors, Eigen::Vector3d* normal, double* planarity) {
   const Eigen::Matrix3Xd& points = tree.points();
   const double max_sq = setting.max_radius_m > 0.0 ? setting.max_radius_m * setting.max_radius_m
@@ -82,7 +82,7 @@ bool NormalOfPoint(const KdTree& tree, int64_t index, const NormalEstimationSett
 
 }  // namespace
 
-bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
+bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationOptions& setting,
                     Eigen::Vector3d* normal, double* planarity) {
   RequireNeighbors(setting);
   constexpr int kStackNeighbors = 32;
@@ -94,7 +94,7 @@ bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationSet
   return NormalOfPoint(tree, index, setting, neighbors.data(), normal, planarity);
 }
 
-SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting,
+SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationOptions& setting,
                                int num_threads) {
   RequireNeighbors(setting);
   const int64_t n = tree.size();

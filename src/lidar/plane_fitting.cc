@@ -83,7 +83,7 @@ PlaneFit FitPlaneTotalLeastSquares(const Eigen::Matrix3Xd& points) {
 }
 
 GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
-                               const GroundExtractionSetting& setting) {
+                               const GroundExtractionOptions& setting) {
   const int n = static_cast<int>(points.cols());
   if (n < 3) throw Error("ExtractGround: need at least 3 points, got " + std::to_string(n));
   if (!(setting.distance_threshold_m > 0.0) || setting.max_iterations < 1 ||

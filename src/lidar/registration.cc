@@ -33,10 +33,10 @@ void WriteMatrixRows(std::ostream& out, const Eigen::MatrixXd& m, const std::str
 
 }  // namespace
 
-RegistrationSetting MakeRegistrationSetting(const std::string& method, const std::string& loss,
+RegistrationOptions MakeRegistrationOptions(const std::string& method, const std::string& loss,
                                             double loss_scale_m, double voxel_m,
                                             double max_correspondence_m) {
-  RegistrationSetting setting;
+  RegistrationOptions setting;
   setting.icp.method = ParseIcpMethod(method);
   setting.icp.robust.loss = factors::ParseRobustLoss(loss);
   if (!(loss_scale_m > 0.0) || !std::isfinite(loss_scale_m)) {
@@ -131,7 +131,7 @@ geometry::Pose3d PoseGuessFromMatrix(const Eigen::Matrix4d& m, const std::string
 
 RegistrationResult RegisterPointClouds(const PointCloud& source, const PointCloud& target,
                                        const geometry::Pose3d& T_target_source_guess,
-                                       const RegistrationSetting& setting) {
+                                       const RegistrationOptions& setting) {
   if (source.empty()) throw Error("registration: the source cloud is empty");
   if (target.empty()) throw Error("registration: the target cloud is empty");
   if (setting.voxel_m < 0.0) {
@@ -152,7 +152,7 @@ RegistrationResult RegisterPointClouds(const PointCloud& source, const PointClou
 }
 
 std::string FormatRegistrationReport(const RegistrationResult& result,
-                                     const RegistrationSetting& setting) {
+                                     const RegistrationOptions& setting) {
   const IcpResult& icp = result.icp;
   std::ostringstream out;
   out << std::setprecision(9);
@@ -179,7 +179,7 @@ std::string FormatRegistrationReport(const RegistrationResult& result,
 }
 
 std::string FormatRegistrationYaml(const RegistrationResult& result,
-                                   const RegistrationSetting& setting) {
+                                   const RegistrationOptions& setting) {
   const IcpResult& icp = result.icp;
   const Eigen::Quaterniond& q = icp.T_target_source.q;
   const Eigen::Vector3d& p = icp.T_target_source.p;

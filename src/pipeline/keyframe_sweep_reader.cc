@@ -21,7 +21,7 @@ constexpr size_t kStretchPerThread = 16;
 }  // namespace
 
 KeyframeSweepReader::KeyframeSweepReader(const io::Dataset& dataset, int stride,
-                                         const estimation::PairingSetting& pairing, int num_threads,
+                                         const estimation::PairingOptions& pairing, int num_threads,
                                          std::function<void(double)> progress)
     : dataset_(dataset),
       stride_(stride),

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "autocal/estimation/lidar_inertial_batch.h"
-#include "autocal/estimation/pairing_setting.h"
+#include "autocal/estimation/pairing_options.h"
 #include "autocal/io/dataset.h"
 #include "autocal/lidar/sweep_source.h"
 
@@ -25,7 +25,7 @@ class KeyframeSweepReader final : public lidar::SweepSource {
   // `progress`, when given, is called with the fraction of the sweeps read so far. The
   // dataset must outlive the reader.
   KeyframeSweepReader(const io::Dataset& dataset, int stride,
-                      const estimation::PairingSetting& pairing, int num_threads,
+                      const estimation::PairingOptions& pairing, int num_threads,
                       std::function<void(double)> progress = {});
 
   size_t size() const override { return selected_.size(); }
@@ -42,7 +42,7 @@ class KeyframeSweepReader final : public lidar::SweepSource {
 
   const io::Dataset& dataset_;
   int stride_;
-  estimation::PairingSetting pairing_;
+  estimation::PairingOptions pairing_;
   int num_threads_;
   std::function<void(double)> progress_;
   size_t first_ = 0;  // keyframe index of stretch_[0]

@@ -143,7 +143,7 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
 Eigen::Vector2d PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem,
                                     bool use_wheel, double keyframe_period_s,
                                     const Eigen::Quaterniond& q_I_V,
-                                    const estimation::WheelRowSetting& wheel_rows) {
+                                    const estimation::WheelRowOptions& wheel_rows) {
   const std::optional<double>& setting = problem.calibration.roll_pitch_rate_sigma_rad_s;
   if (!use_wheel || !setting) return Eigen::Vector2d::Zero();
   if (*setting > 0.0) return Eigen::Vector2d::Constant(*setting);

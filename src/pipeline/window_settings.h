@@ -30,7 +30,7 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
 Eigen::Vector2d PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem,
                                     bool use_wheel, double keyframe_period_s,
                                     const Eigen::Quaterniond& q_I_V,
-                                    const estimation::WheelRowSetting& wheel_rows);
+                                    const estimation::WheelRowOptions& wheel_rows);
 
 // Sigmas of the estimated blocks from the window's covariance, into the calibration file.
 void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,

@@ -62,7 +62,7 @@ class ScanPairAccuracyTest : public ::testing::Test {
 };
 
 TEST_F(ScanPairAccuracyTest, PointToPlaneFromIdentity) {
-  const RegistrationSetting setting;  // point-to-plane, 0.25 m voxels, no robust loss
+  const RegistrationOptions setting;  // point-to-plane, 0.25 m voxels, no robust loss
   const RegistrationResult result =
       RegisterPointClouds(source_, target_, Pose3d::Identity(), setting);
   EXPECT_TRUE(result.icp.converged);
@@ -77,7 +77,7 @@ TEST_F(ScanPairAccuracyTest, PointToPlaneFromIdentity) {
 // GICP (--method=gicp) meets the same bounds; measured 0.68 cm / 0.21 deg from the
 // small_gicp reference, 2.6 cm / 0.24 deg from the fast_gicp one.
 TEST_F(ScanPairAccuracyTest, GeneralizedIcpFromIdentity) {
-  const RegistrationSetting setting = MakeRegistrationSetting("gicp", "none", 0.1, 0.25, 1.0);
+  const RegistrationOptions setting = MakeRegistrationOptions("gicp", "none", 0.1, 0.25, 1.0);
   const RegistrationResult result =
       RegisterPointClouds(source_, target_, Pose3d::Identity(), setting);
   EXPECT_TRUE(result.icp.converged);
@@ -88,7 +88,7 @@ TEST_F(ScanPairAccuracyTest, PointToPlaneFromPerturbedStarts) {
   // Starts within +-0.5 m and +-10 deg of the reference on every axis.
   std::mt19937_64 rng(2024);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  const RegistrationSetting setting;
+  const RegistrationOptions setting;
   for (int trial = 0; trial < 8; ++trial) {
     const Pose3d perturbation =
         test::MakePose(0.5 * unit(rng), 0.5 * unit(rng), 0.5 * unit(rng), 10.0 * unit(rng),

@@ -120,7 +120,7 @@ TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
 // at the point the whole sweep's selection names, and the whole sweep's last point time.
 TEST_F(LidarInertialBatchTest, SelectForBatchKeepsTheSelectedPointsOnly) {
   const lidar::LidarSweep& whole = log_->sweeps[200];
-  const PairingSetting pairing = BatchPairingDefaults();
+  const PairingOptions pairing = BatchPairingDefaults();
   const SelectedSweep reduced = SelectForBatch(whole, pairing);
   EXPECT_EQ(reduced.t_ns, whole.t_ns);
   EXPECT_EQ(reduced.end_s, whole.cloud.time_s.maxCoeff());

@@ -148,14 +148,14 @@ SweepPair SimulatePair(const test::Scene& scene, const Pose3d& T_W_target, const
 // Point-to-plane setting for the synthetic street: its 0.3 m poles collapse to lines at
 // 0.25 m voxels and carry no plane, so targets below planarity 0.5 are not used.
 // Normals from at most 1 m around a point, so that corners do not blend two faces.
-NormalEstimationSetting StreetNormals() {
-  NormalEstimationSetting setting;
+NormalEstimationOptions StreetNormals() {
+  NormalEstimationOptions setting;
   setting.max_radius_m = 1.0;
   return setting;
 }
 
-IcpSetting StreetSetting() {
-  IcpSetting setting;
+IcpOptions StreetOptions() {
+  IcpOptions setting;
   setting.min_target_planarity = 0.5;
   return setting;
 }
@@ -173,7 +173,7 @@ TEST(IcpTest, PointToPlaneRecoversSimulatedMotionWithRangeNoise) {
   for (uint64_t seed : {21, 22, 23}) {
     const SweepPair pair = StreetPair(seed);
     const IcpTarget target(pair.target, /*with_normals=*/true, StreetNormals());
-    const IcpResult result = AlignIcp(pair.source, target, Pose3d::Identity(), StreetSetting());
+    const IcpResult result = AlignIcp(pair.source, target, Pose3d::Identity(), StreetOptions());
     const double translation_error_m =
         geometry::TranslationError(result.T_target_source, pair.T_target_source);
     const double rotation_error_deg =
@@ -196,7 +196,7 @@ TEST(IcpTest, GeneralizedIcpRecoversSimulatedMotionWithRangeNoise) {
   for (uint64_t seed : {21, 22, 23}) {
     const SweepPair pair = StreetPair(seed);
     const IcpTarget target(pair.target, /*with_normals=*/true, StreetNormals());
-    IcpSetting setting = StreetSetting();
+    IcpOptions setting = StreetOptions();
     setting.method = IcpMethod::kGeneralized;
     setting.source_normals = StreetNormals();
     const IcpResult result = AlignIcp(pair.source, target, Pose3d::Identity(), setting);
@@ -211,7 +211,7 @@ TEST(IcpTest, GeneralizedIcpRecoversSimulatedMotionWithRangeNoise) {
     const IcpResult threaded = AlignIcp(pair.source, target, Pose3d::Identity(), setting);
     EXPECT_LT(geometry::TranslationError(threaded.T_target_source, result.T_target_source), 1e-9);
   }
-  IcpSetting bad;
+  IcpOptions bad;
   bad.method = IcpMethod::kGeneralized;
   bad.gicp_epsilon = 0.0;
   const test::Scene scene = test::MakeStreetScene(21);
@@ -229,7 +229,7 @@ TEST(IcpTest, GeneralizedIcpRecoversSimulatedMotionWithRangeNoise) {
 // degeneracy test refused the pair.
 TEST(IcpTest, AlignmentDoesNotDependOnWhereTheOriginIs) {
   const SweepPair pair = StreetPair(22);
-  const IcpSetting setting = StreetSetting();
+  const IcpOptions setting = StreetOptions();
   const IcpResult near =
       AlignIcp(pair.source, IcpTarget(pair.target, TargetNormals::kOnDemand, StreetNormals()),
                Pose3d::Identity(), setting);
@@ -262,8 +262,8 @@ TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
                                       MakePose(1.0, 0.2, 1.8, 2.0, 0.2, 0.1), 0.02, 0.25, 24);
   const IcpTarget all(pair.target, TargetNormals::kAll, StreetNormals());
   const IcpTarget on_demand(pair.target, TargetNormals::kOnDemand, StreetNormals());
-  const IcpResult reference = AlignIcp(pair.source, all, Pose3d::Identity(), StreetSetting());
-  const IcpResult lazy = AlignIcp(pair.source, on_demand, Pose3d::Identity(), StreetSetting());
+  const IcpResult reference = AlignIcp(pair.source, all, Pose3d::Identity(), StreetOptions());
+  const IcpResult lazy = AlignIcp(pair.source, on_demand, Pose3d::Identity(), StreetOptions());
   // The same normals, computed later: the same arithmetic, bit for bit.
   EXPECT_EQ(lazy.T_target_source.p, reference.T_target_source.p);
   EXPECT_EQ(lazy.T_target_source.q.coeffs(), reference.T_target_source.q.coeffs());
@@ -280,7 +280,7 @@ TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
   // The sums go in fixed blocks of points whatever the thread count: the same alignment, bit
   // for bit, on 2 and 3 threads.
   for (const int threads : {2, 3}) {
-    IcpSetting threaded = StreetSetting();
+    IcpOptions threaded = StreetOptions();
     threaded.num_threads = threads;
     const IcpTarget fresh(pair.target, TargetNormals::kOnDemand, StreetNormals());
     const IcpResult parallel = AlignIcp(pair.source, fresh, Pose3d::Identity(), threaded);
@@ -293,7 +293,7 @@ TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
   EXPECT_EQ(threaded_normals.normals, all.normals().normals);
   EXPECT_EQ(threaded_normals.planarity, all.normals().planarity);
   // A bad normal setting is refused when the target is built, not at the first alignment.
-  NormalEstimationSetting bad;
+  NormalEstimationOptions bad;
   bad.num_neighbors = 2;
   EXPECT_THROW(IcpTarget(pair.target, TargetNormals::kOnDemand, bad), Error);
 }
@@ -325,13 +325,13 @@ TEST(IcpTest, RobustLossRecoversEgoMotionBehindAMovingLeadVehicle) {
   const Pose3d guess = MakePose(0.9, 0.0, 0.0, 0.5, 0.0, 0.0);
   const IcpTarget target(target_points, true, StreetNormals());
 
-  IcpSetting plain = StreetSetting();
+  IcpOptions plain = StreetOptions();
   const IcpResult damaged = AlignIcp(source_points, target, guess, plain);
   const double damaged_error_m = geometry::TranslationError(damaged.T_target_source, truth);
   EXPECT_GT(damaged_error_m, 0.05) << "plain least squares should be biased by the truck";
 
   for (factors::RobustLoss loss : {factors::RobustLoss::kHuber, factors::RobustLoss::kCauchy}) {
-    IcpSetting robust = StreetSetting();
+    IcpOptions robust = StreetOptions();
     robust.robust = factors::RobustKernel{loss, 0.1};
     const IcpResult recovered = AlignIcp(source_points, target, guess, robust);
     const double error_m = geometry::TranslationError(recovered.T_target_source, truth);
@@ -361,7 +361,7 @@ TEST(IcpTest, CovarianceMatchesMonteCarloSpread) {
       StreetNormals());
   test::ScanPattern noisy;
   noisy.range_noise_m = 0.02;
-  IcpSetting setting = StreetSetting();
+  IcpOptions setting = StreetOptions();
   setting.min_target_planarity = 0.9;  // planes only, no edges
   setting.source_range_sigma_m = noisy.range_noise_m;
   constexpr int kDraws = 40;
@@ -405,7 +405,7 @@ TEST(IcpTest, PointToPointConvergesToExactCorrespondences) {
   const Pose3d truth = MakePose(0.3, -0.05, 0.02, 2.0, 0.3, -0.2);
   const Eigen::Matrix3Xd source_points = TransformPoints(truth.Inverse(), target_points);
   const IcpTarget target(target_points, /*with_normals=*/false);
-  IcpSetting setting;
+  IcpOptions setting;
   setting.method = IcpMethod::kPointToPoint;
   setting.convergence.max_iterations = 100;
   const IcpResult result = AlignIcp(source_points, target, Pose3d::Identity(), setting);
@@ -421,7 +421,7 @@ TEST(IcpTest, ClearErrorsOnUnusableInput) {
                                       MakePose(0.5, 0, 1.8, 0, 0, 0), 0.0, 0.25, 41);
   const IcpTarget with_normals(pair.target, true);
   const IcpTarget without_normals(pair.target, false);
-  IcpSetting setting;
+  IcpOptions setting;
   // Point-to-plane without target normals.
   EXPECT_THROW(AlignIcp(pair.source, without_normals, Pose3d::Identity(), setting), Error);
   // No overlap at the initial guess.

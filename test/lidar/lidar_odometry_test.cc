@@ -114,7 +114,7 @@ TEST_F(LidarOdometryTest, DeskewingRemovesTheMotionDistortionBias) {
   // Without deskewing every sweep is smeared by its own motion: the odometry drifts more and
   // the sweeps fit the map less tightly.
   const ArcTrajectory trajectory;
-  LidarOdometrySetting setting;
+  LidarOdometryOptions setting;
   setting.deskew = false;
   LidarOdometry skewed(setting);
   for (const LidarSweep& sweep : *sweeps_) skewed.AddSweep(sweep);
@@ -151,7 +151,7 @@ TEST_F(LidarOdometryTest, ImuRotationDeskewsAsWell) {
 
 TEST_F(LidarOdometryTest, CoarseRegistrationGridAndThreadsKeepTracking) {
   const ArcTrajectory trajectory;
-  LidarOdometrySetting setting;
+  LidarOdometryOptions setting;
   setting.num_threads = 2;
   LidarOdometry threaded(setting);
   setting.num_threads = 1;
@@ -168,7 +168,7 @@ TEST_F(LidarOdometryTest, CoarseRegistrationGridAndThreadsKeepTracking) {
     // stops within the ICP's convergence tolerance, and the map carries the previous poses,
     // so the sweep-to-sweep motions agree to a few tolerances (absolute poses may drift
     // apart along the sequence by as much).
-    const IcpConvergenceSetting& tolerance = setting.icp.convergence;
+    const IcpConvergenceOptions& tolerance = setting.icp.convergence;
     const Pose3d& motion = threaded.frames()[k].T_prev_curr;
     const Pose3d& reference_motion = reference.frames()[k].T_prev_curr;
     EXPECT_LT(geometry::TranslationError(motion, reference_motion), 4.0 * tolerance.translation_m)
@@ -197,7 +197,7 @@ TEST(LidarOdometryErrorsTest, RejectsBadSequences) {
   sweep.cloud.time_s = Eigen::VectorXd::Zero(50);
   odometry.AddSweep(sweep);
   EXPECT_THROW(odometry.AddSweep(sweep), Error);  // same stamp again
-  LidarOdometrySetting bad;
+  LidarOdometryOptions bad;
   bad.voxel_m = 0.0;
   EXPECT_THROW(LidarOdometry{bad}, Error);
 }

@@ -128,7 +128,7 @@ TEST(NormalsTest, SimulatedScanNormalsMatchTheSurfaces) {
   const geometry::Pose3d T_W_L = test::MakePose(0.0, 0.0, 1.8, 0.0, 0.0, 0.0);
   const PointCloud scan = VoxelDownsample(test::SimulateStaticSweep(scene, T_W_L, {}, &rng), 0.2);
   const KdTree tree(scan.points);
-  NormalEstimationSetting setting;
+  NormalEstimationOptions setting;
   setting.max_radius_m = 1.0;
   const SurfaceNormals normals = EstimateNormals(tree, setting);
   int checked = 0;

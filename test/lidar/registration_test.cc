@@ -17,19 +17,19 @@ namespace {
 using geometry::Pose3d;
 
 TEST(RegistrationTest, SettingValidatesEveryOption) {
-  const RegistrationSetting setting =
-      MakeRegistrationSetting("point_to_point", "huber", 0.2, 0.5, 2.0);
+  const RegistrationOptions setting =
+      MakeRegistrationOptions("point_to_point", "huber", 0.2, 0.5, 2.0);
   EXPECT_EQ(setting.icp.method, IcpMethod::kPointToPoint);
   EXPECT_EQ(setting.icp.robust.loss, factors::RobustLoss::kHuber);
   EXPECT_EQ(setting.icp.robust.scale_m, 0.2);
   EXPECT_EQ(setting.voxel_m, 0.5);
   EXPECT_EQ(setting.icp.max_correspondence_m, 2.0);
-  EXPECT_THROW(MakeRegistrationSetting("plane", "none", 0.1, 0.25, 1.0), Error);
-  EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "l1", 0.1, 0.25, 1.0), Error);
-  EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.0, 0.25, 1.0), Error);
-  EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.1, -1.0, 1.0), Error);
-  EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.1, 0.25, 0.0), Error);
-  EXPECT_THROW(MakeRegistrationSetting("point_to_plane", "none", 0.1, std::nan(""), 1.0), Error);
+  EXPECT_THROW(MakeRegistrationOptions("plane", "none", 0.1, 0.25, 1.0), Error);
+  EXPECT_THROW(MakeRegistrationOptions("point_to_plane", "l1", 0.1, 0.25, 1.0), Error);
+  EXPECT_THROW(MakeRegistrationOptions("point_to_plane", "none", 0.0, 0.25, 1.0), Error);
+  EXPECT_THROW(MakeRegistrationOptions("point_to_plane", "none", 0.1, -1.0, 1.0), Error);
+  EXPECT_THROW(MakeRegistrationOptions("point_to_plane", "none", 0.1, 0.25, 0.0), Error);
+  EXPECT_THROW(MakeRegistrationOptions("point_to_plane", "none", 0.1, std::nan(""), 1.0), Error);
 }
 
 // --init: six numbers (m, deg) or a 4x4 matrix in any of the usual spellings.
@@ -94,8 +94,8 @@ TEST_F(RegistrationOnSimulatedScans, BothMethodsAndEveryLossRecoverTheMotion) {
       // Point-to-point residuals are centroid-to-centroid distances of about a voxel, so
       // its loss scale is a voxel; point-to-plane residuals are at the noise level.
       const bool plane = std::string(method) == "point_to_plane";
-      RegistrationSetting setting =
-          MakeRegistrationSetting(method, loss, plane ? 0.1 : 0.25, 0.25, 1.0);
+      RegistrationOptions setting =
+          MakeRegistrationOptions(method, loss, plane ? 0.1 : 0.25, 0.25, 1.0);
       // The street's 0.3 m poles collapse to lines at 0.25 m voxels: no plane there.
       setting.icp.min_target_planarity = 0.5;
       // Point-to-point converges linearly (each closed-form step only follows the current
@@ -118,8 +118,8 @@ TEST_F(RegistrationOnSimulatedScans, BothMethodsAndEveryLossRecoverTheMotion) {
 }
 
 TEST_F(RegistrationOnSimulatedScans, ReportAndYamlCarryTheResult) {
-  const RegistrationSetting setting =
-      MakeRegistrationSetting("point_to_plane", "cauchy", 0.15, 0.25, 1.0);
+  const RegistrationOptions setting =
+      MakeRegistrationOptions("point_to_plane", "cauchy", 0.15, 0.25, 1.0);
   const RegistrationResult result =
       RegisterPointClouds(source_, target_, Pose3d::Identity(), setting);
   const std::string report = FormatRegistrationReport(result, setting);
@@ -144,7 +144,7 @@ TEST_F(RegistrationOnSimulatedScans, ReportAndYamlCarryTheResult) {
 }
 
 TEST_F(RegistrationOnSimulatedScans, BadInputGetsClearErrors) {
-  const RegistrationSetting setting;
+  const RegistrationOptions setting;
   EXPECT_THROW(RegisterPointClouds(PointCloud(), target_, Pose3d::Identity(), setting), Error);
   EXPECT_THROW(RegisterPointClouds(source_, PointCloud(), Pose3d::Identity(), setting), Error);
   PointCloud bad = source_;

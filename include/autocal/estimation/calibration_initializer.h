@@ -39,7 +39,7 @@ namespace estimation {
 
 struct CalibrationInitializerOptions {
   // Step 1: scan-to-map odometry, constant-velocity deskewing (q_I_L is not known yet).
-  lidar::LidarOdometrySetting odometry;
+  lidar::LidarOdometryOptions odometry;
   // When the odometry fails at a sweep after at least this fraction of the log (a featureless
   // stretch), the chain runs on the sweeps before it and says so in `fallbacks`.
   double min_odometry_fraction = 0.5;
@@ -74,7 +74,7 @@ struct CalibrationInitializerOptions {
   bool gyro_deskew_pass = true;
   // With the gyro pass on, the first pass only has to find the offset and rotation to
   // deskew with, not their final values: it registers each sweep with this coarser grid
-  // (LidarOdometrySetting::registration_voxel_m), which halves its cost.
+  // (LidarOdometryOptions::registration_voxel_m), which halves its cost.
   double first_pass_registration_voxel_m = 0.75;
   // Steps 3-4 on a drive that cannot determine them (no turns, e.g. a highway): with these
   // set, the chain goes on with the given value and says so in `fallbacks` instead of

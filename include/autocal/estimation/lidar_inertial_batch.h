@@ -6,7 +6,7 @@
 // from all sweeps, and the LiDAR-IMU extrinsic and time offset shared by all of them.
 // An outer loop re-propagates the sweeps with the current estimate, rebuilds the map,
 // re-associates the points and solves again (ICP style) until the calibration settles. The
-// point selection, deskew and partner order are the sliding window's (PairingSetting).
+// point selection, deskew and partner order are the sliding window's (PairingOptions).
 //
 // This is the solver core: it starts from given keyframe states and calibration (from an
 // initializer or a previous run) and refines them in place.
@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "autocal/estimation/keyframe.h"
-#include "autocal/estimation/pairing_setting.h"
+#include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
 #include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/calibration.h"
@@ -46,7 +46,7 @@ struct LidarInertialBatchOptions {
   // offset), so that the offset estimate may move earlier by up to this much.
   double keyframe_lead_s = 0.02;
   // Residual and map points, partners and the outlier gate (shared with the sliding window).
-  PairingSetting pairing = BatchPairingDefaults();
+  PairingOptions pairing = BatchPairingDefaults();
   // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
   int map_neighbor_sweeps = 0;
   // Robust loss on point residuals, scale in units of sigma.
@@ -124,7 +124,7 @@ struct SelectedSweep {
   double time(int i) const { return static_cast<double>(time_s(i)); }
 };
 // Throws autocal::Error for a sweep without per-point time.
-SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingSetting& pairing);
+SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingOptions& pairing);
 
 // Refines `keyframes` (one per sweep, in sweep order) and the LiDAR-IMU part of
 // `calibration` (q_I_L, p_I_L, time_offset_lidar_imu_s, and whatever blocks the factors of

@@ -8,7 +8,7 @@
 // Data is streamed in with AddImu / AddWheel / AddGnss / AddSweep. Every LiDAR sweep becomes
 // a keyframe once the IMU covers it, and each new keyframe triggers one window update: predict
 // it with the IMU, attach the interval's IMU, wheel and GNSS factors, pair the window's points
-// with planes of other window sweeps (estimation/pairing_setting.h), solve, and marginalize
+// with planes of other window sweeps (estimation/pairing_options.h), solve, and marginalize
 // the oldest keyframe when the window holds more than N.
 //
 // Without a LiDAR the keyframes come from AddKeyframeAt instead (e.g. at a fixed period): the

@@ -8,7 +8,7 @@
 #include <optional>
 
 #include "autocal/estimation/marginalization.h"
-#include "autocal/estimation/pairing_setting.h"
+#include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
 #include "autocal/sensors/body_rate.h"
 #include "autocal/sensors/calibration.h"
@@ -67,7 +67,7 @@ struct SlidingWindowInitialStateSigmas {
 
 // The wheel rows (docs/sliding_window.md, "Wheel rows"): speed and yaw rate whitened with
 // the encoder and gyro noise, optionally the rear axle's lateral and vertical speed.
-struct WheelRowSetting {
+struct WheelRowOptions {
   // Non-holonomic rows; their sigma is scaled for the model error's correlation time
   // (NonHolonomicSigmaScale) at the spacing of the samples used (correlation 0: white rows).
   bool non_holonomic = false;
@@ -87,7 +87,7 @@ struct WheelRowSetting {
 };
 
 // Rows linearized per solve pass (docs/sliding_window.md, "Linearized once per pass").
-struct LinearizationSetting {
+struct LinearizationOptions {
   // Passes per update: the first on every point group, wheel and GNSS row linearized afresh,
   // a later one on the groups that moved. 0: one pass evaluating them at every iteration.
   int passes_per_update = 2;
@@ -96,10 +96,18 @@ struct LinearizationSetting {
   double relinearization_tolerance_m = 0.01;
 };
 
-// The window's Levenberg-Marquardt (docs/sliding_window.md, "Solver").
-struct WindowSolverSetting {
-  int max_iterations = 10;           // per pass
-  double function_tolerance = 1e-5;  // stop when an iteration lowers the cost less than this
+// The window's Levenberg-Marquardt (docs/sliding_window.md, "Solver"; Eq. W5).
+struct WindowSolverOptions {
+  // Iterations (accepted and rejected steps) per pass at most.
+  int max_iterations = 10;
+  // Stop once an accepted step lowers the cost by less than this fraction of it.
+  double function_tolerance = 1e-5;
+  // Stop when the largest gradient entry is below this, or the step below this fraction of
+  // |delta|.
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-8;
+  // Levenberg-Marquardt damping: (H + diag(H) / radius) step = -g.
+  double initial_trust_region_radius = 1e4;
 };
 
 struct SlidingWindowOptions {
@@ -114,7 +122,7 @@ struct SlidingWindowOptions {
   // (Eq. F42), when an initializer knows it (a GNSS-inertial start); it replaces
   // initial_state_sigmas. Must be symmetric positive definite.
   std::optional<Eigen::Matrix<double, 15, 15>> initial_state_covariance;
-  WheelRowSetting wheel_rows;
+  WheelRowOptions wheel_rows;
   // Origin of W for AddGnss(GnssFix) (latitude, longitude, ellipsoidal height); unset: the ENU
   // frame at the first fix, so the initial state must be given in that frame.
   std::optional<Eigen::Vector3d> enu_origin_lla;
@@ -125,10 +133,10 @@ struct SlidingWindowOptions {
   double keyframe_lead_s = 0.02;
   double imu_coverage_margin_s = 0.02;
   double min_keyframe_interval_s = 0.02;
-  PairingSetting pairing = WindowPairingDefaults();
-  WindowPairingSetting window_pairing;
-  LinearizationSetting linearization;
-  WindowSolverSetting solver;
+  PairingOptions pairing = WindowPairingDefaults();
+  WindowPairingOptions window_pairing;
+  LinearizationOptions linearization;
+  WindowSolverOptions solver;
   int num_threads = 1;  // the pairing's loops and the covariance; the solve runs on one
   MarginalizationOptions marginalization;
   // Keep each marginalized keyframe's conditional (about 12 KB each) for SmoothedTrajectory().

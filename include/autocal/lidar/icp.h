@@ -41,7 +41,7 @@ geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
                                       const Eigen::Matrix3Xd& target,
                                       const Eigen::VectorXd& weights = Eigen::VectorXd());
 
-struct IcpConvergenceSetting {
+struct IcpConvergenceOptions {
   // Upper bound on iterations (correspondence search + solve).
   int max_iterations = 30;
   // Converged when one iteration moves the estimate by less than both of these. 1e-4 m and
@@ -50,7 +50,7 @@ struct IcpConvergenceSetting {
   double rotation_rad = 1e-5;
 };
 
-struct IcpSetting {
+struct IcpOptions {
   IcpMethod method = IcpMethod::kPointToPlane;
   // Pairs farther apart than this are not correspondences. About 4 voxels: wide enough to
   // pull in a start that is off by tens of centimetres, tight enough to ignore other
@@ -58,7 +58,7 @@ struct IcpSetting {
   double max_correspondence_m = 1.0;
   // Robust loss on the residual (point-to-plane distance, or point-to-point distance).
   factors::RobustKernel robust;
-  IcpConvergenceSetting convergence;
+  IcpConvergenceOptions convergence;
   // Target points whose neighbourhood planarity is below this carry no plane
   // (point-to-plane only); 0 keeps every point with a defined normal.
   double min_target_planarity = 0.0;
@@ -73,7 +73,7 @@ struct IcpSetting {
   // Generalized-ICP: each point's covariance is its neighbourhood's plane, eigenvalues
   // (epsilon, 1, 1) along (normal, tangents); source normals from these neighbourhoods.
   double gicp_epsilon = 1e-3;
-  NormalEstimationSetting source_normals;
+  NormalEstimationOptions source_normals;
   // Threads for the correspondence search and the normal equations of point-to-plane
   // alignment (common/parallel_for.h; point-to-point runs on one thread). The result
   // depends on it only through the summation order.
@@ -94,9 +94,9 @@ class IcpTarget {
  public:
   // Throws autocal::Error on non-finite points. num_threads is used for kAll.
   IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
-            const NormalEstimationSetting& normal_setting = {}, int num_threads = 1);
+            const NormalEstimationOptions& normal_setting = {}, int num_threads = 1);
   IcpTarget(Eigen::Matrix3Xd points, bool with_normals,
-            const NormalEstimationSetting& normal_setting = {})
+            const NormalEstimationOptions& normal_setting = {})
       : IcpTarget(std::move(points), with_normals ? TargetNormals::kAll : TargetNormals::kNone,
                   normal_setting) {}
 
@@ -116,7 +116,7 @@ class IcpTarget {
  private:
   KdTree tree_;
   TargetNormals mode_;
-  NormalEstimationSetting normal_setting_;
+  NormalEstimationOptions normal_setting_;
   // The on-demand cache: normals_ columns are written once, under mutex_, for the points
   // whose `prepared_` flag is still 0.
   mutable SurfaceNormals normals_;
@@ -145,7 +145,7 @@ struct IcpResult {
 // point-to-plane, when too few correspondences are found (fewer than 6), or when the
 // geometry leaves a direction of motion unconstrained.
 IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
-                   const geometry::Pose3d& T_target_source_guess, const IcpSetting& setting);
+                   const geometry::Pose3d& T_target_source_guess, const IcpOptions& setting);
 
 }  // namespace lidar
 }  // namespace autocal

@@ -26,7 +26,7 @@
 namespace autocal {
 namespace lidar {
 
-struct LidarOdometrySetting {
+struct LidarOdometryOptions {
   // Voxel edge for each incoming sweep and for the local map.
   double voxel_m = 0.25;
   // When larger than voxel_m, the sweep is registered with a coarser grid of its points
@@ -38,10 +38,10 @@ struct LidarOdometrySetting {
   // Remove motion distortion within each sweep (needs per-point time).
   bool deskew = true;
   // Map normals from at most 1 m around a point so that corners do not blend faces.
-  NormalEstimationSetting map_normals{10, 1.0, Eigen::Vector3d::Zero()};
+  NormalEstimationOptions map_normals{10, 1.0, Eigen::Vector3d::Zero()};
   // Point-to-plane, Huber with 0.1 m scale: moving objects and map clutter are down-weighted.
-  IcpSetting icp = [] {
-    IcpSetting setting;
+  IcpOptions icp = [] {
+    IcpOptions setting;
     setting.robust = factors::RobustKernel{factors::RobustLoss::kHuber, 0.1};
     return setting;
   }();
@@ -60,7 +60,7 @@ struct OdometryFrame {
 
 class LidarOdometry {
  public:
-  explicit LidarOdometry(LidarOdometrySetting setting = {});
+  explicit LidarOdometry(LidarOdometryOptions setting = {});
 
   // Processes the next sweep (stamps strictly increasing). angular_velocity_L_rad_s, when
   // given, is the sensor's rate during the sweep (e.g. IMU gyro rotated into L) and replaces
@@ -85,7 +85,7 @@ class LidarOdometry {
   IcpTarget BuildMap(const Eigen::Vector3d& viewpoint_W) const;
   static Eigen::Matrix3Xd ToWorld(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
 
-  LidarOdometrySetting setting_;
+  LidarOdometryOptions setting_;
   std::vector<OdometryFrame> frames_;
   // Body-frame twist [v; w] per second from the last two poses (eq. 5.1).
   Eigen::Matrix<double, 6, 1> velocity_ = Eigen::Matrix<double, 6, 1>::Zero();

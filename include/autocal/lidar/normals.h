@@ -13,7 +13,7 @@
 namespace autocal {
 namespace lidar {
 
-struct NormalEstimationSetting {
+struct NormalEstimationOptions {
   // Neighbours per point, the point itself included. 10 is enough on a 0.25 m voxel grid
   // and keeps the neighbourhood local.
   int num_neighbors = 10;
@@ -35,13 +35,13 @@ struct SurfaceNormals {
 // Normals of every point of `tree.points()`, searching neighbours in the same tree, on
 // num_threads threads (common/parallel_for.h). Throws autocal::Error when
 // setting.num_neighbors < 3.
-SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationSetting& setting = {},
+SurfaceNormals EstimateNormals(const KdTree& tree, const NormalEstimationOptions& setting = {},
                                int num_threads = 1);
 
 // The normal (facing setting.viewpoint) and planarity of the single point
 // tree.points().col(index), as EstimateNormals computes them. Returns false where the
 // normal is undefined (fewer than 3 neighbours within the radius, or coincident points).
-bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationSetting& setting,
+bool EstimateNormal(const KdTree& tree, int64_t index, const NormalEstimationOptions& setting,
                     Eigen::Vector3d* normal, double* planarity);
 
 // Normal (unit, sign arbitrary) and planarity of one neighbourhood given as columns.

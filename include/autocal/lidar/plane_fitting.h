@@ -47,7 +47,7 @@ struct PlaneFit {
 // collinear points. The normal's sign is chosen so that normal.z() >= 0.
 PlaneFit FitPlaneTotalLeastSquares(const Eigen::Matrix3Xd& points);
 
-struct GroundExtractionSetting {
+struct GroundExtractionOptions {
   // Points within this distance of a hypothesis are its inliers.
   double distance_threshold_m = 0.15;
   // Hypotheses whose normal is tilted more than this from +z are rejected: the road is
@@ -68,7 +68,7 @@ struct GroundExtraction {
 
 // Throws autocal::Error when no near-horizontal plane with at least 3 inliers is found.
 GroundExtraction ExtractGround(const Eigen::Matrix3Xd& points,
-                               const GroundExtractionSetting& setting = {});
+                               const GroundExtractionOptions& setting = {});
 
 }  // namespace lidar
 }  // namespace autocal

@@ -14,15 +14,15 @@
 namespace autocal {
 namespace lidar {
 
-struct RegistrationSetting {
+struct RegistrationOptions {
   // Voxel edge for both clouds (0 = use every point). 0.25 m keeps the geometry of a street
   // scan while cutting 70k points to about 6k.
   double voxel_m = 0.25;
   // Neighbourhoods for the target normals (point-to-plane only): 10 neighbours, no
   // distance bound (on the real scan pair a 1 m bound leaves sparse far surfaces without
   // normals and costs accuracy, docs/lidar.md §4.6).
-  NormalEstimationSetting target_normals;
-  IcpSetting icp;
+  NormalEstimationOptions target_normals;
+  IcpOptions icp;
 };
 
 struct RegistrationResult {
@@ -37,7 +37,7 @@ struct RegistrationResult {
 // value: method "point_to_point" | "point_to_plane" | "gicp", loss "none" | "huber" | "cauchy",
 // positive loss scale and correspondence distance, voxel >= 0. Throws autocal::Error naming
 // the offending option.
-RegistrationSetting MakeRegistrationSetting(const std::string& method, const std::string& loss,
+RegistrationOptions MakeRegistrationOptions(const std::string& method, const std::string& loss,
                                             double loss_scale_m, double voxel_m,
                                             double max_correspondence_m);
 
@@ -57,16 +57,16 @@ geometry::Pose3d PoseGuessFromMatrix(const Eigen::Matrix4d& m, const std::string
 // clouds with RemoveNonFinite first if that is intended.
 RegistrationResult RegisterPointClouds(const PointCloud& source, const PointCloud& target,
                                        const geometry::Pose3d& T_target_source_guess,
-                                       const RegistrationSetting& setting);
+                                       const RegistrationOptions& setting);
 
 // Human-readable report: T_target_source (4x4), inlier RMSE, iterations, time, 6x6
 // covariance.
 std::string FormatRegistrationReport(const RegistrationResult& result,
-                                     const RegistrationSetting& setting);
+                                     const RegistrationOptions& setting);
 
 // The same as YAML (keys: T_target_source, q_xyzw, p_m, covariance, inlier_rmse_m, ...).
 std::string FormatRegistrationYaml(const RegistrationResult& result,
-                                   const RegistrationSetting& setting);
+                                   const RegistrationOptions& setting);
 
 }  // namespace lidar
 }  // namespace autocal

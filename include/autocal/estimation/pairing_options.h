@@ -11,7 +11,7 @@
 namespace autocal {
 namespace estimation {
 
-struct PairingSetting {
+struct PairingOptions {
   // Residual points: one per voxel (in L) between min_range_m and residual_max_range_m, then
   // at most max_residuals_per_sweep, evenly spread (0: no limit, for either).
   double residual_voxel_m = 0.6;
@@ -30,7 +30,7 @@ struct PairingSetting {
 
 // The sliding window's pairing between updates (docs/sliding_window.md, "Partner walk" and
 // "Reuse between updates").
-struct WindowPairingSetting {
+struct WindowPairingOptions {
   // Points try the first settled_partner_count offsets, then the others; once the extrinsic
   // has settled (q_I_L turned at most settled_extrinsic_deg over window_size updates), a newly
   // paired keyframe's points try only the first ones.
@@ -53,12 +53,12 @@ struct WindowPairingSetting {
 };
 
 // The batch solver's defaults: a few hundred points per sweep, partners up to 20 sweeps away.
-inline PairingSetting BatchPairingDefaults() { return PairingSetting(); }
+inline PairingOptions BatchPairingDefaults() { return PairingOptions(); }
 
 // The sliding window's defaults: partners within the window, points beyond 40 m dropped (too
 // sparse for a local plane; docs/history/sliding_window_notes.md).
-inline PairingSetting WindowPairingDefaults() {
-  PairingSetting s;
+inline PairingOptions WindowPairingDefaults() {
+  PairingOptions s;
   s.residual_max_range_m = 40.0;
   s.max_residuals_per_sweep = 2000;
   s.partner_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
