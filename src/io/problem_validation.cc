@@ -1,12 +1,14 @@
 // ValidateProblemForDataset (autocal/io/problem_yaml.h): whether a dataset holds what a
 // problem uses, every shortfall named in one error.
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/io/calibration_block_fields.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/sensors/calibration_blocks.h"
 
@@ -42,28 +44,29 @@ std::string Demand(const std::vector<NamedMode>& blocks, const std::string& fall
   return fallback;
 }
 
-// The wheel blocks of `form` with their modes, for Demand.
-std::vector<NamedMode> WheelDemands(const ProblemCalibration& c, sensors::WheelForm form) {
-  const std::vector<std::pair<sensors::CalibrationBlockId, NamedMode>> all = {
-      {sensors::CalibrationBlockId::kWheelRadiusLeft,
-       {"wheel_radius_left_m", c.wheel_radius_left_m.mode}},
-      {sensors::CalibrationBlockId::kWheelRadiusRight,
-       {"wheel_radius_right_m", c.wheel_radius_right_m.mode}},
-      {sensors::CalibrationBlockId::kWheelSpeedScaleLeft,
-       {"wheel_speed_scale_left", c.wheel_speed_scale_left.mode}},
-      {sensors::CalibrationBlockId::kWheelSpeedScaleRight,
-       {"wheel_speed_scale_right", c.wheel_speed_scale_right.mode}},
-      {sensors::CalibrationBlockId::kOdometrySpeedScale,
-       {"odometry_speed_scale", c.odometry_speed_scale.mode}},
-      {sensors::CalibrationBlockId::kTrackWidth, {"track_width_m", c.track_width_m.mode}},
-      {sensors::CalibrationBlockId::kEffectiveTrack,
-       {"effective_track_m", c.effective_track_m.mode}},
-      {sensors::CalibrationBlockId::kVehicleRotation, {"T_I_V rotation", c.T_I_V.rotation.mode}},
-      {sensors::CalibrationBlockId::kVehicleTranslation,
-       {"T_I_V translation", c.T_I_V.translation.mode}}};
+// The blocks of `sensor` (of the dataset's wheel form) with their modes, for Demand: a wheel
+// form's own intrinsics first (those of fewer forms before the track width, which two share),
+// then the blocks of every form, in the block table's order.
+std::vector<NamedMode> Demands(const ProblemCalibration& c, sensors::BlockSensor sensor,
+                               sensors::WheelForm form) {
+  const auto forms_of = [](sensors::CalibrationBlockId id) {
+    int n = 0;
+    for (sensors::WheelForm f :
+         {sensors::WheelForm::kAngularRates, sensors::WheelForm::kLinearSpeeds,
+          sensors::WheelForm::kSpeedYawRate}) {
+      n += sensors::BlockInWheelForm(id, f) ? 1 : 0;
+    }
+    return n;
+  };
+  std::vector<sensors::CalibrationBlockId> ids;
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    if (info.sensor == sensor && sensors::BlockInWheelForm(info.id, form)) ids.push_back(info.id);
+  }
+  std::stable_sort(ids.begin(), ids.end(),
+                   [&](auto a, auto b) { return forms_of(a) < forms_of(b); });
   std::vector<NamedMode> out;
-  for (const auto& [id, named] : all) {
-    if (sensors::BlockInWheelForm(id, form)) out.push_back(named);
+  for (sensors::CalibrationBlockId id : ids) {
+    out.push_back({ProblemKey(id), BlockSettingIn(c, id).mode});
   }
   return out;
 }
@@ -113,6 +116,7 @@ std::string OutsideImuSpan(const Dataset& dataset, const Samples& samples, const
 
 void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
   const ProblemCalibration& c = problem.calibration;
+  const sensors::WheelForm form = dataset.wheel_form();
   const std::string who = "problem " + (problem.path.empty() ? "(built in code)" : problem.path);
   const std::string where = "dataset " + dataset.directory;
   std::vector<std::string> reasons;
@@ -121,20 +125,18 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
                       std::to_string(dataset.imu.size()) + " IMU samples in imu.csv");
   }
   if (problem.sensors.lidar && dataset.lidar_sweeps.empty()) {
-    const std::string demand = Demand({{"T_I_L rotation", c.T_I_L.rotation.mode},
-                                       {"T_I_L translation", c.T_I_L.translation.mode},
-                                       {"time_offset_lidar_imu_s", c.time_offset_lidar_imu_s.mode}},
-                                      "uses the LiDAR");
+    const std::string demand =
+        Demand(Demands(c, sensors::BlockSensor::kLidar, form), "uses the LiDAR");
     reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "lidar.csv"));
   }
-  const char* wheel_file = sensors::WheelFormFile(dataset.wheel_form());
+  const char* wheel_file = sensors::WheelFormFile(form);
   if (problem.sensors.wheel && dataset.wheel_sample_count() == 0) {
     const std::string demand =
-        Demand(WheelDemands(c, dataset.wheel_form()), "uses the wheel encoders");
+        Demand(Demands(c, sensors::BlockSensor::kWheel, form), "uses the wheel encoders");
     reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, wheel_file));
   }
   if (problem.sensors.gnss && dataset.gnss.empty()) {
-    const std::string demand = Demand({{"p_I_A_m", c.p_I_A_m.mode}}, "uses GNSS");
+    const std::string demand = Demand(Demands(c, sensors::BlockSensor::kGnss, form), "uses GNSS");
     reasons.push_back(who + " " + demand + " but " + where + " " + Lacks(dataset, "gnss.csv"));
   }
   const auto add_outside = [&](const std::string& outside, const char* demand) {
@@ -145,9 +147,9 @@ void ValidateProblemForDataset(const Problem& problem, const Dataset& dataset) {
                 "uses the LiDAR");
   }
   if (problem.sensors.wheel) {
-    const std::string outside = dataset.wheel_form() == sensors::WheelForm::kAngularRates
+    const std::string outside = form == sensors::WheelForm::kAngularRates
                                     ? OutsideImuSpan(dataset, dataset.wheel, wheel_file, 0)
-                                : dataset.wheel_form() == sensors::WheelForm::kLinearSpeeds
+                                : form == sensors::WheelForm::kLinearSpeeds
                                     ? OutsideImuSpan(dataset, dataset.wheel_speeds, wheel_file, 0)
                                     : OutsideImuSpan(dataset, dataset.odometry, wheel_file, 0);
     add_outside(outside, "uses the wheel encoders");

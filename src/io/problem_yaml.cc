@@ -6,6 +6,8 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/io/calibration_block_fields.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "io/text_format.h"
 #include "io/yaml_util.h"
 
@@ -421,16 +423,8 @@ Problem ReadProblemYaml(const std::string& path) {
 }
 
 ProblemCalibration WithEveryBlockFixed(ProblemCalibration c) {
-  for (VectorBlockSetting* block : {&c.T_I_L.rotation, &c.T_I_L.translation, &c.p_I_A_m,
-                                    &c.T_I_V.rotation, &c.T_I_V.translation}) {
-    *block = VectorBlockSetting{BlockMode::kFixed, Eigen::Vector3d::Zero()};
-  }
-  for (ScalarBlockSetting* block :
-       {&c.time_offset_lidar_imu_s, &c.wheel_radius_left_m, &c.wheel_radius_right_m,
-        &c.track_width_m, &c.wheel_speed_scale_left, &c.wheel_speed_scale_right,
-        &c.odometry_speed_scale, &c.effective_track_m, &c.time_offset_wheel_imu_s,
-        &c.time_offset_gnss_imu_s}) {
-    *block = ScalarBlockSetting{BlockMode::kFixed, 0.0};
+  for (const sensors::CalibrationBlockInfo& block : sensors::CalibrationBlocks()) {
+    SetBlockSetting(block.id, {BlockMode::kFixed, Eigen::VectorXd::Zero(block.tangent_size)}, &c);
   }
   return c;
 }

@@ -9,6 +9,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
+#include "autocal/io/calibration_block_fields.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "common/order_statistics.h"
 #include "html_page.h"
@@ -55,8 +56,7 @@ struct BlockValues {
 };
 std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
                                     const io::CalibrationFile& file) {
-  const std::optional<Eigen::VectorXd> sigma =
-      SettingOf(info.id, io::ProblemCalibration{}, file.uncertainty).nominal_sigma;
+  const std::optional<Eigen::VectorXd> sigma = io::UncertaintyIn(file.uncertainty, info.id).sigma;
   if (!sigma) return std::nullopt;
   BlockValues out;
   const double* v = info.const_values(file.value);

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "autocal/common/units.h"
+#include "autocal/io/calibration_block_fields.h"
 #include "calibration_steps.h"
 
 namespace autocal {
@@ -15,24 +16,6 @@ namespace pipeline {
 namespace {
 
 using Id = sensors::CalibrationBlockId;
-
-BlockSetting FromVector(const io::VectorBlockSetting& setting,
-                        const std::optional<Eigen::Vector3d>& nominal_sigma) {
-  BlockSetting out;
-  out.mode = setting.mode;
-  out.prior_sigma = setting.prior_sigma;
-  if (nominal_sigma) out.nominal_sigma = Eigen::VectorXd(*nominal_sigma);
-  return out;
-}
-
-BlockSetting FromScalar(const io::ScalarBlockSetting& setting,
-                        const std::optional<double>& nominal_sigma) {
-  BlockSetting out;
-  out.mode = setting.mode;
-  out.prior_sigma = Eigen::VectorXd::Constant(1, setting.prior_sigma);
-  if (nominal_sigma) out.nominal_sigma = Eigen::VectorXd::Constant(1, *nominal_sigma);
-  return out;
-}
 
 // The options' weak default prior sigma and observability limit of a block, in file units.
 struct BlockLimits {
@@ -103,62 +86,16 @@ Eigen::VectorXd PriorSigma(const BlockSetting& setting, int size, double default
   return Eigen::VectorXd::Constant(size, default_sigma * to_tangent);
 }
 
-void SetPose(bool rotation, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
-             io::PoseBlockInfo* info) {
-  if (rotation) {
-    info->sigma_rot_deg = Eigen::Vector3d(sigma * kRadToDeg);
-  } else {
-    info->sigma_p_m = Eigen::Vector3d(sigma);
-  }
-  if (!observable) return;
-  if (info->observable.size() < 6) info->observable.resize(6, true);
-  const size_t first = rotation ? 0 : 3;
-  for (size_t k = 0; k < observable->size(); ++k) info->observable[first + k] = (*observable)[k];
-}
-
-void SetScalar(const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
-               io::ScalarBlockInfo* info) {
-  info->sigma = sigma(0);
-  if (observable) info->observable = (*observable)[0];
-}
-
 }  // namespace
 
 BlockSetting SettingOf(Id id, const io::ProblemCalibration& p,
                        const io::CalibrationUncertainty& u) {
-  switch (id) {
-    case Id::kLidarRotation:
-      return FromVector(p.T_I_L.rotation, u.T_I_L.sigma_rot_deg);
-    case Id::kLidarTranslation:
-      return FromVector(p.T_I_L.translation, u.T_I_L.sigma_p_m);
-    case Id::kTimeOffset:
-      return FromScalar(p.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s.sigma);
-    case Id::kWheelRadiusLeft:
-      return FromScalar(p.wheel_radius_left_m, u.wheel_radius_left_m.sigma);
-    case Id::kWheelRadiusRight:
-      return FromScalar(p.wheel_radius_right_m, u.wheel_radius_right_m.sigma);
-    case Id::kTrackWidth:
-      return FromScalar(p.track_width_m, u.track_width_m.sigma);
-    case Id::kVehicleRotation:
-      return FromVector(p.T_I_V.rotation, u.T_I_V.sigma_rot_deg);
-    case Id::kVehicleTranslation:
-      return FromVector(p.T_I_V.translation, u.T_I_V.sigma_p_m);
-    case Id::kWheelSpeedScaleLeft:
-      return FromScalar(p.wheel_speed_scale_left, u.wheel_speed_scale_left.sigma);
-    case Id::kWheelSpeedScaleRight:
-      return FromScalar(p.wheel_speed_scale_right, u.wheel_speed_scale_right.sigma);
-    case Id::kOdometrySpeedScale:
-      return FromScalar(p.odometry_speed_scale, u.odometry_speed_scale.sigma);
-    case Id::kEffectiveTrack:
-      return FromScalar(p.effective_track_m, u.effective_track_m.sigma);
-    case Id::kWheelTimeOffset:
-      return FromScalar(p.time_offset_wheel_imu_s, u.time_offset_wheel_imu_s.sigma);
-    case Id::kGnssTimeOffset:
-      return FromScalar(p.time_offset_gnss_imu_s, u.time_offset_gnss_imu_s.sigma);
-    case Id::kGnssLeverArm:
-      break;
-  }
-  return FromVector(p.p_I_A_m, u.p_I_A_m.sigma);
+  const io::BlockModeAndSigma setting = io::BlockSettingIn(p, id);
+  BlockSetting out;
+  out.mode = setting.mode;
+  out.prior_sigma = setting.prior_sigma;
+  out.nominal_sigma = io::UncertaintyIn(u, id).sigma;
+  return out;
 }
 
 double FileToTangent(const sensors::CalibrationBlockInfo& block) {
@@ -223,38 +160,9 @@ double MaxNominalMountDeg(const io::Problem& problem, const io::SensorsConfig& s
 
 void SetUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
                     io::CalibrationUncertainty* u) {
-  switch (id) {
-    case Id::kLidarRotation:
-    case Id::kLidarTranslation:
-      return SetPose(id == Id::kLidarRotation, sigma, observable, &u->T_I_L);
-    case Id::kTimeOffset:
-      return SetScalar(sigma, observable, &u->time_offset_lidar_imu_s);
-    case Id::kWheelRadiusLeft:
-      return SetScalar(sigma, observable, &u->wheel_radius_left_m);
-    case Id::kWheelRadiusRight:
-      return SetScalar(sigma, observable, &u->wheel_radius_right_m);
-    case Id::kTrackWidth:
-      return SetScalar(sigma, observable, &u->track_width_m);
-    case Id::kVehicleRotation:
-    case Id::kVehicleTranslation:
-      return SetPose(id == Id::kVehicleRotation, sigma, observable, &u->T_I_V);
-    case Id::kWheelSpeedScaleLeft:
-      return SetScalar(sigma, observable, &u->wheel_speed_scale_left);
-    case Id::kWheelSpeedScaleRight:
-      return SetScalar(sigma, observable, &u->wheel_speed_scale_right);
-    case Id::kOdometrySpeedScale:
-      return SetScalar(sigma, observable, &u->odometry_speed_scale);
-    case Id::kEffectiveTrack:
-      return SetScalar(sigma, observable, &u->effective_track_m);
-    case Id::kWheelTimeOffset:
-      return SetScalar(sigma, observable, &u->time_offset_wheel_imu_s);
-    case Id::kGnssTimeOffset:
-      return SetScalar(sigma, observable, &u->time_offset_gnss_imu_s);
-    case Id::kGnssLeverArm:
-      break;
-  }
-  u->p_I_A_m.sigma = Eigen::Vector3d(sigma);
-  if (observable) u->p_I_A_m.observable = *observable;
+  const bool rotation =
+      sensors::CalibrationBlock(id).manifold == sensors::BlockManifold::kRightQuaternion;
+  io::SetBlockUncertainty(id, rotation ? Eigen::VectorXd(sigma * kRadToDeg) : sigma, observable, u);
 }
 
 void FillUncertainty(const std::vector<estimation::EstimatedBlock>& blocks,

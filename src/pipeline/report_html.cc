@@ -13,6 +13,7 @@
 #include "autocal/common/format.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/io/calibration_block_fields.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "html_page.h"
@@ -135,18 +136,13 @@ std::string ConvergenceSection(const OfflineCalibrationResult& result) {
   int charts = 0;
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     const bool has_sigma =
-        SettingOf(info.id, io::ProblemCalibration{}, result.calibration.uncertainty)
-            .nominal_sigma.has_value();
+        io::UncertaintyIn(result.calibration.uncertainty, info.id).sigma.has_value();
     const std::string chart = BlockChart(info, history, has_sigma);
     html << chart;
     if (!chart.empty()) ++charts;
   }
   if (charts == 0) html << "<p>No calibration block was estimated.</p>\n";
   return html.str();
-}
-
-std::string Sigma(const std::optional<Eigen::Vector3d>& sigma, double scale, int row) {
-  return sigma ? Number((*sigma)(row)*scale) : "–";
 }
 
 // One flag for the whole block or one per component (io::PoseBlockInfo, VectorBlockInfo);
@@ -164,97 +160,56 @@ bool LidarUsed(const estimation::LidarInertialBatchReport& batch) {
          !batch.final_point_residuals_m.empty();
 }
 
-// The result table: value, sigma, nominal and observability of each reported block.
-std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used) {
-  const sensors::Calibration& c = result.calibration.value;
-  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+// The displayed values of a block: a rotation as the roll, pitch and yaw (deg) of the mounting
+// it stands for (mount_angles.h), anything else in its display unit.
+Eigen::VectorXd DisplayValues(const sensors::CalibrationBlockInfo& info,
+                              const sensors::Calibration& c) {
+  const double* v = info.const_values(c);
+  if (info.manifold != sensors::BlockManifold::kRightQuaternion) {
+    return Eigen::Map<const Eigen::VectorXd>(v, info.ambient_size) * info.display_scale;
+  }
+  const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
+  const bool vehicle = info.id == sensors::CalibrationBlockId::kVehicleRotation;
+  return DisplayRollPitchYawDeg(vehicle ? ImuMountInVehicle(q) : q, kAngleDecimals);
+}
+
+// A row's label: the mounting's angle for a rotation, else the block's name, axis and unit.
+std::string RowLabel(const sensors::CalibrationBlockInfo& info, int k) {
+  const size_t axis = static_cast<size_t>(k);
+  if (info.manifold == sensors::BlockManifold::kRightQuaternion) {
+    const bool vehicle = info.id == sensors::CalibrationBlockId::kVehicleRotation;
+    return std::string((vehicle ? kMountAngleNames : kLidarAngleNames)[axis]) + " (deg)";
+  }
   const char* axes[3] = {"x", "y", "z"};
+  const std::string name =
+      info.tangent_size == 1 ? info.name : std::string(info.name) + " " + axes[axis];
+  return name + " (" + info.display_unit + ")";
+}
+
+// The result table: value, sigma, nominal and observability of each reported block, in the
+// block table's order: the LiDAR's blocks whenever the LiDAR took part, the others when the
+// result carries their sigma (they were estimated).
+std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used) {
   std::ostringstream rows;
-  // Rotations as roll, pitch and yaw of the mounting (mount_angles.h); `angle_names` say
-  // about which axes, `mount` turns the stored rotation into the mounting shown.
-  using AngleNames = std::array<const char*, 3>;
-  const auto pose_rows = [&](const std::string& name, const AngleNames& angle_names,
-                             const Eigen::Quaterniond& mount, const Eigen::Vector3d& p,
-                             const Eigen::Quaterniond& mount_nominal,
-                             const Eigen::Vector3d& p_nominal, const io::PoseBlockInfo& info) {
-    const Eigen::Vector3d rotation_deg = DisplayRollPitchYawDeg(mount, kAngleDecimals);
-    const Eigen::Vector3d nominal_deg = DisplayRollPitchYawDeg(mount_nominal, kAngleDecimals);
-    for (int i = 0; i < 3; ++i) {
-      rows << "<tr><td>" << angle_names[static_cast<size_t>(i)] << " (deg)</td><td>"
-           << FormatFixed(rotation_deg(i), kAngleDecimals) << "</td><td>"
-           << Sigma(info.sigma_rot_deg, 1.0, i) << "</td><td>"
-           << FormatFixed(nominal_deg(i), kAngleDecimals) << "</td><td>"
-           << Observable(info.observable, static_cast<size_t>(i)) << "</td></tr>";
+  for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
+    const io::BlockUncertainty u = io::UncertaintyIn(result.calibration.uncertainty, info.id);
+    if (!u.sigma && !(lidar_used && info.sensor == sensors::BlockSensor::kLidar)) continue;
+    const Eigen::VectorXd value = DisplayValues(info, result.calibration.value);
+    const Eigen::VectorXd nominal = DisplayValues(info, result.nominal);
+    // A rotation's sigma is about its own axes in degrees, shown beside the mounting's angles.
+    const double sigma_scale =
+        info.manifold == sensors::BlockManifold::kRightQuaternion ? 1.0 : info.display_scale;
+    for (int k = 0; k < info.tangent_size; ++k) {
+      rows << "<tr><td>" << RowLabel(info, k) << "</td><td>"
+           << (info.manifold == sensors::BlockManifold::kRightQuaternion
+                   ? FormatFixed(value(k), kAngleDecimals)
+                   : Number(value(k)))
+           << "</td><td>" << (u.sigma ? Number((*u.sigma)(k)*sigma_scale) : "–") << "</td><td>"
+           << (info.manifold == sensors::BlockManifold::kRightQuaternion
+                   ? FormatFixed(nominal(k), kAngleDecimals)
+                   : Number(nominal(k)))
+           << "</td><td>" << Observable(u.observable, static_cast<size_t>(k)) << "</td></tr>";
     }
-    for (int i = 0; i < 3; ++i) {
-      rows << "<tr><td>" << name << " translation " << axes[i] << " (m)</td><td>" << Number(p(i))
-           << "</td><td>" << Sigma(info.sigma_p_m, 1.0, i) << "</td><td>" << Number(p_nominal(i))
-           << "</td><td>" << Observable(info.observable, static_cast<size_t>(3 + i))
-           << "</td></tr>";
-    }
-  };
-  const auto scalar_row = [&](const std::string& label, double value, double nominal,
-                              const io::ScalarBlockInfo& info, double scale) {
-    rows << "<tr><td>" << label << "</td><td>" << Number(value * scale) << "</td><td>"
-         << (info.sigma ? Number(*info.sigma * scale) : "–") << "</td><td>"
-         << Number(nominal * scale) << "</td><td>"
-         << (info.observable.value_or(true) ? "yes" : "<b>no</b>") << "</td></tr>";
-  };
-  // LiDAR blocks whenever the LiDAR took part; the others when the result carries their
-  // sigma (they were estimated).
-  if (lidar_used || u.T_I_L.sigma_rot_deg || u.T_I_L.sigma_p_m) {
-    pose_rows("T_I_L", kLidarAngleNames, c.q_I_L, c.p_I_L, result.nominal.q_I_L,
-              result.nominal.p_I_L, u.T_I_L);
-  }
-  if (lidar_used || u.time_offset_lidar_imu_s.sigma) {
-    scalar_row("time offset lidar→imu (ms)", c.time_offset_lidar_imu_s,
-               result.nominal.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3);
-  }
-  // The wheels' and the receiver's clocks, when estimated.
-  if (u.time_offset_wheel_imu_s.sigma) {
-    scalar_row("time offset wheels→imu (ms)", c.time_offset_wheel_imu_s,
-               result.nominal.time_offset_wheel_imu_s, u.time_offset_wheel_imu_s, 1e3);
-  }
-  if (u.time_offset_gnss_imu_s.sigma) {
-    scalar_row("time offset gnss→imu (ms)", c.time_offset_gnss_imu_s,
-               result.nominal.time_offset_gnss_imu_s, u.time_offset_gnss_imu_s, 1e3);
-  }
-  if (u.wheel_radius_left_m.sigma) {
-    scalar_row("wheel radius left (mm)", c.wheel_radius_left_m, result.nominal.wheel_radius_left_m,
-               u.wheel_radius_left_m, 1e3);
-  }
-  if (u.wheel_radius_right_m.sigma) {
-    scalar_row("wheel radius right (mm)", c.wheel_radius_right_m,
-               result.nominal.wheel_radius_right_m, u.wheel_radius_right_m, 1e3);
-  }
-  if (u.track_width_m.sigma) {
-    scalar_row("track width (mm)", c.track_width_m, result.nominal.track_width_m, u.track_width_m,
-               1e3);
-  }
-  // The blocks of the other wheel forms (speed scales in %).
-  const std::pair<const char*, double sensors::Calibration::*> form_blocks[] = {
-      {"wheel speed scale left (%)", &sensors::Calibration::wheel_speed_scale_left},
-      {"wheel speed scale right (%)", &sensors::Calibration::wheel_speed_scale_right},
-      {"odometry speed scale (%)", &sensors::Calibration::odometry_speed_scale},
-      {"effective track (mm)", &sensors::Calibration::effective_track_m}};
-  const io::ScalarBlockInfo* form_infos[] = {&u.wheel_speed_scale_left, &u.wheel_speed_scale_right,
-                                             &u.odometry_speed_scale, &u.effective_track_m};
-  for (size_t i = 0; i < 4; ++i) {
-    const auto& [label, member] = form_blocks[i];
-    if (!form_infos[i]->sigma) continue;
-    scalar_row(label, c.*member, result.nominal.*member, *form_infos[i], i < 3 ? 100.0 : 1e3);
-  }
-  if (u.p_I_A_m.sigma) {
-    for (int i = 0; i < 3; ++i) {
-      rows << "<tr><td>GNSS lever arm " << axes[i] << " (m)</td><td>" << Number(c.p_I_A(i))
-           << "</td><td>" << Number((*u.p_I_A_m.sigma)(i)) << "</td><td>"
-           << Number(result.nominal.p_I_A(i)) << "</td><td>"
-           << Observable(u.p_I_A_m.observable, static_cast<size_t>(i)) << "</td></tr>";
-    }
-  }
-  if (u.T_I_V.sigma_rot_deg || u.T_I_V.sigma_p_m) {
-    pose_rows("T_I_V", kMountAngleNames, ImuMountInVehicle(c.q_I_V), c.p_I_V,
-              ImuMountInVehicle(result.nominal.q_I_V), result.nominal.p_I_V, u.T_I_V);
   }
   const std::string body = rows.str();
   if (body.empty()) return "<h2>Result</h2><p>No calibration block was estimated.</p>\n";

@@ -321,15 +321,15 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
 // The wheels' and the receiver's clocks get result rows when estimated, and none otherwise.
 TEST(ReportHtml, ShowsTheEstimatedClocksInTheResultTable) {
   OfflineCalibrationResult result = FullResult();
-  EXPECT_THAT(CalibrationReportHtml(result), Not(HasSubstr("time offset wheels")));
+  EXPECT_THAT(CalibrationReportHtml(result), Not(HasSubstr("<td>wheel-IMU time offset")));
   result.calibration.value.time_offset_wheel_imu_s = -0.39;
   result.calibration.uncertainty.time_offset_wheel_imu_s.sigma = 0.002;
   result.calibration.value.time_offset_gnss_imu_s = 0.15;
   result.calibration.uncertainty.time_offset_gnss_imu_s.sigma = 0.01;
   result.calibration.uncertainty.time_offset_gnss_imu_s.observable = false;
   const std::string html = CalibrationReportHtml(result);
-  EXPECT_THAT(html, HasSubstr("<td>time offset wheels→imu (ms)</td><td>-390</td><td>2</td>"));
-  EXPECT_THAT(html, HasSubstr("<td>time offset gnss→imu (ms)</td><td>150</td><td>10</td><td>0"
+  EXPECT_THAT(html, HasSubstr("<td>wheel-IMU time offset (ms)</td><td>-390</td><td>2</td>"));
+  EXPECT_THAT(html, HasSubstr("<td>GNSS-IMU time offset (ms)</td><td>150</td><td>10</td><td>0"
                               "</td><td><b>no</b></td>"));
 }
 
@@ -351,10 +351,10 @@ TEST(ReportHtml, ShowsTheBlocksOfTheWheelForm) {
     EXPECT_TRUE(has(html, "<td>odometry speed scale (%)</td><td>97</td><td>0.2</td>"));
     EXPECT_TRUE(has(html, "<td>effective track (mm)</td><td>1040</td><td>10</td>"));
     EXPECT_FALSE(has(html, "<td>track width (mm)</td>"));
-    EXPECT_FALSE(has(html, "wheel speed scale left"));
+    EXPECT_FALSE(has(html, "left rear wheel speed scale"));
     EXPECT_FALSE(HasNonFiniteText(html));
     u.wheel_speed_scale_left.sigma = u.wheel_speed_scale_right.sigma = 0.001;
-    EXPECT_TRUE(has(CalibrationReportHtml(result), "<td>wheel speed scale right (%)</td>"));
+    EXPECT_TRUE(has(CalibrationReportHtml(result), "<td>right rear wheel speed scale (%)</td>"));
   }
   // With the iterations recorded, their convergence is charted.
   OfflineCalibrationResult result = FullResult();
