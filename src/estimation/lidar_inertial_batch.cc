@@ -23,7 +23,6 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
-#include "estimation/batch_association.h"
 #include "estimation/sweep_pairing.h"
 
 namespace autocal {
@@ -32,10 +31,26 @@ namespace estimation {
 namespace {
 
 using internal::Association;
-using internal::BatchInputs;
-using internal::IterationScale;
-using internal::PropagatedSweeps;
+using internal::SweepsAtEstimate;
 using internal::SweepSelection;
+
+// The inputs of the solve and what every outer iteration shares.
+struct BatchInputs {
+  const sensors::ImuSamples& imu;
+  const std::vector<SelectedSweep>& sweeps;
+  std::vector<Keyframe>* keyframes;
+  sensors::Calibration* calibration;
+  const LidarInertialBatchOptions& options;
+  Eigen::Vector3d g_W;
+
+  int num_sweeps() const { return static_cast<int>(sweeps.size()); }
+  // Runs body(k) for every sweep, on options.num_threads threads.
+  void ForEachSweep(const std::function<void(size_t)>& body) const {
+    ParallelFor(0, num_sweeps(), options.num_threads, [&](int64_t begin, int64_t end, int) {
+      for (int64_t k = begin; k < end; ++k) body(static_cast<size_t>(k));
+    });
+  }
+};
 
 // 1-sigma of the gauge prior on the first keyframe's yaw: a direction no factor informs, so
 // any weight fixes it without pulling on the data.
@@ -97,14 +112,11 @@ struct PointGroup {
   std::vector<double*> parameters;
 };
 
-IterationScale ScaleOf(const LidarInertialBatchOptions& options, int iteration) {
+// The pairing of outer iteration `iteration`: the first coarse_to_fine_steps iterations
+// accept planes 2^(steps - iteration) times thicker and points that much noisier.
+PairingOptions PairingAt(const LidarInertialBatchOptions& options, int iteration) {
   const double coarse = std::pow(2.0, std::max(0, options.coarse_to_fine_steps - iteration));
-  IterationScale scale;
-  scale.map_options = options.pairing.plane_map;
-  scale.map_options.max_plane_thickness_m *= coarse;
-  scale.point_sigma_m = options.pairing.point_sigma_m * coarse;
-  scale.max_point_to_plane_m = options.pairing.max_point_to_plane_m * coarse;
-  return scale;
+  return internal::CoarsePairing(options.pairing, coarse);
 }
 
 BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSweep>& sweeps,
@@ -118,10 +130,14 @@ BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSwe
 }
 
 // Step 1: every sweep propagated with the current estimate.
-PropagatedSweeps PropagateSweeps(const BatchInputs& in) {
+SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
   const size_t n = in.sweeps.size();
   const double offset_lin = in.calibration->time_offset_lidar_imu_s;
-  PropagatedSweeps out;
+  SweepsAtEstimate out;
+  out.sweeps = &in.sweeps;
+  out.keyframes = in.keyframes;
+  out.calibration = in.calibration;
+  out.g_W = in.g_W;
   out.tables.resize(n);
   out.reference_motion.resize(n);
   out.T_W_L.resize(n);
@@ -259,7 +275,7 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   sensors::Calibration* calibration = in.calibration;
   const sensors::Calibration before = *calibration;
   const auto iteration_start = std::chrono::steady_clock::now();
-  const IterationScale scale = ScaleOf(options, iteration);
+  const PairingOptions pairing = PairingAt(options, iteration);
 
   // 4. The problem: IMU factors between keyframes, point-to-plane factors per pair of sweeps.
   geometry::RightQuaternionManifold quaternion_manifold;
@@ -279,13 +295,16 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   // The associations (and the maps before them) go once the factors hold the measurements: a
   // long log's maps, associations and problem need not share the memory.
   const int associated_points =
-      AddPointGroups(in, AssociatePoints(in, PropagateSweeps(in), scale), &problem, &point_groups);
+      AddPointGroups(in,
+                     internal::PairEverySweep(PropagateSweeps(in), pairing,
+                                              options.map_neighbor_sweeps, options.num_threads),
+                     &problem, &point_groups);
   // Other sensors' factors and priors, from the caller.
   if (options.add_factors) options.add_factors(&problem, in.keyframes, calibration);
   const std::vector<int> held_axes = HoldGaugeAndBlocks(in, &problem);
   if (iteration == 0) {
     report->initial_point_residuals_m =
-        PointDistances(point_groups, associated_points, scale.point_sigma_m);
+        PointDistances(point_groups, associated_points, pairing.point_sigma_m);
   }
 
   // 5. Solve.
@@ -296,7 +315,7 @@ bool OuterIteration(const BatchInputs& in, int iteration,
 
   // 6. Point residual statistics without the robust loss.
   const std::vector<double> residuals =
-      PointDistances(point_groups, associated_points, scale.point_sigma_m);
+      PointDistances(point_groups, associated_points, pairing.point_sigma_m);
   double sum_sq = 0.0;
   for (double r : residuals) sum_sq += r * r;
   report->final_point_residuals_m = residuals;

@@ -4,11 +4,12 @@
 // planes" and "Reuse between updates"): the residual points of a LiDAR sweep paired with planes of
 // other sweeps, the points of sweep k on planes of sweep j forming one group factor.
 //
-// The batch solver and the sliding window share the point selection, the deskew into W, the
-// sweeps' LiDAR poses and the order in which a point tries its partners. The window pairs
-// again at every update, so SweepPairing keeps explicit state between updates: per sweep its
-// plane map (rebuilt only when its deskew moved), per keyframe its points' partners, tries
-// (kept while the relative pose holds) and misses, and the groups' storage (PointGroupPool).
+// One engine with two passes over the same parts (point selection, deskew into W, the sweeps'
+// LiDAR poses, the order in which a point tries its partners, PairingOptions). The batch pairs
+// every sweep afresh at each outer iteration (PairEverySweep). The window pairs again at every
+// update, so SweepPairing keeps explicit state between updates: per sweep its plane map
+// (rebuilt only when its deskew moved), per keyframe its points' partners, tries (kept while
+// the relative pose holds) and misses, and the groups' storage (PointGroupPool).
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -70,6 +71,45 @@ double MaxPointMotion(const geometry::Pose3d& before, const geometry::Pose3d& af
 inline size_t PartnerPosition(size_t r, size_t a, size_t S, size_t P) {
   return a < S ? (r + a) % S : S + (r + a - S) % (P - S);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The batch's pass: every sweep paired afresh at each outer iteration, no state kept between
+// calls. Plane map j holds sweep j's map points and those of its map_neighbor_sweeps
+// neighbours on each side, deskewed into W (a denser local map, whose parts are too close in
+// time to disagree much); maps are built for a stretch of sweeps at a time and dropped once
+// no later point reaches them, so that a long log never holds them all.
+
+// The sweeps at one estimate: their IMU motion tables from their keyframes and their LiDAR
+// poses at the reference instant (point time 0).
+struct SweepsAtEstimate {
+  const std::vector<SelectedSweep>* sweeps = nullptr;
+  const std::vector<Keyframe>* keyframes = nullptr;  // one per sweep
+  const sensors::Calibration* calibration = nullptr;
+  Eigen::Vector3d g_W = Eigen::Vector3d::Zero();
+  std::vector<std::optional<ImuMotionTable>> tables;
+  std::vector<factors::PointMotion> reference_motion;
+  std::vector<geometry::Pose3d> T_W_L;
+
+  int num_sweeps() const { return static_cast<int>(sweeps->size()); }
+};
+
+// A residual point's measurement and the sweep whose plane it lies on (Eq. P6).
+struct Association {
+  factors::PointToSweepPlaneMeasurement measurement;
+  int partner;
+};
+
+// Per sweep its points' associations: each residual point on the first plane within the gate
+// among its partners, tried in the order of pairing.partner_offsets from a different start for
+// consecutive points (PartnerPosition), so that every sweep is tied to sweeps before and after
+// it.
+std::vector<std::vector<Association>> PairEverySweep(const SweepsAtEstimate& at,
+                                                     const PairingOptions& pairing,
+                                                     int map_neighbor_sweeps, int num_threads);
+
+// The pairing of a coarse-to-fine step: planes `coarse` times thicker, points that much
+// noisier and a gate that much wider, so that a calibration still far off finds planes at all.
+PairingOptions CoarsePairing(PairingOptions pairing, double coarse);
 
 // ---------------------------------------------------------------------------------------------
 // The window's pairing engine and its state.
