@@ -209,19 +209,19 @@ std::vector<int> HoldGaugeAndBlocks(const BatchInputs& in, ceres::Problem* probl
     problem->AddResidualBlock(new factors::QuaternionPriorFactor(first.q_W_I, yaw_only), nullptr,
                               first.q_W_I.coeffs().data());
   }
-  if (!options.estimate_extrinsic_rotation) {
+  if (!options.estimate.extrinsic_rotation) {
     problem->SetParameterBlockConstant(calibration->q_I_L.coeffs().data());
   }
   std::vector<int> held_axes;
   for (int axis = 0; axis < 3; ++axis) {
     if (options.hold_p_I_L_axes(axis)) held_axes.push_back(axis);
   }
-  if (!options.estimate_extrinsic_translation || held_axes.size() == 3) {
+  if (!options.estimate.extrinsic_translation || held_axes.size() == 3) {
     problem->SetParameterBlockConstant(calibration->p_I_L.data());
   } else if (!held_axes.empty()) {
     problem->SetManifold(calibration->p_I_L.data(), new ceres::SubsetManifold(3, held_axes));
   }
-  if (!options.estimate_time_offset) {
+  if (!options.estimate.time_offset) {
     problem->SetParameterBlockConstant(&calibration->time_offset_lidar_imu_s);
   }
   return held_axes;

@@ -45,9 +45,9 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
   batch.outer_iterations = problem.solver.outer_iterations;
   batch.solver_iterations = problem.solver.max_iterations;
   batch.num_threads = problem.solver.num_threads;
-  batch.estimate_extrinsic_rotation = Estimated(problem.calibration.T_I_L.rotation.mode);
-  batch.estimate_extrinsic_translation = Estimated(problem.calibration.T_I_L.translation.mode);
-  batch.estimate_time_offset = Estimated(problem.calibration.time_offset_lidar_imu_s.mode);
+  batch.estimate.extrinsic_rotation = Estimated(problem.calibration.T_I_L.rotation.mode);
+  batch.estimate.extrinsic_translation = Estimated(problem.calibration.T_I_L.translation.mode);
+  batch.estimate.time_offset = Estimated(problem.calibration.time_offset_lidar_imu_s.mode);
   return batch;
 }
 

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/estimated_blocks.h"
 #include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
@@ -57,9 +58,7 @@ struct LidarInertialBatchOptions {
   int outer_iterations = 8;
   int solver_iterations = 15;
   int num_threads = 1;
-  bool estimate_extrinsic_rotation = true;
-  bool estimate_extrinsic_translation = true;
-  bool estimate_time_offset = true;
+  LidarEstimatedBlocks estimate;  // the others are held at their starting value
   // Axes of p_I_L (IMU frame) held at their starting value, e.g. those the motion does not
   // excite (z under planar driving): the estimate keeps the prior there instead of noise.
   Eigen::Matrix<bool, 3, 1> hold_p_I_L_axes = Eigen::Matrix<bool, 3, 1>::Constant(false);

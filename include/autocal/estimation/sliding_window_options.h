@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <optional>
 
+#include "autocal/estimation/estimated_blocks.h"
 #include "autocal/estimation/marginalization.h"
 #include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
@@ -18,14 +19,11 @@ namespace autocal {
 namespace estimation {
 
 // Which calibration blocks the window estimates; the others are held at their initial value.
-struct SlidingWindowEstimatedBlocks {
-  bool extrinsic_rotation = true;     // q_I_L
-  bool extrinsic_translation = true;  // p_I_L
-  bool time_offset = true;            // time_offset_lidar_imu_s
-  bool wheel_radii = true;            // wheel_radius_left_m, wheel_radius_right_m
-  bool track_width = true;            // track_width_m
-  bool vehicle_frame = false;         // q_I_V, p_I_V (weakly observable from wheel data)
-  bool gnss_lever_arm = true;         // p_I_A
+struct SlidingWindowEstimatedBlocks : LidarEstimatedBlocks {
+  bool wheel_radii = true;     // wheel_radius_left_m, wheel_radius_right_m
+  bool track_width = true;     // track_width_m
+  bool vehicle_frame = false;  // q_I_V, p_I_V (weakly observable from wheel data)
+  bool gnss_lever_arm = true;  // p_I_A
   // Wheels as linear speeds (AddWheelSpeeds): wheel_speed_scale_left, wheel_speed_scale_right
   // (with track_width_m).
   bool wheel_speed_scales = true;
