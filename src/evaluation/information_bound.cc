@@ -11,7 +11,7 @@
 namespace autocal {
 namespace evaluation {
 
-TruthSetterFn TruthSetter(const io::Dataset& dataset) {
+estimation::StateSetter TruthSetter(const io::Dataset& dataset) {
   if (dataset.groundtruth_trajectory.empty() || !dataset.groundtruth_calibration) return {};
   auto truth = std::make_shared<const io::Trajectory>(dataset.groundtruth_trajectory);
   const sensors::Calibration calibration = *dataset.groundtruth_calibration;

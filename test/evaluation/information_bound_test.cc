@@ -61,7 +61,7 @@ std::vector<estimation::Keyframe> KeyframesOff(std::vector<estimation::Keyframe>
 
 TEST(TruthSetter, PutsTheTruthIntoTheEstimatesFrame) {
   const io::Dataset dataset = CircleWithTruth();
-  const TruthSetterFn set_to_truth = TruthSetter(dataset);
+  const estimation::StateSetter set_to_truth = TruthSetter(dataset);
   ASSERT_TRUE(set_to_truth);
   std::vector<estimation::Keyframe> exact;
   std::vector<estimation::Keyframe> keyframes = KeyframesOff(&exact);
@@ -87,7 +87,7 @@ TEST(TruthSetter, IsEmptyWithoutAGroundTruth) {
 }
 
 TEST(TruthSetter, RefusesKeyframesOutsideTheTruth) {
-  const TruthSetterFn set_to_truth = TruthSetter(CircleWithTruth());
+  const estimation::StateSetter set_to_truth = TruthSetter(CircleWithTruth());
   std::vector<estimation::Keyframe> keyframes(3);
   keyframes[0].t_ns = 1'000'000'000 + 500'000'000;  // one inside
   keyframes[1].t_ns = 50'000'000'000;

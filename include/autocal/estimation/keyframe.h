@@ -6,6 +6,10 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "autocal/sensors/calibration.h"
 
 namespace autocal {
 namespace estimation {
@@ -18,6 +22,10 @@ struct Keyframe {
   Eigen::Vector3d b_g = Eigen::Vector3d::Zero();
   Eigen::Vector3d b_a = Eigen::Vector3d::Zero();
 };
+
+// Sets keyframes and a calibration in place: to the truth of a simulated log
+// (evaluation::TruthSetter) for pipeline::OfflineCalibrationOptions::set_to_truth.
+using StateSetter = std::function<void(std::vector<Keyframe>*, sensors::Calibration*)>;
 
 }  // namespace estimation
 }  // namespace autocal

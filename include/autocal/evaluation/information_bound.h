@@ -11,9 +11,6 @@
 // positions onto it, the only freedom between the two frames; the biases stay at their
 // estimate (the truth gives none per keyframe; they enter the Jacobians at second order).
 
-#include <functional>
-#include <vector>
-
 #include "autocal/estimation/keyframe.h"
 #include "autocal/io/dataset.h"
 #include "autocal/sensors/calibration.h"
@@ -21,14 +18,11 @@
 namespace autocal {
 namespace evaluation {
 
-using TruthSetterFn =
-    std::function<void(std::vector<estimation::Keyframe>*, sensors::Calibration*)>;
-
 // Sets every keyframe within the truth's span (interpolated where no sample has its stamp) and
 // the whole calibration to the truth of `dataset`. An empty function when the dataset has no
 // ground truth trajectory or calibration. The setter throws autocal::Error when fewer than two
 // keyframes lie within the truth.
-TruthSetterFn TruthSetter(const io::Dataset& dataset);
+estimation::StateSetter TruthSetter(const io::Dataset& dataset);
 
 }  // namespace evaluation
 }  // namespace autocal

@@ -109,8 +109,9 @@ VehicleMotion<T> PredictVehicleMotion(const T* q_W_I_ptr, const T* v_W_I_ptr, co
           q_I_V.conjugate() * w_I};
 }
 
-// The yaw-rate row's sigma at track b (Eq. F22b): sqrt(s_w^2 (b0 / b)^2 + s_g^2) with
-// s_w^2 = yaw_rate_sigma^2 - s_g^2 the wheels' part at b0 = yaw_row_track_m; fixed without b0.
+// The yaw-rate row's sigma at track b (Eq. F22b at fixed radii): sqrt(s_w^2 (b0 / b)^2 + s_g^2)
+// with s_w^2 = yaw_rate_sigma^2 - s_g^2 the wheels' part at b0 = yaw_row_track_m; fixed without
+// b0. The sliding window's wheel rows evaluate the same weight at the current radii.
 template <typename T>
 T YawRowSigma(const WheelFactorOptions& options, const T& track) {
   if (!(options.yaw_row_track_m > 0.0)) return T(options.yaw_rate_sigma_rad_s);

@@ -84,7 +84,7 @@ struct OfflineCalibrationOptions {
   // When set, sets the keyframes and the calibration to the truth (a simulated log:
   // evaluation::TruthSetter), and the final problem's covariance is computed there as well:
   // the Cramer-Rao bound of the estimated blocks, in OfflineCalibrationResult::bound.
-  std::function<void(std::vector<estimation::Keyframe>*, sensors::Calibration*)> set_to_truth;
+  estimation::StateSetter set_to_truth;
 };
 
 // Whitened residuals of one sensor's factors (each row over its sigma, before any robust
