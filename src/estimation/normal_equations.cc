@@ -1,5 +1,6 @@
 #include "estimation/normal_equations.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -126,6 +127,56 @@ double AccumulateNormalEquations(
     }
   }
   return total_cost;
+}
+
+Eigen::MatrixXd DenseBlockCovariance(ceres::Problem* problem,
+                                     const std::vector<const double*>& blocks,
+                                     double min_reciprocal_condition_number, int num_threads,
+                                     const char* what) {
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  ceres::Problem::EvaluateOptions evaluate;
+  BlockOffsets offset_of;
+  int n = 0;
+  for (double* block : all) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    evaluate.parameter_blocks.push_back(block);
+    offset_of[block] = n;
+    n += problem->ParameterBlockTangentSize(block);
+  }
+  evaluate.num_threads = num_threads;
+  ceres::CRSMatrix crs;
+  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) {
+    throw Error(std::string(what) + ": the problem failed to evaluate for the covariance");
+  }
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int k = crs.rows[static_cast<size_t>(r)]; k < crs.rows[static_cast<size_t>(r) + 1]; ++k) {
+      J(r, crs.cols[static_cast<size_t>(k)]) = crs.values[static_cast<size_t>(k)];
+    }
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J, Eigen::ComputeThinV);
+  const Eigen::VectorXd& s = svd.singularValues();  // decreasing
+  Eigen::VectorXd inverse = Eigen::VectorXd::Zero(s.size());
+  const double max_squared = s.size() > 0 ? s(0) * s(0) : 0.0;
+  for (Eigen::Index i = 0; i < s.size(); ++i) {
+    const double squared = s(i) * s(i);
+    if (squared > 0.0 && squared >= min_reciprocal_condition_number * max_squared) {
+      inverse(i) = 1.0 / squared;
+    }
+  }
+  // The rows of V for the requested blocks.
+  int size = 0;
+  for (const double* block : blocks) size += problem->ParameterBlockTangentSize(block);
+  Eigen::MatrixXd V(size, svd.matrixV().cols());
+  int row = 0;
+  for (const double* block : blocks) {
+    const int tangent = problem->ParameterBlockTangentSize(block);
+    const int offset = offset_of.at(const_cast<double*>(block));
+    V.middleRows(row, tangent) = svd.matrixV().middleRows(offset, tangent);
+    row += tangent;
+  }
+  return V * inverse.asDiagonal() * V.transpose();
 }
 
 }  // namespace internal

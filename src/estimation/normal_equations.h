@@ -32,6 +32,18 @@ double AccumulateNormalEquations(
     const BlockOffsets& offsets, Eigen::MatrixXd* H, Eigen::VectorXd* b, const char* what,
     const std::function<void(const double* block, RowMajorMatrix* jacobian)>& transform = {});
 
+// The covariance of `blocks` (tangent coordinates, stacked in their order) from the
+// pseudo-inverse of J^T J over every variable block of `problem` at its current values, robust
+// losses applied: the singular values s_i of J with (s_i / s_max)^2 below
+// min_reciprocal_condition_number are dropped. This is ceres::Covariance's DENSE_SVD with
+// null_space_rank -1, but J's columns follow the problem's own block order, where Ceres sorts
+// the blocks by address: its result then varies in the last digits from run to run. Throws
+// autocal::Error, starting with `what`, when the problem fails to evaluate.
+Eigen::MatrixXd DenseBlockCovariance(ceres::Problem* problem,
+                                     const std::vector<const double*>& blocks,
+                                     double min_reciprocal_condition_number, int num_threads,
+                                     const char* what);
+
 }  // namespace internal
 }  // namespace estimation
 }  // namespace autocal

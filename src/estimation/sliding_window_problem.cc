@@ -21,6 +21,7 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/firing_poses.h"
+#include "estimation/normal_equations.h"
 #include "estimation/sliding_window_internal.h"
 #include "estimation/window_solver.h"
 #include "factors/point_group_storage.h"
@@ -311,26 +312,9 @@ CalibrationCovariance SlidingWindowEstimator::Impl::ComputeCalibrationCovariance
   out.covariance = Eigen::MatrixXd::Zero(size, size);
   if (blocks.empty()) return out;
 
-  ceres::Covariance::Options covariance_options;
-  covariance_options.algorithm_type = ceres::DENSE_SVD;
-  covariance_options.null_space_rank = -1;
-  covariance_options.min_reciprocal_condition_number = min_reciprocal_condition_number;
-  covariance_options.num_threads = options_.num_threads;
-  ceres::Covariance covariance(covariance_options);
-  std::vector<std::pair<const double*, const double*>> pairs;
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    for (size_t j = i; j < blocks.size(); ++j) pairs.emplace_back(blocks[i], blocks[j]);
-  }
-  if (!covariance.Compute(pairs, build->problem.get())) {
-    throw Error("SlidingWindowEstimator: ceres::Covariance failed on the window problem");
-  }
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> joint(size, size);
-  if (!covariance.GetCovarianceMatrixInTangentSpace(blocks, joint.data())) {
-    throw Error(
-        "SlidingWindowEstimator: ceres::Covariance could not return the calibration "
-        "covariance");
-  }
-  out.covariance = joint;
+  out.covariance =
+      internal::DenseBlockCovariance(build->problem.get(), blocks, min_reciprocal_condition_number,
+                                     options_.num_threads, "SlidingWindowEstimator");
   return out;
 }
 

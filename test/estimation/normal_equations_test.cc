@@ -10,6 +10,7 @@
 
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/pose_chain.h"
 
 namespace autocal {
 namespace estimation {
@@ -132,6 +133,33 @@ void ExpectNormalEquations(int rows) {
 TEST(AccumulateNormalEquations, PairwiseProductsForFewRows) { ExpectNormalEquations(6); }
 
 TEST(AccumulateNormalEquations, OneStackedProductForManyRows) { ExpectNormalEquations(40); }
+
+// The window's covariance agrees with ceres::Covariance's DENSE_SVD (null_space_rank -1) on a
+// pose chain with a robust loss, for blocks asked out of the problem's order.
+TEST(DenseBlockCovariance, MatchesCeresDenseSvd) {
+  const test::PoseChainProblem chain(3);
+  test::PoseChain x = chain.initial_values();
+  ceres::Problem problem;
+  chain.Build(&problem, &x, false);
+  const std::vector<const double*> blocks = {x.lever.data(), x.p[2].data(), x.q[1].coeffs().data()};
+  const Eigen::MatrixXd ours = DenseBlockCovariance(&problem, blocks, 1e-14, 1, "test");
+
+  ceres::Covariance::Options options;
+  options.algorithm_type = ceres::DENSE_SVD;
+  options.null_space_rank = -1;
+  options.min_reciprocal_condition_number = 1e-14;
+  ceres::Covariance covariance(options);
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (const double* a : blocks) {
+    for (const double* b : blocks) pairs.emplace_back(a, b);
+  }
+  ASSERT_TRUE(covariance.Compute(pairs, &problem));
+  Eigen::Matrix<double, 9, 9, Eigen::RowMajor> theirs;
+  ASSERT_TRUE(covariance.GetCovarianceMatrixInTangentSpace(blocks, theirs.data()));
+  ASSERT_EQ(ours.rows(), 9);
+  EXPECT_LT((ours - theirs).norm(), 1e-10 * theirs.norm()) << ours << "\n\n" << theirs;
+  EXPECT_GT(ours.diagonal().minCoeff(), 0.0);
+}
 
 }  // namespace
 }  // namespace internal
