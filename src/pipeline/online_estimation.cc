@@ -154,12 +154,17 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
       StartFromInitializer(dataset.sensors.nominal_calibration, problem.calibration, init);
   std::vector<estimation::Keyframe> keyframes = init.keyframes;
   if (use_gnss) {
+    // The start's small solve on one thread: Ceres sums cost and gradient per thread, and a
+    // stopping decision that moved with the count would move the whole stream's estimate.
+    estimation::GnssInertialKeyframesOptions gnss_start =
+        GnssInertialStart(dataset, problem, timing);
+    gnss_start.num_threads = 1;
     const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     estimation::AlignKeyframesToGnss(&keyframes, dataset.gnss, enu, out.calibration.p_I_A);
-    keyframes.front() = StartFromGnssAndImu(
-        dataset, StartWheelData(dataset, use_wheel), GnssInertialStart(dataset, problem, timing),
-        enu, keyframes, Estimated(problem.calibration.T_I_L.rotation.mode), out.calibration,
-        &out.calibration.q_I_L);
+    keyframes.front() =
+        StartFromGnssAndImu(dataset, StartWheelData(dataset, use_wheel), gnss_start, enu, keyframes,
+                            Estimated(problem.calibration.T_I_L.rotation.mode), out.calibration,
+                            &out.calibration.q_I_L);
     window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
     window_options->initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
     window_options->initial_state_sigmas.accel_bias_m_s2 =
