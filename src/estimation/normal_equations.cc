@@ -172,11 +172,16 @@ Eigen::MatrixXd DenseBlockCovariance(ceres::Problem* problem,
   int row = 0;
   for (const double* block : blocks) {
     const int tangent = problem->ParameterBlockTangentSize(block);
-    const int offset = offset_of.at(const_cast<double*>(block));
+    const auto found = offset_of.find(const_cast<double*>(block));
+    if (found == offset_of.end()) {
+      throw Error(std::string(what) + ": a block asked for is not a variable block of the problem");
+    }
+    const int offset = found->second;
     V.middleRows(row, tangent) = svd.matrixV().middleRows(offset, tangent);
     row += tangent;
   }
-  return V * inverse.asDiagonal() * V.transpose();
+  const Eigen::MatrixXd covariance = V * inverse.asDiagonal() * V.transpose();
+  return 0.5 * (covariance + covariance.transpose());  // exactly symmetric
 }
 
 }  // namespace internal

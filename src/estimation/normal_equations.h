@@ -38,7 +38,8 @@ double AccumulateNormalEquations(
 // min_reciprocal_condition_number are dropped. This is ceres::Covariance's DENSE_SVD with
 // null_space_rank -1, but J's columns follow the problem's own block order, where Ceres sorts
 // the blocks by address: its result then varies in the last digits from run to run. Throws
-// autocal::Error, starting with `what`, when the problem fails to evaluate.
+// autocal::Error, starting with `what`, when the problem fails to evaluate or a block asked for
+// is not a variable block of it.
 Eigen::MatrixXd DenseBlockCovariance(ceres::Problem* problem,
                                      const std::vector<const double*>& blocks,
                                      double min_reciprocal_condition_number, int num_threads,

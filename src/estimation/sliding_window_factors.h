@@ -78,8 +78,9 @@ void PropagatedBodyInputs(const sensors::ImuPreintegration& pim, const T* q, con
 // Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened at
 // the current radii and track width (docs/sliding_window.md, "Wheel rows"), s_w the encoder and
 // s_g the gyro sample noise: row 0 over s_v = s_w sqrt(r_l^2 + r_r^2) / 2, row 1 in wheel-speed
-// units, (w_z b - (w_r r_r - w_l r_l)), over sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2), the Deming
-// weighting of Eq. F22b (factors::YawRowSigma at fixed radii). Parameter blocks:
+// units, (w_z b - (w_r r_r - w_l r_l)), over sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2): the Deming
+// weighting of Eq. F22b in its general form, evaluated here at the current radii (the keyframe
+// factor's YawRowSigma is its fixed-radii case). Parameter blocks:
 // q_W_I, v_W_I, b_g, b_a of the keyframe (its position does not enter the wheel rows), then q_I_V,
 // p_I_V, r_l, r_r, track width.
 class PropagatedWheelResidual {

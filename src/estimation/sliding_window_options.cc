@@ -119,6 +119,9 @@ void CheckOptions(const SlidingWindowOptions& o) {
     throw Error("SlidingWindowOptions: solver.max_iterations must be at least 1");
   }
   CheckPositive(o.solver.function_tolerance, "solver.function_tolerance");
+  CheckNonNegative(o.solver.gradient_tolerance, "solver.gradient_tolerance");
+  CheckNonNegative(o.solver.parameter_tolerance, "solver.parameter_tolerance");
+  CheckPositive(o.solver.initial_trust_region_radius, "solver.initial_trust_region_radius");
   CheckPairing(o.pairing, o.window_pairing);
   CheckWheelRows(o.wheel_rows);
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");

@@ -234,7 +234,7 @@ void SlidingWindowEstimator::Impl::Solve(std::unique_ptr<ProblemBuild>* build) {
   // The window's own Levenberg-Marquardt (Eq. W5): the rows fixed for the pass enter by
   // their normal equations, formed once; an iteration evaluates the IMU factors and the rows
   // with a loss and factors the dense system. It runs on one thread (docs/sliding_window.md,
-  // "Settings": num_threads).
+  // "Options": num_threads).
   timing_.solver_iterations = 0;
   timing_.solver_passes = 0;
   const int max_passes = std::max(1, options_.linearization.passes_per_update);

@@ -158,7 +158,7 @@ void SetBlockUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<
   (f.rotation ? f.pose->sigma_rot_deg : f.pose->sigma_p_m) = Eigen::Vector3d(sigma);
   if (!observable) return;
   std::vector<bool>& flags = f.pose->observable;
-  if (flags.size() < 6) flags.resize(6, true);
+  if (flags.size() < 6) flags.assign(6, flags.empty() || flags[0]);  // one flag: the whole pose
   const size_t first = f.rotation ? 0 : 3;
   for (size_t k = 0; k < observable->size(); ++k) flags[first + k] = (*observable)[k];
 }

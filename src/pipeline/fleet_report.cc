@@ -10,11 +10,11 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/io/calibration_block_fields.h"
+#include "autocal/io/calibration_yaml.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "common/order_statistics.h"
 #include "html_page.h"
 #include "mount_angles.h"
-#include "problem_blocks.h"
 
 namespace autocal {
 namespace pipeline {

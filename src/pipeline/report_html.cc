@@ -18,7 +18,6 @@
 #include "autocal/sensors/calibration_blocks.h"
 #include "html_page.h"
 #include "mount_angles.h"
-#include "problem_blocks.h"
 #include "report_bound.h"
 #include "svg_chart.h"
 

@@ -76,7 +76,7 @@ constexpr std::array<CalibrationBlockInfo, kNumCalibrationBlocks> kBlocks = {{
     {Id::kVehicleTranslation, "p_I_V", "T_I_V translation", S::kWheel, M::kEuclidean, 3, 3, "m",
      100.0, "cm", kVehicleTranslationNames, "pv_",
      Values<&Calibration::p_I_V>, ConstValues<&Calibration::p_I_V>},
-    {Id::kGnssLeverArm, "p_I_A", "p_I_A", S::kGnss, M::kEuclidean, 3, 3, "m",
+    {Id::kGnssLeverArm, "p_I_A", "GNSS lever arm", S::kGnss, M::kEuclidean, 3, 3, "m",
      100.0, "cm", kLeverArmNames, "pa_",
      Values<&Calibration::p_I_A>, ConstValues<&Calibration::p_I_A>},
     {Id::kWheelSpeedScaleLeft, "wheel_speed_scale_left", "left rear wheel speed scale",

@@ -64,7 +64,7 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
   const evaluation::TrajectoryErrors& t = run.t;
   const evaluation::TrajectoryErrors& smoothed = run.smoothed;
 
-  // Measured (reproducible whatever the thread count: docs/sliding_window.md, "Settings"): 0.061
+  // Measured (reproducible whatever the thread count: docs/sliding_window.md, "Options"): 0.061
   // deg; x -8.4, y 2.3 mm with sigma 6.0 / 4.9 mm (z, which planar driving does not excite, -4.6
   // mm); offset -0.11 ms; radii 0.003 %; lever arm 7.0 mm; T_I_V 0.37 deg (its roll all but
   // unobserved). Seeds 2 and 3: 0.020 / 0.041 deg, x and y within 5.5 / 1.9 mm, -0.05 /

@@ -4,10 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
 #include <random>
 #include <utility>
 #include <vector>
 
+#include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/pose_chain.h"
@@ -130,6 +134,15 @@ void ExpectNormalEquations(int rows) {
   EXPECT_NEAR(cost, 0.5 * r.squaredNorm(), 1e-10 * cost);
 }
 
+// weak - p_1.x, weighted 1e-5.
+struct WeakRow {
+  template <typename T>
+  bool operator()(const T* weak, const T* p, T* residual) const {
+    residual[0] = T(1e-5) * (weak[0] - p[0]);
+    return true;
+  }
+};
+
 TEST(AccumulateNormalEquations, PairwiseProductsForFewRows) { ExpectNormalEquations(6); }
 
 TEST(AccumulateNormalEquations, OneStackedProductForManyRows) { ExpectNormalEquations(40); }
@@ -159,6 +172,57 @@ TEST(DenseBlockCovariance, MatchesCeresDenseSvd) {
   ASSERT_EQ(ours.rows(), 9);
   EXPECT_LT((ours - theirs).norm(), 1e-10 * theirs.norm()) << ours << "\n\n" << theirs;
   EXPECT_GT(ours.diagonal().minCoeff(), 0.0);
+}
+
+// With a weakly determined direction and a constant block: the singular values dropped are
+// those with (s / s_max)^2 below the reciprocal condition number (Ceres' rule), not s / s_max,
+// and the constant block has no column.
+TEST(DenseBlockCovariance, DropsWhatCeresDropsAndSkipsConstantBlocks) {
+  const test::PoseChainProblem chain(5);
+  test::PoseChain x = chain.initial_values();
+  ceres::Problem problem;
+  chain.Build(&problem, &x, false);
+  // A block seen only through a row of weight 1e-5: the smallest singular value of J.
+  double weak = 0.3;
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<WeakRow, 1, 1, 3>(new WeakRow), nullptr,
+                           &weak, x.p[1].data());
+  problem.SetParameterBlockConstant(x.p[3].data());
+  // The ratio s_min / s_max of J, and a condition number between its square and itself.
+  std::vector<double*> variable;
+  problem.GetParameterBlocks(&variable);
+  variable.erase(std::remove(variable.begin(), variable.end(), x.p[3].data()), variable.end());
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks = variable;
+  ceres::CRSMatrix crs;
+  ASSERT_TRUE(problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs));
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) J(r, crs.cols[k]) = crs.values[k];
+  }
+  const Eigen::VectorXd s = Eigen::JacobiSVD<Eigen::MatrixXd>(J).singularValues();
+  const double ratio = s(s.size() - 1) / s(0);
+  ASSERT_LT(ratio, 1e-4);
+  const double rcn = std::pow(ratio, 1.5);  // ratio^2 < rcn < ratio
+
+  const std::vector<const double*> blocks = {&weak, x.p[1].data(), x.lever.data()};
+  const Eigen::MatrixXd ours = DenseBlockCovariance(&problem, blocks, rcn, 2, "test");
+  ceres::Covariance::Options options;
+  options.algorithm_type = ceres::DENSE_SVD;
+  options.null_space_rank = -1;
+  options.min_reciprocal_condition_number = rcn;
+  ceres::Covariance covariance(options);
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (const double* a : blocks) {
+    for (const double* b : blocks) pairs.emplace_back(a, b);
+  }
+  ASSERT_TRUE(covariance.Compute(pairs, &problem));
+  Eigen::Matrix<double, 7, 7, Eigen::RowMajor> theirs;
+  ASSERT_TRUE(covariance.GetCovarianceMatrixInTangentSpace(blocks, theirs.data()));
+  EXPECT_LT((ours - theirs).norm(), 1e-8 * theirs.norm()) << ours << "\n\n" << theirs;
+  // The weak direction was dropped: its variance is far below the 1e10 its row alone states.
+  EXPECT_LT(ours(0, 0), 1e3);
+  EXPECT_EQ(ours, ours.transpose());
+  EXPECT_THROW(DenseBlockCovariance(&problem, {x.p[3].data()}, rcn, 1, "test"), Error);
 }
 
 }  // namespace

@@ -154,6 +154,12 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   expect_rejected("a partner offset twice", [](SlidingWindowOptions* o) {
     o->pairing.partner_offsets = {-5, 5, -5};
   });
+  expect_rejected("a zero trust region",
+                  [](SlidingWindowOptions* o) { o->solver.initial_trust_region_radius = 0.0; });
+  expect_rejected("a NaN gradient tolerance",
+                  [](SlidingWindowOptions* o) { o->solver.gradient_tolerance = std::nan(""); });
+  expect_rejected("a negative parameter tolerance",
+                  [](SlidingWindowOptions* o) { o->solver.parameter_tolerance = -1.0; });
   expect_rejected("max_plane_misses < 0",
                   [](SlidingWindowOptions* o) { o->window_pairing.max_plane_misses = -1; });
   expect_rejected("max_plane_misses > 255",

@@ -210,7 +210,7 @@ TEST(ReportHtml, ChartsTheConvergenceOfEveryEstimatedBlockInPhysicalUnits) {
       {"track width (mm)", ">12</text>"},
       {"T_I_V rotation (deg)", ">2</text>"},
       {"T_I_V translation (cm)", ">5</text>"},
-      {"p_I_A (cm)", ">-8</text>"},
+      {"GNSS lever arm (cm)", ">-8</text>"},
       {"wheel-IMU time offset (ms)", ">35.5</text>"},
       {"GNSS-IMU time offset (ms)", ">-12.5</text>"},
   };
@@ -232,7 +232,7 @@ TEST(ReportHtml, SkipsConvergenceOfBlocksThatWereNotEstimated) {
   result.calibration.uncertainty.track_width_m = io::ScalarBlockInfo();  // moved: a chart
   const std::string html = CalibrationReportHtml(result);
   EXPECT_THAT(html, Not(HasSubstr("<figcaption>T_I_V rotation")));
-  EXPECT_THAT(html, HasSubstr("<figcaption>p_I_A (cm)"));  // sigma, flat
+  EXPECT_THAT(html, HasSubstr("<figcaption>GNSS lever arm (cm)"));  // sigma, flat
   EXPECT_THAT(html, HasSubstr("<figcaption>track width (mm)"));
   EXPECT_THAT(html, Not(HasSubstr("<td>track width (mm)</td>")));  // not in the table
 }

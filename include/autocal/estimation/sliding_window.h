@@ -123,9 +123,9 @@ class SlidingWindowEstimator {
   const sensors::Calibration& calibration() const;
   // Covariance of the estimated calibration blocks given the window problem (point groups
   // linearized afresh at the current estimate), a pseudo-inverse that gives unobservable directions
-  // zero variance (singular values below min_reciprocal_condition_number times the largest are
-  // dropped). Not const: Ceres evaluates through the estimator's blocks (their values do not
-  // change). Throws autocal::Error when Ceres fails.
+  // zero variance (singular values s of J with (s / s_max)^2 below
+  // min_reciprocal_condition_number are dropped). Not const: Ceres evaluates through the
+  // estimator's blocks (their values do not change). Throws autocal::Error when Ceres fails.
   CalibrationCovariance ComputeCalibrationCovariance(
       double min_reciprocal_condition_number = 1e-12);
 

@@ -1,7 +1,7 @@
 #pragma once
 
 // Options of the sliding-window estimator (sliding_window.h): what it estimates, its priors,
-// and the settings of its wheel rows, pairing, linearization and solver. The reasons behind
+// and the nested options of its wheel rows, pairing, linearization and solver. The reasons behind
 // the defaults are in docs/history/sliding_window_notes.md.
 
 #include <Eigen/Core>
