@@ -147,6 +147,28 @@ TEST(AccumulateNormalEquations, PairwiseProductsForFewRows) { ExpectNormalEquati
 
 TEST(AccumulateNormalEquations, OneStackedProductForManyRows) { ExpectNormalEquations(40); }
 
+// ceres::Covariance's DENSE_SVD with null_space_rank -1: the oracle of DenseBlockCovariance.
+Eigen::MatrixXd CeresDenseSvd(ceres::Problem* problem, const std::vector<const double*>& blocks,
+                              double rcn) {
+  ceres::Covariance::Options options;
+  options.algorithm_type = ceres::DENSE_SVD;
+  options.null_space_rank = -1;
+  options.min_reciprocal_condition_number = rcn;
+  ceres::Covariance covariance(options);
+  std::vector<std::pair<const double*, const double*>> pairs;
+  int size = 0;
+  for (const double* a : blocks) {
+    size += problem->ParameterBlockTangentSize(a);
+    for (const double* b : blocks) pairs.emplace_back(a, b);
+  }
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> out(size, size);
+  if (!covariance.Compute(pairs, problem) ||
+      !covariance.GetCovarianceMatrixInTangentSpace(blocks, out.data())) {
+    ADD_FAILURE() << "ceres::Covariance failed";
+  }
+  return out;
+}
+
 // The window's covariance agrees with ceres::Covariance's DENSE_SVD (null_space_rank -1) on a
 // pose chain with a robust loss, for blocks asked out of the problem's order.
 TEST(DenseBlockCovariance, MatchesCeresDenseSvd) {
@@ -157,18 +179,7 @@ TEST(DenseBlockCovariance, MatchesCeresDenseSvd) {
   const std::vector<const double*> blocks = {x.lever.data(), x.p[2].data(), x.q[1].coeffs().data()};
   const Eigen::MatrixXd ours = DenseBlockCovariance(&problem, blocks, 1e-14, 1, "test");
 
-  ceres::Covariance::Options options;
-  options.algorithm_type = ceres::DENSE_SVD;
-  options.null_space_rank = -1;
-  options.min_reciprocal_condition_number = 1e-14;
-  ceres::Covariance covariance(options);
-  std::vector<std::pair<const double*, const double*>> pairs;
-  for (const double* a : blocks) {
-    for (const double* b : blocks) pairs.emplace_back(a, b);
-  }
-  ASSERT_TRUE(covariance.Compute(pairs, &problem));
-  Eigen::Matrix<double, 9, 9, Eigen::RowMajor> theirs;
-  ASSERT_TRUE(covariance.GetCovarianceMatrixInTangentSpace(blocks, theirs.data()));
+  const Eigen::MatrixXd theirs = CeresDenseSvd(&problem, blocks, 1e-14);
   ASSERT_EQ(ours.rows(), 9);
   EXPECT_LT((ours - theirs).norm(), 1e-10 * theirs.norm()) << ours << "\n\n" << theirs;
   EXPECT_GT(ours.diagonal().minCoeff(), 0.0);
@@ -206,18 +217,7 @@ TEST(DenseBlockCovariance, DropsWhatCeresDropsAndSkipsConstantBlocks) {
 
   const std::vector<const double*> blocks = {&weak, x.p[1].data(), x.lever.data()};
   const Eigen::MatrixXd ours = DenseBlockCovariance(&problem, blocks, rcn, 2, "test");
-  ceres::Covariance::Options options;
-  options.algorithm_type = ceres::DENSE_SVD;
-  options.null_space_rank = -1;
-  options.min_reciprocal_condition_number = rcn;
-  ceres::Covariance covariance(options);
-  std::vector<std::pair<const double*, const double*>> pairs;
-  for (const double* a : blocks) {
-    for (const double* b : blocks) pairs.emplace_back(a, b);
-  }
-  ASSERT_TRUE(covariance.Compute(pairs, &problem));
-  Eigen::Matrix<double, 7, 7, Eigen::RowMajor> theirs;
-  ASSERT_TRUE(covariance.GetCovarianceMatrixInTangentSpace(blocks, theirs.data()));
+  const Eigen::MatrixXd theirs = CeresDenseSvd(&problem, blocks, rcn);
   EXPECT_LT((ours - theirs).norm(), 1e-8 * theirs.norm()) << ours << "\n\n" << theirs;
   // The weak direction was dropped: its variance is far below the 1e10 its row alone states.
   EXPECT_LT(ours(0, 0), 1e3);
