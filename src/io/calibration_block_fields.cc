@@ -7,119 +7,103 @@ namespace {
 
 using Id = sensors::CalibrationBlockId;
 
-// A block's setting in ProblemCalibration: a scalar or a three-vector one.
-struct SettingField {
-  const char* key;  // in the problem file
-  ScalarBlockSetting* scalar = nullptr;
-  VectorBlockSetting* vector = nullptr;
-};
-
-SettingField SettingFieldOf(ProblemCalibration& c, Id id) {
-  switch (id) {
-    case Id::kLidarRotation:
-      return {"T_I_L rotation", nullptr, &c.T_I_L.rotation};
-    case Id::kLidarTranslation:
-      return {"T_I_L translation", nullptr, &c.T_I_L.translation};
-    case Id::kTimeOffset:
-      return {"time_offset_lidar_imu_s", &c.time_offset_lidar_imu_s};
-    case Id::kWheelRadiusLeft:
-      return {"wheel_radius_left_m", &c.wheel_radius_left_m};
-    case Id::kWheelRadiusRight:
-      return {"wheel_radius_right_m", &c.wheel_radius_right_m};
-    case Id::kTrackWidth:
-      return {"track_width_m", &c.track_width_m};
-    case Id::kVehicleRotation:
-      return {"T_I_V rotation", nullptr, &c.T_I_V.rotation};
-    case Id::kVehicleTranslation:
-      return {"T_I_V translation", nullptr, &c.T_I_V.translation};
-    case Id::kGnssLeverArm:
-      return {"p_I_A_m", nullptr, &c.p_I_A_m};
-    case Id::kWheelSpeedScaleLeft:
-      return {"wheel_speed_scale_left", &c.wheel_speed_scale_left};
-    case Id::kWheelSpeedScaleRight:
-      return {"wheel_speed_scale_right", &c.wheel_speed_scale_right};
-    case Id::kOdometrySpeedScale:
-      return {"odometry_speed_scale", &c.odometry_speed_scale};
-    case Id::kEffectiveTrack:
-      return {"effective_track_m", &c.effective_track_m};
-    case Id::kWheelTimeOffset:
-      return {"time_offset_wheel_imu_s", &c.time_offset_wheel_imu_s};
-    case Id::kGnssTimeOffset:
-      break;
-  }
-  return {"time_offset_gnss_imu_s", &c.time_offset_gnss_imu_s};
-}
-
-// A block's uncertainty in CalibrationUncertainty: a scalar, a vector, or one half of a pose
-// (whose six flags hold the rotation's first).
-struct UncertaintyField {
+// Where a block lives: its key in a problem file, its setting there (a scalar or a
+// three-vector one) and its part of an uncertainty (a scalar, a vector, or one half of a pose,
+// whose six flags hold the rotation's first).
+struct BlockFields {
+  const char* key;
+  ScalarBlockSetting* scalar_setting = nullptr;
+  VectorBlockSetting* vector_setting = nullptr;
   ScalarBlockInfo* scalar = nullptr;
   VectorBlockInfo* vector = nullptr;
   PoseBlockInfo* pose = nullptr;
   bool rotation = false;
 };
 
-UncertaintyField UncertaintyFieldOf(CalibrationUncertainty& u, Id id) {
+BlockFields Scalar(const char* key, ScalarBlockSetting* setting, ScalarBlockInfo* info) {
+  return {key, setting, nullptr, info};
+}
+BlockFields PoseHalf(const char* key, VectorBlockSetting* setting, PoseBlockInfo* info,
+                     bool rotation) {
+  return {key, nullptr, setting, nullptr, nullptr, info, rotation};
+}
+
+// The one map from a block to its fields, in `p` and `u`.
+BlockFields FieldsOf(Id id, ProblemCalibration& p, CalibrationUncertainty& u) {
   switch (id) {
     case Id::kLidarRotation:
-      return {nullptr, nullptr, &u.T_I_L, true};
+      return PoseHalf("T_I_L rotation", &p.T_I_L.rotation, &u.T_I_L, true);
     case Id::kLidarTranslation:
-      return {nullptr, nullptr, &u.T_I_L, false};
+      return PoseHalf("T_I_L translation", &p.T_I_L.translation, &u.T_I_L, false);
     case Id::kTimeOffset:
-      return {&u.time_offset_lidar_imu_s};
+      return Scalar("time_offset_lidar_imu_s", &p.time_offset_lidar_imu_s,
+                    &u.time_offset_lidar_imu_s);
     case Id::kWheelRadiusLeft:
-      return {&u.wheel_radius_left_m};
+      return Scalar("wheel_radius_left_m", &p.wheel_radius_left_m, &u.wheel_radius_left_m);
     case Id::kWheelRadiusRight:
-      return {&u.wheel_radius_right_m};
+      return Scalar("wheel_radius_right_m", &p.wheel_radius_right_m, &u.wheel_radius_right_m);
     case Id::kTrackWidth:
-      return {&u.track_width_m};
+      return Scalar("track_width_m", &p.track_width_m, &u.track_width_m);
     case Id::kVehicleRotation:
-      return {nullptr, nullptr, &u.T_I_V, true};
+      return PoseHalf("T_I_V rotation", &p.T_I_V.rotation, &u.T_I_V, true);
     case Id::kVehicleTranslation:
-      return {nullptr, nullptr, &u.T_I_V, false};
+      return PoseHalf("T_I_V translation", &p.T_I_V.translation, &u.T_I_V, false);
     case Id::kGnssLeverArm:
-      return {nullptr, &u.p_I_A_m};
+      return {"p_I_A_m", nullptr, &p.p_I_A_m, nullptr, &u.p_I_A_m};
     case Id::kWheelSpeedScaleLeft:
-      return {&u.wheel_speed_scale_left};
+      return Scalar("wheel_speed_scale_left", &p.wheel_speed_scale_left, &u.wheel_speed_scale_left);
     case Id::kWheelSpeedScaleRight:
-      return {&u.wheel_speed_scale_right};
+      return Scalar("wheel_speed_scale_right", &p.wheel_speed_scale_right,
+                    &u.wheel_speed_scale_right);
     case Id::kOdometrySpeedScale:
-      return {&u.odometry_speed_scale};
+      return Scalar("odometry_speed_scale", &p.odometry_speed_scale, &u.odometry_speed_scale);
     case Id::kEffectiveTrack:
-      return {&u.effective_track_m};
+      return Scalar("effective_track_m", &p.effective_track_m, &u.effective_track_m);
     case Id::kWheelTimeOffset:
-      return {&u.time_offset_wheel_imu_s};
+      return Scalar("time_offset_wheel_imu_s", &p.time_offset_wheel_imu_s,
+                    &u.time_offset_wheel_imu_s);
     case Id::kGnssTimeOffset:
       break;
   }
-  return {&u.time_offset_gnss_imu_s};
+  return Scalar("time_offset_gnss_imu_s", &p.time_offset_gnss_imu_s, &u.time_offset_gnss_imu_s);
+}
+
+// FieldsOf for one of the two structs, the other a scratch one.
+BlockFields FieldsIn(Id id, ProblemCalibration& p) {
+  CalibrationUncertainty unused;
+  return FieldsOf(id, p, unused);
+}
+BlockFields FieldsIn(Id id, CalibrationUncertainty& u) {
+  ProblemCalibration unused;
+  return FieldsOf(id, unused, u);
 }
 
 }  // namespace
 
 BlockModeAndSigma BlockSettingIn(const ProblemCalibration& problem, Id id) {
-  const SettingField f = SettingFieldOf(const_cast<ProblemCalibration&>(problem), id);
-  if (f.scalar) return {f.scalar->mode, Eigen::VectorXd::Constant(1, f.scalar->prior_sigma)};
-  return {f.vector->mode, Eigen::VectorXd(f.vector->prior_sigma)};
+  const BlockFields f = FieldsIn(id, const_cast<ProblemCalibration&>(problem));
+  if (f.scalar_setting) {
+    return {f.scalar_setting->mode, Eigen::VectorXd::Constant(1, f.scalar_setting->prior_sigma)};
+  }
+  return {f.vector_setting->mode, Eigen::VectorXd(f.vector_setting->prior_sigma)};
 }
 
 const char* ProblemKey(Id id) {
   ProblemCalibration scratch;
-  return SettingFieldOf(scratch, id).key;
+  return FieldsIn(id, scratch).key;
 }
 
 void SetBlockSetting(Id id, const BlockModeAndSigma& setting, ProblemCalibration* problem) {
-  const SettingField f = SettingFieldOf(*problem, id);
-  if (f.scalar) {
-    *f.scalar = {setting.mode, setting.prior_sigma(0)};
+  const BlockFields f = FieldsIn(id, *problem);
+  if (f.scalar_setting) {
+    *f.scalar_setting = {setting.mode, setting.prior_sigma(0)};
   } else {
-    *f.vector = {setting.mode, Eigen::Vector3d(setting.prior_sigma)};
+    *f.vector_setting = {setting.mode, Eigen::Vector3d(setting.prior_sigma)};
   }
 }
 
 BlockUncertainty UncertaintyIn(const CalibrationUncertainty& uncertainty, Id id) {
-  const UncertaintyField f =
-      UncertaintyFieldOf(const_cast<CalibrationUncertainty&>(uncertainty), id);
+  const BlockFields f = FieldsIn(id, const_cast<CalibrationUncertainty&>(uncertainty));
   BlockUncertainty out;
   if (f.scalar) {
     if (f.scalar->sigma) out.sigma = Eigen::VectorXd::Constant(1, *f.scalar->sigma);
@@ -144,7 +128,7 @@ BlockUncertainty UncertaintyIn(const CalibrationUncertainty& uncertainty, Id id)
 
 void SetBlockUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,
                          CalibrationUncertainty* uncertainty) {
-  const UncertaintyField f = UncertaintyFieldOf(*uncertainty, id);
+  const BlockFields f = FieldsIn(id, *uncertainty);
   if (f.scalar) {
     f.scalar->sigma = sigma(0);
     if (observable) f.scalar->observable = (*observable)[0];
