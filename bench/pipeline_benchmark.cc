@@ -5,8 +5,10 @@
 //
 // Each duration is its own benchmark; run one per process for its peak memory (the counter
 // is the process's maximum resident set so far):
-//   build/bench/pipeline_benchmark --benchmark_filter='BM_CalibrateUrban/60$'
+//   build/bench/pipeline_benchmark --benchmark_filter='BM_CalibrateUrban/duration_s:60/'
 // The log is simulated into $TMPDIR/autocal_pipeline_benchmark/urban_<s>s once and reused.
+// The process keeps freed memory as autocal_calibrate and autocal_estimate do
+// (tools/keep_freed_memory.h), so the figures are the tools' own.
 
 #include <benchmark/benchmark.h>
 #include <sys/resource.h>
@@ -20,6 +22,7 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sim/simulator.h"
+#include "tools/keep_freed_memory.h"
 
 namespace autocal {
 namespace {
@@ -100,4 +103,11 @@ BENCHMARK(BM_EstimateUrban)
 }  // namespace
 }  // namespace autocal
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  autocal::tools::KeepFreedMemory();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -391,7 +391,7 @@ geometry::Pose3d AlignCorrespondences(const Eigen::Matrix3Xd& source,
 
 IcpTarget::IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
                      const NormalEstimationOptions& normal_setting, int num_threads)
-    : tree_(std::move(points)), mode_(normals), normal_setting_(normal_setting) {
+    : tree_(std::move(points), num_threads), mode_(normals), normal_setting_(normal_setting) {
   if (mode_ == TargetNormals::kAll) {
     normals_ = EstimateNormals(tree_, normal_setting_, num_threads);
   } else if (mode_ == TargetNormals::kOnDemand) {

@@ -4,9 +4,11 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/parallel_for.h"
 #include "lidar/nearest_list.h"
 
 namespace autocal {
@@ -15,6 +17,8 @@ namespace {
 
 // A cell holds at most this many points unless they are all equal.
 constexpr int kLeafMaxSize = 24;
+// Subtrees of fewer points are built on one thread: a fork costs more than they take.
+constexpr int kMinParallelBuild = 4096;
 
 // A point copied into the tree's own order: the points of a leaf are contiguous, so a leaf
 // scan reads consecutive memory. `index` is the column in KdTree::points().
@@ -199,7 +203,7 @@ class RadiusResult {
 }  // namespace
 
 struct KdTree::Impl {
-  explicit Impl(Eigen::Matrix3Xd p) : points(std::move(p)) {
+  Impl(Eigen::Matrix3Xd p, int num_threads) : points(std::move(p)) {
     const int n = static_cast<int>(points.cols());
     if (n == 0) return;
     tree_points.resize(static_cast<size_t>(n));
@@ -209,11 +213,21 @@ struct KdTree::Impl {
     }
     nodes.reserve(static_cast<size_t>(n) * 4 / kLeafMaxSize + 1);
     bounds = BoundsOf(tree_points.data(), tree_points.data() + n);
-    Build(0, n, bounds);
+    int parallel_levels = 0;
+    while ((1 << parallel_levels) < num_threads) ++parallel_levels;
+    Build(0, n, bounds, parallel_levels, &nodes);
   }
 
-  // Builds the subtree of tree points [begin, end), which `box` bounds, reordering them in
-  // place. Returns the node index.
+  // How a cell splits: its points [begin, mid) go left, [mid, end) right.
+  struct Split {
+    int dim;
+    int mid;
+    Box left;
+    Box right;
+  };
+
+  // Reorders the tree points [begin, end), which `box` bounds, into the two children of their
+  // cell; none for a leaf.
   //
   // Split rule: cut the widest axis of the points' bounding box at its midpoint (cells stay
   // fat, which keeps the searched cells few in the very uneven density of a scan). A scan is
@@ -223,21 +237,15 @@ struct KdTree::Impl {
   // coordinates), at the exact median (std::nth_element). Either side then holds at least
   // 1/kMinFraction of the points, so the depth stays below log(n) / log(kMinFraction /
   // (kMinFraction - 1)).
-  int Build(int begin, int end, const Box& box) {
+  std::optional<Split> SplitOf(int begin, int end, const Box& box) {
     constexpr int kMinFraction = 8;
     constexpr int kSamples = 31;
-    const int node = static_cast<int>(nodes.size());
-    nodes.emplace_back();
     int dim = 0;
     for (int d = 1; d < 3; ++d) {
       if (box.max[d] - box.min[d] > box.max[dim] - box.min[dim]) dim = d;
     }
     const int count = end - begin;
-    if (count <= kLeafMaxSize || box.max[dim] == box.min[dim]) {
-      nodes[node].right_or_begin = begin;
-      nodes[node].end = end;
-      return node;
-    }
+    if (count <= kLeafMaxSize || box.max[dim] == box.min[dim]) return std::nullopt;
     TreePoint* const first = tree_points.data() + begin;
     TreePoint* const last = tree_points.data() + end;
     // The midpoint rounds into [min, max]; when it rounds to min, max is the next double and
@@ -265,15 +273,49 @@ struct KdTree::Impl {
         return a.xyz[dim] < b.xyz[dim];
       });
     }
-    const int mid = static_cast<int>(split - tree_points.data());
-    const Box left_box = BoundsOf(first, split);
-    const Box right_box = BoundsOf(split, last);
-    Build(begin, mid, left_box);
-    const int right = Build(mid, end, right_box);
-    Node& n = nodes[node];
-    n.dim = dim;
-    n.left_max = left_box.max[dim];
-    n.right_min = right_box.min[dim];
+    return Split{dim, static_cast<int>(split - tree_points.data()), BoundsOf(first, split),
+                 BoundsOf(split, last)};
+  }
+
+  // Appends the subtree of tree points [begin, end), which `box` bounds, to *out in preorder
+  // (a node, its left subtree, its right subtree) and returns its root's index in *out.
+  // The top `parallel_levels` levels build their right subtree on another thread, into a
+  // vector of its own appended afterwards: the same nodes as a build on one thread.
+  int Build(int begin, int end, const Box& box, int parallel_levels, std::vector<Node>* out) {
+    const int node = static_cast<int>(out->size());
+    out->emplace_back();
+    const std::optional<Split> split = SplitOf(begin, end, box);
+    if (!split) {
+      (*out)[static_cast<size_t>(node)].right_or_begin = begin;
+      (*out)[static_cast<size_t>(node)].end = end;
+      return node;
+    }
+    int right;
+    if (parallel_levels > 0 && end - begin >= kMinParallelBuild) {
+      std::vector<Node> right_nodes;
+      right_nodes.reserve(static_cast<size_t>(end - split->mid) * 4 / kLeafMaxSize + 1);
+      ParallelFor(0, 2, 2, [&](int64_t first, int64_t last, int) {
+        for (int64_t side = first; side < last; ++side) {
+          if (side == 0) {
+            Build(begin, split->mid, split->left, parallel_levels - 1, out);
+          } else {
+            Build(split->mid, end, split->right, parallel_levels - 1, &right_nodes);
+          }
+        }
+      });
+      right = static_cast<int>(out->size());
+      for (Node n : right_nodes) {
+        if (n.dim >= 0) n.right_or_begin += right;  // a leaf's is a tree point index
+        out->push_back(n);
+      }
+    } else {
+      Build(begin, split->mid, split->left, 0, out);
+      right = Build(split->mid, end, split->right, 0, out);
+    }
+    Node& n = (*out)[static_cast<size_t>(node)];
+    n.dim = split->dim;
+    n.left_max = split->left.max[split->dim];
+    n.right_min = split->right.min[split->dim];
     n.right_or_begin = right;
     return node;
   }
@@ -319,7 +361,10 @@ struct KdTree::Impl {
   Box bounds{};             // of all points
 };
 
-KdTree::KdTree(Eigen::Matrix3Xd points) {
+KdTree::KdTree(Eigen::Matrix3Xd points, int num_threads) {
+  if (num_threads < 1) {
+    throw Error("KdTree: num_threads must be at least 1, got " + std::to_string(num_threads));
+  }
   if (!points.allFinite()) {
     for (Eigen::Index i = 0; i < points.cols(); ++i) {
       if (!points.col(i).allFinite()) {
@@ -330,7 +375,7 @@ KdTree::KdTree(Eigen::Matrix3Xd points) {
   if (points.cols() > std::numeric_limits<int>::max()) {
     throw Error("KdTree: too many points (" + std::to_string(points.cols()) + ")");
   }
-  impl_ = std::make_unique<Impl>(std::move(points));
+  impl_ = std::make_unique<Impl>(std::move(points), num_threads);
 }
 
 KdTree::~KdTree() = default;

@@ -63,7 +63,7 @@ IcpTarget LidarOdometry::BuildMap(const Eigen::Vector3d& viewpoint_W) const {
   normals.viewpoint = viewpoint_W;  // normals face the sensor at its last pose
   // Each map is registered against once or twice; most of its points never pair with a
   // sweep point, so their normals are not computed.
-  return IcpTarget(map_.Centroids(), TargetNormals::kOnDemand, normals);
+  return IcpTarget(map_.Centroids(), TargetNormals::kOnDemand, normals, setting_.num_threads);
 }
 
 const OdometryFrame& LidarOdometry::AddSweep(
@@ -78,23 +78,37 @@ const OdometryFrame& LidarOdometry::AddSweep(
     throw Error("LidarOdometry: deskewing needs per-point time, the sweep at " +
                 std::to_string(sweep.t_ns) + " ns has none");
   }
-  const SweepGrids grids = Grids(sweep.cloud);
   OdometryFrame frame;
   frame.t_ns = sweep.t_ns;
   if (frames_.empty()) {
+    const SweepGrids grids = Grids(sweep.cloud);
     frame.T_W_L = setting_.initial_T_W_L;
-    // No velocity yet: the first sweep enters the map as measured and is deskewed again
-    // once the second sweep has given a velocity.
+    // No velocity yet: the first sweep enters the map (with the second) as measured and is
+    // deskewed again once the second sweep has given a velocity.
     first_grid_ = grids.map;
     first_angular_velocity_ = angular_velocity_L_rad_s;
-    map_.AddSweep(ToWorld(Deskewed(grids.map, angular_velocity_L_rad_s), frame.T_W_L));
+    previous_sweep_W_ = ToWorld(Deskewed(grids.map, angular_velocity_L_rad_s), frame.T_W_L);
     frames_.push_back(frame);
     return frames_.back();
   }
 
   const OdometryFrame& previous = frames_.back();
   const double dt_s = 1e-9 * static_cast<double>(sweep.t_ns - previous.t_ns);
-  std::optional<IcpTarget> map(BuildMap(previous.T_W_L.p));
+  // The map takes in the previous sweep and is indexed while this sweep is gridded: the two
+  // share nothing, and on one thread they run one after the other.
+  SweepGrids grids;
+  std::optional<IcpTarget> map;
+  ParallelFor(0, 2, setting_.num_threads, [&](int64_t begin, int64_t end, int) {
+    for (int64_t task = begin; task < end; ++task) {
+      if (task == 0) {
+        map_.AddSweep(previous_sweep_W_);
+        previous_sweep_W_.resize(3, 0);
+        map.emplace(BuildMap(previous.T_W_L.p));
+      } else {
+        grids = Grids(sweep.cloud);
+      }
+    }
+  });
   // Two passes: the first deskews with the previous velocity, the second with the velocity
   // the first registration implies (the motion may have changed since the last sweep).
   // On the second sweep the first pass sees two sweeps distorted alike (no velocity yet),
@@ -115,7 +129,7 @@ const OdometryFrame& LidarOdometry::AddSweep(
   }
   frame.T_W_L = T_W_L;
   frame.T_prev_curr = previous.T_W_L.Inverse() * T_W_L;
-  map_.AddSweep(ToWorld(Deskewed(grids.map, angular_velocity_L_rad_s), frame.T_W_L));
+  previous_sweep_W_ = ToWorld(Deskewed(grids.map, angular_velocity_L_rad_s), frame.T_W_L);
   frames_.push_back(frame);
   return frames_.back();
 }

@@ -99,7 +99,7 @@ void LocalVoxelMap::Erase(uint64_t key) {
 }
 
 // Groups the points by voxel (a sweep's points in one voxel are summed in input order) and
-// adds each group to its voxel.
+// adds each group to its voxel, in slot order.
 LocalVoxelMap::SweepContributions LocalVoxelMap::Contribute(const Eigen::Matrix3Xd& points_W) {
   // Every key first: a bad point throws before the map changes.
   const double inv_voxel = 1.0 / voxel_m_;
@@ -107,24 +107,27 @@ LocalVoxelMap::SweepContributions LocalVoxelMap::Contribute(const Eigen::Matrix3
   for (Eigen::Index i = 0; i < points_W.cols(); ++i) {
     keys[static_cast<size_t>(i)] = PackedKey(points_W.col(i), inv_voxel);
   }
-  std::vector<std::pair<int32_t, int32_t>> slot_and_index(keys.size());
-  for (size_t i = 0; i < keys.size(); ++i) {
-    slot_and_index[i] = {SlotOf(keys[i]), static_cast<int32_t>(i)};
-  }
-  std::sort(slot_and_index.begin(), slot_and_index.end());
   SweepContributions out;
-  for (size_t begin = 0; begin < slot_and_index.size();) {
-    Contribution c{slot_and_index[begin].first, 0, Eigen::Vector3d::Zero()};
-    size_t end = begin;
-    for (; end < slot_and_index.size() && slot_and_index[end].first == c.slot; ++end) {
-      c.sum += points_W.col(slot_and_index[end].second);
-      ++c.count;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const int32_t slot = SlotOf(keys[i]);
+    if (static_cast<size_t>(slot) >= contribution_of_slot_.size()) {
+      contribution_of_slot_.resize(voxels_.size(), -1);
     }
+    int32_t& c = contribution_of_slot_[static_cast<size_t>(slot)];
+    if (c < 0) {
+      c = static_cast<int32_t>(out.size());
+      out.push_back(Contribution{slot, 0, Eigen::Vector3d::Zero()});
+    }
+    out[static_cast<size_t>(c)].sum += points_W.col(static_cast<Eigen::Index>(i));
+    ++out[static_cast<size_t>(c)].count;
+  }
+  for (const Contribution& c : out) contribution_of_slot_[static_cast<size_t>(c.slot)] = -1;
+  std::sort(out.begin(), out.end(),
+            [](const Contribution& a, const Contribution& b) { return a.slot < b.slot; });
+  for (const Contribution& c : out) {
     Voxel& voxel = voxels_[static_cast<size_t>(c.slot)];
     voxel.sum += c.sum;
     voxel.count += c.count;
-    out.push_back(c);
-    begin = end;
   }
   return out;
 }

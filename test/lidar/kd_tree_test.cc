@@ -40,8 +40,8 @@ std::vector<std::pair<double, int>> BruteForce(const Eigen::Matrix3Xd& points,
 // Nearest without bound and with bounds around the nearest and a farther distance, and
 // RadiusSearch for radii around a few neighbour distances.
 void ExpectMatchesBruteForce(const Eigen::Matrix3Xd& points, const Eigen::Matrix3Xd& queries,
-                             const std::string& name) {
-  const KdTree tree(points);
+                             const std::string& name, int num_threads = 1) {
+  const KdTree tree(points, num_threads);
   ASSERT_EQ(tree.size(), points.cols());
   const int n = static_cast<int>(points.cols());
   std::vector<Neighbor> radius_result;
@@ -160,6 +160,18 @@ TEST(KdTreeTest, RandomCloudsMatchBruteForce) {
   // Scan-like density: most points near the origin, a few far away (uneven cells).
   const Eigen::Matrix3Xd scan = test::ScanLikePoints(4000, 7);
   ExpectMatchesBruteForce(scan, QueriesFor(scan, 8), "scan-like");
+}
+
+// Large enough that the top two levels are built on their own threads, whose subtrees are
+// spliced into the node list: a wrong offset sends the search into the wrong cells.
+TEST(KdTreeTest, TreeBuiltOnSeveralThreadsMatchesBruteForce) {
+  const Eigen::Matrix3Xd scan = test::ScanLikePoints(40000, 21);
+  for (const int num_threads : {2, 3, 4}) {
+    ExpectMatchesBruteForce(scan, QueriesFor(scan, 22), "scan-like", num_threads);
+  }
+  const Eigen::Matrix3Xd uniform = test::UniformPoints(30000, 23, Eigen::Vector3d(50.0, 50.0, 5.0));
+  ExpectMatchesBruteForce(uniform, QueriesFor(uniform, 24), "uniform", 2);
+  EXPECT_THROW(KdTree(uniform, 0), Error);
 }
 
 TEST(KdTreeTest, DegenerateCloudsMatchBruteForce) {

@@ -92,7 +92,8 @@ enum class TargetNormals {
 // its normals.
 class IcpTarget {
  public:
-  // Throws autocal::Error on non-finite points. num_threads is used for kAll.
+  // Throws autocal::Error on non-finite points. num_threads builds the tree and, for kAll,
+  // estimates the normals.
   IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
             const NormalEstimationOptions& normal_setting = {}, int num_threads = 1);
   IcpTarget(Eigen::Matrix3Xd points, bool with_normals,

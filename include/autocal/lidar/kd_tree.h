@@ -16,9 +16,10 @@ namespace lidar {
 
 class KdTree {
  public:
-  // Copies (or moves) the points in and builds the tree. Throws autocal::Error on a
-  // non-finite point.
-  explicit KdTree(Eigen::Matrix3Xd points);
+  // Copies (or moves) the points in and builds the tree, its top levels on up to
+  // num_threads threads (the tree does not depend on the count). Throws autocal::Error on a
+  // non-finite point or num_threads < 1.
+  explicit KdTree(Eigen::Matrix3Xd points, int num_threads = 1);
   ~KdTree();
   KdTree(KdTree&&) noexcept;
   KdTree& operator=(KdTree&&) noexcept;

@@ -90,6 +90,8 @@ class LidarOdometry {
   // Body-frame twist [v; w] per second from the last two poses (eq. 5.1).
   Eigen::Matrix<double, 6, 1> velocity_ = Eigen::Matrix<double, 6, 1>::Zero();
   LocalVoxelMap map_;
+  // The last sweep's map grid in W: the map takes it in when the next sweep arrives.
+  Eigen::Matrix3Xd previous_sweep_W_;
   // The first sweep's grid is kept until a velocity is known to deskew it.
   PointCloud first_grid_;
   std::optional<Eigen::Vector3d> first_angular_velocity_;

@@ -61,6 +61,8 @@ class LocalVoxelMap {
   std::vector<int32_t> table_slots_;
   size_t num_voxels_ = 0;
   std::vector<uint64_t> key_of_slot_;
+  // Contribute's scratch: the index in its output of each slot's contribution, -1 outside it.
+  std::vector<int32_t> contribution_of_slot_;
 };
 
 }  // namespace lidar
