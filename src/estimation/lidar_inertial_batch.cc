@@ -157,7 +157,7 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
 
 // Step 4, the points: the points of sweep k on planes of sweep j share every parameter block
 // (Eq. P9); the robust loss acts per point inside the factor. Returns the points associated.
-int AddPointGroups(const BatchInputs& in, const std::vector<std::vector<Association>>& associations,
+int AddPointGroups(const BatchInputs& in, std::vector<std::vector<Association>> associations,
                    ceres::Problem* problem, std::vector<PointGroup>* point_groups) {
   std::vector<Keyframe>& keyframes = *in.keyframes;
   sensors::Calibration* calibration = in.calibration;
@@ -168,6 +168,8 @@ int AddPointGroups(const BatchInputs& in, const std::vector<std::vector<Associat
     for (const Association& a : associations[static_cast<size_t>(k)]) {
       by_partner[a.partner].push_back(a.measurement);
     }
+    // Each sweep's associations go once copied: they and the factors never coexist whole.
+    std::vector<Association>().swap(associations[static_cast<size_t>(k)]);
     for (const auto& [partner, measurements] : by_partner) {
       Keyframe& kf_j = keyframes[static_cast<size_t>(partner)];
       PointGroup group;

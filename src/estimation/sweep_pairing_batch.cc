@@ -112,6 +112,7 @@ std::vector<Association> PairSweep(const SweepsAtEstimate& at, const StretchMaps
   const Keyframe& kf = (*at.keyframes)[sweep];
   const SelectedSweep& s = (*at.sweeps)[sweep];
   std::vector<Association> associations;
+  associations.reserve(s.residual_points.size());
   size_t point_counter = 0;
   FiringPoses poses(kf.q_W_I, kf.p_W_I, kf.v_W_I, at.g_W);
   for (int i : s.residual_points) {
