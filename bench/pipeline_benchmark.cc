@@ -22,7 +22,7 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sim/simulator.h"
-#include "tools/keep_freed_memory.h"
+#include "tool_benchmark_main.h"
 
 namespace autocal {
 namespace {
@@ -103,11 +103,4 @@ BENCHMARK(BM_EstimateUrban)
 }  // namespace
 }  // namespace autocal
 
-int main(int argc, char** argv) {
-  autocal::tools::KeepFreedMemory();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
-}
+int main(int argc, char** argv) { return autocal::bench::RunBenchmarksAsTheToolsDo(argc, argv); }

@@ -13,6 +13,7 @@
 #include "autocal/common/error.h"
 #include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
+#include "keep_freed_memory.h"
 #include "tool_checks.h"
 #include "tool_help.h"
 
@@ -220,6 +221,7 @@ int main(int argc, char** argv) {
       "imu_bias.csv, gnss.csv, timing.yaml}. Same seed, same dataset.");
   if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_simulate")) return 0;
   gflags::ParseCommandLineFlags(&argc, &argv, true);
+  autocal::tools::KeepFreedMemory();
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_out.empty()) throw autocal::Error("--out=DIR is required");
