@@ -14,6 +14,7 @@
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/normal_equations.h"
 
 namespace autocal {
 namespace estimation {
@@ -162,8 +163,8 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
 // J^T J of every residual block at the current values (robust losses applied as the solver
 // applies them), over the tangent coordinates of the problem's variable blocks.
 struct GaussNewtonHessian {
-  Eigen::SparseMatrix<double> H;         // lower triangle
-  std::map<const double*, int> offsets;  // first tangent column of each variable block
+  Eigen::SparseMatrix<double> H;   // lower triangle
+  internal::BlockOffsets offsets;  // first tangent column of each variable block
 };
 
 // Residual blocks whose Jacobian is evaluated at once for J^T J.
@@ -216,16 +217,10 @@ Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J) {
 
 GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
   GaussNewtonHessian out;
-  ceres::Problem::EvaluateOptions options;
-  int columns = 0;
-  std::vector<double*> all;
-  problem->GetParameterBlocks(&all);
-  for (double* block : all) {
-    if (problem->IsParameterBlockConstant(block)) continue;
-    options.parameter_blocks.push_back(block);
-    out.offsets[block] = columns;
-    columns += problem->ParameterBlockTangentSize(block);
-  }
+  internal::VariableColumns variables = internal::VariableColumnsOf(problem);
+  ceres::Problem::EvaluateOptions& options = variables.evaluate;
+  const int columns = variables.columns;
+  out.offsets = std::move(variables.offsets);
   // J is evaluated for a stretch of residual blocks at a time and the stretches' grams are
   // summed: a long log's Jacobian is never held whole (on a 10-minute log it and its copies
   // were a third of the calibration's peak memory).

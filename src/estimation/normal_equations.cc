@@ -129,21 +129,26 @@ double AccumulateNormalEquations(
   return total_cost;
 }
 
+VariableColumns VariableColumnsOf(ceres::Problem* problem) {
+  VariableColumns out;
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  for (double* block : all) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    out.evaluate.parameter_blocks.push_back(block);
+    out.offsets[block] = out.columns;
+    out.columns += problem->ParameterBlockTangentSize(block);
+  }
+  return out;
+}
+
 Eigen::MatrixXd DenseBlockCovariance(ceres::Problem* problem,
                                      const std::vector<const double*>& blocks,
                                      double min_reciprocal_condition_number, int num_threads,
                                      const char* what) {
-  std::vector<double*> all;
-  problem->GetParameterBlocks(&all);
-  ceres::Problem::EvaluateOptions evaluate;
-  BlockOffsets offset_of;
-  int n = 0;
-  for (double* block : all) {
-    if (problem->IsParameterBlockConstant(block)) continue;
-    evaluate.parameter_blocks.push_back(block);
-    offset_of[block] = n;
-    n += problem->ParameterBlockTangentSize(block);
-  }
+  VariableColumns variables = VariableColumnsOf(problem);
+  ceres::Problem::EvaluateOptions& evaluate = variables.evaluate;
+  const BlockOffsets& offset_of = variables.offsets;
   evaluate.num_threads = num_threads;
   ceres::CRSMatrix crs;
   if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) {

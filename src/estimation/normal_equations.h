@@ -19,6 +19,15 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 // Offset of each variable block in the tangent vector.
 using BlockOffsets = std::map<double*, int>;
 
+// The variable (non-constant) blocks of a problem in its own block order, as evaluation
+// options over them, with each one's first tangent column and the columns in all.
+struct VariableColumns {
+  ceres::Problem::EvaluateOptions evaluate;  // parameter_blocks: the variable blocks
+  BlockOffsets offsets;
+  int columns = 0;
+};
+VariableColumns VariableColumnsOf(ceres::Problem* problem);
+
 // Adds J^T J of the residual blocks `ids`, evaluated at their blocks' current values (robust
 // losses applied through Ceres' corrector, Jacobians in tangent coordinates), to the blocks of
 // *H on or below its block diagonal (the blocks above it are not touched; the caller mirrors)
