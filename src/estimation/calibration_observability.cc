@@ -11,6 +11,7 @@
 #include <sstream>
 #include <utility>
 
+#include "autocal/common/parallel_for.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
@@ -170,33 +171,69 @@ struct GaussNewtonHessian {
 // Residual blocks whose Jacobian is evaluated at once for J^T J.
 constexpr size_t kResidualBlocksPerStretch = 16384;
 
-// The lower triangle of J^T J, column by column (Gustavson's product with a dense
-// accumulator): column j sums J(k, j) J(k, c) over the rows k that hold column j, for c >= j.
-// Its cost is the sum over rows of their nonzeros squared, whatever the columns' fill.
-Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J) {
+// J in column-major form: for each column, the rows holding it and their values.
+struct ColumnMajor {
+  std::vector<int> start;  // column c's entries are [start[c], start[c + 1])
+  std::vector<int> row;
+  std::vector<double> value;
+};
+
+ColumnMajor ColumnsOf(const ceres::CRSMatrix& J) {
   const int n = J.num_cols;
-  // Rows holding each column (J column-major, pattern and values).
-  std::vector<int> column_start(static_cast<size_t>(n) + 1, 0);
-  for (const int c : J.cols) ++column_start[static_cast<size_t>(c) + 1];
-  for (int c = 0; c < n; ++c) column_start[c + 1] += column_start[c];
-  std::vector<int> row_of(J.cols.size());
-  std::vector<double> value_of(J.cols.size());
-  std::vector<int> fill(column_start.begin(), column_start.end() - 1);
+  ColumnMajor out;
+  out.start.assign(static_cast<size_t>(n) + 1, 0);
+  for (const int c : J.cols) ++out.start[static_cast<size_t>(c) + 1];
+  for (int c = 0; c < n; ++c) out.start[c + 1] += out.start[c];
+  out.row.resize(J.cols.size());
+  out.value.resize(J.cols.size());
+  std::vector<int> fill(out.start.begin(), out.start.end() - 1);
   for (int k = 0; k < J.num_rows; ++k) {
     for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
       const int at = fill[static_cast<size_t>(J.cols[e])]++;
-      row_of[at] = k;
-      value_of[at] = J.values[e];
+      out.row[at] = k;
+      out.value[at] = J.values[e];
     }
   }
-  std::vector<Eigen::Triplet<double>> entries;
-  std::vector<double> sum(static_cast<size_t>(n), 0.0);
-  std::vector<int> seen(static_cast<size_t>(n), -1);
-  std::vector<int> touched;
+  return out;
+}
+
+// Splits the columns into `parts` contiguous ranges of about equal work, column j's work
+// being the nonzeros of the rows that hold it (an upper bound of its products): part p is
+// [first[p], first[p + 1]).
+std::vector<int> BalancedColumnRanges(const ceres::CRSMatrix& J, const ColumnMajor& columns,
+                                      int parts) {
+  const int n = J.num_cols;
+  std::vector<int64_t> work_before(static_cast<size_t>(n) + 1, 0);
   for (int j = 0; j < n; ++j) {
+    int64_t work = 0;
+    for (int a = columns.start[j]; a < columns.start[j + 1]; ++a) {
+      const int k = columns.row[a];
+      work += J.rows[k + 1] - J.rows[k];
+    }
+    work_before[j + 1] = work_before[j] + work;
+  }
+  std::vector<int> first(static_cast<size_t>(parts) + 1, n);
+  first[0] = 0;
+  for (int p = 1; p < parts; ++p) {
+    const int64_t target = work_before.back() * p / parts;
+    first[p] = static_cast<int>(std::lower_bound(work_before.begin(), work_before.end(), target) -
+                                work_before.begin());
+    first[p] = std::clamp(first[p], first[p - 1], n);
+  }
+  return first;
+}
+
+// Gustavson's product for columns [begin, end) of the lower triangle, with a dense
+// accumulator: column j sums J(k, j) J(k, c) over the rows k that hold column j, for c >= j.
+void AppendLowerGramColumns(const ceres::CRSMatrix& J, const ColumnMajor& columns, int begin,
+                            int end, std::vector<Eigen::Triplet<double>>* entries) {
+  std::vector<double> sum(static_cast<size_t>(J.num_cols), 0.0);
+  std::vector<int> seen(static_cast<size_t>(J.num_cols), -1);
+  std::vector<int> touched;
+  for (int j = begin; j < end; ++j) {
     touched.clear();
-    for (int a = column_start[j]; a < column_start[j + 1]; ++a) {
-      const int k = row_of[a];
+    for (int a = columns.start[j]; a < columns.start[j + 1]; ++a) {
+      const int k = columns.row[a];
       for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
         const int c = J.cols[e];
         if (c < j) continue;
@@ -205,20 +242,40 @@ Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J) {
           sum[c] = 0.0;
           touched.push_back(c);
         }
-        sum[c] += value_of[a] * J.values[e];
+        sum[c] += columns.value[a] * J.values[e];
       }
     }
-    for (const int c : touched) entries.emplace_back(c, j, sum[c]);
+    for (const int c : touched) entries->emplace_back(c, j, sum[c]);
   }
-  Eigen::SparseMatrix<double> lower(n, n);
-  lower.setFromTriplets(entries.begin(), entries.end());
+}
+
+// The lower triangle of J^T J. Its cost is the sum over rows of their nonzeros squared,
+// whatever the columns' fill. Ranges of columns go to num_threads threads; each column is
+// summed alone in one fixed order, so the result does not depend on the thread count.
+Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J, int num_threads) {
+  const ColumnMajor columns = ColumnsOf(J);
+  const int parts = ParallelChunks(J.num_cols, num_threads);
+  const std::vector<int> first = BalancedColumnRanges(J, columns, parts);
+  std::vector<std::vector<Eigen::Triplet<double>>> entries(static_cast<size_t>(parts));
+  ParallelFor(0, parts, num_threads, [&](int64_t begin, int64_t end, int) {
+    for (int64_t p = begin; p < end; ++p) {
+      AppendLowerGramColumns(J, columns, first[p], first[p + 1], &entries[static_cast<size_t>(p)]);
+    }
+  });
+  for (size_t p = 1; p < entries.size(); ++p) {
+    entries[0].insert(entries[0].end(), entries[p].begin(), entries[p].end());
+    std::vector<Eigen::Triplet<double>>().swap(entries[p]);
+  }
+  Eigen::SparseMatrix<double> lower(J.num_cols, J.num_cols);
+  lower.setFromTriplets(entries[0].begin(), entries[0].end());
   return lower;
 }
 
-GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
+GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem, int num_threads) {
   GaussNewtonHessian out;
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
   ceres::Problem::EvaluateOptions& options = variables.evaluate;
+  options.num_threads = num_threads;
   const int columns = variables.columns;
   out.offsets = std::move(variables.offsets);
   // J is evaluated for a stretch of residual blocks at a time and the stretches' grams are
@@ -233,9 +290,9 @@ GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem) {
     ceres::CRSMatrix crs;
     problem->Evaluate(options, nullptr, nullptr, nullptr, &crs);
     if (first == 0) {
-      out.H = LowerGram(crs);
+      out.H = LowerGram(crs, num_threads);
     } else {
-      out.H = Eigen::SparseMatrix<double>(out.H + LowerGram(crs));
+      out.H = Eigen::SparseMatrix<double>(out.H + LowerGram(crs, num_threads));
     }
   }
   if (residual_blocks.empty()) out.H.resize(columns, columns);
@@ -299,7 +356,7 @@ void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::Lo
 }
 
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
-                                       ceres::Problem* problem) {
+                                       ceres::Problem* problem, int num_threads) {
   BlockCovariance out;
   int size = 0;
   for (const EstimatedBlock& block : blocks) {
@@ -311,7 +368,7 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     out.ok = true;
     return out;
   }
-  const GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem);
+  const GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads);
   // Columns of H^-1 at the blocks' tangent coordinates (a block held constant keeps zeros).
   Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), size);
   std::vector<std::pair<int, int>> rows;  // (row of H, row of out.matrix)

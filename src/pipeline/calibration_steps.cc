@@ -428,14 +428,14 @@ void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estim
 void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
                         const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                         std::vector<estimation::Keyframe>* keyframes,
-                        sensors::Calibration* calibration, ceres::Problem* problem,
+                        sensors::Calibration* calibration, ceres::Problem* problem, int num_threads,
                         OfflineCalibrationResult* result) {
   if (!options.set_to_truth) return;
   const std::vector<estimation::Keyframe> solved_keyframes = *keyframes;
   const sensors::Calibration solved = *calibration;
   options.set_to_truth(keyframes, calibration);
   const estimation::BlockCovariance bound =
-      estimation::ComputeBlockCovariance(blocks_estimated, problem);
+      estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads);
   // Element by element: the problem's blocks point into these objects.
   for (size_t k = 0; k < keyframes->size(); ++k) (*keyframes)[k] = solved_keyframes[k];
   *calibration = solved;

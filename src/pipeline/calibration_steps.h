@@ -179,7 +179,7 @@ void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estim
 void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
                         const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                         std::vector<estimation::Keyframe>* keyframes,
-                        sensors::Calibration* calibration, ceres::Problem* problem,
+                        sensors::Calibration* calibration, ceres::Problem* problem, int num_threads,
                         OfflineCalibrationResult* result);
 
 // Observability and uncertainty (step 4): directions the drive did not excite are held at

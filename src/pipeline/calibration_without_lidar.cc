@@ -204,7 +204,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
 
   // 3. Observability, uncertainty and the result.
   const estimation::BlockCovariance covariance =
-      estimation::ComputeBlockCovariance(blocks_estimated, &p);
+      estimation::ComputeBlockCovariance(blocks_estimated, &p, problem.solver.num_threads);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
   result.batch.calibration_per_iteration = {calibration};  // one solve
@@ -216,7 +216,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   RecordTiming(timing, true, &file);
   const sensors::Calibration solved = calibration;
   RecordPosterior(blocks_estimated, covariance, solved, &result);
-  RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, &p, &result);
+  RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, &p,
+                     problem.solver.num_threads, &result);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
   // The same budget as the first solve: pinning the held directions can move a long

@@ -311,6 +311,12 @@ TEST(CalibrationObservability, CovarianceEqualsCeresCovarianceWithRobustLossesAn
   ASSERT_TRUE(reference.GetCovarianceMatrixInTangentSpace(parameters, expected.data()));
   EXPECT_TRUE(covariance.matrix.isApprox(expected, 1e-9)) << covariance.matrix << "\n\n"
                                                           << expected;
+
+  // J and J^T J formed on two threads (the columns split between them) give the same bits.
+  const BlockCovariance two_threads = ComputeBlockCovariance(blocks, &problem, 2);
+  ASSERT_TRUE(two_threads.ok);
+  EXPECT_TRUE((two_threads.matrix.array() == covariance.matrix.array()).all())
+      << two_threads.matrix - covariance.matrix;
 }
 
 TEST(CalibrationObservability, CovarianceOfASingularProblemIsRefusedAndConstantBlocksAreZero) {

@@ -63,14 +63,15 @@ void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::Lo
 // of (J^T J)^-1 over every variable block of `problem` (robust losses applied as the solver
 // applies them), from a sparse LDL^T with the blocks in problem order, so the result does not
 // depend on where they live in memory. A rotation block must carry
-// geometry::RightQuaternionManifold in `problem`; a block held constant gets zeros.
+// geometry::RightQuaternionManifold in `problem`; a block held constant gets zeros. J and
+// J^T J are formed on num_threads threads; the result does not depend on the count.
 struct BlockCovariance {
   bool ok = false;  // false when J^T J is singular (a pivot at the rounding level) or not finite
   Eigen::MatrixXd matrix;
   std::vector<int> offsets;  // first row of each block
 };
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
-                                       ceres::Problem* problem);
+                                       ceres::Problem* problem, int num_threads = 1);
 
 // The directions that the data inform (posterior sigma well below the prior's: observable or
 // kept) and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
