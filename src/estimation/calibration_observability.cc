@@ -212,13 +212,13 @@ std::vector<int> BalancedColumnRanges(const ceres::CRSMatrix& J, const ColumnMaj
     }
     work_before[j + 1] = work_before[j] + work;
   }
+  // The targets grow with p and work_before never decreases, so the ranges are ordered.
   std::vector<int> first(static_cast<size_t>(parts) + 1, n);
   first[0] = 0;
   for (int p = 1; p < parts; ++p) {
     const int64_t target = work_before.back() * p / parts;
     first[p] = static_cast<int>(std::lower_bound(work_before.begin(), work_before.end(), target) -
                                 work_before.begin());
-    first[p] = std::clamp(first[p], first[p - 1], n);
   }
   return first;
 }
@@ -262,6 +262,9 @@ Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J, int num_threads
       AppendLowerGramColumns(J, columns, first[p], first[p + 1], &entries[static_cast<size_t>(p)]);
     }
   });
+  size_t total = 0;
+  for (const auto& part : entries) total += part.size();
+  entries[0].reserve(total);
   for (size_t p = 1; p < entries.size(); ++p) {
     entries[0].insert(entries[0].end(), entries[p].begin(), entries[p].end());
     std::vector<Eigen::Triplet<double>>().swap(entries[p]);
