@@ -113,10 +113,31 @@ struct PointGroup {
 };
 
 // The pairing of outer iteration `iteration`: the first coarse_to_fine_steps iterations
-// accept planes 2^(steps - iteration) times thicker and points that much noisier.
-PairingOptions PairingAt(const LidarInertialBatchOptions& options, int iteration) {
-  const double coarse = std::pow(2.0, std::max(0, options.coarse_to_fine_steps - iteration));
-  return internal::CoarsePairing(options.pairing, coarse);
+// accept planes 2^(steps - iteration) times thicker and points that much noisier than
+// options.pairing; the later ones give the points the sigma `fine_point_sigma_m`.
+PairingOptions PairingAt(const LidarInertialBatchOptions& options, int iteration,
+                         double fine_point_sigma_m) {
+  if (iteration < options.coarse_to_fine_steps) {
+    return internal::CoarsePairing(options.pairing,
+                                   std::pow(2.0, options.coarse_to_fine_steps - iteration));
+  }
+  PairingOptions fine = options.pairing;
+  fine.point_sigma_m = fine_point_sigma_m;
+  return fine;
+}
+
+// The points' sigma from their distances (docs/estimation.md, "The points' sigma"): the RMS
+// of those within the gate, or `previous_m` when none is.
+double PointSigmaFromResiduals(const std::vector<double>& residuals_m, double gate_m,
+                               double previous_m) {
+  double sum_sq = 0.0;
+  int64_t count = 0;
+  for (double r : residuals_m) {
+    if (std::abs(r) > gate_m) continue;
+    sum_sq += r * r;
+    ++count;
+  }
+  return count == 0 ? previous_m : std::sqrt(sum_sq / static_cast<double>(count));
 }
 
 BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSweep>& sweeps,
@@ -270,14 +291,16 @@ double SecondsBetween(std::chrono::steady_clock::time_point a,
 }
 
 // One outer iteration: propagate, build the maps, associate, build the problem and solve it
-// (steps 1-6). Returns whether it was the last.
+// (steps 1-6). `fine_point_sigma_m` is the points' sigma after the coarse iterations, updated
+// from this iteration's residuals. Returns whether it was the last.
 bool OuterIteration(const BatchInputs& in, int iteration,
-                    std::chrono::steady_clock::time_point start, LidarInertialBatchReport* report) {
+                    std::chrono::steady_clock::time_point start, double* fine_point_sigma_m,
+                    LidarInertialBatchReport* report) {
   const LidarInertialBatchOptions& options = in.options;
   sensors::Calibration* calibration = in.calibration;
   const sensors::Calibration before = *calibration;
   const auto iteration_start = std::chrono::steady_clock::now();
-  const PairingOptions pairing = PairingAt(options, iteration);
+  const PairingOptions pairing = PairingAt(options, iteration, *fine_point_sigma_m);
 
   // 4. The problem: IMU factors between keyframes, point-to-plane factors per pair of sweeps.
   geometry::RightQuaternionManifold quaternion_manifold;
@@ -322,6 +345,14 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   for (double r : residuals) sum_sq += r * r;
   report->final_point_residuals_m = residuals;
   report->point_rms_m = std::sqrt(sum_sq / static_cast<double>(residuals.size()));
+  report->point_sigma_m = pairing.point_sigma_m;
+  bool sigma_settled = true;
+  if (options.point_sigma_from_residuals) {
+    *fine_point_sigma_m = PointSigmaFromResiduals(residuals, options.pairing.max_point_to_plane_m,
+                                                  *fine_point_sigma_m);
+    sigma_settled = std::abs(*fine_point_sigma_m - pairing.point_sigma_m) <=
+                    options.converged_point_sigma_ratio * pairing.point_sigma_m;
+  }
   report->associated_points = associated_points;
   report->final_cost = summary.final_cost;
   report->outer_iterations = iteration + 1;
@@ -337,9 +368,9 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   }
   report->termination = summary.message;
 
-  const bool last =
-      (Converged(options, before, *calibration) && iteration >= options.coarse_to_fine_steps) ||
-      iteration + 1 == options.outer_iterations;
+  const bool last = (Converged(options, before, *calibration) && sigma_settled &&
+                     iteration >= options.coarse_to_fine_steps) ||
+                    iteration + 1 == options.outer_iterations;
   if (last && options.compute_covariance) {
     ComputeCovariance(&problem, calibration, held_axes, report);
   }
@@ -409,8 +440,9 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
   const BatchInputs in = Inputs(imu, sweeps, keyframes, calibration, options);
   LidarInertialBatchReport report;
   const auto start = std::chrono::steady_clock::now();
+  double fine_point_sigma_m = options.pairing.point_sigma_m;
   for (int iteration = 0; iteration < options.outer_iterations; ++iteration) {
-    if (OuterIteration(in, iteration, start, &report)) break;
+    if (OuterIteration(in, iteration, start, &fine_point_sigma_m, &report)) break;
   }
   return report;
 }

@@ -223,6 +223,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
   file.solver["final_cost"] = std::to_string(batch.final_cost);
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
+  file.residuals["lidar"]["sigma_m"] = batch.point_sigma_m;
   file.residuals["lidar"]["associated_points"] = batch.associated_points;
   RecordPlanarRotation(planar_rotation, &file);
 }
@@ -420,7 +421,7 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
   const estimation::LidarInertialBatchReport& batch = result.batch;
   if (batch.associated_points > 0) {
     out << "LiDAR residual RMS (m): " << std::setprecision(4) << batch.point_rms_m << " over "
-        << batch.associated_points << " points\n";
+        << batch.associated_points << " points; point sigma (m): " << batch.point_sigma_m << "\n";
   }
   // The whitened RMS per sensor, as Conclude put it into the result's residual statistics.
   for (const auto& [sensor, statistics] : result.calibration.residuals) {

@@ -55,6 +55,11 @@ struct LidarInertialBatchOptions {
   // The first iterations accept planes 2^(steps - iteration) times thicker and points that
   // much noisier, so that a calibration still far off finds associations.
   int coarse_to_fine_steps = 3;
+  // The points' sigma after the coarse iterations: the RMS distance of the previous
+  // iteration's points within the gate, the variance of unit weight of the LiDAR residuals
+  // (docs/estimation.md, "The points' sigma"); pairing.point_sigma_m is the starting value.
+  // false: pairing.point_sigma_m throughout.
+  bool point_sigma_from_residuals = true;
   int outer_iterations = 8;
   int solver_iterations = 15;
   int num_threads = 1;
@@ -82,13 +87,16 @@ struct LidarInertialBatchOptions {
   double converged_rotation_deg = 2e-3;
   double converged_translation_m = 1e-3;
   double converged_time_offset_s = 1e-5;
+  // ... and the points' sigma (point_sigma_from_residuals) moves by less than this fraction.
+  double converged_point_sigma_ratio = 0.05;
 };
 
 struct LidarInertialBatchReport {
   int outer_iterations = 0;
   int associated_points = 0;  // in the last iteration
   double final_cost = 0.0;
-  double point_rms_m = 0.0;  // RMS point-to-plane distance of the last iteration
+  double point_rms_m = 0.0;    // RMS point-to-plane distance of the last iteration
+  double point_sigma_m = 0.0;  // the points' sigma in the last iteration's factors
   std::vector<sensors::Calibration> calibration_per_iteration;
   // Signed point-to-plane distances (m, no robust loss) at the start of the first iteration
   // and after the last solve, for residual statistics and histograms.

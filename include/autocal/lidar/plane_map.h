@@ -16,8 +16,10 @@ namespace autocal {
 namespace lidar {
 
 struct PlaneMapOptions {
-  double voxel_m = 0.2;                  // map resolution
-  int num_neighbors = 5;                 // points per local plane, 3 .. PlaneMap::kMaxNeighbors
+  double voxel_m = 0.2;  // map resolution
+  // Points per local plane, 3 .. PlaneMap::kMaxNeighbors. Fewer sit on one or two scan rings
+  // of a sparse LiDAR, whose tilt across the rings is poorly fixed (docs/evaluation.md).
+  int num_neighbors = 10;
   double max_neighbor_distance_m = 1.0;  // farthest neighbour accepted
   // With the neighbourhood's covariance eigenvalues l0 <= l1 <= l2: flatness (l1 - l0) / l1
   // is 1 for a plane and 0 for an isotropic blob; l1 / l2 is 0 for points on a line.
