@@ -16,6 +16,7 @@
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/estimation/keyframe_solver_options.h"
+#include "autocal/factors/loss.h"
 #include "autocal/factors/point_to_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
@@ -276,6 +277,28 @@ ceres::Solver::Summary SolveProblem(const LidarInertialBatchOptions& options,
   return summary;
 }
 
+// The points the loss down-weights at `sigma_m` (rho'(s) < 1/2) and the others' RMS distance.
+void RecordDownweightedPoints(const std::vector<double>& residuals_m, double sigma_m,
+                              const factors::LossOptions& loss, LidarInertialBatchReport* report) {
+  const std::unique_ptr<ceres::LossFunction> rho(factors::MakeLossFunction(loss));
+  int downweighted = 0;
+  double sum_sq = 0.0;
+  for (double r : residuals_m) {
+    double value[3] = {r * r, 1.0, 0.0};
+    const double s = value[0] / (sigma_m * sigma_m);
+    if (rho) rho->Evaluate(s, value);
+    if (rho && value[1] < 0.5) {
+      ++downweighted;
+    } else {
+      sum_sq += r * r;
+    }
+  }
+  const size_t kept = residuals_m.size() - static_cast<size_t>(downweighted);
+  report->points_downweighted_by_loss = downweighted;
+  report->point_rms_not_downweighted_m =
+      kept == 0 ? 0.0 : std::sqrt(sum_sq / static_cast<double>(kept));
+}
+
 bool Converged(const LidarInertialBatchOptions& options, const sensors::Calibration& before,
                const sensors::Calibration& after) {
   return geometry::AngularDistance(before.q_I_L, after.q_I_L) * kRadToDeg <
@@ -346,6 +369,7 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   report->final_point_residuals_m = residuals;
   report->point_rms_m = std::sqrt(sum_sq / static_cast<double>(residuals.size()));
   report->point_sigma_m = pairing.point_sigma_m;
+  RecordDownweightedPoints(residuals, pairing.point_sigma_m, options.point_loss, report);
   bool sigma_settled = true;
   if (options.point_sigma_from_residuals) {
     *fine_point_sigma_m = PointSigmaFromResiduals(residuals, options.pairing.max_point_to_plane_m,

@@ -224,6 +224,8 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   file.solver["final_cost"] = std::to_string(batch.final_cost);
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
   file.residuals["lidar"]["sigma_m"] = batch.point_sigma_m;
+  file.residuals["lidar"]["points_downweighted_by_loss"] = batch.points_downweighted_by_loss;
+  file.residuals["lidar"]["rms_m_not_downweighted"] = batch.point_rms_not_downweighted_m;
   file.residuals["lidar"]["associated_points"] = batch.associated_points;
   RecordPlanarRotation(planar_rotation, &file);
 }
@@ -421,7 +423,12 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
   const estimation::LidarInertialBatchReport& batch = result.batch;
   if (batch.associated_points > 0) {
     out << "LiDAR residual RMS (m): " << std::setprecision(4) << batch.point_rms_m << " over "
-        << batch.associated_points << " points; point sigma (m): " << batch.point_sigma_m << "\n";
+        << batch.associated_points << " points; point sigma (m): " << batch.point_sigma_m;
+    if (batch.points_downweighted_by_loss > 0) {
+      out << "; the loss down-weighted " << batch.points_downweighted_by_loss
+          << " points (the others' RMS " << batch.point_rms_not_downweighted_m << " m)";
+    }
+    out << "\n";
   }
   // The whitened RMS per sensor, as Conclude put it into the result's residual statistics.
   for (const auto& [sensor, statistics] : result.calibration.residuals) {

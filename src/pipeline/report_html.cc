@@ -242,6 +242,11 @@ std::string RunSummary(const OfflineCalibrationResult& result, bool lidar_used,
                               ? static_cast<size_t>(result.batch.associated_points)
                               : result.batch.final_point_residuals_m.size();
     html << Counted(points, "point residual") << " in the last iteration";
+    if (result.batch.points_downweighted_by_loss > 0) {
+      html << "; the robust loss down-weighted " << result.batch.points_downweighted_by_loss
+           << " (the others' RMS " << Number(result.batch.point_rms_not_downweighted_m * 100.0)
+           << " cm)";
+    }
   } else {
     html << "not used";
   }

@@ -134,6 +134,19 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
   ASSERT_TRUE(u.T_I_L.sigma_rot_deg.has_value());
   ASSERT_TRUE(u.time_offset_lidar_imu_s.sigma.has_value());
   ASSERT_TRUE(u.wheel_radius_left_m.sigma.has_value());
+  // The LiDAR's robust statistics: the Huber loss at 1 sigma down-weights the distances
+  // beyond 2 sigma (4.6 % of a normal sample; wrong pairs add to them), and the others are
+  // tighter than all of them.
+  const std::map<std::string, double>& lidar = result.calibration.residuals.at("lidar");
+  EXPECT_EQ(lidar.at("sigma_m"), result.batch.point_sigma_m);
+  EXPECT_GT(lidar.at("points_downweighted_by_loss"), 0.02 * lidar.at("associated_points"));
+  EXPECT_LT(lidar.at("points_downweighted_by_loss"), 0.15 * lidar.at("associated_points"));
+  EXPECT_LT(lidar.at("rms_m_not_downweighted"), lidar.at("rms_m"));
+  int beyond_two_sigma = 0;
+  for (double r : result.batch.final_point_residuals_m) {
+    if (std::abs(r) > 2.0 * result.batch.point_sigma_m) ++beyond_two_sigma;
+  }
+  EXPECT_EQ(lidar.at("points_downweighted_by_loss"), beyond_two_sigma);
 
   const std::string out = test::OutputDir("result").string();
   WriteCalibrationResult(out, result);

@@ -97,6 +97,10 @@ struct LidarInertialBatchReport {
   double final_cost = 0.0;
   double point_rms_m = 0.0;    // RMS point-to-plane distance of the last iteration
   double point_sigma_m = 0.0;  // the points' sigma in the last iteration's factors
+  // The last iteration's points the robust loss down-weighted (weight rho'(s) below one half at
+  // s = (distance / sigma)^2, as for the other sensors' factors) and the others' RMS distance.
+  int points_downweighted_by_loss = 0;
+  double point_rms_not_downweighted_m = 0.0;
   std::vector<sensors::Calibration> calibration_per_iteration;
   // Signed point-to-plane distances (m, no robust loss) at the start of the first iteration
   // and after the last solve, for residual statistics and histograms.
