@@ -8,10 +8,12 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/estimation/keyframe_solver_options.h"
 #include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/factors/wheel_factor.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "problem_blocks.h"
 #include "residual_groups.h"
 
@@ -436,6 +438,13 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
   options.set_to_truth(keyframes, calibration);
   const estimation::BlockCovariance bound =
       estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads);
+  Eigen::VectorXd error(bound.matrix.rows());
+  for (size_t b = 0; b < blocks_estimated.size() && bound.ok; ++b) {
+    const estimation::EstimatedBlock& block = blocks_estimated[b];
+    const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(block.id);
+    error.segment(bound.offsets[b], block.size) =
+        estimation::BlockMinus(block, info.const_values(*calibration), info.const_values(solved));
+  }
   // Element by element: the problem's blocks point into these objects.
   for (size_t k = 0; k < keyframes->size(); ++k) (*keyframes)[k] = solved_keyframes[k];
   *calibration = solved;
@@ -445,6 +454,7 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
     return;
   }
   result->bound = bound;
+  result->error_at_bound = error;
 }
 
 estimation::BlockObservability Observe(

@@ -67,32 +67,20 @@ void AddPoseBlock(const std::string& name, const Eigen::Quaterniond& q_estimate,
   }
 }
 
-// The solve's error in each direction of the posterior's blocks (tangent units: the right
-// perturbation at the estimate for a rotation) over the bound's sigma, for the directions the
-// data inform (bound below half the prior's sigma): per direction name, e / sigma_bound.
-void AddBoundRatios(const pipeline::OfflineCalibrationResult& result,
-                    const sensors::Calibration& truth, Samples* ratios) {
+// The solve's error in each direction of the posterior's blocks over the bound's sigma, for
+// the directions the data inform (bound below half the prior's sigma): per direction name,
+// e / sigma_bound (e = truth - estimate, OfflineCalibrationResult::error_at_bound).
+void AddBoundRatios(const pipeline::OfflineCalibrationResult& result, Samples* ratios) {
   const estimation::CalibrationPosterior& posterior = result.posterior;
   if (!result.bound || !posterior.covariance.ok) return;
   for (size_t b = 0; b < posterior.blocks.size(); ++b) {
     const estimation::EstimatedBlock& block = posterior.blocks[b];
-    const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(block.id);
-    const double* solved = info.const_values(posterior.solved);
-    const double* true_values = info.const_values(truth);
-    Eigen::VectorXd error(block.size);
-    if (info.manifold == sensors::BlockManifold::kRightQuaternion) {
-      const Eigen::Quaterniond q(solved[3], solved[0], solved[1], solved[2]);
-      const Eigen::Quaterniond q_true(true_values[3], true_values[0], true_values[1],
-                                      true_values[2]);
-      error = geometry::Log(Eigen::Quaterniond(q.conjugate() * q_true));
-    } else {
-      for (int i = 0; i < block.size; ++i) error(i) = true_values[i] - solved[i];
-    }
     for (int i = 0; i < block.size; ++i) {
       const int row = result.bound->offsets[b] + i;
       const double sigma = std::sqrt(result.bound->matrix(row, row));
       if (!(sigma > 0.0) || !(sigma < 0.5 * block.prior_sigma(i))) continue;
-      (*ratios)[block.direction_names[static_cast<size_t>(i)]].push_back(error(i) / sigma);
+      (*ratios)[block.direction_names[static_cast<size_t>(i)]].push_back(
+          result.error_at_bound(row) / sigma);
     }
   }
 }
@@ -143,7 +131,7 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
     const sensors::Calibration& truth = simulator.true_calibration();
     const sensors::Calibration& estimate = result.calibration.value;
     const io::CalibrationUncertainty& u = result.calibration.uncertainty;
-    AddBoundRatios(result, truth, &bound_ratios);
+    AddBoundRatios(result, &bound_ratios);
     Samples drive;  // this drive's normalized errors, merged into `samples` below
     AddPoseBlock("T_I_L", estimate.q_I_L, truth.q_I_L, estimate.p_I_L, truth.p_I_L, u.T_I_L,
                  &drive);

@@ -10,6 +10,7 @@
 #include <iostream>
 #include <string>
 
+#include "autocal/geometry/so3.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/report_html.h"
 #include "autocal/sensors/calibration_blocks.h"
@@ -76,7 +77,29 @@ TEST(InformationBound, ChangesNothingAndMatchesTheSolvesSigma) {
   // At a solve this close to the truth the information hardly moves: sigma = bound within
   // 10 % (measured: 1.000 within 0.3 %, the track width 1.06).
   ExpectSigmaAtTheBound(bounded, 0.9, 1.1);
-  EXPECT_NE(CalibrationReportHtml(bounded).find("Against the Cramér–Rao bound"), std::string::npos);
+  // Each direction's error at the solve, laid out as the bound: truth - estimate, a rotation's
+  // as Log(q_estimate^-1 q_truth).
+  const sensors::Calibration& truth = Drive().simulator.true_calibration();
+  const sensors::Calibration& solved = bounded.posterior.solved;
+  ASSERT_EQ(bounded.error_at_bound.size(), bounded.bound->matrix.rows());
+  int checked = 0;
+  for (size_t b = 0; b < bounded.posterior.blocks.size(); ++b) {
+    const estimation::EstimatedBlock& block = bounded.posterior.blocks[b];
+    const Eigen::VectorXd error =
+        bounded.error_at_bound.segment(bounded.bound->offsets[b], block.size);
+    if (block.id == sensors::CalibrationBlockId::kLidarRotation) {
+      ++checked;
+      EXPECT_TRUE(error.isApprox(geometry::Log(solved.q_I_L.conjugate() * truth.q_I_L), 1e-12));
+    }
+    if (block.id == sensors::CalibrationBlockId::kTimeOffset) {
+      ++checked;
+      EXPECT_EQ(error(0), truth.time_offset_lidar_imu_s - solved.time_offset_lidar_imu_s);
+    }
+  }
+  EXPECT_EQ(checked, 2);
+  const std::string html = CalibrationReportHtml(bounded);
+  EXPECT_NE(html.find("Against the Cramér–Rao bound"), std::string::npos);
+  EXPECT_NE(html.find("error / bound"), std::string::npos);
   EXPECT_EQ(CalibrationReportHtml(plain).find("Cramér–Rao"), std::string::npos);
 }
 

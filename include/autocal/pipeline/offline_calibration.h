@@ -130,6 +130,10 @@ struct OfflineCalibrationResult {
   // final problem's information at the truth instead of the estimate (the Cramer-Rao bound,
   // docs/evaluation.md "Information bound"), laid out as posterior.covariance.
   std::optional<estimation::BlockCovariance> bound;
+  // With the bound: each direction's error, truth - estimate in the block's tangent at the
+  // solve (a rotation: Log(q_estimate^-1 q_truth)), before any direction was held; laid out
+  // as the bound's rows.
+  Eigen::VectorXd error_at_bound;
   double seconds_total = 0.0;  // wall time, and its stages
   double seconds_loading = 0.0;
   double seconds_initialization = 0.0;
