@@ -128,7 +128,8 @@ PairingOptions PairingAt(const LidarInertialBatchOptions& options, int iteration
 }
 
 // The points' sigma from their distances (docs/estimation.md, "The points' sigma"): the RMS
-// of those within the gate, or `previous_m` when none is.
+// of those within the gate, or `previous_m` when none is or all lie on their planes exactly
+// (a zero sigma would make every weight infinite).
 double PointSigmaFromResiduals(const std::vector<double>& residuals_m, double gate_m,
                                double previous_m) {
   double sum_sq = 0.0;
@@ -138,7 +139,7 @@ double PointSigmaFromResiduals(const std::vector<double>& residuals_m, double ga
     sum_sq += r * r;
     ++count;
   }
-  return count == 0 ? previous_m : std::sqrt(sum_sq / static_cast<double>(count));
+  return sum_sq > 0.0 ? std::sqrt(sum_sq / static_cast<double>(count)) : previous_m;
 }
 
 BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSweep>& sweeps,
