@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -113,17 +114,20 @@ struct PointGroup {
   std::vector<double*> parameters;
 };
 
-// The pairing of outer iteration `iteration`: the first coarse_to_fine_steps iterations
-// accept planes 2^(steps - iteration) times thicker and points that much noisier than
-// options.pairing; the later ones give the points the sigma `fine_point_sigma_m`.
-PairingOptions PairingAt(const LidarInertialBatchOptions& options, int iteration,
-                         double fine_point_sigma_m) {
-  if (iteration < options.coarse_to_fine_steps) {
-    return internal::CoarsePairing(options.pairing,
-                                   std::pow(2.0, options.coarse_to_fine_steps - iteration));
+// Where the outer loop stands (docs/estimation.md, "Coarse to fine", "The points' sigma"):
+// the coarse level (planes 2^level times thicker, points that much farther and noisier than
+// options.pairing; 0: fine) and the points' sigma of the fine iterations.
+struct Schedule {
+  int coarse_level;
+  double fine_point_sigma_m;
+};
+
+PairingOptions PairingAt(const LidarInertialBatchOptions& options, const Schedule& schedule) {
+  if (schedule.coarse_level > 0) {
+    return internal::CoarsePairing(options.pairing, std::pow(2.0, schedule.coarse_level));
   }
   PairingOptions fine = options.pairing;
-  fine.point_sigma_m = fine_point_sigma_m;
+  fine.point_sigma_m = schedule.fine_point_sigma_m;
   return fine;
 }
 
@@ -140,6 +144,42 @@ double PointSigmaFromResiduals(const std::vector<double>& residuals_m, double ga
     ++count;
   }
   return sum_sq > 0.0 ? std::sqrt(sum_sq / static_cast<double>(count)) : previous_m;
+}
+
+// The coarsest level the distances within `gate_m` still need (Eq. P11): the smallest k >= 0
+// whose gate fine_gate_m 2^k holds three robust sigmas of them (1.4826 times the median
+// |distance|, blind to the wrong pairs a wide gate lets in).
+int LevelFitting(const std::vector<double>& residuals_m, double gate_m, double fine_gate_m) {
+  std::vector<double> within;
+  within.reserve(residuals_m.size());
+  for (double r : residuals_m) {
+    if (std::abs(r) <= gate_m) within.push_back(std::abs(r));
+  }
+  if (within.empty()) return std::numeric_limits<int>::max();
+  const auto middle = within.begin() + static_cast<std::ptrdiff_t>(within.size() / 2);
+  std::nth_element(within.begin(), middle, within.end());
+  const double reach_m = 3.0 * 1.4826 * *middle;
+  int level = 0;
+  while (fine_gate_m * std::pow(2.0, level) < reach_m && level < 30) ++level;
+  return level;
+}
+
+// Moves the schedule on after an iteration with `used`: one coarse level down at least, to
+// the level its distances need (LevelFitting) when that is finer, and the fine iterations'
+// sigma from the distances. Returns whether the points' sigma had settled (always when it is
+// fixed).
+bool Advance(const LidarInertialBatchOptions& options, const std::vector<double>& residuals_m,
+             const PairingOptions& used, Schedule* schedule) {
+  if (schedule->coarse_level > 0) {
+    schedule->coarse_level = std::min(
+        schedule->coarse_level - 1,
+        LevelFitting(residuals_m, used.max_point_to_plane_m, options.pairing.max_point_to_plane_m));
+  }
+  if (!options.point_sigma_from_residuals) return true;
+  schedule->fine_point_sigma_m = PointSigmaFromResiduals(
+      residuals_m, options.pairing.max_point_to_plane_m, schedule->fine_point_sigma_m);
+  return std::abs(schedule->fine_point_sigma_m - used.point_sigma_m) <=
+         options.converged_point_sigma_ratio * used.point_sigma_m;
 }
 
 BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSweep>& sweeps,
@@ -315,16 +355,17 @@ double SecondsBetween(std::chrono::steady_clock::time_point a,
 }
 
 // One outer iteration: propagate, build the maps, associate, build the problem and solve it
-// (steps 1-6). `fine_point_sigma_m` is the points' sigma after the coarse iterations, updated
-// from this iteration's residuals. Returns whether it was the last.
+// (steps 1-6), then move the schedule on (Advance). Returns whether it was the last.
 bool OuterIteration(const BatchInputs& in, int iteration,
-                    std::chrono::steady_clock::time_point start, double* fine_point_sigma_m,
+                    std::chrono::steady_clock::time_point start, Schedule* schedule,
                     LidarInertialBatchReport* report) {
   const LidarInertialBatchOptions& options = in.options;
   sensors::Calibration* calibration = in.calibration;
   const sensors::Calibration before = *calibration;
   const auto iteration_start = std::chrono::steady_clock::now();
-  const PairingOptions pairing = PairingAt(options, iteration, *fine_point_sigma_m);
+  const int level = schedule->coarse_level;
+  const bool fine = level == 0;
+  const PairingOptions pairing = PairingAt(options, *schedule);
 
   // 4. The problem: IMU factors between keyframes, point-to-plane factors per pair of sweeps.
   geometry::RightQuaternionManifold quaternion_manifold;
@@ -371,17 +412,12 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   report->point_rms_m = std::sqrt(sum_sq / static_cast<double>(residuals.size()));
   report->point_sigma_m = pairing.point_sigma_m;
   RecordDownweightedPoints(residuals, pairing.point_sigma_m, options.point_loss, report);
-  bool sigma_settled = true;
-  if (options.point_sigma_from_residuals) {
-    *fine_point_sigma_m = PointSigmaFromResiduals(residuals, options.pairing.max_point_to_plane_m,
-                                                  *fine_point_sigma_m);
-    sigma_settled = std::abs(*fine_point_sigma_m - pairing.point_sigma_m) <=
-                    options.converged_point_sigma_ratio * pairing.point_sigma_m;
-  }
+  const bool sigma_settled = Advance(options, residuals, pairing, schedule);
   report->associated_points = associated_points;
   report->final_cost = summary.final_cost;
   report->outer_iterations = iteration + 1;
   report->calibration_per_iteration.push_back(*calibration);
+  report->coarse_level_per_iteration.push_back(level);
   if (options.progress) {
     LidarInertialBatchProgress progress;
     progress.iteration = iteration + 1;
@@ -393,8 +429,7 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   }
   report->termination = summary.message;
 
-  const bool last = (Converged(options, before, *calibration) && sigma_settled &&
-                     iteration >= options.coarse_to_fine_steps) ||
+  const bool last = (Converged(options, before, *calibration) && sigma_settled && fine) ||
                     iteration + 1 == options.outer_iterations;
   if (last && options.compute_covariance) {
     ComputeCovariance(&problem, calibration, held_axes, report);
@@ -465,9 +500,9 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
   const BatchInputs in = Inputs(imu, sweeps, keyframes, calibration, options);
   LidarInertialBatchReport report;
   const auto start = std::chrono::steady_clock::now();
-  double fine_point_sigma_m = options.pairing.point_sigma_m;
+  Schedule schedule{std::max(0, options.coarse_to_fine_steps), options.pairing.point_sigma_m};
   for (int iteration = 0; iteration < options.outer_iterations; ++iteration) {
-    if (OuterIteration(in, iteration, start, &fine_point_sigma_m, &report)) break;
+    if (OuterIteration(in, iteration, start, &schedule, &report)) break;
   }
   return report;
 }

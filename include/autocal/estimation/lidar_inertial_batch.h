@@ -52,8 +52,10 @@ struct LidarInertialBatchOptions {
   int map_neighbor_sweeps = 0;
   // Robust loss on point residuals, scale in units of sigma.
   factors::LossOptions point_loss{factors::RobustLoss::kCauchy, 2.0};
-  // The first iterations accept planes 2^(steps - iteration) times thicker and points that
-  // much noisier, so that a calibration still far off finds associations.
+  // The first iteration accepts planes 2^steps times thicker and points that much farther and
+  // noisier, so that a calibration still far off finds associations; each later one halves
+  // that at least, and goes straight to the level its distances need (docs/estimation.md,
+  // "Coarse to fine", Eq. P11).
   int coarse_to_fine_steps = 3;
   // The points' sigma after the coarse iterations: the RMS distance of the previous
   // iteration's points within the gate, the variance of unit weight of the LiDAR residuals
@@ -102,6 +104,9 @@ struct LidarInertialBatchReport {
   int points_downweighted_by_loss = 0;
   double point_rms_not_downweighted_m = 0.0;
   std::vector<sensors::Calibration> calibration_per_iteration;
+  // Each iteration's coarse level: planes 2^level times thicker, points that much farther and
+  // noisier (0: fine).
+  std::vector<int> coarse_level_per_iteration;
   // Signed point-to-plane distances (m, no robust loss) at the start of the first iteration
   // and after the last solve, for residual statistics and histograms.
   std::vector<double> initial_point_residuals_m;
