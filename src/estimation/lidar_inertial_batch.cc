@@ -318,17 +318,15 @@ ceres::Solver::Summary SolveProblem(const LidarInertialBatchOptions& options,
   return summary;
 }
 
-// The points the loss down-weights at `sigma_m` (rho'(s) < 1/2) and the others' RMS distance.
+// The points the loss down-weights at `sigma_m` (factors::DownweightedByLoss) and the others'
+// RMS distance.
 void RecordDownweightedPoints(const std::vector<double>& residuals_m, double sigma_m,
                               const factors::LossOptions& loss, LidarInertialBatchReport* report) {
   const std::unique_ptr<ceres::LossFunction> rho(factors::MakeLossFunction(loss));
   int downweighted = 0;
   double sum_sq = 0.0;
   for (double r : residuals_m) {
-    double value[3] = {r * r, 1.0, 0.0};
-    const double s = value[0] / (sigma_m * sigma_m);
-    if (rho) rho->Evaluate(s, value);
-    if (rho && value[1] < 0.5) {
+    if (factors::DownweightedByLoss(rho.get(), r * r / (sigma_m * sigma_m))) {
       ++downweighted;
     } else {
       sum_sq += r * r;

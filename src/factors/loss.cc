@@ -65,5 +65,12 @@ ceres::LossFunction* MakeLossFunction(const LossOptions& options) {
   return nullptr;
 }
 
+bool DownweightedByLoss(const ceres::LossFunction* loss, double s) {
+  if (loss == nullptr) return false;
+  double rho[3];
+  loss->Evaluate(s, rho);
+  return rho[1] < 0.5;
+}
+
 }  // namespace factors
 }  // namespace autocal

@@ -4,6 +4,7 @@
 
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
+#include "autocal/factors/loss.h"
 #include "autocal/factors/planar_rotation_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "common/order_statistics.h"
@@ -97,14 +98,10 @@ void RecordResidualsAfterSolve(ceres::Problem* problem,
                                  problem->GetCostFunctionForResidualBlock(id)->num_residuals()));
       double cost = 0.0;
       problem->EvaluateResidualBlock(id, false, &cost, r.after.data() + first, nullptr);
-      const ceres::LossFunction* loss = problem->GetLossFunctionForResidualBlock(id);
-      if (loss != nullptr) {
-        double rho[3];
-        loss->Evaluate(2.0 * cost, rho);  // s = |r|^2; Ceres' cost is s / 2
-        if (rho[1] < kDownweightedBelow) {
-          ++r.factors_downweighted;
-          continue;
-        }
+      // s = |r|^2; Ceres' cost is s / 2.
+      if (factors::DownweightedByLoss(problem->GetLossFunctionForResidualBlock(id), 2.0 * cost)) {
+        ++r.factors_downweighted;
+        continue;
       }
       for (size_t k = first; k < r.after.size(); ++k) kept_sum += r.after[k] * r.after[k];
       kept_rows += r.after.size() - first;

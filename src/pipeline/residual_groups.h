@@ -32,9 +32,7 @@ std::map<std::string, std::vector<double>> WhitenedResidualsBySensor(ceres::Prob
 // After the solve, for each sensor in `problem` at the current values: SensorResiduals::after
 // (the rows WhitenedResidualsBySensor gives, in the same order), factors, factors_downweighted
 // and rms_not_downweighted, from one evaluation of each factor. A factor counts as
-// down-weighted when its loss's weight rho'(s) at its squared whitened norm s is below
-// kDownweightedBelow (Huber with scale d beyond 2 d, Cauchy with scale c beyond c).
-constexpr double kDownweightedBelow = 0.5;
+// down-weighted by factors::DownweightedByLoss at its squared whitened norm.
 void RecordResidualsAfterSolve(ceres::Problem* problem,
                                std::map<std::string, SensorResiduals>* residuals);
 

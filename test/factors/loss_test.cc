@@ -101,6 +101,19 @@ TEST(Loss, MakesTheSelectedLoss) {
   EXPECT_EQ(defaults.gnss.type, RobustLoss::kCauchy);
 }
 
+// rho'(s) < 1/2: Huber with scale d beyond |r| = 2 d, Cauchy with scale c beyond |r| = c.
+TEST(Loss, DownweightsBeyondHalfWeight) {
+  const double d = 1.5;
+  std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({RobustLoss::kHuber, d}));
+  std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({RobustLoss::kCauchy, d}));
+  const auto squared = [](double r) { return r * r; };
+  EXPECT_FALSE(DownweightedByLoss(huber.get(), squared(2.0 * d * 0.999)));
+  EXPECT_TRUE(DownweightedByLoss(huber.get(), squared(2.0 * d * 1.001)));
+  EXPECT_FALSE(DownweightedByLoss(cauchy.get(), squared(d * 0.999)));
+  EXPECT_TRUE(DownweightedByLoss(cauchy.get(), squared(d * 1.001)));
+  EXPECT_FALSE(DownweightedByLoss(nullptr, 1e6));
+}
+
 }  // namespace
 }  // namespace factors
 }  // namespace autocal

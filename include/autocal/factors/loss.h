@@ -42,5 +42,10 @@ LossOptions ParseLossOptions(const std::string& text);
 // kNone (plain least squares). Throws autocal::Error on a scale out of range.
 ceres::LossFunction* MakeLossFunction(const LossOptions& options);
 
+// Whether `loss` down-weights a residual of squared whitened norm s: its weight rho'(s) is
+// below one half (Huber with scale d beyond 2 d, Cauchy with scale c beyond c). Never for
+// a null loss (plain least squares). The rule the residual statistics count by.
+bool DownweightedByLoss(const ceres::LossFunction* loss, double s);
+
 }  // namespace factors
 }  // namespace autocal
