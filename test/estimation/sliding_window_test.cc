@@ -1112,18 +1112,21 @@ double Mean(const std::vector<int>& values, size_t begin, size_t end) {
 
 // Eq. W6 (docs/sliding_window.md, "A second pass only for the groups that moved"): from the nominal
 // calibration, with the tolerance 0 every update takes both passes; with the default some do and
-// some do not, and more of them while the extrinsic converges than at the end. Measured: all 2;
-// 1.05 passes per update, 1.18 over the first quarter, 1.00 over the last (with planes of five
-// points, whose pairs moved more often: 1.07, 1.20 and 1.00).
+// some do not, and more of them while the extrinsic converges than at the end. On planes of five
+// map points, whose pairs move more often than the default ten's (1.05, 1.18 and 1.00 there), so
+// that both kinds of update are common. Measured: all 2; 1.07 passes per update, 1.20 over the
+// first quarter, 1.00 over the last.
 TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
-  SlidingWindowOptions options = Options();
+  SlidingWindowOptions adaptive_options = Options();
+  adaptive_options.pairing.plane_map.num_neighbors = 5;
+  SlidingWindowOptions options = adaptive_options;
   options.linearization.relinearization_tolerance_m = 0.0;
   const Run always = Estimate(nominal, options);
   ASSERT_FALSE(always.passes.empty());
   for (int passes : always.passes) EXPECT_EQ(passes, 2);
 
-  const Run adaptive = Estimate(nominal, Options());
+  const Run adaptive = Estimate(nominal, adaptive_options);
   const size_t n = adaptive.passes.size();
   ASSERT_GT(n, 100u);
   for (int passes : adaptive.passes) EXPECT_TRUE(passes == 1 || passes == 2);
@@ -1132,7 +1135,7 @@ TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
   std::cout << "passes per update " << Mean(adaptive.passes, 0, n) << ", first quarter " << first
             << ", last quarter " << last << "\n";
   EXPECT_LT(Mean(adaptive.passes, 0, n), 1.8);
-  EXPECT_GT(Mean(adaptive.passes, 0, n), 1.0);
+  EXPECT_GT(Mean(adaptive.passes, 0, n), 1.05);
   EXPECT_GT(first, last);
   // The accuracy with the default: TracksTruthAndCalibratesFromNominal.
 }
@@ -1230,17 +1233,18 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
 // max_plane_misses (docs/sliding_window.md, "Points without a plane"): a point whose last
 // six lookups found no plane is not looked up again until its own map is rebuilt. From the
 // nominal calibration, against looking every point up in every partner it walks, it makes
-// fewer lookups, keeps the pairs and tracks the truth as well. Measured with the residual
-// points' range unlimited (residual_max_range_m 0; the default range leaves few points without
-// a plane, "Far points"): 1144 lookups per update against 1193, 1188 points against 1194, q_I_L
-// 0.021 against 0.021 deg at the end. Planes of ten points leave fewer points without one than
-// planes of five did (1174 lookups against 1398, 1180 points against 1206, q_I_L 0.076 against
-// 0.079 deg; with two misses: 875 lookups, 1067 points, q_I_L 0.118 deg: the points of sparse
-// far ground, which pin the rotation, miss most), so the cap saves less.
+// fewer lookups, keeps the pairs and tracks the truth as well. Measured where many points find
+// no plane: the residual points' range unlimited (residual_max_range_m 0; the default range
+// leaves few without one, "Far points") and planes of five map points (the default ten leave
+// fewer: 1144 lookups per update against 1193, 1188 points against 1194, q_I_L 0.021 deg
+// both): 1174 lookups against 1406, 1180 points against 1211, q_I_L 0.076 against 0.080 deg
+// at the end (with two misses: 875 lookups, 1067 points, q_I_L 0.118 deg: the points of
+// sparse far ground, which pin the rotation, miss most).
 TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions capped_options = Options();
   capped_options.pairing.residual_max_range_m = 0.0;
+  capped_options.pairing.plane_map.num_neighbors = 5;
   SlidingWindowOptions every_options = capped_options;
   every_options.window_pairing.max_plane_misses = 0;
   const Run every = Estimate(nominal, every_options);
@@ -1253,7 +1257,7 @@ TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   const double every_points = Mean(every.points, 0, n);
   std::cout << "lookups per update " << capped_lookups << " against " << every_lookups
             << ", points " << capped_points << " against " << every_points << "\n";
-  EXPECT_LT(capped_lookups, 0.97 * every_lookups);
+  EXPECT_LT(capped_lookups, 0.9 * every_lookups);
   EXPECT_GT(capped_points, 0.95 * every_points);
   EXPECT_LT(capped.rms_position_error_m, 1.1 * every.rms_position_error_m);
   EXPECT_LT(capped.rms_rotation_error_deg, 1.1 * every.rms_rotation_error_deg);
