@@ -30,19 +30,24 @@ using RowMajor3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor, kMax
 PropagatedWheelFactor::PropagatedWheelFactor(sensors::ImuPreintegration pim,
                                              const factors::WheelMeasurement& measurement,
                                              const factors::WheelFactorOptions& options,
-                                             double encoder_sigma_rad_s, double gyro_sigma_rad_s)
+                                             double encoder_sigma_rad_s, double gyro_sigma_rad_s,
+                                             double speed_variance_m2_s2)
     : pim_(std::move(pim)),
       wheel_(measurement, options),
       speed_sigma_m_s_(options.speed_sigma_m_s),
       yaw_rate_sigma_rad_s_(options.yaw_rate_sigma_rad_s),
       encoder_sigma_rad_s_(encoder_sigma_rad_s),
-      gyro_sigma_rad_s_(gyro_sigma_rad_s) {
+      gyro_sigma_rad_s_(gyro_sigma_rad_s),
+      speed_variance_m2_s2_(speed_variance_m2_s2) {
   if (options.shared_radius) {
     throw Error("PropagatedWheelFactor: the window estimates both wheel radii (no shared radius)");
   }
   if (!(encoder_sigma_rad_s > 0.0) || !(gyro_sigma_rad_s > 0.0) ||
       !std::isfinite(encoder_sigma_rad_s) || !std::isfinite(gyro_sigma_rad_s)) {
     throw Error("PropagatedWheelFactor: the encoder and gyro sigmas must be positive and finite");
+  }
+  if (!(speed_variance_m2_s2 >= 0.0) || !std::isfinite(speed_variance_m2_s2)) {
+    throw Error("PropagatedWheelFactor: the speed row's added variance must be finite and >= 0");
   }
   set_num_residuals(wheel_.num_residuals());
   *mutable_parameter_block_sizes() = {4, 3, 3, 3, 4, 3, 1, 1, 1};
@@ -71,7 +76,8 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
   // Rows 0 and 1 whitened at the current radii and track width ("Wheel rows").
   const double s_w = encoder_sigma_rad_s_, s_g = gyro_sigma_rad_s_;
   const double radius_sq = r_l * r_l + r_r * r_r;
-  const double speed_scale = 2.0 * speed_sigma_m_s_ / (s_w * std::sqrt(radius_sq));
+  const double speed_variance = 0.25 * s_w * s_w * radius_sq + speed_variance_m2_s2_;
+  const double speed_scale = speed_sigma_m_s_ / std::sqrt(speed_variance);
   const double yaw_variance = s_w * s_w * radius_sq + b * b * s_g * s_g;
   const double yaw_scale = yaw_rate_sigma_rad_s_ * b / std::sqrt(yaw_variance);
 
@@ -142,15 +148,16 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
     output(i, size) = wheel_block(i - 1, size);
     scale_rows(jacobians[i], size);
   }
-  // The scales' derivatives: d speed_scale / dr = -speed_scale r / |r|^2, d yaw_scale / dr =
+  // The scales' derivatives: d speed_scale / dr = -speed_scale s_w^2 r / (4 speed_variance),
+  // d yaw_scale / dr =
   // -yaw_scale s_w^2 r / yaw_variance, d yaw_scale / db = yaw_scale (1 / b - b s_g^2 /
   // yaw_variance).
   if (jacobians[6] != nullptr) {
-    jacobians[6][0] -= e0 * speed_scale * r_l / radius_sq;
+    jacobians[6][0] -= e0 * speed_scale * 0.25 * s_w * s_w * r_l / speed_variance;
     jacobians[6][1] -= e1 * yaw_scale * s_w * s_w * r_l / yaw_variance;
   }
   if (jacobians[7] != nullptr) {
-    jacobians[7][0] -= e0 * speed_scale * r_r / radius_sq;
+    jacobians[7][0] -= e0 * speed_scale * 0.25 * s_w * s_w * r_r / speed_variance;
     jacobians[7][1] -= e1 * yaw_scale * s_w * s_w * r_r / yaw_variance;
   }
   if (jacobians[8] != nullptr) {

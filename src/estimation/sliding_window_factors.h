@@ -23,6 +23,7 @@
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/manifolds.h"
+#include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/lower_gram.h"
 
@@ -75,37 +76,61 @@ void PropagatedBodyInputs(const sensors::ImuPreintegration& pim, const T* q, con
   *v_in_k = q_k.conjugate() * Vec3(Eigen::Map<const Vec3>(v) + g_dt) + dv;
 }
 
+// Eq. W7 (docs/sliding_window.md, "Wheel rows"): the covariance, in V, of the body velocity
+// the wheel rows read at the state propagated by `pim` from a keyframe at (q_W_I, v_W_I). That
+// state is not a block of the window, and it carries the preintegration's noise: with the
+// right attitude error dphi and the velocity error d(dv) of ImuPreintegration::Covariance(),
+// u = dR^T (R_k^T (v_k + g dt) + dv) = Exp(-dphi) dR^T (...) moves by
+//   du = Hat(u) dphi + dR^T d(dv),   Cov(u) = A Cov[dphi, dv] A^T,   A = [Hat(u)  dR^T],
+// and the rows, along x, y and z of V, see R_V_I Cov(u) R_V_I^T. The rows of one interval share
+// this noise, and with the IMU factor over it; those correlations are not modelled.
+inline Eigen::Matrix3d PropagatedVelocityCovariance(const sensors::ImuPreintegration& pim,
+                                                    const Eigen::Quaterniond& q_W_I,
+                                                    const Eigen::Vector3d& v_W_I,
+                                                    const Eigen::Quaterniond& q_I_V) {
+  const Eigen::Matrix3d dR_T = pim.delta_R().transpose();
+  const Eigen::Vector3d u =
+      dR_T * (q_W_I.conjugate() * (v_W_I + pim.gravity_W() * pim.dt_s()) + pim.delta_v());
+  Eigen::Matrix<double, 3, 6> A;
+  A << geometry::Hat(u), dR_T;
+  const Eigen::Matrix3d R_V_I = q_I_V.conjugate().toRotationMatrix();
+  return R_V_I * A * pim.Covariance().topLeftCorner<6, 6>() * A.transpose() * R_V_I.transpose();
+}
+
 // Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened at
 // the current radii and track width (docs/sliding_window.md, "Wheel rows"), s_w the encoder and
-// s_g the gyro sample noise: row 0 over s_v = s_w sqrt(r_l^2 + r_r^2) / 2, row 1 in wheel-speed
-// units, (w_z b - (w_r r_r - w_l r_l)), over sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2): the Deming
-// weighting of Eq. F22b in its general form, evaluated here at the current radii (the keyframe
-// factor's YawRowSigma is its fixed-radii case). Parameter blocks:
-// q_W_I, v_W_I, b_g, b_a of the keyframe (its position does not enter the wheel rows), then q_I_V,
-// p_I_V, r_l, r_r, track width.
+// s_g the gyro sample noise: row 0 over s_v = sqrt(s_w^2 (r_l^2 + r_r^2) / 4 + V), V the
+// propagated velocity's variance along x_V (Eq. W7, PropagatedVelocityCovariance), row 1 in
+// wheel-speed units, (w_z b - (w_r r_r - w_l r_l)), over sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2):
+// the Deming weighting of Eq. F22b in its general form, evaluated here at the current radii (the
+// keyframe factor's YawRowSigma is its fixed-radii case). Parameter blocks: q_W_I, v_W_I, b_g, b_a
+// of the keyframe (its position does not enter the wheel rows), then q_I_V, p_I_V, r_l, r_r, track
+// width.
 class PropagatedWheelResidual {
  public:
   PropagatedWheelResidual(sensors::ImuPreintegration pim,
                           const factors::WheelMeasurement& measurement,
                           const factors::WheelFactorOptions& options, double encoder_sigma_rad_s,
-                          double gyro_sigma_rad_s)
+                          double gyro_sigma_rad_s, double speed_variance_m2_s2)
       : pim_(std::move(pim)),
         wheel_(measurement, options),
         speed_sigma_m_s_(options.speed_sigma_m_s),
         yaw_rate_sigma_rad_s_(options.yaw_rate_sigma_rad_s),
         encoder_sigma_rad_s_(encoder_sigma_rad_s),
-        gyro_sigma_rad_s_(gyro_sigma_rad_s) {}
+        gyro_sigma_rad_s_(gyro_sigma_rad_s),
+        speed_variance_m2_s2_(speed_variance_m2_s2) {}
 
   // encoder_sigma_rad_s: 1-sigma of each wheel rate; gyro_sigma_rad_s: 1-sigma of one gyro
-  // sample (noise density times the square root of the IMU rate).
+  // sample (noise density times the square root of the IMU rate); speed_variance_m2_s2: V.
   static ceres::CostFunction* Create(sensors::ImuPreintegration pim,
                                      const factors::WheelMeasurement& measurement,
                                      const factors::WheelFactorOptions& options,
-                                     double encoder_sigma_rad_s, double gyro_sigma_rad_s) {
+                                     double encoder_sigma_rad_s, double gyro_sigma_rad_s,
+                                     double speed_variance_m2_s2) {
     return new ceres::AutoDiffCostFunction<PropagatedWheelResidual, ceres::DYNAMIC, 4, 3, 3, 3, 4,
                                            3, 1, 1, 1>(
         new PropagatedWheelResidual(std::move(pim), measurement, options, encoder_sigma_rad_s,
-                                    gyro_sigma_rad_s),
+                                    gyro_sigma_rad_s, speed_variance_m2_s2),
         options.non_holonomic ? 4 : 2);
   }
 
@@ -124,7 +149,8 @@ class PropagatedWheelResidual {
     const T radius_sq = r_l[0] * r_l[0] + r_r[0] * r_r[0];
     const T s_w(encoder_sigma_rad_s_), s_g(gyro_sigma_rad_s_);
     // Speed row: back to metres per second, over s_v at the current radii.
-    residual[0] *= T(2.0 * speed_sigma_m_s_) / (s_w * sqrt(radius_sq));
+    residual[0] *=
+        T(speed_sigma_m_s_) / sqrt(T(0.25) * s_w * s_w * radius_sq + T(speed_variance_m2_s2_));
     // Yaw-rate row: (w_z - y / b) / s_yaw0 times s_yaw0 b is w_z b - y.
     const T b = track_width[0];
     residual[1] *= T(yaw_rate_sigma_rad_s_) * b / sqrt(s_w * s_w * radius_sq + b * b * s_g * s_g);
@@ -138,6 +164,7 @@ class PropagatedWheelResidual {
   double yaw_rate_sigma_rad_s_;
   double encoder_sigma_rad_s_;
   double gyro_sigma_rad_s_;
+  double speed_variance_m2_s2_;
 };
 
 // PropagatedWheelResidual with analytic Jacobians (its autodiff form is the test oracle):
@@ -154,7 +181,7 @@ class PropagatedWheelFactor final : public ceres::CostFunction {
   PropagatedWheelFactor(sensors::ImuPreintegration pim,
                         const factors::WheelMeasurement& measurement,
                         const factors::WheelFactorOptions& options, double encoder_sigma_rad_s,
-                        double gyro_sigma_rad_s);
+                        double gyro_sigma_rad_s, double speed_variance_m2_s2);
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
@@ -166,37 +193,41 @@ class PropagatedWheelFactor final : public ceres::CostFunction {
   double yaw_rate_sigma_rad_s_;
   double encoder_sigma_rad_s_;
   double gyro_sigma_rad_s_;
+  double speed_variance_m2_s2_;
 };
 
 // Wheels reported as the rear pair's linear speeds (factors::WheelSpeedResidual, Eq. F25) at
 // the propagated state, whitened at the current scales as the wheel rows are ("Wheel rows")
-// with the per-wheel speed noise s and the gyro's: the speed row by s sqrt(s_l^2 + s_r^2) / 2
-// at the current scales, the yaw-rate row taken in speed units, w_z b - (s_r v_r - s_l v_l),
-// over sqrt(s^2 (s_l^2 + s_r^2) + b^2 s_g^2) (Deming: with the yaw row's sigma fixed, the
-// wheels' own noise attenuated 1 / b and the track ended 1.9 % long on the simulated urban
-// drive). Parameter blocks: q_W_I, v_W_I, b_g, b_a of the keyframe, then q_I_V, p_I_V, s_l,
-// s_r, b.
+// with the per-wheel speed noise s and the gyro's: the speed row by
+// sqrt(s^2 (s_l^2 + s_r^2) / 4 + V) at the current scales (V as for PropagatedWheelResidual), the
+// yaw-rate row taken in speed units, w_z b - (s_r v_r - s_l v_l), over sqrt(s^2 (s_l^2 + s_r^2) +
+// b^2 s_g^2) (Deming: with the yaw row's sigma fixed, the wheels' own noise attenuated 1 / b and
+// the track ended 1.9 % long on the simulated urban drive). Parameter blocks: q_W_I, v_W_I, b_g,
+// b_a of the keyframe, then q_I_V, p_I_V, s_l, s_r, b.
 class PropagatedWheelSpeedResidual {
  public:
   PropagatedWheelSpeedResidual(sensors::ImuPreintegration pim,
                                const factors::WheelSpeedMeasurement& measurement,
                                const factors::WheelFactorOptions& options, double speed_sigma_m_s,
-                               double gyro_sigma_rad_s)
+                               double gyro_sigma_rad_s, double speed_variance_m2_s2)
       : pim_(std::move(pim)),
         wheel_(measurement, options),
         row_sigmas_(options.speed_sigma_m_s, options.yaw_rate_sigma_rad_s),
         speed_sigma_m_s_(speed_sigma_m_s),
-        gyro_sigma_rad_s_(gyro_sigma_rad_s) {}
+        gyro_sigma_rad_s_(gyro_sigma_rad_s),
+        speed_variance_m2_s2_(speed_variance_m2_s2) {}
 
-  // speed_sigma_m_s: 1-sigma of each reported wheel speed; gyro_sigma_rad_s: of the gyro's mean.
+  // speed_sigma_m_s: 1-sigma of each reported wheel speed; gyro_sigma_rad_s: of the gyro's mean;
+  // speed_variance_m2_s2: V.
   static ceres::CostFunction* Create(sensors::ImuPreintegration pim,
                                      const factors::WheelSpeedMeasurement& measurement,
                                      const factors::WheelFactorOptions& options,
-                                     double speed_sigma_m_s, double gyro_sigma_rad_s) {
+                                     double speed_sigma_m_s, double gyro_sigma_rad_s,
+                                     double speed_variance_m2_s2) {
     return new ceres::AutoDiffCostFunction<PropagatedWheelSpeedResidual, ceres::DYNAMIC, 4, 3, 3, 3,
                                            4, 3, 1, 1, 1>(
         new PropagatedWheelSpeedResidual(std::move(pim), measurement, options, speed_sigma_m_s,
-                                         gyro_sigma_rad_s),
+                                         gyro_sigma_rad_s, speed_variance_m2_s2),
         options.non_holonomic ? 4 : 2);
   }
 
@@ -212,7 +243,7 @@ class PropagatedWheelSpeedResidual {
     using std::sqrt;
     const T scale_sq = s_l[0] * s_l[0] + s_r[0] * s_r[0];
     const T s(speed_sigma_m_s_), s_g(gyro_sigma_rad_s_), b = track[0];
-    residual[0] *= T(2.0 * row_sigmas_.x()) / (s * sqrt(scale_sq));
+    residual[0] *= T(row_sigmas_.x()) / sqrt(T(0.25) * s * s * scale_sq + T(speed_variance_m2_s2_));
     residual[1] *= T(row_sigmas_.y()) * b / sqrt(s * s * scale_sq + b * b * s_g * s_g);
     return true;
   }
@@ -223,6 +254,7 @@ class PropagatedWheelSpeedResidual {
   Eigen::Vector2d row_sigmas_;  // the speed and yaw-rate sigmas wheel_ whitens with
   double speed_sigma_m_s_;
   double gyro_sigma_rad_s_;
+  double speed_variance_m2_s2_;
 };
 
 // Wheels reported as the controller's speed and yaw rate (factors::OdometryTwistResidual,

@@ -131,6 +131,25 @@ factors::WheelFactorOptions SlidingWindowEstimator::Impl::NonHolonomicRows(
   return options;
 }
 
+namespace {
+
+// The rows' sigmas with the propagated velocity's variances in V (Eq. W7) added: the
+// non-holonomic rows' always, the speed row's with `speed_row` (the odometry form whitens its
+// speed row by speed_sigma_m_s; the other forms take the variance at their current scales).
+factors::WheelFactorOptions WithPropagatedVelocity(factors::WheelFactorOptions rows,
+                                                   const Eigen::Matrix3d& covariance_V,
+                                                   bool speed_row) {
+  const auto add = [](double* sigma, double variance) {
+    *sigma = std::sqrt(*sigma * *sigma + variance);
+  };
+  if (speed_row) add(&rows.speed_sigma_m_s, covariance_V(0, 0));
+  add(&rows.lateral_sigma_m_s, covariance_V(1, 1));
+  add(&rows.vertical_sigma_m_s, covariance_V(2, 2));
+  return rows;
+}
+
+}  // namespace
+
 // Samples of `queue` up to t_end_ns, taken out of it and evenly thinned.
 template <typename Sample>
 std::vector<Sample> SlidingWindowEstimator::Impl::TakeThinned(std::deque<Sample>* queue,
@@ -175,21 +194,23 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
       factors::WheelFactorOptions::FromEncoderNoise(
           options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
-  AttachPropagated(from, used,
-                   [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
-                     factors::WheelMeasurement m;
-                     m.left_rad_s = w.left_rad_s;
-                     m.right_rad_s = w.right_rad_s;
-                     const RowBodyRate gyro = BodyRateAround(w.t_ns, wheel_options);
-                     m.gyro_rad_s = gyro.rate_rad_s;
-                     return WheelRowFactor(
-                         new internal::PropagatedWheelFactor(
-                             pim, m, gyro.rows, options_.wheel.noise_rad_s, gyro.yaw_sigma_rad_s),
-                         &s,
-                         {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
-                          &c.wheel_radius_right_m, &c.track_width_m},
-                         "a wheel factor");
-                   });
+  AttachPropagated(
+      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
+        factors::WheelMeasurement m;
+        m.left_rad_s = w.left_rad_s;
+        m.right_rad_s = w.right_rad_s;
+        const RowBodyRate gyro = BodyRateAround(w.t_ns, wheel_options);
+        m.gyro_rad_s = gyro.rate_rad_s;
+        const Eigen::Matrix3d velocity =
+            internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
+        return WheelRowFactor(new internal::PropagatedWheelFactor(
+                                  pim, m, WithPropagatedVelocity(gyro.rows, velocity, false),
+                                  options_.wheel.noise_rad_s, gyro.yaw_sigma_rad_s, velocity(0, 0)),
+                              &s,
+                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
+                               &c.wheel_radius_right_m, &c.track_width_m},
+                              "a wheel factor");
+      });
 }
 
 void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from, int64_t t_end_ns) {
@@ -199,21 +220,23 @@ void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from,
   const factors::WheelFactorOptions options = NonHolonomicRows(
       factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
-  AttachPropagated(from, used,
-                   [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w) {
-                     factors::WheelSpeedMeasurement m;
-                     m.left_m_s = w.left_m_s;
-                     m.right_m_s = w.right_m_s;
-                     const RowBodyRate gyro = BodyRateAround(w.t_ns, options);
-                     m.gyro_rad_s = gyro.rate_rad_s;
-                     return WheelRowFactor(
-                         internal::PropagatedWheelSpeedResidual::Create(
-                             pim, m, gyro.rows, options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s),
-                         &s,
-                         {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
-                          &c.wheel_speed_scale_right, &c.track_width_m},
-                         "a wheel speed factor");
-                   });
+  AttachPropagated(
+      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w) {
+        factors::WheelSpeedMeasurement m;
+        m.left_m_s = w.left_m_s;
+        m.right_m_s = w.right_m_s;
+        const RowBodyRate gyro = BodyRateAround(w.t_ns, options);
+        m.gyro_rad_s = gyro.rate_rad_s;
+        const Eigen::Matrix3d velocity =
+            internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
+        return WheelRowFactor(internal::PropagatedWheelSpeedResidual::Create(
+                                  pim, m, WithPropagatedVelocity(gyro.rows, velocity, false),
+                                  options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s, velocity(0, 0)),
+                              &s,
+                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
+                               &c.wheel_speed_scale_right, &c.track_width_m},
+                              "a wheel speed factor");
+      });
 }
 
 void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns) {
@@ -231,8 +254,11 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
         m.controller_track_m = *options_.wheel.controller_track_m;
         const RowBodyRate gyro = BodyRateAround(o.t_ns, options);
         m.gyro_rad_s = gyro.rate_rad_s;
+        const Eigen::Matrix3d velocity =
+            internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
         return WheelRowFactor(
-            internal::PropagatedOdometryResidual::Create(pim, m, gyro.rows, gyro.yaw_sigma_rad_s),
+            internal::PropagatedOdometryResidual::Create(
+                pim, m, WithPropagatedVelocity(gyro.rows, velocity, true), gyro.yaw_sigma_rad_s),
             &s,
             {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
              &c.effective_track_m},
