@@ -99,13 +99,13 @@ inline Eigen::Matrix3d PropagatedVelocityCovariance(const sensors::ImuPreintegra
 
 // Wheel residual (Eq. F22) at the propagated state, with the speed and yaw-rate rows whitened at
 // the current radii and track width (docs/sliding_window.md, "Wheel rows"), s_w the encoder and
-// s_g the gyro sample noise: row 0 over s_v = sqrt(s_w^2 (r_l^2 + r_r^2) / 4 + V), V the
-// propagated velocity's variance along x_V (Eq. W7, PropagatedVelocityCovariance), row 1 in
-// wheel-speed units, (w_z b - (w_r r_r - w_l r_l)), over sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2):
-// the Deming weighting of Eq. F22b in its general form, evaluated here at the current radii (the
-// keyframe factor's YawRowSigma is its fixed-radii case). Parameter blocks: q_W_I, v_W_I, b_g, b_a
-// of the keyframe (its position does not enter the wheel rows), then q_I_V, p_I_V, r_l, r_r, track
-// width.
+// s_g the gyro sample noise: row 0 over s_v = sqrt(s_w^2 (r_l^2 + r_r^2) / 4 + V), V the variance
+// added to the speed row (the propagated velocity's along x_V, Eq. W7, and the body rate's
+// remaining error through the lever arm, Eq. K13), row 1 in wheel-speed units, (w_z b - (w_r r_r -
+// w_l r_l)), over sqrt(s_w^2 (r_l^2 + r_r^2) + b^2 s_g^2): the Deming weighting of Eq. F22b in its
+// general form, evaluated here at the current radii (the keyframe factor's YawRowSigma is its
+// fixed-radii case). Parameter blocks: q_W_I, v_W_I, b_g, b_a of the keyframe (its position does
+// not enter the wheel rows), then q_I_V, p_I_V, r_l, r_r, track width.
 class PropagatedWheelResidual {
  public:
   PropagatedWheelResidual(sensors::ImuPreintegration pim,

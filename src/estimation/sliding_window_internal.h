@@ -98,6 +98,10 @@ class SlidingWindowEstimator::Impl {
     Eigen::Vector3d rate_rad_s;
     factors::WheelFactorOptions rows;
     double yaw_sigma_rad_s = 0.0;
+    // The rate's remaining error through the lever arm on the speed row (Eq. K13): in
+    // rows.speed_sigma_m_s, and given apart to the forms that whiten that row at their
+    // current scales.
+    double lever_speed_variance_m2_s2 = 0.0;
   };
   RowBodyRate BodyRateAround(int64_t t_ns, const factors::WheelFactorOptions& rows) const;
   double GyroSampleSigma() const;

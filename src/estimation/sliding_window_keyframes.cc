@@ -91,9 +91,12 @@ SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRate
   const sensors::BodyRate rate = prior->Condition({gyro.rate_rad_s, sigma * sigma});
   // The yaw part is the yaw-rate row's gyro sigma, floored: a log that never turns leaves no
   // yaw error, and the rows need a positive sigma.
-  return {rate.rate_rad_s,
-          WithLeverArmRateCovariance(rows, rate.covariance, calibration_.q_I_V, calibration_.p_I_V),
-          std::sqrt(std::max(1e-24, YawRateVariance(rate.covariance, calibration_.q_I_V)))};
+  const factors::WheelFactorOptions with_lever =
+      WithLeverArmRateCovariance(rows, rate.covariance, calibration_.q_I_V, calibration_.p_I_V);
+  return {rate.rate_rad_s, with_lever,
+          std::sqrt(std::max(1e-24, YawRateVariance(rate.covariance, calibration_.q_I_V))),
+          with_lever.speed_sigma_m_s * with_lever.speed_sigma_m_s -
+              rows.speed_sigma_m_s * rows.speed_sigma_m_s};
 }
 
 // A wheel-row factor (any form) on the keyframe's q_W_I, v_W_I, b_g, b_a and the calibration's
@@ -205,7 +208,8 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
             internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
         return WheelRowFactor(new internal::PropagatedWheelFactor(
                                   pim, m, WithPropagatedVelocity(gyro.rows, velocity, false),
-                                  options_.wheel.noise_rad_s, gyro.yaw_sigma_rad_s, velocity(0, 0)),
+                                  options_.wheel.noise_rad_s, gyro.yaw_sigma_rad_s,
+                                  velocity(0, 0) + gyro.lever_speed_variance_m2_s2),
                               &s,
                               {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
                                &c.wheel_radius_right_m, &c.track_width_m},
@@ -231,7 +235,8 @@ void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from,
             internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
         return WheelRowFactor(internal::PropagatedWheelSpeedResidual::Create(
                                   pim, m, WithPropagatedVelocity(gyro.rows, velocity, false),
-                                  options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s, velocity(0, 0)),
+                                  options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s,
+                                  velocity(0, 0) + gyro.lever_speed_variance_m2_s2),
                               &s,
                               {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
                                &c.wheel_speed_scale_right, &c.track_width_m},

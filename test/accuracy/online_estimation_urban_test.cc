@@ -64,11 +64,12 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
   const evaluation::TrajectoryErrors& t = run.t;
   const evaluation::TrajectoryErrors& smoothed = run.smoothed;
 
-  // Measured (reproducible whatever the thread count: docs/sliding_window.md, "Options"): 0.059
-  // deg; x -5.2, y 4.0 mm with sigma 6.1 / 5.0 mm; offset -0.11 ms; radii 0.002 %; lever arm
-  // 7.1 mm; T_I_V 0.41 deg (its roll all but unobserved). With planes of five map points: 0.061
-  // deg, x -8.4, y 2.3 mm (seeds 2 and 3 then: 0.020 / 0.041 deg, x and y within 5.5 / 1.9 mm,
-  // -0.05 / 0.06 ms, lever arm 11.1 / 7.3 mm).
+  // Measured (reproducible whatever the thread count: docs/sliding_window.md, "Options"): 0.058
+  // deg; x -5.1, y 4.6 mm with sigma 6.1 / 5.0 mm; offset -0.12 ms; radii 0.002 %; lever arm
+  // 7.3 mm; T_I_V 0.41 deg (its roll all but unobserved). Before the wheel rows' propagated
+  // velocity and lever-arm variances (Eq. W7): 0.059 deg, x -5.2, y 4.0 mm, lever arm 7.1 mm. With
+  // planes of five map points: 0.061 deg, x -8.4, y 2.3 mm (seeds 2 and 3 then: 0.020 / 0.041 deg,
+  // x and y within 5.5 / 1.9 mm, -0.05 / 0.06 ms, lever arm 11.1 / 7.3 mm).
   EXPECT_LT(c.T_I_L.RotationAngleDeg(), 0.1);
   // The excited axes of the translation. 60 s of this drive determine them to about 6 mm (the
   // batch solution on this log: x -12.7 mm), too little for a sure 1 cm, which the 120 s
@@ -102,7 +103,7 @@ TEST(OnlineEstimationUrban60s, MeetsTheTrajectoryAndCalibrationGoals) {
 }
 
 // The extrinsic's goals on twice the drive: its translation's variance halves (sigma 3.8 /
-// 3.4 mm). Measured: x -3.3, y 0.8 mm; 0.030 deg; offset -0.13 ms; smoothed ATE 0.8 cm /
+// 3.4 mm). Measured: x -3.3, y 0.8 mm; 0.029 deg; offset -0.12 ms; smoothed ATE 0.8 cm /
 // 0.041 deg (with five-point planes: x -5.3, y 1.5 mm; 0.034 deg; 0.046 deg). Before the window's
 // residual range limit (docs/sliding_window.md, "Far points"): x -7.1, y 1.6 mm, 0.035 deg; seeds
 // 2-5 x and y within 5.8 / 3.4 mm, 0.015-0.050 deg.
