@@ -149,9 +149,8 @@ bool PropagatedWheelFactor::Evaluate(double const* const* parameters, double* re
     scale_rows(jacobians[i], size);
   }
   // The scales' derivatives: d speed_scale / dr = -speed_scale s_w^2 r / (4 speed_variance),
-  // d yaw_scale / dr =
-  // -yaw_scale s_w^2 r / yaw_variance, d yaw_scale / db = yaw_scale (1 / b - b s_g^2 /
-  // yaw_variance).
+  // d yaw_scale / dr = -yaw_scale s_w^2 r / yaw_variance and
+  // d yaw_scale / db = yaw_scale (1 / b - b s_g^2 / yaw_variance).
   if (jacobians[6] != nullptr) {
     jacobians[6][0] -= e0 * speed_scale * 0.25 * s_w * s_w * r_l / speed_variance;
     jacobians[6][1] -= e1 * yaw_scale * s_w * s_w * r_l / yaw_variance;
