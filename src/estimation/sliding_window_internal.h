@@ -98,10 +98,11 @@ class SlidingWindowEstimator::Impl {
     Eigen::Vector3d rate_rad_s;
     factors::WheelFactorOptions rows;
     double yaw_sigma_rad_s = 0.0;
-    // The rate's remaining error through the lever arm on the speed row (Eq. K13): in
-    // rows.speed_sigma_m_s, and given apart to the forms that whiten that row at their
-    // current scales.
-    double lever_speed_variance_m2_s2 = 0.0;
+    // What the speed row adds to its encoder or wheel-speed variance, given apart to the forms
+    // that whiten that row at their current scales (the odometry form has it in
+    // rows.speed_sigma_m_s): the rate's remaining error through the lever arm (Eq. K13,
+    // BodyRateAround) and the propagated velocity's variance (Eq. W7, AttachPropagated).
+    double speed_variance_m2_s2 = 0.0;
   };
   RowBodyRate BodyRateAround(int64_t t_ns, const factors::WheelFactorOptions& rows) const;
   double GyroSampleSigma() const;
@@ -114,7 +115,9 @@ class SlidingWindowEstimator::Impl {
   template <typename Sample>
   std::vector<Sample> TakeThinned(std::deque<Sample>* queue, int64_t t_end_ns) const;
   template <typename Sample, typename Make>
-  void AttachPropagated(WindowKeyframe* from, const std::vector<Sample>& used, Make make) const;
+  void AttachPropagated(WindowKeyframe* from, const std::vector<Sample>& used,
+                        const factors::WheelFactorOptions& rows, bool speed_row_by_options,
+                        Make make) const;
   void RelinearizeImuFactors();
   // Refreshes the plane maps that moved and makes the pairing tries that are missing or stale
   // (SweepPairing).

@@ -172,11 +172,15 @@ std::vector<Sample> SlidingWindowEstimator::Impl::TakeThinned(std::deque<Sample>
 }
 
 // One factor per sample of `used`, at the state propagated from `from` to the sample's time:
-// make(pim, sample) builds it from the preintegration up to there.
+// make(pim, sample, sample_rows) builds it from the preintegration up to there and the
+// sample's rows: `rows` with the body rate around the sample (BodyRateAround) and the
+// propagated velocity's variances (Eq. W7) added, the speed row's to rows.speed_sigma_m_s when
+// the form whitens that row by it (`speed_row_by_options`), else to speed_variance_m2_s2.
 template <typename Sample, typename Make>
 void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
                                                     const std::vector<Sample>& used,
-                                                    Make make) const {
+                                                    const factors::WheelFactorOptions& rows,
+                                                    bool speed_row_by_options, Make make) const {
   const SlidingWindowState& s = from->state;
   sensors::PreintegrationOptions preintegration;
   preintegration.gravity_m_s2 = options_.imu.gravity_m_s2;
@@ -185,7 +189,12 @@ void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
   for (const Sample& sample : used) {
     pim.Integrate(imu_, integrated_to_ns, sample.t_ns);
     integrated_to_ns = sample.t_ns;
-    from->factors.push_back(make(pim, sample));
+    RowBodyRate sample_rows = BodyRateAround(sample.t_ns, rows);
+    const Eigen::Matrix3d velocity =
+        internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, calibration_.q_I_V);
+    sample_rows.rows = WithPropagatedVelocity(sample_rows.rows, velocity, speed_row_by_options);
+    if (!speed_row_by_options) sample_rows.speed_variance_m2_s2 += velocity(0, 0);
+    from->factors.push_back(make(pim, sample, sample_rows));
   }
 }
 
@@ -198,22 +207,20 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
           options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
   AttachPropagated(
-      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w) {
+      from, used, wheel_options, false,
+      [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w,
+          const RowBodyRate& gyro) {
         factors::WheelMeasurement m;
         m.left_rad_s = w.left_rad_s;
         m.right_rad_s = w.right_rad_s;
-        const RowBodyRate gyro = BodyRateAround(w.t_ns, wheel_options);
         m.gyro_rad_s = gyro.rate_rad_s;
-        const Eigen::Matrix3d velocity =
-            internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
-        return WheelRowFactor(new internal::PropagatedWheelFactor(
-                                  pim, m, WithPropagatedVelocity(gyro.rows, velocity, false),
-                                  options_.wheel.noise_rad_s, gyro.yaw_sigma_rad_s,
-                                  velocity(0, 0) + gyro.lever_speed_variance_m2_s2),
-                              &s,
-                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
-                               &c.wheel_radius_right_m, &c.track_width_m},
-                              "a wheel factor");
+        return WheelRowFactor(
+            new internal::PropagatedWheelFactor(pim, m, gyro.rows, options_.wheel.noise_rad_s,
+                                                gyro.yaw_sigma_rad_s, gyro.speed_variance_m2_s2),
+            &s,
+            {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_radius_left_m,
+             &c.wheel_radius_right_m, &c.track_width_m},
+            "a wheel factor");
       });
 }
 
@@ -224,24 +231,22 @@ void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from,
   const factors::WheelFactorOptions options = NonHolonomicRows(
       factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m),
       used.size(), s.t_ns, t_end_ns);
-  AttachPropagated(
-      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w) {
-        factors::WheelSpeedMeasurement m;
-        m.left_m_s = w.left_m_s;
-        m.right_m_s = w.right_m_s;
-        const RowBodyRate gyro = BodyRateAround(w.t_ns, options);
-        m.gyro_rad_s = gyro.rate_rad_s;
-        const Eigen::Matrix3d velocity =
-            internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
-        return WheelRowFactor(internal::PropagatedWheelSpeedResidual::Create(
-                                  pim, m, WithPropagatedVelocity(gyro.rows, velocity, false),
-                                  options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s,
-                                  velocity(0, 0) + gyro.lever_speed_variance_m2_s2),
-                              &s,
-                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
-                               &c.wheel_speed_scale_right, &c.track_width_m},
-                              "a wheel speed factor");
-      });
+  AttachPropagated(from, used, options, false,
+                   [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w,
+                       const RowBodyRate& gyro) {
+                     factors::WheelSpeedMeasurement m;
+                     m.left_m_s = w.left_m_s;
+                     m.right_m_s = w.right_m_s;
+                     m.gyro_rad_s = gyro.rate_rad_s;
+                     return WheelRowFactor(
+                         internal::PropagatedWheelSpeedResidual::Create(
+                             pim, m, gyro.rows, options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s,
+                             gyro.speed_variance_m2_s2),
+                         &s,
+                         {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
+                          &c.wheel_speed_scale_right, &c.track_width_m},
+                         "a wheel speed factor");
+                   });
 }
 
 void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns) {
@@ -251,24 +256,21 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
   const factors::WheelFactorOptions options =
       NonHolonomicRows(factors::WheelFactorOptions::FromOdometryNoise(options_.wheel), used.size(),
                        s.t_ns, t_end_ns);
-  AttachPropagated(
-      from, used, [&](const sensors::ImuPreintegration& pim, const sensors::OdometrySample& o) {
-        factors::OdometryMeasurement m;
-        m.speed_m_s = o.speed_m_s;
-        m.yaw_rate_rad_s = o.yaw_rate_rad_s;
-        m.controller_track_m = *options_.wheel.controller_track_m;
-        const RowBodyRate gyro = BodyRateAround(o.t_ns, options);
-        m.gyro_rad_s = gyro.rate_rad_s;
-        const Eigen::Matrix3d velocity =
-            internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, c.q_I_V);
-        return WheelRowFactor(
-            internal::PropagatedOdometryResidual::Create(
-                pim, m, WithPropagatedVelocity(gyro.rows, velocity, true), gyro.yaw_sigma_rad_s),
-            &s,
-            {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
-             &c.effective_track_m},
-            "an odometry factor");
-      });
+  AttachPropagated(from, used, options, true,
+                   [&](const sensors::ImuPreintegration& pim, const sensors::OdometrySample& o,
+                       const RowBodyRate& gyro) {
+                     factors::OdometryMeasurement m;
+                     m.speed_m_s = o.speed_m_s;
+                     m.yaw_rate_rad_s = o.yaw_rate_rad_s;
+                     m.controller_track_m = *options_.wheel.controller_track_m;
+                     m.gyro_rad_s = gyro.rate_rad_s;
+                     return WheelRowFactor(internal::PropagatedOdometryResidual::Create(
+                                               pim, m, gyro.rows, gyro.yaw_sigma_rad_s),
+                                           &s,
+                                           {c.q_I_V.coeffs().data(), c.p_I_V.data(),
+                                            &c.odometry_speed_scale, &c.effective_track_m},
+                                           "an odometry factor");
+                   });
 }
 
 // The planar-rotation row (Eq. F27) of keyframe `from`, once the IMU covers the gyro span around
