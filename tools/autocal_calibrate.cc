@@ -128,6 +128,7 @@ void WriteFailureStatus(autocal::io::RunStatus status, const std::string& messag
 }  // namespace
 
 int main(int argc, char** argv) {
+  autocal::tools::StartWithHugePageHeap(argv);
   gflags::SetUsageMessage(
       "autocal_calibrate --dataset=DIR [--dataset=DIR ...] --problem=problems/X.yaml "
       "--output=DIR\n"

@@ -49,6 +49,7 @@ DEFINE_int32(init_sweep_stride, 3,
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
 
 int main(int argc, char** argv) {
+  autocal::tools::StartWithHugePageHeap(argv);
   gflags::SetUsageMessage(
       "autocal_estimate --dataset=DIR --problem=problems/X.yaml --output=DIR\n"
       "Streams a recorded log through the online sliding-window estimator.");

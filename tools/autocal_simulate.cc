@@ -210,6 +210,7 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  autocal::tools::StartWithHugePageHeap(argv);
   gflags::SetUsageMessage(
       "writes a simulated drive as an autocal dataset and prints its summary\n"
       "  autocal_simulate --scenario=urban|highway|skid_steer|straight --duration_s=60 "
