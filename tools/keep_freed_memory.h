@@ -26,8 +26,9 @@ namespace tools {
 // time (docs/calibration.md, "Speed"). glibc reads its tunables only when a process starts, so
 // the tool runs itself again with the tunable added, once: the same process, program and
 // arguments. It must be the first thing main does (nothing printed, no thread started). A
-// GLIBC_TUNABLES that already names the tunable (glibc.malloc.hugetlb=0 switches it off) is
-// left alone, and when the program cannot be run again it goes on as it is.
+// GLIBC_TUNABLES that already names the tunable is left alone, and when the program cannot be
+// run again it goes on as it is. GLIBC_TUNABLES=glibc.malloc.hugetlb=0 switches both off, e.g.
+// under valgrind, which does not follow the new program unless told to (--trace-children=yes).
 inline void StartWithHugePageHeap(char** argv) {
 #if defined(__GLIBC__) && defined(__linux__)
   constexpr const char* kTunable = "glibc.malloc.hugetlb";
