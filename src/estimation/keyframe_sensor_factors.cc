@@ -92,6 +92,15 @@ double NonHolonomicSigmaScale(double tau_s, double dt_s) {
   return std::sqrt(std::max(1.0, 2.0 * tau_s / dt_s));
 }
 
+factors::WheelFactorOptions WithVelocityCovariance(factors::WheelFactorOptions rows,
+                                                   const Eigen::Matrix3d& covariance_V) {
+  if (covariance_V.isZero(0.0)) return rows;
+  AddVariance(&rows.speed_sigma_m_s, covariance_V(0, 0));
+  AddVariance(&rows.lateral_sigma_m_s, covariance_V(1, 1));
+  AddVariance(&rows.vertical_sigma_m_s, covariance_V(2, 2));
+  return rows;
+}
+
 factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptions rows,
                                                        const Eigen::Matrix3d& rate_covariance,
                                                        const Eigen::Quaterniond& q_I_V,
@@ -99,10 +108,7 @@ factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptio
   if (rate_covariance.isZero(0.0)) return rows;
   const Eigen::Matrix3d lever = q_I_V.toRotationMatrix().transpose() * geometry::Hat(p_I_V);
   const Eigen::Matrix3d speed = lever * rate_covariance * lever.transpose();
-  AddVariance(&rows.speed_sigma_m_s, speed(0, 0));
-  AddVariance(&rows.lateral_sigma_m_s, speed(1, 1));
-  AddVariance(&rows.vertical_sigma_m_s, speed(2, 2));
-  return rows;
+  return WithVelocityCovariance(rows, speed);
 }
 
 double YawRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V) {

@@ -134,25 +134,6 @@ factors::WheelFactorOptions SlidingWindowEstimator::Impl::NonHolonomicRows(
   return options;
 }
 
-namespace {
-
-// The rows' sigmas with the propagated velocity's variances in V (Eq. W7) added: the
-// non-holonomic rows' always, the speed row's with `speed_row` (the odometry form whitens its
-// speed row by speed_sigma_m_s; the other forms take the variance at their current scales).
-factors::WheelFactorOptions WithPropagatedVelocity(factors::WheelFactorOptions rows,
-                                                   const Eigen::Matrix3d& covariance_V,
-                                                   bool speed_row) {
-  const auto add = [](double* sigma, double variance) {
-    *sigma = std::sqrt(*sigma * *sigma + variance);
-  };
-  if (speed_row) add(&rows.speed_sigma_m_s, covariance_V(0, 0));
-  add(&rows.lateral_sigma_m_s, covariance_V(1, 1));
-  add(&rows.vertical_sigma_m_s, covariance_V(2, 2));
-  return rows;
-}
-
-}  // namespace
-
 // Samples of `queue` up to t_end_ns, taken out of it and evenly thinned.
 template <typename Sample>
 std::vector<Sample> SlidingWindowEstimator::Impl::TakeThinned(std::deque<Sample>* queue,
@@ -192,8 +173,13 @@ void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
     RowBodyRate sample_rows = BodyRateAround(sample.t_ns, rows);
     const Eigen::Matrix3d velocity =
         internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, calibration_.q_I_V);
-    sample_rows.rows = WithPropagatedVelocity(sample_rows.rows, velocity, speed_row_by_options);
-    if (!speed_row_by_options) sample_rows.speed_variance_m2_s2 += velocity(0, 0);
+    // The speed row's share goes to rows.speed_sigma_m_s only where the form whitens by it.
+    Eigen::Matrix3d rows_velocity = velocity;
+    if (!speed_row_by_options) {
+      rows_velocity(0, 0) = 0.0;
+      sample_rows.speed_variance_m2_s2 += velocity(0, 0);
+    }
+    sample_rows.rows = WithVelocityCovariance(sample_rows.rows, rows_velocity);
     from->factors.push_back(make(pim, sample, sample_rows));
   }
 }

@@ -50,9 +50,16 @@ void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias
 // T / (2 tau_s) samples' information, not T / dt_s. 1 for tau_s = 0 or dt_s <= 0.
 double NonHolonomicSigmaScale(double tau_s, double dt_s);
 
+// The wheel rows with an independent error of the rear axle's velocity in V (covariance C_V:
+// forward, lateral, vertical) added: the speed, lateral and vertical rows' variances grow by the
+// diagonal of C_V.
+factors::WheelFactorOptions WithVelocityCovariance(factors::WheelFactorOptions rows,
+                                                   const Eigen::Matrix3d& covariance_V);
+
 // Eq. K13: the body rate's remaining error (covariance P in I, Eq. K14) in the wheel rows. The
-// speed rows see it through the lever arm w x p_I_V: their variances grow by the diagonal of
-// R^T [p]x P [p]x^T R (R = R_I_V, p = p_I_V); the yaw-rate row sees (R^T P R)_zz.
+// speed rows see it through the lever arm w x p_I_V, as the velocity covariance
+// R^T [p]x P [p]x^T R in V (R = R_I_V, p = p_I_V; WithVelocityCovariance); the yaw-rate row
+// sees (R^T P R)_zz.
 factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptions rows,
                                                        const Eigen::Matrix3d& rate_covariance,
                                                        const Eigen::Quaterniond& q_I_V,
