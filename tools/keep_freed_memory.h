@@ -21,14 +21,15 @@ namespace autocal {
 namespace tools {
 
 // Transparent huge pages for the heap: with glibc's tunable glibc.malloc.hugetlb=1 (glibc 2.35
-// and later) malloc advises the kernel to back the heap with 2 MiB pages. Streaming the 60 s urban
-// log then takes about 1 200 page faults instead of 60 000 and the calibration about 5 % less
-// time (docs/calibration.md, "Speed"). glibc reads its tunables only when a process starts, so
-// the tool runs itself again with the tunable added, once: the same process, program and
-// arguments. It must be the first thing main does (nothing printed, no thread started). A
-// GLIBC_TUNABLES that already names the tunable is left alone, and when the program cannot be
-// run again it goes on as it is. GLIBC_TUNABLES=glibc.malloc.hugetlb=0 switches both off, e.g.
-// under valgrind, which does not follow the new program unless told to (--trace-children=yes).
+// and later) malloc advises the kernel to back the heap with 2 MiB pages. Calibrating the 60 s
+// urban log then takes about 1 200 page faults instead of 60 000, and the 600 s log 9 800
+// instead of a million and 63 s instead of 90 s (docs/calibration.md, "Speed"). glibc reads its
+// tunables only when a process starts, so the tool runs itself again with the tunable added, once:
+// the same process, program and arguments. It must be the first thing main does (nothing printed,
+// no thread started). A GLIBC_TUNABLES that already names the tunable is left alone, and when the
+// program cannot be run again it goes on as it is. GLIBC_TUNABLES=glibc.malloc.hugetlb=0 switches
+// both off, e.g. under valgrind, which does not follow the new program unless told to
+// (--trace-children=yes).
 inline void StartWithHugePageHeap(char** argv) {
 #if defined(__GLIBC__) && defined(__linux__)
   constexpr const char* kTunable = "glibc.malloc.hugetlb";
