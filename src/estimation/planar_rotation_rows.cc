@@ -62,8 +62,8 @@ PlanarRotationSpread MeasurePlanarRotationSpread(const std::vector<Eigen::Vector
   return spread;
 }
 
-Eigen::Vector2d PlanarRotationSpread::RowSigmaRadS() const {
-  return sigma_rad_s.cwiseProduct(correlation_scale).cwiseMax(Eigen::Vector2d::Constant(1e-6));
+double PlanarRotationSpread::RowSigmaRadS() const {
+  return std::max(sigma_rad_s.cwiseProduct(correlation_scale).norm() / std::sqrt(2.0), 1e-6);
 }
 
 PlanarRotationSpread MeasurePlanarRotationSpreadOfLog(const sensors::ImuSamples& imu,
@@ -106,7 +106,7 @@ PlanarRotationRows AddPlanarRotationFactors(ceres::Problem* problem, const senso
   }
   PlanarRotationRows rows;
   if (options.sigma_rad_s > 0.0) {
-    rows.sigma_rad_s.setConstant(options.sigma_rad_s);
+    rows.sigma_rad_s = options.sigma_rad_s;
   } else {
     rows.spread = MeasurePlanarRotationSpread(rates_V);
     rows.sigma_rad_s = rows.spread.RowSigmaRadS();

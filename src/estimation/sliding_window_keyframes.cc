@@ -262,8 +262,8 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
 // The planar-rotation row (Eq. F27) of keyframe `from`, once the IMU covers the gyro span around
 // it (the interval after it is attached when the next keyframe arrives).
 void SlidingWindowEstimator::Impl::AttachPlanarRotationFactor(WindowKeyframe* from) {
-  const Eigen::Vector2d& sigma = options_.wheel_rows.planar_rotation_sigma_rad_s;
-  if (sigma.isZero(0.0)) return;
+  const double sigma = options_.wheel_rows.planar_rotation_sigma_rad_s;
+  if (sigma == 0.0) return;
   factors::PlanarRotationMeasurement m;
   m.gyro_rad_s = GyroAround(from->state.t_ns).rate_rad_s;
   m.sigma_rad_s = sigma;

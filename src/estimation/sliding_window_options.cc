@@ -74,12 +74,7 @@ void CheckWheelRows(const WheelRowOptions& w) {
   CheckPositive(w.non_holonomic_sigma_m_s, "wheel_rows.non_holonomic_sigma_m_s");
   CheckNonNegative(w.non_holonomic_correlation_s, "wheel_rows.non_holonomic_correlation_s");
   CheckNonNegative(w.gyro_mean_span_s, "wheel_rows.gyro_mean_span_s");
-  const Eigen::Vector2d& planar = w.planar_rotation_sigma_rad_s;
-  if (!planar.allFinite() || !((planar.array() > 0.0).all() || planar.isZero(0.0))) {
-    throw Error(
-        "SlidingWindowOptions: wheel_rows.planar_rotation_sigma_rad_s must be positive (or both "
-        "zero: no rows)");
-  }
+  CheckNonNegative(w.planar_rotation_sigma_rad_s, "wheel_rows.planar_rotation_sigma_rad_s");
 }
 
 void CheckPriors(const SlidingWindowCalibrationPrior& c, const SlidingWindowInitialStateSigmas& x) {

@@ -1,5 +1,7 @@
 #include "autocal/factors/planar_rotation_factor.h"
 
+#include <cmath>
+
 #include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -8,10 +10,10 @@ namespace autocal {
 namespace factors {
 
 PlanarRotationFactor::PlanarRotationFactor(const PlanarRotationMeasurement& measurement)
-    : gyro_(measurement.gyro_rad_s), inv_sigma_(measurement.sigma_rad_s.cwiseInverse()) {
+    : gyro_(measurement.gyro_rad_s), inv_sigma_(1.0 / measurement.sigma_rad_s) {
   if (!gyro_.allFinite()) throw Error("planar-rotation factor: the gyro reading is not finite");
-  if (!measurement.sigma_rad_s.allFinite() || !(measurement.sigma_rad_s.array() > 0.0).all()) {
-    throw Error("planar-rotation factor: the roll and pitch rate sigmas must be positive");
+  if (!std::isfinite(measurement.sigma_rad_s) || !(measurement.sigma_rad_s > 0.0)) {
+    throw Error("planar-rotation factor: the roll and pitch rate sigma must be positive");
   }
 }
 
@@ -22,16 +24,16 @@ bool PlanarRotationFactor::Evaluate(double const* const* parameters, double* res
   const Eigen::Matrix3d R_I_V = q_I_V.toRotationMatrix();
   const Eigen::Vector3d w_V = R_I_V.transpose() * (gyro_ - b_g);
   Eigen::Map<Eigen::Vector2d> r(residuals);
-  r = inv_sigma_.asDiagonal() * w_V.head<2>();  // Eq. F27
+  r = inv_sigma_ * w_V.head<2>();  // Eq. F27
   if (jacobians == nullptr) return true;
   // d w_V / d b_g = -R_I_V^T; d w_V / d(right tangent of q_I_V) = Hat(w_V).
   if (jacobians[0] != nullptr) {
     Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> j(jacobians[0]);
-    j = -(inv_sigma_.asDiagonal() * R_I_V.transpose().topRows<2>());
+    j = -inv_sigma_ * R_I_V.transpose().topRows<2>();
   }
   if (jacobians[1] != nullptr) {
     const Eigen::Matrix<double, 2, 3> j_tangent =
-        inv_sigma_.asDiagonal() * geometry::Hat(w_V).topRows<2>();
+        ProjectOutMountYaw(inv_sigma_ * geometry::Hat(w_V).topRows<2>());  // Eq. F27b
     Eigen::Map<Eigen::Matrix<double, 2, 4, Eigen::RowMajor>> j(jacobians[1]);
     j = geometry::LiftTangentJacobian<2>(j_tangent, parameters[1]);
   }

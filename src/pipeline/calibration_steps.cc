@@ -310,7 +310,7 @@ void RecordPlanarRotation(const estimation::PlanarRotationRows& rows, io::Calibr
     return FormatFixed(v.x(), digits) + " " + FormatFixed(v.y(), digits);
   };
   file->solver["planar_rotation_rows"] = std::to_string(rows.added);
-  file->solver["planar_rotation_sigma_rad_s"] = pair(rows.sigma_rad_s, 5);
+  file->solver["planar_rotation_sigma_rad_s"] = FormatFixed(rows.sigma_rad_s, 5);
   if (rows.spread.samples == 0) return;
   file->solver["planar_rotation_spread_rad_s"] = pair(rows.spread.sigma_rad_s, 5);
   file->solver["planar_rotation_correlation_scale"] = pair(rows.spread.correlation_scale, 2);

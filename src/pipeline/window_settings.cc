@@ -140,13 +140,12 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   return w;
 }
 
-Eigen::Vector2d PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem,
-                                    bool use_wheel, double keyframe_period_s,
-                                    const Eigen::Quaterniond& q_I_V,
-                                    const estimation::WheelRowOptions& wheel_rows) {
+double PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem, bool use_wheel,
+                           double keyframe_period_s, const Eigen::Quaterniond& q_I_V,
+                           const estimation::WheelRowOptions& wheel_rows) {
   const std::optional<double>& setting = problem.calibration.roll_pitch_rate_sigma_rad_s;
-  if (!use_wheel || !setting) return Eigen::Vector2d::Zero();
-  if (*setting > 0.0) return Eigen::Vector2d::Constant(*setting);
+  if (!use_wheel || !setting) return 0.0;
+  if (*setting > 0.0) return *setting;
   return estimation::MeasurePlanarRotationSpreadOfLog(dataset.imu, q_I_V, keyframe_period_s,
                                                       wheel_rows.gyro_mean_span_s)
       .RowSigmaRadS();

@@ -27,10 +27,9 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
 // (use_wheel): calibration.roll_pitch_rate_sigma_rad_s, or, when "measured", the spread of the
 // log's body rates at the keyframe period and the start's mount q_I_V (Eq. K15, the gyro
 // averaged as the window's wheel rows average it). Zero: no rows.
-Eigen::Vector2d PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem,
-                                    bool use_wheel, double keyframe_period_s,
-                                    const Eigen::Quaterniond& q_I_V,
-                                    const estimation::WheelRowOptions& wheel_rows);
+double PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem, bool use_wheel,
+                           double keyframe_period_s, const Eigen::Quaterniond& q_I_V,
+                           const estimation::WheelRowOptions& wheel_rows);
 
 // Sigmas of the estimated blocks from the window's covariance, into the calibration file.
 void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,

@@ -46,7 +46,9 @@ TEST(PlanarRotationSpread, MeasuresTheRollAndPitchRatesAndTheTiltTheyShow) {
   // A tilt d about x shows the yaw rate w in the y rate as -d w, about y in the x rate as d w.
   EXPECT_NEAR(s.slope.x(), tilt.y(), 2e-3);
   EXPECT_NEAR(s.slope.y(), -tilt.x(), 2e-3);
-  EXPECT_EQ(s.RowSigmaRadS(), s.sigma_rad_s.cwiseProduct(s.correlation_scale));
+  // One sigma for both rows, the RMS of the two axes' (Eq. F27b).
+  EXPECT_DOUBLE_EQ(s.RowSigmaRadS(),
+                   std::sqrt(0.5 * s.sigma_rad_s.cwiseProduct(s.correlation_scale).squaredNorm()));
 }
 
 // An AR(1) series with coefficient a carries the information of n (1 - a) / (1 + a) white

@@ -33,9 +33,11 @@ struct PlanarRotationSpread {
   Eigen::Vector2d correlation_scale = Eigen::Vector2d::Ones();
   int samples = 0;
 
-  // The rows' sigma: the spread times its correlation scale, at least 1e-6 rad/s (noise-free
-  // rates would give an information that overflows).
-  Eigen::Vector2d RowSigmaRadS() const;
+  // The rows' one sigma: the RMS over both axes of the spread times its correlation scale, at
+  // least 1e-6 rad/s (noise-free rates would give an information that overflows). One for both
+  // axes, so that the rows stay blind to the mount's yaw (Eq. F27b): the axes are the initial
+  // mount's, and a sigma per axis would hold the yaw where it was measured.
+  double RowSigmaRadS() const;
 };
 
 // Throws autocal::Error with fewer than 10 rates or a non-finite one.
@@ -59,8 +61,8 @@ struct PlanarRotationOptions {
 
 struct PlanarRotationRows {
   int added = 0;
-  Eigen::Vector2d sigma_rad_s = Eigen::Vector2d::Zero();  // the rows' sigma
-  PlanarRotationSpread spread;                            // when measured
+  double sigma_rad_s = 0.0;     // the rows' sigma
+  PlanarRotationSpread spread;  // when measured
 };
 
 // Adds one PlanarRotationFactor per keyframe the IMU brackets, on its b_g and the

@@ -75,9 +75,9 @@ struct WheelRowOptions {
   // The angular rate the rows take: the mean gyro over this span around the sample (0: the
   // gyro interpolated at the sample), which keeps gyro noise out of the lever-arm regressor.
   double gyro_mean_span_s = 0.05;
-  // Planar-rotation rows (Eq. F27): one per keyframe, on its b_g and q_I_V, with these sigmas
-  // of the roll and pitch rates in V (MeasurePlanarRotationSpread); zero: no such rows.
-  Eigen::Vector2d planar_rotation_sigma_rad_s = Eigen::Vector2d::Zero();
+  // Planar-rotation rows (Eq. F27): one per keyframe, on its b_g and q_I_V, with this sigma of
+  // the roll and pitch rates in V (PlanarRotationSpread::RowSigmaRadS); zero: no such rows.
+  double planar_rotation_sigma_rad_s = 0.0;
   // The spread of the log's body rates (Eq. K14): with it the rows take the rate given the
   // gyro mean instead of the mean itself (whose noise would pass for excitation of the lever
   // arm and the mount's tilt), and its remaining error enters their sigmas (Eq. K13).
