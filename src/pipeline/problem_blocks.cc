@@ -77,6 +77,12 @@ BlockLimits LimitsOf(Id id, const OfflineCalibrationOptions& o) {
   return {o.default_translation_prior_sigma_m, o.max_observable_lever_arm_sigma_m};
 }
 
+BlockLimits LimitsOf(Id id, const io::SensorsConfig& sensors, const OfflineCalibrationOptions& o) {
+  return id == Id::kEffectiveTrack
+             ? EffectiveTrackLimits(sensors.nominal_calibration.effective_track_m, o)
+             : LimitsOf(id, o);
+}
+
 // Prior sigma per direction in tangent units: the problem's for a block in prior mode, else
 // the dataset's nominal uncertainty when it states one, else the default.
 Eigen::VectorXd PriorSigma(const BlockSetting& setting, int size, double default_sigma,
@@ -133,10 +139,7 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
       b.direction_names = {b.name};
     }
     const double to_tangent = FileToTangent(info);
-    const BlockLimits limits =
-        info.id == Id::kEffectiveTrack
-            ? EffectiveTrackLimits(sensors.nominal_calibration.effective_track_m, o)
-            : LimitsOf(info.id, o);
+    const BlockLimits limits = LimitsOf(info.id, sensors, o);
     b.prior = Eigen::Map<const Eigen::VectorXd>(info.const_values(sensors.nominal_calibration),
                                                 info.ambient_size);
     b.prior_sigma = PriorSigma(setting, info.tangent_size, limits.default_prior_sigma, to_tangent);
@@ -146,6 +149,11 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
     blocks.push_back(std::move(b));
   }
   return blocks;
+}
+
+double DefaultPriorSigma(sensors::CalibrationBlockId id, const io::SensorsConfig& sensors,
+                         const OfflineCalibrationOptions& options) {
+  return LimitsOf(id, sensors, options).default_prior_sigma;
 }
 
 double MaxNominalMountDeg(const io::Problem& problem, const io::SensorsConfig& sensors,

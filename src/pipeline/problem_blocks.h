@@ -47,6 +47,11 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
                                                         bool use_wheel, bool use_gnss,
                                                         sensors::Calibration* calibration);
 
+// Block `id`'s weak default prior sigma in file units (degrees for a rotation), for a block whose
+// sigma neither the problem nor sensors.yaml states. The online estimator takes the same one.
+double DefaultPriorSigma(sensors::CalibrationBlockId id, const io::SensorsConfig& sensors,
+                         const OfflineCalibrationOptions& options);
+
 // Three times the widest prior sigma (degrees) of the IMU mount q_I_V in `problem` with the
 // nominal uncertainty of `sensors`: a nominal mount further than this from the data's is
 // no guess. Infinity when the problem does not estimate the mount.

@@ -19,26 +19,26 @@ namespace {
 // What the window estimates and its prior sigmas, from the problem and the dataset's stated
 // nominal uncertainty. A block is estimated when its sensor takes part and the problem does not
 // fix it. The window's priors are one sigma per block: the problem's in prior mode, else the
-// sigma the dataset states, else the window's default; a per-axis sigma takes its widest
+// sigma the dataset states, else the offline calibration's default (DefaultPriorSigma), so that
+// both estimators assume the same of a nominal value nobody gave a sigma; a per-axis sigma takes
+// its widest
 // axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that share a
 // switch (the vehicle frame's rotation and translation, the two radii or speed scales) share
 // the wider sigma; a problem that estimates one and fixes the other is an autocal::Error, since
 // the window would estimate both.
 void SetWindowBlocks(const std::string& problem_path, const io::ProblemCalibration& problem,
-                     const io::CalibrationUncertainty& nominal, sensors::WheelForm form,
-                     bool use_wheel, bool use_gnss, estimation::SlidingWindowOptions* w) {
-  estimation::SlidingWindowOptions defaults = *w;
+                     const io::SensorsConfig& sensors, sensors::WheelForm form, bool use_wheel,
+                     bool use_gnss, estimation::SlidingWindowOptions* w) {
+  const OfflineCalibrationOptions offline;
   estimation::SlidingWindowBlockSetting previous{nullptr, nullptr};
   const char* previous_name = "";
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     // The blocks the window cannot estimate are refused in WindowOptions.
     if (!estimation::WindowSupports(info.id)) continue;
-    const BlockSetting s = SettingOf(info.id, problem, nominal);
+    const BlockSetting s = SettingOf(info.id, problem, sensors.nominal_uncertainty);
     const bool estimated = SensorUsed(info, use_wheel, use_gnss) &&
                            sensors::BlockInWheelForm(info.id, form) && Estimated(s.mode);
-    const double default_sigma =
-        *estimation::BlockSettingOf(info.id, &defaults.estimate, &defaults.calibration_prior)
-             .prior_sigma;
+    const double default_sigma = DefaultPriorSigma(info.id, sensors, offline);
     const double sigma = s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff()
                          : s.nominal_sigma               ? s.nominal_sigma->maxCoeff()
                                                          : default_sigma;
@@ -135,8 +135,8 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   // The priors are the nominal calibration's, as in the offline calibration: the initializer's
   // values only start the window.
   w.calibration_prior.mean = dataset.sensors.nominal_calibration;
-  SetWindowBlocks(problem.path, problem.calibration, dataset.sensors.nominal_uncertainty,
-                  dataset.wheel_form(), use_wheel, use_gnss, &w);
+  SetWindowBlocks(problem.path, problem.calibration, dataset.sensors, dataset.wheel_form(),
+                  use_wheel, use_gnss, &w);
   return w;
 }
 

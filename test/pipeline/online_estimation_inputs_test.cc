@@ -13,6 +13,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/io/dataset.h"
+#include "autocal/pipeline/offline_calibration.h"
 #include "pipeline/calibration_steps.h"
 #include "pipeline/online_without_lidar.h"
 #include "pipeline/residual_groups.h"
@@ -141,6 +142,25 @@ TEST(OnlineEstimationInputs, RefusesClockOffsetsTheWindowCannotApply) {
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), HasSubstr("GNSS time offset of -0.2"));
   }
+}
+
+// A block whose sigma neither the problem nor sensors.yaml states gets the offline
+// calibration's default prior, in the window as in the batch; a stated one wins.
+TEST(OnlineEstimationInputs, UnstatedPriorsAreTheOfflineCalibrations) {
+  io::Dataset dataset = Logged(10.0);
+  io::Problem problem;
+  problem.path = "priors.yaml";
+  const OfflineCalibrationOptions offline;
+  estimation::SlidingWindowOptions w =
+      WindowOptions(dataset, problem, true, true, OnlineEstimationOptions());
+  EXPECT_EQ(w.calibration_prior.vehicle_rotation_deg, offline.default_rotation_prior_sigma_deg);
+  EXPECT_EQ(w.calibration_prior.extrinsic_rotation_deg, offline.default_rotation_prior_sigma_deg);
+  EXPECT_EQ(w.calibration_prior.extrinsic_translation_m, offline.default_translation_prior_sigma_m);
+  EXPECT_EQ(w.calibration_prior.time_offset_s, offline.default_time_offset_prior_sigma_s);
+  EXPECT_EQ(w.calibration_prior.gnss_lever_arm_m, offline.default_translation_prior_sigma_m);
+  problem.calibration.T_I_V.rotation = {io::BlockMode::kPrior, Eigen::Vector3d(1.0, 2.0, 0.5)};
+  w = WindowOptions(dataset, problem, true, true, OnlineEstimationOptions());
+  EXPECT_EQ(w.calibration_prior.vehicle_rotation_deg, 2.0);
 }
 
 // Without the LiDAR the window reads the wheels and fixes moved onto the IMU clock by the
