@@ -48,6 +48,15 @@ void ValidateClocks(const SimulationOptions& o) {
           "wheel controller_track_m must be positive");
   Require(std::abs(o.gnss.time_offset_gnss_imu_s) <= 2.0,
           "|gnss time_offset_gnss_imu_s| must be at most 2 s");
+  // The sensors' clocks are simulated from the wheel and GNSS options; the truth reports them.
+  Require(
+      c.time_offset_wheel_imu_s == 0.0 || c.time_offset_wheel_imu_s == w.time_offset_wheel_imu_s,
+      "true_calibration.time_offset_wheel_imu_s must be 0 or wheel.time_offset_wheel_imu_s "
+      "(the wheel clock is simulated from the latter)");
+  Require(
+      c.time_offset_gnss_imu_s == 0.0 || c.time_offset_gnss_imu_s == o.gnss.time_offset_gnss_imu_s,
+      "true_calibration.time_offset_gnss_imu_s must be 0 or gnss.time_offset_gnss_imu_s "
+      "(the GNSS clock is simulated from the latter)");
 }
 
 }  // namespace

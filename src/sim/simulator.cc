@@ -61,6 +61,9 @@ std::vector<int64_t> ArrivalTimes(const std::vector<int64_t>& instants, int burs
 
 Simulator::Simulator(const SimulationOptions& options) : options_(options) {
   internal::ValidateSimulationOptions(options_);
+  // The truth carries the simulated clocks (groundtruth/calibration.yaml, the bound at the truth).
+  options_.true_calibration.time_offset_wheel_imu_s = options_.wheel.time_offset_wheel_imu_s;
+  options_.true_calibration.time_offset_gnss_imu_s = options_.gnss.time_offset_gnss_imu_s;
   ScenarioOptions scenario_options;
   scenario_options.type = options_.scenario;
   scenario_options.duration_s = options_.duration_s;
@@ -100,6 +103,9 @@ Simulator::Simulator(const SimulationOptions& options) : options_(options) {
   nominal_.wheel_speed_scale_right = 1.0;
   nominal_.odometry_speed_scale = 1.0;
   nominal_.effective_track_m = options_.nominal_track_width_m;
+  // The sensors' clocks are unknown to a nominal guess.
+  nominal_.time_offset_wheel_imu_s = 0.0;
+  nominal_.time_offset_gnss_imu_s = 0.0;
 
   // Sweeps: the first one starts 50 ms after t = 0 on the IMU clock; every sweep lies inside
   // [0, duration_s] on the IMU clock.

@@ -266,6 +266,23 @@ TEST(ClockTest, RefusesStampOptionsOutOfRange) {
                "time_offset_wheel_imu_s");
   expect_error([](SimulationOptions* o) { o->gnss.time_offset_gnss_imu_s = -3.0; },
                "time_offset_gnss_imu_s");
+  expect_error([](SimulationOptions* o) { o->true_calibration.time_offset_wheel_imu_s = 0.1; },
+               "true_calibration.time_offset_wheel_imu_s");
+  expect_error([](SimulationOptions* o) { o->true_calibration.time_offset_gnss_imu_s = 0.1; },
+               "true_calibration.time_offset_gnss_imu_s");
+}
+
+// The truth (groundtruth/calibration.yaml, the information bound at the truth) carries the
+// simulated clocks; the nominal guess does not know them.
+TEST(ClockTest, TheTruthCarriesTheSimulatedClocksAndTheNominalDoesNot) {
+  SimulationOptions options = ExactLog(2.0);
+  options.wheel.time_offset_wheel_imu_s = -0.38;
+  options.gnss.time_offset_gnss_imu_s = 0.2;
+  const Simulator simulator(options);
+  EXPECT_EQ(simulator.true_calibration().time_offset_wheel_imu_s, -0.38);
+  EXPECT_EQ(simulator.true_calibration().time_offset_gnss_imu_s, 0.2);
+  EXPECT_EQ(simulator.nominal_calibration().time_offset_wheel_imu_s, 0.0);
+  EXPECT_EQ(simulator.nominal_calibration().time_offset_gnss_imu_s, 0.0);
 }
 
 }  // namespace
