@@ -58,6 +58,21 @@ TEST(PlanarRotationFactor, ATiltedMountShowsTheYawRateToFirstOrder) {
   EXPECT_NEAR(residual.y(), -std::sin(d) * w, 1e-12);
 }
 
+// A random mount, gyro bias and reading, and the rows' sigma in [0.01, 0.05] rad/s.
+struct RandomCase {
+  explicit RandomCase(std::mt19937* rng) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    q_I_V = Eigen::Quaterniond::UnitRandom();
+    b_g = 0.02 * Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+    m.gyro_rad_s = Eigen::Vector3d(u(*rng), u(*rng), u(*rng));
+    m.sigma_rad_s = 0.03 + 0.02 * u(*rng);
+  }
+  std::vector<double*> Blocks() { return {b_g.data(), q_I_V.coeffs().data()}; }
+  Eigen::Quaterniond q_I_V;
+  Eigen::Vector3d b_g;
+  PlanarRotationMeasurement m;
+};
+
 // The q_I_V Jacobian in its right tangent space (ambient Jacobian times PlusJacobian).
 Eigen::Matrix<double, 2, 3> TangentJacobianOfMount(const ceres::CostFunction& cost,
                                                    const std::vector<double*>& blocks) {
@@ -73,16 +88,11 @@ Eigen::Matrix<double, 2, 3> TangentJacobianOfMount(const ceres::CostFunction& co
 TEST(PlanarRotationFactor, JacobiansMatchAutodiffWithTheMountYawLeftOut) {
   const geometry::RightQuaternionManifold quaternion;
   std::mt19937 rng(8);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int trial = 0; trial < 20; ++trial) {
-    Eigen::Quaterniond q_I_V = Eigen::Quaterniond::UnitRandom();
-    Eigen::Vector3d b_g = 0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    PlanarRotationMeasurement m;
-    m.gyro_rad_s = Eigen::Vector3d(u(rng), u(rng), u(rng));
-    m.sigma_rad_s = 0.03 + 0.02 * u(rng);
-    const PlanarRotationFactor analytic(m);
-    std::unique_ptr<ceres::CostFunction> autodiff(PlanarRotationResidual::CreateAutoDiff(m));
-    const std::vector<double*> blocks = {b_g.data(), q_I_V.coeffs().data()};
+    RandomCase state(&rng);
+    const PlanarRotationFactor analytic(state.m);
+    std::unique_ptr<ceres::CostFunction> autodiff(PlanarRotationResidual::CreateAutoDiff(state.m));
+    const std::vector<double*> blocks = state.Blocks();
     const std::string context = "trial " + std::to_string(trial);
     const test::Evaluation a = test::Evaluate(analytic, blocks);
     const test::Evaluation b = test::Evaluate(*autodiff, blocks);
@@ -109,22 +119,17 @@ TEST(PlanarRotationFactor, JacobiansMatchAutodiffWithTheMountYawLeftOut) {
 // residual turned by 90 degrees) is not.
 TEST(PlanarRotationFactor, TheRowsAreBlindToTheMountYaw) {
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int trial = 0; trial < 20; ++trial) {
-    Eigen::Quaterniond q_I_V = Eigen::Quaterniond::UnitRandom();
-    Eigen::Vector3d b_g = 0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    PlanarRotationMeasurement m;
-    m.gyro_rad_s = Eigen::Vector3d(u(rng), u(rng), u(rng));
-    m.sigma_rad_s = 0.04;
-    std::unique_ptr<ceres::CostFunction> autodiff(PlanarRotationResidual::CreateAutoDiff(m));
-    const std::vector<double*> blocks = {b_g.data(), q_I_V.coeffs().data()};
+    RandomCase state(&rng);
+    std::unique_ptr<ceres::CostFunction> autodiff(PlanarRotationResidual::CreateAutoDiff(state.m));
+    const std::vector<double*> blocks = state.Blocks();
     const Eigen::VectorXd r = test::Evaluate(*autodiff, blocks).residual;
     const Eigen::Vector2d yaw_column = TangentJacobianOfMount(*autodiff, blocks).col(2);
     EXPECT_NEAR(yaw_column.norm(), r.norm(), 1e-12 * r.norm()) << trial;
     EXPECT_NEAR(yaw_column.dot(r), 0.0, 1e-12 * r.squaredNorm()) << trial;
     for (double yaw : {0.3, -1.2, 2.5}) {
-      Eigen::Quaterniond turned = q_I_V * Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ());
-      const std::vector<double*> turned_blocks = {b_g.data(), turned.coeffs().data()};
+      Eigen::Quaterniond turned = state.q_I_V * Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ());
+      const std::vector<double*> turned_blocks = {state.b_g.data(), turned.coeffs().data()};
       const Eigen::VectorXd r_turned = test::Evaluate(*autodiff, turned_blocks).residual;
       EXPECT_NEAR(r_turned.norm(), r.norm(), 1e-12 * r.norm()) << trial << ", yaw " << yaw;
       EXPECT_GT((r_turned - r).norm(), 0.1 * r.norm()) << trial << ", yaw " << yaw;
