@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -119,6 +120,121 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
     kf.v_W_I = q_z * kf.v_W_I;
   }
   return fit;
+}
+
+namespace {
+
+// The value at at_ns of a line fitted to the differences d over [begin, end) against their
+// times (a drift's local rate keeps an outage on one side of a window from biasing it). It
+// starts from the per-axis median and a zero rate; each of two least-squares fits takes the
+// pairs within the outlier gate of the line before.
+Eigen::Vector3d LocalLineAt(const std::vector<int64_t>& t_ns, const std::vector<Eigen::Vector3d>& d,
+                            size_t begin, size_t end, int64_t at_ns,
+                            const OdometryDriftOptions& options) {
+  Eigen::Matrix<double, 2, 3> line = Eigen::Matrix<double, 2, 3>::Zero();
+  std::vector<double> axis(end - begin);
+  for (int a = 0; a < 3; ++a) {
+    for (size_t i = begin; i < end; ++i) axis[i - begin] = d[i](a);
+    line(0, a) = Median(axis);
+  }
+  std::vector<double> distance_m(end - begin);
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t i = begin; i < end; ++i) {
+      const Eigen::Vector2d x(1.0, NsToSeconds(t_ns[i] - at_ns));
+      distance_m[i - begin] = (d[i] - line.transpose() * x).norm();
+    }
+    const double gate_m =
+        OutlierGate(Median(distance_m), options.min_outlier_distance_m, options.outlier_mad_factor);
+    Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
+    Eigen::Matrix<double, 2, 3> rhs = Eigen::Matrix<double, 2, 3>::Zero();
+    int used = 0;
+    for (size_t i = begin; i < end; ++i) {
+      if (distance_m[i - begin] > gate_m) continue;
+      const Eigen::Vector2d x(1.0, NsToSeconds(t_ns[i] - at_ns));
+      normal += x * x.transpose();
+      rhs += x * d[i].transpose();
+      ++used;
+    }
+    // Too few pairs, or all at one instant: the line before stands.
+    if (used < std::max(options.min_pairs, 2) || !(normal.determinant() > 1e-9)) break;
+    line = normal.ldlt().solve(rhs);
+  }
+  return line.row(0).transpose();
+}
+
+double MedianDistance(const std::vector<Eigen::Vector3d>& d) {
+  std::vector<double> distance_m;
+  for (const Eigen::Vector3d& v : d) distance_m.push_back(v.norm());
+  return distance_m.empty() ? 0.0 : Median(distance_m);
+}
+
+}  // namespace
+
+OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensors::GnssFixes& fixes,
+                                  const sensors::EnuConverter& converter,
+                                  const Eigen::Vector3d& p_I_A,
+                                  const OdometryDriftOptions& options) {
+  if (!(options.half_window_s > 0.0)) {
+    throw Error("RemoveOdometryDrift: half_window_s must be positive");
+  }
+  const int64_t max_gap_ns = GapNs(options.max_fix_gap_s, "max_fix_gap_s");
+  CheckIncreasing(fixes, "RemoveOdometryDrift: GNSS fix");
+  // Pairs: keyframe index, time and fix minus antenna.
+  std::vector<size_t> index;
+  std::vector<int64_t> t_ns;
+  std::vector<Eigen::Vector3d> d;
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    const Keyframe& kf = (*keyframes)[k];
+    factors::GnssMeasurement m;
+    if (!InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
+    index.push_back(k);
+    t_ns.push_back(kf.t_ns);
+    d.push_back(m.p_W_A - (kf.p_W_I + kf.q_W_I * p_I_A));
+  }
+  OdometryDrift out;
+  out.num_pairs = static_cast<int>(d.size());
+  out.median_before_m = MedianDistance(d);
+  // The correction at each keyframe whose window holds enough pairs.
+  const int64_t half_ns = SecondsToNs(options.half_window_s);
+  std::vector<std::optional<Eigen::Vector3d>> correction(keyframes->size());
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    const int64_t t = (*keyframes)[k].t_ns;
+    const size_t begin =
+        static_cast<size_t>(std::lower_bound(t_ns.begin(), t_ns.end(), t - half_ns) - t_ns.begin());
+    const size_t end =
+        static_cast<size_t>(std::upper_bound(t_ns.begin(), t_ns.end(), t + half_ns) - t_ns.begin());
+    if (end - begin >= static_cast<size_t>(std::max(options.min_pairs, 2))) {
+      correction[k] = LocalLineAt(t_ns, d, begin, end, t, options);
+    }
+  }
+  // The others take the nearest keyframe's (before or after) that has one.
+  std::optional<size_t> last;
+  std::vector<std::optional<size_t>> before(keyframes->size()), after(keyframes->size());
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    if (correction[k]) last = k;
+    before[k] = last;
+  }
+  last.reset();
+  for (size_t k = keyframes->size(); k-- > 0;) {
+    if (correction[k]) last = k;
+    after[k] = last;
+  }
+  if (!before.back() && !after.front()) {
+    out.median_after_m = out.median_before_m;
+    return out;
+  }
+  std::vector<Eigen::Vector3d> applied(keyframes->size());
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    const std::optional<size_t>& b = before[k];
+    const std::optional<size_t>& a = after[k];
+    const size_t source = !b ? *a : !a ? *b : (k - *b <= *a - k ? *b : *a);
+    applied[k] = *correction[source];
+    (*keyframes)[k].p_W_I += applied[k];
+    out.max_correction_m = std::max(out.max_correction_m, applied[k].norm());
+  }
+  for (size_t i = 0; i < d.size(); ++i) d[i] -= applied[index[i]];
+  out.median_after_m = MedianDistance(d);
+  return out;
 }
 
 namespace {

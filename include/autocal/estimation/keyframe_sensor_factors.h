@@ -186,6 +186,39 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
                                    const Eigen::Vector3d& p_I_A,
                                    const GnssAlignmentOptions& options = {});
 
+struct OdometryDriftOptions {
+  double max_fix_gap_s = 0.25;  // as GnssAlignmentOptions::max_fix_gap_s
+  // A keyframe's correction is a line fitted to the antenna-to-fix differences within this half
+  // window, at its time: the odometry drifts over minutes, the fixes' noise and multipath change
+  // over seconds.
+  double half_window_s = 5.0;
+  int min_pairs = 5;  // fewer in a window: the correction of the nearest keyframe that has one
+  // The line is fitted again without the pairs farther from it than max(min_outlier_distance_m,
+  // outlier_mad_factor * 1.4826 * median distance), as GnssAlignmentOptions.
+  double outlier_mad_factor = 5.0;
+  double min_outlier_distance_m = 0.5;
+};
+
+struct OdometryDrift {
+  int num_pairs = 0;             // keyframes with an interpolated fix
+  double median_before_m = 0.0;  // median antenna-to-fix distance over the pairs, before
+  double median_after_m = 0.0;   // and after the correction
+  double max_correction_m = 0.0;
+};
+
+// Eq. K5b: after AlignKeyframesToGnss, what is left of an odometry track's drift against the
+// fixes is taken out of the keyframes' positions, a keyframe moved by a line fitted (robustly,
+// per axis) to the antenna-to-fix differences within half_window_s of it, at its time: a drift's
+// local rate, so that an outage on one side of a window does not bias it. Attitudes, velocities
+// and biases
+// stay: the correction changes over minutes, so the track's shape over a few seconds (what
+// the LiDAR's partner sweeps see) keeps. Without any window of min_pairs pairs nothing moves.
+// Throws autocal::Error as InterpolateGnss, or for a non-positive half window.
+OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensors::GnssFixes& fixes,
+                                  const sensors::EnuConverter& converter,
+                                  const Eigen::Vector3d& p_I_A,
+                                  const OdometryDriftOptions& options = {});
+
 struct GnssPlacementOptions {
   // The fixes within this half-width of a keyframe's time give its antenna track (Eq. K7), with
   // outliers rejected as GnssAlignmentOptions: Eq. T3 for 1-10 Hz receivers; the offline
