@@ -162,6 +162,31 @@ Eigen::Vector3d LocalLineAt(const std::vector<int64_t>& t_ns, const std::vector<
   return line.row(0).transpose();
 }
 
+// Each empty entry takes the value of the nearest one (before or after) that has one. False when
+// none has.
+bool FillFromNearest(std::vector<std::optional<Eigen::Vector3d>>* values) {
+  std::vector<std::optional<Eigen::Vector3d>>& v = *values;
+  std::vector<std::optional<size_t>> before(v.size()), after(v.size());
+  std::optional<size_t> last;
+  for (size_t k = 0; k < v.size(); ++k) {
+    if (v[k]) last = k;
+    before[k] = last;
+  }
+  last.reset();
+  for (size_t k = v.size(); k-- > 0;) {
+    if (v[k]) last = k;
+    after[k] = last;
+  }
+  if (!last) return false;
+  for (size_t k = 0; k < v.size(); ++k) {
+    if (v[k]) continue;
+    const std::optional<size_t>& b = before[k];
+    const std::optional<size_t>& a = after[k];
+    v[k] = v[!b ? *a : !a ? *b : (k - *b <= *a - k ? *b : *a)];
+  }
+  return true;
+}
+
 double MedianDistance(const std::vector<Eigen::Vector3d>& d) {
   std::vector<double> distance_m;
   for (const Eigen::Vector3d& v : d) distance_m.push_back(v.norm());
@@ -207,32 +232,15 @@ OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensor
       correction[k] = LocalLineAt(t_ns, d, begin, end, t, options);
     }
   }
-  // The others take the nearest keyframe's (before or after) that has one.
-  std::optional<size_t> last;
-  std::vector<std::optional<size_t>> before(keyframes->size()), after(keyframes->size());
-  for (size_t k = 0; k < keyframes->size(); ++k) {
-    if (correction[k]) last = k;
-    before[k] = last;
-  }
-  last.reset();
-  for (size_t k = keyframes->size(); k-- > 0;) {
-    if (correction[k]) last = k;
-    after[k] = last;
-  }
-  if (!before.back() && !after.front()) {
+  if (!FillFromNearest(&correction)) {
     out.median_after_m = out.median_before_m;
     return out;
   }
-  std::vector<Eigen::Vector3d> applied(keyframes->size());
   for (size_t k = 0; k < keyframes->size(); ++k) {
-    const std::optional<size_t>& b = before[k];
-    const std::optional<size_t>& a = after[k];
-    const size_t source = !b ? *a : !a ? *b : (k - *b <= *a - k ? *b : *a);
-    applied[k] = *correction[source];
-    (*keyframes)[k].p_W_I += applied[k];
-    out.max_correction_m = std::max(out.max_correction_m, applied[k].norm());
+    (*keyframes)[k].p_W_I += *correction[k];
+    out.max_correction_m = std::max(out.max_correction_m, correction[k]->norm());
   }
-  for (size_t i = 0; i < d.size(); ++i) d[i] -= applied[index[i]];
+  for (size_t i = 0; i < d.size(); ++i) d[i] -= *correction[index[i]];
   out.median_after_m = MedianDistance(d);
   return out;
 }
