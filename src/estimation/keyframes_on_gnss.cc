@@ -137,11 +137,12 @@ Eigen::Vector3d LocalLineAt(const std::vector<int64_t>& t_ns, const std::vector<
     for (size_t i = begin; i < end; ++i) axis[i - begin] = d[i](a);
     line(0, a) = Median(axis);
   }
+  std::vector<Eigen::Vector2d> x(end - begin);  // (1, time from at_ns)
+  for (size_t i = begin; i < end; ++i) x[i - begin] = {1.0, NsToSeconds(t_ns[i] - at_ns)};
   std::vector<double> distance_m(end - begin);
   for (int pass = 0; pass < 2; ++pass) {
     for (size_t i = begin; i < end; ++i) {
-      const Eigen::Vector2d x(1.0, NsToSeconds(t_ns[i] - at_ns));
-      distance_m[i - begin] = (d[i] - line.transpose() * x).norm();
+      distance_m[i - begin] = (d[i] - line.transpose() * x[i - begin]).norm();
     }
     const double gate_m =
         OutlierGate(Median(distance_m), options.min_outlier_distance_m, options.outlier_mad_factor);
@@ -150,9 +151,8 @@ Eigen::Vector3d LocalLineAt(const std::vector<int64_t>& t_ns, const std::vector<
     int used = 0;
     for (size_t i = begin; i < end; ++i) {
       if (distance_m[i - begin] > gate_m) continue;
-      const Eigen::Vector2d x(1.0, NsToSeconds(t_ns[i] - at_ns));
-      normal += x * x.transpose();
-      rhs += x * d[i].transpose();
+      normal += x[i - begin] * x[i - begin].transpose();
+      rhs += x[i - begin] * d[i].transpose();
       ++used;
     }
     // Too few pairs, or all at one instant: the line before stands.
