@@ -54,11 +54,11 @@ estimation::LidarInertialBatchOptions BatchOptions(const io::Dataset& dataset,
 // The initializer's keyframes are in a gravity-aligned frame of their own; GNSS brings them
 // into ENU. Where the LiDAR odometry followed the drive, a 4-DoF alignment of its track does
 // (Eq. K3-K5), then its remaining drift is taken out of the positions (Eq. K5b), and true is
-// returned. Where it did not (a featureless road, traffic moving with
-// the car: its track then misses the fixes by metres or is too short to give the yaw), every
-// state the initializer derived from that track is unusable: the keyframes are rebuilt from
-// GNSS, the IMU and the problem's wheels (estimation/gnss_inertial_keyframes.h), a warning says so,
-// and false is returned (the caller then starts the LiDAR blocks from their nominal values).
+// returned. Where it did not (a featureless road, traffic moving with the car: its track then
+// misses the fixes by metres or is too short to give the yaw), every state the initializer
+// derived from that track is unusable: the keyframes are rebuilt from GNSS, the IMU and the
+// problem's wheels (estimation/gnss_inertial_keyframes.h), a warning says so, and false is
+// returned (the caller then starts the LiDAR blocks from their nominal values).
 bool PlaceKeyframesInEnu(const io::Dataset& dataset, const io::Problem& problem,
                          const sensors::EnuConverter& enu, const sensors::Calibration& calibration,
                          const OfflineCalibrationOptions& options, bool use_wheel,
@@ -72,8 +72,8 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const io::Problem& problem,
     const estimation::GnssAlignment fit =
         estimation::AlignKeyframesToGnss(&aligned, dataset.gnss, enu, calibration.p_I_A, alignment);
     if (fit.rms_m <= options.max_odometry_to_gnss_rms_m) {
-      // The drift the rigid alignment leaves (Eq. K5b): 6.8 m RMS over a 4 km drive, which the
-      // GNSS rows' Cauchy loss would pull in over several solver steps.
+      // The drift the rigid alignment leaves (Eq. K5b), which the GNSS rows' Cauchy loss would
+      // pull in only over several solver steps.
       estimation::OdometryDriftOptions drift;
       drift.max_fix_gap_s = timing.max_fix_gap_s;
       estimation::RemoveOdometryDrift(&aligned, dataset.gnss, enu, calibration.p_I_A, drift);

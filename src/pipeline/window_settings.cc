@@ -21,11 +21,10 @@ namespace {
 // fix it. The window's priors are one sigma per block: the problem's in prior mode, else the
 // sigma the dataset states, else the offline calibration's default (DefaultPriorSigma), so that
 // both estimators assume the same of a nominal value nobody gave a sigma; a per-axis sigma takes
-// its widest
-// axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that share a
-// switch (the vehicle frame's rotation and translation, the two radii or speed scales) share
-// the wider sigma; a problem that estimates one and fixes the other is an autocal::Error, since
-// the window would estimate both.
+// its widest axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that
+// share a switch (the vehicle frame's rotation and translation, the two radii or speed scales)
+// share the wider sigma; a problem that estimates one and fixes the other is an autocal::Error,
+// since the window would estimate both.
 void SetWindowBlocks(const std::string& problem_path, const io::ProblemCalibration& problem,
                      const io::SensorsConfig& sensors, sensors::WheelForm form, bool use_wheel,
                      bool use_gnss, estimation::SlidingWindowOptions* w) {

@@ -210,9 +210,9 @@ struct OdometryDrift {
 // fixes is taken out of the keyframes' positions, a keyframe moved by a line fitted (robustly,
 // per axis) to the antenna-to-fix differences within half_window_s of it, at its time: a drift's
 // local rate, so that an outage on one side of a window does not bias it. Attitudes, velocities
-// and biases
-// stay: the correction changes over minutes, so the track's shape over a few seconds (what
-// the LiDAR's partner sweeps see) keeps. Without any window of min_pairs pairs nothing moves.
+// and biases stay: the correction changes over minutes, so the track's shape over a few seconds
+// (what the LiDAR's partner sweeps see) keeps. Without any window of min_pairs pairs nothing
+// moves.
 // Throws autocal::Error as InterpolateGnss, or for a non-positive half window.
 OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensors::GnssFixes& fixes,
                                   const sensors::EnuConverter& converter,
