@@ -16,6 +16,7 @@
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
 #include "estimation/normal_equations.h"
+#include "estimation/residual_curvature.h"
 
 namespace autocal {
 namespace estimation {
@@ -359,7 +360,8 @@ void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::Lo
 }
 
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
-                                       ceres::Problem* problem, int num_threads) {
+                                       ceres::Problem* problem, int num_threads,
+                                       const ExactHessianTerms& exact) {
   BlockCovariance out;
   int size = 0;
   for (const EstimatedBlock& block : blocks) {
@@ -371,7 +373,16 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     out.ok = true;
     return out;
   }
-  const GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads);
+  GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads);
+  if (!exact.residual_blocks.empty()) {
+    internal::BlockOffsets curved = hessian.offsets;
+    for (const double* block : exact.gauss_newton_blocks) curved.erase(const_cast<double*>(block));
+    const std::vector<Eigen::Triplet<double>> curvature =
+        internal::ResidualCurvature(problem, exact.residual_blocks, curved);
+    Eigen::SparseMatrix<double> term(hessian.H.rows(), hessian.H.cols());
+    term.setFromTriplets(curvature.begin(), curvature.end());
+    hessian.H = Eigen::SparseMatrix<double>(hessian.H + term);
+  }
   // Columns of H^-1 at the blocks' tangent coordinates (a block held constant keeps zeros).
   Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), size);
   std::vector<std::pair<int, int>> rows;  // (row of H, row of out.matrix)

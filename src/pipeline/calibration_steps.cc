@@ -12,6 +12,8 @@
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/estimation/keyframe_solver_options.h"
 #include "autocal/estimation/planar_rotation_rows.h"
+#include "autocal/factors/planar_rotation_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "problem_blocks.h"
@@ -415,6 +417,24 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
                 "); nothing is written. The drive may not excite these blocks: fix them or "
                 "give them priors in the problem file");
   }
+}
+
+estimation::BlockCovariance PosteriorCovariance(
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
+    const sensors::Calibration& calibration, int num_threads) {
+  std::vector<ceres::ResidualBlockId> ids;
+  problem->GetResidualBlocks(&ids);
+  estimation::ExactHessianTerms exact;
+  for (const ceres::ResidualBlockId id : ids) {
+    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
+    if (dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(f) == nullptr &&
+        dynamic_cast<const factors::PlanarRotationFactor*>(f) == nullptr) {
+      exact.residual_blocks.push_back(id);
+    }
+  }
+  exact.gauss_newton_blocks = {&calibration.time_offset_wheel_imu_s,
+                               &calibration.time_offset_gnss_imu_s};
+  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact);
 }
 
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,

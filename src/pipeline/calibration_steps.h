@@ -166,6 +166,16 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
                       const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                       const estimation::BlockCovariance& covariance);
 
+// The covariance of the estimated blocks at the solution of `problem`, each residual block with
+// its exact Hessian, J^T J + rho' sum r d2r (Eq. C5), but two kinds: the LiDAR's point groups
+// (their loss is inside the factor, their Jacobian is the points' geometry) and the
+// planar-rotation rows (they leave out the one column whose derivative is noise, Eq. F27b).
+// The wheel and GNSS clocks of `calibration` (the problem's blocks) keep J^T J: their
+// Jacobian is a smoothed slope, not the residual's derivative.
+estimation::BlockCovariance PosteriorCovariance(
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
+    const sensors::Calibration& calibration, int num_threads);
+
 // result->posterior from the solve's calibration (`solved`), the blocks' priors and their
 // covariance, before Observe holds any direction.
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,

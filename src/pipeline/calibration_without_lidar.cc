@@ -204,7 +204,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
 
   // 3. Observability, uncertainty and the result.
   const estimation::BlockCovariance covariance =
-      estimation::ComputeBlockCovariance(blocks_estimated, &p, problem.solver.num_threads);
+      PosteriorCovariance(blocks_estimated, &p, calibration, problem.solver.num_threads);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
   result.batch.calibration_per_iteration = {calibration};  // one solve

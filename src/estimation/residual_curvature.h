@@ -1,0 +1,35 @@
+#pragma once
+
+// The part of the exact Hessian of 1/2 |r|^2 that Gauss-Newton drops, sum_i r_i d2r_i, for
+// chosen residual blocks (docs/calibration.md, Eq. C5). Where a residual's derivative along a
+// direction is itself made of the measurements' noise (an attitude's yaw turning a velocity
+// change that is mostly noise), J^T J counts that noise squared as information while the cost
+// does not curve; adding this term gives the curvature the cost really has there.
+
+#include <ceres/ceres.h>
+
+#include <Eigen/SparseCore>
+#include <vector>
+
+#include "estimation/normal_equations.h"
+
+namespace autocal {
+namespace estimation {
+namespace internal {
+
+// sum_i r_i d2r_i of the residual blocks `ids` at their blocks' current values, in the tangent
+// coordinates of `offsets` (blocks missing from it are constant), lower triangle only, as
+// entries to add to the lower triangle of J^T J. Under a robust loss rho(|r|^2) it is weighted
+// by rho' (the loss's own curvature is in Ceres' corrected J^T J). Computed by central
+// differences of each block's tangent Jacobian along each of its variable tangent directions,
+// in the chart x (+) delta: a rotation block (geometry::RightQuaternionManifold) takes its
+// chart's right Jacobian, every other manifold must be affine in its tangent (none, Euclidean,
+// subset). The blocks' values are restored exactly. Throws autocal::Error when a block uses
+// another manifold or a residual block fails to evaluate.
+std::vector<Eigen::Triplet<double>> ResidualCurvature(
+    ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
+    const BlockOffsets& offsets);
+
+}  // namespace internal
+}  // namespace estimation
+}  // namespace autocal
