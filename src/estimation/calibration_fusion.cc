@@ -1,6 +1,7 @@
 #include "autocal/estimation/calibration_fusion.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -62,6 +63,19 @@ std::vector<int> RowsInUnion(const std::vector<EstimatedBlock>& blocks,
   return rows;
 }
 
+// A log's data term, information D and vector d of 1/2 x^T D x - d^T x, kept only along the
+// eigenvectors of D with a positive eigenvalue. Where the exact Hessian (docs/calibration.md,
+// Eq. C5) says the data curve the cost down, the quadratic is only local and has no centre:
+// the log tells nothing there, as if its drive had not excited the direction.
+void KeepWhereTheDataCurveUp(Eigen::MatrixXd* D, Eigen::VectorXd* d) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(0.5 * (*D + D->transpose()));
+  if (eigen.eigenvalues().minCoeff() > 0.0) return;
+  const Eigen::MatrixXd& U = eigen.eigenvectors();
+  const Eigen::VectorXd kept = (eigen.eigenvalues().array() > 0.0).cast<double>();
+  *D = U * eigen.eigenvalues().cwiseMax(0.0).asDiagonal() * U.transpose();
+  *d = U * kept.asDiagonal() * (U.transpose() * *d);
+}
+
 // One log's terms of Eq. M1-M2, added into (information, vector) at the union's rows: its
 // posterior information and its prior's removed, in the tangent at `reference`.
 void AddLogTerms(const CalibrationPosterior& log, const sensors::Calibration& reference,
@@ -87,7 +101,8 @@ void AddLogTerms(const CalibrationPosterior& log, const sensors::Calibration& re
   }
   Eigen::MatrixXd data_information = posterior_information;
   data_information.diagonal() -= prior_information;
-  const Eigen::VectorXd data_vector = posterior_information * x - prior_term;
+  Eigen::VectorXd data_vector = posterior_information * x - prior_term;
+  KeepWhereTheDataCurveUp(&data_information, &data_vector);
   for (size_t a = 0; a < log.blocks.size(); ++a) {
     for (size_t b = 0; b < log.blocks.size(); ++b) {
       information->block(rows[a], rows[b], log.blocks[a].size, log.blocks[b].size) +=

@@ -153,6 +153,33 @@ TEST(CalibrationFusion, BlockOfOneLogKeepsItsEstimate) {
   EXPECT_TRUE(fused.value.p_I_A.allFinite());
 }
 
+// A log whose covariance is wider than its prior (the data's own curvature negative, Eq. C5)
+// tells nothing: the combination is the prior, not a sigma twice the prior's.
+TEST(CalibrationFusion, ALogWiderThanItsPriorAddsNothing) {
+  sensors::Calibration prior_centre;
+  prior_centre.wheel_radius_left_m = 0.33;
+  prior_centre.p_I_A = Eigen::Vector3d(0.1, -0.2, 1.2);
+  CalibrationPosterior log;
+  log.solved = prior_centre;
+  log.solved.wheel_radius_left_m += 0.04;
+  log.solved.p_I_A += Eigen::Vector3d(0.02, 0.03, -0.05);
+  log.blocks =
+      Blocks(&log.solved, {CalibrationBlockId::kWheelRadiusLeft, CalibrationBlockId::kGnssLeverArm},
+             prior_centre);
+  log.covariance.ok = true;
+  log.covariance.offsets = {0, 1};
+  log.covariance.matrix = Eigen::MatrixXd::Identity(4, 4) * 4.0 * 0.05 * 0.05;
+  log.covariance.matrix(0, 1) = log.covariance.matrix(1, 0) = 1e-3;
+  const FusedCalibration fused = FuseCalibrationPosteriors({log});
+  ASSERT_TRUE(fused.covariance.ok);
+  EXPECT_LT((fused.covariance.matrix - Eigen::MatrixXd::Identity(4, 4) * 0.05 * 0.05)
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-15);
+  EXPECT_NEAR(fused.value.wheel_radius_left_m, 0.33, 1e-12);
+  EXPECT_LT((fused.value.p_I_A - prior_centre.p_I_A).norm(), 1e-12);
+}
+
 TEST(CalibrationFusion, RefusesALogWithoutCovariance) {
   LinearLogs logs = MakeLogs(2, 1.0, 5);
   logs.posteriors[1].covariance.ok = false;

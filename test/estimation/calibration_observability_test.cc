@@ -73,6 +73,27 @@ TEST(CalibrationObservability, ADirectionTheDataDidNotNarrowIsUnobservable) {
   covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, 0.019 * 0.019).asDiagonal();
   const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
   EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
+  ASSERT_EQ(result.warnings.size(), 1u);
+  EXPECT_THAT(result.warnings[0],
+              ::testing::HasSubstr("(sigma 1.9 cm after the solve, prior 2 cm)"));
+}
+
+// With the exact Hessian (Eq. C5) a direction can come out wider than its prior: the data's
+// own curvature along it is negative, and the warning says so.
+TEST(CalibrationObservability, ADirectionWiderThanItsPriorIsNamedSo) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.02, 0.03)};
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, 0.05 * 0.05).asDiagonal();
+  const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
+  EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.02);
+  ASSERT_EQ(result.warnings.size(), 1u);
+  EXPECT_THAT(result.warnings[0],
+              ::testing::HasSubstr("(sigma 5 cm after the solve, prior 2 cm: alone, the data "
+                                   "would not hold it anywhere); held at"));
 }
 
 // Under a weak prior (30 cm) a direction the data narrowed to 13 cm is still held: above four
