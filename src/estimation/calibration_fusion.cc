@@ -64,16 +64,25 @@ std::vector<int> RowsInUnion(const std::vector<EstimatedBlock>& blocks,
 }
 
 // A log's data term, information D and vector d of 1/2 x^T D x - d^T x, kept only along the
-// eigenvectors of D with a positive eigenvalue. Where the exact Hessian (docs/calibration.md,
-// Eq. C5) says the data curve the cost down, the quadratic is only local and has no centre:
-// the log tells nothing there, as if its drive had not excited the direction.
-void KeepWhereTheDataCurveUp(Eigen::MatrixXd* D, Eigen::VectorXd* d) {
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(0.5 * (*D + D->transpose()));
+// directions where it curves up, judged in the prior's units (the eigenvectors of
+// P^-1/2 D P^-1/2 with a positive eigenvalue, P the prior information, so that the result
+// does not depend on the blocks' units). Where the exact Hessian (docs/calibration.md, Eq. C5)
+// says the data curve the cost down, the quadratic is only local and has no centre: the log
+// tells nothing there, as if its drive had not excited the direction.
+void KeepWhereTheDataCurveUp(const Eigen::VectorXd& prior_information, Eigen::MatrixXd* D,
+                             Eigen::VectorXd* d) {
+  const Eigen::VectorXd scale = prior_information.cwiseSqrt();  // P^1/2
+  const Eigen::MatrixXd whitened = scale.cwiseInverse().asDiagonal() *
+                                   (0.5 * (*D + D->transpose())) *
+                                   scale.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(whitened);
   if (eigen.eigenvalues().minCoeff() > 0.0) return;
   const Eigen::MatrixXd& U = eigen.eigenvectors();
   const Eigen::VectorXd kept = (eigen.eigenvalues().array() > 0.0).cast<double>();
-  *D = U * eigen.eigenvalues().cwiseMax(0.0).asDiagonal() * U.transpose();
-  *d = U * kept.asDiagonal() * (U.transpose() * *d);
+  *D = scale.asDiagonal() * U * eigen.eigenvalues().cwiseMax(0.0).asDiagonal() * U.transpose() *
+       scale.asDiagonal();
+  *d = scale.asDiagonal() * U * kept.asDiagonal() * U.transpose() *
+       scale.cwiseInverse().asDiagonal() * *d;
 }
 
 // One log's terms of Eq. M1-M2, added into (information, vector) at the union's rows: its
@@ -102,7 +111,7 @@ void AddLogTerms(const CalibrationPosterior& log, const sensors::Calibration& re
   Eigen::MatrixXd data_information = posterior_information;
   data_information.diagonal() -= prior_information;
   Eigen::VectorXd data_vector = posterior_information * x - prior_term;
-  KeepWhereTheDataCurveUp(&data_information, &data_vector);
+  KeepWhereTheDataCurveUp(prior_information, &data_information, &data_vector);
   for (size_t a = 0; a < log.blocks.size(); ++a) {
     for (size_t b = 0; b < log.blocks.size(); ++b) {
       information->block(rows[a], rows[b], log.blocks[a].size, log.blocks[b].size) +=

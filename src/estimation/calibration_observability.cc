@@ -140,14 +140,14 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
     if (held) {
       flags[static_cast<size_t>(i)] = false;
       sigma(i) = block.prior_sigma(i);
-      // Above the prior's sigma the data's own curvature along it is negative (Eq. C5): the
-      // prior alone holds it.
+      // Above the prior's sigma (beyond rounding) the data's information about this direction
+      // is not positive semidefinite (Eq. C5): the data alone have no minimum there.
       const double after = SigmaOf(S, first + i);
-      out->warnings.push_back(
-          name + ": not excited by the drive (sigma " + value(after) + " after the solve, prior " +
-          value(block.prior_sigma(i)) +
-          (after > block.prior_sigma(i) ? ": alone, the data would not hold it anywhere" : "") +
-          "); held at " + block.prior_source);
+      const bool wider = after > block.prior_sigma(i) * (1.0 + 1e-6);
+      out->warnings.push_back(name + ": not excited by the drive (sigma " + value(after) +
+                              " after the solve, prior " + value(block.prior_sigma(i)) +
+                              (wider ? ": alone, the data would not hold it anywhere" : "") +
+                              "); held at " + block.prior_source);
     } else if (!(sigma(i) <= block.max_observable_sigma)) {
       // Informed, but not to the accuracy asked for: the estimate is kept (it is better
       // than the nominal value) with its sigma, and not reported as observable.

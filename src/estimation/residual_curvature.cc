@@ -1,5 +1,6 @@
 #include "estimation/residual_curvature.h"
 
+#include <algorithm>
 #include <string>
 
 #include "autocal/common/error.h"
@@ -107,12 +108,16 @@ void Perturb(const VariableBlock& block, int component, double step, const doubl
 // the tangent Jacobian at x (+) delta times the chart's right Jacobian (Eq. C5).
 Eigen::MatrixXd ChartJacobianAt(ResidualBlockJacobian* rb, const VariableBlock& block,
                                 int component, double step) {
-  std::vector<double> saved(block.data, block.data + block.ambient);
-  Perturb(block, component, step, saved.data(), block.data);
+  // The block's values come back exactly, also when the evaluation throws.
+  struct Restore {
+    const VariableBlock& block;
+    std::vector<double> saved;
+    ~Restore() { std::copy(saved.begin(), saved.end(), block.data); }
+  } restore{block, std::vector<double>(block.data, block.data + block.ambient)};
+  Perturb(block, component, step, restore.saved.data(), block.data);
   Eigen::VectorXd residual;
   Eigen::MatrixXd jacobian;
   rb->Evaluate(&residual, &jacobian);
-  std::copy(saved.begin(), saved.end(), block.data);
   if (block.rotation) {
     Eigen::Vector3d delta = Eigen::Vector3d::Zero();
     delta(component) = step;
@@ -130,8 +135,7 @@ void AppendResidualBlockCurvature(ceres::Problem* problem, ceres::ResidualBlockI
   Eigen::VectorXd residual;
   Eigen::MatrixXd jacobian;
   rb.Evaluate(&residual, &jacobian);
-  // Under a robust loss rho(|r|^2) the term is weighted by rho' (the rest of the loss's
-  // curvature, 2 rho'' J^T r r^T J, is in J^T J already through Ceres' corrector).
+  // Under a robust loss rho(|r|^2) the term is weighted by rho' (header).
   double rho[3] = {0.0, 1.0, 0.0};
   if (const ceres::LossFunction* loss = problem->GetLossFunctionForResidualBlock(id)) {
     loss->Evaluate(residual.squaredNorm(), rho);

@@ -20,12 +20,14 @@ namespace internal {
 // sum_i r_i d2r_i of the residual blocks `ids` at their blocks' current values, in the tangent
 // coordinates of `offsets` (blocks missing from it are constant), lower triangle only, as
 // entries to add to the lower triangle of J^T J. Under a robust loss rho(|r|^2) it is weighted
-// by rho' (the loss's own curvature is in Ceres' corrected J^T J). Computed by central
-// differences of each block's tangent Jacobian along each of its variable tangent directions,
-// in the chart x (+) delta: a rotation block (geometry::RightQuaternionManifold) takes its
-// chart's right Jacobian, every other manifold must be affine in its tangent (none, Euclidean,
-// subset). The blocks' values are restored exactly. Throws autocal::Error when a block uses
-// another manifold or a residual block fails to evaluate.
+// by rho', as the exact Hessian weighs it; the loss's own term 2 rho'' J^T r r^T J is left as
+// Ceres' corrector leaves it, out wherever rho'' <= 0 (Cauchy, Huber beyond its corner).
+// Computed by central differences of each block's tangent Jacobian along each of its variable
+// tangent directions, in the chart x (+) delta: a rotation block
+// (geometry::RightQuaternionManifold) takes its chart's right Jacobian, every other manifold
+// must be affine in its tangent (none, Euclidean, subset). The blocks' values are restored
+// exactly, also on a throw. Throws autocal::Error when a block uses another manifold or a
+// residual block fails to evaluate.
 std::vector<Eigen::Triplet<double>> ResidualCurvature(
     ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
     const BlockOffsets& offsets);

@@ -421,7 +421,7 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    const sensors::Calibration& calibration, int num_threads) {
+    const sensors::Calibration& calibration, int num_threads, std::vector<std::string>* warnings) {
   std::vector<ceres::ResidualBlockId> ids;
   problem->GetResidualBlocks(&ids);
   estimation::ExactHessianTerms exact;
@@ -434,7 +434,14 @@ estimation::BlockCovariance PosteriorCovariance(
   }
   exact.gauss_newton_blocks = {&calibration.time_offset_wheel_imu_s,
                                &calibration.time_offset_gnss_imu_s};
-  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact);
+  const estimation::BlockCovariance covariance =
+      estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact);
+  if (covariance.ok) return covariance;
+  warnings->push_back(
+      "covariance: the cost's exact Hessian is not positive definite at the solution (the solve "
+      "is not at a minimum along some direction); the sigmas are Gauss-Newton's, which can count "
+      "the measurements' noise as information");
+  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads);
 }
 
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,

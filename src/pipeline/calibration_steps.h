@@ -171,10 +171,11 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 // (their loss is inside the factor, their Jacobian is the points' geometry) and the
 // planar-rotation rows (they leave out the one column whose derivative is noise, Eq. F27b).
 // The wheel and GNSS clocks of `calibration` (the problem's blocks) keep J^T J: their
-// Jacobian is a smoothed slope, not the residual's derivative.
+// Jacobian is a smoothed slope, not the residual's derivative. Where the completed matrix is
+// not positive definite (a solve stopped off a minimum), J^T J alone, with a warning.
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    const sensors::Calibration& calibration, int num_threads);
+    const sensors::Calibration& calibration, int num_threads, std::vector<std::string>* warnings);
 
 // result->posterior from the solve's calibration (`solved`), the blocks' priors and their
 // covariance, before Observe holds any direction.

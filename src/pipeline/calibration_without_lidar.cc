@@ -203,8 +203,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   Report(options, "solving", 1.0, summary.final_cost, 0.0);
 
   // 3. Observability, uncertainty and the result.
-  const estimation::BlockCovariance covariance =
-      PosteriorCovariance(blocks_estimated, &p, calibration, problem.solver.num_threads);
+  const estimation::BlockCovariance covariance = PosteriorCovariance(
+      blocks_estimated, &p, calibration, problem.solver.num_threads, &result.warnings);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
   result.batch.calibration_per_iteration = {calibration};  // one solve

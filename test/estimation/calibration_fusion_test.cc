@@ -153,12 +153,18 @@ TEST(CalibrationFusion, BlockOfOneLogKeepsItsEstimate) {
   EXPECT_TRUE(fused.value.p_I_A.allFinite());
 }
 
-// A log whose covariance is wider than its prior (the data's own curvature negative, Eq. C5)
-// tells nothing: the combination is the prior, not a sigma twice the prior's.
-TEST(CalibrationFusion, ALogWiderThanItsPriorAddsNothing) {
+// The prior centre of OneLog: the left radius and the antenna's lever arm, sigma 5 cm each.
+sensors::Calibration OneLogPrior() {
   sensors::Calibration prior_centre;
   prior_centre.wheel_radius_left_m = 0.33;
   prior_centre.p_I_A = Eigen::Vector3d(0.1, -0.2, 1.2);
+  return prior_centre;
+}
+
+// One log off the prior centre by centimetres, its sigma per direction (radius, lever arm x, y,
+// z) sigma_ratio times the prior's.
+CalibrationPosterior OneLog(const Eigen::Vector4d& sigma_ratio) {
+  const sensors::Calibration prior_centre = OneLogPrior();
   CalibrationPosterior log;
   log.solved = prior_centre;
   log.solved.wheel_radius_left_m += 0.04;
@@ -168,7 +174,14 @@ TEST(CalibrationFusion, ALogWiderThanItsPriorAddsNothing) {
              prior_centre);
   log.covariance.ok = true;
   log.covariance.offsets = {0, 1};
-  log.covariance.matrix = Eigen::MatrixXd::Identity(4, 4) * 4.0 * 0.05 * 0.05;
+  log.covariance.matrix = (sigma_ratio * 0.05).array().square().matrix().asDiagonal();
+  return log;
+}
+
+// A log whose covariance is wider than its prior (the data's own curvature negative, Eq. C5)
+// tells nothing: the combination is the prior, not a sigma twice the prior's.
+TEST(CalibrationFusion, ALogWiderThanItsPriorAddsNothing) {
+  CalibrationPosterior log = OneLog(Eigen::Vector4d::Constant(2.0));
   log.covariance.matrix(0, 1) = log.covariance.matrix(1, 0) = 1e-3;
   const FusedCalibration fused = FuseCalibrationPosteriors({log});
   ASSERT_TRUE(fused.covariance.ok);
@@ -177,7 +190,22 @@ TEST(CalibrationFusion, ALogWiderThanItsPriorAddsNothing) {
                 .maxCoeff(),
             1e-15);
   EXPECT_NEAR(fused.value.wheel_radius_left_m, 0.33, 1e-12);
-  EXPECT_LT((fused.value.p_I_A - prior_centre.p_I_A).norm(), 1e-12);
+  EXPECT_LT((fused.value.p_I_A - OneLogPrior().p_I_A).norm(), 1e-12);
+}
+
+// Mixed: the radius and the antenna's y and z narrowed by the log (sigma half the prior's),
+// the antenna's x widened (twice). The narrowed directions combine as usual (sigma half the
+// prior's, at the log's value); the widened one is left at the prior.
+TEST(CalibrationFusion, ALogAddsOnlyWhereItsDataCurveUp) {
+  const CalibrationPosterior log = OneLog(Eigen::Vector4d(0.5, 2.0, 0.5, 0.5));
+  const FusedCalibration fused = FuseCalibrationPosteriors({log});
+  ASSERT_TRUE(fused.covariance.ok);
+  const Eigen::Vector4d expected_sigma = Eigen::Vector4d(0.5, 1.0, 0.5, 0.5) * 0.05;
+  EXPECT_LT((fused.covariance.matrix.diagonal().cwiseSqrt() - expected_sigma).cwiseAbs().maxCoeff(),
+            1e-12);
+  EXPECT_NEAR(fused.value.wheel_radius_left_m, log.solved.wheel_radius_left_m, 1e-12);
+  EXPECT_NEAR(fused.value.p_I_A.x(), OneLogPrior().p_I_A.x(), 1e-12);
+  EXPECT_LT((fused.value.p_I_A.tail<2>() - log.solved.p_I_A.tail<2>()).norm(), 1e-12);
 }
 
 TEST(CalibrationFusion, RefusesALogWithoutCovariance) {
