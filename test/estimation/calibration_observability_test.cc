@@ -62,16 +62,22 @@ TEST(CalibrationObservability, HoldsUnobservableDirectionsAndConditionsTheRest) 
   EXPECT_THAT(result.warnings[1], ::testing::HasSubstr("z: not excited by the drive"));
 }
 
-// A direction whose posterior is barely narrower than its prior is unobservable too, even
-// when the prior itself is tighter than the limit.
-TEST(CalibrationObservability, ADirectionTheDataDidNotNarrowIsUnobservable) {
+// A block at its prior (sigma 2 cm, limit 3 cm) whose x and y the data determine to 1 mm and
+// z to z_sigma_m, through HoldUnobservableDirections.
+BlockObservability HeldWithZSigma(double z_sigma_m) {
   Eigen::Vector3d p(0.30, -0.05, 0.55);
   const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.02, 0.03)};
   BlockCovariance covariance;
   covariance.ok = true;
   covariance.offsets = {0};
-  covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, 0.019 * 0.019).asDiagonal();
-  const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, z_sigma_m * z_sigma_m).asDiagonal();
+  return HoldUnobservableDirections(blocks, covariance);
+}
+
+// A direction whose posterior is barely narrower than its prior is unobservable too, even
+// when the prior itself is tighter than the limit.
+TEST(CalibrationObservability, ADirectionTheDataDidNotNarrowIsUnobservable) {
+  const BlockObservability result = HeldWithZSigma(0.019);
   EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
   ASSERT_EQ(result.warnings.size(), 1u);
   EXPECT_THAT(result.warnings[0],
@@ -79,15 +85,9 @@ TEST(CalibrationObservability, ADirectionTheDataDidNotNarrowIsUnobservable) {
 }
 
 // With the exact Hessian (Eq. C5) a direction can come out wider than its prior: the data's
-// own curvature along it is negative, and the warning says so.
+// own information about it is not positive, and the warning says so.
 TEST(CalibrationObservability, ADirectionWiderThanItsPriorIsNamedSo) {
-  Eigen::Vector3d p(0.30, -0.05, 0.55);
-  const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.02, 0.03)};
-  BlockCovariance covariance;
-  covariance.ok = true;
-  covariance.offsets = {0};
-  covariance.matrix = Eigen::Vector3d(1e-6, 1e-6, 0.05 * 0.05).asDiagonal();
-  const BlockObservability result = HoldUnobservableDirections(blocks, covariance);
+  const BlockObservability result = HeldWithZSigma(0.05);
   EXPECT_THAT(result.observable[0], ::testing::ElementsAre(true, true, false));
   EXPECT_DOUBLE_EQ(result.sigma[0](2), 0.02);
   ASSERT_EQ(result.warnings.size(), 1u);
