@@ -141,24 +141,20 @@ void AppendResidualBlockCurvature(ceres::Problem* problem, ceres::ResidualBlockI
     loss->Evaluate(residual.squaredNorm(), rho);
   }
   Eigen::MatrixXd curvature(rb.columns(), rb.columns());
+  std::vector<int> row_of_column;  // each stacked column's row of H
   for (const VariableBlock& block : rb.variables()) {
     for (int c = 0; c < block.tangent; ++c) {
+      row_of_column.push_back(block.offset + c);
       const Eigen::MatrixXd difference =
           ChartJacobianAt(&rb, block, c, kStep) - ChartJacobianAt(&rb, block, c, -kStep);
       curvature.col(block.column + c) = rho[1] * difference.transpose() * residual / (2.0 * kStep);
     }
   }
   curvature = 0.5 * (curvature + curvature.transpose()).eval();
-  for (const VariableBlock& row_block : rb.variables()) {
-    for (const VariableBlock& col_block : rb.variables()) {
-      if (row_block.offset < col_block.offset) continue;
-      for (int i = 0; i < row_block.tangent; ++i) {
-        for (int j = 0; j < col_block.tangent; ++j) {
-          if (row_block.offset == col_block.offset && j > i) continue;
-          entries->emplace_back(row_block.offset + i, col_block.offset + j,
-                                curvature(row_block.column + i, col_block.column + j));
-        }
-      }
+  for (int a = 0; a < rb.columns(); ++a) {
+    for (int b = 0; b < rb.columns(); ++b) {
+      if (row_of_column[a] < row_of_column[b]) continue;  // H's lower triangle only
+      entries->emplace_back(row_of_column[a], row_of_column[b], curvature(a, b));
     }
   }
 }

@@ -76,6 +76,21 @@ struct Fixture {
   }
 };
 
+// The residual (no loss) and its tangent Jacobian, 3 columns for q.
+struct Linearization {
+  Eigen::Vector3d r;
+  Eigen::Matrix<double, 3, 9> J;
+};
+Linearization Linearize(Fixture* f) {
+  Linearization out;
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> j_q, j_i, j_j;
+  double* jacobians[] = {j_q.data(), j_i.data(), j_j.data()};
+  double cost = 0.0;
+  EXPECT_TRUE(f->problem->EvaluateResidualBlock(f->id, false, &cost, out.r.data(), jacobians));
+  out.J << j_q, j_i, j_j;
+  return out;
+}
+
 // Offsets of the three blocks in a 9-column tangent vector.
 BlockOffsets OffsetsOf(Fixture* f) {
   return {{f->q.coeffs().data(), 0}, {f->v_i.data(), 3}, {f->v_j.data(), 6}};
@@ -115,13 +130,7 @@ TEST(ResidualCurvature, CompletesGaussNewtonToTheCostsHessian) {
     Fixture f(seed);
     const Eigen::Matrix<double, 9, 9> curvature =
         Dense(ResidualCurvature(f.problem.get(), {f.id}, OffsetsOf(&f)));
-    double cost = 0.0;
-    Eigen::Vector3d r;
-    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> j_q, j_i, j_j;  // tangent: 3 columns for q
-    double* jacobians[] = {j_q.data(), j_i.data(), j_j.data()};
-    ASSERT_TRUE(f.problem->EvaluateResidualBlock(f.id, false, &cost, r.data(), jacobians));
-    Eigen::Matrix<double, 3, 9> J;
-    J << j_q, j_i, j_j;
+    const Eigen::Matrix<double, 3, 9> J = Linearize(&f).J;
     const Eigen::Matrix<double, 9, 9> gauss_newton = J.transpose() * J;
 
     const Eigen::Matrix<double, 9, 9> numeric = NumericHessian(&f);
@@ -160,13 +169,7 @@ TEST(ResidualCurvature, WeighsTheTermByTheLossSlope) {
   Fixture f(6, new ceres::CauchyLoss(0.5));
   const Eigen::Matrix<double, 9, 9> curvature =
       Dense(ResidualCurvature(f.problem.get(), {f.id}, OffsetsOf(&f)));
-  double cost = 0.0;
-  Eigen::Vector3d r;
-  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> j_q, j_i, j_j;
-  double* jacobians[] = {j_q.data(), j_i.data(), j_j.data()};
-  ASSERT_TRUE(f.problem->EvaluateResidualBlock(f.id, false, &cost, r.data(), jacobians));
-  Eigen::Matrix<double, 3, 9> J;
-  J << j_q, j_i, j_j;
+  const auto [r, J] = Linearize(&f);
   double rho[3];
   ceres::CauchyLoss(0.5).Evaluate(r.squaredNorm(), rho);
   ASSERT_LT(rho[1], 0.5);  // well into the loss: the weight matters
