@@ -5,10 +5,12 @@
 // program sees to a file the parent reads.
 
 #include <gtest/gtest.h>
+#include <malloc.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -97,6 +99,31 @@ TEST(HugePageHeap, LeavesAGivenSettingAlone) {
   const Seen seen = RunWith("glibc.malloc.hugetlb=0", "given");
   EXPECT_EQ(seen.tunables, "glibc.malloc.hugetlb=0");
   EXPECT_TRUE(seen.same_pid);
+}
+
+// tools::KeepFreedMemory: a block of hundreds of MiB, as a long log's solver matrices, comes
+// from the heap and stays there once freed, so the next solve reuses it without page faults.
+// In a child, so this process's allocator keeps its settings.
+TEST(KeepFreedMemory, KeepsALargeFreedBlockOnTheHeap) {
+  const pid_t child = fork();
+  if (child == 0) {
+    tools::KeepFreedMemory();
+    constexpr size_t kBytes = size_t{300} << 20;
+    char* block = static_cast<char*>(std::malloc(kBytes));
+    if (block == nullptr) _exit(2);
+    std::memset(block, 1, kBytes);
+    const struct mallinfo2 held = mallinfo2();
+    std::free(block);
+    const struct mallinfo2 freed = mallinfo2();
+    // Not mapped on its own (hblkhd), and its pages still the heap's after the free.
+    const bool on_heap = held.hblkhd == 0 && held.arena >= kBytes;
+    const bool kept = freed.arena >= kBytes && freed.fordblks >= kBytes;
+    _exit(on_heap && kept ? 0 : 1);
+  }
+  int status = 0;
+  waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "1: the block was mapped or trimmed; 2: no memory";
 }
 
 }  // namespace
