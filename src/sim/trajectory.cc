@@ -254,6 +254,8 @@ void VehicleTrajectory::Evaluate(const T& t, Eigen::Matrix<T, 3, 3>* R_W_V,
   T psi = path_.Heading(s);
   if (!pivots_.empty()) psi = psi - T(path_.PivotsBefore(ScalarValue(s))) + pivots_.Yaw(t);
   const T kappa = path_.Curvature(s);
+  // The rear axle's slip: the body yaws into the turn from the direction of travel.
+  psi = psi + T(dynamics_.rear_slip_per_lateral_accel) * v * v * kappa;
   const Eigen::Matrix<T, 2, 1> xy = PlanarPosition(path_, s);
   const T z = ground_->Height(xy(0), xy(1));
   const Eigen::Matrix<T, 2, 1> grad = ground_->Gradient(xy(0), xy(1));

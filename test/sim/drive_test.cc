@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 
 #include "autocal/common/units.h"
 #include "autocal/sim/scenario.h"
@@ -93,6 +94,42 @@ TEST(DriveTest, UrbanDriveHasStandstillTurnsStopsAndGrades) {
   // Several 90-degree turns and a roundabout in two minutes.
   EXPECT_GE(total_turn * kRadToDeg, 360.0);
   EXPECT_GE(max_pitch - min_pitch, 2.0) << "road grades give pitch excitation, deg";
+}
+
+// With a rear-axle cornering compliance c the body yaws into each turn by c v^2 kappa from the
+// direction the axle travels, so V's origin moves sideways in V at -v sin(c v^2 kappa); without
+// it the axle does not slip. Measured against the same drive without slip (the suspension's
+// roll and pitch give the rest of the lateral speed, identical in both).
+TEST(DriveTest, TheRearAxleSlipsOutOfTheTurnByItsCorneringCompliance) {
+  SimulationOptions options = test::SmallLog(ScenarioType::kUrban, 60.0);
+  const Simulator ideal(options);
+  const double compliance = 0.3 * kDegToRad;  // rad per m/s^2
+  options.dynamics.rear_slip_per_lateral_accel = compliance;
+  const Simulator slipping(options);
+  const VehicleTrajectory& a = *ideal.scenario().trajectory;
+  const VehicleTrajectory& b = *slipping.scenario().trajectory;
+  const auto lateral_m_s = [](const BodyState& state) {
+    return (state.T_W_B.q.conjugate() * state.v_W).y();
+  };
+  double largest_slip_m_s = 0.0, largest_ideal_m_s = 0.0, worst_error_m_s = 0.0;
+  for (double t = 0.0; t <= 60.0; t += 0.05) {
+    const BodyState without = a.StateAt(t), with = b.StateAt(t);
+    const double s = a.ArcLengthAt(t);
+    const double v = without.v_W.head<2>().norm();
+    const double slip_rad = compliance * v * v * a.path().Curvature(s);
+    const double expected_m_s = -v * std::sin(slip_rad);
+    const double slip_m_s = lateral_m_s(with) - lateral_m_s(without);
+    worst_error_m_s = std::max(worst_error_m_s, std::abs(slip_m_s - expected_m_s));
+    largest_slip_m_s = std::max(largest_slip_m_s, std::abs(slip_m_s));
+    largest_ideal_m_s = std::max(largest_ideal_m_s, std::abs(lateral_m_s(without)));
+  }
+  std::cout << "largest slip " << largest_slip_m_s << " m/s, off -v sin(c v^2 kappa) by at most "
+            << worst_error_m_s << " m/s; ideal axle's lateral speed up to " << largest_ideal_m_s
+            << " m/s\n";
+  EXPECT_GT(largest_slip_m_s, 0.02) << "the roundabout's and the turn's slip, m/s";
+  EXPECT_LT(worst_error_m_s, 1e-3);
+  // Without slip only the body's roll tilting V's y axis into the grade's vertical speed.
+  EXPECT_LT(largest_ideal_m_s, 0.01) << "the ideal axle's lateral speed, m/s";
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, DriveTest,

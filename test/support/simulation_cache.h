@@ -274,7 +274,7 @@ void VisitFields(A& a, sim::SimulationSummary& s) {
 
 // Every field of the options, for the key. A field added to SimulationOptions (or to a struct
 // it holds) changes its size and stops the build here: add the field to the list below.
-static_assert(sizeof(sim::SimulationOptions) == 816,
+static_assert(sizeof(sim::SimulationOptions) == 832,
               "sim::SimulationOptions changed: list its new fields in the cache key");
 template <class A>
 void VisitFields(A& a, sim::SimulationOptions& o) {
@@ -284,6 +284,7 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.start_time_ns);
   a(o.dynamics.roll_per_lateral_accel);
   a(o.dynamics.pitch_per_longitudinal_accel);
+  a(o.dynamics.rear_slip_per_lateral_accel);
   a(o.dynamics.rear_axle_height_m);
   a(o.imu.add_noise);
   a(o.imu.noise.gyroscope_noise_density);

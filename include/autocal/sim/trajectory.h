@@ -201,6 +201,11 @@ struct VehicleDynamicsOptions {
   double roll_per_lateral_accel = 0.4 * kDegToRad;
   // Body pitch per longitudinal acceleration (nose up when accelerating), rad per m/s^2.
   double pitch_per_longitudinal_accel = 0.3 * kDegToRad;
+  // Slip angle of the rear axle per lateral acceleration, rad per m/s^2 (its cornering
+  // compliance; 0: the rear wheels roll without slipping sideways). In a turn the rear axle
+  // slides outwards: the body yaws into the turn by this times v^2 kappa from the direction
+  // the axle travels, so V's origin moves sideways in V at -v sin(slip).
+  double rear_slip_per_lateral_accel = 0.0;
   // Height of the rear-axle centre (V origin) above the road along the road normal, m.
   double rear_axle_height_m = 0.33;
 };
