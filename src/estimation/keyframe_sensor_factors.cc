@@ -276,15 +276,18 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
   ceres::LossFunction* loss = unused_loss.get();
-  if (!(options.non_holonomic_correlation_s >= 0.0) ||
-      !std::isfinite(options.non_holonomic_correlation_s)) {
-    throw Error("AddWheelFactors: non_holonomic_correlation_s must be finite and >= 0");
+  for (double tau_s : {options.lateral_correlation_s, options.vertical_correlation_s}) {
+    if (!(tau_s >= 0.0) || !std::isfinite(tau_s)) {
+      throw Error(
+          "AddWheelFactors: lateral_correlation_s and vertical_correlation_s must be "
+          "finite and >= 0");
+    }
   }
   factors::WheelFactorOptions factor_options = options.factor;
-  const double scale =
-      KeyframeNonHolonomicSigmaScale(*keyframes, options.non_holonomic_correlation_s);
-  factor_options.lateral_sigma_m_s *= scale;
-  factor_options.vertical_sigma_m_s *= scale;
+  factor_options.lateral_sigma_m_s *=
+      KeyframeNonHolonomicSigmaScale(*keyframes, options.lateral_correlation_s);
+  factor_options.vertical_sigma_m_s *=
+      KeyframeNonHolonomicSigmaScale(*keyframes, options.vertical_correlation_s);
   // The yaw-rate rows' sigma follows the track (Eq. F22b), stated at the track's start, where
   // the wheels' rates carry the encoders' white noise. Not for the controller's twist: its yaw
   // rate errs by the platform's slip, which b_eff models, not by noise in its rate.

@@ -441,15 +441,16 @@ TEST_F(KeyframeSensorFactorsTest, ShiftedWheelsAndFixesFindTheirClockOffsets) {
 // The non-holonomic rows' model error is the body's pitch and roll on its suspension, which
 // follow the acceleration: on the noise-free drive with the true state and calibration, the
 // vertical speed of the rear axle in V is far from white (correlated over seconds), and
-// AddWheelFactors scales those rows' sigma by sqrt(2 tau / dt) (the correlated-error scaling,
-// docs/keyframe_factors.md) and no other row.
+// AddWheelFactors scales the lateral and vertical rows' sigmas by sqrt(2 tau / dt) with their
+// own tau (the correlated-error scaling, docs/keyframe_factors.md) and no other row.
 TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation) {
-  const auto residuals = [&](double tau_s) {
+  const auto residuals = [&](double lateral_tau_s, double vertical_tau_s) {
     std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
     sensors::Calibration calibration = exact_simulator_->true_calibration();
     auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
     KeyframeWheelOptions options;
-    options.non_holonomic_correlation_s = tau_s;
+    options.lateral_correlation_s = lateral_tau_s;
+    options.vertical_correlation_s = vertical_tau_s;
     options.loss = factors::LossOptions();  // plain least squares: raw whitened rows
     EXPECT_GT(AddWheelFactors(problem.get(), exact_->imu.samples, exact_->wheel, &keyframes,
                               &calibration, options),
@@ -458,17 +459,18 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
     problem->Evaluate(ceres::Problem::EvaluateOptions(), nullptr, &r, nullptr, nullptr);
     return r;
   };
-  const std::vector<double> white = residuals(0.0);
-  const std::vector<double> correlated = residuals(2.0);
+  const std::vector<double> white = residuals(0.0, 0.0);
+  const std::vector<double> correlated = residuals(2.0, 0.5);
   ASSERT_EQ(white.size(), correlated.size());
   ASSERT_EQ(white.size() % 4, 0u);
-  const double scale = std::sqrt(2.0 * 2.0 / kKeyframeSpacingS);
+  const double lateral_scale = std::sqrt(2.0 * 2.0 / kKeyframeSpacingS);
+  const double vertical_scale = std::sqrt(2.0 * 0.5 / kKeyframeSpacingS);
   std::vector<double> vertical;
   for (size_t i = 0; i < white.size(); i += 4) {
     EXPECT_EQ(correlated[i], white[i]);
     EXPECT_EQ(correlated[i + 1], white[i + 1]);
-    EXPECT_NEAR(correlated[i + 2] * scale, white[i + 2], 1e-12);
-    EXPECT_NEAR(correlated[i + 3] * scale, white[i + 3], 1e-12);
+    EXPECT_NEAR(correlated[i + 2] * lateral_scale, white[i + 2], 1e-12);
+    EXPECT_NEAR(correlated[i + 3] * vertical_scale, white[i + 3], 1e-12);
     vertical.push_back(white[i + 3]);
   }
   // The integral time of the vertical row's autocorrelation (up to its first zero): white
@@ -489,7 +491,8 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
     integral_time_s += kKeyframeSpacingS * covariance(lag) / c0;
   }
   // Over +-10 s the negative lobe (a speed following the acceleration averages out) cancels
-  // most of it; the default correlation time is the integral to the first zero.
+  // most of it. The vertical row's default is twice that integral, which is what sets the
+  // variance of a long average; the lateral row's is the integral to the first zero.
   double integral_10s_s = 0.5 * kKeyframeSpacingS;
   for (size_t lag = 1; lag < 100; ++lag) integral_10s_s += kKeyframeSpacingS * covariance(lag) / c0;
   const double rms_m_s = 0.05 * std::sqrt(c0);
@@ -499,7 +502,8 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
   EXPECT_GT(rms_m_s, 0.005);
   EXPECT_GT(integral_time_s, 1.0);
   EXPECT_LT(integral_10s_s, 0.5);
-  EXPECT_NEAR(integral_time_s, KeyframeWheelOptions().non_holonomic_correlation_s, 0.1);
+  EXPECT_NEAR(KeyframeWheelOptions().vertical_correlation_s, 2.0 * integral_10s_s, 0.05);
+  EXPECT_NEAR(KeyframeWheelOptions().lateral_correlation_s, integral_time_s, 0.1);
 }
 
 // Keyframes whose positions the odometry lost: true orientations turned by 30 deg about the
