@@ -504,6 +504,19 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
   EXPECT_LT(integral_10s_s, 0.5);
   EXPECT_NEAR(KeyframeWheelOptions().vertical_correlation_s, 2.0 * integral_10s_s, 0.05);
   EXPECT_NEAR(KeyframeWheelOptions().lateral_correlation_s, integral_time_s, 0.1);
+
+  // A negative or non-finite correlation time is refused, for either row.
+  std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
+  sensors::Calibration calibration = exact_simulator_->true_calibration();
+  auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+  KeyframeWheelOptions negative, not_finite;
+  negative.lateral_correlation_s = -1.0;
+  not_finite.vertical_correlation_s = std::nan("");
+  for (const KeyframeWheelOptions& options : {negative, not_finite}) {
+    EXPECT_THROW(AddWheelFactors(problem.get(), exact_->imu.samples, exact_->wheel, &keyframes,
+                                 &calibration, options),
+                 Error);
+  }
 }
 
 // Keyframes whose positions the odometry lost: true orientations turned by 30 deg about the
