@@ -59,12 +59,9 @@ inline void StartWithHugePageHeap(char** argv) {
 }
 
 // Every block comes from the heap, none is mapped on its own, and the heap's free top is kept
-// up to 2 GiB. With glibc's largest mapping threshold (32 MiB) and a 256 MiB trim threshold, the
-// 600 s log's solver matrices (Jacobians, normal equations, factors of hundreds of MiB) went back
-// to the kernel at every free and were faulted and zeroed again at the next solve: 13 800 page
-// faults and 7.6-9.1 s of system time against 1 800 and 5.0-5.6 s kept, and a peak of 1.80 GB
-// against 1.71 GB (docs/calibration.md, "Speed"). Logs whose matrices stay below those sizes
-// (the 60 s log) see no difference.
+// up to 2 GiB: a long log's solver matrices (Jacobians, normal equations and factors of hundreds
+// of MiB, above glibc's largest mapping threshold) are reused by the next solve instead of being
+// handed back to the kernel, faulted and zeroed again (docs/calibration.md, "Speed").
 inline void KeepFreedMemory() {
 #if defined(__GLIBC__)
   mallopt(M_MMAP_MAX, 0);

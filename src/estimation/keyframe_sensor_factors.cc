@@ -276,11 +276,11 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
   ceres::LossFunction* loss = unused_loss.get();
-  for (double tau_s : {options.lateral_correlation_s, options.vertical_correlation_s}) {
+  for (const auto& [name, tau_s] : {std::pair{"lateral", options.lateral_correlation_s},
+                                    std::pair{"vertical", options.vertical_correlation_s}}) {
     if (!(tau_s >= 0.0) || !std::isfinite(tau_s)) {
-      throw Error(
-          "AddWheelFactors: lateral_correlation_s and vertical_correlation_s must be "
-          "finite and >= 0");
+      throw Error(std::string("AddWheelFactors: ") + name +
+                  "_correlation_s must be finite and >= 0, got " + std::to_string(tau_s));
     }
   }
   factors::WheelFactorOptions factor_options = options.factor;
