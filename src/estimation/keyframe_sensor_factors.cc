@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -276,18 +277,18 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
   ceres::LossFunction* loss = unused_loss.get();
-  for (const auto& [name, tau_s] : {std::pair{"lateral", options.lateral_correlation_s},
-                                    std::pair{"vertical", options.vertical_correlation_s}}) {
+  // Each non-holonomic row's sigma scaled for its own correlation time.
+  factors::WheelFactorOptions factor_options = options.factor;
+  for (const auto& [name, tau_s, sigma_m_s] :
+       {std::tuple{"lateral", options.lateral_correlation_s, &factor_options.lateral_sigma_m_s},
+        std::tuple{"vertical", options.vertical_correlation_s,
+                   &factor_options.vertical_sigma_m_s}}) {
     if (!(tau_s >= 0.0) || !std::isfinite(tau_s)) {
       throw Error(std::string("AddWheelFactors: ") + name +
                   "_correlation_s must be finite and >= 0, got " + std::to_string(tau_s));
     }
+    *sigma_m_s *= KeyframeNonHolonomicSigmaScale(*keyframes, tau_s);
   }
-  factors::WheelFactorOptions factor_options = options.factor;
-  factor_options.lateral_sigma_m_s *=
-      KeyframeNonHolonomicSigmaScale(*keyframes, options.lateral_correlation_s);
-  factor_options.vertical_sigma_m_s *=
-      KeyframeNonHolonomicSigmaScale(*keyframes, options.vertical_correlation_s);
   // The yaw-rate rows' sigma follows the track (Eq. F22b), stated at the track's start, where
   // the wheels' rates carry the encoders' white noise. Not for the controller's twist: its yaw
   // rate errs by the platform's slip, which b_eff models, not by noise in its rate.
