@@ -5,6 +5,7 @@
 // clear of it; and the builders BuildScenario dispatches to.
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -71,7 +72,12 @@ class DriveBuilder {
     if (speed_.final_speed_m_s() != 0.0) throw Error("simulated drive: standing while moving");
     speed_.Hold(duration_s);
   }
+  // A turn on a circle entered and left through ramps (PathProfile::AddArc). A turn too
+  // gentle for its ramps, which alone would turn more than heading_change_rad, gets ramps of
+  // |heading_change_rad| radius_m each and no circle between them: it reaches the same
+  // curvature and turns by the requested angle.
   void Arc(double heading_change_rad, double radius_m, double ramp_m) {
+    ramp_m = std::min(ramp_m, std::abs(heading_change_rad) * radius_m);
     const double length = std::abs(heading_change_rad) * radius_m + ramp_m;
     path_.AddArc(heading_change_rad, radius_m, ramp_m);
     speed_.Hold(length / RequireMoving());

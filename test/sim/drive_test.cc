@@ -9,6 +9,7 @@
 #include "autocal/common/units.h"
 #include "autocal/sim/scenario.h"
 #include "autocal/sim/simulator.h"
+#include "sim/scenario_parts.h"
 #include "sim/sim_test_util.h"
 
 namespace autocal {
@@ -17,17 +18,14 @@ namespace {
 
 class DriveTest : public ::testing::TestWithParam<ScenarioType> {};
 
-TEST_P(DriveTest, SpeedAccelerationAndJerkStayWithinTheScenarioLimits) {
-  // 90 s cover every urban maneuver (turns, stops, roundabout, overtaking) and every
-  // highway one (lane changes, curves, speed changes).
-  const Simulator simulator(test::SmallLog(GetParam(), 90.0));
-  const Scenario& scenario = simulator.scenario();
+// The scenario's speed, horizontal acceleration and jerk over [0, duration_s] against its limits.
+void ExpectWithinLimits(const Scenario& scenario, double duration_s) {
   const DriveLimits& limits = scenario.limits;
   const VehicleTrajectory& trajectory = *scenario.trajectory;
   const double h = 0.01;
   BodyState previous = trajectory.StateAt(0.0);
   double max_speed = 0.0, min_speed = 1e9, max_accel = 0.0, max_jerk = 0.0, jerk_t = 0.0;
-  for (double t = h; t <= simulator.options().duration_s; t += h) {
+  for (double t = h; t <= duration_s; t += h) {
     const BodyState state = trajectory.StateAt(t);
     const double speed = state.v_W.norm();
     max_speed = std::max(max_speed, speed);
@@ -41,9 +39,49 @@ TEST_P(DriveTest, SpeedAccelerationAndJerkStayWithinTheScenarioLimits) {
   EXPECT_GE(min_speed, limits.min_cruise_speed_m_s) << "km/h: " << min_speed * 3.6;
   EXPECT_LE(max_accel, limits.max_horizontal_accel_m_s2);
   EXPECT_LE(max_jerk, limits.max_jerk_m_s3) << "at t = " << jerk_t << " s";
-  if (GetParam() == ScenarioType::kHighway) {
+  if (scenario.type == ScenarioType::kHighway) {
     EXPECT_GT(max_speed * 3.6, 110.0) << "a highway drive runs at about 120 km/h";
   }
+}
+
+TEST_P(DriveTest, SpeedAccelerationAndJerkStayWithinTheScenarioLimits) {
+  // 90 s cover every urban maneuver (turns, stops, roundabout, overtaking) and every
+  // highway one (lane changes, curves, speed changes).
+  const Simulator simulator(test::SmallLog(GetParam(), 90.0));
+  ExpectWithinLimits(simulator.scenario(), simulator.options().duration_s);
+}
+
+// Every seed gives a drive: the random maneuvers are drawn within what the path can build.
+// Highway seeds 7 and 25 drew curves whose entry and exit ramps alone turned more than the
+// curve's angle, and the simulator refused them.
+TEST_P(DriveTest, EverySeedPlansADrive) {
+  for (uint64_t seed = 1; seed <= 60; ++seed) {
+    ScenarioOptions options;
+    options.type = GetParam();
+    options.duration_s = 10.0;
+    options.seed = seed;
+    EXPECT_NO_THROW(BuildScenario(options)) << "seed " << seed;
+  }
+}
+
+// A curve too gentle for its ramps is ramped in and out at once: it turns by the requested
+// angle, reaches the circle's curvature and stays within the highway's limits.
+TEST(DriveTest, ACurveTooGentleForItsRampsTurnsByItsAngle) {
+  const double turn_rad = 7.0 * kDegToRad, radius_m = 900.0, ramp_m = 120.0;
+  ASSERT_LT(turn_rad * radius_m, ramp_m) << "the ramps alone would turn more";
+  internal::DriveBuilder drive(0.3, 33.0);
+  drive.Cruise(50.0);
+  drive.Arc(turn_rad, radius_m, ramp_m);
+  const PathProfile& path = drive.path();
+  EXPECT_NEAR(path.final_heading_rad() - 0.3, turn_rad, 1e-12);
+  EXPECT_NEAR(path.length_m(), 50.0 + 2.0 * turn_rad * radius_m, 1e-9);
+  EXPECT_NEAR(path.Curvature(50.0 + turn_rad * radius_m), 1.0 / radius_m, 1e-12);
+
+  ScenarioOptions options;
+  options.type = ScenarioType::kHighway;
+  options.duration_s = 60.0;
+  options.seed = 7;  // draws a curve of 7.2 deg at 944 m
+  ExpectWithinLimits(BuildScenario(options), options.duration_s);
 }
 
 TEST_P(DriveTest, AccelerationOfTheImuIsContinuous) {
