@@ -1,3 +1,4 @@
+// A call takes at most one random draw: several are named first (random_streams.h).
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -113,18 +114,23 @@ Scenario BuildUrban(const ScenarioOptions& options, std::mt19937_64* rng) {
   }
   for (double s = -50.0; s < s_end; s += between(14.0, 28.0)) {
     for (double side : {-1.0, 1.0}) {
-      const Eigen::Vector3d size(between(12.0, 26.0), between(8.0, 16.0), between(6.0, 25.0));
+      const double height = between(6.0, 25.0), depth = between(8.0, 16.0),
+                   length = between(12.0, 26.0);
+      const Eigen::Vector3d size(length, depth, height);
       const double lateral = side * (between(9.0, 12.0) + 0.5 * size.y());
       placer.AddBox(s, lateral, size, 0.0, 7.0, static_cast<float>(between(0.3, 0.8)));
     }
   }
   for (double s = -40.0; s < s_end; s += between(18.0, 35.0)) {
     const double side = uniform(*rng) < 0.5 ? -1.0 : 1.0;
-    placer.AddPole(s, side * between(5.5, 6.5), between(0.1, 0.2), between(5.0, 9.0), 3.5, 0.6f);
+    const double height = between(5.0, 9.0), radius = between(0.1, 0.2),
+                 lateral = side * between(5.5, 6.5);
+    placer.AddPole(s, lateral, radius, height, 3.5, 0.6f);
   }
   for (double s = -30.0; s < s_end; s += between(7.0, 20.0)) {
     if (uniform(*rng) < 0.45) {
-      placer.AddBox(s, -between(3.6, 4.0), {4.5, 1.8, 1.5}, between(-0.05, 0.05), 2.2, 0.7f, 0.2);
+      const double yaw = between(-0.05, 0.05), lateral = -between(3.6, 4.0);
+      placer.AddBox(s, lateral, {4.5, 1.8, 1.5}, yaw, 2.2, 0.7f, 0.2);
     }
   }
   // Oncoming traffic in the opposite lane.
@@ -157,7 +163,8 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
       }
       case 1: {  // gentle curve
         const double sign = uniform(*rng) < 0.5 ? -1.0 : 1.0;
-        drive.Arc(sign * between(7.0, 12.0) * kDegToRad, between(900.0, 1500.0), 120.0);
+        const double radius = between(900.0, 1500.0), angle = sign * between(7.0, 12.0) * kDegToRad;
+        drive.Arc(angle, radius, 120.0);
         break;
       }
       case 3:  // speed change with the traffic
@@ -194,11 +201,13 @@ Scenario BuildHighway(const ScenarioOptions& options, std::mt19937_64* rng) {
   for (double s = -150.0; s < s_end; s += between(15.0, 40.0)) {  // trees and buildings
     const double side = uniform(*rng) < 0.5 ? -1.0 : 1.0;
     if (uniform(*rng) < 0.7) {
-      placer.AddPole(s, road(s) + side * between(14.0, 30.0), between(0.3, 0.6), between(6.0, 12.0),
-                     4.0, 0.4f);
+      const double height = between(6.0, 12.0), radius = between(0.3, 0.6),
+                   lateral = road(s) + side * between(14.0, 30.0);
+      placer.AddPole(s, lateral, radius, height, 4.0, 0.4f);
     } else {
-      placer.AddBox(s, road(s) + side * between(25.0, 45.0),
-                    {between(10.0, 30.0), between(8.0, 15.0), between(5.0, 15.0)}, 0.0, 10.0, 0.5f);
+      const double length = between(10.0, 30.0), depth = between(8.0, 15.0),
+                   height = between(5.0, 15.0), lateral = road(s) + side * between(25.0, 45.0);
+      placer.AddBox(s, lateral, {length, depth, height}, 0.0, 10.0, 0.5f);
     }
   }
   // The lead vehicle keeps a varying gap in the drive's own lane; others in adjacent lanes.
@@ -228,17 +237,21 @@ Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
   for (int m = 0; drive.time_s() < options.duration_s + 5.0; ++m) {
     drive.Cruise(between(30.0, 80.0));
     switch (m % 3) {
-      case 0:
-        drive.ChangeSpeed(between(65.0, 90.0) * kKmh, between(1.5, 2.5));
+      case 0: {
+        const double accel = between(1.5, 2.5), speed = between(65.0, 90.0) * kKmh;
+        drive.ChangeSpeed(speed, accel);
         break;
+      }
       case 1:
         drive.ChangeSpeed(0.0, 2.8);
         drive.Stand(between(2.0, 3.0));
         drive.ChangeSpeed(between(30.0, 50.0) * kKmh, 2.5);
         break;
-      default:
-        drive.ChangeSpeed(between(50.0, 80.0) * kKmh, between(1.5, 2.5));
+      default: {
+        const double accel = between(1.5, 2.5), speed = between(50.0, 80.0) * kKmh;
+        drive.ChangeSpeed(speed, accel);
         break;
+      }
     }
   }
   drive.Cruise(100.0);
@@ -252,14 +265,19 @@ Scenario BuildStraight(const ScenarioOptions& options, std::mt19937_64* rng) {
   Placer placer(*trajectory, corridor, scene.world.get());
   for (double s = -50.0; s < s_end; s += between(14.0, 30.0)) {
     for (double side : {-1.0, 1.0}) {
-      const Eigen::Vector3d size(between(12.0, 26.0), between(8.0, 16.0), between(6.0, 20.0));
-      placer.AddBox(s, side * (between(10.0, 14.0) + 0.5 * size.y()), size, 0.0, 7.0,
-                    static_cast<float>(between(0.3, 0.8)));
+      const double height = between(6.0, 20.0), depth = between(8.0, 16.0),
+                   length = between(12.0, 26.0);
+      const Eigen::Vector3d size(length, depth, height);
+      const double reflectivity = between(0.3, 0.8),
+                   lateral = side * (between(10.0, 14.0) + 0.5 * size.y());
+      placer.AddBox(s, lateral, size, 0.0, 7.0, static_cast<float>(reflectivity));
     }
   }
   for (double s = -40.0; s < s_end; s += between(20.0, 40.0)) {
     const double side = uniform(*rng) < 0.5 ? -1.0 : 1.0;
-    placer.AddPole(s, side * between(5.5, 7.0), between(0.1, 0.2), between(5.0, 9.0), 3.5, 0.6f);
+    const double height = between(5.0, 9.0), radius = between(0.1, 0.2),
+                 lateral = side * between(5.5, 7.0);
+    placer.AddPole(s, lateral, radius, height, 3.5, 0.6f);
   }
 
   return scene.Of(ScenarioType::kStraight, {95.0 * kKmh, 0.0, 3.0, 5.0});

@@ -1,3 +1,4 @@
+// A call takes at most one random draw: several are named first (random_streams.h).
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -58,12 +59,13 @@ void AddOpenGroundObjects(Placer* placer, double s_begin, double s_end, std::mt1
   for (double s = s_begin; s < s_end; s += between(4.0, 9.0)) {
     const double side = uniform(*rng) < 0.5 ? -1.0 : 1.0;
     if (uniform(*rng) < 0.8) {
-      placer->AddPole(s, side * between(4.0, 15.0), between(0.1, 0.4), between(3.0, 10.0), 2.0,
-                      0.4f);
+      const double height = between(3.0, 10.0), radius = between(0.1, 0.4),
+                   lateral = side * between(4.0, 15.0);
+      placer->AddPole(s, lateral, radius, height, 2.0, 0.4f);
     } else {
-      placer->AddBox(s, side * between(8.0, 20.0),
-                     {between(3.0, 8.0), between(3.0, 6.0), between(2.5, 4.0)}, between(-0.5, 0.5),
-                     3.0, 0.6f);
+      const double yaw = between(-0.5, 0.5), length = between(3.0, 8.0), depth = between(3.0, 6.0),
+                   height = between(2.5, 4.0), lateral = side * between(8.0, 20.0);
+      placer->AddBox(s, lateral, {length, depth, height}, yaw, 3.0, 0.6f);
     }
   }
 }

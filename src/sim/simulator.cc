@@ -80,11 +80,11 @@ Simulator::Simulator(const SimulationOptions& options) : options_(options) {
   std::normal_distribution<double> normal(0.0, 1.0);
   const NominalPerturbation& np = options_.nominal_perturbation;
   auto rotation = [&]() -> Eigen::Quaterniond {
-    const Eigen::Vector3d phi(normal(rng), normal(rng), normal(rng));
+    const Eigen::Vector3d phi = DrawVector3([&] { return normal(rng); });
     return geometry::Exp(Eigen::Vector3d(np.rotation_deg * kDegToRad * phi));
   };
   auto translation = [&]() -> Eigen::Vector3d {
-    return Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * np.translation_m;
+    return DrawVector3([&] { return normal(rng); }) * np.translation_m;
   };
   nominal_ = truth;
   nominal_.q_I_L = (truth.q_I_L * rotation()).normalized();
@@ -190,7 +190,7 @@ ImuLog Simulator::GenerateImu() const {
   std::mt19937_64 rng = RandomStream(options_.seed, Stream::kImu);
   std::normal_distribution<double> normal(0.0, 1.0);
   auto draw = [&](double sigma) -> Eigen::Vector3d {
-    return Eigen::Vector3d(normal(rng), normal(rng), normal(rng)) * sigma;
+    return DrawVector3([&] { return normal(rng); }) * sigma;
   };
   const double bias_scale = o.add_noise ? 1.0 : 0.0;
   Eigen::Vector3d b_g = draw(bias_scale * o.initial_gyro_bias_sigma_rad_s);
@@ -334,7 +334,7 @@ GnssLog Simulator::GenerateGnss() const {
     const double t = TimeOf(t_ns);
     // Draw every random number of the epoch even when it falls in an outage, so that an
     // outage does not shift the noise of the fixes after it.
-    const Eigen::Vector3d unit_noise(normal(rng), normal(rng), normal(rng));
+    const Eigen::Vector3d unit_noise = DrawVector3([&] { return normal(rng); });
     unit_error =
         k == 0 ? unit_noise : Eigen::Vector3d(a * unit_error + std::sqrt(1.0 - a * a) * unit_noise);
     const bool outlier = uniform(rng) < o.outlier_probability;
