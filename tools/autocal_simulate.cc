@@ -48,7 +48,9 @@ DEFINE_double(gnss_error_correlation_s, 0.0,
 DEFINE_double(origin_lat_deg, 49.0110, "latitude of the world origin, degrees (WGS84)");
 DEFINE_double(origin_lon_deg, 8.4170, "longitude of the world origin, degrees (WGS84)");
 DEFINE_double(origin_alt_m, 165.0, "ellipsoidal height of the world origin, metres");
-DEFINE_double(imu_rate_hz, 200.0, "IMU sample rate, Hz (20..2000)");
+DEFINE_double(imu_rate_hz, 200.0,
+              "IMU sample rate, Hz (20..2000); with --preset, the preset's stamp jitter keeps its "
+              "share of the sample period");
 DEFINE_double(imu_stamp_jitter_s, 0.0, "IMU sample instants jitter by +-this, seconds");
 DEFINE_double(imu_noise_scale, 1.0,
               "scale of the IMU noise densities and random walks (EuRoC-class MEMS at 1)");
@@ -61,7 +63,9 @@ DEFINE_string(imu_mount_rpy_deg, "",
 DEFINE_string(nominal_imu_mount_rpy_deg, "",
               "R_V_I written to sensors.yaml as roll,pitch,yaw degrees (default: a draw near "
               "the truth)");
-DEFINE_double(wheel_rate_hz, 100.0, "wheel encoder rate, Hz");
+DEFINE_double(wheel_rate_hz, 100.0,
+              "wheel encoder rate, Hz; with --preset, the preset's stamp jitter and burst span "
+              "keep their share of the sample period");
 DEFINE_double(wheel_noise_rad_s, 0.02, "wheel rate noise, 1-sigma rad/s");
 DEFINE_double(wheel_stamp_jitter_s, 0.0, "wheel sample instants jitter by +-this, seconds");
 DEFINE_int32(wheel_burst_size, 1, "wheel samples delivered in groups of this many (1: off)");
@@ -156,6 +160,17 @@ int ThreadsFromFlag() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
+// A preset's stamp jitter and burst span are shares of its sensors' sample periods: a rate
+// given without them keeps those shares (a 30 Hz preset's 2 ms jitter is 0.3 ms at 200 Hz).
+void KeepPresetTiming(double preset_imu_rate_hz, double preset_wheel_rate_hz,
+                      autocal::sim::SimulationOptions* o) {
+  const double imu = preset_imu_rate_hz / o->imu.noise.update_rate_hz;
+  const double wheel = preset_wheel_rate_hz / o->wheel.config.rate_hz;
+  if (!Given("imu_stamp_jitter_s")) o->imu.stamp_jitter_s *= imu;
+  if (!Given("wheel_stamp_jitter_s")) o->wheel.stamp_jitter_s *= wheel;
+  if (!Given("wheel_burst_span_s")) o->wheel.burst_span_s *= wheel;
+}
+
 autocal::sim::SimulationOptions OptionsFromFlags() {
   autocal::sim::SimulationOptions o = PresetFromFlag();
   const bool all = FLAGS_preset.empty();
@@ -175,6 +190,7 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   set("origin_lat_deg", FLAGS_origin_lat_deg, &o.gnss.origin_lat_deg);
   set("origin_lon_deg", FLAGS_origin_lon_deg, &o.gnss.origin_lon_deg);
   set("origin_alt_m", FLAGS_origin_alt_m, &o.gnss.origin_alt_m);
+  const double preset_imu_rate_hz = o.imu.noise.update_rate_hz;
   set("imu_rate_hz", FLAGS_imu_rate_hz, &o.imu.noise.update_rate_hz);
   set("imu_stamp_jitter_s", FLAGS_imu_stamp_jitter_s, &o.imu.stamp_jitter_s);
   set("imu_noise_scale", FLAGS_imu_noise_scale, &o.imu.noise_scale);
@@ -189,6 +205,7 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   }
   o.true_calibration.wheel_radius_left_m *= 1.0 + FLAGS_left_wheel_radius_change_pct / 100.0;
   o.true_calibration.wheel_radius_right_m *= 1.0 + FLAGS_right_wheel_radius_change_pct / 100.0;
+  const double preset_wheel_rate_hz = o.wheel.config.rate_hz;
   set("wheel_rate_hz", FLAGS_wheel_rate_hz, &o.wheel.config.rate_hz);
   set("wheel_noise_rad_s", FLAGS_wheel_noise_rad_s, &o.wheel.config.noise_rad_s);
   set("wheel_stamp_jitter_s", FLAGS_wheel_stamp_jitter_s, &o.wheel.stamp_jitter_s);
@@ -204,6 +221,7 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   set("wheel_noise_m_s", FLAGS_wheel_noise_m_s, &o.wheel.config.noise_m_s);
   set("wheel_yaw_rate_noise_rad_s", FLAGS_wheel_yaw_rate_noise_rad_s,
       &o.wheel.config.yaw_rate_noise_rad_s);
+  if (!all) KeepPresetTiming(preset_imu_rate_hz, preset_wheel_rate_hz, &o);
   return FLAGS_noise ? o : o.WithoutNoise();
 }
 

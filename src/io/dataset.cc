@@ -177,7 +177,15 @@ DatasetWriter::~DatasetWriter() {
 
 void DatasetWriter::WriteSensorsConfig(const SensorsConfig& config) {
   impl_->CheckOpen();
-  WriteSensorsYaml(Join(impl_->directory, "sensors.yaml"), config);
+  const std::string path = Join(impl_->directory, "sensors.yaml");
+  WriteSensorsYaml(path, config);
+  // A dataset its own reader refuses is not written: the reader's ranges are the contract.
+  try {
+    ReadSensorsYaml(path);
+  } catch (const Error& e) {
+    throw Error(std::string("the sensors' configuration is outside what sensors.yaml may state: ") +
+                e.what());
+  }
 }
 
 void DatasetWriter::WriteImu(const sensors::ImuSamples& samples) {

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/units.h"
 #include "autocal/sim/simulator.h"
 #include "sim/simulation_options_check.h"
@@ -19,10 +20,23 @@ void Require(bool ok, const std::string& what) {
   if (!ok) throw Error("simulation options: " + what);
 }
 
+// ", got <value>" for a refused value.
+std::string Got(double value) { return ", got " + FormatShort(value); }
+
 // Stamp options of a sensor at rate_hz: jitter below 0.4 periods.
 void ValidateJitter(double jitter_s, double rate_hz, const std::string& sensor) {
   Require(jitter_s >= 0.0 && jitter_s < 0.4 / rate_hz,
-          sensor + " stamp_jitter_s must be in [0, 0.4 / rate_hz)");
+          sensor + " stamp_jitter_s must be in [0, 0.4 / rate_hz) = [0, " +
+              FormatShort(0.4 / rate_hz) + ") s at " + FormatShort(rate_hz) + " Hz" +
+              Got(jitter_s) + " s");
+}
+
+// A sensor sigma as sensors.yaml states it: the dataset reader's range (io/sensors_yaml.h).
+void ValidateStatedSigma(double sigma, const std::string& name, const char* unit) {
+  Require(sigma >= 1e-6 && sigma <= 100.0,
+          name + " must be in [1e-06, 100] " + unit +
+              " (the sigma sensors.yaml states; for exact data simulate without noise)" +
+              Got(sigma));
 }
 
 void ValidateClocks(const SimulationOptions& o) {
@@ -31,7 +45,8 @@ void ValidateClocks(const SimulationOptions& o) {
   ValidateJitter(w.stamp_jitter_s, w.config.rate_hz, "wheel");
   Require(w.burst_size >= 1 && w.burst_size <= 50, "wheel burst_size must be in [1, 50]");
   Require(w.burst_span_s >= 0.0 && w.burst_span_s < 1.0 / w.config.rate_hz,
-          "wheel burst_span_s must be in [0, 1 / rate_hz)");
+          "wheel burst_span_s must be in [0, 1 / rate_hz) = [0, " +
+              FormatShort(1.0 / w.config.rate_hz) + ") s" + Got(w.burst_span_s) + " s");
   Require(w.drop_probability >= 0.0 && w.drop_probability <= 0.5,
           "wheel drop_probability must be in [0, 0.5]");
   Require(std::abs(w.time_offset_wheel_imu_s) <= 2.0,
@@ -42,8 +57,9 @@ void ValidateClocks(const SimulationOptions& o) {
               c.odometry_speed_scale > 0.5 && c.odometry_speed_scale < 2.0,
           "wheel speed scales and odometry_speed_scale must be in (0.5, 2)");
   Require(c.effective_track_m > 0.1, "effective_track_m must exceed 0.1 m");
-  Require(w.config.noise_m_s >= 0.0 && w.config.yaw_rate_noise_rad_s >= 0.0,
-          "wheel noise_m_s and yaw_rate_noise_rad_s must be >= 0");
+  ValidateStatedSigma(w.config.noise_rad_s, "wheel noise_rad_s", "rad/s");
+  ValidateStatedSigma(w.config.noise_m_s, "wheel noise_m_s", "m/s");
+  ValidateStatedSigma(w.config.yaw_rate_noise_rad_s, "wheel yaw_rate_noise_rad_s", "rad/s");
   Require(!w.config.controller_track_m || *w.config.controller_track_m > 0.0,
           "wheel controller_track_m must be positive");
   Require(std::abs(o.gnss.time_offset_gnss_imu_s) <= 2.0,
@@ -65,10 +81,13 @@ void ValidateSimulationOptions(const SimulationOptions& o) {
   Require(o.duration_s > 0.0 && o.duration_s <= 3600.0, "duration_s must be in (0, 3600]");
   Require(o.imu.noise.update_rate_hz >= 20.0 && o.imu.noise.update_rate_hz <= 2000.0,
           "imu update_rate_hz must be in [20, 2000]");
-  Require(o.imu.noise_scale >= 0.0 && std::isfinite(o.imu.noise_scale),
-          "imu noise_scale must be >= 0");
-  Require(o.imu.RandomWalkScale() >= 0.0 && std::isfinite(o.imu.RandomWalkScale()),
-          "imu random_walk_scale must be >= 0");
+  // sensors.yaml states the densities times these scales, which its reader needs positive.
+  Require(o.imu.noise_scale > 0.0 && std::isfinite(o.imu.noise_scale),
+          "imu noise_scale must be > 0 (it scales the densities sensors.yaml states; for exact "
+          "data simulate without noise)" +
+              Got(o.imu.noise_scale));
+  Require(o.imu.RandomWalkScale() > 0.0 && std::isfinite(o.imu.RandomWalkScale()),
+          "imu random_walk_scale must be > 0" + Got(o.imu.RandomWalkScale()));
   const sensors::LidarConfig& l = o.lidar.config;
   Require(l.num_beams >= 1 && l.num_beams <= 256, "lidar num_beams must be in [1, 256]");
   Require(l.rate_hz >= 1.0 && l.rate_hz <= 50.0, "lidar rate_hz must be in [1, 50]");
@@ -77,7 +96,9 @@ void ValidateSimulationOptions(const SimulationOptions& o) {
   Require(l.max_elevation_deg > l.min_elevation_deg && l.min_elevation_deg >= -90.0 &&
               l.max_elevation_deg <= 90.0,
           "lidar elevations must satisfy -90 <= min < max <= 90");
-  Require(l.min_range_m >= 0.0 && l.max_range_m > l.min_range_m, "lidar ranges invalid");
+  Require(l.min_range_m >= 0.0 && l.max_range_m > l.min_range_m,
+          "lidar ranges must satisfy 0 <= min_range_m < max_range_m, got " +
+              FormatShort(l.min_range_m) + " and " + FormatShort(l.max_range_m) + " m");
   Require(l.range_noise_m >= 0.0, "lidar range_noise_m must be >= 0");
   Require(o.lidar.dropout_probability >= 0.0 && o.lidar.dropout_probability < 1.0,
           "lidar dropout_probability must be in [0, 1)");
@@ -91,7 +112,10 @@ void ValidateSimulationOptions(const SimulationOptions& o) {
           "gnss error_correlation_time_s must be finite and >= 0");
   Require(o.gnss.outlier_probability >= 0.0 && o.gnss.outlier_probability <= 1.0,
           "gnss outlier_probability must be in [0, 1]");
-  Require(o.gnss.num_outages >= 0 && o.gnss.outage_duration_s >= 0.0, "gnss outages invalid");
+  Require(o.gnss.num_outages >= 0,
+          "gnss num_outages must be >= 0" + Got(static_cast<double>(o.gnss.num_outages)));
+  Require(o.gnss.outage_duration_s >= 0.0 && std::isfinite(o.gnss.outage_duration_s),
+          "gnss outage_duration_s must be finite and >= 0" + Got(o.gnss.outage_duration_s) + " s");
   Require(std::abs(o.gnss.origin_lat_deg) < 85.0 && std::abs(o.gnss.origin_lon_deg) <= 180.0,
           "gnss origin latitude/longitude out of range");
   Require(std::abs(o.true_calibration.time_offset_lidar_imu_s) < 0.5,

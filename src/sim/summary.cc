@@ -74,8 +74,15 @@ SimulationSummary Summarize(const Simulator& simulator, const ImuLog& imu,
   s.wheel_samples = static_cast<int64_t>(wheel.size());
   s.gnss_fixes = static_cast<int64_t>(gnss.fixes.size());
   s.gnss_outliers = std::count(gnss.is_outlier.begin(), gnss.is_outlier.end(), true);
-  s.gnss_outages = static_cast<int>(gnss.outages_s.size());
-  for (const auto& outage : gnss.outages_s) s.gnss_outage_s += outage.second - outage.first;
+  // The outages as the log has them: overlapping ones merged, the parts past its end left out.
+  double covered_until = 0.0;
+  for (const auto& [begin, end] : gnss.outages_s) {  // sorted by their begin
+    const double from = std::max(begin, covered_until), to = std::min(end, options.duration_s);
+    if (to <= from) continue;
+    if (from > covered_until || s.gnss_outages == 0) ++s.gnss_outages;
+    s.gnss_outage_s += to - from;
+    covered_until = to;
+  }
   s.sweeps = sweeps;
   s.points = points;
   s.imu_rate_hz = options.imu.noise.update_rate_hz;

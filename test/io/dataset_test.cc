@@ -348,6 +348,24 @@ TEST(DatasetTest, WriterRejectsOutOfOrderSweepsAndUseAfterClose) {
   EXPECT_THROW(writer.WriteImu(drive.imu), Error);
 }
 
+// The writer refuses a sensors.yaml its reader would refuse, naming the field: a simulator or
+// importer that states a zero sigma gets the error, not a dataset nothing can read.
+TEST(DatasetTest, WriterRefusesASensorsFileItsReaderWouldRefuse) {
+  test_data::Drive drive = test_data::MakeDrive(0.5);
+  ASSERT_TRUE(drive.config.wheel.has_value());
+  drive.config.wheel->noise_rad_s = 0.0;
+  const fs::path directory = test::OutputDir("dataset") / "zero_wheel_sigma";
+  fs::remove_all(directory);
+  DatasetWriter writer(directory.string());
+  try {
+    writer.WriteSensorsConfig(drive.config);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("wheel.noise_rad_s: must be within [1e-06, 100] rad/s"));
+    EXPECT_THAT(e.what(), HasSubstr("outside what sensors.yaml may state"));
+  }
+}
+
 TEST(DatasetTest, MissingDirectory) {
   EXPECT_THROW(ReadDataset((test::OutputDir("dataset") / "does_not_exist").string()), Error);
 }

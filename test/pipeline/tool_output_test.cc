@@ -8,6 +8,7 @@
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <chrono>
@@ -260,6 +261,22 @@ TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
   ASSERT_EQ(f.exit_code, 0) << f.output;
   EXPECT_NO_THROW(io::ReadDataset(out.string()));
   EXPECT_EQ(Named(dir, "drive.partial-").size(), 1u);  // the stopped run's, nothing new
+}
+
+// A preset's stamp jitter is a share of its sample period: another rate given alone keeps the
+// share (the skid-steer robot's 2 ms at 30 Hz is 0.3 ms at 200 Hz) instead of being refused as
+// 0.4 periods, and the dataset states the jitter it was simulated with.
+TEST_F(ToolOutputTest, APresetAtAnotherRateKeepsItsJitterShare) {
+  const fs::path dir = CleanDir("preset_rate");
+  const fs::path out = dir / "robot";
+  const Finished f = RunTool({Tool("autocal_simulate"), "--preset=skid_steer", "--imu_rate_hz=200",
+                              "--duration_s=3", "--out=" + out.string()},
+                             dir / "log.txt");
+  ASSERT_EQ(f.exit_code, 0) << f.output;
+  const YAML::Node timing = YAML::LoadFile((out / "groundtruth" / "timing.yaml").string());
+  EXPECT_DOUBLE_EQ(timing["imu"]["rate_hz"].as<double>(), 200.0);
+  EXPECT_NEAR(timing["imu"]["stamp_jitter_s"].as<double>(), 0.002 * 30.0 / 200.0, 1e-12);
+  EXPECT_NO_THROW(io::ReadDataset(out.string()));
 }
 
 // A calibration stopped midway leaves the previous result as it was.

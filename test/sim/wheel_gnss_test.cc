@@ -1,6 +1,7 @@
 // Wheel rates equal the true rear-wheel speeds over the true radii; GNSS fixes converted back
 // to ENU match the true antenna position; the simulator is deterministic for a seed.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <GeographicLib/LocalCartesian.hpp>
@@ -18,6 +19,8 @@
 namespace autocal {
 namespace sim {
 namespace {
+
+using ::testing::HasSubstr;
 
 class WheelGnssTest : public ::testing::TestWithParam<ScenarioType> {};
 
@@ -283,6 +286,41 @@ TEST(SimulatorTest, BadOptionsGiveOneClearError) {
     EXPECT_NE(std::string(e.what()).find("num_beams"), std::string::npos) << e.what();
   }
   EXPECT_THROW(ParseScenarioType("rural"), Error);
+}
+
+// A refused option names itself, its range and the value given; the sigmas sensors.yaml will
+// state must lie in its reader's range (a zero sigma would make a dataset nothing can read).
+TEST(SimulatorTest, ARefusedOptionNamesItsRangeAndValue) {
+  const auto message = [](const SimulationOptions& options) -> std::string {
+    try {
+      Simulator simulator(options);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  SimulationOptions options;
+  options.wheel.config.noise_rad_s = 0.0;
+  EXPECT_THAT(message(options), HasSubstr("wheel noise_rad_s must be in [1e-06, 100] rad/s"));
+  EXPECT_THAT(message(options), HasSubstr("got 0"));
+  options = SimulationOptions();
+  options.wheel.config.yaw_rate_noise_rad_s = -0.1;
+  EXPECT_THAT(message(options), HasSubstr("wheel yaw_rate_noise_rad_s must be in"));
+  options = SimulationOptions();
+  options.imu.noise_scale = 0.0;
+  EXPECT_THAT(message(options), HasSubstr("imu noise_scale must be > 0"));
+  options = SimulationOptions();
+  options.imu.stamp_jitter_s = 0.002;  // 0.4 periods at 200 Hz
+  EXPECT_THAT(message(options),
+              HasSubstr("imu stamp_jitter_s must be in [0, 0.4 / rate_hz) = [0, 0.002) s at "
+                        "200 Hz, got 0.002 s"));
+  options = SimulationOptions();
+  options.gnss.outage_duration_s = -1.0;
+  EXPECT_THAT(message(options),
+              HasSubstr("gnss outage_duration_s must be finite and >= 0, got -1"));
+  options = SimulationOptions();
+  options.lidar.config.max_range_m = 0.0;
+  EXPECT_THAT(message(options), HasSubstr("0 <= min_range_m < max_range_m, got 1 and 0 m"));
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, WheelGnssTest,

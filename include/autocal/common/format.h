@@ -14,6 +14,13 @@ inline std::string FormatFixed(double value, int decimals) {
   return buffer;
 }
 
+// `value` in at most six significant digits ("%g"), for a message.
+inline std::string FormatShort(double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%g", value);
+  return buffer;
+}
+
 // `text` with the characters HTML and XML give a meaning (< > & ' ") as entities, for a
 // report or a drawing that shows text from a run or an input file.
 inline std::string EscapeXml(const std::string& text) {

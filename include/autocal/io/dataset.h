@@ -95,6 +95,7 @@ class DatasetWriter {
   DatasetWriter(const DatasetWriter&) = delete;
   DatasetWriter& operator=(const DatasetWriter&) = delete;
 
+  // Throws autocal::Error, naming the field, when ReadSensorsYaml would refuse the file.
   void WriteSensorsConfig(const SensorsConfig& config);
   void WriteImu(const sensors::ImuSamples& samples);
   void WriteWheel(const sensors::WheelSamples& samples);

@@ -281,6 +281,7 @@ struct SimulationSummary {
   double min_roll_deg = 0.0, max_roll_deg = 0.0;
   double standstill_s = 0.0;
   int64_t imu_samples = 0, wheel_samples = 0, gnss_fixes = 0, gnss_outliers = 0;
+  // GNSS outages within the log (overlapping ones merged) and the time they take from it.
   int gnss_outages = 0;
   double gnss_outage_s = 0.0;
   int64_t sweeps = 0, points = 0;
