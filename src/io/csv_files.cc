@@ -12,6 +12,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/initialization.h"
+#include "common/order_statistics.h"
 #include "estimation/gyro_unit.h"
 #include "io/csv_format.h"
 #include "io/csv_reader.h"
@@ -135,6 +136,27 @@ std::string Printf(const char* format, ...) {
   return buffer;
 }
 
+// Refuses the first row that reads beyond any IMU's full scale (ImuPlausibilityOptions).
+void CheckFullScale(const CsvReader& reader, const sensors::ImuSamples& samples,
+                    const std::vector<ImuRowPosition>& rows, const ImuPlausibilityOptions& checks) {
+  const double max_accel_m_s2 = checks.max_sample_accel_g * checks.gravity_m_s2;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const double gyro = samples[i].gyro_rad_s.norm(), accel = samples[i].accel_m_s2.norm();
+    if (gyro > checks.max_sample_gyro_rad_s) {
+      reader.FailAt(rows[i].line, rows[i].gyro_column,
+                    Printf("|omega| = %.3g rad/s, beyond any gyroscope's range (%.3g rad/s): a "
+                           "corrupt row",
+                           gyro, checks.max_sample_gyro_rad_s));
+    }
+    if (accel > max_accel_m_s2) {
+      reader.FailAt(rows[i].line, rows[i].accel_column,
+                    Printf("|a| = %.3g m/s^2 = %.3g g, beyond any accelerometer's range (%.3g g): "
+                           "a corrupt row",
+                           accel, accel / checks.gravity_m_s2, checks.max_sample_accel_g));
+    }
+  }
+}
+
 void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& samples,
                           const std::vector<ImuRowPosition>& rows,
                           const ImuPlausibilityOptions& checks) {
@@ -176,25 +198,26 @@ void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& sa
                  stated_std_rad_s));
     }
   }
-  double sum = 0.0;
-  for (const sensors::ImuSample& sample : samples) sum += sample.accel_m_s2.norm();
-  const double mean_g = sum / static_cast<double>(samples.size()) / checks.gravity_m_s2;
-  if (mean_g < checks.min_mean_accel_g) {
-    const bool looks_like_g = std::abs(mean_g * checks.gravity_m_s2 - 1.0) < 0.2;
+  std::vector<double> accel(samples.size());
+  for (size_t i = 0; i < samples.size(); ++i) accel[i] = samples[i].accel_m_s2.norm();
+  const double median_g = autocal::internal::Median(accel) / checks.gravity_m_s2;
+  if (median_g < checks.min_median_accel_g) {
+    const bool looks_like_g = std::abs(median_g * checks.gravity_m_s2 - 1.0) < 0.2;
     reader.FailAt(
         rows[0].line, rows[0].accel_column,
-        Printf("mean |a| over the log is %.3g m/s^2 = %.3g g: ", mean_g * checks.gravity_m_s2,
-               mean_g) +
+        Printf("median |a| over the log is %.3g m/s^2 = %.3g g: ", median_g * checks.gravity_m_s2,
+               median_g) +
             (looks_like_g ? "the accelerometer seems to be in units of g; autocal expects m/s^2"
                           : "accelerometer seems to exclude gravity; autocal expects "
                             "specific force (gravity included) in m/s^2"));
   }
-  if (mean_g > checks.max_mean_accel_g) {
+  if (median_g > checks.max_median_accel_g) {
     reader.FailAt(rows[0].line, rows[0].accel_column,
-                  Printf("mean |a| over the log is %.3g m/s^2 = %.3g g, far above gravity: the "
+                  Printf("median |a| over the log is %.3g m/s^2 = %.3g g, far above gravity: the "
                          "accelerometer unit is not m/s^2",
-                         mean_g * checks.gravity_m_s2, mean_g));
+                         median_g * checks.gravity_m_s2, median_g));
   }
+  CheckFullScale(reader, samples, rows, checks);
 }
 
 // ---- the unit of the stamps ----

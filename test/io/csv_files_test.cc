@@ -9,6 +9,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -309,6 +310,24 @@ TEST(CsvFilesTest, AccelerometerInFeetPerSecondSquared) {
   const std::vector<std::string> lines = Lines(ReadText(OutPath("in_ft.csv")));
   ExpectParseError(OutPath("in_ft.csv"), kReadImu,
                    {2, FieldColumn(lines[1], 4), "far above gravity"});
+}
+
+// One corrupt row (a digit lost its decimal point) is refused at its own line as beyond any
+// IMU's range; the unit checks take the median and do not mistake it for a unit.
+TEST(CsvFilesTest, ACorruptRowIsRefusedAtItsLine) {
+  const sensors::ImuSamples imu = test_data::MakeDrive(2.0).imu;
+  WriteImuCsv(OutPath("corrupt_ref.csv"), imu);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("corrupt_ref.csv")));
+  const int line = 300;
+  // (field replaced, its value, the field the message points at: ax or gx, the message)
+  for (const auto& [field, value, at, message] :
+       {std::tuple{6, "200000", 4, "|a| = 2e+05 m/s^2 = 2.04e+04 g, beyond any accelerometer's"},
+        std::tuple{6, "1e308", 4, "beyond any accelerometer's range (200 g)"},
+        std::tuple{2, "-90", 1, "|omega| = 90 rad/s, beyond any gyroscope's range (69.8 rad/s)"}}) {
+    WriteText(OutPath("corrupt.csv"), ReplaceField(lines, line, field, value));
+    ExpectParseError(OutPath("corrupt.csv"), kReadImu,
+                     {line, FieldColumn(lines[line - 1], at), message});
+  }
 }
 
 TEST(CsvFilesTest, TrajectoryQuaternionNotUnit) {

@@ -1,6 +1,9 @@
 #pragma once
 
-// Plausibility checks that catch unit mistakes in an IMU log (datasets/README.md).
+// Plausibility checks that catch unit mistakes and corrupt rows in an IMU log
+// (datasets/README.md).
+
+#include "autocal/common/units.h"
 
 namespace autocal {
 namespace io {
@@ -29,12 +32,18 @@ struct ImuPlausibilityOptions {
   // sqrt(update rate). ReadDataset copies both from sensors.yaml.
   double gyroscope_noise_density = 1.6968e-4;  // rad/s/sqrt(Hz)
   double update_rate_hz = 200.0;
-  // The accelerometer measures specific force: averaged over a log its norm is close to g
-  // (the vehicle's own accelerations average out). A mean below this fraction of g means
-  // gravity was removed (or the unit is g); above max_mean_accel_g the unit is wrong.
-  double min_mean_accel_g = 0.5;
-  double max_mean_accel_g = 2.0;
+  // The accelerometer measures specific force: over a log its norm is close to g (the
+  // vehicle's own accelerations average out). A median below this fraction of g means gravity
+  // was removed (or the unit is g); above max_median_accel_g the unit is wrong. The median,
+  // not the mean, keeps a few corrupt rows from passing for a unit.
+  double min_median_accel_g = 0.5;
+  double max_median_accel_g = 2.0;
   double gravity_m_s2 = 9.80665;
+  // No IMU reads beyond these full-scale ranges (the widest common MEMS parts: 200 g shock
+  // accelerometers, 4000 deg/s gyroscopes): a row beyond them is corrupt, not a measurement,
+  // and is refused at its line.
+  double max_sample_accel_g = 200.0;
+  double max_sample_gyro_rad_s = 4000.0 * kDegToRad;
 };
 
 }  // namespace io
