@@ -445,6 +445,7 @@ int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s,
 
 SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingOptions& pairing) {
   const lidar::PointCloud& cloud = sweep.cloud;
+  if (cloud.empty()) throw Error("SolveLidarInertialBatch: the sweep holds no points");
   if (!cloud.has_time()) throw Error("SolveLidarInertialBatch: sweeps need per-point time");
   const SweepSelection selection = internal::SelectSweepPoints(cloud, pairing);
   // The union of both selections in sweep order, and each index remapped into it.

@@ -83,6 +83,10 @@ size_t Dataset::wheel_sample_count() const {
   return odometry.size();
 }
 
+std::string Dataset::SweepPath(size_t index) const {
+  return (fs::path(directory) / "lidar" / lidar_sweeps.at(index).file).string();
+}
+
 lidar::LidarSweep Dataset::LoadSweep(size_t index) const {
   if (index >= lidar_sweeps.size()) {
     throw Error("LoadSweep(" + std::to_string(index) + "): the dataset '" + directory + "' has " +
@@ -90,7 +94,7 @@ lidar::LidarSweep Dataset::LoadSweep(size_t index) const {
   }
   lidar::LidarSweep sweep;
   sweep.t_ns = lidar_sweeps[index].t_ns;
-  const std::string path = (fs::path(directory) / "lidar" / lidar_sweeps[index].file).string();
+  const std::string path = SweepPath(index);
   if (!IsFile(path)) {
     SourceLocation location;
     location.file = path;

@@ -74,6 +74,10 @@ const OdometryFrame& LidarOdometry::AddSweep(
                 " ns is not after the previous one (" + std::to_string(frames_.back().t_ns) +
                 " ns)");
   }
+  if (sweep.cloud.empty()) {
+    throw Error("LidarOdometry: the sweep at " + std::to_string(sweep.t_ns) +
+                " ns holds no points");
+  }
   if (setting_.deskew && !sweep.cloud.has_time()) {
     throw Error("LidarOdometry: deskewing needs per-point time, the sweep at " +
                 std::to_string(sweep.t_ns) + " ns has none");

@@ -55,8 +55,14 @@ void KeyframeSweepReader::ReadStretch(size_t first) {
     for (int64_t i = begin; i < end; ++i) {
       const size_t k = first + static_cast<size_t>(i);
       lidar::LidarSweep& sweep = stretch_[static_cast<size_t>(i)];
-      sweep = dataset_.LoadSweep(k * static_cast<size_t>(stride_));
-      if (!selected_[k] && !taken_[k]) selected_[k] = estimation::SelectForBatch(sweep, pairing_);
+      const size_t index = k * static_cast<size_t>(stride_);
+      sweep = dataset_.LoadSweep(index);
+      if (selected_[k] || taken_[k]) continue;
+      try {
+        selected_[k] = estimation::SelectForBatch(sweep, pairing_);
+      } catch (const Error& e) {
+        throw Error(dataset_.SweepPath(index) + ": " + e.what());
+      }
     }
   };
   try {

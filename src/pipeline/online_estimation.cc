@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
@@ -130,7 +131,7 @@ InitialSeconds InitializeOnFirstSeconds(const io::Dataset& dataset, const io::Pr
     throw Error("dataset " + dataset.directory +
                 ": the initializer could not start the window "
                 "from the first " +
-                std::to_string(options.initialization_duration_s) +
+                FormatShort(options.initialization_duration_s) +
                 " s: " + Join(out.init.problems, "; "));
   }
   return out;

@@ -79,6 +79,22 @@ TEST(KeyframeSweepReader, NamesAMissingSweepAndTakesOnlyReadOnes) {
   EXPECT_EQ(reader.TakeSelected(3).t_ns, dataset.lidar_sweeps[3].t_ns);
 }
 
+// A sweep file without points (a LiDAR that saw nothing within its range) is named with what is
+// wrong with it, not taken for a sweep without per-point time.
+TEST(KeyframeSweepReader, AnEmptySweepIsNamedByItsFile) {
+  const io::Dataset dataset = Sweeps("keyframe_sweeps_empty", 4);
+  const std::string empty = dataset.SweepPath(2);
+  io::WritePly(empty, lidar::PointCloud());
+  KeyframeSweepReader reader(dataset, 1, estimation::BatchPairingDefaults(), 1, nullptr);
+  try {
+    reader.Sweep(0);
+    ADD_FAILURE() << "an empty sweep was read";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr(empty + ": "));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("the sweep holds no points"));
+  }
+}
+
 }  // namespace
 }  // namespace internal
 }  // namespace pipeline

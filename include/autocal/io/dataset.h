@@ -73,6 +73,8 @@ struct Dataset {
   // Sweeps are large, so they are read on demand. Throws ParseError on a missing or
   // malformed file.
   lidar::LidarSweep LoadSweep(size_t index) const;
+  // The file LoadSweep(index) reads: directory/lidar/<file> (index < lidar_sweeps.size()).
+  std::string SweepPath(size_t index) const;
 };
 
 struct DatasetReadOptions {
