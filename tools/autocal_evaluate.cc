@@ -47,6 +47,15 @@ DEFINE_string(max_vehicle_rotation_deg, "",
               "limit (unset: not checked) on the T_I_V rotation error angle, degrees");
 DEFINE_string(max_vehicle_translation_mm, "",
               "limit (unset: not checked) on the T_I_V translation error, millimetres");
+DEFINE_string(max_speed_scale_percent, "",
+              "limit (unset: not checked) on each wheel speed scale's and the odometry speed "
+              "scale's relative error, percent");
+DEFINE_string(max_effective_track_percent, "",
+              "limit (unset: not checked) on the effective track's relative error, percent");
+DEFINE_string(max_wheel_time_offset_ms, "",
+              "limit (unset: not checked) on the wheel-IMU clock offset error, milliseconds");
+DEFINE_string(max_gnss_time_offset_ms, "",
+              "limit (unset: not checked) on the GNSS-IMU clock offset error, milliseconds");
 DEFINE_string(max_ate_m, "",
               "limit (unset: not checked) on the trajectory ATE translation RMSE after 4-DoF "
               "alignment, metres "
@@ -115,6 +124,11 @@ autocal::evaluation::Thresholds ThresholdsFromFlags() {
   t.max_vehicle_rotation_deg = Limit("max_vehicle_rotation_deg", FLAGS_max_vehicle_rotation_deg);
   t.max_vehicle_translation_mm =
       Limit("max_vehicle_translation_mm", FLAGS_max_vehicle_translation_mm);
+  t.max_speed_scale_percent = Limit("max_speed_scale_percent", FLAGS_max_speed_scale_percent);
+  t.max_effective_track_percent =
+      Limit("max_effective_track_percent", FLAGS_max_effective_track_percent);
+  t.max_wheel_time_offset_ms = Limit("max_wheel_time_offset_ms", FLAGS_max_wheel_time_offset_ms);
+  t.max_gnss_time_offset_ms = Limit("max_gnss_time_offset_ms", FLAGS_max_gnss_time_offset_ms);
   t.max_ate_m = Limit("max_ate_m", FLAGS_max_ate_m);
   t.max_ate_deg = Limit("max_ate_deg", FLAGS_max_ate_deg);
   return t;
@@ -169,7 +183,9 @@ int main(int argc, char** argv) {
       "compares a calibration result with a dataset's ground truth\n"
       "  autocal_evaluate --dataset=DIR --result=DIR [--max_rotation_deg=0.5 ...]\n"
       "Prints the error of every calibration block (T_I_L, time offset, wheel radii, track\n"
-      "width, lever arm, T_I_V) and, when RESULT/trajectory.tum (or --trajectory) exists, the\n"
+      "width, speed scales, effective track, lever arm, T_I_V, the wheel and GNSS clocks; a\n"
+      "block the result did not estimate shows as such, and a limit on it fails) and, when\n"
+      "RESULT/trajectory.tum (or --trajectory) exists, the\n"
       "ATE after a 4-DoF (yaw + translation) alignment; writes RESULT/evaluation.yaml. A\n"
       "--max_* limit is checked only when given. Exit status: 0 every given limit holds, 1 some\n"
       "limit is exceeded (each is named), 2 bad input (flags, missing or malformed files).");

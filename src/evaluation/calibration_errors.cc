@@ -53,6 +53,10 @@ CalibrationErrors CompareCalibration(const sensors::Calibration& estimate,
       PercentError(estimate.effective_track_m, truth.effective_track_m, "effective_track_m");
   errors.p_I_A_mm = 1e3 * (estimate.p_I_A - truth.p_I_A);
   errors.T_I_V = ComparePose(estimate.q_I_V, estimate.p_I_V, truth.q_I_V, truth.p_I_V);
+  errors.wheel_time_offset_ms =
+      1e3 * (estimate.time_offset_wheel_imu_s - truth.time_offset_wheel_imu_s);
+  errors.gnss_time_offset_ms =
+      1e3 * (estimate.time_offset_gnss_imu_s - truth.time_offset_gnss_imu_s);
   return errors;
 }
 

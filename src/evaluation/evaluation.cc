@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <utility>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
@@ -26,6 +27,7 @@ struct Row {
   const char* threshold = "";
   std::optional<double> limit;
   bool measured = true;
+  const char* unmeasured = "not measured";
   double value = std::numeric_limits<double>::quiet_NaN();
   std::optional<Eigen::Vector3d> axes;
 
@@ -44,35 +46,58 @@ Row MakeRow(const char* metric, const char* unit, const char* threshold,
 
 std::vector<Row> Rows(const Evaluation& evaluation, const Thresholds& t) {
   const CalibrationErrors& c = evaluation.calibration;
-  const auto scalar = [](const char* metric, const char* unit, const char* threshold,
-                         std::optional<double> limit, double value) {
-    Row row = MakeRow(metric, unit, threshold, limit);
-    row.value = value;
+  const EstimatedBlocks& e = evaluation.estimated;
+  const auto estimated_only = [](bool estimated, Row row) {
+    if (!estimated) {
+      row.measured = false;
+      row.unmeasured = "not estimated by the result";
+    }
     return row;
   };
-  const auto vector = [](const char* metric, const char* unit, const char* threshold,
-                         std::optional<double> limit, const Eigen::Vector3d& axes) {
+  const auto scalar = [&](bool estimated, const char* metric, const char* unit,
+                          const char* threshold, std::optional<double> limit, double value) {
+    Row row = MakeRow(metric, unit, threshold, limit);
+    row.value = value;
+    return estimated_only(estimated, row);
+  };
+  const auto vector = [&](bool estimated, const char* metric, const char* unit,
+                          const char* threshold, std::optional<double> limit,
+                          const Eigen::Vector3d& axes) {
     Row row = MakeRow(metric, unit, threshold, limit);
     row.value = axes.norm();
     row.axes = axes;
-    return row;
+    return estimated_only(estimated, row);
   };
   std::vector<Row> rows = {
-      vector("T_I_L rotation", "deg", "max_rotation_deg", t.max_rotation_deg, c.T_I_L.rotation_deg),
-      vector("T_I_L translation", "mm", "max_translation_mm", t.max_translation_mm,
+      vector(e.T_I_L, "T_I_L rotation", "deg", "max_rotation_deg", t.max_rotation_deg,
+             c.T_I_L.rotation_deg),
+      vector(e.T_I_L, "T_I_L translation", "mm", "max_translation_mm", t.max_translation_mm,
              c.T_I_L.translation_mm),
-      scalar("time offset", "ms", "max_time_offset_ms", t.max_time_offset_ms, c.time_offset_ms),
-      scalar("wheel radius left", "%", "max_radius_percent", t.max_radius_percent,
-             c.wheel_radius_left_percent),
-      scalar("wheel radius right", "%", "max_radius_percent", t.max_radius_percent,
-             c.wheel_radius_right_percent),
-      scalar("track width", "%", "max_track_width_percent", t.max_track_width_percent,
-             c.track_width_percent),
-      vector("lever arm p_I_A", "mm", "max_lever_arm_mm", t.max_lever_arm_mm, c.p_I_A_mm),
-      vector("T_I_V rotation", "deg", "max_vehicle_rotation_deg", t.max_vehicle_rotation_deg,
-             c.T_I_V.rotation_deg),
-      vector("T_I_V translation", "mm", "max_vehicle_translation_mm", t.max_vehicle_translation_mm,
-             c.T_I_V.translation_mm),
+      scalar(e.time_offset, "LiDAR time offset", "ms", "max_time_offset_ms", t.max_time_offset_ms,
+             c.time_offset_ms),
+      scalar(e.wheel_radius_left, "wheel radius left", "%", "max_radius_percent",
+             t.max_radius_percent, c.wheel_radius_left_percent),
+      scalar(e.wheel_radius_right, "wheel radius right", "%", "max_radius_percent",
+             t.max_radius_percent, c.wheel_radius_right_percent),
+      scalar(e.track_width, "track width", "%", "max_track_width_percent",
+             t.max_track_width_percent, c.track_width_percent),
+      scalar(e.wheel_speed_scale_left, "speed scale left", "%", "max_speed_scale_percent",
+             t.max_speed_scale_percent, c.wheel_speed_scale_left_percent),
+      scalar(e.wheel_speed_scale_right, "speed scale right", "%", "max_speed_scale_percent",
+             t.max_speed_scale_percent, c.wheel_speed_scale_right_percent),
+      scalar(e.odometry_speed_scale, "odometry speed scale", "%", "max_speed_scale_percent",
+             t.max_speed_scale_percent, c.odometry_speed_scale_percent),
+      scalar(e.effective_track, "effective track", "%", "max_effective_track_percent",
+             t.max_effective_track_percent, c.effective_track_percent),
+      vector(e.p_I_A, "lever arm p_I_A", "mm", "max_lever_arm_mm", t.max_lever_arm_mm, c.p_I_A_mm),
+      vector(e.T_I_V_rotation, "T_I_V rotation", "deg", "max_vehicle_rotation_deg",
+             t.max_vehicle_rotation_deg, c.T_I_V.rotation_deg),
+      vector(e.T_I_V_translation, "T_I_V translation", "mm", "max_vehicle_translation_mm",
+             t.max_vehicle_translation_mm, c.T_I_V.translation_mm),
+      scalar(e.wheel_time_offset, "wheel clock offset", "ms", "max_wheel_time_offset_ms",
+             t.max_wheel_time_offset_ms, c.wheel_time_offset_ms),
+      scalar(e.gnss_time_offset, "GNSS clock offset", "ms", "max_gnss_time_offset_ms",
+             t.max_gnss_time_offset_ms, c.gnss_time_offset_ms),
       MakeRow("ATE translation RMSE", "m", "max_ate_m", t.max_ate_m),
       MakeRow("ATE rotation RMSE", "deg", "max_ate_deg", t.max_ate_deg),
   };
@@ -114,10 +139,58 @@ std::string PoseYaml(const char* name, const PoseError& error) {
   return out;
 }
 
+// The blocks the result did not estimate, by their calibration.yaml keys, comma-separated.
+std::string NotEstimated(const EstimatedBlocks& e) {
+  std::string out;
+  for (const auto& [estimated, key] : {std::pair{e.T_I_L, "T_I_L"},
+                                       {e.time_offset, "time_offset_lidar_imu_s"},
+                                       {e.wheel_radius_left, "wheel_radius_left_m"},
+                                       {e.wheel_radius_right, "wheel_radius_right_m"},
+                                       {e.track_width, "track_width_m"},
+                                       {e.wheel_speed_scale_left, "wheel_speed_scale_left"},
+                                       {e.wheel_speed_scale_right, "wheel_speed_scale_right"},
+                                       {e.odometry_speed_scale, "odometry_speed_scale"},
+                                       {e.effective_track, "effective_track_m"},
+                                       {e.p_I_A, "p_I_A_m"},
+                                       {e.T_I_V_rotation, "T_I_V rotation"},
+                                       {e.T_I_V_translation, "T_I_V translation"},
+                                       {e.wheel_time_offset, "time_offset_wheel_imu_s"},
+                                       {e.gnss_time_offset, "time_offset_gnss_imu_s"}}) {
+    if (estimated) continue;
+    out += (out.empty() ? "\"" : ", \"") + std::string(key) + "\"";
+  }
+  return out;
+}
+
+// A block is estimated when the result states its sigma; a file that states none (hand-written,
+// another tool's) says nothing about it, and every block counts as estimated.
+EstimatedBlocks EstimatedIn(const io::CalibrationUncertainty& u) {
+  EstimatedBlocks e;
+  e.T_I_L = u.T_I_L.sigma_rot_deg.has_value() || u.T_I_L.sigma_p_m.has_value();
+  e.time_offset = u.time_offset_lidar_imu_s.sigma.has_value();
+  e.wheel_radius_left = u.wheel_radius_left_m.sigma.has_value();
+  e.wheel_radius_right = u.wheel_radius_right_m.sigma.has_value();
+  e.track_width = u.track_width_m.sigma.has_value();
+  e.wheel_speed_scale_left = u.wheel_speed_scale_left.sigma.has_value();
+  e.wheel_speed_scale_right = u.wheel_speed_scale_right.sigma.has_value();
+  e.odometry_speed_scale = u.odometry_speed_scale.sigma.has_value();
+  e.effective_track = u.effective_track_m.sigma.has_value();
+  e.p_I_A = u.p_I_A_m.sigma.has_value();
+  e.T_I_V_rotation = u.T_I_V.sigma_rot_deg.has_value();
+  e.T_I_V_translation = u.T_I_V.sigma_p_m.has_value();
+  e.wheel_time_offset = u.time_offset_wheel_imu_s.sigma.has_value();
+  e.gnss_time_offset = u.time_offset_gnss_imu_s.sigma.has_value();
+  const bool any = e.T_I_L || e.time_offset || e.wheel_radius_left || e.wheel_radius_right ||
+                   e.track_width || e.wheel_speed_scale_left || e.wheel_speed_scale_right ||
+                   e.odometry_speed_scale || e.effective_track || e.p_I_A || e.T_I_V_rotation ||
+                   e.T_I_V_translation || e.wheel_time_offset || e.gnss_time_offset;
+  return any ? e : EstimatedBlocks();
+}
+
 }  // namespace
 
 std::string ThresholdViolation::ToString() const {
-  if (std::isnan(value)) return metric + " not measured, but " + threshold + " is given";
+  if (std::isnan(value)) return metric + " " + unmeasured + ", but " + threshold + " is given";
   char buffer[160];
   std::snprintf(buffer, sizeof(buffer), "%s %.6g %s > %s %.6g", metric.c_str(), std::abs(value),
                 unit.c_str(), threshold.c_str(), limit);
@@ -131,8 +204,8 @@ std::vector<ThresholdViolation> ExceededThresholds(const Evaluation& evaluation,
     if (!row.Exceeded()) continue;
     violations.push_back(
         {row.threshold, row.metric, row.unit,
-         row.measured ? std::abs(row.value) : std::numeric_limits<double>::quiet_NaN(),
-         *row.limit});
+         row.measured ? std::abs(row.value) : std::numeric_limits<double>::quiet_NaN(), *row.limit,
+         row.unmeasured});
   }
   return violations;
 }
@@ -143,11 +216,13 @@ std::string FormatEvaluationTable(const Evaluation& evaluation, const Thresholds
                 "per axis (x, y, z)", "limit", "verdict");
   std::string out = line;
   for (const Row& row : Rows(evaluation, thresholds)) {
-    const std::string value = row.measured ? FormatFixed(row.value, 4) : "n/a";
-    const std::string axes = row.axes ? "(" + FormatFixed(row.axes->x(), 3) + ", " +
-                                            FormatFixed(row.axes->y(), 3) + ", " +
-                                            FormatFixed(row.axes->z(), 3) + ")"
-                                      : "";
+    const std::string value = row.measured            ? FormatFixed(row.value, 4)
+                              : std::isnan(row.value) ? std::string("n/a")
+                                                      : std::string("not estimated");
+    const std::string axes = row.axes && row.measured ? "(" + FormatFixed(row.axes->x(), 3) + ", " +
+                                                            FormatFixed(row.axes->y(), 3) + ", " +
+                                                            FormatFixed(row.axes->z(), 3) + ")"
+                                                      : "";
     const std::string limit = row.limit ? FormatFixed(*row.limit, 4) : "-";
     const char* verdict = !row.limit ? "-" : row.Exceeded() ? "EXCEEDED" : "ok";
     std::snprintf(line, sizeof(line), "%-22s %12s %-4s %-30s %10s  %s\n", row.metric, value.c_str(),
@@ -189,6 +264,9 @@ std::string EvaluationYamlText(const Evaluation& evaluation, const Thresholds& t
   out += "    error_mm: " + Number(c.p_I_A_mm.norm()) + "\n";
   out += "    error_axes_mm: " + List(c.p_I_A_mm) + "\n";
   out += PoseYaml("T_I_V", c.T_I_V);
+  out += "  wheel_time_offset_error_ms: " + Number(c.wheel_time_offset_ms) + "\n";
+  out += "  gnss_time_offset_error_ms: " + Number(c.gnss_time_offset_ms) + "\n";
+  out += "  not_estimated: [" + NotEstimated(evaluation.estimated) + "]\n";
   if (evaluation.trajectory) {
     const TrajectoryErrors& t = *evaluation.trajectory;
     out += "trajectory:\n";
@@ -259,9 +337,10 @@ Evaluation EvaluateResult(const ResultPaths& paths, const TrajectoryErrorOptions
   require(paths.truth_calibration, "ground-truth calibration");
   require(paths.result_calibration, "result calibration");
   Evaluation evaluation;
+  const io::CalibrationFile result = io::ReadCalibrationYaml(paths.result_calibration);
   evaluation.calibration =
-      CompareCalibration(io::ReadCalibrationYaml(paths.result_calibration).value,
-                         io::ReadCalibrationYaml(paths.truth_calibration).value);
+      CompareCalibration(result.value, io::ReadCalibrationYaml(paths.truth_calibration).value);
+  evaluation.estimated = EstimatedIn(result.uncertainty);
   std::error_code error;
   if (std::filesystem::exists(paths.result_trajectory, error)) {
     require(paths.truth_trajectory, "the result has a trajectory, but the ground-truth trajectory");

@@ -274,7 +274,7 @@ TEST(ThresholdsTest, ExceededLimitsAreNamed) {
   t.max_lever_arm_mm = 20.0;        // 13: ok
   const std::vector<ThresholdViolation> violations = ExceededThresholds(evaluation, t);
   EXPECT_THAT(Names(violations), ::testing::ElementsAre("T_I_L translation/max_translation_mm",
-                                                        "time offset/max_time_offset_ms",
+                                                        "LiDAR time offset/max_time_offset_ms",
                                                         "wheel radius left/max_radius_percent"));
   ASSERT_EQ(violations.size(), 3u);
   EXPECT_DOUBLE_EQ(violations[0].value, 5.0);
@@ -310,9 +310,11 @@ TEST(ThresholdsTest, TableAndYamlReportEveryMetricAndVerdict) {
   t.max_radius_percent = 2.0;
   const std::string table = FormatEvaluationTable(evaluation, t);
   for (const char* metric :
-       {"T_I_L rotation", "T_I_L translation", "time offset", "wheel radius left",
-        "wheel radius right", "track width", "lever arm p_I_A", "T_I_V rotation",
-        "T_I_V translation", "ATE translation RMSE", "ATE rotation RMSE"}) {
+       {"T_I_L rotation", "T_I_L translation", "LiDAR time offset", "wheel radius left",
+        "wheel radius right", "track width", "speed scale left", "speed scale right",
+        "odometry speed scale", "effective track", "lever arm p_I_A", "T_I_V rotation",
+        "T_I_V translation", "wheel clock offset", "GNSS clock offset", "ATE translation RMSE",
+        "ATE rotation RMSE"}) {
     EXPECT_THAT(table, HasSubstr(metric));
   }
   EXPECT_THAT(table, HasSubstr("EXCEEDED"));
@@ -330,6 +332,34 @@ TEST(ThresholdsTest, TableAndYamlReportEveryMetricAndVerdict) {
   EXPECT_EQ(root["exceeded"][0]["threshold"].as<std::string>(), "max_translation_mm");
   EXPECT_EQ(root["exceeded"][0]["metric"].as<std::string>(), "T_I_L translation");
   EXPECT_FALSE(root["passed"].as<bool>());
+}
+
+// A block the result did not estimate (no sigma: held fixed, or a sensor the problem left out)
+// carries the nominal value's error: the table says "not estimated" and a limit on it never
+// passes. The wheels' and the receiver's clocks are compared like the LiDAR's.
+TEST(ThresholdsTest, ABlockNotEstimatedIsNotMeasured) {
+  Evaluation evaluation = KnownEvaluation();
+  evaluation.calibration.wheel_time_offset_ms = -85.0;
+  evaluation.calibration.gnss_time_offset_ms = 3.0;
+  evaluation.estimated.T_I_L = false;
+  Thresholds t;
+  t.max_rotation_deg = 0.5;  // 0.3 deg, but not estimated
+  t.max_wheel_time_offset_ms = 5.0;
+  t.max_gnss_time_offset_ms = 5.0;
+  const std::vector<ThresholdViolation> violations = ExceededThresholds(evaluation, t);
+  EXPECT_THAT(Names(violations),
+              ::testing::ElementsAre("T_I_L rotation/max_rotation_deg",
+                                     "wheel clock offset/max_wheel_time_offset_ms"));
+  ASSERT_EQ(violations.size(), 2u);
+  EXPECT_EQ(violations[0].ToString(),
+            "T_I_L rotation not estimated by the result, but max_rotation_deg is given");
+  EXPECT_EQ(violations[1].ToString(), "wheel clock offset 85 ms > max_wheel_time_offset_ms 5");
+  const std::string table = FormatEvaluationTable(evaluation, t);
+  EXPECT_THAT(table, HasSubstr("T_I_L rotation         not estimated"));
+  const YAML::Node root = YAML::Load(EvaluationYamlText(evaluation, t));
+  EXPECT_DOUBLE_EQ(root["calibration"]["wheel_time_offset_error_ms"].as<double>(), -85.0);
+  ASSERT_EQ(root["calibration"]["not_estimated"].size(), 1u);
+  EXPECT_EQ(root["calibration"]["not_estimated"][0].as<std::string>(), "T_I_L");
 }
 
 TEST(EvaluateResultTest, ReadsTheDatasetTruthAndTheResultDirectory) {
@@ -354,6 +384,15 @@ TEST(EvaluateResultTest, ReadsTheDatasetTruthAndTheResultDirectory) {
   EXPECT_NEAR(without_trajectory.calibration.time_offset_ms, 4.0, 1e-9);
   EXPECT_NEAR(without_trajectory.calibration.p_I_A_mm.z(), 10.0, 1e-9);
   EXPECT_FALSE(without_trajectory.trajectory.has_value());
+  // Without any sigma the file says nothing about what was estimated: every block counts.
+  EXPECT_TRUE(without_trajectory.estimated.T_I_L);
+  // With sigmas, a block without one was not estimated.
+  estimate.uncertainty.time_offset_lidar_imu_s.sigma = 1e-4;
+  io::WriteCalibrationYaml(paths.result_calibration, estimate);
+  const EstimatedBlocks estimated = EvaluateResult(paths).estimated;
+  EXPECT_TRUE(estimated.time_offset);
+  EXPECT_FALSE(estimated.T_I_L);
+  EXPECT_FALSE(estimated.gnss_time_offset);
 
   // A result trajectory needs the dataset's.
   const io::Trajectory trajectory = TrueTrajectory(10.0);

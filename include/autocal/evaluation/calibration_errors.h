@@ -35,6 +35,9 @@ struct CalibrationErrors {
   double effective_track_percent = 0.0;
   Eigen::Vector3d p_I_A_mm = Eigen::Vector3d::Zero();  // lever arm, in I
   PoseError T_I_V;
+  // The wheels' and the receiver's clocks: offset_est - offset_true.
+  double wheel_time_offset_ms = 0.0;
+  double gnss_time_offset_ms = 0.0;
 };
 
 PoseError ComparePose(const Eigen::Quaterniond& q_estimate, const Eigen::Vector3d& p_estimate,

@@ -14,8 +14,31 @@
 namespace autocal {
 namespace evaluation {
 
+// Which blocks the result estimated: those its calibration.yaml gives a sigma (a block held
+// fixed, or of a sensor or wheel form the problem did not use, has none; a file without any
+// sigma counts every block as estimated). The error of a block
+// not estimated is the nominal value's, which says nothing about the calibration: the table
+// shows it as "not estimated" and a limit on it never passes.
+struct EstimatedBlocks {
+  bool T_I_L = true;
+  bool time_offset = true;
+  bool wheel_radius_left = true;
+  bool wheel_radius_right = true;
+  bool track_width = true;
+  bool wheel_speed_scale_left = true;
+  bool wheel_speed_scale_right = true;
+  bool odometry_speed_scale = true;
+  bool effective_track = true;
+  bool p_I_A = true;
+  bool T_I_V_rotation = true;
+  bool T_I_V_translation = true;
+  bool wheel_time_offset = true;
+  bool gnss_time_offset = true;
+};
+
 struct Evaluation {
   CalibrationErrors calibration;
+  EstimatedBlocks estimated;
   // Present when an estimated trajectory was evaluated, with the file it was read from.
   std::optional<TrajectoryErrors> trajectory;
   std::string trajectory_file;
@@ -24,26 +47,32 @@ struct Evaluation {
 // Limits on the magnitude of each error. Every limit is optional; an unset limit is not
 // checked (the default: nothing is checked). Names match autocal_evaluate's flags.
 struct Thresholds {
-  std::optional<double> max_rotation_deg;            // T_I_L rotation angle |δ|
-  std::optional<double> max_translation_mm;          // T_I_L |p_est − p_true|
-  std::optional<double> max_time_offset_ms;          // |offset_est − offset_true|
-  std::optional<double> max_radius_percent;          // each wheel radius, |relative error|
-  std::optional<double> max_track_width_percent;     // |relative error|
-  std::optional<double> max_lever_arm_mm;            // |p_I_A est − true|
-  std::optional<double> max_vehicle_rotation_deg;    // T_I_V rotation angle
-  std::optional<double> max_vehicle_translation_mm;  // T_I_V translation
-  std::optional<double> max_ate_m;                   // ATE translation RMSE
-  std::optional<double> max_ate_deg;                 // ATE rotation RMSE
+  std::optional<double> max_rotation_deg;             // T_I_L rotation angle |δ|
+  std::optional<double> max_translation_mm;           // T_I_L |p_est − p_true|
+  std::optional<double> max_time_offset_ms;           // |offset_est − offset_true|
+  std::optional<double> max_radius_percent;           // each wheel radius, |relative error|
+  std::optional<double> max_track_width_percent;      // |relative error|
+  std::optional<double> max_lever_arm_mm;             // |p_I_A est − true|
+  std::optional<double> max_vehicle_rotation_deg;     // T_I_V rotation angle
+  std::optional<double> max_vehicle_translation_mm;   // T_I_V translation
+  std::optional<double> max_speed_scale_percent;      // each speed scale and k_v
+  std::optional<double> max_effective_track_percent;  // b_eff
+  std::optional<double> max_wheel_time_offset_ms;     // the wheels' clock
+  std::optional<double> max_gnss_time_offset_ms;      // the receiver's clock
+  std::optional<double> max_ate_m;                    // ATE translation RMSE
+  std::optional<double> max_ate_deg;                  // ATE rotation RMSE
 };
 
 // One error above its limit. value is NaN when the metric could not be measured (an ATE limit
-// without an evaluated trajectory): an unmeasured metric never passes.
+// without an evaluated trajectory, a block the result did not estimate): an unmeasured metric
+// never passes.
 struct ThresholdViolation {
   std::string threshold;  // "max_rotation_deg"
   std::string metric;     // "T_I_L rotation"
   std::string unit;       // "deg"
   double value = 0.0;
   double limit = 0.0;
+  std::string unmeasured = "not measured";  // why value is NaN
 
   // "T_I_L rotation 0.61 deg > max_rotation_deg 0.5".
   std::string ToString() const;
