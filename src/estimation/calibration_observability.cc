@@ -456,6 +456,13 @@ bool AnyHeld(const BlockObservability& observability) {
   return false;
 }
 
+bool AllHeld(const BlockObservability& observability) {
+  for (const std::vector<bool>& block : observability.held) {
+    if (std::find(block.begin(), block.end(), false) != block.end()) return false;
+  }
+  return AnyHeld(observability);
+}
+
 void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
                             const BlockObservability& observability, ceres::Problem* problem) {
   for (size_t b = 0; b < blocks.size(); ++b) {

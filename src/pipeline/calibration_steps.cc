@@ -498,6 +498,15 @@ estimation::BlockObservability Observe(
   const estimation::BlockObservability observability =
       estimation::HoldUnobservableDirections(blocks_estimated, covariance);
   FillUncertainty(blocks_estimated, observability, &result->calibration.uncertainty);
+  if (estimation::AllHeld(observability)) {
+    // The calibration written is the nominal one; only the trajectory is an estimate.
+    size_t directions = 0;
+    for (const std::vector<bool>& held : observability.held) directions += held.size();
+    result->warnings.push_back("nothing is calibrated: the drive determines none of the " +
+                               std::to_string(directions) +
+                               " directions the problem estimates, and every block keeps its "
+                               "nominal value (the trajectory is estimated)");
+  }
   result->warnings.insert(result->warnings.end(), observability.warnings.begin(),
                           observability.warnings.end());
   return observability;

@@ -262,6 +262,7 @@ TEST(CalibrationObservability, SolvingAgainWithTheHeldDirectionsPinnedKeepsTheSt
   const BlockObservability observability = HoldUnobservableDirections(blocks, covariance);
   EXPECT_THAT(observability.held[0], ::testing::ElementsAre(false, false, true));
   ASSERT_TRUE(AnyHeld(observability));
+  EXPECT_FALSE(AllHeld(observability));  // x and y are determined
   const Eigen::Vector3d conditioned = p;
   EXPECT_DOUBLE_EQ(conditioned.z(), 0.55);
   EXPECT_GT(std::abs((s - p.x()) - 1.5), 1e-3);  // the state belongs to the solve's x

@@ -232,6 +232,24 @@ TEST(WheelFormsCalibration, CoverageErrorNamesTheFormsFile) {
   }
 }
 
+// A drive that determines none of the estimated directions (a second of standing) leaves every
+// block at its nominal value: the first warning says that nothing is calibrated.
+TEST(WheelFormsCalibration, ADriveThatDeterminesNothingSaysNothingIsCalibrated) {
+  sim::SimulationOptions options = UrbanWithoutLidar(sensors::WheelForm::kAngularRates);
+  options.duration_s = 1.0;
+  const test::SimulatedUrbanDataset data(options, "standing_second");
+  const io::Dataset dataset = io::ReadDataset(data.directory);
+  const OfflineCalibrationResult result =
+      CalibrateDataset(dataset, test::ShippedProblem("skid_steer_imu_odometry.yaml"));
+  const auto nothing =
+      std::find_if(result.warnings.begin(), result.warnings.end(),
+                   [](const std::string& w) { return w.rfind("nothing is calibrated: ", 0) == 0; });
+  ASSERT_NE(nothing, result.warnings.end());
+  EXPECT_THAT(*nothing, ::testing::HasSubstr("none of the 10 directions"));
+  EXPECT_EQ(result.calibration.value.wheel_radius_left_m,
+            dataset.sensors.nominal_calibration.wheel_radius_left_m);
+}
+
 }  // namespace
 }  // namespace pipeline
 }  // namespace autocal

@@ -112,6 +112,8 @@ BlockObservability HoldUnobservableDirections(const std::vector<EstimatedBlock>&
 
 // Whether any direction of `observability` was held.
 bool AnyHeld(const BlockObservability& observability);
+// Whether every direction was held (and there is one): the data determined nothing.
+bool AllHeld(const BlockObservability& observability);
 
 // After HoldUnobservableDirections: a prior that pins every held direction at its held value
 // (a sigma of kHeldSigmaFraction of its prior sigma; the other directions get no row), so that
