@@ -306,6 +306,26 @@ WheelImuOffset EstimateWheelImuOffset(const sensors::ImuSamples& imu,
   return out;
 }
 
+namespace {
+
+// A multipath fix metres off spoils the two speeds that pair it, a baseline apart, with spikes
+// of metres per second; the median of 2 k + 1 neighbouring speeds drops such isolated spikes
+// and, being symmetric, shifts no speed change in time.
+constexpr size_t kSpeedMedianHalfWindow = 2;
+
+ScalarSeries RunningMedian(const ScalarSeries& series, size_t half_window) {
+  ScalarSeries out = series;
+  std::vector<double> window;
+  for (size_t i = half_window; i + half_window < series.size(); ++i) {
+    window.clear();
+    for (size_t k = i - half_window; k <= i + half_window; ++k) window.push_back(series[k].value);
+    out[i].value = autocal::internal::Median(window);
+  }
+  return out;
+}
+
+}  // namespace
+
 ScalarSeries GnssHorizontalSpeed(const sensors::GnssFixes& fixes, double baseline_s) {
   ScalarSeries out;
   if (fixes.size() < 2) return out;
@@ -322,7 +342,7 @@ ScalarSeries GnssHorizontalSpeed(const sensors::GnssFixes& fixes, double baselin
     const double distance_m = (p[j] - p[i]).head<2>().norm();
     out.push_back({fixes[i].t_ns + (fixes[j].t_ns - fixes[i].t_ns) / 2, distance_m / dt_s});
   }
-  return out;
+  return RunningMedian(out, kSpeedMedianHalfWindow);
 }
 
 SeriesOffsetEstimate EstimateGnssImuOffset(const sensors::GnssFixes& fixes,

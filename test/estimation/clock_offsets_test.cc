@@ -185,6 +185,29 @@ TEST(EstimateGnssImuOffset, AlignsTheTrackSpeedWithTheWheelSpeed) {
   const SeriesOffsetEstimate gnss = EstimateGnssImuOffset(fixes, d.speed_m_s);
   EXPECT_TRUE(gnss.reliable) << gnss.reason;
   EXPECT_NEAR(gnss.offset_s, -0.2, 0.005);
+
+  // Multipath: every 50th fix 3-15 m off sideways. Each spoils the two track speeds that pair
+  // it, a second apart; the running median drops those spikes and the offset stays.
+  std::uniform_real_distribution<double> off_m(3.0, 15.0);
+  double largest_speed_m_s = 0.0;
+  for (const TimedValue& s : GnssHorizontalSpeed(fixes, 1.0)) {
+    largest_speed_m_s = std::max(largest_speed_m_s, s.value);
+  }
+  for (size_t i = 25; i < fixes.size(); i += 50) {
+    Eigen::Vector3d p = enu.ToEnu(fixes[i]);
+    p += off_m(rng) * Eigen::Vector3d(-0.8, 0.6, 0.0);
+    const Eigen::Vector3d geodetic = enu.ToGeodetic(p);
+    fixes[i].lat_deg = geodetic.x();
+    fixes[i].lon_deg = geodetic.y();
+  }
+  double largest_with_outliers_m_s = 0.0;
+  for (const TimedValue& s : GnssHorizontalSpeed(fixes, 1.0)) {
+    largest_with_outliers_m_s = std::max(largest_with_outliers_m_s, s.value);
+  }
+  EXPECT_LT(largest_with_outliers_m_s, largest_speed_m_s + 0.05) << "a spike survived";
+  const SeriesOffsetEstimate with_outliers = EstimateGnssImuOffset(fixes, d.speed_m_s);
+  EXPECT_TRUE(with_outliers.reliable) << with_outliers.reason;
+  EXPECT_NEAR(with_outliers.offset_s, -0.2, 0.005);
 }
 
 // The odometry's yaw rate lags the gyro about the up axis by about 0.38 s (its stamps come

@@ -155,7 +155,8 @@ SeriesOffsetEstimate EstimateGnssImuOffset(const sensors::GnssFixes& fixes,
                                            const ScalarSeries& wheel_speed_on_imu_clock_m_s,
                                            const GnssImuOffsetOptions& options = {});
 
-// The horizontal speed of the GNSS track (see GnssImuOffsetOptions::speed_baseline_s).
+// The horizontal speed of the GNSS track (see GnssImuOffsetOptions::speed_baseline_s), each
+// the median of it and its two neighbours on either side (a multipath fix's spikes dropped).
 ScalarSeries GnssHorizontalSpeed(const sensors::GnssFixes& fixes, double baseline_s);
 
 }  // namespace estimation
