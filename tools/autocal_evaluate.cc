@@ -143,6 +143,10 @@ int Run() {
       NonNegativeNumber("max_interpolation_gap_s", FLAGS_max_interpolation_gap_s);
   const evaluation::Thresholds thresholds = ThresholdsFromFlags();
   if (FLAGS_trajectory.empty()) throw Error("--trajectory must name a file of RESULT");
+  std::error_code error;
+  if (!std::filesystem::is_directory(FLAGS_result, error)) {
+    throw Error("--result: '" + FLAGS_result + "' does not exist or is not a directory");
+  }
   evaluation::ResultPaths paths = evaluation::ResultPaths::For(FLAGS_dataset, FLAGS_result);
   paths.result_trajectory = (std::filesystem::path(FLAGS_result) / FLAGS_trajectory).string();
   autocal::io::CheckOutputFile(paths.evaluation);

@@ -279,6 +279,18 @@ TEST_F(ToolOutputTest, APresetAtAnotherRateKeepsItsJitterShare) {
   EXPECT_NO_THROW(io::ReadDataset(out.string()));
 }
 
+// autocal_evaluate names a result directory that is not there (exit 2, bad input) instead of
+// failing to write evaluation.yaml into it.
+TEST_F(ToolOutputTest, EvaluateNamesAMissingResult) {
+  const fs::path dir = CleanDir("evaluate_missing");
+  const Finished f = RunTool({Tool("autocal_evaluate"), "--dataset=" + dir.string(),
+                              "--result=" + (dir / "none").string()},
+                             dir / "log.txt");
+  EXPECT_EQ(f.exit_code, 2) << f.output;
+  EXPECT_THAT(f.output, HasSubstr("--result: '" + (dir / "none").string() +
+                                  "' does not exist or is not a directory"));
+}
+
 // A calibration stopped midway leaves the previous result as it was.
 TEST_F(ToolOutputTest, AStoppedCalibrationLeavesThePreviousResult) {
   const fs::path dir = CleanDir("calibrate");
