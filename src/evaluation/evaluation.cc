@@ -1,10 +1,12 @@
 #include "autocal/evaluation/evaluation.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <utility>
 
@@ -139,24 +141,29 @@ std::string PoseYaml(const char* name, const PoseError& error) {
   return out;
 }
 
+// Each block of EstimatedBlocks with its calibration.yaml key.
+constexpr std::pair<bool EstimatedBlocks::*, const char*> kBlockKeys[] = {
+    {&EstimatedBlocks::T_I_L, "T_I_L"},
+    {&EstimatedBlocks::time_offset, "time_offset_lidar_imu_s"},
+    {&EstimatedBlocks::wheel_radius_left, "wheel_radius_left_m"},
+    {&EstimatedBlocks::wheel_radius_right, "wheel_radius_right_m"},
+    {&EstimatedBlocks::track_width, "track_width_m"},
+    {&EstimatedBlocks::wheel_speed_scale_left, "wheel_speed_scale_left"},
+    {&EstimatedBlocks::wheel_speed_scale_right, "wheel_speed_scale_right"},
+    {&EstimatedBlocks::odometry_speed_scale, "odometry_speed_scale"},
+    {&EstimatedBlocks::effective_track, "effective_track_m"},
+    {&EstimatedBlocks::p_I_A, "p_I_A_m"},
+    {&EstimatedBlocks::T_I_V_rotation, "T_I_V rotation"},
+    {&EstimatedBlocks::T_I_V_translation, "T_I_V translation"},
+    {&EstimatedBlocks::wheel_time_offset, "time_offset_wheel_imu_s"},
+    {&EstimatedBlocks::gnss_time_offset, "time_offset_gnss_imu_s"},
+};
+
 // The blocks the result did not estimate, by their calibration.yaml keys, comma-separated.
 std::string NotEstimated(const EstimatedBlocks& e) {
   std::string out;
-  for (const auto& [estimated, key] : {std::pair{e.T_I_L, "T_I_L"},
-                                       {e.time_offset, "time_offset_lidar_imu_s"},
-                                       {e.wheel_radius_left, "wheel_radius_left_m"},
-                                       {e.wheel_radius_right, "wheel_radius_right_m"},
-                                       {e.track_width, "track_width_m"},
-                                       {e.wheel_speed_scale_left, "wheel_speed_scale_left"},
-                                       {e.wheel_speed_scale_right, "wheel_speed_scale_right"},
-                                       {e.odometry_speed_scale, "odometry_speed_scale"},
-                                       {e.effective_track, "effective_track_m"},
-                                       {e.p_I_A, "p_I_A_m"},
-                                       {e.T_I_V_rotation, "T_I_V rotation"},
-                                       {e.T_I_V_translation, "T_I_V translation"},
-                                       {e.wheel_time_offset, "time_offset_wheel_imu_s"},
-                                       {e.gnss_time_offset, "time_offset_gnss_imu_s"}}) {
-    if (estimated) continue;
+  for (const auto& [estimated, key] : kBlockKeys) {
+    if (e.*estimated) continue;
     out += (out.empty() ? "\"" : ", \"") + std::string(key) + "\"";
   }
   return out;
@@ -180,10 +187,8 @@ EstimatedBlocks EstimatedIn(const io::CalibrationUncertainty& u) {
   e.T_I_V_translation = u.T_I_V.sigma_p_m.has_value();
   e.wheel_time_offset = u.time_offset_wheel_imu_s.sigma.has_value();
   e.gnss_time_offset = u.time_offset_gnss_imu_s.sigma.has_value();
-  const bool any = e.T_I_L || e.time_offset || e.wheel_radius_left || e.wheel_radius_right ||
-                   e.track_width || e.wheel_speed_scale_left || e.wheel_speed_scale_right ||
-                   e.odometry_speed_scale || e.effective_track || e.p_I_A || e.T_I_V_rotation ||
-                   e.T_I_V_translation || e.wheel_time_offset || e.gnss_time_offset;
+  const bool any = std::any_of(std::begin(kBlockKeys), std::end(kBlockKeys),
+                               [&](const auto& block) { return e.*block.first; });
   return any ? e : EstimatedBlocks();
 }
 
