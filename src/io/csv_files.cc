@@ -136,12 +136,14 @@ std::string Printf(const char* format, ...) {
   return buffer;
 }
 
-// Refuses the first row that reads beyond any IMU's full scale (ImuPlausibilityOptions).
-void CheckFullScale(const CsvReader& reader, const sensors::ImuSamples& samples,
-                    const std::vector<ImuRowPosition>& rows, const ImuPlausibilityOptions& checks) {
+// Refuses the first row that reads beyond any IMU's full scale (ImuPlausibilityOptions), from
+// each row's |omega| and |a|.
+void CheckFullScale(const CsvReader& reader, const std::vector<double>& rates_rad_s,
+                    const std::vector<double>& accels_m_s2, const std::vector<ImuRowPosition>& rows,
+                    const ImuPlausibilityOptions& checks) {
   const double max_accel_m_s2 = checks.max_sample_accel_g * checks.gravity_m_s2;
-  for (size_t i = 0; i < samples.size(); ++i) {
-    const double gyro = samples[i].gyro_rad_s.norm(), accel = samples[i].accel_m_s2.norm();
+  for (size_t i = 0; i < rates_rad_s.size(); ++i) {
+    const double gyro = rates_rad_s[i], accel = accels_m_s2[i];
     if (gyro > checks.max_sample_gyro_rad_s) {
       reader.FailAt(rows[i].line, rows[i].gyro_column,
                     Printf("|omega| = %.3g rad/s, beyond any gyroscope's range (%.3g rad/s): a "
@@ -217,7 +219,7 @@ void CheckImuPlausibility(const CsvReader& reader, const sensors::ImuSamples& sa
                          "accelerometer unit is not m/s^2",
                          median_g * checks.gravity_m_s2, median_g));
   }
-  CheckFullScale(reader, samples, rows, checks);
+  CheckFullScale(reader, rates, accel, rows, checks);
 }
 
 // ---- the unit of the stamps ----
