@@ -100,12 +100,14 @@ sensors::WheelConfig ParseWheel(const YamlFile& file, const YAML::Node& node) {
   if (const YAML::Node n = node["rate_hz"])
     wheel.rate_hz = file.DoubleInRange(n, "wheel.rate_hz", 0.1, 100000.0, "Hz");
   if (const YAML::Node n = node["noise_rad_s"])
-    wheel.noise_rad_s = file.DoubleInRange(n, "wheel.noise_rad_s", 1e-6, 100.0, "rad/s");
+    wheel.noise_rad_s =
+        file.DoubleInRange(n, "wheel.noise_rad_s", kMinWheelSigma, kMaxWheelSigma, "rad/s");
   if (const YAML::Node n = node["noise_m_s"])
-    wheel.noise_m_s = file.DoubleInRange(n, "wheel.noise_m_s", 1e-6, 100.0, "m/s");
+    wheel.noise_m_s =
+        file.DoubleInRange(n, "wheel.noise_m_s", kMinWheelSigma, kMaxWheelSigma, "m/s");
   if (const YAML::Node n = node["yaw_rate_noise_rad_s"]) {
-    wheel.yaw_rate_noise_rad_s =
-        file.DoubleInRange(n, "wheel.yaw_rate_noise_rad_s", 1e-6, 100.0, "rad/s");
+    wheel.yaw_rate_noise_rad_s = file.DoubleInRange(n, "wheel.yaw_rate_noise_rad_s", kMinWheelSigma,
+                                                    kMaxWheelSigma, "rad/s");
   }
   if (const YAML::Node n = node["controller_track_m"]) {
     if (wheel.form != sensors::WheelForm::kSpeedYawRate) {

@@ -8,6 +8,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/units.h"
+#include "autocal/io/sensors_yaml.h"
 #include "autocal/sim/simulator.h"
 #include "sim/simulation_options_check.h"
 
@@ -31,10 +32,11 @@ void ValidateJitter(double jitter_s, double rate_hz, const std::string& sensor) 
               Got(jitter_s) + " s");
 }
 
-// A sensor sigma as sensors.yaml states it: the dataset reader's range (io/sensors_yaml.h).
+// A wheel sigma as sensors.yaml states it: the dataset reader's range.
 void ValidateStatedSigma(double sigma, const std::string& name, const char* unit) {
-  Require(sigma >= 1e-6 && sigma <= 100.0,
-          name + " must be in [1e-06, 100] " + unit +
+  Require(sigma >= io::kMinWheelSigma && sigma <= io::kMaxWheelSigma,
+          name + " must be in [" + FormatShort(io::kMinWheelSigma) + ", " +
+              FormatShort(io::kMaxWheelSigma) + "] " + unit +
               " (the sigma sensors.yaml states; for exact data simulate without noise)" +
               Got(sigma));
 }

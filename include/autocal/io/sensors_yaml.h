@@ -28,6 +28,11 @@
 namespace autocal {
 namespace io {
 
+// The range ReadSensorsYaml accepts for a wheel sigma (noise_rad_s, noise_m_s,
+// yaw_rate_noise_rad_s), in the field's unit.
+constexpr double kMinWheelSigma = 1e-6;
+constexpr double kMaxWheelSigma = 100.0;
+
 SensorsConfig ReadSensorsYaml(const std::string& path);
 // Writes every field, so that ReadSensorsYaml returns exactly `config`.
 void WriteSensorsYaml(const std::string& path, const SensorsConfig& config);
