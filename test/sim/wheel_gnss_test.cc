@@ -288,6 +288,21 @@ TEST(SimulatorTest, BadOptionsGiveOneClearError) {
   EXPECT_THROW(ParseScenarioType("rural"), Error);
 }
 
+// The summary counts the outages the log has: three 20 s outages drawn for a 10 s log overlap
+// and run past its end, so they are one outage of the fixes within it.
+TEST(SimulatorTest, TheSummaryCountsOutagesWithinTheLog) {
+  SimulationOptions options = test::SmallLog(ScenarioType::kUrban, 10.0);
+  options.gnss.num_outages = 3;
+  options.gnss.outage_duration_s = 20.0;
+  const Simulator simulator(options);
+  const GnssLog gnss = simulator.GenerateGnss();
+  ASSERT_EQ(gnss.outages_s.size(), 3u);
+  const SimulationSummary summary =
+      Summarize(simulator, simulator.GenerateImu(), sensors::WheelSamples(), gnss, 0, 0);
+  EXPECT_EQ(summary.gnss_outages, 1);
+  EXPECT_NEAR(summary.gnss_outage_s, 10.0 - gnss.outages_s.front().first, 1e-12);
+}
+
 // A refused option names itself, its range and the value given; the sigmas sensors.yaml will
 // state must lie in its reader's range (a zero sigma would make a dataset nothing can read).
 TEST(SimulatorTest, ARefusedOptionNamesItsRangeAndValue) {
