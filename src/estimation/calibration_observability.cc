@@ -366,7 +366,7 @@ void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::Lo
 
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads,
-                                       const ExactHessianTerms& exact) {
+                                       const std::vector<ceres::ResidualBlockId>& exact) {
   BlockCovariance out;
   int size = 0;
   for (const EstimatedBlock& block : blocks) {
@@ -379,11 +379,9 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     return out;
   }
   GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads);
-  if (!exact.residual_blocks.empty()) {
-    internal::BlockOffsets curved = hessian.offsets;
-    for (const double* block : exact.gauss_newton_blocks) curved.erase(const_cast<double*>(block));
+  if (!exact.empty()) {
     const std::vector<Eigen::Triplet<double>> curvature =
-        internal::ResidualCurvature(problem, exact.residual_blocks, curved);
+        internal::ResidualCurvature(problem, exact, hessian.offsets);
     Eigen::SparseMatrix<double> term(hessian.H.rows(), hessian.H.cols());
     term.setFromTriplets(curvature.begin(), curvature.end());
     hessian.H = Eigen::SparseMatrix<double>(hessian.H + term);

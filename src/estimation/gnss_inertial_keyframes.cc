@@ -94,11 +94,13 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(
   AddImuFactors(&problem, imu, keyframes, imu_options);
   sensors::Calibration held = calibration;
   KeyframeGnssOptions gnss = options.gnss;
+  gnss.gravity_m_s2 = options.gravity_m_s2;
   gnss.estimate_lever_arm = false;
-  result.gnss_factors = AddGnssFactors(&problem, fixes, converter, keyframes, &held, gnss);
+  result.gnss_factors = AddGnssFactors(&problem, imu, fixes, converter, keyframes, &held, gnss);
   if (!wheel.empty()) {
     problem.AddParameterBlock(held.q_I_V.coeffs().data(), 4, &quaternion_manifold);
     KeyframeWheelOptions wheel_options = options.wheel;
+    wheel_options.gravity_m_s2 = options.gravity_m_s2;
     // q_I_V is estimated about its given value: held there, its error (degrees for a nominal
     // value) would tilt every keyframe through the non-holonomic rows (measured 3 deg of roll
     // and pitch for the simulator's nominal one, absorbed by a 0.7 m/s^2 accelerometer bias).

@@ -59,6 +59,44 @@ std::optional<Bracket> FindBracket(const std::vector<Sample>& samples, int64_t t
                  static_cast<double>(t_ns - samples[first].t_ns) / static_cast<double>(gap_ns)};
 }
 
+// A sample's stamp, or the stamp itself.
+inline int64_t StampOf(int64_t t_ns) { return t_ns; }
+template <typename Sample>
+int64_t StampOf(const Sample& sample) {
+  return sample.t_ns;
+}
+
+// The sample each keyframe takes when the sensor's clock is offset_ns from the IMU's
+// (docs/keyframe_factors.md, Eq. K17): the one nearest the sensor-clock instant t_k - offset,
+// kept when it was taken no farther than max_distance_ns from t_k and no other keyframe lies
+// nearer its IMU-clock instant t_j + offset, so that no sample serves two keyframes. Samples
+// (or their stamps) and keyframes in time order.
+template <typename Sample>
+std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& samples,
+                                                  const std::vector<Keyframe>& keyframes,
+                                                  int64_t offset_ns, int64_t max_distance_ns) {
+  std::vector<std::optional<size_t>> paired(keyframes.size());
+  if (samples.empty()) return paired;
+  const auto distance = [](int64_t a, int64_t b) { return a > b ? a - b : b - a; };
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    const int64_t t_k = keyframes[k].t_ns;
+    const auto it = std::lower_bound(samples.begin(), samples.end(), t_k - offset_ns,
+                                     [](const Sample& a, int64_t t) { return StampOf(a) < t; });
+    size_t j = static_cast<size_t>(it - samples.begin());
+    if (j == samples.size() || (j > 0 && distance(StampOf(samples[j - 1]) + offset_ns, t_k) <=
+                                             distance(StampOf(samples[j]) + offset_ns, t_k))) {
+      --j;
+    }
+    const int64_t t_imu = StampOf(samples[j]) + offset_ns;
+    const int64_t d = distance(t_imu, t_k);
+    if (d > max_distance_ns) continue;
+    if (k > 0 && distance(t_imu, keyframes[k - 1].t_ns) <= d) continue;
+    if (k + 1 < keyframes.size() && distance(t_imu, keyframes[k + 1].t_ns) < d) continue;
+    paired[k] = j;
+  }
+  return paired;
+}
+
 // A maximum gap in seconds as nanoseconds; throws autocal::Error naming `name` unless it is
 // a positive number.
 int64_t GapNs(double gap_s, const std::string& name);

@@ -186,8 +186,8 @@ struct WheelFormBlocks {
   std::vector<double*> tracks;
 };
 
-// The gyro reading the wheel rows start from at t_k (Eq. K13): the mean gyro over
-// gyro_mean_span_s around it (the sample interpolated at t_k when the span holds none), and
+// The gyro reading the wheel rows start from at t_ns (Eq. K13): the mean gyro over
+// gyro_mean_span_s around it (the sample interpolated at t_ns when the span holds none), and
 // the variance of that mean's noise per axis.
 sensors::GyroReading GyroAt(const sensors::ImuSamples& imu, int64_t t_ns, const Bracket& g,
                             const KeyframeWheelOptions& options) {
@@ -204,25 +204,25 @@ sensors::GyroReading GyroAt(const sensors::ImuSamples& imu, int64_t t_ns, const 
   return out;
 }
 
-// The body rates the rows take (Eq. K14): every keyframe's reading conditioned on the spread
-// of all of them; readings without noise are taken as they are.
+// The body rates the rows take at the instants t_ns (Eq. K14): every reading conditioned on
+// the spread of all of them; readings without noise are taken as they are.
 std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamples& imu,
-                                                          const std::vector<Keyframe>& keyframes,
+                                                          const std::vector<int64_t>& t_ns,
                                                           int64_t max_imu_gap_ns,
                                                           const KeyframeWheelOptions& options) {
-  std::vector<std::optional<sensors::GyroReading>> readings(keyframes.size());
+  std::vector<std::optional<sensors::GyroReading>> readings(t_ns.size());
   std::vector<sensors::GyroReading> present;
-  for (size_t k = 0; k < keyframes.size(); ++k) {
-    const std::optional<Bracket> g = FindBracket(imu, keyframes[k].t_ns, max_imu_gap_ns);
+  for (size_t k = 0; k < t_ns.size(); ++k) {
+    const std::optional<Bracket> g = FindBracket(imu, t_ns[k], max_imu_gap_ns);
     if (!g) continue;
-    readings[k] = GyroAt(imu, keyframes[k].t_ns, *g, options);
+    readings[k] = GyroAt(imu, t_ns[k], *g, options);
     present.push_back(*readings[k]);
   }
-  std::vector<std::optional<sensors::BodyRate>> rates(keyframes.size());
+  std::vector<std::optional<sensors::BodyRate>> rates(t_ns.size());
   const bool condition = options.gyro_sample_sigma_rad_s > 0.0 && present.size() >= 2;
   const sensors::BodyRatePrior prior =
       condition ? sensors::BodyRatePrior::Fit(present) : sensors::BodyRatePrior();
-  for (size_t k = 0; k < keyframes.size(); ++k) {
+  for (size_t k = 0; k < t_ns.size(); ++k) {
     if (!readings[k]) continue;
     rates[k] = condition ? prior.Condition(*readings[k])
                          : sensors::BodyRate{readings[k]->rate_rad_s, Eigen::Matrix3d::Zero()};
@@ -230,27 +230,13 @@ std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamp
   return rates;
 }
 
-// The form's two values of every sample (internal::WheelSeries), stamped on the wheel clock;
-// null with fewer than two samples.
-template <typename Samples, typename ToValue>
-std::shared_ptr<const internal::WheelSeries> WheelSeriesOf(const Samples& wheel, ToValue to_value) {
-  if (wheel.size() < 2) return nullptr;
-  std::vector<int64_t> t_ns;
-  std::vector<internal::WheelSeries::Value> values;
-  for (const auto& sample : wheel) {
-    t_ns.push_back(sample.t_ns);
-    values.push_back(to_value(sample));
-  }
-  return std::make_shared<const internal::WheelSeries>(t_ns, std::move(values),
-                                                       "AddWheelFactors: wheel");
-}
-
 // AddWheelFactors for the samples of any wheel form. With the wheel clock at the IMU's (offset
 // 0, not estimated) make_cost(s0, s1, s, gyro, factor_options) builds a keyframe's factor from
 // the bracketing samples s0, s1, the fraction s between them and the interpolated raw gyro
-// (Eq. K1). Otherwise every factor reads the form's values, to_value(sample), at
-// t_k - time_offset_wheel_imu_s (Eq. K9, internal::ShiftedWheelResidual) on the offset block,
-// held constant unless options.estimate_time_offset.
+// (Eq. K1). Otherwise each keyframe takes the form's values, to_value(sample), of its nearest
+// sample on the wheel clock (Eq. K17) against its state carried to the sample's IMU time
+// (Eq. K16, internal::ShiftedWheelResidual) on the offset block, held constant unless
+// options.estimate_time_offset.
 template <typename Samples, typename MakeCost, typename ToValue>
 int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, const Samples& wheel,
                       std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
@@ -271,8 +257,11 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     throw Error("AddWheelFactors: time_offset_wheel_imu_s must be finite");
   }
   const bool shifted = options.estimate_time_offset || *offset != 0.0;
-  const std::shared_ptr<const internal::WheelSeries> series =
-      shifted ? WheelSeriesOf(wheel, to_value) : nullptr;
+  // The sample each keyframe takes on the wheel clock (Eq. K17), at the offset's value now.
+  const std::vector<std::optional<size_t>> paired =
+      shifted
+          ? internal::NearestSamples(wheel, *keyframes, SecondsToNs(*offset), max_wheel_gap_ns / 2)
+          : std::vector<std::optional<size_t>>();
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
@@ -299,8 +288,14 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_sample_sigma_rad_s >= 0.0)) {
     throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
   }
+  // The rows' body rate at each keyframe, or where its sample was taken (Eq. K17).
+  std::vector<int64_t> rate_ns;
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    rate_ns.push_back(shifted && paired[k] ? wheel[*paired[k]].t_ns + SecondsToNs(*offset)
+                                           : (*keyframes)[k].t_ns);
+  }
   const std::vector<std::optional<sensors::BodyRate>> rates =
-      BodyRatesAt(imu, *keyframes, max_imu_gap_ns, options);
+      BodyRatesAt(imu, rate_ns, max_imu_gap_ns, options);
   int added = 0;
   for (size_t k = 0; k < keyframes->size(); ++k) {
     if (!rates[k]) continue;
@@ -319,15 +314,17 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
       if (!w) continue;
       factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro.rate_rad_s, rows);
     } else {
-      // The gap rule of Eq. K9: the samples around t_k - offset within the maximum gap.
-      if (!series || !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_wheel_gap_s)) {
-        continue;
-      }
-      factor.cost = internal::ShiftedWheelResidual::Create(series, kf.t_ns, gyro.rate_rad_s,
-                                                           form_blocks.form, rows);
+      if (!paired[k]) continue;
+      const auto& sample = wheel[*paired[k]];
+      const internal::PairedWheelSample taken{to_value(sample), sample.t_ns, *offset,
+                                              gyro.rate_rad_s};
+      factor.cost = internal::ShiftedWheelResidual::Create(
+          taken, kf.t_ns, internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2), form_blocks.form,
+          rows);
     }
-    std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data(),
-                                   c.q_I_V.coeffs().data(), c.p_I_V.data()};
+    std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data()};
+    if (shifted) blocks.push_back(kf.b_a.data());
+    blocks.insert(blocks.end(), {c.q_I_V.coeffs().data(), c.p_I_V.data()});
     blocks.insert(blocks.end(), form_blocks.intrinsics.begin(), form_blocks.intrinsics.end());
     if (shifted) blocks.push_back(offset);
     problem->AddResidualBlock(factor.cost, loss, blocks);
@@ -455,29 +452,10 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
                                measurement);
 }
 
-namespace {
-
-// The fixes in ENU with their per-axis sigma (internal::GnssSeries); null with fewer than two.
-std::shared_ptr<const internal::GnssSeries> GnssSeriesOf(const sensors::GnssFixes& fixes,
-                                                         const sensors::EnuConverter& converter) {
-  if (fixes.size() < 2) return nullptr;
-  std::vector<int64_t> t_ns;
-  std::vector<internal::GnssSeries::Value> values;
-  for (const sensors::GnssFix& fix : fixes) {
-    t_ns.push_back(fix.t_ns);
-    internal::GnssSeries::Value row;
-    row << converter.ToEnu(fix), fix.std_enu_m;
-    values.push_back(row);
-  }
-  return std::make_shared<const internal::GnssSeries>(t_ns, std::move(values),
-                                                      "AddGnssFactors: GNSS fix");
-}
-
-}  // namespace
-
-int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
-                   const sensors::EnuConverter& converter, std::vector<Keyframe>* keyframes,
-                   sensors::Calibration* calibration, const KeyframeGnssOptions& options) {
+int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                   const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
+                   std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
+                   const KeyframeGnssOptions& options) {
   const int64_t max_gap_ns = GapNs(options.max_fix_gap_s, "max_fix_gap_s");
   CheckIncreasing(fixes, "AddGnssFactors: GNSS fix");
   for (const Keyframe& kf : *keyframes) {
@@ -486,19 +464,26 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
   double* offset = &calibration->time_offset_gnss_imu_s;
   if (!std::isfinite(*offset)) throw Error("AddGnssFactors: time_offset_gnss_imu_s must be finite");
   const bool shifted = options.estimate_time_offset || *offset != 0.0;
-  const std::shared_ptr<const internal::GnssSeries> series =
-      shifted ? GnssSeriesOf(fixes, converter) : nullptr;
+  // The fix each keyframe takes on the receiver's clock (Eq. K17), at the offset's value now.
+  const std::vector<std::optional<size_t>> paired =
+      shifted ? internal::NearestSamples(fixes, *keyframes, SecondsToNs(*offset), max_gap_ns / 2)
+              : std::vector<std::optional<size_t>>();
 
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
   ceres::LossFunction* loss = unused_loss.get();
   int added = 0;
-  for (Keyframe& kf : *keyframes) {
+  for (size_t k = 0; k < keyframes->size(); ++k) {
+    Keyframe& kf = (*keyframes)[k];
     factors::GnssMeasurement m;
     if (!shifted && !InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
-    // The gap rule of Eq. K9: the fixes around t_k - offset within the maximum gap.
-    if (shifted && !(series->BracketSpanS(kf.t_ns, *offset) <= options.max_fix_gap_s)) continue;
+    if (shifted && !paired[k]) continue;
+    const sensors::GnssFix* fix = shifted ? &fixes[*paired[k]] : nullptr;
+    if (fix) m = factors::GnssMeasurement::FromFix(*fix, converter);
+    const internal::ImuAroundKeyframe around =
+        shifted ? internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2)
+                : internal::ImuAroundKeyframe();
     for (const factors::GnssAxes axes :
          {factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
       if (!shifted) {
@@ -506,9 +491,10 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
                                   kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
                                   calibration->p_I_A.data());
       } else {
-        problem->AddResidualBlock(internal::ShiftedGnssResidual::Create(series, kf.t_ns, axes),
-                                  loss, kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
-                                  calibration->p_I_A.data(), offset);
+        problem->AddResidualBlock(
+            internal::ShiftedGnssResidual::Create(m, fix->t_ns, kf.t_ns, around, axes), loss,
+            kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(), kf.b_g.data(),
+            kf.b_a.data(), calibration->p_I_A.data(), offset);
       }
     }
     unused_loss.release();

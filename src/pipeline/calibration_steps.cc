@@ -16,6 +16,7 @@
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/sensors/calibration_blocks.h"
+#include "estimation/keyframe_interpolation.h"
 #include "problem_blocks.h"
 #include "residual_groups.h"
 
@@ -256,6 +257,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     wheel.estimate_vehicle_translation = Estimated(b.T_I_V.translation.mode);
     EstimateFormBlocks(dataset->wheel_form(), b, &wheel);
     wheel.estimate_time_offset = Estimated(b.time_offset_wheel_imu_s.mode);
+    wheel.gravity_m_s2 = dataset->sensors.imu.gravity_m_s2;
     wheel.gyro_mean_span_s = kWheelGyroMeanSpanS;
     wheel.gyro_sample_sigma_rad_s =
         dataset->sensors.imu.noise.GyroSampleSigmaRadS(timing->imu.rate_hz());
@@ -298,12 +300,34 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     gnss.max_fix_gap_s = timing->max_fix_gap_s;
     gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
     gnss.estimate_time_offset = Estimated(b.time_offset_gnss_imu_s.mode);
-    const int n = estimation::AddGnssFactors(p, dataset->gnss, *enu, keyframes, c, gnss);
+    gnss.gravity_m_s2 = dataset->sensors.imu.gravity_m_s2;
+    const int n =
+        estimation::AddGnssFactors(p, dataset->imu, dataset->gnss, *enu, keyframes, c, gnss);
     RequireCoverage(*dataset, "GNSS", *timing->gnss, n, *keyframes,
                     "max_fix_gap_s = " + FormatFixed(gnss.max_fix_gap_s, 3) + " s",
                     timing->min_factor_fraction, dataset->gnss, "gnss.csv");
   }
   estimation::AddBlockPriors(*blocks, problem->loss.prior, p);
+}
+
+bool SensorFactors::PairingChanges(const std::vector<estimation::Keyframe>& keyframes,
+                                   const sensors::Calibration& from,
+                                   const sensors::Calibration& to) const {
+  const io::ProblemCalibration& b = problem->calibration;
+  const auto changes = [&](const std::vector<int64_t>& stamps, double from_s, double to_s,
+                           double max_gap_s) {
+    const int64_t max_ns = SecondsToNs(max_gap_s) / 2;
+    return estimation::internal::NearestSamples(stamps, keyframes, SecondsToNs(from_s), max_ns) !=
+           estimation::internal::NearestSamples(stamps, keyframes, SecondsToNs(to_s), max_ns);
+  };
+  if (use_wheel && Estimated(b.time_offset_wheel_imu_s.mode) &&
+      changes(WheelStamps(*dataset), from.time_offset_wheel_imu_s, to.time_offset_wheel_imu_s,
+              timing->max_wheel_gap_s)) {
+    return true;
+  }
+  return use_gnss && Estimated(b.time_offset_gnss_imu_s.mode) &&
+         changes(Stamps(dataset->gnss), from.time_offset_gnss_imu_s, to.time_offset_gnss_imu_s,
+                 timing->max_fix_gap_s);
 }
 
 void RecordPlanarRotation(const estimation::PlanarRotationRows& rows, io::CalibrationFile* file) {
@@ -421,19 +445,17 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    const sensors::Calibration& calibration, int num_threads, std::vector<std::string>* warnings) {
+    int num_threads, std::vector<std::string>* warnings) {
   std::vector<ceres::ResidualBlockId> ids;
   problem->GetResidualBlocks(&ids);
-  estimation::ExactHessianTerms exact;
+  std::vector<ceres::ResidualBlockId> exact;
   for (const ceres::ResidualBlockId id : ids) {
     const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
     if (dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(f) == nullptr &&
         dynamic_cast<const factors::PlanarRotationFactor*>(f) == nullptr) {
-      exact.residual_blocks.push_back(id);
+      exact.push_back(id);
     }
   }
-  exact.gauss_newton_blocks = {&calibration.time_offset_wheel_imu_s,
-                               &calibration.time_offset_gnss_imu_s};
   const estimation::BlockCovariance covariance =
       estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact);
   if (covariance.ok) return covariance;

@@ -117,6 +117,11 @@ struct SensorFactors {
 
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
            sensors::Calibration* c) const;
+  // Whether a wheel or GNSS clock the problem estimates gives the keyframes other samples
+  // (docs/keyframe_factors.md, Eq. K17) at its value in `to` than at its value in `from`:
+  // factors added at `from` would then no longer pair each keyframe with its nearest sample.
+  bool PairingChanges(const std::vector<estimation::Keyframe>& keyframes,
+                      const sensors::Calibration& from, const sensors::Calibration& to) const;
 };
 
 // The planar-rotation rows' count and sigmas (and, when measured, the spread and correlation
@@ -170,12 +175,11 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 // its exact Hessian, J^T J + rho' sum r d2r (Eq. C5), but two kinds: the LiDAR's point groups
 // (their loss is inside the factor, their Jacobian is the points' geometry) and the
 // planar-rotation rows (they leave out the one column whose derivative is noise, Eq. F27b).
-// The wheel and GNSS clocks of `calibration` (the problem's blocks) keep J^T J: their
-// Jacobian is a smoothed slope, not the residual's derivative. Where the completed matrix is
-// not positive definite (a solve stopped off a minimum), J^T J alone, with a warning.
+// Where the completed matrix is not positive definite (a solve stopped off a minimum), J^T J
+// alone, with a warning.
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    const sensors::Calibration& calibration, int num_threads, std::vector<std::string>* warnings);
+    int num_threads, std::vector<std::string>* warnings);
 
 // result->posterior from the solve's calibration (`solved`), the blocks' priors and their
 // covariance, before Observe holds any direction.

@@ -3,7 +3,7 @@
 // Initial wheel-IMU and GNSS-IMU time offsets of the offline calibration (docs/calibration.md,
 // "Clock offsets of the wheels and GNSS"): before the solve, each offset the problem estimates
 // starts at the cross-correlation of a signal both clocks see (estimation/clock_offsets.h),
-// searched over +-1 s; the solve then refines it through the factors of Eq. K9.
+// searched over +-1 s; the solve then refines it through the factors of Eq. K16.
 
 #include <optional>
 #include <string>

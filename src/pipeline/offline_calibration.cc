@@ -209,7 +209,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   batch_options.compute_covariance = false;  // the joint one below covers every block
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
     const estimation::BlockCovariance covariance =
-        PosteriorCovariance(blocks, p, *calibration, problem.solver.num_threads, &result->warnings);
+        PosteriorCovariance(blocks, p, problem.solver.num_threads, &result->warnings);
     const sensors::Calibration solved = *calibration;
     RecordPosterior(blocks, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,

@@ -21,16 +21,13 @@ bool IsWheelCost(const ceres::CostFunction* f) {
                                                 3, 4, 3, 1, 1, 1>;
   using TwistCost = ceres::AutoDiffCostFunction<factors::OdometryTwistResidual, ceres::DYNAMIC, 4,
                                                 3, 3, 4, 3, 1, 1>;
-  using ShiftedCost =
-      ceres::DynamicAutoDiffCostFunction<estimation::internal::ShiftedWheelResidual,
-                                         estimation::internal::ShiftedWheelResidual::kStride>;
+  using ShiftedCost = estimation::internal::ShiftedWheelResidual::Cost;
   return dynamic_cast<const factors::WheelFactor*>(f) || dynamic_cast<const SpeedCost*>(f) ||
          dynamic_cast<const TwistCost*>(f) || dynamic_cast<const ShiftedCost*>(f);
 }
 
 bool IsGnssCost(const ceres::CostFunction* f) {
-  using ShiftedCost = ceres::AutoDiffCostFunction<estimation::internal::ShiftedGnssResidual,
-                                                  ceres::DYNAMIC, 4, 3, 3, 1>;
+  using ShiftedCost = estimation::internal::ShiftedGnssResidual::Cost;
   return dynamic_cast<const factors::GnssFactor*>(f) || dynamic_cast<const ShiftedCost*>(f);
 }
 

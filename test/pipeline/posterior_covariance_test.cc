@@ -51,7 +51,7 @@ TEST(PosteriorCovariance, TakesTheCompletedHessian) {
   OneBlockProblem one(0.05);  // r = 0.05: H = 4 + 1 + 20 * 0.05 = 6
   std::vector<std::string> warnings;
   const estimation::BlockCovariance covariance =
-      PosteriorCovariance(one.blocks, &one.problem, one.calibration, 1, &warnings);
+      PosteriorCovariance(one.blocks, &one.problem, 1, &warnings);
   ASSERT_TRUE(covariance.ok);
   EXPECT_NEAR(covariance.matrix(0, 0), 1.0 / 6.0, 1e-8);
   EXPECT_TRUE(warnings.empty());
@@ -61,7 +61,7 @@ TEST(PosteriorCovariance, FallsBackToGaussNewtonWhereTheCostCurvesDown) {
   OneBlockProblem one(1.1);  // r = -1: H = 4 + 1 - 20 < 0, Gauss-Newton's 5
   std::vector<std::string> warnings;
   const estimation::BlockCovariance covariance =
-      PosteriorCovariance(one.blocks, &one.problem, one.calibration, 1, &warnings);
+      PosteriorCovariance(one.blocks, &one.problem, 1, &warnings);
   ASSERT_TRUE(covariance.ok);
   EXPECT_NEAR(covariance.matrix(0, 0), 1.0 / 5.0, 1e-12);
   ASSERT_EQ(warnings.size(), 1u);

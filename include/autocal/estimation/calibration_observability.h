@@ -71,18 +71,12 @@ struct BlockCovariance {
   std::vector<int> offsets;  // first row of each block
 };
 //
-// The residual blocks of `exact` enter with their exact Hessian, J^T J + rho' sum r d2r
+// The residual blocks `exact` enter with their exact Hessian, J^T J + rho' sum r d2r
 // (docs/calibration.md, Eq. C5): where a residual's derivative is itself noise, Gauss-Newton
-// counts it as information the cost does not have. Their second-order term leaves out the
-// parameter blocks of exact.gauss_newton_blocks, whose Jacobian is not the residual's
-// derivative (a clock read through a smoothed slope, estimation/time_shifted_series.h).
-struct ExactHessianTerms {
-  std::vector<ceres::ResidualBlockId> residual_blocks;
-  std::vector<const double*> gauss_newton_blocks;
-};
+// counts it as information the cost does not have.
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads = 1,
-                                       const ExactHessianTerms& exact = {});
+                                       const std::vector<ceres::ResidualBlockId>& exact = {});
 
 // The directions that the data inform (posterior sigma well below the prior's: observable or
 // kept) and whose estimate lies more than max_sigmas prior sigmas from the prior value, as

@@ -97,17 +97,21 @@ struct KeyframeWheelOptions {
   bool estimate_vehicle_translation = true;  // p_I_V
   bool estimate_radii = true;
   bool estimate_track_width = true;
-  bool estimate_time_offset = false;  // time_offset_wheel_imu_s (Eq. K9); else held
+  bool estimate_time_offset = false;  // time_offset_wheel_imu_s (Eq. K16); else held
+  // Gravity's magnitude, which carries a keyframe's velocity to a sample's instant (Eq. K16).
+  double gravity_m_s2 = 9.80665;
 };
 
 // Adds one WheelFactor (Eq. F22) per keyframe that the wheel and IMU samples bracket within
 // the maximum gaps, on the keyframe's q_W_I, v_W_I, b_g and the calibration's q_I_V, p_I_V,
 // radii and track width. With a wheel clock offset (time_offset_wheel_imu_s nonzero, or
-// options.estimate_time_offset) the wheel values are read at t_k - offset (Eq. K9) and the
-// offset block enters every factor. The keyframes and the calibration must outlive the problem
-// (their members are the blocks); the problem owns the cost and loss functions. Returns the
-// number of factors added. Throws autocal::Error for stamps that do not increase, non-positive
-// gaps, or a quaternion block missing from the problem or without a manifold.
+// options.estimate_time_offset) each keyframe takes its nearest sample on the wheel clock,
+// within max_wheel_gap_s / 2 of it (Eq. K17), against its state carried to the sample's IMU
+// time (Eq. K16): the keyframe's b_a and the offset block enter the factor too. The keyframes and
+// the calibration must outlive the problem (their members are the blocks); the problem owns the
+// cost and loss functions. Returns the number of factors added. Throws autocal::Error for stamps
+// that do not increase, non-positive gaps, or a quaternion block missing from the problem or
+// without a manifold.
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                     const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
                     sensors::Calibration* calibration, const KeyframeWheelOptions& options = {});
@@ -143,7 +147,8 @@ struct KeyframeGnssOptions {
   // receiver; the offline calibration derives it from the log.
   double max_fix_gap_s = 0.25;
   bool estimate_lever_arm = true;     // else p_I_A is set constant
-  bool estimate_time_offset = false;  // time_offset_gnss_imu_s (Eq. K9); else held
+  bool estimate_time_offset = false;  // time_offset_gnss_imu_s (Eq. K16); else held
+  double gravity_m_s2 = 9.80665;      // as KeyframeWheelOptions::gravity_m_s2
 };
 
 // The antenna position in ENU at t_ns (Eq. K1) with its interpolated per-axis sigma (Eq. K2);
@@ -154,13 +159,16 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
                      int64_t t_ns, double max_fix_gap_s, factors::GnssMeasurement* measurement);
 
 // Adds a GnssFactor (Eq. F30) per keyframe with an interpolated fix, on its q_W_I, p_W_I and
-// the calibration's p_I_A, reading a GNSS clock offset as the wheels' (Eq. K9): two residual
-// blocks under the loss, the horizontal rows and the vertical row (factors::GnssAxes). Returns
+// the calibration's p_I_A: two residual blocks under the loss, the horizontal rows and the
+// vertical row (factors::GnssAxes). With a GNSS clock offset each keyframe takes its nearest
+// fix instead, within max_fix_gap_s / 2, as the wheels' samples (Eq. K16, K17), and its v_W_I,
+// b_g, b_a and the offset block enter the factor; `imu` carries the state there. Returns
 // the number of keyframes with a fix (ownership as AddWheelFactors). Throws autocal::Error as
 // InterpolateGnss, or for a keyframe q_W_I missing from the problem or without a manifold.
-int AddGnssFactors(ceres::Problem* problem, const sensors::GnssFixes& fixes,
-                   const sensors::EnuConverter& converter, std::vector<Keyframe>* keyframes,
-                   sensors::Calibration* calibration, const KeyframeGnssOptions& options = {});
+int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
+                   const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
+                   std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
+                   const KeyframeGnssOptions& options = {});
 
 struct GnssAlignmentOptions {
   double max_fix_gap_s = 0.25;  // as KeyframeGnssOptions::max_fix_gap_s (derived likewise)

@@ -97,16 +97,27 @@ struct VehicleMotion {
   geometry::Vector3<T> w_V;
 };
 
+// The same from the IMU's attitude, velocity and bias-corrected body rate w_I.
+template <typename T>
+VehicleMotion<T> PredictVehicleMotion(const Eigen::Quaternion<T>& q_W_I,
+                                      const geometry::Vector3<T>& v_W_I,
+                                      const geometry::Vector3<T>& w_I, const T* q_I_V_ptr,
+                                      const T* p_I_V_ptr) {
+  using Vec3 = geometry::Vector3<T>;
+  const Eigen::Map<const Eigen::Quaternion<T>> q_I_V(q_I_V_ptr);
+  const Eigen::Map<const Vec3> p_I_V(p_I_V_ptr);
+  return {q_I_V.conjugate() * Vec3(q_W_I.conjugate() * v_W_I + w_I.cross(p_I_V)),
+          q_I_V.conjugate() * w_I};
+}
+
 template <typename T>
 VehicleMotion<T> PredictVehicleMotion(const T* q_W_I_ptr, const T* v_W_I_ptr, const T* b_g_ptr,
                                       const T* q_I_V_ptr, const T* p_I_V_ptr,
                                       const Eigen::Vector3d& gyro_rad_s) {
   using Vec3 = geometry::Vector3<T>;
-  const Eigen::Map<const Eigen::Quaternion<T>> q_W_I(q_W_I_ptr), q_I_V(q_I_V_ptr);
-  const Eigen::Map<const Vec3> v_W_I(v_W_I_ptr), b_g(b_g_ptr), p_I_V(p_I_V_ptr);
-  const Vec3 w_I = gyro_rad_s.cast<T>() - b_g;
-  return {q_I_V.conjugate() * Vec3(q_W_I.conjugate() * v_W_I + w_I.cross(p_I_V)),
-          q_I_V.conjugate() * w_I};
+  const Eigen::Map<const Vec3> b_g(b_g_ptr);
+  return PredictVehicleMotion(Eigen::Quaternion<T>(q_W_I_ptr), Vec3(v_W_I_ptr),
+                              Vec3(gyro_rad_s.cast<T>() - b_g), q_I_V_ptr, p_I_V_ptr);
 }
 
 // The yaw-rate row's sigma at track b (Eq. F22b at fixed radii): sqrt(s_w^2 (b0 / b)^2 + s_g^2)
