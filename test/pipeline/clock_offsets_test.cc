@@ -136,6 +136,8 @@ TEST_F(ClockOffsetsTest, CalibratesBothOffsetsWithSigmaInCalibrationYaml) {
             3.0 * *ua.time_offset_wheel_imu_s.sigma);
   EXPECT_LT(std::abs(aligned_estimate.time_offset_gnss_imu_s),
             3.0 * *ua.time_offset_gnss_imu_s.sigma);
+  std::cout << "clock pairing solves " << result.calibration.solver.at("clock_pairing_solves")
+            << ", aligned " << aligned.calibration.solver.at("clock_pairing_solves") << "\n";
   // The summary counts the clocks' factors with their sensors' rows (one wheel factor per
   // keyframe, two GNSS residual blocks per fix).
   ASSERT_TRUE(result.whitened_residuals.count("wheel") && result.whitened_residuals.count("gnss"));
