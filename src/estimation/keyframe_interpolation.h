@@ -70,7 +70,7 @@ int64_t StampOf(const Sample& sample) {
 // (docs/keyframe_factors.md, Eq. K17): the one nearest the sensor-clock instant t_k - offset,
 // kept when it was taken no farther than max_distance_ns from t_k and no other keyframe lies
 // nearer its IMU-clock instant t_j + offset, so that no sample serves two keyframes. Samples
-// (or their stamps) and keyframes in time order.
+// (or their stamps) and keyframes strictly increasing in time.
 template <typename Sample>
 std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& samples,
                                                   const std::vector<Keyframe>& keyframes,

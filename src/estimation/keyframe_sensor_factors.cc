@@ -315,12 +315,14 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
       factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro.rate_rad_s, rows);
     } else {
       if (!paired[k]) continue;
+      const std::optional<internal::ImuAroundKeyframe> around =
+          internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns);
+      if (!around) continue;
       const auto& sample = wheel[*paired[k]];
       const internal::PairedWheelSample taken{to_value(sample), sample.t_ns, *offset,
                                               gyro.rate_rad_s};
-      factor.cost = internal::ShiftedWheelResidual::Create(
-          taken, kf.t_ns, internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2), form_blocks.form,
-          rows);
+      factor.cost =
+          internal::ShiftedWheelResidual::Create(taken, kf.t_ns, *around, form_blocks.form, rows);
     }
     std::vector<double*> blocks = {kf.q_W_I.coeffs().data(), kf.v_W_I.data(), kf.b_g.data()};
     if (shifted) blocks.push_back(kf.b_a.data());
@@ -464,6 +466,8 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   double* offset = &calibration->time_offset_gnss_imu_s;
   if (!std::isfinite(*offset)) throw Error("AddGnssFactors: time_offset_gnss_imu_s must be finite");
   const bool shifted = options.estimate_time_offset || *offset != 0.0;
+  const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
+  if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
   // The fix each keyframe takes on the receiver's clock (Eq. K17), at the offset's value now.
   const std::vector<std::optional<size_t>> paired =
       shifted ? internal::NearestSamples(fixes, *keyframes, SecondsToNs(*offset), max_gap_ns / 2)
@@ -479,11 +483,12 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
     factors::GnssMeasurement m;
     if (!shifted && !InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
     if (shifted && !paired[k]) continue;
+    const std::optional<internal::ImuAroundKeyframe> around =
+        shifted ? internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns)
+                : std::nullopt;
+    if (shifted && !around) continue;
     const sensors::GnssFix* fix = shifted ? &fixes[*paired[k]] : nullptr;
     if (fix) m = factors::GnssMeasurement::FromFix(*fix, converter);
-    const internal::ImuAroundKeyframe around =
-        shifted ? internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2)
-                : internal::ImuAroundKeyframe();
     for (const factors::GnssAxes axes :
          {factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
       if (!shifted) {
@@ -492,7 +497,7 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                                   calibration->p_I_A.data());
       } else {
         problem->AddResidualBlock(
-            internal::ShiftedGnssResidual::Create(m, fix->t_ns, kf.t_ns, around, axes), loss,
+            internal::ShiftedGnssResidual::Create(m, fix->t_ns, kf.t_ns, *around, axes), loss,
             kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(), kf.b_g.data(),
             kf.b_a.data(), calibration->p_I_A.data(), offset);
       }

@@ -9,8 +9,10 @@ namespace autocal {
 namespace estimation {
 namespace internal {
 
-ImuAroundKeyframe ImuAround(const sensors::ImuSamples& imu, int64_t t_ns, double gravity_m_s2) {
+std::optional<ImuAroundKeyframe> ImuAround(const sensors::ImuSamples& imu, int64_t t_ns,
+                                           double gravity_m_s2, int64_t max_gap_ns) {
   if (imu.size() < 2) throw Error("ImuAround: the IMU log holds fewer than two samples");
+  if (t_ns < imu.front().t_ns || t_ns > imu.back().t_ns) return std::nullopt;
   const int64_t half_ns = SecondsToNs(kImuLineHalfWidthS);
   const auto later = [](const sensors::ImuSample& a, int64_t t) { return a.t_ns < t; };
   const auto at = std::lower_bound(imu.begin(), imu.end(), t_ns, later);
@@ -18,6 +20,9 @@ ImuAroundKeyframe ImuAround(const sensors::ImuSamples& imu, int64_t t_ns, double
   const auto past_within = std::lower_bound(imu.begin(), imu.end(), t_ns + half_ns + 1, later);
   const auto first = std::min(first_within, at - std::min<std::ptrdiff_t>(2, at - imu.begin()));
   const auto past = std::max(past_within, at + std::min<std::ptrdiff_t>(2, imu.end() - at));
+  for (auto it = first + 1; it != past; ++it) {
+    if (it->t_ns - (it - 1)->t_ns > max_gap_ns) return std::nullopt;
+  }
   // Least squares in tau = t - t_ns: x(tau) = x0 + slope tau.
   double n = 0.0, mean_tau = 0.0;
   Eigen::Vector3d mean_gyro = Eigen::Vector3d::Zero(), mean_accel = Eigen::Vector3d::Zero();

@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "autocal/common/time.h"
@@ -46,14 +47,16 @@ struct ImuAroundKeyframe {
 // slope and the specific force at t_k. A slope from two samples would be mostly noise (283
 // sigma per second at 200 Hz); over +-0.1 s it is 2.6 sigma per second, and the line still
 // follows the body's sway on its suspension. Over +-0.5 s the lines smoothed that sway away
-// and biased the wheel clock of the noise-free 40 s urban drive by -0.14 ms, over +-0.1 s
+// and biased the wheel clock of the noise-free 30 s urban drive by -0.14 ms, over +-0.1 s
 // by -0.02 ms.
 constexpr double kImuLineHalfWidthS = 0.1;
 
 // The IMU around t_ns: the lines through the samples within kImuLineHalfWidthS of it (at least
 // two on each side where the log has them), evaluated at t_ns. Gravity g_W = (0, 0,
-// -gravity_m_s2). Throws autocal::Error for fewer than two samples.
-ImuAroundKeyframe ImuAround(const sensors::ImuSamples& imu, int64_t t_ns, double gravity_m_s2);
+// -gravity_m_s2). Empty when two of those samples lie more than max_gap_ns apart (an IMU
+// dropout) or t_ns is outside the samples. Throws autocal::Error for fewer than two samples.
+std::optional<ImuAroundKeyframe> ImuAround(const sensors::ImuSamples& imu, int64_t t_ns,
+                                           double gravity_m_s2, int64_t max_gap_ns);
 
 template <typename T>
 struct CarriedState {

@@ -79,8 +79,11 @@ size_t CountWithin(const Samples& samples, const std::vector<estimation::Keyfram
   return n;
 }
 
-// Throws when a sensor gave factors at fewer than the problem's fraction of the keyframes:
-// "wheel (10.1 Hz): 0 of 988 keyframes bracketed within max_wheel_gap_s = 0.250 s ...".
+// Throws when a sensor gave factors at fewer than the problem's fraction of the keyframes it
+// could serve: "wheel (10.1 Hz): 0 of 988 keyframes bracketed within max_wheel_gap_s = 0.250 s
+// ...". A sensor on an estimated clock gives a keyframe one of its samples, each sample to
+// one keyframe (docs/keyframe_factors.md, Eq. K17), so one slower than the keyframes can serve
+// only as many as it has samples within their span.
 // `limits` names the gap settings that decide it, `file` the samples (for when none falls
 // inside the keyframes' span).
 template <typename Samples>
@@ -88,14 +91,17 @@ void RequireCoverage(const io::Dataset& dataset, const std::string& sensor,
                      const sensors::SampleTiming& timing, int factors,
                      const std::vector<estimation::Keyframe>& keyframes, const std::string& limits,
                      double min_fraction, const Samples& samples, const std::string& file) {
-  const double needed = min_fraction * static_cast<double>(keyframes.size());
+  const size_t within = keyframes.empty() ? 0 : CountWithin(samples, keyframes);
+  const size_t servable = std::min(keyframes.size(), within);
+  const double needed = min_fraction * static_cast<double>(servable);
   if (factors > 0 && static_cast<double>(factors) >= needed) return;
   std::string message =
       "dataset " + dataset.directory + ": " + sensor + " (" + FormatFixed(timing.rate_hz(), 1) +
       " Hz): " + std::to_string(factors) + " of " + std::to_string(keyframes.size()) +
       " keyframes bracketed within " + limits +
-      ", fewer than timing.min_factor_fraction = " + FormatFixed(min_fraction, 2) + " of them";
-  if (!keyframes.empty() && CountWithin(samples, keyframes) == 0) {
+      ", fewer than timing.min_factor_fraction = " + FormatFixed(min_fraction, 2) + " of the " +
+      std::to_string(servable) + " it could serve";
+  if (within == 0) {
     message += " (" + file + ": 0 of " + std::to_string(samples.size()) +
                " samples fall inside the keyframes' time span)";
   } else {
@@ -227,6 +233,7 @@ estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& da
   options.num_threads = problem.solver.num_threads;
   options.placement.half_width_s = timing.gnss_track_half_width_s;
   options.gnss.max_fix_gap_s = timing.max_fix_gap_s;
+  options.gnss.max_imu_gap_s = timing.max_imu_gap_s;
   if (timing.wheel) options.wheel.max_wheel_gap_s = timing.max_wheel_gap_s;
   options.wheel.max_imu_gap_s = timing.max_imu_gap_s;
   options.wheel.factor = WheelNoise(dataset, dataset.sensors.nominal_calibration);
@@ -301,6 +308,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
     gnss.estimate_time_offset = Estimated(b.time_offset_gnss_imu_s.mode);
     gnss.gravity_m_s2 = dataset->sensors.imu.gravity_m_s2;
+    gnss.max_imu_gap_s = timing->max_imu_gap_s;
     const int n =
         estimation::AddGnssFactors(p, dataset->imu, dataset->gnss, *enu, keyframes, c, gnss);
     RequireCoverage(*dataset, "GNSS", *timing->gnss, n, *keyframes,

@@ -123,6 +123,49 @@ void AddJointFactors(const io::Dataset& dataset, const SensorFactors& sensor_fac
   sensor_factors.Add(p, keyframes, calibration);
 }
 
+// A new joint problem with AddJointFactors' factors.
+std::unique_ptr<ceres::Problem> NewJointProblem(const io::Dataset& dataset,
+                                                const SensorFactors& sensor_factors,
+                                                std::vector<estimation::Keyframe>* keyframes,
+                                                sensors::Calibration* calibration) {
+  ceres::Problem::Options options;
+  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  auto p = std::make_unique<ceres::Problem>(options);
+  AddJointFactors(dataset, sensor_factors, keyframes, calibration, p.get());
+  return p;
+}
+
+// The solve of *joint, built at `calibration`'s clocks. Each keyframe
+// takes the wheel sample and the fix nearest it on the clocks' estimates (Eq. K17): while a
+// solve moves a clock onto other samples, the factors are added again at the clocks it ended
+// at and solved again, at most kMaxClockPairingSolves times in all (a warning says when the
+// pairing still moved then). *solves counts the solves.
+ceres::Solver::Summary SolvePairedAtTheClocks(const io::Dataset& dataset,
+                                              const SensorFactors& sensor_factors,
+                                              std::vector<estimation::Keyframe>* keyframes,
+                                              sensors::Calibration* calibration,
+                                              std::unique_ptr<ceres::Problem>* joint, int* solves,
+                                              std::vector<std::string>* warnings) {
+  const io::Problem& problem = *sensor_factors.problem;
+  sensors::Calibration paired = *calibration;  // the clocks the factors were paired at
+  ceres::Solver::Summary summary = Solve(dataset, problem, joint->get());
+  for (*solves = 1; sensor_factors.PairingChanges(*keyframes, paired, *calibration); ++*solves) {
+    if (*solves == kMaxClockPairingSolves) {
+      warnings->push_back(
+          "the wheel or GNSS clock still moved the keyframes onto other samples "
+          "after " +
+          std::to_string(*solves) +
+          " solves: its last factors are paired at the clock before the last "
+          "solve");
+      break;
+    }
+    paired = *calibration;
+    *joint = NewJointProblem(dataset, sensor_factors, keyframes, calibration);
+    summary = Solve(dataset, problem, joint->get());
+  }
+  return summary;
+}
+
 }  // namespace
 
 OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
@@ -195,37 +238,24 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   estimation::PlanarRotationRows planar_rotation;
   sensor_factors.planar_rotation = &planar_rotation;
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  auto joint = std::make_unique<ceres::Problem>(problem_options);
-  sensors::Calibration paired = calibration;  // the clocks the factors were paired at
-  AddJointFactors(dataset, sensor_factors, &keyframes, &calibration, joint.get());
+  std::unique_ptr<ceres::Problem> joint =
+      NewJointProblem(dataset, sensor_factors, &keyframes, &calibration);
   RecordPlanarRotation(planar_rotation, &result.calibration);
   for (auto& [sensor, rows] : WhitenedResidualsBySensor(joint.get())) {
     result.whitened_residuals[sensor].before = std::move(rows);
   }
   Report(options, "solving", 0.0, 0.0, 0.0);
-  ceres::Solver::Summary summary = Solve(dataset, problem, joint.get());
-  // Each keyframe takes the wheel sample and fix nearest it on the clocks' estimates (Eq. K17):
-  // while the solve moves them onto other samples, the factors are paired again and solved.
-  int solves = 1;
-  for (; solves < kMaxClockPairingSolves &&
-         sensor_factors.PairingChanges(keyframes, paired, calibration);
-       ++solves) {
-    paired = calibration;
-    joint = std::make_unique<ceres::Problem>(problem_options);
-    AddJointFactors(dataset, sensor_factors, &keyframes, &calibration, joint.get());
-    summary = Solve(dataset, problem, joint.get());
-  }
-  ceres::Problem& p = *joint;
+  int solves = 0;
+  const ceres::Solver::Summary summary = SolvePairedAtTheClocks(
+      dataset, sensor_factors, &keyframes, &calibration, &joint, &solves, &result.warnings);
   Report(options, "solving", 1.0, summary.final_cost, 0.0);
 
-  // 3. Observability, uncertainty and the result.
-  const estimation::BlockCovariance covariance =
-      PosteriorCovariance(blocks_estimated, &p, problem.solver.num_threads, &result.warnings);
+  // 3. Observability, uncertainty and the result (the last solve's summary).
+  const estimation::BlockCovariance covariance = PosteriorCovariance(
+      blocks_estimated, joint.get(), problem.solver.num_threads, &result.warnings);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
-  result.batch.calibration_per_iteration = {calibration};  // one solve
+  result.batch.calibration_per_iteration = {calibration};  // the last solve's
   io::CalibrationFile& file = result.calibration;
   file.solver["termination"] = summary.message;
   file.solver["iterations"] = std::to_string(summary.iterations.size());
@@ -235,17 +265,24 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   RecordTiming(timing, true, &file);
   const sensors::Calibration solved = calibration;
   RecordPosterior(blocks_estimated, covariance, solved, &result);
-  RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, &p,
+  RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, joint.get(),
                      problem.solver.num_threads, &result);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
   // The same budget as the first solve: pinning the held directions can move a long
   // dead-reckoned trajectory as far as the first solve did.
-  SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration, &p,
-                         &result, problem.solver.max_iterations * problem.solver.outer_iterations);
+  const int budget = problem.solver.max_iterations * problem.solver.outer_iterations;
+  SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration,
+                         joint.get(), &result, budget);
+  if (sensor_factors.PairingChanges(keyframes, solved, calibration)) {
+    // A clock held at its prior's centre has moved the keyframes onto other samples.
+    joint = NewJointProblem(dataset, sensor_factors, &keyframes, &calibration);
+    SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration,
+                           joint.get(), &result, budget);
+  }
   RequirePlausible(dataset, options, blocks_estimated, covariance);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
-  RecordResidualsAfterSolve(&p, &result.whitened_residuals);
+  RecordResidualsAfterSolve(joint.get(), &result.whitened_residuals);
   Conclude(dataset, problem, keyframes, &calibration, start, &result);
   return result;
 }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/time.h"
 #include "autocal/geometry/manifolds.h"
 #include "estimation/keyframe_interpolation.h"
 #include "factors/factor_test_utils.h"
@@ -278,6 +279,9 @@ TEST(ShiftedWheelResidual, VanishesAtTheTrueOffsetAndNotAtZeroForEveryForm) {
       EXPECT_NEAR(jacobian_offset[0], c.accel_m_s2 / options.speed_sigma_m_s, 1e-6) << at;
       EXPECT_NEAR(jacobian_offset[1], c.yaw_accel_rad_s2 / options.yaw_rate_sigma_rad_s, 1e-6)
           << at;
+      // The non-holonomic rows hold the paired instant: the offset does not move them.
+      EXPECT_EQ(jacobian_offset[2], 0.0) << at;
+      EXPECT_EQ(jacobian_offset[3], 0.0) << at;
     }
   }
 }
@@ -330,8 +334,9 @@ sensors::ImuSamples LinearImu(double noise, std::mt19937* rng) {
 TEST(ImuAround, ReadsTheRatesTheirSlopeAndTheSpecificForce) {
   std::mt19937 rng(17);
   const sensors::ImuSamples imu = LinearImu(0.0, &rng);
-  for (const double t : {0.0, 0.0123, 5.0, 9.995, 12.0}) {
-    const ImuAroundKeyframe around = ImuAround(imu, StampNs(t), kGravity);
+  const int64_t max_gap_ns = SecondsToNs(0.0125);
+  for (const double t : {0.0, 0.0123, 5.0, 9.995}) {
+    const ImuAroundKeyframe around = *ImuAround(imu, StampNs(t), kGravity, max_gap_ns);
     const std::string at = "t = " + std::to_string(t);
     EXPECT_LT((around.gyro_rad_s - Eigen::Vector3d(0.1 + 0.02 * t, -0.3 * t, 0.05)).norm(), 1e-9)
         << at;
@@ -349,14 +354,22 @@ TEST(ImuAround, ReadsTheRatesTheirSlopeAndTheSpecificForce) {
   double sum_squares = 0.0;
   int n = 0;
   for (double t = 1.0; t < 9.0; t += 0.1, ++n) {
-    const ImuAroundKeyframe around = ImuAround(noisy, StampNs(t), kGravity);
+    const ImuAroundKeyframe around = *ImuAround(noisy, StampNs(t), kGravity, max_gap_ns);
     sum_squares += (around.gyro_slope_rad_s2 - Eigen::Vector3d(0.02, -0.3, 0.0)).squaredNorm();
   }
   const double rms = std::sqrt(sum_squares / (3.0 * n));
   EXPECT_LT(rms, 3.2 * sigma);
   EXPECT_GT(rms, 2.1 * sigma);
 
-  EXPECT_THROW(ImuAround(sensors::ImuSamples(imu.begin(), imu.begin() + 1), StampNs(0.0), kGravity),
+  // Outside the samples, or where an IMU dropout lies among those the lines take: none.
+  EXPECT_FALSE(ImuAround(imu, StampNs(10.1), kGravity, max_gap_ns));
+  sensors::ImuSamples dropout(imu.begin(), imu.begin() + 1000);  // to 4.995 s
+  dropout.insert(dropout.end(), imu.begin() + 1020, imu.end());  // from 5.1 s
+  EXPECT_FALSE(ImuAround(dropout, StampNs(5.0), kGravity, max_gap_ns));
+  EXPECT_FALSE(ImuAround(dropout, StampNs(5.05), kGravity, max_gap_ns));
+  EXPECT_TRUE(ImuAround(dropout, StampNs(5.15), kGravity, max_gap_ns));
+  EXPECT_THROW(ImuAround(sensors::ImuSamples(imu.begin(), imu.begin() + 1), StampNs(0.0), kGravity,
+                         max_gap_ns),
                Error);
 }
 

@@ -149,6 +149,9 @@ struct KeyframeGnssOptions {
   bool estimate_lever_arm = true;     // else p_I_A is set constant
   bool estimate_time_offset = false;  // time_offset_gnss_imu_s (Eq. K16); else held
   double gravity_m_s2 = 9.80665;      // as KeyframeWheelOptions::gravity_m_s2
+  // With a clock offset: the largest spacing of the IMU samples that carry a keyframe's state
+  // to its fix (Eq. K16); a keyframe in an IMU dropout gets no factor. Eq. T1 at 200 Hz.
+  double max_imu_gap_s = 0.0125;
 };
 
 // The antenna position in ENU at t_ns (Eq. K1) with its interpolated per-axis sigma (Eq. K2);
