@@ -257,6 +257,11 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
       *sigma *= wheel_noise_scale;
     }
     wheel.factor.shared_radius = b.wheel_radius_shared;
+    // The yaw row's sigma holds at the track it was stated for, the nominal one (Eq. F22b),
+    // whatever track a later problem (an outer iteration, a new pairing) starts from.
+    if (dataset->wheel_form() != sensors::WheelForm::kSpeedYawRate) {
+      wheel.factor.yaw_row_track_m = nominal->track_width_m;
+    }
     wheel.loss = problem->loss.wheel;
     wheel.max_wheel_gap_s = timing->max_wheel_gap_s;
     wheel.max_imu_gap_s = timing->max_imu_gap_s;
