@@ -135,11 +135,11 @@ std::unique_ptr<ceres::Problem> NewJointProblem(const io::Dataset& dataset,
   return p;
 }
 
-// The solve of *joint, built at `calibration`'s clocks. Each keyframe
-// takes the wheel sample and the fix nearest it on the clocks' estimates (Eq. K17): while a
-// solve moves a clock onto other samples, the factors are added again at the clocks it ended
-// at and solved again, at most kMaxClockPairingSolves times in all (a warning says when the
-// pairing still moved then). *solves counts the solves.
+// The solve of *joint, built at `calibration`'s clocks. Each keyframe takes the wheel sample
+// and the fix nearest it on the clocks' estimates (Eq. K17): while a solve moves a clock onto
+// other samples, the factors are added again at the clocks it ended at and solved again, at
+// most kMaxClockPairingSolves times in all (a warning says when the pairing still moved then).
+// *solves counts the solves.
 ceres::Solver::Summary SolvePairedAtTheClocks(const io::Dataset& dataset,
                                               const SensorFactors& sensor_factors,
                                               std::vector<estimation::Keyframe>* keyframes,
@@ -151,12 +151,10 @@ ceres::Solver::Summary SolvePairedAtTheClocks(const io::Dataset& dataset,
   ceres::Solver::Summary summary = Solve(dataset, problem, joint->get());
   for (*solves = 1; sensor_factors.PairingChanges(*keyframes, paired, *calibration); ++*solves) {
     if (*solves == kMaxClockPairingSolves) {
-      warnings->push_back(
-          "the wheel or GNSS clock still moved the keyframes onto other samples "
-          "after " +
-          std::to_string(*solves) +
-          " solves: its last factors are paired at the clock before the last "
-          "solve");
+      warnings->push_back("the wheel or GNSS clock still moved the keyframes onto other " +
+                          std::string("samples after ") + std::to_string(*solves) +
+                          " solves: the last factors are paired at the clocks before the last "
+                          "solve");
       break;
     }
     paired = *calibration;
