@@ -69,8 +69,10 @@ int64_t StampOf(const Sample& sample) {
 // The sample each keyframe takes when the sensor's clock is offset_ns from the IMU's
 // (docs/keyframe_factors.md, Eq. K17): the one nearest the sensor-clock instant t_k - offset,
 // kept when it was taken no farther than max_distance_ns from t_k and no other keyframe lies
-// nearer its IMU-clock instant t_j + offset, so that no sample serves two keyframes. Samples
-// (or their stamps) and keyframes strictly increasing in time.
+// nearer its IMU-clock instant t_j + offset, so that no sample serves two keyframes. The first
+// and the last keyframe take no sample beyond half their interval to their neighbour: a state
+// is carried no farther than that (Eq. K16). Samples (or their stamps) and keyframes strictly
+// increasing in time.
 template <typename Sample>
 std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& samples,
                                                   const std::vector<Keyframe>& keyframes,
@@ -90,8 +92,13 @@ std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& sam
     const int64_t t_imu = StampOf(samples[j]) + offset_ns;
     const int64_t d = distance(t_imu, t_k);
     if (d > max_distance_ns) continue;
-    if (k > 0 && distance(t_imu, keyframes[k - 1].t_ns) <= d) continue;
-    if (k + 1 < keyframes.size() && distance(t_imu, keyframes[k + 1].t_ns) < d) continue;
+    // The neighbours; beyond the first and the last keyframe, their interval mirrored.
+    const size_t n = keyframes.size();
+    if (n > 1) {
+      const int64_t before = k > 0 ? keyframes[k - 1].t_ns : 2 * t_k - keyframes[1].t_ns;
+      const int64_t after = k + 1 < n ? keyframes[k + 1].t_ns : 2 * t_k - keyframes[n - 2].t_ns;
+      if (distance(t_imu, before) <= d || distance(t_imu, after) < d) continue;
+    }
     paired[k] = j;
   }
   return paired;

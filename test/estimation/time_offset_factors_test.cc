@@ -408,6 +408,12 @@ TEST(NearestSamples, PairsEachKeyframeWithItsNearestSampleOnce) {
       0, std::nullopt, std::nullopt, 1, std::nullopt,
       2, std::nullopt, std::nullopt, 3, std::nullopt};
   EXPECT_EQ(sparse, each_once);
+  // Beyond the first and the last keyframe, no farther than half their interval (50 ms): the
+  // fix taken 20 ms before the first is kept, the one taken 70 ms after the last is not.
+  const auto ends = NearestSamples(FixesAt({0.0, 0.99}), KeyframesAt({0.0, 0.1, 0.8, 0.9}),
+                                   offset_ns, SecondsToNs(1.0));
+  EXPECT_EQ(ends,
+            (std::vector<std::optional<size_t>>{0, std::nullopt, std::nullopt, std::nullopt}));
   // Equally far from two keyframes, a sample serves the earlier one.
   const auto tie =
       NearestSamples(FixesAt({0.07}), KeyframesAt({0.0, 0.1}), offset_ns, SecondsToNs(1.0));
