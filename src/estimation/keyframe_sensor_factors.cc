@@ -481,14 +481,15 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   for (size_t k = 0; k < keyframes->size(); ++k) {
     Keyframe& kf = (*keyframes)[k];
     factors::GnssMeasurement m;
-    if (!shifted && !InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
-    if (shifted && !paired[k]) continue;
-    const std::optional<internal::ImuAroundKeyframe> around =
-        shifted ? internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns)
-                : std::nullopt;
-    if (shifted && !around) continue;
-    const sensors::GnssFix* fix = shifted ? &fixes[*paired[k]] : nullptr;
-    if (fix) m = factors::GnssMeasurement::FromFix(*fix, converter);
+    std::optional<internal::ImuAroundKeyframe> around;  // with a clock: what carries the state
+    if (!shifted) {
+      if (!InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
+    } else {
+      if (!paired[k]) continue;
+      around = internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns);
+      if (!around) continue;
+      m = factors::GnssMeasurement::FromFix(fixes[*paired[k]], converter);
+    }
     for (const factors::GnssAxes axes :
          {factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
       if (!shifted) {
@@ -496,10 +497,10 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                                   kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
                                   calibration->p_I_A.data());
       } else {
-        problem->AddResidualBlock(
-            internal::ShiftedGnssResidual::Create(m, fix->t_ns, kf.t_ns, *around, axes), loss,
-            kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(), kf.b_g.data(),
-            kf.b_a.data(), calibration->p_I_A.data(), offset);
+        problem->AddResidualBlock(internal::ShiftedGnssResidual::Create(m, fixes[*paired[k]].t_ns,
+                                                                        kf.t_ns, *around, axes),
+                                  loss, kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(),
+                                  kf.b_g.data(), kf.b_a.data(), calibration->p_I_A.data(), offset);
       }
     }
     unused_loss.release();
