@@ -62,6 +62,11 @@ void CheckPairing(const PairingOptions& p, const WindowPairingOptions& w) {
   if (std::adjacent_find(offsets.begin(), offsets.end()) != offsets.end()) {
     throw Error("SlidingWindowOptions: pairing.partner_offsets must not repeat an offset");
   }
+  if (!p.fallback_partner_offsets.empty()) {
+    throw Error(
+        "SlidingWindowOptions: pairing.fallback_partner_offsets must be empty (the window walks "
+        "partner_offsets only; put near keyframes there)");
+  }
   if (w.settled_partner_count < 1) {
     throw Error("SlidingWindowOptions: window_pairing.settled_partner_count must be >= 1");
   }

@@ -102,7 +102,7 @@ struct Association {
 // Per sweep its points' associations: each residual point on the first plane within the gate
 // among its partners, tried in the order of pairing.partner_offsets from a different start for
 // consecutive points (PartnerPosition), so that every sweep is tied to sweeps before and after
-// it.
+// it, then in the order of pairing.fallback_partner_offsets.
 std::vector<std::vector<Association>> PairEverySweep(const SweepsAtEstimate& at,
                                                      const PairingOptions& pairing,
                                                      int map_neighbor_sweeps, int num_threads);

@@ -108,6 +108,7 @@ std::vector<Association> PairSweep(const SweepsAtEstimate& at, const StretchMaps
   const double offset_lin = c.time_offset_lidar_imu_s;
   const std::vector<int>& partners = pairing.partner_offsets;
   const size_t P = partners.size();
+  const std::vector<int>& fallbacks = pairing.fallback_partner_offsets;
   const size_t sweep = static_cast<size_t>(k);
   const Keyframe& kf = (*at.keyframes)[sweep];
   const SelectedSweep& s = (*at.sweeps)[sweep];
@@ -126,8 +127,9 @@ std::vector<Association> PairSweep(const SweepsAtEstimate& at, const StretchMaps
     const size_t first = point_counter++;
     int partner = -1;
     geometry::Plane plane_W;
-    for (size_t attempt = 0; attempt < P && partner < 0; ++attempt) {
-      const int j = k + partners[PartnerPosition(first, attempt, P, P)];
+    for (size_t attempt = 0; attempt < P + fallbacks.size() && partner < 0; ++attempt) {
+      const int j = k + (attempt < P ? partners[PartnerPosition(first, attempt, P, P)]
+                                     : fallbacks[attempt - P]);
       if (j < 0 || j >= at.num_sweeps() || j == k) continue;
       if (maps.map(j).FindPlane(p_W, &plane_W) &&
           std::abs(plane_W.SignedDistance(p_W)) <= pairing.max_point_to_plane_m) {
@@ -153,6 +155,8 @@ std::vector<std::vector<Association>> PairEverySweep(const SweepsAtEstimate& at,
                                                      int map_neighbor_sweeps, int num_threads) {
   int reach = 0;
   for (const int offset : pairing.partner_offsets) reach = std::max(reach, std::abs(offset));
+  for (const int offset : pairing.fallback_partner_offsets)
+    reach = std::max(reach, std::abs(offset));
   const int stretch = kAssociationStretchPerThread * std::max(1, num_threads);
   StretchMaps maps(at, pairing.plane_map, map_neighbor_sweeps, num_threads);
   std::vector<std::vector<Association>> associations(at.sweeps->size());

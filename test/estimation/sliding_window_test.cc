@@ -155,6 +155,9 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   expect_rejected("a partner offset twice", [](SlidingWindowOptions* o) {
     o->pairing.partner_offsets = {-5, 5, -5};
   });
+  expect_rejected("fallback partners, which only the batch walks", [](SlidingWindowOptions* o) {
+    o->pairing.fallback_partner_offsets = {1, -1};
+  });
   expect_rejected("a zero trust region",
                   [](SlidingWindowOptions* o) { o->solver.initial_trust_region_radius = 0.0; });
   expect_rejected("a NaN gradient tolerance",

@@ -24,6 +24,13 @@ struct PairingOptions {
   // start for consecutive points: partners that moved, yet still overlap, make the extrinsic
   // and the time offset observable.
   std::vector<int> partner_offsets = {5, -5, 10, -10, 20, -20, 3, -3};
+  // Tried in this order by a point that none of partner_offsets paired: the nearest sweeps,
+  // whose pairs a wrong extrinsic rotation moves least (by the angle times the distance driven
+  // between the sweeps). At highway speed the partners above lie 20 to 130 m down the road, and
+  // a LiDAR yaw a few degrees off puts their barrier and kerb points metres from any plane, so
+  // the rotation stayed where it started, at a sigma from the pairs that remained (the batch
+  // only; the window's own partner list holds its nearest keyframes).
+  std::vector<int> fallback_partner_offsets = {1, -1};
   double max_point_to_plane_m = 0.1;  // outlier gate (moving objects, edges, corners)
   double point_sigma_m = 0.03;        // 1-sigma of a point-to-plane distance
 };
@@ -62,6 +69,7 @@ inline PairingOptions WindowPairingDefaults() {
   s.residual_max_range_m = 40.0;
   s.max_residuals_per_sweep = 2000;
   s.partner_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
+  s.fallback_partner_offsets.clear();
   return s;
 }
 
