@@ -1,5 +1,6 @@
 #include "autocal/io/dataset.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -65,6 +66,15 @@ void ReadWheelData(const std::string& directory, Dataset* dataset) {
   dataset->odometry = ReadOdometryCsv(path);
 }
 
+// The samples of a series (stamps increasing) stamped at or before end_ns.
+template <typename Stamped>
+std::vector<Stamped> StampedUntil(const std::vector<Stamped>& series, int64_t end_ns) {
+  const auto end =
+      std::upper_bound(series.begin(), series.end(), end_ns,
+                       [](int64_t t_ns, const Stamped& sample) { return t_ns < sample.t_ns; });
+  return std::vector<Stamped>(series.begin(), end);
+}
+
 }  // namespace
 
 sensors::WheelForm Dataset::wheel_form() const {
@@ -81,6 +91,21 @@ size_t Dataset::wheel_sample_count() const {
       break;
   }
   return odometry.size();
+}
+
+Dataset DatasetUntil(const Dataset& dataset, int64_t end_ns) {
+  Dataset out;
+  out.directory = dataset.directory;
+  out.sensors = dataset.sensors;
+  out.imu = StampedUntil(dataset.imu, end_ns);
+  out.wheel = StampedUntil(dataset.wheel, end_ns);
+  out.wheel_speeds = StampedUntil(dataset.wheel_speeds, end_ns);
+  out.odometry = StampedUntil(dataset.odometry, end_ns);
+  out.gnss = StampedUntil(dataset.gnss, end_ns);
+  out.lidar_sweeps = StampedUntil(dataset.lidar_sweeps, end_ns);
+  out.groundtruth_trajectory = StampedUntil(dataset.groundtruth_trajectory, end_ns);
+  out.groundtruth_calibration = dataset.groundtruth_calibration;
+  return out;
 }
 
 std::string Dataset::SweepPath(size_t index) const {

@@ -12,6 +12,7 @@
 #include "calibration_steps.h"
 #include "clock_initialization.h"
 #include "problem_blocks.h"
+#include "window_settings.h"
 
 namespace autocal {
 namespace pipeline {
@@ -26,17 +27,6 @@ template <typename Samples>
 void Shift(double offset_s, Samples* samples) {
   const int64_t shift_ns = SecondsToNs(offset_s);
   for (auto& s : *samples) s.t_ns += shift_ns;
-}
-
-// The window's initial-state covariance: the start's own (its yaw on a slow platform is worth
-// degrees, a car's tenths) plus the initial sigmas that stand for what the start's model leaves
-// out; those alone when the start left a direction undetermined.
-Eigen::Matrix<double, 15, 15> InitialStateCovariance(
-    const std::optional<Eigen::Matrix<double, 15, 15>>& start,
-    const estimation::SlidingWindowInitialStateSigmas& s) {
-  Eigen::Matrix<double, 15, 15> covariance = s.InStatePriorOrder().cwiseAbs2().asDiagonal();
-  if (start) covariance += 0.5 * (*start + start->transpose());
-  return covariance;
 }
 
 }  // namespace
@@ -134,12 +124,7 @@ estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Pro
   const estimation::GnssInertialKeyframes start = estimation::KeyframesFromGnssAndImu(
       &keyframes, dataset.imu, StartWheelData(dataset, use_wheel), dataset.gnss, enu,
       dataset.sensors.nominal_calibration, gnss_inertial);
-  window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
-  window_options->initial_state_sigmas.position_m = options.initial_position_sigma_with_gnss_m;
-  window_options->initial_state_sigmas.accel_bias_m_s2 =
-      options.initial_accel_bias_sigma_with_gnss_m_s2;
-  window_options->initial_state_covariance =
-      InitialStateCovariance(start.first_covariance, window_options->initial_state_sigmas);
+  SetGnssStart(enu, start.first_covariance, options, window_options);
   return keyframes.front();
 }
 

@@ -164,5 +164,18 @@ void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,
   }
 }
 
+void SetGnssStart(const sensors::EnuConverter& enu,
+                  const std::optional<Eigen::Matrix<double, 15, 15>>& start_covariance,
+                  const OnlineEstimationOptions& options,
+                  estimation::SlidingWindowOptions* window_options) {
+  window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
+  estimation::SlidingWindowInitialStateSigmas& sigmas = window_options->initial_state_sigmas;
+  sigmas.position_m = options.initial_position_sigma_with_gnss_m;
+  sigmas.accel_bias_m_s2 = options.initial_accel_bias_sigma_with_gnss_m_s2;
+  Eigen::Matrix<double, 15, 15> covariance = sigmas.InStatePriorOrder().cwiseAbs2().asDiagonal();
+  if (start_covariance) covariance += 0.5 * (*start_covariance + start_covariance->transpose());
+  window_options->initial_state_covariance = covariance;
+}
+
 }  // namespace pipeline
 }  // namespace autocal

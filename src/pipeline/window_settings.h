@@ -4,11 +4,15 @@
 // where the online estimation meets the window's options, in terms of the block table
 // (sensors/calibration_blocks.h).
 
+#include <Eigen/Core>
+#include <optional>
+
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/online_estimation.h"
+#include "autocal/sensors/gnss_enu.h"
 
 namespace autocal {
 namespace pipeline {
@@ -30,6 +34,18 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
 double PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& problem, bool use_wheel,
                            double keyframe_period_s, const Eigen::Quaterniond& q_I_V,
                            const estimation::WheelRowOptions& wheel_rows);
+
+// A start from GNSS: W is the ENU frame at the first fix (enu), and the first keyframe comes
+// from the GNSS-inertial solve over the first seconds. The initial state's covariance is that
+// solve's (start_covariance: a slow platform's yaw is worth degrees, a car's tenths, and on a
+// road without turns the tilt trades against the accelerometer bias, held only by its prior)
+// plus the initial sigmas, which stand for what the solve's model leaves out (options' position
+// and accelerometer-bias sigmas for a GNSS start); those alone when the solve left a direction
+// undetermined (start_covariance empty).
+void SetGnssStart(const sensors::EnuConverter& enu,
+                  const std::optional<Eigen::Matrix<double, 15, 15>>& start_covariance,
+                  const OnlineEstimationOptions& options,
+                  estimation::SlidingWindowOptions* window_options);
 
 // Sigmas of the estimated blocks from the window's covariance, into the calibration file.
 void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,

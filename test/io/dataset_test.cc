@@ -87,6 +87,35 @@ TEST(DatasetTest, WriterAndReaderRoundTripExactly) {
   EXPECT_THROW(dataset.LoadSweep(drive.sweeps.size()), Error);
 }
 
+// DatasetUntil keeps every stream's samples stamped at or before the end, the sweeps' files
+// still readable, and the configuration and ground-truth calibration as they are.
+TEST(DatasetTest, DatasetUntilKeepsWhatIsStampedUpToTheEnd) {
+  const test_data::Drive drive = test_data::MakeDrive(2.0);
+  const Dataset dataset = ReadDataset(WriteDrive("until", drive));
+  ASSERT_GE(dataset.lidar_sweeps.size(), 3u);
+  const int64_t end_ns = dataset.lidar_sweeps[1].t_ns;
+  const Dataset first = DatasetUntil(dataset, end_ns);
+  const auto expect_prefix = [end_ns](const auto& part, const auto& whole, const char* stream) {
+    size_t kept = 0;
+    while (kept < whole.size() && whole[kept].t_ns <= end_ns) ++kept;
+    EXPECT_GT(kept, 0u) << stream;
+    EXPECT_LT(kept, whole.size()) << stream;
+    ASSERT_EQ(part.size(), kept) << stream;
+    for (size_t i = 0; i < kept; ++i) EXPECT_EQ(part[i].t_ns, whole[i].t_ns) << stream << " " << i;
+  };
+  expect_prefix(first.imu, dataset.imu, "imu");
+  expect_prefix(first.wheel, dataset.wheel, "wheel");
+  expect_prefix(first.gnss, dataset.gnss, "gnss");
+  expect_prefix(first.lidar_sweeps, dataset.lidar_sweeps, "sweeps");
+  expect_prefix(first.groundtruth_trajectory, dataset.groundtruth_trajectory, "ground truth");
+  EXPECT_EQ(first.lidar_sweeps.back().t_ns, end_ns);
+  EXPECT_EQ(first.LoadSweep(1).cloud.points, dataset.LoadSweep(1).cloud.points);
+  EXPECT_EQ(first.directory, dataset.directory);
+  EXPECT_EQ(first.sensors.nominal_calibration.p_I_L, dataset.sensors.nominal_calibration.p_I_L);
+  ASSERT_TRUE(first.groundtruth_calibration.has_value());
+  EXPECT_TRUE(DatasetUntil(dataset, dataset.imu.front().t_ns - 1).imu.empty());
+}
+
 // The file contents are the ground truth of the analytic drive: the IMU a reader returns
 // integrates back to the trajectory the same reader returns (a check that the columns mean
 // what the format says: gyro in I, specific force with gravity, velocity in W).

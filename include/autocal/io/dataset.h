@@ -77,6 +77,11 @@ struct Dataset {
   std::string SweepPath(size_t index) const;
 };
 
+// The part of a log stamped at or before end_ns (each stream on its own clock, as stamped):
+// IMU, wheel, GNSS, sweeps and ground truth; the configuration as it is. For a solve over the
+// first seconds of a log.
+Dataset DatasetUntil(const Dataset& dataset, int64_t end_ns);
+
 struct DatasetReadOptions {
   // Unit checks on imu.csv (the gravity they use comes from sensors.yaml).
   ImuPlausibilityOptions imu_checks;

@@ -49,6 +49,12 @@ struct OnlineEstimationOptions {
   // "Streaming a dataset"): its odometry then registers sweeps 0.3 s apart, which costs less
   // and gives the time offset larger rotations to correlate (docs/history/sliding_window.md).
   int initializer_sweep_stride = 3;
+  // With GNSS, the most the initializer's LiDAR odometry may miss the fixes by (RMS, after the
+  // 4-DoF alignment) for its extrinsic's yaw to be kept; beyond it, or when its track is too
+  // short to give the yaw (a highway), the window's calibration starts from the offline
+  // calibration of the initialization seconds, whose values also centre the window's priors
+  // (OfflineCalibrationOptions::max_odometry_to_gnss_rms_m, docs/sliding_window.md).
+  double max_odometry_to_gnss_rms_m = 20.0;
   // The window refines the initializer's extrinsic and offset, so the faster settings serve,
   // as in the offline calibration (docs/sliding_window.md, "Streaming a dataset").
   estimation::CalibrationInitializerOptions initializer =
