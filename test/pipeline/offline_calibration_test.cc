@@ -272,20 +272,11 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
 // accuracy goals: every other direction is reported by name, held at its nominal value where
 // the drive left it at its prior, and what is reported observable meets the goals.
 TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
-  sim::SimulationOptions options;
-  options.scenario = sim::ScenarioType::kHighway;
-  options.duration_s = 30.0;
-  options.seed = 3;
-  options.lidar.config.num_beams = 16;
-  const sim::Simulator simulator(options);
-  const std::string directory =
-      test::OutputDir("highway_30s_" + std::to_string(static_cast<long>(getpid()))).string();
-  std::filesystem::remove_all(directory);
-  sim::WriteDataset(simulator, directory);
-  const io::Dataset dataset = io::ReadDataset(directory);
+  const test::SimulatedUrbanDataset data(test::HighwayDriveOptions(30.0, 3), "highway_30s");
+  const sim::Simulator& simulator = data.simulator;
+  const io::Dataset dataset = io::ReadDataset(data.directory);
   const io::Problem problem = ShippedProblem("highway.yaml");
   const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
-  std::filesystem::remove_all(directory);
   std::cout << FormatCalibrationSummary(result);
   for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
 
@@ -355,12 +346,7 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
 // nearest sweeps, tried by every point the far partners did not pair, hold the barriers and
 // move the yaw to the truth (pairing_options.h, fallback_partner_offsets).
 TEST(OfflineCalibrationHighway, FindsALidarYawDegreesOffItsNominalValue) {
-  sim::SimulationOptions drive;
-  drive.scenario = sim::ScenarioType::kHighway;
-  drive.duration_s = 30.0;
-  drive.seed = 4;
-  drive.lidar.config.num_beams = 16;
-  const test::SimulatedUrbanDataset data(drive, "highway_30s_yaw");
+  const test::SimulatedUrbanDataset data(test::HighwayDriveOptions(30.0, 4), "highway_30s_yaw");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   const sensors::Calibration& truth = data.simulator.true_calibration();
   const Eigen::Vector3d nominal_deg =

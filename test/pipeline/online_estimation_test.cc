@@ -289,12 +289,7 @@ TEST_F(OnlineEstimationTest, RefusesWhatItCannotDo) {
 // From the nominal values instead (3.5 deg off) the window ended with the LiDAR pitch 0.69 deg
 // off at a stated 0.11 deg; on other seeds 2.5 and 8 deg off (docs/sliding_window.md).
 TEST(OnlineEstimationHighway, StartsFromTheBatchWhereTheLidarOdometryDoesNotFollow) {
-  sim::SimulationOptions drive;
-  drive.scenario = sim::ScenarioType::kHighway;
-  drive.duration_s = 30.0;
-  drive.seed = 3;
-  drive.lidar.config.num_beams = 16;
-  const test::SimulatedUrbanDataset data(drive, "highway_30s_online");
+  const test::SimulatedUrbanDataset data(test::HighwayDriveOptions(30.0, 3), "highway_30s");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   const io::Problem problem = test::ShippedProblem("highway.yaml");
   OnlineEstimationOptions options;

@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -33,6 +34,16 @@ inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
   options.scenario = sim::ScenarioType::kUrban;
   options.duration_s = duration_s;
   options.seed = 7;
+  options.lidar.config.num_beams = 16;
+  return options;
+}
+
+// A highway drive (about 120 km/h, no turns, traffic around the car) with a 16-beam LiDAR.
+inline sim::SimulationOptions HighwayDriveOptions(double duration_s, uint64_t seed) {
+  sim::SimulationOptions options;
+  options.scenario = sim::ScenarioType::kHighway;
+  options.duration_s = duration_s;
+  options.seed = seed;
   options.lidar.config.num_beams = 16;
   return options;
 }
