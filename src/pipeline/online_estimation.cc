@@ -190,7 +190,8 @@ struct WindowStart {
 // its LiDAR pitch ended 3.8 and 8.3 deg off at a stated 0.12 deg, while the batch's
 // coarse-to-fine association ends within its sigmas (docs/sliding_window.md, "Streaming a
 // dataset"). One thread, so that the start does not depend on the thread count. Throws
-// autocal::Error, naming `why` the odometry failed, when the batch fails.
+// autocal::Error, starting with `why` the initializer could not start the window, when the
+// batch fails (a ParseError as it is).
 sensors::Calibration CalibrateFirstSeconds(const io::Dataset& dataset, const io::Problem& problem,
                                            const OnlineEstimationOptions& options,
                                            const std::string& why) {
@@ -198,14 +199,15 @@ sensors::Calibration CalibrateFirstSeconds(const io::Dataset& dataset, const io:
       dataset, dataset.lidar_sweeps.front().t_ns + SecondsToNs(options.initialization_duration_s));
   io::Problem single_thread = problem;
   single_thread.solver.num_threads = 1;
+  OfflineCalibrationOptions offline;
+  offline.max_odometry_to_gnss_rms_m = options.max_odometry_to_gnss_rms_m;
   try {
-    return CalibrateDataset(first, single_thread, OfflineCalibrationOptions()).calibration.value;
+    return CalibrateDataset(first, single_thread, offline).calibration.value;
+  } catch (const ParseError&) {
+    throw;
   } catch (const Error& e) {
-    throw Error("the initializer's LiDAR odometry did not follow the first " +
-                FormatShort(options.initialization_duration_s) + " s (" + why +
-                "), and the offline calibration of those seconds that would start the window "
-                "failed: " +
-                e.what());
+    throw Error(why + ", and the offline calibration of those seconds that would start the " +
+                "window failed: " + e.what());
   }
 }
 
@@ -230,13 +232,15 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
     const std::string failure = OdometryMissesGnss(dataset, enu, timing, out.calibration.p_I_A,
                                                    options.max_odometry_to_gnss_rms_m, &keyframes);
     if (!failure.empty()) {
+      const std::string why =
+          "the initializer's LiDAR odometry could not be aligned to the GNSS fixes of the first " +
+          FormatShort(options.initialization_duration_s) + " s (" + failure + ")";
       // The priors keep their sigmas and centre on the batch's values: centred at the nominal
       // ones, they pulled every block back there before the first sweeps paired.
-      out.calibration = CalibrateFirstSeconds(dataset, problem, options, failure);
+      out.calibration = CalibrateFirstSeconds(dataset, problem, options, why);
       window_options->calibration_prior.mean = out.calibration;
-      warnings->push_back("the LiDAR odometry did not follow the first " +
-                          FormatShort(options.initialization_duration_s) + " s (" + failure +
-                          "): the window starts from GNSS and the IMU, and its calibration from "
+      warnings->push_back(why +
+                          ": the window starts from GNSS and the IMU, and its calibration from "
                           "the offline calibration of those seconds");
     }
     // The start's small solve on one thread: Ceres sums cost and gradient per thread, and a
@@ -252,7 +256,7 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
     SetGnssStart(enu, start.covariance, options, window_options);
   }
   // The initializer's keyframes use its time offset; the window's keyframe time rule
-  // (KeyframeTimeOf) uses the calibration's, which is the same value or the nominal one.
+  // (KeyframeTimeOf) uses the calibration's: the same value, the nominal one or the batch's.
   out.keyframe = keyframes.front();
   return out;
 }
@@ -504,9 +508,9 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   int64_t keyframe_period_ns = 0;
   if (use_lidar) {
     first = InitializeOnFirstSeconds(dataset, problem, options, use_gnss, &start_warnings);
-    result.seconds_initialization = SecondsSince(start);
     window_start = StartWindow(dataset, problem, options, timing, first.init, use_wheel, use_gnss,
                                &window_options, &start_warnings);
+    result.seconds_initialization = SecondsSince(start);
   } else {
     keyframe_period_ns = KeyframePeriodWithoutLidar(dataset, options);
     window_start.calibration = dataset.sensors.nominal_calibration;

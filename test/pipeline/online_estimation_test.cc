@@ -287,7 +287,8 @@ TEST_F(OnlineEstimationTest, RefusesWhatItCannotDo) {
 // starts from GNSS and the IMU with the calibration the offline batch finds on the first 15 s,
 // each step named in a warning. Refused before: "the initializer could not start the window".
 // From the nominal values instead (3.5 deg off) the window ended with the LiDAR pitch 0.69 deg
-// off at a stated 0.11 deg; on other seeds 2.5 and 8 deg off (docs/sliding_window.md).
+// off at a stated 0.11 deg on this drive, 3.8 deg off on the same seed from autocal_simulate,
+// and 2.5 and 8.3 deg off on seeds 4 and 5 (docs/sliding_window.md).
 TEST(OnlineEstimationHighway, StartsFromTheBatchWhereTheLidarOdometryDoesNotFollow) {
   const test::SimulatedUrbanDataset data(test::HighwayDriveOptions(30.0, 3), "highway_30s");
   const io::Dataset dataset = io::ReadDataset(data.directory);
@@ -298,8 +299,9 @@ TEST(OnlineEstimationHighway, StartsFromTheBatchWhereTheLidarOdometryDoesNotFoll
   for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr("initialization: too little rotation")));
-  EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr(
-                                   "the LiDAR odometry did not follow the first 15 s")));
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::HasSubstr(
+                  "LiDAR odometry could not be aligned to the GNSS fixes of the first 15 s")));
   EXPECT_THAT(
       result.warnings,
       ::testing::Contains(::testing::HasSubstr("its calibration from the offline calibration")));
@@ -317,9 +319,12 @@ TEST(OnlineEstimationHighway, StartsFromTheBatchWhereTheLidarOdometryDoesNotFoll
   EXPECT_EQ(result.initial.time_offset_lidar_imu_s, batch.time_offset_lidar_imu_s);
   EXPECT_TRUE(result.initial.q_I_V.isApprox(batch.q_I_V, 1e-12));
 
-  // Every LiDAR rotation axis within three of its stated sigmas (the right perturbation at the
-  // estimate), the trajectory within 5 cm and 1 deg RMS. Measured: roll, pitch, yaw 0.17,
-  // -0.26, 0.20 deg at sigma 0.36, 0.26, 0.09 deg; trajectory 2.7 cm, 0.54 deg.
+  // Every LiDAR rotation axis within three of its stated sigmas (the right perturbation at
+  // the estimate), the trajectory within 5 cm and 1 deg RMS. Measured: roll, pitch, yaw 0.17,
+  // -0.26, 0.20 deg at sigma 0.36, 0.26, 0.09 deg; trajectory 2.7 cm, 0.54 deg. The window
+  // takes every sweep (the batch every second one), so its yaw reaches sigma 0.091 deg, under
+  // the 0.1 deg limit, and is reported observable 2.2 sigma off: a sigma limit holds the goal
+  // at one sigma.
   const sensors::Calibration& truth = data.simulator.true_calibration();
   const Eigen::Vector3d delta_deg =
       geometry::Log(result.calibration.value.q_I_L.conjugate() * truth.q_I_L) * kRadToDeg;

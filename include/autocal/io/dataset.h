@@ -78,8 +78,8 @@ struct Dataset {
 };
 
 // The part of a log stamped at or before end_ns (each stream on its own clock, as stamped):
-// IMU, wheel, GNSS, sweeps and ground truth; the configuration as it is. For a solve over the
-// first seconds of a log.
+// IMU, wheel (every form), GNSS, sweeps and ground truth, whose stamps increase as ReadDataset
+// checks; the configuration as it is. For a solve over the first seconds of a log.
 Dataset DatasetUntil(const Dataset& dataset, int64_t end_ns);
 
 struct DatasetReadOptions {

@@ -6,9 +6,12 @@
 //
 // The initial state comes from the LiDAR-IMU initializer (estimation::InitializeLidarImu) on
 // the first `initialization_duration_s` of the log: its first keyframe starts the window,
-// moved into ENU by the 4-DoF GNSS alignment when GNSS takes part. The initial calibration
-// is the dataset's nominal one; the blocks the initializer estimates (q_I_L, p_I_L, time
-// offset) take its values when the problem estimates them.
+// refined by the GNSS-inertial solve over those seconds when GNSS takes part. The initial
+// calibration is the dataset's nominal one; the blocks the initializer estimates (q_I_L, p_I_L,
+// time offset) take its values when the problem estimates them. With GNSS, a drive the
+// initializer cannot use (no turns, or a LiDAR odometry that does not fit the fixes: a
+// highway) starts from the offline calibration of those seconds instead (CalibrateDataset),
+// whose values also centre the window's priors.
 //
 // Without the LiDAR (IMU, GNSS and optionally wheels; docs/sliding_window.md, "Without the
 // LiDAR") the window's keyframes come at a fixed period (SlidingWindowEstimator::
@@ -70,7 +73,7 @@ struct OnlineEstimationOptions {
   }();
   // 1-sigma of the prior on the initial state: the initializer's first keyframe is good to a
   // few centimetres and tenths of a degree, not to the window's defaults (meant for a known
-  // start). Without the LiDAR they add to the GNSS-inertial start's own covariance.
+  // start). With GNSS they add to the GNSS-inertial start's own covariance.
   estimation::SlidingWindowInitialStateSigmas initial_state_sigmas = [] {
     estimation::SlidingWindowInitialStateSigmas s;
     s.rotation_deg = 0.5;
@@ -110,20 +113,25 @@ struct OnlineEstimationResult {
   std::vector<estimation::SlidingWindowState> states;
   std::vector<CalibrationSample> calibration_over_time;
   estimation::SlidingWindowCounters counters;
-  sensors::Calibration initial;  // the calibration the window started from
+  // The calibration the window started from: the initializer's, or the offline calibration
+  // of the first seconds where the initializer could not start it.
+  sensors::Calibration initial;
   // Plain-language findings of the start: the clock offsets the window holds, a nominal mount
-  // replaced by the data's.
+  // replaced by the data's, the initializer's fallbacks to nominal values, a start from the
+  // offline calibration of the first seconds.
   std::vector<std::string> warnings;
   double keyframe_period_s = 0.0;  // without the LiDAR; 0 with it (keyframes are sweeps)
   double seconds_total = 0.0;
-  double seconds_initialization = 0.0;  // of seconds_total: loading its sweeps, the initializer
+  // Of seconds_total: loading its sweeps, the initializer, the start's solves.
+  double seconds_initialization = 0.0;
 };
 
 // Streams the dataset through the window. Throws autocal::Error naming what is wrong when the
 // problem asks for data the dataset lacks, asks for what the window does not estimate
 // (one shared wheel radius, only one radius estimated), has neither the LiDAR nor GNSS, or
-// when the initializer cannot start (its reasons; without the LiDAR: too few fixes, or too
-// short an overlap of IMU and GNSS for two keyframes).
+// when the initializer cannot start (its reasons; with GNSS, those of the offline calibration
+// of the first seconds that stands in for it; without the LiDAR: too few fixes, or too short
+// an overlap of IMU and GNSS for two keyframes). A file error keeps its autocal::ParseError.
 OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const io::Problem& problem,
                                              const OnlineEstimationOptions& options = {});
 
