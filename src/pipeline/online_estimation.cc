@@ -195,8 +195,10 @@ struct WindowStart {
 sensors::Calibration CalibrateFirstSeconds(const io::Dataset& dataset, const io::Problem& problem,
                                            const OnlineEstimationOptions& options,
                                            const std::string& why) {
-  const io::Dataset first = io::DatasetUntil(
-      dataset, dataset.lidar_sweeps.front().t_ns + SecondsToNs(options.initialization_duration_s));
+  // The initializer's seconds: sweeps stamped before their end.
+  const io::Dataset first =
+      io::DatasetUntil(dataset, dataset.lidar_sweeps.front().t_ns +
+                                    SecondsToNs(options.initialization_duration_s) - 1);
   io::Problem single_thread = problem;
   single_thread.solver.num_threads = 1;
   OfflineCalibrationOptions offline;

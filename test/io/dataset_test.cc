@@ -91,8 +91,15 @@ TEST(DatasetTest, WriterAndReaderRoundTripExactly) {
 // still readable, and the configuration and ground-truth calibration as they are.
 TEST(DatasetTest, DatasetUntilKeepsWhatIsStampedUpToTheEnd) {
   const test_data::Drive drive = test_data::MakeDrive(2.0);
-  const Dataset dataset = ReadDataset(WriteDrive("until", drive));
+  Dataset dataset = ReadDataset(WriteDrive("until", drive));
   ASSERT_GE(dataset.lidar_sweeps.size(), 3u);
+  // The other wheel forms' series, at the encoders' stamps (only the stamps matter here).
+  for (const sensors::WheelSample& w : dataset.wheel) {
+    dataset.wheel_speeds.emplace_back();
+    dataset.wheel_speeds.back().t_ns = w.t_ns;
+    dataset.odometry.emplace_back();
+    dataset.odometry.back().t_ns = w.t_ns;
+  }
   const int64_t end_ns = dataset.lidar_sweeps[1].t_ns;
   const Dataset first = DatasetUntil(dataset, end_ns);
   const auto expect_prefix = [end_ns](const auto& part, const auto& whole, const char* stream) {
@@ -105,6 +112,8 @@ TEST(DatasetTest, DatasetUntilKeepsWhatIsStampedUpToTheEnd) {
   };
   expect_prefix(first.imu, dataset.imu, "imu");
   expect_prefix(first.wheel, dataset.wheel, "wheel");
+  expect_prefix(first.wheel_speeds, dataset.wheel_speeds, "wheel speeds");
+  expect_prefix(first.odometry, dataset.odometry, "odometry");
   expect_prefix(first.gnss, dataset.gnss, "gnss");
   expect_prefix(first.lidar_sweeps, dataset.lidar_sweeps, "sweeps");
   expect_prefix(first.groundtruth_trajectory, dataset.groundtruth_trajectory, "ground truth");

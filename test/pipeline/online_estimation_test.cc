@@ -306,15 +306,14 @@ TEST(OnlineEstimationHighway, StartsFromTheBatchWhereTheLidarOdometryDoesNotFoll
       result.warnings,
       ::testing::Contains(::testing::HasSubstr("its calibration from the offline calibration")));
 
-  // The start is the batch's result on the first 15 s (on one thread).
+  // The start is the batch's result on the initializer's sweeps, those stamped before 15 s
+  // from the first one (on one thread).
   io::Problem one_thread = problem;
   one_thread.solver.num_threads = 1;
+  const int64_t end_ns =
+      dataset.lidar_sweeps.front().t_ns + SecondsToNs(options.initialization_duration_s);
   const sensors::Calibration batch =
-      CalibrateDataset(
-          io::DatasetUntil(dataset, dataset.lidar_sweeps.front().t_ns +
-                                        SecondsToNs(options.initialization_duration_s)),
-          one_thread)
-          .calibration.value;
+      CalibrateDataset(io::DatasetUntil(dataset, end_ns - 1), one_thread).calibration.value;
   EXPECT_TRUE(result.initial.q_I_L.isApprox(batch.q_I_L, 1e-12));
   EXPECT_EQ(result.initial.time_offset_lidar_imu_s, batch.time_offset_lidar_imu_s);
   EXPECT_TRUE(result.initial.q_I_V.isApprox(batch.q_I_V, 1e-12));
