@@ -104,6 +104,15 @@ std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& sam
   return paired;
 }
 
+// The sample each keyframe takes in the factors of a sensor on a clock offset_s from the IMU's
+// (Eq. K17): NearestSamples within half the sensor's maximum gap between samples.
+template <typename Sample>
+std::vector<std::optional<size_t>> PairedSamples(const std::vector<Sample>& samples,
+                                                 const std::vector<Keyframe>& keyframes,
+                                                 double offset_s, int64_t max_gap_ns) {
+  return NearestSamples(samples, keyframes, SecondsToNs(offset_s), max_gap_ns / 2);
+}
+
 // A maximum gap in seconds as nanoseconds; throws autocal::Error naming `name` unless it is
 // a positive number.
 int64_t GapNs(double gap_s, const std::string& name);

@@ -259,9 +259,8 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   const bool shifted = options.estimate_time_offset || *offset != 0.0;
   // The sample each keyframe takes on the wheel clock (Eq. K17), at the offset's value now.
   const std::vector<std::optional<size_t>> paired =
-      shifted
-          ? internal::NearestSamples(wheel, *keyframes, SecondsToNs(*offset), max_wheel_gap_ns / 2)
-          : std::vector<std::optional<size_t>>();
+      shifted ? internal::PairedSamples(wheel, *keyframes, *offset, max_wheel_gap_ns)
+              : std::vector<std::optional<size_t>>();
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
@@ -470,7 +469,7 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
   // The fix each keyframe takes on the receiver's clock (Eq. K17), at the offset's value now.
   const std::vector<std::optional<size_t>> paired =
-      shifted ? internal::NearestSamples(fixes, *keyframes, SecondsToNs(*offset), max_gap_ns / 2)
+      shifted ? internal::PairedSamples(fixes, *keyframes, *offset, max_gap_ns)
               : std::vector<std::optional<size_t>>();
 
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to

@@ -329,9 +329,9 @@ bool SensorFactors::PairingChanges(const std::vector<estimation::Keyframe>& keyf
   const io::ProblemCalibration& b = problem->calibration;
   const auto changes = [&](const std::vector<int64_t>& stamps, double from_s, double to_s,
                            double max_gap_s) {
-    const int64_t max_ns = SecondsToNs(max_gap_s) / 2;
-    return estimation::internal::NearestSamples(stamps, keyframes, SecondsToNs(from_s), max_ns) !=
-           estimation::internal::NearestSamples(stamps, keyframes, SecondsToNs(to_s), max_ns);
+    const int64_t max_gap_ns = SecondsToNs(max_gap_s);
+    return estimation::internal::PairedSamples(stamps, keyframes, from_s, max_gap_ns) !=
+           estimation::internal::PairedSamples(stamps, keyframes, to_s, max_gap_ns);
   };
   if (use_wheel && Estimated(b.time_offset_wheel_imu_s.mode) &&
       changes(WheelStamps(*dataset), from.time_offset_wheel_imu_s, to.time_offset_wheel_imu_s,
