@@ -152,18 +152,17 @@ struct PairedWheelSample {
   Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();
 };
 
-// Eq. F22 for a wheel sample against keyframe k's state carried to the sample's IMU time
-// (Eq. K16): the residuals of WheelResidual (angular rates, Eq. F20), WheelSpeedResidual
-// (Eq. F25) and OdometryTwistResidual (Eq. F26) through their shared pieces
-// PredictVehicleMotion and WheelRows. The rows take the sample's body rate, carried along the
-// gyro's slope as the offset moves from the one it was paired at, so the gyro's noise enters
-// them once, as the rate's covariance in their sigma says. The non-holonomic rows hold the
-// state at the paired instant: they read no wheel value, and carried with the offset their
-// model error (the body's sway on its suspension, which follows the acceleration) would pull
-// on it. Parameter blocks: q_W_I (4, RightQuaternionManifold), v_W_I, b_g, b_a (3 each), q_I_V
-// (4, RightQuaternionManifold), p_I_V (3), the form's intrinsics
-// (ShiftedWheelForm::NumIntrinsics, 1 each), time_offset_wheel_imu_s (1). Residuals as
-// WheelResidual: 4 with the non-holonomic rows, else 2.
+// Eq. F22 for a wheel sample against keyframe k's state carried to the sample's IMU time (Eq. K16):
+// the residuals of WheelResidual (angular rates, Eq. F20), WheelSpeedResidual (Eq. F25) and
+// OdometryTwistResidual (Eq. F26) through their shared pieces PredictVehicleMotion, AxleFromWheels
+// or AxleFromTwist, and WheelRows. The rows take the sample's body rate, carried along the gyro's
+// slope as the offset moves from the one it was paired at, so the gyro's noise enters them once, as
+// the rate's covariance in their sigma says. The non-holonomic rows hold the state at the paired
+// instant: they read no wheel value, and carried with the offset their model error (the body's sway
+// on its suspension, which follows the acceleration) would pull on it. Parameter blocks: q_W_I (4,
+// RightQuaternionManifold), v_W_I, b_g, b_a (3 each), q_I_V (4, RightQuaternionManifold), p_I_V
+// (3), the form's intrinsics (ShiftedWheelForm::NumIntrinsics, 1 each), time_offset_wheel_imu_s
+// (1). Residuals as WheelResidual: 4 with the non-holonomic rows, else 2.
 class ShiftedWheelResidual {
  public:
   ShiftedWheelResidual(const PairedWheelSample& sample, int64_t t_k_ns,
@@ -197,8 +196,7 @@ class ShiftedWheelResidual {
     const int n = form_.NumIntrinsics();
     const T& track = p[kIntrinsics + n - 1][0];
     if (!(track > T(0.0))) return false;
-    T speed, yaw_rate;
-    WheelMotion(p + kIntrinsics, track, &speed, &yaw_rate);
+    const factors::AxleMotion<T> axle = WheelMotion(p + kIntrinsics, track);
     // The wheel rows do not read p_W_I: the carried position is not needed.
     const T unused_p[3] = {T(0.0), T(0.0), T(0.0)};
     const T paired_delta_s(sample_after_keyframe_s_ + sample_.paired_offset_s);
@@ -206,13 +204,13 @@ class ShiftedWheelResidual {
     const Vec3 w_paired = sample_.gyro_rad_s.cast<T>() - Eigen::Map<const Vec3>(p[2]);
     const Vec3 w = w_paired + imu_.gyro_slope_rad_s2.cast<T>() * (delta_s - paired_delta_s);
     const CarriedState<T> s = CarryState(p[0], unused_p, p[1], p[2], p[3], imu_, delta_s);
-    factors::WheelRows(factors::PredictVehicleMotion(s.q_W_I, s.v_W_I, w, p[4], p[5]), speed,
-                       yaw_rate, track, options_, residual);
+    factors::WheelRows(factors::PredictVehicleMotion(s.q_W_I, s.v_W_I, w, p[4], p[5]), axle.speed,
+                       axle.yaw_rate, track, options_, residual);
     if (options_.non_holonomic) {
       const CarriedState<T> at = CarryState(p[0], unused_p, p[1], p[2], p[3], imu_, paired_delta_s);
       T paired[4];
       factors::WheelRows(factors::PredictVehicleMotion(at.q_W_I, at.v_W_I, w_paired, p[4], p[5]),
-                         speed, yaw_rate, track, options_, paired);
+                         axle.speed, axle.yaw_rate, track, options_, paired);
       residual[2] = paired[2];
       residual[3] = paired[3];
     }
@@ -222,20 +220,15 @@ class ShiftedWheelResidual {
  private:
   // The rear axle's speed and yaw rate the wheels report through the form's intrinsics.
   template <typename T>
-  void WheelMotion(T const* const* intrinsics, const T& track, T* speed, T* yaw_rate) const {
-    const T x0(sample_.values(0)), x1(sample_.values(1));
-    if (form_.form == sensors::WheelForm::kSpeedYawRate) {
-      const T& k_v = intrinsics[0][0];
-      *speed = k_v * x0;
-      *yaw_rate = k_v * x1 * T(form_.controller_track_m) / track;  // track: b_eff
-      return;
+  factors::AxleMotion<T> WheelMotion(T const* const* intrinsics, const T& track) const {
+    if (form_.form == sensors::WheelForm::kSpeedYawRate) {  // track: b_eff
+      return factors::AxleFromTwist(intrinsics[0][0], sample_.values(0), sample_.values(1),
+                                    form_.controller_track_m, track);
     }
     const T& scale_left = intrinsics[0][0];
     const T& scale_right = form_.NumIntrinsics() == 2 ? intrinsics[0][0] : intrinsics[1][0];
-    const T left = x0 * scale_left;
-    const T right = x1 * scale_right;
-    *speed = T(0.5) * (left + right);
-    *yaw_rate = (right - left) / track;
+    return factors::AxleFromWheels(T(sample_.values(0)) * scale_left,
+                                   T(sample_.values(1)) * scale_right, track);
   }
 
   PairedWheelSample sample_;

@@ -132,6 +132,28 @@ T YawRowSigma(const WheelFactorOptions& options, const T& track) {
   return sqrt(T(s_w2) * ratio * ratio + T(s_g2));
 }
 
+// The rear axle's speed and yaw rate as a wheel form reports them.
+template <typename T>
+struct AxleMotion {
+  T speed;
+  T yaw_rate;
+};
+
+// From the left and right rear wheels' speeds (m/s) over the track b (Eq. F20, F25):
+// (v_l + v_r) / 2 and (v_r - v_l) / b.
+template <typename T>
+AxleMotion<T> AxleFromWheels(const T& left, const T& right, const T& track) {
+  return {T(0.5) * (left + right), (right - left) / track};
+}
+
+// From the controller's twist (Eq. F26): k_v v_odo and k_v w_odo b_ctrl / b_eff.
+template <typename T>
+AxleMotion<T> AxleFromTwist(const T& speed_scale, double speed_m_s, double yaw_rate_rad_s,
+                            double controller_track_m, const T& effective_track) {
+  return {speed_scale * T(speed_m_s),
+          speed_scale * T(yaw_rate_rad_s * controller_track_m) / effective_track};
+}
+
 // Eq. F22 for any form: the state's speed and yaw rate minus the wheels' (`speed`,
 // `yaw_rate` through the factor's `track`), then the non-holonomic rows when enabled; whitened
 // by the options' sigmas, the yaw-rate row's at `track` (YawRowSigma).
@@ -164,10 +186,9 @@ class WheelResidual {
                   const T* r_l, const T* r_r, const T* track_width, T* residual) const {
     const VehicleMotion<T> motion =
         PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
-    const T left = T(m_.left_rad_s) * r_l[0];
-    const T right = T(m_.right_rad_s) * r_r[0];
-    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], track_width[0],
-              options_, residual);
+    const AxleMotion<T> axle =
+        AxleFromWheels(T(m_.left_rad_s) * r_l[0], T(m_.right_rad_s) * r_r[0], track_width[0]);
+    WheelRows(motion, axle.speed, axle.yaw_rate, track_width[0], options_, residual);
     return true;
   }
 
@@ -205,10 +226,9 @@ class WheelSpeedResidual {
     if (!(track_width[0] > T(0.0))) return false;
     const VehicleMotion<T> motion =
         PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
-    const T left = T(m_.left_m_s) * scale_left[0];
-    const T right = T(m_.right_m_s) * scale_right[0];
-    WheelRows(motion, T(0.5) * (left + right), (right - left) / track_width[0], track_width[0],
-              options_, residual);
+    const AxleMotion<T> axle = AxleFromWheels(T(m_.left_m_s) * scale_left[0],
+                                              T(m_.right_m_s) * scale_right[0], track_width[0]);
+    WheelRows(motion, axle.speed, axle.yaw_rate, track_width[0], options_, residual);
     return true;
   }
 
@@ -249,10 +269,9 @@ class OdometryTwistResidual {
     if (!(effective_track[0] > T(0.0))) return false;
     const VehicleMotion<T> motion =
         PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
-    const T speed = speed_scale[0] * T(m_.speed_m_s);
-    const T yaw_rate =
-        speed_scale[0] * T(m_.yaw_rate_rad_s * m_.controller_track_m) / effective_track[0];
-    WheelRows(motion, speed, yaw_rate, effective_track[0], options_, residual);
+    const AxleMotion<T> axle = AxleFromTwist(speed_scale[0], m_.speed_m_s, m_.yaw_rate_rad_s,
+                                             m_.controller_track_m, effective_track[0]);
+    WheelRows(motion, axle.speed, axle.yaw_rate, effective_track[0], options_, residual);
     return true;
   }
 
