@@ -61,26 +61,35 @@ std::optional<ImuAroundKeyframe> ImuAround(const sensors::ImuSamples& imu, int64
 template <typename T>
 struct CarriedState {
   Eigen::Quaternion<T> q_W_I;
-  geometry::Vector3<T> p_W_I, v_W_I, w_I;  // w_I bias-corrected
+  geometry::Vector3<T> v_W_I, w_I;  // w_I bias-corrected
+  geometry::Vector3<T> a_W;         // the acceleration in W the carry assumes
 };
 
-// Eq. K16: the keyframe's state (q_W_I, p_W_I, v_W_I, b_g, b_a) delta_s after t_k.
+// Eq. K16 for the keyframe's attitude, velocity and body rate (q_W_I, v_W_I, b_g, b_a) delta_s
+// after t_k.
 template <typename T>
-CarriedState<T> CarryState(const T* q_W_I_ptr, const T* p_W_I_ptr, const T* v_W_I_ptr,
-                           const T* b_g_ptr, const T* b_a_ptr, const ImuAroundKeyframe& imu,
-                           const T& delta_s) {
+CarriedState<T> CarryState(const T* q_W_I_ptr, const T* v_W_I_ptr, const T* b_g_ptr,
+                           const T* b_a_ptr, const ImuAroundKeyframe& imu, const T& delta_s) {
   using Vec3 = geometry::Vector3<T>;
   const Eigen::Map<const Eigen::Quaternion<T>> q_k(q_W_I_ptr);
-  const Eigen::Map<const Vec3> p_k(p_W_I_ptr), v_k(v_W_I_ptr), b_g(b_g_ptr), b_a(b_a_ptr);
+  const Eigen::Map<const Vec3> v_k(v_W_I_ptr), b_g(b_g_ptr), b_a(b_a_ptr);
   const Vec3 w = imu.gyro_rad_s.cast<T>() - b_g;
   const Vec3 w_slope = imu.gyro_slope_rad_s2.cast<T>();
-  const Vec3 a_W = q_k * Vec3(imu.accel_m_s2.cast<T>() - b_a) + imu.g_W.cast<T>();
   CarriedState<T> s;
+  s.a_W = q_k * Vec3(imu.accel_m_s2.cast<T>() - b_a) + imu.g_W.cast<T>();
   s.q_W_I = q_k * geometry::Exp(Vec3(w * delta_s + T(0.5) * w_slope * delta_s * delta_s));
-  s.v_W_I = v_k + a_W * delta_s;
-  s.p_W_I = p_k + v_k * delta_s + T(0.5) * a_W * delta_s * delta_s;
+  s.v_W_I = v_k + s.a_W * delta_s;
   s.w_I = w + w_slope * delta_s;
   return s;
+}
+
+// Eq. K16 for the position: p_k + v_k delta_s + a_W delta_s^2 / 2, with the carry's a_W.
+template <typename T>
+geometry::Vector3<T> CarryPosition(const T* p_W_I_ptr, const T* v_W_I_ptr,
+                                   const CarriedState<T>& carried, const T& delta_s) {
+  using Vec3 = geometry::Vector3<T>;
+  const Eigen::Map<const Vec3> p_k(p_W_I_ptr), v_k(v_W_I_ptr);
+  return p_k + v_k * delta_s + T(0.5) * carried.a_W * delta_s * delta_s;
 }
 
 // Eq. F30 for the fix stamped t_fix_ns (p_W_A, per-axis sigma), the rows of `axes`, against
@@ -107,10 +116,10 @@ class ShiftedGnssResidual {
   bool operator()(const T* q_W_I, const T* p_W_I, const T* v_W_I, const T* b_g, const T* b_a,
                   const T* p_I_A_ptr, const T* offset_s, T* residual) const {
     using Vec3 = geometry::Vector3<T>;
-    const CarriedState<T> s =
-        CarryState(q_W_I, p_W_I, v_W_I, b_g, b_a, imu_, T(fix_after_keyframe_s_) + offset_s[0]);
+    const T delta_s = T(fix_after_keyframe_s_) + offset_s[0];
+    const CarriedState<T> s = CarryState(q_W_I, v_W_I, b_g, b_a, imu_, delta_s);
     const Eigen::Map<const Vec3> p_I_A(p_I_A_ptr);
-    const Vec3 e = s.p_W_I + s.q_W_I * p_I_A - fix_.p_W_A.cast<T>();
+    const Vec3 e = CarryPosition(p_W_I, v_W_I, s, delta_s) + s.q_W_I * p_I_A - fix_.p_W_A.cast<T>();
     const int first = factors::FirstRow(axes_);
     for (int k = 0; k < factors::NumRows(axes_); ++k) {
       residual[k] = e(first + k) / T(fix_.sigma_enu_m(first + k));
@@ -197,17 +206,15 @@ class ShiftedWheelResidual {
     const T& track = p[kIntrinsics + n - 1][0];
     if (!(track > T(0.0))) return false;
     const factors::AxleMotion<T> axle = WheelMotion(p + kIntrinsics, track);
-    // The wheel rows do not read p_W_I: the carried position is not needed.
-    const T unused_p[3] = {T(0.0), T(0.0), T(0.0)};
     const T paired_delta_s(sample_after_keyframe_s_ + sample_.paired_offset_s);
     const T delta_s = T(sample_after_keyframe_s_) + p[kIntrinsics + n][0];
     const Vec3 w_paired = sample_.gyro_rad_s.cast<T>() - Eigen::Map<const Vec3>(p[2]);
     const Vec3 w = w_paired + imu_.gyro_slope_rad_s2.cast<T>() * (delta_s - paired_delta_s);
-    const CarriedState<T> s = CarryState(p[0], unused_p, p[1], p[2], p[3], imu_, delta_s);
+    const CarriedState<T> s = CarryState(p[0], p[1], p[2], p[3], imu_, delta_s);
     factors::WheelRows(factors::PredictVehicleMotion(s.q_W_I, s.v_W_I, w, p[4], p[5]), axle.speed,
                        axle.yaw_rate, track, options_, residual);
     if (options_.non_holonomic) {
-      const CarriedState<T> at = CarryState(p[0], unused_p, p[1], p[2], p[3], imu_, paired_delta_s);
+      const CarriedState<T> at = CarryState(p[0], p[1], p[2], p[3], imu_, paired_delta_s);
       T paired[4];
       factors::WheelRows(factors::PredictVehicleMotion(at.q_W_I, at.v_W_I, w_paired, p[4], p[5]),
                          axle.speed, axle.yaw_rate, track, options_, paired);
