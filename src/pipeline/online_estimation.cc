@@ -103,6 +103,12 @@ void CheckOnlineInputs(const io::Dataset& dataset, const io::Problem& problem,
   }
 }
 
+// The end of the log's first initialization_duration_s: the initializer's sweeps are those
+// stamped before it.
+int64_t InitializationEndNs(const io::Dataset& dataset, const OnlineEstimationOptions& options) {
+  return dataset.lidar_sweeps.front().t_ns + SecondsToNs(options.initialization_duration_s);
+}
+
 // The sweeps of the log's first initialization_duration_s and the initializer's result on
 // every initializer_sweep_stride-th of them (lent to it: moved there and back).
 struct InitialSeconds {
@@ -116,8 +122,7 @@ struct InitialSeconds {
 InitialSeconds InitializeOnFirstSeconds(const io::Dataset& dataset, const io::Problem& problem,
                                         const OnlineEstimationOptions& options, bool use_gnss,
                                         std::vector<std::string>* warnings) {
-  const int64_t init_end_ns =
-      dataset.lidar_sweeps.front().t_ns + SecondsToNs(options.initialization_duration_s);
+  const int64_t init_end_ns = InitializationEndNs(dataset, options);
   size_t num_init_sweeps = 0;
   while (num_init_sweeps < dataset.lidar_sweeps.size() &&
          dataset.lidar_sweeps[num_init_sweeps].t_ns < init_end_ns) {
@@ -195,10 +200,8 @@ struct WindowStart {
 sensors::Calibration CalibrateFirstSeconds(const io::Dataset& dataset, const io::Problem& problem,
                                            const OnlineEstimationOptions& options,
                                            const std::string& why) {
-  // The initializer's seconds: sweeps stamped before their end.
-  const io::Dataset first =
-      io::DatasetUntil(dataset, dataset.lidar_sweeps.front().t_ns +
-                                    SecondsToNs(options.initialization_duration_s) - 1);
+  // The initializer's seconds, without the instant that ends them (as its sweeps).
+  const io::Dataset first = io::DatasetUntil(dataset, InitializationEndNs(dataset, options) - 1);
   io::Problem single_thread = problem;
   single_thread.solver.num_threads = 1;
   OfflineCalibrationOptions offline;
