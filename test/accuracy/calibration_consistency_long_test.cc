@@ -28,6 +28,7 @@
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "autocal/sim/simulator.h"
+#include "support/consistency.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -83,15 +84,6 @@ void AddBoundRatios(const pipeline::OfflineCalibrationResult& result, Samples* r
           result.error_at_bound(row) / sigma);
     }
   }
-}
-
-// Two-sided 95 % band of chi^2(n) / n by the Wilson-Hilferty approximation (accurate to a
-// fraction of a percent for n >= 10).
-std::pair<double, double> ChiSquareBandPerDof(int n) {
-  const double z = 1.959964;
-  const double c = 2.0 / (9.0 * n);
-  const auto bound = [&](double zz) { return std::pow(1.0 - c + zz * std::sqrt(c), 3); };
-  return {bound(-z), bound(z)};
 }
 
 TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
@@ -184,7 +176,7 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
   }
   ASSERT_GT(count, 0);
   const double anees = sum / count;
-  const auto [low, high] = ChiSquareBandPerDof(count);
+  const auto [low, high] = test::ChiSquareBandPerDof(count);
   std::cout << "ANEES " << anees << " over " << count << " normalized errors of " << calibrated
             << " drives; 95 % band [" << low << ", " << high << "]\n";
   RecordProperty("anees", std::to_string(anees));

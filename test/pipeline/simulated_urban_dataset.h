@@ -44,7 +44,11 @@ inline sim::SimulationOptions HighwayDriveOptions(double duration_s, uint64_t se
   options.scenario = sim::ScenarioType::kHighway;
   options.duration_s = duration_s;
   options.seed = seed;
+  // A VLP-16's beams, as `autocal_simulate --lidar_beams=16` writes them: 2 deg apart over
+  // +-15 deg (the default spread, -25 to 15 deg, is the 32-beam sensor's).
   options.lidar.config.num_beams = 16;
+  options.lidar.config.min_elevation_deg = -15.0;
+  options.lidar.config.max_elevation_deg = 15.0;
   return options;
 }
 
