@@ -8,9 +8,11 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <utility>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
@@ -192,6 +194,26 @@ BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSwe
                      calibration, options, Eigen::Vector3d(0.0, 0.0, -options.gravity_m_s2)};
 }
 
+// A time offset the drive does not determine can wander during the solve until a sweep's
+// points fall before its keyframe (beyond the keyframe lead) or past the log's last IMU
+// sample: the solve cannot place them, and says which offset took it there.
+void CheckSweepMotionCovered(const BatchInputs& in, int64_t begin_ns, int64_t end_ns) {
+  const auto fail = [&](const std::string& what) {
+    throw Error("SolveLidarInertialBatch: at a LiDAR-IMU time offset of " +
+                FormatFixed(1e3 * in.calibration->time_offset_lidar_imu_s, 1) + " ms " + what +
+                "; a drive that does not determine the offset lets it wander there: fix it or "
+                "give it a tighter prior in the problem file");
+  };
+  if (end_ns < begin_ns) fail("a sweep's points lie before its keyframe (the keyframe lead)");
+  if (in.imu.size() < 2 || begin_ns < in.imu.front().t_ns || end_ns > in.imu.back().t_ns) {
+    const int64_t missing_ns =
+        in.imu.size() < 2 ? end_ns - begin_ns
+                          : std::max(in.imu.front().t_ns - begin_ns, end_ns - in.imu.back().t_ns);
+    fail("a sweep's points need IMU samples the log does not have (" +
+         FormatFixed(1e3 * NsToSeconds(missing_ns), 1) + " ms beyond them)");
+  }
+}
+
 // Step 1: every sweep propagated with the current estimate.
 SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
   const size_t n = in.sweeps.size();
@@ -207,9 +229,7 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
   in.ForEachSweep([&](size_t k) {
     const Keyframe& kf = (*in.keyframes)[k];
     const int64_t end_ns = in.sweeps[k].t_ns + SecondsToNs(in.sweeps[k].end_s + offset_lin);
-    if (end_ns < kf.t_ns) {
-      throw Error("SolveLidarInertialBatch: the time offset moved beyond the keyframe lead");
-    }
+    CheckSweepMotionCovered(in, kf.t_ns, end_ns);
     out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,

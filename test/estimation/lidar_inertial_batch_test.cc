@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
@@ -134,6 +136,36 @@ TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
     EXPECT_LT(std::abs(calibration.p_I_L(axis) - truth.p_I_L(axis)), 3.0 * sigma_m)
         << "axis " << axis;
   }
+}
+
+// A time offset that wanders beyond what the log can place (the drive does not determine it)
+// stops the solve with the offset named and what to do, not with the IMU table's range.
+TEST_F(LidarInertialBatchTest, NamesAnOffsetThatLeavesTheImuBehind) {
+  LidarInertialBatchOptions options;
+  options.imu_noise = simulator_->sensors_config().imu.noise;
+  const sensors::Calibration nominal = simulator_->nominal_calibration();
+  Setup(nominal, options);
+  const auto message = [&](double offset_s) {
+    sensors::Calibration calibration = nominal;
+    calibration.time_offset_lidar_imu_s = offset_s;
+    std::vector<Keyframe> keyframes = keyframes_;
+    try {
+      SolveLidarInertialBatch(log_->imu.samples, sweeps_, &keyframes, &calibration, options);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  // The last keyframe lies 200 ms or more before the IMU's end: 300 ms more leaves its points
+  // beyond the samples.
+  const std::string late = message(nominal.time_offset_lidar_imu_s + 0.3);
+  const std::string offset_ms = FormatFixed(1e3 * (nominal.time_offset_lidar_imu_s + 0.3), 1);
+  EXPECT_NE(late.find("at a LiDAR-IMU time offset of " + offset_ms + " ms"), std::string::npos)
+      << late;
+  EXPECT_NE(late.find("need IMU samples the log does not have"), std::string::npos) << late;
+  EXPECT_NE(late.find("fix it or give it a tighter prior"), std::string::npos) << late;
+  const std::string early = message(nominal.time_offset_lidar_imu_s - 0.3);
+  EXPECT_NE(early.find("lie before its keyframe"), std::string::npos) << early;
 }
 
 // A reduced sweep holds exactly the selected points, in single precision, each index pointing
