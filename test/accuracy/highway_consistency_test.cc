@@ -15,13 +15,6 @@
 // Figures: docs/calibration.md, "Highway".
 #include <gtest/gtest.h>
 
-#include <iomanip>
-#include <iostream>
-#include <string>
-
-#include "autocal/common/error.h"
-#include "autocal/common/units.h"
-#include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "pipeline/simulated_urban_dataset.h"
@@ -40,25 +33,10 @@ TEST(HighwayConsistency, NormalizedErrorsPerComponentMatchTheReportedSigmas) {
   for (int seed = kFirstSeed; seed < kFirstSeed + kSeeds; ++seed) {
     const test::SimulatedUrbanDataset data(test::HighwayDriveOptions(30.0, seed),
                                            "highway_consistency", test::DatasetStorage::kPrivate);
-    pipeline::OfflineCalibrationResult result;
-    try {
-      result = pipeline::CalibrateDataset(io::ReadDataset(data.directory), problem);
-    } catch (const Error& e) {
-      // A drive that cannot be calibrated says so; it carries no sample.
-      std::cout << "seed " << seed << ": not calibrated: " << e.what() << "\n";
-      continue;
+    if (test::CalibrateAndAddDrive(io::ReadDataset(data.directory), problem,
+                                   data.simulator.true_calibration(), seed, &components)) {
+      ++calibrated;
     }
-    ++calibrated;
-    const sensors::Calibration& truth = data.simulator.true_calibration();
-    const Eigen::Vector3d error_deg =
-        -geometry::Log(result.calibration.value.q_I_L.conjugate() * truth.q_I_L) * kRadToDeg;
-    std::cout << std::setprecision(3) << "seed " << seed << ": q_I_L error (roll, pitch, yaw) "
-              << error_deg.transpose() << " deg, sigma "
-              << result.calibration.uncertainty.T_I_L.sigma_rot_deg
-                     .value_or(Eigen::Vector3d::Constant(NAN))
-                     .transpose()
-              << " deg" << std::endl;
-    test::AddDriveConsistency(result, truth, seed, &components);
   }
   ASSERT_GE(calibrated, kSeeds * 3 / 4) << "too few drives calibrated for a consistency statement";
 

@@ -16,13 +16,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <iomanip>
-#include <iostream>
 #include <string>
 
-#include "autocal/common/error.h"
-#include "autocal/common/units.h"
-#include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
@@ -68,25 +63,10 @@ TEST(StraightDriveConsistency, NormalizedErrorsPerComponentMatchTheReportedSigma
   int calibrated = 0;
   for (int seed = 1; seed <= kSeeds; ++seed) {
     const Drive drive = SimulateDrive(seed);
-    pipeline::OfflineCalibrationResult result;
-    try {
-      result = pipeline::CalibrateDataset(drive.dataset, problem);
-    } catch (const Error& e) {
-      // A drive that cannot be calibrated says so; it carries no sample.
-      std::cout << "seed " << seed << ": not calibrated: " << e.what() << "\n";
-      continue;
+    if (test::CalibrateAndAddDrive(drive.dataset, problem, drive.simulator.true_calibration(), seed,
+                                   &components)) {
+      ++calibrated;
     }
-    ++calibrated;
-    const sensors::Calibration& truth = drive.simulator.true_calibration();
-    const Eigen::Vector3d error_deg =
-        -geometry::Log(result.calibration.value.q_I_V.conjugate() * truth.q_I_V) * kRadToDeg;
-    std::cout << std::setprecision(3) << "seed " << seed << ": q_I_V error (roll, pitch, yaw) "
-              << error_deg.transpose() << " deg, sigma "
-              << result.calibration.uncertainty.T_I_V.sigma_rot_deg
-                     .value_or(Eigen::Vector3d::Constant(NAN))
-                     .transpose()
-              << " deg" << std::endl;
-    test::AddDriveConsistency(result, truth, seed, &components);
   }
   ASSERT_GE(calibrated, kSeeds * 3 / 4) << "too few drives calibrated for a consistency statement";
 

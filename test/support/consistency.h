@@ -19,8 +19,11 @@
 #include <utility>
 #include <vector>
 
+#include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/io/dataset.h"
+#include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/offline_calibration.h"
 
 namespace autocal {
@@ -140,6 +143,39 @@ inline void AddDriveConsistency(const pipeline::OfflineCalibrationResult& result
   AddConsistencySample("track width", estimate.track_width_m - truth.track_width_m,
                        estimate.track_width_m - nominal.track_width_m, u.track_width_m.sigma,
                        u.track_width_m.observable.value_or(true), seed, components);
+}
+
+// Prints a rotation block's error (roll, pitch, yaw: the right perturbation at the estimate,
+// as its sigmas) against the truth, when the block was estimated.
+inline void PrintRotationError(const std::string& block, int seed,
+                               const Eigen::Quaterniond& q_estimate,
+                               const Eigen::Quaterniond& q_truth,
+                               const std::optional<Eigen::Vector3d>& sigma_deg) {
+  if (!sigma_deg) return;
+  const Eigen::Vector3d error_deg = -geometry::Log(q_estimate.conjugate() * q_truth) * kRadToDeg;
+  std::cout << std::setprecision(3) << "seed " << seed << ": " << block
+            << " error (roll, pitch, yaw) " << error_deg.transpose() << " deg, sigma "
+            << sigma_deg->transpose() << " deg" << std::endl;
+}
+
+// Calibrates one drive and adds its directions; false when it cannot be calibrated (it says
+// so, and carries no sample).
+inline bool CalibrateAndAddDrive(const io::Dataset& dataset, const io::Problem& problem,
+                                 const sensors::Calibration& truth, int seed,
+                                 ConsistencyComponents* components) {
+  pipeline::OfflineCalibrationResult result;
+  try {
+    result = pipeline::CalibrateDataset(dataset, problem);
+  } catch (const Error& e) {
+    std::cout << "seed " << seed << ": not calibrated: " << e.what() << "\n";
+    return false;
+  }
+  const sensors::Calibration& estimate = result.calibration.value;
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  PrintRotationError("q_I_L", seed, estimate.q_I_L, truth.q_I_L, u.T_I_L.sigma_rot_deg);
+  PrintRotationError("q_I_V", seed, estimate.q_I_V, truth.q_I_V, u.T_I_V.sigma_rot_deg);
+  AddDriveConsistency(result, truth, seed, components);
+  return true;
 }
 
 // The NEES of one report kind of one direction and its 95 % band.
