@@ -194,23 +194,25 @@ BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSwe
                      calibration, options, Eigen::Vector3d(0.0, 0.0, -options.gravity_m_s2)};
 }
 
-// A time offset the drive does not determine can wander during the solve until a sweep's
-// points fall before its keyframe (beyond the keyframe lead) or past the log's last IMU
-// sample: the solve cannot place them, and says which offset took it there.
-void CheckSweepMotionCovered(const BatchInputs& in, int64_t begin_ns, int64_t end_ns) {
+// A time offset the drive does not determine can wander during the solve until a sweep's last
+// point lies before its keyframe (the offset fell by more than the keyframe lead and the sweep)
+// or past the log's last IMU sample: the solve cannot place the sweep, and names the offset
+// that took it there. (Earlier points of a sweep whose last point is covered are placed at the
+// keyframe's state, as ImuMotionTable::At clamps them.)
+void CheckSweepMotionCovered(const BatchInputs& in, int64_t keyframe_ns, int64_t end_ns) {
+  if (in.imu.size() < 2 || keyframe_ns < in.imu.front().t_ns) {
+    throw Error("SolveLidarInertialBatch: a keyframe lies before the first IMU sample");
+  }
   const auto fail = [&](const std::string& what) {
     throw Error("SolveLidarInertialBatch: at a LiDAR-IMU time offset of " +
                 FormatFixed(1e3 * in.calibration->time_offset_lidar_imu_s, 1) + " ms " + what +
                 "; a drive that does not determine the offset lets it wander there: fix it or "
                 "give it a tighter prior in the problem file");
   };
-  if (end_ns < begin_ns) fail("a sweep's points lie before its keyframe (the keyframe lead)");
-  if (in.imu.size() < 2 || begin_ns < in.imu.front().t_ns || end_ns > in.imu.back().t_ns) {
-    const int64_t missing_ns =
-        in.imu.size() < 2 ? end_ns - begin_ns
-                          : std::max(in.imu.front().t_ns - begin_ns, end_ns - in.imu.back().t_ns);
+  if (end_ns < keyframe_ns) fail("a sweep's last point lies before its keyframe");
+  if (end_ns > in.imu.back().t_ns) {
     fail("a sweep's points need IMU samples the log does not have (" +
-         FormatFixed(1e3 * NsToSeconds(missing_ns), 1) + " ms beyond them)");
+         FormatFixed(1e3 * NsToSeconds(end_ns - in.imu.back().t_ns), 1) + " ms beyond them)");
   }
 }
 

@@ -156,8 +156,9 @@ TEST_F(LidarInertialBatchTest, NamesAnOffsetThatLeavesTheImuBehind) {
     }
     return std::string("no error");
   };
-  // The last keyframe lies 200 ms or more before the IMU's end: 300 ms more leaves its points
-  // beyond the samples.
+  // Setup keeps keyframes up to 200 ms before the IMU's end and the sweeps are 100 ms apart, so
+  // the last keyframe lies 200 to 300 ms before it: 300 ms more puts its sweep's end past the
+  // samples.
   const std::string late = message(nominal.time_offset_lidar_imu_s + 0.3);
   const std::string offset_ms = FormatFixed(1e3 * (nominal.time_offset_lidar_imu_s + 0.3), 1);
   EXPECT_NE(late.find("at a LiDAR-IMU time offset of " + offset_ms + " ms"), std::string::npos)
@@ -165,7 +166,12 @@ TEST_F(LidarInertialBatchTest, NamesAnOffsetThatLeavesTheImuBehind) {
   EXPECT_NE(late.find("need IMU samples the log does not have"), std::string::npos) << late;
   EXPECT_NE(late.find("fix it or give it a tighter prior"), std::string::npos) << late;
   const std::string early = message(nominal.time_offset_lidar_imu_s - 0.3);
-  EXPECT_NE(early.find("lie before its keyframe"), std::string::npos) << early;
+  EXPECT_NE(early.find("at a LiDAR-IMU time offset of " +
+                       FormatFixed(1e3 * (nominal.time_offset_lidar_imu_s - 0.3), 1) + " ms"),
+            std::string::npos)
+      << early;
+  EXPECT_NE(early.find("a sweep's last point lies before its keyframe"), std::string::npos)
+      << early;
 }
 
 // A reduced sweep holds exactly the selected points, in single precision, each index pointing

@@ -63,7 +63,11 @@ using ConsistencyComponents = std::map<std::string, ConsistencySamples>;
 inline void AddConsistencySample(const std::string& name, double error, double from_nominal,
                                  const std::optional<double>& sigma, bool observable, int seed,
                                  ConsistencyComponents* components) {
-  if (!sigma || !(*sigma > 0.0)) return;
+  if (!sigma) return;  // not estimated
+  if (!std::isfinite(*sigma) || !(*sigma > 0.0)) {
+    ADD_FAILURE() << name << " (seed " << seed << "): estimated with a sigma of " << *sigma;
+    return;
+  }
   ConsistencySamples& c = (*components)[name];
   const double z = std::abs(error) / *sigma;
   if (observable) {
@@ -205,6 +209,13 @@ inline Nees NeesOf(const std::string& kind, const std::vector<double>& z) {
 // drawn with the prior sigma it is reported with.
 inline void ExpectConsistent(const ConsistencyComponents& components,
                              const std::set<std::string>& upper_bound_only = {}) {
+  ASSERT_FALSE(components.empty()) << "no direction was calibrated";
+  for (const std::string& name : upper_bound_only) {
+    const auto it = components.find(name);
+    EXPECT_TRUE(it != components.end() &&
+                it->second.observable_z.size() + it->second.kept_z.size() >= 3)
+        << name << ": held to the upper end only, yet not estimated on 3 drives or more";
+  }
   size_t held = 0;
   for (const auto& [name, c] : components) held += c.held_z.size();
   const double held_bound = TwoSidedNormalQuantile(0.05 / std::max<size_t>(held, 1));
