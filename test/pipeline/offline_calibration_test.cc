@@ -341,8 +341,8 @@ TEST(OfflineCalibrationHighway, ReportsAndHoldsWhatTheDriveDoesNotExcite) {
 // A 30 s highway drive whose nominal LiDAR yaw is 4 deg off (seed 4, 16 beams). Straight at
 // 33 m/s, the partners 3 to 20 keyframes away lie 20 to 130 m down the road, and that yaw puts
 // their barrier points metres from any plane: only the pairs the error left near their planes
-// remained, and the yaw stayed where it started (the same seed from autocal_simulate, 4.04 deg
-// off nominally: 4.25 deg off at a stated sigma of 0.115 deg, 37 sigma). The
+// remained, and the yaw stayed where it started (the same drive from autocal_simulate: 4.25 deg
+// off at a stated sigma of 0.115 deg, 37 sigma). The
 // nearest sweeps, tried by every point the far partners did not pair, hold the barriers and
 // move the yaw to the truth (pairing_options.h, fallback_partner_offsets).
 TEST(OfflineCalibrationHighway, FindsALidarYawDegreesOffItsNominalValue) {
