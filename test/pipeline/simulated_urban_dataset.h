@@ -17,6 +17,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/sim/simulator.h"
+#include "sim/sim_test_util.h"
 #include "support/simulation_cache.h"
 #include "support/test_paths.h"
 
@@ -38,18 +39,10 @@ inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
   return options;
 }
 
-// A highway drive (about 120 km/h, no turns, traffic around the car) with a 16-beam LiDAR.
+// A highway drive (about 120 km/h, no turns, traffic around the car) with a VLP-16's beams
+// (sim::test::SmallLog).
 inline sim::SimulationOptions HighwayDriveOptions(double duration_s, uint64_t seed) {
-  sim::SimulationOptions options;
-  options.scenario = sim::ScenarioType::kHighway;
-  options.duration_s = duration_s;
-  options.seed = seed;
-  // A VLP-16's beams, as `autocal_simulate --lidar_beams=16` writes them: 2 deg apart over
-  // +-15 deg (the default spread, -25 to 15 deg, is the 32-beam sensor's).
-  options.lidar.config.num_beams = 16;
-  options.lidar.config.min_elevation_deg = -15.0;
-  options.lidar.config.max_elevation_deg = 15.0;
-  return options;
+  return sim::test::SmallLog(sim::ScenarioType::kHighway, duration_s, seed);
 }
 
 // Wheels reported as the controller's twist (odometry.csv) that reports 3 % too much speed
