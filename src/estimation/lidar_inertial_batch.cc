@@ -27,6 +27,7 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/rotation_search.h"
 #include "estimation/sweep_pairing.h"
 
 namespace autocal {
@@ -521,6 +522,14 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
   const BatchInputs in = Inputs(imu, sweeps, keyframes, calibration, options);
   LidarInertialBatchReport report;
   const auto start = std::chrono::steady_clock::now();
+  if (options.starting_rotation_search_deg > 0.0 && options.estimate.extrinsic_rotation) {
+    internal::RotationSearchOptions search;
+    search.range_rad = options.starting_rotation_search_deg * kDegToRad;
+    search.num_threads = options.num_threads;
+    report.rotation_search = internal::SearchStartingRotation(imu, sweeps, *keyframes, *calibration,
+                                                              in.g_W, options.pairing, search);
+    calibration->q_I_L = report.rotation_search.q_I_L_start;
+  }
   Schedule schedule{std::max(0, options.coarse_to_fine_steps), options.pairing.point_sigma_m};
   for (int iteration = 0; iteration < options.outer_iterations; ++iteration) {
     if (OuterIteration(in, iteration, start, &schedule, &report)) break;

@@ -168,6 +168,36 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
   }
 }
 
+// A LiDAR rotation the drive's motion did not check starts at the nominal value exactly
+// (the initializer's hand-eye found no turns, or the odometry failed): the batch searches
+// about it within three of its prior's sigmas (docs/estimation.md, Eq. P12); 0 otherwise.
+double StartingRotationSearchDeg(const std::vector<estimation::EstimatedBlock>& blocks,
+                                 const sensors::Calibration& start,
+                                 const sensors::Calibration& nominal) {
+  if (start.q_I_L.coeffs() != nominal.q_I_L.coeffs()) return 0.0;
+  for (const estimation::EstimatedBlock& block : blocks) {
+    if (block.id == sensors::CalibrationBlockId::kLidarRotation) {
+      return 3.0 * block.prior_sigma.maxCoeff() * kRadToDeg;
+    }
+  }
+  return 0.0;
+}
+
+// Says where the search put the starting rotation, when it moved it.
+void WarnOfRotationSearch(const estimation::StartingRotationSearch& search,
+                          std::vector<std::string>* warnings) {
+  const double moved_deg =
+      geometry::AngularDistance(search.q_I_L_given, search.q_I_L_start) * kRadToDeg;
+  if (!search.searched || moved_deg == 0.0) return;
+  warnings->push_back(
+      "the LiDAR rotation's nominal value, which no turn of the drive checked, paired " +
+      std::to_string(search.paired_at_start) + " points of consecutive keyframes; " +
+      FormatFixed(moved_deg, 2) + " deg from it " + std::to_string(search.paired_at_best) +
+      " paired, and the solve started there (" + std::to_string(search.candidates) +
+      " rotations in steps of " + FormatFixed(search.step_deg, 2) +
+      " deg): the nominal rotation in sensors.yaml may be that far off");
+}
+
 // The batch solve with the problem's wheel and GNSS factors (with `enu`) and the blocks'
 // priors; on its final problem the blocks' joint covariance, observability (Observe) and the
 // solve after holding (Eq. C3). The whitened residuals before and after go to *result. The
@@ -220,10 +250,13 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     RequirePlausible(dataset, options, blocks, covariance);
     RecordResidualsAfterSolve(p, &result->whitened_residuals);
   };
+  batch_options.starting_rotation_search_deg =
+      StartingRotationSearchDeg(blocks, *calibration, result->nominal);
   Report(options, "solving", 0.0, 0.0, 0.0);
   result->batch = estimation::SolveLidarInertialBatch(
       dataset.imu, keyframes->sweeps, &keyframes->keyframes, calibration, batch_options);
   const estimation::LidarInertialBatchReport& batch = result->batch;
+  WarnOfRotationSearch(batch.rotation_search, &result->warnings);
   io::CalibrationFile& file = result->calibration;
   file.solver["termination"] = batch.termination;
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
