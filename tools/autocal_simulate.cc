@@ -117,22 +117,10 @@ autocal::sim::SimulationOptions PresetFromFlag() {
 void SetLidar(autocal::sim::SimulationOptions* o, bool all) {
   auto& lidar = o->lidar.config;
   if (all || Given("lidar_beams")) {
-    lidar.num_beams = FLAGS_lidar_beams;
-    switch (FLAGS_lidar_beams) {
-      case 16:
-        lidar.min_elevation_deg = -15.0;
-        lidar.max_elevation_deg = 15.0;
-        break;
-      case 32:
-        lidar.min_elevation_deg = -25.0;
-        lidar.max_elevation_deg = 15.0;
-        break;
-      case 64:
-        lidar.min_elevation_deg = -24.8;
-        lidar.max_elevation_deg = 2.0;
-        break;
-      default:
-        throw Error("--lidar_beams must be 16, 32 or 64, got " + std::to_string(FLAGS_lidar_beams));
+    try {
+      autocal::sim::SetSpinningLidarBeams(FLAGS_lidar_beams, &lidar);
+    } catch (const Error&) {
+      throw Error("--lidar_beams must be 16, 32 or 64, got " + std::to_string(FLAGS_lidar_beams));
     }
   }
   auto set = [all](const char* name, auto value, auto* field) {

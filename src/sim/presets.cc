@@ -1,7 +1,9 @@
 // Simulation options after two real platforms (simulator.h, docs/simulator.md "Presets").
 
 #include <cmath>
+#include <string>
 
+#include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/sim/simulator.h"
 
@@ -16,6 +18,26 @@ Eigen::Quaterniond MountWithError(const Eigen::Quaterniond& q_V_I_nominal) {
 }
 
 }  // namespace
+
+void SetSpinningLidarBeams(int num_beams, sensors::LidarConfig* config) {
+  switch (num_beams) {
+    case 16:
+      config->min_elevation_deg = -15.0;
+      config->max_elevation_deg = 15.0;
+      break;
+    case 32:
+      config->min_elevation_deg = -25.0;
+      config->max_elevation_deg = 15.0;
+      break;
+    case 64:
+      config->min_elevation_deg = -24.8;
+      config->max_elevation_deg = 2.0;
+      break;
+    default:
+      throw Error("a spinning LiDAR has 16, 32 or 64 beams here, got " + std::to_string(num_beams));
+  }
+  config->num_beams = num_beams;
+}
 
 SimulationOptions SkidSteerRobotOptions() {
   SimulationOptions o;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <string>
 
+#include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/io/dataset.h"
 #include "autocal/sim/simulator.h"
@@ -20,6 +21,32 @@ namespace {
 double Yaw(const geometry::Pose3d& T_W_V) {
   const Eigen::Matrix3d R = T_W_V.R();
   return std::atan2(R(1, 0), R(0, 0));
+}
+
+// The three beam layouts the simulator knows (autocal_simulate --lidar_beams); the default
+// configuration is the 32-beam one.
+TEST(PlatformTest, SpinningLidarBeamLayouts) {
+  sensors::LidarConfig config;
+  const sensors::LidarConfig default_config;
+  SetSpinningLidarBeams(32, &config);
+  EXPECT_EQ(config.num_beams, default_config.num_beams);
+  EXPECT_EQ(config.min_elevation_deg, default_config.min_elevation_deg);
+  EXPECT_EQ(config.max_elevation_deg, default_config.max_elevation_deg);
+  SetSpinningLidarBeams(16, &config);
+  EXPECT_EQ(config.num_beams, 16);
+  EXPECT_EQ(config.min_elevation_deg, -15.0);
+  EXPECT_EQ(config.max_elevation_deg, 15.0);
+  SetSpinningLidarBeams(64, &config);
+  EXPECT_EQ(config.num_beams, 64);
+  EXPECT_EQ(config.min_elevation_deg, -24.8);
+  EXPECT_EQ(config.max_elevation_deg, 2.0);
+  try {
+    SetSpinningLidarBeams(17, &config);
+    FAIL() << "17 beams were accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("16, 32 or 64"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(config.num_beams, 64);  // unchanged by the refusal
 }
 
 TEST(PlatformTest, SkidSteerDriveIsSlowPivotsOnTheSpotAndClosesItsLaps) {

@@ -19,9 +19,7 @@ inline SimulationOptions SmallLog(ScenarioType scenario, double duration_s = 25.
   options.scenario = scenario;
   options.duration_s = duration_s;
   options.seed = seed;
-  options.lidar.config.num_beams = 16;
-  options.lidar.config.min_elevation_deg = -15.0;
-  options.lidar.config.max_elevation_deg = 15.0;
+  SetSpinningLidarBeams(16, &options.lidar.config);
   return options;
 }
 

@@ -172,6 +172,12 @@ struct SimulationOptions {
   SimulationOptions WithoutNoise() const;
 };
 
+// The beams of a common spinning LiDAR with `num_beams` of them, evenly spread: 16 over
+// -15..15 deg (a VLP-16), 32 over -25..15 deg (the default), 64 over -24.8..2 deg (an
+// HDL-64E). Sets num_beams and the elevations of *config; any other count throws
+// autocal::Error naming the three.
+void SetSpinningLidarBeams(int num_beams, sensors::LidarConfig* config);
+
 // Platforms after real logs (docs/simulator.md, "Presets"); change any field afterwards.
 // A slow skid-steer robot: skid_steer scenario, 300 s, IMU at 30 Hz mounted y-up
 // (R_V_I = Rz(-90 deg) Rx(+90 deg), 1 deg off), wheel odometry at 10 Hz with 10 ms jitter
