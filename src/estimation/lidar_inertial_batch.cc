@@ -450,8 +450,8 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   }
   report->termination = summary.message;
 
-  const bool last = (Converged(options, before, *calibration) && sigma_settled && fine) ||
-                    iteration + 1 == options.outer_iterations;
+  report->converged = Converged(options, before, *calibration) && sigma_settled && fine;
+  const bool last = report->converged || iteration + 1 == options.outer_iterations;
   if (last && options.compute_covariance) {
     ComputeCovariance(&problem, calibration, held_axes, report);
   }

@@ -183,19 +183,65 @@ double StartingRotationSearchDeg(const std::vector<estimation::EstimatedBlock>& 
   return 0.0;
 }
 
-// Says where the search put the starting rotation, when it moved it.
-void WarnOfRotationSearch(const estimation::StartingRotationSearch& search,
-                          std::vector<std::string>* warnings) {
-  const double moved_deg =
-      geometry::AngularDistance(search.q_I_L_given, search.q_I_L_start) * kRadToDeg;
-  if (!search.searched || moved_deg == 0.0) return;
-  warnings->push_back(
-      "the LiDAR rotation's nominal value, which no turn of the drive checked, paired " +
-      std::to_string(search.paired_at_start) + " points of consecutive keyframes; " +
-      FormatFixed(moved_deg, 2) + " deg from it " + std::to_string(search.paired_at_best) +
-      " paired, and the solve started there (" + std::to_string(search.candidates) +
-      " rotations in steps of " + FormatFixed(search.step_deg, 2) +
-      " deg): the nominal rotation in sensors.yaml may be that far off");
+// The outer loop stops at solver.outer_iterations whether or not it converged. When its last
+// iteration still moved a LiDAR-IMU direction by more than this fraction of the direction's
+// sigma, the estimate may lie short of the solution (on a drive that determines a direction
+// weakly, each iteration's associations move it a little further), and a warning names it.
+constexpr double kStillMovingSigmaFraction = 0.05;
+
+// The LiDAR-IMU directions the batch's last iteration moved by more than
+// kStillMovingSigmaFraction of their sigma in `file`, in words; empty when it converged.
+std::vector<std::string> StillMoving(const estimation::LidarInertialBatchReport& batch,
+                                     const io::CalibrationFile& file) {
+  const std::vector<sensors::Calibration>& steps = batch.calibration_per_iteration;
+  if (batch.converged || steps.size() < 2) return {};
+  const sensors::Calibration& before = steps[steps.size() - 2];
+  const sensors::Calibration& after = steps.back();
+  std::vector<std::string> moving;
+  const auto check = [&](const std::string& name, double change, double sigma,
+                         const std::string& unit, double scale) {
+    if (sigma > 0.0 && std::abs(change) > kStillMovingSigmaFraction * sigma) {
+      moving.push_back(name + " by " + FormatFixed(std::abs(change) * scale, 4) + " " + unit +
+                       " (" + FormatFixed(std::abs(change) / sigma, 2) + " sigma)");
+    }
+  };
+  const io::CalibrationUncertainty& u = file.uncertainty;
+  const char* axes[3] = {"x", "y", "z"};
+  if (u.T_I_L.sigma_rot_deg) {
+    const Eigen::Vector3d turn_deg =
+        geometry::Log(before.q_I_L.conjugate() * after.q_I_L) * kRadToDeg;
+    for (int a = 0; a < 3; ++a) {
+      check(std::string("T_I_L rotation about the LiDAR's ") + axes[a] + " axis", turn_deg(a),
+            (*u.T_I_L.sigma_rot_deg)(a), "deg", 1.0);
+    }
+  }
+  if (u.T_I_L.sigma_p_m) {
+    for (int a = 0; a < 3; ++a) {
+      check(std::string("T_I_L translation ") + axes[a], after.p_I_L(a) - before.p_I_L(a),
+            (*u.T_I_L.sigma_p_m)(a), "mm", 1e3);
+    }
+  }
+  if (u.time_offset_lidar_imu_s.sigma) {
+    check("the LiDAR-IMU time offset",
+          after.time_offset_lidar_imu_s - before.time_offset_lidar_imu_s,
+          *u.time_offset_lidar_imu_s.sigma, "ms", 1e3);
+  }
+  return moving;
+}
+
+void WarnIfStillMoving(const estimation::LidarInertialBatchReport& batch,
+                       const io::CalibrationFile& file, std::vector<std::string>* warnings) {
+  const std::vector<std::string> moving = StillMoving(batch, file);
+  if (moving.empty()) return;
+  std::string list;
+  for (const std::string& m : moving) list += (list.empty() ? "" : ", ") + m;
+  warnings->push_back("the LiDAR-IMU solve stopped at its " +
+                      std::to_string(batch.outer_iterations) +
+                      " outer iterations (solver.outer_iterations) with its last one still "
+                      "moving " +
+                      list +
+                      ": the estimate may lie short of the solution; raise "
+                      "solver.outer_iterations in the problem file");
 }
 
 // The batch solve with the problem's wheel and GNSS factors (with `enu`) and the blocks'
@@ -256,10 +302,13 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   result->batch = estimation::SolveLidarInertialBatch(
       dataset.imu, keyframes->sweeps, &keyframes->keyframes, calibration, batch_options);
   const estimation::LidarInertialBatchReport& batch = result->batch;
-  WarnOfRotationSearch(batch.rotation_search, &result->warnings);
+  const std::string searched = RotationSearchWarning(batch.rotation_search);
+  if (!searched.empty()) result->warnings.push_back(searched);
   io::CalibrationFile& file = result->calibration;
+  WarnIfStillMoving(batch, file, &result->warnings);
   file.solver["termination"] = batch.termination;
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
+  file.solver["outer_iterations_converged"] = batch.converged ? "true" : "false";
   file.solver["final_cost"] = std::to_string(batch.final_cost);
   file.residuals["lidar"]["rms_m"] = batch.point_rms_m;
   file.residuals["lidar"]["sigma_m"] = batch.point_sigma_m;
@@ -499,7 +548,8 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
       << " s (loading " << result.seconds_loading << " s, initialization "
       << result.seconds_initialization << " s, solve " << result.seconds_solve << " s";
   if (batch.outer_iterations > 0) {
-    out << ": " << batch.outer_iterations << " outer iterations, association "
+    out << ": " << batch.outer_iterations << " outer iterations"
+        << (batch.converged ? "" : " (stopped before converging)") << ", association "
         << batch.seconds_association << " s, Ceres " << batch.seconds_solver << " s";
   }
   out << ")\n";

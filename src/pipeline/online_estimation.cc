@@ -194,12 +194,15 @@ struct WindowStart {
 // From the nominal values the window did not find the extrinsic there: on 30 s highway drives
 // its LiDAR pitch ended 3.8 and 8.3 deg off at a stated 0.12 deg, while the batch's
 // coarse-to-fine association ends within its sigmas (docs/sliding_window.md, "Streaming a
-// dataset"). One thread, so that the start does not depend on the thread count. Throws
-// autocal::Error, starting with `why` the initializer could not start the window, when the
-// batch fails (a ParseError as it is).
+// dataset"). One thread, so that the start does not depend on the thread count. Where the
+// batch searched a nominal LiDAR rotation and moved it, a warning in *warnings says so (its
+// other warnings are the first seconds' and the window's own report stands for the result).
+// Throws autocal::Error, starting with `why` the initializer could not start the window, when
+// the batch fails (a ParseError as it is).
 sensors::Calibration CalibrateFirstSeconds(const io::Dataset& dataset, const io::Problem& problem,
                                            const OnlineEstimationOptions& options,
-                                           const std::string& why) {
+                                           const std::string& why,
+                                           std::vector<std::string>* warnings) {
   // The initializer's seconds, without the instant that ends them (as its sweeps).
   const io::Dataset first = io::DatasetUntil(dataset, InitializationEndNs(dataset, options) - 1);
   io::Problem single_thread = problem;
@@ -207,7 +210,10 @@ sensors::Calibration CalibrateFirstSeconds(const io::Dataset& dataset, const io:
   OfflineCalibrationOptions offline;
   offline.max_odometry_to_gnss_rms_m = options.max_odometry_to_gnss_rms_m;
   try {
-    return CalibrateDataset(first, single_thread, offline).calibration.value;
+    const OfflineCalibrationResult result = CalibrateDataset(first, single_thread, offline);
+    const std::string searched = RotationSearchWarning(result.batch.rotation_search);
+    if (!searched.empty()) warnings->push_back("the start's offline calibration: " + searched);
+    return result.calibration.value;
   } catch (const ParseError&) {
     throw;
   } catch (const Error& e) {
@@ -242,7 +248,7 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
           FormatShort(options.initialization_duration_s) + " s (" + failure + ")";
       // The priors keep their sigmas and centre on the batch's values: centred at the nominal
       // ones, they pulled every block back there before the first sweeps paired.
-      out.calibration = CalibrateFirstSeconds(dataset, problem, options, why);
+      out.calibration = CalibrateFirstSeconds(dataset, problem, options, why, warnings);
       window_options->calibration_prior.mean = out.calibration;
       warnings->push_back(why +
                           ": the window starts from GNSS and the IMU, and its calibration from "

@@ -306,6 +306,10 @@ TEST(OnlineEstimationHighway, StartsFromTheBatchWhereTheLidarOdometryDoesNotFoll
   EXPECT_THAT(
       result.warnings,
       ::testing::Contains(::testing::HasSubstr("its calibration from the offline calibration")));
+  // The batch searched the nominal rotation (3.5 deg off) and says where it started.
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::HasSubstr(
+                  "the start's offline calibration: the LiDAR rotation's nominal value")));
 
   // The start is the batch's result on the initializer's sweeps, those stamped before 15 s
   // from the first one (on one thread).

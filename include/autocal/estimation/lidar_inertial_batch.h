@@ -113,6 +113,9 @@ struct StartingRotationSearch {
 struct LidarInertialBatchReport {
   StartingRotationSearch rotation_search;
   int outer_iterations = 0;
+  // Whether the outer loop ended by its criteria (the converged_* settings, on the fine level)
+  // rather than at options.outer_iterations.
+  bool converged = false;
   int associated_points = 0;  // in the last iteration
   double final_cost = 0.0;
   double point_rms_m = 0.0;    // RMS point-to-plane distance of the last iteration
