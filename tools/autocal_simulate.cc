@@ -119,8 +119,8 @@ void SetLidar(autocal::sim::SimulationOptions* o, bool all) {
   if (all || Given("lidar_beams")) {
     try {
       autocal::sim::SetSpinningLidarBeams(FLAGS_lidar_beams, &lidar);
-    } catch (const Error&) {
-      throw Error("--lidar_beams must be 16, 32 or 64, got " + std::to_string(FLAGS_lidar_beams));
+    } catch (const Error& e) {
+      throw Error(std::string("--lidar_beams: ") + e.what());
     }
   }
   auto set = [all](const char* name, auto value, auto* field) {

@@ -19,8 +19,11 @@ namespace internal {
 
 namespace {
 
-// More steps a side than this only come from keyframes hundreds of metres apart, where the
-// keyframes' own relative poses are no better than the step.
+// The search scores at the solve's finest coarse level: gate, plane thickness and the
+// points' sigma twice the fine ones.
+constexpr double kSearchCoarseFactor = 2.0;
+// Candidates a side at most; a wider range (a weak prior on keyframes tens of metres apart)
+// takes a coarser step instead.
 constexpr int kMaxStepsPerSide = 32;
 
 struct Score {
@@ -67,7 +70,9 @@ class PairScore {
       const size_t k = static_cast<size_t>(pair.k);
       pair.table_k = TableOf(imu, sweeps[k], keyframes[k], offset_s);
       pair.table_j = TableOf(imu, sweeps[k + 1], keyframes[k + 1], offset_s);
-      if (pair.table_k && pair.table_j) pairs_.push_back(std::move(pair));
+      // A pair the car did not move between scores the same at every rotation.
+      const bool moved = Displacement(pair).norm() > pairing.max_point_to_plane_m;
+      if (moved && pair.table_k && pair.table_j) pairs_.push_back(std::move(pair));
     }
   }
 
@@ -155,6 +160,31 @@ class PairScore {
   std::vector<ScoredPair> pairs_;
 };
 
+// A candidate's place on the grid: steps about axes[0] and axes[1] from the given rotation.
+using GridPoint = Eigen::Vector2i;
+
+// Every candidate about `axis` through *best, within `steps` of the given rotation, the nearer
+// to it first; *best moves to a higher score, or to an equal one nearer the given rotation.
+template <typename Evaluate>
+void SearchAbout(int axis, int steps, const Evaluate& evaluate, GridPoint* best, Score* best_score,
+                 int* candidates) {
+  const GridPoint centre = *best;
+  for (int i = 0; i <= steps; ++i) {
+    for (const int sign : {1, -1}) {
+      GridPoint at = centre;
+      at(axis) = sign * i;
+      if ((i == 0 && sign < 0) || at == centre) continue;
+      const Score score = evaluate(at);
+      ++*candidates;
+      const bool nearer = at.cwiseAbs().sum() < best->cwiseAbs().sum();
+      if (score.value > best_score->value || (score.value == best_score->value && nearer)) {
+        *best_score = score;
+        *best = at;
+      }
+    }
+  }
+}
+
 }  // namespace
 
 StartingRotationSearch SearchStartingRotation(const sensors::ImuSamples& imu,
@@ -166,54 +196,42 @@ StartingRotationSearch SearchStartingRotation(const sensors::ImuSamples& imu,
                                               const RotationSearchOptions& options) {
   StartingRotationSearch out;
   out.q_I_L_given = out.q_I_L_start = calibration.q_I_L;
-  // At the first coarse level of the solve (twice the fine gate).
-  const PairingOptions coarse = CoarsePairing(pairing, 2.0);
+  const PairingOptions coarse = CoarsePairing(pairing, kSearchCoarseFactor);
   const PairScore score(imu, sweeps, keyframes, calibration, g_W, coarse, options.scored_pairs,
                         options.num_threads);
   const double spacing_m = score.MedianSpacing();
-  if (score.empty() || options.range_rad <= 0.0 || spacing_m <= 0.0) return out;
+  if (score.empty() || !(options.range_rad > 0.0) || !std::isfinite(spacing_m) ||
+      !(spacing_m > 0.0)) {
+    return out;
+  }
   // Eq. P12: a step moves the scored points by one gate, so that every candidate's
   // neighbourhood in the cost is seen and none falls between two.
-  const double step_rad = coarse.max_point_to_plane_m / spacing_m;
+  const double step_rad =
+      std::max(coarse.max_point_to_plane_m / spacing_m, options.range_rad / kMaxStepsPerSide);
   out.step_deg = step_rad * kRadToDeg;
-  const int steps = std::min(kMaxStepsPerSide, static_cast<int>(options.range_rad / step_rad));
+  const int steps =
+      static_cast<int>(std::min<double>(kMaxStepsPerSide, options.range_rad / step_rad));
   if (steps == 0) return out;
   out.searched = true;
   Eigen::Vector3d travel, up;
   score.Axes(&travel, &up);
   const Eigen::Vector3d axes[2] = {up, travel.cross(up)};  // yaw-like, then pitch-like
-  const auto rotation = [&](const Eigen::Vector2d& at) {
+  const auto rotation = [&](const GridPoint& at) {
     return (geometry::Exp(Eigen::Vector3d(step_rad * (at.x() * axes[0] + at.y() * axes[1]))) *
             calibration.q_I_L)
         .normalized();
   };
-  Eigen::Vector2d best = Eigen::Vector2d::Zero();  // in steps about axes[0], axes[1]
+  const auto evaluate = [&](const GridPoint& at) { return score(rotation(at)); };
+  GridPoint best = GridPoint::Zero();
   Score best_score = score(calibration.q_I_L);
   out.paired_at_start = best_score.paired;
   out.candidates = 1;
-  // Every candidate about one axis through the best so far, the nearer to the nominal first
-  // (a tie keeps the nearer one).
-  const auto search_about = [&](int axis) {
-    const Eigen::Vector2d centre = best;
-    for (int i = 0; i <= steps; ++i) {
-      for (const int sign : {1, -1}) {
-        Eigen::Vector2d at = centre;
-        at(axis) = sign * i;
-        if ((i == 0 && sign < 0) || at == centre) continue;
-        const Score candidate = score(rotation(at));
-        ++out.candidates;
-        if (candidate.value > best_score.value) {
-          best_score = candidate;
-          best = at;
-        }
-      }
-    }
-  };
-  search_about(0);
-  search_about(1);
-  if (best.y() != 0.0) search_about(0);
+  // About a through the given rotation, about b through the best, about a again if b moved it.
+  SearchAbout(0, steps, evaluate, &best, &best_score, &out.candidates);
+  SearchAbout(1, steps, evaluate, &best, &best_score, &out.candidates);
+  if (best.y() != 0) SearchAbout(0, steps, evaluate, &best, &best_score, &out.candidates);
   out.paired_at_best = best_score.paired;
-  if (best != Eigen::Vector2d::Zero()) out.q_I_L_start = rotation(best);
+  if (best != GridPoint::Zero()) out.q_I_L_start = rotation(best);
   return out;
 }
 

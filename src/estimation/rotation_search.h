@@ -26,13 +26,14 @@ namespace internal {
 
 struct RotationSearchOptions {
   double range_rad = 0.0;  // candidates within +-range_rad about each axis of the nominal
-  int scored_pairs = 16;   // pairs of consecutive keyframes, spread over the log
+  int scored_pairs = 16;   // pairs of consecutive keyframes, spread over the log (those the
+                           // car moved between are scored)
   int num_threads = 1;
 };
 
 // Searches about calibration.q_I_L (out.q_I_L_start: the best) with the keyframes' states and the
-// sweeps' pairing (PairingOptions, at the first coarse level). Deterministic whatever
-// options.num_threads.
+// sweeps' pairing (PairingOptions, at the solve's finest coarse level: twice the fine gate).
+// Deterministic whatever options.num_threads.
 StartingRotationSearch SearchStartingRotation(const sensors::ImuSamples& imu,
                                               const std::vector<SelectedSweep>& sweeps,
                                               const std::vector<Keyframe>& keyframes,

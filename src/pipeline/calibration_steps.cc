@@ -8,7 +8,6 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
-#include "autocal/common/units.h"
 #include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/estimation/keyframe_solver_options.h"
@@ -16,7 +15,6 @@
 #include "autocal/factors/planar_rotation_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
-#include "autocal/geometry/so3.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "estimation/keyframe_interpolation.h"
 #include "problem_blocks.h"
@@ -587,18 +585,6 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
   file.solver["seconds_loading"] = std::to_string(result->seconds_loading);
   file.solver["seconds_initialization"] = std::to_string(result->seconds_initialization);
   file.solver["seconds_solve"] = std::to_string(result->seconds_solve);
-}
-
-std::string RotationSearchWarning(const estimation::StartingRotationSearch& search) {
-  const double moved_deg =
-      geometry::AngularDistance(search.q_I_L_given, search.q_I_L_start) * kRadToDeg;
-  if (!search.searched || moved_deg == 0.0) return "";
-  return "the LiDAR rotation's nominal value, which no turn of the drive checked, paired " +
-         std::to_string(search.paired_at_start) + " points of consecutive keyframes; " +
-         FormatFixed(moved_deg, 2) + " deg from it " + std::to_string(search.paired_at_best) +
-         " paired, and the solve started there (" + std::to_string(search.candidates) +
-         " rotations in steps of " + FormatFixed(search.step_deg, 2) +
-         " deg): the nominal rotation in sensors.yaml may be that far off";
 }
 
 }  // namespace pipeline

@@ -51,11 +51,6 @@ sensors::Calibration StartFromInitializer(const sensors::Calibration& nominal,
 // The parts with `separator` between them.
 std::string Join(const std::vector<std::string>& parts, const std::string& separator);
 
-// The warning that says where the batch's search put a nominal starting LiDAR rotation no turn
-// checked, and from how many paired points (docs/estimation.md, Eq. P12); empty when the search
-// did not run or kept the nominal value.
-std::string RotationSearchWarning(const estimation::StartingRotationSearch& search);
-
 // The limits that follow from the log's rates (sensors/sample_timing.h, Eqs. T1-T3), each
 // replaced by the problem's timing: setting where the file gives one.
 struct TimingLimits {

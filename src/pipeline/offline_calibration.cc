@@ -21,6 +21,7 @@
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/pipeline/report_html.h"
 #include "autocal/sensors/calibration_blocks.h"
+#include "batch_warnings.h"
 #include "calibration_steps.h"
 #include "clock_initialization.h"
 #include "keyframe_sweep_reader.h"
@@ -129,6 +130,9 @@ void Initialize(const io::Dataset& dataset, const io::Problem& problem,
 struct BatchKeyframes {
   std::vector<estimation::SelectedSweep> sweeps;
   std::vector<estimation::Keyframe> keyframes;
+  // The keyframes were rebuilt from GNSS and the IMU, and the LiDAR blocks restart from their
+  // nominal values (PlaceInEnu).
+  bool placed_without_lidar = false;
 };
 
 // The initializer's keyframes and their reduced sweeps, taken from the reader. Throws when
@@ -151,14 +155,16 @@ BatchKeyframes InitializerKeyframes(const io::Problem& problem,
 }
 
 // W becomes the ENU frame at the first fix (`enu`): GNSS fixes position and yaw. Where the
-// LiDAR odometry did not follow the drive, the LiDAR blocks restart from their nominal values.
+// LiDAR odometry did not follow the drive, the keyframes are placed without it and the LiDAR
+// blocks restart from their nominal values.
 void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
                 const OfflineCalibrationOptions& options, const sensors::EnuConverter& enu,
-                bool use_wheel, const TimingLimits& timing,
-                std::vector<estimation::Keyframe>* keyframes, sensors::Calibration* calibration,
-                OfflineCalibrationResult* result) {
-  if (!PlaceKeyframesInEnu(dataset, problem, enu, *calibration, options, use_wheel, timing,
-                           keyframes, &result->warnings)) {
+                bool use_wheel, const TimingLimits& timing, BatchKeyframes* keyframes,
+                sensors::Calibration* calibration, OfflineCalibrationResult* result) {
+  keyframes->placed_without_lidar =
+      !PlaceKeyframesInEnu(dataset, problem, enu, *calibration, options, use_wheel, timing,
+                           &keyframes->keyframes, &result->warnings);
+  if (keyframes->placed_without_lidar) {
     calibration->q_I_L = result->nominal.q_I_L;
     calibration->p_I_L = result->nominal.p_I_L;
     calibration->time_offset_lidar_imu_s = result->nominal.time_offset_lidar_imu_s;
@@ -168,80 +174,16 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
   }
 }
 
-// A LiDAR rotation the drive's motion did not check starts at the nominal value exactly
-// (the initializer's hand-eye found no turns, or the odometry failed): the batch searches
-// about it within three of its prior's sigmas (docs/estimation.md, Eq. P12); 0 otherwise.
-double StartingRotationSearchDeg(const std::vector<estimation::EstimatedBlock>& blocks,
-                                 const sensors::Calibration& start,
-                                 const sensors::Calibration& nominal) {
-  if (start.q_I_L.coeffs() != nominal.q_I_L.coeffs()) return 0.0;
-  for (const estimation::EstimatedBlock& block : blocks) {
-    if (block.id == sensors::CalibrationBlockId::kLidarRotation) {
-      return 3.0 * block.prior_sigma.maxCoeff() * kRadToDeg;
-    }
-  }
-  return 0.0;
-}
-
-// The outer loop stops at solver.outer_iterations whether or not it converged. When its last
-// iteration still moved a LiDAR-IMU direction by more than this fraction of the direction's
-// sigma, the estimate may lie short of the solution (on a drive that determines a direction
-// weakly, each iteration's associations move it a little further), and a warning names it.
-constexpr double kStillMovingSigmaFraction = 0.05;
-
-// The LiDAR-IMU directions the batch's last iteration moved by more than
-// kStillMovingSigmaFraction of their sigma in `file`, in words; empty when it converged.
-std::vector<std::string> StillMoving(const estimation::LidarInertialBatchReport& batch,
-                                     const io::CalibrationFile& file) {
-  const std::vector<sensors::Calibration>& steps = batch.calibration_per_iteration;
-  if (batch.converged || steps.size() < 2) return {};
-  const sensors::Calibration& before = steps[steps.size() - 2];
-  const sensors::Calibration& after = steps.back();
-  std::vector<std::string> moving;
-  const auto check = [&](const std::string& name, double change, double sigma,
-                         const std::string& unit, double scale) {
-    if (sigma > 0.0 && std::abs(change) > kStillMovingSigmaFraction * sigma) {
-      moving.push_back(name + " by " + FormatFixed(std::abs(change) * scale, 4) + " " + unit +
-                       " (" + FormatFixed(std::abs(change) / sigma, 2) + " sigma)");
-    }
-  };
-  const io::CalibrationUncertainty& u = file.uncertainty;
-  const char* axes[3] = {"x", "y", "z"};
-  if (u.T_I_L.sigma_rot_deg) {
-    const Eigen::Vector3d turn_deg =
-        geometry::Log(before.q_I_L.conjugate() * after.q_I_L) * kRadToDeg;
-    for (int a = 0; a < 3; ++a) {
-      check(std::string("T_I_L rotation about the LiDAR's ") + axes[a] + " axis", turn_deg(a),
-            (*u.T_I_L.sigma_rot_deg)(a), "deg", 1.0);
-    }
-  }
-  if (u.T_I_L.sigma_p_m) {
-    for (int a = 0; a < 3; ++a) {
-      check(std::string("T_I_L translation ") + axes[a], after.p_I_L(a) - before.p_I_L(a),
-            (*u.T_I_L.sigma_p_m)(a), "mm", 1e3);
-    }
-  }
-  if (u.time_offset_lidar_imu_s.sigma) {
-    check("the LiDAR-IMU time offset",
-          after.time_offset_lidar_imu_s - before.time_offset_lidar_imu_s,
-          *u.time_offset_lidar_imu_s.sigma, "ms", 1e3);
-  }
-  return moving;
-}
-
-void WarnIfStillMoving(const estimation::LidarInertialBatchReport& batch,
-                       const io::CalibrationFile& file, std::vector<std::string>* warnings) {
-  const std::vector<std::string> moving = StillMoving(batch, file);
-  if (moving.empty()) return;
-  std::string list;
-  for (const std::string& m : moving) list += (list.empty() ? "" : ", ") + m;
-  warnings->push_back("the LiDAR-IMU solve stopped at its " +
-                      std::to_string(batch.outer_iterations) +
-                      " outer iterations (solver.outer_iterations) with its last one still "
-                      "moving " +
-                      list +
-                      ": the estimate may lie short of the solution; raise "
-                      "solver.outer_iterations in the problem file");
+// Keyframes that no LiDAR motion placed (rebuilt from GNSS and the IMU: the odometry did not
+// follow the drive) leave the LiDAR rotation at its nominal value, which no turn checked: the
+// batch searches about it within three of its prior's sigmas (docs/estimation.md, Eq. P12).
+// Keyframes from the odometry line the sweeps up at whatever rotation they were built with, so
+// a search there has nothing to score.
+double StartingRotationSearchDeg(const BatchKeyframes& keyframes,
+                                 const std::vector<estimation::EstimatedBlock>& blocks) {
+  if (!keyframes.placed_without_lidar) return 0.0;
+  const double range_deg = ThreeSigmaPriorDeg(blocks, sensors::CalibrationBlockId::kLidarRotation);
+  return std::isfinite(range_deg) ? range_deg : 0.0;
 }
 
 // The batch solve with the problem's wheel and GNSS factors (with `enu`) and the blocks'
@@ -283,6 +225,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     }
   };
   batch_options.compute_covariance = false;  // the joint one below covers every block
+  estimation::BlockObservability observability;
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
     const estimation::BlockCovariance covariance =
         PosteriorCovariance(blocks, p, problem.solver.num_threads, &result->warnings);
@@ -290,22 +233,23 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     RecordPosterior(blocks, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
                        problem.solver.num_threads, result);
-    const estimation::BlockObservability observability =
-        Observe(dataset, options, blocks, covariance, result);
+    observability = Observe(dataset, options, blocks, covariance, result);
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
     RequirePlausible(dataset, options, blocks, covariance);
     RecordResidualsAfterSolve(p, &result->whitened_residuals);
   };
-  batch_options.starting_rotation_search_deg =
-      StartingRotationSearchDeg(blocks, *calibration, result->nominal);
+  batch_options.starting_rotation_search_deg = StartingRotationSearchDeg(*keyframes, blocks);
+  sensors::Calibration start = *calibration;
   Report(options, "solving", 0.0, 0.0, 0.0);
   result->batch = estimation::SolveLidarInertialBatch(
       dataset.imu, keyframes->sweeps, &keyframes->keyframes, calibration, batch_options);
   const estimation::LidarInertialBatchReport& batch = result->batch;
-  const std::string searched = RotationSearchWarning(batch.rotation_search);
-  if (!searched.empty()) result->warnings.push_back(searched);
+  if (batch.rotation_search.searched) start.q_I_L = batch.rotation_search.q_I_L_start;
+  for (const std::string& warning : {RotationSearchWarning(batch.rotation_search),
+                                     StillMovingWarning(batch, start, blocks, observability)}) {
+    if (!warning.empty()) result->warnings.push_back(warning);
+  }
   io::CalibrationFile& file = result->calibration;
-  WarnIfStillMoving(batch, file, &result->warnings);
   file.solver["termination"] = batch.termination;
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
   file.solver["outer_iterations_converged"] = batch.converged ? "true" : "false";
@@ -395,8 +339,8 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
   std::optional<sensors::EnuConverter> enu;
   if (use_gnss) {
     enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
-    PlaceInEnu(dataset, problem, options, *enu, use_wheel, timing, &keyframes.keyframes,
-               &calibration, &result);
+    PlaceInEnu(dataset, problem, options, *enu, use_wheel, timing, &keyframes, &calibration,
+               &result);
   }
   const std::vector<estimation::EstimatedBlock> blocks_estimated =
       EstimatedBlocks(problem, dataset.sensors, options, use_wheel, use_gnss, &calibration);

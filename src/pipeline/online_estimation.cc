@@ -17,6 +17,7 @@
 #include "autocal/io/tum_trajectory.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "autocal/sensors/calibration_blocks.h"
+#include "batch_warnings.h"
 #include "calibration_steps.h"
 #include "clock_initialization.h"
 #include "online_without_lidar.h"

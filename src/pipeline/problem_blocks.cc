@@ -156,14 +156,18 @@ double DefaultPriorSigma(sensors::CalibrationBlockId id, const io::SensorsConfig
   return LimitsOf(id, sensors, options).default_prior_sigma;
 }
 
+double ThreeSigmaPriorDeg(const std::vector<estimation::EstimatedBlock>& blocks, Id rotation) {
+  for (const estimation::EstimatedBlock& b : blocks) {
+    if (b.id == rotation) return 3.0 * b.prior_sigma.maxCoeff() * kRadToDeg;
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
 double MaxNominalMountDeg(const io::Problem& problem, const io::SensorsConfig& sensors,
                           const OfflineCalibrationOptions& options) {
   sensors::Calibration scratch = sensors.nominal_calibration;
-  for (const estimation::EstimatedBlock& b :
-       EstimatedBlocks(problem, sensors, options, true, false, &scratch)) {
-    if (b.id == Id::kVehicleRotation) return 3.0 * b.prior_sigma.maxCoeff() * kRadToDeg;
-  }
-  return std::numeric_limits<double>::infinity();
+  return ThreeSigmaPriorDeg(EstimatedBlocks(problem, sensors, options, true, false, &scratch),
+                            Id::kVehicleRotation);
 }
 
 void SetUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<bool>* observable,

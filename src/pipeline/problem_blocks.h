@@ -52,7 +52,13 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
 double DefaultPriorSigma(sensors::CalibrationBlockId id, const io::SensorsConfig& sensors,
                          const OfflineCalibrationOptions& options);
 
-// Three times the widest prior sigma (degrees) of the IMU mount q_I_V in `problem` with the
+// Three times the widest prior sigma (degrees) of rotation block `rotation` among `blocks`:
+// how far a nominal rotation may plausibly lie from the truth. Infinity when it is not among
+// them.
+double ThreeSigmaPriorDeg(const std::vector<estimation::EstimatedBlock>& blocks,
+                          sensors::CalibrationBlockId rotation);
+
+// ThreeSigmaPriorDeg of the IMU mount q_I_V in `problem` with the
 // nominal uncertainty of `sensors`: a nominal mount further than this from the data's is
 // no guess. Infinity when the problem does not estimate the mount.
 double MaxNominalMountDeg(const io::Problem& problem, const io::SensorsConfig& sensors,

@@ -63,11 +63,14 @@ class RotationSearchTest : public ::testing::Test {
                                   options);
   }
 
-  // The truth turned `deg` about the IMU's z axis (up on this drive): a LiDAR yaw error.
-  static Eigen::Quaterniond YawedTruth(double deg) {
-    return (geometry::Exp(Eigen::Vector3d(0.0, 0.0, deg * kDegToRad)) *
-            simulator_->true_calibration().q_I_L)
+  // The truth turned by `deg` (degrees about the IMU's x, y, z axes): on this drive z is up
+  // and x forward, so z turns the LiDAR's yaw and y its pitch.
+  static Eigen::Quaterniond TurnedTruth(const Eigen::Vector3d& deg) {
+    return (geometry::Exp(Eigen::Vector3d(deg * kDegToRad)) * simulator_->true_calibration().q_I_L)
         .normalized();
+  }
+  static Eigen::Quaterniond YawedTruth(double deg) {
+    return TurnedTruth(Eigen::Vector3d(0.0, 0.0, deg));
   }
 
   static sim::Simulator* simulator_;
@@ -104,6 +107,24 @@ TEST_F(RotationSearchTest, FindsAYawDegreesOffBetweenSparseKeyframes) {
   const StartingRotationSearch one_thread = Search(YawedTruth(4.0), 4.5, 1);
   EXPECT_EQ(one_thread.q_I_L_start.coeffs(), search.q_I_L_start.coeffs());
   EXPECT_EQ(one_thread.paired_at_best, search.paired_at_best);
+}
+
+// The second axis (across the travel direction and up: the pitch here) and both at once: the
+// search about the first axis, then the second, then the first again lands on the grid point
+// nearest the truth.
+TEST_F(RotationSearchTest, FindsAPitchAndAYawTogether) {
+  Keyframes(4);
+  const Eigen::Quaterniond& truth = simulator_->true_calibration().q_I_L;
+  for (const Eigen::Vector3d& turn :
+       {Eigen::Vector3d(0.0, 3.0, 0.0), Eigen::Vector3d(0.0, -2.5, 3.0)}) {
+    const StartingRotationSearch search = Search(TurnedTruth(turn), 4.5);
+    std::cout << "turned " << turn.transpose() << " deg: found "
+              << DegreesBetween(search.q_I_L_start, truth) << " deg from the truth, "
+              << search.candidates << " candidates\n";
+    ASSERT_TRUE(search.searched);
+    // Within half a step on each axis of the grid: at most sqrt(2) / 2 steps.
+    EXPECT_LT(DegreesBetween(search.q_I_L_start, truth), 0.71 * search.step_deg) << turn;
+  }
 }
 
 // A right rotation stays: no candidate pairs more points than the truth.

@@ -57,11 +57,12 @@ struct LidarInertialBatchOptions {
   // that at least, and goes straight to the level its distances need (docs/estimation.md,
   // "Coarse to fine", Eq. P11).
   int coarse_to_fine_steps = 3;
-  // When positive, the starting q_I_L is one no motion checked (the nominal value): before
-  // the first iteration, rotations within this many degrees of it about the two axes across
-  // the direction of travel are scored by the points of consecutive keyframes that find a
-  // plane, and the solve starts from the best (docs/estimation.md, "A rotation no motion
-  // checked", Eq. P12). 0: the solve starts from q_I_L as given.
+  // When positive, the starting q_I_L is one no motion checked (the nominal value, with
+  // keyframes that no LiDAR motion placed): before the first iteration, rotations within this
+  // many degrees of it about the two axes across the direction of travel are scored by the
+  // points of consecutive keyframes that find a plane, and the solve starts from the best
+  // (docs/estimation.md, "A rotation no motion checked", Eq. P12). 0: the solve starts from
+  // q_I_L as given.
   double starting_rotation_search_deg = 0.0;
   // The points' sigma after the coarse iterations: the RMS distance of the previous
   // iteration's points within the gate, the variance of unit weight of the LiDAR residuals
@@ -101,7 +102,9 @@ struct LidarInertialBatchOptions {
 
 // The search for the starting rotation (LidarInertialBatchOptions::starting_rotation_search_deg).
 struct StartingRotationSearch {
-  bool searched = false;    // false: off, or the keyframes lie too close for a step to matter
+  // false: off, no scored pair (the car stood, or the IMU does not cover the sweeps), or the
+  // keyframes lie so close that one step exceeds the range.
+  bool searched = false;
   double step_deg = 0.0;    // the grid's step
   int candidates = 0;       // rotations scored
   int paired_at_start = 0;  // scored points that found a plane at the given rotation
