@@ -1,6 +1,8 @@
 #include "batch_warnings.h"
 
 #include <cmath>
+#include <iomanip>
+#include <sstream>
 
 #include "autocal/common/format.h"
 #include "autocal/common/units.h"
@@ -43,9 +45,10 @@ std::string StillMovingWarning(const estimation::LidarInertialBatchReport& batch
           moved <= kStillMovingSigmaFraction * sigma) {
         continue;
       }
+      std::ostringstream by;
+      by << std::setprecision(3) << moved * block.display_scale << ' ' << block.display_unit;
       moving += (moving.empty() ? "" : ", ") + block.direction_names[static_cast<size_t>(d)] +
-                " by " + FormatShort(moved * block.display_scale) + " " + block.display_unit +
-                " (" + FormatFixed(moved / sigma, 2) + " sigma)";
+                " by " + by.str() + " (" + FormatFixed(moved / sigma, 2) + " sigma)";
     }
   }
   if (moving.empty()) return "";

@@ -223,7 +223,8 @@ std::string RunSummary(const OfflineCalibrationResult& result, bool lidar_used,
                        const std::vector<std::string>& whitened_sensors) {
   std::vector<std::string> facts;
   if (result.batch.outer_iterations > 0) {
-    facts.push_back(Counted(static_cast<size_t>(result.batch.outer_iterations), "outer iteration"));
+    facts.push_back(Counted(static_cast<size_t>(result.batch.outer_iterations), "outer iteration") +
+                    (result.batch.converged ? "" : " (stopped before converging)"));
   }
   facts.push_back(Counted(result.trajectory.size(), "keyframe"));
   if (std::isfinite(result.seconds_total) && result.seconds_total > 0.0) {

@@ -196,6 +196,16 @@ TEST(ReportHtml, StatesRmsAndShareBeyondTheRange) {
 
 // One chart per estimated block; its y range is the change from the first iteration in the
 // block's display unit (the last iteration's change is the largest in magnitude).
+// The run summary says when the batch ended at solver.outer_iterations before converging.
+TEST(ReportHtml, SaysWhenTheOuterLoopStoppedBeforeConverging) {
+  OfflineCalibrationResult result = FullResult();
+  result.batch.converged = true;
+  EXPECT_THAT(CalibrationReportHtml(result), Not(HasSubstr("stopped before converging")));
+  result.batch.converged = false;
+  EXPECT_THAT(CalibrationReportHtml(result),
+              HasSubstr("3 outer iterations (stopped before converging)"));
+}
+
 TEST(ReportHtml, ChartsTheConvergenceOfEveryEstimatedBlockInPhysicalUnits) {
   const std::string html = CalibrationReportHtml(FullResult());
   const struct {
