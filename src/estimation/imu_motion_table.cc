@@ -25,11 +25,15 @@ sensors::ImuSample Interpolate(const sensors::ImuSample& a, const sensors::ImuSa
 
 }  // namespace
 
+bool ImuMotionTable::Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns) {
+  return imu.size() >= 2 && t_begin_ns >= imu.front().t_ns && t_end_ns <= imu.back().t_ns &&
+         t_end_ns >= t_begin_ns;
+}
+
 ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
                                const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a)
     : t_begin_ns_(t_begin_ns), t_end_ns_(t_end_ns) {
-  if (imu.size() < 2 || t_begin_ns < imu.front().t_ns || t_end_ns > imu.back().t_ns ||
-      t_end_ns < t_begin_ns) {
+  if (!Covers(imu, t_begin_ns, t_end_ns)) {
     throw Error("ImuMotionTable: the IMU samples do not cover [" + std::to_string(t_begin_ns) +
                 ", " + std::to_string(t_end_ns) + "] ns");
   }

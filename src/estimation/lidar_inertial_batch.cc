@@ -231,7 +231,7 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
   out.T_W_L.resize(n);
   in.ForEachSweep([&](size_t k) {
     const Keyframe& kf = (*in.keyframes)[k];
-    const int64_t end_ns = in.sweeps[k].t_ns + SecondsToNs(in.sweeps[k].end_s + offset_lin);
+    const int64_t end_ns = in.sweeps[k].end_ns(offset_lin);
     CheckSweepMotionCovered(in, kf.t_ns, end_ns);
     out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));

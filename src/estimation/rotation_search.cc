@@ -6,7 +6,6 @@
 #include <optional>
 
 #include "autocal/common/parallel_for.h"
-#include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/geometry/so3.h"
@@ -42,11 +41,8 @@ struct ScoredPair {
 // then names the offset).
 std::optional<ImuMotionTable> TableOf(const sensors::ImuSamples& imu, const SelectedSweep& sweep,
                                       const Keyframe& kf, double offset_s) {
-  const int64_t end_ns = sweep.t_ns + SecondsToNs(sweep.end_s + offset_s);
-  if (imu.size() < 2 || kf.t_ns < imu.front().t_ns || end_ns > imu.back().t_ns ||
-      end_ns < kf.t_ns) {
-    return std::nullopt;
-  }
+  const int64_t end_ns = sweep.end_ns(offset_s);
+  if (!ImuMotionTable::Covers(imu, kf.t_ns, end_ns)) return std::nullopt;
   return ImuMotionTable(imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
 }
 

@@ -18,8 +18,12 @@ namespace estimation {
 
 class ImuMotionTable {
  public:
+  // Whether `imu` covers [t_begin_ns, t_end_ns] (an interval that does not run backwards), as
+  // a table needs.
+  static bool Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns);
+
   // Tabulates from t_begin_ns (the keyframe, IMU clock) to t_end_ns. Throws autocal::Error
-  // when the samples do not cover the interval.
+  // when the samples do not cover the interval (Covers).
   ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
                  const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a);
 

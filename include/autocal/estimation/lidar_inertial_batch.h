@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/time.h"
 #include "autocal/estimation/estimated_blocks.h"
 #include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/pairing_options.h"
@@ -161,6 +162,8 @@ struct SelectedSweep {
   std::vector<int> map_points;       // indices into points
 
   Eigen::Vector3d point(int i) const { return points.col(i).cast<double>(); }
+  // IMU time of the sweep's last point at LiDAR-IMU time offset offset_s.
+  int64_t end_ns(double offset_s) const { return t_ns + SecondsToNs(end_s + offset_s); }
   double time(int i) const { return static_cast<double>(time_s(i)); }
 };
 // Throws autocal::Error for a sweep without per-point time.
