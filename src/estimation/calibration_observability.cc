@@ -364,17 +364,69 @@ void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::Lo
   }
 }
 
-BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
-                                       ceres::Problem* problem, int num_threads,
-                                       const std::vector<ceres::ResidualBlockId>& exact) {
-  BlockCovariance out;
+namespace {
+
+// Columns of H^-1 at the blocks' tangent coordinates, stacked in block order (a block held
+// constant keeps zeros), from a sparse LDL^T of H with the blocks in problem order.
+struct InverseColumns {
+  bool ok = false;                        // false when H is singular or not finite
+  Eigen::MatrixXd columns;                // rows: H's; columns: the blocks' stacked coordinates
+  std::vector<int> offsets;               // first stacked coordinate of each block
+  std::vector<std::pair<int, int>> rows;  // (row of H, stacked coordinate) of variable blocks
+};
+
+InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
+                                const GaussNewtonHessian& hessian) {
+  InverseColumns out;
   int size = 0;
   for (const EstimatedBlock& block : blocks) {
     out.offsets.push_back(size);
     size += block.size;
   }
+  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), size);
+  for (size_t a = 0; a < blocks.size(); ++a) {
+    const auto it = hessian.offsets.find(blocks[a].data);
+    if (it == hessian.offsets.end()) continue;
+    for (int i = 0; i < blocks[a].size; ++i) {
+      unit(it->second + i, out.offsets[a] + i) = 1.0;
+      out.rows.emplace_back(it->second + i, out.offsets[a] + i);
+    }
+  }
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(hessian.H);
+  if (ldlt.info() != Eigen::Success || !FullRank(ldlt.vectorD())) return out;
+  out.columns = ldlt.solve(unit);
+  out.ok = out.columns.allFinite();
+  return out;
+}
+
+// The blocks' part of H^-1, symmetrized; empty and not ok when `inverse` is not.
+BlockCovariance CovarianceOf(const InverseColumns& inverse, int size) {
+  BlockCovariance out;
+  out.offsets = inverse.offsets;
   out.matrix = Eigen::MatrixXd::Zero(size, size);
+  if (!inverse.ok) return out;
+  for (const auto& [h_row, row] : inverse.rows) {
+    for (const auto& [h_col, col] : inverse.rows)
+      out.matrix(row, col) = inverse.columns(h_row, col);
+  }
+  out.matrix = 0.5 * (out.matrix + out.matrix.transpose()).eval();
+  out.ok = out.matrix.allFinite();
+  return out;
+}
+
+int StackedSize(const std::vector<EstimatedBlock>& blocks) {
+  int size = 0;
+  for (const EstimatedBlock& block : blocks) size += block.size;
+  return size;
+}
+
+}  // namespace
+
+BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
+                                       ceres::Problem* problem, int num_threads,
+                                       const std::vector<ceres::ResidualBlockId>& exact) {
   if (blocks.empty()) {
+    BlockCovariance out;
     out.ok = true;
     return out;
   }
@@ -386,25 +438,44 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     term.setFromTriplets(curvature.begin(), curvature.end());
     hessian.H = Eigen::SparseMatrix<double>(hessian.H + term);
   }
-  // Columns of H^-1 at the blocks' tangent coordinates (a block held constant keeps zeros).
-  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), size);
-  std::vector<std::pair<int, int>> rows;  // (row of H, row of out.matrix)
-  for (size_t a = 0; a < blocks.size(); ++a) {
-    const auto it = hessian.offsets.find(blocks[a].data);
-    if (it == hessian.offsets.end()) continue;
-    for (int i = 0; i < blocks[a].size; ++i) {
-      unit(it->second + i, out.offsets[a] + i) = 1.0;
-      rows.emplace_back(it->second + i, out.offsets[a] + i);
+  return CovarianceOf(InverseColumnsAt(blocks, hessian), StackedSize(blocks));
+}
+
+ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
+                               const std::vector<ResidualSource>& sources, int num_threads) {
+  ErrorBudget out;
+  const int size = StackedSize(blocks);
+  const InverseColumns inverse =
+      InverseColumnsAt(blocks, EvaluateGaussNewtonHessian(problem, num_threads));
+  out.covariance = CovarianceOf(inverse, size);
+  out.share = Eigen::MatrixXd::Zero(size, static_cast<Eigen::Index>(sources.size()));
+  out.spread = out.share;
+  if (!inverse.ok) return out;
+  internal::VariableColumns variables = internal::VariableColumnsOf(problem);
+  variables.evaluate.num_threads = num_threads;
+  for (size_t s = 0; s < sources.size(); ++s) {
+    out.sources.push_back(sources[s].name);
+    const std::vector<ceres::ResidualBlockId>& ids = sources[s].residual_blocks;
+    for (size_t first = 0; first < ids.size(); first += kResidualBlocksPerStretch) {
+      const size_t end = std::min(ids.size(), first + kResidualBlocksPerStretch);
+      variables.evaluate.residual_blocks.assign(ids.begin() + static_cast<std::ptrdiff_t>(first),
+                                                ids.begin() + static_cast<std::ptrdiff_t>(end));
+      std::vector<double> r;
+      ceres::CRSMatrix J;
+      if (!problem->Evaluate(variables.evaluate, nullptr, &r, nullptr, &J)) return out;
+      for (int k = 0; k < J.num_rows; ++k) {
+        // Row k's sensitivity of every stacked coordinate: J_k H^-1 e.
+        Eigen::VectorXd sensitivity = Eigen::VectorXd::Zero(size);
+        for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
+          sensitivity += J.values[e] * inverse.columns.row(J.cols[e]).transpose();
+        }
+        out.share.col(s) += sensitivity * r[static_cast<size_t>(k)];
+        out.spread.col(s) += sensitivity.cwiseAbs2();
+      }
     }
   }
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(hessian.H);
-  if (ldlt.info() != Eigen::Success || !FullRank(ldlt.vectorD())) return out;
-  const Eigen::MatrixXd columns = ldlt.solve(unit);
-  for (const auto& [h_row, row] : rows) {
-    for (const auto& [h_col, col] : rows) out.matrix(row, col) = columns(h_row, col);
-  }
-  out.matrix = 0.5 * (out.matrix + out.matrix.transpose()).eval();
-  out.ok = out.matrix.allFinite();
+  out.spread = out.spread.cwiseSqrt();
+  out.ok = out.covariance.ok && out.share.allFinite() && out.spread.allFinite();
   return out;
 }
 

@@ -1,6 +1,7 @@
 #include "autocal/evaluation/information_bound.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 
@@ -11,15 +12,41 @@
 namespace autocal {
 namespace evaluation {
 
+namespace {
+
+// The true biases at t_ns, linear between the samples around it; false outside them.
+bool BiasAt(const io::ImuBiasTrajectory& biases, int64_t t_ns, Eigen::Vector3d* b_g,
+            Eigen::Vector3d* b_a) {
+  const auto after =
+      std::lower_bound(biases.begin(), biases.end(), t_ns,
+                       [](const io::ImuBiasSample& s, int64_t t) { return s.t_ns < t; });
+  if (after == biases.end()) return false;
+  if (after->t_ns == t_ns) {
+    *b_g = after->b_g;
+    *b_a = after->b_a;
+    return true;
+  }
+  if (after == biases.begin()) return false;
+  const io::ImuBiasSample& before = *(after - 1);
+  const double f =
+      static_cast<double>(t_ns - before.t_ns) / static_cast<double>(after->t_ns - before.t_ns);
+  *b_g = before.b_g + f * (after->b_g - before.b_g);
+  *b_a = before.b_a + f * (after->b_a - before.b_a);
+  return true;
+}
+
+}  // namespace
+
 estimation::StateSetter TruthSetter(const io::Dataset& dataset) {
   if (dataset.groundtruth_trajectory.empty() || !dataset.groundtruth_calibration) return {};
   auto truth = std::make_shared<const io::Trajectory>(dataset.groundtruth_trajectory);
+  auto biases = std::make_shared<const io::ImuBiasTrajectory>(dataset.groundtruth_imu_bias);
   const sensors::Calibration calibration = *dataset.groundtruth_calibration;
   // Truth samples farther apart than the evaluation's interpolation gap leave the keyframes
   // between them as they are.
   const int64_t max_gap_ns = SecondsToNs(TrajectoryErrorOptions().max_interpolation_gap_s);
-  return [truth, calibration, max_gap_ns](std::vector<estimation::Keyframe>* keyframes,
-                                          sensors::Calibration* c) {
+  return [truth, biases, calibration, max_gap_ns](std::vector<estimation::Keyframe>* keyframes,
+                                                  sensors::Calibration* c) {
     // Matched pairs: the keyframes' poses and the truth at their stamps.
     std::vector<size_t> matched;
     io::Trajectory estimate, at_keyframes;
@@ -48,6 +75,8 @@ estimation::StateSetter TruthSetter(const io::Dataset& dataset) {
       kf.q_W_I = (Rz_inverse * t.T_W_I.q).normalized();
       kf.p_W_I = Rz_inverse * (t.T_W_I.p - a.translation_m);
       kf.v_W_I = Rz_inverse * t.v_W_I;
+      // Body-frame quantities: the world's yaw does not touch them.
+      BiasAt(*biases, kf.t_ns, &kf.b_g, &kf.b_a);
     }
     *c = calibration;
   };

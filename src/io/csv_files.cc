@@ -55,6 +55,12 @@ const std::vector<std::string>& TrajectoryColumns() {
   return kColumns;
 }
 
+const std::vector<std::string>& ImuBiasColumns() {
+  static const std::vector<std::string> kColumns = {"t_ns", "bgx", "bgy", "bgz",
+                                                    "bax",  "bay", "baz"};
+  return kColumns;
+}
+
 std::string HeaderLine(const std::vector<std::string>& columns) {
   std::string line;
   for (const std::string& column : columns) line += (line.empty() ? "" : ",") + column;
@@ -446,6 +452,19 @@ Trajectory ReadTrajectoryCsv(const std::string& path) {
   return trajectory;
 }
 
+ImuBiasTrajectory ReadImuBiasCsv(const std::string& path) {
+  CsvReader reader(path, internal::ImuBiasColumns());
+  ImuBiasTrajectory biases;
+  while (reader.Next()) {
+    ImuBiasSample sample;
+    sample.t_ns = reader.Timestamp();
+    for (int i = 0; i < 3; ++i) sample.b_g[i] = reader.Double(1 + i);
+    for (int i = 0; i < 3; ++i) sample.b_a[i] = reader.Double(4 + i);
+    biases.push_back(sample);
+  }
+  return biases;
+}
+
 void WriteImuCsv(const std::string& path, const sensors::ImuSamples& samples) {
   WriteRows(path, internal::ImuColumns(), samples, [](const sensors::ImuSample& s) {
     return std::vector<double>{s.gyro_rad_s.x(), s.gyro_rad_s.y(), s.gyro_rad_s.z(),
@@ -496,6 +515,12 @@ void WriteLidarCsv(const std::string& path, const std::vector<LidarSweepRef>& sw
     text += internal::LidarRow(sweeps[i]);
   }
   internal::WriteFileText(path, text);
+}
+
+void WriteImuBiasCsv(const std::string& path, const ImuBiasTrajectory& biases) {
+  WriteRows(path, internal::ImuBiasColumns(), biases, [](const ImuBiasSample& s) {
+    return std::vector<double>{s.b_g.x(), s.b_g.y(), s.b_g.z(), s.b_a.x(), s.b_a.y(), s.b_a.z()};
+  });
 }
 
 void WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory) {

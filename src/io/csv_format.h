@@ -17,6 +17,7 @@ const std::vector<std::string>& WheelColumns();
 const std::vector<std::string>& GnssColumns();
 const std::vector<std::string>& LidarColumns();
 const std::vector<std::string>& TrajectoryColumns();
+const std::vector<std::string>& ImuBiasColumns();
 
 // "a,b,c\n"
 std::string HeaderLine(const std::vector<std::string>& columns);

@@ -104,6 +104,7 @@ Dataset DatasetUntil(const Dataset& dataset, int64_t end_ns) {
   out.gnss = StampedUntil(dataset.gnss, end_ns);
   out.lidar_sweeps = StampedUntil(dataset.lidar_sweeps, end_ns);
   out.groundtruth_trajectory = StampedUntil(dataset.groundtruth_trajectory, end_ns);
+  out.groundtruth_imu_bias = StampedUntil(dataset.groundtruth_imu_bias, end_ns);
   out.groundtruth_calibration = dataset.groundtruth_calibration;
   return out;
 }
@@ -164,6 +165,8 @@ Dataset ReadDataset(const std::string& directory, const DatasetReadOptions& opti
 
   const std::string trajectory_path = Join(directory, "groundtruth/trajectory.csv");
   if (IsFile(trajectory_path)) dataset.groundtruth_trajectory = ReadTrajectoryCsv(trajectory_path);
+  const std::string bias_path = Join(directory, "groundtruth/imu_bias.csv");
+  if (IsFile(bias_path)) dataset.groundtruth_imu_bias = ReadImuBiasCsv(bias_path);
   const std::string calibration_path = Join(directory, "groundtruth/calibration.yaml");
   if (IsFile(calibration_path))
     dataset.groundtruth_calibration = ReadCalibrationYaml(calibration_path).value;

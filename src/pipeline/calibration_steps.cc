@@ -498,8 +498,10 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
   const std::vector<estimation::Keyframe> solved_keyframes = *keyframes;
   const sensors::Calibration solved = *calibration;
   options.set_to_truth(keyframes, calibration);
-  const estimation::BlockCovariance bound =
-      estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads);
+  // The bound is the budget's covariance: one factorization of the information for both.
+  estimation::ErrorBudget budget = estimation::ComputeErrorBudget(
+      blocks_estimated, problem, ResidualSources(problem), num_threads);
+  const estimation::BlockCovariance& bound = budget.covariance;
   Eigen::VectorXd error(bound.matrix.rows());
   for (size_t b = 0; b < blocks_estimated.size() && bound.ok; ++b) {
     const estimation::EstimatedBlock& block = blocks_estimated[b];
@@ -517,6 +519,7 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
   }
   result->bound = bound;
   result->error_at_bound = error;
+  if (budget.ok) result->error_budget = std::move(budget);
 }
 
 estimation::BlockObservability Observe(

@@ -188,7 +188,8 @@ void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estim
                      const sensors::Calibration& solved, OfflineCalibrationResult* result);
 
 // With options.set_to_truth: result->bound, the covariance of the estimated blocks from
-// `problem` at the truth (the Cramer-Rao bound). The keyframes and the
+// `problem` at the truth (the Cramer-Rao bound), and result->error_budget, the error split by
+// the sources of the residuals (ResidualSources). The keyframes and the
 // calibration, the problem's blocks, are set to the truth for it and restored after. A bound
 // that cannot be computed (a singular information matrix) is a warning.
 void RecordBoundAtTruth(const OfflineCalibrationOptions& options,

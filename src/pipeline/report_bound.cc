@@ -17,6 +17,54 @@ double Sigma(const estimation::BlockCovariance& covariance, int row) {
   return std::sqrt(std::max(0.0, covariance.matrix(row, row)));
 }
 
+// Sources as the report names them.
+std::string SourceName(const std::string& source) {
+  if (source == "lidar") return "LiDAR";
+  if (source == "imu") return "IMU";
+  if (source == "gnss") return "GNSS";
+  if (source == "wheel") return "wheels";
+  if (source == "planar_rotation") return "planar rotation";
+  return source;
+}
+
+// The error budget's table (docs/evaluation.md, "Where the error comes from"): per direction
+// the linearized error at the truth and each source's share of it, with the share over its
+// spread.
+std::string BudgetTable(const OfflineCalibrationResult& result) {
+  if (!result.error_budget) return "";
+  const estimation::ErrorBudget& budget = *result.error_budget;
+  const estimation::CalibrationPosterior& posterior = result.posterior;
+  std::ostringstream rows;
+  for (size_t b = 0; b < posterior.blocks.size(); ++b) {
+    const estimation::EstimatedBlock& block = posterior.blocks[b];
+    const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(block.id);
+    for (int i = 0; i < block.size; ++i) {
+      const int row = budget.covariance.offsets[b] + i;
+      rows << "<tr><td>" << EscapeXml(block.direction_names[static_cast<size_t>(i)]) << " ("
+           << info.display_unit << ")</td><td>"
+           << Number(budget.share.row(row).sum() * info.display_scale) << "</td>";
+      for (Eigen::Index s = 0; s < budget.share.cols(); ++s) {
+        const double spread = budget.spread(row, s);
+        rows << "<td>" << Number(budget.share(row, s) * info.display_scale) << " ("
+             << (spread > 0.0 ? Number(budget.share(row, s) / spread) : "–") << ")</td>";
+      }
+      rows << "</tr>";
+    }
+  }
+  std::string header = "<tr><th>direction</th><th>error</th>";
+  for (const std::string& source : budget.sources) {
+    header += "<th>" + EscapeXml(SourceName(source)) + "</th>";
+  }
+  return "<h3>Where the error comes from</h3><p>From the truth, one Gauss–Newton step of the "
+         "final problem lands on the estimate to first order: it is the error (truth − estimate, "
+         "negated), and it splits by the data that pull it. Each source's share is followed, "
+         "in parentheses, by the share over its spread: the standard deviation of that share "
+         "were the source's noise as the model states it. Shares of a few spreads show a "
+         "source whose data disagree with its model; the spreads' squares sum to the bound's "
+         "variance.</p><table>" +
+         header + "</tr>" + rows.str() + "</table>\n";
+}
+
 }  // namespace
 
 std::string BoundSection(const OfflineCalibrationResult& result) {
@@ -51,7 +99,7 @@ std::string BoundSection(const OfflineCalibrationResult& result) {
          "bound says: error / bound is a standard normal draw, and its RMS over logs is 1.</p>"
          "<table><tr><th>direction</th><th>σ</th><th>bound</th><th>σ / bound</th>" +
          std::string(with_error ? "<th>error</th><th>error / bound</th>" : "") + "</tr>" + body +
-         "</table>\n";
+         "</table>\n" + BudgetTable(result);
 }
 
 }  // namespace pipeline

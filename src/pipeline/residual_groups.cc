@@ -1,11 +1,15 @@
 #include "residual_groups.h"
 
 #include <cmath>
+#include <set>
 
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/loss.h"
 #include "autocal/factors/planar_rotation_factor.h"
+#include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_factor.h"
+#include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "common/order_statistics.h"
 #include "estimation/time_offset_factors.h"
@@ -48,7 +52,33 @@ std::map<std::string, std::vector<ceres::ResidualBlockId>> BlocksBySensor(ceres:
   return ids;
 }
 
+bool IsLidarCost(const ceres::CostFunction* f) {
+  return dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(f) ||
+         dynamic_cast<const factors::PointToSweepPlaneFactor*>(f) ||
+         dynamic_cast<const factors::PointToPlaneFactor*>(f);
+}
+
 }  // namespace
+
+std::vector<estimation::ResidualSource> ResidualSources(ceres::Problem* problem) {
+  std::map<std::string, std::vector<ceres::ResidualBlockId>> by_sensor = BlocksBySensor(problem);
+  std::vector<ceres::ResidualBlockId> all;
+  problem->GetResidualBlocks(&all);
+  estimation::ResidualSource lidar{"lidar", {}};
+  estimation::ResidualSource priors{"priors", {}};
+  std::set<ceres::ResidualBlockId> assigned;
+  for (const auto& [sensor, ids] : by_sensor) assigned.insert(ids.begin(), ids.end());
+  for (ceres::ResidualBlockId id : all) {
+    if (assigned.count(id) > 0) continue;
+    const bool is_lidar = IsLidarCost(problem->GetCostFunctionForResidualBlock(id));
+    (is_lidar ? lidar : priors).residual_blocks.push_back(id);
+  }
+  std::vector<estimation::ResidualSource> out;
+  if (!lidar.residual_blocks.empty()) out.push_back(std::move(lidar));
+  for (auto& [sensor, ids] : by_sensor) out.push_back({sensor, std::move(ids)});
+  if (!priors.residual_blocks.empty()) out.push_back(std::move(priors));
+  return out;
+}
 
 std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows, bool alike_rows) {
   std::map<std::string, double> out;

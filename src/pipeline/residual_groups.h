@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/pipeline/offline_calibration.h"
 
 namespace autocal {
@@ -24,6 +25,11 @@ namespace pipeline {
 // (14 GNSS rows made it 17 on a simulated urban drive whose other rows have 0.99).
 constexpr double kOutlierRobustSigmas = 5.0;
 std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows, bool alike_rows);
+
+// Every residual block of `problem` by where its information comes from, for the error budget:
+// "lidar" (the point-to-plane factors), "imu", "wheel", "gnss", "planar_rotation", and
+// "priors" (the blocks' priors, held directions, the first pose), the empty ones left out.
+std::vector<estimation::ResidualSource> ResidualSources(ceres::Problem* problem);
 
 // Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,
 // by sensor, at the current parameter values.

@@ -10,6 +10,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
+#include "autocal/io/csv_files.h"
 #include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
 
@@ -28,15 +29,11 @@ std::ostringstream Text() {
 
 // groundtruth/imu_bias.csv: the true biases at every IMU sample.
 void WriteImuBias(const ImuLog& imu, const std::string& path) {
-  std::ostringstream out = Text();
-  out << "t_ns,bgx,bgy,bgz,bax,bay,baz\n";
+  io::ImuBiasTrajectory biases(imu.samples.size());
   for (size_t k = 0; k < imu.samples.size(); ++k) {
-    const Eigen::Vector3d& g = imu.gyro_bias[k];
-    const Eigen::Vector3d& a = imu.accel_bias[k];
-    out << imu.samples[k].t_ns << ',' << g.x() << ',' << g.y() << ',' << g.z() << ',' << a.x()
-        << ',' << a.y() << ',' << a.z() << '\n';
+    biases[k] = {imu.samples[k].t_ns, imu.gyro_bias[k], imu.accel_bias[k]};
   }
-  io::WriteFileAtomically(path, out.str());
+  io::WriteImuBiasCsv(path, biases);
 }
 
 // groundtruth/gnss.csv: per fix, the true antenna position in W and whether it is an outlier.

@@ -341,6 +341,67 @@ TEST(CalibrationObservability, CovarianceEqualsCeresCovarianceWithRobustLossesAn
       << two_threads.matrix - covariance.matrix;
 }
 
+// The error budget of a linear problem at its truth: the shares sum to truth - estimate of
+// the solve, each share is H^-1 J_s^T r_s, and the spreads' squares sum to the covariance.
+TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) {
+  const Eigen::Vector3d truth(0.30, -0.05, 0.55);
+  const double true_s = 1.8;
+  Eigen::Vector3d p = truth;
+  double s = true_s;
+  std::vector<EstimatedBlock> blocks = {
+      VectorBlock(p.data(), Eigen::Vector3d(0.28, -0.04, 0.50), 0.3, 0.05)};
+  ceres::Problem problem;
+  std::vector<ResidualSource> sources = {{"first", {}}, {"second", {}}, {"priors", {}}};
+  const auto row = [&](const LinearRow& r, int source) {
+    sources[static_cast<size_t>(source)].residual_blocks.push_back(problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
+        &s));
+  };
+  // Measurements of the truth with noise of a few sigma (sigma = 1 / weight).
+  row({100.0, 1.0, 0.0, 0.5, 0.0, 0.30 + 0.275 + 0.013}, 0);  // x + z/2
+  row({50.0, 0.0, 1.0, 0.0, 0.0, -0.05 - 0.01}, 0);           // y
+  row({100.0, -1.0, 0.0, 0.0, 1.0, 1.5 - 0.02}, 1);           // s - x
+  row({20.0, 0.0, 0.0, 1.0, 1.0, 0.55 + 1.8 + 0.04}, 1);      // z + s
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  std::vector<ceres::ResidualBlockId> all;
+  problem.GetResidualBlocks(&all);
+  sources[2].residual_blocks.assign(all.begin() + 4, all.end());
+
+  const ErrorBudget budget = ComputeErrorBudget(blocks, &problem, sources);
+  ASSERT_TRUE(budget.ok);
+  EXPECT_THAT(budget.sources, ::testing::ElementsAre("first", "second", "priors"));
+  const BlockCovariance covariance = ComputeBlockCovariance(blocks, &problem);
+  EXPECT_TRUE(
+      budget.spread.cwiseAbs2().rowwise().sum().isApprox(covariance.matrix.diagonal(), 1e-12));
+  // Each share by hand: J and r of the source, H^-1 over (p, s).
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks = {p.data(), &s};
+  ceres::CRSMatrix crs;
+  std::vector<double> r;
+  problem.Evaluate(evaluate, nullptr, &r, nullptr, &crs);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int i = 0; i < crs.num_rows; ++i) {
+    for (int k = crs.rows[i]; k < crs.rows[i + 1]; ++k) J(i, crs.cols[k]) = crs.values[k];
+  }
+  const Eigen::MatrixXd H_inverse = (J.transpose() * J).inverse();
+  const Eigen::Map<const Eigen::VectorXd> residuals(r.data(), static_cast<Eigen::Index>(r.size()));
+  const std::vector<std::pair<int, int>> rows_of = {{0, 2}, {2, 2}, {4, 3}};  // rows per source
+  for (int k = 0; k < 3; ++k) {
+    const auto [first, n] = rows_of[static_cast<size_t>(k)];
+    const Eigen::VectorXd share =
+        H_inverse.topRows(3) * J.middleRows(first, n).transpose() * residuals.segment(first, n);
+    EXPECT_TRUE(budget.share.col(k).isApprox(share, 1e-12)) << k;
+  }
+  // Linear: the solve lands where the step says, so the shares sum to truth - estimate.
+  ceres::Solver::Options options;
+  options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-15;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  EXPECT_TRUE(budget.share.rowwise().sum().isApprox(truth - p, 1e-9))
+      << budget.share.rowwise().sum().transpose() << " vs " << (truth - p).transpose();
+  EXPECT_GT((truth - p).norm(), 1e-3);  // there is an error to split
+}
+
 TEST(CalibrationObservability, CovarianceOfASingularProblemIsRefusedAndConstantBlocksAreZero) {
   Eigen::Vector3d p(0.1, 0.2, 0.3);
   Eigen::Vector3d held(1.0, 2.0, 3.0);

@@ -73,10 +73,34 @@ TEST(TruthSetter, PutsTheTruthIntoTheEstimatesFrame) {
     EXPECT_LT((keyframes[k].p_W_I - exact[k].p_W_I).norm(), 0.01) << k;
     EXPECT_LT(keyframes[k].q_W_I.angularDistance(exact[k].q_W_I), 1e-3) << k;
     EXPECT_LT((keyframes[k].v_W_I - exact[k].v_W_I).norm(), 0.01) << k;
-    EXPECT_EQ(keyframes[k].b_g, exact[k].b_g) << k;  // the biases stay
+    EXPECT_EQ(keyframes[k].b_g, exact[k].b_g) << k;  // no bias truth: the biases stay
   }
   EXPECT_EQ(calibration.time_offset_lidar_imu_s, 0.0123);
   EXPECT_EQ(calibration.p_I_A, Eigen::Vector3d(0.1, -0.2, 1.5));
+}
+
+// With groundtruth/imu_bias.csv the keyframes' biases are the truth's, linear between its
+// samples (bias walks are not rotated by the world's yaw: they live in the IMU frame).
+TEST(TruthSetter, SetsTheBiasesWhereTheLogHasTheirTruth) {
+  io::Dataset dataset = CircleWithTruth();
+  const auto bias_at = [](double t) {
+    return io::ImuBiasSample{0, Eigen::Vector3d(1e-3, -2e-3, 5e-4) * (1.0 + t),
+                             Eigen::Vector3d(0.02, 0.03, -0.01) * (1.0 - 0.05 * t)};
+  };
+  for (int i = 0; i <= 2000; ++i) {  // 200 Hz, as the simulator's IMU
+    io::ImuBiasSample sample = bias_at(0.005 * i);
+    sample.t_ns = 1'000'000'000 + int64_t{5'000'000} * i;
+    dataset.groundtruth_imu_bias.push_back(sample);
+  }
+  std::vector<estimation::Keyframe> exact;
+  std::vector<estimation::Keyframe> keyframes = KeyframesOff(&exact);
+  sensors::Calibration calibration;
+  TruthSetter(dataset)(&keyframes, &calibration);
+  for (const estimation::Keyframe& kf : keyframes) {
+    const io::ImuBiasSample truth = bias_at(static_cast<double>(kf.t_ns - 1'000'000'000) * 1e-9);
+    EXPECT_TRUE(kf.b_g.isApprox(truth.b_g, 1e-12)) << kf.b_g.transpose();
+    EXPECT_TRUE(kf.b_a.isApprox(truth.b_a, 1e-12)) << kf.b_a.transpose();
+  }
 }
 
 TEST(TruthSetter, IsEmptyWithoutAGroundTruth) {

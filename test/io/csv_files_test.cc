@@ -330,6 +330,28 @@ TEST(CsvFilesTest, ACorruptRowIsRefusedAtItsLine) {
   }
 }
 
+TEST(CsvFilesTest, ImuBiasRoundTripsExactlyAndNamesABadField) {
+  ImuBiasTrajectory biases;
+  for (int k = 0; k < 5; ++k) {
+    biases.push_back({int64_t{1'700'000'000'000'000'000} + int64_t{5'000'000} * k,
+                      Eigen::Vector3d(1e-3, -2e-3, 3e-4) * (1.0 + 0.1 * k) / 3.0,
+                      Eigen::Vector3d(0.026, 0.037, -0.019) * (1.0 - 0.01 * k) / 7.0});
+  }
+  WriteImuBiasCsv(OutPath("imu_bias.csv"), biases);
+  const std::vector<std::string> lines = Lines(ReadText(OutPath("imu_bias.csv")));
+  EXPECT_EQ(lines[0], "t_ns,bgx,bgy,bgz,bax,bay,baz");
+  const ImuBiasTrajectory read = ReadImuBiasCsv(OutPath("imu_bias.csv"));
+  ASSERT_EQ(read.size(), biases.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    EXPECT_EQ(read[i].t_ns, biases[i].t_ns) << i;
+    EXPECT_EQ(read[i].b_g, biases[i].b_g) << i;
+    EXPECT_EQ(read[i].b_a, biases[i].b_a) << i;
+  }
+  WriteText(OutPath("imu_bias_bad.csv"), ReplaceField(lines, 3, 5, "0.0x1"));
+  ExpectParseError(OutPath("imu_bias_bad.csv"), [](const std::string& p) { ReadImuBiasCsv(p); },
+                   {3, FieldColumn(lines[2], 5), "number"});
+}
+
 TEST(CsvFilesTest, TrajectoryQuaternionNotUnit) {
   WriteTrajectoryCsv(OutPath("traj_ref.csv"), test_data::MakeDrive(1.0).trajectory);
   const std::vector<std::string> lines = Lines(ReadText(OutPath("traj_ref.csv")));

@@ -78,6 +78,29 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
                                        ceres::Problem* problem, int num_threads = 1,
                                        const std::vector<ceres::ResidualBlockId>& exact = {});
 
+// Where the error of the blocks comes from (docs/evaluation.md, "Where the error comes from").
+// At the values `problem` holds, x, the Gauss-Newton step is -H^-1 J^T r over every variable
+// block (H = J^T J, robust losses applied as the solver applies them); at the truth of a
+// simulated log it lands on the estimate to first order, so H^-1 J^T r is the error, truth -
+// estimate, of the blocks' tangent coordinates. Split by source, H^-1 J_s^T r_s is what source
+// s's data put into the error (its share), and sqrt(sum over its rows of (J_row H^-1 e)^2) its
+// spread: the share's standard deviation were the source's whitened residuals N(0, I). The
+// spreads' squares sum to the covariance's diagonal when every residual block belongs to a
+// source; a share of several spreads shows a source whose data and model disagree.
+struct ResidualSource {
+  std::string name;
+  std::vector<ceres::ResidualBlockId> residual_blocks;
+};
+struct ErrorBudget {
+  bool ok = false;             // false when J^T J is singular or the problem does not evaluate
+  BlockCovariance covariance;  // the blocks' part of H^-1, as ComputeBlockCovariance's
+  std::vector<std::string> sources;
+  Eigen::MatrixXd share;   // rows: the blocks' stacked coordinates; column s: source s's
+  Eigen::MatrixXd spread;  // laid out as share
+};
+ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
+                               const std::vector<ResidualSource>& sources, int num_threads = 1);
+
 // The directions that the data inform (posterior sigma well below the prior's: observable or
 // kept) and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
 // plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a solve

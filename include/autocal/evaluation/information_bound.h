@@ -8,8 +8,10 @@
 // TruthSetter gives pipeline::OfflineCalibrationOptions::set_to_truth for a log with ground
 // truth (groundtruth/trajectory.csv and groundtruth/calibration.yaml). The truth is put into
 // the estimate's world frame by the 4-DoF alignment (yaw, translation) of the keyframe
-// positions onto it, the only freedom between the two frames; the biases stay at their
-// estimate (the truth gives none per keyframe; they enter the Jacobians at second order).
+// positions onto it, the only freedom between the two frames. The keyframes' biases are the
+// truth's where the log has groundtruth/imu_bias.csv (linear between its samples), else they
+// stay at their estimate: they enter the Jacobians at second order, but the residuals at the
+// truth, which the error budget splits, at first.
 
 #include "autocal/estimation/keyframe.h"
 #include "autocal/io/dataset.h"

@@ -53,6 +53,8 @@ std::vector<LidarSweepRef> ReadLidarCsv(const std::string& path,
                                         const std::string& sweep_directory = "");
 // Quaternions are normalized; a norm off 1 by more than 1e-3 is an error.
 Trajectory ReadTrajectoryCsv(const std::string& path);
+// groundtruth/imu_bias.csv of a simulated log: t_ns, then b_g (rad/s) and b_a (m/s^2).
+ImuBiasTrajectory ReadImuBiasCsv(const std::string& path);
 
 // Writers throw autocal::Error on I/O failure or a non-finite value.
 void WriteImuCsv(const std::string& path, const sensors::ImuSamples& samples);
@@ -63,6 +65,7 @@ void WriteOdometryCsv(const std::string& path, const sensors::OdometrySamples& s
 void WriteGnssCsv(const std::string& path, const sensors::GnssFixes& fixes);
 void WriteLidarCsv(const std::string& path, const std::vector<LidarSweepRef>& sweeps);
 void WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory);
+void WriteImuBiasCsv(const std::string& path, const ImuBiasTrajectory& biases);
 
 }  // namespace io
 }  // namespace autocal

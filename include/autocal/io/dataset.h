@@ -46,6 +46,14 @@ struct TrajectorySample {
 };
 using Trajectory = std::vector<TrajectorySample>;
 
+// A row of groundtruth/imu_bias.csv: the IMU's true biases at one of its samples.
+struct ImuBiasSample {
+  int64_t t_ns = 0;
+  Eigen::Vector3d b_g = Eigen::Vector3d::Zero();  // rad/s
+  Eigen::Vector3d b_a = Eigen::Vector3d::Zero();  // m/s^2
+};
+using ImuBiasTrajectory = std::vector<ImuBiasSample>;
+
 // A row of lidar.csv: the sweep's reference stamp (LiDAR clock) and its PLY file name,
 // relative to <dataset>/lidar/.
 struct LidarSweepRef {
@@ -63,6 +71,7 @@ struct Dataset {
   sensors::GnssFixes gnss;                  // empty without gnss.csv
   std::vector<LidarSweepRef> lidar_sweeps;  // empty without lidar.csv
   Trajectory groundtruth_trajectory;        // empty without groundtruth/trajectory.csv
+  ImuBiasTrajectory groundtruth_imu_bias;   // empty without groundtruth/imu_bias.csv
   std::optional<sensors::Calibration> groundtruth_calibration;
 
   // The form of the wheel data: sensors.yaml's, angular rates without a wheel section.

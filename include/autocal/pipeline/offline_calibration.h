@@ -134,6 +134,9 @@ struct OfflineCalibrationResult {
   // solve (a rotation: Log(q_estimate^-1 q_truth)), before any direction was held; laid out
   // as the bound's rows.
   Eigen::VectorXd error_at_bound;
+  // With the bound: where the error comes from, by source, at the truth (docs/evaluation.md,
+  // "Where the error comes from"), laid out as the bound's rows.
+  std::optional<estimation::ErrorBudget> error_budget;
   double seconds_total = 0.0;  // wall time, and its stages
   double seconds_loading = 0.0;
   double seconds_initialization = 0.0;
