@@ -370,7 +370,8 @@ namespace {
 // constant keeps zeros), from a sparse LDL^T of H with the blocks in problem order.
 struct InverseColumns {
   bool ok = false;                        // false when H is singular or not finite
-  Eigen::MatrixXd columns;                // rows: H's; columns: the blocks' stacked coordinates
+  int size = 0;                           // the blocks' stacked coordinates
+  Eigen::MatrixXd columns;                // rows: H's; columns: the stacked coordinates
   std::vector<int> offsets;               // first stacked coordinate of each block
   std::vector<std::pair<int, int>> rows;  // (row of H, stacked coordinate) of variable blocks
 };
@@ -378,12 +379,11 @@ struct InverseColumns {
 InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
                                 const GaussNewtonHessian& hessian) {
   InverseColumns out;
-  int size = 0;
   for (const EstimatedBlock& block : blocks) {
-    out.offsets.push_back(size);
-    size += block.size;
+    out.offsets.push_back(out.size);
+    out.size += block.size;
   }
-  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), size);
+  Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(hessian.H.rows(), out.size);
   for (size_t a = 0; a < blocks.size(); ++a) {
     const auto it = hessian.offsets.find(blocks[a].data);
     if (it == hessian.offsets.end()) continue;
@@ -399,11 +399,11 @@ InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
   return out;
 }
 
-// The blocks' part of H^-1, symmetrized; empty and not ok when `inverse` is not.
-BlockCovariance CovarianceOf(const InverseColumns& inverse, int size) {
+// The blocks' part of H^-1, symmetrized; zeros and not ok when `inverse` is not ok.
+BlockCovariance CovarianceOf(const InverseColumns& inverse) {
   BlockCovariance out;
   out.offsets = inverse.offsets;
-  out.matrix = Eigen::MatrixXd::Zero(size, size);
+  out.matrix = Eigen::MatrixXd::Zero(inverse.size, inverse.size);
   if (!inverse.ok) return out;
   for (const auto& [h_row, row] : inverse.rows) {
     for (const auto& [h_col, col] : inverse.rows)
@@ -414,10 +414,11 @@ BlockCovariance CovarianceOf(const InverseColumns& inverse, int size) {
   return out;
 }
 
-int StackedSize(const std::vector<EstimatedBlock>& blocks) {
-  int size = 0;
-  for (const EstimatedBlock& block : blocks) size += block.size;
-  return size;
+// Nothing estimated: an empty covariance, which is valid.
+BlockCovariance EmptyCovariance() {
+  BlockCovariance out;
+  out.ok = true;
+  return out;
 }
 
 }  // namespace
@@ -425,11 +426,7 @@ int StackedSize(const std::vector<EstimatedBlock>& blocks) {
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads,
                                        const std::vector<ceres::ResidualBlockId>& exact) {
-  if (blocks.empty()) {
-    BlockCovariance out;
-    out.ok = true;
-    return out;
-  }
+  if (blocks.empty()) return EmptyCovariance();
   GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads);
   if (!exact.empty()) {
     const std::vector<Eigen::Triplet<double>> curvature =
@@ -438,23 +435,28 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     term.setFromTriplets(curvature.begin(), curvature.end());
     hessian.H = Eigen::SparseMatrix<double>(hessian.H + term);
   }
-  return CovarianceOf(InverseColumnsAt(blocks, hessian), StackedSize(blocks));
+  return CovarianceOf(InverseColumnsAt(blocks, hessian));
 }
 
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
                                const std::vector<ResidualSource>& sources, int num_threads) {
   ErrorBudget out;
-  const int size = StackedSize(blocks);
+  for (const ResidualSource& source : sources) out.sources.push_back(source.name);
+  if (blocks.empty()) {
+    out.covariance = EmptyCovariance();
+    out.ok = true;
+    return out;
+  }
   const InverseColumns inverse =
       InverseColumnsAt(blocks, EvaluateGaussNewtonHessian(problem, num_threads));
-  out.covariance = CovarianceOf(inverse, size);
-  out.share = Eigen::MatrixXd::Zero(size, static_cast<Eigen::Index>(sources.size()));
+  out.covariance = CovarianceOf(inverse);
+  out.share = Eigen::MatrixXd::Zero(inverse.size, static_cast<Eigen::Index>(sources.size()));
   out.spread = out.share;
   if (!inverse.ok) return out;
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
   variables.evaluate.num_threads = num_threads;
+  Eigen::VectorXd sensitivity(inverse.size);
   for (size_t s = 0; s < sources.size(); ++s) {
-    out.sources.push_back(sources[s].name);
     const std::vector<ceres::ResidualBlockId>& ids = sources[s].residual_blocks;
     for (size_t first = 0; first < ids.size(); first += kResidualBlocksPerStretch) {
       const size_t end = std::min(ids.size(), first + kResidualBlocksPerStretch);
@@ -465,7 +467,7 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
       if (!problem->Evaluate(variables.evaluate, nullptr, &r, nullptr, &J)) return out;
       for (int k = 0; k < J.num_rows; ++k) {
         // Row k's sensitivity of every stacked coordinate: J_k H^-1 e.
-        Eigen::VectorXd sensitivity = Eigen::VectorXd::Zero(size);
+        sensitivity.setZero();
         for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
           sensitivity += J.values[e] * inverse.columns.row(J.cols[e]).transpose();
         }

@@ -501,7 +501,7 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
   // The bound is the budget's covariance: one factorization of the information for both.
   estimation::ErrorBudget budget = estimation::ComputeErrorBudget(
       blocks_estimated, problem, ResidualSources(problem), num_threads);
-  const estimation::BlockCovariance& bound = budget.covariance;
+  const estimation::BlockCovariance bound = budget.covariance;
   Eigen::VectorXd error(bound.matrix.rows());
   for (size_t b = 0; b < blocks_estimated.size() && bound.ok; ++b) {
     const estimation::EstimatedBlock& block = blocks_estimated[b];
@@ -519,7 +519,12 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
   }
   result->bound = bound;
   result->error_at_bound = error;
-  if (budget.ok) result->error_budget = std::move(budget);
+  if (budget.ok) {
+    result->error_budget = std::move(budget);
+  } else {
+    result->warnings.push_back(
+        "the residuals at the truth did not evaluate: the error budget is not reported");
+  }
 }
 
 estimation::BlockObservability Observe(

@@ -51,13 +51,14 @@ std::string BudgetTable(const OfflineCalibrationResult& result) {
       rows << "</tr>";
     }
   }
-  std::string header = "<tr><th>direction</th><th>error</th>";
+  std::string header = "<tr><th>direction</th><th>error to first order</th>";
   for (const std::string& source : budget.sources) {
     header += "<th>" + EscapeXml(SourceName(source)) + "</th>";
   }
   return "<h3>Where the error comes from</h3><p>From the truth, one Gauss–Newton step of the "
-         "final problem lands on the estimate to first order: it is the error (truth − estimate, "
-         "negated), and it splits by the data that pull it. Each source's share is followed, "
+         "final problem lands on the estimate to first order, so the step's opposite is the "
+         "error, truth − estimate (the bound table's error, to first order), and it splits by "
+         "the data that pull it. Each source's share is followed, "
          "in parentheses, by the share over its spread: the standard deviation of that share "
          "were the source's noise as the model states it. Shares of a few spreads show a "
          "source whose data disagree with its model; the spreads' squares sum to the bound's "

@@ -28,7 +28,8 @@ std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows
 
 // Every residual block of `problem` by where its information comes from, for the error budget:
 // "lidar" (the point-to-plane factors), "imu", "wheel", "gnss", "planar_rotation", and
-// "priors" (the blocks' priors, held directions, the first pose), the empty ones left out.
+// "priors" (every other factor: the blocks' priors, the first pose or the bias priors and
+// gauge of a run without the LiDAR), the empty ones left out.
 std::vector<estimation::ResidualSource> ResidualSources(ceres::Problem* problem);
 
 // Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,

@@ -342,7 +342,8 @@ TEST(CalibrationObservability, CovarianceEqualsCeresCovarianceWithRobustLossesAn
 }
 
 // The error budget of a linear problem at its truth: the shares sum to truth - estimate of
-// the solve, each share is H^-1 J_s^T r_s, and the spreads' squares sum to the covariance.
+// the solve, each share is H^-1 J_s^T r_s and each spread the diagonal of
+// (H^-1 J_s^T J_s H^-1)^(1/2), and the spreads' squares sum to the covariance.
 TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) {
   const Eigen::Vector3d truth(0.30, -0.05, 0.55);
   const double true_s = 1.8;
@@ -391,6 +392,9 @@ TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) 
     const Eigen::VectorXd share =
         H_inverse.topRows(3) * J.middleRows(first, n).transpose() * residuals.segment(first, n);
     EXPECT_TRUE(budget.share.col(k).isApprox(share, 1e-12)) << k;
+    const Eigen::MatrixXd sensitivity = J.middleRows(first, n) * H_inverse.leftCols(3);
+    const Eigen::VectorXd spread = sensitivity.cwiseAbs2().colwise().sum().cwiseSqrt();
+    EXPECT_TRUE(budget.spread.col(k).isApprox(spread, 1e-12)) << k;
   }
   // Linear: the solve lands where the step says, so the shares sum to truth - estimate.
   ceres::Solver::Options options;

@@ -78,15 +78,12 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
                                        ceres::Problem* problem, int num_threads = 1,
                                        const std::vector<ceres::ResidualBlockId>& exact = {});
 
-// Where the error of the blocks comes from (docs/evaluation.md, "Where the error comes from").
-// At the values `problem` holds, x, the Gauss-Newton step is -H^-1 J^T r over every variable
-// block (H = J^T J, robust losses applied as the solver applies them); at the truth of a
-// simulated log it lands on the estimate to first order, so H^-1 J^T r is the error, truth -
-// estimate, of the blocks' tangent coordinates. Split by source, H^-1 J_s^T r_s is what source
-// s's data put into the error (its share), and sqrt(sum over its rows of (J_row H^-1 e)^2) its
-// spread: the share's standard deviation were the source's whitened residuals N(0, I). The
-// spreads' squares sum to the covariance's diagonal when every residual block belongs to a
-// source; a share of several spreads shows a source whose data and model disagree.
+// Where the error of the blocks comes from (docs/evaluation.md, Eq. E1): at the values
+// `problem` holds (the truth of a simulated log), H^-1 J^T r over every variable block (H =
+// J^T J, robust losses applied as the solver applies them) is truth - estimate to first order.
+// Per source s of residual blocks, `share` is H^-1 J_s^T r_s and `spread` the share's standard
+// deviation were the source's whitened residuals N(0, I); the spreads' squares sum to the
+// covariance's diagonal when every residual block belongs to a source.
 struct ResidualSource {
   std::string name;
   std::vector<ceres::ResidualBlockId> residual_blocks;
