@@ -31,8 +31,9 @@ bool ImuMotionTable::Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, 
 }
 
 ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
-                               const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a)
-    : t_begin_ns_(t_begin_ns), t_end_ns_(t_end_ns) {
+                               const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a,
+                               int64_t rate_window_ns)
+    : t_begin_ns_(t_begin_ns), t_end_ns_(t_end_ns), rate_window_ns_(rate_window_ns) {
   if (!Covers(imu, t_begin_ns, t_end_ns)) {
     throw Error("ImuMotionTable: the IMU samples do not cover [" + std::to_string(t_begin_ns) +
                 ", " + std::to_string(t_end_ns) + "] ns");
@@ -77,9 +78,9 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
   nodes_.push_back(node);  // terminal node
 }
 
-// The motion `dt` seconds past node n's start: the step's mean rate and specific force over
-// [0, dt] (a linear signal's mean is that of its ends), the force rotated with the attitude
-// at the middle of the interval (midpoint rule).
+// The motion `dt` seconds past node n's start, in n's deltas (the rest of n stays): the step's
+// mean rate and specific force over [0, dt] (a linear signal's mean is that of its ends), the
+// force rotated with the attitude at the middle of the interval (midpoint rule).
 void ImuMotionTable::Step(double dt, Node* n) {
   const Eigen::Vector3d gyro = n->gyro + 0.5 * dt * n->gyro_slope;
   const Eigen::Vector3d accel = n->accel + 0.5 * dt * n->accel_slope;
@@ -90,19 +91,31 @@ void ImuMotionTable::Step(double dt, Node* n) {
   n->delta_q = geometry::QuaternionPlus(n->delta_q, Eigen::Vector3d(gyro * dt));
 }
 
-factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
-  t_ns = std::clamp(t_ns, t_begin_ns_, t_end_ns_);
+ImuMotionTable::Node ImuMotionTable::NodeAt(int64_t t_ns) const {
   auto it = std::upper_bound(nodes_.begin(), nodes_.end(), t_ns,
                              [](int64_t t, const Node& n) { return t < n.t_ns; });
   Node n = *(it - 1);
-  const double dt = SecondsBetween(n.t_ns, t_ns);
-  Step(dt, &n);
+  Step(SecondsBetween(n.t_ns, t_ns), &n);
+  return n;
+}
+
+factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
+  t_ns = std::clamp(t_ns, t_begin_ns_, t_end_ns_);
+  const Node n = NodeAt(t_ns);
   factors::PointMotion m;
   m.dt_s = SecondsBetween(t_begin_ns_, t_ns);
   m.delta_q = n.delta_q;
   m.delta_v = n.delta_v;
   m.delta_p = n.delta_p;
-  m.omega_rad_s = n.gyro + dt * n.gyro_slope;
+  // Step() advances the deltas only: n.t_ns and n.gyro are still the step's start.
+  m.omega_rad_s = n.gyro + SecondsBetween(n.t_ns, t_ns) * n.gyro_slope;
+  const int64_t begin = std::max(t_begin_ns_, t_ns - rate_window_ns_ / 2);
+  const int64_t end = std::min(t_end_ns_, t_ns + rate_window_ns_ / 2);
+  if (rate_window_ns_ > 0 && end > begin) {
+    // Eq. P1b: the mean rate over [begin, end], in the body frame of its middle to first order.
+    m.omega_rad_s = geometry::Log(NodeAt(begin).delta_q.conjugate() * NodeAt(end).delta_q) /
+                    SecondsBetween(begin, end);
+  }
   return m;
 }
 

@@ -233,7 +233,8 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
     const Keyframe& kf = (*in.keyframes)[k];
     const int64_t end_ns = in.sweeps[k].end_ns(offset_lin);
     CheckSweepMotionCovered(in, kf.t_ns, end_ns);
-    out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
+    // The offset's rate: the mean over a sweep's duration about each point (Eq. P1b).
+    out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a, SecondsToNs(in.sweeps[k].end_s));
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,
                                             in.calibration->q_I_L, in.calibration->p_I_L);

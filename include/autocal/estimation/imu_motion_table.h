@@ -22,18 +22,22 @@ class ImuMotionTable {
   // a table needs.
   static bool Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns);
 
-  // Tabulates from t_begin_ns (the keyframe, IMU clock) to t_end_ns. Throws autocal::Error
-  // when the samples do not cover the interval (Covers).
+  // Tabulates from t_begin_ns (the keyframe, IMU clock) to t_end_ns. With rate_window_ns > 0
+  // the body rate At gives is the mean rate over that span centred on the query (clipped to
+  // the table): the rotation between its ends over its length, whose gyroscope noise falls
+  // with the square root of the span (docs/estimation.md, Eq. P1b); 0 gives the rate at the
+  // instant. Throws autocal::Error when the samples do not cover the interval (Covers).
   ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
-                 const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a);
+                 const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a,
+                 int64_t rate_window_ns = 0);
 
   int64_t t_begin_ns() const { return t_begin_ns_; }
   int64_t t_end_ns() const { return t_end_ns_; }
 
   // Motion from t_begin_ns to t_ns (clamped into the tabulated interval), with the
-  // bias-corrected body rate at t_ns. The signal is linear between samples, so inside a step
-  // the partial step integrates the mean of the rates at its two ends, and the rate at t_ns is
-  // interpolated.
+  // bias-corrected body rate at t_ns (or about it, rate_window_ns). The signal is linear
+  // between samples, so inside a step the partial step integrates the mean of the rates at its
+  // two ends, and the rate at t_ns is interpolated.
   factors::PointMotion At(int64_t t_ns) const;
 
  private:
@@ -49,9 +53,12 @@ class ImuMotionTable {
   };
   // Advances n's deltas by dt seconds along its step.
   static void Step(double dt, Node* n);
+  // The node of the step holding t_ns (within the table), advanced to t_ns.
+  Node NodeAt(int64_t t_ns) const;
 
   int64_t t_begin_ns_;
   int64_t t_end_ns_;
+  int64_t rate_window_ns_;
   std::vector<Node> nodes_;
 };
 
