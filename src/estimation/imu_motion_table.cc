@@ -76,6 +76,27 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
   node.gyro_slope.setZero();
   node.accel_slope.setZero();
   nodes_.push_back(node);  // terminal node
+
+  if (rate_window_ns_ <= 0) return;
+  // Eq. P1b's signal: half a window beyond the table on each side, as far as the samples go.
+  const int64_t from = std::max(imu.front().t_ns, t_begin_ns - rate_window_ns_ / 2);
+  const int64_t to = std::min(imu.back().t_ns, t_end_ns + rate_window_ns_ / 2);
+  auto it = std::lower_bound(imu.begin(), imu.end(), from,
+                             [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
+  const auto add = [&](const sensors::ImuSample& sample) {
+    RateKnot knot{sample.t_ns, sample.gyro_rad_s - b_g, Eigen::Vector3d::Zero()};
+    if (!rate_knots_.empty()) {
+      const RateKnot& last = rate_knots_.back();
+      knot.integral =
+          last.integral + 0.5 * SecondsBetween(last.t_ns, knot.t_ns) * (last.gyro + knot.gyro);
+    }
+    rate_knots_.push_back(knot);
+  };
+  add(it->t_ns == from ? *it : Interpolate(*(it - 1), *it, from));
+  for (; it != imu.end() && it->t_ns < to; ++it) {
+    if (it->t_ns > from) add(*it);
+  }
+  if (rate_knots_.back().t_ns < to) add(Interpolate(*(it - 1), *it, to));
 }
 
 // The motion `dt` seconds past node n's start, in n's deltas (the rest of n stays): the step's
@@ -108,15 +129,27 @@ factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
   m.delta_v = n.delta_v;
   m.delta_p = n.delta_p;
   // Step() advances the deltas only: n.t_ns and n.gyro are still the step's start.
-  m.omega_rad_s = n.gyro + SecondsBetween(n.t_ns, t_ns) * n.gyro_slope;
-  const int64_t begin = std::max(t_begin_ns_, t_ns - rate_window_ns_ / 2);
-  const int64_t end = std::min(t_end_ns_, t_ns + rate_window_ns_ / 2);
-  if (rate_window_ns_ > 0 && end > begin) {
-    // Eq. P1b: the mean rate over [begin, end], in the body frame of its middle to first order.
-    m.omega_rad_s = geometry::Log(NodeAt(begin).delta_q.conjugate() * NodeAt(end).delta_q) /
-                    SecondsBetween(begin, end);
-  }
+  m.omega_rad_s = MeanRate(t_ns, n.gyro + SecondsBetween(n.t_ns, t_ns) * n.gyro_slope);
   return m;
+}
+
+Eigen::Vector3d ImuMotionTable::GyroIntegral(int64_t t_ns) const {
+  auto it = std::upper_bound(rate_knots_.begin(), rate_knots_.end(), t_ns,
+                             [](int64_t t, const RateKnot& k) { return t < k.t_ns; });
+  if (it == rate_knots_.end()) --it;  // t_ns is the last knot
+  const RateKnot& a = *(it - 1);
+  const RateKnot& b = *it;
+  const double h = SecondsBetween(a.t_ns, t_ns);
+  const Eigen::Vector3d slope = (b.gyro - a.gyro) / SecondsBetween(a.t_ns, b.t_ns);
+  return a.integral + h * (a.gyro + 0.5 * h * slope);
+}
+
+Eigen::Vector3d ImuMotionTable::MeanRate(int64_t t_ns, const Eigen::Vector3d& at_t) const {
+  if (rate_knots_.size() < 2) return at_t;
+  const int64_t half = std::min(
+      {rate_window_ns_ / 2, t_ns - rate_knots_.front().t_ns, rate_knots_.back().t_ns - t_ns});
+  if (half <= 0) return at_t;
+  return (GyroIntegral(t_ns + half) - GyroIntegral(t_ns - half)) / NsToSeconds(2 * half);
 }
 
 }  // namespace estimation

@@ -233,8 +233,10 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
     const Keyframe& kf = (*in.keyframes)[k];
     const int64_t end_ns = in.sweeps[k].end_ns(offset_lin);
     CheckSweepMotionCovered(in, kf.t_ns, end_ns);
-    // The offset's rate: the mean over a sweep's duration about each point (Eq. P1b).
-    out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a, SecondsToNs(in.sweeps[k].end_s));
+    // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
+    const SelectedSweep& s = in.sweeps[k];
+    out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a,
+                          SecondsToNs(s.end_s - s.begin_s));
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,
                                             in.calibration->q_I_L, in.calibration->p_I_L);
@@ -487,6 +489,7 @@ SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingOption
   };
   SelectedSweep out;
   out.t_ns = sweep.t_ns;
+  out.begin_s = cloud.time_s.minCoeff();
   out.end_s = cloud.time_s.maxCoeff();
   out.points.resize(3, static_cast<Eigen::Index>(kept.size()));
   out.time_s.resize(static_cast<Eigen::Index>(kept.size()));

@@ -101,8 +101,10 @@ void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingOptions& set
   // (clamped to the IMU received so far).
   const int64_t end_ns =
       std::clamp(sweep.t_ns + SecondsToNs(f->s.duration_s + offset_s), x.t_ns, u.imu->back().t_ns);
-  // The offset's rate: the mean over a sweep's duration about each point (Eq. P1b).
-  f->table.emplace(*u.imu, x.t_ns, end_ns, x.b_g, x.b_a, SecondsToNs(f->s.duration_s));
+  // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
+  const double span_s =
+      sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() - sweep.cloud.time_s.minCoeff() : 0.0;
+  f->table.emplace(*u.imu, x.t_ns, end_ns, x.b_g, x.b_a, SecondsToNs(span_s));
   f->reference_motion = f->MotionAt(0.0, offset_s);
   f->T_W_Lj = SweepLidarPose(x, f->reference_motion, u.g_W, c.q_I_L, c.p_I_L);
   f->T_Lj_W = f->T_W_Lj.Inverse();

@@ -15,9 +15,10 @@
 // the roll's NEES 2.45 with Huber, 0.79 with Cauchy). Not every direction is honest on every
 // highway drive yet: the same suite on seeds 1-12 fails, the held LiDAR z 4.4 prior sigmas off
 // on seed 9 (highway.yaml's 2 cm prior against the simulator's 3 cm) and the left radius 0.34
-// (docs/calibration.md, open); its time offset's NEES is 1.48 over ten drives since the
+// (docs/calibration.md, open); its time offset's mean z^2 is 1.44 over ten drives since the
 // offset's Jacobian takes the mean rate (docs/estimation.md, Eq. P1b; 2.81 over twelve before,
-// worst 4.1 sigma). Here the offset's NEES is 0.62 over 11 drives (1.36 before).
+// worst 4.1 sigma). Here the offset's NEES is 0.62 over the 10 drives that keep it (1.36 over
+// 12 before).
 // About a minute on two cores.
 // Figures: docs/calibration.md, "Highway".
 #include <gtest/gtest.h>

@@ -23,9 +23,9 @@ class ImuMotionTable {
   static bool Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns);
 
   // Tabulates from t_begin_ns (the keyframe, IMU clock) to t_end_ns. With rate_window_ns > 0
-  // the body rate At gives is the mean rate over that span centred on the query (clipped to
-  // the table): the rotation between its ends over its length, whose gyroscope noise falls
-  // with the square root of the span (docs/estimation.md, Eq. P1b); 0 gives the rate at the
+  // the body rate At gives is the bias-corrected gyroscope's mean over that span centred on
+  // the query (narrowed, still centred, where the samples end), whose white noise falls with
+  // the square root of the span (docs/estimation.md, Eq. P1b); 0 gives the rate at the
   // instant. Throws autocal::Error when the samples do not cover the interval (Covers).
   ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
                  const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a,
@@ -55,11 +55,23 @@ class ImuMotionTable {
   static void Step(double dt, Node* n);
   // The node of the step holding t_ns (within the table), advanced to t_ns.
   Node NodeAt(int64_t t_ns) const;
+  // The mean rate of Eq. P1b about t_ns; the rate at t_ns when no window fits.
+  Eigen::Vector3d MeanRate(int64_t t_ns, const Eigen::Vector3d& at_t) const;
+  // The integral of the bias-corrected gyroscope from the first rate knot to t_ns.
+  Eigen::Vector3d GyroIntegral(int64_t t_ns) const;
+
+  // A knot of the piecewise-linear gyroscope signal and its integral up to the knot.
+  struct RateKnot {
+    int64_t t_ns;
+    Eigen::Vector3d gyro;      // bias-corrected
+    Eigen::Vector3d integral;  // from the first knot
+  };
 
   int64_t t_begin_ns_;
   int64_t t_end_ns_;
   int64_t rate_window_ns_;
   std::vector<Node> nodes_;
+  std::vector<RateKnot> rate_knots_;  // over the table and half a window on each side
 };
 
 }  // namespace estimation

@@ -149,12 +149,14 @@ struct LidarInertialBatchReport {
 };
 
 // A sweep reduced to what the batch reads of it: its residual and map points (pairing's
-// selection, in their order in the sweep) with their times, and the time of its last point.
+// selection, in their order in the sweep) with their times, and the times of its first and last
+// points.
 // Points and times are held in single precision, as sweep files (PLY) and LiDAR drivers give
 // them, so that for them the reduction is exact; a long log's sweeps are held this way, under
 // a quarter of their size (0.22 of 0.97 MB for 32 beams), instead of whole.
 struct SelectedSweep {
   int64_t t_ns = 0;
+  double begin_s = 0.0;              // the whole sweep's first point time after t_ns
   double end_s = 0.0;                // the whole sweep's last point time after t_ns
   Eigen::Matrix3Xf points;           // in L
   Eigen::VectorXf time_s;            // after t_ns
