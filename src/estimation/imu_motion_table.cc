@@ -23,6 +23,24 @@ sensors::ImuSample Interpolate(const sensors::ImuSample& a, const sensors::ImuSa
   return out;
 }
 
+// The knots of the piecewise-linear IMU signal over [from, to] (inside the samples): the ends
+// interpolated, the samples between.
+std::vector<sensors::ImuSample> KnotsOver(const sensors::ImuSamples& imu, int64_t from,
+                                          int64_t to) {
+  auto first = std::upper_bound(imu.begin(), imu.end(), from,
+                                [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
+  if (first == imu.end()) --first;  // `from` is the last sample
+  std::vector<sensors::ImuSample> knots;
+  knots.push_back(Interpolate(*(first - 1), *first, from));
+  for (auto it = first; it != imu.end() && it->t_ns < to; ++it) knots.push_back(*it);
+  if (knots.back().t_ns < to) {
+    auto last = std::lower_bound(imu.begin(), imu.end(), to,
+                                 [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
+    knots.push_back(last->t_ns == to ? *last : Interpolate(*(last - 1), *last, to));
+  }
+  return knots;
+}
+
 }  // namespace
 
 bool ImuMotionTable::Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns) {
@@ -40,17 +58,7 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
   }
   // The IMU signal is piecewise linear between samples: the boundaries are interpolated and
   // each step integrates the mean of its end values.
-  auto first = std::upper_bound(imu.begin(), imu.end(), t_begin_ns,
-                                [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });
-  if (first == imu.end()) --first;  // t_begin_ns is the last sample
-  std::vector<sensors::ImuSample> knots;
-  knots.push_back(Interpolate(*(first - 1), *first, t_begin_ns));
-  for (auto it = first; it != imu.end() && it->t_ns < t_end_ns; ++it) knots.push_back(*it);
-  if (knots.back().t_ns < t_end_ns) {
-    auto last = std::lower_bound(imu.begin(), imu.end(), t_end_ns,
-                                 [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
-    knots.push_back(last->t_ns == t_end_ns ? *last : Interpolate(*(last - 1), *last, t_end_ns));
-  }
+  const std::vector<sensors::ImuSample> knots = KnotsOver(imu, t_begin_ns, t_end_ns);
 
   Node node{t_begin_ns,
             Eigen::Quaterniond::Identity(),
@@ -81,9 +89,7 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
   // Eq. P1b's signal: half a window beyond the table on each side, as far as the samples go.
   const int64_t from = std::max(imu.front().t_ns, t_begin_ns - rate_window_ns_ / 2);
   const int64_t to = std::min(imu.back().t_ns, t_end_ns + rate_window_ns_ / 2);
-  auto it = std::lower_bound(imu.begin(), imu.end(), from,
-                             [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; });
-  const auto add = [&](const sensors::ImuSample& sample) {
+  for (const sensors::ImuSample& sample : KnotsOver(imu, from, to)) {
     RateKnot knot{sample.t_ns, sample.gyro_rad_s - b_g, Eigen::Vector3d::Zero()};
     if (!rate_knots_.empty()) {
       const RateKnot& last = rate_knots_.back();
@@ -91,12 +97,7 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
           last.integral + 0.5 * SecondsBetween(last.t_ns, knot.t_ns) * (last.gyro + knot.gyro);
     }
     rate_knots_.push_back(knot);
-  };
-  add(it->t_ns == from ? *it : Interpolate(*(it - 1), *it, from));
-  for (; it != imu.end() && it->t_ns < to; ++it) {
-    if (it->t_ns > from) add(*it);
   }
-  if (rate_knots_.back().t_ns < to) add(Interpolate(*(it - 1), *it, to));
 }
 
 // The motion `dt` seconds past node n's start, in n's deltas (the rest of n stays): the step's
