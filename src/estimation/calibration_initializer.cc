@@ -8,6 +8,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_preintegration.h"
@@ -59,9 +60,11 @@ struct GyroDeskew {
   Eigen::Vector3d gyro_bias_rad_s;
 };
 
-// A sweep's stamp and the time of its last point, recorded while the odometry reads it.
+// A sweep's stamp and the times of its first and last points, recorded while the odometry
+// reads it.
 struct SweepTimes {
   int64_t t_ns = 0;
+  double begin_s = 0.0;
   double end_s = 0.0;
 };
 
@@ -71,7 +74,11 @@ void AppendSweepTimes(const lidar::LidarSweep& sweep, size_t k, std::vector<Swee
     throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) + ")");
   }
   const lidar::PointCloud& cloud = sweep.cloud;
-  times->push_back({sweep.t_ns, cloud.has_time() ? cloud.time_s.maxCoeff() : 0.0});
+  if (!cloud.has_time()) {
+    times->push_back({sweep.t_ns, 0.0, 0.0});
+  } else {
+    times->push_back({sweep.t_ns, cloud.time_s.minCoeff(), cloud.time_s.maxCoeff()});
+  }
 }
 
 bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
@@ -195,23 +202,29 @@ void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerO
   }
 }
 
-// The keyframes of steps 5 and 6 (internal::KeyframeSlot): one per sweep that lies inside the
-// IMU log with its margins.
+// The keyframes of steps 5 and 6 (internal::KeyframeSlot): one per sweep whose points, with its
+// reference instant (point time 0) and the offset margin at each end, lie inside the IMU log.
 std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
                                         const std::vector<SweepTimes>& sweeps,
                                         const CalibrationInitializerOptions& options,
                                         const CalibrationInitialization& out) {
-  LidarInertialBatchOptions batch;
-  batch.keyframe_lead_s = options.keyframe_lead_s;
   const double offset_s = out.time_offset.offset_s;
   const int64_t offset_ns = SecondsToNs(offset_s);
   std::vector<KeyframeSlot> slots;
+  const double margin_s = options.offset_margin_s;
   for (size_t k = 0; k < sweeps.size(); ++k) {
-    const int64_t t_ns = KeyframeTime(sweeps[k].t_ns, offset_s, batch);
-    // The whole sweep (and the lead again as a margin) must be inside the IMU log.
+    const SweepTimes& sweep = sweeps[k];
+    const int64_t t_ns = KeyframeTime(sweep.t_ns, sweep.begin_s, sweep.end_s, offset_s);
+    const int64_t begin_ns =
+        sweep.t_ns + SecondsToNs(offset_s + std::min(0.0, sweep.begin_s) - margin_s);
     const int64_t end_ns =
-        sweeps[k].t_ns + offset_ns + SecondsToNs(sweeps[k].end_s + options.keyframe_lead_s);
-    if (t_ns < imu.front().t_ns || end_ns > imu.back().t_ns) continue;
+        sweep.t_ns + SecondsToNs(offset_s + std::max(0.0, sweep.end_s) + margin_s);
+    if (begin_ns < imu.front().t_ns || end_ns > imu.back().t_ns) continue;
+    // Sweeps whose points span differently (a truncated one) could bring a keyframe close to
+    // the last: the IMU factor between them needs an interval.
+    if (!slots.empty() && t_ns - slots.back().t_ns < SecondsToNs(options.min_keyframe_interval_s)) {
+      continue;
+    }
     slots.push_back({static_cast<int>(k), t_ns, PoseAt(out.odometry, t_ns - offset_ns)});
   }
   return slots;

@@ -50,15 +50,29 @@ bool ImuMotionTable::Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, 
 
 ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
                                const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a,
-                               int64_t rate_window_ns)
-    : t_begin_ns_(t_begin_ns), t_end_ns_(t_end_ns), rate_window_ns_(rate_window_ns) {
+                               int64_t rate_window_ns, std::optional<int64_t> t_origin_ns)
+    : t_origin_ns_(t_origin_ns.value_or(t_begin_ns)),
+      t_begin_ns_(t_begin_ns),
+      t_end_ns_(t_end_ns),
+      rate_window_ns_(rate_window_ns) {
   if (!Covers(imu, t_begin_ns, t_end_ns)) {
     throw Error("ImuMotionTable: the IMU samples do not cover [" + std::to_string(t_begin_ns) +
                 ", " + std::to_string(t_end_ns) + "] ns");
   }
+  if (t_origin_ns_ < t_begin_ns || t_origin_ns_ > t_end_ns) {
+    throw Error("ImuMotionTable: the origin " + std::to_string(t_origin_ns_) +
+                " ns lies outside the tabulated [" + std::to_string(t_begin_ns) + ", " +
+                std::to_string(t_end_ns) + "] ns");
+  }
   // The IMU signal is piecewise linear between samples: the boundaries are interpolated and
   // each step integrates the mean of its end values.
-  const std::vector<sensors::ImuSample> knots = KnotsOver(imu, t_begin_ns, t_end_ns);
+  std::vector<sensors::ImuSample> knots = KnotsOver(imu, t_begin_ns, t_end_ns);
+  // The origin is a knot too, so that the steps from it are those of a table that starts there.
+  auto after = std::upper_bound(knots.begin(), knots.end(), t_origin_ns_,
+                                [](int64_t t, const sensors::ImuSample& k) { return t < k.t_ns; });
+  if (after != knots.begin() && after != knots.end() && (after - 1)->t_ns < t_origin_ns_) {
+    knots.insert(after, Interpolate(*(after - 1), *after, t_origin_ns_));
+  }
 
   Node node{t_begin_ns,
             Eigen::Quaterniond::Identity(),
@@ -84,6 +98,7 @@ ImuMotionTable::ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_n
   node.gyro_slope.setZero();
   node.accel_slope.setZero();
   nodes_.push_back(node);  // terminal node
+  if (t_origin_ns_ > t_begin_ns) Rebase();
 
   if (rate_window_ns_ <= 0) return;
   // Eq. P1b's signal: half a window beyond the table on each side, as far as the samples go.
@@ -113,6 +128,21 @@ void ImuMotionTable::Step(double dt, Node* n) {
   n->delta_q = geometry::QuaternionPlus(n->delta_q, Eigen::Vector3d(gyro * dt));
 }
 
+// The deltas from the origin o instead of the table's start a (Forster's definitions):
+// dR_o(t) = dR_a(o)^T dR_a(t), dv_o(t) = dR_a(o)^T (dv_a(t) - dv_a(o)) and
+// dp_o(t) = dR_a(o)^T (dp_a(t) - dp_a(o) - dv_a(o) (t - o)); gravity's terms cancel. Step()
+// is linear in a node's deltas, so a partial step from a rebased node is the rebased step.
+void ImuMotionTable::Rebase() {
+  const Node o = NodeAt(t_origin_ns_);
+  const Eigen::Quaterniond q_inv = o.delta_q.conjugate();
+  for (Node& n : nodes_) {
+    const double dt = SecondsBetween(t_origin_ns_, n.t_ns);
+    n.delta_p = q_inv * (n.delta_p - o.delta_p - dt * o.delta_v);
+    n.delta_v = q_inv * (n.delta_v - o.delta_v);
+    n.delta_q = (q_inv * n.delta_q).normalized();
+  }
+}
+
 ImuMotionTable::Node ImuMotionTable::NodeAt(int64_t t_ns) const {
   auto it = std::upper_bound(nodes_.begin(), nodes_.end(), t_ns,
                              [](int64_t t, const Node& n) { return t < n.t_ns; });
@@ -125,7 +155,7 @@ factors::PointMotion ImuMotionTable::At(int64_t t_ns) const {
   t_ns = std::clamp(t_ns, t_begin_ns_, t_end_ns_);
   const Node n = NodeAt(t_ns);
   factors::PointMotion m;
-  m.dt_s = SecondsBetween(t_begin_ns_, t_ns);
+  m.dt_s = SecondsBetween(t_origin_ns_, t_ns);
   m.delta_q = n.delta_q;
   m.delta_v = n.delta_v;
   m.delta_p = n.delta_p;
@@ -151,6 +181,17 @@ Eigen::Vector3d ImuMotionTable::MeanRate(int64_t t_ns, const Eigen::Vector3d& at
       {rate_window_ns_ / 2, t_ns - rate_knots_.front().t_ns, rate_knots_.back().t_ns - t_ns});
   if (half <= 0) return at_t;
   return (GyroIntegral(t_ns + half) - GyroIntegral(t_ns - half)) / NsToSeconds(2 * half);
+}
+
+int64_t KeyframeTime(int64_t t_sweep_ns, double first_point_s, double last_point_s,
+                     double offset_s) {
+  return t_sweep_ns + SecondsToNs(offset_s + 0.5 * (first_point_s + last_point_s));
+}
+
+int64_t KeyframeTime(const lidar::LidarSweep& sweep, double offset_s) {
+  const lidar::PointCloud& cloud = sweep.cloud;
+  if (!cloud.has_time()) return KeyframeTime(sweep.t_ns, 0.0, 0.0, offset_s);
+  return KeyframeTime(sweep.t_ns, cloud.time_s.minCoeff(), cloud.time_s.maxCoeff(), offset_s);
 }
 
 }  // namespace estimation

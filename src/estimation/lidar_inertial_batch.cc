@@ -195,22 +195,22 @@ BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSwe
                      calibration, options, Eigen::Vector3d(0.0, 0.0, -options.gravity_m_s2)};
 }
 
-// A time offset the drive does not determine can wander during the solve until a sweep's last
-// point lies before its keyframe (the offset fell by more than the keyframe lead and the sweep)
-// or past the log's last IMU sample: the solve cannot place the sweep, and names the offset
-// that took it there. (Earlier points of a sweep whose last point is covered are placed at the
-// keyframe's state, as ImuMotionTable::At clamps them.)
-void CheckSweepMotionCovered(const BatchInputs& in, int64_t keyframe_ns, int64_t end_ns) {
-  if (in.imu.size() < 2 || keyframe_ns < in.imu.front().t_ns) {
-    throw Error("SolveLidarInertialBatch: a keyframe lies before the first IMU sample");
-  }
+// A time offset the drive does not determine can wander during the solve until a sweep's points
+// lie before the log's first IMU sample or past its last: the solve cannot place the sweep, and
+// names the offset that took it there. [begin_ns, end_ns] is the sweep's motion table
+// (SelectedSweep::table_begin_ns).
+void CheckSweepMotionCovered(const BatchInputs& in, int64_t begin_ns, int64_t end_ns) {
+  if (in.imu.size() < 2) throw Error("SolveLidarInertialBatch: the IMU log holds no interval");
   const auto fail = [&](const std::string& what) {
     throw Error("SolveLidarInertialBatch: at a LiDAR-IMU time offset of " +
                 FormatFixed(1e3 * in.calibration->time_offset_lidar_imu_s, 1) + " ms " + what +
                 "; a drive that does not determine the offset lets it wander there: fix it or "
                 "give it a tighter prior in the problem file");
   };
-  if (end_ns < keyframe_ns) fail("a sweep's last point lies before its keyframe");
+  if (begin_ns < in.imu.front().t_ns) {
+    fail("a sweep needs IMU samples before the log's first (" +
+         FormatFixed(1e3 * NsToSeconds(in.imu.front().t_ns - begin_ns), 1) + " ms before them)");
+  }
   if (end_ns > in.imu.back().t_ns) {
     fail("a sweep's points need IMU samples the log does not have (" +
          FormatFixed(1e3 * NsToSeconds(end_ns - in.imu.back().t_ns), 1) + " ms beyond them)");
@@ -231,12 +231,13 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
   out.T_W_L.resize(n);
   in.ForEachSweep([&](size_t k) {
     const Keyframe& kf = (*in.keyframes)[k];
-    const int64_t end_ns = in.sweeps[k].end_ns(offset_lin);
-    CheckSweepMotionCovered(in, kf.t_ns, end_ns);
-    // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
     const SelectedSweep& s = in.sweeps[k];
-    out.tables[k].emplace(in.imu, kf.t_ns, end_ns, kf.b_g, kf.b_a,
-                          SecondsToNs(s.end_s - s.begin_s));
+    const int64_t begin_ns = s.table_begin_ns(offset_lin, kf.t_ns);
+    const int64_t end_ns = s.table_end_ns(offset_lin, kf.t_ns);
+    CheckSweepMotionCovered(in, begin_ns, end_ns);
+    // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
+    out.tables[k].emplace(in.imu, begin_ns, end_ns, kf.b_g, kf.b_a,
+                          SecondsToNs(s.end_s - s.begin_s), kf.t_ns);
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,
                                             in.calibration->q_I_L, in.calibration->p_I_L);
@@ -463,11 +464,6 @@ bool OuterIteration(const BatchInputs& in, int iteration,
 }
 
 }  // namespace
-
-int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s,
-                     const LidarInertialBatchOptions& options) {
-  return t_sweep_ns + SecondsToNs(offset_s - options.keyframe_lead_s);
-}
 
 SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingOptions& pairing) {
   const lidar::PointCloud& cloud = sweep.cloud;

@@ -41,9 +41,10 @@ struct ScoredPair {
 // then names the offset).
 std::optional<ImuMotionTable> TableOf(const sensors::ImuSamples& imu, const SelectedSweep& sweep,
                                       const Keyframe& kf, double offset_s) {
-  const int64_t end_ns = sweep.end_ns(offset_s);
-  if (!ImuMotionTable::Covers(imu, kf.t_ns, end_ns)) return std::nullopt;
-  return ImuMotionTable(imu, kf.t_ns, end_ns, kf.b_g, kf.b_a);
+  const int64_t begin_ns = sweep.table_begin_ns(offset_s, kf.t_ns);
+  const int64_t end_ns = sweep.table_end_ns(offset_s, kf.t_ns);
+  if (!ImuMotionTable::Covers(imu, begin_ns, end_ns)) return std::nullopt;
+  return ImuMotionTable(imu, begin_ns, end_ns, kf.b_g, kf.b_a, 0, kf.t_ns);
 }
 
 class PairScore {

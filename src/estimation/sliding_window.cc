@@ -357,7 +357,7 @@ void SlidingWindowEstimator::Impl::UseKeyframeSource(KeyframeSource source) {
 }
 
 int64_t SlidingWindowEstimator::Impl::KeyframeTimeOf(const lidar::LidarSweep& sweep) const {
-  return sweep.t_ns + SecondsToNs(calibration_.time_offset_lidar_imu_s - options_.keyframe_lead_s);
+  return KeyframeTime(sweep, calibration_.time_offset_lidar_imu_s);
 }
 
 bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const {

@@ -157,7 +157,7 @@ class SlidingWindowEstimator::Impl {
   std::unique_ptr<ceres::LossFunction> gnss_loss_;
   std::unique_ptr<ceres::LossFunction> prior_loss_;
 
-  sensors::ImuSamples imu_;  // from the oldest window keyframe on
+  sensors::ImuSamples imu_;  // from the oldest window keyframe or its sweep on (TrimImuBuffer)
   std::deque<sensors::WheelSample> wheel_;
   std::deque<sensors::WheelSpeedSample> wheel_speeds_;
   std::deque<sensors::OdometrySample> odometry_;

@@ -331,10 +331,19 @@ void SlidingWindowEstimator::Impl::DropOldest(std::unique_ptr<MarginalizationPri
   ++counters_.marginalizations;
 }
 
-// Keeps the IMU samples from the last one at or before the oldest keyframe on: the IMU
-// factors and the sweeps' motion tables integrate from there.
+// Keeps the IMU samples from the last one at or before the oldest keyframe or its sweep's first
+// point (less imu_coverage_margin_s, room for the offset to move) on: the IMU factors and the
+// sweeps' motion tables integrate from there.
 void SlidingWindowEstimator::Impl::TrimImuBuffer() {
-  const int64_t oldest_ns = window_.front()->state.t_ns;
+  const WindowKeyframe& oldest = *window_.front();
+  int64_t oldest_ns = oldest.state.t_ns;
+  if (oldest.sweep && oldest.sweep->cloud.has_time()) {
+    const double first_s =
+        std::min(0.0, static_cast<double>(oldest.sweep->cloud.time_s.minCoeff()));
+    oldest_ns = std::min(
+        oldest_ns, oldest.sweep->t_ns + SecondsToNs(first_s + calibration_.time_offset_lidar_imu_s -
+                                                    options_.imu_coverage_margin_s));
+  }
   auto first_after =
       std::upper_bound(imu_.begin(), imu_.end(), oldest_ns,
                        [](int64_t t, const sensors::ImuSample& s) { return t < s.t_ns; });

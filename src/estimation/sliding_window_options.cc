@@ -126,10 +126,9 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckWheelRows(o.wheel_rows);
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
-  if (o.keyframe_lead_s < 0.0 || o.imu_coverage_margin_s < 0.0 || o.min_keyframe_interval_s < 0.0) {
+  if (o.imu_coverage_margin_s < 0.0 || o.min_keyframe_interval_s < 0.0) {
     throw Error(
-        "SlidingWindowOptions: keyframe_lead_s, imu_coverage_margin_s and "
-        "min_keyframe_interval_s must be >= 0");
+        "SlidingWindowOptions: imu_coverage_margin_s and min_keyframe_interval_s must be >= 0");
   }
   CheckPriors(o.calibration_prior, o.initial_state_sigmas);
   if (o.initial_state_covariance) {

@@ -97,14 +97,17 @@ void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingOptions& set
   const double offset_s = c.time_offset_lidar_imu_s;
   const Keyframe& x = *f->s.state;
   const lidar::LidarSweep& sweep = *f->s.sweep;
-  // The table runs from the keyframe to the sweep's last point at the offset estimate
-  // (clamped to the IMU received so far).
+  // The table covers the keyframe, the sweep's reference instant and its points at the offset
+  // estimate (clamped to the IMU held).
+  const double first_s = sweep.cloud.has_time() ? sweep.cloud.time_s.minCoeff() : 0.0;
+  const int64_t begin_ns = std::clamp(sweep.t_ns + SecondsToNs(std::min(0.0, first_s) + offset_s),
+                                      u.imu->front().t_ns, x.t_ns);
   const int64_t end_ns =
-      std::clamp(sweep.t_ns + SecondsToNs(f->s.duration_s + offset_s), x.t_ns, u.imu->back().t_ns);
+      std::clamp(sweep.t_ns + SecondsToNs(std::max(0.0, f->s.duration_s) + offset_s), x.t_ns,
+                 u.imu->back().t_ns);
   // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
-  const double span_s =
-      sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() - sweep.cloud.time_s.minCoeff() : 0.0;
-  f->table.emplace(*u.imu, x.t_ns, end_ns, x.b_g, x.b_a, SecondsToNs(span_s));
+  const double span_s = f->s.duration_s - first_s;
+  f->table.emplace(*u.imu, begin_ns, end_ns, x.b_g, x.b_a, SecondsToNs(span_s), x.t_ns);
   f->reference_motion = f->MotionAt(0.0, offset_s);
   f->T_W_Lj = SweepLidarPose(x, f->reference_motion, u.g_W, c.q_I_L, c.p_I_L);
   f->T_Lj_W = f->T_W_Lj.Inverse();

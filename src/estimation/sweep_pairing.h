@@ -177,7 +177,7 @@ struct PairingSweep {
 
 // What one update's pairing depends on besides the sweeps.
 struct PairingUpdate {
-  const sensors::ImuSamples* imu = nullptr;  // covers every sweep from its keyframe on
+  const sensors::ImuSamples* imu = nullptr;  // covers every keyframe and its sweep
   Eigen::Vector3d g_W = Eigen::Vector3d::Zero();
   sensors::Calibration* calibration = nullptr;  // the groups' q_I_L, p_I_L, time offset
   // The rotation of q_I_L over the last window_size updates, and whether there were that

@@ -197,7 +197,6 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
                 BatchKeyframes* keyframes, sensors::Calibration* calibration,
                 OfflineCalibrationResult* result) {
   estimation::LidarInertialBatchOptions batch_options = BatchOptions(dataset, problem);
-  batch_options.keyframe_lead_s = options.initializer.keyframe_lead_s;
   batch_options.hold_first_pose = enu == nullptr;
   batch_options.progress = [&](const estimation::LidarInertialBatchProgress& p) {
     const double per_iteration = p.elapsed_s / p.iteration;

@@ -115,6 +115,7 @@ int64_t InitializationEndNs(const io::Dataset& dataset, const OnlineEstimationOp
 struct InitialSeconds {
   std::vector<lidar::LidarSweep> sweeps;
   estimation::CalibrationInitialization init;
+  size_t start_sweep = 0;  // in dataset.lidar_sweeps: the sweep of init's first keyframe
 };
 // A drive without turns (a highway) cannot determine the rotation and offset. With GNSS
 // (use_gnss) the nominal values stand in, with a warning each in *warnings, and StartWindow
@@ -141,7 +142,6 @@ InitialSeconds InitializeOnFirstSeconds(const io::Dataset& dataset, const io::Pr
   estimation::CalibrationInitializerOptions init_options = options.initializer;
   init_options.imu_noise = dataset.sensors.imu.noise;
   init_options.p_I_L_prior = dataset.sensors.nominal_calibration.p_I_L;
-  init_options.keyframe_lead_s = options.window.keyframe_lead_s;
   if (use_gnss) {
     init_options.fallback_q_I_L = dataset.sensors.nominal_calibration.q_I_L;
     init_options.fallback_time_offset_s =
@@ -162,6 +162,7 @@ InitialSeconds InitializeOnFirstSeconds(const io::Dataset& dataset, const io::Pr
   for (const std::string& fallback : out.init.fallbacks) {
     warnings->push_back("initialization: " + fallback);
   }
+  out.start_sweep = static_cast<size_t>(out.init.keyframe_sweeps.front()) * stride;
   return out;
 }
 
@@ -289,13 +290,12 @@ double SweepPeriodS(const io::Dataset& dataset) {
 
 // Every datum after the initial state at t0_ns in arrival order: a sweep arrives when its last
 // point is measured (its stamp plus the sweep period), IMU samples from the last one at or
-// before t0_ns on. A sweep's keyframe precedes its stamp by less than keyframe_lead_s plus the
-// offset (`sweep_to_keyframe_s`, offset minus lead): one whose keyframe would precede the
-// initial state belongs to no interval. Without the LiDAR (keyframe_period_ns > 0) a keyframe
-// time every period after t0_ns up to the last IMU sample takes the sweeps' place.
+// before t0_ns on, the sweeps from first_sweep on (the one before it made the initial state, and
+// those before that lie before it). Without
+// the LiDAR (keyframe_period_ns > 0) a keyframe time every period after t0_ns up to the last IMU
+// sample takes the sweeps' place.
 std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bool use_gnss,
-                                  int64_t t0_ns, double sweep_to_keyframe_s,
-                                  int64_t keyframe_period_ns) {
+                                  int64_t t0_ns, size_t first_sweep, int64_t keyframe_period_ns) {
   std::vector<Arrival> out;
   for (size_t i = 0; i < dataset.imu.size(); ++i) {
     const bool needed = dataset.imu[i].t_ns > t0_ns ||
@@ -317,9 +317,8 @@ std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bo
     if (dataset.gnss[i].t_ns > t0_ns) out.push_back({dataset.gnss[i].t_ns, Source::kGnss, i});
   }
   const double sweep_period_s = SweepPeriodS(dataset);
-  for (size_t i = 0; keyframe_period_ns == 0 && i < dataset.lidar_sweeps.size(); ++i) {
+  for (size_t i = first_sweep; keyframe_period_ns == 0 && i < dataset.lidar_sweeps.size(); ++i) {
     const int64_t t = dataset.lidar_sweeps[i].t_ns;
-    if (t + SecondsToNs(sweep_to_keyframe_s) <= t0_ns) continue;
     out.push_back({t + SecondsToNs(sweep_period_s), Source::kSweep, i});
   }
   for (int64_t t = t0_ns + keyframe_period_ns;
@@ -541,10 +540,9 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   // 2. Every datum after the initial state in arrival order.
   const int64_t t0 = window_start.keyframe.t_ns;
   RequireSamplesAfter(dataset, use_wheel, use_gnss, t0);
-  const std::vector<Arrival> arrivals = ArrivalOrder(
-      dataset, use_wheel, use_gnss, t0,
-      window_start.calibration.time_offset_lidar_imu_s - window_options.keyframe_lead_s,
-      keyframe_period_ns);
+  const size_t first_sweep = use_lidar ? first.start_sweep + 1 : 0;
+  const std::vector<Arrival> arrivals =
+      ArrivalOrder(dataset, use_wheel, use_gnss, t0, first_sweep, keyframe_period_ns);
   StreamArrivals(dataset, problem, options, arrivals, &first.sweeps, &estimator, &result);
   RequireStreamedSamples(dataset, use_wheel, use_gnss, estimator.counters());
 

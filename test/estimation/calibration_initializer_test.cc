@@ -12,6 +12,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
@@ -150,9 +151,8 @@ TEST_F(CalibrationInitializerUrbanTest, KeyframesFollowTheTrueTrajectory) {
   for (size_t k = 0; k < init.keyframes.size(); ++k) {
     const Keyframe& est = init.keyframes[k];
     const Keyframe& tru = true_keyframes[k];
-    EXPECT_EQ(est.t_ns,
-              KeyframeTime(log_->sweeps[static_cast<size_t>(init.keyframe_sweeps[k])].t_ns,
-                           init.time_offset_lidar_imu_s, LidarInertialBatchOptions()));
+    EXPECT_EQ(est.t_ns, KeyframeTime(log_->sweeps[static_cast<size_t>(init.keyframe_sweeps[k])],
+                                     init.time_offset_lidar_imu_s));
     worst_rotation_deg = std::max(
         worst_rotation_deg,
         geometry::AngularDistance(Eigen::Quaterniond(T_true_est.q * est.q_W_I), tru.q_W_I) *

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -47,14 +48,11 @@ sensors::ImuSamples Sample(const Motion& m, const Eigen::Vector3d& b_g,
   return imu;
 }
 
-TEST(ImuMotionTable, MatchesTrueMotionInsideASweep) {
-  const Motion motion;
-  const Eigen::Vector3d b_g(0.01, -0.02, 0.005), b_a(0.1, 0.05, -0.08);
-  const sensors::ImuSamples imu = Sample(motion, b_g, b_a);
-  const int64_t t_k = 1'002'500'000;  // between two samples
-  const ImuMotionTable table(imu, t_k, t_k + 110'000'000, b_g, b_a);
+// Checks table.At against the true motion from t_k at t_k + each of offsets_ns.
+void ExpectTrueMotion(const Motion& motion, const ImuMotionTable& table, int64_t t_k,
+                      const std::vector<int64_t>& offsets_ns) {
   const double tk = NsToSeconds(t_k);
-  for (int64_t offset_ns : {0LL, 1'234'567LL, 50'000'000LL, 99'999'999LL, 110'000'000LL}) {
+  for (int64_t offset_ns : offsets_ns) {
     const int64_t t_ns = t_k + offset_ns;
     const double t = NsToSeconds(t_ns), dt = t - tk;
     const factors::PointMotion m = table.At(t_ns);
@@ -71,6 +69,53 @@ TEST(ImuMotionTable, MatchesTrueMotionInsideASweep) {
     EXPECT_LT((m.delta_p - dp_true).norm(), 1e-5) << "dt " << dt;
     EXPECT_LT((m.omega_rad_s - motion.omega(t)).norm(), 1e-5) << "dt " << dt;
   }
+}
+
+TEST(ImuMotionTable, MatchesTrueMotionInsideASweep) {
+  const Motion motion;
+  const Eigen::Vector3d b_g(0.01, -0.02, 0.005), b_a(0.1, 0.05, -0.08);
+  const sensors::ImuSamples imu = Sample(motion, b_g, b_a);
+  const int64_t t_k = 1'002'500'000;  // between two samples
+  const ImuMotionTable table(imu, t_k, t_k + 110'000'000, b_g, b_a);
+  ExpectTrueMotion(motion, table, t_k,
+                   {0LL, 1'234'567LL, 50'000'000LL, 99'999'999LL, 110'000'000LL});
+}
+
+// A keyframe at a sweep's middle (Eq. P1c): the table reaches back from its origin as well as
+// forward, with the true motion from the origin on both sides, and past the origin it is the
+// table that starts there to rounding.
+TEST(ImuMotionTable, MeasuresMotionFromAnOriginInsideTheTable) {
+  const Motion motion;
+  const Eigen::Vector3d b_g(0.01, -0.02, 0.005), b_a(0.1, 0.05, -0.08);
+  const sensors::ImuSamples imu = Sample(motion, b_g, b_a);
+  const int64_t t_begin = 1'002'500'000, t_k = t_begin + 52'345'678, t_end = t_begin + 110'000'000;
+  const ImuMotionTable table(imu, t_begin, t_end, b_g, b_a, 0, t_k);
+  ExpectTrueMotion(motion, table, t_k,
+                   {t_begin - t_k, -51'000'000LL, -1'234'567LL, 0LL, 2'345'678LL, t_end - t_k});
+  const ImuMotionTable forward(imu, t_k, t_end, b_g, b_a);
+  for (int64_t t_ns = t_k; t_ns <= t_end; t_ns += 7'000'000) {
+    const factors::PointMotion a = table.At(t_ns), b = forward.At(t_ns);
+    EXPECT_EQ(a.dt_s, b.dt_s);
+    EXPECT_LT(geometry::AngularDistance(a.delta_q, b.delta_q), 1e-13);
+    EXPECT_LT((a.delta_v - b.delta_v).norm(), 1e-13);
+    EXPECT_LT((a.delta_p - b.delta_p).norm(), 1e-13);
+  }
+  EXPECT_THROW(ImuMotionTable(imu, t_begin, t_end, b_g, b_a, 0, t_end + 1), Error);
+  EXPECT_THROW(ImuMotionTable(imu, t_begin, t_end, b_g, b_a, 0, t_begin - 1), Error);
+}
+
+// Eq. P1c: the keyframe time is the IMU time of the middle of the sweep's points, the stamp
+// for a sweep without point times.
+TEST(KeyframeTime, SitsAtTheMiddleOfTheSweepsPoints) {
+  EXPECT_EQ(KeyframeTime(1'000'000'000, 0.0, 0.1, 0.025), 1'075'000'000);
+  EXPECT_EQ(KeyframeTime(1'000'000'000, -0.1, 0.0, -0.01), 940'000'000);
+  lidar::LidarSweep sweep;
+  sweep.t_ns = 2'000'000'000;
+  sweep.cloud.points = Eigen::Matrix3Xd::Ones(3, 3);
+  EXPECT_EQ(KeyframeTime(sweep, 0.005), 2'005'000'000);
+  sweep.cloud.time_s = Eigen::VectorXd(3);
+  sweep.cloud.time_s << 0.08, 0.01, 0.05;
+  EXPECT_EQ(KeyframeTime(sweep, 0.005), 2'050'000'000);
 }
 
 // The true body rate's mean over [t - h, t + h] (Simpson's rule on 200 intervals).

@@ -11,6 +11,7 @@
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
@@ -47,11 +48,11 @@ class LidarInertialBatchTest : public ::testing::Test {
   }
 
   // Sweeps whose keyframe and points lie inside the IMU log, with true keyframe states.
-  void Setup(const sensors::Calibration& start, const LidarInertialBatchOptions& options) {
+  void Setup(const sensors::Calibration& start) {
     const int64_t imu_begin = log_->imu.samples.front().t_ns + SecondsToNs(kFirstSweepS);
     const int64_t imu_end = log_->imu.samples.back().t_ns - 200'000'000;
     for (const lidar::LidarSweep& sweep : log_->sweeps) {
-      const int64_t t_k = KeyframeTime(sweep.t_ns, start.time_offset_lidar_imu_s, options);
+      const int64_t t_k = KeyframeTime(sweep, start.time_offset_lidar_imu_s);
       if (t_k < imu_begin || t_k > imu_end) continue;
       sweeps_.push_back(sweep);
       keyframes_.push_back(TrueKeyframe(log_->imu, t_k));
@@ -87,7 +88,7 @@ TEST_F(LidarInertialBatchTest, ConvergesFromTheNominalGuess) {
   options.imu_noise = simulator_->sensors_config().imu.noise;
   const sensors::Calibration& truth = simulator_->true_calibration();
   sensors::Calibration calibration = simulator_->nominal_calibration();
-  Setup(calibration, options);
+  Setup(calibration);
   const LidarInertialBatchReport report =
       SolveLidarInertialBatch(log_->imu.samples, sweeps_, &keyframes_, &calibration, options);
   for (const sensors::Calibration& c : report.calibration_per_iteration) {
@@ -144,7 +145,7 @@ TEST_F(LidarInertialBatchTest, NamesAnOffsetThatLeavesTheImuBehind) {
   LidarInertialBatchOptions options;
   options.imu_noise = simulator_->sensors_config().imu.noise;
   const sensors::Calibration nominal = simulator_->nominal_calibration();
-  Setup(nominal, options);
+  Setup(nominal);
   const auto message = [&](double offset_s) {
     sensors::Calibration calibration = nominal;
     calibration.time_offset_lidar_imu_s = offset_s;
@@ -165,12 +166,14 @@ TEST_F(LidarInertialBatchTest, NamesAnOffsetThatLeavesTheImuBehind) {
       << late;
   EXPECT_NE(late.find("need IMU samples the log does not have"), std::string::npos) << late;
   EXPECT_NE(late.find("fix it or give it a tighter prior"), std::string::npos) << late;
-  const std::string early = message(nominal.time_offset_lidar_imu_s - 0.3);
-  EXPECT_NE(early.find("at a LiDAR-IMU time offset of " +
-                       FormatFixed(1e3 * (nominal.time_offset_lidar_imu_s - 0.3), 1) + " ms"),
+  // The first keyframe lies kFirstSweepS after the IMU's start: that much less puts its sweep
+  // before the samples.
+  const double early_s = nominal.time_offset_lidar_imu_s - kFirstSweepS - 0.2;
+  const std::string early = message(early_s);
+  EXPECT_NE(early.find("at a LiDAR-IMU time offset of " + FormatFixed(1e3 * early_s, 1) + " ms"),
             std::string::npos)
       << early;
-  EXPECT_NE(early.find("a sweep's last point lies before its keyframe"), std::string::npos)
+  EXPECT_NE(early.find("a sweep needs IMU samples before the log's first"), std::string::npos)
       << early;
 }
 
@@ -213,7 +216,7 @@ TEST_F(LidarInertialBatchTest, ReducedSweepsGiveTheSameSolve) {
   options.outer_iterations = 2;
   options.compute_covariance = false;
   sensors::Calibration whole_calibration = simulator_->nominal_calibration();
-  Setup(whole_calibration, options);
+  Setup(whole_calibration);
   std::vector<Keyframe> reduced_keyframes = keyframes_;
   sensors::Calibration reduced_calibration = whole_calibration;
   std::vector<SelectedSweep> reduced;
@@ -241,7 +244,7 @@ TEST_F(LidarInertialBatchTest, PointSigmaFollowsTheNoiseOfThePoints) {
   options.imu_noise = simulator_->sensors_config().imu.noise;
   options.compute_covariance = false;
   const sensors::Calibration start = simulator_->true_calibration();
-  Setup(start, options);
+  Setup(start);
   const std::vector<Keyframe> true_keyframes = keyframes_;
   sensors::Calibration calibration = start;
   const double clean_sigma_m =
@@ -279,7 +282,7 @@ TEST_F(LidarInertialBatchTest, CoarseLevelsFollowTheDistances) {
   options.imu_noise = simulator_->sensors_config().imu.noise;
   options.compute_covariance = false;
   const sensors::Calibration& truth = simulator_->true_calibration();
-  Setup(truth, options);
+  Setup(truth);
   const std::vector<Keyframe> true_keyframes = keyframes_;
   const auto levels_from = [&](double off_deg, sensors::Calibration* calibration) {
     *calibration = truth;

@@ -7,6 +7,7 @@
 
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
@@ -43,7 +44,7 @@ class RotationSearchTest : public ::testing::Test {
     const int64_t end_ns = log_->imu.samples.back().t_ns - SecondsToNs(0.3);
     for (size_t i = 0; i < log_->sweeps.size(); i += static_cast<size_t>(stride)) {
       const lidar::LidarSweep& sweep = log_->sweeps[i];
-      const int64_t t_k = KeyframeTime(sweep.t_ns, truth.time_offset_lidar_imu_s, batch);
+      const int64_t t_k = KeyframeTime(sweep, truth.time_offset_lidar_imu_s);
       if (t_k < begin_ns || t_k > end_ns) continue;
       sweeps_.push_back(SelectForBatch(sweep, batch.pairing));
       keyframes_.push_back(test::TrueKeyframe(log_->imu, t_k));

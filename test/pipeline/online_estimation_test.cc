@@ -215,6 +215,25 @@ TEST_F(OnlineEstimationTest, ABadNominalGuessEndsWithinTheSameBounds) {
   ExpectOnlineGoals(ErrorsOf(result, dataset, data_->simulator.true_calibration()));
 }
 
+// An IMU log that starts after the first sweeps: the initializer's first keyframe is a later
+// sweep (of every initializer_sweep_stride-th), and streaming starts with the sweep after it,
+// each one a keyframe a sweep period after the last, none dropped as late.
+TEST_F(OnlineEstimationTest, StartsStreamingAfterTheInitialKeyframesSweep) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  const int64_t imu_start_ns = dataset.lidar_sweeps[4].t_ns;
+  dataset.imu.erase(
+      dataset.imu.begin(),
+      std::lower_bound(dataset.imu.begin(), dataset.imu.end(), imu_start_ns,
+                       [](const sensors::ImuSample& s, int64_t t) { return s.t_ns < t; }));
+  const OnlineEstimationResult result = EstimateDatasetOnline(dataset, FullProblem());
+  EXPECT_EQ(result.counters.late, 0);
+  ASSERT_GT(result.trajectory.size(), 2u);
+  EXPECT_GT(result.trajectory.front().t_ns, imu_start_ns);
+  const int64_t period_ns = dataset.lidar_sweeps[5].t_ns - dataset.lidar_sweeps[4].t_ns;
+  EXPECT_NEAR(static_cast<double>(result.trajectory[1].t_ns - result.trajectory[0].t_ns),
+              static_cast<double>(period_ns), 0.1 * static_cast<double>(period_ns));
+}
+
 // The thread count changes nothing: trajectory, calibration and sigma are the same to the last
 // digit at 1 and 2 threads (docs/calibration.md, "Reproducibility and threads").
 TEST_F(OnlineEstimationTest, OneAndTwoThreadsGiveTheSameResult) {

@@ -106,8 +106,11 @@ struct CalibrationInitializerOptions {
   double max_excited_lever_arm_std_m = 0.03;
   // IMU noise densities for the preintegration weights.
   sensors::ImuNoise imu_noise;
-  // Step 6: must equal the batch solver's keyframe_lead_s (KeyframeTime).
-  double keyframe_lead_s = 0.02;
+  // Step 6: a sweep gets a keyframe when its points lie this far inside the IMU log at both
+  // ends, room for a later solve to move the time offset.
+  double offset_margin_s = 0.02;
+  // A sweep whose keyframe would follow the last by less than this gets none.
+  double min_keyframe_interval_s = 0.02;
 };
 
 // Step 5's estimate: the IMU preintegration fitted to the odometry.
@@ -158,8 +161,8 @@ struct CalibrationInitialization {
 
   // Step 6: the gravity-aligned world (z up, origin at the first keyframe's IMU position, its
   // yaw zero) from the odometry frame, and one keyframe per sweep listed in keyframe_sweeps
-  // (indices into the input sweeps: those whose keyframe time and points lie inside the IMU
-  // log), at KeyframeTime(sweep.t_ns, offset, lead): orientation from odometry and q_I_L,
+  // (indices into the input sweeps: those whose points lie inside the IMU log with
+  // offset_margin_s), at KeyframeTime(sweep, offset): orientation from odometry and q_I_L,
   // velocity and position from step 5's fit, gyro bias from step 2, accel bias zero.
   geometry::Pose3d T_W_O;
   std::vector<int> keyframe_sweeps;

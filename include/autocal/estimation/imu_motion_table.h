@@ -1,16 +1,18 @@
 #pragma once
 
-// IMU motion from a keyframe to any instant shortly after it, for the many LiDAR points of a
-// sweep: the preintegrated deltas (dR, dv, dp) of Eq. F1 are tabulated at the IMU samples
-// once, and each query integrates only the last partial step. Biases are fixed at the values
-// given (the keyframe's estimate), so a table is rebuilt when they move.
+// IMU motion from a keyframe to any instant shortly before or after it, for the many LiDAR
+// points of a sweep: the preintegrated deltas (dR, dv, dp) of Eq. F1 are tabulated at the IMU
+// samples once, and each query integrates only the last partial step. Biases are fixed at the
+// values given (the keyframe's estimate), so a table is rebuilt when they move.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "autocal/factors/point_to_plane_factor.h"
+#include "autocal/lidar/point_cloud.h"
 #include "autocal/sensors/measurements.h"
 
 namespace autocal {
@@ -22,19 +24,22 @@ class ImuMotionTable {
   // a table needs.
   static bool Covers(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns);
 
-  // Tabulates from t_begin_ns (the keyframe, IMU clock) to t_end_ns. With rate_window_ns > 0
-  // the body rate At gives is the bias-corrected gyroscope's mean over that span centred on
-  // the query (narrowed, still centred, where the samples end), whose white noise falls with
-  // the square root of the span (docs/estimation.md, Eq. P1b); 0 gives the rate at the
-  // instant. Throws autocal::Error when the samples do not cover the interval (Covers).
+  // Tabulates from t_begin_ns to t_end_ns (IMU clock), the motion relative to t_origin_ns (the
+  // keyframe; t_begin_ns when not given), which must lie in that interval: before it the
+  // deltas run backwards (docs/estimation.md, Eq. P1c). With rate_window_ns > 0 the body rate
+  // At gives is the bias-corrected gyroscope's mean over that span centred on the query
+  // (narrowed, still centred, where the samples end), whose white noise falls with the square
+  // root of the span (docs/estimation.md, Eq. P1b); 0 gives the rate at the instant. Throws
+  // autocal::Error when the samples do not cover the interval (Covers) or the origin lies
+  // outside it.
   ImuMotionTable(const sensors::ImuSamples& imu, int64_t t_begin_ns, int64_t t_end_ns,
-                 const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a,
-                 int64_t rate_window_ns = 0);
+                 const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a, int64_t rate_window_ns = 0,
+                 std::optional<int64_t> t_origin_ns = std::nullopt);
 
   int64_t t_begin_ns() const { return t_begin_ns_; }
   int64_t t_end_ns() const { return t_end_ns_; }
 
-  // Motion from t_begin_ns to t_ns (clamped into the tabulated interval), with the
+  // Motion from the origin to t_ns (clamped into the tabulated interval), with the
   // bias-corrected body rate at t_ns (or about it, rate_window_ns). The signal is linear
   // between samples, so inside a step the partial step integrates the mean of the rates at its
   // two ends, and the rate at t_ns is interpolated.
@@ -51,6 +56,8 @@ class ImuMotionTable {
     Eigen::Vector3d gyro, accel;
     Eigen::Vector3d gyro_slope, accel_slope;
   };
+  // Re-expresses every node's deltas from t_origin_ns_ instead of t_begin_ns_.
+  void Rebase();
   // Advances n's deltas by dt seconds along its step.
   static void Step(double dt, Node* n);
   // The node of the step holding t_ns (within the table), advanced to t_ns.
@@ -67,12 +74,22 @@ class ImuMotionTable {
     Eigen::Vector3d integral;  // from the first knot
   };
 
+  int64_t t_origin_ns_;  // the keyframe: motion is relative to it
   int64_t t_begin_ns_;
   int64_t t_end_ns_;
   int64_t rate_window_ns_;
   std::vector<Node> nodes_;
   std::vector<RateKnot> rate_knots_;  // over the table and half a window on each side
 };
+
+// A sweep's keyframe time: for a sweep stamped t_sweep_ns (LiDAR clock) whose points span
+// [first_point_s, last_point_s] after the stamp, at LiDAR-IMU time offset offset_s, the IMU
+// time of the span's middle, where the attitude error its points share through their motion
+// table is smallest (docs/estimation.md, Eq. P1c).
+int64_t KeyframeTime(int64_t t_sweep_ns, double first_point_s, double last_point_s,
+                     double offset_s);
+// The same for a whole sweep (its stamp when the points have no time).
+int64_t KeyframeTime(const lidar::LidarSweep& sweep, double offset_s);
 
 }  // namespace estimation
 }  // namespace autocal

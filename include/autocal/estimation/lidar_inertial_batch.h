@@ -44,9 +44,6 @@ struct LidarInertialBatchProgress {
 struct LidarInertialBatchOptions {
   sensors::ImuNoise imu_noise;
   double gravity_m_s2 = 9.80665;
-  // Keyframe k sits this long before the first point of sweep k (IMU clock, at the initial
-  // offset), so that the offset estimate may move earlier by up to this much.
-  double keyframe_lead_s = 0.02;
   // Residual and map points, partners and the outlier gate (shared with the sliding window).
   PairingOptions pairing = BatchPairingDefaults();
   // The planes attributed to sweep j are fitted to the points of sweeps j - n ... j + n.
@@ -164,8 +161,15 @@ struct SelectedSweep {
   std::vector<int> map_points;       // indices into points
 
   Eigen::Vector3d point(int i) const { return points.col(i).cast<double>(); }
-  // IMU time of the sweep's last point at LiDAR-IMU time offset offset_s.
-  int64_t end_ns(double offset_s) const { return t_ns + SecondsToNs(end_s + offset_s); }
+  // The IMU interval a motion table of the sweep from its keyframe at keyframe_ns covers at
+  // LiDAR-IMU time offset offset_s: its points, its reference instant (point time 0) and the
+  // keyframe.
+  int64_t table_begin_ns(double offset_s, int64_t keyframe_ns) const {
+    return std::min(keyframe_ns, t_ns + SecondsToNs(std::min(0.0, begin_s) + offset_s));
+  }
+  int64_t table_end_ns(double offset_s, int64_t keyframe_ns) const {
+    return std::max(keyframe_ns, t_ns + SecondsToNs(std::max(0.0, end_s) + offset_s));
+  }
   double time(int i) const { return static_cast<double>(time_s(i)); }
 };
 // Throws autocal::Error for a sweep without per-point time.
@@ -189,9 +193,6 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                                  std::vector<Keyframe>* keyframes,
                                                  sensors::Calibration* calibration,
                                                  const LidarInertialBatchOptions& options = {});
-
-// Keyframe time for a sweep stamped t_sweep_ns (LiDAR clock) at time offset offset_s.
-int64_t KeyframeTime(int64_t t_sweep_ns, double offset_s, const LidarInertialBatchOptions& options);
 
 }  // namespace estimation
 }  // namespace autocal

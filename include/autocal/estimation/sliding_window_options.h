@@ -124,11 +124,9 @@ struct SlidingWindowOptions {
   // Origin of W for AddGnss(GnssFix) (latitude, longitude, ellipsoidal height); unset: the ENU
   // frame at the first fix, so the initial state must be given in that frame.
   std::optional<Eigen::Vector3d> enu_origin_lla;
-  // A keyframe sits keyframe_lead_s before its sweep's first point (room for the time offset
-  // to move earlier); a sweep is processed once the IMU covers its last point plus
-  // imu_coverage_margin_s; one whose keyframe would follow the newest by less than
-  // min_keyframe_interval_s is dropped as late.
-  double keyframe_lead_s = 0.02;
+  // A keyframe sits at its sweep's middle (KeyframeTime); a sweep is processed once the IMU
+  // covers its last point plus imu_coverage_margin_s; one whose keyframe would follow the
+  // newest by less than min_keyframe_interval_s is dropped as late.
   double imu_coverage_margin_s = 0.02;
   double min_keyframe_interval_s = 0.02;
   PairingOptions pairing = WindowPairingDefaults();

@@ -5,8 +5,8 @@
 //
 // A point p_L stamped t_sweep + tau by the LiDAR was measured at IMU time
 // t = t_sweep + tau + offset. The IMU pose at t is its keyframe state propagated with the
-// IMU: with dt the point's time after the keyframe at the linearization offset offset_0 and
-// delta = offset - offset_0 (Eq. P1-P3),
+// IMU: with dt the point's time after the keyframe (negative before it) at the linearization
+// offset offset_0 and delta = offset - offset_0 (Eq. P1-P3),
 //   R(t) = R_k * dR * (I + delta * Hat(omega))
 //   v(t) = v_k + g_W dt + R_k dv
 //   p(t) = p_k + v_k dt + 1/2 g_W dt^2 + R_k dp + delta * v(t)
@@ -30,7 +30,7 @@ namespace autocal {
 namespace factors {
 
 // IMU motion from a keyframe to the instant a point was measured (at the linearization
-// offset), as IMU propagation predicts it.
+// offset; before or after the keyframe), as IMU propagation predicts it.
 struct PointMotion {
   double dt_s = 0.0;                                            // t - t_k
   Eigen::Quaterniond delta_q = Eigen::Quaterniond::Identity();  // R_Ik_I(t)

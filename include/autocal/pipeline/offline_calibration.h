@@ -33,8 +33,8 @@ struct CalibrationProgress {
 
 struct OfflineCalibrationOptions {
   // Initializer settings; its IMU noise and the lever-arm prior are taken from the dataset.
-  // The batch refines the initializer's rotation and offset (from a few degrees and, within
-  // the keyframe lead, milliseconds off), so the faster settings serve.
+  // The batch refines the initializer's rotation and offset (from a few degrees and
+  // milliseconds off), so the faster settings serve.
   estimation::CalibrationInitializerOptions initializer =
       estimation::RefinedLaterInitializerOptions();
   // The LiDAR odometry's keyframes are aligned to GNSS (yaw and shift); when they miss the
