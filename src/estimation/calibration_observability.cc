@@ -9,6 +9,7 @@
 #include <iomanip>
 #include <map>
 #include <sstream>
+#include <unordered_set>
 #include <utility>
 
 #include "autocal/common/parallel_for.h"
@@ -280,31 +281,45 @@ Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J, int num_threads
   return lower;
 }
 
-GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem, int num_threads) {
+// The information of `ids` at the current values, J^T J over `variables`' columns, times
+// `scale`: J is evaluated for a stretch of residual blocks at a time and the stretches' grams
+// summed, so a long log's Jacobian is never held whole (on a 10-minute log it and its copies
+// were a third of the calibration's peak memory).
+Eigen::SparseMatrix<double> InformationOf(ceres::Problem* problem,
+                                          internal::VariableColumns* variables,
+                                          const std::vector<ceres::ResidualBlockId>& ids,
+                                          double scale, int num_threads) {
+  Eigen::SparseMatrix<double> H(variables->columns, variables->columns);
+  for (size_t first = 0; first < ids.size(); first += kResidualBlocksPerStretch) {
+    const size_t end = std::min(ids.size(), first + kResidualBlocksPerStretch);
+    variables->evaluate.residual_blocks.assign(ids.begin() + static_cast<std::ptrdiff_t>(first),
+                                               ids.begin() + static_cast<std::ptrdiff_t>(end));
+    ceres::CRSMatrix crs;
+    problem->Evaluate(variables->evaluate, nullptr, nullptr, nullptr, &crs);
+    H = Eigen::SparseMatrix<double>(H + scale * LowerGram(crs, num_threads));
+  }
+  return H;
+}
+
+GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem, int num_threads,
+                                              const ScaledInformation& scaled) {
   GaussNewtonHessian out;
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
-  ceres::Problem::EvaluateOptions& options = variables.evaluate;
-  options.num_threads = num_threads;
-  const int columns = variables.columns;
-  out.offsets = std::move(variables.offsets);
-  // J is evaluated for a stretch of residual blocks at a time and the stretches' grams are
-  // summed: a long log's Jacobian is never held whole (on a 10-minute log it and its copies
-  // were a third of the calibration's peak memory).
+  variables.evaluate.num_threads = num_threads;
+  out.offsets = variables.offsets;
   std::vector<ceres::ResidualBlockId> residual_blocks;
   problem->GetResidualBlocks(&residual_blocks);
-  for (size_t first = 0; first < residual_blocks.size(); first += kResidualBlocksPerStretch) {
-    const size_t end = std::min(residual_blocks.size(), first + kResidualBlocksPerStretch);
-    options.residual_blocks.assign(residual_blocks.begin() + static_cast<std::ptrdiff_t>(first),
-                                   residual_blocks.begin() + static_cast<std::ptrdiff_t>(end));
-    ceres::CRSMatrix crs;
-    problem->Evaluate(options, nullptr, nullptr, nullptr, &crs);
-    if (first == 0) {
-      out.H = LowerGram(crs, num_threads);
-    } else {
-      out.H = Eigen::SparseMatrix<double>(out.H + LowerGram(crs, num_threads));
-    }
+  const std::unordered_set<ceres::ResidualBlockId> in_scaled(scaled.residual_blocks.begin(),
+                                                             scaled.residual_blocks.end());
+  std::vector<ceres::ResidualBlockId> plain, rescaled;
+  for (const ceres::ResidualBlockId id : residual_blocks) {
+    (in_scaled.count(id) > 0 ? rescaled : plain).push_back(id);
   }
-  if (residual_blocks.empty()) out.H.resize(columns, columns);
+  out.H = InformationOf(problem, &variables, plain, 1.0, num_threads);
+  if (!rescaled.empty()) {
+    out.H = Eigen::SparseMatrix<double>(
+        out.H + InformationOf(problem, &variables, rescaled, scaled.scale, num_threads));
+  }
   return out;
 }
 
@@ -425,9 +440,10 @@ BlockCovariance EmptyCovariance() {
 
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads,
-                                       const std::vector<ceres::ResidualBlockId>& exact) {
+                                       const std::vector<ceres::ResidualBlockId>& exact,
+                                       const ScaledInformation& scaled) {
   if (blocks.empty()) return EmptyCovariance();
-  GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads);
+  GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads, scaled);
   if (!exact.empty()) {
     const std::vector<Eigen::Triplet<double>> curvature =
         internal::ResidualCurvature(problem, exact, hessian.offsets);
@@ -448,7 +464,7 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
     return out;
   }
   const InverseColumns inverse =
-      InverseColumnsAt(blocks, EvaluateGaussNewtonHessian(problem, num_threads));
+      InverseColumnsAt(blocks, EvaluateGaussNewtonHessian(problem, num_threads, {}));
   out.covariance = CovarianceOf(inverse);
   out.share = Eigen::MatrixXd::Zero(inverse.size, static_cast<Eigen::Index>(sources.size()));
   out.spread = out.share;

@@ -65,6 +65,23 @@ ceres::LossFunction* MakeLossFunction(const LossOptions& options) {
   return nullptr;
 }
 
+void SandwichRatio::Add(double r) {
+  ++count_;
+  if (loss_ == nullptr) return;
+  const double s = r * r;
+  double rho[3];
+  loss_->Evaluate(s, rho);
+  weight_ += s > 0.0 ? rho[1] * rho[1] * s / rho[0] : 1.0;
+  psi_squared_ += rho[1] * rho[1] * s;
+  psi_slope_ += rho[1] + 2.0 * s * rho[2];  // d/dr (rho'(r^2) r)
+}
+
+double SandwichRatio::kappa() const {
+  if (loss_ == nullptr || count_ == 0 || !(psi_slope_ > 0.0)) return 1.0;
+  const double n = static_cast<double>(count_);
+  return (weight_ / n) * (psi_squared_ / n) / ((psi_slope_ / n) * (psi_slope_ / n));
+}
+
 bool DownweightedByLoss(const ceres::LossFunction* loss, double s) {
   if (loss == nullptr) return false;
   double rho[3];

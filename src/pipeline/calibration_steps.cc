@@ -456,9 +456,34 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
   }
 }
 
+estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {
+  estimation::ScaledInformation out;
+  std::vector<ceres::ResidualBlockId> ids;
+  problem->GetResidualBlocks(&ids);
+  const ceres::LossFunction* loss = nullptr;
+  std::vector<double> distances;
+  std::vector<double*> parameters;
+  for (const ceres::ResidualBlockId id : ids) {
+    const auto* group = dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(
+        problem->GetCostFunctionForResidualBlock(id));
+    if (group == nullptr) continue;
+    out.residual_blocks.push_back(id);
+    loss = group->loss();  // one loss for every point group of a solve
+    problem->GetParameterBlocksForResidualBlock(id, &parameters);
+    const size_t n = distances.size();
+    distances.resize(n + static_cast<size_t>(group->num_points()));
+    group->WhitenedDistances(parameters.data(), distances.data() + n);
+  }
+  factors::SandwichRatio ratio(loss);
+  for (const double r : distances) ratio.Add(r);
+  out.scale = 1.0 / ratio.kappa();
+  return out;
+}
+
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    int num_threads, std::vector<std::string>* warnings) {
+    int num_threads, std::vector<std::string>* warnings,
+    const estimation::ScaledInformation& lidar) {
   std::vector<ceres::ResidualBlockId> ids;
   problem->GetResidualBlocks(&ids);
   std::vector<ceres::ResidualBlockId> exact;
@@ -470,13 +495,13 @@ estimation::BlockCovariance PosteriorCovariance(
     }
   }
   const estimation::BlockCovariance covariance =
-      estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact);
+      estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact, lidar);
   if (covariance.ok) return covariance;
   warnings->push_back(
       "covariance: the cost's exact Hessian is not positive definite at the solution (the solve "
       "is not at a minimum along some direction); the sigmas are Gauss-Newton's, which can count "
       "the measurements' noise as information");
-  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads);
+  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, {}, lidar);
 }
 
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
@@ -493,15 +518,19 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
                         const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                         std::vector<estimation::Keyframe>* keyframes,
                         sensors::Calibration* calibration, ceres::Problem* problem, int num_threads,
-                        OfflineCalibrationResult* result) {
+                        OfflineCalibrationResult* result,
+                        const estimation::ScaledInformation& lidar) {
   if (!options.set_to_truth) return;
   const std::vector<estimation::Keyframe> solved_keyframes = *keyframes;
   const sensors::Calibration solved = *calibration;
   options.set_to_truth(keyframes, calibration);
-  // The bound is the budget's covariance: one factorization of the information for both.
+  // Without a LiDAR scale the bound is the budget's covariance: one factorization for both.
   estimation::ErrorBudget budget = estimation::ComputeErrorBudget(
       blocks_estimated, problem, ResidualSources(problem), num_threads);
-  const estimation::BlockCovariance bound = budget.covariance;
+  const estimation::BlockCovariance bound =
+      lidar.scale == 1.0
+          ? budget.covariance
+          : estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, {}, lidar);
   Eigen::VectorXd error(bound.matrix.rows());
   for (size_t b = 0; b < blocks_estimated.size() && bound.ok; ++b) {
     const estimation::EstimatedBlock& block = blocks_estimated[b];

@@ -176,10 +176,17 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 // (their loss is inside the factor, their Jacobian is the points' geometry) and the
 // planar-rotation rows (they leave out the one column whose derivative is noise, Eq. F27b).
 // Where the completed matrix is not positive definite (a solve stopped off a minimum), J^T J
-// alone, with a warning.
+// alone, with a warning. `lidar` scales the point groups' information (LidarSandwich).
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    int num_threads, std::vector<std::string>* warnings);
+    int num_threads, std::vector<std::string>* warnings,
+    const estimation::ScaledInformation& lidar = {});
+
+// The LiDAR point groups of `problem` with their information scale 1 / kappa, kappa the robust
+// loss's sandwich ratio over their whitened distances at the problem's values (Eq. C6): the
+// points' loss makes J^T J with the rows' Gauss-Newton weights misstate the M-estimator's
+// variance. Scale 1 without point groups or without a loss.
+estimation::ScaledInformation LidarSandwich(ceres::Problem* problem);
 
 // result->posterior from the solve's calibration (`solved`), the blocks' priors and their
 // covariance, before Observe holds any direction.
@@ -191,12 +198,14 @@ void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estim
 // `problem` at the truth (the Cramer-Rao bound), and result->error_budget, the error split by
 // the sources of the residuals (ResidualSources). The keyframes and the
 // calibration, the problem's blocks, are set to the truth for it and restored after. A bound
-// that cannot be computed (a singular information matrix) is a warning.
+// that cannot be computed (a singular information matrix) is a warning. The bound takes the
+// posterior's LiDAR information scale (`lidar`); the budget splits the solver's own J^T J.
 void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
                         const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                         std::vector<estimation::Keyframe>* keyframes,
                         sensors::Calibration* calibration, ceres::Problem* problem, int num_threads,
-                        OfflineCalibrationResult* result);
+                        OfflineCalibrationResult* result,
+                        const estimation::ScaledInformation& lidar = {});
 
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'

@@ -226,12 +226,14 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   batch_options.compute_covariance = false;  // the joint one below covers every block
   estimation::BlockObservability observability;
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
+    const estimation::ScaledInformation lidar = LidarSandwich(p);
+    result->calibration.residuals["lidar"]["sandwich_kappa"] = 1.0 / lidar.scale;
     const estimation::BlockCovariance covariance =
-        PosteriorCovariance(blocks, p, problem.solver.num_threads, &result->warnings);
+        PosteriorCovariance(blocks, p, problem.solver.num_threads, &result->warnings, lidar);
     const sensors::Calibration solved = *calibration;
     RecordPosterior(blocks, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
-                       problem.solver.num_threads, result);
+                       problem.solver.num_threads, result, lidar);
     observability = Observe(dataset, options, blocks, covariance, result);
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
     RequirePlausible(dataset, options, blocks, covariance);

@@ -406,6 +406,47 @@ TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) 
   EXPECT_GT((truth - p).norm(), 1e-3);  // there is an error to split
 }
 
+// Eq. C6: the information of the scaled residual blocks is multiplied by the scale, the rest
+// unchanged: (J_1^T J_1 + s J_2^T J_2)^-1 by hand.
+TEST(CalibrationObservability, ScaledInformationMultipliesTheGivenBlocksInformation) {
+  Eigen::Vector3d p(0.3, -0.05, 0.55);
+  double s = 1.8;
+  std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.05)};
+  ceres::Problem problem;
+  std::vector<ceres::ResidualBlockId> scaled_ids;
+  const auto row = [&](const LinearRow& r, bool scaled) {
+    const ceres::ResidualBlockId id = problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
+        &s);
+    if (scaled) scaled_ids.push_back(id);
+  };
+  row({100.0, 1.0, 0.0, 0.5, 0.0, 0.6}, false);
+  row({50.0, 0.0, 1.0, 0.0, 0.0, -0.06}, true);
+  row({100.0, -1.0, 0.0, 0.0, 1.0, 1.5}, true);
+  row({20.0, 0.0, 0.0, 1.0, 1.0, 2.4}, false);
+  row({30.0, 1.0, 1.0, 0.0, 0.0, 0.2}, false);
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks = {p.data(), &s};
+  ceres::CRSMatrix crs;
+  problem.Evaluate(evaluate, nullptr, nullptr, nullptr, &crs);
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int i = 0; i < crs.num_rows; ++i) {
+    for (int k = crs.rows[i]; k < crs.rows[i + 1]; ++k) J(i, crs.cols[k]) = crs.values[k];
+  }
+  const double scale = 1.0 / 0.6;
+  Eigen::VectorXd weight = Eigen::VectorXd::Ones(5);
+  weight(1) = weight(2) = scale;
+  const Eigen::MatrixXd expected = (J.transpose() * weight.asDiagonal() * J).inverse();
+  const BlockCovariance covariance =
+      ComputeBlockCovariance(blocks, &problem, 1, {}, ScaledInformation{scaled_ids, scale});
+  ASSERT_TRUE(covariance.ok);
+  EXPECT_TRUE(covariance.matrix.isApprox(expected.topLeftCorner(3, 3), 1e-12))
+      << covariance.matrix << "\nvs\n"
+      << expected.topLeftCorner(3, 3);
+  const BlockCovariance plain = ComputeBlockCovariance(blocks, &problem);
+  EXPECT_TRUE(plain.matrix.isApprox((J.transpose() * J).inverse().topLeftCorner(3, 3), 1e-12));
+}
+
 TEST(CalibrationObservability, CovarianceOfASingularProblemIsRefusedAndConstantBlocksAreZero) {
   Eigen::Vector3d p(0.1, 0.2, 0.3);
   Eigen::Vector3d held(1.0, 2.0, 3.0);

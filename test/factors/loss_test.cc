@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/factors/robust_loss.h"
@@ -112,6 +114,39 @@ TEST(Loss, DownweightsBeyondHalfWeight) {
   EXPECT_FALSE(DownweightedByLoss(cauchy.get(), squared(d * 0.999)));
   EXPECT_TRUE(DownweightedByLoss(cauchy.get(), squared(d * 1.001)));
   EXPECT_FALSE(DownweightedByLoss(nullptr, 1e6));
+}
+
+// Eq. C6: the sandwich ratio of a robust loss is 1 for least squares and, on Gaussian
+// residuals, mean(w) mean(psi^2) / mean(psi')^2 by the integrals: 0.956 for Huber at 1 and
+// 0.747 for Cauchy at 1 (sampled, 200 000 draws: within 0.01). Residuals whitened by an RMS
+// that 5 % of wide outliers inflate, as the points' sigma of Eq. P10 is, lower it.
+TEST(SandwichRatio, IsOneForLeastSquaresAndBelowForRobustLosses) {
+  std::mt19937 rng(5);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> wide(-4.0, 4.0);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const std::unique_ptr<ceres::LossFunction> huber(MakeLossFunction({RobustLoss::kHuber, 1.0}));
+  const std::unique_ptr<ceres::LossFunction> cauchy(MakeLossFunction({RobustLoss::kCauchy, 1.0}));
+  SandwichRatio none(nullptr), huber_gauss(huber.get()), cauchy_gauss(cauchy.get());
+  std::vector<double> contaminated;
+  double sum_squares = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const double r = gauss(rng);
+    none.Add(r);
+    huber_gauss.Add(r);
+    cauchy_gauss.Add(r);
+    contaminated.push_back(unit(rng) < 0.05 ? wide(rng) : r);
+    sum_squares += contaminated.back() * contaminated.back();
+  }
+  EXPECT_EQ(none.kappa(), 1.0);
+  EXPECT_EQ(none.count(), 200000);
+  EXPECT_NEAR(huber_gauss.kappa(), 0.956, 0.01);
+  EXPECT_NEAR(cauchy_gauss.kappa(), 0.747, 0.01);
+  const double rms = std::sqrt(sum_squares / static_cast<double>(contaminated.size()));
+  SandwichRatio huber_rms(huber.get());
+  for (const double r : contaminated) huber_rms.Add(r / rms);
+  EXPECT_LT(huber_rms.kappa(), huber_gauss.kappa() - 0.05);
+  EXPECT_EQ(SandwichRatio(huber.get()).kappa(), 1.0);  // no residual
 }
 
 }  // namespace

@@ -54,9 +54,11 @@ void ExpectSigmaAtTheBound(const OfflineCalibrationResult& result, double low, d
   EXPECT_GE(informed, 5);
 }
 
-// The error budget at the truth: every sensor a source, the spreads' squares the bound's
-// variance, and the shares' sum the solve's error to first order: within a quarter of the
-// bound (measured: 0.14 of it at most, the track width; the time offset 0.12).
+// The error budget at the truth: every sensor a source, the spreads' squares the variance of
+// the solver's own J^T J (the budget's covariance; the bound scales the LiDAR's information by
+// its loss's sandwich, Eq. C6, and lies below it), and the shares' sum the solve's error to first
+// order: within a quarter of the bound (measured: 0.14 of it at most, the track width; the time
+// offset 0.12).
 void ExpectTheBudgetSplitsTheError(const OfflineCalibrationResult& result) {
   ASSERT_TRUE(result.error_budget.has_value());
   const estimation::ErrorBudget& budget = *result.error_budget;
@@ -64,8 +66,11 @@ void ExpectTheBudgetSplitsTheError(const OfflineCalibrationResult& result) {
   EXPECT_EQ(budget.covariance.offsets, result.bound->offsets);
   const Eigen::VectorXd variance = budget.spread.cwiseAbs2().rowwise().sum();
   // Equal but for rounding through H^-1 (measured: 7e-9 relative at most).
-  const Eigen::ArrayXd ratio = variance.array() / result.bound->matrix.diagonal().array();
+  const Eigen::ArrayXd ratio = variance.array() / budget.covariance.matrix.diagonal().array();
   EXPECT_LT((ratio - 1.0).abs().maxCoeff(), 1e-6) << ratio.transpose();
+  const Eigen::ArrayXd scaled =
+      result.bound->matrix.diagonal().array() / budget.covariance.matrix.diagonal().array();
+  EXPECT_LE(scaled.maxCoeff(), 1.0 + 1e-9) << scaled.transpose();
   const Eigen::VectorXd first_order = budget.share.rowwise().sum();
   for (Eigen::Index row = 0; row < first_order.size(); ++row) {
     const double bound = std::sqrt(result.bound->matrix(row, row));

@@ -73,10 +73,16 @@ struct BlockCovariance {
 //
 // The residual blocks `exact` enter with their exact Hessian, J^T J + rho' sum r d2r
 // (docs/calibration.md, Eq. C5): where a residual's derivative is itself noise, Gauss-Newton
-// counts it as information the cost does not have.
+// counts it as information the cost does not have. The information of `scaled`'s residual
+// blocks is multiplied by its scale (a robust loss's sandwich, Eq. C6).
+struct ScaledInformation {
+  std::vector<ceres::ResidualBlockId> residual_blocks;
+  double scale = 1.0;
+};
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads = 1,
-                                       const std::vector<ceres::ResidualBlockId>& exact = {});
+                                       const std::vector<ceres::ResidualBlockId>& exact = {},
+                                       const ScaledInformation& scaled = {});
 
 // Where the error of the blocks comes from (docs/evaluation.md, Eq. E1): at the values
 // `problem` holds (the truth of a simulated log), H^-1 J^T r over every variable block (H =

@@ -51,6 +51,8 @@ class PointToSweepPlaneGroupFactor final : public ceres::CostFunction {
   int num_points() const { return static_cast<int>(points_.size()); }
   const std::vector<PointToSweepPlaneFactor::Terms>& points() const { return points_; }
   const std::vector<PointToSweepPlaneFactor::Side>& plane_sides() const { return plane_sides_; }
+  // The per-point robust loss (null for plain least squares).
+  const ceres::LossFunction* loss() const { return loss_.get(); }
   // The whitened point-to-plane distances r_i (no loss), one per point.
   void WhitenedDistances(double const* const* parameters, double* distances) const;
 
