@@ -211,15 +211,15 @@ std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
   const double offset_s = out.time_offset.offset_s;
   const int64_t offset_ns = SecondsToNs(offset_s);
   std::vector<KeyframeSlot> slots;
-  const double margin_s = options.offset_margin_s;
+  const int64_t margin_ns = SecondsToNs(options.offset_margin_s);
   for (size_t k = 0; k < sweeps.size(); ++k) {
     const SweepTimes& sweep = sweeps[k];
     const int64_t t_ns = KeyframeTime(sweep.t_ns, sweep.begin_s, sweep.end_s, offset_s);
-    const int64_t begin_ns =
-        sweep.t_ns + SecondsToNs(offset_s + std::min(0.0, sweep.begin_s) - margin_s);
-    const int64_t end_ns =
-        sweep.t_ns + SecondsToNs(offset_s + std::max(0.0, sweep.end_s) + margin_s);
-    if (begin_ns < imu.front().t_ns || end_ns > imu.back().t_ns) continue;
+    const ImuInterval points = SweepImuInterval(sweep.t_ns, sweep.begin_s, sweep.end_s, offset_s);
+    if (points.begin_ns - margin_ns < imu.front().t_ns ||
+        points.end_ns + margin_ns > imu.back().t_ns) {
+      continue;
+    }
     // Sweeps whose points span differently (a truncated one) could bring a keyframe close to
     // the last: the IMU factor between them needs an interval.
     if (!slots.empty() && t_ns - slots.back().t_ns < SecondsToNs(options.min_keyframe_interval_s)) {

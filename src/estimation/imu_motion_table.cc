@@ -194,5 +194,11 @@ int64_t KeyframeTime(const lidar::LidarSweep& sweep, double offset_s) {
   return KeyframeTime(sweep.t_ns, cloud.time_s.minCoeff(), cloud.time_s.maxCoeff(), offset_s);
 }
 
+ImuInterval SweepImuInterval(int64_t t_sweep_ns, double first_point_s, double last_point_s,
+                             double offset_s) {
+  return {t_sweep_ns + SecondsToNs(std::min(0.0, first_point_s) + offset_s),
+          t_sweep_ns + SecondsToNs(std::max(0.0, last_point_s) + offset_s)};
+}
+
 }  // namespace estimation
 }  // namespace autocal

@@ -198,7 +198,7 @@ BatchInputs Inputs(const sensors::ImuSamples& imu, const std::vector<SelectedSwe
 // A time offset the drive does not determine can wander during the solve until a sweep's points
 // lie before the log's first IMU sample or past its last: the solve cannot place the sweep, and
 // names the offset that took it there. [begin_ns, end_ns] is the sweep's motion table
-// (SelectedSweep::table_begin_ns).
+// (SelectedSweep::TableInterval).
 void CheckSweepMotionCovered(const BatchInputs& in, int64_t begin_ns, int64_t end_ns) {
   if (in.imu.size() < 2) throw Error("SolveLidarInertialBatch: the IMU log holds no interval");
   const auto fail = [&](const std::string& what) {
@@ -232,11 +232,10 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
   in.ForEachSweep([&](size_t k) {
     const Keyframe& kf = (*in.keyframes)[k];
     const SelectedSweep& s = in.sweeps[k];
-    const int64_t begin_ns = s.table_begin_ns(offset_lin, kf.t_ns);
-    const int64_t end_ns = s.table_end_ns(offset_lin, kf.t_ns);
-    CheckSweepMotionCovered(in, begin_ns, end_ns);
+    const ImuInterval table = s.TableInterval(offset_lin, kf.t_ns);
+    CheckSweepMotionCovered(in, table.begin_ns, table.end_ns);
     // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
-    out.tables[k].emplace(in.imu, begin_ns, end_ns, kf.b_g, kf.b_a,
+    out.tables[k].emplace(in.imu, table.begin_ns, table.end_ns, kf.b_g, kf.b_a,
                           SecondsToNs(s.end_s - s.begin_s), kf.t_ns);
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,

@@ -41,10 +41,9 @@ struct ScoredPair {
 // then names the offset).
 std::optional<ImuMotionTable> TableOf(const sensors::ImuSamples& imu, const SelectedSweep& sweep,
                                       const Keyframe& kf, double offset_s) {
-  const int64_t begin_ns = sweep.table_begin_ns(offset_s, kf.t_ns);
-  const int64_t end_ns = sweep.table_end_ns(offset_s, kf.t_ns);
-  if (!ImuMotionTable::Covers(imu, begin_ns, end_ns)) return std::nullopt;
-  return ImuMotionTable(imu, begin_ns, end_ns, kf.b_g, kf.b_a, 0, kf.t_ns);
+  const ImuInterval table = sweep.TableInterval(offset_s, kf.t_ns);
+  if (!ImuMotionTable::Covers(imu, table.begin_ns, table.end_ns)) return std::nullopt;
+  return ImuMotionTable(imu, table.begin_ns, table.end_ns, kf.b_g, kf.b_a, 0, kf.t_ns);
 }
 
 class PairScore {

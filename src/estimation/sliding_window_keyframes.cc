@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "autocal/common/time.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/planar_rotation_factor.h"
 #include "estimation/point_selection.h"
@@ -338,11 +339,10 @@ void SlidingWindowEstimator::Impl::TrimImuBuffer() {
   const WindowKeyframe& oldest = *window_.front();
   int64_t oldest_ns = oldest.state.t_ns;
   if (oldest.sweep && oldest.sweep->cloud.has_time()) {
-    const double first_s =
-        std::min(0.0, static_cast<double>(oldest.sweep->cloud.time_s.minCoeff()));
-    oldest_ns = std::min(
-        oldest_ns, oldest.sweep->t_ns + SecondsToNs(first_s + calibration_.time_offset_lidar_imu_s -
-                                                    options_.imu_coverage_margin_s));
+    const ImuInterval points =
+        SweepImuInterval(oldest.sweep->t_ns, oldest.sweep->cloud.time_s.minCoeff(),
+                         oldest.sweep_duration_s, calibration_.time_offset_lidar_imu_s);
+    oldest_ns = std::min(oldest_ns, points.begin_ns - SecondsToNs(options_.imu_coverage_margin_s));
   }
   auto first_after =
       std::upper_bound(imu_.begin(), imu_.end(), oldest_ns,

@@ -100,11 +100,9 @@ void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingOptions& set
   // The table covers the keyframe, the sweep's reference instant and its points at the offset
   // estimate (clamped to the IMU held).
   const double first_s = sweep.cloud.has_time() ? sweep.cloud.time_s.minCoeff() : 0.0;
-  const int64_t begin_ns = std::clamp(sweep.t_ns + SecondsToNs(std::min(0.0, first_s) + offset_s),
-                                      u.imu->front().t_ns, x.t_ns);
-  const int64_t end_ns =
-      std::clamp(sweep.t_ns + SecondsToNs(std::max(0.0, f->s.duration_s) + offset_s), x.t_ns,
-                 u.imu->back().t_ns);
+  const ImuInterval points = SweepImuInterval(sweep.t_ns, first_s, f->s.duration_s, offset_s);
+  const int64_t begin_ns = std::clamp(points.begin_ns, u.imu->front().t_ns, x.t_ns);
+  const int64_t end_ns = std::clamp(points.end_ns, x.t_ns, u.imu->back().t_ns);
   // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
   const double span_s = f->s.duration_s - first_s;
   f->table.emplace(*u.imu, begin_ns, end_ns, x.b_g, x.b_a, SecondsToNs(span_s), x.t_ns);

@@ -118,6 +118,20 @@ TEST(KeyframeTime, SitsAtTheMiddleOfTheSweepsPoints) {
   EXPECT_EQ(KeyframeTime(sweep, 0.005), 2'050'000'000);
 }
 
+// The IMU interval a sweep's motion table must cover besides its keyframe: the points and the
+// reference instant (point time 0), whichever side of the stamp they lie on.
+TEST(SweepImuInterval, CoversThePointsAndTheReferenceInstant) {
+  const ImuInterval start_stamped = SweepImuInterval(1'000'000'000, 0.0, 0.1, 0.025);
+  EXPECT_EQ(start_stamped.begin_ns, 1'025'000'000);
+  EXPECT_EQ(start_stamped.end_ns, 1'125'000'000);
+  const ImuInterval end_stamped = SweepImuInterval(1'000'000'000, -0.1, 0.0, -0.01);
+  EXPECT_EQ(end_stamped.begin_ns, 890'000'000);
+  EXPECT_EQ(end_stamped.end_ns, 990'000'000);
+  const ImuInterval after_stamp = SweepImuInterval(1'000'000'000, 0.02, 0.08, 0.0);
+  EXPECT_EQ(after_stamp.begin_ns, 1'000'000'000);
+  EXPECT_EQ(after_stamp.end_ns, 1'080'000'000);
+}
+
 // The true body rate's mean over [t - h, t + h] (Simpson's rule on 200 intervals).
 Eigen::Vector3d MeanTrueRate(const Motion& motion, double t, double h) {
   Eigen::Vector3d sum = motion.omega(t - h) + motion.omega(t + h);

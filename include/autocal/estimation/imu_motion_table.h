@@ -91,5 +91,14 @@ int64_t KeyframeTime(int64_t t_sweep_ns, double first_point_s, double last_point
 // The same for a whole sweep (its stamp when the points have no time).
 int64_t KeyframeTime(const lidar::LidarSweep& sweep, double offset_s);
 
+// The IMU interval of the same sweep's points and its reference instant (point time 0), which
+// its motion table covers together with its keyframe.
+struct ImuInterval {
+  int64_t begin_ns = 0;
+  int64_t end_ns = 0;
+};
+ImuInterval SweepImuInterval(int64_t t_sweep_ns, double first_point_s, double last_point_s,
+                             double offset_s);
+
 }  // namespace estimation
 }  // namespace autocal

@@ -22,6 +22,7 @@
 
 #include "autocal/common/time.h"
 #include "autocal/estimation/estimated_blocks.h"
+#include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe.h"
 #include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
@@ -164,11 +165,9 @@ struct SelectedSweep {
   // The IMU interval a motion table of the sweep from its keyframe at keyframe_ns covers at
   // LiDAR-IMU time offset offset_s: its points, its reference instant (point time 0) and the
   // keyframe.
-  int64_t table_begin_ns(double offset_s, int64_t keyframe_ns) const {
-    return std::min(keyframe_ns, t_ns + SecondsToNs(std::min(0.0, begin_s) + offset_s));
-  }
-  int64_t table_end_ns(double offset_s, int64_t keyframe_ns) const {
-    return std::max(keyframe_ns, t_ns + SecondsToNs(std::max(0.0, end_s) + offset_s));
+  ImuInterval TableInterval(double offset_s, int64_t keyframe_ns) const {
+    const ImuInterval sweep = SweepImuInterval(t_ns, begin_s, end_s, offset_s);
+    return {std::min(keyframe_ns, sweep.begin_ns), std::max(keyframe_ns, sweep.end_ns)};
   }
   double time(int i) const { return static_cast<double>(time_s(i)); }
 };
