@@ -451,8 +451,9 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
     throw Error("dataset " + dataset.directory +
                 ": the calibration solve did not converge to a plausible result (" +
                 Join(implausible, "; ") +
-                "); nothing is written. The drive may not excite these blocks: fix them or "
-                "give them priors in the problem file");
+                "); nothing is written. The drive may not excite these blocks (fix them or give "
+                "them priors in the problem file), or their nominal values lie farther from "
+                "what the drive measures than their stated sigmas allow");
   }
 }
 

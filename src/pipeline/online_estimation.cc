@@ -427,7 +427,8 @@ estimation::CalibrationCovariance CollectResult(
 // of the window's prior sigma, above max_kept_sigma_to_limit times its limit, or zero: the
 // covariance's pseudo-inverse drops an unobservable one) is held at the prior's centre, and
 // the others are conditioned on it. Moves *value (Eq. C1), fills *uncertainty (Eq. C2);
-// returns whether any direction was held.
+// returns whether any direction was held. Throws autocal::Error, as the offline calibration
+// does (RequirePlausible), when a direction ends more than 5 prior sigmas from the prior.
 bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& problem,
                            estimation::SlidingWindowOptions window_options, bool use_wheel,
                            bool use_gnss, const estimation::CalibrationCovariance& covariance,
@@ -478,6 +479,8 @@ bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& proble
       held.matrix(row, row) = block.prior_sigma(k) * block.prior_sigma(k);
     }
   }
+  // The offline calibration's plausibility rule (docs/calibration.md): nothing is written.
+  RequirePlausible(dataset, OfflineCalibrationOptions(), blocks, held);
   const estimation::BlockObservability observability =
       estimation::HoldUnobservableDirections(blocks, held);
   FillUncertainty(blocks, observability, uncertainty);

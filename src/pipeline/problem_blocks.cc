@@ -143,6 +143,7 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
     b.prior = Eigen::Map<const Eigen::VectorXd>(info.const_values(sensors.nominal_calibration),
                                                 info.ambient_size);
     b.prior_sigma = PriorSigma(setting, info.tangent_size, limits.default_prior_sigma, to_tangent);
+    b.prior_stated = setting.mode == io::BlockMode::kPrior || setting.nominal_sigma.has_value();
     b.max_observable_sigma = limits.max_observable_sigma * to_tangent;
     b.max_posterior_to_prior_sigma = o.max_posterior_to_prior_sigma;
     b.max_kept_sigma_to_limit = o.max_kept_sigma_to_limit;

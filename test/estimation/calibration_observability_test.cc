@@ -148,6 +148,35 @@ TEST(CalibrationObservability, NamesInformedDirectionsFarFromTheirPrior) {
   EXPECT_TRUE(ImplausibleDirections(kept, covariance, 5.0).empty());
 }
 
+// Under a stated prior (1 cm) a direction the data narrowed to 6.4 mm is held (above half the
+// prior's sigma), yet the data hold 1.4 times the prior's information: 9 prior sigmas away,
+// the drive contradicts the stated value, and it is judged. Under a weak default prior it is
+// not, and neither is a direction the data leave nearly flat (posterior above 0.9 of the
+// prior's sigma).
+TEST(CalibrationObservability, JudgesAHeldDirectionTheDataContradictUnderAStatedPrior) {
+  const Eigen::Vector3d nominal(-1.0, 0.05, 0.7);
+  Eigen::Vector3d p = nominal + Eigen::Vector3d(-0.09, 0.0, 0.0);
+  std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), nominal, 0.01, 0.02)};
+  blocks[0].prior_stated = true;
+  BlockCovariance covariance;
+  covariance.ok = true;
+  covariance.offsets = {0};
+  covariance.matrix = Eigen::Vector3d(0.0064 * 0.0064, 1e-6, 0.0095 * 0.0095).asDiagonal();
+  ASSERT_FALSE(HoldUnobservableDirections(blocks, covariance).observable[0][0]);  // held
+  p = nominal + Eigen::Vector3d(-0.09, 0.0, 0.0);  // the hold moved it: back to the solve's
+  EXPECT_THAT(ImplausibleDirections(blocks, covariance, 5.0),
+              ::testing::ElementsAre(::testing::HasSubstr("x moved -9 cm")));
+  p.x() = nominal.x() - 0.04;  // 4 prior sigmas: plausible
+  EXPECT_TRUE(ImplausibleDirections(blocks, covariance, 5.0).empty());
+  p.x() = nominal.x() - 0.09;
+  blocks[0].prior_stated = false;  // a weak default: held, not judged
+  EXPECT_TRUE(ImplausibleDirections(blocks, covariance, 5.0).empty());
+  blocks[0].prior_stated = true;
+  p.z() = nominal.z() + 0.09;  // posterior 0.95 of the prior's sigma: nearly flat, not judged
+  EXPECT_THAT(ImplausibleDirections(blocks, covariance, 5.0),
+              ::testing::ElementsAre(::testing::HasSubstr("x moved")));
+}
+
 // Rotation blocks work in the tangent of the right perturbation.
 TEST(CalibrationObservability, RotationBlocksUseTheTangent) {
   const Eigen::Quaterniond nominal = geometry::Exp(Eigen::Vector3d(0.1, -0.2, 0.3));

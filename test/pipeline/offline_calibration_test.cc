@@ -284,6 +284,26 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
   EXPECT_GT(lever_arm_error_m, 4.0 * robust_error_m);
 }
 
+// A nominal lever arm 20 cm off in x, stated to 1 cm: the drive determines the lever arm to
+// about that, so the solve lands many prior sigmas from the stated value. The run is refused
+// with the direction named; a compromise between the data and a wrong prior is not a result.
+TEST_F(OfflineCalibrationTest, RefusesAResultFarOutsideAStatedPrior) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  dataset.sensors.nominal_calibration.p_I_A.x() += 0.20;
+  io::VectorBlockInfo stated;
+  stated.sigma = Eigen::Vector3d::Constant(0.01);
+  dataset.sensors.nominal_uncertainty.p_I_A_m = stated;
+  try {
+    CalibrateDataset(dataset, FullProblem());
+    FAIL() << "a lever arm far outside its stated prior was returned as a result";
+  } catch (const Error& e) {
+    std::cout << e.what() << "\n";
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("did not converge to a plausible result"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("GNSS antenna x lever arm (IMU frame) moved"));
+    EXPECT_THAT(e.what(), ::testing::Not(::testing::HasSubstr("GNSS antenna y lever arm")));
+  }
+}
+
 // A 30 s highway drive (seed 3, about 120 km/h, no turns, traffic around the car) with
 // problems/highway.yaml. The LiDAR odometry does not follow it (a featureless road and cars
 // moving with it): the keyframes are rebuilt from GNSS and the IMU, and the result says so.

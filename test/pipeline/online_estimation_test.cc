@@ -215,6 +215,26 @@ TEST_F(OnlineEstimationTest, ABadNominalGuessEndsWithinTheSameBounds) {
   ExpectOnlineGoals(ErrorsOf(result, dataset, data_->simulator.true_calibration()));
 }
 
+// The offline calibration's plausibility rule on the window's final estimate: a nominal lever
+// arm 40 cm off in x, stated to 2 cm, which the drive contradicts, stops the run with the
+// direction named instead of being held at the stated value (measured: moved 23 cm, 11 prior
+// sigmas; the stream's information about it is 1.3 times the prior's).
+TEST_F(OnlineEstimationTest, RefusesAResultFarOutsideAStatedPrior) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  dataset.sensors.nominal_calibration.p_I_A.x() += 0.40;
+  io::VectorBlockInfo stated;
+  stated.sigma = Eigen::Vector3d::Constant(0.02);
+  dataset.sensors.nominal_uncertainty.p_I_A_m = stated;
+  try {
+    EstimateDatasetOnline(dataset, FullProblem());
+    FAIL() << "a lever arm far outside its stated prior was returned as a result";
+  } catch (const Error& e) {
+    std::cout << e.what() << "\n";
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("did not converge to a plausible result"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("GNSS antenna x lever arm (IMU frame) moved"));
+  }
+}
+
 // An IMU log that starts after the first sweeps: the initializer's first keyframe is a later
 // sweep (of every initializer_sweep_stride-th), and streaming starts with the sweep after it,
 // each one a keyframe a sweep period after the last, none dropped as late.

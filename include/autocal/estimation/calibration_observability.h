@@ -34,6 +34,9 @@ struct EstimatedBlock {
   Eigen::VectorXd prior;  // ambient value of the prior (the nominal calibration)
   std::string prior_source = "the nominal value";  // what the prior's centre is, in words
   Eigen::VectorXd prior_sigma;                     // per tangent direction
+  // The prior's sigma was stated (a problem's prior mode, a dataset's nominal uncertainty),
+  // not a weak default that only keeps the problem regular.
+  bool prior_stated = false;
   // A direction whose posterior sigma exceeds this is not observable.
   double max_observable_sigma = 0.0;
   // It is held at its prior (unexcited) when its posterior sigma exceeds this fraction of its
@@ -104,12 +107,14 @@ struct ErrorBudget {
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
                                const std::vector<ResidualSource>& sources, int num_threads = 1);
 
-// The directions that the data inform (posterior sigma well below the prior's: observable or
-// kept) and whose estimate lies more than max_sigmas prior sigmas from the prior value, as
-// plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a solve
-// that went there did not converge to anything the priors allow. Directions the data do not
-// inform are not judged: they are held at their prior anyway. Without a covariance every
-// direction is judged.
+// The directions that the data inform (observable or kept; or held under a stated prior while
+// the data hold about a quarter or more of its information, posterior sigma at most 0.9 of
+// the prior's) and whose estimate lies more than max_sigmas prior sigmas from the prior value,
+// as plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a
+// solve that went there did not converge to anything the priors allow, or the drive
+// contradicts a stated prior. Other directions are not judged: they may wander in a flat or
+// mismodelled cost and are held at their prior anyway. Without a covariance every direction
+// is judged.
 std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>& blocks,
                                                const BlockCovariance& covariance,
                                                double max_sigmas);
