@@ -1,13 +1,15 @@
 #include "autocal/evaluation/information_bound.h"
 
 #include <Eigen/Geometry>
-#include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <memory>
+#include <optional>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/evaluation/trajectory_errors.h"
+#include "estimation/keyframe_interpolation.h"
 
 namespace autocal {
 namespace evaluation {
@@ -17,21 +19,13 @@ namespace {
 // The true biases at t_ns, linear between the samples around it; false outside them.
 bool BiasAt(const io::ImuBiasTrajectory& biases, int64_t t_ns, Eigen::Vector3d* b_g,
             Eigen::Vector3d* b_a) {
-  const auto after =
-      std::lower_bound(biases.begin(), biases.end(), t_ns,
-                       [](const io::ImuBiasSample& s, int64_t t) { return s.t_ns < t; });
-  if (after == biases.end()) return false;
-  if (after->t_ns == t_ns) {
-    *b_g = after->b_g;
-    *b_a = after->b_a;
-    return true;
-  }
-  if (after == biases.begin()) return false;
-  const io::ImuBiasSample& before = *(after - 1);
-  const double f =
-      static_cast<double>(t_ns - before.t_ns) / static_cast<double>(after->t_ns - before.t_ns);
-  *b_g = before.b_g + f * (after->b_g - before.b_g);
-  *b_a = before.b_a + f * (after->b_a - before.b_a);
+  const std::optional<estimation::internal::Bracket> at =
+      estimation::internal::FindBracket(biases, t_ns, std::numeric_limits<int64_t>::max());
+  if (!at) return false;
+  const io::ImuBiasSample& before = biases[at->first];
+  const io::ImuBiasSample& after = biases[at->second];
+  *b_g = before.b_g + at->s * (after.b_g - before.b_g);
+  *b_a = before.b_a + at->s * (after.b_a - before.b_a);
   return true;
 }
 

@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/keyframe_interpolation.h"
 
 namespace autocal {
 namespace evaluation {
@@ -22,24 +24,21 @@ Eigen::Matrix3d YawRotation(double yaw_rad) {
 
 bool TruthAt(const io::Trajectory& truth, int64_t t_ns, int64_t max_gap_ns,
              io::TrajectorySample* sample, bool* exact) {
-  const auto after =
-      std::lower_bound(truth.begin(), truth.end(), t_ns,
-                       [](const io::TrajectorySample& s, int64_t t) { return s.t_ns < t; });
-  if (after != truth.end() && after->t_ns == t_ns) {
-    *sample = *after;
-    *exact = true;
+  const std::optional<estimation::internal::Bracket> at =
+      estimation::internal::FindBracket(truth, t_ns, max_gap_ns);
+  if (!at) return false;
+  const io::TrajectorySample& before = truth[at->first];
+  const io::TrajectorySample& after = truth[at->second];
+  *exact = at->first == at->second;
+  if (*exact) {
+    *sample = after;
     return true;
   }
-  if (after == truth.begin() || after == truth.end()) return false;
-  const io::TrajectorySample& before = *(after - 1);
-  if (after->t_ns - before.t_ns > max_gap_ns) return false;
-  const double s =
-      static_cast<double>(t_ns - before.t_ns) / static_cast<double>(after->t_ns - before.t_ns);
+  const double s = at->s;
   sample->t_ns = t_ns;
-  sample->T_W_I.p = (1.0 - s) * before.T_W_I.p + s * after->T_W_I.p;
-  sample->T_W_I.q = before.T_W_I.q.slerp(s, after->T_W_I.q).normalized();
-  sample->v_W_I = (1.0 - s) * before.v_W_I + s * after->v_W_I;
-  *exact = false;
+  sample->T_W_I.p = (1.0 - s) * before.T_W_I.p + s * after.T_W_I.p;
+  sample->T_W_I.q = before.T_W_I.q.slerp(s, after.T_W_I.q).normalized();
+  sample->v_W_I = (1.0 - s) * before.v_W_I + s * after.v_W_I;
   return true;
 }
 
