@@ -64,8 +64,7 @@ struct GyroDeskew {
 // reads it.
 struct SweepTimes {
   int64_t t_ns = 0;
-  double begin_s = 0.0;
-  double end_s = 0.0;
+  SweepSpan span;
 };
 
 // Appends sweep k's times; throws autocal::Error when its stamp does not follow the last.
@@ -73,12 +72,7 @@ void AppendSweepTimes(const lidar::LidarSweep& sweep, size_t k, std::vector<Swee
   if (!times->empty() && sweep.t_ns <= times->back().t_ns) {
     throw Error("InitializeLidarImu: sweep stamps must increase (sweep " + std::to_string(k) + ")");
   }
-  const lidar::PointCloud& cloud = sweep.cloud;
-  if (!cloud.has_time()) {
-    times->push_back({sweep.t_ns, 0.0, 0.0});
-  } else {
-    times->push_back({sweep.t_ns, cloud.time_s.minCoeff(), cloud.time_s.maxCoeff()});
-  }
+  times->push_back({sweep.t_ns, SpanOf(sweep)});
 }
 
 bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
@@ -92,9 +86,10 @@ bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
     AppendSweepTimes(sweep, k, times);
     std::optional<Eigen::Vector3d> rate_L;
     if (gyro) {
-      const int64_t t0_ns = sweep.t_ns + SecondsToNs(gyro->offset_s);
-      rate_L = gyro->q_I_L.conjugate() * MeanRate(imu, gyro->gyro_bias_rad_s, t0_ns,
-                                                  t0_ns + SecondsToNs(times->back().end_s));
+      // Over the points' span, which a sweep stamped at its end has before its stamp.
+      const ImuInterval points = SweepImuInterval(sweep.t_ns, times->back().span, gyro->offset_s);
+      rate_L = gyro->q_I_L.conjugate() *
+               MeanRate(imu, gyro->gyro_bias_rad_s, points.begin_ns, points.end_ns);
     }
     try {
       odometry.AddSweep(sweep, rate_L);
@@ -214,8 +209,8 @@ std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
   const int64_t margin_ns = SecondsToNs(options.offset_margin_s);
   for (size_t k = 0; k < sweeps.size(); ++k) {
     const SweepTimes& sweep = sweeps[k];
-    const int64_t t_ns = KeyframeTime(sweep.t_ns, sweep.begin_s, sweep.end_s, offset_s);
-    const ImuInterval points = SweepImuInterval(sweep.t_ns, sweep.begin_s, sweep.end_s, offset_s);
+    const int64_t t_ns = KeyframeTime(sweep.t_ns, sweep.span, offset_s);
+    const ImuInterval points = SweepImuInterval(sweep.t_ns, sweep.span, offset_s);
     if (points.begin_ns - margin_ns < imu.front().t_ns ||
         points.end_ns + margin_ns > imu.back().t_ns) {
       continue;

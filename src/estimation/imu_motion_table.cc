@@ -183,21 +183,23 @@ Eigen::Vector3d ImuMotionTable::MeanRate(int64_t t_ns, const Eigen::Vector3d& at
   return (GyroIntegral(t_ns + half) - GyroIntegral(t_ns - half)) / NsToSeconds(2 * half);
 }
 
-int64_t KeyframeTime(int64_t t_sweep_ns, double first_point_s, double last_point_s,
-                     double offset_s) {
-  return t_sweep_ns + SecondsToNs(offset_s + 0.5 * (first_point_s + last_point_s));
+SweepSpan SpanOf(const lidar::LidarSweep& sweep) {
+  const lidar::PointCloud& cloud = sweep.cloud;
+  if (!cloud.has_time()) return {};
+  return {cloud.time_s.minCoeff(), cloud.time_s.maxCoeff()};
+}
+
+int64_t KeyframeTime(int64_t t_sweep_ns, const SweepSpan& span, double offset_s) {
+  return t_sweep_ns + SecondsToNs(offset_s + 0.5 * (span.first_s + span.last_s));
 }
 
 int64_t KeyframeTime(const lidar::LidarSweep& sweep, double offset_s) {
-  const lidar::PointCloud& cloud = sweep.cloud;
-  if (!cloud.has_time()) return KeyframeTime(sweep.t_ns, 0.0, 0.0, offset_s);
-  return KeyframeTime(sweep.t_ns, cloud.time_s.minCoeff(), cloud.time_s.maxCoeff(), offset_s);
+  return KeyframeTime(sweep.t_ns, SpanOf(sweep), offset_s);
 }
 
-ImuInterval SweepImuInterval(int64_t t_sweep_ns, double first_point_s, double last_point_s,
-                             double offset_s) {
-  return {t_sweep_ns + SecondsToNs(std::min(0.0, first_point_s) + offset_s),
-          t_sweep_ns + SecondsToNs(std::max(0.0, last_point_s) + offset_s)};
+ImuInterval SweepImuInterval(int64_t t_sweep_ns, const SweepSpan& span, double offset_s) {
+  return {t_sweep_ns + SecondsToNs(std::min(0.0, span.first_s) + offset_s),
+          t_sweep_ns + SecondsToNs(std::max(0.0, span.last_s) + offset_s)};
 }
 
 }  // namespace estimation

@@ -236,7 +236,7 @@ SweepsAtEstimate PropagateSweeps(const BatchInputs& in) {
     CheckSweepMotionCovered(in, table.begin_ns, table.end_ns);
     // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
     out.tables[k].emplace(in.imu, table.begin_ns, table.end_ns, kf.b_g, kf.b_a,
-                          SecondsToNs(s.end_s - s.begin_s), kf.t_ns);
+                          SecondsToNs(s.span.length_s()), kf.t_ns);
     out.reference_motion[k] = out.tables[k]->At(in.sweeps[k].t_ns + SecondsToNs(offset_lin));
     out.T_W_L[k] = internal::SweepLidarPose(kf, out.reference_motion[k], in.g_W,
                                             in.calibration->q_I_L, in.calibration->p_I_L);
@@ -484,8 +484,7 @@ SelectedSweep SelectForBatch(const lidar::LidarSweep& sweep, const PairingOption
   };
   SelectedSweep out;
   out.t_ns = sweep.t_ns;
-  out.begin_s = cloud.time_s.minCoeff();
-  out.end_s = cloud.time_s.maxCoeff();
+  out.span = SpanOf(sweep);
   out.points.resize(3, static_cast<Eigen::Index>(kept.size()));
   out.time_s.resize(static_cast<Eigen::Index>(kept.size()));
   for (size_t i = 0; i < kept.size(); ++i) {

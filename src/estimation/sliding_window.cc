@@ -368,10 +368,9 @@ bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const 
 void SlidingWindowEstimator::Impl::ProcessCoveredSweeps() {
   while (!pending_sweeps_.empty() && !imu_.empty()) {
     const lidar::LidarSweep& sweep = pending_sweeps_.front();
-    const double duration_s = sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
     const int64_t needed_ns =
-        sweep.t_ns + SecondsToNs(duration_s + calibration_.time_offset_lidar_imu_s +
-                                 options_.imu_coverage_margin_s);
+        SweepImuInterval(sweep.t_ns, SpanOf(sweep), calibration_.time_offset_lidar_imu_s).end_ns +
+        SecondsToNs(options_.imu_coverage_margin_s);
     if (imu_.back().t_ns < needed_ns) return;
     lidar::LidarSweep covered = std::move(pending_sweeps_.front());
     pending_sweeps_.pop_front();

@@ -201,7 +201,7 @@ struct SlidingWindowEstimator::Impl::WindowKeyframe {
   SlidingWindowState state;
   // The sweep that made this keyframe (none for the initial keyframe) and its chosen points.
   std::optional<lidar::LidarSweep> sweep;
-  double sweep_duration_s = 0.0;
+  SweepSpan sweep_span;
   internal::ResidualPoints residuals;
   std::vector<int> map_points;
   // Preintegration from the previous keyframe (none for the oldest in the window).

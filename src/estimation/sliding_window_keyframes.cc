@@ -65,7 +65,7 @@ void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
     res.ranges_m[r] = sweep.cloud.points.col(i).norm();
     res.max_range_m = std::max(res.max_range_m, res.ranges_m[r]);
   }
-  kf->sweep_duration_s = sweep.cloud.has_time() ? sweep.cloud.time_s.maxCoeff() : 0.0;
+  kf->sweep_span = SpanOf(sweep);
   kf->sweep = std::move(sweep);
 }
 
@@ -338,10 +338,9 @@ void SlidingWindowEstimator::Impl::DropOldest(std::unique_ptr<MarginalizationPri
 void SlidingWindowEstimator::Impl::TrimImuBuffer() {
   const WindowKeyframe& oldest = *window_.front();
   int64_t oldest_ns = oldest.state.t_ns;
-  if (oldest.sweep && oldest.sweep->cloud.has_time()) {
-    const ImuInterval points =
-        SweepImuInterval(oldest.sweep->t_ns, oldest.sweep->cloud.time_s.minCoeff(),
-                         oldest.sweep_duration_s, calibration_.time_offset_lidar_imu_s);
+  if (oldest.sweep) {
+    const ImuInterval points = SweepImuInterval(oldest.sweep->t_ns, oldest.sweep_span,
+                                                calibration_.time_offset_lidar_imu_s);
     oldest_ns = std::min(oldest_ns, points.begin_ns - SecondsToNs(options_.imu_coverage_margin_s));
   }
   auto first_after =

@@ -51,7 +51,7 @@ void SlidingWindowEstimator::Impl::AssociatePoints() {
   std::vector<internal::PairingSweep> sweeps;
   for (const auto& kf : window_) {
     if (!kf->sweep) continue;
-    sweeps.push_back({kf->id, &kf->state, &*kf->sweep, kf->sweep_duration_s, &kf->residuals,
+    sweeps.push_back({kf->id, &kf->state, &*kf->sweep, kf->sweep_span, &kf->residuals,
                       &kf->map_points, &kf->map, &kf->pairing, &kf->point_groups});
   }
   internal::PairingUpdate update;
@@ -213,10 +213,11 @@ std::vector<double> SlidingWindowEstimator::Impl::PointGroupMotions() const {
       const double dt_s = calibration_.time_offset_lidar_imu_s - l.offset_s;
       const geometry::Pose3d T_W_Lk = LidarPose(kf.state, calibration_, rates_I[k], dt_s);
       const geometry::Pose3d T_W_Lj = LidarPose(partner.state, calibration_, rates_I[j], dt_s);
-      // The deskew within each sweep moves a point by at most its velocity's change times the
-      // sweep's duration.
-      const double deskew_m = (kf.state.v_W_I - l.v_W_Ik).norm() * kf.sweep_duration_s +
-                              (partner.state.v_W_I - l.v_W_Ij).norm() * partner.sweep_duration_s;
+      // The deskew within each sweep moves a point by at most its velocity's change times its
+      // time from the sweep's stamp.
+      const double deskew_m =
+          (kf.state.v_W_I - l.v_W_Ik).norm() * kf.sweep_span.reach_s() +
+          (partner.state.v_W_I - l.v_W_Ij).norm() * partner.sweep_span.reach_s();
       motions.push_back(internal::MaxPointMotion(l.T_W_Lj.Inverse() * l.T_W_Lk,
                                                  T_W_Lj.Inverse() * T_W_Lk,
                                                  kf.residuals.max_range_m) +

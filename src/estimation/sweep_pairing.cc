@@ -99,20 +99,19 @@ void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingOptions& set
   const lidar::LidarSweep& sweep = *f->s.sweep;
   // The table covers the keyframe, the sweep's reference instant and its points at the offset
   // estimate (clamped to the IMU held).
-  const double first_s = sweep.cloud.has_time() ? sweep.cloud.time_s.minCoeff() : 0.0;
-  const ImuInterval points = SweepImuInterval(sweep.t_ns, first_s, f->s.duration_s, offset_s);
+  const ImuInterval points = SweepImuInterval(sweep.t_ns, f->s.span, offset_s);
   const int64_t begin_ns = std::clamp(points.begin_ns, u.imu->front().t_ns, x.t_ns);
   const int64_t end_ns = std::clamp(points.end_ns, x.t_ns, u.imu->back().t_ns);
   // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
-  const double span_s = f->s.duration_s - first_s;
-  f->table.emplace(*u.imu, begin_ns, end_ns, x.b_g, x.b_a, SecondsToNs(span_s), x.t_ns);
+  f->table.emplace(*u.imu, begin_ns, end_ns, x.b_g, x.b_a, SecondsToNs(f->s.span.length_s()),
+                   x.t_ns);
   f->reference_motion = f->MotionAt(0.0, offset_s);
   f->T_W_Lj = SweepLidarPose(x, f->reference_motion, u.g_W, c.q_I_L, c.p_I_L);
   f->T_Lj_W = f->T_W_Lj.Inverse();
-  // The deskew's pose at the sweep's last point, T_L0_L(tau_max).
+  // The deskew's pose at the sweep's point farthest from its stamp, T_L0_L(tau_max).
   const geometry::Pose3d deskew_end =
       f->T_Lj_W *
-      SweepLidarPose(x, f->MotionAt(f->s.duration_s, offset_s), u.g_W, c.q_I_L, c.p_I_L);
+      SweepLidarPose(x, f->MotionAt(f->s.span.farthest_s(), offset_s), u.g_W, c.q_I_L, c.p_I_L);
   SweepMap& map = *f->s.map;
   if (map.planes &&
       MaxPointMotion(map.deskew_end, deskew_end, map.max_range_m) <= rebuild_tolerance_m) {

@@ -126,8 +126,8 @@ struct ResidualPoints {
 };
 
 // A sweep's plane map in its LiDAR frame at the reference instant (point time 0), and the
-// sweep's motion in that frame to its last point, T_L0_L(tau_max), it was deskewed with
-// (Eq. W1).
+// sweep's motion in that frame to its point farthest from the stamp, T_L0_L(tau_max), it was
+// deskewed with (Eq. W1).
 struct SweepMap {
   std::unique_ptr<lidar::PlaneMap> planes;
   geometry::Pose3d deskew_end;
@@ -167,7 +167,7 @@ struct PairingSweep {
   int id = 0;  // keyframe id: partners are the keyframes id + offset
   Keyframe* state = nullptr;
   const lidar::LidarSweep* sweep = nullptr;
-  double duration_s = 0.0;
+  SweepSpan span;
   const ResidualPoints* residuals = nullptr;
   const std::vector<int>* map_points = nullptr;
   SweepMap* map = nullptr;

@@ -107,8 +107,8 @@ TEST(ImuMotionTable, MeasuresMotionFromAnOriginInsideTheTable) {
 // Eq. P1c: the keyframe time is the IMU time of the middle of the sweep's points, the stamp
 // for a sweep without point times.
 TEST(KeyframeTime, SitsAtTheMiddleOfTheSweepsPoints) {
-  EXPECT_EQ(KeyframeTime(1'000'000'000, 0.0, 0.1, 0.025), 1'075'000'000);
-  EXPECT_EQ(KeyframeTime(1'000'000'000, -0.1, 0.0, -0.01), 940'000'000);
+  EXPECT_EQ(KeyframeTime(1'000'000'000, SweepSpan{0.0, 0.1}, 0.025), 1'075'000'000);
+  EXPECT_EQ(KeyframeTime(1'000'000'000, SweepSpan{-0.1, 0.0}, -0.01), 940'000'000);
   lidar::LidarSweep sweep;
   sweep.t_ns = 2'000'000'000;
   sweep.cloud.points = Eigen::Matrix3Xd::Ones(3, 3);
@@ -121,15 +121,35 @@ TEST(KeyframeTime, SitsAtTheMiddleOfTheSweepsPoints) {
 // The IMU interval a sweep's motion table must cover besides its keyframe: the points and the
 // reference instant (point time 0), whichever side of the stamp they lie on.
 TEST(SweepImuInterval, CoversThePointsAndTheReferenceInstant) {
-  const ImuInterval start_stamped = SweepImuInterval(1'000'000'000, 0.0, 0.1, 0.025);
+  const ImuInterval start_stamped = SweepImuInterval(1'000'000'000, SweepSpan{0.0, 0.1}, 0.025);
   EXPECT_EQ(start_stamped.begin_ns, 1'025'000'000);
   EXPECT_EQ(start_stamped.end_ns, 1'125'000'000);
-  const ImuInterval end_stamped = SweepImuInterval(1'000'000'000, -0.1, 0.0, -0.01);
+  const ImuInterval end_stamped = SweepImuInterval(1'000'000'000, SweepSpan{-0.1, 0.0}, -0.01);
   EXPECT_EQ(end_stamped.begin_ns, 890'000'000);
   EXPECT_EQ(end_stamped.end_ns, 990'000'000);
-  const ImuInterval after_stamp = SweepImuInterval(1'000'000'000, 0.02, 0.08, 0.0);
+  const ImuInterval after_stamp = SweepImuInterval(1'000'000'000, SweepSpan{0.02, 0.08}, 0.0);
   EXPECT_EQ(after_stamp.begin_ns, 1'000'000'000);
   EXPECT_EQ(after_stamp.end_ns, 1'080'000'000);
+}
+
+// The deskew reaches farthest at the point farthest from the stamp: the last for a sweep
+// stamped at its start, the first for one stamped at its end.
+TEST(SweepSpan, ReachesFromTheStampToTheFarthestPoint) {
+  const SweepSpan start_stamped{0.0, 0.1};
+  EXPECT_EQ(start_stamped.farthest_s(), 0.1);
+  EXPECT_EQ(start_stamped.reach_s(), 0.1);
+  EXPECT_NEAR(start_stamped.length_s(), 0.1, 1e-17);
+  const SweepSpan end_stamped{-0.1, -0.001};
+  EXPECT_EQ(end_stamped.farthest_s(), -0.1);
+  EXPECT_EQ(end_stamped.reach_s(), 0.1);
+  EXPECT_NEAR(end_stamped.length_s(), 0.099, 1e-15);
+  lidar::LidarSweep sweep;
+  sweep.cloud.points = Eigen::Matrix3Xd::Ones(3, 3);
+  EXPECT_EQ(SpanOf(sweep).reach_s(), 0.0);  // no point times: the stamp alone
+  sweep.cloud.time_s = Eigen::VectorXd(3);
+  sweep.cloud.time_s << -0.02, -0.09, -0.05;
+  EXPECT_EQ(SpanOf(sweep).first_s, -0.09);
+  EXPECT_EQ(SpanOf(sweep).last_s, -0.02);
 }
 
 // The true body rate's mean over [t - h, t + h] (Simpson's rule on 200 intervals).

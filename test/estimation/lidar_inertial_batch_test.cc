@@ -178,13 +178,14 @@ TEST_F(LidarInertialBatchTest, NamesAnOffsetThatLeavesTheImuBehind) {
 }
 
 // A reduced sweep holds exactly the selected points, in single precision, each index pointing
-// at the point the whole sweep's selection names, and the whole sweep's last point time.
+// at the point the whole sweep's selection names, and the whole sweep's point time span.
 TEST_F(LidarInertialBatchTest, SelectForBatchKeepsTheSelectedPointsOnly) {
   const lidar::LidarSweep& whole = log_->sweeps[200];
   const PairingOptions pairing = BatchPairingDefaults();
   const SelectedSweep reduced = SelectForBatch(whole, pairing);
   EXPECT_EQ(reduced.t_ns, whole.t_ns);
-  EXPECT_EQ(reduced.end_s, whole.cloud.time_s.maxCoeff());
+  EXPECT_EQ(reduced.span.first_s, whole.cloud.time_s.minCoeff());
+  EXPECT_EQ(reduced.span.last_s, whole.cloud.time_s.maxCoeff());
   EXPECT_LT(reduced.points.cols(), whole.cloud.size() / 2);
   EXPECT_EQ(reduced.time_s.size(), reduced.points.cols());
   EXPECT_FALSE(reduced.residual_points.empty());

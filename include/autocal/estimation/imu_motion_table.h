@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -82,13 +83,25 @@ class ImuMotionTable {
   std::vector<RateKnot> rate_knots_;  // over the table and half a window on each side
 };
 
+// The times of a sweep's first and last points after its stamp, both 0 when its points carry
+// no time; negative for a sweep stamped at its end. Read from the cloud once (SpanOf) and
+// kept with the sweep: its keyframe time, IMU interval and deskew span follow from them.
+struct SweepSpan {
+  double first_s = 0.0;
+  double last_s = 0.0;
+  double length_s() const { return last_s - first_s; }
+  // The time of the point farthest from the stamp (where the deskew reaches farthest), and its
+  // distance from the stamp.
+  double farthest_s() const { return std::abs(first_s) > std::abs(last_s) ? first_s : last_s; }
+  double reach_s() const { return std::abs(farthest_s()); }
+};
+SweepSpan SpanOf(const lidar::LidarSweep& sweep);
+
 // A sweep's keyframe time: for a sweep stamped t_sweep_ns (LiDAR clock) whose points span
-// [first_point_s, last_point_s] after the stamp, at LiDAR-IMU time offset offset_s, the IMU
-// time of the span's middle, where the attitude error its points share through their motion
-// table is smallest (docs/estimation.md, Eq. P1c).
-int64_t KeyframeTime(int64_t t_sweep_ns, double first_point_s, double last_point_s,
-                     double offset_s);
-// The same for a whole sweep (its stamp when the points have no time).
+// `span`, at LiDAR-IMU time offset offset_s, the IMU time of the span's middle, where the
+// attitude error its points share through their motion table is smallest (docs/estimation.md,
+// Eq. P1c).
+int64_t KeyframeTime(int64_t t_sweep_ns, const SweepSpan& span, double offset_s);
 int64_t KeyframeTime(const lidar::LidarSweep& sweep, double offset_s);
 
 // The IMU interval of the same sweep's points and its reference instant (point time 0), which
@@ -97,8 +110,7 @@ struct ImuInterval {
   int64_t begin_ns = 0;
   int64_t end_ns = 0;
 };
-ImuInterval SweepImuInterval(int64_t t_sweep_ns, double first_point_s, double last_point_s,
-                             double offset_s);
+ImuInterval SweepImuInterval(int64_t t_sweep_ns, const SweepSpan& span, double offset_s);
 
 }  // namespace estimation
 }  // namespace autocal

@@ -154,8 +154,7 @@ struct LidarInertialBatchReport {
 // a quarter of their size (0.22 of 0.97 MB for 32 beams), instead of whole.
 struct SelectedSweep {
   int64_t t_ns = 0;
-  double begin_s = 0.0;              // the whole sweep's first point time after t_ns
-  double end_s = 0.0;                // the whole sweep's last point time after t_ns
+  SweepSpan span;                    // the whole sweep's, not only the selected points'
   Eigen::Matrix3Xf points;           // in L
   Eigen::VectorXf time_s;            // after t_ns
   std::vector<int> residual_points;  // indices into points
@@ -166,7 +165,7 @@ struct SelectedSweep {
   // LiDAR-IMU time offset offset_s: its points, its reference instant (point time 0) and the
   // keyframe.
   ImuInterval TableInterval(double offset_s, int64_t keyframe_ns) const {
-    const ImuInterval sweep = SweepImuInterval(t_ns, begin_s, end_s, offset_s);
+    const ImuInterval sweep = SweepImuInterval(t_ns, span, offset_s);
     return {std::min(keyframe_ns, sweep.begin_ns), std::max(keyframe_ns, sweep.end_ns)};
   }
   double time(int i) const { return static_cast<double>(time_s(i)); }
