@@ -45,16 +45,18 @@ bool Informed(const EstimatedBlock& block, int i, double posterior_sigma) {
 
 // Direction i of a block is judged for plausibility when the data inform it (Informed), or
 // when its prior was stated and the data hold about a quarter or more of the prior's
-// information (posterior sigma at most 0.9 of the prior's): the drive then contradicts what
-// the user stated, and holding the stated value would hide it. Under a weak default prior a
-// held direction may wander in a flat or mismodelled cost (docs/calibration.md, "A solve
-// that ends ...").
+// information (posterior sigma at most 0.9 of the prior's) and determine it within
+// max_kept_sigma_to_limit times its limit: the drive then contradicts what the user stated,
+// and holding the stated value would hide it. Under a weak default prior, or determined more
+// weakly than that, a held direction may wander in a flat or mismodelled cost
+// (docs/calibration.md, "A solve that ends ...").
 constexpr double kMaxJudgedPosteriorToPriorSigma = 0.9;
 
 bool Judged(const EstimatedBlock& block, int i, double posterior_sigma) {
   return Informed(block, i, posterior_sigma) ||
          (block.prior_stated &&
-          posterior_sigma <= kMaxJudgedPosteriorToPriorSigma * block.prior_sigma(i));
+          posterior_sigma <= kMaxJudgedPosteriorToPriorSigma * block.prior_sigma(i) &&
+          posterior_sigma <= block.max_kept_sigma_to_limit * block.max_observable_sigma);
 }
 
 void Step(const EstimatedBlock& block, const Eigen::VectorXd& step) {

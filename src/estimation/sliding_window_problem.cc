@@ -183,10 +183,11 @@ double SlidingWindowEstimator::Impl::last_point_rms_m() const {
 
 // Eq. W6: how far each point group's points moved since the group was linearized: its two
 // sweeps' relative motion, bounded as in Eq. W1 at the range of the keyframe's farthest
-// residual point, plus the change of each sweep's deskew (its velocity's change times its
-// duration). A sweep's LiDAR pose is T_W_I T_I_L at its keyframe, moved by the change of the
-// time offset since at the keyframe's velocity and at its mean angular rate over the interval
-// from the previous keyframe (to the next, for the oldest).
+// residual point, plus the change of each sweep's deskew (its velocity's change times the
+// time from its stamp to its farthest point, SweepSpan::reach_s). A sweep's LiDAR pose is T_W_I
+// T_I_L at its keyframe, moved by the change of the time offset since at the keyframe's velocity
+// and at its mean angular rate over the interval from the previous keyframe (to the next, for the
+// oldest).
 std::vector<double> SlidingWindowEstimator::Impl::PointGroupMotions() const {
   const size_t n = window_.size();
   std::vector<Eigen::Vector3d> rates_I(n, Eigen::Vector3d::Zero());

@@ -151,8 +151,8 @@ TEST(CalibrationObservability, NamesInformedDirectionsFarFromTheirPrior) {
 // Under a stated prior (1 cm) a direction the data narrowed to 6.4 mm is held (above half the
 // prior's sigma), yet the data hold 1.4 times the prior's information: 9 prior sigmas away,
 // the drive contradicts the stated value, and it is judged. Under a weak default prior it is
-// not, and neither is a direction the data leave nearly flat (posterior above 0.9 of the
-// prior's sigma).
+// not, nor a direction the data leave nearly flat (posterior above 0.9 of the prior's sigma),
+// nor one determined more weakly than 4 times its limit.
 TEST(CalibrationObservability, JudgesAHeldDirectionTheDataContradictUnderAStatedPrior) {
   const Eigen::Vector3d nominal(-1.0, 0.05, 0.7);
   Eigen::Vector3d p = nominal + Eigen::Vector3d(-0.09, 0.0, 0.0);
@@ -175,6 +175,8 @@ TEST(CalibrationObservability, JudgesAHeldDirectionTheDataContradictUnderAStated
   p.z() = nominal.z() + 0.09;  // posterior 0.95 of the prior's sigma: nearly flat, not judged
   EXPECT_THAT(ImplausibleDirections(blocks, covariance, 5.0),
               ::testing::ElementsAre(::testing::HasSubstr("x moved")));
+  blocks[0].max_observable_sigma = 0.001;  // 6.4 mm is above 4 times a 1 mm limit
+  EXPECT_TRUE(ImplausibleDirections(blocks, covariance, 5.0).empty());
 }
 
 // Rotation blocks work in the tangent of the right perturbation.

@@ -109,12 +109,12 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
 
 // The directions that the data inform (observable or kept; or held under a stated prior while
 // the data hold about a quarter or more of its information, posterior sigma at most 0.9 of
-// the prior's) and whose estimate lies more than max_sigmas prior sigmas from the prior value,
-// as plain-language lines ("... moved 41.2 deg from the nominal value, 8.2 prior sigmas"): a
-// solve that went there did not converge to anything the priors allow, or the drive
-// contradicts a stated prior. Other directions are not judged: they may wander in a flat or
-// mismodelled cost and are held at their prior anyway. Without a covariance every direction
-// is judged.
+// the prior's and at most max_kept_sigma_to_limit times the limit) and whose estimate lies more
+// than max_sigmas prior sigmas from the prior value, as plain-language lines ("... moved 41.2 deg
+// from the nominal value, 8.2 prior sigmas"): a solve that went there did not converge to anything
+// the priors allow, or the drive contradicts a stated prior. Other directions are not judged: they
+// may wander in a flat or mismodelled cost and are held at their prior anyway. Without a covariance
+// every direction is judged.
 std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>& blocks,
                                                const BlockCovariance& covariance,
                                                double max_sigmas);
