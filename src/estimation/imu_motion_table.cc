@@ -202,5 +202,11 @@ ImuInterval SweepImuInterval(int64_t t_sweep_ns, const SweepSpan& span, double o
           t_sweep_ns + SecondsToNs(std::max(0.0, span.last_s) + offset_s)};
 }
 
+ImuInterval MotionTableInterval(int64_t t_sweep_ns, const SweepSpan& span, double offset_s,
+                                int64_t keyframe_ns) {
+  const ImuInterval sweep = SweepImuInterval(t_sweep_ns, span, offset_s);
+  return {std::min(keyframe_ns, sweep.begin_ns), std::max(keyframe_ns, sweep.end_ns)};
+}
+
 }  // namespace estimation
 }  // namespace autocal

@@ -99,9 +99,9 @@ void RefreshMap(SweepFrame* f, const PairingUpdate& u, const PairingOptions& set
   const lidar::LidarSweep& sweep = *f->s.sweep;
   // The table covers the keyframe, the sweep's reference instant and its points at the offset
   // estimate (clamped to the IMU held).
-  const ImuInterval points = SweepImuInterval(sweep.t_ns, f->s.span, offset_s);
-  const int64_t begin_ns = std::clamp(points.begin_ns, u.imu->front().t_ns, x.t_ns);
-  const int64_t end_ns = std::clamp(points.end_ns, x.t_ns, u.imu->back().t_ns);
+  const ImuInterval table = MotionTableInterval(sweep.t_ns, f->s.span, offset_s, x.t_ns);
+  const int64_t begin_ns = std::max(table.begin_ns, u.imu->front().t_ns);
+  const int64_t end_ns = std::min(table.end_ns, u.imu->back().t_ns);
   // The offset's rate: the mean over a sweep's span about each point (Eq. P1b).
   f->table.emplace(*u.imu, begin_ns, end_ns, x.b_g, x.b_a, SecondsToNs(f->s.span.length_s()),
                    x.t_ns);

@@ -111,6 +111,10 @@ struct ImuInterval {
   int64_t end_ns = 0;
 };
 ImuInterval SweepImuInterval(int64_t t_sweep_ns, const SweepSpan& span, double offset_s);
+// The interval a motion table of that sweep from its keyframe at keyframe_ns covers: the
+// sweep's IMU interval and the keyframe.
+ImuInterval MotionTableInterval(int64_t t_sweep_ns, const SweepSpan& span, double offset_s,
+                                int64_t keyframe_ns);
 
 }  // namespace estimation
 }  // namespace autocal

@@ -165,8 +165,7 @@ struct SelectedSweep {
   // LiDAR-IMU time offset offset_s: its points, its reference instant (point time 0) and the
   // keyframe.
   ImuInterval TableInterval(double offset_s, int64_t keyframe_ns) const {
-    const ImuInterval sweep = SweepImuInterval(t_ns, span, offset_s);
-    return {std::min(keyframe_ns, sweep.begin_ns), std::max(keyframe_ns, sweep.end_ns)};
+    return MotionTableInterval(t_ns, span, offset_s, keyframe_ns);
   }
   double time(int i) const { return static_cast<double>(time_s(i)); }
 };
