@@ -289,10 +289,7 @@ TEST_F(OfflineCalibrationTest, WithoutRobustLossesTheOutliersDoDamage) {
 // with the direction named; a compromise between the data and a wrong prior is not a result.
 TEST_F(OfflineCalibrationTest, RefusesAResultFarOutsideAStatedPrior) {
   io::Dataset dataset = io::ReadDataset(data_->directory);
-  dataset.sensors.nominal_calibration.p_I_A.x() += 0.20;
-  io::VectorBlockInfo stated;
-  stated.sigma = Eigen::Vector3d::Constant(0.01);
-  dataset.sensors.nominal_uncertainty.p_I_A_m = stated;
+  test::MisstateNominalLeverArm(&dataset.sensors, 0.20, 0.01);
   try {
     CalibrateDataset(dataset, FullProblem());
     FAIL() << "a lever arm far outside its stated prior was returned as a result";

@@ -221,10 +221,7 @@ TEST_F(OnlineEstimationTest, ABadNominalGuessEndsWithinTheSameBounds) {
 // sigmas; the stream's information about it is 1.3 times the prior's).
 TEST_F(OnlineEstimationTest, RefusesAResultFarOutsideAStatedPrior) {
   io::Dataset dataset = io::ReadDataset(data_->directory);
-  dataset.sensors.nominal_calibration.p_I_A.x() += 0.40;
-  io::VectorBlockInfo stated;
-  stated.sigma = Eigen::Vector3d::Constant(0.02);
-  dataset.sensors.nominal_uncertainty.p_I_A_m = stated;
+  test::MisstateNominalLeverArm(&dataset.sensors, 0.40, 0.02);
   try {
     EstimateDatasetOnline(dataset, FullProblem());
     FAIL() << "a lever arm far outside its stated prior was returned as a result";

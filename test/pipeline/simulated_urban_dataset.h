@@ -72,6 +72,16 @@ inline void SpoilNominalGuess(io::SensorsConfig* config) {
   config->nominal_uncertainty.time_offset_lidar_imu_s = io::ScalarBlockInfo();
 }
 
+// A wrong nominal lever arm stated with confidence: moved dx_m along x and stated to sigma_m on
+// every axis, a prior the drive contradicts when dx_m is many sigma_m (the tests of the
+// plausibility refusal).
+inline void MisstateNominalLeverArm(io::SensorsConfig* config, double dx_m, double sigma_m) {
+  config->nominal_calibration.p_I_A.x() += dx_m;
+  io::VectorBlockInfo stated;
+  stated.sigma = Eigen::Vector3d::Constant(sigma_m);
+  config->nominal_uncertainty.p_I_A_m = stated;
+}
+
 // Where the dataset lives: kCached, once per test program and build, shared by its tests
 // (for fixtures: ctest runs each test in its own process); kPrivate, a copy of this object's
 // own, removed with it (for a long drive simulated once, whose copy would only take disk
