@@ -267,6 +267,7 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<Sw
 
 CalibrationInitializerOptions RefinedLaterInitializerOptions() {
   CalibrationInitializerOptions o;
+  o.odometry.voxel_m = 0.4;
   o.odometry.registration_voxel_m = 1.0;
   o.odometry.icp.convergence.translation_m = 1e-3;
   o.odometry.icp.convergence.rotation_rad = 1e-4;

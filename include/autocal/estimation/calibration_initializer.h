@@ -171,9 +171,10 @@ struct CalibrationInitialization {
 
 // Settings for a caller that refines the initializer's rotation and offset afterwards (the
 // offline batch, the sliding window): the odometry runs once, without the gyro-deskewed
-// repetition, registering each sweep on a 1 m grid of its points (the map keeps 0.25 m) and
-// stopping its ICP at steps below 1 mm and 0.1 mrad: a start the caller refines anyway
-// (figures in docs/history/initialization.md, "Figures formerly in calibration_initializer.h").
+// repetition, registering each sweep on a 1 m grid of its points against a map on a 0.4 m
+// grid (about 20 centroids of a plane within the 1 m of its normals) and stopping its ICP at
+// steps below 1 mm and 0.1 mrad: a start the caller refines anyway (figures in
+// docs/history/initialization.md, "Figures formerly in calibration_initializer.h").
 CalibrationInitializerOptions RefinedLaterInitializerOptions();
 
 // Runs the chain. Throws autocal::Error only on malformed input (unsorted stamps); poor
