@@ -27,23 +27,24 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// q and mean: quaternions [x, y, z, w].
-AttachedFactor QuaternionPrior(double* q, const double* mean, double sigma_rad,
+// q and mean: quaternions [x, y, z, w]; one sigma per tangent axis.
+AttachedFactor QuaternionPrior(double* q, const double* mean, const Eigen::Vector3d& sigma_rad,
                                ceres::LossFunction* loss) {
   AttachedFactor f;
   f.cost = std::make_unique<factors::QuaternionPriorFactor>(
       Eigen::Map<const Eigen::Quaterniond>(mean).normalized(),
-      Eigen::Matrix3d::Identity() / sigma_rad);
+      Eigen::Matrix3d(sigma_rad.cwiseInverse().asDiagonal()));
   f.loss = loss;
   f.blocks = {q};
   return f;
 }
 
-AttachedFactor VectorPrior(double* x, const double* mean, int size, double sigma,
+AttachedFactor VectorPrior(double* x, const double* mean, const Eigen::VectorXd& sigma,
                            ceres::LossFunction* loss) {
   AttachedFactor f;
   f.cost = std::make_unique<factors::VectorPriorFactor>(
-      Eigen::Map<const Eigen::VectorXd>(mean, size), Eigen::MatrixXd::Identity(size, size) / sigma);
+      Eigen::Map<const Eigen::VectorXd>(mean, sigma.size()),
+      Eigen::MatrixXd(sigma.cwiseInverse().asDiagonal()));
   f.loss = loss;
   f.blocks = {x};
   return f;
@@ -187,10 +188,10 @@ void SlidingWindowEstimator::Impl::AddCalibrationPriors(
     if (!Estimated(info.id, options_.estimate)) continue;
     double* x = info.values(&calibration_);
     const double* m = info.const_values(mean);
-    calibration_priors_.push_back(
-        info.manifold == sensors::BlockManifold::kRightQuaternion
-            ? QuaternionPrior(x, m, PriorSigmaOf(info.id, c) * kDegToRad, prior_loss_.get())
-            : VectorPrior(x, m, info.tangent_size, PriorSigmaOf(info.id, c), prior_loss_.get()));
+    const Eigen::VectorXd sigma = PriorSigmasOf(info.id, c);
+    calibration_priors_.push_back(info.manifold == sensors::BlockManifold::kRightQuaternion
+                                      ? QuaternionPrior(x, m, sigma * kDegToRad, prior_loss_.get())
+                                      : VectorPrior(x, m, sigma, prior_loss_.get()));
   }
 }
 

@@ -45,10 +45,14 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
               "the IMU clock; estimate the offsets offline)");
 }
 
-double PriorSigmaOf(sensors::CalibrationBlockId id, const SlidingWindowCalibrationPrior& prior) {
+Eigen::VectorXd PriorSigmasOf(sensors::CalibrationBlockId id,
+                              const SlidingWindowCalibrationPrior& prior) {
   SlidingWindowEstimatedBlocks unused;
   SlidingWindowCalibrationPrior p = prior;
-  return *BlockSettingOf(id, &unused, &p).prior_sigma;
+  const double sigma = *BlockSettingOf(id, &unused, &p).prior_sigma;
+  const auto axes = prior.axis_sigmas.find(id);
+  if (axes != prior.axis_sigmas.end()) return axes->second;
+  return Eigen::VectorXd::Constant(sensors::CalibrationBlock(id).tangent_size, sigma);
 }
 
 bool WindowSupports(sensors::CalibrationBlockId id) {

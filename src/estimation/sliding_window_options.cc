@@ -8,6 +8,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/sliding_window_blocks.h"
 #include "estimation/sliding_window_internal.h"
 
 namespace autocal {
@@ -87,6 +88,14 @@ void CheckPriors(const SlidingWindowCalibrationPrior& c, const SlidingWindowInit
        {c.extrinsic_rotation_deg, c.extrinsic_translation_m, c.time_offset_s, c.wheel_radius_m,
         c.track_width_m, c.vehicle_rotation_deg, c.vehicle_translation_m, c.gnss_lever_arm_m}) {
     CheckPositive(s, "calibration_prior sigmas");
+  }
+  for (const auto& [id, sigmas] : c.axis_sigmas) {
+    const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(id);
+    if (!WindowSupports(id) || info.tangent_size != 3) {
+      throw Error(std::string("SlidingWindowOptions: calibration_prior.axis_sigmas holds ") +
+                  info.key + ", which is not a three-axis block of the window");
+    }
+    for (int i = 0; i < 3; ++i) CheckPositive(sigmas(i), "calibration_prior.axis_sigmas");
   }
   if (c.mean) {
     const sensors::Calibration& m = *c.mean;

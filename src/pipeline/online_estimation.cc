@@ -453,11 +453,8 @@ bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& proble
     block.prior =
         Eigen::Map<const Eigen::VectorXd>(info->const_values(prior_mean), info->ambient_size);
     block.prior_source = "the window's prior centre";
-    block.prior_sigma = Eigen::VectorXd::Constant(
-        info->tangent_size, *estimation::BlockSettingOf(info->id, &window_options.estimate,
-                                                        &window_options.calibration_prior)
-                                    .prior_sigma *
-                                FileToTangent(*info));
+    block.prior_sigma = estimation::PriorSigmasOf(info->id, window_options.calibration_prior) *
+                        FileToTangent(*info);
     blocks.push_back(block);
     for (int k = 0; k < info->tangent_size; ++k) rows.push_back(covariance.offsets[b] + k);
   }

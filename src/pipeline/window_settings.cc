@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "autocal/common/error.h"
@@ -18,13 +19,13 @@ namespace {
 
 // What the window estimates and its prior sigmas, from the problem and the dataset's stated
 // nominal uncertainty. A block is estimated when its sensor takes part and the problem does not
-// fix it. The window's priors are one sigma per block: the problem's in prior mode, else the
-// sigma the dataset states, else the offline calibration's default (DefaultPriorSigma), so that
-// both estimators assume the same of a nominal value nobody gave a sigma; a per-axis sigma takes
-// its widest axis (as the offline calibration, problem_blocks.cc, minus the axes). Blocks that
-// share a switch (the vehicle frame's rotation and translation, the two radii or speed scales)
-// share the wider sigma; a problem that estimates one and fixes the other is an autocal::Error,
-// since the window would estimate both.
+// fix it. The window's priors are the problem's sigma in prior mode, else the sigma the dataset
+// states, else the offline calibration's default (DefaultPriorSigma), so that both estimators
+// assume the same of a nominal value nobody gave a sigma; a stated per-axis sigma whose axes
+// differ stays per axis (axis_sigmas), as in the offline calibration (problem_blocks.cc). Blocks
+// that share a switch (the vehicle frame's rotation and translation, the two radii or speed
+// scales) share the wider sigma; a problem that estimates one and fixes the other is an
+// autocal::Error, since the window would estimate both.
 void SetWindowBlocks(const std::string& problem_path, const io::ProblemCalibration& problem,
                      const io::SensorsConfig& sensors, sensors::WheelForm form, bool use_wheel,
                      bool use_gnss, estimation::SlidingWindowOptions* w) {
@@ -38,9 +39,13 @@ void SetWindowBlocks(const std::string& problem_path, const io::ProblemCalibrati
     const bool estimated = SensorUsed(info, use_wheel, use_gnss) &&
                            sensors::BlockInWheelForm(info.id, form) && Estimated(s.mode);
     const double default_sigma = DefaultPriorSigma(info.id, sensors, offline);
-    const double sigma = s.mode == io::BlockMode::kPrior ? s.prior_sigma.maxCoeff()
-                         : s.nominal_sigma               ? s.nominal_sigma->maxCoeff()
-                                                         : default_sigma;
+    const std::optional<Eigen::VectorXd> stated =
+        s.mode == io::BlockMode::kPrior ? std::optional<Eigen::VectorXd>(s.prior_sigma)
+                                        : s.nominal_sigma;
+    const double sigma = stated ? stated->maxCoeff() : default_sigma;
+    if (estimated && stated && stated->size() == 3 && stated->minCoeff() < sigma) {
+      w->calibration_prior.axis_sigmas[info.id] = *stated;
+    }
     const estimation::SlidingWindowBlockSetting block =
         estimation::BlockSettingOf(info.id, &w->estimate, &w->calibration_prior);
     if (block.estimate == previous.estimate && *block.estimate != estimated) {

@@ -207,6 +207,14 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
     o->calibration_prior.mean = sensors::Calibration();
     o->calibration_prior.mean->p_I_L.y() = std::nan("");
   });
+  expect_rejected("per-axis sigmas of a scalar block", [](SlidingWindowOptions* o) {
+    o->calibration_prior.axis_sigmas[sensors::CalibrationBlockId::kTimeOffset] =
+        Eigen::Vector3d::Constant(0.01);
+  });
+  expect_rejected("a per-axis sigma of zero", [](SlidingWindowOptions* o) {
+    o->calibration_prior.axis_sigmas[sensors::CalibrationBlockId::kGnssLeverArm] =
+        Eigen::Vector3d(0.01, 0.0, 0.3);
+  });
   expect_rejected("calibration_prior.mean with a zero quaternion", [](SlidingWindowOptions* o) {
     o->calibration_prior.mean = sensors::Calibration();
     o->calibration_prior.mean->q_I_V.coeffs().setZero();
@@ -319,6 +327,41 @@ TEST(SlidingWindowTimedKeyframes, MakesKeyframesWithoutSweepsAndHoldsTheLidarBlo
   SlidingWindowEstimator with_sweeps(FastOptions(), sensors::Calibration(), StillState());
   with_sweeps.AddSweep(SmallSweep(kStart + 100'000'000));
   EXPECT_THROW(with_sweeps.AddKeyframeAt(kStart + 200'000'000), Error);
+}
+
+// A block's prior may state one sigma per axis (a lever arm measured in x and y, not in z): a
+// block nothing else informs keeps exactly those sigmas, where the block's one sigma would give
+// every axis the same.
+TEST(SlidingWindowTimedKeyframes, KeepsAPriorSigmaPerAxis) {
+  const Eigen::Vector3d sigma_m(0.01, 0.02, 0.3);
+  for (const bool per_axis : {false, true}) {
+    SCOPED_TRACE(per_axis ? "per axis" : "one sigma");
+    SlidingWindowOptions options = FastOptions();
+    options.window_size = 4;
+    options.calibration_prior.gnss_lever_arm_m = sigma_m.maxCoeff();
+    if (per_axis)
+      options.calibration_prior.axis_sigmas[sensors::CalibrationBlockId::kGnssLeverArm] = sigma_m;
+    SlidingWindowEstimator estimator(options, sensors::Calibration(), StillState());
+    int64_t t = kStart - kImuStep;
+    estimator.AddImu(StillImu(t));
+    for (int k = 1; k <= 6; ++k) {
+      const int64_t t_keyframe = kStart + k * 100'000'000;
+      ASSERT_TRUE(estimator.AddKeyframeAt(t_keyframe));
+      while (t < t_keyframe + SecondsToNs(options.imu_coverage_margin_s)) {
+        estimator.AddImu(StillImu(t += kImuStep));
+      }
+    }
+    ASSERT_EQ(estimator.counters().updates, 6);
+    const CalibrationCovariance covariance = estimator.ComputeCalibrationCovariance();
+    const auto name = std::find(covariance.names.begin(), covariance.names.end(), "p_I_A");
+    ASSERT_NE(name, covariance.names.end());
+    const int first = covariance.offsets[static_cast<size_t>(name - covariance.names.begin())];
+    for (int i = 0; i < 3; ++i) {
+      const double expected = per_axis ? sigma_m(i) : sigma_m.maxCoeff();
+      EXPECT_NEAR(std::sqrt(covariance.covariance(first + i, first + i)), expected, 1e-9 * expected)
+          << "axis " << i;
+    }
+  }
 }
 
 // The window never holds more than N keyframes; the prior exists from the first

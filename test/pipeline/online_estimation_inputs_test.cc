@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/estimation/sliding_window_blocks.h"
 #include "autocal/io/dataset.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "pipeline/calibration_steps.h"
@@ -161,6 +162,32 @@ TEST(OnlineEstimationInputs, UnstatedPriorsAreTheOfflineCalibrations) {
   problem.calibration.T_I_V.rotation = {io::BlockMode::kPrior, Eigen::Vector3d(1.0, 2.0, 0.5)};
   w = WindowOptions(dataset, problem, true, true, OnlineEstimationOptions());
   EXPECT_EQ(w.calibration_prior.vehicle_rotation_deg, 2.0);
+}
+
+// A stated sigma whose axes differ stays per axis in the window's prior, as in the batch; one
+// sigma on every axis, or a default, is the block's one sigma.
+TEST(OnlineEstimationInputs, StatedAxesKeepTheirOwnSigmas) {
+  io::Dataset dataset = Logged(10.0);
+  io::Problem problem;
+  problem.path = "priors.yaml";
+  problem.calibration.T_I_V.rotation = {io::BlockMode::kPrior, Eigen::Vector3d(1.0, 2.0, 0.5)};
+  problem.calibration.T_I_V.translation = {io::BlockMode::kPrior, Eigen::Vector3d::Constant(0.04)};
+  io::VectorBlockInfo antenna;
+  antenna.sigma = Eigen::Vector3d(0.02, 0.02, 0.005);
+  dataset.sensors.nominal_uncertainty.p_I_A_m = antenna;
+  const estimation::SlidingWindowOptions w =
+      WindowOptions(dataset, problem, true, true, OnlineEstimationOptions());
+  using Id = sensors::CalibrationBlockId;
+  const std::map<Id, Eigen::Vector3d>& axes = w.calibration_prior.axis_sigmas;
+  ASSERT_EQ(axes.count(Id::kVehicleRotation), 1u);
+  EXPECT_EQ(axes.at(Id::kVehicleRotation), Eigen::Vector3d(1.0, 2.0, 0.5));
+  ASSERT_EQ(axes.count(Id::kGnssLeverArm), 1u);
+  EXPECT_EQ(axes.at(Id::kGnssLeverArm), Eigen::Vector3d(0.02, 0.02, 0.005));
+  EXPECT_EQ(axes.count(Id::kVehicleTranslation), 0u);
+  EXPECT_EQ(axes.count(Id::kLidarRotation), 0u);
+  EXPECT_EQ(w.calibration_prior.vehicle_translation_m, 0.04);
+  EXPECT_EQ(estimation::PriorSigmasOf(Id::kVehicleTranslation, w.calibration_prior),
+            Eigen::VectorXd::Constant(3, 0.04));
 }
 
 // Without the LiDAR the window reads the wheels and fixes moved onto the IMU clock by the

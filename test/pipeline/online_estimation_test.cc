@@ -232,6 +232,25 @@ TEST_F(OnlineEstimationTest, RefusesAResultFarOutsideAStatedPrior) {
   }
 }
 
+// A stated sigma per axis reaches the window's prior and its report: the antenna's height,
+// stated to 5 mm at its true value while x and y are stated to 3 cm, is held (the drive does
+// not excite it) and reported with its own 5 mm, where the window's one sigma per block
+// reported 3 cm.
+TEST_F(OnlineEstimationTest, ReportsAHeldDirectionWithItsOwnAxisSigma) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  dataset.sensors.nominal_calibration.p_I_A.z() = data_->simulator.true_calibration().p_I_A.z();
+  io::VectorBlockInfo stated;
+  stated.sigma = Eigen::Vector3d(0.03, 0.03, 0.005);
+  dataset.sensors.nominal_uncertainty.p_I_A_m = stated;
+  const OnlineEstimationResult result = EstimateDatasetOnline(dataset, FullProblem());
+  ASSERT_TRUE(result.calibration.uncertainty.p_I_A_m.sigma.has_value());
+  const Eigen::Vector3d sigma_m = *result.calibration.uncertainty.p_I_A_m.sigma;
+  EXPECT_DOUBLE_EQ(sigma_m.z(), 0.005);
+  EXPECT_LT(sigma_m.head<2>().maxCoeff(), 0.015);  // the drive determines x and y
+  EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr(
+                                   "GNSS antenna z lever arm (IMU frame): not excited")));
+}
+
 // An IMU log that starts after the first sweeps: the initializer's first keyframe is a later
 // sweep (of every initializer_sweep_stride-th), and streaming starts with the sweep after it,
 // each one a keyframe a sweep period after the last, none dropped as late.

@@ -20,9 +20,11 @@ SlidingWindowBlockSetting BlockSettingOf(sensors::CalibrationBlockId id,
                                          SlidingWindowEstimatedBlocks* estimate,
                                          SlidingWindowCalibrationPrior* prior);
 
-// Block `id`'s prior sigma in `prior` (degrees for a rotation, else the block's SI unit).
+// Block `id`'s prior sigma per tangent axis (degrees for a rotation, else the block's SI unit):
+// `prior.axis_sigmas` where it holds the block, else the block's one sigma on every axis.
 // Throws as BlockSettingOf.
-double PriorSigmaOf(sensors::CalibrationBlockId id, const SlidingWindowCalibrationPrior& prior);
+Eigen::VectorXd PriorSigmasOf(sensors::CalibrationBlockId id,
+                              const SlidingWindowCalibrationPrior& prior);
 
 // Whether the window has a setting for block `id`: not yet for the blocks of the wheel forms
 // linear_speeds and speed_yaw_rate (speed scales, odometry speed scale, effective track), nor

@@ -5,6 +5,7 @@
 // the defaults are in docs/history/sliding_window_notes.md.
 
 #include <Eigen/Core>
+#include <map>
 #include <optional>
 
 #include "autocal/estimation/estimated_blocks.h"
@@ -13,6 +14,7 @@
 #include "autocal/factors/loss.h"
 #include "autocal/sensors/body_rate.h"
 #include "autocal/sensors/calibration.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "autocal/sensors/sensor_config.h"
 
 namespace autocal {
@@ -49,6 +51,10 @@ struct SlidingWindowCalibrationPrior {
   double wheel_speed_scale = 0.03;     // dimensionless, each of the two
   double odometry_speed_scale = 0.03;  // dimensionless
   double effective_track_m = 0.5;
+  // Per-axis sigmas of a three-axis block (the extrinsic and vehicle-frame rotations in
+  // degrees, their translations and the GNSS lever arm in m), in its tangent order, replacing
+  // its one sigma above: a lever arm measured in x and y but not in z, say.
+  std::map<sensors::CalibrationBlockId, Eigen::Vector3d> axis_sigmas;
 };
 
 // 1-sigma of the prior on the initial state, which fixes the gauge until GNSS does.
