@@ -37,6 +37,9 @@ DEFINE_double(lidar_max_range_m, 100.0, "LiDAR maximum range, metres");
 DEFINE_double(lidar_range_noise_m, 0.02, "LiDAR range noise, 1-sigma metres");
 DEFINE_double(lidar_dropout, 0.02, "probability that a LiDAR return is lost");
 DEFINE_bool(lidar, true, "simulate the LiDAR (false: no lidar.csv and no sweeps)");
+DEFINE_bool(lidar_stamp_at_end, false,
+            "stamp each sweep when it ends, its points' times negative, as some drivers do "
+            "(default: when it starts)");
 DEFINE_double(gnss_rate_hz, 10.0, "GNSS fix rate, Hz (0 < r <= 100)");
 DEFINE_double(gnss_time_offset_s, 0.0,
               "GNSS clock offset: a fix stamped t is the antenna at IMU time t + offset");
@@ -133,6 +136,7 @@ void SetLidar(autocal::sim::SimulationOptions* o, bool all) {
   set("lidar_range_noise_m", FLAGS_lidar_range_noise_m, &lidar.range_noise_m);
   set("lidar_dropout", FLAGS_lidar_dropout, &o->lidar.dropout_probability);
   set("lidar", FLAGS_lidar, &o->lidar.enabled);
+  set("lidar_stamp_at_end", FLAGS_lidar_stamp_at_end, &o->lidar.stamp_at_end);
 }
 
 // The options of the preset (or the defaults), then every flag given; without a preset every

@@ -383,9 +383,12 @@ lidar::LidarSweep Simulator::GenerateSweep(int index) const {
   const LidarSimOptions& o = options_.lidar;
   const sensors::LidarConfig& l = o.config;
   lidar::LidarSweep sweep;
-  sweep.t_ns = SweepStamp(index);
-  // IMU time of the sweep stamp: t_imu = t_lidar + offset.
-  const double t0 = TimeOf(sweep.t_ns) + options_.true_calibration.time_offset_lidar_imu_s;
+  const int64_t start_ns = SweepStamp(index);
+  const int64_t period_ns = SecondsToNs(1.0 / l.rate_hz);
+  sweep.t_ns = o.stamp_at_end ? start_ns + period_ns : start_ns;
+  const double stamp_after_start_s = NsToSeconds(sweep.t_ns - start_ns);
+  // IMU time of the sweep's first column: t_imu = t_lidar + offset.
+  const double t0 = TimeOf(start_ns) + options_.true_calibration.time_offset_lidar_imu_s;
   const double period = 1.0 / l.rate_hz;
   const VehicleTrajectory& trajectory = *scenario_.trajectory;
   SweepRaycaster raycaster(*scenario_.world, (trajectory.PoseAt(t0) * T_V_L_).p,
@@ -422,7 +425,7 @@ lidar::LidarSweep Simulator::GenerateSweep(int index) const {
       // Lambertian return: reflectivity times the cosine of the incidence angle.
       intensity.push_back(
           static_cast<float>(255.0 * hit.reflectivity * std::abs(hit.normal_W.dot(d_W))));
-      time_s.push_back(tau);
+      time_s.push_back(tau - stamp_after_start_s);
     }
   }
   const Eigen::Index n = static_cast<Eigen::Index>(points.size());

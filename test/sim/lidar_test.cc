@@ -63,6 +63,32 @@ TEST_P(LidarTest, NoiseFreePointsLieOnSurfacesAtTheirTrueTime) {
   }
 }
 
+// A sweep stamped at its end holds the same points at the same instants: the stamp one period
+// later, every point's time one period earlier (negative), every noise-free point still on its
+// surface at stamp + tau + offset.
+TEST_P(LidarTest, AStampAtTheSweepsEndKeepsEveryPointAtItsInstant) {
+  SimulationOptions options = test::SmallLog(GetParam(), 20.0).WithoutNoise();
+  const Simulator at_start(options);
+  options.lidar.stamp_at_end = true;
+  const Simulator at_end(options);
+  const int64_t period_ns = SecondsToNs(1.0 / options.lidar.config.rate_hz);
+  const double offset = at_start.true_calibration().time_offset_lidar_imu_s;
+  for (int k : SweepsToCheck(at_start)) {
+    const lidar::LidarSweep start = at_start.GenerateSweep(k);
+    const lidar::LidarSweep end = at_end.GenerateSweep(k);
+    EXPECT_EQ(end.t_ns, start.t_ns + period_ns);
+    ASSERT_EQ(end.cloud.size(), start.cloud.size());
+    EXPECT_EQ(end.cloud.points, start.cloud.points);
+    EXPECT_LT(end.cloud.time_s.maxCoeff(), 0.0);
+    EXPECT_LT((end.cloud.time_s.array() + NsToSeconds(period_ns) - start.cloud.time_s.array())
+                  .abs()
+                  .maxCoeff(),
+              1e-12);
+    const std::vector<double> d = SurfaceDistances(at_end, end, offset);
+    EXPECT_LT(*std::max_element(d.begin(), d.end()), 1e-6) << "sweep " << k;
+  }
+}
+
 TEST_P(LidarTest, WrongTimeOffsetSignOrIgnoredPointTimeMovesPointsOffSurfaces) {
   // The test above can fail: shifting the time by twice the offset (the sign mistake) or
   // ignoring the per-point time (motion distortion) puts points off their surface. Points on

@@ -310,6 +310,7 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.lidar.config.range_noise_m);
   a(o.lidar.add_noise);
   a(o.lidar.dropout_probability);
+  a(o.lidar.stamp_at_end);
   a(o.wheel.enabled);
   a(o.wheel.config.rate_hz);
   a(o.wheel.config.noise_rad_s);

@@ -59,6 +59,9 @@ struct LidarSimOptions {
   sensors::LidarConfig config;
   bool add_noise = true;              // range noise on/off (config.range_noise_m is reported)
   double dropout_probability = 0.02;  // returns lost at random
+  // Each sweep stamped when it ends, its points' times before the stamp (negative), as some
+  // drivers write them; otherwise when it starts. The points are the same either way.
+  bool stamp_at_end = false;
 };
 
 // Rear-wheel angular rates (v -+ omega b / 2) / r from the true speed v and yaw rate omega of
