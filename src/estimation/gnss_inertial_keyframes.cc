@@ -11,6 +11,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/keyframe_solver_options.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
@@ -22,23 +23,23 @@ namespace estimation {
 namespace {
 
 // The marginal covariance of kf's five state blocks in their tangent spaces, or empty when the
-// problem leaves one of their directions undetermined (a rank-deficient Jacobian).
+// problem leaves one of their directions undetermined (a rank-deficient Jacobian). From the
+// sparse LDL^T of J^T J with the blocks in problem order (ComputeBlockCovariance): the
+// ceres::Covariance this replaced ordered them by address, so the window's start, and with it
+// a whole stream, moved at the rounding level with the heap's layout.
 std::optional<Eigen::Matrix<double, 15, 15>> FirstKeyframeCovariance(ceres::Problem* problem,
                                                                      Keyframe* kf,
                                                                      int num_threads) {
-  const std::vector<const double*> blocks = {kf->q_W_I.coeffs().data(), kf->p_W_I.data(),
-                                             kf->v_W_I.data(), kf->b_g.data(), kf->b_a.data()};
-  std::vector<std::pair<const double*, const double*>> pairs;
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    for (size_t j = i; j < blocks.size(); ++j) pairs.emplace_back(blocks[i], blocks[j]);
-  }
-  ceres::Covariance::Options options;
-  options.num_threads = num_threads;
-  ceres::Covariance covariance(options);
-  if (!covariance.Compute(pairs, problem)) return std::nullopt;
-  Eigen::Matrix<double, 15, 15, Eigen::RowMajor> out;
-  if (!covariance.GetCovarianceMatrixInTangentSpace(blocks, out.data())) return std::nullopt;
-  return Eigen::Matrix<double, 15, 15>(out);
+  std::vector<EstimatedBlock> blocks(5);
+  blocks[0].data = kf->q_W_I.coeffs().data();
+  blocks[0].manifold = sensors::BlockManifold::kRightQuaternion;
+  const std::vector<double*> vectors = {kf->p_W_I.data(), kf->v_W_I.data(), kf->b_g.data(),
+                                        kf->b_a.data()};
+  for (size_t i = 0; i < vectors.size(); ++i) blocks[i + 1].data = vectors[i];
+  for (EstimatedBlock& block : blocks) block.size = 3;
+  const BlockCovariance covariance = ComputeBlockCovariance(blocks, problem, num_threads);
+  if (!covariance.ok) return std::nullopt;
+  return Eigen::Matrix<double, 15, 15>(covariance.matrix);
 }
 
 }  // namespace
