@@ -131,14 +131,22 @@ double AccumulateNormalEquations(
 
 VariableColumns VariableColumnsOf(ceres::Problem* problem) {
   VariableColumns out;
-  std::vector<double*> all;
-  problem->GetParameterBlocks(&all);
-  for (double* block : all) {
-    if (problem->IsParameterBlockConstant(block)) continue;
+  const auto add = [&](double* block) {
+    if (out.offsets.count(block) != 0 || problem->IsParameterBlockConstant(block)) return;
     out.evaluate.parameter_blocks.push_back(block);
     out.offsets[block] = out.columns;
     out.columns += problem->ParameterBlockTangentSize(block);
+  };
+  std::vector<ceres::ResidualBlockId> residual_blocks;
+  problem->GetResidualBlocks(&residual_blocks);
+  std::vector<double*> named;
+  for (const ceres::ResidualBlockId id : residual_blocks) {
+    problem->GetParameterBlocksForResidualBlock(id, &named);
+    for (double* block : named) add(block);
   }
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  for (double* block : all) add(block);
   return out;
 }
 

@@ -19,8 +19,10 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 // Offset of each variable block in the tangent vector.
 using BlockOffsets = std::map<double*, int>;
 
-// The variable (non-constant) blocks of a problem in its own block order, as evaluation
-// options over them, with each one's first tangent column and the columns in all.
+// The variable (non-constant) blocks of a problem in the order its residual blocks first name
+// them (then any no residual block names), as evaluation options over them, with each one's
+// first tangent column and the columns in all. Not Problem::GetParameterBlocks' order, which is
+// the blocks' addresses: a factorization in that order rounds with the heap's layout.
 struct VariableColumns {
   ceres::Problem::EvaluateOptions evaluate;  // parameter_blocks: the variable blocks
   BlockOffsets offsets;
