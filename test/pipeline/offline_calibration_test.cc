@@ -162,9 +162,8 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
 // deg, x, y (-0.6, 6.5) mm, offset 0.45 ms off; stamped at the start, 0.020 deg, (-0.5, 6.3)
 // mm, 0.47 ms.
 TEST(OfflineCalibrationEndStamped, CalibratesSweepsStampedAtTheirEnd) {
-  sim::SimulationOptions options = test::UrbanDriveOptions(34.0);
-  options.lidar.stamp_at_end = true;
-  const test::SimulatedUrbanDataset data(options, "urban_34s_end_stamped");
+  const test::SimulatedUrbanDataset data(test::EndStampedUrbanDriveOptions(34.0),
+                                         "urban_34s_end_stamped");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   ASSERT_LT(dataset.LoadSweep(0).cloud.time_s.maxCoeff(), 0.0);
   const OfflineCalibrationResult result = CalibrateDataset(dataset, FullProblem());

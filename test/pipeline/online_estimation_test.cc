@@ -255,9 +255,8 @@ TEST_F(OnlineEstimationTest, ReportsAHeldDirectionWithItsOwnAxisSigma) {
 // drivers write them) streams to the same goals. Measured: 0.076 deg, p_I_L x, y (2.6, 4.4) mm,
 // offset 0.93 ms, 2.3 cm RMS; stamped at the start 0.076 deg, (3.3, 4.4) mm, 1.05 ms, 2.3 cm.
 TEST(OnlineEstimationEndStamped, StreamsSweepsStampedAtTheirEnd) {
-  sim::SimulationOptions options = test::UrbanDriveOptions(30.0);
-  options.lidar.stamp_at_end = true;
-  const test::SimulatedUrbanDataset data(options, "urban_30s_end_stamped");
+  const test::SimulatedUrbanDataset data(test::EndStampedUrbanDriveOptions(30.0),
+                                         "urban_30s_end_stamped");
   const io::Dataset dataset = io::ReadDataset(data.directory);
   ASSERT_LT(dataset.LoadSweep(0).cloud.time_s.maxCoeff(), 0.0);
   const OnlineEstimationResult result = EstimateDatasetOnline(dataset, FullProblem());

@@ -39,6 +39,14 @@ inline sim::SimulationOptions UrbanDriveOptions(double duration_s) {
   return options;
 }
 
+// The urban drive with every sweep stamped when it ends, its points at negative times
+// (sim::LidarSimOptions::stamp_at_end), as some drivers write them.
+inline sim::SimulationOptions EndStampedUrbanDriveOptions(double duration_s) {
+  sim::SimulationOptions options = UrbanDriveOptions(duration_s);
+  options.lidar.stamp_at_end = true;
+  return options;
+}
+
 // A highway drive (about 120 km/h, no turns, traffic around the car) with a VLP-16's beams
 // (sim::test::SmallLog).
 inline sim::SimulationOptions HighwayDriveOptions(double duration_s, uint64_t seed) {
