@@ -310,11 +310,13 @@ bool SlidingWindowEstimator::Impl::AddSweep(lidar::LidarSweep sweep) {
     return false;
   }
   newest_sweep_ns_ = sweep.t_ns;
-  if (TooCloseToNewestKeyframe(KeyframeTimeOf(sweep))) {
+  SpannedSweep spanned{std::move(sweep), {}};
+  spanned.span = SpanOf(spanned.sweep);
+  if (TooCloseToNewestKeyframe(KeyframeTimeOf(spanned))) {
     ++counters_.late;
     return false;
   }
-  pending_sweeps_.push_back(std::move(sweep));
+  pending_sweeps_.push_back(std::move(spanned));
   ++counters_.sweeps_accepted;
   ProcessCoveredSweeps();
   return true;
@@ -357,8 +359,8 @@ void SlidingWindowEstimator::Impl::UseKeyframeSource(KeyframeSource source) {
   AddCalibrationPriors(calibration_);
 }
 
-int64_t SlidingWindowEstimator::Impl::KeyframeTimeOf(const lidar::LidarSweep& sweep) const {
-  return KeyframeTime(sweep, calibration_.time_offset_lidar_imu_s);
+int64_t SlidingWindowEstimator::Impl::KeyframeTimeOf(const SpannedSweep& sweep) const {
+  return KeyframeTime(sweep.sweep.t_ns, sweep.span, calibration_.time_offset_lidar_imu_s);
 }
 
 bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const {
@@ -368,12 +370,12 @@ bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const 
 
 void SlidingWindowEstimator::Impl::ProcessCoveredSweeps() {
   while (!pending_sweeps_.empty() && !imu_.empty()) {
-    const lidar::LidarSweep& sweep = pending_sweeps_.front();
+    const SpannedSweep& next = pending_sweeps_.front();
     const int64_t needed_ns =
-        SweepImuInterval(sweep.t_ns, SpanOf(sweep), calibration_.time_offset_lidar_imu_s).end_ns +
+        SweepImuInterval(next.sweep.t_ns, next.span, calibration_.time_offset_lidar_imu_s).end_ns +
         SecondsToNs(options_.imu_coverage_margin_s);
     if (imu_.back().t_ns < needed_ns) return;
-    lidar::LidarSweep covered = std::move(pending_sweeps_.front());
+    SpannedSweep covered = std::move(pending_sweeps_.front());
     pending_sweeps_.pop_front();
     // The offset estimate may have moved since the sweep arrived.
     const int64_t t_ns = KeyframeTimeOf(covered);
@@ -394,7 +396,7 @@ void SlidingWindowEstimator::Impl::ProcessCoveredTimes() {
   }
 }
 
-void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<lidar::LidarSweep> sweep) {
+void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSweep> sweep) {
   const auto start = std::chrono::steady_clock::now();
   timing_ = SlidingWindowUpdateTiming();
   AddKeyframe(t_ns, std::move(sweep));

@@ -73,7 +73,13 @@ class SlidingWindowEstimator::Impl {
   // Keyframes from times hold the LiDAR blocks (options_.estimate and their priors).
   void UseKeyframeSource(KeyframeSource source);
 
-  int64_t KeyframeTimeOf(const lidar::LidarSweep& sweep) const;
+  // A sweep with its points' span, read from its cloud once when it arrives (SpanOf) and kept
+  // with it until its keyframe holds it.
+  struct SpannedSweep {
+    lidar::LidarSweep sweep;
+    SweepSpan span;
+  };
+  int64_t KeyframeTimeOf(const SpannedSweep& sweep) const;
   // A keyframe at t_ns would not follow the newest one by min_keyframe_interval_s (dropped as
   // late).
   bool TooCloseToNewestKeyframe(int64_t t_ns) const;
@@ -81,11 +87,11 @@ class SlidingWindowEstimator::Impl {
   void ProcessCoveredTimes();
   // One window update for a new keyframe at t_ns, with its sweep when it has one (t_ns is then
   // KeyframeTimeOf(*sweep)).
-  void Update(int64_t t_ns, std::optional<lidar::LidarSweep> sweep);
+  void Update(int64_t t_ns, std::optional<SpannedSweep> sweep);
   // The keyframe at t_ns predicted with the IMU, its sweep's chosen points, and the factors
   // of the interval before it.
-  void AddKeyframe(int64_t t_ns, std::optional<lidar::LidarSweep> sweep);
-  void SetSweepPoints(lidar::LidarSweep sweep, WindowKeyframe* kf) const;
+  void AddKeyframe(int64_t t_ns, std::optional<SpannedSweep> sweep);
+  void SetSweepPoints(SpannedSweep sweep, WindowKeyframe* kf) const;
   // Wheel (every form) and GNSS factors for the buffered samples in (from, t_end_ns],
   // attached to `from`.
   void AttachIntervalMeasurements(WindowKeyframe* from, int64_t t_end_ns);
@@ -162,7 +168,7 @@ class SlidingWindowEstimator::Impl {
   std::deque<sensors::WheelSpeedSample> wheel_speeds_;
   std::deque<sensors::OdometrySample> odometry_;
   std::deque<GnssPosition> gnss_;
-  std::deque<lidar::LidarSweep> pending_sweeps_;
+  std::deque<SpannedSweep> pending_sweeps_;
   std::deque<int64_t> pending_times_;  // AddKeyframeAt
   KeyframeSource keyframe_source_ = KeyframeSource::kUndecided;
   int64_t newest_wheel_ns_;

@@ -18,8 +18,7 @@ namespace estimation {
 using internal::AttachedFactor;
 using internal::StateBlocks;
 
-void SlidingWindowEstimator::Impl::AddKeyframe(int64_t t_ns,
-                                               std::optional<lidar::LidarSweep> sweep) {
+void SlidingWindowEstimator::Impl::AddKeyframe(int64_t t_ns, std::optional<SpannedSweep> sweep) {
   WindowKeyframe& previous = *window_.back();
   auto kf = std::make_unique<WindowKeyframe>();
   kf->pairing.tried_at = std::move(spare_tried_at_);  // overwritten before use
@@ -48,8 +47,8 @@ void SlidingWindowEstimator::Impl::AddKeyframe(int64_t t_ns,
   window_.push_back(std::move(kf));
 }
 
-void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
-                                                  WindowKeyframe* kf) const {
+void SlidingWindowEstimator::Impl::SetSweepPoints(SpannedSweep spanned, WindowKeyframe* kf) const {
+  const lidar::LidarSweep& sweep = spanned.sweep;
   internal::SweepSelection selection = internal::SelectSweepPoints(sweep.cloud, options_.pairing);
   kf->map_points = std::move(selection.map_points);
   internal::ResidualPoints& res = kf->residuals;
@@ -65,8 +64,8 @@ void SlidingWindowEstimator::Impl::SetSweepPoints(lidar::LidarSweep sweep,
     res.ranges_m[r] = sweep.cloud.points.col(i).norm();
     res.max_range_m = std::max(res.max_range_m, res.ranges_m[r]);
   }
-  kf->sweep_span = SpanOf(sweep);
-  kf->sweep = std::move(sweep);
+  kf->sweep_span = spanned.span;
+  kf->sweep = std::move(spanned.sweep);
 }
 
 // 1-sigma of one gyro sample at the stated IMU rate.
