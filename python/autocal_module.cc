@@ -599,6 +599,7 @@ void BindAlgorithms(py::module_& m) {
         d["matched_poses"] = e.matched_poses;
         d["ate_translation_rmse_m"] = e.ate_translation_rmse_m;
         d["ate_rotation_rmse_deg"] = e.ate_rotation_rmse_deg;
+        d["tilt_rmse_deg"] = e.tilt_rmse_deg;
         d["max_translation_error_m"] = e.max_translation_error_m;
         d["max_rotation_error_deg"] = e.max_rotation_error_deg;
         return d;

@@ -195,6 +195,7 @@ class Pipeline(unittest.TestCase):
                                          gt["q_W_I_xyzw"])
         self.assertGreater(ate["matched_poses"], 100)
         self.assertLess(ate["ate_translation_rmse_m"], 0.10)
+        self.assertLessEqual(ate["tilt_rmse_deg"], ate["ate_rotation_rmse_deg"] + 1e-12)
 
     def test_calibrates_several_logs_and_gathers_a_fleet(self):
         tool = os.path.join(os.environ["AUTOCAL_TOOL_DIR"], "autocal_simulate")

@@ -281,6 +281,7 @@ std::string EvaluationYamlText(const Evaluation& evaluation, const Thresholds& t
     out += "  unmatched_poses: " + std::to_string(t.unmatched_poses) + "\n";
     out += "  ate_translation_rmse_m: " + Number(t.ate_translation_rmse_m) + "\n";
     out += "  ate_rotation_rmse_deg: " + Number(t.ate_rotation_rmse_deg) + "\n";
+    out += "  tilt_rmse_deg: " + Number(t.tilt_rmse_deg) + "\n";
     out += "  max_translation_error_m: " + Number(t.max_translation_error_m) + "\n";
     out += "  max_rotation_error_deg: " + Number(t.max_rotation_error_deg) + "\n";
     out += "  alignment:\n";

@@ -20,6 +20,14 @@ Eigen::Matrix3d YawRotation(double yaw_rad) {
   return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
 }
 
+// The angle between the up directions that q_true and q_est give in the body (R^T z), from
+// the cross and dot products so that small angles keep their precision.
+double TiltRad(const Eigen::Quaterniond& q_true, const Eigen::Quaterniond& q_est) {
+  const Eigen::Vector3d up_true = q_true.conjugate() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d up_est = q_est.conjugate() * Eigen::Vector3d::UnitZ();
+  return std::atan2(up_true.cross(up_est).norm(), up_true.dot(up_est));
+}
+
 }  // namespace
 
 bool TruthAt(const io::Trajectory& truth, int64_t t_ns, int64_t max_gap_ns,
@@ -116,11 +124,14 @@ TrajectoryErrors CompareTrajectory(const io::Trajectory& estimate, const io::Tra
   const Eigen::Quaterniond q_yaw(R_yaw);
   double translation_sq = 0.0;
   double rotation_sq = 0.0;
+  double tilt_sq = 0.0;
   for (size_t i = 0; i < matched_estimate.size(); ++i) {
     const geometry::Pose3d& est = matched_estimate[i].T_W_I;
     const geometry::Pose3d& tru = matched_truth[i].T_W_I;
     const double translation_m = (R_yaw * est.p + errors.alignment.translation_m - tru.p).norm();
     const double rotation_deg = kRadToDeg * geometry::AngularDistance(tru.q, q_yaw * est.q);
+    const double tilt_deg = kRadToDeg * TiltRad(tru.q, est.q);
+    tilt_sq += tilt_deg * tilt_deg;
     translation_sq += translation_m * translation_m;
     rotation_sq += rotation_deg * rotation_deg;
     errors.max_translation_error_m = std::max(errors.max_translation_error_m, translation_m);
@@ -129,6 +140,7 @@ TrajectoryErrors CompareTrajectory(const io::Trajectory& estimate, const io::Tra
   const double n = static_cast<double>(matched_estimate.size());
   errors.ate_translation_rmse_m = std::sqrt(translation_sq / n);
   errors.ate_rotation_rmse_deg = std::sqrt(rotation_sq / n);
+  errors.tilt_rmse_deg = std::sqrt(tilt_sq / n);
   return errors;
 }
 

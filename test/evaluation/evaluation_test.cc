@@ -177,6 +177,30 @@ TEST(TrajectoryErrorsTest, RotationNoiseOfKnownAngleGivesThatAngle) {
   EXPECT_LT(e.ate_translation_rmse_m, 1e-9);
 }
 
+// Tilt is the roll and pitch part: a pose turned about its own up direction keeps it, one
+// turned about a horizontal axis of the body by an angle tilts by that angle.
+TEST(TrajectoryErrorsTest, TiltIsTheAngleBetweenTheUpDirections) {
+  const io::Trajectory truth = TrueTrajectory(30.0);
+  io::Trajectory estimate = InOtherWorld(truth, 1.0, Eigen::Vector3d(3.0, 4.0, 5.0));
+  const double heading_deg = 0.5;
+  const double tilt_deg = 0.3;
+  for (size_t i = 0; i < estimate.size(); ++i) {
+    Eigen::Quaterniond& q = estimate[i].T_W_I.q;
+    const Eigen::Vector3d up = q.conjugate() * Eigen::Vector3d::UnitZ();  // in the body
+    const Eigen::Vector3d axis = i % 2 == 0 ? up : up.cross(Eigen::Vector3d::UnitX()).normalized();
+    q = q *
+        geometry::Exp(Eigen::Vector3d((i % 2 == 0 ? heading_deg : tilt_deg) * kDegToRad * axis));
+  }
+  const TrajectoryErrors e = CompareTrajectory(estimate, truth);
+  const double tilted = static_cast<double>(estimate.size() / 2);  // the odd poses
+  EXPECT_NEAR(e.tilt_rmse_deg, tilt_deg * std::sqrt(tilted / estimate.size()), 1e-9);
+  // Half the poses carry the heading error, which the yaw alignment shares out.
+  EXPECT_GT(e.ate_rotation_rmse_deg, e.tilt_rmse_deg);
+  EXPECT_LT(
+      CompareTrajectory(InOtherWorld(truth, -2.0, Eigen::Vector3d::Zero()), truth).tilt_rmse_deg,
+      1e-6);
+}
+
 TEST(TrajectoryErrorsTest, StampsBetweenTruthSamplesAreInterpolated) {
   const io::Trajectory truth = TrueTrajectory(20.0);
   // Estimates 3 ms after each truth stamp, from the closed form; one before the truth starts

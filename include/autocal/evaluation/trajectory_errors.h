@@ -37,6 +37,9 @@ struct TrajectoryErrors {
   Alignment4Dof alignment;
   double ate_translation_rmse_m = 0.0;  // sqrt(mean |p_aligned − p_true|²)
   double ate_rotation_rmse_deg = 0.0;   // sqrt(mean angle(R_true^T R_aligned)²)
+  // sqrt(mean tilt²), the tilt the angle between the true and the estimated up direction in the
+  // body (R_true^T z against R_est^T z): the roll and pitch error, which no yaw alignment moves.
+  double tilt_rmse_deg = 0.0;
   double max_translation_error_m = 0.0;
   double max_rotation_error_deg = 0.0;
 };
