@@ -134,7 +134,8 @@ SlidingWindowEstimator::Impl::Impl(const SlidingWindowOptions& options,
       newest_gnss_ns_(kNoStamp),
       newest_sweep_ns_(kNoStamp),
       newest_time_ns_(kNoStamp),
-      pairing_(options.pairing, options.window_pairing, options.loss.lidar, options.num_threads) {
+      pairing_(internal::PairingWithinWindow(options), options.window_pairing, options.loss.lidar,
+               options.num_threads) {
   internal::CheckOptions(options_);
   if (options_.enu_origin_lla) {
     const Eigen::Vector3d& o = *options_.enu_origin_lla;

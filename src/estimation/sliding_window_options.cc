@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -117,6 +118,15 @@ void CheckPriors(const SlidingWindowCalibrationPrior& c, const SlidingWindowInit
 
 }  // namespace
 
+PairingOptions PairingWithinWindow(const SlidingWindowOptions& o) {
+  PairingOptions p = o.pairing;
+  p.partner_offsets.erase(
+      std::remove_if(p.partner_offsets.begin(), p.partner_offsets.end(),
+                     [&](int offset) { return std::abs(offset) >= o.window_size; }),
+      p.partner_offsets.end());
+  return p;
+}
+
 void CheckOptions(const SlidingWindowOptions& o) {
   if (o.window_size < 2) throw Error("SlidingWindowOptions: window_size must be at least 2");
   if (o.linearization.passes_per_update < 0) {
@@ -132,6 +142,10 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckNonNegative(o.solver.parameter_tolerance, "solver.parameter_tolerance");
   CheckPositive(o.solver.initial_trust_region_radius, "solver.initial_trust_region_radius");
   CheckPairing(o.pairing, o.window_pairing);
+  if (PairingWithinWindow(o).partner_offsets.empty()) {
+    throw Error("SlidingWindowOptions: no pairing.partner_offsets lies within the window of " +
+                std::to_string(o.window_size) + " keyframes (|offset| < window_size)");
+  }
   CheckWheelRows(o.wheel_rows);
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");

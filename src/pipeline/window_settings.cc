@@ -116,6 +116,7 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   }
   w.loss = problem.loss;
   w.window_size = problem.window_size;
+  w.pairing.partner_offsets = estimation::WindowPartnerOffsets(problem.window_size);
   w.solver.max_iterations = problem.solver.max_iterations;
   w.num_threads = problem.solver.num_threads;
   w.pairing.max_residuals_per_sweep = problem.lidar.max_points_per_sweep;

@@ -129,6 +129,22 @@ TEST(SlidingWindowStreaming, DropsASweepTooCloseToTheNewestKeyframe) {
   EXPECT_EQ(estimator.latest_state().t_ns, next.t_ns + middle_ns);
 }
 
+// The partners a window walks once the extrinsic settled are the first of its list: the
+// farthest keyframes it holds (docs/sliding_window.md, "Partner walk").
+TEST(SlidingWindowPairing, ListsTheFarthestKeyframesTheWindowHoldsFirst) {
+  EXPECT_EQ(WindowPartnerOffsets(10), (std::vector<int>{-9, 9, -5, 5, -8, 8, -3, 3, -2, 2}));
+  EXPECT_EQ(WindowPartnerOffsets(20), (std::vector<int>{-19, 19, -5, 5, -8, 8, -3, 3, -2, 2}));
+  EXPECT_EQ(WindowPartnerOffsets(4), (std::vector<int>{-3, 3, -2, 2}));
+  EXPECT_EQ(WindowPartnerOffsets(2), (std::vector<int>{-1, 1}));
+  const SlidingWindowOptions defaults;
+  EXPECT_EQ(defaults.pairing.partner_offsets, WindowPartnerOffsets(defaults.window_size));
+  // A shorter window keeps the offsets it can hold, the farthest of them first.
+  SlidingWindowOptions shorter = defaults;
+  shorter.window_size = 4;
+  EXPECT_EQ(internal::PairingWithinWindow(shorter).partner_offsets,
+            (std::vector<int>{-3, 3, -2, 2}));
+}
+
 TEST(SlidingWindowStreaming, RejectsInvalidData) {
   SlidingWindowEstimator estimator(FastOptions(), sensors::Calibration(), StillState());
   EXPECT_THROW(estimator.AddImu(StillImu(kStart + kImuStep)), Error);  // starts after the state
@@ -155,6 +171,10 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
     o->pairing.partner_offsets = {-5, 0};
   });
   expect_rejected("no partners", [](SlidingWindowOptions* o) { o->pairing.partner_offsets = {}; });
+  expect_rejected("no partner within the window", [](SlidingWindowOptions* o) {
+    o->window_size = 4;
+    o->pairing.partner_offsets = {-5, 5};
+  });
   expect_rejected("a partner offset twice", [](SlidingWindowOptions* o) {
     o->pairing.partner_offsets = {-5, 5, -5};
   });
@@ -1275,8 +1295,10 @@ TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
 // tolerances 0) the window pairs as many points, with a fraction of the lookups, and tracks
 // the truth as well. (The maps' generations in a try matter from the nominal calibration:
 // without them TracksTruthAndCalibratesFromNominal ended with q_I_L 0.95 deg.) Measured (from
-// the second quarter on): 1363 against 1376 points per update, 0.87k against 5.2k lookups;
-// position rms 0.032 against 0.032 m.
+// the second quarter on): 561 against 599 points per update, 0.89k against 2.5k lookups;
+// position rms 0.0275 against 0.0276 m. With the settled walk's partners 5 keyframes apart
+// instead of the window's 9 it was 1363 against 1376 points: a far partner's lookup that found
+// no plane is kept while its try holds, where a fresh association tries again after each solve.
 TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions fresh_options = Options();
@@ -1292,7 +1314,7 @@ TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
   const double fresh_lookups = Mean(fresh.lookups, n / 4, n);
   std::cout << "points per update " << kept_points << " kept, " << fresh_points
             << " fresh; lookups " << kept_lookups << " kept, " << fresh_lookups << " fresh\n";
-  EXPECT_NEAR(kept_points, fresh_points, 0.03 * fresh_points);
+  EXPECT_NEAR(kept_points, fresh_points, 0.08 * fresh_points);
   EXPECT_LT(kept_lookups, 0.4 * fresh_lookups);
   EXPECT_LT(kept.rms_position_error_m, 1.2 * fresh.rms_position_error_m);
   EXPECT_LT(kept.max_rotation_error_deg, 1.2 * fresh.max_rotation_error_deg);
@@ -1319,14 +1341,17 @@ TEST_F(SlidingWindowUrban, SkipsOnlyKeyframesWithNothingToRepair) {
 
 // The settled partner walk (docs/sliding_window.md, "Partner walk"): once the extrinsic rotation
 // has settled, a new keyframe's points try only the first settled_partner_count partner offsets
-// (five sweeps back and ahead). From the true calibration the window settles once it is full and
-// stays so; against every partner tried throughout (the count at the list's size) it makes a third
-// of the lookups and tracks the truth at least as well. From the nominal calibration it settles
-// only once the extrinsic stops moving. Measured: settled in 0.90 of the updates after the first
-// window_size; lookups 0.88k against 2.5k per update (from the second quarter on), position rms
-// 0.031 against 0.050 m; from nominal, settled in 0.43 of the first quarter's updates and all of
-// the last quarter's. Both walks look up every point in every partner they walk (max_plane_misses
-// 0): the rule below takes most of the lookups that the settled walk saves.
+// (the farthest keyframes the window holds, nine back and ahead). From the true calibration the
+// window settles once it is full and stays so; against every partner tried throughout (the
+// count at the list's size) it makes a third of the lookups and tracks the truth nearly as well
+// on this 20 s drive. From the nominal calibration it settles only once the extrinsic stops
+// moving. Measured: settled in 0.88 of the updates after the first window_size; lookups 0.95k
+// against 3.0k per update (from the second quarter on), position rms 0.0275 against 0.0249 m
+// (with the settled partners 5 keyframes apart: 0.031 against 0.050 m): neighbouring keyframes
+// are tied by the IMU and the far pairs, which hold the tilt over a longer drive
+// (OnlineEstimationUrban60s); from nominal, settled in 0.53 of the first quarter's updates and
+// all of the last quarter's. Both walks look up every point in every partner they walk
+// (max_plane_misses 0): the rule below takes most of the lookups that the settled walk saves.
 TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions settled_options = Options();
@@ -1349,7 +1374,7 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
   std::cout << "lookups per update " << settled_lookups << " settled, " << all_lookups
             << " every partner\n";
   EXPECT_LT(settled_lookups, 0.5 * all_lookups);
-  EXPECT_LT(settled.rms_position_error_m, 1.1 * all.rms_position_error_m);
+  EXPECT_LT(settled.rms_position_error_m, 1.15 * all.rms_position_error_m);
   EXPECT_LT(settled.max_rotation_error_deg, 1.1 * all.max_rotation_error_deg);
 
   const Run nominal = Estimate(simulator_->nominal_calibration(), settled_options);
@@ -1368,9 +1393,10 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
 // no plane: the residual points' range unlimited (residual_max_range_m 0; the default range
 // leaves few without one, "Far points") and planes of five map points (the default ten leave
 // fewer: 1144 lookups per update against 1193, 1188 points against 1194, q_I_L 0.021 deg
-// both): 1174 lookups against 1406, 1180 points against 1211, q_I_L 0.076 against 0.080 deg
-// at the end (with two misses: 875 lookups, 1067 points, q_I_L 0.118 deg: the points of
-// sparse far ground, which pin the rotation, miss most).
+// both): 1234 lookups against 1413, 673 points against 712, q_I_L 0.052 against 0.053 deg at
+// the end (with the settled partners 5 keyframes apart instead of 9: 1174 against 1406, 1180
+// against 1211 points; with two misses: 875 lookups, 1067 points, q_I_L 0.118 deg: the points
+// of sparse far ground, which pin the rotation, miss most).
 TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions capped_options = Options();
@@ -1389,7 +1415,7 @@ TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   std::cout << "lookups per update " << capped_lookups << " against " << every_lookups
             << ", points " << capped_points << " against " << every_points << "\n";
   EXPECT_LT(capped_lookups, 0.9 * every_lookups);
-  EXPECT_GT(capped_points, 0.95 * every_points);
+  EXPECT_GT(capped_points, 0.93 * every_points);
   EXPECT_LT(capped.rms_position_error_m, 1.1 * every.rms_position_error_m);
   EXPECT_LT(capped.rms_rotation_error_deg, 1.1 * every.rms_rotation_error_deg);
   const double capped_q =

@@ -4,6 +4,7 @@
 // (docs/estimation.md, Eq. P6; docs/sliding_window.md, "Pairing points with planes"), shared by
 // the batch solver and the sliding window with defaults of their own.
 
+#include <algorithm>
 #include <vector>
 
 #include "autocal/lidar/plane_map.h"
@@ -62,13 +63,29 @@ struct WindowPairingOptions {
 // The batch solver's defaults: a few hundred points per sweep, partners up to 20 sweeps away.
 inline PairingOptions BatchPairingDefaults() { return PairingOptions(); }
 
-// The sliding window's defaults: partners within the window, points beyond 40 m dropped (too
-// sparse for a local plane; docs/history/sliding_window_notes.md).
-inline PairingOptions WindowPairingDefaults() {
+// The sliding window's partners for a window of `window_size` keyframes: the farthest keyframe
+// it holds on either side first, then those 5, 8, 3 and 2 keyframes away that are nearer. Once
+// the extrinsic has settled a point walks only the first settled_partner_count of them
+// (WindowPairingOptions): pairs across the whole window tie the keyframes' roll and pitch over
+// the longest span it holds, where nearer pairs let them drift with the biases
+// (docs/sliding_window.md, "Partner walk").
+inline std::vector<int> WindowPartnerOffsets(int window_size) {
+  const int farthest = std::max(1, window_size - 1);
+  std::vector<int> offsets = {-farthest, farthest};
+  for (const int o : {5, 8, 3, 2}) {
+    if (o < farthest) offsets.insert(offsets.end(), {-o, o});
+  }
+  return offsets;
+}
+
+// The sliding window's defaults for a window of `window_size` keyframes: partners within the
+// window, points beyond 40 m dropped (too sparse for a local plane;
+// docs/history/sliding_window_notes.md).
+inline PairingOptions WindowPairingDefaults(int window_size) {
   PairingOptions s;
   s.residual_max_range_m = 40.0;
   s.max_residuals_per_sweep = 2000;
-  s.partner_offsets = {-5, 5, -8, 8, -3, 3, -2, 2};
+  s.partner_offsets = WindowPartnerOffsets(window_size);
   s.fallback_partner_offsets.clear();
   return s;
 }

@@ -135,7 +135,7 @@ struct SlidingWindowOptions {
   // newest by less than min_keyframe_interval_s is dropped as late.
   double imu_coverage_margin_s = 0.02;
   double min_keyframe_interval_s = 0.02;
-  PairingOptions pairing = WindowPairingDefaults();
+  PairingOptions pairing = WindowPairingDefaults(window_size);  // offsets beyond the window unused
   WindowPairingOptions window_pairing;
   LinearizationOptions linearization;
   WindowSolverOptions solver;
