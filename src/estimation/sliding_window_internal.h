@@ -281,9 +281,10 @@ inline std::vector<double*> StateBlocks(SlidingWindowState* s) {
 // Throws autocal::Error naming the first invalid option (sliding_window_options.cc).
 void CheckOptions(const SlidingWindowOptions& options);
 
-// options.pairing without the partner offsets the window can never hold (|offset| >=
-// window_size): a library default or a list written for a longer window still pairs, its
-// settled walk over the first offsets that remain.
+// options.pairing without the partner offsets the window can never hold (|offset| >
+// window_size; while it pairs, the new keyframe is in and the oldest not yet out): a library
+// default or a list written for a longer window still pairs, its settled walk over the first
+// offsets that remain.
 PairingOptions PairingWithinWindow(const SlidingWindowOptions& options);
 
 }  // namespace internal

@@ -122,7 +122,7 @@ PairingOptions PairingWithinWindow(const SlidingWindowOptions& o) {
   PairingOptions p = o.pairing;
   p.partner_offsets.erase(
       std::remove_if(p.partner_offsets.begin(), p.partner_offsets.end(),
-                     [&](int offset) { return std::abs(offset) >= o.window_size; }),
+                     [&](int offset) { return std::abs(offset) > o.window_size; }),
       p.partner_offsets.end());
   return p;
 }
@@ -144,7 +144,7 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckPairing(o.pairing, o.window_pairing);
   if (PairingWithinWindow(o).partner_offsets.empty()) {
     throw Error("SlidingWindowOptions: no pairing.partner_offsets lies within the window of " +
-                std::to_string(o.window_size) + " keyframes (|offset| < window_size)");
+                std::to_string(o.window_size) + " keyframes (|offset| <= window_size)");
   }
   CheckWheelRows(o.wheel_rows);
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");

@@ -138,11 +138,15 @@ TEST(SlidingWindowPairing, ListsTheFarthestKeyframesTheWindowHoldsFirst) {
   EXPECT_EQ(WindowPartnerOffsets(2), (std::vector<int>{-1, 1}));
   const SlidingWindowOptions defaults;
   EXPECT_EQ(defaults.pairing.partner_offsets, WindowPartnerOffsets(defaults.window_size));
-  // A shorter window keeps the offsets it can hold, the farthest of them first.
+  // A shorter window keeps the offsets it can hold, up to its size (while it pairs, the new
+  // keyframe is in and the oldest not yet out), the farthest of them first.
   SlidingWindowOptions shorter = defaults;
   shorter.window_size = 4;
   EXPECT_EQ(internal::PairingWithinWindow(shorter).partner_offsets,
             (std::vector<int>{-3, 3, -2, 2}));
+  shorter.window_size = 5;
+  EXPECT_EQ(internal::PairingWithinWindow(shorter).partner_offsets,
+            (std::vector<int>{-5, 5, -3, 3, -2, 2}));
 }
 
 TEST(SlidingWindowStreaming, RejectsInvalidData) {
