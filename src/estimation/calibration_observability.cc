@@ -16,6 +16,7 @@
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/quaternion_plus.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/ldlt_columns.h"
 #include "estimation/normal_equations.h"
 #include "estimation/residual_curvature.h"
 
@@ -402,7 +403,7 @@ namespace {
 struct InverseColumns {
   bool ok = false;                        // false when H is singular or not finite
   int size = 0;                           // the blocks' stacked coordinates
-  Eigen::MatrixXd columns;                // rows: H's; columns: the stacked coordinates
+  internal::RowMajorMatrix columns;       // rows: H's; columns: the stacked coordinates
   std::vector<int> offsets;               // first stacked coordinate of each block
   std::vector<std::pair<int, int>> rows;  // (row of H, stacked coordinate) of variable blocks
 };
@@ -425,7 +426,7 @@ InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
   }
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(hessian.H);
   if (ldlt.info() != Eigen::Success || !FullRank(ldlt.vectorD())) return out;
-  out.columns = ldlt.solve(unit);
+  out.columns = internal::SolveColumns(ldlt, unit);
   out.ok = out.columns.allFinite();
   return out;
 }
