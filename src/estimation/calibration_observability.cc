@@ -318,9 +318,16 @@ Eigen::SparseMatrix<double> InformationOf(ceres::Problem* problem,
   return H;
 }
 
-GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem, int num_threads,
-                                              const ScaledInformation& scaled) {
-  GaussNewtonHessian out;
+// J^T J in two parts: over the residual blocks outside `scaled` and, times `scale`, over those
+// inside it (empty when it has none).
+struct SplitHessian {
+  Eigen::SparseMatrix<double> plain, scaled;  // lower triangles
+  internal::BlockOffsets offsets;
+};
+
+SplitHessian EvaluateSplitHessian(ceres::Problem* problem, int num_threads,
+                                  const ScaledInformation& scaled, double scale) {
+  SplitHessian out;
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
   variables.evaluate.num_threads = num_threads;
   out.offsets = variables.offsets;
@@ -332,12 +339,24 @@ GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem, int num_t
   for (const ceres::ResidualBlockId id : residual_blocks) {
     (in_scaled.count(id) > 0 ? rescaled : plain).push_back(id);
   }
-  out.H = InformationOf(problem, &variables, plain, 1.0, num_threads);
-  if (!rescaled.empty()) {
-    out.H = Eigen::SparseMatrix<double>(
-        out.H + InformationOf(problem, &variables, rescaled, scaled.scale, num_threads));
-  }
+  out.plain = InformationOf(problem, &variables, plain, 1.0, num_threads);
+  if (!rescaled.empty())
+    out.scaled = InformationOf(problem, &variables, rescaled, scale, num_threads);
   return out;
+}
+
+GaussNewtonHessian Sum(const SplitHessian& split, double scale) {
+  GaussNewtonHessian out;
+  out.offsets = split.offsets;
+  out.H = split.scaled.nonZeros() == 0
+              ? split.plain
+              : Eigen::SparseMatrix<double>(split.plain + scale * split.scaled);
+  return out;
+}
+
+GaussNewtonHessian EvaluateGaussNewtonHessian(ceres::Problem* problem, int num_threads,
+                                              const ScaledInformation& scaled) {
+  return Sum(EvaluateSplitHessian(problem, num_threads, scaled, scaled.scale), 1.0);
 }
 
 // Whether an LDL^T factorization's pivots show a positive definite matrix: each pivot above
@@ -472,17 +491,23 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
 }
 
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
-                               const std::vector<ResidualSource>& sources, int num_threads) {
+                               const std::vector<ResidualSource>& sources, int num_threads,
+                               const ScaledInformation& scaled) {
   ErrorBudget out;
   for (const ResidualSource& source : sources) out.sources.push_back(source.name);
   if (blocks.empty()) {
     out.covariance = EmptyCovariance();
+    out.scaled_covariance = out.covariance;
     out.ok = true;
     return out;
   }
-  const InverseColumns inverse =
-      InverseColumnsAt(blocks, EvaluateGaussNewtonHessian(problem, num_threads, {}));
+  // One J for both: the solve weighs every residual as is, the scaled covariance does not.
+  const SplitHessian split = EvaluateSplitHessian(problem, num_threads, scaled, 1.0);
+  const InverseColumns inverse = InverseColumnsAt(blocks, Sum(split, 1.0));
   out.covariance = CovarianceOf(inverse);
+  out.scaled_covariance = scaled.scale == 1.0 || split.scaled.nonZeros() == 0
+                              ? out.covariance
+                              : CovarianceOf(InverseColumnsAt(blocks, Sum(split, scaled.scale)));
   out.share = Eigen::MatrixXd::Zero(inverse.size, static_cast<Eigen::Index>(sources.size()));
   out.spread = out.share;
   if (!inverse.ok) return out;

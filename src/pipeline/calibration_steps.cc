@@ -525,13 +525,9 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
   const std::vector<estimation::Keyframe> solved_keyframes = *keyframes;
   const sensors::Calibration solved = *calibration;
   options.set_to_truth(keyframes, calibration);
-  // Without a LiDAR scale the bound is the budget's covariance: one factorization for both.
   estimation::ErrorBudget budget = estimation::ComputeErrorBudget(
-      blocks_estimated, problem, ResidualSources(problem), num_threads);
-  const estimation::BlockCovariance bound =
-      lidar.scale == 1.0
-          ? budget.covariance
-          : estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, {}, lidar);
+      blocks_estimated, problem, ResidualSources(problem), num_threads, lidar);
+  const estimation::BlockCovariance bound = budget.scaled_covariance;
   Eigen::VectorXd error(bound.matrix.rows());
   for (size_t b = 0; b < blocks_estimated.size() && bound.ok; ++b) {
     const estimation::EstimatedBlock& block = blocks_estimated[b];

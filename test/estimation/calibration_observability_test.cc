@@ -437,6 +437,39 @@ TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) 
   EXPECT_GT((truth - p).norm(), 1e-3);  // there is an error to split
 }
 
+// The budget's scaled covariance is ComputeBlockCovariance's with the same scaled blocks, from
+// the one J the budget evaluates; without a scale it is the budget's own covariance.
+TEST(CalibrationObservability, ErrorBudgetGivesTheScaledCovarianceFromItsJacobian) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  double s = 1.8;
+  std::vector<EstimatedBlock> blocks = {
+      VectorBlock(p.data(), Eigen::Vector3d(0.28, -0.04, 0.50), 0.3, 0.05)};
+  ceres::Problem problem;
+  std::vector<ceres::ResidualBlockId> ids;
+  for (const LinearRow& r :
+       {LinearRow{100.0, 1.0, 0.0, 0.5, 0.0, 0.6}, LinearRow{50.0, 0.0, 1.0, 0.0, 0.0, -0.06},
+        LinearRow{100.0, -1.0, 0.0, 0.0, 1.0, 1.48}, LinearRow{20.0, 0.0, 0.0, 1.0, 1.0, 2.39}}) {
+    ids.push_back(problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
+        &s));
+  }
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  const ScaledInformation scaled{{ids[0], ids[3]}, 0.25};
+  const ErrorBudget budget = ComputeErrorBudget(blocks, &problem, {{"all", ids}}, 1, scaled);
+  ASSERT_TRUE(budget.ok);
+  ASSERT_TRUE(budget.scaled_covariance.ok);
+  const BlockCovariance expected = ComputeBlockCovariance(blocks, &problem, 1, {}, scaled);
+  EXPECT_TRUE(budget.scaled_covariance.matrix.isApprox(expected.matrix, 1e-14))
+      << budget.scaled_covariance.matrix - expected.matrix;
+  EXPECT_EQ(budget.scaled_covariance.offsets, expected.offsets);
+  // The scale matters: a quarter of two rows' information widens the covariance.
+  EXPECT_GT(budget.scaled_covariance.matrix(0, 0), 1.01 * budget.covariance.matrix(0, 0));
+  const ErrorBudget unscaled = ComputeErrorBudget(blocks, &problem, {{"all", ids}}, 1,
+                                                  ScaledInformation{{ids[0], ids[3]}, 1.0});
+  EXPECT_TRUE(
+      (unscaled.scaled_covariance.matrix.array() == unscaled.covariance.matrix.array()).all());
+}
+
 // Eq. C6: the information of the scaled residual blocks is multiplied by the scale, the rest
 // unchanged: (J_1^T J_1 + s J_2^T J_2)^-1 by hand.
 TEST(CalibrationObservability, ScaledInformationMultipliesTheGivenBlocksInformation) {

@@ -92,7 +92,9 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
 // J^T J, robust losses applied as the solver applies them) is truth - estimate to first order.
 // Per source s of residual blocks, `share` is H^-1 J_s^T r_s and `spread` the share's standard
 // deviation were the source's whitened residuals N(0, I); the spreads' squares sum to the
-// covariance's diagonal when every residual block belongs to a source.
+// covariance's diagonal when every residual block belongs to a source. `scaled_covariance` is
+// ComputeBlockCovariance's with `scaled` (the Cramér–Rao bound at the truth, Eq. C6), from the
+// same J.
 struct ResidualSource {
   std::string name;
   std::vector<ceres::ResidualBlockId> residual_blocks;
@@ -100,12 +102,14 @@ struct ResidualSource {
 struct ErrorBudget {
   bool ok = false;             // false when J^T J is singular or the problem does not evaluate
   BlockCovariance covariance;  // the blocks' part of H^-1, as ComputeBlockCovariance's
+  BlockCovariance scaled_covariance;  // the same with `scaled`'s information times its scale
   std::vector<std::string> sources;
   Eigen::MatrixXd share;   // rows: the blocks' stacked coordinates; column s: source s's
   Eigen::MatrixXd spread;  // laid out as share
 };
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
-                               const std::vector<ResidualSource>& sources, int num_threads = 1);
+                               const std::vector<ResidualSource>& sources, int num_threads = 1,
+                               const ScaledInformation& scaled = {});
 
 // The directions that the data inform (observable or kept; or held under a stated prior while
 // the data hold about a quarter or more of its information, posterior sigma at most 0.9 of
