@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <string>
@@ -249,6 +250,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   Report(options, "solving", 1.0, summary.final_cost, 0.0);
 
   // 3. Observability, uncertainty and the result (the last solve's summary).
+  const auto uncertainty_start = std::chrono::steady_clock::now();
   const estimation::BlockCovariance covariance = PosteriorCovariance(
       blocks_estimated, joint.get(), problem.solver.num_threads, &result.warnings);
   result.batch.termination = summary.message;
@@ -267,6 +269,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                      problem.solver.num_threads, &result);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
+  result.seconds_uncertainty = SecondsSince(uncertainty_start);
+  const auto holding_start = std::chrono::steady_clock::now();
   // The same budget as the first solve: pinning the held directions can move a long
   // dead-reckoned trajectory as far as the first solve did.
   const int budget = problem.solver.max_iterations * problem.solver.outer_iterations;
@@ -278,6 +282,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
     SolveAgainAfterHolding(problem, blocks_estimated, observability, solved, &calibration,
                            joint.get(), &result, budget);
   }
+  result.seconds_after_holding = SecondsSince(holding_start);
   RequirePlausible(dataset, options, blocks_estimated, covariance);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
   RecordResidualsAfterSolve(joint.get(), &result.whitened_residuals);

@@ -226,6 +226,7 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   batch_options.compute_covariance = false;  // the joint one below covers every block
   estimation::BlockObservability observability;
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
+    const auto uncertainty_start = std::chrono::steady_clock::now();
     const estimation::ScaledInformation lidar = LidarSandwich(p);
     result->calibration.residuals["lidar"]["sandwich_kappa"] = 1.0 / lidar.scale;
     const estimation::BlockCovariance covariance =
@@ -235,7 +236,10 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
                        problem.solver.num_threads, result, lidar);
     observability = Observe(dataset, options, blocks, covariance, result);
+    result->seconds_uncertainty = SecondsSince(uncertainty_start);
+    const auto holding_start = std::chrono::steady_clock::now();
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
+    result->seconds_after_holding = SecondsSince(holding_start);
     RequirePlausible(dataset, options, blocks, covariance);
     RecordResidualsAfterSolve(p, &result->whitened_residuals);
   };
@@ -302,7 +306,9 @@ std::string TimingsYaml(const OfflineCalibrationResult& result) {
       << "seconds_initialization: " << result.seconds_initialization << "\n"
       << "seconds_solve: " << result.seconds_solve << "\n"
       << "seconds_association: " << result.batch.seconds_association << "\n"
-      << "seconds_ceres: " << result.batch.seconds_solver << "\n";
+      << "seconds_ceres: " << result.batch.seconds_solver << "\n"
+      << "seconds_uncertainty: " << result.seconds_uncertainty << "\n"
+      << "seconds_after_holding: " << result.seconds_after_holding << "\n";
   return out.str();
 }
 

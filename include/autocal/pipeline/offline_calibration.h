@@ -141,6 +141,10 @@ struct OfflineCalibrationResult {
   double seconds_loading = 0.0;
   double seconds_initialization = 0.0;
   double seconds_solve = 0.0;  // batch solve, covariance and observability
+  // Of the solve: the posterior covariance, the bound at the truth and the observability; and
+  // the solve again with the unobservable directions held (0 when none is).
+  double seconds_uncertainty = 0.0;
+  double seconds_after_holding = 0.0;
 };
 
 // Runs the whole calibration; without the LiDAR in the problem, from keyframes on the GNSS
