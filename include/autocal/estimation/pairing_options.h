@@ -64,14 +64,14 @@ struct WindowPairingOptions {
 inline PairingOptions BatchPairingDefaults() { return PairingOptions(); }
 
 // The sliding window's partners for a window of `window_size` keyframes: the farthest keyframe
-// it keeps between updates on either side first, ±(window_size − 1) (a pair with the keyframe
-// window_size away lasts only the update that marginalizes it), then those 5, 8, 3 and 2
-// keyframes away that are nearer. Once the extrinsic has settled a point walks only the first
+// pairing reaches on either side first, ±window_size (while it pairs, the window holds the new
+// keyframe and the oldest, not yet marginalized), then those 5, 8, 3 and 2 keyframes away that
+// are nearer. Once the extrinsic has settled a point walks only the first
 // settled_partner_count of them (WindowPairingOptions): pairs across the whole window tie the
 // keyframes' roll and pitch over the longest span it holds, where nearer pairs let them drift
 // with the biases (docs/sliding_window.md, "Partner walk").
 inline std::vector<int> WindowPartnerOffsets(int window_size) {
-  const int farthest = std::max(1, window_size - 1);
+  const int farthest = std::max(1, window_size);
   std::vector<int> offsets = {-farthest, farthest};
   for (const int o : {5, 8, 3, 2}) {
     if (o < farthest) offsets.insert(offsets.end(), {-o, o});
