@@ -70,6 +70,8 @@ void BM_CalibrateUrban(benchmark::State& state) {
   state.counters["solve_s"] = result.seconds_solve;
   state.counters["association_s"] = result.batch.seconds_association;
   state.counters["ceres_s"] = result.batch.seconds_solver;
+  state.counters["uncertainty_s"] = result.seconds_uncertainty;
+  state.counters["after_holding_s"] = result.seconds_after_holding;
   state.counters["peak_MB"] = PeakResidentMegabytes();
 }
 BENCHMARK(BM_CalibrateUrban)
