@@ -340,8 +340,9 @@ SplitHessian EvaluateSplitHessian(ceres::Problem* problem, int num_threads,
     (in_scaled.count(id) > 0 ? rescaled : plain).push_back(id);
   }
   out.plain = InformationOf(problem, &variables, plain, 1.0, num_threads);
-  if (!rescaled.empty())
+  if (!rescaled.empty()) {
     out.scaled = InformationOf(problem, &variables, rescaled, scale, num_threads);
+  }
   return out;
 }
 

@@ -1,12 +1,11 @@
 #pragma once
 
 // H^-1 B for many right-hand sides at once, from Eigen's sparse LDL^T of H. Eigen's own solve
-// walks the factor once per column of B; for the calibration's covariance (about 30 columns
-// through the factor of a long log's normal equations, tens of megabytes) each walk misses
-// the cache, and the solves grew 28 times for a log 10 times as long. Here B is held by rows
-// and the factor walked once forward and once backward, each of its entries applied to a
-// whole row. Every column's sums run in the order of Eigen's solve, so the result has the
-// same bits.
+// walks the factor once per column of B; for the calibration's covariance (a column per
+// estimated direction through the factor of a long log's normal equations, tens of megabytes)
+// each walk misses the cache. Here B is held by rows and the factor walked once forward and
+// once backward, each of its entries applied to a whole row. Every column's sums run in the
+// order of Eigen's solve, so the result has the same bits (docs/calibration.md, "Speed").
 
 #include <Eigen/Core>
 #include <Eigen/SparseCholesky>
