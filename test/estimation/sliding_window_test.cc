@@ -130,8 +130,8 @@ TEST(SlidingWindowStreaming, DropsASweepTooCloseToTheNewestKeyframe) {
 }
 
 // The partners a window walks once the extrinsic settled are the first of its list: the
-// farthest keyframes it holds (docs/sliding_window.md, "Partner walk").
-TEST(SlidingWindowPairing, ListsTheFarthestKeyframesTheWindowHoldsFirst) {
+// farthest keyframes pairing reaches, window_size away (docs/sliding_window.md, "Partner walk").
+TEST(SlidingWindowPairing, ListsTheFarthestKeyframesPairingReachesFirst) {
   EXPECT_EQ(WindowPartnerOffsets(10), (std::vector<int>{-10, 10, -5, 5, -8, 8, -3, 3, -2, 2}));
   EXPECT_EQ(WindowPartnerOffsets(20), (std::vector<int>{-20, 20, -5, 5, -8, 8, -3, 3, -2, 2}));
   EXPECT_EQ(WindowPartnerOffsets(4), (std::vector<int>{-4, 4, -3, 3, -2, 2}));
@@ -1299,7 +1299,7 @@ TEST_F(SlidingWindowUrban, TakesASecondPassOnlyWhenTheFirstMovedASweepPair) {
 // Partners whose pairs last two updates, the list before the farthest became ±window_size:
 // the shortcuts below save most where a point's tries repeat. With the default list a settled
 // keyframe's pairs last one update each, and both shortcuts have less to save.
-const std::vector<int> kTwoUpdatePartners = {-9, 9, -5, 5, -8, 8, -3, 3, -2, 2};
+std::vector<int> TwoUpdatePartners() { return {-9, 9, -5, 5, -8, 8, -3, 3, -2, 2}; }
 
 // Kept tries ("Reuse between updates"): against a fresh association at every update (both
 // tolerances 0) the window pairs as many points, with a fraction of the lookups, and tracks
@@ -1314,12 +1314,12 @@ const std::vector<int> kTwoUpdatePartners = {-9, 9, -5, 5, -8, 8, -3, 3, -2, 2};
 TEST_F(SlidingWindowUrban, KeptTriesPairLikeAFreshAssociation) {
   const sensors::Calibration& truth = simulator_->true_calibration();
   SlidingWindowOptions fresh_options = Options();
-  fresh_options.pairing.partner_offsets = kTwoUpdatePartners;
+  fresh_options.pairing.partner_offsets = TwoUpdatePartners();
   fresh_options.window_pairing.reassociation_tolerance_m = 0.0;
   fresh_options.window_pairing.map_rebuild_tolerance_m = 0.0;
   const Run fresh = Estimate(truth, fresh_options);
   SlidingWindowOptions kept_options = Options();
-  kept_options.pairing.partner_offsets = kTwoUpdatePartners;
+  kept_options.pairing.partner_offsets = TwoUpdatePartners();
   const Run kept = Estimate(truth, kept_options);
   ASSERT_EQ(kept.points.size(), fresh.points.size());
   const size_t n = kept.points.size();
@@ -1419,7 +1419,7 @@ TEST_F(SlidingWindowUrban, PairsWithFewerPartnersOnceTheExtrinsicSettled) {
 TEST_F(SlidingWindowUrban, StopsLookingUpPointsWithoutAPlane) {
   const sensors::Calibration& nominal = simulator_->nominal_calibration();
   SlidingWindowOptions capped_options = Options();
-  capped_options.pairing.partner_offsets = kTwoUpdatePartners;
+  capped_options.pairing.partner_offsets = TwoUpdatePartners();
   capped_options.pairing.residual_max_range_m = 0.0;
   capped_options.pairing.plane_map.num_neighbors = 5;
   SlidingWindowOptions every_options = capped_options;
