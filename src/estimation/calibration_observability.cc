@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <Eigen/OrderingMethods>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -428,8 +429,22 @@ struct InverseColumns {
   std::vector<std::pair<int, int>> rows;  // (row of H, stacked coordinate) of variable blocks
 };
 
+// The fill-reducing permutation P of H's pattern (P H P^T factorizes with little fill), as
+// Eigen's SimplicialLDLT computes it: AMD on the symmetric pattern. Kept in `ordering` for the
+// next matrix of the same problem; one already there and of H's size is used as it is.
+const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& OrderingFor(
+    const Eigen::SparseMatrix<double>& H, CovarianceOrdering* ordering) {
+  if (ordering->P.size() != H.rows()) {
+    const Eigen::SparseMatrix<double> symmetric = H.selfadjointView<Eigen::Lower>();
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
+    Eigen::AMDOrdering<int>()(symmetric, inverse);
+    ordering->P = inverse.inverse();
+  }
+  return ordering->P;
+}
+
 InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
-                                const GaussNewtonHessian& hessian) {
+                                const GaussNewtonHessian& hessian, CovarianceOrdering* ordering) {
   InverseColumns out;
   for (const EstimatedBlock& block : blocks) {
     out.offsets.push_back(out.size);
@@ -444,9 +459,17 @@ InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
       out.rows.emplace_back(it->second + i, out.offsets[a] + i);
     }
   }
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(hessian.H);
+  const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& P =
+      OrderingFor(hessian.H, ordering);
+  Eigen::SparseMatrix<double> permuted(hessian.H.rows(), hessian.H.cols());
+  permuted.selfadjointView<Eigen::Upper>() = hessian.H.selfadjointView<Eigen::Lower>().twistedBy(P);
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper,
+                              Eigen::NaturalOrdering<int>>
+      ldlt(permuted);
   if (ldlt.info() != Eigen::Success || !FullRank(ldlt.vectorD())) return out;
-  out.columns = internal::SolveColumns(ldlt, unit);
+  const Eigen::MatrixXd permuted_unit = P * unit;
+  out.columns = P.inverse() * internal::SolveColumns(ldlt.matrixL().nestedExpression(),
+                                                     ldlt.vectorD(), permuted_unit);
   out.ok = out.columns.allFinite();
   return out;
 }
@@ -478,7 +501,8 @@ BlockCovariance EmptyCovariance() {
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads,
                                        const std::vector<ceres::ResidualBlockId>& exact,
-                                       const ScaledInformation& scaled) {
+                                       const ScaledInformation& scaled,
+                                       CovarianceOrdering* ordering) {
   if (blocks.empty()) return EmptyCovariance();
   GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads, scaled);
   if (!exact.empty()) {
@@ -488,12 +512,13 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     term.setFromTriplets(curvature.begin(), curvature.end());
     hessian.H = Eigen::SparseMatrix<double>(hessian.H + term);
   }
-  return CovarianceOf(InverseColumnsAt(blocks, hessian));
+  CovarianceOrdering own;
+  return CovarianceOf(InverseColumnsAt(blocks, hessian, ordering != nullptr ? ordering : &own));
 }
 
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
                                const std::vector<ResidualSource>& sources, int num_threads,
-                               const ScaledInformation& scaled) {
+                               const ScaledInformation& scaled, CovarianceOrdering* ordering) {
   ErrorBudget out;
   for (const ResidualSource& source : sources) out.sources.push_back(source.name);
   if (blocks.empty()) {
@@ -504,11 +529,14 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
   }
   // One J for both: the solve weighs every residual as is, the scaled covariance does not.
   const SplitHessian split = EvaluateSplitHessian(problem, num_threads, scaled, 1.0);
-  const InverseColumns inverse = InverseColumnsAt(blocks, Sum(split, 1.0));
+  CovarianceOrdering own;
+  if (ordering == nullptr) ordering = &own;
+  const InverseColumns inverse = InverseColumnsAt(blocks, Sum(split, 1.0), ordering);
   out.covariance = CovarianceOf(inverse);
-  out.scaled_covariance = scaled.scale == 1.0 || split.scaled.nonZeros() == 0
-                              ? out.covariance
-                              : CovarianceOf(InverseColumnsAt(blocks, Sum(split, scaled.scale)));
+  out.scaled_covariance =
+      scaled.scale == 1.0 || split.scaled.nonZeros() == 0
+          ? out.covariance
+          : CovarianceOf(InverseColumnsAt(blocks, Sum(split, scaled.scale), ordering));
   out.share = Eigen::MatrixXd::Zero(inverse.size, static_cast<Eigen::Index>(sources.size()));
   out.spread = out.share;
   if (!inverse.ok) return out;

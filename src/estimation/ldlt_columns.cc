@@ -6,17 +6,14 @@ namespace autocal {
 namespace estimation {
 namespace internal {
 
-RowMajorMatrix SolveColumns(const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>& ldlt,
+RowMajorMatrix SolveColumns(const Eigen::SparseMatrix<double>& L, const Eigen::VectorXd& D,
                             const Eigen::MatrixXd& B) {
-  if (ldlt.info() != Eigen::Success) throw Error("SolveColumns: the factorization failed");
-  if (B.rows() != ldlt.rows()) {
-    throw Error("SolveColumns: " + std::to_string(B.rows()) + " rows for a matrix of size " +
-                std::to_string(ldlt.rows()));
+  if (L.rows() != L.cols() || D.size() != L.cols() || B.rows() != L.rows()) {
+    throw Error("SolveColumns: a factor of size " + std::to_string(L.rows()) + " x " +
+                std::to_string(L.cols()) + ", " + std::to_string(D.size()) + " pivots and " +
+                std::to_string(B.rows()) + " rows of right-hand sides");
   }
-  // P H P^T = L D L^T, L unit lower triangular, stored by columns without its diagonal.
-  RowMajorMatrix X = ldlt.permutationP() * B;
-  const Eigen::SparseMatrix<double>& L = ldlt.matrixL().nestedExpression();
-  const Eigen::VectorXd& D = ldlt.vectorD();
+  RowMajorMatrix X = B;
   const Eigen::Index n = L.cols();
   for (Eigen::Index j = 0; j < n; ++j) {  // L Y = X: column j's entries update later rows
     for (Eigen::SparseMatrix<double>::InnerIterator it(L, j); it; ++it) {
@@ -29,7 +26,7 @@ RowMajorMatrix SolveColumns(const Eigen::SimplicialLDLT<Eigen::SparseMatrix<doub
       if (it.index() > j) X.row(j) -= it.value() * X.row(it.index());
     }
   }
-  return ldlt.permutationPinv() * X;
+  return X;
 }
 
 }  // namespace internal

@@ -17,9 +17,11 @@ namespace internal {
 
 using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// X with H X = B, as ldlt.solve(B) gives it; B has ldlt's size in rows. The factorization must
-// have succeeded (ldlt.info() == Eigen::Success).
-RowMajorMatrix SolveColumns(const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>& ldlt,
+// X with L D L^T X = B for a unit lower triangular L stored by columns without its diagonal
+// (Eigen::SimplicialLDLT's matrixL() and vectorD()); B has L's size in rows. The permutation of
+// the factorization, if any, is the caller's: H^-1 B = P^T SolveColumns(L, D, P B) for
+// P H P^T = L D L^T.
+RowMajorMatrix SolveColumns(const Eigen::SparseMatrix<double>& L, const Eigen::VectorXd& D,
                             const Eigen::MatrixXd& B);
 
 }  // namespace internal

@@ -483,8 +483,8 @@ estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {
 
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    int num_threads, std::vector<std::string>* warnings,
-    const estimation::ScaledInformation& lidar) {
+    int num_threads, std::vector<std::string>* warnings, const estimation::ScaledInformation& lidar,
+    estimation::CovarianceOrdering* ordering) {
   std::vector<ceres::ResidualBlockId> ids;
   problem->GetResidualBlocks(&ids);
   std::vector<ceres::ResidualBlockId> exact;
@@ -495,14 +495,15 @@ estimation::BlockCovariance PosteriorCovariance(
       exact.push_back(id);
     }
   }
-  const estimation::BlockCovariance covariance =
-      estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, exact, lidar);
+  const estimation::BlockCovariance covariance = estimation::ComputeBlockCovariance(
+      blocks_estimated, problem, num_threads, exact, lidar, ordering);
   if (covariance.ok) return covariance;
   warnings->push_back(
       "covariance: the cost's exact Hessian is not positive definite at the solution (the solve "
       "is not at a minimum along some direction); the sigmas are Gauss-Newton's, which can count "
       "the measurements' noise as information");
-  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, {}, lidar);
+  return estimation::ComputeBlockCovariance(blocks_estimated, problem, num_threads, {}, lidar,
+                                            ordering);
 }
 
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
@@ -520,13 +521,14 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
                         std::vector<estimation::Keyframe>* keyframes,
                         sensors::Calibration* calibration, ceres::Problem* problem, int num_threads,
                         OfflineCalibrationResult* result,
-                        const estimation::ScaledInformation& lidar) {
+                        const estimation::ScaledInformation& lidar,
+                        estimation::CovarianceOrdering* ordering) {
   if (!options.set_to_truth) return;
   const std::vector<estimation::Keyframe> solved_keyframes = *keyframes;
   const sensors::Calibration solved = *calibration;
   options.set_to_truth(keyframes, calibration);
   estimation::ErrorBudget budget = estimation::ComputeErrorBudget(
-      blocks_estimated, problem, ResidualSources(problem), num_threads, lidar);
+      blocks_estimated, problem, ResidualSources(problem), num_threads, lidar, ordering);
   const estimation::BlockCovariance bound = budget.scaled_covariance;
   Eigen::VectorXd error(bound.matrix.rows());
   for (size_t b = 0; b < blocks_estimated.size() && bound.ok; ++b) {

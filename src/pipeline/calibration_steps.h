@@ -177,10 +177,12 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 // planar-rotation rows (they leave out the one column whose derivative is noise, Eq. F27b).
 // Where the completed matrix is not positive definite (a solve stopped off a minimum), J^T J
 // alone, with a warning. `lidar` scales the point groups' information (LidarSandwich).
+// `ordering` keeps the fill-reducing ordering for the bound at the truth on the same problem.
 estimation::BlockCovariance PosteriorCovariance(
     const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
     int num_threads, std::vector<std::string>* warnings,
-    const estimation::ScaledInformation& lidar = {});
+    const estimation::ScaledInformation& lidar = {},
+    estimation::CovarianceOrdering* ordering = nullptr);
 
 // The LiDAR point groups of `problem` with their information scale 1 / kappa, kappa the robust
 // loss's sandwich ratio over their whitened distances at the problem's values (Eq. C6): the
@@ -205,7 +207,8 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
                         std::vector<estimation::Keyframe>* keyframes,
                         sensors::Calibration* calibration, ceres::Problem* problem, int num_threads,
                         OfflineCalibrationResult* result,
-                        const estimation::ScaledInformation& lidar = {});
+                        const estimation::ScaledInformation& lidar = {},
+                        estimation::CovarianceOrdering* ordering = nullptr);
 
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'

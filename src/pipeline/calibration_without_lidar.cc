@@ -251,8 +251,9 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
 
   // 3. Observability, uncertainty and the result (the last solve's summary).
   const auto uncertainty_start = std::chrono::steady_clock::now();
+  estimation::CovarianceOrdering ordering;  // one pattern for the posterior and the bound
   const estimation::BlockCovariance covariance = PosteriorCovariance(
-      blocks_estimated, joint.get(), problem.solver.num_threads, &result.warnings);
+      blocks_estimated, joint.get(), problem.solver.num_threads, &result.warnings, {}, &ordering);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
   result.batch.calibration_per_iteration = {calibration};  // the last solve's
@@ -266,7 +267,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   const sensors::Calibration solved = calibration;
   RecordPosterior(blocks_estimated, covariance, solved, &result);
   RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, joint.get(),
-                     problem.solver.num_threads, &result);
+                     problem.solver.num_threads, &result, {}, &ordering);
   const estimation::BlockObservability observability =
       Observe(dataset, options, blocks_estimated, covariance, &result);
   result.seconds_uncertainty = SecondsSince(uncertainty_start);

@@ -229,12 +229,13 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     const auto uncertainty_start = std::chrono::steady_clock::now();
     const estimation::ScaledInformation lidar = LidarSandwich(p);
     result->calibration.residuals["lidar"]["sandwich_kappa"] = 1.0 / lidar.scale;
-    const estimation::BlockCovariance covariance =
-        PosteriorCovariance(blocks, p, problem.solver.num_threads, &result->warnings, lidar);
+    estimation::CovarianceOrdering ordering;  // one pattern for the posterior and the bound
+    const estimation::BlockCovariance covariance = PosteriorCovariance(
+        blocks, p, problem.solver.num_threads, &result->warnings, lidar, &ordering);
     const sensors::Calibration solved = *calibration;
     RecordPosterior(blocks, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
-                       problem.solver.num_threads, result, lidar);
+                       problem.solver.num_threads, result, lidar, &ordering);
     observability = Observe(dataset, options, blocks, covariance, result);
     result->seconds_uncertainty = SecondsSince(uncertainty_start);
     const auto holding_start = std::chrono::steady_clock::now();

@@ -470,6 +470,39 @@ TEST(CalibrationObservability, ErrorBudgetGivesTheScaledCovarianceFromItsJacobia
       (unscaled.scaled_covariance.matrix.array() == unscaled.covariance.matrix.array()).all());
 }
 
+// A shared fill-reducing ordering is computed by the first call and reused by the next, with the
+// same bits as each call's own.
+TEST(CalibrationObservability, ASharedOrderingGivesTheSameCovariance) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  double s = 1.8;
+  std::vector<EstimatedBlock> blocks = {
+      VectorBlock(p.data(), Eigen::Vector3d(0.28, -0.04, 0.50), 0.3, 0.05)};
+  ceres::Problem problem;
+  std::vector<ceres::ResidualBlockId> ids;
+  for (const LinearRow& r :
+       {LinearRow{100.0, 1.0, 0.0, 0.5, 0.0, 0.6}, LinearRow{20.0, 0.0, 0.0, 1.0, 1.0, 2.39},
+        LinearRow{10.0, 0.0, 1.0, 0.0, 1.0, 1.7}}) {
+    ids.push_back(problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
+        &s));
+  }
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  CovarianceOrdering ordering;
+  const BlockCovariance first = ComputeBlockCovariance(blocks, &problem, 1, {}, {}, &ordering);
+  EXPECT_EQ(ordering.P.size(), 4);  // the tangent columns of p and s
+  const ScaledInformation scaled{{ids[0]}, 0.5};
+  const ErrorBudget budget =
+      ComputeErrorBudget(blocks, &problem, {{"rows", ids}}, 1, scaled, &ordering);
+  const ErrorBudget own = ComputeErrorBudget(blocks, &problem, {{"rows", ids}}, 1, scaled);
+  ASSERT_TRUE(first.ok && budget.ok && own.ok);
+  const BlockCovariance alone = ComputeBlockCovariance(blocks, &problem);
+  EXPECT_TRUE((first.matrix.array() == alone.matrix.array()).all());
+  EXPECT_TRUE((budget.covariance.matrix.array() == own.covariance.matrix.array()).all());
+  EXPECT_TRUE(
+      (budget.scaled_covariance.matrix.array() == own.scaled_covariance.matrix.array()).all());
+  EXPECT_TRUE((budget.share.array() == own.share.array()).all());
+}
+
 // Eq. C6: the information of the scaled residual blocks is multiplied by the scale, the rest
 // unchanged: (J_1^T J_1 + s J_2^T J_2)^-1 by hand.
 TEST(CalibrationObservability, ScaledInformationMultipliesTheGivenBlocksInformation) {

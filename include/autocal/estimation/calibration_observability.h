@@ -82,10 +82,19 @@ struct ScaledInformation {
   std::vector<ceres::ResidualBlockId> residual_blocks;
   double scale = 1.0;
 };
+//
+// The fill-reducing ordering of J^T J's pattern (Eigen's AMD) costs about as much as the
+// factorization on a long log. Given an `ordering`, the first call computes it and later calls
+// on the same problem reuse it (any ordering gives the same covariance; the same one the same
+// bits); without one, each call computes its own.
+struct CovarianceOrdering {
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> P;
+};
 BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks,
                                        ceres::Problem* problem, int num_threads = 1,
                                        const std::vector<ceres::ResidualBlockId>& exact = {},
-                                       const ScaledInformation& scaled = {});
+                                       const ScaledInformation& scaled = {},
+                                       CovarianceOrdering* ordering = nullptr);
 
 // Where the error of the blocks comes from (docs/evaluation.md, Eq. E1): at the values
 // `problem` holds (the truth of a simulated log), H^-1 J^T r over every variable block (H =
@@ -109,7 +118,8 @@ struct ErrorBudget {
 };
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,
                                const std::vector<ResidualSource>& sources, int num_threads = 1,
-                               const ScaledInformation& scaled = {});
+                               const ScaledInformation& scaled = {},
+                               CovarianceOrdering* ordering = nullptr);
 
 // The directions that the data inform (observable or kept; or held under a stated prior while
 // the data hold about a quarter or more of its information, posterior sigma at most 0.9 of
