@@ -437,23 +437,35 @@ TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) 
   EXPECT_GT((truth - p).norm(), 1e-3);  // there is an error to split
 }
 
+// A block p (with its prior) and a free s, measured by linear rows of (p, s).
+struct LinearRowsProblem {
+  Eigen::Vector3d p{0.30, -0.05, 0.55};
+  double s = 1.8;
+  std::vector<EstimatedBlock> blocks;
+  ceres::Problem problem;
+  std::vector<ceres::ResidualBlockId> ids;  // the rows', in order
+
+  explicit LinearRowsProblem(const std::vector<LinearRow>& rows)
+      : blocks({VectorBlock(p.data(), Eigen::Vector3d(0.28, -0.04, 0.50), 0.3, 0.05)}) {
+    for (const LinearRow& r : rows) {
+      ids.push_back(problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
+          &s));
+    }
+    AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  }
+};
+
 // The budget's scaled covariance is ComputeBlockCovariance's with the same scaled blocks, from
 // the one J the budget evaluates; without a scale it is the budget's own covariance.
 TEST(CalibrationObservability, ErrorBudgetGivesTheScaledCovarianceFromItsJacobian) {
-  Eigen::Vector3d p(0.30, -0.05, 0.55);
-  double s = 1.8;
-  std::vector<EstimatedBlock> blocks = {
-      VectorBlock(p.data(), Eigen::Vector3d(0.28, -0.04, 0.50), 0.3, 0.05)};
-  ceres::Problem problem;
-  std::vector<ceres::ResidualBlockId> ids;
-  for (const LinearRow& r :
-       {LinearRow{100.0, 1.0, 0.0, 0.5, 0.0, 0.6}, LinearRow{50.0, 0.0, 1.0, 0.0, 0.0, -0.06},
-        LinearRow{100.0, -1.0, 0.0, 0.0, 1.0, 1.48}, LinearRow{20.0, 0.0, 0.0, 1.0, 1.0, 2.39}}) {
-    ids.push_back(problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
-        &s));
-  }
-  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  LinearRowsProblem rows({{100.0, 1.0, 0.0, 0.5, 0.0, 0.6},
+                          {50.0, 0.0, 1.0, 0.0, 0.0, -0.06},
+                          {100.0, -1.0, 0.0, 0.0, 1.0, 1.48},
+                          {20.0, 0.0, 0.0, 1.0, 1.0, 2.39}});
+  const std::vector<EstimatedBlock>& blocks = rows.blocks;
+  ceres::Problem& problem = rows.problem;
+  const std::vector<ceres::ResidualBlockId>& ids = rows.ids;
   const ScaledInformation scaled{{ids[0], ids[3]}, 0.25};
   const ErrorBudget budget = ComputeErrorBudget(blocks, &problem, {{"all", ids}}, 1, scaled);
   ASSERT_TRUE(budget.ok);
@@ -473,20 +485,12 @@ TEST(CalibrationObservability, ErrorBudgetGivesTheScaledCovarianceFromItsJacobia
 // A shared fill-reducing ordering is computed by the first call and reused by the next, with the
 // same bits as each call's own.
 TEST(CalibrationObservability, ASharedOrderingGivesTheSameCovariance) {
-  Eigen::Vector3d p(0.30, -0.05, 0.55);
-  double s = 1.8;
-  std::vector<EstimatedBlock> blocks = {
-      VectorBlock(p.data(), Eigen::Vector3d(0.28, -0.04, 0.50), 0.3, 0.05)};
-  ceres::Problem problem;
-  std::vector<ceres::ResidualBlockId> ids;
-  for (const LinearRow& r :
-       {LinearRow{100.0, 1.0, 0.0, 0.5, 0.0, 0.6}, LinearRow{20.0, 0.0, 0.0, 1.0, 1.0, 2.39},
-        LinearRow{10.0, 0.0, 1.0, 0.0, 1.0, 1.7}}) {
-    ids.push_back(problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)), nullptr, p.data(),
-        &s));
-  }
-  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  LinearRowsProblem rows({{100.0, 1.0, 0.0, 0.5, 0.0, 0.6},
+                          {20.0, 0.0, 0.0, 1.0, 1.0, 2.39},
+                          {10.0, 0.0, 1.0, 0.0, 1.0, 1.7}});
+  const std::vector<EstimatedBlock>& blocks = rows.blocks;
+  ceres::Problem& problem = rows.problem;
+  const std::vector<ceres::ResidualBlockId>& ids = rows.ids;
   CovarianceOrdering ordering;
   const BlockCovariance first = ComputeBlockCovariance(blocks, &problem, 1, {}, {}, &ordering);
   EXPECT_EQ(ordering.P.size(), 4);  // the tangent columns of p and s
