@@ -513,7 +513,8 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
     hessian.H = Eigen::SparseMatrix<double>(hessian.H + term);
   }
   CovarianceOrdering own;
-  return CovarianceOf(InverseColumnsAt(blocks, hessian, ordering != nullptr ? ordering : &own));
+  if (ordering == nullptr) ordering = &own;
+  return CovarianceOf(InverseColumnsAt(blocks, hessian, ordering));
 }
 
 ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem,

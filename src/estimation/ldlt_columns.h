@@ -8,7 +8,6 @@
 // order of Eigen's solve, so the result has the same bits (docs/calibration.md, "Speed").
 
 #include <Eigen/Core>
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
 namespace autocal {

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/SparseCholesky>
 #include <random>
 #include <vector>
 
