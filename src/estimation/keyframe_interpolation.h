@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -57,6 +58,55 @@ std::optional<Bracket> FindBracket(const std::vector<Sample>& samples, int64_t t
   if (gap_ns > max_gap_ns) return std::nullopt;
   return Bracket{first, second,
                  static_cast<double>(t_ns - samples[first].t_ns) / static_cast<double>(gap_ns)};
+}
+
+// A mean of samples' values and the sum of the squared weights it gives them: for independent
+// samples of noise sigma the mean's noise is sigma sqrt(weight_squares).
+template <typename Value>
+struct WeightedMean {
+  Value value;
+  double weight_squares = 1.0;
+};
+
+// The time mean over [a_ns, b_ns] of the samples' values joined by straight lines (Eq. K13b):
+// each segment between two samples, clipped to the span, contributes its length times the
+// mean of its ends. a_ns == b_ns gives the instant's value (Eq. K1). nullopt unless samples
+// bracket both ends of the span and no segment it touches is longer than max_gap_ns.
+template <typename Sample, typename ValueOf>
+auto MeanOverSpan(const std::vector<Sample>& samples, int64_t a_ns, int64_t b_ns,
+                  int64_t max_gap_ns, ValueOf value_of)
+    -> std::optional<WeightedMean<std::decay_t<decltype(value_of(samples.front()))>>> {
+  using Value = std::decay_t<decltype(value_of(samples.front()))>;
+  const std::optional<Bracket> start = FindBracket(samples, a_ns, max_gap_ns);
+  if (!start || b_ns < a_ns) return std::nullopt;
+  if (a_ns == b_ns) {
+    const double s = start->s;
+    return WeightedMean<Value>{
+        (1.0 - s) * value_of(samples[start->first]) + s * value_of(samples[start->second]),
+        start->first == start->second ? 1.0 : (1.0 - s) * (1.0 - s) + s * s};
+  }
+  const double span_ns = static_cast<double>(b_ns - a_ns);
+  std::vector<double> weights(1, 0.0);  // of samples start->first, start->first + 1, ...
+  size_t i = start->first;
+  for (; i + 1 < samples.size() && samples[i].t_ns < b_ns; ++i) {
+    const int64_t t0 = samples[i].t_ns;
+    const int64_t t1 = samples[i + 1].t_ns;
+    if (t1 - t0 > max_gap_ns) return std::nullopt;
+    const double length = static_cast<double>(t1 - t0);
+    const double u = static_cast<double>(std::max(a_ns, t0) - t0) / length;
+    const double v = static_cast<double>(std::min(b_ns, t1) - t0) / length;
+    const double share = (v - u) * length / span_ns;
+    const double later = 0.5 * (u + v);  // the later sample's weight within the segment
+    weights.back() += share * (1.0 - later);
+    weights.push_back(share * later);
+  }
+  if (samples[i].t_ns < b_ns) return std::nullopt;
+  WeightedMean<Value> mean{0.0 * value_of(samples[start->first]), 0.0};
+  for (size_t j = 0; j < weights.size(); ++j) {
+    mean.value = mean.value + weights[j] * value_of(samples[start->first + j]);
+    mean.weight_squares += weights[j] * weights[j];
+  }
+  return mean;
 }
 
 // A sample's stamp, or the stamp itself.

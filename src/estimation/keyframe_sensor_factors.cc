@@ -1,5 +1,6 @@
 #include "autocal/estimation/keyframe_sensor_factors.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/manifolds.h"
@@ -230,13 +232,91 @@ std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamp
   return rates;
 }
 
-// AddWheelFactors for the samples of any wheel form. With the wheel clock at the IMU's (offset
-// 0, not estimated) make_cost(s0, s1, s, gyro, factor_options) builds a keyframe's factor from
-// the bracketing samples s0, s1, the fraction s between them and the interpolated raw gyro
-// (Eq. K1). Otherwise each keyframe takes the form's values, to_value(sample), of its nearest
-// sample on the wheel clock (Eq. K17) against its state carried to the sample's IMU time
-// (Eq. K16, internal::ShiftedWheelResidual) on the offset block, held constant unless
-// options.estimate_time_offset.
+// The axis, in I, the vehicle turns about (Eq. K13c): the principal axis of the spread of the
+// rows' body-rate readings, oriented along up_I, when its standard error (for an eigenvector
+// of a sample covariance, sqrt(l1 l2 / (n (l1 - l2)^2)) towards the second axis) is below
+// max_error_rad; nullopt for a drive with too few turns.
+std::optional<Eigen::Vector3d> TurningAxis(
+    const std::vector<std::optional<sensors::BodyRate>>& rates, const Eigen::Vector3d& up_I,
+    double max_error_rad) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const auto& rate : rates) {
+    if (!rate) continue;
+    mean += rate->rate_rad_s;
+    ++n;
+  }
+  if (n < 3 || !(max_error_rad > 0.0)) return std::nullopt;
+  mean /= n;
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  for (const auto& rate : rates) {
+    if (rate) spread += (rate->rate_rad_s - mean) * (rate->rate_rad_s - mean).transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(spread / n);
+  const double l1 = eigen.eigenvalues()(2), l2 = eigen.eigenvalues()(1);
+  if (!(l1 > l2)) return std::nullopt;
+  const double error_rad = std::sqrt(l1 * l2 / (n * (l1 - l2) * (l1 - l2)));
+  if (!(error_rad < max_error_rad)) return std::nullopt;
+  const Eigen::Vector3d axis = eigen.eigenvectors().col(2);
+  return axis.dot(up_I) < 0.0 ? Eigen::Vector3d(-axis) : axis;
+}
+
+// A keyframe's wheel values (the form's two) for its rows: the forward-speed row's at the
+// instant, the yaw-rate row's averaged over the span the gyro reading averages (Eq. K13b; the
+// instant's where the samples do not cover it), each with the weights that give its noise.
+struct WheelValues {
+  internal::WeightedMean<Eigen::Vector2d> speed_row;
+  internal::WeightedMean<Eigen::Vector2d> yaw_row;
+
+  // The rows' sigmas for these values. A weighted mean of independent samples has the noise
+  // of one sample times sqrt(weight_squares): the yaw-rate row's over its span, scaled by
+  // yaw_span_scale, sqrt(max(1, span / keyframe spacing)), because the spans overlap when
+  // keyframes lie closer than a span and a sample shared by k rows would count k times
+  // (Eq. K13b). The forward-speed row keeps one sample's sigma at the interpolated instant
+  // (docs/keyframe_factors.md, K13b: its own, about 0.8 of it, is measured and open).
+  factors::WheelFactorOptions Whitened(factors::WheelFactorOptions rows,
+                                       double yaw_span_scale) const {
+    rows.yaw_rate_sigma_rad_s *= std::sqrt(yaw_row.weight_squares) * yaw_span_scale;
+    return rows;
+  }
+};
+
+// The yaw-rate row's values over [t_ns - half_span_ns, t_ns + half_span_ns] on the wheel clock,
+// or `instant` where the samples do not cover that span.
+template <typename Samples, typename ToValue>
+WheelValues WithYawRowOverSpan(const Samples& wheel, int64_t t_ns, int64_t half_span_ns,
+                               int64_t max_gap_ns, ToValue to_value,
+                               const internal::WeightedMean<Eigen::Vector2d>& instant) {
+  return {instant, internal::MeanOverSpan(wheel, t_ns - half_span_ns, t_ns + half_span_ns,
+                                          max_gap_ns, to_value)
+                       .value_or(instant)};
+}
+
+// With the wheel clock at the IMU's: the values interpolated at the keyframe (Eq. K1).
+template <typename Samples, typename ToValue>
+std::optional<WheelValues> InstantValues(const Samples& wheel, int64_t t_k_ns, int64_t half_span_ns,
+                                         int64_t max_gap_ns, ToValue to_value) {
+  const auto instant = internal::MeanOverSpan(wheel, t_k_ns, t_k_ns, max_gap_ns, to_value);
+  if (!instant) return std::nullopt;
+  return WithYawRowOverSpan(wheel, t_k_ns, half_span_ns, max_gap_ns, to_value, *instant);
+}
+
+// With the clocks offset: the paired sample's values for both rows (Eq. K17). The offset's
+// rows take the gyro's slope at the sample as the rate's change (ShiftedWheelResidual), a
+// regressor whose noise a quieter, averaged row would count as information.
+template <typename Samples, typename ToValue>
+WheelValues PairedValues(const Samples& wheel, size_t paired, ToValue to_value) {
+  const internal::WeightedMean<Eigen::Vector2d> sample{to_value(wheel[paired]), 1.0};
+  return {sample, sample};
+}
+
+// AddWheelFactors for the samples of any wheel form, whose two values to_value(sample) gives.
+// With the wheel clock at the IMU's (offset 0, not estimated) make_cost(speed_row, yaw_row,
+// gyro, factor_options) builds a keyframe's factor from the values interpolated at it (Eq. K1),
+// those averaged over the gyro's span (Eq. K13b) and the rows' body rate. Otherwise each
+// keyframe takes the values of its nearest sample on the wheel clock (Eq. K17) against its
+// state carried to the sample's IMU time (Eq. K16, internal::ShiftedWheelResidual) on the
+// offset block, held constant unless options.estimate_time_offset.
 template <typename Samples, typename MakeCost, typename ToValue>
 int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, const Samples& wheel,
                       std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
@@ -287,6 +367,11 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_sample_sigma_rad_s >= 0.0)) {
     throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
   }
+  // The wheels' mean over the gyro reading's span for the yaw-rate rows (Eq. K13b); a moving
+  // mean over a span T is an error correlated over T / 2 in the sense of Eq. K6.
+  const int64_t half_span_ns = SecondsToNs(0.5 * options.gyro_mean_span_s);
+  const double yaw_span_scale =
+      KeyframeNonHolonomicSigmaScale(*keyframes, 0.5 * options.gyro_mean_span_s);
   // The rows' body rate at each keyframe, or where its sample was taken (Eq. K17).
   std::vector<int64_t> rate_ns;
   for (size_t k = 0; k < keyframes->size(); ++k) {
@@ -295,31 +380,41 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   }
   const std::vector<std::optional<sensors::BodyRate>> rates =
       BodyRatesAt(imu, rate_ns, max_imu_gap_ns, options);
+  if (const std::optional<Eigen::Vector3d> axis =
+          shifted ? std::nullopt
+                  : TurningAxis(rates, c.q_I_V * Eigen::Vector3d::UnitZ(),
+                                options.max_turning_axis_error_deg * kDegToRad)) {
+    factor_options.yaw_axis_I = *axis;
+  }
   int added = 0;
   for (size_t k = 0; k < keyframes->size(); ++k) {
     if (!rates[k]) continue;
     Keyframe& kf = (*keyframes)[k];
+    if (shifted && !paired[k]) continue;
+    const std::optional<WheelValues> values =
+        shifted ? PairedValues(wheel, *paired[k], to_value)
+                : InstantValues(wheel, kf.t_ns, half_span_ns, max_wheel_gap_ns, to_value);
+    if (!values) continue;
     const sensors::BodyRate& gyro = *rates[k];
     factors::WheelFactorOptions rows =
-        WithLeverArmRateCovariance(factor_options, gyro.covariance, c.q_I_V, c.p_I_V);
+        WithLeverArmRateCovariance(values->Whitened(factor_options, shifted ? 1.0 : yaw_span_scale),
+                                   gyro.covariance, c.q_I_V, c.p_I_V);
     if (!gyro.covariance.isZero(0.0)) {
-      const double variance = YawRateVariance(gyro.covariance, c.q_I_V);
+      const Eigen::Vector3d& u = factor_options.yaw_axis_I;
+      const double variance =
+          u.isZero(0.0) ? YawRateVariance(gyro.covariance, c.q_I_V) : u.dot(gyro.covariance * u);
       AddVariance(&rows.yaw_rate_sigma_rad_s, variance);
       AddVariance(&rows.yaw_rate_gyro_sigma_rad_s, variance);  // its gyro part (Eq. F22b)
     }
     WheelCost factor{nullptr, {}};
     if (!shifted) {
-      const std::optional<Bracket> w = FindBracket(wheel, kf.t_ns, max_wheel_gap_ns);
-      if (!w) continue;
-      factor = make_cost(wheel[w->first], wheel[w->second], w->s, gyro.rate_rad_s, rows);
+      factor = make_cost(values->speed_row.value, values->yaw_row.value, gyro.rate_rad_s, rows);
     } else {
-      if (!paired[k]) continue;
       const std::optional<internal::ImuAroundKeyframe> around =
           internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns);
       if (!around) continue;
-      const auto& sample = wheel[*paired[k]];
-      const internal::PairedWheelSample taken{to_value(sample), sample.t_ns, *offset,
-                                              gyro.rate_rad_s};
+      const internal::PairedWheelSample taken{values->speed_row.value, wheel[*paired[k]].t_ns,
+                                              *offset, gyro.rate_rad_s, values->yaw_row.value};
       factor.cost =
           internal::ShiftedWheelResidual::Create(taken, kf.t_ns, *around, form_blocks.form, rows);
     }
@@ -344,8 +439,6 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
   return added;
 }
 
-double Lerp(double a, double b, double s) { return (1.0 - s) * a + s * b; }
-
 }  // namespace
 
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
@@ -362,12 +455,13 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   blocks.intrinsics.push_back(&c.track_width_m);
   return AddWheelFactorsOf(
       problem, imu, wheel, keyframes, calibration, options, blocks,
-      [&](const sensors::WheelSample& w0, const sensors::WheelSample& w1, double s,
+      [&](const Eigen::Vector2d& speed_row, const Eigen::Vector2d& yaw_row,
           const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
         factors::WheelMeasurement m;
-        m.left_rad_s = Lerp(w0.left_rad_s, w1.left_rad_s, s);
-        m.right_rad_s = Lerp(w0.right_rad_s, w1.right_rad_s, s);
+        m.left_rad_s = speed_row(0);
+        m.right_rad_s = speed_row(1);
         m.gyro_rad_s = gyro;
+        m.yaw_row_rad_s = yaw_row;
         return WheelCost{factors::WheelFactor::Create(m, factor_options), blocks.intrinsics};
       },
       [](const sensors::WheelSample& w) { return Eigen::Vector2d(w.left_rad_s, w.right_rad_s); });
@@ -407,12 +501,13 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, con
       blocks.intrinsics = {&c.wheel_speed_scale_left, &c.wheel_speed_scale_right, &c.track_width_m};
       return AddWheelFactorsOf(
           problem, imu, wheel.speeds, keyframes, calibration, options, blocks,
-          [&](const sensors::WheelSpeedSample& w0, const sensors::WheelSpeedSample& w1, double s,
+          [&](const Eigen::Vector2d& speed_row, const Eigen::Vector2d& yaw_row,
               const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
             factors::WheelSpeedMeasurement m;
-            m.left_m_s = Lerp(w0.left_m_s, w1.left_m_s, s);
-            m.right_m_s = Lerp(w0.right_m_s, w1.right_m_s, s);
+            m.left_m_s = speed_row(0);
+            m.right_m_s = speed_row(1);
             m.gyro_rad_s = gyro;
+            m.yaw_row_m_s = yaw_row;
             return WheelCost{factors::WheelSpeedResidual::Create(m, factor_options),
                              blocks.intrinsics};
           },
@@ -431,11 +526,11 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, con
   blocks.intrinsics = {&c.odometry_speed_scale, &c.effective_track_m};
   return AddWheelFactorsOf(
       problem, imu, wheel.odometry, keyframes, calibration, options, blocks,
-      [&](const sensors::OdometrySample& w0, const sensors::OdometrySample& w1, double s,
+      [&](const Eigen::Vector2d& speed_row, const Eigen::Vector2d& yaw_row,
           const Eigen::Vector3d& gyro, const factors::WheelFactorOptions& factor_options) {
         factors::OdometryMeasurement m;
-        m.speed_m_s = Lerp(w0.speed_m_s, w1.speed_m_s, s);
-        m.yaw_rate_rad_s = Lerp(w0.yaw_rate_rad_s, w1.yaw_rate_rad_s, s);
+        m.speed_m_s = speed_row(0);
+        m.yaw_rate_rad_s = yaw_row(1);
         m.controller_track_m = wheel.controller_track_m;
         m.gyro_rad_s = gyro;
         return WheelCost{factors::OdometryTwistResidual::Create(m, factor_options),

@@ -61,7 +61,7 @@ WheelFactorOptions WheelFactorOptions::FromOdometryNoise(const sensors::WheelCon
 ceres::CostFunction* WheelSpeedResidual::Create(const WheelSpeedMeasurement& measurement,
                                                 const WheelFactorOptions& options) {
   if (!std::isfinite(measurement.left_m_s) || !std::isfinite(measurement.right_m_s) ||
-      !measurement.gyro_rad_s.allFinite()) {
+      !measurement.YawRowSpeeds().allFinite() || !measurement.gyro_rad_s.allFinite()) {
     throw Error("wheel-speed factor: wheel speed or gyro rate is not finite");
   }
   CheckRowSigmas(options);
@@ -98,7 +98,7 @@ WheelFactorOptions WheelFactorOptions::FromEncoderNoise(const sensors::WheelConf
 WheelFactor::WheelFactor(const WheelMeasurement& measurement, const WheelFactorOptions& options)
     : m_(measurement), options_(options) {
   if (!std::isfinite(measurement.left_rad_s) || !std::isfinite(measurement.right_rad_s) ||
-      !measurement.gyro_rad_s.allFinite()) {
+      !measurement.YawRowRates().allFinite() || !measurement.gyro_rad_s.allFinite()) {
     throw Error("wheel factor: wheel or gyro rate is not finite");
   }
   CheckRowSigmas(options);
@@ -131,14 +131,16 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
   const Eigen::Vector3d w_V = Rt_I_V * w_I;
   const double left = m_.left_rad_s * r_l;
   const double right = m_.right_rad_s * r_r;
-  const double yaw_wheel = (right - left) / b;
+  const Eigen::Vector2d yaw_row = m_.YawRowRates();  // Eq. K13b
+  const double yaw_wheel = (yaw_row(1) * r_r - yaw_row(0) * r_l) / b;
   const double inv_s_v = 1.0 / options_.speed_sigma_m_s;
   const double s_yaw = YawRowSigma(options_, b);  // Eq. F22b
   const double inv_s_yaw = 1.0 / s_yaw;
   const double inv_s_lat = options_.non_holonomic ? 1.0 / options_.lateral_sigma_m_s : 0.0;
   const double inv_s_vert = options_.non_holonomic ? 1.0 / options_.vertical_sigma_m_s : 0.0;
   residuals[0] = (v_V.x() - 0.5 * (left + right)) * inv_s_v;
-  residuals[1] = (w_V.z() - yaw_wheel) * inv_s_yaw;
+  const bool yaw_axis = !options_.yaw_axis_I.isZero(0.0);  // Eq. K13c
+  residuals[1] = ((yaw_axis ? options_.yaw_axis_I.dot(w_I) : w_V.z()) - yaw_wheel) * inv_s_yaw;
   if (options_.non_holonomic) {
     residuals[2] = v_V.y() * inv_s_lat;
     residuals[3] = v_V.z() * inv_s_vert;
@@ -182,18 +184,21 @@ bool WheelFactor::Evaluate(double const* const* parameters, double* residuals,
     const Eigen::Matrix3d R_W_V = (q_W_I * q_I_V).toRotationMatrix();
     store(R_W_V.col(0), zero, R_W_V.col(1), R_W_V.col(2), nullptr, jacobians[1]);
   }
-  if (jacobians[2] != nullptr) store_rotated_hat(p_I_V, -R_I_V.col(2), nullptr, jacobians[2]);
+  if (jacobians[2] != nullptr) {
+    store_rotated_hat(p_I_V, yaw_axis ? Eigen::Vector3d(-options_.yaw_axis_I) : -R_I_V.col(2),
+                      nullptr, jacobians[2]);
+  }
   if (jacobians[3] != nullptr) {
     // d v_V / d(right tangent of q_I_V) = Hat(v_V), d w_V / d(...) = Hat(w_V).
-    store(Eigen::Vector3d(0.0, -v_V.z(), v_V.y()), Eigen::Vector3d(-w_V.y(), w_V.x(), 0.0),
+    store(Eigen::Vector3d(0.0, -v_V.z(), v_V.y()),
+          yaw_axis ? zero : Eigen::Vector3d(-w_V.y(), w_V.x(), 0.0),
           Eigen::Vector3d(v_V.z(), 0.0, -v_V.x()), Eigen::Vector3d(-v_V.y(), v_V.x(), 0.0),
           parameters[3], jacobians[3]);
   }
   if (jacobians[4] != nullptr) store_rotated_hat(w_I, zero, nullptr, jacobians[4]);
   // Scalar blocks: d r / d(r_l, r_r, b) of the wheel-side prediction.
-  const Eigen::Vector4d d_r_l(-0.5 * m_.left_rad_s * inv_s_v, m_.left_rad_s / b * inv_s_yaw, 0, 0);
-  const Eigen::Vector4d d_r_r(-0.5 * m_.right_rad_s * inv_s_v, -m_.right_rad_s / b * inv_s_yaw, 0,
-                              0);
+  const Eigen::Vector4d d_r_l(-0.5 * m_.left_rad_s * inv_s_v, yaw_row(0) / b * inv_s_yaw, 0, 0);
+  const Eigen::Vector4d d_r_r(-0.5 * m_.right_rad_s * inv_s_v, -yaw_row(1) / b * inv_s_yaw, 0, 0);
   // Fixed-size writes: a loop over the row count compiles to a call to memcpy.
   auto store_scalar = [non_holonomic](const Eigen::Vector4d& column, double* out) {
     if (out == nullptr) return;

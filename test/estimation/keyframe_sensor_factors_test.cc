@@ -116,6 +116,32 @@ class KeyframeSensorFactorsTest : public ::testing::Test {
     return calibration.p_I_A - noisy_simulator_->true_calibration().p_I_A;
   }
 
+  // The track, in mm from the truth, that the noise-free drive's wheel rows give with true
+  // keyframes and radii, the mount q_I_V, the gyro's mean over gyro_span_s and the turning
+  // axis's error limit (Eqs. K13b, K13c); the nominal track to start, every other block held.
+  double TrackErrorMm(const Eigen::Quaterniond& q_I_V, const factors::WheelFactorOptions& rows,
+                      double gyro_span_s, double max_axis_error_deg) {
+    const sensors::Calibration& truth = exact_simulator_->true_calibration();
+    std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
+    sensors::Calibration calibration = truth;
+    calibration.q_I_V = q_I_V;
+    calibration.track_width_m = exact_simulator_->nominal_calibration().track_width_m;
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    KeyframeWheelOptions options;
+    options.factor = rows;
+    options.estimate_vehicle_rotation = false;
+    options.estimate_vehicle_translation = false;
+    options.estimate_radii = false;
+    options.gyro_mean_span_s = gyro_span_s;
+    options.max_turning_axis_error_deg = max_axis_error_deg;
+    EXPECT_GT(AddWheelFactors(problem.get(), exact_->imu.samples, exact_->wheel, &keyframes,
+                              &calibration, options),
+              0);
+    const ceres::Solver::Summary summary = Solve(problem.get());
+    EXPECT_TRUE(summary.IsSolutionUsable()) << summary.BriefReport();
+    return 1e3 * (calibration.track_width_m - truth.track_width_m);
+  }
+
   // Keyframes off the sample grid (wheel every 10 ms, GNSS every 100 ms): every measurement
   // is interpolated.
   static constexpr double kPhaseS = 0.037;
@@ -211,6 +237,88 @@ TEST_F(KeyframeSensorFactorsTest, WheelRadiiAndTrackWidthFromTheNominalGuess) {
   EXPECT_LT(std::abs(track_percent), 0.2);
   // The held blocks did not move.
   EXPECT_EQ(calibration.p_I_V, truth.p_I_V);
+}
+
+// The yaw-rate row compares the gyro's mean over a span with the wheels' mean over the same
+// span (Eq. K13b). On the noise-free drive with true keyframes and radii, the track from the
+// roundabout's yaw rates is as exact with the gyro averaged over 0.2 s as with the instant's
+// rate. Measured: -0.005 mm with the instant's, -0.05 mm over 0.2 s (the gyro's mean is of its
+// samples, the wheels' of their lines); with the instant's wheel rates against the averaged gyro
+// it came out 0.97 mm long (the mean attenuates the yaw rate's changes: errors in variables).
+TEST_F(KeyframeSensorFactorsTest, TheYawRowAveragesTheWheelsOverTheGyrosSpan) {
+  const sensors::Calibration& truth = exact_simulator_->true_calibration();
+  const factors::WheelFactorOptions rows = factors::WheelFactorOptions::FromEncoderNoise(
+      exact_simulator_->options().wheel.config, truth.wheel_radius_left_m, truth.track_width_m);
+  for (double span_s : {0.0, 0.2}) {
+    // About V's up axis, the true mount's.
+    const double error_mm = TrackErrorMm(truth.q_I_V, rows, span_s, 0.0);
+    std::cout << "gyro span " << span_s << " s: track " << error_mm << " mm off\n";
+    EXPECT_LT(std::abs(error_mm), 0.1) << "gyro span " << span_s << " s";
+  }
+}
+
+// Keyframes 0.1 s apart share half the wheel samples of their 0.2 s spans: each yaw-rate row
+// weighs sqrt(2) less than with keyframes 0.2 s apart, so that a sample counts once (Eq. K13b).
+// Compared on one keyframe through its row's derivative by the track.
+TEST_F(KeyframeSensorFactorsTest, OverlappingSpansShareTheirSamplesWeight) {
+  const sensors::Calibration& truth = noisy_simulator_->true_calibration();
+  const std::vector<Keyframe> every = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+  double d_yaw_row_d_track[2] = {0.0, 0.0};
+  for (int stride : {1, 2}) {
+    std::vector<Keyframe> keyframes;
+    for (size_t k = 0; k < every.size(); k += static_cast<size_t>(stride)) {
+      keyframes.push_back(every[k]);
+    }
+    sensors::Calibration calibration = truth;
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    KeyframeWheelOptions options;
+    options.factor = factors::WheelFactorOptions::FromEncoderNoise(
+        noisy_simulator_->options().wheel.config, truth.wheel_radius_left_m, truth.track_width_m);
+    options.gyro_mean_span_s = 0.2;
+    options.max_turning_axis_error_deg = 0.0;  // one axis for both sets of keyframes
+    ASSERT_GT(AddWheelFactors(problem.get(), noisy_->imu.samples, noisy_->wheel, &keyframes,
+                              &calibration, options),
+              0);
+    Keyframe& common = keyframes[100 / stride];  // every[100], 10.5 s into the drive, turning
+    std::vector<ceres::ResidualBlockId> blocks;
+    problem->GetResidualBlocksForParameterBlock(common.v_W_I.data(), &blocks);
+    ASSERT_EQ(blocks.size(), 1u);
+    std::vector<double*> parameters;
+    problem->GetParameterBlocksForResidualBlock(blocks[0], &parameters);
+    const auto track = std::find(parameters.begin(), parameters.end(), &calibration.track_width_m);
+    ASSERT_NE(track, parameters.end());
+    std::vector<double> residuals(4);
+    std::vector<std::vector<double>> jacobian_storage(parameters.size());
+    std::vector<double*> jacobians(parameters.size(), nullptr);
+    const size_t t = static_cast<size_t>(track - parameters.begin());
+    jacobian_storage[t].resize(4);
+    jacobians[t] = jacobian_storage[t].data();
+    ASSERT_TRUE(problem->EvaluateResidualBlock(blocks[0], false, nullptr, residuals.data(),
+                                               jacobians.data()));
+    d_yaw_row_d_track[stride - 1] = jacobian_storage[t][1];
+  }
+  ASSERT_NE(d_yaw_row_d_track[0], 0.0);
+  EXPECT_NEAR(d_yaw_row_d_track[1] / d_yaw_row_d_track[0], std::sqrt(2.0), 1e-3);
+}
+
+// The yaw-rate row reads the gyro about the axis the vehicle turns about, measured from the
+// keyframes' readings (Eq. K13c), not about V's up axis through the mount: a mount rolled 5 deg
+// off (held) reads the yaw rate cos(5 deg) of its size there, and the track absorbs it.
+// Noise-free drive, true keyframes and radii. Measured: 7.3 mm long about V's up axis, -0.11 mm
+// about the measured axis (the body's roll rates lean it by about half a degree).
+TEST_F(KeyframeSensorFactorsTest, TheYawRowDoesNotDependOnTheMountsTilt) {
+  const sensors::Calibration& truth = exact_simulator_->true_calibration();
+  factors::WheelFactorOptions rows = factors::WheelFactorOptions::FromEncoderNoise(
+      exact_simulator_->options().wheel.config, truth.wheel_radius_left_m, truth.track_width_m);
+  rows.non_holonomic = false;  // the rows the tilted mount would pull
+  const Eigen::Quaterniond rolled =
+      truth.q_I_V * geometry::Exp(Eigen::Vector3d(5.0 * kDegToRad, 0.0, 0.0));
+  const double about_v_mm = TrackErrorMm(rolled, rows, 0.2, 0.0);
+  const double about_axis_mm = TrackErrorMm(rolled, rows, 0.2, 1.0);
+  std::cout << "track about V's up axis " << about_v_mm << " mm off, about the measured axis "
+            << about_axis_mm << " mm\n";
+  EXPECT_GT(about_v_mm, 4.0);
+  EXPECT_LT(std::abs(about_axis_mm), 0.2);
 }
 
 // The simulated encoder log converted into the two other wheel forms with known intrinsics:

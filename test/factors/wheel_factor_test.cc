@@ -108,8 +108,28 @@ TEST(WheelFactor, ResidualVanishesAtGroundTruth) {
         options.yaw_row_track_m = 1.5;
         options.yaw_rate_gyro_sigma_rad_s = 0.004;
       }
+      // The yaw row about the measured turning axis (Eq. K13c), here V's true up axis.
+      if (trial % 3 == 2) options.yaw_axis_I = truth.q_I_V * Eigen::Vector3d::UnitZ();
       WheelMeasurement m = car.measurement;
-      if (shared) m.right_rad_s *= truth.r_r / truth.r_l;
+      if (trial % 4 >= 2) {
+        // The gyro reading is a span's mean (Eq. K13b): the yaw row takes the wheels' over the
+        // span, in which the car drove 3 m/s faster, while the instant's rates turn 0.2 rad/s
+        // faster at the reading's speed. Either row taking the other's rates leaves a residual.
+        const double yaw_rate = (truth.q_I_V.conjugate() * (m.gyro_rad_s - truth.b_g)).z();
+        const double half_b = 0.5 * truth.track_width;
+        const double speed = 0.5 * (m.left_rad_s * truth.r_l + m.right_rad_s * truth.r_r);
+        const auto rates = [&](double v, double w) {
+          return Eigen::Vector2d((v - w * half_b) / truth.r_l, (v + w * half_b) / truth.r_r);
+        };
+        m.yaw_row_rad_s = rates(speed + 3.0, yaw_rate);
+        const Eigen::Vector2d instant = rates(speed, yaw_rate + 0.2);
+        m.left_rad_s = instant(0);
+        m.right_rad_s = instant(1);
+      }
+      if (shared) {
+        m.right_rad_s *= truth.r_r / truth.r_l;
+        if (m.yaw_row_rad_s) (*m.yaw_row_rad_s)(1) *= truth.r_r / truth.r_l;
+      }
       const WheelFactor factor(m, options);
       Eigen::Vector4d residual;
       const std::vector<double*> blocks = state.Pointers(shared);
@@ -132,6 +152,7 @@ TEST(WheelFactor, JacobiansPassGradientCheckerAndMatchAutodiff) {
     m.left_rad_s = 40.0 * u(rng);
     m.right_rad_s = 40.0 * u(rng);
     m.gyro_rad_s = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    if (trial % 5 < 3) m.yaw_row_rad_s = Eigen::Vector2d(40.0 * u(rng), 40.0 * u(rng));
     WheelFactorOptions options;
     options.non_holonomic = trial % 2 == 0;
     options.shared_radius = trial % 4 == 1;
@@ -140,6 +161,9 @@ TEST(WheelFactor, JacobiansPassGradientCheckerAndMatchAutodiff) {
     if (trial % 3 != 0) {  // the yaw row's sigma following the track (Eq. F22b)
       options.yaw_row_track_m = 1.5 + 0.2 * u(rng);
       options.yaw_rate_gyro_sigma_rad_s = trial % 3 == 1 ? 0.0 : 0.006;
+    }
+    if (trial % 4 >= 2) {  // the yaw row about a measured turning axis (Eq. K13c)
+      options.yaw_axis_I = Eigen::Vector3d(u(rng), u(rng), 2.0 + u(rng)).normalized();
     }
     const std::string context = "trial " + std::to_string(trial);
     const WheelFactor analytic(m, options);

@@ -2,8 +2,9 @@
 
 // IMU, wheel and GNSS factors on the keyframes of a batch problem, one per LiDAR sweep
 // (docs/keyframe_factors.md). Wheel and GNSS samples are interpolated linearly to a keyframe's
-// time t_k between the two samples bracketing it (Eq. K1); a keyframe whose samples lie
-// farther apart than a maximum gap (a dropout, an outage) gets no factor. With GNSS factors W
+// time t_k between the two samples bracketing it (Eq. K1), the wheels' yaw-rate row averaged
+// over the gyro reading's span instead (Eq. K13b); a keyframe whose samples lie farther apart
+// than a maximum gap (a dropout, an outage) gets no factor. With GNSS factors W
 // is the converter's ENU frame and the fixes hold the gauge; AlignKeyframesToGnss first moves
 // an initializer's gravity-aligned trajectory there. Quaternion blocks (each keyframe's q_W_I, the
 // calibration's q_I_V) must already be in the problem with geometry::RightQuaternionManifold;
@@ -76,12 +77,18 @@ struct KeyframeWheelOptions {
   double max_wheel_gap_s = 0.025;
   double max_imu_gap_s = 0.0125;  // the same for the raw gyro at t_k (Eq. T1 at 200 Hz)
   // The rows take the mean gyro over this span around t_k (Eq. K13), which keeps the gyro's
-  // white noise out of the lever-arm term w x p_I_V; 0 takes the interpolated sample.
+  // white noise out of the lever-arm term w x p_I_V; 0 takes the interpolated sample. The
+  // yaw-rate row compares it with the wheels' mean over the same span (Eq. K13b).
   double gyro_mean_span_s = 0.0;
   // 1-sigma of one gyro sample (density * sqrt(rate)). With it the rows take the rate given the
   // mean (conditioned on the spread of all keyframes' means, Eq. K14) and its remaining error
   // enters their sigma (Eq. K13). 0: the mean as exact.
   double gyro_sample_sigma_rad_s = 0.0;
+  // The yaw-rate rows read the body rate about the axis the vehicle turns about, measured from
+  // the keyframes' readings (Eq. K13c), when that axis's standard error is below this; else
+  // about V's up axis through q_I_V, whose tilt error e lengthens the track by b e^2 / 2. At
+  // 1 deg the axis's own error lengthens a 1.6 m track by at most 0.25 mm. 0: V's up axis.
+  double max_turning_axis_error_deg = 1.0;
   // Correlation times of the non-holonomic rows' model errors: each row's sigma is scaled by
   // NonHolonomicSigmaScale at the mean keyframe spacing; 0: a white row (docs/keyframe_factors.md,
   // "Correlated model error of the non-holonomic rows"). The vertical speed follows the body's

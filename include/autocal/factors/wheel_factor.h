@@ -26,6 +26,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <optional>
 
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/sensor_config.h"
@@ -34,10 +35,17 @@ namespace autocal {
 namespace factors {
 
 struct WheelMeasurement {
-  double left_rad_s = 0.0;
+  double left_rad_s = 0.0;  // at the instant: the forward-speed row's
   double right_rad_s = 0.0;
   // Raw gyro reading at the wheel sample's instant (IMU frame, bias not removed).
   Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();
+  // The yaw-rate row's left and right rates when gyro_rad_s is a mean over a span: the wheels'
+  // mean over the same span (docs/keyframe_factors.md, Eq. K13b). Unset: the instant's.
+  std::optional<Eigen::Vector2d> yaw_row_rad_s;
+
+  Eigen::Vector2d YawRowRates() const {
+    return yaw_row_rad_s.value_or(Eigen::Vector2d(left_rad_s, right_rad_s));
+  }
 };
 
 struct WheelFactorOptions {
@@ -57,6 +65,10 @@ struct WheelFactorOptions {
   // (errors in variables). 0: the sigma is fixed.
   double yaw_row_track_m = 0.0;
   double yaw_rate_gyro_sigma_rad_s = 0.0;
+  // The axis, in I (unit), about which the yaw-rate row reads the body rate: the axis the
+  // vehicle turns about, measured from the log (docs/keyframe_factors.md, Eq. K13c), so that
+  // the row does not depend on the mount's tilt. Zero: V's up axis through q_I_V (w_V.z).
+  Eigen::Vector3d yaw_axis_I = Eigen::Vector3d::Zero();
 
   // Sigmas of speed and yaw rate from the encoders' rate noise (Eq. F23) at nominal
   // radius and track width; the other fields keep their defaults.
@@ -154,14 +166,23 @@ AxleMotion<T> AxleFromTwist(const T& speed_scale, double speed_m_s, double yaw_r
           speed_scale * T(yaw_rate_rad_s * controller_track_m) / effective_track};
 }
 
-// Eq. F22 for any form: the state's speed and yaw rate minus the wheels' (`speed`,
-// `yaw_rate` through the factor's `track`), then the non-holonomic rows when enabled; whitened
-// by the options' sigmas, the yaw-rate row's at `track` (YawRowSigma).
+// The yaw rate the yaw-rate row reads from the bias-corrected body rate w_I: about
+// options.yaw_axis_I when set (Eq. K13c), else about V's up axis (motion.w_V.z).
 template <typename T>
-void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate, const T& track,
-               const WheelFactorOptions& options, T* residual) {
+T ReadYawRate(const WheelFactorOptions& options, const VehicleMotion<T>& motion,
+              const geometry::Vector3<T>& w_I) {
+  if (options.yaw_axis_I.isZero(0.0)) return motion.w_V.z();
+  return options.yaw_axis_I.cast<T>().dot(w_I);
+}
+
+// Eq. F22 for any form: the state's speed and yaw rate (ReadYawRate of w_I) minus the wheels'
+// (`speed`, `yaw_rate` through the factor's `track`), then the non-holonomic rows when enabled;
+// whitened by the options' sigmas, the yaw-rate row's at `track` (YawRowSigma).
+template <typename T>
+void WheelRows(const VehicleMotion<T>& motion, const geometry::Vector3<T>& w_I, const T& speed,
+               const T& yaw_rate, const T& track, const WheelFactorOptions& options, T* residual) {
   residual[0] = (motion.v_V.x() - speed) / T(options.speed_sigma_m_s);
-  residual[1] = (motion.w_V.z() - yaw_rate) / YawRowSigma(options, track);
+  residual[1] = (ReadYawRate(options, motion, w_I) - yaw_rate) / YawRowSigma(options, track);
   if (options.non_holonomic) {
     residual[2] = motion.v_V.y() / T(options.lateral_sigma_m_s);
     residual[3] = motion.v_V.z() / T(options.vertical_sigma_m_s);
@@ -184,11 +205,16 @@ class WheelResidual {
   template <typename T>
   bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
                   const T* r_l, const T* r_r, const T* track_width, T* residual) const {
-    const VehicleMotion<T> motion =
-        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
-    const AxleMotion<T> axle =
-        AxleFromWheels(T(m_.left_rad_s) * r_l[0], T(m_.right_rad_s) * r_r[0], track_width[0]);
-    WheelRows(motion, axle.speed, axle.yaw_rate, track_width[0], options_, residual);
+    const geometry::Vector3<T> w_I =
+        m_.gyro_rad_s.cast<T>() - Eigen::Map<const geometry::Vector3<T>>(b_g);
+    const VehicleMotion<T> motion = PredictVehicleMotion(
+        Eigen::Quaternion<T>(q_W_I), geometry::Vector3<T>(v_W_I), w_I, q_I_V, p_I_V);
+    const Eigen::Vector2d yaw_row = m_.YawRowRates();
+    const T speed =
+        AxleFromWheels(T(m_.left_rad_s) * r_l[0], T(m_.right_rad_s) * r_r[0], track_width[0]).speed;
+    const T yaw_rate =
+        AxleFromWheels(T(yaw_row(0)) * r_l[0], T(yaw_row(1)) * r_r[0], track_width[0]).yaw_rate;
+    WheelRows(motion, w_I, speed, yaw_rate, track_width[0], options_, residual);
     return true;
   }
 
@@ -203,6 +229,12 @@ struct WheelSpeedMeasurement {
   double left_m_s = 0.0;                                 // rear left, as reported
   double right_m_s = 0.0;                                // rear right
   Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();  // raw gyro at the same instant
+  // The yaw-rate row's speeds over the gyro's span, as WheelMeasurement::yaw_row_rad_s.
+  std::optional<Eigen::Vector2d> yaw_row_m_s;
+
+  Eigen::Vector2d YawRowSpeeds() const {
+    return yaw_row_m_s.value_or(Eigen::Vector2d(left_m_s, right_m_s));
+  }
 };
 
 // The reported rear-wheel speeds v_l, v_r scaled by s_l, s_r give the rear axle's motion:
@@ -224,11 +256,18 @@ class WheelSpeedResidual {
                   const T* scale_left, const T* scale_right, const T* track_width,
                   T* residual) const {
     if (!(track_width[0] > T(0.0))) return false;
-    const VehicleMotion<T> motion =
-        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
-    const AxleMotion<T> axle = AxleFromWheels(T(m_.left_m_s) * scale_left[0],
-                                              T(m_.right_m_s) * scale_right[0], track_width[0]);
-    WheelRows(motion, axle.speed, axle.yaw_rate, track_width[0], options_, residual);
+    const geometry::Vector3<T> w_I =
+        m_.gyro_rad_s.cast<T>() - Eigen::Map<const geometry::Vector3<T>>(b_g);
+    const VehicleMotion<T> motion = PredictVehicleMotion(
+        Eigen::Quaternion<T>(q_W_I), geometry::Vector3<T>(v_W_I), w_I, q_I_V, p_I_V);
+    const Eigen::Vector2d yaw_row = m_.YawRowSpeeds();
+    const T speed = AxleFromWheels(T(m_.left_m_s) * scale_left[0], T(m_.right_m_s) * scale_right[0],
+                                   track_width[0])
+                        .speed;
+    const T yaw_rate = AxleFromWheels(T(yaw_row(0)) * scale_left[0], T(yaw_row(1)) * scale_right[0],
+                                      track_width[0])
+                           .yaw_rate;
+    WheelRows(motion, w_I, speed, yaw_rate, track_width[0], options_, residual);
     return true;
   }
 
@@ -267,11 +306,13 @@ class OdometryTwistResidual {
   bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
                   const T* speed_scale, const T* effective_track, T* residual) const {
     if (!(effective_track[0] > T(0.0))) return false;
-    const VehicleMotion<T> motion =
-        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
+    const geometry::Vector3<T> w_I =
+        m_.gyro_rad_s.cast<T>() - Eigen::Map<const geometry::Vector3<T>>(b_g);
+    const VehicleMotion<T> motion = PredictVehicleMotion(
+        Eigen::Quaternion<T>(q_W_I), geometry::Vector3<T>(v_W_I), w_I, q_I_V, p_I_V);
     const AxleMotion<T> axle = AxleFromTwist(speed_scale[0], m_.speed_m_s, m_.yaw_rate_rad_s,
                                              m_.controller_track_m, effective_track[0]);
-    WheelRows(motion, axle.speed, axle.yaw_rate, effective_track[0], options_, residual);
+    WheelRows(motion, w_I, axle.speed, axle.yaw_rate, effective_track[0], options_, residual);
     return true;
   }
 
