@@ -268,6 +268,9 @@ struct WheelValues {
   internal::WeightedMean<Eigen::Vector2d> speed_row;
   internal::WeightedMean<Eigen::Vector2d> yaw_row;
 
+  // One sample's values for both rows.
+  static WheelValues Of(const Eigen::Vector2d& sample) { return {{sample, 1.0}, {sample, 1.0}}; }
+
   // The rows' sigmas for these values. A weighted mean of independent samples has the noise
   // of one sample times sqrt(weight_squares): the yaw-rate row's over its span, scaled by
   // yaw_span_scale, sqrt(max(1, span / keyframe spacing)), because the spans overlap when
@@ -299,15 +302,6 @@ std::optional<WheelValues> InstantValues(const Samples& wheel, int64_t t_k_ns, i
   const auto instant = internal::MeanOverSpan(wheel, t_k_ns, t_k_ns, max_gap_ns, to_value);
   if (!instant) return std::nullopt;
   return WithYawRowOverSpan(wheel, t_k_ns, half_span_ns, max_gap_ns, to_value, *instant);
-}
-
-// With the clocks offset: the paired sample's values for both rows (Eq. K17). The offset's
-// rows take the gyro's slope at the sample as the rate's change (ShiftedWheelResidual), a
-// regressor whose noise a quieter, averaged row would count as information.
-template <typename Samples, typename ToValue>
-WheelValues PairedValues(const Samples& wheel, size_t paired, ToValue to_value) {
-  const internal::WeightedMean<Eigen::Vector2d> sample{to_value(wheel[paired]), 1.0};
-  return {sample, sample};
 }
 
 // AddWheelFactors for the samples of any wheel form, whose two values to_value(sample) gives.
@@ -368,10 +362,13 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
   }
   // The wheels' mean over the gyro reading's span for the yaw-rate rows (Eq. K13b); a moving
-  // mean over a span T is an error correlated over T / 2 in the sense of Eq. K6.
+  // mean over a span T is an error correlated over T / 2 in the sense of Eq. K6. With the
+  // clocks offset, both rows keep the paired sample: the offset's rows take the gyro's slope at
+  // the sample as the rate's change (ShiftedWheelResidual), a regressor whose noise a quieter,
+  // averaged row would count as information.
   const int64_t half_span_ns = SecondsToNs(0.5 * options.gyro_mean_span_s);
   const double yaw_span_scale =
-      KeyframeNonHolonomicSigmaScale(*keyframes, 0.5 * options.gyro_mean_span_s);
+      shifted ? 1.0 : KeyframeNonHolonomicSigmaScale(*keyframes, 0.5 * options.gyro_mean_span_s);
   // The rows' body rate at each keyframe, or where its sample was taken (Eq. K17).
   std::vector<int64_t> rate_ns;
   for (size_t k = 0; k < keyframes->size(); ++k) {
@@ -392,13 +389,12 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     Keyframe& kf = (*keyframes)[k];
     if (shifted && !paired[k]) continue;
     const std::optional<WheelValues> values =
-        shifted ? PairedValues(wheel, *paired[k], to_value)
+        shifted ? WheelValues::Of(to_value(wheel[*paired[k]]))
                 : InstantValues(wheel, kf.t_ns, half_span_ns, max_wheel_gap_ns, to_value);
     if (!values) continue;
     const sensors::BodyRate& gyro = *rates[k];
-    factors::WheelFactorOptions rows =
-        WithLeverArmRateCovariance(values->Whitened(factor_options, shifted ? 1.0 : yaw_span_scale),
-                                   gyro.covariance, c.q_I_V, c.p_I_V);
+    factors::WheelFactorOptions rows = WithLeverArmRateCovariance(
+        values->Whitened(factor_options, yaw_span_scale), gyro.covariance, c.q_I_V, c.p_I_V);
     if (!gyro.covariance.isZero(0.0)) {
       const Eigen::Vector3d& u = factor_options.yaw_axis_I;
       const double variance =
@@ -414,7 +410,7 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
           internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns);
       if (!around) continue;
       const internal::PairedWheelSample taken{values->speed_row.value, wheel[*paired[k]].t_ns,
-                                              *offset, gyro.rate_rad_s, values->yaw_row.value};
+                                              *offset, gyro.rate_rad_s};
       factor.cost =
           internal::ShiftedWheelResidual::Create(taken, kf.t_ns, *around, form_blocks.form, rows);
     }

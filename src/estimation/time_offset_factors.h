@@ -153,14 +153,12 @@ struct ShiftedWheelForm {
 // A wheel sample as a keyframe's factor takes it (Eq. K17): the form's two values, its stamp
 // on the wheel clock, the offset it was paired at, and the body rate the rows take at the
 // instant it was taken then (the raw gyro as the rows read it, Eq. K13 and K14, bias
-// included). When that rate is a mean over a span, the yaw-rate row takes the form's values
-// averaged over the same span around the sample (Eq. K13b); unset, the sample's own.
+// included).
 struct PairedWheelSample {
   Eigen::Vector2d values = Eigen::Vector2d::Zero();
   int64_t t_ns = 0;
   double paired_offset_s = 0.0;
   Eigen::Vector3d gyro_rad_s = Eigen::Vector3d::Zero();
-  std::optional<Eigen::Vector2d> yaw_row_values;
 };
 
 // Eq. F22 for a wheel sample against keyframe k's state carried to the sample's IMU time (Eq. K16):
@@ -207,22 +205,19 @@ class ShiftedWheelResidual {
     const int n = form_.NumIntrinsics();
     const T& track = p[kIntrinsics + n - 1][0];
     if (!(track > T(0.0))) return false;
-    const T speed = WheelMotion(sample_.values, p + kIntrinsics, track).speed;
-    const T yaw_rate =
-        WheelMotion(sample_.yaw_row_values.value_or(sample_.values), p + kIntrinsics, track)
-            .yaw_rate;
+    const factors::AxleMotion<T> axle = WheelMotion(p + kIntrinsics, track);
     const T paired_delta_s(sample_after_keyframe_s_ + sample_.paired_offset_s);
     const T delta_s = T(sample_after_keyframe_s_) + p[kIntrinsics + n][0];
     const Vec3 w_paired = sample_.gyro_rad_s.cast<T>() - Eigen::Map<const Vec3>(p[2]);
     const Vec3 w = w_paired + imu_.gyro_slope_rad_s2.cast<T>() * (delta_s - paired_delta_s);
     const CarriedState<T> s = CarryState(p[0], p[1], p[2], p[3], imu_, delta_s);
-    factors::WheelRows(factors::PredictVehicleMotion(s.q_W_I, s.v_W_I, w, p[4], p[5]), w, speed,
-                       yaw_rate, track, options_, residual);
+    factors::WheelRows(factors::PredictVehicleMotion(s.q_W_I, s.v_W_I, w, p[4], p[5]), axle.speed,
+                       axle.yaw_rate, track, options_, residual);
     if (options_.non_holonomic) {
       const CarriedState<T> at = CarryState(p[0], p[1], p[2], p[3], imu_, paired_delta_s);
       T paired[4];
       factors::WheelRows(factors::PredictVehicleMotion(at.q_W_I, at.v_W_I, w_paired, p[4], p[5]),
-                         w_paired, speed, yaw_rate, track, options_, paired);
+                         axle.speed, axle.yaw_rate, track, options_, paired);
       residual[2] = paired[2];
       residual[3] = paired[3];
     }
@@ -230,17 +225,17 @@ class ShiftedWheelResidual {
   }
 
  private:
-  // The rear axle's speed and yaw rate the form's two values report through its intrinsics.
+  // The rear axle's speed and yaw rate the wheels report through the form's intrinsics.
   template <typename T>
-  factors::AxleMotion<T> WheelMotion(const Eigen::Vector2d& values, T const* const* intrinsics,
-                                     const T& track) const {
+  factors::AxleMotion<T> WheelMotion(T const* const* intrinsics, const T& track) const {
     if (form_.form == sensors::WheelForm::kSpeedYawRate) {  // track: b_eff
-      return factors::AxleFromTwist(intrinsics[0][0], values(0), values(1),
+      return factors::AxleFromTwist(intrinsics[0][0], sample_.values(0), sample_.values(1),
                                     form_.controller_track_m, track);
     }
     const T& scale_left = intrinsics[0][0];
     const T& scale_right = form_.NumIntrinsics() == 2 ? intrinsics[0][0] : intrinsics[1][0];
-    return factors::AxleFromWheels(T(values(0)) * scale_left, T(values(1)) * scale_right, track);
+    return factors::AxleFromWheels(T(sample_.values(0)) * scale_left,
+                                   T(sample_.values(1)) * scale_right, track);
   }
 
   PairedWheelSample sample_;

@@ -260,7 +260,7 @@ TEST(ShiftedWheelResidual, VanishesAtTheTrueOffsetAndNotAtZeroForEveryForm) {
       // Paired at the true offset: the rows' rate is the gyro where the sample was taken.
       const internal::PairedWheelSample sample{
           intrinsics.Reported(form, c.Speed(t_taken), c.YawRate(t_taken)), StampNs(t_sample),
-          offset_s, c.motion.Rate(t_taken) + c.motion.b_g, std::nullopt};
+          offset_s, c.motion.Rate(t_taken) + c.motion.b_g};
       std::unique_ptr<ceres::CostFunction> cost(
           ShiftedWheelResidual::Create(sample, StampNs(t_k), c.motion.Imu(t_k), form, options));
       std::vector<double*> blocks = {k.q.coeffs().data(),   k.v.data(),  k.b_g.data(), k.b_a.data(),
@@ -305,9 +305,9 @@ TEST(ShiftedWheelResidual, JacobiansPassGradientCheckerForEveryForm) {
                                      q_I_V.coeffs().data(), p_I_V.data()};
       for (double* block : intrinsics.Blocks(form)) blocks.push_back(block);
       blocks.push_back(&offset_s);
-      const internal::PairedWheelSample sample{
-          Eigen::Vector2d(10.0 + u(rng), 11.0 + u(rng)), StampNs(0.003), 0.05 * u(rng),
-          m.Imu(0.0).gyro_rad_s + 0.1 * m.u, Eigen::Vector2d(10.5 + u(rng), 11.5 + u(rng))};
+      const internal::PairedWheelSample sample{Eigen::Vector2d(10.0 + u(rng), 11.0 + u(rng)),
+                                               StampNs(0.003), 0.05 * u(rng),
+                                               m.Imu(0.0).gyro_rad_s + 0.1 * m.u};
       std::unique_ptr<ceres::CostFunction> cost(
           ShiftedWheelResidual::Create(sample, StampNs(0.0), m.Imu(0.0), form, options));
       test::ExpectGradientCheckPasses(*cost, WithQuaternions(blocks.size(), {0, 4}, &quaternion),

@@ -107,6 +107,7 @@ template <typename T>
 struct VehicleMotion {
   geometry::Vector3<T> v_V;
   geometry::Vector3<T> w_V;
+  geometry::Vector3<T> w_I;  // the body rate they come from, in I
 };
 
 // The same from the IMU's attitude, velocity and bias-corrected body rate w_I.
@@ -119,7 +120,7 @@ VehicleMotion<T> PredictVehicleMotion(const Eigen::Quaternion<T>& q_W_I,
   const Eigen::Map<const Eigen::Quaternion<T>> q_I_V(q_I_V_ptr);
   const Eigen::Map<const Vec3> p_I_V(p_I_V_ptr);
   return {q_I_V.conjugate() * Vec3(q_W_I.conjugate() * v_W_I + w_I.cross(p_I_V)),
-          q_I_V.conjugate() * w_I};
+          q_I_V.conjugate() * w_I, w_I};
 }
 
 template <typename T>
@@ -166,23 +167,22 @@ AxleMotion<T> AxleFromTwist(const T& speed_scale, double speed_m_s, double yaw_r
           speed_scale * T(yaw_rate_rad_s * controller_track_m) / effective_track};
 }
 
-// The yaw rate the yaw-rate row reads from the bias-corrected body rate w_I: about
-// options.yaw_axis_I when set (Eq. K13c), else about V's up axis (motion.w_V.z).
+// The yaw rate the yaw-rate row reads from the motion's body rate: about options.yaw_axis_I
+// when set (Eq. K13c), else about V's up axis (w_V.z).
 template <typename T>
-T ReadYawRate(const WheelFactorOptions& options, const VehicleMotion<T>& motion,
-              const geometry::Vector3<T>& w_I) {
+T ReadYawRate(const WheelFactorOptions& options, const VehicleMotion<T>& motion) {
   if (options.yaw_axis_I.isZero(0.0)) return motion.w_V.z();
-  return options.yaw_axis_I.cast<T>().dot(w_I);
+  return options.yaw_axis_I.cast<T>().dot(motion.w_I);
 }
 
-// Eq. F22 for any form: the state's speed and yaw rate (ReadYawRate of w_I) minus the wheels'
+// Eq. F22 for any form: the state's speed and yaw rate (ReadYawRate) minus the wheels'
 // (`speed`, `yaw_rate` through the factor's `track`), then the non-holonomic rows when enabled;
 // whitened by the options' sigmas, the yaw-rate row's at `track` (YawRowSigma).
 template <typename T>
-void WheelRows(const VehicleMotion<T>& motion, const geometry::Vector3<T>& w_I, const T& speed,
-               const T& yaw_rate, const T& track, const WheelFactorOptions& options, T* residual) {
+void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate, const T& track,
+               const WheelFactorOptions& options, T* residual) {
   residual[0] = (motion.v_V.x() - speed) / T(options.speed_sigma_m_s);
-  residual[1] = (ReadYawRate(options, motion, w_I) - yaw_rate) / YawRowSigma(options, track);
+  residual[1] = (ReadYawRate(options, motion) - yaw_rate) / YawRowSigma(options, track);
   if (options.non_holonomic) {
     residual[2] = motion.v_V.y() / T(options.lateral_sigma_m_s);
     residual[3] = motion.v_V.z() / T(options.vertical_sigma_m_s);
@@ -205,16 +205,14 @@ class WheelResidual {
   template <typename T>
   bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
                   const T* r_l, const T* r_r, const T* track_width, T* residual) const {
-    const geometry::Vector3<T> w_I =
-        m_.gyro_rad_s.cast<T>() - Eigen::Map<const geometry::Vector3<T>>(b_g);
-    const VehicleMotion<T> motion = PredictVehicleMotion(
-        Eigen::Quaternion<T>(q_W_I), geometry::Vector3<T>(v_W_I), w_I, q_I_V, p_I_V);
+    const VehicleMotion<T> motion =
+        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const Eigen::Vector2d yaw_row = m_.YawRowRates();
     const T speed =
         AxleFromWheels(T(m_.left_rad_s) * r_l[0], T(m_.right_rad_s) * r_r[0], track_width[0]).speed;
     const T yaw_rate =
         AxleFromWheels(T(yaw_row(0)) * r_l[0], T(yaw_row(1)) * r_r[0], track_width[0]).yaw_rate;
-    WheelRows(motion, w_I, speed, yaw_rate, track_width[0], options_, residual);
+    WheelRows(motion, speed, yaw_rate, track_width[0], options_, residual);
     return true;
   }
 
@@ -256,10 +254,8 @@ class WheelSpeedResidual {
                   const T* scale_left, const T* scale_right, const T* track_width,
                   T* residual) const {
     if (!(track_width[0] > T(0.0))) return false;
-    const geometry::Vector3<T> w_I =
-        m_.gyro_rad_s.cast<T>() - Eigen::Map<const geometry::Vector3<T>>(b_g);
-    const VehicleMotion<T> motion = PredictVehicleMotion(
-        Eigen::Quaternion<T>(q_W_I), geometry::Vector3<T>(v_W_I), w_I, q_I_V, p_I_V);
+    const VehicleMotion<T> motion =
+        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const Eigen::Vector2d yaw_row = m_.YawRowSpeeds();
     const T speed = AxleFromWheels(T(m_.left_m_s) * scale_left[0], T(m_.right_m_s) * scale_right[0],
                                    track_width[0])
@@ -267,7 +263,7 @@ class WheelSpeedResidual {
     const T yaw_rate = AxleFromWheels(T(yaw_row(0)) * scale_left[0], T(yaw_row(1)) * scale_right[0],
                                       track_width[0])
                            .yaw_rate;
-    WheelRows(motion, w_I, speed, yaw_rate, track_width[0], options_, residual);
+    WheelRows(motion, speed, yaw_rate, track_width[0], options_, residual);
     return true;
   }
 
@@ -306,13 +302,11 @@ class OdometryTwistResidual {
   bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
                   const T* speed_scale, const T* effective_track, T* residual) const {
     if (!(effective_track[0] > T(0.0))) return false;
-    const geometry::Vector3<T> w_I =
-        m_.gyro_rad_s.cast<T>() - Eigen::Map<const geometry::Vector3<T>>(b_g);
-    const VehicleMotion<T> motion = PredictVehicleMotion(
-        Eigen::Quaternion<T>(q_W_I), geometry::Vector3<T>(v_W_I), w_I, q_I_V, p_I_V);
+    const VehicleMotion<T> motion =
+        PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const AxleMotion<T> axle = AxleFromTwist(speed_scale[0], m_.speed_m_s, m_.yaw_rate_rad_s,
                                              m_.controller_track_m, effective_track[0]);
-    WheelRows(motion, w_I, axle.speed, axle.yaw_rate, effective_track[0], options_, residual);
+    WheelRows(motion, axle.speed, axle.yaw_rate, effective_track[0], options_, residual);
     return true;
   }
 
