@@ -1,6 +1,5 @@
 #include "autocal/estimation/keyframe_sensor_factors.h"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -24,6 +23,7 @@
 #include "autocal/sensors/imu_preintegration.h"
 #include "estimation/keyframe_interpolation.h"
 #include "estimation/time_offset_factors.h"
+#include "estimation/turning_axis.h"
 
 namespace autocal {
 namespace estimation {
@@ -117,6 +117,12 @@ factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptio
 double YawRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V) {
   const Eigen::Matrix3d r = q_I_V.toRotationMatrix();
   return (r.transpose() * rate_covariance * r)(2, 2);
+}
+
+double YawRowRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V,
+                          const Eigen::Vector3d& yaw_axis_I) {
+  if (yaw_axis_I.isZero(0.0)) return YawRateVariance(rate_covariance, q_I_V);
+  return yaw_axis_I.dot(rate_covariance * yaw_axis_I);
 }
 
 int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
@@ -232,10 +238,8 @@ std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamp
   return rates;
 }
 
-// The axis, in I, the vehicle turns about (Eq. K13c): the principal axis of the spread of the
-// rows' body-rate readings, oriented along up_I, when its standard error (for an eigenvector
-// of a sample covariance, sqrt(l1 l2 / (n (l1 - l2)^2)) towards the second axis) is below
-// max_error_rad; nullopt for a drive with too few turns.
+// The axis, in I, the vehicle turns about (Eq. K13c): PrincipalTurningAxis of the rows'
+// body-rate readings.
 std::optional<Eigen::Vector3d> TurningAxis(
     const std::vector<std::optional<sensors::BodyRate>>& rates, const Eigen::Vector3d& up_I,
     double max_error_rad) {
@@ -246,19 +250,13 @@ std::optional<Eigen::Vector3d> TurningAxis(
     mean += rate->rate_rad_s;
     ++n;
   }
-  if (n < 3 || !(max_error_rad > 0.0)) return std::nullopt;
+  if (n == 0) return std::nullopt;
   mean /= n;
   Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
   for (const auto& rate : rates) {
     if (rate) spread += (rate->rate_rad_s - mean) * (rate->rate_rad_s - mean).transpose();
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(spread / n);
-  const double l1 = eigen.eigenvalues()(2), l2 = eigen.eigenvalues()(1);
-  if (!(l1 > l2)) return std::nullopt;
-  const double error_rad = std::sqrt(l1 * l2 / (n * (l1 - l2) * (l1 - l2)));
-  if (!(error_rad < max_error_rad)) return std::nullopt;
-  const Eigen::Vector3d axis = eigen.eigenvectors().col(2);
-  return axis.dot(up_I) < 0.0 ? Eigen::Vector3d(-axis) : axis;
+  return internal::PrincipalTurningAxis(n, spread / n, up_I, max_error_rad);
 }
 
 // A keyframe's wheel values (the form's two) for its rows: the forward-speed row's at the
@@ -396,9 +394,8 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     factors::WheelFactorOptions rows = WithLeverArmRateCovariance(
         values->Whitened(factor_options, yaw_span_scale), gyro.covariance, c.q_I_V, c.p_I_V);
     if (!gyro.covariance.isZero(0.0)) {
-      const Eigen::Vector3d& u = factor_options.yaw_axis_I;
       const double variance =
-          u.isZero(0.0) ? YawRateVariance(gyro.covariance, c.q_I_V) : u.dot(gyro.covariance * u);
+          YawRowRateVariance(gyro.covariance, c.q_I_V, factor_options.yaw_axis_I);
       AddVariance(&rows.yaw_rate_sigma_rad_s, variance);
       AddVariance(&rows.yaw_rate_gyro_sigma_rad_s, variance);  // its gyro part (Eq. F22b)
     }

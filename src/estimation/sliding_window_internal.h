@@ -25,6 +25,7 @@
 #include "estimation/point_group_pool.h"
 #include "estimation/sliding_window_factors.h"
 #include "estimation/sweep_pairing.h"
+#include "estimation/turning_axis.h"
 #include "estimation/window_solver.h"
 
 namespace autocal {
@@ -111,6 +112,11 @@ class SlidingWindowEstimator::Impl {
     double speed_variance_m2_s2 = 0.0;
   };
   RowBodyRate BodyRateAround(int64_t t_ns, const factors::WheelFactorOptions& rows) const;
+  // The body rate at t_ns the wheel rows take: the gyro mean, or with the log's spread of rates
+  // the rate given it (Eq. K14).
+  sensors::BodyRate RowRateAround(int64_t t_ns) const;
+  // Adds the keyframe's body rate to turning_rates_ and updates yaw_axis_I_.
+  void UpdateTurningAxis(const WindowKeyframe& from);
   double GyroSampleSigma() const;
   double GyroMeanSigma(const sensors::GyroMean& gyro) const;
   internal::AttachedFactor WheelRowFactor(ceres::CostFunction* cost, SlidingWindowState* s,
@@ -168,6 +174,10 @@ class SlidingWindowEstimator::Impl {
   std::deque<sensors::WheelSpeedSample> wheel_speeds_;
   std::deque<sensors::OdometrySample> odometry_;
   std::deque<GnssPosition> gnss_;
+  // The keyframes' body rates so far and the turning axis they give (zero: none yet), which
+  // the wheel rows of later intervals read their yaw rate about (Eq. K13c).
+  internal::TurningRateSpread turning_rates_;
+  Eigen::Vector3d yaw_axis_I_ = Eigen::Vector3d::Zero();
   std::deque<SpannedSweep> pending_sweeps_;
   std::deque<int64_t> pending_times_;  // AddKeyframeAt
   KeyframeSource keyframe_source_ = KeyframeSource::kUndecided;

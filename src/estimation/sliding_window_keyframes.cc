@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "autocal/common/time.h"
+#include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "autocal/factors/planar_rotation_factor.h"
@@ -78,25 +79,43 @@ double SlidingWindowEstimator::Impl::GyroMeanSigma(const sensors::GyroMean& gyro
   return GyroSampleSigma() / std::sqrt(std::max(1, gyro.samples));
 }
 
-// The body rate the wheel rows take at t_ns, their sigmas and the 1-sigma of its yaw part for
-// the yaw-rate row: the gyro mean (GyroAround, GyroMeanSigma) or, with the log's spread of
-// rates, the rate given that mean (Eq. K14) with its remaining error through the lever arm
-// (Eq. K13, at the current mount and lever arm).
-SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRateAround(
-    int64_t t_ns, const factors::WheelFactorOptions& rows) const {
+sensors::BodyRate SlidingWindowEstimator::Impl::RowRateAround(int64_t t_ns) const {
   const sensors::GyroMean gyro = GyroAround(t_ns);
   const double sigma = GyroMeanSigma(gyro);
   const std::optional<sensors::BodyRatePrior>& prior = options_.wheel_rows.body_rate_prior;
-  if (!prior) return {gyro.rate_rad_s, rows, sigma};
-  const sensors::BodyRate rate = prior->Condition({gyro.rate_rad_s, sigma * sigma});
+  if (!prior) return {gyro.rate_rad_s, Eigen::Matrix3d::Zero()};
+  return prior->Condition({gyro.rate_rad_s, sigma * sigma});
+}
+
+// The body rate the wheel rows take at t_ns (RowRateAround), their sigmas and the 1-sigma of
+// its part the yaw-rate row reads: the gyro mean's or, with the log's spread of rates, the
+// rate's remaining error (Eq. K14), which enters the rows through the lever arm (Eq. K13, at
+// the current mount and lever arm).
+SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRateAround(
+    int64_t t_ns, const factors::WheelFactorOptions& rows) const {
+  const sensors::BodyRate rate = RowRateAround(t_ns);
+  if (!options_.wheel_rows.body_rate_prior) {
+    return {rate.rate_rad_s, rows, GyroMeanSigma(GyroAround(t_ns))};
+  }
   // The yaw part is the yaw-rate row's gyro sigma, floored: a log that never turns leaves no
   // yaw error, and the rows need a positive sigma.
   const factors::WheelFactorOptions with_lever =
       WithLeverArmRateCovariance(rows, rate.covariance, calibration_.q_I_V, calibration_.p_I_V);
-  return {rate.rate_rad_s, with_lever,
-          std::sqrt(std::max(1e-24, YawRateVariance(rate.covariance, calibration_.q_I_V))),
+  const double yaw_variance =
+      YawRowRateVariance(rate.covariance, calibration_.q_I_V, rows.yaw_axis_I);
+  return {rate.rate_rad_s, with_lever, std::sqrt(std::max(1e-24, yaw_variance)),
           with_lever.speed_sigma_m_s * with_lever.speed_sigma_m_s -
               rows.speed_sigma_m_s * rows.speed_sigma_m_s};
+}
+
+void SlidingWindowEstimator::Impl::UpdateTurningAxis(const WindowKeyframe& from) {
+  const double max_error_deg = options_.wheel_rows.max_turning_axis_error_deg;
+  if (!(max_error_deg > 0.0)) return;
+  turning_rates_.Add(RowRateAround(from.state.t_ns).rate_rad_s);
+  if (const std::optional<Eigen::Vector3d> axis = turning_rates_.Axis(
+          calibration_.q_I_V * Eigen::Vector3d::UnitZ(), max_error_deg * kDegToRad)) {
+    yaw_axis_I_ = *axis;
+  }
 }
 
 // A wheel-row factor (any form) on the keyframe's q_W_I, v_W_I, b_g, b_a and the calibration's
@@ -166,11 +185,13 @@ void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
   sensors::PreintegrationOptions preintegration;
   preintegration.gravity_m_s2 = options_.imu.gravity_m_s2;
   sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
+  factors::WheelFactorOptions about_axis = rows;
+  about_axis.yaw_axis_I = yaw_axis_I_;
   int64_t integrated_to_ns = s.t_ns;
   for (const Sample& sample : used) {
     pim.Integrate(imu_, integrated_to_ns, sample.t_ns);
     integrated_to_ns = sample.t_ns;
-    RowBodyRate sample_rows = BodyRateAround(sample.t_ns, rows);
+    RowBodyRate sample_rows = BodyRateAround(sample.t_ns, about_axis);
     const Eigen::Matrix3d velocity =
         internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, calibration_.q_I_V);
     // The speed row's share goes to rows.speed_sigma_m_s only where the form whitens by it.
@@ -282,6 +303,7 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
 
+  UpdateTurningAxis(*from);
   AttachWheelFactors(from, t_end_ns);
   AttachWheelSpeedFactors(from, t_end_ns);
   AttachOdometryFactors(from, t_end_ns);

@@ -81,6 +81,7 @@ void CheckWheelRows(const WheelRowOptions& w) {
   CheckPositive(w.non_holonomic_sigma_m_s, "wheel_rows.non_holonomic_sigma_m_s");
   CheckNonNegative(w.non_holonomic_correlation_s, "wheel_rows.non_holonomic_correlation_s");
   CheckNonNegative(w.gyro_mean_span_s, "wheel_rows.gyro_mean_span_s");
+  CheckNonNegative(w.max_turning_axis_error_deg, "wheel_rows.max_turning_axis_error_deg");
   CheckNonNegative(w.planar_rotation_sigma_rad_s, "wheel_rows.planar_rotation_sigma_rad_s");
 }
 

@@ -66,6 +66,11 @@ factors::WheelFactorOptions WithLeverArmRateCovariance(factors::WheelFactorOptio
                                                        const Eigen::Quaterniond& q_I_V,
                                                        const Eigen::Vector3d& p_I_V);
 double YawRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V);
+// The yaw-rate row's share of the rate's covariance P: about yaw_axis_I, u^T P u, when the row
+// reads the rate about that axis (Eq. K13c, WheelFactorOptions::yaw_axis_I), else
+// YawRateVariance.
+double YawRowRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V,
+                          const Eigen::Vector3d& yaw_axis_I);
 
 struct KeyframeWheelOptions {
   // Sigmas and rows of each factor. With factor.shared_radius the left radius block

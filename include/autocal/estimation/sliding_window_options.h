@@ -81,6 +81,11 @@ struct WheelRowOptions {
   // The angular rate the rows take: the mean gyro over this span around the sample (0: the
   // gyro interpolated at the sample), which keeps gyro noise out of the lever-arm regressor.
   double gyro_mean_span_s = 0.05;
+  // The yaw-rate rows read the body rate about the axis the vehicle turns about, measured from
+  // the keyframes' rates streamed so far (Eq. K13c of docs/keyframe_factors.md), once that
+  // axis's standard error is below this; until then, and with 0, about V's up axis through
+  // q_I_V, whose tilt error e lengthens the track by b e^2 / 2.
+  double max_turning_axis_error_deg = 1.0;
   // Planar-rotation rows (Eq. F27): one per keyframe, on its b_g and q_I_V, with this sigma of
   // the roll and pitch rates in V (PlanarRotationSpread::RowSigmaRadS); zero: no such rows.
   double planar_rotation_sigma_rad_s = 0.0;
