@@ -112,10 +112,8 @@ class SlidingWindowEstimator::Impl {
     double speed_variance_m2_s2 = 0.0;
   };
   RowBodyRate BodyRateAround(int64_t t_ns, const factors::WheelFactorOptions& rows) const;
-  // The body rate at t_ns the wheel rows take: the gyro mean, or with the log's spread of rates
-  // the rate given it (Eq. K14).
-  sensors::BodyRate RowRateAround(int64_t t_ns) const;
-  // Adds the keyframe's body rate to turning_rates_ and updates yaw_axis_I_.
+  // Adds the body rate the wheel rows take at the keyframe (BodyRateAround) to turning_rates_
+  // and updates yaw_axis_I_.
   void UpdateTurningAxis(const WindowKeyframe& from);
   double GyroSampleSigma() const;
   double GyroMeanSigma(const sensors::GyroMean& gyro) const;

@@ -79,24 +79,17 @@ double SlidingWindowEstimator::Impl::GyroMeanSigma(const sensors::GyroMean& gyro
   return GyroSampleSigma() / std::sqrt(std::max(1, gyro.samples));
 }
 
-sensors::BodyRate SlidingWindowEstimator::Impl::RowRateAround(int64_t t_ns) const {
+// The body rate the wheel rows take at t_ns, their sigmas and the 1-sigma of its part the
+// yaw-rate row reads: the gyro mean (GyroAround, GyroMeanSigma) or, with the log's spread of
+// rates, the rate given that mean (Eq. K14) with its remaining error through the lever arm
+// (Eq. K13, at the current mount and lever arm).
+SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRateAround(
+    int64_t t_ns, const factors::WheelFactorOptions& rows) const {
   const sensors::GyroMean gyro = GyroAround(t_ns);
   const double sigma = GyroMeanSigma(gyro);
   const std::optional<sensors::BodyRatePrior>& prior = options_.wheel_rows.body_rate_prior;
-  if (!prior) return {gyro.rate_rad_s, Eigen::Matrix3d::Zero()};
-  return prior->Condition({gyro.rate_rad_s, sigma * sigma});
-}
-
-// The body rate the wheel rows take at t_ns (RowRateAround), their sigmas and the 1-sigma of
-// its part the yaw-rate row reads: the gyro mean's or, with the log's spread of rates, the
-// rate's remaining error (Eq. K14), which enters the rows through the lever arm (Eq. K13, at
-// the current mount and lever arm).
-SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRateAround(
-    int64_t t_ns, const factors::WheelFactorOptions& rows) const {
-  const sensors::BodyRate rate = RowRateAround(t_ns);
-  if (!options_.wheel_rows.body_rate_prior) {
-    return {rate.rate_rad_s, rows, GyroMeanSigma(GyroAround(t_ns))};
-  }
+  if (!prior) return {gyro.rate_rad_s, rows, sigma};
+  const sensors::BodyRate rate = prior->Condition({gyro.rate_rad_s, sigma * sigma});
   // The yaw part is the yaw-rate row's gyro sigma, floored: a log that never turns leaves no
   // yaw error, and the rows need a positive sigma.
   const factors::WheelFactorOptions with_lever =
@@ -111,7 +104,7 @@ SlidingWindowEstimator::Impl::RowBodyRate SlidingWindowEstimator::Impl::BodyRate
 void SlidingWindowEstimator::Impl::UpdateTurningAxis(const WindowKeyframe& from) {
   const double max_error_deg = options_.wheel_rows.max_turning_axis_error_deg;
   if (!(max_error_deg > 0.0)) return;
-  turning_rates_.Add(RowRateAround(from.state.t_ns).rate_rad_s);
+  turning_rates_.Add(BodyRateAround(from.state.t_ns, factors::WheelFactorOptions()).rate_rad_s);
   if (const std::optional<Eigen::Vector3d> axis = turning_rates_.Axis(
           calibration_.q_I_V * Eigen::Vector3d::UnitZ(), max_error_deg * kDegToRad)) {
     yaw_axis_I_ = *axis;
