@@ -131,6 +131,11 @@ PairingOptions PairingAt(const LidarInertialBatchOptions& options, const Schedul
   }
   PairingOptions fine = options.pairing;
   fine.point_sigma_m = schedule.fine_point_sigma_m;
+  if (options.plane_thickness_sigmas > 0.0) {  // Eq. P10b
+    fine.plane_map.max_plane_thickness_m =
+        std::min(fine.plane_map.max_plane_thickness_m,
+                 options.plane_thickness_sigmas * schedule.fine_point_sigma_m);
+  }
   return fine;
 }
 

@@ -68,6 +68,11 @@ struct LidarInertialBatchOptions {
   // (docs/estimation.md, "The points' sigma"); pairing.point_sigma_m is the starting value.
   // false: pairing.point_sigma_m throughout.
   bool point_sigma_from_residuals = true;
+  // The fine iterations accept a local plane only when no neighbour lies farther from it than
+  // this many of the points' sigma (and pairing.plane_map.max_plane_thickness_m): a thicker
+  // neighbourhood spans an edge or a curved surface, whose plane biases the distances of the
+  // points paired with it (docs/estimation.md, Eq. P10b). 0: the configured gate alone.
+  double plane_thickness_sigmas = 3.5;
   int outer_iterations = 8;
   int solver_iterations = 15;
   int num_threads = 1;
