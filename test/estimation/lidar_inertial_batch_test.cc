@@ -25,21 +25,41 @@ constexpr double kFirstSweepS = 14.0;
 
 using test::TrueKeyframe;
 
-// An urban drive with a 16-beam LiDAR, simulated once for the suite. Seed 7 reaches the
-// roundabout at 18 s and leaves it at 34 s: the sweeps from 14 s on see straight driving
-// and turns, without which the extrinsic rotation is unobservable (driving straight, a
-// rotated LiDAR sees a consistently rotated world).
+// An urban drive with a 16-beam LiDAR. Seed 7 reaches the roundabout at 18 s and leaves it at
+// 34 s: the sweeps from 14 s on see straight driving and turns, without which the extrinsic
+// rotation is unobservable (driving straight, a rotated LiDAR sees a consistently rotated
+// world).
+sim::SimulationOptions UrbanDriveOptions() {
+  sim::SimulationOptions sim_options;
+  sim_options.scenario = sim::ScenarioType::kUrban;
+  sim_options.duration_s = 34.0;
+  sim_options.seed = 7;
+  sim_options.lidar.config.num_beams = 16;
+  sim_options.wheel.enabled = false;
+  sim_options.gnss.enabled = false;
+  return sim_options;
+}
+
+// The log's sweeps whose keyframe and points lie inside the IMU log (from kFirstSweepS on), with
+// their true keyframe states, appended.
+void SweepsInsideTheImuLog(const sim::SimulatedLog& log, const sensors::Calibration& start,
+                           std::vector<lidar::LidarSweep>* sweeps,
+                           std::vector<Keyframe>* keyframes) {
+  const int64_t imu_begin = log.imu.samples.front().t_ns + SecondsToNs(kFirstSweepS);
+  const int64_t imu_end = log.imu.samples.back().t_ns - 200'000'000;
+  for (const lidar::LidarSweep& sweep : log.sweeps) {
+    const int64_t t_k = KeyframeTime(sweep, start.time_offset_lidar_imu_s);
+    if (t_k < imu_begin || t_k > imu_end) continue;
+    sweeps->push_back(sweep);
+    keyframes->push_back(TrueKeyframe(log.imu, t_k));
+  }
+}
+
+// The drive simulated once for the suite.
 class LidarInertialBatchTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    sim::SimulationOptions sim_options;
-    sim_options.scenario = sim::ScenarioType::kUrban;
-    sim_options.duration_s = 34.0;
-    sim_options.seed = 7;
-    sim_options.lidar.config.num_beams = 16;
-    sim_options.wheel.enabled = false;
-    sim_options.gnss.enabled = false;
-    simulator_ = new sim::Simulator(sim_options);
+    simulator_ = new sim::Simulator(UrbanDriveOptions());
     log_ = new sim::SimulatedLog(test::CachedSimulatedLog(*simulator_));
   }
   static void TearDownTestSuite() {
@@ -47,16 +67,8 @@ class LidarInertialBatchTest : public ::testing::Test {
     delete simulator_;
   }
 
-  // Sweeps whose keyframe and points lie inside the IMU log, with true keyframe states.
   void Setup(const sensors::Calibration& start) {
-    const int64_t imu_begin = log_->imu.samples.front().t_ns + SecondsToNs(kFirstSweepS);
-    const int64_t imu_end = log_->imu.samples.back().t_ns - 200'000'000;
-    for (const lidar::LidarSweep& sweep : log_->sweeps) {
-      const int64_t t_k = KeyframeTime(sweep, start.time_offset_lidar_imu_s);
-      if (t_k < imu_begin || t_k > imu_end) continue;
-      sweeps_.push_back(sweep);
-      keyframes_.push_back(TrueKeyframe(log_->imu, t_k));
-    }
+    SweepsInsideTheImuLog(*log_, start, &sweeps_, &keyframes_);
     ASSERT_GT(sweeps_.size(), 150u);
   }
 
@@ -315,40 +327,18 @@ TEST_F(LidarInertialBatchTest, CoarseLevelsFollowTheDistances) {
   EXPECT_LT(geometry::AngularDistance(calibration.q_I_L, truth.q_I_L) * kRadToDeg, 0.1);
 }
 
-}  // namespace
-}  // namespace estimation
-}  // namespace autocal
-
-namespace autocal {
-namespace estimation {
-namespace {
-
 // Planes no thicker than the points' noise (Eq. P10b). On a noise-free drive every point lies
 // on its surface, and a plane fitted across an edge or a curved surface is the only error
 // left: with the fixed 10 cm gate such planes shortened the trajectory by about 1e-5 of the
 // distance driven (docs/estimation.md), which the radii then took up. The keyframes are
 // solved from the truth, the calibration held at it.
 TEST(LidarInertialBatchPlanes, NoThickerThanThePointsNoiseLeaveTheDistancesTrue) {
-  sim::SimulationOptions sim_options;
-  sim_options.scenario = sim::ScenarioType::kUrban;
-  sim_options.duration_s = 34.0;
-  sim_options.seed = 7;
-  sim_options.lidar.config.num_beams = 16;
-  sim_options.wheel.enabled = false;
-  sim_options.gnss.enabled = false;
-  const sim::Simulator simulator(sim_options.WithoutNoise());
+  const sim::Simulator simulator(UrbanDriveOptions().WithoutNoise());
   const sim::SimulatedLog log = test::CachedSimulatedLog(simulator);
   const sensors::Calibration& truth = simulator.true_calibration();
   std::vector<lidar::LidarSweep> sweeps;
   std::vector<Keyframe> true_keyframes;
-  const int64_t imu_begin = log.imu.samples.front().t_ns + SecondsToNs(kFirstSweepS);
-  const int64_t imu_end = log.imu.samples.back().t_ns - 200'000'000;
-  for (const lidar::LidarSweep& sweep : log.sweeps) {
-    const int64_t t_k = KeyframeTime(sweep, truth.time_offset_lidar_imu_s);
-    if (t_k < imu_begin || t_k > imu_end) continue;
-    sweeps.push_back(sweep);
-    true_keyframes.push_back(TrueKeyframe(log.imu, t_k));
-  }
+  SweepsInsideTheImuLog(log, truth, &sweeps, &true_keyframes);
   ASSERT_GT(sweeps.size(), 150u);
 
   // Distance over 5 s spans, estimate against truth, less one.
