@@ -238,25 +238,15 @@ std::vector<std::optional<sensors::BodyRate>> BodyRatesAt(const sensors::ImuSamp
   return rates;
 }
 
-// The axis, in I, the vehicle turns about (Eq. K13c): PrincipalTurningAxis of the rows'
-// body-rate readings.
+// The axis, in I, the vehicle turns about (Eq. K13c), from the rows' body-rate readings.
 std::optional<Eigen::Vector3d> TurningAxis(
     const std::vector<std::optional<sensors::BodyRate>>& rates, const Eigen::Vector3d& up_I,
     double max_error_rad) {
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  int n = 0;
+  internal::TurningRateSpread spread;
   for (const auto& rate : rates) {
-    if (!rate) continue;
-    mean += rate->rate_rad_s;
-    ++n;
+    if (rate) spread.Add(rate->rate_rad_s);
   }
-  if (n == 0) return std::nullopt;
-  mean /= n;
-  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
-  for (const auto& rate : rates) {
-    if (rate) spread += (rate->rate_rad_s - mean) * (rate->rate_rad_s - mean).transpose();
-  }
-  return internal::PrincipalTurningAxis(n, spread / n, up_I, max_error_rad);
+  return spread.Axis(up_I, max_error_rad);
 }
 
 // A keyframe's wheel values (the form's two) for its rows: the forward-speed row's at the
@@ -282,24 +272,16 @@ struct WheelValues {
   }
 };
 
-// The yaw-rate row's values over [t_ns - half_span_ns, t_ns + half_span_ns] on the wheel clock,
-// or `instant` where the samples do not cover that span.
-template <typename Samples, typename ToValue>
-WheelValues WithYawRowOverSpan(const Samples& wheel, int64_t t_ns, int64_t half_span_ns,
-                               int64_t max_gap_ns, ToValue to_value,
-                               const internal::WeightedMean<Eigen::Vector2d>& instant) {
-  return {instant, internal::MeanOverSpan(wheel, t_ns - half_span_ns, t_ns + half_span_ns,
-                                          max_gap_ns, to_value)
-                       .value_or(instant)};
-}
-
-// With the wheel clock at the IMU's: the values interpolated at the keyframe (Eq. K1).
+// With the wheel clock at the IMU's: the values interpolated at the keyframe (Eq. K1), the
+// yaw-rate row's over [t_k - half_span, t_k + half_span] where the samples cover that span.
 template <typename Samples, typename ToValue>
 std::optional<WheelValues> InstantValues(const Samples& wheel, int64_t t_k_ns, int64_t half_span_ns,
                                          int64_t max_gap_ns, ToValue to_value) {
   const auto instant = internal::MeanOverSpan(wheel, t_k_ns, t_k_ns, max_gap_ns, to_value);
   if (!instant) return std::nullopt;
-  return WithYawRowOverSpan(wheel, t_k_ns, half_span_ns, max_gap_ns, to_value, *instant);
+  return WheelValues{*instant, internal::MeanOverSpan(wheel, t_k_ns - half_span_ns,
+                                                      t_k_ns + half_span_ns, max_gap_ns, to_value)
+                                   .value_or(*instant)};
 }
 
 // AddWheelFactors for the samples of any wheel form, whose two values to_value(sample) gives.
