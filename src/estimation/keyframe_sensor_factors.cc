@@ -95,6 +95,10 @@ double NonHolonomicSigmaScale(double tau_s, double dt_s) {
   return std::sqrt(std::max(1.0, 2.0 * tau_s / dt_s));
 }
 
+double CorneringSlipMS(double compliance_rad_per_m_s2, double speed_m_s, double turn_rate_rad_s) {
+  return std::abs(compliance_rad_per_m_s2 * speed_m_s * speed_m_s * turn_rate_rad_s);
+}
+
 factors::WheelFactorOptions WithVelocityCovariance(factors::WheelFactorOptions rows,
                                                    const Eigen::Matrix3d& covariance_V) {
   if (covariance_V.isZero(0.0)) return rows;
@@ -123,6 +127,10 @@ double YawRowRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Q
                           const Eigen::Vector3d& yaw_axis_I) {
   if (yaw_axis_I.isZero(0.0)) return YawRateVariance(rate_covariance, q_I_V);
   return yaw_axis_I.dot(rate_covariance * yaw_axis_I);
+}
+
+Eigen::Vector3d YawRowAxis(const Eigen::Quaterniond& q_I_V, const Eigen::Vector3d& yaw_axis_I) {
+  return yaw_axis_I.isZero(0.0) ? Eigen::Vector3d(q_I_V * Eigen::Vector3d::UnitZ()) : yaw_axis_I;
 }
 
 int AddImuFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
@@ -331,6 +339,13 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     }
     *sigma_m_s *= KeyframeNonHolonomicSigmaScale(*keyframes, tau_s);
   }
+  const double compliance = options.cornering_compliance_rad_per_m_s2;
+  if (!(compliance >= 0.0) || !std::isfinite(compliance)) {
+    throw Error("AddWheelFactors: cornering_compliance_rad_per_m_s2 must be finite and >= 0, got " +
+                std::to_string(compliance));
+  }
+  const double lateral_scale =
+      KeyframeNonHolonomicSigmaScale(*keyframes, options.lateral_correlation_s);
   // The yaw-rate rows' sigma follows the track (Eq. F22b), stated at the track's start, where
   // the wheels' rates carry the encoders' white noise. Not for the controller's twist: its yaw
   // rate errs by the platform's slip, which b_eff models, not by noise in its rate.
@@ -363,6 +378,7 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
                                 options.max_turning_axis_error_deg * kDegToRad)) {
     factor_options.yaw_axis_I = *axis;
   }
+  const Eigen::Vector3d turning_axis_I = YawRowAxis(c.q_I_V, factor_options.yaw_axis_I);
   int added = 0;
   for (size_t k = 0; k < keyframes->size(); ++k) {
     if (!rates[k]) continue;
@@ -373,8 +389,14 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
                 : InstantValues(wheel, kf.t_ns, half_span_ns, max_wheel_gap_ns, to_value);
     if (!values) continue;
     const sensors::BodyRate& gyro = *rates[k];
-    factors::WheelFactorOptions rows = WithLeverArmRateCovariance(
-        values->Whitened(factor_options, yaw_span_scale), gyro.covariance, c.q_I_V, c.p_I_V);
+    factors::WheelFactorOptions turning = values->Whitened(factor_options, yaw_span_scale);
+    // The slip out of the keyframe's turn (Eq. K6c), correlated as the row's straight part.
+    turning.lateral_sigma_m_s =
+        lateral_scale * std::hypot(options.factor.lateral_sigma_m_s,
+                                   CorneringSlipMS(compliance, kf.v_W_I.norm(),
+                                                   gyro.rate_rad_s.dot(turning_axis_I)));
+    factors::WheelFactorOptions rows =
+        WithLeverArmRateCovariance(turning, gyro.covariance, c.q_I_V, c.p_I_V);
     if (!gyro.covariance.isZero(0.0)) {
       const double variance =
           YawRowRateVariance(gyro.covariance, c.q_I_V, factor_options.yaw_axis_I);

@@ -120,14 +120,15 @@ class SlidingWindowEstimator::Impl {
   internal::AttachedFactor WheelRowFactor(ceres::CostFunction* cost, SlidingWindowState* s,
                                           std::initializer_list<double*> blocks,
                                           const char* what) const;
-  factors::WheelFactorOptions NonHolonomicRows(factors::WheelFactorOptions options, size_t used,
-                                               int64_t t_from_ns, int64_t t_end_ns) const;
+  double NonHolonomicScale(size_t used, int64_t t_from_ns, int64_t t_end_ns) const;
+  factors::WheelFactorOptions NonHolonomicRows(factors::WheelFactorOptions options,
+                                               double scale) const;
   template <typename Sample>
   std::vector<Sample> TakeThinned(std::deque<Sample>* queue, int64_t t_end_ns) const;
   template <typename Sample, typename Make>
   void AttachPropagated(WindowKeyframe* from, const std::vector<Sample>& used,
-                        const factors::WheelFactorOptions& rows, bool speed_row_by_options,
-                        Make make) const;
+                        const factors::WheelFactorOptions& rows, double slip_scale,
+                        bool speed_row_by_options, Make make) const;
   void RelinearizeImuFactors();
   // Refreshes the plane maps that moved and makes the pairing tries that are missing or stale
   // (SweepPairing).

@@ -131,18 +131,23 @@ sensors::GyroMean SlidingWindowEstimator::Impl::GyroAround(int64_t t_ns) const {
   return sensors::GyroAround(imu_, t_ns, SecondsToNs(0.5 * options_.wheel_rows.gyro_mean_span_s));
 }
 
-// The wheel rows' options with the non-holonomic sigma scaled for the spacing of `used`
-// samples over (t_from, t_end].
+// The correlated-error scaling of the non-holonomic rows at the spacing of `used` samples over
+// (t_from, t_end].
+double SlidingWindowEstimator::Impl::NonHolonomicScale(size_t used, int64_t t_from_ns,
+                                                       int64_t t_end_ns) const {
+  return NonHolonomicSigmaScale(
+      options_.wheel_rows.non_holonomic_correlation_s,
+      used == 0 ? 0.0 : NsToSeconds(t_end_ns - t_from_ns) / static_cast<double>(used));
+}
+
+// The wheel rows' options with the non-holonomic sigmas times `scale`: the lateral row's the
+// rear axle's slip driving straight (WheelConfig, Eq. K6c; its turning part per sample in
+// AttachPropagated), the vertical row's wheel_rows.vertical_sigma_m_s.
 factors::WheelFactorOptions SlidingWindowEstimator::Impl::NonHolonomicRows(
-    factors::WheelFactorOptions options, size_t used, int64_t t_from_ns, int64_t t_end_ns) const {
-  const double non_holonomic_sigma_m_s =
-      options_.wheel_rows.non_holonomic_sigma_m_s *
-      NonHolonomicSigmaScale(
-          options_.wheel_rows.non_holonomic_correlation_s,
-          used == 0 ? 0.0 : NsToSeconds(t_end_ns - t_from_ns) / static_cast<double>(used));
+    factors::WheelFactorOptions options, double scale) const {
   options.non_holonomic = options_.wheel_rows.non_holonomic;
-  options.lateral_sigma_m_s = non_holonomic_sigma_m_s;
-  options.vertical_sigma_m_s = non_holonomic_sigma_m_s;
+  options.lateral_sigma_m_s = options_.wheel.lateral_slip_sigma_m_s * scale;
+  options.vertical_sigma_m_s = options_.wheel_rows.vertical_sigma_m_s * scale;
   return options;
 }
 
@@ -173,18 +178,25 @@ template <typename Sample, typename Make>
 void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
                                                     const std::vector<Sample>& used,
                                                     const factors::WheelFactorOptions& rows,
-                                                    bool speed_row_by_options, Make make) const {
+                                                    double slip_scale, bool speed_row_by_options,
+                                                    Make make) const {
   const SlidingWindowState& s = from->state;
   sensors::PreintegrationOptions preintegration;
   preintegration.gravity_m_s2 = options_.imu.gravity_m_s2;
   sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
   factors::WheelFactorOptions about_axis = rows;
   about_axis.yaw_axis_I = yaw_axis_I_;
+  const Eigen::Vector3d turning_axis_I = YawRowAxis(calibration_.q_I_V, yaw_axis_I_);
   int64_t integrated_to_ns = s.t_ns;
   for (const Sample& sample : used) {
     pim.Integrate(imu_, integrated_to_ns, sample.t_ns);
     integrated_to_ns = sample.t_ns;
     RowBodyRate sample_rows = BodyRateAround(sample.t_ns, about_axis);
+    // The slip out of the sample's turn (Eq. K6c), scaled as the row's straight part.
+    sample_rows.rows.lateral_sigma_m_s = std::hypot(
+        sample_rows.rows.lateral_sigma_m_s,
+        slip_scale * CorneringSlipMS(options_.wheel.cornering_compliance_rad_per_m_s2,
+                                     s.v_W_I.norm(), sample_rows.rate_rad_s.dot(turning_axis_I)));
     const Eigen::Matrix3d velocity =
         internal::PropagatedVelocityCovariance(pim, s.q_W_I, s.v_W_I, calibration_.q_I_V);
     // The speed row's share goes to rows.speed_sigma_m_s only where the form whitens by it.
@@ -202,12 +214,13 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
   const std::vector<sensors::WheelSample> used = TakeThinned(&wheel_, t_end_ns);
+  const double scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
   const factors::WheelFactorOptions wheel_options = NonHolonomicRows(
       factors::WheelFactorOptions::FromEncoderNoise(
           options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
-      used.size(), s.t_ns, t_end_ns);
+      scale);
   AttachPropagated(
-      from, used, wheel_options, false,
+      from, used, wheel_options, scale, false,
       [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w,
           const RowBodyRate& gyro) {
         factors::WheelMeasurement m;
@@ -228,10 +241,10 @@ void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from,
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
   const std::vector<sensors::WheelSpeedSample> used = TakeThinned(&wheel_speeds_, t_end_ns);
+  const double scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
   const factors::WheelFactorOptions options = NonHolonomicRows(
-      factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m),
-      used.size(), s.t_ns, t_end_ns);
-  AttachPropagated(from, used, options, false,
+      factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m), scale);
+  AttachPropagated(from, used, options, scale, false,
                    [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w,
                        const RowBodyRate& gyro) {
                      factors::WheelSpeedMeasurement m;
@@ -253,10 +266,10 @@ void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, i
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
   const std::vector<sensors::OdometrySample> used = TakeThinned(&odometry_, t_end_ns);
+  const double scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
   const factors::WheelFactorOptions options =
-      NonHolonomicRows(factors::WheelFactorOptions::FromOdometryNoise(options_.wheel), used.size(),
-                       s.t_ns, t_end_ns);
-  AttachPropagated(from, used, options, true,
+      NonHolonomicRows(factors::WheelFactorOptions::FromOdometryNoise(options_.wheel), scale);
+  AttachPropagated(from, used, options, scale, true,
                    [&](const sensors::ImuPreintegration& pim, const sensors::OdometrySample& o,
                        const RowBodyRate& gyro) {
                      factors::OdometryMeasurement m;

@@ -78,7 +78,7 @@ void CheckWheelRows(const WheelRowOptions& w) {
   if (w.max_samples_per_interval < 0) {
     throw Error("SlidingWindowOptions: wheel_rows.max_samples_per_interval must not be negative");
   }
-  CheckPositive(w.non_holonomic_sigma_m_s, "wheel_rows.non_holonomic_sigma_m_s");
+  CheckPositive(w.vertical_sigma_m_s, "wheel_rows.vertical_sigma_m_s");
   CheckNonNegative(w.non_holonomic_correlation_s, "wheel_rows.non_holonomic_correlation_s");
   CheckNonNegative(w.gyro_mean_span_s, "wheel_rows.gyro_mean_span_s");
   CheckNonNegative(w.max_turning_axis_error_deg, "wheel_rows.max_turning_axis_error_deg");
@@ -149,6 +149,9 @@ void CheckOptions(const SlidingWindowOptions& o) {
   }
   CheckWheelRows(o.wheel_rows);
   CheckPositive(o.wheel.noise_rad_s, "wheel.noise_rad_s");
+  CheckPositive(o.wheel.lateral_slip_sigma_m_s, "wheel.lateral_slip_sigma_m_s");
+  CheckNonNegative(o.wheel.cornering_compliance_rad_per_m_s2,
+                   "wheel.cornering_compliance_rad_per_m_s2");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
   if (o.imu_coverage_margin_s < 0.0 || o.min_keyframe_interval_s < 0.0) {
     throw Error(

@@ -86,9 +86,10 @@ sensors::LidarConfig ParseLidar(const YamlFile& file, const YAML::Node& node) {
 }
 
 sensors::WheelConfig ParseWheel(const YamlFile& file, const YAML::Node& node) {
-  file.ExpectMap(node, "wheel",
-                 {"form", "rate_hz", "noise_rad_s", "noise_m_s", "yaw_rate_noise_rad_s",
-                  "controller_track_m"});
+  file.ExpectMap(
+      node, "wheel",
+      {"form", "rate_hz", "noise_rad_s", "noise_m_s", "yaw_rate_noise_rad_s", "controller_track_m",
+       "lateral_slip_sigma_m_s", "cornering_compliance_rad_per_m_s2"});
   sensors::WheelConfig wheel;
   if (const YAML::Node n = node["form"]) {
     const std::string name = file.String(n, "wheel.form");
@@ -117,6 +118,14 @@ sensors::WheelConfig ParseWheel(const YamlFile& file, const YAML::Node& node) {
                     std::string(sensors::WheelFormName(wheel.form)) + ")");
     }
     wheel.controller_track_m = file.DoubleInRange(n, "wheel.controller_track_m", 0.05, 100.0, "m");
+  }
+  if (const YAML::Node n = node["lateral_slip_sigma_m_s"]) {
+    wheel.lateral_slip_sigma_m_s = file.DoubleInRange(n, "wheel.lateral_slip_sigma_m_s",
+                                                      kMinWheelSigma, kMaxWheelSigma, "m/s");
+  }
+  if (const YAML::Node n = node["cornering_compliance_rad_per_m_s2"]) {
+    wheel.cornering_compliance_rad_per_m_s2 =
+        file.DoubleInRange(n, "wheel.cornering_compliance_rad_per_m_s2", 0.0, 1.0, "rad/(m/s^2)");
   }
   return wheel;
 }
@@ -185,10 +194,14 @@ void WriteSensorsYaml(const std::string& path, const SensorsConfig& config) {
   }
   if (config.wheel) {
     const sensors::WheelConfig& w = *config.wheel;
-    text += std::string("wheel:\n  form: ") + sensors::WheelFormName(w.form) +
-            "\n  rate_hz: " + Number(w.rate_hz) + "\n  noise_rad_s: " + Number(w.noise_rad_s) +
-            "\n  noise_m_s: " + Number(w.noise_m_s) +
-            "\n  yaw_rate_noise_rad_s: " + Number(w.yaw_rate_noise_rad_s) + "\n";
+    text +=
+        std::string("wheel:\n  form: ") + sensors::WheelFormName(w.form) +
+        "\n  rate_hz: " + Number(w.rate_hz) + "\n  noise_rad_s: " + Number(w.noise_rad_s) +
+        "\n  noise_m_s: " + Number(w.noise_m_s) +
+        "\n  yaw_rate_noise_rad_s: " + Number(w.yaw_rate_noise_rad_s) +
+        "\n  lateral_slip_sigma_m_s: " + Number(w.lateral_slip_sigma_m_s) +
+        "\n  cornering_compliance_rad_per_m_s2: " + Number(w.cornering_compliance_rad_per_m_s2) +
+        "\n";
     if (w.controller_track_m)
       text += "  controller_track_m: " + Number(*w.controller_track_m) + "\n";
   }

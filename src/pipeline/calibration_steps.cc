@@ -167,10 +167,11 @@ double ControllerTrackM(const io::Dataset& dataset, const sensors::Calibration& 
                                               : nominal.effective_track_m;
 }
 
-factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
-                                       const sensors::Calibration& nominal) {
-  const sensors::WheelConfig config = dataset.sensors.wheel.value_or(sensors::WheelConfig());
-  switch (dataset.wheel_form()) {
+namespace {
+
+factors::WheelFactorOptions FormNoise(const sensors::WheelConfig& config, sensors::WheelForm form,
+                                      const sensors::Calibration& nominal) {
+  switch (form) {
     case sensors::WheelForm::kLinearSpeeds:
       return factors::WheelFactorOptions::FromWheelSpeedNoise(config, nominal.track_width_m);
     case sensors::WheelForm::kSpeedYawRate:
@@ -180,6 +181,16 @@ factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
   }
   return factors::WheelFactorOptions::FromEncoderNoise(config, nominal.wheel_radius_left_m,
                                                        nominal.track_width_m);
+}
+
+}  // namespace
+
+void SetWheelNoise(const io::Dataset& dataset, const sensors::Calibration& nominal,
+                   estimation::KeyframeWheelOptions* wheel) {
+  const sensors::WheelConfig config = dataset.sensors.wheel.value_or(sensors::WheelConfig());
+  wheel->factor = FormNoise(config, dataset.wheel_form(), nominal);
+  wheel->factor.lateral_sigma_m_s = config.lateral_slip_sigma_m_s;
+  wheel->cornering_compliance_rad_per_m_s2 = config.cornering_compliance_rad_per_m_s2;
 }
 
 TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& problem,
@@ -236,7 +247,7 @@ estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& da
   options.gnss.max_imu_gap_s = timing.max_imu_gap_s;
   if (timing.wheel) options.wheel.max_wheel_gap_s = timing.max_wheel_gap_s;
   options.wheel.max_imu_gap_s = timing.max_imu_gap_s;
-  options.wheel.factor = WheelNoise(dataset, dataset.sensors.nominal_calibration);
+  SetWheelNoise(dataset, dataset.sensors.nominal_calibration, &options.wheel);
   return options;
 }
 
@@ -251,9 +262,10 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
   if (use_wheel) {
     p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
     estimation::KeyframeWheelOptions wheel;
-    wheel.factor = WheelNoise(*dataset, *nominal);
+    SetWheelNoise(*dataset, *nominal, &wheel);
     for (double* sigma : {&wheel.factor.speed_sigma_m_s, &wheel.factor.yaw_rate_sigma_rad_s,
-                          &wheel.factor.lateral_sigma_m_s, &wheel.factor.vertical_sigma_m_s}) {
+                          &wheel.factor.lateral_sigma_m_s, &wheel.factor.vertical_sigma_m_s,
+                          &wheel.cornering_compliance_rad_per_m_s2}) {
       *sigma *= wheel_noise_scale;
     }
     wheel.factor.shared_radius = b.wheel_radius_shared;

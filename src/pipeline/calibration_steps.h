@@ -85,11 +85,12 @@ estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& da
 // The wheel samples of the form the dataset holds, when the problem uses the wheels (else none).
 estimation::WheelData StartWheelData(const io::Dataset& dataset, bool use_wheel);
 
-// The sigmas of the form's factor rows from sensors.yaml's wheel noise (a sensors.yaml without
-// a wheel: section, or no sensors.yaml, means the encoder defaults of sensors/sensor_config.h;
-// datasets/README.md).
-factors::WheelFactorOptions WheelNoise(const io::Dataset& dataset,
-                                       const sensors::Calibration& nominal);
+// The sigmas of the form's factor rows from sensors.yaml's wheel noise, and the rear axle's
+// lateral slip with its cornering compliance (Eq. K6c); a sensors.yaml without a wheel:
+// section, or no sensors.yaml, means the defaults of sensors/sensor_config.h
+// (datasets/README.md). The other fields of *wheel are kept.
+void SetWheelNoise(const io::Dataset& dataset, const sensors::Calibration& nominal,
+                   estimation::KeyframeWheelOptions* wheel);
 
 // b_ctrl of the odometry twist: sensors.yaml's wheel.controller_track_m, else the nominal
 // effective track.

@@ -230,7 +230,9 @@ double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& c
                             static_cast<double>(yaw_rate.size() - 1);
   const double gyro_sigma =
       dataset.sensors.imu.noise.gyroscope_noise_density / std::sqrt(interval_s);
-  const double wheel_sigma = WheelNoise(dataset, nominal).yaw_rate_sigma_rad_s;
+  estimation::KeyframeWheelOptions rows;
+  SetWheelNoise(dataset, nominal, &rows);
+  const double wheel_sigma = rows.factor.yaw_rate_sigma_rad_s;
   const double expected = std::hypot(wheel_sigma, gyro_sigma);
   const double scale = agreement.residual_sigma_rad_s / expected;
   if (!(scale >= kMinWheelNoiseScale)) return 1.0;

@@ -39,6 +39,13 @@ void SetSpinningLidarBeams(int num_beams, sensors::LidarConfig* config) {
   config->num_beams = num_beams;
 }
 
+sensors::WheelConfig RoadCarWheelConfig() {
+  sensors::WheelConfig config;
+  config.cornering_compliance_rad_per_m_s2 = 0.3 * kDegToRad;
+  config.lateral_slip_sigma_m_s = 0.01;
+  return config;
+}
+
 SimulationOptions SkidSteerRobotOptions() {
   SimulationOptions o;
   o.scenario = ScenarioType::kSkidSteer;
@@ -50,6 +57,8 @@ SimulationOptions SkidSteerRobotOptions() {
   o.dynamics.rear_axle_height_m = 0.17;
   o.imu.noise.update_rate_hz = 30.0;
   o.imu.stamp_jitter_s = 0.002;
+  // A skid steer slides sideways in every turn: the platform defaults, not a road car's slip.
+  o.wheel.config = sensors::WheelConfig();
 
   sensors::Calibration c = DefaultTrueCalibration();
   // IMU y up, x right (R_V_I = Rz(-90) Rx(+90)), 0.3 m above V's origin; LiDAR 0.5 m up.

@@ -62,6 +62,11 @@ void ValidateClocks(const SimulationOptions& o) {
   ValidateStatedSigma(w.config.noise_rad_s, "wheel noise_rad_s", "rad/s");
   ValidateStatedSigma(w.config.noise_m_s, "wheel noise_m_s", "m/s");
   ValidateStatedSigma(w.config.yaw_rate_noise_rad_s, "wheel yaw_rate_noise_rad_s", "rad/s");
+  ValidateStatedSigma(w.config.lateral_slip_sigma_m_s, "wheel lateral_slip_sigma_m_s", "m/s");
+  const double compliance = w.config.cornering_compliance_rad_per_m_s2;
+  Require(
+      compliance >= 0.0 && compliance <= 1.0,
+      "wheel cornering_compliance_rad_per_m_s2 must be in [0, 1] rad/(m/s^2)" + Got(compliance));
   Require(!w.config.controller_track_m || *w.config.controller_track_m > 0.0,
           "wheel controller_track_m must be positive");
   Require(std::abs(o.gnss.time_offset_gnss_imu_s) <= 2.0,

@@ -706,6 +706,63 @@ TEST_F(KeyframeSensorFactorsTest, NonHolonomicRowsAreWeightedForTheirCorrelation
   }
 }
 
+// A road car's rear axle slips out of a turn by its cornering compliance c (Eq. K6c): each
+// keyframe's lateral row takes sqrt(s0^2 + (c v^2 omega)^2) of its speed v and turning rate
+// omega (the gyro about V's up axis) for the straight-driving s0, and no other row changes.
+TEST_F(KeyframeSensorFactorsTest, TheLateralRowTakesTheSlipOfItsTurn) {
+  constexpr double kStraightSlipMS = 0.01;  // a road car's (sim::RoadCarWheelConfig)
+  const std::vector<Keyframe> truth = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
+  const sensors::Calibration true_calibration = exact_simulator_->true_calibration();
+  const auto residuals = [&](double compliance) {
+    std::vector<Keyframe> keyframes = truth;
+    sensors::Calibration calibration = true_calibration;
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    KeyframeWheelOptions options;
+    options.factor.lateral_sigma_m_s = kStraightSlipMS;
+    options.cornering_compliance_rad_per_m_s2 = compliance;
+    options.max_turning_axis_error_deg = 0.0;  // about V's up axis
+    options.loss = factors::LossOptions();     // plain least squares: raw whitened rows
+    EXPECT_EQ(AddWheelFactors(problem.get(), exact_->imu.samples, exact_->wheel, &keyframes,
+                              &calibration, options),
+              static_cast<int>(truth.size()));
+    std::vector<double> r;
+    problem->Evaluate(ceres::Problem::EvaluateOptions(), nullptr, &r, nullptr, nullptr);
+    return r;
+  };
+  constexpr double kCompliance = 0.3 * kDegToRad;
+  const std::vector<double> straight = residuals(0.0);
+  const std::vector<double> turning = residuals(kCompliance);
+  ASSERT_EQ(straight.size(), 4 * truth.size());
+  ASSERT_EQ(turning.size(), straight.size());
+  const double s0 = kStraightSlipMS;
+  const Eigen::Vector3d up_I = true_calibration.q_I_V * Eigen::Vector3d::UnitZ();
+  const sensors::ImuSamples& imu = exact_->imu.samples;
+  double largest_slip_m_s = 0.0;
+  int checked = 0;
+  for (size_t k = 0; k < truth.size(); ++k) {
+    for (size_t row : {0, 1, 3}) EXPECT_EQ(turning[4 * k + row], straight[4 * k + row]);
+    // The gyro interpolated at the keyframe, as the rows take it (no mean over a span).
+    const auto after = std::lower_bound(
+        imu.begin(), imu.end(), truth[k].t_ns,
+        [](const sensors::ImuSample& sample, int64_t t_ns) { return sample.t_ns < t_ns; });
+    ASSERT_TRUE(after != imu.begin() && after != imu.end());
+    const auto before = after - 1;
+    const double s = static_cast<double>(truth[k].t_ns - before->t_ns) /
+                     static_cast<double>(after->t_ns - before->t_ns);
+    const double omega = ((1.0 - s) * before->gyro_rad_s + s * after->gyro_rad_s).dot(up_I);
+    const double slip_m_s = CorneringSlipMS(kCompliance, truth[k].v_W_I.norm(), omega);
+    largest_slip_m_s = std::max(largest_slip_m_s, slip_m_s);
+    if (std::abs(straight[4 * k + 2]) < 1e-6) continue;  // a row too small to compare
+    EXPECT_NEAR(turning[4 * k + 2] * std::hypot(s0, slip_m_s) / (straight[4 * k + 2] * s0), 1.0,
+                1e-6)
+        << k;
+    ++checked;
+  }
+  EXPECT_GT(checked, static_cast<int>(truth.size()) / 2);
+  EXPECT_GT(largest_slip_m_s, 2.0 * s0);  // the drive's turns take the term
+  EXPECT_EQ(CorneringSlipMS(kCompliance, 10.0, -0.2), CorneringSlipMS(kCompliance, 10.0, 0.2));
+}
+
 // Keyframes whose positions the odometry lost: true orientations turned by 30 deg about the
 // vertical and every position and velocity zeroed. The fitted antenna tracks (Eq. K7) put them
 // back, through the simulator's multipath outliers and its outages (bridged), and the heading

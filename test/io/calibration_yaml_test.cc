@@ -10,6 +10,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/io/sensors_yaml.h"
 #include "io/io_test_data.h"
 #include "io/prefix_check.h"
@@ -161,6 +162,8 @@ TEST(CalibrationYamlTest, SensorsYamlRoundTripsExactly) {
   config.wheel->noise_m_s = 1.0 / 3.0 * 0.1;
   config.wheel->yaw_rate_noise_rad_s = 0.07;
   config.wheel->controller_track_m = 0.5555;
+  config.wheel->lateral_slip_sigma_m_s = 1.0 / 3.0 * 0.01;
+  config.wheel->cornering_compliance_rad_per_m_s2 = 0.3 * kDegToRad;
   config.gnss->rate_hz = 5.0;
   WriteSensorsYaml(OutPath("sensors.yaml"), config);
   const SensorsConfig read = ReadSensorsYaml(OutPath("sensors.yaml"));
@@ -186,6 +189,9 @@ TEST(CalibrationYamlTest, SensorsYamlRoundTripsExactly) {
   EXPECT_EQ(read.wheel->noise_m_s, config.wheel->noise_m_s);
   EXPECT_EQ(read.wheel->yaw_rate_noise_rad_s, 0.07);
   EXPECT_EQ(read.wheel->controller_track_m, 0.5555);
+  EXPECT_EQ(read.wheel->lateral_slip_sigma_m_s, config.wheel->lateral_slip_sigma_m_s);
+  EXPECT_EQ(read.wheel->cornering_compliance_rad_per_m_s2,
+            config.wheel->cornering_compliance_rad_per_m_s2);
   EXPECT_EQ(read.gnss->rate_hz, 5.0);
   ExpectSameCalibration(read.nominal_calibration, config.nominal_calibration);
   ExpectSamePose(read.nominal_uncertainty.T_I_L, config.nominal_uncertainty.T_I_L);

@@ -258,6 +258,10 @@ TEST(DatasetTest, SensorsYamlRefusesNumbersOutsideTheirRange) {
        "wheel.controller_track_m: must be within [0.05, 100] m"},
       {"controller_track_of_rates", imu + "wheel:\n  controller_track_m: 0.5\n", 8, "0.5",
        "only the form speed_yaw_rate has a controller track (wheel.form is angular_rates)"},
+      {"lateral_slip_zero", imu + "wheel:\n  lateral_slip_sigma_m_s: 0\n", 8, "0",
+       "wheel.lateral_slip_sigma_m_s: must be within [1e-06, 100] m/s"},
+      {"compliance_negative", imu + "wheel:\n  cornering_compliance_rad_per_m_s2: -0.005\n", 8,
+       "-0.005", "wheel.cornering_compliance_rad_per_m_s2: must be within [0, 1] rad/(m/s^2)"},
   };
   for (const Case& c : cases) {
     const std::string path = (test::OutputDir("dataset") / (c.name + ".yaml")).string();

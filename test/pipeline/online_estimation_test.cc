@@ -26,14 +26,15 @@ namespace autocal {
 namespace pipeline {
 namespace {
 
-// Every sensor, every block but the vehicle frame (problems/urban_full.yaml with fewer points
-// per sweep, to keep the test short).
+// Every sensor, every block (problems/urban_full.yaml with fewer points per sweep, to keep the
+// test short). The vehicle frame is estimated, as in every shipped problem: held at the
+// simulator's nominal, 0.5 deg off in yaw and 2.5 deg in pitch, it would turn the keyframes'
+// heading with it under a road car's lateral rows (Eq. K6c; measured: q_I_L 0.35 deg at the end
+// instead of 0.07 deg).
 io::Problem FullProblem() {
   io::Problem problem;
   problem.path = "urban_full (test)";
   problem.lidar.max_points_per_sweep = 250;
-  problem.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
-  problem.calibration.T_I_V.translation.mode = io::BlockMode::kFixed;
   return problem;
 }
 
@@ -91,9 +92,9 @@ OnlineErrors ErrorsOf(const OnlineEstimationResult& result, const io::Dataset& d
   return e;
 }
 
-// Measured from the simulator's nominal guess: 0.053 m max, 0.029 m rms; q_I_L 0.28 -> 0.21
+// Measured from the simulator's nominal guess: 0.044 m max, 0.023 m rms; q_I_L 3.06 -> 0.066
 // deg (initializer on every second sweep, turned about the vertical by the GNSS-inertial
-// start -> window), p_I_L (0.2, 0.2, 0.8) cm, offset 0.73 ms. This 30 s drive with 16 beams
+// start -> window), p_I_L (0.9, 0.6, 0.8) cm, offset 0.16 ms. This 30 s drive with 16 beams
 // and 250 points per sweep leaves the window short of the goals (and of its own
 // initializer's rotation); test/accuracy/online_estimation_urban_test.cc checks them on a
 // 60 s log.
@@ -141,15 +142,15 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
   ASSERT_TRUE(result.calibration.uncertainty.T_I_L.sigma_rot_deg.has_value());
   EXPECT_GT(result.calibration.uncertainty.T_I_L.sigma_rot_deg->minCoeff(), 0.0);
   EXPECT_TRUE(result.calibration.uncertainty.p_I_A_m.sigma.has_value());
-  EXPECT_FALSE(result.calibration.uncertainty.T_I_V.sigma_rot_deg.has_value());  // fixed
+  EXPECT_TRUE(result.calibration.uncertainty.T_I_V.sigma_rot_deg.has_value());  // estimated
 
   const std::string out = test::OutputDir("online_result").string();
   WriteOnlineEstimationResult(out, result);
   const io::CalibrationFile read_back = io::ReadCalibrationYaml(out + "/calibration.yaml");
   EXPECT_TRUE(read_back.value.q_I_L.isApprox(estimate.q_I_L, 1e-12));
   EXPECT_EQ(io::ReadTumTrajectory(out + "/trajectory.tum").size(), result.trajectory.size());
-  // The smoothed trajectory: the same stamps, closer to the truth (measured: ATE 2.6 -> 1.2 cm,
-  // 0.33 -> 0.087 deg).
+  // The smoothed trajectory: the same stamps, closer to the truth (measured: ATE 2.2 -> 1.2 cm,
+  // 0.115 -> 0.073 deg).
   ASSERT_EQ(result.smoothed_trajectory.size(), result.trajectory.size());
   const io::Trajectory smoothed = io::ReadTumTrajectory(out + "/trajectory_smoothed.tum");
   ASSERT_EQ(smoothed.size(), result.trajectory.size());
@@ -164,7 +165,9 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
             << filtered_ate.ate_rotation_rmse_deg << " deg, smoothed "
             << smoothed_ate.ate_translation_rmse_m << " m / " << smoothed_ate.ate_rotation_rmse_deg
             << " deg\n";
-  EXPECT_LT(smoothed_ate.ate_rotation_rmse_deg, 0.5 * filtered_ate.ate_rotation_rmse_deg);
+  EXPECT_LT(smoothed_ate.ate_rotation_rmse_deg, 0.75 * filtered_ate.ate_rotation_rmse_deg);
+  EXPECT_LT(smoothed_ate.ate_translation_rmse_m, 0.75 * filtered_ate.ate_translation_rmse_m);
+  EXPECT_LT(smoothed_ate.ate_rotation_rmse_deg, 0.1);
   std::ifstream csv(out + "/calibration_over_time.csv");
   std::string line;
   ASSERT_TRUE(std::getline(csv, line));

@@ -186,12 +186,23 @@ void CheckPresetDataset(SimulationOptions options, const std::string& name) {
   EXPECT_LT(geometry::AngularDistance(dataset.sensors.nominal_calibration.q_I_V,
                                       *options.nominal_perturbation.q_I_V),
             1e-9);
+  // So is the rear axle's slip (Eq. K6c).
+  ASSERT_TRUE(dataset.sensors.wheel.has_value());
+  EXPECT_EQ(dataset.sensors.wheel->lateral_slip_sigma_m_s,
+            options.wheel.config.lateral_slip_sigma_m_s);
+  EXPECT_EQ(dataset.sensors.wheel->cornering_compliance_rad_per_m_s2,
+            options.wheel.config.cornering_compliance_rad_per_m_s2);
 }
 
 TEST(PlatformTest, SkidSteerPresetWritesItsClockTruth) {
   SimulationOptions options = SkidSteerRobotOptions();
   options.duration_s = 20.0;
   CheckPresetDataset(options, "skid_steer");
+  // A skid steer slides sideways in every turn: it states the platform defaults, not a road
+  // car's slip.
+  EXPECT_EQ(options.wheel.config.lateral_slip_sigma_m_s,
+            sensors::WheelConfig().lateral_slip_sigma_m_s);
+  EXPECT_EQ(options.wheel.config.cornering_compliance_rad_per_m_s2, 0.0);
   // Standing at the start, the y-up IMU feels gravity on its y axis.
   const ImuLog imu = Simulator(options).GenerateImu();
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -203,6 +214,9 @@ TEST(PlatformTest, CanBusCarPresetWritesItsClockTruth) {
   SimulationOptions options = CanBusCarOptions();
   options.duration_s = 10.0;
   CheckPresetDataset(options, "can_bus_car");
+  EXPECT_EQ(options.wheel.config.lateral_slip_sigma_m_s,
+            RoadCarWheelConfig().lateral_slip_sigma_m_s);
+  EXPECT_GT(options.wheel.config.cornering_compliance_rad_per_m_s2, 0.0);
   const ImuLog imu = Simulator(options).GenerateImu();
   EXPECT_LT(imu.samples.front().accel_m_s2.z(), -9.5) << "z down";
 }

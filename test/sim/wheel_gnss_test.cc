@@ -322,6 +322,13 @@ TEST(SimulatorTest, ARefusedOptionNamesItsRangeAndValue) {
   options.wheel.config.yaw_rate_noise_rad_s = -0.1;
   EXPECT_THAT(message(options), HasSubstr("wheel yaw_rate_noise_rad_s must be in"));
   options = SimulationOptions();
+  options.wheel.config.lateral_slip_sigma_m_s = 0.0;
+  EXPECT_THAT(message(options), HasSubstr("wheel lateral_slip_sigma_m_s must be in"));
+  options = SimulationOptions();
+  options.wheel.config.cornering_compliance_rad_per_m_s2 = -0.01;
+  EXPECT_THAT(message(options),
+              HasSubstr("wheel cornering_compliance_rad_per_m_s2 must be in [0, 1] rad/(m/s^2)"));
+  options = SimulationOptions();
   options.imu.noise_scale = 0.0;
   EXPECT_THAT(message(options), HasSubstr("imu noise_scale must be > 0"));
   options = SimulationOptions();

@@ -30,9 +30,9 @@ namespace autocal {
 namespace test {
 
 // Two-sided 95 % band of chi^2(n) / n by the Wilson-Hilferty approximation (within a few
-// percent of the exact quantiles for n >= 3, a fraction of a percent for n >= 10).
-inline std::pair<double, double> ChiSquareBandPerDof(int n) {
-  const double z = 1.959964;
+// percent of the exact quantiles for n >= 3, a fraction of a percent for n >= 10); another
+// two-sided normal quantile z gives that level's band.
+inline std::pair<double, double> ChiSquareBandPerDof(int n, double z = 1.959964) {
   const double c = 2.0 / (9.0 * n);
   const auto bound = [&](double zz) { return std::pow(1.0 - c + zz * std::sqrt(c), 3); };
   return {bound(-z), bound(z)};

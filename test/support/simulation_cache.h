@@ -274,7 +274,7 @@ void VisitFields(A& a, sim::SimulationSummary& s) {
 
 // Every field of the options, for the key. A field added to SimulationOptions (or to a struct
 // it holds) changes its size and stops the build here: add the field to the list below.
-static_assert(sizeof(sim::SimulationOptions) == 832,
+static_assert(sizeof(sim::SimulationOptions) == 848,
               "sim::SimulationOptions changed: list its new fields in the cache key");
 template <class A>
 void VisitFields(A& a, sim::SimulationOptions& o) {
@@ -321,6 +321,8 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   double controller_track_m = o.wheel.config.controller_track_m.value_or(0.0);
   a(has_controller_track);  // the options are only written into the key
   a(controller_track_m);
+  a(o.wheel.config.lateral_slip_sigma_m_s);
+  a(o.wheel.config.cornering_compliance_rad_per_m_s2);
   a(o.wheel.add_noise);
   a(o.wheel.time_offset_wheel_imu_s);
   a(o.wheel.stamp_jitter_s);

@@ -51,6 +51,12 @@ void AddBiasPriors(ceres::Problem* problem, Keyframe* keyframe, double gyro_bias
 // T / (2 tau_s) samples' information, not T / dt_s. 1 for tau_s = 0 or dt_s <= 0.
 double NonHolonomicSigmaScale(double tau_s, double dt_s);
 
+// The rear axle's sideways slip out of a turn (docs/keyframe_factors.md, Eq. K6c): c v^2 |omega|
+// at speed v and turning rate omega, for a cornering compliance c (rad of slip angle per m/s^2
+// of lateral acceleration v omega). The lateral row's sigma adds it in quadrature to the
+// straight-driving slip.
+double CorneringSlipMS(double compliance_rad_per_m_s2, double speed_m_s, double turn_rate_rad_s);
+
 // The wheel rows with an independent error of the rear axle's velocity in V (covariance C_V:
 // forward, lateral, vertical) added: the speed, lateral and vertical rows' variances grow by the
 // diagonal of C_V.
@@ -71,6 +77,9 @@ double YawRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quat
 // YawRateVariance.
 double YawRowRateVariance(const Eigen::Matrix3d& rate_covariance, const Eigen::Quaterniond& q_I_V,
                           const Eigen::Vector3d& yaw_axis_I);
+// The axis, in I, the yaw-rate row reads the body rate about: yaw_axis_I, or V's up axis
+// through q_I_V when it is zero.
+Eigen::Vector3d YawRowAxis(const Eigen::Quaterniond& q_I_V, const Eigen::Vector3d& yaw_axis_I);
 
 struct KeyframeWheelOptions {
   // Sigmas and rows of each factor. With factor.shared_radius the left radius block
@@ -103,6 +112,10 @@ struct KeyframeWheelOptions {
   // drive (more left turns than right): the vertical speed's integral to its first zero.
   double lateral_correlation_s = 2.0;
   double vertical_correlation_s = 0.5;
+  // The rear axle's cornering compliance c (sensors::WheelConfig): each keyframe's lateral row
+  // adds the slip c v^2 |omega| of its speed and turning rate to factor.lateral_sigma_m_s, the
+  // slip driving straight, before the correlated-error scaling (Eq. K6c). 0: one sigma.
+  double cornering_compliance_rad_per_m_s2 = 0.0;
   // Blocks not estimated are set constant (estimated ones are not made variable: a caller may
   // have fixed them).
   bool estimate_vehicle_rotation = true;     // q_I_V

@@ -72,10 +72,12 @@ struct SlidingWindowInitialStateSigmas {
 // The wheel rows (docs/sliding_window.md, "Wheel rows"): speed and yaw rate whitened with
 // the encoder and gyro noise, optionally the rear axle's lateral and vertical speed.
 struct WheelRowOptions {
-  // Non-holonomic rows; their sigma is scaled for the model error's correlation time
+  // Non-holonomic rows; their sigmas are scaled for the model error's correlation time
   // (NonHolonomicSigmaScale) at the spacing of the samples used (correlation 0: white rows).
+  // The lateral row's is the rear axle's slip that SlidingWindowOptions::wheel states (Eq. K6c),
+  // the vertical row's this.
   bool non_holonomic = false;
-  double non_holonomic_sigma_m_s = 0.05;
+  double vertical_sigma_m_s = 0.05;
   double non_holonomic_correlation_s = 2.0;
   int max_samples_per_interval = 5;  // evenly spread; 0: all
   // The angular rate the rows take: the mean gyro over this span around the sample (0: the

@@ -66,6 +66,13 @@ struct WheelConfig {
   // speed_yaw_rate: the wheel separation b_ctrl the controller divides by to report its yaw
   // rate; unset means the nominal effective track (the nominal yaw-rate scale is then 1).
   std::optional<double> controller_track_m;
+  // The rear axle's sideways slip, the error of the zero-lateral-speed row
+  // (docs/keyframe_factors.md, Eq. K6c): its 1-sigma driving straight, and the cornering
+  // compliance c, the slip angle per lateral acceleration, which adds c v |v omega| in a turn.
+  // The defaults hold for any platform (a skid steer slides sideways in every turn); a road
+  // car states its own.
+  double lateral_slip_sigma_m_s = 0.05;
+  double cornering_compliance_rad_per_m_s2 = 0.0;
 };
 
 struct GnssConfig {

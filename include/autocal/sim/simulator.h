@@ -71,11 +71,19 @@ struct LidarSimOptions {
 // with the true speed scales s (wheel_speed.csv), or the odometry twist v / k_v and
 // omega b_eff / (k_v b_ctrl) with the true odometry_speed_scale k_v and effective_track_m
 // b_eff (odometry.csv; b_ctrl is config.controller_track_m, else the nominal effective track).
+// The wheel defaults of a road car as its sensors.yaml states them: the encoder defaults and a
+// passenger car's rear-axle slip (docs/keyframe_factors.md, Eq. K6c), a cornering compliance
+// of 0.3 deg/(m/s^2) and 1 cm/s driving straight (a 2 % road crown's 0.2 m/s^2 sideways at that
+// compliance is 0.06 deg of slip, 1 cm/s at 10 m/s). A drive simulated with a larger
+// VehicleDynamicsOptions::rear_slip_per_lateral_accel states that instead.
+sensors::WheelConfig RoadCarWheelConfig();
+
 struct WheelSimOptions {
   bool enabled = true;
   // Rate, form and 1-sigma noise: noise_rad_s of each wheel rate, noise_m_s of each wheel
-  // speed or of the odometry speed, yaw_rate_noise_rad_s of the odometry yaw rate.
-  sensors::WheelConfig config;
+  // speed or of the odometry speed, yaw_rate_noise_rad_s of the odometry yaw rate; the rear
+  // axle's stated slip.
+  sensors::WheelConfig config = RoadCarWheelConfig();
   bool add_noise = true;
   // Clock: a sample stamped t on the wheel clock was measured at IMU time t + offset.
   double time_offset_wheel_imu_s = 0.0;
