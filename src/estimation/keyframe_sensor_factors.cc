@@ -344,6 +344,12 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
     throw Error("AddWheelFactors: cornering_compliance_rad_per_m_s2 must be finite and >= 0, got " +
                 std::to_string(compliance));
   }
+  // The turn's slip is added in quadrature below, which would hide a sign.
+  if (!(options.factor.lateral_sigma_m_s > 0.0) ||
+      !std::isfinite(options.factor.lateral_sigma_m_s)) {
+    throw Error("AddWheelFactors: factor.lateral_sigma_m_s must be finite and > 0, got " +
+                std::to_string(options.factor.lateral_sigma_m_s));
+  }
   const double lateral_scale =
       KeyframeNonHolonomicSigmaScale(*keyframes, options.lateral_correlation_s);
   // The yaw-rate rows' sigma follows the track (Eq. F22b), stated at the track's start, where

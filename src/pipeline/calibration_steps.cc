@@ -263,6 +263,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     p->AddParameterBlock(c->q_I_V.coeffs().data(), 4, quaternion_manifold);
     estimation::KeyframeWheelOptions wheel;
     SetWheelNoise(*dataset, *nominal, &wheel);
+    // The compliance too: it sets the lateral row's sigma in a turn.
     for (double* sigma : {&wheel.factor.speed_sigma_m_s, &wheel.factor.yaw_rate_sigma_rad_s,
                           &wheel.factor.lateral_sigma_m_s, &wheel.factor.vertical_sigma_m_s,
                           &wheel.cornering_compliance_rad_per_m_s2}) {

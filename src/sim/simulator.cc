@@ -143,7 +143,12 @@ io::SensorsConfig Simulator::sensors_config() const {
   config.imu.noise.accelerometer_random_walk *= options_.imu.RandomWalkScale();
   config.imu.gravity_m_s2 = options_.imu.gravity_m_s2;
   if (options_.lidar.enabled) config.lidar = options_.lidar.config;
-  if (options_.wheel.enabled) config.wheel = options_.wheel.config;
+  if (options_.wheel.enabled) {
+    config.wheel = options_.wheel.config;
+    // The stated slip covers the simulated one (Eq. K6c).
+    double& compliance = config.wheel->cornering_compliance_rad_per_m_s2;
+    compliance = std::max(compliance, options_.dynamics.rear_slip_per_lateral_accel);
+  }
   if (options_.gnss.enabled) config.gnss = options_.gnss.config;
   config.nominal_calibration = nominal_;
   const NominalPerturbation& np = options_.nominal_perturbation;

@@ -7,9 +7,9 @@
 // as independent; components of one drive are correlated, which widens the true spread, so
 // a result just outside the band is weak evidence, while the per-component figures printed
 // show where a large excess comes from. Each component's own ANEES must lie in its band too,
-// widened so that all of them together hold at 95 % (Bonferroni). Drives that cannot be calibrated
-// (the pipeline refuses them) carry no sample. Label "long": about 15 minutes, run with `ctest -L
-// long`.
+// widened so that all of them together hold at 95 % (Bonferroni), over three drives or more.
+// Drives that cannot be calibrated (the pipeline refuses them) carry no sample. Label "long":
+// about 15 minutes, run with `ctest -L long`.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -180,8 +180,10 @@ TEST(CalibrationConsistency, NormalizedErrorsMatchTheReportedSigmas) {
         test::ChiSquareBandPerDof(static_cast<int>(z2.size()), component_z);
     std::cout << "  " << name << ": " << component_anees << " (" << z2.size() << ") ["
               << component_low << ", " << component_high << "]\n";
-    EXPECT_GT(component_anees, component_low) << name << ": its sigma is too large";
-    EXPECT_LT(component_anees, component_high) << name << ": its sigma is too small";
+    if (z2.size() >= 3) {  // fewer draws have no lower band at this level
+      EXPECT_GT(component_anees, component_low) << name << ": its sigma is too large";
+      EXPECT_LT(component_anees, component_high) << name << ": its sigma is too small";
+    }
     sum += component_sum;
     count += static_cast<int>(z2.size());
   }

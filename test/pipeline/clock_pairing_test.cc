@@ -61,6 +61,22 @@ struct ClockPairing {
   }
 };
 
+// The wheel rows take the rear axle's slip that sensors.yaml states (Eq. K6c), and the defaults
+// without a wheel section.
+TEST(WheelNoise, TakesTheStatedSlip) {
+  io::Dataset dataset;
+  estimation::KeyframeWheelOptions rows;
+  SetWheelNoise(dataset, dataset.sensors.nominal_calibration, &rows);
+  EXPECT_EQ(rows.factor.lateral_sigma_m_s, sensors::WheelConfig().lateral_slip_sigma_m_s);
+  EXPECT_EQ(rows.cornering_compliance_rad_per_m_s2, 0.0);
+  dataset.sensors.wheel = sensors::WheelConfig();
+  dataset.sensors.wheel->lateral_slip_sigma_m_s = 0.012;
+  dataset.sensors.wheel->cornering_compliance_rad_per_m_s2 = 0.004;
+  SetWheelNoise(dataset, dataset.sensors.nominal_calibration, &rows);
+  EXPECT_EQ(rows.factor.lateral_sigma_m_s, 0.012);
+  EXPECT_EQ(rows.cornering_compliance_rad_per_m_s2, 0.004);
+}
+
 TEST(ClockPairing, ChangesWhenAClockCrossesToOtherSamples) {
   ClockPairing c;
   // Keyframes 37 ms after a fix and 3 ms before a wheel sample (on a 10 ms grid).

@@ -95,9 +95,8 @@ OnlineErrors ErrorsOf(const OnlineEstimationResult& result, const io::Dataset& d
 // Measured from the simulator's nominal guess: 0.044 m max, 0.023 m rms; q_I_L 3.06 -> 0.066
 // deg (initializer on every second sweep, turned about the vertical by the GNSS-inertial
 // start -> window), p_I_L (0.9, 0.6, 0.8) cm, offset 0.16 ms. This 30 s drive with 16 beams
-// and 250 points per sweep leaves the window short of the goals (and of its own
-// initializer's rotation); test/accuracy/online_estimation_urban_test.cc checks them on a
-// 60 s log.
+// and 250 points per sweep leaves the window short of the trajectory goals;
+// test/accuracy/online_estimation_urban_test.cc checks them on a 60 s log.
 void ExpectOnlineGoals(const OnlineErrors& e) {
   EXPECT_LT(e.max_position_m, 0.25);
   EXPECT_LT(e.rms_position_m, 0.1);
@@ -210,7 +209,7 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
 
 // The window starts from the initializer, which takes no guess: a nominal calibration off by
 // 20 deg, 0.3 m and 40 ms (the bad guess) ends within the same bounds (measured:
-// q_I_L 0.24 -> 0.21 deg, p_I_L x, y within 0.6 cm, offset 0.79 ms, position 0.029 m rms).
+// q_I_L 3.06 -> 0.064 deg, p_I_L x, y within 1.1 cm, offset 0.17 ms, position 0.024 m rms).
 TEST_F(OnlineEstimationTest, ABadNominalGuessEndsWithinTheSameBounds) {
   io::Dataset dataset = io::ReadDataset(data_->directory);
   test::SpoilNominalGuess(&dataset.sensors);
@@ -255,8 +254,8 @@ TEST_F(OnlineEstimationTest, ReportsAHeldDirectionWithItsOwnAxisSigma) {
 }
 
 // The 30 s drive with every sweep stamped when it ends (points at negative times, as some
-// drivers write them) streams to the same goals. Measured: 0.076 deg, p_I_L x, y (2.6, 4.4) mm,
-// offset 0.93 ms, 2.3 cm RMS; stamped at the start 0.076 deg, (3.3, 4.4) mm, 1.05 ms, 2.3 cm.
+// drivers write them) streams to the same goals. Measured: 0.067 deg, p_I_L x, y (9.1, 4.9) mm,
+// offset 0.15 ms, 2.3 cm RMS.
 TEST(OnlineEstimationEndStamped, StreamsSweepsStampedAtTheirEnd) {
   const test::SimulatedUrbanDataset data(test::EndStampedUrbanDriveOptions(30.0),
                                          "urban_30s_end_stamped");

@@ -168,6 +168,12 @@ TEST(DriveTest, TheRearAxleSlipsOutOfTheTurnByItsCorneringCompliance) {
   EXPECT_LT(worst_error_m_s, 1e-3);
   // Without slip only the body's roll tilting V's y axis into the grade's vertical speed.
   EXPECT_LT(largest_ideal_m_s, 0.01) << "the ideal axle's lateral speed, m/s";
+  // sensors.yaml states at least the simulated slip (Eq. K6c).
+  options.dynamics.rear_slip_per_lateral_accel = 2.0 * compliance;
+  EXPECT_EQ(Simulator(options).sensors_config().wheel->cornering_compliance_rad_per_m_s2,
+            2.0 * compliance);
+  EXPECT_EQ(slipping.sensors_config().wheel->cornering_compliance_rad_per_m_s2,
+            RoadCarWheelConfig().cornering_compliance_rad_per_m_s2);
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, DriveTest,

@@ -113,8 +113,9 @@ struct KeyframeWheelOptions {
   double lateral_correlation_s = 2.0;
   double vertical_correlation_s = 0.5;
   // The rear axle's cornering compliance c (sensors::WheelConfig): each keyframe's lateral row
-  // adds the slip c v^2 |omega| of its speed and turning rate to factor.lateral_sigma_m_s, the
-  // slip driving straight, before the correlated-error scaling (Eq. K6c). 0: one sigma.
+  // adds the slip c v^2 |omega| of its speed and turning rate, in quadrature, to
+  // factor.lateral_sigma_m_s, the slip driving straight, before the correlated-error scaling
+  // (Eq. K6c). 0: one sigma.
   double cornering_compliance_rad_per_m_s2 = 0.0;
   // Blocks not estimated are set constant (estimated ones are not made variable: a caller may
   // have fixed them).

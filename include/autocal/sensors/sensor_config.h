@@ -68,7 +68,8 @@ struct WheelConfig {
   std::optional<double> controller_track_m;
   // The rear axle's sideways slip, the error of the zero-lateral-speed row
   // (docs/keyframe_factors.md, Eq. K6c): its 1-sigma driving straight, and the cornering
-  // compliance c, the slip angle per lateral acceleration, which adds c v |v omega| in a turn.
+  // compliance c, the slip angle per lateral acceleration, whose slip c v |v omega| in a turn
+  // adds to the straight one in quadrature.
   // The defaults hold for any platform (a skid steer slides sideways in every turn); a road
   // car states its own.
   double lateral_slip_sigma_m_s = 0.05;

@@ -74,8 +74,8 @@ struct LidarSimOptions {
 // The wheel defaults of a road car as its sensors.yaml states them: the encoder defaults and a
 // passenger car's rear-axle slip (docs/keyframe_factors.md, Eq. K6c), a cornering compliance
 // of 0.3 deg/(m/s^2) and 1 cm/s driving straight (a 2 % road crown's 0.2 m/s^2 sideways at that
-// compliance is 0.06 deg of slip, 1 cm/s at 10 m/s). A drive simulated with a larger
-// VehicleDynamicsOptions::rear_slip_per_lateral_accel states that instead.
+// compliance is 0.06 deg of slip, 1 cm/s at 10 m/s). Simulator::sensors_config() states at least
+// the simulated VehicleDynamicsOptions::rear_slip_per_lateral_accel.
 sensors::WheelConfig RoadCarWheelConfig();
 
 struct WheelSimOptions {
