@@ -10,18 +10,13 @@
 #include "autocal/geometry/se3.h"
 #include "autocal/lidar/lidar_odometry.h"
 #include "autocal/sim/simulator.h"
+#include "support/lidar_drive_options.h"
 
 namespace autocal {
 namespace {
 
 TEST(LidarOdometryUrban, TracksTheTrueTrajectory) {
-  sim::SimulationOptions options;
-  options.scenario = sim::ScenarioType::kUrban;
-  options.duration_s = 20.0;
-  options.seed = 11;
-  options.lidar.config.num_beams = 16;
-  options.wheel.enabled = false;
-  options.gnss.enabled = false;
+  const sim::SimulationOptions options = test::LidarInertialUrbanOptions(20.0, 11);
   const sim::Simulator simulator(options);
   const sensors::Calibration& calibration = simulator.true_calibration();
   const geometry::Pose3d T_I_L(calibration.q_I_L, calibration.p_I_L);

@@ -17,22 +17,12 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
+#include "support/lidar_drive_options.h"
 #include "support/simulation_cache.h"
 
 namespace autocal {
 namespace estimation {
 namespace {
-
-sim::SimulationOptions UrbanOptions(double duration_s, uint64_t seed) {
-  sim::SimulationOptions options;
-  options.scenario = sim::ScenarioType::kUrban;
-  options.duration_s = duration_s;
-  options.seed = seed;
-  options.lidar.config.num_beams = 16;
-  options.wheel.enabled = false;
-  options.gnss.enabled = false;
-  return options;
-}
 
 using test::TrueKeyframe;
 
@@ -70,7 +60,7 @@ std::string Problems(const CalibrationInitialization& init) {
 class CalibrationInitializerUrbanTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    simulator_ = new sim::Simulator(UrbanOptions(28.0, 3));
+    simulator_ = new sim::Simulator(test::LidarInertialUrbanOptions(28.0, 3));
     log_ = new sim::SimulatedLog(test::CachedSimulatedLog(*simulator_));
     const auto start = std::chrono::steady_clock::now();
     init_ = new CalibrationInitialization(
@@ -253,7 +243,7 @@ bool Mentions(const CalibrationInitialization& init, const std::string& word) {
 // 8 s of the urban drive: the standstill, then straight ahead. No turn: no hand-eye rotation
 // and no time offset.
 TEST(CalibrationInitializer, ReportsStraightDrivingAsTooLittleRotation) {
-  sim::SimulationOptions sim_options = UrbanOptions(8.0, 3);
+  sim::SimulationOptions sim_options = test::LidarInertialUrbanOptions(8.0, 3);
   const sim::SimulatedLog log = sim::Simulate(sim_options);
   const CalibrationInitialization init = InitializeLidarImu(log.imu.samples, log.sweeps);
   std::cout << Problems(init);
@@ -264,7 +254,7 @@ TEST(CalibrationInitializer, ReportsStraightDrivingAsTooLittleRotation) {
 
 // 1.2 s at rest: the still start is found, nothing else is determined.
 TEST(CalibrationInitializer, ReportsAStationaryLog) {
-  sim::SimulationOptions sim_options = UrbanOptions(1.2, 3);
+  sim::SimulationOptions sim_options = test::LidarInertialUrbanOptions(1.2, 3);
   const sim::SimulatedLog log = sim::Simulate(sim_options);
   const CalibrationInitialization init = InitializeLidarImu(log.imu.samples, log.sweeps);
   std::cout << Problems(init);
@@ -279,7 +269,7 @@ TEST(CalibrationInitializer, ReportsAStationaryLog) {
 // its index among the sweeps given and by its stamp, which also names it in the log when the
 // caller passed only every n-th sweep.
 TEST(CalibrationInitializer, NamesTheSweepTheOdometryFailedAtByItsStamp) {
-  const sim::SimulatedLog log = sim::Simulate(UrbanOptions(3.0, 3));
+  const sim::SimulatedLog log = sim::Simulate(test::LidarInertialUrbanOptions(3.0, 3));
   std::vector<lidar::LidarSweep> sweeps = log.sweeps;
   ASSERT_GT(sweeps.size(), 2u);
   lidar::PointCloud& sparse = sweeps[1].cloud;
@@ -303,7 +293,7 @@ TEST(CalibrationInitializer, NamesTheSweepTheOdometryFailedAtByItsStamp) {
 // as excited must hold the truth within three of its sigmas. Measured: sigma 7.8 / 8.4 cm, no
 // axis excited, the nominal value kept.
 TEST(CalibrationInitializer, ClaimsNoLeverArmAxisTheDriveDoesNotDetermine) {
-  sim::SimulationOptions sim_options = UrbanOptions(30.0, 4);
+  sim::SimulationOptions sim_options = test::LidarInertialUrbanOptions(30.0, 4);
   sim_options.lidar.config.num_beams = 32;
   const sim::Simulator simulator(sim_options);
   const sim::SimulatedLog log = sim::Simulate(simulator);

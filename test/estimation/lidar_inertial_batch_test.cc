@@ -15,6 +15,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
 #include "estimation/true_keyframe.h"
+#include "support/lidar_drive_options.h"
 #include "support/simulation_cache.h"
 
 namespace autocal {
@@ -29,16 +30,7 @@ using test::TrueKeyframe;
 // 34 s: the sweeps from 14 s on see straight driving and turns, without which the extrinsic
 // rotation is unobservable (driving straight, a rotated LiDAR sees a consistently rotated
 // world).
-sim::SimulationOptions UrbanDriveOptions() {
-  sim::SimulationOptions sim_options;
-  sim_options.scenario = sim::ScenarioType::kUrban;
-  sim_options.duration_s = 34.0;
-  sim_options.seed = 7;
-  sim_options.lidar.config.num_beams = 16;
-  sim_options.wheel.enabled = false;
-  sim_options.gnss.enabled = false;
-  return sim_options;
-}
+sim::SimulationOptions UrbanDriveOptions() { return test::LidarInertialUrbanOptions(34.0, 7); }
 
 // The log's sweeps whose keyframe and points lie inside the IMU log (from kFirstSweepS on), with
 // their true keyframe states, appended.
