@@ -170,11 +170,8 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
     if (all || Given(name)) *field = value;
   };
   if (all || Given("scenario")) o.scenario = autocal::sim::ParseScenarioType(FLAGS_scenario);
-  // A skid steer slides sideways in every turn: it states the platform's slip defaults, not the
-  // road car's (sim::RoadCarWheelConfig).
   if (o.scenario == autocal::sim::ScenarioType::kSkidSteer) {
-    o.wheel.config.lateral_slip_sigma_m_s = autocal::sensors::WheelConfig().lateral_slip_sigma_m_s;
-    o.wheel.config.cornering_compliance_rad_per_m_s2 = 0.0;
+    autocal::sim::StateSkidSteerSlip(&o.wheel.config);
   }
   set("duration_s", FLAGS_duration_s, &o.duration_s);
   o.seed = FLAGS_seed;

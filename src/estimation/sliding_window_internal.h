@@ -126,9 +126,9 @@ class SlidingWindowEstimator::Impl {
   template <typename Sample>
   std::vector<Sample> TakeThinned(std::deque<Sample>* queue, int64_t t_end_ns) const;
   template <typename Sample, typename Make>
-  void AttachPropagated(WindowKeyframe* from, const std::vector<Sample>& used,
-                        const factors::WheelFactorOptions& rows, double slip_scale,
-                        bool speed_row_by_options, Make make) const;
+  void AttachPropagated(WindowKeyframe* from, const std::vector<Sample>& used, int64_t t_end_ns,
+                        const factors::WheelFactorOptions& form_rows, bool speed_row_by_options,
+                        Make make) const;
   void RelinearizeImuFactors();
   // Refreshes the plane maps that moved and makes the pairing tries that are missing or stale
   // (SweepPairing).

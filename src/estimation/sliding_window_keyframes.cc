@@ -169,18 +169,22 @@ std::vector<Sample> SlidingWindowEstimator::Impl::TakeThinned(std::deque<Sample>
   return used;
 }
 
-// One factor per sample of `used`, at the state propagated from `from` to the sample's time:
-// make(pim, sample, sample_rows) builds it from the preintegration up to there and the
-// sample's rows: `rows` with the body rate around the sample (BodyRateAround) and the
-// propagated velocity's variances (Eq. W7) added, the speed row's to rows.speed_sigma_m_s when
-// the form whitens that row by it (`speed_row_by_options`), else to speed_variance_m2_s2.
+// One factor per sample of `used` (taken over (from's time, t_end_ns]), at the state propagated
+// from `from` to the sample's time: make(pim, sample, sample_rows) builds it from the
+// preintegration up to there and the sample's rows: the form's `form_rows` with the
+// non-holonomic rows (NonHolonomicRows, the lateral row's turning slip per sample), the body rate
+// around the sample (BodyRateAround) and the propagated velocity's variances (Eq. W7) added, the
+// speed row's to rows.speed_sigma_m_s when the form whitens that row by it
+// (`speed_row_by_options`), else to speed_variance_m2_s2.
 template <typename Sample, typename Make>
 void SlidingWindowEstimator::Impl::AttachPropagated(WindowKeyframe* from,
                                                     const std::vector<Sample>& used,
-                                                    const factors::WheelFactorOptions& rows,
-                                                    double slip_scale, bool speed_row_by_options,
-                                                    Make make) const {
+                                                    int64_t t_end_ns,
+                                                    const factors::WheelFactorOptions& form_rows,
+                                                    bool speed_row_by_options, Make make) const {
   const SlidingWindowState& s = from->state;
+  const double slip_scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
+  const factors::WheelFactorOptions rows = NonHolonomicRows(form_rows, slip_scale);
   sensors::PreintegrationOptions preintegration;
   preintegration.gravity_m_s2 = options_.imu.gravity_m_s2;
   sensors::ImuPreintegration pim(options_.imu.noise, preintegration, s.b_g, s.b_a);
@@ -214,13 +218,11 @@ void SlidingWindowEstimator::Impl::AttachWheelFactors(WindowKeyframe* from, int6
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
   const std::vector<sensors::WheelSample> used = TakeThinned(&wheel_, t_end_ns);
-  const double scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
-  const factors::WheelFactorOptions wheel_options = NonHolonomicRows(
+  AttachPropagated(
+      from, used, t_end_ns,
       factors::WheelFactorOptions::FromEncoderNoise(
           options_.wheel, 0.5 * (c.wheel_radius_left_m + c.wheel_radius_right_m), c.track_width_m),
-      scale);
-  AttachPropagated(
-      from, used, wheel_options, scale, false,
+      false,
       [&](const sensors::ImuPreintegration& pim, const sensors::WheelSample& w,
           const RowBodyRate& gyro) {
         factors::WheelMeasurement m;
@@ -241,49 +243,45 @@ void SlidingWindowEstimator::Impl::AttachWheelSpeedFactors(WindowKeyframe* from,
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
   const std::vector<sensors::WheelSpeedSample> used = TakeThinned(&wheel_speeds_, t_end_ns);
-  const double scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
-  const factors::WheelFactorOptions options = NonHolonomicRows(
-      factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m), scale);
-  AttachPropagated(from, used, options, scale, false,
-                   [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w,
-                       const RowBodyRate& gyro) {
-                     factors::WheelSpeedMeasurement m;
-                     m.left_m_s = w.left_m_s;
-                     m.right_m_s = w.right_m_s;
-                     m.gyro_rad_s = gyro.rate_rad_s;
-                     return WheelRowFactor(
-                         internal::PropagatedWheelSpeedResidual::Create(
-                             pim, m, gyro.rows, options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s,
-                             gyro.speed_variance_m2_s2),
-                         &s,
-                         {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
-                          &c.wheel_speed_scale_right, &c.track_width_m},
-                         "a wheel speed factor");
-                   });
+  AttachPropagated(
+      from, used, t_end_ns,
+      factors::WheelFactorOptions::FromWheelSpeedNoise(options_.wheel, c.track_width_m), false,
+      [&](const sensors::ImuPreintegration& pim, const sensors::WheelSpeedSample& w,
+          const RowBodyRate& gyro) {
+        factors::WheelSpeedMeasurement m;
+        m.left_m_s = w.left_m_s;
+        m.right_m_s = w.right_m_s;
+        m.gyro_rad_s = gyro.rate_rad_s;
+        return WheelRowFactor(internal::PropagatedWheelSpeedResidual::Create(
+                                  pim, m, gyro.rows, options_.wheel.noise_m_s, gyro.yaw_sigma_rad_s,
+                                  gyro.speed_variance_m2_s2),
+                              &s,
+                              {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.wheel_speed_scale_left,
+                               &c.wheel_speed_scale_right, &c.track_width_m},
+                              "a wheel speed factor");
+      });
 }
 
 void SlidingWindowEstimator::Impl::AttachOdometryFactors(WindowKeyframe* from, int64_t t_end_ns) {
   SlidingWindowState& s = from->state;
   sensors::Calibration& c = calibration_;
   const std::vector<sensors::OdometrySample> used = TakeThinned(&odometry_, t_end_ns);
-  const double scale = NonHolonomicScale(used.size(), s.t_ns, t_end_ns);
-  const factors::WheelFactorOptions options =
-      NonHolonomicRows(factors::WheelFactorOptions::FromOdometryNoise(options_.wheel), scale);
-  AttachPropagated(from, used, options, scale, true,
-                   [&](const sensors::ImuPreintegration& pim, const sensors::OdometrySample& o,
-                       const RowBodyRate& gyro) {
-                     factors::OdometryMeasurement m;
-                     m.speed_m_s = o.speed_m_s;
-                     m.yaw_rate_rad_s = o.yaw_rate_rad_s;
-                     m.controller_track_m = *options_.wheel.controller_track_m;
-                     m.gyro_rad_s = gyro.rate_rad_s;
-                     return WheelRowFactor(internal::PropagatedOdometryResidual::Create(
-                                               pim, m, gyro.rows, gyro.yaw_sigma_rad_s),
-                                           &s,
-                                           {c.q_I_V.coeffs().data(), c.p_I_V.data(),
-                                            &c.odometry_speed_scale, &c.effective_track_m},
-                                           "an odometry factor");
-                   });
+  AttachPropagated(
+      from, used, t_end_ns, factors::WheelFactorOptions::FromOdometryNoise(options_.wheel), true,
+      [&](const sensors::ImuPreintegration& pim, const sensors::OdometrySample& o,
+          const RowBodyRate& gyro) {
+        factors::OdometryMeasurement m;
+        m.speed_m_s = o.speed_m_s;
+        m.yaw_rate_rad_s = o.yaw_rate_rad_s;
+        m.controller_track_m = *options_.wheel.controller_track_m;
+        m.gyro_rad_s = gyro.rate_rad_s;
+        return WheelRowFactor(
+            internal::PropagatedOdometryResidual::Create(pim, m, gyro.rows, gyro.yaw_sigma_rad_s),
+            &s,
+            {c.q_I_V.coeffs().data(), c.p_I_V.data(), &c.odometry_speed_scale,
+             &c.effective_track_m},
+            "an odometry factor");
+      });
 }
 
 // The planar-rotation row (Eq. F27) of keyframe `from`, once the IMU covers the gyro span around

@@ -46,6 +46,12 @@ sensors::WheelConfig RoadCarWheelConfig() {
   return config;
 }
 
+void StateSkidSteerSlip(sensors::WheelConfig* config) {
+  const sensors::WheelConfig defaults;
+  config->lateral_slip_sigma_m_s = defaults.lateral_slip_sigma_m_s;
+  config->cornering_compliance_rad_per_m_s2 = defaults.cornering_compliance_rad_per_m_s2;
+}
+
 SimulationOptions SkidSteerRobotOptions() {
   SimulationOptions o;
   o.scenario = ScenarioType::kSkidSteer;
@@ -57,8 +63,7 @@ SimulationOptions SkidSteerRobotOptions() {
   o.dynamics.rear_axle_height_m = 0.17;
   o.imu.noise.update_rate_hz = 30.0;
   o.imu.stamp_jitter_s = 0.002;
-  // A skid steer slides sideways in every turn: the platform defaults, not a road car's slip.
-  o.wheel.config = sensors::WheelConfig();
+  StateSkidSteerSlip(&o.wheel.config);
 
   sensors::Calibration c = DefaultTrueCalibration();
   // IMU y up, x right (R_V_I = Rz(-90) Rx(+90)), 0.3 m above V's origin; LiDAR 0.5 m up.

@@ -77,6 +77,9 @@ struct LidarSimOptions {
 // compliance is 0.06 deg of slip, 1 cm/s at 10 m/s). Simulator::sensors_config() states at least
 // the simulated VehicleDynamicsOptions::rear_slip_per_lateral_accel.
 sensors::WheelConfig RoadCarWheelConfig();
+// A skid steer's statement: it slides sideways in every turn, so its slip keeps the platform
+// defaults of sensors::WheelConfig, not a road car's; the other fields of *config stay.
+void StateSkidSteerSlip(sensors::WheelConfig* config);
 
 struct WheelSimOptions {
   bool enabled = true;
