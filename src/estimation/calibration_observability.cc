@@ -405,16 +405,19 @@ EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* cal
   return block;
 }
 
-void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::LossOptions& loss,
-                    ceres::Problem* problem) {
+std::vector<ceres::ResidualBlockId> AddBlockPriors(const std::vector<EstimatedBlock>& blocks,
+                                                   const factors::LossOptions& loss,
+                                                   ceres::Problem* problem) {
+  std::vector<ceres::ResidualBlockId> ids;
   for (const EstimatedBlock& block : blocks) {
     const Eigen::MatrixXd sqrt_information = factors::SqrtInformationFromSigmas(block.prior_sigma);
     ceres::CostFunction* cost =
         IsRotation(block) ? static_cast<ceres::CostFunction*>(new factors::QuaternionPriorFactor(
                                 AsQuaternion(block.prior.data()), sqrt_information))
                           : new factors::VectorPriorFactor(block.prior, sqrt_information);
-    problem->AddResidualBlock(cost, factors::MakeLossFunction(loss), block.data);
+    ids.push_back(problem->AddResidualBlock(cost, factors::MakeLossFunction(loss), block.data));
   }
+  return ids;
 }
 
 namespace {
@@ -589,6 +592,77 @@ std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>
              << " from the nominal value, " << sigmas << " prior sigmas";
         out.push_back(text.str());
       }
+    }
+  }
+  return out;
+}
+
+namespace {
+
+// Frees `blocks` in `problem` under their priors, and on destruction holds them constant again
+// and removes those priors.
+class FreedBlocks {
+ public:
+  FreedBlocks(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem)
+      : blocks_(blocks), problem_(problem) {
+    for (const EstimatedBlock& block : blocks_) problem_->SetParameterBlockVariable(block.data);
+    priors_ = AddBlockPriors(blocks_, factors::LossOptions(), problem_);
+  }
+  ~FreedBlocks() {
+    for (const ceres::ResidualBlockId id : priors_) problem_->RemoveResidualBlock(id);
+    for (const EstimatedBlock& block : blocks_) problem_->SetParameterBlockConstant(block.data);
+  }
+  FreedBlocks(const FreedBlocks&) = delete;
+  FreedBlocks& operator=(const FreedBlocks&) = delete;
+
+ private:
+  const std::vector<EstimatedBlock>& blocks_;
+  ceres::Problem* problem_;
+  std::vector<ceres::ResidualBlockId> priors_;
+};
+
+std::string MovedFixedDirection(const EstimatedBlock& block, int i, double step, double sigma) {
+  std::ostringstream text;
+  text << std::setprecision(3) << block.direction_names[static_cast<size_t>(i)]
+       << " is fixed, but the data would move it by " << step * block.display_scale << ' '
+       << block.display_unit << " (sigma " << sigma * block.display_scale << ' '
+       << block.display_unit << ", " << std::abs(step) / sigma << " sigma)";
+  return text.str();
+}
+
+}  // namespace
+
+std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(const std::vector<EstimatedBlock>& fixed,
+                                                           ceres::Problem* problem, int num_threads,
+                                                           double max_sigmas) {
+  std::vector<EstimatedBlock> judged;
+  std::vector<size_t> index;  // of each judged block in `fixed`
+  for (size_t b = 0; b < fixed.size(); ++b) {
+    EstimatedBlock block = fixed[b];
+    if (!problem->HasParameterBlock(block.data) || !problem->IsParameterBlockConstant(block.data)) {
+      continue;
+    }
+    block.prior = Eigen::Map<const Eigen::VectorXd>(block.data, block.prior.size());
+    judged.push_back(std::move(block));
+    index.push_back(b);
+  }
+  if (judged.empty()) return {};
+  ResidualSource all{"all", {}};
+  problem->GetResidualBlocks(&all.residual_blocks);
+  const FreedBlocks freed(judged, problem);
+  // H^-1 J^T r is minus the Gauss-Newton step (ComputeErrorBudget); the priors, centred at the
+  // fixed values, add nothing to it.
+  const ErrorBudget budget = ComputeErrorBudget(judged, problem, {all}, num_threads);
+  if (!budget.ok) return {};
+  std::vector<FixedDirectionMove> out;
+  for (size_t b = 0; b < judged.size(); ++b) {
+    const EstimatedBlock& block = judged[b];
+    for (int i = 0; i < block.size; ++i) {
+      const int row = budget.covariance.offsets[b] + i;
+      const double sigma = SigmaOf(budget.covariance.matrix, row);
+      const double step = -budget.share(row, 0);
+      if (!Informed(block, i, sigma) || !(std::abs(step) > max_sigmas * sigma)) continue;
+      out.push_back({index[b], i, step, sigma, MovedFixedDirection(block, i, step, sigma)});
     }
   }
   return out;

@@ -470,6 +470,20 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
   }
 }
 
+void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::SensorsConfig& sensors,
+                                      const OfflineCalibrationOptions& options, bool use_wheel,
+                                      bool use_gnss, sensors::Calibration* calibration,
+                                      ceres::Problem* p, std::vector<std::string>* warnings) {
+  const std::vector<estimation::EstimatedBlock> fixed =
+      FixedBlocks(problem, sensors, options, use_wheel, use_gnss, calibration);
+  for (const estimation::FixedDirectionMove& moved : estimation::FixedDirectionsTheDataMove(
+           fixed, p, problem.solver.num_threads, options.max_prior_deviation_sigmas)) {
+    warnings->push_back(moved.text +
+                        ": the fixed value disagrees with the drive; estimate the block (or give "
+                        "it a prior) in the problem file, or correct its nominal value");
+  }
+}
+
 estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {
   estimation::ScaledInformation out;
   std::vector<ceres::ResidualBlockId> ids;

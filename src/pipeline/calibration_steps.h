@@ -172,6 +172,14 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
                       const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                       const estimation::BlockCovariance& covariance);
 
+// Eq. C7: one warning for each direction of a block the problem holds fixed that the data at
+// the solution of `p` would move by more than options.max_prior_deviation_sigmas sigmas
+// (estimation::FixedDirectionsTheDataMove), naming what to do about it.
+void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::SensorsConfig& sensors,
+                                      const OfflineCalibrationOptions& options, bool use_wheel,
+                                      bool use_gnss, sensors::Calibration* calibration,
+                                      ceres::Problem* p, std::vector<std::string>* warnings);
+
 // The covariance of the estimated blocks at the solution of `problem`, each residual block with
 // its exact Hessian, J^T J + rho' sum r d2r (Eq. C5), but two kinds: the LiDAR's point groups
 // (their loss is inside the factor, their Jacobian is the points' geometry) and the

@@ -285,6 +285,10 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   result.seconds_after_holding = SecondsSince(holding_start);
   RequirePlausible(dataset, options, blocks_estimated, covariance);
+  const auto fixed_start = std::chrono::steady_clock::now();
+  WarnOfFixedDirectionsTheDataMove(problem, dataset.sensors, options, use_wheel, use_gnss,
+                                   &calibration, joint.get(), &result.warnings);
+  result.seconds_uncertainty += SecondsSince(fixed_start);
   for (estimation::Keyframe& kf : keyframes) kf.q_W_I.normalize();
   RecordResidualsAfterSolve(joint.get(), &result.whitened_residuals);
   Conclude(dataset, problem, keyframes, &calibration, start, &result);

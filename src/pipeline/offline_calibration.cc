@@ -242,6 +242,10 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
     result->seconds_after_holding = SecondsSince(holding_start);
     RequirePlausible(dataset, options, blocks, covariance);
+    const auto fixed_start = std::chrono::steady_clock::now();
+    WarnOfFixedDirectionsTheDataMove(problem, dataset.sensors, options, use_wheel, enu != nullptr,
+                                     calibration, p, &result->warnings);
+    result->seconds_uncertainty += SecondsSince(fixed_start);
     RecordResidualsAfterSolve(p, &result->whitened_residuals);
   };
   batch_options.starting_rotation_search_deg = StartingRotationSearchDeg(*keyframes, blocks);

@@ -120,16 +120,20 @@ bool SensorUsed(const sensors::CalibrationBlockInfo& block, bool use_wheel, bool
   return true;
 }
 
-std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& problem,
-                                                        const io::SensorsConfig& sensors,
-                                                        const OfflineCalibrationOptions& o,
-                                                        bool use_wheel, bool use_gnss,
-                                                        sensors::Calibration* c) {
+namespace {
+
+// The blocks of `problem` of the sensors taking part whose mode is estimated (`estimated`) or
+// fixed (otherwise), as EstimatedBlocks describes them.
+std::vector<estimation::EstimatedBlock> BlocksOf(const io::Problem& problem,
+                                                 const io::SensorsConfig& sensors,
+                                                 const OfflineCalibrationOptions& o, bool use_wheel,
+                                                 bool use_gnss, bool estimated,
+                                                 sensors::Calibration* c) {
   const io::ProblemCalibration& p = problem.calibration;
   std::vector<estimation::EstimatedBlock> blocks;
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
     const BlockSetting setting = SettingOf(info.id, p, sensors.nominal_uncertainty);
-    if (!SensorUsed(info, use_wheel, use_gnss) || !Estimated(setting.mode)) continue;
+    if (!SensorUsed(info, use_wheel, use_gnss) || Estimated(setting.mode) != estimated) continue;
     const sensors::WheelForm form = sensors.wheel ? sensors.wheel->form : sensors::WheelForm();
     if (!sensors::BlockInWheelForm(info.id, form)) continue;
     if (info.id == Id::kWheelRadiusRight && p.wheel_radius_shared) continue;
@@ -150,6 +154,24 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
     blocks.push_back(std::move(b));
   }
   return blocks;
+}
+
+}  // namespace
+
+std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& problem,
+                                                        const io::SensorsConfig& sensors,
+                                                        const OfflineCalibrationOptions& o,
+                                                        bool use_wheel, bool use_gnss,
+                                                        sensors::Calibration* c) {
+  return BlocksOf(problem, sensors, o, use_wheel, use_gnss, true, c);
+}
+
+std::vector<estimation::EstimatedBlock> FixedBlocks(const io::Problem& problem,
+                                                    const io::SensorsConfig& sensors,
+                                                    const OfflineCalibrationOptions& o,
+                                                    bool use_wheel, bool use_gnss,
+                                                    sensors::Calibration* c) {
+  return BlocksOf(problem, sensors, o, use_wheel, use_gnss, false, c);
 }
 
 double DefaultPriorSigma(sensors::CalibrationBlockId id, const io::SensorsConfig& sensors,

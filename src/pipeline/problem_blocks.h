@@ -47,6 +47,15 @@ std::vector<estimation::EstimatedBlock> EstimatedBlocks(const io::Problem& probl
                                                         bool use_wheel, bool use_gnss,
                                                         sensors::Calibration* calibration);
 
+// The blocks of `problem` held fixed, as EstimatedBlocks describes them: their prior the
+// nominal value under the sigma an estimate would take (sensors.yaml's, else the weak
+// default), for FixedDirectionsTheDataMove.
+std::vector<estimation::EstimatedBlock> FixedBlocks(const io::Problem& problem,
+                                                    const io::SensorsConfig& sensors,
+                                                    const OfflineCalibrationOptions& options,
+                                                    bool use_wheel, bool use_gnss,
+                                                    sensors::Calibration* calibration);
+
 // Block `id`'s weak default prior sigma in file units (degrees for a rotation), for a block whose
 // sigma neither the problem nor sensors.yaml states. The online estimator takes the same one.
 double DefaultPriorSigma(sensors::CalibrationBlockId id, const io::SensorsConfig& sensors,

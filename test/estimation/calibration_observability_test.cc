@@ -437,6 +437,78 @@ TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) 
   EXPECT_GT((truth - p).norm(), 1e-3);  // there is an error to split
 }
 
+// Eq. C7 on a linear problem: p held fixed, s solved. Its x is 7 sigma off the rows' value,
+// y is where the rows put it, z is off but the rows barely see it: only x is named, its step
+// the Gauss-Newton step of (p, s) under p's prior at the fixed value (the rows' value shrunk by
+// the prior), and the problem is as it was afterwards.
+TEST(CalibrationObservability, NamesTheFixedDirectionsTheDataWouldMove) {
+  Eigen::Vector3d p(0.30 + 0.1, -0.05, 0.55 + 0.5);
+  double s = 0.0;
+  std::vector<EstimatedBlock> fixed = {VectorBlock(p.data(), p, 0.3, 0.05)};
+  ceres::Problem problem;
+  const auto row = [&](const LinearRow& r) {
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow(r)),
+                             nullptr, p.data(), &s);
+  };
+  row({100.0, 1.0, 0.0, 0.0, -1.0, 0.30 - 1.5});  // x - s
+  row({100.0, 0.0, 0.0, 0.0, 1.0, 1.5});          // s
+  row({100.0, 0.0, 1.0, 0.0, 0.0, -0.05});        // y
+  row({0.01, 0.0, 0.0, 1.0, 0.0, 0.55});          // z, all but unseen
+  problem.SetParameterBlockConstant(p.data());
+  ceres::Solver::Options options;
+  options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-15;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  const double solved_s = s;
+  // The step by hand: J over (p, s) at the solution, p's prior information added.
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.parameter_blocks = {p.data(), &s};
+  problem.SetParameterBlockVariable(p.data());
+  ceres::CRSMatrix crs;
+  std::vector<double> r;
+  problem.Evaluate(evaluate, nullptr, &r, nullptr, &crs);
+  problem.SetParameterBlockConstant(p.data());
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int i = 0; i < crs.num_rows; ++i) {
+    for (int k = crs.rows[i]; k < crs.rows[i + 1]; ++k) J(i, crs.cols[k]) = crs.values[k];
+  }
+  Eigen::MatrixXd H = J.transpose() * J;
+  H.topLeftCorner(3, 3).diagonal().array() += 1.0 / (0.3 * 0.3);
+  const Eigen::MatrixXd H_inverse = H.inverse();
+  const Eigen::VectorXd step =
+      -H_inverse * J.transpose() *
+      Eigen::Map<const Eigen::VectorXd>(r.data(), static_cast<Eigen::Index>(r.size()));
+
+  const std::vector<FixedDirectionMove> moved = FixedDirectionsTheDataMove(fixed, &problem, 1, 5.0);
+  ASSERT_EQ(moved.size(), 1u);
+  EXPECT_EQ(moved[0].block, 0u);
+  EXPECT_EQ(moved[0].direction, 0);
+  EXPECT_NEAR(moved[0].step, step(0), 1e-12);
+  EXPECT_NEAR(moved[0].step, -0.1, 1e-3);  // 7 sigma
+  EXPECT_NEAR(moved[0].sigma, std::sqrt(H_inverse(0, 0)), 1e-12);
+  EXPECT_THAT(
+      moved[0].text,
+      ::testing::StartsWith("x is fixed, but the data would move it by -9.98 cm (sigma 1.41 cm"));
+  // z, 0.5 off, is the prior's: no step to speak of at the prior's sigma.
+  EXPECT_LT(std::abs(step(2)), 1e-5);
+  EXPECT_GT(std::sqrt(H_inverse(2, 2)), 0.99 * 0.3);
+  // As it was: p constant and unchanged, s at its solution, no prior left behind.
+  EXPECT_TRUE(problem.IsParameterBlockConstant(p.data()));
+  EXPECT_EQ(p, Eigen::Vector3d(0.40, -0.05, 1.05));
+  EXPECT_EQ(s, solved_s);
+  EXPECT_EQ(problem.NumResidualBlocks(), 4);
+  // At the rows' values nothing is named; a block the problem does not hold is not judged.
+  p = Eigen::Vector3d(0.30, -0.05, 0.55);
+  ceres::Solve(options, &problem, &summary);
+  EXPECT_THAT(FixedDirectionsTheDataMove(fixed, &problem, 1, 5.0), ::testing::IsEmpty());
+  double elsewhere = 0.0;
+  std::vector<EstimatedBlock> absent = {
+      VectorBlock(&elsewhere, Eigen::Vector3d::Zero(), 0.3, 0.05)};
+  absent[0].size = 1;
+  absent[0].prior = Eigen::VectorXd::Zero(1);
+  EXPECT_THAT(FixedDirectionsTheDataMove(absent, &problem, 1, 5.0), ::testing::IsEmpty());
+}
+
 // A block p (with its prior) and a free s, measured by linear rows of (p, s).
 struct LinearRowsProblem {
   Eigen::Vector3d p{0.30, -0.05, 0.55};

@@ -155,6 +155,41 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
   EXPECT_LT(mount_error_deg, 3.0 * mount.sigma_rot_deg->z());
 }
 
+// A problem that fixes the mount at the nominal 10 deg off the launch file's hears, after the
+// solve, that the log would move its roll and pitch back by about what they are off (the
+// launch file's mount, in V: 10 deg about (-1, -1, 1), 5.8 deg on each axis), within the 2 deg
+// the log's own estimate keeps to the launch file (measured: -4.56 and -4.48 deg, sigma 0.28
+// and 0.21 deg); its yaw, which this slow drive does not determine, is not judged
+// (docs/calibration.md, Eq. C7).
+TEST(RealDataAcceptance, SaysWhenTheLogContradictsAFixedMount) {
+  const std::filesystem::path bag = test::SharedDataDir("ros1_bags") / "test1.bag";
+  AUTOCAL_REQUIRE_SHARED_DATA(bag);
+  const io::Dataset dataset = SkidSteerFromTenDegreesOff();
+  io::Problem problem = Shipped("skid_steer_imu_odometry_gnss.yaml");
+  problem.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
+  const Eigen::Vector3d off_deg =
+      geometry::Log(Eigen::Quaterniond(dataset.sensors.nominal_calibration.q_I_V.conjugate() *
+                                       LaunchFileMount().conjugate())) *
+      kRadToDeg;
+  std::cout << "launch file - nominal mount (deg): " << off_deg.transpose() << "\n";
+  const auto step_deg = [&](const std::string& direction) {
+    const std::string start = direction + " is fixed, but the data would move it by ";
+    for (const std::string& w : result.warnings) {
+      if (w.rfind(start, 0) == 0) {
+        std::cout << w << "\n";
+        return std::stod(w.substr(start.size()));
+      }
+    }
+    ADD_FAILURE() << direction << " is not named";
+    return 0.0;
+  };
+  EXPECT_NEAR(step_deg("mount roll (about the vehicle's forward axis)"), off_deg.x(), 2.0);
+  EXPECT_NEAR(step_deg("mount pitch (about the vehicle's left axis)"), off_deg.y(), 2.0);
+  EXPECT_THAT(result.warnings,
+              ::testing::Not(::testing::Contains(::testing::StartsWith("mount yaw"))));
+}
+
 // autocal_estimate streams the same log: the window without the LiDAR, keyframes at the
 // receiver's 0.4 s, the odometry's clock from the cross-correlation (held while streaming), the
 // mount from the data when the nominal is no guess.

@@ -58,9 +58,11 @@ EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* cal
 Eigen::VectorXd BlockMinus(const EstimatedBlock& block, const double* x, const double* x0);
 void BlockPlus(const EstimatedBlock& block, const Eigen::VectorXd& step, double* x);
 
-// A prior at the block's prior value on every block (Gaussian, sigma per direction).
-void AddBlockPriors(const std::vector<EstimatedBlock>& blocks, const factors::LossOptions& loss,
-                    ceres::Problem* problem);
+// A prior at the block's prior value on every block (Gaussian, sigma per direction); returns
+// the residual blocks it added, in block order.
+std::vector<ceres::ResidualBlockId> AddBlockPriors(const std::vector<EstimatedBlock>& blocks,
+                                                   const factors::LossOptions& loss,
+                                                   ceres::Problem* problem);
 
 // The joint covariance of the blocks' tangent coordinates, blocks in order: the blocks' part
 // of (J^T J)^-1 over every variable block of `problem` (robust losses applied as the solver
@@ -132,6 +134,28 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
 std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>& blocks,
                                                const BlockCovariance& covariance,
                                                double max_sigmas);
+
+// The blocks a problem holds fixed that the data contradict (docs/calibration.md, Eq. C7): at
+// the solution `problem` holds, each block of `fixed` that is a constant parameter block of it
+// is freed, under a prior at its fixed value with the block's prior_sigma (so that a direction
+// the data do not inform stays put), and one Gauss-Newton step is taken with every other
+// variable block of `problem` free: the step a solve estimating the block would start with, and
+// its sigma, the block's part of H^-1. Each direction the data inform (sigma below
+// max_posterior_to_prior_sigma of the prior's) whose step exceeds max_sigmas sigmas is
+// returned. Blocks that are not parameter blocks of `problem` (a clock offset fixed at zero
+// enters no factor) are not judged. `problem` is left as it was.
+struct FixedDirectionMove {
+  size_t block = 0;  // index into `fixed`
+  int direction = 0;
+  double step = 0.0;  // tangent units
+  double sigma = 0.0;
+  // "mount yaw (...) is fixed, but the data would move it by 0.856 deg (sigma 0.131 deg,
+  // 6.54 sigma)"
+  std::string text;
+};
+std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(const std::vector<EstimatedBlock>& fixed,
+                                                           ceres::Problem* problem, int num_threads,
+                                                           double max_sigmas);
 
 // Directions the data left at their prior (posterior sigma above max_posterior_to_prior_sigma
 // of the prior's, or above max_kept_sigma_to_limit times the limit) are held (U): set to
