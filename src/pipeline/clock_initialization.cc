@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
@@ -10,6 +13,7 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_scatter.h"
 #include "calibration_steps.h"
+#include "common/order_statistics.h"
 
 namespace autocal {
 namespace pipeline {
@@ -72,6 +76,39 @@ void WheelSpeedAndYawRate(const io::Dataset& dataset, const sensors::Calibration
 
 namespace {
 
+// The median interval (s) between consecutive stamps of `samples` (each with a t_ns); 0 with
+// fewer than two.
+template <typename Samples>
+double MedianIntervalS(const Samples& samples) {
+  std::vector<double> intervals;
+  for (size_t i = 1; i < samples.size(); ++i) {
+    intervals.push_back(NsToSeconds(samples[i].t_ns - samples[i - 1].t_ns));
+  }
+  return intervals.empty() ? 0.0 : internal::Median(std::move(intervals));
+}
+
+// A wheel clock the problem fixes, checked against the cross-correlation (docs/calibration.md,
+// "Clock offsets of the wheels and GNSS"): a warning when a reliable estimate lies farther from
+// the fixed value than the correlation can place an offset, empty otherwise. The yaw rates
+// place it within about one sample interval of the slower series (`interval_s`), so two are
+// allowed; the forward accelerations, both smoothed over accel_smoothing_s, within a fraction of
+// that window, so half of it is allowed.
+std::optional<std::string> FixedWheelClockContradicted(double fixed_s,
+                                                       const estimation::WheelImuOffset& wheel,
+                                                       double interval_s) {
+  const estimation::SeriesOffsetEstimate& e = wheel.estimate;
+  const double tolerance_s =
+      wheel.yaw_rate.reliable
+          ? 2.0 * interval_s
+          : std::max(2.0 * interval_s, 0.5 * estimation::WheelImuOffsetOptions().accel_smoothing_s);
+  if (!e.reliable || !(std::abs(e.offset_s - fixed_s) > tolerance_s)) return std::nullopt;
+  return "the wheel-IMU time offset is fixed at " + Ms(fixed_s) +
+         ", but the cross-correlation of the wheels' " + wheel.signal +
+         " with the IMU puts it at " + Ms(e.offset_s) + ", more than the " + Ms(tolerance_s) +
+         " within which it places an offset: estimate it (time_offset_wheel_imu_s: estimate in "
+         "the problem file) or correct its nominal value";
+}
+
 // InitializeClockOffsets with the wheels' speed and yaw rate (WheelSpeedAndYawRate; empty
 // without wheels in the problem).
 ClockInitialization ClockOffsetsFrom(const io::Dataset& dataset, const io::Problem& problem,
@@ -81,6 +118,14 @@ ClockInitialization ClockOffsetsFrom(const io::Dataset& dataset, const io::Probl
                                      std::vector<std::string>* warnings) {
   ClockInitialization out;
   const io::ProblemCalibration& b = problem.calibration;
+  if (problem.sensors.wheel && !Estimated(b.time_offset_wheel_imu_s.mode) && !speed.empty()) {
+    if (const auto warning = FixedWheelClockContradicted(
+            calibration->time_offset_wheel_imu_s,
+            estimation::EstimateWheelImuOffset(dataset.imu, speed, yaw_rate, calibration->q_I_V),
+            std::max(MedianIntervalS(speed), MedianIntervalS(dataset.imu)))) {
+      warnings->push_back(*warning);
+    }
+  }
   if (problem.sensors.wheel && Estimated(b.time_offset_wheel_imu_s.mode) && !speed.empty()) {
     out.wheel =
         estimation::EstimateWheelImuOffset(dataset.imu, speed, yaw_rate, calibration->q_I_V);

@@ -86,6 +86,32 @@ TEST_F(ClockOffsetsTest, InitializationFindsBothOffsets) {
   EXPECT_NEAR(calibration.time_offset_gnss_imu_s, kGnssOffsetS, 0.2);
 }
 
+// A wheel clock the problem fixes is checked against the same correlation: 200 ms off the
+// data it is named, with where the data put it; on the drive with aligned clocks nothing is
+// said, and the fixed value is kept either way.
+TEST_F(ClockOffsetsTest, AFixedWheelClockTheDataContradictIsNamed) {
+  io::Problem problem = ClockProblem();
+  problem.calibration.time_offset_wheel_imu_s.mode = io::BlockMode::kFixed;
+  problem.calibration.time_offset_gnss_imu_s.mode = io::BlockMode::kFixed;
+  const auto warnings_on = [&](const test::SimulatedUrbanDataset& data) {
+    const io::Dataset dataset = io::ReadDataset(data.directory);
+    sensors::Calibration calibration = dataset.sensors.nominal_calibration;
+    std::vector<std::string> warnings;
+    InitializeClockOffsets(dataset, problem, &calibration, &warnings);
+    EXPECT_EQ(calibration.time_offset_wheel_imu_s,
+              dataset.sensors.nominal_calibration.time_offset_wheel_imu_s);
+    for (const std::string& w : warnings) std::cout << w << "\n";
+    return warnings;
+  };
+  const std::vector<std::string> late = warnings_on(*data_);
+  ASSERT_EQ(late.size(), 1u);
+  EXPECT_THAT(late[0], ::testing::StartsWith("the wheel-IMU time offset is fixed at 0.0 ms, but "
+                                             "the cross-correlation of the wheels' yaw rate with "
+                                             "the IMU puts it at -19"));
+  EXPECT_THAT(late[0], ::testing::HasSubstr("time_offset_wheel_imu_s: estimate"));
+  EXPECT_THAT(warnings_on(*aligned_), ::testing::IsEmpty());
+}
+
 // Without wheel data the GNSS offset has nothing to be compared with: it keeps its nominal
 // value, and the warning says so.
 TEST_F(ClockOffsetsTest, GnssOffsetWithoutWheelsKeepsTheNominalWithAWarning) {
