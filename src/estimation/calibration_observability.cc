@@ -605,8 +605,8 @@ class FreedBlocks {
  public:
   FreedBlocks(const std::vector<EstimatedBlock>& blocks, ceres::Problem* problem)
       : blocks_(blocks), problem_(problem) {
-    for (const EstimatedBlock& block : blocks_) problem_->SetParameterBlockVariable(block.data);
     priors_ = AddBlockPriors(blocks_, factors::LossOptions(), problem_);
+    for (const EstimatedBlock& block : blocks_) problem_->SetParameterBlockVariable(block.data);
   }
   ~FreedBlocks() {
     for (const ceres::ResidualBlockId id : priors_) problem_->RemoveResidualBlock(id);
@@ -630,22 +630,33 @@ std::string MovedFixedDirection(const EstimatedBlock& block, int i, double step,
   return text.str();
 }
 
-}  // namespace
-
-std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(const std::vector<EstimatedBlock>& fixed,
-                                                           ceres::Problem* problem, int num_threads,
-                                                           double max_sigmas) {
+// The blocks of `fixed` FixedDirectionsTheDataMove judges, each prior centred at its fixed
+// value, with their indices in `fixed`.
+std::vector<EstimatedBlock> JudgedFixedBlocks(const std::vector<EstimatedBlock>& fixed,
+                                              const ceres::Problem& problem,
+                                              std::vector<size_t>* index) {
   std::vector<EstimatedBlock> judged;
-  std::vector<size_t> index;  // of each judged block in `fixed`
   for (size_t b = 0; b < fixed.size(); ++b) {
     EstimatedBlock block = fixed[b];
-    if (!problem->HasParameterBlock(block.data) || !problem->IsParameterBlockConstant(block.data)) {
+    if (!problem.HasParameterBlock(block.data) || !problem.IsParameterBlockConstant(block.data) ||
+        !(block.prior_sigma.array() > 0.0).all() || !block.prior_sigma.allFinite()) {
       continue;
     }
     block.prior = Eigen::Map<const Eigen::VectorXd>(block.data, block.prior.size());
     judged.push_back(std::move(block));
-    index.push_back(b);
+    index->push_back(b);
   }
+  return judged;
+}
+
+}  // namespace
+
+std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(
+    const std::vector<EstimatedBlock>& fixed, ceres::Problem* problem, int num_threads,
+    double max_sigmas, const std::vector<ceres::ResidualBlockId>& exact,
+    const ScaledInformation& scaled) {
+  std::vector<size_t> index;
+  const std::vector<EstimatedBlock> judged = JudgedFixedBlocks(fixed, *problem, &index);
   if (judged.empty()) return {};
   ResidualSource all{"all", {}};
   problem->GetResidualBlocks(&all.residual_blocks);
@@ -654,13 +665,15 @@ std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(const std::vector<Est
   // fixed values, add nothing to it.
   const ErrorBudget budget = ComputeErrorBudget(judged, problem, {all}, num_threads);
   if (!budget.ok) return {};
+  BlockCovariance covariance = ComputeBlockCovariance(judged, problem, num_threads, exact, scaled);
+  if (!covariance.ok) covariance = budget.covariance;
   std::vector<FixedDirectionMove> out;
   for (size_t b = 0; b < judged.size(); ++b) {
     const EstimatedBlock& block = judged[b];
     for (int i = 0; i < block.size; ++i) {
-      const int row = budget.covariance.offsets[b] + i;
-      const double sigma = SigmaOf(budget.covariance.matrix, row);
-      const double step = -budget.share(row, 0);
+      const int row = covariance.offsets[b] + i;
+      const double sigma = SigmaOf(covariance.matrix, row);
+      const double step = -budget.share(budget.covariance.offsets[b] + i, 0);
       if (!Informed(block, i, sigma) || !(std::abs(step) > max_sigmas * sigma)) continue;
       out.push_back({index[b], i, step, sigma, MovedFixedDirection(block, i, step, sigma)});
     }

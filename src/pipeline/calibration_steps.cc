@@ -477,7 +477,8 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
   const std::vector<estimation::EstimatedBlock> fixed =
       FixedBlocks(problem, sensors, options, use_wheel, use_gnss, calibration);
   for (const estimation::FixedDirectionMove& moved : estimation::FixedDirectionsTheDataMove(
-           fixed, p, problem.solver.num_threads, options.max_prior_deviation_sigmas)) {
+           fixed, p, problem.solver.num_threads, options.max_fixed_block_step_sigmas,
+           ExactResidualBlocks(*p), LidarSandwich(p))) {
     warnings->push_back(moved.text +
                         ": the fixed value disagrees with the drive; estimate the block (or give "
                         "it a prior) in the problem file, or correct its nominal value");
@@ -508,20 +509,25 @@ estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {
   return out;
 }
 
-estimation::BlockCovariance PosteriorCovariance(
-    const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
-    int num_threads, std::vector<std::string>* warnings, const estimation::ScaledInformation& lidar,
-    estimation::CovarianceOrdering* ordering) {
+std::vector<ceres::ResidualBlockId> ExactResidualBlocks(const ceres::Problem& problem) {
   std::vector<ceres::ResidualBlockId> ids;
-  problem->GetResidualBlocks(&ids);
+  problem.GetResidualBlocks(&ids);
   std::vector<ceres::ResidualBlockId> exact;
   for (const ceres::ResidualBlockId id : ids) {
-    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
+    const ceres::CostFunction* f = problem.GetCostFunctionForResidualBlock(id);
     if (dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(f) == nullptr &&
         dynamic_cast<const factors::PlanarRotationFactor*>(f) == nullptr) {
       exact.push_back(id);
     }
   }
+  return exact;
+}
+
+estimation::BlockCovariance PosteriorCovariance(
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
+    int num_threads, std::vector<std::string>* warnings, const estimation::ScaledInformation& lidar,
+    estimation::CovarianceOrdering* ordering) {
+  const std::vector<ceres::ResidualBlockId> exact = ExactResidualBlocks(*problem);
   const estimation::BlockCovariance covariance = estimation::ComputeBlockCovariance(
       blocks_estimated, problem, num_threads, exact, lidar, ordering);
   if (covariance.ok) return covariance;

@@ -173,12 +173,17 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
                       const estimation::BlockCovariance& covariance);
 
 // Eq. C7: one warning for each direction of a block the problem holds fixed that the data at
-// the solution of `p` would move by more than options.max_prior_deviation_sigmas sigmas
-// (estimation::FixedDirectionsTheDataMove), naming what to do about it.
+// the solution of `p` would move by more than options.max_fixed_block_step_sigmas sigmas
+// (estimation::FixedDirectionsTheDataMove, its sigma as PosteriorCovariance's), naming what to
+// do about it.
 void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::SensorsConfig& sensors,
                                       const OfflineCalibrationOptions& options, bool use_wheel,
                                       bool use_gnss, sensors::Calibration* calibration,
                                       ceres::Problem* p, std::vector<std::string>* warnings);
+
+// The residual blocks of `problem` whose Hessian the covariance completes (Eq. C5): all but
+// the LiDAR's point groups and the planar-rotation rows (PosteriorCovariance).
+std::vector<ceres::ResidualBlockId> ExactResidualBlocks(const ceres::Problem& problem);
 
 // The covariance of the estimated blocks at the solution of `problem`, each residual block with
 // its exact Hessian, J^T J + rho' sum r d2r (Eq. C5), but two kinds: the LiDAR's point groups

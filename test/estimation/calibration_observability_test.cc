@@ -438,11 +438,11 @@ TEST(CalibrationObservability, ErrorBudgetSplitsTheErrorOfALinearSolveBySource) 
 }
 
 // Eq. C7 on a linear problem: p held fixed, s solved. Its x is 7 sigma off the rows' value,
-// y is where the rows put it, z is off but the rows barely see it: only x is named, its step
-// the Gauss-Newton step of (p, s) under p's prior at the fixed value (the rows' value shrunk by
-// the prior), and the problem is as it was afterwards.
+// y is where the rows put it, z is 10 prior sigmas off rows that know it only as well as the
+// prior: only x is named, its step the Gauss-Newton step of (p, s) under p's prior at the fixed
+// value (the rows' value shrunk by the prior), and the problem is as it was afterwards.
 TEST(CalibrationObservability, NamesTheFixedDirectionsTheDataWouldMove) {
-  Eigen::Vector3d p(0.30 + 0.1, -0.05, 0.55 + 0.5);
+  Eigen::Vector3d p(0.30 + 0.1, -0.05, 0.55 + 3.0);
   double s = 0.0;
   std::vector<EstimatedBlock> fixed = {VectorBlock(p.data(), p, 0.3, 0.05)};
   ceres::Problem problem;
@@ -453,7 +453,7 @@ TEST(CalibrationObservability, NamesTheFixedDirectionsTheDataWouldMove) {
   row({100.0, 1.0, 0.0, 0.0, -1.0, 0.30 - 1.5});  // x - s
   row({100.0, 0.0, 0.0, 0.0, 1.0, 1.5});          // s
   row({100.0, 0.0, 1.0, 0.0, 0.0, -0.05});        // y
-  row({0.01, 0.0, 0.0, 1.0, 0.0, 0.55});          // z, all but unseen
+  row({1.0 / 0.3, 0.0, 0.0, 1.0, 0.0, 0.55});     // z, as well as the prior knows it
   problem.SetParameterBlockConstant(p.data());
   ceres::Solver::Options options;
   options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-15;
@@ -489,13 +489,21 @@ TEST(CalibrationObservability, NamesTheFixedDirectionsTheDataWouldMove) {
   EXPECT_THAT(
       moved[0].text,
       ::testing::StartsWith("x is fixed, but the data would move it by -9.98 cm (sigma 1.41 cm"));
-  // z, 0.5 off, is the prior's: no step to speak of at the prior's sigma.
-  EXPECT_LT(std::abs(step(2)), 1e-5);
-  EXPECT_GT(std::sqrt(H_inverse(2, 2)), 0.99 * 0.3);
+  // z's step is 7 of its sigmas too, but its sigma is above half the prior's: the data do
+  // not inform it as an estimate would keep it (Informed), so it is not judged.
+  EXPECT_NEAR(step(2), -1.5, 1e-9);
+  EXPECT_GT(std::abs(step(2)), 5.0 * std::sqrt(H_inverse(2, 2)));
+  EXPECT_GT(std::sqrt(H_inverse(2, 2)), 0.5 * 0.3);
   // As it was: p constant and unchanged, s at its solution, no prior left behind.
   EXPECT_TRUE(problem.IsParameterBlockConstant(p.data()));
-  EXPECT_EQ(p, Eigen::Vector3d(0.40, -0.05, 1.05));
+  EXPECT_EQ(p, Eigen::Vector3d(0.40, -0.05, 3.55));
   EXPECT_EQ(s, solved_s);
+  EXPECT_EQ(problem.NumResidualBlocks(), 4);
+  // A block stated exact (a sigma of zero) is not judged, and the problem stays as it was.
+  std::vector<EstimatedBlock> exact = fixed;
+  exact[0].prior_sigma.setZero();
+  EXPECT_THAT(FixedDirectionsTheDataMove(exact, &problem, 1, 5.0), ::testing::IsEmpty());
+  EXPECT_TRUE(problem.IsParameterBlockConstant(p.data()));
   EXPECT_EQ(problem.NumResidualBlocks(), 4);
   // At the rows' values nothing is named; a block the problem does not hold is not judged.
   p = Eigen::Vector3d(0.30, -0.05, 0.55);

@@ -112,6 +112,35 @@ TEST_F(ClockOffsetsTest, AFixedWheelClockTheDataContradictIsNamed) {
   EXPECT_THAT(warnings_on(*aligned_), ::testing::IsEmpty());
 }
 
+// On a straight drive the wheels' clock is found from the forward acceleration, which places
+// it less finely: a fixed clock is named there only beyond half the 0.3 s smoothing window. The
+// wheels 0.3 s late are named; aligned, the acceleration's own error stays unnamed.
+TEST(FixedWheelClockOnAStraightDrive, IsCheckedByTheForwardAcceleration) {
+  const auto warnings_with_wheels_late_by = [](double late_s, const std::string& name) {
+    sim::SimulationOptions options = test::UrbanDriveOptions(40.0);
+    options.scenario = sim::ScenarioType::kStraight;
+    options.lidar.enabled = false;
+    options.wheel.time_offset_wheel_imu_s = -late_s;
+    const test::SimulatedUrbanDataset data(options, name);
+    const io::Dataset dataset = io::ReadDataset(data.directory);
+    io::Problem problem = ClockProblem();
+    problem.calibration.time_offset_wheel_imu_s.mode = io::BlockMode::kFixed;
+    problem.calibration.time_offset_gnss_imu_s.mode = io::BlockMode::kFixed;
+    sensors::Calibration calibration = dataset.sensors.nominal_calibration;
+    std::vector<std::string> warnings;
+    InitializeClockOffsets(dataset, problem, &calibration, &warnings);
+    for (const std::string& w : warnings) std::cout << w << "\n";
+    return warnings;
+  };
+  const std::vector<std::string> late = warnings_with_wheels_late_by(0.3, "straight_wheels_late");
+  ASSERT_EQ(late.size(), 1u);
+  EXPECT_THAT(late[0], ::testing::StartsWith("the wheel-IMU time offset is fixed at 0.0 ms, but "
+                                             "the cross-correlation of the wheels' forward "
+                                             "acceleration with the IMU puts it at -3"));
+  EXPECT_THAT(late[0], ::testing::HasSubstr("more than the 150.0 ms"));
+  EXPECT_THAT(warnings_with_wheels_late_by(0.0, "straight_wheels_aligned"), ::testing::IsEmpty());
+}
+
 // Without wheel data the GNSS offset has nothing to be compared with: it keeps its nominal
 // value, and the warning says so.
 TEST_F(ClockOffsetsTest, GnssOffsetWithoutWheelsKeepsTheNominalWithAWarning) {

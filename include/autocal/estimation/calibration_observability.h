@@ -139,11 +139,13 @@ std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>
 // the solution `problem` holds, each block of `fixed` that is a constant parameter block of it
 // is freed, under a prior at its fixed value with the block's prior_sigma (so that a direction
 // the data do not inform stays put), and one Gauss-Newton step is taken with every other
-// variable block of `problem` free: the step a solve estimating the block would start with, and
-// its sigma, the block's part of H^-1. Each direction the data inform (sigma below
-// max_posterior_to_prior_sigma of the prior's) whose step exceeds max_sigmas sigmas is
-// returned. Blocks that are not parameter blocks of `problem` (a clock offset fixed at zero
-// enters no factor) are not judged. `problem` is left as it was.
+// variable block of `problem` free: the step a solve estimating the block would start with.
+// Its sigma is the block's part of H^-1 as ComputeBlockCovariance gives it with `exact` and
+// `scaled` (Gauss-Newton's where that H is not positive definite). Each direction the data
+// inform (Informed: as a direction an estimate would keep) whose step exceeds max_sigmas sigmas
+// is returned. Not judged: blocks that are not parameter blocks of `problem` (a wheel or GNSS
+// clock fixed at zero enters no factor) and blocks stated exact (a prior sigma of zero).
+// `problem` is left as it was.
 struct FixedDirectionMove {
   size_t block = 0;  // index into `fixed`
   int direction = 0;
@@ -153,9 +155,10 @@ struct FixedDirectionMove {
   // 6.54 sigma)"
   std::string text;
 };
-std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(const std::vector<EstimatedBlock>& fixed,
-                                                           ceres::Problem* problem, int num_threads,
-                                                           double max_sigmas);
+std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(
+    const std::vector<EstimatedBlock>& fixed, ceres::Problem* problem, int num_threads,
+    double max_sigmas, const std::vector<ceres::ResidualBlockId>& exact = {},
+    const ScaledInformation& scaled = {});
 
 // Directions the data left at their prior (posterior sigma above max_posterior_to_prior_sigma
 // of the prior's, or above max_kept_sigma_to_limit times the limit) are held (U): set to

@@ -79,6 +79,9 @@ struct OfflineCalibrationOptions {
   // A solve that moves any direction farther than this many prior sigmas from the nominal
   // value is not trusted: CalibrateDataset throws instead of returning it.
   double max_prior_deviation_sigmas = 5.0;
+  // A block the problem fixes is named in a warning when the data would move a direction they
+  // inform by more than this many sigmas of that step (Eq. C7, docs/calibration.md).
+  double max_fixed_block_step_sigmas = 5.0;
   // Called as the stages advance; may be empty.
   std::function<void(const CalibrationProgress&)> progress;
   // When set, sets the keyframes and the calibration to the truth (a simulated log:
