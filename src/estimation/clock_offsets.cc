@@ -146,6 +146,7 @@ SeriesOffsetEstimate EstimateSeriesOffset(const ScalarSeries& reference, const S
     return out;
   }
   const double slower_s = std::max(MedianIntervalS(reference), MedianIntervalS(sensor));
+  out.slower_interval_s = slower_s;
   const double faster_s = std::min(MedianIntervalS(reference), MedianIntervalS(sensor));
   const double coarse_s =
       options.step_s > 0.0 ? options.step_s : std::clamp(0.5 * slower_s, 0.002, 0.05);

@@ -476,6 +476,13 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
                                       ceres::Problem* p, std::vector<std::string>* warnings) {
   const std::vector<estimation::EstimatedBlock> fixed =
       FixedBlocks(problem, sensors, options, use_wheel, use_gnss, calibration);
+  // The exact rows and the points' sandwich each take a pass over the problem: only for a fixed
+  // block that is a parameter of it (a wheel or GNSS clock fixed at zero, the default, is not).
+  if (std::none_of(fixed.begin(), fixed.end(), [p](const estimation::EstimatedBlock& b) {
+        return p->HasParameterBlock(b.data);
+      })) {
+    return;
+  }
   for (const estimation::FixedDirectionMove& moved : estimation::FixedDirectionsTheDataMove(
            fixed, p, problem.solver.num_threads, options.max_fixed_block_step_sigmas,
            ExactResidualBlocks(*p), LidarSandwich(p))) {

@@ -13,7 +13,6 @@
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_scatter.h"
 #include "calibration_steps.h"
-#include "common/order_statistics.h"
 
 namespace autocal {
 namespace pipeline {
@@ -76,27 +75,16 @@ void WheelSpeedAndYawRate(const io::Dataset& dataset, const sensors::Calibration
 
 namespace {
 
-// The median interval (s) between consecutive stamps of `samples` (each with a t_ns); 0 with
-// fewer than two.
-template <typename Samples>
-double MedianIntervalS(const Samples& samples) {
-  std::vector<double> intervals;
-  for (size_t i = 1; i < samples.size(); ++i) {
-    intervals.push_back(NsToSeconds(samples[i].t_ns - samples[i - 1].t_ns));
-  }
-  return intervals.empty() ? 0.0 : internal::Median(std::move(intervals));
-}
-
 // A wheel clock the problem fixes, checked against the cross-correlation (docs/calibration.md,
 // "Clocks in the offline calibration"): a warning when a reliable estimate lies farther from
 // the fixed value than the check allows, empty otherwise. The yaw rates are allowed two sample
-// intervals of the slower series (`interval_s`); the forward accelerations, both smoothed over
+// intervals of the slower series; the forward accelerations, both smoothed over
 // accel_smoothing_s, half that window. Both are wide of what synthetic series show, so that
 // only a clock clearly off is named.
 std::optional<std::string> FixedWheelClockContradicted(double fixed_s,
-                                                       const estimation::WheelImuOffset& wheel,
-                                                       double interval_s) {
+                                                       const estimation::WheelImuOffset& wheel) {
   const estimation::SeriesOffsetEstimate& e = wheel.estimate;
+  const double interval_s = e.slower_interval_s;
   const double tolerance_s =
       wheel.yaw_rate.reliable
           ? 2.0 * interval_s
@@ -123,9 +111,8 @@ ClockInitialization ClockOffsetsFrom(const io::Dataset& dataset, const io::Probl
         estimation::EstimateWheelImuOffset(dataset.imu, speed, yaw_rate, calibration->q_I_V);
     const estimation::SeriesOffsetEstimate& e = wheel.estimate;
     if (!Estimated(b.time_offset_wheel_imu_s.mode)) {
-      if (const auto warning = FixedWheelClockContradicted(
-              calibration->time_offset_wheel_imu_s, wheel,
-              std::max(MedianIntervalS(speed), MedianIntervalS(dataset.imu)))) {
+      if (const auto warning =
+              FixedWheelClockContradicted(calibration->time_offset_wheel_imu_s, wheel)) {
         warnings->push_back(*warning);
       }
     } else if (e.reliable) {

@@ -56,6 +56,7 @@ struct SeriesOffsetEstimate {
   size_t pairs = 0;  // samples compared at each candidate
   double reference_std = 0.0;
   double sensor_std = 0.0;
+  double slower_interval_s = 0.0;  // the slower series' median interval (set once they overlap)
   std::vector<double> candidate_offsets_s;  // the coarse correlation curve, for reports
   std::vector<double> correlation;
 };
