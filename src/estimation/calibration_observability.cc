@@ -663,9 +663,13 @@ std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(
   const FreedBlocks freed(judged, problem);
   // H^-1 J^T r is minus the Gauss-Newton step (ComputeErrorBudget); the priors, centred at the
   // fixed values, add nothing to it.
-  const ErrorBudget budget = ComputeErrorBudget(judged, problem, {all}, num_threads);
+  // One fill-reducing ordering for both: the exact rows add to blocks J^T J already couples.
+  CovarianceOrdering ordering;
+  const ErrorBudget budget =
+      ComputeErrorBudget(judged, problem, {all}, num_threads, ScaledInformation(), &ordering);
   if (!budget.ok) return {};
-  BlockCovariance covariance = ComputeBlockCovariance(judged, problem, num_threads, exact, scaled);
+  BlockCovariance covariance =
+      ComputeBlockCovariance(judged, problem, num_threads, exact, scaled, &ordering);
   if (!covariance.ok) covariance = budget.covariance;
   std::vector<FixedDirectionMove> out;
   for (size_t b = 0; b < judged.size(); ++b) {
