@@ -107,6 +107,10 @@ CalibrationCovariance SlidingWindowEstimator::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
   return impl_->ComputeCalibrationCovariance(min_reciprocal_condition_number);
 }
+std::vector<FixedDirectionMove> SlidingWindowEstimator::FixedDirectionsTheStreamMoves(
+    std::vector<EstimatedBlock> fixed, double max_sigmas) {
+  return impl_->FixedDirectionsTheStreamMoves(std::move(fixed), max_sigmas);
+}
 int SlidingWindowEstimator::window_size() const { return impl_->window_size(); }
 int SlidingWindowEstimator::pending_sweeps() const { return impl_->pending_sweeps(); }
 bool SlidingWindowEstimator::has_marginalization_prior() const {
@@ -422,6 +426,9 @@ void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSwe
     dropped_point_squared_m2_ = SquaredPointDistances(true);
     const auto marginalization_start = std::chrono::steady_clock::now();
     std::unique_ptr<MarginalizationPrior> prior = MarginalizeOldest(build.get());
+    if (!options_.tested_fixed_blocks.empty()) {
+      tested_prior_ = MarginalizeOldestWithTestedBlocks(build.get());
+    }
     build.reset();  // the problem refers to the factors about to be dropped
     DropOldest(std::move(prior));
     timing_.marginalization_s = SecondsSince(marginalization_start);

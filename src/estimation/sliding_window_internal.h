@@ -53,6 +53,8 @@ class SlidingWindowEstimator::Impl {
   std::vector<SlidingWindowState> SmoothedTrajectory(const sensors::Calibration& calibration) const;
   const sensors::Calibration& calibration() const { return calibration_; }
   CalibrationCovariance ComputeCalibrationCovariance(double min_reciprocal_condition_number);
+  std::vector<FixedDirectionMove> FixedDirectionsTheStreamMoves(std::vector<EstimatedBlock> fixed,
+                                                                double max_sigmas);
   int window_size() const { return static_cast<int>(window_.size()); }
   int pending_sweeps() const {
     return static_cast<int>(pending_sweeps_.size() + pending_times_.size());
@@ -151,6 +153,14 @@ class SlidingWindowEstimator::Impl {
   // keyframe's, either way round, if so asked).
   double SquaredPointDistances(bool oldest_only) const;
   std::unique_ptr<MarginalizationPrior> MarginalizeOldest(ProblemBuild* build);
+  // The same marginalization with options_.tested_fixed_blocks free and tested_prior_ in place
+  // of prior_: the prior that carries the stream's information on the fixed blocks too. Its
+  // part on the other kept blocks is prior_'s (the Schur complement does not depend on which
+  // other blocks are kept) up to the directions each drops as without information. Leaves
+  // `build` unfit for anything but being dropped.
+  std::unique_ptr<MarginalizationPrior> MarginalizeOldestWithTestedBlocks(ProblemBuild* build);
+  // Replaces prior_'s residual block in `problem` by tested_prior_'s (none when it is null).
+  void SwapInTestedPrior(ceres::Problem* problem) const;
   // With options_.smoothing: keeps the oldest keyframe's conditional for SmoothedTrajectory().
   void RecordSmoothingStep(MarginalConditional conditional);
   void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
@@ -194,6 +204,9 @@ class SlidingWindowEstimator::Impl {
   std::vector<SmoothingStep> smoothing_;  // one per marginalized_, with options_.smoothing
   // Prior of the marginalized keyframes; replaced by every marginalization.
   std::unique_ptr<MarginalizationPrior> prior_;
+  // prior_ with the tested fixed blocks' information (options_.tested_fixed_blocks), for
+  // FixedDirectionsTheStreamMoves; null without them.
+  std::unique_ptr<MarginalizationPrior> tested_prior_;
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.
   internal::WindowSolverWorkspace solver_workspace_;

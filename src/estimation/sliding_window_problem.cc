@@ -297,6 +297,53 @@ std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::Impl::MarginalizeO
   return prior;
 }
 
+void SlidingWindowEstimator::Impl::SwapInTestedPrior(ceres::Problem* problem) const {
+  if (prior_) {
+    std::vector<ceres::ResidualBlockId> ids;
+    problem->GetResidualBlocksForParameterBlock(prior_->parameter_pointers().front(), &ids);
+    for (const ceres::ResidualBlockId id : ids) {
+      if (problem->GetCostFunctionForResidualBlock(id) == prior_.get()) {
+        problem->RemoveResidualBlock(id);
+        break;
+      }
+    }
+  }
+  if (tested_prior_) {
+    problem->AddResidualBlock(tested_prior_.get(), nullptr, tested_prior_->parameter_pointers());
+  }
+}
+
+std::unique_ptr<MarginalizationPrior>
+SlidingWindowEstimator::Impl::MarginalizeOldestWithTestedBlocks(ProblemBuild* build) {
+  ceres::Problem* problem = build->problem.get();
+  SwapInTestedPrior(problem);
+  for (const sensors::CalibrationBlockId id : options_.tested_fixed_blocks) {
+    double* values = sensors::CalibrationBlock(id).values(&calibration_);
+    if (problem->HasParameterBlock(values)) problem->SetParameterBlockVariable(values);
+  }
+  return Marginalize(problem, StateBlocks(&window_.front()->state), options_.marginalization);
+}
+
+std::vector<FixedDirectionMove> SlidingWindowEstimator::Impl::FixedDirectionsTheStreamMoves(
+    std::vector<EstimatedBlock> fixed, double max_sigmas) {
+  std::vector<EstimatedBlock> tested;
+  std::vector<size_t> index;  // each tested block's in `fixed`
+  for (size_t b = 0; b < fixed.size(); ++b) {
+    const std::vector<sensors::CalibrationBlockId>& ids = options_.tested_fixed_blocks;
+    if (std::find(ids.begin(), ids.end(), fixed[b].id) == ids.end()) continue;
+    fixed[b].data = sensors::CalibrationBlock(fixed[b].id).values(&calibration_);
+    tested.push_back(std::move(fixed[b]));
+    index.push_back(b);
+  }
+  if (tested.empty()) return {};
+  const std::unique_ptr<ProblemBuild> build = BuildProblem();
+  SwapInTestedPrior(build->problem.get());
+  std::vector<FixedDirectionMove> moves = FixedDirectionsTheDataMove(
+      tested, build->problem.get(), options_.num_threads, max_sigmas, {}, {});
+  for (FixedDirectionMove& move : moves) move.block = index[move.block];
+  return moves;
+}
+
 CalibrationCovariance SlidingWindowEstimator::Impl::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
   const std::unique_ptr<ProblemBuild> build = BuildProblem();

@@ -486,10 +486,14 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
   for (const estimation::FixedDirectionMove& moved : estimation::FixedDirectionsTheDataMove(
            fixed, p, problem.solver.num_threads, options.max_fixed_block_step_sigmas,
            ExactResidualBlocks(*p), LidarSandwich(p))) {
-    warnings->push_back(moved.text +
-                        ": the fixed value disagrees with the drive; estimate the block (or give "
-                        "it a prior) in the problem file, or correct its nominal value");
+    warnings->push_back(FixedDirectionWarning(moved));
   }
+}
+
+std::string FixedDirectionWarning(const estimation::FixedDirectionMove& moved) {
+  return moved.text +
+         ": the fixed value disagrees with the drive; estimate the block (or give it a prior) in "
+         "the problem file, or correct its nominal value";
 }
 
 estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {

@@ -180,6 +180,8 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
                                       const OfflineCalibrationOptions& options, bool use_wheel,
                                       bool use_gnss, sensors::Calibration* calibration,
                                       ceres::Problem* p, std::vector<std::string>* warnings);
+// The warning for one such direction (the online estimator words it the same).
+std::string FixedDirectionWarning(const estimation::FixedDirectionMove& moved);
 
 // The residual blocks of `problem` whose Hessian the covariance completes (Eq. C5): all but
 // the LiDAR's point groups and the planar-rotation rows (PosteriorCovariance).

@@ -485,6 +485,21 @@ bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& proble
   return estimation::AnyHeld(observability);
 }
 
+// Eq. C7 over the whole stream (SlidingWindowEstimator::FixedDirectionsTheStreamMoves), with
+// the offline calibration's priors and threshold.
+void WarnOfFixedDirectionsTheStreamMoves(const io::Dataset& dataset, const io::Problem& problem,
+                                         bool use_wheel, bool use_gnss,
+                                         estimation::SlidingWindowEstimator* estimator,
+                                         std::vector<std::string>* warnings) {
+  const OfflineCalibrationOptions offline;
+  sensors::Calibration scratch = dataset.sensors.nominal_calibration;
+  for (const estimation::FixedDirectionMove& moved : estimator->FixedDirectionsTheStreamMoves(
+           FixedBlocks(problem, dataset.sensors, offline, use_wheel, use_gnss, &scratch),
+           offline.max_fixed_block_step_sigmas)) {
+    warnings->push_back(FixedDirectionWarning(moved));
+  }
+}
+
 }  // namespace
 
 OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
@@ -550,6 +565,8 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   const estimation::CalibrationCovariance covariance =
       CollectResult(window_options, use_lidar, &estimator, &result);
   std::vector<std::string> held_warnings;
+  WarnOfFixedDirectionsTheStreamMoves(dataset, problem, use_wheel, use_gnss, &estimator,
+                                      &held_warnings);
   if (HoldWhatTheStreamLeft(dataset, problem, window_options, use_wheel, use_gnss, covariance,
                             &result.calibration.value, &result.calibration.uncertainty,
                             &held_warnings) &&

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/estimation/planar_rotation_rows.h"
@@ -89,6 +90,22 @@ void RefuseWhatTheWindowCannotDo(const io::Dataset& dataset, const io::Problem& 
   refuse_offset(use_gnss, nominal.time_offset_gnss_imu_s, "GNSS");
 }
 
+// The blocks the problem fixes that the window could estimate and whose sensor it reads.
+std::vector<sensors::CalibrationBlockId> TestedFixedBlocks(const io::SensorsConfig& sensors,
+                                                           const io::Problem& problem,
+                                                           bool use_wheel, bool use_gnss) {
+  sensors::Calibration scratch = sensors.nominal_calibration;
+  std::vector<sensors::CalibrationBlockId> out;
+  for (const estimation::EstimatedBlock& b :
+       FixedBlocks(problem, sensors, OfflineCalibrationOptions(), use_wheel, use_gnss, &scratch)) {
+    const bool lidar = sensors::CalibrationBlock(b.id).sensor == sensors::BlockSensor::kLidar;
+    if (estimation::WindowSupports(b.id) && (problem.sensors.lidar || !lidar)) {
+      out.push_back(b.id);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
@@ -142,6 +159,9 @@ estimation::SlidingWindowOptions WindowOptions(const io::Dataset& dataset,
   w.calibration_prior.mean = dataset.sensors.nominal_calibration;
   SetWindowBlocks(problem.path, problem.calibration, dataset.sensors, dataset.wheel_form(),
                   use_wheel, use_gnss, &w);
+  if (options.test_fixed_blocks) {
+    w.tested_fixed_blocks = TestedFixedBlocks(dataset.sensors, problem, use_wheel, use_gnss);
+  }
   return w;
 }
 

@@ -6,15 +6,19 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/units.h"
 #include "autocal/evaluation/calibration_errors.h"
 #include "autocal/evaluation/trajectory_errors.h"
+#include "autocal/geometry/so3.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/io/tum_trajectory.h"
@@ -334,6 +338,66 @@ TEST(OnlineEstimationWithoutLidar, EstimatesTheWheelSpeedScales) {
             << " deg\n";
   EXPECT_LT(ate.ate_translation_rmse_m, 0.1);
   EXPECT_LT(ate.ate_rotation_rmse_deg, 0.5);
+}
+
+// The warnings of Eq. C7 in a result.
+std::vector<std::string> Contradicted(const OnlineEstimationResult& result) {
+  std::vector<std::string> out;
+  for (const std::string& w : result.warnings) {
+    if (w.find("is fixed, but the data would move it") != std::string::npos) out.push_back(w);
+  }
+  return out;
+}
+
+// Eq. C7 over the stream (docs/sliding_window.md, "Fixed blocks"): a problem that fixes the
+// vehicle frame at the nominal one, which the simulator puts off the truth, hears which of its
+// directions the stream would move and by about how much, as the offline calibration does
+// (OfflineCalibrationTest.SaysWhenTheDriveContradictsAFixedMount); fixed at the truth, it hears
+// nothing. Carrying the fixed blocks through the marginalization leaves the estimate as it
+// was, to the bit.
+TEST_F(OnlineEstimationWithoutLidarTest, SaysWhenTheStreamContradictsAFixedMount) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  io::Problem problem = ProblemWithoutLidar();
+  problem.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
+  problem.calibration.T_I_V.translation.mode = io::BlockMode::kFixed;
+  const sensors::Calibration& truth = data_->simulator.true_calibration();
+  const Eigen::Vector3d nominal_error_deg =
+      geometry::Log(
+          Eigen::Quaterniond(dataset.sensors.nominal_calibration.q_I_V.conjugate() * truth.q_I_V)) *
+      kRadToDeg;
+  std::cout << "truth - nominal mount (deg): " << nominal_error_deg.transpose() << "\n";
+  ASSERT_GT(std::abs(nominal_error_deg.y()), 1.0);
+
+  const OnlineEstimationResult tested = EstimateDatasetOnline(dataset, problem);
+  OnlineEstimationOptions untested_options;
+  untested_options.test_fixed_blocks = false;
+  const OnlineEstimationResult untested = EstimateDatasetOnline(dataset, problem, untested_options);
+  EXPECT_THAT(Contradicted(untested), ::testing::IsEmpty());
+  const sensors::Calibration& a = tested.calibration.value;
+  const sensors::Calibration& b = untested.calibration.value;
+  EXPECT_EQ(a.wheel_radius_left_m, b.wheel_radius_left_m);
+  EXPECT_EQ(a.wheel_radius_right_m, b.wheel_radius_right_m);
+  EXPECT_EQ(a.track_width_m, b.track_width_m);
+  EXPECT_EQ(a.p_I_A, b.p_I_A);
+  ASSERT_EQ(tested.trajectory.size(), untested.trajectory.size());
+  for (size_t k = 0; k < tested.trajectory.size(); ++k) {
+    ASSERT_EQ(tested.trajectory[k].T_W_I.p, untested.trajectory[k].T_W_I.p) << k;
+    ASSERT_EQ(tested.trajectory[k].T_W_I.q.coeffs(), untested.trajectory[k].T_W_I.q.coeffs()) << k;
+  }
+
+  const std::vector<std::string> off = Contradicted(tested);
+  for (const std::string& w : off) std::cout << w << "\n";
+  const std::string pitch =
+      "mount pitch (about the vehicle's left axis) is fixed, but the data would move it by ";
+  const auto line = std::find_if(off.begin(), off.end(),
+                                 [&](const std::string& w) { return w.rfind(pitch, 0) == 0; });
+  ASSERT_NE(line, off.end());
+  EXPECT_NEAR(std::stod(line->substr(pitch.size())), nominal_error_deg.y(), 0.25);
+  dataset.sensors.nominal_calibration.q_I_V = truth.q_I_V;
+  dataset.sensors.nominal_calibration.p_I_V = truth.p_I_V;
+  const OnlineEstimationResult at_truth = EstimateDatasetOnline(dataset, problem);
+  for (const std::string& w : Contradicted(at_truth)) std::cout << "at the truth: " << w << "\n";
+  EXPECT_THAT(Contradicted(at_truth), ::testing::IsEmpty());
 }
 
 TEST_F(OnlineEstimationWithoutLidarTest, NamesWhatIsMissing) {

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/estimation/sliding_window_options.h"
 #include "autocal/lidar/point_cloud.h"
@@ -128,6 +129,13 @@ class SlidingWindowEstimator {
   // estimator's blocks (their values do not change). Throws autocal::Error when Ceres fails.
   CalibrationCovariance ComputeCalibrationCovariance(
       double min_reciprocal_condition_number = 1e-12);
+  // Eq. C7 over the whole stream: the fixed blocks among `fixed` that options.
+  // tested_fixed_blocks names (their data pointers are rebound to the window's blocks; their
+  // priors centre at the held values) tested on the final window with the marginalized
+  // keyframes' information on them (FixedDirectionsTheDataMove, Gauss-Newton sigma). Empty
+  // when no such block entered a factor. Not const, as ComputeCalibrationCovariance.
+  std::vector<FixedDirectionMove> FixedDirectionsTheStreamMoves(std::vector<EstimatedBlock> fixed,
+                                                                double max_sigmas);
 
   int window_size() const;     // keyframes currently in the window
   int pending_sweeps() const;  // sweeps or AddKeyframeAt times waiting for the IMU

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <map>
 #include <optional>
+#include <vector>
 
 #include "autocal/estimation/estimated_blocks.h"
 #include "autocal/estimation/marginalization.h"
@@ -150,6 +151,11 @@ struct SlidingWindowOptions {
   MarginalizationOptions marginalization;
   // Keep each marginalized keyframe's conditional (about 12 KB each) for SmoothedTrajectory().
   bool smoothing = false;
+  // Blocks held at their value (not estimated) whose information the window carries through
+  // a second marginalization, so that FixedDirectionsTheStreamMoves can test them against the
+  // whole stream (docs/sliding_window.md, "Fixed blocks"); the estimate does not depend on it.
+  // Empty: no second marginalization.
+  std::vector<sensors::CalibrationBlockId> tested_fixed_blocks;
 };
 
 }  // namespace estimation

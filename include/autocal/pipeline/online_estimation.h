@@ -91,6 +91,12 @@ struct OnlineEstimationOptions {
   // tell the bias from the tilt. Until the window's own drive turns, roll and the lateral bias
   // trade against each other, so a wider sigma lets the roll wander.
   double initial_accel_bias_sigma_with_gnss_m_s2 = 0.02;
+  // Test the blocks the problem fixes against the whole stream at its end, as the offline
+  // calibration does (a warning per direction the data would move by more than
+  // OfflineCalibrationOptions::max_fixed_block_step_sigmas sigmas; docs/sliding_window.md,
+  // "Fixed blocks"). The window then marginalizes each keyframe a second time with those
+  // blocks free; the estimate is the same either way.
+  bool test_fixed_blocks = true;
   // Called after every window update; may be empty.
   std::function<void(const OnlineEstimationProgress&)> progress;
 };
