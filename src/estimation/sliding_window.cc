@@ -426,10 +426,9 @@ void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSwe
     dropped_point_squared_m2_ = SquaredPointDistances(true);
     const auto marginalization_start = std::chrono::steady_clock::now();
     std::unique_ptr<MarginalizationPrior> prior = MarginalizeOldest(build.get());
-    if (!options_.tested_fixed_blocks.empty()) {
-      tested_prior_ = MarginalizeOldestWithTestedBlocks(build.get());
-    }
+    std::unique_ptr<MarginalizationPrior> tested = CarryTestedBlocks(build.get(), prior != nullptr);
     build.reset();  // the problem refers to the factors about to be dropped
+    if (untested_reason_.empty()) tested_prior_ = std::move(tested);
     DropOldest(std::move(prior));
     timing_.marginalization_s = SecondsSince(marginalization_start);
   }
@@ -438,6 +437,21 @@ void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSwe
   while (static_cast<int>(recent_q_I_L_.size()) > options_.window_size) recent_q_I_L_.pop_front();
   ++counters_.updates;
   timing_.total_s = SecondsSince(start);
+}
+
+std::unique_ptr<MarginalizationPrior> SlidingWindowEstimator::Impl::CarryTestedBlocks(
+    ProblemBuild* build, bool main_prior) {
+  if (options_.tested_fixed_blocks.empty() || !untested_reason_.empty()) return nullptr;
+  try {
+    std::unique_ptr<MarginalizationPrior> tested = MarginalizeOldestWithTestedBlocks(build);
+    if (main_prior && tested == nullptr) {
+      untested_reason_ = "their marginalization kept no information where the window's did";
+    }
+    return tested;
+  } catch (const Error& e) {
+    untested_reason_ = e.what();
+  }
+  return nullptr;
 }
 
 std::vector<SlidingWindowState> SlidingWindowEstimator::Impl::Trajectory() const {

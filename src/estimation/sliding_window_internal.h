@@ -13,6 +13,7 @@
 #include <initializer_list>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "autocal/estimation/marginalization.h"
@@ -159,6 +160,10 @@ class SlidingWindowEstimator::Impl {
   // other blocks are kept) up to the directions each drops as without information. Leaves
   // `build` unfit for anything but being dropped.
   std::unique_ptr<MarginalizationPrior> MarginalizeOldestWithTestedBlocks(ProblemBuild* build);
+  // MarginalizeOldestWithTestedBlocks when there are tested blocks and their chain holds
+  // (main_prior: the window's marginalization kept a prior); a failure sets untested_reason_,
+  // which ends the chain, instead of stopping the estimate.
+  std::unique_ptr<MarginalizationPrior> CarryTestedBlocks(ProblemBuild* build, bool main_prior);
   // Replaces prior_'s residual block in `problem` by tested_prior_'s (none when it is null).
   void SwapInTestedPrior(ceres::Problem* problem) const;
   // With options_.smoothing: keeps the oldest keyframe's conditional for SmoothedTrajectory().
@@ -207,6 +212,7 @@ class SlidingWindowEstimator::Impl {
   // prior_ with the tested fixed blocks' information (options_.tested_fixed_blocks), for
   // FixedDirectionsTheStreamMoves; null without them.
   std::unique_ptr<MarginalizationPrior> tested_prior_;
+  std::string untested_reason_;  // why the tested blocks' chain ended; empty while it holds
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.
   internal::WindowSolverWorkspace solver_workspace_;

@@ -158,6 +158,14 @@ void CheckOptions(const SlidingWindowOptions& o) {
         "SlidingWindowOptions: imu_coverage_margin_s and min_keyframe_interval_s must be >= 0");
   }
   CheckPriors(o.calibration_prior, o.initial_state_sigmas);
+  for (const sensors::CalibrationBlockId id : o.tested_fixed_blocks) {
+    if (!WindowSupports(id) || Estimated(id, o.estimate)) {
+      throw Error(std::string("SlidingWindowOptions: tested_fixed_blocks names ") +
+                  sensors::CalibrationBlock(id).name +
+                  ", which the window does not hold fixed (it estimates it or has no setting "
+                  "for it)");
+    }
+  }
   if (o.initial_state_covariance) {
     const Eigen::Matrix<double, 15, 15>& c = *o.initial_state_covariance;
     if (!c.allFinite() || !c.isApprox(c.transpose(), 1e-9) || c.llt().info() != Eigen::Success) {

@@ -336,6 +336,11 @@ std::vector<FixedDirectionMove> SlidingWindowEstimator::Impl::FixedDirectionsThe
     index.push_back(b);
   }
   if (tested.empty()) return {};
+  if (!untested_reason_.empty()) {
+    throw Error(
+        "SlidingWindowEstimator: the fixed blocks could not be tested against the stream: " +
+        untested_reason_);
+  }
   const std::unique_ptr<ProblemBuild> build = BuildProblem();
   SwapInTestedPrior(build->problem.get());
   std::vector<FixedDirectionMove> moves = FixedDirectionsTheDataMove(

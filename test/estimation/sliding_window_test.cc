@@ -201,6 +201,13 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
   expect_rejected("residual_max_range_m NaN", [](SlidingWindowOptions* o) {
     o->pairing.residual_max_range_m = std::numeric_limits<double>::quiet_NaN();
   });
+  expect_rejected("a tested fixed block the window estimates", [](SlidingWindowOptions* o) {
+    o->tested_fixed_blocks = {sensors::CalibrationBlockId::kTrackWidth};
+  });
+  expect_rejected("a tested fixed block the window has no setting for",
+                  [](SlidingWindowOptions* o) {
+                    o->tested_fixed_blocks = {sensors::CalibrationBlockId::kWheelTimeOffset};
+                  });
   expect_rejected("settled_partner_count 0",
                   [](SlidingWindowOptions* o) { o->window_pairing.settled_partner_count = 0; });
   expect_rejected("settled_extrinsic_deg < 0",

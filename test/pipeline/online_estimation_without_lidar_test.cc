@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -373,16 +374,26 @@ TEST_F(OnlineEstimationWithoutLidarTest, SaysWhenTheStreamContradictsAFixedMount
   untested_options.test_fixed_blocks = false;
   const OnlineEstimationResult untested = EstimateDatasetOnline(dataset, problem, untested_options);
   EXPECT_THAT(Contradicted(untested), ::testing::IsEmpty());
-  const sensors::Calibration& a = tested.calibration.value;
-  const sensors::Calibration& b = untested.calibration.value;
-  EXPECT_EQ(a.wheel_radius_left_m, b.wheel_radius_left_m);
-  EXPECT_EQ(a.wheel_radius_right_m, b.wheel_radius_right_m);
-  EXPECT_EQ(a.track_width_m, b.track_width_m);
-  EXPECT_EQ(a.p_I_A, b.p_I_A);
-  ASSERT_EQ(tested.trajectory.size(), untested.trajectory.size());
-  for (size_t k = 0; k < tested.trajectory.size(); ++k) {
-    ASSERT_EQ(tested.trajectory[k].T_W_I.p, untested.trajectory[k].T_W_I.p) << k;
-    ASSERT_EQ(tested.trajectory[k].T_W_I.q.coeffs(), untested.trajectory[k].T_W_I.q.coeffs()) << k;
+  // calibration.yaml (values, sigma, observability, counters) byte for byte, every keyframe.
+  const std::filesystem::path out = test::OutputDir("online_fixed_mount_tested");
+  std::filesystem::create_directories(out);
+  io::WriteCalibrationYaml((out / "tested.yaml").string(), tested.calibration);
+  io::WriteCalibrationYaml((out / "untested.yaml").string(), untested.calibration);
+  const auto text = [](const std::filesystem::path& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(text(out / "tested.yaml"), text(out / "untested.yaml"));
+  using Member = io::Trajectory OnlineEstimationResult::*;
+  for (const Member trajectories : {Member{&OnlineEstimationResult::trajectory},
+                                    &OnlineEstimationResult::smoothed_trajectory}) {
+    const io::Trajectory& a = tested.*trajectories;
+    const io::Trajectory& b = untested.*trajectories;
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t k = 0; k < a.size(); ++k) {
+      ASSERT_EQ(a[k].T_W_I.p, b[k].T_W_I.p) << k;
+      ASSERT_EQ(a[k].T_W_I.q.coeffs(), b[k].T_W_I.q.coeffs()) << k;
+    }
   }
 
   const std::vector<std::string> off = Contradicted(tested);

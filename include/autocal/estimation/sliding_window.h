@@ -132,8 +132,10 @@ class SlidingWindowEstimator {
   // Eq. C7 over the whole stream: the fixed blocks among `fixed` that options.
   // tested_fixed_blocks names (their data pointers are rebound to the window's blocks; their
   // priors centre at the held values) tested on the final window with the marginalized
-  // keyframes' information on them (FixedDirectionsTheDataMove, Gauss-Newton sigma). Empty
-  // when no such block entered a factor. Not const, as ComputeCalibrationCovariance.
+  // keyframes' information on them (FixedDirectionsTheDataMove, Gauss-Newton sigma): the
+  // directions the stream would move by more than max_sigmas sigmas. Throws autocal::Error
+  // when that information was lost on the way (a second marginalization failed; the estimate
+  // went on without it). Not const, as ComputeCalibrationCovariance.
   std::vector<FixedDirectionMove> FixedDirectionsTheStreamMoves(std::vector<EstimatedBlock> fixed,
                                                                 double max_sigmas);
 
