@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -21,6 +22,7 @@
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sim/simulator.h"
 #include "pipeline/simulated_urban_dataset.h"
+#include "support/fixed_block_warnings.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -569,25 +571,16 @@ TEST_F(OfflineCalibrationTest, SaysWhenTheDriveContradictsAFixedMount) {
   std::cout << "truth - nominal mount (deg): " << nominal_error_deg.transpose() << "\n";
   ASSERT_GT(std::abs(nominal_error_deg.y()), 1.0);  // the simulator's nominal is off in pitch
 
-  const auto contradicted = [](const OfflineCalibrationResult& result) {
-    std::vector<std::string> out;
-    for (const std::string& w : result.warnings) {
-      if (w.find("is fixed, but the data would move it") != std::string::npos) out.push_back(w);
-    }
-    return out;
-  };
-  const std::vector<std::string> off = contradicted(CalibrateDataset(dataset, problem));
-  for (const std::string& w : off) std::cout << w << "\n";
-  const std::string pitch =
-      "mount pitch (about the vehicle's left axis) is fixed, but the data would move it by ";
-  const auto line = std::find_if(off.begin(), off.end(),
-                                 [&](const std::string& w) { return w.rfind(pitch, 0) == 0; });
-  ASSERT_NE(line, off.end());
+  const std::optional<test::FixedDirectionStep> pitch = test::StepOfFixedDirection(
+      test::FixedDirectionWarnings(CalibrateDataset(dataset, problem).warnings),
+      "mount pitch (about the vehicle's left axis)");
+  ASSERT_TRUE(pitch.has_value());
   // Where the data put it: the truth, within the step's sigma (measured: 2.48 deg, sigma
   // 0.086 deg, for 2.51 deg).
-  EXPECT_NEAR(std::stod(line->substr(pitch.size())), nominal_error_deg.y(), 0.25);
+  EXPECT_NEAR(pitch->step, nominal_error_deg.y(), 0.25);
   dataset.sensors.nominal_calibration.q_I_V = truth.q_I_V;
-  EXPECT_THAT(contradicted(CalibrateDataset(dataset, problem)), ::testing::IsEmpty());
+  EXPECT_THAT(test::FixedDirectionWarnings(CalibrateDataset(dataset, problem).warnings),
+              ::testing::IsEmpty());
 }
 
 // problems/imu_wheel_gnss.yaml with one solver round of two iterations: enough to run every

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,7 @@
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sim/simulator.h"
 #include "pipeline/simulated_urban_dataset.h"
+#include "support/fixed_block_warnings.h"
 #include "support/skid_steer_options.h"
 #include "support/test_paths.h"
 
@@ -341,15 +343,6 @@ TEST(OnlineEstimationWithoutLidar, EstimatesTheWheelSpeedScales) {
   EXPECT_LT(ate.ate_rotation_rmse_deg, 0.5);
 }
 
-// The warnings of Eq. C7 in a result.
-std::vector<std::string> Contradicted(const OnlineEstimationResult& result) {
-  std::vector<std::string> out;
-  for (const std::string& w : result.warnings) {
-    if (w.find("is fixed, but the data would move it") != std::string::npos) out.push_back(w);
-  }
-  return out;
-}
-
 // Eq. C7 over the stream (docs/sliding_window.md, "Fixed blocks"): a problem that fixes the
 // vehicle frame at the nominal one, which the simulator puts off the truth, hears which of its
 // directions the stream would move and by about how much, as the offline calibration does
@@ -373,7 +366,7 @@ TEST_F(OnlineEstimationWithoutLidarTest, SaysWhenTheStreamContradictsAFixedMount
   OnlineEstimationOptions untested_options;
   untested_options.test_fixed_blocks = false;
   const OnlineEstimationResult untested = EstimateDatasetOnline(dataset, problem, untested_options);
-  EXPECT_THAT(Contradicted(untested), ::testing::IsEmpty());
+  EXPECT_THAT(test::FixedDirectionWarnings(untested.warnings), ::testing::IsEmpty());
   // calibration.yaml (values, sigma, observability, counters) byte for byte, every keyframe.
   const std::filesystem::path out = test::OutputDir("online_fixed_mount_tested");
   std::filesystem::create_directories(out);
@@ -396,19 +389,14 @@ TEST_F(OnlineEstimationWithoutLidarTest, SaysWhenTheStreamContradictsAFixedMount
     }
   }
 
-  const std::vector<std::string> off = Contradicted(tested);
-  for (const std::string& w : off) std::cout << w << "\n";
-  const std::string pitch =
-      "mount pitch (about the vehicle's left axis) is fixed, but the data would move it by ";
-  const auto line = std::find_if(off.begin(), off.end(),
-                                 [&](const std::string& w) { return w.rfind(pitch, 0) == 0; });
-  ASSERT_NE(line, off.end());
-  EXPECT_NEAR(std::stod(line->substr(pitch.size())), nominal_error_deg.y(), 0.25);
+  const std::optional<test::FixedDirectionStep> pitch = test::StepOfFixedDirection(
+      test::FixedDirectionWarnings(tested.warnings), "mount pitch (about the vehicle's left axis)");
+  ASSERT_TRUE(pitch.has_value());
+  EXPECT_NEAR(pitch->step, nominal_error_deg.y(), 0.25);
   dataset.sensors.nominal_calibration.q_I_V = truth.q_I_V;
   dataset.sensors.nominal_calibration.p_I_V = truth.p_I_V;
   const OnlineEstimationResult at_truth = EstimateDatasetOnline(dataset, problem);
-  for (const std::string& w : Contradicted(at_truth)) std::cout << "at the truth: " << w << "\n";
-  EXPECT_THAT(Contradicted(at_truth), ::testing::IsEmpty());
+  EXPECT_THAT(test::FixedDirectionWarnings(at_truth.warnings), ::testing::IsEmpty());
 }
 
 TEST_F(OnlineEstimationWithoutLidarTest, NamesWhatIsMissing) {

@@ -20,6 +20,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -33,6 +34,7 @@
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "autocal/sensors/gnss_enu.h"
+#include "support/fixed_block_warnings.h"
 #include "support/test_paths.h"
 
 namespace autocal {
@@ -177,15 +179,10 @@ TEST(RealDataAcceptance, SaysWhenTheLogContradictsAFixedMount) {
       kRadToDeg;
   std::cout << "launch file - nominal mount (deg): " << off_deg.transpose() << "\n";
   const auto step_deg = [&](const std::string& direction) {
-    const std::string start = direction + " is fixed, but the data would move it by ";
-    for (const std::string& w : result.warnings) {
-      if (w.rfind(start, 0) == 0) {
-        std::cout << w << "\n";
-        return std::stod(w.substr(start.size()));
-      }
-    }
-    ADD_FAILURE() << direction << " is not named";
-    return 0.0;
+    const std::optional<test::FixedDirectionStep> named =
+        test::StepOfFixedDirection(test::FixedDirectionWarnings(result.warnings), direction);
+    EXPECT_TRUE(named.has_value()) << direction << " is not named";
+    return named ? named->step : 0.0;
   };
   EXPECT_NEAR(step_deg("mount roll (about the vehicle's forward axis)"), off_deg.x(), 2.0);
   EXPECT_NEAR(step_deg("mount pitch (about the vehicle's left axis)"), off_deg.y(), 2.0);
@@ -193,19 +190,13 @@ TEST(RealDataAcceptance, SaysWhenTheLogContradictsAFixedMount) {
               ::testing::Not(::testing::Contains(::testing::StartsWith("mount yaw"))));
 }
 
-// A fixed-block warning's step and sigma, in its display units ("... would move it by S unit
-// (sigma s unit, ..."); a failure when `direction` is not named.
-std::pair<double, double> NamedStep(const std::vector<std::string>& warnings,
-                                    const std::string& direction) {
-  const std::string start = direction + " is fixed, but the data would move it by ";
-  for (const std::string& w : warnings) {
-    if (w.rfind(start, 0) != 0) continue;
-    std::cout << w << "\n";
-    const size_t sigma = w.find("(sigma ", start.size());
-    return {std::stod(w.substr(start.size())), std::stod(w.substr(sigma + 7))};
-  }
-  ADD_FAILURE() << direction << " is not named";
-  return {0.0, 0.0};
+// test::StepOfFixedDirection, a failure when `direction` is not named.
+test::FixedDirectionStep NamedStep(const std::vector<std::string>& warnings,
+                                   const std::string& direction) {
+  const std::optional<test::FixedDirectionStep> named =
+      test::StepOfFixedDirection(test::FixedDirectionWarnings(warnings), direction);
+  if (!named) ADD_FAILURE() << direction << " is not named";
+  return named.value_or(test::FixedDirectionStep());
 }
 
 // The same through the window (docs/sliding_window.md, "Fixed blocks"), the vehicle frame fixed
@@ -246,17 +237,17 @@ TEST(RealDataAcceptance, SaysWhenTheStreamContradictsAFixedMount) {
   for (int axis : {0, 1}) {
     const char* direction = axis == 0 ? "mount roll (about the vehicle's forward axis)"
                                       : "mount pitch (about the vehicle's left axis)";
-    const auto [step_deg, sigma_deg] = NamedStep(rotated, direction);
-    EXPECT_GT(step_deg / off_deg(axis), 0.0) << direction;  // towards the launch file
-    EXPECT_NEAR(step_deg, estimated_deg(axis), 3.0 * sigma_deg) << direction;
+    const test::FixedDirectionStep named = NamedStep(rotated, direction);
+    EXPECT_GT(named.step / off_deg(axis), 0.0) << direction;  // towards the launch file
+    EXPECT_NEAR(named.step, estimated_deg(axis), 3.0 * named.sigma) << direction;
   }
   EXPECT_THAT(rotated, ::testing::Not(::testing::Contains(::testing::StartsWith("mount yaw"))));
 
   dataset.sensors.nominal_calibration.q_I_V = LaunchFileMount().conjugate();
   dataset.sensors.nominal_calibration.p_I_V.setZero();
   const std::vector<std::string> shifted = EstimateDatasetOnline(dataset, problem).warnings;
-  const auto [height_cm, sigma_cm] = NamedStep(shifted, "rear-axle y position (IMU frame)");
-  EXPECT_NEAR(height_cm, 100.0 * p_I_V_launch_m.y(), 3.0 * sigma_cm);
+  const test::FixedDirectionStep height_cm = NamedStep(shifted, "rear-axle y position (IMU frame)");
+  EXPECT_NEAR(height_cm.step, 100.0 * p_I_V_launch_m.y(), 3.0 * height_cm.sigma);
 }
 
 // The Husky's odometry lags its gyro by 0.39 s: a problem that keeps the wheel clock fixed at
