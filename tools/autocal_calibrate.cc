@@ -89,7 +89,8 @@ void CalibrateOne(const std::string& directory, const autocal::io::Problem& prob
   autocal::pipeline::WriteCalibrationResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatCalibrationSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
-            << "calibration_per_iteration.csv, timings.yaml, report.html, status.yaml\n";
+            << "calibration_per_iteration.csv, timings.yaml, report.html, warnings.txt, "
+               "status.yaml\n";
 }
 
 void CalibrateSeveral(const std::vector<std::string>& directories,
@@ -107,7 +108,7 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
   autocal::pipeline::WriteMultiLogResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatMultiLogSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, repeatability.csv, report.html, "
-            << "status.yaml, logs/<log>/trajectory.tum and logs/<log>/own/\n";
+            << "warnings.txt, status.yaml, logs/<log>/trajectory.tum and logs/<log>/own/\n";
 }
 
 // A run that failed after its output was found writable leaves status.yaml alone there, so

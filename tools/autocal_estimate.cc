@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
     for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
     std::cout << "written: " << FLAGS_output
               << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
-                 "calibration.yaml, timings.yaml\n";
+                 "calibration.yaml, timings.yaml, warnings.txt\n";
   } catch (const autocal::Error& e) {
     std::cerr << "autocal_estimate: " << e.what() << "\n";
     return 1;

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstring>
@@ -34,6 +35,7 @@ const std::set<std::string>& ReplaceableNames(OutputKind kind) {
                                                 "report.html",
                                                 "evaluation.yaml",
                                                 "status.yaml",
+                                                "warnings.txt",
                                                 "repeatability.csv",
                                                 "logs",
                                                 "fleet.csv",
@@ -177,6 +179,15 @@ void WriteFileReplacing(const std::string& path, const std::string& text, bool s
 
 void WriteFileAtomically(const std::string& path, const std::string& text) {
   internal::WriteFileReplacing(path, text, true);
+}
+
+void WriteWarningsFile(const std::string& path, const std::vector<std::string>& warnings) {
+  std::string text;
+  for (std::string line : warnings) {
+    std::replace(line.begin(), line.end(), '\n', ' ');
+    text += line + "\n";
+  }
+  WriteFileAtomically(path, text);
 }
 
 StagedDirectory::StagedDirectory(const std::string& directory, OutputKind kind)

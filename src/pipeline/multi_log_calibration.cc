@@ -271,6 +271,7 @@ void WriteMultiLogResult(const std::string& directory, const MultiLogCalibration
   io::WriteCalibrationYaml(out.File("calibration.yaml"), result.calibration);
   io::WriteFileAtomically(out.File("repeatability.csv"), RepeatabilityCsv(result));
   io::WriteFileAtomically(out.File("report.html"), MultiLogReportHtml(result));
+  io::WriteWarningsFile(out.File("warnings.txt"), result.warnings);
   for (const LogCalibration& log : result.logs) {
     const std::string log_directory = out.File("logs/" + log.name);
     std::filesystem::create_directories(log_directory);

@@ -391,6 +391,7 @@ void WriteCalibrationResult(const std::string& directory, const OfflineCalibrati
                           PerIterationCsv(result.batch.calibration_per_iteration));
   io::WriteFileAtomically(out.File("timings.yaml"), TimingsYaml(result));
   io::WriteFileAtomically(out.File("report.html"), CalibrationReportHtml(result));
+  io::WriteWarningsFile(out.File("warnings.txt"), result.warnings);
   if (status != nullptr) io::WriteRunStatus(out.File("status.yaml"), *status);
   out.Commit();
 }

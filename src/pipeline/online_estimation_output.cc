@@ -78,6 +78,7 @@ void WriteOnlineEstimationResult(const std::string& directory,
           << "seconds_total: " << result.seconds_total << "\n"
           << "seconds_initialization: " << result.seconds_initialization << "\n";
   io::WriteFileAtomically(out.File("timings.yaml"), timings.str());
+  io::WriteWarningsFile(out.File("warnings.txt"), result.warnings);
   out.Commit();
 }
 

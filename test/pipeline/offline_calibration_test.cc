@@ -158,6 +158,8 @@ TEST_F(OfflineCalibrationTest, CalibratesEveryBlockFromAllSensors) {
   EXPECT_EQ(io::ReadTumTrajectory(out + "/trajectory.tum").size(), result.trajectory.size());
   EXPECT_TRUE(std::filesystem::exists(out + "/calibration_per_iteration.csv"));
   EXPECT_GT(std::filesystem::file_size(out + "/report.html"), 1000u);
+  ASSERT_FALSE(result.warnings.empty());  // the LiDAR's z, at least
+  EXPECT_EQ(test::WarningsFileLines(out + "/warnings.txt"), result.warnings);
 }
 
 // A LiDAR that stamps each sweep when it ends, its points at negative times (as some drivers

@@ -192,6 +192,8 @@ TEST_F(OnlineEstimationWithoutLidarTest, CalibratesTheWheelsAndLeverArmWithinThe
   for (const char* file : {"states.csv", "calibration_over_time.csv", "timings.yaml"}) {
     EXPECT_TRUE(std::ifstream(out + "/" + file).good()) << file;
   }
+  ASSERT_FALSE(result.warnings.empty());  // the mount's roll, at least
+  EXPECT_EQ(test::WarningsFileLines(out + "/warnings.txt"), result.warnings);
 }
 
 // The same drive with slower sensors: GNSS at 2.5 Hz (keyframes every 0.4 s), IMU at 100 Hz,

@@ -1,9 +1,10 @@
 #pragma once
 
-// Reading the fixed-block warnings of Eq. C7 (docs/calibration.md; the window's in
-// docs/sliding_window.md, "Fixed blocks") back in tests: "<direction> is fixed, but the data
-// would move it by <step> <unit> (sigma <sigma> <unit>, ...".
+// Reading warnings back in tests: a result's warnings.txt, and the fixed-block warnings of
+// Eq. C7 (docs/calibration.md; the window's in docs/sliding_window.md, "Fixed blocks"):
+// "<direction> is fixed, but the data would move it by <step> <unit> (sigma <sigma> <unit>, ...".
 
+#include <fstream>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -41,6 +42,14 @@ inline std::optional<FixedDirectionStep> StepOfFixedDirection(
                               std::stod(w.substr(sigma + std::string("(sigma ").size()))};
   }
   return std::nullopt;
+}
+
+// The lines of a result's warnings.txt (io::WriteWarningsFile).
+inline std::vector<std::string> WarningsFileLines(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
 }
 
 }  // namespace test

@@ -19,6 +19,7 @@
 // output location is reported in seconds, not after the solve.
 
 #include <string>
+#include <vector>
 
 namespace autocal {
 namespace io {
@@ -44,6 +45,10 @@ void CheckOutputFile(const std::string& path);
 // Replaces the file at `path` by `text` atomically (temporary file in the same directory,
 // write, fsync, rename). Throws autocal::Error naming the path and the system's reason.
 void WriteFileAtomically(const std::string& path, const std::string& text);
+
+// A result's warnings.txt: one warning a line (a line break inside one becomes a space), an
+// empty file when there are none; written as WriteFileAtomically writes.
+void WriteWarningsFile(const std::string& path, const std::vector<std::string>& warnings);
 
 // A result directory under construction (see the top of this file).
 class StagedDirectory {
