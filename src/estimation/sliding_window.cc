@@ -428,7 +428,7 @@ void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSwe
     std::unique_ptr<MarginalizationPrior> prior = MarginalizeOldest(build.get());
     std::unique_ptr<MarginalizationPrior> tested = CarryTestedBlocks(build.get(), prior != nullptr);
     build.reset();  // the problem refers to the factors about to be dropped
-    if (untested_reason_.empty()) tested_prior_ = std::move(tested);
+    tested_prior_ = std::move(tested);
     DropOldest(std::move(prior));
     timing_.marginalization_s = SecondsSince(marginalization_start);
   }

@@ -210,7 +210,7 @@ class SlidingWindowEstimator::Impl {
   // Prior of the marginalized keyframes; replaced by every marginalization.
   std::unique_ptr<MarginalizationPrior> prior_;
   // prior_ with the tested fixed blocks' information (options_.tested_fixed_blocks), for
-  // FixedDirectionsTheStreamMoves; null without them.
+  // FixedDirectionsTheStreamMoves; null without them or once their chain ended.
   std::unique_ptr<MarginalizationPrior> tested_prior_;
   std::string untested_reason_;  // why the tested blocks' chain ended; empty while it holds
   std::vector<internal::AttachedFactor> calibration_priors_;

@@ -343,8 +343,8 @@ std::vector<FixedDirectionMove> SlidingWindowEstimator::Impl::FixedDirectionsThe
   }
   const std::unique_ptr<ProblemBuild> build = BuildProblem();
   SwapInTestedPrior(build->problem.get());
-  std::vector<FixedDirectionMove> moves = FixedDirectionsTheDataMove(
-      tested, build->problem.get(), options_.num_threads, max_sigmas, {}, {});
+  std::vector<FixedDirectionMove> moves =
+      FixedDirectionsTheDataMove(tested, build->problem.get(), options_.num_threads, max_sigmas);
   for (FixedDirectionMove& move : moves) move.block = index[move.block];
   return moves;
 }
