@@ -9,10 +9,12 @@
 #include <cmath>
 #include <iomanip>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <unordered_set>
 #include <utility>
 
+#include "autocal/common/error.h"
 #include "autocal/common/parallel_for.h"
 #include "autocal/factors/prior_factors.h"
 #include "autocal/geometry/quaternion_plus.h"
@@ -446,8 +448,41 @@ const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& OrderingFor
   return ordering->P;
 }
 
+// The sparse LDL^T of H under the fill-reducing permutation P: H^-1 B = P^T L^-T D^-1 L^-1 P B.
+struct HessianFactor {
+  bool ok = false;  // false when H is singular or not finite
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> P;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::NaturalOrdering<int>>
+      ldlt;
+
+  HessianFactor(const GaussNewtonHessian& hessian, CovarianceOrdering* ordering)
+      : P(OrderingFor(hessian.H, ordering)) {
+    Eigen::SparseMatrix<double> permuted(hessian.H.rows(), hessian.H.cols());
+    permuted.selfadjointView<Eigen::Upper>() =
+        hessian.H.selfadjointView<Eigen::Lower>().twistedBy(P);
+    ldlt.compute(permuted);
+    ok = ldlt.info() == Eigen::Success && FullRank(ldlt.vectorD());
+  }
+
+  // B^T H^-1 B (ok only), through the forward half of the solve.
+  Eigen::MatrixXd QuadraticForm(const Eigen::MatrixXd& B) const {
+    const Eigen::MatrixXd permuted = P * B;
+    const internal::RowMajorMatrix W =
+        internal::ForwardColumns(ldlt.matrixL().nestedExpression(), permuted);
+    return W.transpose() * ldlt.vectorD().asDiagonal().inverse() * W;
+  }
+
+  // H^-1 B (ok only).
+  internal::RowMajorMatrix Solve(const Eigen::MatrixXd& B) const {
+    const Eigen::MatrixXd permuted = P * B;
+    return P.inverse() *
+           internal::SolveColumns(ldlt.matrixL().nestedExpression(), ldlt.vectorD(), permuted);
+  }
+};
+
 InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
-                                const GaussNewtonHessian& hessian, CovarianceOrdering* ordering) {
+                                const GaussNewtonHessian& hessian, CovarianceOrdering* ordering,
+                                const HessianFactor* given = nullptr) {
   InverseColumns out;
   for (const EstimatedBlock& block : blocks) {
     out.offsets.push_back(out.size);
@@ -462,17 +497,10 @@ InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
       out.rows.emplace_back(it->second + i, out.offsets[a] + i);
     }
   }
-  const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& P =
-      OrderingFor(hessian.H, ordering);
-  Eigen::SparseMatrix<double> permuted(hessian.H.rows(), hessian.H.cols());
-  permuted.selfadjointView<Eigen::Upper>() = hessian.H.selfadjointView<Eigen::Lower>().twistedBy(P);
-  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper,
-                              Eigen::NaturalOrdering<int>>
-      ldlt(permuted);
-  if (ldlt.info() != Eigen::Success || !FullRank(ldlt.vectorD())) return out;
-  const Eigen::MatrixXd permuted_unit = P * unit;
-  out.columns = P.inverse() * internal::SolveColumns(ldlt.matrixL().nestedExpression(),
-                                                     ldlt.vectorD(), permuted_unit);
+  std::optional<HessianFactor> own;
+  if (given == nullptr) given = &own.emplace(hessian, ordering);
+  if (!given->ok) return out;
+  out.columns = given->Solve(unit);
   out.ok = out.columns.allFinite();
   return out;
 }
@@ -569,6 +597,125 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
   }
   out.spread = out.spread.cwiseSqrt();
   out.ok = out.covariance.ok && out.share.allFinite() && out.spread.allFinite();
+  return out;
+}
+
+namespace {
+
+// One stretch's part of Eq. C8: its share U = S^T r of the blocks' error, S = J X the rows'
+// sensitivities (X: H^-1's columns at the blocks), V = S^T S its covariance under the noise
+// model, Y = J^T S, and (once Complete has run) E[U U^T] at the fitted residuals,
+// V - Y^T H^-1 Y.
+struct StretchShare {
+  Eigen::VectorXd share;
+  Eigen::MatrixXd model;
+  Eigen::MatrixXd Y;
+  Eigen::MatrixXd expected;
+
+  void Complete(const HessianFactor& factor) {
+    expected = model - factor.QuadraticForm(Y);
+    Y.resize(0, 0);
+  }
+};
+
+std::optional<StretchShare> ShareOfStretch(ceres::Problem* problem,
+                                           const internal::VariableColumns& variables,
+                                           const InverseColumns& inverse) {
+  std::vector<double> r;
+  ceres::CRSMatrix J;
+  if (!problem->Evaluate(variables.evaluate, nullptr, &r, nullptr, &J)) return std::nullopt;
+  const Eigen::Index m = inverse.size;
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(J.num_rows, m);
+  StretchShare out;
+  out.Y = Eigen::MatrixXd::Zero(inverse.columns.rows(), m);
+  for (int k = 0; k < J.num_rows; ++k) {
+    for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
+      S.row(k) += J.values[e] * inverse.columns.row(J.cols[e]);
+    }
+    for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) out.Y.row(J.cols[e]) += J.values[e] * S.row(k);
+  }
+  out.share = S.transpose() * Eigen::Map<const Eigen::VectorXd>(r.data(), J.num_rows);
+  out.model = S.transpose() * S;
+  return out;
+}
+
+// Source's Eq. C8 sums over `stretches` runs of its residual blocks; the runs are evaluated in
+// turn (Ceres evaluates one problem at a time) and their solves run num_threads at once.
+std::optional<StretchScatter::Source> ScatterOfSource(
+    ceres::Problem* problem, internal::VariableColumns* variables, const ResidualSource& source,
+    int stretches, const InverseColumns& inverse, const HessianFactor& factor, int num_threads) {
+  const Eigen::Index m = inverse.size;
+  StretchScatter::Source out{source.name, Eigen::MatrixXd::Zero(m, m), Eigen::MatrixXd::Zero(m, m),
+                             Eigen::MatrixXd::Zero(m, m), Eigen::VectorXd::Zero(m)};
+  const size_t n = source.residual_blocks.size();
+  const size_t runs = static_cast<size_t>(stretches);
+  const size_t group = static_cast<size_t>(std::max(1, num_threads));
+  Eigen::VectorXd total = Eigen::VectorXd::Zero(m);                      // sum_b U_b
+  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(inverse.columns.rows(), m);  // sum_b Y_b
+  for (size_t first_run = 0; first_run < runs; first_run += group) {
+    std::vector<StretchShare> parts;
+    for (size_t b = first_run; b < std::min(runs, first_run + group); ++b) {
+      const auto first = static_cast<std::ptrdiff_t>(n * b / runs);
+      const auto end = static_cast<std::ptrdiff_t>(n * (b + 1) / runs);
+      variables->evaluate.residual_blocks.assign(source.residual_blocks.begin() + first,
+                                                 source.residual_blocks.begin() + end);
+      std::optional<StretchShare> part = ShareOfStretch(problem, *variables, inverse);
+      if (!part) return std::nullopt;
+      Y += part->Y;
+      parts.push_back(std::move(*part));
+    }
+    ParallelFor(0, static_cast<int64_t>(parts.size()), num_threads,
+                [&](int64_t begin, int64_t end, int) {
+                  for (int64_t b = begin; b < end; ++b) {
+                    parts[static_cast<size_t>(b)].Complete(factor);
+                  }
+                });
+    for (const StretchShare& part : parts) {
+      out.observed += part.share * part.share.transpose();
+      total += part.share;
+      out.model += part.model;
+      out.expected += part.expected;
+      out.expected_squares += part.expected.diagonal().cwiseAbs2();
+    }
+  }
+  // About the stretches' mean: E[T T^T] = sum_b V_b - Y^T H^-1 Y for T = sum_b U_b, since
+  // E[U_b U_c^T] = -Y_b^T H^-1 Y_c for b != c.
+  const double weight = 1.0 / static_cast<double>(runs);
+  out.observed -= weight * total * total.transpose();
+  out.expected -= weight * (out.model - factor.QuadraticForm(Y));
+  return out;
+}
+
+}  // namespace
+
+StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
+                                     ceres::Problem* problem,
+                                     const std::vector<ResidualSource>& sources, int stretches,
+                                     int num_threads, CovarianceOrdering* ordering) {
+  if (stretches < 2) throw Error("ComputeStretchScatter: stretches must be >= 2");
+  StretchScatter out;
+  out.stretches = stretches;
+  if (blocks.empty()) return out;
+  const GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads, {});
+  CovarianceOrdering own;
+  if (ordering == nullptr) ordering = &own;
+  const HessianFactor factor(hessian, ordering);
+  const InverseColumns inverse = InverseColumnsAt(blocks, hessian, ordering, &factor);
+  if (!inverse.ok) return out;
+  out.offsets = inverse.offsets;
+  internal::VariableColumns variables = internal::VariableColumnsOf(problem);
+  variables.evaluate.num_threads = num_threads;
+  for (const ResidualSource& source : sources) {
+    if (source.residual_blocks.size() < static_cast<size_t>(stretches)) continue;
+    std::optional<StretchScatter::Source> scatter =
+        ScatterOfSource(problem, &variables, source, stretches, inverse, factor, num_threads);
+    if (!scatter) return out;
+    out.sources.push_back(std::move(*scatter));
+  }
+  out.ok = true;
+  for (const StretchScatter::Source& source : out.sources) {
+    out.ok = out.ok && source.observed.allFinite() && source.expected.allFinite();
+  }
   return out;
 }
 

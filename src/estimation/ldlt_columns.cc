@@ -29,6 +29,22 @@ RowMajorMatrix SolveColumns(const Eigen::SparseMatrix<double>& L, const Eigen::V
   return X;
 }
 
+RowMajorMatrix ForwardColumns(const Eigen::SparseMatrix<double>& L, const Eigen::MatrixXd& B) {
+  if (L.rows() != L.cols() || B.rows() != L.rows()) {
+    throw Error("ForwardColumns: a factor of size " + std::to_string(L.rows()) + " x " +
+                std::to_string(L.cols()) + " and " + std::to_string(B.rows()) +
+                " rows of right-hand sides");
+  }
+  RowMajorMatrix X = B;
+  for (Eigen::Index j = 0; j < L.cols(); ++j) {
+    if (X.row(j).isZero(0.0)) continue;
+    for (Eigen::SparseMatrix<double>::InnerIterator it(L, j); it; ++it) {
+      if (it.index() > j) X.row(it.index()) -= it.value() * X.row(j);
+    }
+  }
+  return X;
+}
+
 }  // namespace internal
 }  // namespace estimation
 }  // namespace autocal

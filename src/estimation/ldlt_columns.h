@@ -23,6 +23,11 @@ using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eig
 RowMajorMatrix SolveColumns(const Eigen::SparseMatrix<double>& L, const Eigen::VectorXd& D,
                             const Eigen::MatrixXd& B);
 
+// W with L W = B, for B^T H^-1 B = W^T D^-1 W (P B for a permuted factorization). A row of B
+// that no earlier row reaches stays zero and costs nothing: for a B nonzero on the rows of one
+// stretch of a log, the walk touches only the factor's columns those rows reach.
+RowMajorMatrix ForwardColumns(const Eigen::SparseMatrix<double>& L, const Eigen::MatrixXd& B);
+
 }  // namespace internal
 }  // namespace estimation
 }  // namespace autocal

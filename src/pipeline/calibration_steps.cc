@@ -550,6 +550,90 @@ estimation::BlockCovariance PosteriorCovariance(
                                             ordering);
 }
 
+namespace {
+
+// The block direction of a stacked coordinate, in words.
+std::string DirectionName(const std::vector<estimation::EstimatedBlock>& blocks,
+                          const std::vector<int>& offsets, int coordinate) {
+  for (size_t b = blocks.size(); b-- > 0;) {
+    if (coordinate >= offsets[b]) {
+      return blocks[b].direction_names[static_cast<size_t>(coordinate - offsets[b])];
+    }
+  }
+  return "?";
+}
+
+// A source's largest sqrt(observed / expected) over the directions where its share is at
+// least a tenth of the variance (Eq. C8).
+double LargestScatterRatio(const estimation::StretchScatter::Source& source,
+                           const estimation::BlockCovariance& covariance) {
+  double largest = 0.0;
+  for (Eigen::Index c = 0; c < source.observed.rows(); ++c) {
+    if (source.expected(c, c) > 0.0 && source.model(c, c) >= 0.1 * covariance.matrix(c, c)) {
+      largest = std::max(largest, std::sqrt(source.observed(c, c) / source.expected(c, c)));
+    }
+  }
+  return largest;
+}
+
+}  // namespace
+
+void CheckScatterOptions(const OfflineCalibrationOptions& options) {
+  const double significance = options.scatter_significance;
+  if (options.scatter_stretches < 0 || options.scatter_stretches == 1 || !(significance > 0.0) ||
+      !(significance < 1.0)) {
+    throw Error(
+        "OfflineCalibrationOptions: scatter_stretches must be 0 (no test) or at least 2, "
+        "and scatter_significance in (0, 1); got " +
+        std::to_string(options.scatter_stretches) + " and " + std::to_string(significance));
+  }
+}
+
+estimation::BlockCovariance WidenedForScatter(
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
+    const estimation::BlockCovariance& covariance, const OfflineCalibrationOptions& options,
+    int num_threads, estimation::CovarianceOrdering* ordering, OfflineCalibrationResult* result) {
+  if (options.scatter_stretches == 0 || !covariance.ok || blocks_estimated.empty()) {
+    return covariance;
+  }
+  std::vector<estimation::ResidualSource> sources = ResidualSources(problem);
+  sources.erase(std::remove_if(sources.begin(), sources.end(),
+                               [](const auto& source) { return source.name == "priors"; }),
+                sources.end());
+  const estimation::StretchScatter scatter = estimation::ComputeStretchScatter(
+      blocks_estimated, problem, sources, options.scatter_stretches, num_threads, ordering);
+  if (!scatter.ok) return covariance;
+  for (const estimation::StretchScatter::Source& source : scatter.sources) {
+    result->calibration.residuals[source.name]["stretch_scatter_ratio"] =
+        LargestScatterRatio(source, covariance);
+  }
+  Eigen::VectorXd prior_variance(covariance.matrix.rows());
+  for (size_t b = 0; b < blocks_estimated.size(); ++b) {
+    prior_variance.segment(scatter.offsets[b], blocks_estimated[b].size) =
+        blocks_estimated[b].prior_sigma.cwiseAbs2();
+  }
+  std::vector<estimation::ScatterExcess> excess;
+  const estimation::BlockCovariance widened = estimation::WidenedForScatter(
+      covariance, scatter, options.scatter_significance, prior_variance, &excess);
+  std::vector<std::string> named;
+  for (const estimation::ScatterExcess& e : excess) {  // largest sigma factor first
+    if (std::find(named.begin(), named.end(), e.source) != named.end()) continue;
+    named.push_back(e.source);
+    const auto directions = std::count_if(
+        excess.begin(), excess.end(), [&](const auto& other) { return other.source == e.source; });
+    result->warnings.push_back(
+        e.source + " rows: over " + std::to_string(scatter.stretches) +
+        " stretches of the log their share of the " +
+        DirectionName(blocks_estimated, scatter.offsets, e.coordinate) + " scatters " +
+        FormatFixed(e.ratio, 1) +
+        " times as widely as their noise model says (errors that last for stretches of the "
+        "drive, or noise larger than stated); its sigma is widened " +
+        FormatFixed(e.sigma_factor, 2) + " times (" + std::to_string(directions) +
+        " direction(s) widened, Eq. C8)");
+  }
+  return widened;
+}
+
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                      const estimation::BlockCovariance& covariance,
                      const sensors::Calibration& solved, OfflineCalibrationResult* result) {
@@ -650,7 +734,9 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
   for (const auto& [sensor, residuals] : result->whitened_residuals) {
     if (residuals.after.empty()) continue;
     std::map<std::string, double>& statistics = file.residuals[sensor];
-    statistics = WhitenedStatistics(residuals.after, sensor == "gnss");
+    for (const auto& [name, value] : WhitenedStatistics(residuals.after, sensor == "gnss")) {
+      statistics[name] = value;
+    }
     if (residuals.factors > 0) {
       statistics["factors"] = static_cast<double>(residuals.factors);
       statistics["factors_downweighted_by_loss"] =

@@ -200,6 +200,20 @@ estimation::BlockCovariance PosteriorCovariance(
     const estimation::ScaledInformation& lidar = {},
     estimation::CovarianceOrdering* ordering = nullptr);
 
+// Throws autocal::Error unless options.scatter_stretches is 0 or at least 2 and
+// options.scatter_significance lies in (0, 1).
+void CheckScatterOptions(const OfflineCalibrationOptions& options);
+
+// Eq. C8: `covariance` (PosteriorCovariance's at the solution of `problem`) widened where a
+// sensor's rows scatter over options.scatter_stretches stretches of the log beyond their noise
+// model (estimation::WidenedForScatter). Each sensor judged gets its largest ratio in the
+// result's residuals (`stretch_scatter_ratio`, over the directions it informs), and each that
+// widens a sigma a warning naming the direction it widens most.
+estimation::BlockCovariance WidenedForScatter(
+    const std::vector<estimation::EstimatedBlock>& blocks_estimated, ceres::Problem* problem,
+    const estimation::BlockCovariance& covariance, const OfflineCalibrationOptions& options,
+    int num_threads, estimation::CovarianceOrdering* ordering, OfflineCalibrationResult* result);
+
 // The LiDAR point groups of `problem` with their information scale 1 / kappa, kappa the robust
 // loss's sandwich ratio over their whitened distances at the problem's values (Eq. C6): the
 // points' loss makes J^T J with the rows' Gauss-Newton weights misstate the M-estimator's

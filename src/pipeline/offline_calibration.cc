@@ -230,8 +230,11 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     const estimation::ScaledInformation lidar = LidarSandwich(p);
     result->calibration.residuals["lidar"]["sandwich_kappa"] = 1.0 / lidar.scale;
     estimation::CovarianceOrdering ordering;  // one pattern for the posterior and the bound
-    const estimation::BlockCovariance covariance = PosteriorCovariance(
-        blocks, p, problem.solver.num_threads, &result->warnings, lidar, &ordering);
+    const estimation::BlockCovariance covariance =
+        WidenedForScatter(blocks, p,
+                          PosteriorCovariance(blocks, p, problem.solver.num_threads,
+                                              &result->warnings, lidar, &ordering),
+                          options, problem.solver.num_threads, &ordering, result);
     const sensors::Calibration solved = *calibration;
     RecordPosterior(blocks, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
@@ -372,6 +375,7 @@ OfflineCalibrationResult CalibrateDataset(const io::Dataset& input, const io::Pr
                                           const OfflineCalibrationOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   io::ValidateProblemForDataset(problem, input);
+  CheckScatterOptions(options);
   std::vector<std::string> noise_warnings;
   std::optional<io::Dataset> storage;
   const io::Dataset& dataset = WithImuNoiseFromData(input, &storage, &noise_warnings);

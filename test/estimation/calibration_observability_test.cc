@@ -7,6 +7,7 @@
 #include <memory>
 #include <random>
 
+#include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
@@ -651,6 +652,136 @@ TEST(CalibrationObservability, CovarianceOfASingularProblemIsRefusedAndConstantB
                            nullptr, p.data(), &lone);
   covariance = ComputeBlockCovariance(blocks, &problem);
   EXPECT_FALSE(covariance.ok);
+}
+
+// A drive in miniature for Eq. C8: a calibration p and one state x_k per keyframe, each
+// keyframe with a row that sees both, w (x_k + a_k . p - m), and one that sees its state
+// alone, w (x_k - m). The regressor a_k has a constant part, so an error that stays on for many
+// keyframes moves p as a whole. The rows' noise is N(0, 1/w^2), white or, with `correlation`,
+// the first rows' an AR(1) sequence of that variance; the problem is solved to its minimum.
+struct KeyframeRowsProblem {
+  static constexpr int kKeyframes = 240;
+  Eigen::Vector3d p{0.30, -0.05, 0.55};
+  std::vector<double> x = std::vector<double>(kKeyframes, 0.0);
+  std::vector<EstimatedBlock> blocks;
+  ceres::Problem problem;
+  ResidualSource rows{"rows", {}};
+
+  KeyframeRowsProblem(uint32_t seed, double correlation,
+                      const Eigen::Vector3d& prior_offset = Eigen::Vector3d::Zero(),
+                      double prior_sigma = 1.0)
+      : blocks({VectorBlock(p.data(), p + prior_offset, prior_sigma, 0.05)}) {
+    const double weight = 20.0;
+    const Eigen::Vector3d truth = p;
+    std::mt19937 random(seed);
+    std::normal_distribution<double> normal;
+    double drift = normal(random);
+    for (int k = 0; k < kKeyframes; ++k) {
+      const double phase = 6.0 * M_PI * k / kKeyframes;
+      const Eigen::Vector3d a(1.0, std::sin(phase), std::cos(phase) + 0.3 * normal(random));
+      const double state = 0.1 * k;
+      drift = correlation * drift + std::sqrt(1.0 - correlation * correlation) * normal(random);
+      rows.residual_blocks.push_back(problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(new LinearRow{
+              weight, a.x(), a.y(), a.z(), 1.0, state + a.dot(truth) + drift / weight}),
+          nullptr, p.data(), &x[static_cast<size_t>(k)]));
+      rows.residual_blocks.push_back(problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(
+              new LinearRow{weight, 0.0, 0.0, 0.0, 1.0, state + normal(random) / weight}),
+          nullptr, p.data(), &x[static_cast<size_t>(k)]));
+    }
+    AddBlockPriors(blocks, factors::LossOptions(), &problem);
+    ceres::Solver::Options options;
+    options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+    options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-15;
+    ceres::Solver::Summary summary;
+    ceres::Solve(options, &problem, &summary);
+  }
+};
+
+// Eq. C8's expectation is exact for a linear problem with white noise at its stated sigma: over
+// many drives the stretches' scatter averages to it, about half the share the noise model gives,
+// because each keyframe's state takes up part of its rows' noise. The model part is the error
+// budget's spread.
+TEST(CalibrationObservability, StretchScatterOfWhiteNoiseAveragesToItsExpectation) {
+  constexpr int kDrives = 200;
+  Eigen::Vector3d observed_to_expected = Eigen::Vector3d::Zero();
+  Eigen::Vector3d observed_to_model = Eigen::Vector3d::Zero();
+  Eigen::Vector3d expected_to_model = Eigen::Vector3d::Zero();
+  for (uint32_t seed = 1; seed <= kDrives; ++seed) {
+    KeyframeRowsProblem drive(seed, 0.0);
+    const StretchScatter scatter =
+        ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8);
+    ASSERT_TRUE(scatter.ok);
+    ASSERT_EQ(scatter.sources.size(), 1u);
+    const StretchScatter::Source& rows = scatter.sources[0];
+    observed_to_expected += rows.observed.diagonal().cwiseQuotient(rows.expected.diagonal());
+    observed_to_model += rows.observed.diagonal().cwiseQuotient(rows.model.diagonal());
+    expected_to_model += rows.expected.diagonal().cwiseQuotient(rows.model.diagonal());
+    if (seed == 1) {
+      const ErrorBudget budget = ComputeErrorBudget(drive.blocks, &drive.problem, {drive.rows});
+      EXPECT_TRUE(rows.model.diagonal().isApprox(budget.spread.col(0).cwiseAbs2(), 1e-9));
+      EXPECT_EQ(scatter.stretches, 8);
+      EXPECT_THAT(scatter.offsets, ::testing::ElementsAre(0));
+    }
+  }
+  observed_to_expected /= kDrives;
+  observed_to_model /= kDrives;
+  expected_to_model /= kDrives;
+  // Each drive's ratio scatters as chi-square(8) / 8: the mean of 200 within 0.1 (4 sigma).
+  // Against the model's share the scatter falls short by the part the states take up.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(observed_to_expected(i), 1.0, 0.1) << i;
+    EXPECT_NEAR(observed_to_model(i), expected_to_model(i), 0.1) << i;
+    EXPECT_LT(expected_to_model(i), 0.85) << i;
+  }
+}
+
+// Noise correlated over about 20 keyframes moves p far more than white noise would; the
+// stretches see it along the regressor's constant part (x), not along its fast parts.
+TEST(CalibrationObservability, StretchScatterFindsErrorsCorrelatedOverTheLog) {
+  double correlated = 0.0;
+  double white = 0.0;
+  for (uint32_t seed = 1; seed <= 10; ++seed) {
+    for (const double correlation : {0.95, 0.0}) {
+      KeyframeRowsProblem drive(seed, correlation);
+      const StretchScatter scatter =
+          ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8);
+      ASSERT_TRUE(scatter.ok);
+      const StretchScatter::Source& rows = scatter.sources[0];
+      (correlation > 0.0 ? correlated : white) += rows.observed(0, 0) / rows.expected(0, 0) / 10;
+    }
+  }
+  EXPECT_GT(correlated, 4.0);  // 8.8 measured
+  EXPECT_NEAR(white, 1.0, 0.5);
+}
+
+// A prior that pulls p off the rows' optimum moves every stretch's share alike: the scatter
+// about their mean does not see it (without the centring the first coordinate's ratio is
+// 11.7 here).
+TEST(CalibrationObservability, StretchScatterIgnoresAPullCommonToEveryStretch) {
+  double ratio = 0.0;
+  for (uint32_t seed = 1; seed <= 10; ++seed) {
+    KeyframeRowsProblem drive(seed, 0.0, Eigen::Vector3d(0.05, 0.0, 0.0), 0.002);
+    ASSERT_GT(std::abs(drive.p.x() - 0.30), 0.02);  // pulled towards the prior
+    const StretchScatter scatter =
+        ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8);
+    ASSERT_TRUE(scatter.ok);
+    ratio += scatter.sources[0].observed(0, 0) / scatter.sources[0].expected(0, 0) / 10;
+  }
+  EXPECT_NEAR(ratio, 1.0, 0.5);
+}
+
+TEST(CalibrationObservability, StretchScatterLeavesOutShortSourcesAndRefusesOneStretch) {
+  KeyframeRowsProblem drive(1, 0.0);
+  ResidualSource few{"few",
+                     {drive.rows.residual_blocks.begin(), drive.rows.residual_blocks.begin() + 5}};
+  const StretchScatter scatter =
+      ComputeStretchScatter(drive.blocks, &drive.problem, {few, drive.rows}, 8);
+  ASSERT_TRUE(scatter.ok);
+  ASSERT_EQ(scatter.sources.size(), 1u);
+  EXPECT_EQ(scatter.sources[0].name, "rows");
+  EXPECT_THROW(ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 1), Error);
 }
 
 }  // namespace

@@ -75,6 +75,25 @@ TEST(SolveColumns, RefusesMismatchedSizes) {
                Error);
 }
 
+// B^T H^-1 B = W^T D^-1 W for W = ForwardColumns(L, P B), with B nonzero on a band of rows in
+// the middle (one stretch of a log) and on the dense corner.
+TEST(ForwardColumns, GivesTheQuadraticFormOfTheInverse) {
+  std::mt19937 rng(11);
+  const Eigen::SparseMatrix<double> H = BandedWithDenseCorner(400, 12, 9, &rng);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(H);
+  ASSERT_EQ(ldlt.info(), Eigen::Success);
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(H.rows(), 5);
+  B.middleRows(150, 40).setRandom();
+  B.bottomRows(9).setRandom();
+  const Eigen::MatrixXd permuted = ldlt.permutationP() * B;
+  const RowMajorMatrix W = ForwardColumns(ldlt.matrixL().nestedExpression(), permuted);
+  const Eigen::MatrixXd form = W.transpose() * ldlt.vectorD().asDiagonal().inverse() * W;
+  const Eigen::MatrixXd expected = B.transpose() * ldlt.solve(B);
+  EXPECT_LT((form - expected).cwiseAbs().maxCoeff(), 1e-12 * expected.cwiseAbs().maxCoeff());
+  EXPECT_THROW(ForwardColumns(ldlt.matrixL().nestedExpression(), Eigen::MatrixXd::Zero(3, 1)),
+               Error);
+}
+
 }  // namespace
 }  // namespace internal
 }  // namespace estimation

@@ -501,6 +501,16 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
   } catch (const Error& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("wheel"));
   }
+  // The rows' scatter over the log (Eq. C8) needs two stretches and a significance.
+  for (const auto& [stretches, significance] :
+       {std::pair{1, 0.001}, std::pair{-2, 0.001}, std::pair{16, 0.0}, std::pair{16, 1.0}}) {
+    OfflineCalibrationOptions options;
+    options.scatter_stretches = stretches;
+    options.scatter_significance = significance;
+    EXPECT_THROW(CalibrateDataset(io::ReadDataset(data_->directory), LidarImuProblem(), options),
+                 Error)
+        << stretches << ", " << significance;
+  }
   // Without the LiDAR the keyframes come from the GNSS track or the wheels: one is required.
   io::Problem imu_alone = LidarImuProblem();
   imu_alone.sensors.lidar = false;

@@ -4,13 +4,15 @@
 // starting from a mount 10 deg off the launch file's R_V_I = Rz(-90 deg) Rx(+90 deg).
 // Checked: the odometry's clock -0.39 +- 0.05 s (t_imu = t_odometry + offset), the odometry
 // speed scale in [0.93, 1.00], a run under 30 s, the mount's roll and pitch (from the turns,
-// Eq. F27) within 2 deg and reported observable, the antenna within 1.5 m RMS of the fixes
-// (the IMU's noise measured from its samples: 37 times the accelerometer's default density on
-// this robot). Not met: the whole mount within 2 deg of the launch file's. Its yaw is not
-// determined by this drive (checked: reported so, held at the nominal value, within three of
-// the prior's sigmas). The robot without GPS (test2.bag) is dead reckoned and reports what it
-// cannot observe. With the mount or the odometry's clock fixed in the problem, the run names
-// what the log contradicts (Eq. C7; the clock's cross-correlation).
+// Eq. F27) within 2 deg, the roll reported observable, the antenna within 1.5 m RMS of the
+// fixes (the IMU's noise measured from its samples: 37 times the accelerometer's default
+// density on this robot). The pitch's rows scatter over the log far beyond their noise model
+// (Eq. C8): its sigma, widened to about 1 deg, leaves it held at its prior, and the sigmas
+// cover what the log's two halves say apart. Not met: the whole mount within 2 deg of the
+// launch file's. Its yaw is not determined by this drive (checked: reported so, held at the
+// nominal value, within three of the prior's sigmas). The robot without GPS (test2.bag) is dead
+// reckoned and reports what it cannot observe. With the mount or the odometry's clock fixed in
+// the problem, the run names what the log contradicts (Eq. C7; the clock's cross-correlation).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -132,22 +134,31 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
   EXPECT_LT(rms_m, 1.5);
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr("IMU accelerometer: its samples scatter")));
-  // The mount's roll and pitch within 2 deg of the launch file's, from the turns. Its yaw is
-  // not determined by this slow drive: the cost's curvature along it gives a sigma of 8 deg
+  // The mount's roll and pitch within 2 deg of the launch file's, from the turns; the pitch's
+  // wheel rows scatter 13 times their noise model over the log's stretches (Eq. C8), and its
+  // sigma, 0.16 deg before, is widened to about 1 deg and held at its prior (the log's
+  // quarters put it at -1.5, +1.1 and -2.8 deg, sigma 0.3-0.4 deg before). Its yaw is not
+  // determined by this slow drive: the cost's curvature along it gives a sigma of 8 deg
   // (docs/keyframe_factors.md, "What the planar-rotation rows say about the yaw"), so it is held
   // at the nominal value with the prior's sigma, which covers the 10 deg start. Before that,
   // the solve's own sigma is the cost's curvature with the prior (4.2 deg, the odometry clock
   // held): 3.99 deg from the completed Hessian (docs/calibration.md, Eq. C5), where
-  // Gauss-Newton's 2.21 deg counted the velocities' noise.
+  // Gauss-Newton's 2.21 deg counted the velocities' noise; the rows' scatter widens it to the
+  // prior's 5 deg.
   const io::PoseBlockInfo& mount = result.calibration.uncertainty.T_I_V;
   ASSERT_TRUE(mount.sigma_rot_deg.has_value());
   ASSERT_EQ(mount.observable.size(), 6u);
   std::cout << "mount sigma (roll, pitch, yaw) " << mount.sigma_rot_deg->transpose() << " deg\n";
-  for (int i = 0; i < 2; ++i) {
-    EXPECT_LT(std::abs(mount_error_rad[i]) * kRadToDeg, 2.0) << i;
-    EXPECT_TRUE(mount.observable[i]) << i;
-  }
+  for (int i = 0; i < 2; ++i) EXPECT_LT(std::abs(mount_error_rad[i]) * kRadToDeg, 2.0) << i;
+  EXPECT_TRUE(mount.observable[0]);
+  EXPECT_FALSE(mount.observable[1]);
   EXPECT_FALSE(mount.observable[2]);
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::StartsWith(
+                  "wheel rows: over 16 stretches of the log their share of the mount pitch")));
+  const double pitch_sigma_after_solve_deg =
+      SigmaAfterTheSolveDeg(result, sensors::CalibrationBlockId::kVehicleRotation, 1);
+  EXPECT_GT(pitch_sigma_after_solve_deg, 0.8);
   EXPECT_THAT(result.warnings, ::testing::Contains(::testing::HasSubstr(
                                    "mount yaw (about the vehicle's up axis): not excited")));
   EXPECT_LT(std::abs(mount_error_rad.z()) * kRadToDeg, 3.0 * mount.sigma_rot_deg->z());
@@ -155,24 +166,101 @@ TEST(RealDataAcceptance, SkidSteerRobotWithGps) {
       result, sensors::CalibrationBlockId::kVehicleRotation, 2);  // about the vehicle's z
   std::cout << "mount yaw sigma after the solve " << yaw_sigma_after_solve_deg << " deg\n";
   EXPECT_GT(yaw_sigma_after_solve_deg, 3.4);
-  EXPECT_LT(yaw_sigma_after_solve_deg, 5.0);
+  EXPECT_LE(yaw_sigma_after_solve_deg, 5.0);  // the prior's
   EXPECT_LT(mount_error_deg, 3.0 * mount.sigma_rot_deg->z());
+}
+
+// `dataset`'s samples within the `part`-th of `parts` equal spans of its IMU's time.
+io::Dataset PartOf(const io::Dataset& dataset, int part, int parts) {
+  const int64_t first = dataset.imu.front().t_ns;
+  const int64_t span = dataset.imu.back().t_ns - first;
+  const int64_t begin = first + span * part / parts;
+  const int64_t end = first + span * (part + 1) / parts;
+  io::Dataset out = dataset;
+  const auto keep = [&](auto* samples) {
+    samples->erase(std::remove_if(samples->begin(), samples->end(),
+                                  [&](const auto& s) { return s.t_ns < begin || s.t_ns > end; }),
+                   samples->end());
+  };
+  keep(&out.imu);
+  keep(&out.odometry);
+  keep(&out.gnss);
+  return out;
+}
+
+// The largest difference between the two halves' estimates of a direction, in sigmas of the
+// difference (each half's sigma after its solve, before any direction is held), and where.
+std::pair<double, std::string> LargestDisagreement(const OfflineCalibrationResult& a,
+                                                   const OfflineCalibrationResult& b) {
+  std::pair<double, std::string> largest{0.0, ""};
+  for (size_t i = 0; i < a.posterior.blocks.size(); ++i) {
+    const estimation::EstimatedBlock& block = a.posterior.blocks[i];
+    for (size_t j = 0; j < b.posterior.blocks.size(); ++j) {
+      if (b.posterior.blocks[j].id != block.id) continue;
+      const sensors::CalibrationBlockInfo& info = sensors::CalibrationBlock(block.id);
+      const Eigen::VectorXd difference = estimation::BlockMinus(
+          block, info.const_values(a.posterior.solved), info.const_values(b.posterior.solved));
+      for (int d = 0; d < block.size; ++d) {
+        const int row_a = a.posterior.covariance.offsets[i] + d;
+        const int row_b = b.posterior.covariance.offsets[j] + d;
+        const double z =
+            std::abs(difference(d)) / std::sqrt(a.posterior.covariance.matrix(row_a, row_a) +
+                                                b.posterior.covariance.matrix(row_b, row_b));
+        if (z > largest.first) largest = {z, block.direction_names[static_cast<size_t>(d)]};
+      }
+    }
+  }
+  return largest;
+}
+
+// Honest sigmas on a real log: its two halves (198 s each), calibrated apart, estimate each
+// direction alike within its sigmas (each half's after its solve, before any is held). Without
+// the rows' scatter over the log (Eq. C8) the mount pitches stood 15 sigmas apart (+4.0 and
+// -1.2 deg, sigma 0.28 and 0.21 deg), the odometry speed scale 11, the antenna's x 9; with it
+// the pitch stands at 2.7 sigmas and every direction within 2.7 but two: the antenna's x, which
+// both halves leave at the prior's sigma (held), 4.0, and the odometry clock, 4.1 (-0.367 and
+// -0.395 s, sigma 5.7 and 4.8 ms: its lag moved by 28 ms between the halves, which no stretch
+// of either half shows). Measured with 8 and 32 stretches and at 1 % alike.
+TEST(RealDataAcceptance, SigmasCoverWhatTheLogsHalvesSayApart) {
+  const std::filesystem::path bag = test::SharedDataDir("ros1_bags") / "test1.bag";
+  AUTOCAL_REQUIRE_SHARED_DATA(bag);
+  io::Dataset dataset = Import(bag);
+  dataset.sensors.nominal_calibration.q_I_V = LaunchFileMount().conjugate();
+  const io::Problem problem = Shipped("skid_steer_imu_odometry_gnss.yaml");
+  for (const int stretches : {16, 0}) {
+    OfflineCalibrationOptions options;
+    options.scatter_stretches = stretches;
+    const OfflineCalibrationResult first =
+        CalibrateDataset(PartOf(dataset, 0, 2), problem, options);
+    const OfflineCalibrationResult second =
+        CalibrateDataset(PartOf(dataset, 1, 2), problem, options);
+    const auto [sigmas, direction] = LargestDisagreement(first, second);
+    std::cout << "stretches " << stretches << ": the halves differ by at most " << sigmas
+              << " sigma (" << direction << ")\n";
+    if (stretches > 0) {
+      EXPECT_LT(sigmas, 5.0) << direction;
+    } else {
+      EXPECT_GT(sigmas, 10.0) << direction;  // the test sees what Eq. C8 mends
+    }
+  }
 }
 
 // A problem that fixes the mount at the nominal 10 deg off the launch file's hears, after the
 // solve, that the log would move its roll and pitch back by about what they are off (the
 // launch file's mount, in V: 10 deg about (-1, -1, 1), 5.8 deg on each axis), within the 2 deg
-// the log's own estimate keeps to the launch file (measured: -4.56 and -4.48 deg, sigma 0.28
-// and 0.21 deg: 1.2-1.3 deg, four to six sigmas, short of it, one linear step from 10 deg
-// off); its yaw, which this slow drive does not determine, is not judged (docs/calibration.md,
-// Eq. C7).
+// the log's own estimate keeps to the launch file; its yaw, which this slow drive does not
+// determine, is not judged (docs/calibration.md, Eq. C7). Measured: -4.67 and -4.44 deg, sigma
+// 0.86 and 1.11 deg (5.4 and 4.0 sigmas; the rows' scatter over the log, Eq. C8, widened them
+// from 0.28 and 0.21 deg, when the pitch stood at 21 sigmas), named here from 3 sigmas.
 TEST(RealDataAcceptance, SaysWhenTheLogContradictsAFixedMount) {
   const std::filesystem::path bag = test::SharedDataDir("ros1_bags") / "test1.bag";
   AUTOCAL_REQUIRE_SHARED_DATA(bag);
   const io::Dataset dataset = SkidSteerFromTenDegreesOff();
   io::Problem problem = Shipped("skid_steer_imu_odometry_gnss.yaml");
   problem.calibration.T_I_V.rotation.mode = io::BlockMode::kFixed;
-  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
+  OfflineCalibrationOptions options;
+  options.max_fixed_block_step_sigmas = 3.0;
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem, options);
   const Eigen::Vector3d off_deg =
       geometry::Log(Eigen::Quaterniond(dataset.sensors.nominal_calibration.q_I_V.conjugate() *
                                        LaunchFileMount().conjugate())) *

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/estimation/stretch_scatter.h"
 #include "autocal/factors/loss.h"
 #include "autocal/sensors/calibration.h"
 #include "autocal/sensors/calibration_blocks.h"
@@ -122,6 +123,16 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
                                const std::vector<ResidualSource>& sources, int num_threads = 1,
                                const ScaledInformation& scaled = {},
                                CovarianceOrdering* ordering = nullptr);
+
+// How each source's share of the blocks' error scatters over the log against what its noise
+// model says (docs/calibration.md, Eq. C8; the result and its use: stretch_scatter.h). A
+// source's residual blocks, in the order given (their time order), are cut into `stretches`
+// runs of equal count, at the solution `problem` holds. A source with fewer residual blocks
+// than stretches is left out. Throws autocal::Error for fewer than two stretches.
+StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
+                                     ceres::Problem* problem,
+                                     const std::vector<ResidualSource>& sources, int stretches,
+                                     int num_threads = 1, CovarianceOrdering* ordering = nullptr);
 
 // The directions that the data inform (observable or kept; or held under a stated prior while
 // the data hold about a quarter or more of its information, posterior sigma at most 0.9 of

@@ -82,6 +82,11 @@ struct OfflineCalibrationOptions {
   // A block the problem fixes is named in a warning when the data would move a direction they
   // inform by more than this many sigmas of that step (Eq. C7, docs/calibration.md).
   double max_fixed_block_step_sigmas = 5.0;
+  // Each sensor's rows are cut into this many stretches of the log, and the calibration's
+  // sigmas widened where a sensor's stretches scatter beyond its noise model at this
+  // significance per direction (Eq. C8, docs/calibration.md); 0 stretches: not tested.
+  int scatter_stretches = 16;
+  double scatter_significance = 0.001;
   // Called as the stages advance; may be empty.
   std::function<void(const CalibrationProgress&)> progress;
   // When set, sets the keyframes and the calibration to the truth (a simulated log:

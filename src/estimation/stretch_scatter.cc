@@ -1,0 +1,69 @@
+#include "autocal/estimation/stretch_scatter.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "autocal/common/chi_square.h"
+#include "autocal/common/error.h"
+#include "autocal/estimation/calibration_observability.h"
+
+namespace autocal {
+namespace estimation {
+
+namespace {
+
+// observed_cc / expected_cc when it exceeds chance at `significance`, else 1 (Eq. C8).
+double SignificantRatio(const StretchScatter::Source& source, int c, double significance) {
+  const double expected = source.expected(c, c);
+  const double squares = source.expected_squares(c);
+  if (!(expected > 0.0) || !(squares > 0.0)) return 1.0;
+  const double ratio = source.observed(c, c) / expected;
+  // Satterthwaite's degrees of freedom, less the one the stretches' mean takes.
+  const int dof = std::max(1, static_cast<int>(expected * expected / squares) - 1);
+  const double limit = ChiSquareQuantile(significance, dof) / dof;
+  return ratio > limit ? ratio : 1.0;
+}
+
+}  // namespace
+
+BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const StretchScatter& scatter,
+                                  double significance, const Eigen::VectorXd& max_variance,
+                                  std::vector<ScatterExcess>* excess) {
+  if (!covariance.ok || !scatter.ok) return covariance;
+  const Eigen::Index n = covariance.matrix.rows();
+  if (max_variance.size() != n) {
+    throw Error("WidenedForScatter: " + std::to_string(max_variance.size()) +
+                " variance limits for " + std::to_string(n) + " coordinates");
+  }
+  Eigen::VectorXd variance = covariance.matrix.diagonal();
+  std::vector<ScatterExcess> found;
+  for (const StretchScatter::Source& source : scatter.sources) {
+    if (source.observed.rows() != n) continue;
+    for (int c = 0; c < n; ++c) {
+      const double before = covariance.matrix(c, c);
+      const double ratio = SignificantRatio(source, c, significance);
+      if (ratio == 1.0 || !(before > 0.0)) continue;
+      const double added = (ratio - 1.0) * source.model(c, c);
+      variance(c) += added;
+      const double after = std::max(before, std::min(before + added, max_variance(c)));
+      found.push_back({source.name, c, std::sqrt(ratio), std::sqrt(after / before)});
+    }
+  }
+  BlockCovariance out = covariance;
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(n);
+  for (int c = 0; c < n; ++c) {
+    const double before = covariance.matrix(c, c);
+    if (before > 0.0)
+      scale(c) = std::sqrt(std::max(before, std::min(variance(c), max_variance(c))) / before);
+  }
+  out.matrix = scale.asDiagonal() * covariance.matrix * scale.asDiagonal();
+  out.ok = out.matrix.allFinite();
+  std::stable_sort(found.begin(), found.end(), [](const ScatterExcess& a, const ScatterExcess& b) {
+    return a.sigma_factor > b.sigma_factor;
+  });
+  if (excess != nullptr) *excess = std::move(found);
+  return out;
+}
+
+}  // namespace estimation
+}  // namespace autocal

@@ -1,0 +1,112 @@
+#include "autocal/estimation/stretch_scatter.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "autocal/common/chi_square.h"
+#include "autocal/common/error.h"
+#include "autocal/estimation/calibration_observability.h"
+
+namespace autocal {
+namespace estimation {
+namespace {
+
+// Two coordinates, correlated 0.5, variances 4 and 1.
+BlockCovariance TwoCoordinates() {
+  BlockCovariance c;
+  c.ok = true;
+  c.matrix = (Eigen::Matrix2d() << 4.0, 1.0, 1.0, 1.0).finished();
+  c.offsets = {0};
+  return c;
+}
+
+// One source over 16 stretches of equal expectation: its share of coordinate 0 is half the
+// variance, and its stretches scatter `ratio` times their expectation along it.
+StretchScatter OneSource(double ratio) {
+  StretchScatter scatter;
+  scatter.ok = true;
+  scatter.stretches = 16;
+  scatter.offsets = {0};
+  StretchScatter::Source source;
+  source.name = "wheel";
+  source.model = (Eigen::Matrix2d() << 2.0, 0.2, 0.2, 0.3).finished();
+  source.expected = 0.8 * source.model;
+  source.observed = source.expected;
+  source.observed(0, 0) *= ratio;
+  source.expected_squares = source.expected.diagonal().cwiseAbs2() / 16.0;
+  scatter.sources.push_back(source);
+  return scatter;
+}
+
+const Eigen::VectorXd kNoLimit = Eigen::Vector2d::Constant(std::numeric_limits<double>::max());
+
+double Correlation(const Eigen::MatrixXd& c) { return c(0, 1) / std::sqrt(c(0, 0) * c(1, 1)); }
+
+TEST(WidenedForScatter, LeavesAScatterWithinChanceAsItIs) {
+  // 16 stretches less their mean, 15 degrees of freedom: chi-square's 99.9 % point over 15
+  // is 2.51.
+  const double limit = ChiSquareQuantile(0.001, 15) / 15.0;
+  std::vector<ScatterExcess> excess;
+  const BlockCovariance out =
+      WidenedForScatter(TwoCoordinates(), OneSource(0.99 * limit), 0.001, kNoLimit, &excess);
+  EXPECT_EQ(out.matrix, TwoCoordinates().matrix);
+  EXPECT_TRUE(excess.empty());
+  // Just above it, widened.
+  EXPECT_NE(WidenedForScatter(TwoCoordinates(), OneSource(1.01 * limit), 0.001, kNoLimit).matrix,
+            TwoCoordinates().matrix);
+}
+
+// Nine times the expected scatter: the source's share of coordinate 0 (2 of 4) becomes 18, the
+// variance 20; the correlation and coordinate 1 stay.
+TEST(WidenedForScatter, ScalesTheSourcesShareByItsScatter) {
+  std::vector<ScatterExcess> excess;
+  const BlockCovariance out =
+      WidenedForScatter(TwoCoordinates(), OneSource(9.0), 0.001, kNoLimit, &excess);
+  ASSERT_TRUE(out.ok);
+  EXPECT_NEAR(out.matrix(0, 0), 20.0, 1e-12);
+  EXPECT_NEAR(out.matrix(1, 1), 1.0, 1e-12);
+  EXPECT_NEAR(Correlation(out.matrix), Correlation(TwoCoordinates().matrix), 1e-12);
+  ASSERT_EQ(excess.size(), 1u);
+  EXPECT_EQ(excess[0].source, "wheel");
+  EXPECT_EQ(excess[0].coordinate, 0);
+  EXPECT_NEAR(excess[0].ratio, 3.0, 1e-12);
+  EXPECT_NEAR(excess[0].sigma_factor, std::sqrt(5.0), 1e-12);
+}
+
+TEST(WidenedForScatter, StopsAtTheLimitAndNeverNarrows) {
+  const Eigen::Vector2d limit(9.0, 0.5);  // coordinate 1's limit lies below its variance
+  std::vector<ScatterExcess> excess;
+  const BlockCovariance out =
+      WidenedForScatter(TwoCoordinates(), OneSource(9.0), 0.001, limit, &excess);
+  EXPECT_NEAR(out.matrix(0, 0), 9.0, 1e-12);
+  EXPECT_NEAR(out.matrix(1, 1), 1.0, 1e-12);
+  ASSERT_EQ(excess.size(), 1u);
+  EXPECT_NEAR(excess[0].sigma_factor, 1.5, 1e-12);
+}
+
+// One stretch holding all the expectation leaves one degree of freedom (at least one is
+// counted): nine times is chance there (chi-square's 99.9 % point for one is 10.8).
+TEST(WidenedForScatter, CountsTheDegreesOfFreedomTheStretchesHave) {
+  StretchScatter scatter = OneSource(9.0);
+  scatter.sources[0].expected_squares = scatter.sources[0].expected.diagonal().cwiseAbs2();
+  const BlockCovariance out = WidenedForScatter(TwoCoordinates(), scatter, 0.001, kNoLimit);
+  EXPECT_EQ(out.matrix, TwoCoordinates().matrix);
+}
+
+TEST(WidenedForScatter, PassesAFailedCovarianceOrScatterAndRefusesMismatchedLimits) {
+  BlockCovariance failed = TwoCoordinates();
+  failed.ok = false;
+  EXPECT_FALSE(WidenedForScatter(failed, OneSource(9.0), 0.001, kNoLimit).ok);
+  StretchScatter none = OneSource(9.0);
+  none.ok = false;
+  EXPECT_EQ(WidenedForScatter(TwoCoordinates(), none, 0.001, kNoLimit).matrix,
+            TwoCoordinates().matrix);
+  EXPECT_THROW(WidenedForScatter(TwoCoordinates(), OneSource(9.0), 0.001, Eigen::Vector3d::Ones()),
+               Error);
+}
+
+}  // namespace
+}  // namespace estimation
+}  // namespace autocal
