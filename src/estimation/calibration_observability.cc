@@ -647,6 +647,7 @@ std::optional<StretchScatter::Source> ScatterOfSource(
   const Eigen::Index m = inverse.size;
   StretchScatter::Source out{source.name, Eigen::MatrixXd::Zero(m, m), Eigen::MatrixXd::Zero(m, m),
                              Eigen::MatrixXd::Zero(m, m), Eigen::VectorXd::Zero(m)};
+  Eigen::VectorXd expected_squares = Eigen::VectorXd::Zero(m);  // sum_b diag(E_b)^2
   const size_t n = source.residual_blocks.size();
   const size_t runs = static_cast<size_t>(stretches);
   const size_t group = static_cast<size_t>(std::max(1, num_threads));
@@ -675,8 +676,13 @@ std::optional<StretchScatter::Source> ScatterOfSource(
       total += part.share;
       out.model += part.model;
       out.expected += part.expected;
-      out.expected_squares += part.expected.diagonal().cwiseAbs2();
+      expected_squares += part.expected.diagonal().cwiseAbs2();
     }
+  }
+  for (Eigen::Index c = 0; c < m; ++c) {
+    const double sum = out.expected(c, c);
+    out.degrees_of_freedom(c) =
+        expected_squares(c) > 0.0 ? std::max(1.0, sum * sum / expected_squares(c) - 1.0) : 1.0;
   }
   // About the stretches' mean: E[T T^T] = sum_b V_b - Y^T H^-1 Y for T = sum_b U_b, since
   // E[U_b U_c^T] = -Y_b^T H^-1 Y_c for b != c.
@@ -703,6 +709,7 @@ StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
   const InverseColumns inverse = InverseColumnsAt(blocks, hessian, ordering, &factor);
   if (!inverse.ok) return out;
   out.offsets = inverse.offsets;
+  out.variance = CovarianceOf(inverse).matrix.diagonal();
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
   variables.evaluate.num_threads = num_threads;
   for (const ResidualSource& source : sources) {

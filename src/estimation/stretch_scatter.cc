@@ -15,14 +15,15 @@ namespace {
 // observed_cc / expected_cc when it exceeds chance at `significance`, else 1 (Eq. C8).
 double SignificantRatio(const StretchScatter::Source& source, int c, double significance) {
   const double expected = source.expected(c, c);
-  const double squares = source.expected_squares(c);
-  if (!(expected > 0.0) || !(squares > 0.0)) return 1.0;
+  if (!(expected > 1e-3 * source.model(c, c)) || !(expected > 0.0)) return 1.0;
   const double ratio = source.observed(c, c) / expected;
-  // Satterthwaite's degrees of freedom, less the one the stretches' mean takes.
-  const int dof = std::max(1, static_cast<int>(expected * expected / squares) - 1);
+  const int dof = std::max(1, static_cast<int>(source.degrees_of_freedom(c)));
   const double limit = ChiSquareQuantile(significance, dof) / dof;
   return ratio > limit ? ratio : 1.0;
 }
+
+// The smallest sigma factor a widening is reported with.
+constexpr double kReportedSigmaFactor = 1.01;
 
 }  // namespace
 
@@ -31,9 +32,10 @@ BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const Stret
                                   std::vector<ScatterExcess>* excess) {
   if (!covariance.ok || !scatter.ok) return covariance;
   const Eigen::Index n = covariance.matrix.rows();
-  if (max_variance.size() != n) {
+  if (max_variance.size() != n || scatter.variance.size() != n) {
     throw Error("WidenedForScatter: " + std::to_string(max_variance.size()) +
-                " variance limits for " + std::to_string(n) + " coordinates");
+                " variance limits and " + std::to_string(scatter.variance.size()) +
+                " variances for " + std::to_string(n) + " coordinates");
   }
   Eigen::VectorXd variance = covariance.matrix.diagonal();
   std::vector<ScatterExcess> found;
@@ -42,11 +44,13 @@ BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const Stret
     for (int c = 0; c < n; ++c) {
       const double before = covariance.matrix(c, c);
       const double ratio = SignificantRatio(source, c, significance);
-      if (ratio == 1.0 || !(before > 0.0)) continue;
-      const double added = (ratio - 1.0) * source.model(c, c);
+      if (ratio == 1.0 || !(before > 0.0) || !(scatter.variance(c) > 0.0)) continue;
+      const double added = (ratio - 1.0) * source.model(c, c) / scatter.variance(c) * before;
       variance(c) += added;
       const double after = std::max(before, std::min(before + added, max_variance(c)));
-      found.push_back({source.name, c, std::sqrt(ratio), std::sqrt(after / before)});
+      if (after >= kReportedSigmaFactor * kReportedSigmaFactor * before) {
+        found.push_back({source.name, c, std::sqrt(ratio), std::sqrt(after / before)});
+      }
     }
   }
   BlockCovariance out = covariance;

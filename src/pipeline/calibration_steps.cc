@@ -556,24 +556,48 @@ namespace {
 std::string DirectionName(const std::vector<estimation::EstimatedBlock>& blocks,
                           const std::vector<int>& offsets, int coordinate) {
   for (size_t b = blocks.size(); b-- > 0;) {
-    if (coordinate >= offsets[b]) {
-      return blocks[b].direction_names[static_cast<size_t>(coordinate - offsets[b])];
+    const int direction = coordinate - offsets[b];
+    if (direction >= 0 && direction < blocks[b].size) {
+      return blocks[b].direction_names[static_cast<size_t>(direction)];
     }
   }
-  return "?";
+  return "coordinate " + std::to_string(coordinate);
 }
 
 // A source's largest sqrt(observed / expected) over the directions where its share is at
-// least a tenth of the variance (Eq. C8).
-double LargestScatterRatio(const estimation::StretchScatter::Source& source,
-                           const estimation::BlockCovariance& covariance) {
+// least a tenth of J^T J's variance (Eq. C8); 0 when it informs none.
+double LargestScatterRatio(const estimation::StretchScatter& scatter,
+                           const estimation::StretchScatter::Source& source) {
   double largest = 0.0;
   for (Eigen::Index c = 0; c < source.observed.rows(); ++c) {
-    if (source.expected(c, c) > 0.0 && source.model(c, c) >= 0.1 * covariance.matrix(c, c)) {
+    if (source.expected(c, c) > 0.0 && source.model(c, c) >= 0.1 * scatter.variance(c)) {
       largest = std::max(largest, std::sqrt(source.observed(c, c) / source.expected(c, c)));
     }
   }
   return largest;
+}
+
+// One warning per source that widens a sigma, naming the direction it widens most.
+std::vector<std::string> ScatterWarnings(const std::vector<estimation::EstimatedBlock>& blocks,
+                                         const estimation::StretchScatter& scatter,
+                                         const std::vector<estimation::ScatterExcess>& excess) {
+  std::vector<std::string> named;
+  std::vector<std::string> out;
+  for (const estimation::ScatterExcess& e : excess) {  // largest sigma factor first
+    if (std::find(named.begin(), named.end(), e.source) != named.end()) continue;
+    named.push_back(e.source);
+    const auto directions = std::count_if(
+        excess.begin(), excess.end(), [&](const auto& other) { return other.source == e.source; });
+    out.push_back(e.source + " rows: over " + std::to_string(scatter.stretches) +
+                  " stretches of the log their share of the " +
+                  DirectionName(blocks, scatter.offsets, e.coordinate) + " scatters " +
+                  FormatFixed(e.ratio, 1) +
+                  " times as widely as their noise model says (errors that last for stretches "
+                  "of the drive, or noise larger than stated); its sigma is widened " +
+                  FormatFixed(e.sigma_factor, 2) + " times (" + std::to_string(directions) +
+                  " direction(s) widened, Eq. C8)");
+  }
+  return out;
 }
 
 }  // namespace
@@ -602,10 +626,15 @@ estimation::BlockCovariance WidenedForScatter(
                 sources.end());
   const estimation::StretchScatter scatter = estimation::ComputeStretchScatter(
       blocks_estimated, problem, sources, options.scatter_stretches, num_threads, ordering);
-  if (!scatter.ok) return covariance;
+  if (!scatter.ok) {
+    result->warnings.push_back(
+        "the rows' scatter over the log could not be computed (Eq. C8): the sigmas are those "
+        "of the sensors' noise model alone");
+    return covariance;
+  }
   for (const estimation::StretchScatter::Source& source : scatter.sources) {
-    result->calibration.residuals[source.name]["stretch_scatter_ratio"] =
-        LargestScatterRatio(source, covariance);
+    const double ratio = LargestScatterRatio(scatter, source);
+    if (ratio > 0.0) result->calibration.residuals[source.name]["stretch_scatter_ratio"] = ratio;
   }
   Eigen::VectorXd prior_variance(covariance.matrix.rows());
   for (size_t b = 0; b < blocks_estimated.size(); ++b) {
@@ -615,33 +644,22 @@ estimation::BlockCovariance WidenedForScatter(
   std::vector<estimation::ScatterExcess> excess;
   const estimation::BlockCovariance widened = estimation::WidenedForScatter(
       covariance, scatter, options.scatter_significance, prior_variance, &excess);
-  std::vector<std::string> named;
-  for (const estimation::ScatterExcess& e : excess) {  // largest sigma factor first
-    if (std::find(named.begin(), named.end(), e.source) != named.end()) continue;
-    named.push_back(e.source);
-    const auto directions = std::count_if(
-        excess.begin(), excess.end(), [&](const auto& other) { return other.source == e.source; });
-    result->warnings.push_back(
-        e.source + " rows: over " + std::to_string(scatter.stretches) +
-        " stretches of the log their share of the " +
-        DirectionName(blocks_estimated, scatter.offsets, e.coordinate) + " scatters " +
-        FormatFixed(e.ratio, 1) +
-        " times as widely as their noise model says (errors that last for stretches of the "
-        "drive, or noise larger than stated); its sigma is widened " +
-        FormatFixed(e.sigma_factor, 2) + " times (" + std::to_string(directions) +
-        " direction(s) widened, Eq. C8)");
+  for (std::string& warning : ScatterWarnings(blocks_estimated, scatter, excess)) {
+    result->warnings.push_back(std::move(warning));
   }
   return widened;
 }
 
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                      const estimation::BlockCovariance& covariance,
-                     const sensors::Calibration& solved, OfflineCalibrationResult* result) {
+                     const estimation::BlockCovariance& widened, const sensors::Calibration& solved,
+                     OfflineCalibrationResult* result) {
   estimation::CalibrationPosterior& posterior = result->posterior;
   posterior.solved = solved;
   posterior.blocks = blocks_estimated;
   for (estimation::EstimatedBlock& block : posterior.blocks) block.data = nullptr;
   posterior.covariance = covariance;
+  posterior.widened = widened;
 }
 
 void RecordBoundAtTruth(const OfflineCalibrationOptions& options,

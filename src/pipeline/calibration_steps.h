@@ -221,10 +221,11 @@ estimation::BlockCovariance WidenedForScatter(
 estimation::ScaledInformation LidarSandwich(ceres::Problem* problem);
 
 // result->posterior from the solve's calibration (`solved`), the blocks' priors and their
-// covariance, before Observe holds any direction.
+// covariance as solved and widened (Eq. C8), before Observe holds any direction.
 void RecordPosterior(const std::vector<estimation::EstimatedBlock>& blocks_estimated,
                      const estimation::BlockCovariance& covariance,
-                     const sensors::Calibration& solved, OfflineCalibrationResult* result);
+                     const estimation::BlockCovariance& widened, const sensors::Calibration& solved,
+                     OfflineCalibrationResult* result);
 
 // With options.set_to_truth: result->bound, the covariance of the estimated blocks from
 // `problem` at the truth (the Cramer-Rao bound), and result->error_budget, the error split by

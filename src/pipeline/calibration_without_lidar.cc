@@ -252,11 +252,11 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   // 3. Observability, uncertainty and the result (the last solve's summary).
   const auto uncertainty_start = std::chrono::steady_clock::now();
   estimation::CovarianceOrdering ordering;  // one pattern for the posterior and the bound
-  const estimation::BlockCovariance covariance = WidenedForScatter(
-      blocks_estimated, joint.get(),
-      PosteriorCovariance(blocks_estimated, joint.get(), problem.solver.num_threads,
-                          &result.warnings, {}, &ordering),
-      options, problem.solver.num_threads, &ordering, &result);
+  const estimation::BlockCovariance solved_covariance = PosteriorCovariance(
+      blocks_estimated, joint.get(), problem.solver.num_threads, &result.warnings, {}, &ordering);
+  const estimation::BlockCovariance covariance =
+      WidenedForScatter(blocks_estimated, joint.get(), solved_covariance, options,
+                        problem.solver.num_threads, &ordering, &result);
   result.batch.termination = summary.message;
   result.batch.final_cost = summary.final_cost;
   result.batch.calibration_per_iteration = {calibration};  // the last solve's
@@ -268,7 +268,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   if (use_gnss) file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);
   RecordTiming(timing, true, &file);
   const sensors::Calibration solved = calibration;
-  RecordPosterior(blocks_estimated, covariance, solved, &result);
+  RecordPosterior(blocks_estimated, solved_covariance, covariance, solved, &result);
   RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, joint.get(),
                      problem.solver.num_threads, &result, {}, &ordering);
   const estimation::BlockObservability observability =

@@ -230,13 +230,12 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     const estimation::ScaledInformation lidar = LidarSandwich(p);
     result->calibration.residuals["lidar"]["sandwich_kappa"] = 1.0 / lidar.scale;
     estimation::CovarianceOrdering ordering;  // one pattern for the posterior and the bound
-    const estimation::BlockCovariance covariance =
-        WidenedForScatter(blocks, p,
-                          PosteriorCovariance(blocks, p, problem.solver.num_threads,
-                                              &result->warnings, lidar, &ordering),
-                          options, problem.solver.num_threads, &ordering, result);
+    const estimation::BlockCovariance solved_covariance = PosteriorCovariance(
+        blocks, p, problem.solver.num_threads, &result->warnings, lidar, &ordering);
+    const estimation::BlockCovariance covariance = WidenedForScatter(
+        blocks, p, solved_covariance, options, problem.solver.num_threads, &ordering, result);
     const sensors::Calibration solved = *calibration;
-    RecordPosterior(blocks, covariance, solved, result);
+    RecordPosterior(blocks, solved_covariance, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
                        problem.solver.num_threads, result, lidar, &ordering);
     observability = Observe(dataset, options, blocks, covariance, result);

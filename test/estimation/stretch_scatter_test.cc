@@ -22,20 +22,22 @@ BlockCovariance TwoCoordinates() {
   return c;
 }
 
-// One source over 16 stretches of equal expectation: its share of coordinate 0 is half the
-// variance, and its stretches scatter `ratio` times their expectation along it.
+// One source over 16 stretches of equal expectation (15 degrees of freedom about their mean):
+// its share of coordinate 0 is half the variance, and its stretches scatter `ratio` times their
+// expectation along it.
 StretchScatter OneSource(double ratio) {
   StretchScatter scatter;
   scatter.ok = true;
   scatter.stretches = 16;
   scatter.offsets = {0};
+  scatter.variance = TwoCoordinates().matrix.diagonal();
   StretchScatter::Source source;
   source.name = "wheel";
   source.model = (Eigen::Matrix2d() << 2.0, 0.2, 0.2, 0.3).finished();
   source.expected = 0.8 * source.model;
   source.observed = source.expected;
   source.observed(0, 0) *= ratio;
-  source.expected_squares = source.expected.diagonal().cwiseAbs2() / 16.0;
+  source.degrees_of_freedom = Eigen::Vector2d::Constant(15.0);
   scatter.sources.push_back(source);
   return scatter;
 }
@@ -45,8 +47,7 @@ const Eigen::VectorXd kNoLimit = Eigen::Vector2d::Constant(std::numeric_limits<d
 double Correlation(const Eigen::MatrixXd& c) { return c(0, 1) / std::sqrt(c(0, 0) * c(1, 1)); }
 
 TEST(WidenedForScatter, LeavesAScatterWithinChanceAsItIs) {
-  // 16 stretches less their mean, 15 degrees of freedom: chi-square's 99.9 % point over 15
-  // is 2.51.
+  // Chi-square's 99.9 % point over 15 degrees of freedom is 2.51 of them.
   const double limit = ChiSquareQuantile(0.001, 15) / 15.0;
   std::vector<ScatterExcess> excess;
   const BlockCovariance out =
@@ -73,6 +74,12 @@ TEST(WidenedForScatter, ScalesTheSourcesShareByItsScatter) {
   EXPECT_EQ(excess[0].coordinate, 0);
   EXPECT_NEAR(excess[0].ratio, 3.0, 1e-12);
   EXPECT_NEAR(excess[0].sigma_factor, std::sqrt(5.0), 1e-12);
+  // The share is a fraction of J^T J's variance, applied to the covariance given: with J^T J's
+  // twice it (the covariance completed, Eq. C5), a quarter of 4, widened by 8 times, adds 8.
+  StretchScatter completed = OneSource(9.0);
+  completed.variance *= 2.0;
+  EXPECT_NEAR(WidenedForScatter(TwoCoordinates(), completed, 0.001, kNoLimit).matrix(0, 0), 12.0,
+              1e-12);
 }
 
 TEST(WidenedForScatter, StopsAtTheLimitAndNeverNarrows) {
@@ -84,15 +91,25 @@ TEST(WidenedForScatter, StopsAtTheLimitAndNeverNarrows) {
   EXPECT_NEAR(out.matrix(1, 1), 1.0, 1e-12);
   ASSERT_EQ(excess.size(), 1u);
   EXPECT_NEAR(excess[0].sigma_factor, 1.5, 1e-12);
+  // Held at its variance by the limit, nothing is widened and nothing reported.
+  const BlockCovariance held = WidenedForScatter(TwoCoordinates(), OneSource(9.0), 0.001,
+                                                 Eigen::Vector2d(4.0, 1.0), &excess);
+  EXPECT_EQ(held.matrix, TwoCoordinates().matrix);
+  EXPECT_TRUE(excess.empty());
 }
 
-// One stretch holding all the expectation leaves one degree of freedom (at least one is
-// counted): nine times is chance there (chi-square's 99.9 % point for one is 10.8).
+// With one degree of freedom (the drive's information in two stretches) nine times is chance
+// (chi-square's 99.9 % point for one is 10.8); so is any ratio where the solve fits the
+// stretches almost wholly (expected below a thousandth of the model's share).
 TEST(WidenedForScatter, CountsTheDegreesOfFreedomTheStretchesHave) {
   StretchScatter scatter = OneSource(9.0);
-  scatter.sources[0].expected_squares = scatter.sources[0].expected.diagonal().cwiseAbs2();
-  const BlockCovariance out = WidenedForScatter(TwoCoordinates(), scatter, 0.001, kNoLimit);
-  EXPECT_EQ(out.matrix, TwoCoordinates().matrix);
+  scatter.sources[0].degrees_of_freedom.setOnes();
+  EXPECT_EQ(WidenedForScatter(TwoCoordinates(), scatter, 0.001, kNoLimit).matrix,
+            TwoCoordinates().matrix);
+  StretchScatter fitted = OneSource(9.0);
+  fitted.sources[0].expected(0, 0) = 1e-4 * fitted.sources[0].model(0, 0);
+  EXPECT_EQ(WidenedForScatter(TwoCoordinates(), fitted, 0.001, kNoLimit).matrix,
+            TwoCoordinates().matrix);
 }
 
 TEST(WidenedForScatter, PassesAFailedCovarianceOrScatterAndRefusesMismatchedLimits) {

@@ -22,11 +22,14 @@ namespace estimation {
 
 // What one log says of the calibration blocks before any direction was held: the values of
 // its solve, its blocks (priors, limits, names; their data pointers are not used) and their
-// joint covariance, blocks in order.
+// joint covariance, blocks in order: `covariance` as the solve weighted its rows (H^-1 of its
+// noise model, what Eq. M1-M2 combine), `widened` where the rows scatter over the log beyond
+// that model (docs/calibration.md, Eq. C8: the sigmas the result reports and holds by).
 struct CalibrationPosterior {
   sensors::Calibration solved;
   std::vector<EstimatedBlock> blocks;
   BlockCovariance covariance;
+  BlockCovariance widened;
 };
 
 // The joint Gaussian (Eq. M1-M2). The blocks are the union of the logs' in table order; a

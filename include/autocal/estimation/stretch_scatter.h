@@ -25,23 +25,28 @@ struct BlockCovariance;
 //              fitted residuals: sum_b E_b - (model - Y^T H^-1 Y) / B, where
 //              E_b = V_b - Y_b^T H^-1 Y_b, V_b = X^T J_b^T J_b X, Y_b = J_b^T J_b X and
 //              Y = sum_b Y_b (the solve fits part of each stretch's noise away);
-//   model    = sum_b V_b, the source's part of the covariance H^-1;
-//   expected_squares = sum_b diag(E_b)^2, for the degrees of freedom of observed's diagonal.
-// Errors that change over the log or noise larger than stated make observed exceed expected;
-// an error common to every stretch (a prior that pulls the estimate off the rows' optimum)
-// falls in the mean and does not.
+//   model    = sum_b V_b, the source's part of the covariance H^-1 (whose diagonal is
+//              `variance`);
+//   degrees_of_freedom = (sum_b E_b,cc)^2 / sum_b E_b,cc^2 - 1 per coordinate (Satterthwaite's,
+//              less the one the mean takes; at least 1): a drive whose turns fall in two
+//              stretches has about one.
+// The shares are taken with the robust losses as the solver applies them (Ceres' corrector):
+// rows a loss down-weights scatter as the M-estimator weighs them. Errors that change over the
+// log or noise larger than stated make observed exceed expected; the mean part of an error
+// common to every stretch (a prior that pulls the estimate off the rows' optimum) does not.
 struct StretchScatter {
   struct Source {
     std::string name;
     Eigen::MatrixXd observed;
     Eigen::MatrixXd expected;
     Eigen::MatrixXd model;
-    Eigen::VectorXd expected_squares;
+    Eigen::VectorXd degrees_of_freedom;
   };
   bool ok = false;  // false when J^T J is singular or the problem does not evaluate
   int stretches = 0;
   std::vector<Source> sources;
   std::vector<int> offsets;  // first stacked coordinate of each block, as BlockCovariance's
+  Eigen::VectorXd variance;  // diagonal of J^T J's inverse at the stacked coordinates
 };
 
 // One source's excess along one coordinate: observed / expected, sqrt, and the sigma it
@@ -53,14 +58,17 @@ struct ScatterExcess {
   double sigma_factor = 1.0;  // sigma with this source's share widened / sigma before
 };
 
-// `covariance` with, for every coordinate c and source s whose observed_cc exceeds
-// expected_cc beyond the chi-square quantile at `significance` (Satterthwaite's degrees of
-// freedom, (sum_b E_b,cc)^2 / sum_b E_b,cc^2), the source's share model_cc scaled by
-// observed_cc / expected_cc: the variance grows by (observed_cc / expected_cc - 1) model_cc and
-// the covariance is scaled as D C D, which keeps its correlations. No variance is widened past
-// `max_variance` (the prior's: a direction whose estimate errs more is held at its prior) nor
-// narrowed. A covariance that is not ok, or a scatter that is not, is returned as it is.
-// `excess`, when given, receives the widened coordinates, largest sigma factor first.
+// `covariance` with, for every coordinate c and source s whose observed_cc / expected_cc exceeds
+// the chi-square quantile at `significance` over its degrees of freedom (divided by them), the
+// source's share of the variance scaled by that ratio: the variance grows by
+// (observed_cc / expected_cc - 1) model_cc / variance_c covariance_cc (the source's fraction
+// of J^T J's variance, applied to the covariance given, which may complete J^T J, Eqs. C5-C6)
+// and the covariance is scaled as D C D, which keeps its correlations. No variance is widened
+// past `max_variance` (the prior's: a direction whose estimate errs more is held at its prior)
+// nor narrowed. Not judged: a coordinate whose stretches the solve fits almost wholly
+// (expected_cc below 1e-3 model_cc, where the difference is rounding). A covariance that is not
+// ok, or a scatter that is not, is returned as it is. `excess`, when given, receives the
+// coordinates a source widens by 1 % or more, largest sigma factor first.
 BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const StretchScatter& scatter,
                                   double significance, const Eigen::VectorXd& max_variance,
                                   std::vector<ScatterExcess>* excess = nullptr);
