@@ -505,6 +505,15 @@ InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
   return out;
 }
 
+// Row k of J's sensitivity of every stacked coordinate, J_k H^-1 e (Eq. E1's and C8's rows).
+Eigen::VectorXd RowSensitivity(const ceres::CRSMatrix& J, int k, const InverseColumns& inverse) {
+  Eigen::VectorXd sensitivity = Eigen::VectorXd::Zero(inverse.size);
+  for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
+    sensitivity += J.values[e] * inverse.columns.row(J.cols[e]).transpose();
+  }
+  return sensitivity;
+}
+
 // The blocks' part of H^-1, symmetrized; zeros and not ok when `inverse` is not ok.
 BlockCovariance CovarianceOf(const InverseColumns& inverse) {
   BlockCovariance out;
@@ -574,7 +583,6 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
   if (!inverse.ok) return out;
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
   variables.evaluate.num_threads = num_threads;
-  Eigen::VectorXd sensitivity(inverse.size);
   for (size_t s = 0; s < sources.size(); ++s) {
     const std::vector<ceres::ResidualBlockId>& ids = sources[s].residual_blocks;
     for (size_t first = 0; first < ids.size(); first += kResidualBlocksPerStretch) {
@@ -585,11 +593,7 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
       ceres::CRSMatrix J;
       if (!problem->Evaluate(variables.evaluate, nullptr, &r, nullptr, &J)) return out;
       for (int k = 0; k < J.num_rows; ++k) {
-        // Row k's sensitivity of every stacked coordinate: J_k H^-1 e.
-        sensitivity.setZero();
-        for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
-          sensitivity += J.values[e] * inverse.columns.row(J.cols[e]).transpose();
-        }
+        const Eigen::VectorXd sensitivity = RowSensitivity(J, k, inverse);
         out.share.col(s) += sensitivity * r[static_cast<size_t>(k)];
         out.spread.col(s) += sensitivity.cwiseAbs2();
       }
@@ -629,9 +633,7 @@ std::optional<StretchShare> ShareOfStretch(ceres::Problem* problem,
   StretchShare out;
   out.Y = Eigen::MatrixXd::Zero(inverse.columns.rows(), m);
   for (int k = 0; k < J.num_rows; ++k) {
-    for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) {
-      S.row(k) += J.values[e] * inverse.columns.row(J.cols[e]);
-    }
+    S.row(k) = RowSensitivity(J, k, inverse).transpose();
     for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) out.Y.row(J.cols[e]) += J.values[e] * S.row(k);
   }
   out.share = S.transpose() * Eigen::Map<const Eigen::VectorXd>(r.data(), J.num_rows);

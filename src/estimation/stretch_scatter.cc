@@ -37,6 +37,10 @@ BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const Stret
                 " variance limits and " + std::to_string(scatter.variance.size()) +
                 " variances for " + std::to_string(n) + " coordinates");
   }
+  // A widened variance as far as the limit allows, never below the one before.
+  const auto bounded = [&](int c, double widened) {
+    return std::max(covariance.matrix(c, c), std::min(widened, max_variance(c)));
+  };
   Eigen::VectorXd variance = covariance.matrix.diagonal();
   std::vector<ScatterExcess> found;
   for (const StretchScatter::Source& source : scatter.sources) {
@@ -47,7 +51,7 @@ BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const Stret
       if (ratio == 1.0 || !(before > 0.0) || !(scatter.variance(c) > 0.0)) continue;
       const double added = (ratio - 1.0) * source.model(c, c) / scatter.variance(c) * before;
       variance(c) += added;
-      const double after = std::max(before, std::min(before + added, max_variance(c)));
+      const double after = bounded(c, before + added);
       if (after >= kReportedSigmaFactor * kReportedSigmaFactor * before) {
         found.push_back({source.name, c, std::sqrt(ratio), std::sqrt(after / before)});
       }
@@ -57,8 +61,7 @@ BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const Stret
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(n);
   for (int c = 0; c < n; ++c) {
     const double before = covariance.matrix(c, c);
-    if (before > 0.0)
-      scale(c) = std::sqrt(std::max(before, std::min(variance(c), max_variance(c))) / before);
+    if (before > 0.0) scale(c) = std::sqrt(bounded(c, variance(c)) / before);
   }
   out.matrix = scale.asDiagonal() * covariance.matrix * scale.asDiagonal();
   out.ok = out.matrix.allFinite();
