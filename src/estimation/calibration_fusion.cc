@@ -63,26 +63,53 @@ std::vector<int> RowsInUnion(const std::vector<EstimatedBlock>& blocks,
   return rows;
 }
 
-// A log's data term, information D and vector d of 1/2 x^T D x - d^T x, kept only along the
-// directions where it curves up, judged in the prior's units (the eigenvectors of
-// P^-1/2 D P^-1/2 with a positive eigenvalue, P the prior information, so that the result
-// does not depend on the blocks' units). Where the exact Hessian (docs/calibration.md, Eq. C5)
-// says the data curve the cost down, the quadratic is only local and has no centre: the log
-// tells nothing there, as if its drive had not excited the direction.
-void KeepWhereTheDataCurveUp(const Eigen::VectorXd& prior_information, Eigen::MatrixXd* D,
-                             Eigen::VectorXd* d) {
+// A log's data term, information D and vector d of 1/2 x^T D x - d^T x (D = Lambda - P,
+// d = Lambda x - P p), in the prior's units (those of P^-1/2 D P^-1/2, so that the result does
+// not depend on the blocks' units), made what Eq. M1-M2 add:
+// - kept only along the directions where it curves up (its eigenvectors with a positive
+//   eigenvalue). Where the exact Hessian (docs/calibration.md, Eq. C5) says the data curve the
+//   cost down, the quadratic is only local and has no centre: the log tells nothing there, as
+//   if its drive had not excited the direction.
+// - weighed by its rows' scatter over the log (Eq. C8). With `inflation` E = Lambda (W - S)
+//   Lambda, W the widened covariance and S the solved one, the data's centre c = D^-1 d has
+//   covariance D^-1 (D + E) D^-1 rather than D^-1, so its information is
+//   G = D^1/2 (I + F)^-1 D^1/2, F = D^-1/2 E D^-1/2 (no narrower than D: F's negative
+//   eigenvalues, rounding or a widening that is not a matrix inequality, count as 0), and the
+//   vector G c. An empty `inflation` leaves D as it is.
+void MakeDataTerm(const Eigen::VectorXd& prior_information, const Eigen::MatrixXd& inflation,
+                  Eigen::MatrixXd* D, Eigen::VectorXd* d) {
   const Eigen::VectorXd scale = prior_information.cwiseSqrt();  // P^1/2
   const Eigen::MatrixXd whitened = scale.cwiseInverse().asDiagonal() *
                                    (0.5 * (*D + D->transpose())) *
                                    scale.cwiseInverse().asDiagonal();
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(whitened);
-  if (eigen.eigenvalues().minCoeff() > 0.0) return;
-  const Eigen::MatrixXd& U = eigen.eigenvectors();
-  const Eigen::VectorXd kept = (eigen.eigenvalues().array() > 0.0).cast<double>();
-  *D = scale.asDiagonal() * U * eigen.eigenvalues().cwiseMax(0.0).asDiagonal() * U.transpose() *
-       scale.asDiagonal();
-  *d = scale.asDiagonal() * U * kept.asDiagonal() * U.transpose() *
+  if (eigen.eigenvalues().minCoeff() > 0.0 && inflation.size() == 0) return;
+  std::vector<Eigen::Index> kept;
+  for (Eigen::Index k = 0; k < whitened.rows(); ++k) {
+    if (eigen.eigenvalues()(k) > 0.0) kept.push_back(k);
+  }
+  const auto K = static_cast<Eigen::Index>(kept.size());
+  Eigen::MatrixXd U(whitened.rows(), K);
+  Eigen::VectorXd root(K);  // eigenvalues^1/2
+  for (Eigen::Index k = 0; k < K; ++k) {
+    U.col(k) = eigen.eigenvectors().col(kept[static_cast<size_t>(k)]);
+    root(k) = std::sqrt(eigen.eigenvalues()(kept[static_cast<size_t>(k)]));
+  }
+  Eigen::MatrixXd M = Eigen::MatrixXd::Identity(K, K);  // (I + F)^-1
+  if (inflation.size() != 0 && K > 0) {
+    const Eigen::MatrixXd E =
+        scale.cwiseInverse().asDiagonal() * inflation * scale.cwiseInverse().asDiagonal();
+    const Eigen::MatrixXd F =
+        root.cwiseInverse().asDiagonal() * U.transpose() * E * U * root.cwiseInverse().asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> f(0.5 * (F + F.transpose()));
+    M = f.eigenvectors() *
+        (1.0 + f.eigenvalues().cwiseMax(0.0).array()).inverse().matrix().asDiagonal() *
+        f.eigenvectors().transpose();
+  }
+  const Eigen::MatrixXd A = scale.asDiagonal() * U * root.asDiagonal();  // P^1/2 U D_K^1/2
+  *d = A * M * root.cwiseInverse().asDiagonal() * U.transpose() *
        scale.cwiseInverse().asDiagonal() * *d;
+  *D = A * M * A.transpose();
 }
 
 // One log's terms of Eq. M1-M2, added into (information, vector) at the union's rows: its
@@ -111,7 +138,12 @@ void AddLogTerms(const CalibrationPosterior& log, const sensors::Calibration& re
   Eigen::MatrixXd data_information = posterior_information;
   data_information.diagonal() -= prior_information;
   Eigen::VectorXd data_vector = posterior_information * x - prior_term;
-  KeepWhereTheDataCurveUp(prior_information, &data_information, &data_vector);
+  const BlockCovariance& reported = log.Reported();
+  const Eigen::MatrixXd inflation =
+      &reported == &log.covariance || reported.matrix == S
+          ? Eigen::MatrixXd()
+          : Eigen::MatrixXd(posterior_information * (reported.matrix - S) * posterior_information);
+  MakeDataTerm(prior_information, inflation, &data_information, &data_vector);
   for (size_t a = 0; a < log.blocks.size(); ++a) {
     for (size_t b = 0; b < log.blocks.size(); ++b) {
       information->block(rows[a], rows[b], log.blocks[a].size, log.blocks[b].size) +=
@@ -199,7 +231,7 @@ std::vector<BlockEstimate> EstimatesOf(sensors::CalibrationBlockId id,
       if (block.id != id) continue;
       const int first = logs[i].covariance.offsets[b];
       estimates.push_back({i, &block, ValuesIn(logs[i].solved, block),
-                           logs[i].covariance.matrix.block(first, first, block.size, block.size)});
+                           logs[i].Reported().matrix.block(first, first, block.size, block.size)});
     }
   }
   return estimates;

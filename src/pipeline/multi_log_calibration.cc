@@ -236,7 +236,7 @@ std::vector<RepeatabilityRow> RepeatabilityRows(const MultiLogCalibrationResult&
       RepeatabilityRow row{&r, info.key, info.direction_names[k], info.display_unit, {}, {}};
       for (size_t i : r.agreement.logs) {
         const estimation::CalibrationPosterior& p = result.logs[i].own.posterior;
-        if (auto e = entry(result.logs[i].name, p.blocks, p.covariance, info.const_values(p.solved),
+        if (auto e = entry(result.logs[i].name, p.blocks, p.Reported(), info.const_values(p.solved),
                            k)) {
           row.logs.push_back(*e);
         }

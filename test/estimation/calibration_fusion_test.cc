@@ -15,7 +15,10 @@ namespace {
 using sensors::CalibrationBlockId;
 
 // A linear Gaussian model of logs: the blocks' tangent x (left radius, lever arm, IMU mount
-// rotation: 7 rows) about a truth, a prior N(p, P^-1) and per log z_i = H_i x + noise_i.
+// rotation: 7 rows) about a truth, a prior N(p, P^-1) and per log z_i = H_i x + noise_i. Log
+// i's noise is scatter[i] times the sigma its solve weighs with (1 when `scatter` is empty);
+// its widened covariance is then the estimate's, S_i + (scatter_i^2 - 1) S_i D_i S_i (Eq. C8),
+// and the joint solution weighs each log by its noise as it is.
 struct LinearLogs {
   sensors::Calibration truth;
   std::vector<CalibrationPosterior> posteriors;
@@ -49,7 +52,8 @@ void Apply(const std::vector<EstimatedBlock>& blocks, const sensors::Calibration
   }
 }
 
-LinearLogs MakeLogs(int num_logs, double rotation_scale, uint32_t seed) {
+LinearLogs MakeLogs(int num_logs, double rotation_scale, uint32_t seed,
+                    const std::vector<double>& scatter = {}) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> normal;
   LinearLogs out;
@@ -73,13 +77,15 @@ LinearLogs MakeLogs(int num_logs, double rotation_scale, uint32_t seed) {
   for (int i = 0; i < num_logs; ++i) {
     // A log sees some directions well and others hardly (a straight drive, a turning one).
     const Eigen::MatrixXd H = Eigen::MatrixXd::Random(5, n) * (1.0 + i) * 10.0;
+    const double k = scatter.empty() ? 1.0 : scatter[static_cast<size_t>(i)];
     Eigen::VectorXd z(5);
-    for (int r = 0; r < 5; ++r) z(r) = 0.01 * normal(rng);
+    for (int r = 0; r < 5; ++r) z(r) = k * 0.01 * normal(rng);
     const Eigen::MatrixXd R_inv = Eigen::MatrixXd::Identity(5, 5) / 1e-4;
-    const Eigen::MatrixXd information = P + H.transpose() * R_inv * H;
+    const Eigen::MatrixXd D = H.transpose() * R_inv * H;
+    const Eigen::MatrixXd information = P + D;
     const Eigen::VectorXd vector = P * p + H.transpose() * R_inv * z;
-    joint_information += H.transpose() * R_inv * H;
-    joint_vector += H.transpose() * R_inv * z;
+    joint_information += D / (k * k);
+    joint_vector += H.transpose() * R_inv * z / (k * k);
     CalibrationPosterior log;
     Apply(blocks, out.truth, information.ldlt().solve(vector), &log.solved);
     log.blocks = Blocks(&log.solved, ids, prior_centre);
@@ -92,6 +98,8 @@ LinearLogs MakeLogs(int num_logs, double rotation_scale, uint32_t seed) {
     log.covariance.ok = true;
     log.covariance.offsets = {0, 1, 4};
     log.covariance.matrix = information.inverse();
+    log.widened = log.covariance;
+    log.widened.matrix += (k * k - 1.0) * log.covariance.matrix * D * log.covariance.matrix;
     out.posteriors.push_back(log);
   }
   out.joint_covariance = joint_information.inverse();
@@ -122,6 +130,27 @@ TEST(CalibrationFusion, EqualsTheJointLeastSquaresSolution) {
         << num_logs;
     EXPECT_LT((fused.covariance.matrix - logs.joint_covariance).cwiseAbs().maxCoeff(),
               1e-9 * logs.joint_covariance.cwiseAbs().maxCoeff());
+  }
+}
+
+// Logs whose rows scatter 1-4 times as widely as their noise model says combine, through
+// their widened covariances, as the joint solve that weighs each by its noise as it is.
+TEST(CalibrationFusion, WeighsEachLogByItsRowsScatter) {
+  for (const std::vector<double>& scatter :
+       {std::vector<double>{1.0, 3.0}, std::vector<double>{4.0, 1.0, 2.0}}) {
+    const int num_logs = static_cast<int>(scatter.size());
+    LinearLogs logs = MakeLogs(num_logs, 1e-3, 21 + num_logs, scatter);
+    const FusedCalibration fused = FuseCalibrationPosteriors(logs.posteriors);
+    ASSERT_TRUE(fused.covariance.ok);
+    EXPECT_LT((TangentAtTruth(fused, logs.truth) - logs.joint_step).cwiseAbs().maxCoeff(), 1e-9)
+        << num_logs;
+    EXPECT_LT((fused.covariance.matrix - logs.joint_covariance).cwiseAbs().maxCoeff(),
+              1e-9 * logs.joint_covariance.cwiseAbs().maxCoeff());
+    // Weighed as their noise model says, the logs give other sigmas.
+    for (CalibrationPosterior& log : logs.posteriors) log.widened.ok = false;
+    const FusedCalibration as_stated = FuseCalibrationPosteriors(logs.posteriors);
+    EXPECT_GT((as_stated.covariance.matrix - logs.joint_covariance).cwiseAbs().maxCoeff(),
+              0.1 * logs.joint_covariance.cwiseAbs().maxCoeff());
   }
 }
 
@@ -254,6 +283,24 @@ TEST(CalibrationAgreement, PValuesUniformUnderOneTruth) {
   // Binomial sigma: 0.5 % and 1.1 % of the trials.
   EXPECT_NEAR(below_5_percent / static_cast<double>(trials), 0.05, 0.02);
   EXPECT_NEAR(below_50_percent / static_cast<double>(trials), 0.5, 0.05);
+}
+
+// The test weighs each log by the covariance it reports: widened 100 times, chi^2 / 100.
+TEST(CalibrationAgreement, WeighsByTheReportedCovariance) {
+  std::mt19937 rng(9);
+  std::vector<CalibrationPosterior> logs = AgreeingLogs(3, &rng);
+  const std::vector<BlockAgreement> as_solved = AgreementOfLogs(logs);
+  for (CalibrationPosterior& log : logs) {
+    log.widened = log.covariance;
+    log.widened.matrix *= 100.0;
+  }
+  const std::vector<BlockAgreement> widened = AgreementOfLogs(logs);
+  ASSERT_EQ(widened.size(), as_solved.size());
+  for (size_t b = 0; b < widened.size(); ++b) {
+    EXPECT_NEAR(widened[b].chi_square, as_solved[b].chi_square / 100.0,
+                1e-9 * as_solved[b].chi_square);
+    EXPECT_NEAR(widened[b].z, as_solved[b].z / 10.0, 1e-9 * as_solved[b].z);
+  }
 }
 
 // A radius that changed in one log (a tyre) fails the test and is named with its pair.
