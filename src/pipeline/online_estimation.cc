@@ -103,6 +103,14 @@ void CheckOnlineInputs(const io::Dataset& dataset, const io::Problem& problem,
         "initial_position_sigma_with_gnss_m, initial_accel_bias_sigma_with_gnss_m_s2 "
         "and initializer_sweep_stride must be positive");
   }
+  const double significance = options.scatter_significance;
+  if (options.scatter_stretches < 0 || options.scatter_stretches == 1 ||
+      options.scatter_stretches == 2 || !(significance > 0.0) || !(significance < 1.0)) {
+    throw Error(
+        "OnlineEstimationOptions: scatter_stretches must be 0 (no test) or at least 3, and "
+        "scatter_significance in (0, 1); got " +
+        std::to_string(options.scatter_stretches) + " and " + std::to_string(significance));
+  }
 }
 
 // The end of the log's first initialization_duration_s: the initializer's sweeps are those
@@ -334,13 +342,18 @@ std::vector<Arrival> ArrivalOrder(const io::Dataset& dataset, bool use_wheel, bo
 
 // Streams the arrivals into the estimator, the first sweeps from *initial_sweeps (moved),
 // the others read from disk (one ahead when there is a second thread). Records the
-// calibration after every update and reports progress; throws when nothing was estimated.
+// calibration after every update, and with its covariance in *checkpoints after the first
+// update at or past the end of each of the first scatter_stretches - 1 equal spans of the
+// stream (Eq. W9); reports progress; throws when nothing was estimated.
 void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
                     const OnlineEstimationOptions& options, const std::vector<Arrival>& arrivals,
                     std::vector<lidar::LidarSweep>* initial_sweeps,
-                    estimation::SlidingWindowEstimator* estimator, OnlineEstimationResult* result) {
+                    estimation::SlidingWindowEstimator* estimator, OnlineEstimationResult* result,
+                    std::vector<estimation::CalibrationCheckpoint>* checkpoints) {
   const int64_t log_begin_ns = arrivals.empty() ? 0 : arrivals.front().t_ns;
   const int64_t log_end_ns = arrivals.empty() ? 0 : arrivals.back().t_ns;
+  const int64_t stretches = options.scatter_stretches;
+  int64_t next_checkpoint = 1;  // the span whose end the next checkpoint is taken at
   int64_t updates = 0;
   internal::SweepReader reader(dataset, problem.solver.num_threads > 1);
   for (const Arrival& a : arrivals) {
@@ -372,6 +385,11 @@ void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
     updates = estimator->counters().updates;
     result->calibration_over_time.push_back(
         {estimator->latest_state().t_ns, estimator->calibration()});
+    if (next_checkpoint < stretches &&
+        a.t_ns >= log_begin_ns + (log_end_ns - log_begin_ns) * next_checkpoint / stretches) {
+      checkpoints->push_back({estimator->calibration(), estimator->ComputeCalibrationCovariance()});
+      ++next_checkpoint;
+    }
     if (options.progress) {
       OnlineEstimationProgress progress;
       progress.log_fraction = log_end_ns > log_begin_ns
@@ -391,8 +409,8 @@ void StreamArrivals(const io::Dataset& dataset, const io::Problem& problem,
   }
 }
 
-// The trajectories, states, counters and calibration (with its sigmas) of the estimator;
-// returns the calibration covariance.
+// The trajectories, states, counters and calibration of the estimator; returns the
+// calibration covariance.
 estimation::CalibrationCovariance CollectResult(
     const estimation::SlidingWindowOptions& window_options, bool use_lidar,
     estimation::SlidingWindowEstimator* estimator, OnlineEstimationResult* result) {
@@ -409,7 +427,6 @@ estimation::CalibrationCovariance CollectResult(
   io::CalibrationFile& file = result->calibration;
   file.value = estimator->calibration();
   estimation::CalibrationCovariance covariance = estimator->ComputeCalibrationCovariance();
-  FillWindowUncertainty(covariance, &file.uncertainty);
   file.solver["estimator"] = "sliding_window";
   file.solver["window_size"] = std::to_string(window_options.window_size);
   file.solver["updates"] = std::to_string(result->counters.updates);
@@ -480,16 +497,23 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   const size_t first_sweep = use_lidar ? first.start_sweep + 1 : 0;
   const std::vector<Arrival> arrivals =
       ArrivalOrder(dataset, use_wheel, use_gnss, t0, first_sweep, keyframe_period_ns);
-  StreamArrivals(dataset, problem, options, arrivals, &first.sweeps, &estimator, &result);
+  std::vector<estimation::CalibrationCheckpoint> checkpoints;
+  StreamArrivals(dataset, problem, options, arrivals, &first.sweeps, &estimator, &result,
+                 &checkpoints);
   RequireStreamedSamples(dataset, use_wheel, use_gnss, estimator.counters());
 
-  // 3. The result.
-  const estimation::CalibrationCovariance covariance =
-      CollectResult(window_options, use_lidar, &estimator, &result);
+  // 3. The result, its sigmas widened where the estimate's steps scatter (Eq. W9).
+  checkpoints.push_back(
+      {estimator.calibration(), CollectResult(window_options, use_lidar, &estimator, &result)});
   std::vector<std::string> held_warnings;
+  const estimation::CalibrationCovariance& solved = checkpoints.back().covariance;
+  const estimation::CalibrationCovariance widened =
+      WidenedForSteps(window_options, checkpoints, options.scatter_significance,
+                      &result.calibration, &held_warnings);
+  FillWindowUncertainty(widened, &result.calibration.uncertainty);
   WarnOfFixedDirectionsTheStreamMoves(dataset, problem, use_wheel, use_gnss, &estimator,
                                       &held_warnings);
-  if (HoldWhatTheStreamLeft(dataset, problem, window_options, use_wheel, use_gnss, covariance,
+  if (HoldWhatTheStreamLeft(dataset, problem, window_options, use_wheel, use_gnss, solved, widened,
                             &result.calibration.value, &result.calibration.uncertainty,
                             &held_warnings) &&
       window_options.smoothing) {

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -349,6 +350,18 @@ TEST_F(OnlineEstimationTest, RefusesWhatItCannotDo) {
   OnlineEstimationOptions options;
   options.initialization_duration_s = 0.0;
   EXPECT_THROW(EstimateDatasetOnline(full, FullProblem(), options), Error);
+  for (const auto& [stretches, significance] :
+       std::vector<std::pair<int, double>>{{2, 0.001}, {-1, 0.001}, {32, 0.0}, {32, 1.0}}) {
+    OnlineEstimationOptions scatter;
+    scatter.scatter_stretches = stretches;
+    scatter.scatter_significance = significance;
+    try {
+      EstimateDatasetOnline(full, FullProblem(), scatter);
+      ADD_FAILURE() << stretches << " stretches at " << significance << " were accepted";
+    } catch (const Error& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("scatter_stretches must be 0"));
+    }
+  }
 }
 
 // A 30 s highway drive (seed 3, the offline test's, no turns, traffic around the car) with
