@@ -139,6 +139,11 @@ void AddLogTerms(const CalibrationPosterior& log, const sensors::Calibration& re
   data_information.diagonal() -= prior_information;
   Eigen::VectorXd data_vector = posterior_information * x - prior_term;
   const BlockCovariance& reported = log.Reported();
+  if (reported.offsets != log.covariance.offsets || reported.matrix.rows() != S.rows() ||
+      reported.matrix.cols() != S.cols()) {
+    throw Error("log " + std::to_string(index + 1) +
+                ": its widened covariance does not have its covariance's blocks");
+  }
   const Eigen::MatrixXd inflation =
       &reported == &log.covariance || reported.matrix == S
           ? Eigen::MatrixXd()
@@ -287,6 +292,12 @@ std::vector<BlockAgreement> AgreementOfLogs(const std::vector<CalibrationPosteri
   for (size_t i = 0; i < logs.size(); ++i) {
     if (!logs[i].covariance.ok) {
       throw Error("log " + std::to_string(i + 1) + " has no covariance of its calibration");
+    }
+    const BlockCovariance& reported = logs[i].Reported();
+    if (reported.offsets != logs[i].covariance.offsets ||
+        reported.matrix.rows() != logs[i].covariance.matrix.rows()) {
+      throw Error("log " + std::to_string(i + 1) +
+                  ": its widened covariance does not have its covariance's blocks");
     }
   }
   std::vector<BlockAgreement> out;

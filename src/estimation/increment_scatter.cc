@@ -13,15 +13,21 @@ namespace estimation {
 namespace internal {
 
 double OrderStatisticQuantile(int m, int n, double tail) {
+  if (m < 1 || m > n || !(tail > 0.0) || !(tail < 1.0)) {
+    throw Error("OrderStatisticQuantile: needs 1 <= m <= n and 0 < tail < 1, got m " +
+                std::to_string(m) + ", n " + std::to_string(n) + ", tail " + std::to_string(tail));
+  }
   // P(X_(m) > q) = P(fewer than m of n draws at most q) = sum_{k<m} C(n,k) F^k (1-F)^(n-k),
-  // F = P(chi^2(1) <= q) = erf(sqrt(q / 2)); it falls as q grows.
+  // F = P(chi^2(1) <= q) = erf(sqrt(q / 2)); it falls as q grows. The terms in logarithms:
+  // C(n, k) overflows a double from n of about a thousand.
   const auto exceeds = [&](double q) {
-    const double F = std::erf(std::sqrt(0.5 * q));
+    const double log_F = std::log(std::erf(std::sqrt(0.5 * q)));
+    const double log_1mF = std::log(std::erfc(std::sqrt(0.5 * q)));
     double sum = 0.0;
-    double binomial = 1.0;  // C(n, k)
     for (int k = 0; k < m; ++k) {
-      sum += binomial * std::pow(F, k) * std::pow(1.0 - F, n - k);
-      binomial *= static_cast<double>(n - k) / static_cast<double>(k + 1);
+      const double log_binomial =
+          std::lgamma(n + 1.0) - std::lgamma(k + 1.0) - std::lgamma(n - k + 1.0);
+      sum += std::exp(log_binomial + (k > 0 ? k * log_F : 0.0) + (n - k) * log_1mF);
     }
     return sum;
   };
@@ -64,7 +70,9 @@ std::vector<double> NormalizedSteps(const std::vector<CalibrationCheckpoint>& ch
                              b.covariance.covariance(row_b + k, row_b + k);
     const double step =
         BlockMinus(block, info.const_values(b.value), info.const_values(a.value))(k);
-    if (predicted > floor && std::isfinite(step)) z.push_back(step / std::sqrt(predicted));
+    if (predicted > std::max(floor, 0.0) && std::isfinite(step)) {
+      z.push_back(step / std::sqrt(predicted));
+    }
   }
   return z;
 }

@@ -46,9 +46,9 @@ std::string DirectionName(const estimation::CalibrationCovariance& covariance,
 
 // `covariance`'s rows of `blocks`, a direction the pseudo-inverse dropped (no information: the
 // data left it at its prior) at its prior's variance.
-estimation::BlockCovariance OfBlocks(const estimation::CalibrationCovariance& covariance,
-                                     const std::vector<int>& rows,
-                                     const std::vector<estimation::EstimatedBlock>& blocks) {
+estimation::BlockCovariance BlockCovarianceOf(
+    const estimation::CalibrationCovariance& covariance, const std::vector<int>& rows,
+    const std::vector<estimation::EstimatedBlock>& blocks) {
   estimation::BlockCovariance out;
   out.ok = true;
   const int n = static_cast<int>(rows.size());
@@ -107,6 +107,10 @@ bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& proble
                            const estimation::CalibrationCovariance& widened,
                            sensors::Calibration* value, io::CalibrationUncertainty* uncertainty,
                            std::vector<std::string>* warnings) {
+  if (widened.names != solved.names || widened.offsets != solved.offsets ||
+      widened.covariance.rows() != solved.covariance.rows()) {
+    throw Error("HoldWhatTheStreamLeft: the widened covariance's blocks are not the solved one's");
+  }
   sensors::Calibration scratch = dataset.sensors.nominal_calibration;
   const std::vector<estimation::EstimatedBlock> limits = EstimatedBlocks(
       problem, dataset.sensors, OfflineCalibrationOptions(), use_wheel, use_gnss, &scratch);
@@ -134,8 +138,9 @@ bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& proble
   // The offline calibration's plausibility rule (docs/calibration.md): nothing is written. It
   // asks where the data took a direction they inform, which the steps' scatter does not
   // change (a drive that pulls an estimate far from a misstated prior scatters its steps).
-  RequirePlausible(dataset, OfflineCalibrationOptions(), blocks, OfBlocks(solved, rows, blocks));
-  const estimation::BlockCovariance held = OfBlocks(widened, rows, blocks);
+  RequirePlausible(dataset, OfflineCalibrationOptions(), blocks,
+                   BlockCovarianceOf(solved, rows, blocks));
+  const estimation::BlockCovariance held = BlockCovarianceOf(widened, rows, blocks);
   const estimation::BlockObservability observability =
       estimation::HoldUnobservableDirections(blocks, held);
   FillUncertainty(blocks, observability, uncertainty);

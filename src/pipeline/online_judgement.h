@@ -34,9 +34,11 @@ estimation::CalibrationCovariance WidenedForSteps(
 // max_posterior_to_prior_sigma of the window's prior sigma, above max_kept_sigma_to_limit times its
 // limit, or zero: the covariance's pseudo-inverse drops an unobservable one) is held at the prior's
 // centre, and the others are conditioned on it. Moves *value (Eq. C1), fills *uncertainty (Eq. C2);
-// returns whether any direction was held. Throws autocal::Error, as the offline calibration
-// does (RequirePlausible), when a direction the stream informs (by the `solved` covariance,
-// before widening) ends more than 5 prior sigmas from the prior.
+// returns whether any direction was held. Throws autocal::Error (RequirePlausible) when a
+// direction the stream informs ends more than 5 prior sigmas from the prior; unlike the
+// offline calibration, which judges by its widened covariance (Eq. C8), by the `solved` one:
+// a drive that pulls an estimate far from a misstated prior scatters the window's steps too
+// (Eq. W9 reads a misstated prior as scatter), and widened it would no longer be judged.
 bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& problem,
                            estimation::SlidingWindowOptions window_options, bool use_wheel,
                            bool use_gnss, const estimation::CalibrationCovariance& solved,

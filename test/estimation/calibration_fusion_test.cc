@@ -76,7 +76,9 @@ LinearLogs MakeLogs(int num_logs, double rotation_scale, uint32_t seed,
   Eigen::VectorXd joint_vector = P * p;
   for (int i = 0; i < num_logs; ++i) {
     // A log sees some directions well and others hardly (a straight drive, a turning one).
-    const Eigen::MatrixXd H = Eigen::MatrixXd::Random(5, n) * (1.0 + i) * 10.0;
+    std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+    Eigen::MatrixXd H(5, n);
+    for (double& h : H.reshaped()) h = uniform(rng) * (1.0 + i) * 10.0;
     const double k = scatter.empty() ? 1.0 : scatter[static_cast<size_t>(i)];
     Eigen::VectorXd z(5);
     for (int r = 0; r < 5; ++r) z(r) = k * 0.01 * normal(rng);
@@ -154,6 +156,26 @@ TEST(CalibrationFusion, WeighsEachLogByItsRowsScatter) {
   }
 }
 
+// A widening as Eq. C8 gives it, one direction's sigma doubled with its correlations kept
+// (D S D, not S + S E S with E >= 0): the combination is finite and never knows more than
+// it did with the log as solved.
+TEST(CalibrationFusion, AWideningOfOneDirectionNeverNarrowsTheCombination) {
+  LinearLogs logs = MakeLogs(2, 1.0, 13);
+  const FusedCalibration as_solved = FuseCalibrationPosteriors(logs.posteriors);
+  CalibrationPosterior& first = logs.posteriors[0];
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(7);
+  scale(4) = 2.0;  // the lever arm's x
+  first.widened.matrix = scale.asDiagonal() * first.covariance.matrix * scale.asDiagonal();
+  const FusedCalibration widened = FuseCalibrationPosteriors(logs.posteriors);
+  ASSERT_TRUE(widened.covariance.ok);
+  ASSERT_TRUE(widened.covariance.matrix.allFinite());
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> difference(widened.covariance.matrix -
+                                                                  as_solved.covariance.matrix);
+  EXPECT_GT(difference.eigenvalues().minCoeff(),
+            -1e-12 * as_solved.covariance.matrix.cwiseAbs().maxCoeff());
+  EXPECT_GT(widened.covariance.matrix(4, 4), as_solved.covariance.matrix(4, 4));
+}
+
 // The joint posterior knows more than any one log: every direction's sigma is at most the
 // smallest of the logs'.
 TEST(CalibrationFusion, SigmaNoLargerThanAnyLogs) {
@@ -173,6 +195,7 @@ TEST(CalibrationFusion, BlockOfOneLogKeepsItsEstimate) {
   second.blocks.pop_back();  // the second log has no GNSS
   second.covariance.matrix = Eigen::MatrixXd(second.covariance.matrix.topLeftCorner(4, 4));
   second.covariance.offsets.pop_back();
+  second.widened = second.covariance;
   const FusedCalibration fused = FuseCalibrationPosteriors(logs.posteriors);
   ASSERT_EQ(fused.blocks.size(), 3u);
   // The lever arm given the others is the first log's conditional; with the others pinned
@@ -253,7 +276,9 @@ std::vector<CalibrationPosterior> AgreeingLogs(int num_logs, std::mt19937* rng) 
     log.blocks = Blocks(&log.solved,
                         {CalibrationBlockId::kWheelRadiusRight, CalibrationBlockId::kGnssLeverArm},
                         sensors::Calibration());
-    Eigen::MatrixXd A = Eigen::MatrixXd::Random(4, 4) * 1e-3 * (1 + i);
+    std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+    Eigen::MatrixXd A(4, 4);
+    for (double& a : A.reshaped()) a = uniform(*rng) * 1e-3 * (1 + i);
     log.covariance.matrix = A * A.transpose() + 1e-8 * Eigen::MatrixXd::Identity(4, 4);
     log.covariance.offsets = {0, 1};
     log.covariance.ok = true;

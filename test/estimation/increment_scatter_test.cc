@@ -55,6 +55,19 @@ TEST(OrderStatisticQuantile, OneDrawIsChiSquaresQuantile) {
   EXPECT_NEAR(internal::OrderStatisticQuantile(1, 1, 0.5), 0.454936, 1e-6);
 }
 
+// A long stream's many steps: the median of 3001 draws stays near chi^2(1)'s median (its
+// binomial terms would overflow a double), and the arguments are checked.
+TEST(OrderStatisticQuantile, ManyDrawsAndItsArguments) {
+  const double median = internal::OrderStatisticQuantile(1501, 3001, 0.5);
+  const double gate = internal::OrderStatisticQuantile(1501, 3001, 0.001);
+  EXPECT_NEAR(median, 0.454936, 1e-3);
+  EXPECT_GT(gate, median);
+  EXPECT_LT(gate, 1.2 * median);
+  EXPECT_THROW(internal::OrderStatisticQuantile(0, 3, 0.5), Error);
+  EXPECT_THROW(internal::OrderStatisticQuantile(4, 3, 0.5), Error);
+  EXPECT_THROW(internal::OrderStatisticQuantile(2, 3, 1.0), Error);
+}
+
 // The median of 15 chi^2(1) draws exceeds its 1 % point in 1 % of 20000 trials.
 TEST(OrderStatisticQuantile, MatchesDrawsOfTheMedian) {
   std::mt19937 rng(3);
@@ -132,7 +145,7 @@ TEST(IncrementScatter, NoisierReadingsWidenTheirSigmas) {
 }
 
 // Four large steps while the estimate settles are not the steps' typical scatter: nothing is
-// widened, where the mean of the squares would widen every direction.
+// widened.
 TEST(IncrementScatter, ASettlingStartIsNotScatter) {
   const Filtered filtered = Filter(1.0, 5, 0.05);
   const IncrementScatter scatter = ScatterOfIncrements(filtered.checkpoints, 0.001);

@@ -143,6 +143,10 @@ TEST_F(OnlineEstimationTest, StreamsDatasetAndWritesResult) {
   EXPECT_GT(result.calibration.uncertainty.T_I_L.sigma_rot_deg->minCoeff(), 0.0);
   EXPECT_TRUE(result.calibration.uncertainty.p_I_A_m.sigma.has_value());
   EXPECT_TRUE(result.calibration.uncertainty.T_I_V.sigma_rot_deg.has_value());  // estimated
+  // The estimate's steps move as its covariance says on a simulated drive (Eq. W9): tested,
+  // nothing widened.
+  EXPECT_GT(result.calibration.residuals.at("window").at("step_scatter_ratio"), 0.0);
+  EXPECT_THAT(result.warnings, ::testing::Not(::testing::Contains(::testing::HasSubstr("W9"))));
 
   const std::string out = test::OutputDir("online_result").string();
   WriteOnlineEstimationResult(out, result);

@@ -97,10 +97,11 @@ struct OnlineEstimationOptions {
   // "Fixed blocks"). The window then marginalizes each keyframe a second time with those
   // blocks free; the estimate is the same either way.
   bool test_fixed_blocks = true;
-  // The estimate's steps over scatter_stretches equal spans of the stream against its
-  // covariance (docs/sliding_window.md, Eq. W9): where their median square exceeds chance's at
-  // scatter_significance, the final sigmas are widened by the steps' scatter. The covariance
-  // is computed once per span. 0 stretches: no test; else at least 3 (two steps).
+  // The stream cut into scatter_stretches equal spans, the estimate's steps between their ends
+  // (scatter_stretches - 1 steps) against its covariance (docs/sliding_window.md, Eq. W9):
+  // where their median square exceeds chance's at scatter_significance, the final sigmas are
+  // widened by the steps' scatter. The covariance is computed at each span's end. 0: no
+  // test; else at least 3 (two steps).
   int scatter_stretches = 32;
   double scatter_significance = 0.001;
   // Called after every window update; may be empty.
