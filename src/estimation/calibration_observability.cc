@@ -622,9 +622,12 @@ struct StretchShare {
   }
 };
 
+// The stretch's share at the residuals r + J step when `step` is given (at the values
+// `problem` holds otherwise): Y^T step more.
 std::optional<StretchShare> ShareOfStretch(ceres::Problem* problem,
                                            const internal::VariableColumns& variables,
-                                           const InverseColumns& inverse) {
+                                           const InverseColumns& inverse,
+                                           const Eigen::VectorXd* step) {
   std::vector<double> r;
   ceres::CRSMatrix J;
   if (!problem->Evaluate(variables.evaluate, nullptr, &r, nullptr, &J)) return std::nullopt;
@@ -637,15 +640,33 @@ std::optional<StretchShare> ShareOfStretch(ceres::Problem* problem,
     for (int e = J.rows[k]; e < J.rows[k + 1]; ++e) out.Y.row(J.cols[e]) += J.values[e] * S.row(k);
   }
   out.share = S.transpose() * Eigen::Map<const Eigen::VectorXd>(r.data(), J.num_rows);
+  if (step != nullptr) out.share += out.Y.transpose() * *step;
   out.model = S.transpose() * S;
   return out;
 }
 
+// -H^-1 J^T r over every residual block of `problem`: the Gauss-Newton step from its values.
+std::optional<Eigen::VectorXd> GaussNewtonStep(ceres::Problem* problem,
+                                               internal::VariableColumns variables,
+                                               const HessianFactor& factor) {
+  variables.evaluate.residual_blocks.clear();
+  std::vector<double> gradient;
+  if (!problem->Evaluate(variables.evaluate, nullptr, nullptr, &gradient, nullptr)) {
+    return std::nullopt;
+  }
+  const Eigen::MatrixXd g = Eigen::Map<const Eigen::VectorXd>(
+      gradient.data(), static_cast<Eigen::Index>(gradient.size()));
+  return Eigen::VectorXd(-factor.Solve(g).col(0));
+}
+
 // Source's Eq. C8 sums over `stretches` runs of its residual blocks; the runs are evaluated in
 // turn (Ceres evaluates one problem at a time) and their solves run num_threads at once.
-std::optional<StretchScatter::Source> ScatterOfSource(
-    ceres::Problem* problem, internal::VariableColumns* variables, const ResidualSource& source,
-    int stretches, const InverseColumns& inverse, const HessianFactor& factor, int num_threads) {
+std::optional<StretchScatter::Source> ScatterOfSource(ceres::Problem* problem,
+                                                      internal::VariableColumns* variables,
+                                                      const ResidualSource& source, int stretches,
+                                                      const InverseColumns& inverse,
+                                                      const HessianFactor& factor, int num_threads,
+                                                      const Eigen::VectorXd* step) {
   const Eigen::Index m = inverse.size;
   StretchScatter::Source out{source.name, Eigen::MatrixXd::Zero(m, m), Eigen::MatrixXd::Zero(m, m),
                              Eigen::MatrixXd::Zero(m, m), Eigen::VectorXd::Zero(m)};
@@ -662,7 +683,7 @@ std::optional<StretchScatter::Source> ScatterOfSource(
       const auto end = static_cast<std::ptrdiff_t>(n * (b + 1) / runs);
       variables->evaluate.residual_blocks.assign(source.residual_blocks.begin() + first,
                                                  source.residual_blocks.begin() + end);
-      std::optional<StretchShare> part = ShareOfStretch(problem, *variables, inverse);
+      std::optional<StretchShare> part = ShareOfStretch(problem, *variables, inverse, step);
       if (!part) return std::nullopt;
       Y += part->Y;
       parts.push_back(std::move(*part));
@@ -699,7 +720,8 @@ std::optional<StretchScatter::Source> ScatterOfSource(
 StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
                                      ceres::Problem* problem,
                                      const std::vector<ResidualSource>& sources, int stretches,
-                                     int num_threads, CovarianceOrdering* ordering) {
+                                     int num_threads, CovarianceOrdering* ordering,
+                                     bool at_gauss_newton_step) {
   if (stretches < 2) throw Error("ComputeStretchScatter: stretches must be >= 2");
   StretchScatter out;
   out.stretches = stretches;
@@ -714,10 +736,16 @@ StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
   out.variance = CovarianceOf(inverse).matrix.diagonal();
   internal::VariableColumns variables = internal::VariableColumnsOf(problem);
   variables.evaluate.num_threads = num_threads;
+  std::optional<Eigen::VectorXd> step;
+  if (at_gauss_newton_step) {
+    step = GaussNewtonStep(problem, variables, factor);
+    if (!step || !step->allFinite()) return out;
+  }
   for (const ResidualSource& source : sources) {
     if (source.residual_blocks.size() < static_cast<size_t>(stretches)) continue;
     std::optional<StretchScatter::Source> scatter =
-        ScatterOfSource(problem, &variables, source, stretches, inverse, factor, num_threads);
+        ScatterOfSource(problem, &variables, source, stretches, inverse, factor, num_threads,
+                        step ? &*step : nullptr);
     if (!scatter) return out;
     out.sources.push_back(std::move(*scatter));
   }
@@ -805,12 +833,29 @@ std::vector<EstimatedBlock> JudgedFixedBlocks(const std::vector<EstimatedBlock>&
   return judged;
 }
 
+// `covariance` of `judged` widened by the sources' scatter over the log at the Gauss-Newton
+// step's residuals (Eq. C8), up to the blocks' prior variances; as it is when the scatter
+// cannot be computed.
+BlockCovariance WidenedAtTheStep(const std::vector<EstimatedBlock>& judged, ceres::Problem* problem,
+                                 const BlockCovariance& covariance, const ScatterSettings& settings,
+                                 int num_threads, CovarianceOrdering* ordering) {
+  const StretchScatter scatter = ComputeStretchScatter(
+      judged, problem, settings.sources, settings.stretches, num_threads, ordering, true);
+  if (!scatter.ok) return covariance;
+  Eigen::VectorXd prior_variance(covariance.matrix.rows());
+  for (size_t b = 0; b < judged.size(); ++b) {
+    prior_variance.segment(covariance.offsets[b], judged[b].size) =
+        judged[b].prior_sigma.cwiseAbs2();
+  }
+  return WidenedForScatter(covariance, scatter, settings.significance, prior_variance, nullptr);
+}
+
 }  // namespace
 
 std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(
     const std::vector<EstimatedBlock>& fixed, ceres::Problem* problem, int num_threads,
     double max_sigmas, const std::vector<ceres::ResidualBlockId>& exact,
-    const ScaledInformation& scaled) {
+    const ScaledInformation& scaled, const ScatterSettings& scatter) {
   std::vector<size_t> index;
   const std::vector<EstimatedBlock> judged = JudgedFixedBlocks(fixed, *problem, &index);
   if (judged.empty()) return {};
@@ -827,6 +872,9 @@ std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(
   BlockCovariance covariance =
       ComputeBlockCovariance(judged, problem, num_threads, exact, scaled, &ordering);
   if (!covariance.ok) covariance = budget.covariance;
+  if (scatter.stretches > 0) {
+    covariance = WidenedAtTheStep(judged, problem, covariance, scatter, num_threads, &ordering);
+  }
   std::vector<FixedDirectionMove> out;
   for (size_t b = 0; b < judged.size(); ++b) {
     const EstimatedBlock& block = judged[b];

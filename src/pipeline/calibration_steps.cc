@@ -483,9 +483,13 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
       })) {
     return;
   }
+  estimation::ScatterSettings scatter;
+  if (options.scatter_stretches > 0) {
+    scatter = {SensorSources(p), options.scatter_stretches, options.scatter_significance};
+  }
   for (const estimation::FixedDirectionMove& moved : estimation::FixedDirectionsTheDataMove(
            fixed, p, problem.solver.num_threads, options.max_fixed_block_step_sigmas,
-           ExactResidualBlocks(*p), LidarSandwich(p))) {
+           ExactResidualBlocks(*p), LidarSandwich(p), scatter)) {
     warnings->push_back(FixedDirectionWarning(moved));
   }
 }
@@ -602,6 +606,14 @@ std::vector<std::string> ScatterWarnings(const std::vector<estimation::Estimated
 
 }  // namespace
 
+std::vector<estimation::ResidualSource> SensorSources(ceres::Problem* problem) {
+  std::vector<estimation::ResidualSource> sources = ResidualSources(problem);
+  sources.erase(std::remove_if(sources.begin(), sources.end(),
+                               [](const auto& source) { return source.name == "priors"; }),
+                sources.end());
+  return sources;
+}
+
 void CheckScatterOptions(const OfflineCalibrationOptions& options) {
   const double significance = options.scatter_significance;
   if (options.scatter_stretches < 0 || options.scatter_stretches == 1 || !(significance > 0.0) ||
@@ -620,12 +632,9 @@ estimation::BlockCovariance WidenedForScatter(
   if (options.scatter_stretches == 0 || !covariance.ok || blocks_estimated.empty()) {
     return covariance;
   }
-  std::vector<estimation::ResidualSource> sources = ResidualSources(problem);
-  sources.erase(std::remove_if(sources.begin(), sources.end(),
-                               [](const auto& source) { return source.name == "priors"; }),
-                sources.end());
-  const estimation::StretchScatter scatter = estimation::ComputeStretchScatter(
-      blocks_estimated, problem, sources, options.scatter_stretches, num_threads, ordering);
+  const estimation::StretchScatter scatter =
+      estimation::ComputeStretchScatter(blocks_estimated, problem, SensorSources(problem),
+                                        options.scatter_stretches, num_threads, ordering);
   if (!scatter.ok) {
     result->warnings.push_back(
         "the rows' scatter over the log could not be computed (Eq. C8): the sigmas are those "

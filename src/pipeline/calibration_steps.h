@@ -174,8 +174,8 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 
 // Eq. C7: one warning for each direction of a block the problem holds fixed that the data at
 // the solution of `p` would move by more than options.max_fixed_block_step_sigmas sigmas
-// (estimation::FixedDirectionsTheDataMove, its sigma as PosteriorCovariance's), naming what to
-// do about it.
+// (estimation::FixedDirectionsTheDataMove, its sigma as PosteriorCovariance's widened as
+// WidenedForScatter's, at the step's residuals), naming what to do about it.
 void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::SensorsConfig& sensors,
                                       const OfflineCalibrationOptions& options, bool use_wheel,
                                       bool use_gnss, sensors::Calibration* calibration,
@@ -199,6 +199,10 @@ estimation::BlockCovariance PosteriorCovariance(
     int num_threads, std::vector<std::string>* warnings,
     const estimation::ScaledInformation& lidar = {},
     estimation::CovarianceOrdering* ordering = nullptr);
+
+// The residual sources of `problem` (ResidualSources) but the priors: the sensors whose rows'
+// scatter Eq. C8 judges.
+std::vector<estimation::ResidualSource> SensorSources(ceres::Problem* problem);
 
 // Throws autocal::Error unless options.scatter_stretches is 0 or at least 2 and
 // options.scatter_significance lies in (0, 1).

@@ -773,6 +773,28 @@ TEST(CalibrationObservability, StretchScatterIgnoresAPullCommonToEveryStretch) {
   EXPECT_NEAR(ratio, 1.0, 0.5);
 }
 
+// Off the minimum (here: every variable moved), the scatter at the Gauss-Newton step's
+// residuals is the scatter at the minimum: exactly, for this linear problem. At the values as
+// they are, the offset's pull differs from stretch to stretch and reads as scatter (here the
+// first coordinate's: 3.0 times the minimum's).
+TEST(CalibrationObservability, StretchScatterAtTheGaussNewtonStepIsTheMinimumsScatter) {
+  KeyframeRowsProblem drive(3, 0.0);
+  const StretchScatter at_minimum =
+      ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8);
+  drive.p += Eigen::Vector3d(0.01, -0.02, 0.03);
+  for (size_t k = 0; k < drive.x.size(); ++k) drive.x[k] += 0.05 * std::sin(0.1 * k);
+  const StretchScatter at_step =
+      ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8, 1, nullptr, true);
+  const StretchScatter as_is = ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8);
+  ASSERT_TRUE(at_minimum.ok && at_step.ok && as_is.ok);
+  const StretchScatter::Source& minimum = at_minimum.sources[0];
+  const StretchScatter::Source& step = at_step.sources[0];
+  EXPECT_TRUE(step.observed.isApprox(minimum.observed, 1e-6)) << step.observed << "\n"
+                                                              << minimum.observed;
+  EXPECT_TRUE(step.expected.isApprox(minimum.expected, 1e-9));
+  EXPECT_GT(as_is.sources[0].observed(0, 0), 2.0 * minimum.observed(0, 0));
+}
+
 TEST(CalibrationObservability, StretchScatterLeavesOutShortSourcesAndRefusesOneStretch) {
   KeyframeRowsProblem drive(1, 0.0);
   ResidualSource few{"few",

@@ -127,12 +127,16 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
 // How each source's share of the blocks' error scatters over the log against what its noise
 // model says (docs/calibration.md, Eq. C8; the result and its use: stretch_scatter.h). A
 // source's residual blocks, in the order given (their time order), are cut into `stretches`
-// runs of equal count, at the solution `problem` holds. A source with fewer residual blocks
-// than stretches is left out. Throws autocal::Error for fewer than two stretches.
+// runs of equal count, at the solution `problem` holds or, `at_gauss_newton_step`, at the
+// residuals r + J step of the Gauss-Newton step from its values (the expectation assumes the
+// least-squares residuals; a problem not at its minimum, such as one whose fixed blocks were
+// freed for Eq. C7, has them there to first order). A source with fewer residual blocks than
+// stretches is left out. Throws autocal::Error for fewer than two stretches.
 StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
                                      ceres::Problem* problem,
                                      const std::vector<ResidualSource>& sources, int stretches,
-                                     int num_threads = 1, CovarianceOrdering* ordering = nullptr);
+                                     int num_threads = 1, CovarianceOrdering* ordering = nullptr,
+                                     bool at_gauss_newton_step = false);
 
 // The directions that the data inform (observable or kept; or held under a stated prior while
 // the data hold about a quarter or more of its information, posterior sigma at most 0.9 of
@@ -154,9 +158,16 @@ std::vector<std::string> ImplausibleDirections(const std::vector<EstimatedBlock>
 // Its sigma is the block's part of H^-1 as ComputeBlockCovariance gives it with `exact` and
 // `scaled` (Gauss-Newton's where that H is not positive definite). Each direction the data
 // inform (Informed: as a direction an estimate would keep) whose step exceeds max_sigmas sigmas
-// is returned. Not judged: blocks that are not parameter blocks of `problem` (a wheel or GNSS
-// clock fixed at zero enters no factor) and blocks stated exact (a prior sigma of zero).
-// `problem` is left as it was.
+// is returned. With `scatter`'s stretches, that sigma is widened where the sources' rows
+// scatter over the log beyond their noise model (Eq. C8, at the Gauss-Newton step's residuals;
+// WidenedForScatter up to the block's prior sigma). Not judged: blocks that are not parameter
+// blocks of `problem` (a wheel or GNSS clock fixed at zero enters no factor) and blocks stated
+// exact (a prior sigma of zero). `problem` is left as it was.
+struct ScatterSettings {
+  std::vector<ResidualSource> sources;  // in time order each, as ComputeStretchScatter's
+  int stretches = 0;                    // 0: the sigma as the noise model gives it
+  double significance = 0.001;
+};
 struct FixedDirectionMove {
   size_t block = 0;  // index into `fixed`
   int direction = 0;
@@ -169,7 +180,7 @@ struct FixedDirectionMove {
 std::vector<FixedDirectionMove> FixedDirectionsTheDataMove(
     const std::vector<EstimatedBlock>& fixed, ceres::Problem* problem, int num_threads,
     double max_sigmas, const std::vector<ceres::ResidualBlockId>& exact = {},
-    const ScaledInformation& scaled = {});
+    const ScaledInformation& scaled = {}, const ScatterSettings& scatter = {});
 
 // Directions the data left at their prior (posterior sigma above max_posterior_to_prior_sigma
 // of the prior's, or above max_kept_sigma_to_limit times the limit) are held (U): set to
