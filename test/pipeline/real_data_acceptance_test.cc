@@ -65,6 +65,13 @@ Eigen::Quaterniond LaunchFileMount() {
                             Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
 }
 
+// test1.bag imported, its nominal mount the launch file's.
+io::Dataset SkidSteerFromTheLaunchFileMount() {
+  io::Dataset dataset = Import(test::SharedDataDir("ros1_bags") / "test1.bag");
+  dataset.sensors.nominal_calibration.q_I_V = LaunchFileMount().conjugate();
+  return dataset;
+}
+
 // test1.bag imported, its nominal mount 10 deg off the launch file's (about (1, 1, 1)).
 io::Dataset SkidSteerFromTenDegreesOff() {
   io::Dataset dataset = Import(test::SharedDataDir("ros1_bags") / "test1.bag");
@@ -247,10 +254,8 @@ std::vector<std::string> BlocksTheHalvesDisagreeOn(const OfflineCalibrationResul
 // 0.55 deg, where the noise model alone gives 0.17 deg (the whole log's widened sigma: 1.09
 // deg; errors that last longer than a half's stretches stay unseen).
 TEST(RealDataAcceptance, SigmasCoverWhatTheLogsHalvesSayApart) {
-  const std::filesystem::path bag = test::SharedDataDir("ros1_bags") / "test1.bag";
-  AUTOCAL_REQUIRE_SHARED_DATA(bag);
-  io::Dataset dataset = Import(bag);
-  dataset.sensors.nominal_calibration.q_I_V = LaunchFileMount().conjugate();
+  AUTOCAL_REQUIRE_SHARED_DATA(test::SharedDataDir("ros1_bags") / "test1.bag");
+  const io::Dataset dataset = SkidSteerFromTheLaunchFileMount();
   const io::Problem problem = Shipped("skid_steer_imu_odometry_gnss.yaml");
   for (const int stretches : {16, 0}) {
     OfflineCalibrationOptions options;
@@ -446,10 +451,8 @@ TEST(RealDataAcceptance, SkidSteerRobotStreamsThroughTheWindow) {
 // track is conditioned), the track ends 90 mm from the batch's at a sigma of 46 mm: 1.8
 // sigmas.
 TEST(RealDataAcceptance, WindowSigmasCoverWhereTheBatchPutsTheTrack) {
-  const std::filesystem::path bag = test::SharedDataDir("ros1_bags") / "test1.bag";
-  AUTOCAL_REQUIRE_SHARED_DATA(bag);
-  io::Dataset dataset = Import(bag);
-  dataset.sensors.nominal_calibration.q_I_V = LaunchFileMount().conjugate();
+  AUTOCAL_REQUIRE_SHARED_DATA(test::SharedDataDir("ros1_bags") / "test1.bag");
+  const io::Dataset dataset = SkidSteerFromTheLaunchFileMount();
   const io::Problem problem = Shipped("skid_steer_imu_odometry_gnss.yaml");
   const io::CalibrationFile batch = CalibrateDataset(dataset, problem).calibration;
   ASSERT_TRUE(batch.uncertainty.effective_track_m.sigma.has_value());
