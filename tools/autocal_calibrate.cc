@@ -48,6 +48,10 @@ DEFINE_int32(threads, 0,
              "file's solver.num_threads. autocal's own sums do not depend on the count; Ceres' "
              "per-thread sums can, at rounding level (docs/calibration.md, \"Reproducibility "
              "and threads\")");
+DEFINE_int32(scatter_stretches, 16,
+             "stretches of the log over which each sensor's rows are tested for scatter beyond "
+             "their noise model; the sigmas are widened where it exceeds chance "
+             "(docs/calibration.md, Eq. C8); 0: no test");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
 DEFINE_bool(bound, true,
             "with a ground truth in the dataset (a simulated log): the Cramer-Rao bound of the "
@@ -159,12 +163,14 @@ int main(int argc, char** argv) {
     status.vehicle = VehicleLabel(directories);
     // Everything that can be checked before the work starts is; a wrong flag leaves nothing.
     autocal::tools::CheckThreadsFlag(FLAGS_threads);
+    autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 2);
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
     output_checked = true;
     for (const std::string& d : directories) autocal::tools::CheckDatasetDirectory(d);
     autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
     autocal::tools::ApplyThreadsFlag(FLAGS_threads, &problem);
     autocal::pipeline::OfflineCalibrationOptions options;
+    options.scatter_stretches = FLAGS_scatter_stretches;
     if (FLAGS_progress) options.progress = PrintProgress;
     if (directories.size() == 1) {
       CalibrateOne(directories.front(), problem, options, &status);

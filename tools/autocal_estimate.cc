@@ -46,6 +46,10 @@ DEFINE_double(init_duration_s, 30.0,
 DEFINE_int32(init_sweep_stride, 3,
              "every n-th sweep of those seconds goes to the initializer; "
              ">= 1");
+DEFINE_int32(scatter_stretches, 32,
+             "spans of the stream between whose ends the estimate's steps are tested against "
+             "its covariance; the sigmas are widened where they scatter more "
+             "(docs/sliding_window.md, Eq. W9); 0: no test");
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
 
 int main(int argc, char** argv) {
@@ -62,6 +66,7 @@ int main(int argc, char** argv) {
       throw autocal::Error("--dataset, --problem and --output are required (see --help)");
     }
     if (FLAGS_progress_every < 0) throw autocal::Error("--progress_every must be >= 0");
+    autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 3);
     // Everything that can be checked before the work starts is.
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
     autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
@@ -71,6 +76,7 @@ int main(int argc, char** argv) {
     autocal::pipeline::OnlineEstimationOptions options;
     options.initialization_duration_s = FLAGS_init_duration_s;
     options.initializer_sweep_stride = FLAGS_init_sweep_stride;
+    options.scatter_stretches = FLAGS_scatter_stretches;
     const bool lidar = problem.sensors.lidar;
     const autocal::sensors::WheelForm form = dataset.wheel_form();
     // The wheel blocks of the dataset's form, in words.

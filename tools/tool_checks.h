@@ -49,6 +49,14 @@ inline void CheckThreadsFlag(int threads) {
   }
 }
 
+// Throws autocal::Error unless --scatter_stretches is 0 (no test) or at least `least`.
+inline void CheckScatterStretchesFlag(int stretches, int least) {
+  if (stretches != 0 && stretches < least) {
+    throw Error("--scatter_stretches must be 0 (no test) or at least " + std::to_string(least) +
+                ", got " + std::to_string(stretches));
+  }
+}
+
 // --threads=N (N >= 1) replaces the problem file's solver.num_threads; 0 keeps it.
 inline void ApplyThreadsFlag(int threads, io::Problem* problem) {
   CheckThreadsFlag(threads);

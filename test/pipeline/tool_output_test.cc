@@ -17,6 +17,7 @@
 #include <iterator>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "autocal/io/dataset.h"
@@ -222,6 +223,31 @@ TEST_F(ToolOutputTest, ThreadsIsAnOverrideOfTheProblemFile) {
     EXPECT_EQ(good.exit_code, 1) << tool;
     EXPECT_THAT(good.output, HasSubstr("no IMU samples after the header")) << tool;
     EXPECT_THAT(good.output, ::testing::Not(HasSubstr("--threads"))) << tool;
+  }
+  ExpectNoResult(dir / "r");
+}
+
+// --scatter_stretches (Eqs. C8, W9) is checked before any work: too few stretches to compare
+// are refused in one line, 0 (no test) passes on to the dataset.
+TEST_F(ToolOutputTest, ScatterStretchesIsCheckedBeforeAnyWork) {
+  const fs::path dir = CleanDir("scatter");
+  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  for (const auto& [tool, least] : std::vector<std::pair<std::string, int>>{
+           {"autocal_calibrate", 2}, {"autocal_estimate", 3}}) {
+    const Finished bad = RunTool(
+        {Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+         "--output=" + (dir / "r").string(), "--scatter_stretches=" + std::to_string(least - 1)},
+        dir / "log.txt");
+    EXPECT_EQ(bad.exit_code, 1) << tool;
+    EXPECT_THAT(bad.output, HasSubstr("--scatter_stretches must be 0 (no test) or at least " +
+                                      std::to_string(least) + ", got " + std::to_string(least - 1)))
+        << tool;
+    const Finished off = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+                                  "--output=" + (dir / "r").string(), "--scatter_stretches=0"},
+                                 dir / "log.txt");
+    EXPECT_EQ(off.exit_code, 1) << tool;
+    EXPECT_THAT(off.output, HasSubstr("no IMU samples after the header")) << tool;
   }
   ExpectNoResult(dir / "r");
 }
