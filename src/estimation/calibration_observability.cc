@@ -373,6 +373,17 @@ bool FullRank(const Eigen::VectorXd& pivots) {
 
 }  // namespace
 
+Eigen::VectorXd StackedPriorVariances(const std::vector<EstimatedBlock>& blocks,
+                                      const std::vector<int>& offsets) {
+  int size = 0;
+  for (const EstimatedBlock& block : blocks) size += block.size;
+  Eigen::VectorXd out(size);
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    out.segment(offsets[b], blocks[b].size) = blocks[b].prior_sigma.cwiseAbs2();
+  }
+  return out;
+}
+
 Eigen::VectorXd BlockMinus(const EstimatedBlock& block, const double* x, const double* x0) {
   if (IsRotation(block)) {
     const Eigen::Quaterniond q0 = AsQuaternion(x0);
@@ -842,12 +853,8 @@ BlockCovariance WidenedAtTheStep(const std::vector<EstimatedBlock>& judged, cere
   const StretchScatter scatter = ComputeStretchScatter(
       judged, problem, settings.sources, settings.stretches, num_threads, ordering, true);
   if (!scatter.ok) return covariance;
-  Eigen::VectorXd prior_variance(covariance.matrix.rows());
-  for (size_t b = 0; b < judged.size(); ++b) {
-    prior_variance.segment(covariance.offsets[b], judged[b].size) =
-        judged[b].prior_sigma.cwiseAbs2();
-  }
-  return WidenedForScatter(covariance, scatter, settings.significance, prior_variance, nullptr);
+  return WidenedForScatter(covariance, scatter, settings.significance,
+                           StackedPriorVariances(judged, covariance.offsets), nullptr);
 }
 
 }  // namespace

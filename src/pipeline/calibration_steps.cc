@@ -645,14 +645,10 @@ estimation::BlockCovariance WidenedForScatter(
     const double ratio = LargestScatterRatio(scatter, source);
     if (ratio > 0.0) result->calibration.residuals[source.name]["stretch_scatter_ratio"] = ratio;
   }
-  Eigen::VectorXd prior_variance(covariance.matrix.rows());
-  for (size_t b = 0; b < blocks_estimated.size(); ++b) {
-    prior_variance.segment(scatter.offsets[b], blocks_estimated[b].size) =
-        blocks_estimated[b].prior_sigma.cwiseAbs2();
-  }
   std::vector<estimation::ScatterExcess> excess;
   const estimation::BlockCovariance widened = estimation::WidenedForScatter(
-      covariance, scatter, options.scatter_significance, prior_variance, &excess);
+      covariance, scatter, options.scatter_significance,
+      estimation::StackedPriorVariances(blocks_estimated, scatter.offsets), &excess);
   for (std::string& warning : ScatterWarnings(blocks_estimated, scatter, excess)) {
     result->warnings.push_back(std::move(warning));
   }

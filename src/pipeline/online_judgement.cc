@@ -18,6 +18,12 @@ namespace pipeline {
 
 namespace {
 
+// The window's prior sigma of a block, per direction in its tangent's units.
+Eigen::VectorXd WindowPriorSigma(const sensors::CalibrationBlockInfo& info,
+                                 const estimation::SlidingWindowOptions& window_options) {
+  return estimation::PriorSigmasOf(info.id, window_options.calibration_prior) * FileToTangent(info);
+}
+
 // The window's prior variance of each row of `covariance` (infinite where it has none).
 Eigen::VectorXd PriorVariances(const estimation::CalibrationCovariance& covariance,
                                const estimation::SlidingWindowOptions& window_options) {
@@ -26,10 +32,8 @@ Eigen::VectorXd PriorVariances(const estimation::CalibrationCovariance& covarian
   for (size_t b = 0; b < covariance.names.size(); ++b) {
     const sensors::CalibrationBlockInfo* info = sensors::FindCalibrationBlock(covariance.names[b]);
     if (info == nullptr) continue;
-    const Eigen::VectorXd sigma =
-        estimation::PriorSigmasOf(info->id, window_options.calibration_prior) *
-        FileToTangent(*info);
-    out.segment(covariance.offsets[b], info->tangent_size) = sigma.cwiseAbs2();
+    out.segment(covariance.offsets[b], info->tangent_size) =
+        WindowPriorSigma(*info, window_options).cwiseAbs2();
   }
   return out;
 }
@@ -130,8 +134,7 @@ bool HoldWhatTheStreamLeft(const io::Dataset& dataset, const io::Problem& proble
     block.prior =
         Eigen::Map<const Eigen::VectorXd>(info->const_values(prior_mean), info->ambient_size);
     block.prior_source = "the window's prior centre";
-    block.prior_sigma = estimation::PriorSigmasOf(info->id, window_options.calibration_prior) *
-                        FileToTangent(*info);
+    block.prior_sigma = WindowPriorSigma(*info, window_options);
     blocks.push_back(block);
     for (int k = 0; k < info->tangent_size; ++k) rows.push_back(solved.offsets[b] + k);
   }

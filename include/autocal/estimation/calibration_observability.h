@@ -54,6 +54,11 @@ struct EstimatedBlock {
 // caller's to set.
 EstimatedBlock BlockOf(sensors::CalibrationBlockId id, sensors::Calibration* calibration);
 
+// The blocks' prior variances, prior_sigma^2, stacked as `offsets` (a BlockCovariance's) lays
+// the blocks out: the most Eq. C8 widens a variance to.
+Eigen::VectorXd StackedPriorVariances(const std::vector<EstimatedBlock>& blocks,
+                                      const std::vector<int>& offsets);
+
 // x - x0 in the block's tangent (a rotation: Log(q0^-1 q)), and x <- x + step (q Exp(step));
 // x and x0 hold the block's ambient values.
 Eigen::VectorXd BlockMinus(const EstimatedBlock& block, const double* x, const double* x0);
