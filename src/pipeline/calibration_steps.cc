@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <utility>
 
 #include "autocal/common/error.h"
@@ -320,13 +321,7 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
     }
   }
   if (use_gnss) {
-    estimation::KeyframeGnssOptions gnss;
-    gnss.loss = problem->loss.gnss;
-    gnss.max_fix_gap_s = timing->max_fix_gap_s;
-    gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
-    gnss.estimate_time_offset = Estimated(b.time_offset_gnss_imu_s.mode);
-    gnss.gravity_m_s2 = dataset->sensors.imu.gravity_m_s2;
-    gnss.max_imu_gap_s = timing->max_imu_gap_s;
+    const estimation::KeyframeGnssOptions gnss = GnssOptions();
     const int n =
         estimation::AddGnssFactors(p, dataset->imu, dataset->gnss, *enu, keyframes, c, gnss);
     RequireCoverage(*dataset, "GNSS", *timing->gnss, n, *keyframes,
@@ -334,6 +329,52 @@ void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* ke
                     timing->min_factor_fraction, dataset->gnss, "gnss.csv");
   }
   estimation::AddBlockPriors(*blocks, problem->loss.prior, p);
+}
+
+estimation::KeyframeGnssOptions SensorFactors::GnssOptions() const {
+  const io::ProblemCalibration& b = problem->calibration;
+  estimation::KeyframeGnssOptions gnss;
+  gnss.loss = problem->loss.gnss;
+  gnss.max_fix_gap_s = timing->max_fix_gap_s;
+  gnss.estimate_lever_arm = Estimated(b.p_I_A_m.mode);
+  gnss.estimate_time_offset = Estimated(b.time_offset_gnss_imu_s.mode);
+  gnss.gravity_m_s2 = dataset->sensors.imu.gravity_m_s2;
+  gnss.max_imu_gap_s = timing->max_imu_gap_s;
+  gnss.noise_scale = gnss_noise_scale;
+  return gnss;
+}
+
+estimation::GnssNoiseFromResiduals MeasureGnssNoise(const SensorFactors& factors,
+                                                    std::vector<estimation::Keyframe>* keyframes,
+                                                    sensors::Calibration* c) {
+  if (!factors.use_gnss) return {};
+  // The GNSS rows alone, on their own problem: the solve's values are only read.
+  ceres::Problem::Options options;
+  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem rows(options);
+  for (estimation::Keyframe& kf : *keyframes) {
+    rows.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, factors.quaternion_manifold);
+  }
+  estimation::KeyframeGnssOptions gnss = factors.GnssOptions();
+  gnss.noise_scale = 1.0;  // whitened by the fixes' stated std
+  estimation::AddGnssFactors(&rows, factors.dataset->imu, factors.dataset->gnss, *factors.enu,
+                             keyframes, c, gnss);
+  std::vector<double> whitened;
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.apply_loss_function = false;
+  rows.Evaluate(evaluate, nullptr, &whitened, nullptr, nullptr);
+  return estimation::GnssNoiseOfRows(whitened);
+}
+
+std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise) {
+  if (noise.scale == 1.0) return "";
+  char text[400];
+  std::snprintf(text, sizeof(text),
+                "GNSS: the fixes scatter %.2f times their stated std about the solved trajectory "
+                "(robust sigma of %zu whitened rows): the receiver's std leaves errors out; every "
+                "GNSS row's sigma is scaled by %.2f",
+                noise.robust_sigma, noise.rows, noise.scale);
+  return text;
 }
 
 bool SensorFactors::PairingChanges(const std::vector<estimation::Keyframe>& keyframes,

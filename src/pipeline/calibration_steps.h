@@ -17,6 +17,7 @@
 #include "autocal/estimation/calibration_initializer.h"
 #include "autocal/estimation/calibration_observability.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
+#include "autocal/estimation/gnss_noise.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/estimation/sliding_window.h"
@@ -113,17 +114,31 @@ struct SensorFactors {
   // Every wheel row's sigma times this: the data's noise when it exceeds the stated one
   // (pipeline/clock_initialization.h, WheelNoiseScale).
   double wheel_noise_scale = 1.0;
+  // Every GNSS row's sigma times this: the fixes' scatter when it exceeds their stated std
+  // (MeasureGnssNoise).
+  double gnss_noise_scale = 1.0;
   // When set, receives what the planar-rotation rows (Eq. F27) measured and used.
   estimation::PlanarRotationRows* planar_rotation = nullptr;
 
   void Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,
            sensors::Calibration* c) const;
+  // The GNSS factors' settings from the problem, the timing and gnss_noise_scale.
+  estimation::KeyframeGnssOptions GnssOptions() const;
   // Whether a wheel or GNSS clock the problem estimates gives the keyframes other samples
   // (docs/keyframe_factors.md, Eq. K17) at its value in `to` than at its value in `from`:
   // factors added at `from` would then no longer pair each keyframe with its nearest sample.
   bool PairingChanges(const std::vector<estimation::Keyframe>& keyframes,
                       const sensors::Calibration& from, const sensors::Calibration& to) const;
 };
+
+// Eq. N2 (estimation/gnss_noise.h) about a solved trajectory (`keyframes`, `c`): the GNSS
+// rows of `factors`, whitened by the fixes' stated std. Nothing without GNSS rows.
+estimation::GnssNoiseFromResiduals MeasureGnssNoise(const SensorFactors& factors,
+                                                    std::vector<estimation::Keyframe>* keyframes,
+                                                    sensors::Calibration* c);
+
+// The warning that says the GNSS rows were scaled, with the figures; empty when they were not.
+std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise);
 
 // The planar-rotation rows' count and sigmas (and, when measured, the spread and correlation
 // scale behind them, Eq. K15) into the solver summary: planar_rotation_rows,

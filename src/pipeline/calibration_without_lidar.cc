@@ -165,6 +165,29 @@ ceres::Solver::Summary SolvePairedAtTheClocks(const io::Dataset& dataset,
   return summary;
 }
 
+// SolvePairedAtTheClocks, and again with every GNSS row's sigma scaled when the fixes scatter
+// beyond their stated std about the solved trajectory (MeasureGnssNoise, Eq. N2).
+ceres::Solver::Summary SolveWithGnssNoiseFromResiduals(
+    const io::Dataset& dataset, SensorFactors* sensor_factors,
+    std::vector<estimation::Keyframe>* keyframes, sensors::Calibration* calibration,
+    std::unique_ptr<ceres::Problem>* joint, int* solves, OfflineCalibrationResult* result) {
+  ceres::Solver::Summary summary = SolvePairedAtTheClocks(
+      dataset, *sensor_factors, keyframes, calibration, joint, solves, &result->warnings);
+  if (!sensor_factors->use_gnss) return summary;
+  const estimation::GnssNoiseFromResiduals noise =
+      MeasureGnssNoise(*sensor_factors, keyframes, calibration);
+  result->calibration.residuals["gnss"]["noise_scale"] = noise.scale;
+  if (noise.scale == 1.0) return summary;
+  result->warnings.push_back(GnssNoiseWarning(noise));
+  sensor_factors->gnss_noise_scale = noise.scale;
+  *joint = NewJointProblem(dataset, *sensor_factors, keyframes, calibration);
+  int scaled_solves = 0;
+  summary = SolvePairedAtTheClocks(dataset, *sensor_factors, keyframes, calibration, joint,
+                                   &scaled_solves, &result->warnings);
+  *solves += scaled_solves;
+  return summary;
+}
+
 }  // namespace
 
 OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
@@ -245,8 +268,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   }
   Report(options, "solving", 0.0, 0.0, 0.0);
   int solves = 0;
-  const ceres::Solver::Summary summary = SolvePairedAtTheClocks(
-      dataset, sensor_factors, &keyframes, &calibration, &joint, &solves, &result.warnings);
+  const ceres::Solver::Summary summary = SolveWithGnssNoiseFromResiduals(
+      dataset, &sensor_factors, &keyframes, &calibration, &joint, &solves, &result);
   Report(options, "solving", 1.0, summary.final_cost, 0.0);
 
   // 3. Observability, uncertainty and the result (the last solve's summary).

@@ -214,8 +214,14 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   estimation::PlanarRotationRows planar_rotation;
   sensor_factors.planar_rotation = &planar_rotation;
   bool first_problem = true;
+  estimation::GnssNoiseFromResiduals gnss_noise;
   batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
                                   sensors::Calibration* c) {
+    // From the second problem on, the GNSS rows' noise about the last solve (Eq. N2).
+    if (!first_problem) {
+      gnss_noise = MeasureGnssNoise(sensor_factors, kfs, c);
+      sensor_factors.gnss_noise_scale = gnss_noise.scale;
+    }
     sensor_factors.Add(p, kfs, c);
     if (!first_problem) return;
     first_problem = false;
@@ -262,6 +268,11 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     if (!warning.empty()) result->warnings.push_back(warning);
   }
   io::CalibrationFile& file = result->calibration;
+  if (sensor_factors.use_gnss) {
+    file.residuals["gnss"]["noise_scale"] = sensor_factors.gnss_noise_scale;
+    const std::string warning = GnssNoiseWarning(gnss_noise);
+    if (!warning.empty()) result->warnings.push_back(warning);
+  }
   file.solver["termination"] = batch.termination;
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);
   file.solver["outer_iterations_converged"] = batch.converged ? "true" : "false";

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -854,6 +855,32 @@ TEST_F(KeyframeSensorFactorsTest, GnssLeverArmWithCauchyLoss) {
   EXPECT_LE(added, num_keyframes - static_cast<int>(outage_s / kKeyframeSpacingS) + 2);
   EXPECT_GE(added, num_keyframes - static_cast<int>(outage_s / kKeyframeSpacingS) - 4);
   EXPECT_LT(error_m.norm(), 0.01);  // measured 3.5 mm
+}
+
+// noise_scale divides every GNSS row by it: the same rows at a quarter of the weight.
+TEST_F(KeyframeSensorFactorsTest, GnssNoiseScaleWidensEveryRowsSigma) {
+  const auto rows = [&](double scale) {
+    std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+    sensors::Calibration calibration = noisy_simulator_->nominal_calibration();
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    KeyframeGnssOptions options;
+    options.noise_scale = scale;
+    AddGnssFactors(problem.get(), noisy_->imu.samples, noisy_->gnss.fixes,
+                   Converter(*noisy_simulator_), &keyframes, &calibration, options);
+    std::vector<double> residuals;
+    ceres::Problem::EvaluateOptions evaluate;
+    evaluate.apply_loss_function = false;
+    problem->Evaluate(evaluate, nullptr, &residuals, nullptr, nullptr);
+    return residuals;
+  };
+  const std::vector<double> stated = rows(1.0);
+  const std::vector<double> scaled = rows(4.0);
+  ASSERT_EQ(scaled.size(), stated.size());
+  ASSERT_GT(stated.size(), 100u);
+  for (size_t i = 0; i < stated.size(); ++i) EXPECT_NEAR(scaled[i], stated[i] / 4.0, 1e-12);
+  for (const double bad : {0.0, -1.0, std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(rows(bad), Error) << bad;
+  }
 }
 
 // Without a robust loss the same outliers pull the lever arm far off.
