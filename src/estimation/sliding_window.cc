@@ -124,6 +124,9 @@ int SlidingWindowEstimator::last_associated_points() const {
   return impl_->last_associated_points();
 }
 double SlidingWindowEstimator::last_point_rms_m() const { return impl_->last_point_rms_m(); }
+const GnssNoiseFromResiduals& SlidingWindowEstimator::gnss_noise() const {
+  return impl_->gnss_noise();
+}
 
 // ---------------------------------------------------------------------------------------------
 // The implementation: construction, streaming input and one update.
@@ -425,6 +428,7 @@ void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSwe
     // The point groups the marginalization drops still count in this update's point RMS.
     dropped_point_squared_m2_ = SquaredPointDistances(true);
     const auto marginalization_start = std::chrono::steady_clock::now();
+    RecordGnssRowsOfOldest();
     std::unique_ptr<MarginalizationPrior> prior = MarginalizeOldest(build.get());
     std::unique_ptr<MarginalizationPrior> tested = CarryTestedBlocks(build.get(), prior != nullptr);
     build.reset();  // the problem refers to the factors about to be dropped

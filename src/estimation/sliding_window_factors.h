@@ -41,6 +41,8 @@ struct AttachedFactor {
   // pass"), with its loss's weight held for the pass (Eq. W4), when the points are; what it names
   // on an evaluation failure.
   const char* linearized_per_pass = nullptr;
+  // A GNSS factor's: the scale its fix's std was multiplied by (Eq. N2); 0 for the others.
+  double gnss_std_scale = 0.0;
 };
 
 // The state at the sample's instant, x(t) = Predict(x_k, b_g_k, b_a_k) (Eq. F8) with the

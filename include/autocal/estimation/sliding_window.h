@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "autocal/estimation/calibration_observability.h"
+#include "autocal/estimation/gnss_noise.h"
 #include "autocal/estimation/lidar_inertial_batch.h"
 #include "autocal/estimation/sliding_window_options.h"
 #include "autocal/lidar/point_cloud.h"
@@ -52,6 +53,7 @@ struct SlidingWindowCounters {
   int64_t late = 0;                     // at or before the newest keyframe (dropped)
   int64_t updates = 0;                  // keyframes added (= window updates)
   int64_t marginalizations = 0;
+  int64_t gnss_scaled = 0;  // fixes attached with their std scaled (Eq. N2)
 };
 
 // Timing of the last update (seconds, wall clock).
@@ -148,6 +150,10 @@ class SlidingWindowEstimator {
   // without the loss; evaluated on the first call after an update).
   int last_associated_points() const;
   double last_point_rms_m() const;
+  // Eq. N2 over the GNSS rows marginalized so far (SlidingWindowOptions::
+  // gnss_noise_from_residuals): their robust sigma, their count and the scale the next fix
+  // takes (1 below kMinGnssNoiseRows rows).
+  const GnssNoiseFromResiduals& gnss_noise() const;
 
  private:
   class Impl;  // estimation/sliding_window_internal.h

@@ -151,6 +151,12 @@ struct SlidingWindowOptions {
   MarginalizationOptions marginalization;
   // Keep each marginalized keyframe's conditional (about 12 KB each) for SmoothedTrajectory().
   bool smoothing = false;
+  // GNSS noise from the residuals (estimation/gnss_noise.h, Eq. N2): the GNSS rows of every
+  // keyframe the window marginalizes, whitened by the fixes' stated std at the estimate it
+  // leaves with; from kMinGnssNoiseRows of them on, every fix attached later has its std
+  // scaled by what they show (SlidingWindowEstimator::gnss_noise). The rows already in the
+  // marginalization prior keep the std they were weighed with. false: the stated std.
+  bool gnss_noise_from_residuals = true;
   // Blocks held at their value (not estimated) whose information the window carries through
   // a second marginalization, so that FixedDirectionsTheStreamMoves can test them against the
   // whole stream (docs/sliding_window.md, "Fixed blocks"); the estimate does not depend on it.
