@@ -562,10 +562,7 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   }
   double* offset = &calibration->time_offset_gnss_imu_s;
   if (!std::isfinite(*offset)) throw Error("AddGnssFactors: time_offset_gnss_imu_s must be finite");
-  if (!(options.noise_scale > 0.0) || !std::isfinite(options.noise_scale)) {
-    throw Error("AddGnssFactors: noise_scale must be positive and finite, got " +
-                std::to_string(options.noise_scale));
-  }
+  options.noise_scale.Check("AddGnssFactors");
   const bool shifted = options.estimate_time_offset || *offset != 0.0;
   const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
@@ -591,7 +588,7 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
       if (!around) continue;
       m = factors::GnssMeasurement::FromFix(fixes[*paired[k]], converter);
     }
-    m.sigma_enu_m *= options.noise_scale;
+    m.sigma_enu_m = options.noise_scale.Applied(m.sigma_enu_m);
     for (const factors::GnssAxes axes :
          {factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
       if (!shifted) {

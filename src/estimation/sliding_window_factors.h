@@ -14,11 +14,13 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/estimation/gnss_noise.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
@@ -41,8 +43,8 @@ struct AttachedFactor {
   // pass"), with its loss's weight held for the pass (Eq. W4), when the points are; what it names
   // on an evaluation failure.
   const char* linearized_per_pass = nullptr;
-  // A GNSS factor's: the scale its fix's std was multiplied by (Eq. N2); 0 for the others.
-  double gnss_std_scale = 0.0;
+  // A GNSS factor's (east, north, up rows): the scale its fix's std was attached with (Eq. N2).
+  std::optional<GnssStdScale> gnss_std_scale;
 };
 
 // The state at the sample's instant, x(t) = Predict(x_k, b_g_k, b_a_k) (Eq. F8) with the

@@ -170,8 +170,8 @@ class SlidingWindowEstimator::Impl {
   // With options_.smoothing: keeps the oldest keyframe's conditional for SmoothedTrajectory().
   void RecordSmoothingStep(MarginalConditional conditional);
   void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
-  // Eq. N2: the oldest keyframe's GNSS rows at the estimate into gnss_rows_, and gnss_noise_
-  // over them all.
+  // Eq. N2: the oldest keyframe's GNSS rows at the estimate into gnss_rows_ (a row that cannot
+  // be evaluated is left out), and gnss_noise_ over them all.
   void RecordGnssRowsOfOldest();
   void TrimImuBuffer();
   void AddCalibrationPriors(const sensors::Calibration& initial_calibration);
@@ -218,7 +218,7 @@ class SlidingWindowEstimator::Impl {
   std::unique_ptr<MarginalizationPrior> tested_prior_;
   std::string untested_reason_;  // why the tested blocks' chain ended; empty while it holds
   // The marginalized GNSS rows whitened by the fixes' stated std, and Eq. N2 over them.
-  std::vector<double> gnss_rows_;
+  GnssRowScatter gnss_rows_;
   GnssNoiseFromResiduals gnss_noise_;
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <utility>
 
-#include "autocal/common/error.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/imu_motion_table.h"
@@ -324,10 +323,11 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
     integrated_to_ns = g.t_ns;
     factors::GnssMeasurement m;
     m.p_W_A = g.p_W_A;
-    m.sigma_enu_m = gnss_noise_.scale * g.sigma_enu_m;
-    if (gnss_noise_.scale != 1.0) ++counters_.gnss_scaled;
+    const GnssStdScale scale = gnss_noise_.Scale();
+    m.sigma_enu_m = scale.Applied(g.sigma_enu_m);
+    if (!scale.IsOne()) ++counters_.gnss_scaled;
     AttachedFactor f;
-    f.gnss_std_scale = gnss_noise_.scale;
+    f.gnss_std_scale = scale;
     f.cost.reset(internal::PropagatedGnssResidual::Create(gnss_pim, m));
     f.loss = gnss_loss_.get();
     f.linearized_per_pass = "a GNSS factor";
@@ -363,19 +363,17 @@ void SlidingWindowEstimator::Impl::DropOldest(std::unique_ptr<MarginalizationPri
 void SlidingWindowEstimator::Impl::RecordGnssRowsOfOldest() {
   if (!options_.gnss_noise_from_residuals) return;
   bool recorded = false;
+  double rows[3];  // east, north, up, whitened by the std the fix was attached with
   for (const internal::AttachedFactor& f : window_.front()->factors) {
-    if (f.gnss_std_scale == 0.0) continue;
-    const size_t first = gnss_rows_.size();
-    gnss_rows_.resize(first + static_cast<size_t>(f.cost->num_residuals()));
-    if (!f.cost->Evaluate(f.blocks.data(), gnss_rows_.data() + first, nullptr)) {
-      throw Error("SlidingWindowEstimator: a GNSS factor could not be evaluated at the estimate");
-    }
-    for (size_t i = first; i < gnss_rows_.size(); ++i) gnss_rows_[i] *= f.gnss_std_scale;
+    if (!f.gnss_std_scale || f.cost->num_residuals() != 3) continue;
+    if (!f.cost->Evaluate(f.blocks.data(), rows, nullptr)) continue;
+    const GnssStdScale& scale = *f.gnss_std_scale;
+    gnss_rows_.AddHorizontal(rows[0] * scale.horizontal);
+    gnss_rows_.AddHorizontal(rows[1] * scale.horizontal);
+    gnss_rows_.AddVertical(rows[2] * scale.vertical);
     recorded = true;
   }
-  if (!recorded) return;
-  gnss_noise_ = GnssNoiseOfRows(gnss_rows_);
-  if (gnss_noise_.rows < kMinGnssNoiseRows) gnss_noise_.scale = 1.0;
+  if (recorded) gnss_noise_ = gnss_rows_.Noise();
 }
 
 // Keeps the IMU samples from the last one at or before the oldest keyframe or its sweep's first

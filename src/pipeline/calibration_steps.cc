@@ -356,25 +356,63 @@ estimation::GnssNoiseFromResiduals MeasureGnssNoise(const SensorFactors& factors
     rows.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, factors.quaternion_manifold);
   }
   estimation::KeyframeGnssOptions gnss = factors.GnssOptions();
-  gnss.noise_scale = 1.0;  // whitened by the fixes' stated std
+  gnss.noise_scale = {};  // whitened by the fixes' stated std
   estimation::AddGnssFactors(&rows, factors.dataset->imu, factors.dataset->gnss, *factors.enu,
                              keyframes, c, gnss);
-  std::vector<double> whitened;
-  ceres::Problem::EvaluateOptions evaluate;
-  evaluate.apply_loss_function = false;
-  rows.Evaluate(evaluate, nullptr, &whitened, nullptr, nullptr);
-  return estimation::GnssNoiseOfRows(whitened);
+  std::vector<ceres::ResidualBlockId> blocks;
+  rows.GetResidualBlocks(&blocks);
+  estimation::GnssRowScatter scatter;
+  double whitened[3];
+  for (const ceres::ResidualBlockId id : blocks) {
+    const int n = rows.GetCostFunctionForResidualBlock(id)->num_residuals();
+    bool finite = rows.EvaluateResidualBlock(id, false, nullptr, whitened, nullptr);
+    for (int k = 0; finite && k < n; ++k) {
+      // The horizontal blocks hold two rows, the vertical ones one (factors::GnssAxes).
+      finite = n == 2 ? scatter.AddHorizontal(whitened[k]) : scatter.AddVertical(whitened[k]);
+    }
+    if (!finite) {
+      throw Error(
+          "the GNSS rows could not be evaluated at the solved trajectory (a non-finite "
+          "residual): the fixes' scatter (Eq. N2) cannot be measured");
+    }
+  }
+  return scatter.Noise();
 }
 
-std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise) {
-  if (noise.scale == 1.0) return "";
-  char text[400];
-  std::snprintf(text, sizeof(text),
-                "GNSS: the fixes scatter %.2f times their stated std about the solved trajectory "
-                "(robust sigma of %zu whitened rows): the receiver's std leaves errors out; every "
-                "GNSS row's sigma is scaled by %.2f",
-                noise.robust_sigma, noise.rows, noise.scale);
-  return text;
+std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise,
+                             const std::string& about, const std::string& applied) {
+  std::vector<std::string> scaled;
+  const auto axis = [&](const char* name, const estimation::GnssAxisNoise& a) {
+    if (a.scale == 1.0) return;
+    char text[200];
+    std::snprintf(text, sizeof(text), "the %s rows' %.2f times their stated std (%zu rows)", name,
+                  a.robust_sigma, a.rows);
+    scaled.push_back(text);
+  };
+  axis("horizontal", noise.horizontal);
+  axis("vertical", noise.vertical);
+  if (scaled.empty()) return "";
+  return "GNSS: " + about +
+         " the fixes scatter beyond their stated std (robust sigma of the whitened rows, "
+         "Eq. N2): " +
+         Join(scaled, ", ") + "; " + applied +
+         ". The receiver's std leaves errors out, or the model misses something the fixes see "
+         "(a lever arm or a clock held wrong)";
+}
+
+void RecordGnssNoiseScale(const estimation::GnssStdScale& scale, io::CalibrationFile* file) {
+  file->residuals["gnss"]["noise_scale_horizontal"] = scale.horizontal;
+  file->residuals["gnss"]["noise_scale_vertical"] = scale.vertical;
+}
+
+void WhitenGnssRowsBeforeAlike(const estimation::GnssStdScale& scale,
+                               std::map<std::string, SensorResiduals>* residuals) {
+  const auto gnss = residuals->find("gnss");
+  if (gnss == residuals->end()) return;
+  std::vector<double>& rows = gnss->second.before;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    rows[i] /= i % 3 == 2 ? scale.vertical : scale.horizontal;
+  }
 }
 
 bool SensorFactors::PairingChanges(const std::vector<estimation::Keyframe>& keyframes,

@@ -114,9 +114,9 @@ struct SensorFactors {
   // Every wheel row's sigma times this: the data's noise when it exceeds the stated one
   // (pipeline/clock_initialization.h, WheelNoiseScale).
   double wheel_noise_scale = 1.0;
-  // Every GNSS row's sigma times this: the fixes' scatter when it exceeds their stated std
-  // (MeasureGnssNoise).
-  double gnss_noise_scale = 1.0;
+  // The GNSS rows' sigma scaled per axis group: the fixes' scatter when it exceeds their
+  // stated std (MeasureGnssNoise).
+  estimation::GnssStdScale gnss_noise_scale = {};
   // When set, receives what the planar-rotation rows (Eq. F27) measured and used.
   estimation::PlanarRotationRows* planar_rotation = nullptr;
 
@@ -132,13 +132,27 @@ struct SensorFactors {
 };
 
 // Eq. N2 (estimation/gnss_noise.h) about a solved trajectory (`keyframes`, `c`): the GNSS
-// rows of `factors`, whitened by the fixes' stated std. Nothing without GNSS rows.
+// rows of `factors`, whitened by the fixes' stated std. Nothing without GNSS rows. Throws
+// autocal::Error when a row cannot be evaluated there.
 estimation::GnssNoiseFromResiduals MeasureGnssNoise(const SensorFactors& factors,
                                                     std::vector<estimation::Keyframe>* keyframes,
                                                     sensors::Calibration* c);
 
-// The warning that says the GNSS rows were scaled, with the figures; empty when they were not.
-std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise);
+// The warning that says which GNSS rows scatter beyond their stated std, with the figures,
+// where (`about`: "about the solved trajectory") and what was done (`applied`: "each is scaled
+// by that"); empty when none do.
+std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise,
+                             const std::string& about = "about the solved trajectory",
+                             const std::string& applied = "each is scaled by that");
+
+// residuals.gnss.noise_scale_horizontal and noise_scale_vertical of `file`.
+void RecordGnssNoiseScale(const estimation::GnssStdScale& scale, io::CalibrationFile* file);
+
+// The GNSS rows of `residuals` ("gnss") before the solve, whitened by the stated std, divided
+// by `scale` as the rows after it are (AddGnssFactors' blocks: two horizontal rows, then one
+// vertical, per keyframe).
+void WhitenGnssRowsBeforeAlike(const estimation::GnssStdScale& scale,
+                               std::map<std::string, SensorResiduals>* residuals);
 
 // The planar-rotation rows' count and sigmas (and, when measured, the spread and correlation
 // scale behind them, Eq. K15) into the solver summary: planar_rotation_rows,

@@ -165,7 +165,7 @@ ceres::Solver::Summary SolvePairedAtTheClocks(const io::Dataset& dataset,
   return summary;
 }
 
-// SolvePairedAtTheClocks, and again with every GNSS row's sigma scaled when the fixes scatter
+// SolvePairedAtTheClocks, and again with the GNSS rows' sigma scaled where the fixes scatter
 // beyond their stated std about the solved trajectory (MeasureGnssNoise, Eq. N2).
 ceres::Solver::Summary SolveWithGnssNoiseFromResiduals(
     const io::Dataset& dataset, SensorFactors* sensor_factors,
@@ -176,10 +176,11 @@ ceres::Solver::Summary SolveWithGnssNoiseFromResiduals(
   if (!sensor_factors->use_gnss) return summary;
   const estimation::GnssNoiseFromResiduals noise =
       MeasureGnssNoise(*sensor_factors, keyframes, calibration);
-  result->calibration.residuals["gnss"]["noise_scale"] = noise.scale;
-  if (noise.scale == 1.0) return summary;
+  RecordGnssNoiseScale(noise.Scale(), &result->calibration);
+  if (noise.Scale().IsOne()) return summary;
   result->warnings.push_back(GnssNoiseWarning(noise));
-  sensor_factors->gnss_noise_scale = noise.scale;
+  sensor_factors->gnss_noise_scale = noise.Scale();
+  WhitenGnssRowsBeforeAlike(noise.Scale(), &result->whitened_residuals);
   *joint = NewJointProblem(dataset, *sensor_factors, keyframes, calibration);
   int scaled_solves = 0;
   summary = SolvePairedAtTheClocks(dataset, *sensor_factors, keyframes, calibration, joint,

@@ -214,13 +214,13 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   estimation::PlanarRotationRows planar_rotation;
   sensor_factors.planar_rotation = &planar_rotation;
   bool first_problem = true;
-  estimation::GnssNoiseFromResiduals gnss_noise;
+  std::optional<estimation::GnssNoiseFromResiduals> gnss_noise;
   batch_options.add_factors = [&](ceres::Problem* p, std::vector<estimation::Keyframe>* kfs,
                                   sensors::Calibration* c) {
     // From the second problem on, the GNSS rows' noise about the last solve (Eq. N2).
-    if (!first_problem) {
+    if (!first_problem && sensor_factors.use_gnss) {
       gnss_noise = MeasureGnssNoise(sensor_factors, kfs, c);
-      sensor_factors.gnss_noise_scale = gnss_noise.scale;
+      sensor_factors.gnss_noise_scale = gnss_noise->Scale();
     }
     sensor_factors.Add(p, kfs, c);
     if (!first_problem) return;
@@ -232,6 +232,16 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   batch_options.compute_covariance = false;  // the joint one below covers every block
   estimation::BlockObservability observability;
   batch_options.inspect_final_problem = [&](ceres::Problem* p) {
+    if (sensor_factors.use_gnss && !gnss_noise) {
+      // One outer iteration: the fixes' scatter is measured but cannot weigh them any more.
+      gnss_noise = MeasureGnssNoise(sensor_factors, &keyframes->keyframes, calibration);
+      if (!gnss_noise->Scale().IsOne()) {
+        result->warnings.push_back(GnssNoiseWarning(*gnss_noise) +
+                                   "; but the solve ended after its first outer iteration, before "
+                                   "the scale could weigh them: raise solver.outer_iterations");
+        gnss_noise->horizontal.scale = gnss_noise->vertical.scale = 1.0;  // as they were weighed
+      }
+    }
     const auto uncertainty_start = std::chrono::steady_clock::now();
     const estimation::ScaledInformation lidar = LidarSandwich(p);
     result->calibration.residuals["lidar"]["sandwich_kappa"] = 1.0 / lidar.scale;
@@ -268,10 +278,11 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     if (!warning.empty()) result->warnings.push_back(warning);
   }
   io::CalibrationFile& file = result->calibration;
-  if (sensor_factors.use_gnss) {
-    file.residuals["gnss"]["noise_scale"] = sensor_factors.gnss_noise_scale;
-    const std::string warning = GnssNoiseWarning(gnss_noise);
+  if (gnss_noise) {
+    RecordGnssNoiseScale(sensor_factors.gnss_noise_scale, &file);
+    const std::string warning = GnssNoiseWarning(*gnss_noise);
     if (!warning.empty()) result->warnings.push_back(warning);
+    WhitenGnssRowsBeforeAlike(sensor_factors.gnss_noise_scale, &result->whitened_residuals);
   }
   file.solver["termination"] = batch.termination;
   file.solver["outer_iterations"] = std::to_string(batch.outer_iterations);

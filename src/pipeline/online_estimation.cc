@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <optional>
 #include <string>
 #include <utility>
@@ -462,28 +461,23 @@ estimation::CalibrationCovariance CollectResult(
     file.residuals["lidar"]["points"] = estimator->last_associated_points();
   }
   if (result->counters.gnss_accepted > 0) {
-    file.residuals["gnss"]["noise_scale"] = estimator->gnss_noise().scale;
+    RecordGnssNoiseScale(estimator->gnss_noise().Scale(), &file);
     file.residuals["gnss"]["fixes_scaled"] = static_cast<double>(result->counters.gnss_scaled);
   }
   return covariance;
 }
 
 // Eq. N2's warning when the window scaled fixes' std; empty when it did not.
-std::string GnssNoiseWarning(const estimation::SlidingWindowEstimator& estimator) {
+std::string WindowGnssNoiseWarning(const estimation::SlidingWindowEstimator& estimator) {
   const estimation::SlidingWindowCounters& counters = estimator.counters();
   if (counters.gnss_scaled == 0) return "";
-  const estimation::GnssNoiseFromResiduals& noise = estimator.gnss_noise();
-  char text[500];
-  std::snprintf(text, sizeof(text),
-                "GNSS: the fixes scatter %.2f times their stated std about the window's estimates "
-                "(robust sigma of the %zu whitened rows it marginalized): the receiver's std "
-                "leaves errors out; %lld of the %lld fixes, those after the first %zu rows, had "
-                "their std scaled by what the rows showed (%.2f at the end), the earlier ones "
-                "count as stated",
-                noise.robust_sigma, noise.rows, static_cast<long long>(counters.gnss_scaled),
-                static_cast<long long>(counters.gnss_accepted), estimation::kMinGnssNoiseRows,
-                noise.scale);
-  return text;
+  return GnssNoiseWarning(
+      estimator.gnss_noise(), "about the window's estimates as it marginalized them,",
+      std::to_string(counters.gnss_scaled) + " of the " + std::to_string(counters.gnss_accepted) +
+          " fixes it received took their std scaled by what the rows had shown, those attached "
+          "once " +
+          std::to_string(estimation::kMinGnssNoiseRows) +
+          " rows of an axis group had been marginalized (the earlier ones count as stated)");
 }
 
 }  // namespace
@@ -554,7 +548,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   checkpoints.push_back(
       {estimator.calibration(), CollectResult(window_options, use_lidar, &estimator, &result)});
   std::vector<std::string> held_warnings;
-  const std::string gnss_noise = GnssNoiseWarning(estimator);
+  const std::string gnss_noise = WindowGnssNoiseWarning(estimator);
   if (!gnss_noise.empty()) held_warnings.push_back(gnss_noise);
   if (failed_checkpoints > 0) {
     held_warnings.push_back("the window's covariance could not be computed at " +

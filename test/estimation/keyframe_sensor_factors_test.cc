@@ -857,14 +857,17 @@ TEST_F(KeyframeSensorFactorsTest, GnssLeverArmWithCauchyLoss) {
   EXPECT_LT(error_m.norm(), 0.01);  // measured 3.5 mm
 }
 
-// noise_scale divides every GNSS row by it: the same rows at a quarter of the weight.
-TEST_F(KeyframeSensorFactorsTest, GnssNoiseScaleWidensEveryRowsSigma) {
-  const auto rows = [&](double scale) {
+// noise_scale divides each GNSS row by its axis group's scale (two horizontal rows, then the
+// vertical one, per keyframe), on the fixes interpolated to the keyframes and on the nearest
+// fixes of the path with a clock offset alike.
+TEST_F(KeyframeSensorFactorsTest, GnssNoiseScaleWidensEachAxisGroupsSigma) {
+  const auto rows = [&](const GnssStdScale& scale, bool with_clock) {
     std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
     sensors::Calibration calibration = noisy_simulator_->nominal_calibration();
     auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
     KeyframeGnssOptions options;
     options.noise_scale = scale;
+    options.estimate_time_offset = with_clock;
     AddGnssFactors(problem.get(), noisy_->imu.samples, noisy_->gnss.fixes,
                    Converter(*noisy_simulator_), &keyframes, &calibration, options);
     std::vector<double> residuals;
@@ -873,13 +876,20 @@ TEST_F(KeyframeSensorFactorsTest, GnssNoiseScaleWidensEveryRowsSigma) {
     problem->Evaluate(evaluate, nullptr, &residuals, nullptr, nullptr);
     return residuals;
   };
-  const std::vector<double> stated = rows(1.0);
-  const std::vector<double> scaled = rows(4.0);
-  ASSERT_EQ(scaled.size(), stated.size());
-  ASSERT_GT(stated.size(), 100u);
-  for (size_t i = 0; i < stated.size(); ++i) EXPECT_NEAR(scaled[i], stated[i] / 4.0, 1e-12);
-  for (const double bad : {0.0, -1.0, std::numeric_limits<double>::infinity()}) {
-    EXPECT_THROW(rows(bad), Error) << bad;
+  for (const bool with_clock : {false, true}) {
+    SCOPED_TRACE(with_clock ? "with a clock offset" : "interpolated");
+    const std::vector<double> stated = rows({}, with_clock);
+    const std::vector<double> scaled = rows({4.0, 2.0}, with_clock);
+    ASSERT_EQ(scaled.size(), stated.size());
+    ASSERT_GT(stated.size(), 100u);
+    ASSERT_EQ(stated.size() % 3, 0u);
+    for (size_t i = 0; i < stated.size(); ++i) {
+      EXPECT_NEAR(scaled[i], stated[i] / (i % 3 == 2 ? 2.0 : 4.0), 1e-12) << i;
+    }
+  }
+  for (const GnssStdScale bad : {GnssStdScale{0.0, 1.0}, GnssStdScale{1.0, -1.0},
+                                 GnssStdScale{std::numeric_limits<double>::infinity(), 1.0}}) {
+    EXPECT_THROW(rows(bad, false), Error);
   }
 }
 

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "autocal/estimation/gnss_noise.h"
 #include "autocal/estimation/keyframe.h"
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/loss.h"
@@ -178,9 +179,9 @@ struct KeyframeGnssOptions {
   // With a clock offset: the largest spacing of the IMU samples that carry a keyframe's state
   // to its fix (Eq. K16); a keyframe in an IMU dropout gets no factor. Eq. T1 at 200 Hz.
   double max_imu_gap_s = 0.0125;
-  // Every fix's std times this (> 0): the fixes' scatter when it exceeds their stated std
+  // The fixes' std scaled per axis group: their scatter when it exceeds their stated std
   // (estimation/gnss_noise.h, Eq. N2).
-  double noise_scale = 1.0;
+  GnssStdScale noise_scale;
 };
 
 // The antenna position in ENU at t_ns (Eq. K1) with its interpolated per-axis sigma (Eq. K2);
