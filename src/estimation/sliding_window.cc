@@ -124,9 +124,7 @@ int SlidingWindowEstimator::last_associated_points() const {
   return impl_->last_associated_points();
 }
 double SlidingWindowEstimator::last_point_rms_m() const { return impl_->last_point_rms_m(); }
-const GnssNoiseFromResiduals& SlidingWindowEstimator::gnss_noise() const {
-  return impl_->gnss_noise();
-}
+GnssNoiseFromResiduals SlidingWindowEstimator::gnss_noise() const { return impl_->gnss_noise(); }
 
 // ---------------------------------------------------------------------------------------------
 // The implementation: construction, streaming input and one update.

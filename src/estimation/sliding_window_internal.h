@@ -65,7 +65,7 @@ class SlidingWindowEstimator::Impl {
   const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
   int last_associated_points() const { return last_associated_points_; }
   double last_point_rms_m() const;
-  const GnssNoiseFromResiduals& gnss_noise() const { return gnss_noise_; }
+  GnssNoiseFromResiduals gnss_noise() const { return gnss_rows_.Noise(); }
 
  private:
   struct WindowKeyframe;
@@ -171,7 +171,7 @@ class SlidingWindowEstimator::Impl {
   void RecordSmoothingStep(MarginalConditional conditional);
   void DropOldest(std::unique_ptr<MarginalizationPrior> prior);
   // Eq. N2: the oldest keyframe's GNSS rows at the estimate into gnss_rows_ (a row that cannot
-  // be evaluated is left out), and gnss_noise_ over them all.
+  // be evaluated is left out).
   void RecordGnssRowsOfOldest();
   void TrimImuBuffer();
   void AddCalibrationPriors(const sensors::Calibration& initial_calibration);
@@ -217,9 +217,9 @@ class SlidingWindowEstimator::Impl {
   // FixedDirectionsTheStreamMoves; null without them or once their chain ended.
   std::unique_ptr<MarginalizationPrior> tested_prior_;
   std::string untested_reason_;  // why the tested blocks' chain ended; empty while it holds
-  // The marginalized GNSS rows whitened by the fixes' stated std, and Eq. N2 over them.
+  // The marginalized GNSS rows whitened by the fixes' stated std (Eq. N2 over them:
+  // gnss_noise()).
   GnssRowScatter gnss_rows_;
-  GnssNoiseFromResiduals gnss_noise_;
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.
   internal::WindowSolverWorkspace solver_workspace_;

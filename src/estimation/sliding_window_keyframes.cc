@@ -323,7 +323,7 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
     integrated_to_ns = g.t_ns;
     factors::GnssMeasurement m;
     m.p_W_A = g.p_W_A;
-    const GnssStdScale scale = gnss_noise_.Scale();
+    const GnssStdScale scale = gnss_noise().Scale();
     m.sigma_enu_m = scale.Applied(g.sigma_enu_m);
     if (!scale.IsOne()) ++counters_.gnss_scaled;
     AttachedFactor f;
@@ -362,7 +362,6 @@ void SlidingWindowEstimator::Impl::DropOldest(std::unique_ptr<MarginalizationPri
 
 void SlidingWindowEstimator::Impl::RecordGnssRowsOfOldest() {
   if (!options_.gnss_noise_from_residuals) return;
-  bool recorded = false;
   double rows[3];  // east, north, up, whitened by the std the fix was attached with
   for (const internal::AttachedFactor& f : window_.front()->factors) {
     if (!f.gnss_std_scale || f.cost->num_residuals() != 3) continue;
@@ -371,9 +370,7 @@ void SlidingWindowEstimator::Impl::RecordGnssRowsOfOldest() {
     gnss_rows_.AddHorizontal(rows[0] * scale.horizontal);
     gnss_rows_.AddHorizontal(rows[1] * scale.horizontal);
     gnss_rows_.AddVertical(rows[2] * scale.vertical);
-    recorded = true;
   }
-  if (recorded) gnss_noise_ = gnss_rows_.Noise();
 }
 
 // Keeps the IMU samples from the last one at or before the oldest keyframe or its sweep's first

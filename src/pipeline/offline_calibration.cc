@@ -235,12 +235,6 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     if (sensor_factors.use_gnss && !gnss_noise) {
       // One outer iteration: the fixes' scatter is measured but cannot weigh them any more.
       gnss_noise = MeasureGnssNoise(sensor_factors, &keyframes->keyframes, calibration);
-      if (!gnss_noise->Scale().IsOne()) {
-        result->warnings.push_back(GnssNoiseWarning(*gnss_noise) +
-                                   "; but the solve ended after its first outer iteration, before "
-                                   "the scale could weigh them: raise solver.outer_iterations");
-        gnss_noise->horizontal.scale = gnss_noise->vertical.scale = 1.0;  // as they were weighed
-      }
     }
     const auto uncertainty_start = std::chrono::steady_clock::now();
     const estimation::ScaledInformation lidar = LidarSandwich(p);
@@ -280,7 +274,12 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
   io::CalibrationFile& file = result->calibration;
   if (gnss_noise) {
     RecordGnssNoiseScale(sensor_factors.gnss_noise_scale, &file);
-    const std::string warning = GnssNoiseWarning(*gnss_noise);
+    std::string warning = GnssNoiseWarning(*gnss_noise);
+    if (!warning.empty() && !(gnss_noise->Scale() == sensor_factors.gnss_noise_scale)) {
+      warning +=
+          "; but the solve ended after its first outer iteration, before the scale could weigh "
+          "them: raise solver.outer_iterations";
+    }
     if (!warning.empty()) result->warnings.push_back(warning);
     WhitenGnssRowsBeforeAlike(sensor_factors.gnss_noise_scale, &result->whitened_residuals);
   }

@@ -38,6 +38,9 @@ struct GnssStdScale {
   double horizontal = 1.0;  // east and north
   double vertical = 1.0;    // up
   bool IsOne() const { return horizontal == 1.0 && vertical == 1.0; }
+  bool operator==(const GnssStdScale& o) const {
+    return horizontal == o.horizontal && vertical == o.vertical;
+  }
   // Throws autocal::Error unless both are positive and finite.
   void Check(const char* what) const;
   Eigen::Vector3d Applied(const Eigen::Vector3d& sigma_enu_m) const {

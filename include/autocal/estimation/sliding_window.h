@@ -153,7 +153,7 @@ class SlidingWindowEstimator {
   // Eq. N2 over the GNSS rows marginalized so far (SlidingWindowOptions::
   // gnss_noise_from_residuals): their robust sigma, their count and the scale the next fix
   // takes (1 below kMinGnssNoiseRows rows).
-  const GnssNoiseFromResiduals& gnss_noise() const;
+  GnssNoiseFromResiduals gnss_noise() const;
 
  private:
   class Impl;  // estimation/sliding_window_internal.h
