@@ -42,6 +42,68 @@ std::optional<Eigen::Matrix<double, 15, 15>> FirstKeyframeCovariance(ceres::Prob
   return Eigen::Matrix<double, 15, 15>(covariance.matrix);
 }
 
+// The GNSS-inertial problem over the placed keyframes (step 2 of KeyframesFromGnssAndImu), solved
+// in place, with the fixes' std scaled by gnss.noise_scale.
+struct StatesSolve {
+  ceres::Solver::Summary summary;
+  int gnss_factors = 0;
+  int wheel_factors = 0;
+  std::optional<Eigen::Matrix<double, 15, 15>> first_covariance;
+};
+StatesSolve SolveStates(const sensors::ImuSamples& imu, const WheelData& wheel,
+                        const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
+                        const sensors::Calibration& calibration,
+                        const GnssInertialKeyframesOptions& options,
+                        const KeyframeGnssOptions& gnss, std::vector<Keyframe>* keyframes) {
+  std::vector<Keyframe>& kfs = *keyframes;
+  StatesSolve out;
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  geometry::RightQuaternionManifold quaternion_manifold;
+  for (Keyframe& kf : kfs)
+    problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
+  KeyframeImuOptions imu_options;
+  imu_options.noise = options.imu_noise;
+  imu_options.gravity_m_s2 = options.gravity_m_s2;
+  imu_options.num_threads = options.num_threads;
+  AddImuFactors(&problem, imu, keyframes, imu_options);
+  sensors::Calibration held = calibration;
+  out.gnss_factors = AddGnssFactors(&problem, imu, fixes, converter, keyframes, &held, gnss);
+  if (!wheel.empty()) {
+    problem.AddParameterBlock(held.q_I_V.coeffs().data(), 4, &quaternion_manifold);
+    KeyframeWheelOptions wheel_options = options.wheel;
+    wheel_options.gravity_m_s2 = options.gravity_m_s2;
+    // q_I_V is estimated about its given value: held there, its error (degrees for a nominal
+    // value) would tilt every keyframe through the non-holonomic rows (measured 3 deg of roll
+    // and pitch for the simulator's nominal one, absorbed by a 0.7 m/s^2 accelerometer bias).
+    wheel_options.estimate_vehicle_rotation = true;
+    problem.AddResidualBlock(
+        new factors::QuaternionPriorFactor(
+            held.q_I_V,
+            Eigen::Matrix3d::Identity() / (options.vehicle_rotation_prior_sigma_deg * kDegToRad)),
+        nullptr, held.q_I_V.coeffs().data());
+    wheel_options.estimate_vehicle_translation = false;
+    wheel_options.estimate_radii = true;
+    // An odometry twist's effective track: a skid steer's slip puts it far from any nominal.
+    wheel_options.estimate_track_width = wheel.form == sensors::WheelForm::kSpeedYawRate;
+    out.wheel_factors = AddWheelFactors(&problem, imu, wheel, keyframes, &held, wheel_options);
+  }
+  AddBiasPriors(&problem, &kfs.front(), options.gyro_bias_prior_sigma_rad_s,
+                options.accel_bias_prior_sigma_m_s2);
+
+  const ceres::Solver::Options solver_options =
+      KeyframeSolverOptions(options.max_iterations, options.num_threads);
+  ceres::Solve(solver_options, &problem, &out.summary);
+  if (!out.summary.IsSolutionUsable()) {
+    throw Error("KeyframesFromGnssAndImu: the GNSS-inertial solve failed: " + out.summary.message);
+  }
+  if (options.first_keyframe_covariance) {
+    out.first_covariance = FirstKeyframeCovariance(&problem, &kfs.front(), options.num_threads);
+  }
+  return out;
+}
+
 }  // namespace
 
 GnssInertialKeyframes KeyframesFromGnssAndImu(
@@ -81,59 +143,30 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(
     kf.p_W_I = p_W_A - kf.q_W_I * calibration.p_I_A;
   }
 
-  // 2. The GNSS-inertial problem.
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  geometry::RightQuaternionManifold quaternion_manifold;
-  for (Keyframe& kf : kfs)
-    problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
-  KeyframeImuOptions imu_options;
-  imu_options.noise = options.imu_noise;
-  imu_options.gravity_m_s2 = options.gravity_m_s2;
-  imu_options.num_threads = options.num_threads;
-  AddImuFactors(&problem, imu, keyframes, imu_options);
-  sensors::Calibration held = calibration;
+  // 2. The GNSS-inertial problem, solved again with the fixes' std scaled where they scatter
+  //    beyond it (Eq. N2).
   KeyframeGnssOptions gnss = options.gnss;
   gnss.gravity_m_s2 = options.gravity_m_s2;
   gnss.estimate_lever_arm = false;
-  result.gnss_factors = AddGnssFactors(&problem, imu, fixes, converter, keyframes, &held, gnss);
-  if (!wheel.empty()) {
-    problem.AddParameterBlock(held.q_I_V.coeffs().data(), 4, &quaternion_manifold);
-    KeyframeWheelOptions wheel_options = options.wheel;
-    wheel_options.gravity_m_s2 = options.gravity_m_s2;
-    // q_I_V is estimated about its given value: held there, its error (degrees for a nominal
-    // value) would tilt every keyframe through the non-holonomic rows (measured 3 deg of roll
-    // and pitch for the simulator's nominal one, absorbed by a 0.7 m/s^2 accelerometer bias).
-    wheel_options.estimate_vehicle_rotation = true;
-    problem.AddResidualBlock(
-        new factors::QuaternionPriorFactor(
-            held.q_I_V,
-            Eigen::Matrix3d::Identity() / (options.vehicle_rotation_prior_sigma_deg * kDegToRad)),
-        nullptr, held.q_I_V.coeffs().data());
-    wheel_options.estimate_vehicle_translation = false;
-    wheel_options.estimate_radii = true;
-    // An odometry twist's effective track: a skid steer's slip puts it far from any nominal.
-    wheel_options.estimate_track_width = wheel.form == sensors::WheelForm::kSpeedYawRate;
-    result.wheel_factors = AddWheelFactors(&problem, imu, wheel, keyframes, &held, wheel_options);
+  StatesSolve solve =
+      SolveStates(imu, wheel, fixes, converter, calibration, options, gnss, keyframes);
+  if (options.gnss_noise_from_residuals) {
+    sensors::Calibration held = calibration;
+    result.gnss_noise = MeasureGnssNoise(imu, fixes, converter, keyframes, &held, gnss);
+    const GnssStdScale measured = result.gnss_noise->Scale();
+    if (!measured.IsOne() && !(measured == gnss.noise_scale)) {
+      gnss.noise_scale = measured;
+      solve = SolveStates(imu, wheel, fixes, converter, calibration, options, gnss, keyframes);
+    }
   }
-  AddBiasPriors(&problem, &kfs.front(), options.gyro_bias_prior_sigma_rad_s,
-                options.accel_bias_prior_sigma_m_s2);
-
-  const ceres::Solver::Options solver_options =
-      KeyframeSolverOptions(options.max_iterations, options.num_threads);
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) {
-    throw Error("KeyframesFromGnssAndImu: the GNSS-inertial solve failed: " + summary.message);
-  }
-  if (options.first_keyframe_covariance) {
-    result.first_covariance = FirstKeyframeCovariance(&problem, &kfs.front(), options.num_threads);
-  }
+  result.gnss_std_scale = gnss.noise_scale;
+  result.gnss_factors = solve.gnss_factors;
+  result.wheel_factors = solve.wheel_factors;
+  result.first_covariance = solve.first_covariance;
   for (Keyframe& kf : kfs) kf.q_W_I.normalize();
-  result.initial_cost = summary.initial_cost;
-  result.final_cost = summary.final_cost;
-  result.termination = summary.message;
+  result.initial_cost = solve.summary.initial_cost;
+  result.final_cost = solve.summary.final_cost;
+  result.termination = solve.summary.message;
   return result;
 }
 

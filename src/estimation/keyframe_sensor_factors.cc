@@ -611,5 +611,42 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   return added;
 }
 
+GnssNoiseFromResiduals MeasureGnssNoise(const sensors::ImuSamples& imu,
+                                        const sensors::GnssFixes& fixes,
+                                        const sensors::EnuConverter& converter,
+                                        std::vector<Keyframe>* keyframes,
+                                        sensors::Calibration* calibration,
+                                        const KeyframeGnssOptions& options) {
+  // The GNSS rows alone, on their own problem: the values are only read.
+  geometry::RightQuaternionManifold quaternion_manifold;
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem rows(problem_options);
+  for (Keyframe& kf : *keyframes) {
+    rows.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
+  }
+  KeyframeGnssOptions stated = options;
+  stated.noise_scale = {};
+  AddGnssFactors(&rows, imu, fixes, converter, keyframes, calibration, stated);
+  std::vector<ceres::ResidualBlockId> blocks;
+  rows.GetResidualBlocks(&blocks);
+  GnssRowScatter scatter;
+  double whitened[3];
+  for (const ceres::ResidualBlockId id : blocks) {
+    const int n = rows.GetCostFunctionForResidualBlock(id)->num_residuals();
+    bool finite = rows.EvaluateResidualBlock(id, false, nullptr, whitened, nullptr);
+    for (int k = 0; finite && k < n; ++k) {
+      // The horizontal blocks hold two rows, the vertical ones one (factors::GnssAxes).
+      finite = n == 2 ? scatter.AddHorizontal(whitened[k]) : scatter.AddVertical(whitened[k]);
+    }
+    if (!finite) {
+      throw Error(
+          "MeasureGnssNoise: the GNSS rows could not be evaluated at the solved trajectory (a "
+          "non-finite residual): the fixes' scatter (Eq. N2) cannot be measured");
+    }
+  }
+  return scatter.Noise();
+}
+
 }  // namespace estimation
 }  // namespace autocal

@@ -66,6 +66,7 @@ class SlidingWindowEstimator::Impl {
   int last_associated_points() const { return last_associated_points_; }
   double last_point_rms_m() const;
   GnssNoiseFromResiduals gnss_noise() const { return gnss_rows_.Noise(); }
+  GnssStdScale gnss_std_scale() const;
 
  private:
   struct WindowKeyframe;

@@ -323,7 +323,7 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
     integrated_to_ns = g.t_ns;
     factors::GnssMeasurement m;
     m.p_W_A = g.p_W_A;
-    const GnssStdScale scale = gnss_noise().Scale();
+    const GnssStdScale scale = gnss_std_scale();
     m.sigma_enu_m = scale.Applied(g.sigma_enu_m);
     if (!scale.IsOne()) ++counters_.gnss_scaled;
     AttachedFactor f;
@@ -358,6 +358,15 @@ void SlidingWindowEstimator::Impl::DropOldest(std::unique_ptr<MarginalizationPri
   for (auto& kf : window_) pairing_.pool().RetireGroupsOf(&kf->point_groups, dropped_id);
   window_.front()->imu_from_previous.reset();
   ++counters_.marginalizations;
+}
+
+GnssStdScale SlidingWindowEstimator::Impl::gnss_std_scale() const {
+  const GnssNoiseFromResiduals own = gnss_noise();
+  const auto judged = [](const GnssAxisNoise& axis, double before) {
+    return axis.rows >= kMinGnssNoiseRows ? axis.scale : before;
+  };
+  return {judged(own.horizontal, options_.gnss_std_scale.horizontal),
+          judged(own.vertical, options_.gnss_std_scale.vertical)};
 }
 
 void SlidingWindowEstimator::Impl::RecordGnssRowsOfOldest() {

@@ -158,6 +158,7 @@ void CheckOptions(const SlidingWindowOptions& o) {
         "SlidingWindowOptions: imu_coverage_margin_s and min_keyframe_interval_s must be >= 0");
   }
   CheckPriors(o.calibration_prior, o.initial_state_sigmas);
+  o.gnss_std_scale.Check("SlidingWindowOptions: gnss_std_scale");
   for (const sensors::CalibrationBlockId id : o.tested_fixed_blocks) {
     if (!WindowSupports(id) || Estimated(id, o.estimate)) {
       throw Error(std::string("SlidingWindowOptions: tested_fixed_blocks names ") +

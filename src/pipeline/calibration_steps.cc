@@ -348,35 +348,8 @@ estimation::GnssNoiseFromResiduals MeasureGnssNoise(const SensorFactors& factors
                                                     std::vector<estimation::Keyframe>* keyframes,
                                                     sensors::Calibration* c) {
   if (!factors.use_gnss) return {};
-  // The GNSS rows alone, on their own problem: the solve's values are only read.
-  ceres::Problem::Options options;
-  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem rows(options);
-  for (estimation::Keyframe& kf : *keyframes) {
-    rows.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, factors.quaternion_manifold);
-  }
-  estimation::KeyframeGnssOptions gnss = factors.GnssOptions();
-  gnss.noise_scale = {};  // whitened by the fixes' stated std
-  estimation::AddGnssFactors(&rows, factors.dataset->imu, factors.dataset->gnss, *factors.enu,
-                             keyframes, c, gnss);
-  std::vector<ceres::ResidualBlockId> blocks;
-  rows.GetResidualBlocks(&blocks);
-  estimation::GnssRowScatter scatter;
-  double whitened[3];
-  for (const ceres::ResidualBlockId id : blocks) {
-    const int n = rows.GetCostFunctionForResidualBlock(id)->num_residuals();
-    bool finite = rows.EvaluateResidualBlock(id, false, nullptr, whitened, nullptr);
-    for (int k = 0; finite && k < n; ++k) {
-      // The horizontal blocks hold two rows, the vertical ones one (factors::GnssAxes).
-      finite = n == 2 ? scatter.AddHorizontal(whitened[k]) : scatter.AddVertical(whitened[k]);
-    }
-    if (!finite) {
-      throw Error(
-          "the GNSS rows could not be evaluated at the solved trajectory (a non-finite "
-          "residual): the fixes' scatter (Eq. N2) cannot be measured");
-    }
-  }
-  return scatter.Noise();
+  return estimation::MeasureGnssNoise(factors.dataset->imu, factors.dataset->gnss, *factors.enu,
+                                      keyframes, c, factors.GnssOptions());
 }
 
 std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise,

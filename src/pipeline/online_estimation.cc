@@ -54,7 +54,7 @@ io::TrajectorySample TrajectorySampleOf(const estimation::SlidingWindowState& x)
 // R_I_L <- Exp(phi u) R_I_L, where the aligned keyframes' R_W_I = R_W_L R_I_L^T.
 struct GnssStart {
   estimation::Keyframe keyframe;
-  std::optional<Eigen::Matrix<double, 15, 15>> covariance;
+  estimation::GnssInertialKeyframes solve;  // its first_covariance, its fixes' std scale
 };
 GnssStart StartFromGnssAndImu(const io::Dataset& dataset, const estimation::WheelData& wheel,
                               estimation::GnssInertialKeyframesOptions options,
@@ -64,9 +64,8 @@ GnssStart StartFromGnssAndImu(const io::Dataset& dataset, const estimation::Whee
   std::vector<estimation::Keyframe> refined = aligned;
   options.first_keyframe_covariance = true;
   GnssStart out;
-  out.covariance = estimation::KeyframesFromGnssAndImu(&refined, dataset.imu, wheel, dataset.gnss,
-                                                       enu, calibration, options)
-                       .first_covariance;
+  out.solve = estimation::KeyframesFromGnssAndImu(&refined, dataset.imu, wheel, dataset.gnss, enu,
+                                                  calibration, options);
   if (estimate_q_I_L) {
     std::vector<double> phi;
     Eigen::Vector3d up_I = Eigen::Vector3d::Zero();
@@ -276,7 +275,7 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
                             failure.empty() && Estimated(problem.calibration.T_I_L.rotation.mode),
                             out.calibration, &out.calibration.q_I_L);
     keyframes.front() = start.keyframe;
-    SetGnssStart(enu, start.covariance, options, window_options);
+    SetGnssStart(enu, start.solve, options, window_options, warnings);
   }
   // The initializer's keyframes use its time offset; the window's keyframe time rule
   // (KeyframeTimeOf) uses the calibration's: the same value, the nominal one or the batch's.
@@ -461,23 +460,28 @@ estimation::CalibrationCovariance CollectResult(
     file.residuals["lidar"]["points"] = estimator->last_associated_points();
   }
   if (result->counters.gnss_accepted > 0) {
-    RecordGnssNoiseScale(estimator->gnss_noise().Scale(), &file);
+    RecordGnssNoiseScale(estimator->gnss_std_scale(), &file);
     file.residuals["gnss"]["fixes_scaled"] = static_cast<double>(result->counters.gnss_scaled);
   }
   return covariance;
 }
 
-// Eq. N2's warning when the window scaled fixes' std; empty when it did not.
-std::string WindowGnssNoiseWarning(const estimation::SlidingWindowEstimator& estimator) {
+// Eq. N2's warning when the window's own rows scaled fixes' std; empty when they did not (the
+// start's scale has its own, SetGnssStart).
+std::string WindowGnssNoiseWarning(const estimation::SlidingWindowEstimator& estimator,
+                                   const estimation::SlidingWindowOptions& window_options) {
   const estimation::SlidingWindowCounters& counters = estimator.counters();
   if (counters.gnss_scaled == 0) return "";
+  const std::string before =
+      window_options.gnss_std_scale.IsOne() ? "as stated" : "with the start's scale";
   return GnssNoiseWarning(
       estimator.gnss_noise(), "about the window's estimates as it marginalized them,",
       std::to_string(counters.gnss_scaled) + " of the " + std::to_string(counters.gnss_accepted) +
-          " fixes it received took their std scaled by what the rows had shown, those attached "
-          "once " +
+          " fixes it received took their std scaled, those attached once " +
           std::to_string(estimation::kMinGnssNoiseRows) +
-          " rows of an axis group had been marginalized (the earlier ones count as stated)");
+          " rows of an axis group had been marginalized by what the rows had shown (the earlier "
+          "ones " +
+          before + ")");
 }
 
 }  // namespace
@@ -521,7 +525,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
     keyframe_period_ns = KeyframePeriodWithoutLidar(dataset, options);
     window_start.calibration = dataset.sensors.nominal_calibration;
     window_start.keyframe = StartWithoutLidar(dataset, problem, options, timing, keyframe_period_ns,
-                                              use_wheel, &window_options);
+                                              use_wheel, &window_options, &start_warnings);
     result.seconds_initialization = SecondsSince(start);
   }
   result.initial = window_start.calibration;
@@ -548,7 +552,7 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   checkpoints.push_back(
       {estimator.calibration(), CollectResult(window_options, use_lidar, &estimator, &result)});
   std::vector<std::string> held_warnings;
-  const std::string gnss_noise = WindowGnssNoiseWarning(estimator);
+  const std::string gnss_noise = WindowGnssNoiseWarning(estimator, window_options);
   if (!gnss_noise.empty()) held_warnings.push_back(gnss_noise);
   if (failed_checkpoints > 0) {
     held_warnings.push_back("the window's covariance could not be computed at " +

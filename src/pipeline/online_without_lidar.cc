@@ -96,7 +96,8 @@ estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Pro
                                        const OnlineEstimationOptions& options,
                                        const TimingLimits& timing, int64_t period_ns,
                                        bool use_wheel,
-                                       estimation::SlidingWindowOptions* window_options) {
+                                       estimation::SlidingWindowOptions* window_options,
+                                       std::vector<std::string>* warnings) {
   if (dataset.imu.empty() || dataset.gnss.empty()) {
     throw Error("dataset " + dataset.directory + ": " +
                 (dataset.imu.empty() ? "imu.csv" : "gnss.csv") +
@@ -124,7 +125,7 @@ estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Pro
   const estimation::GnssInertialKeyframes start = estimation::KeyframesFromGnssAndImu(
       &keyframes, dataset.imu, StartWheelData(dataset, use_wheel), dataset.gnss, enu,
       dataset.sensors.nominal_calibration, gnss_inertial);
-  SetGnssStart(enu, start.first_covariance, options, window_options);
+  SetGnssStart(enu, start, options, window_options, warnings);
   return keyframes.front();
 }
 

@@ -41,13 +41,15 @@ io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
 // IMU and the fixes share, placed on the GNSS track and refined with the IMU and the wheels
 // (estimation::KeyframesFromGnssAndImu, the offline calibration's start without the LiDAR) at
 // the nominal calibration. Returns the first, in the ENU frame at the first fix; sets
-// *window_options' ENU origin and the initial sigmas of a GNSS start. Throws autocal::Error
-// when that span holds fewer than two keyframes, or as KeyframesFromGnssAndImu.
+// *window_options as SetGnssStart (window_settings.h), which may add a warning to *warnings.
+// Throws autocal::Error when that span holds fewer than two keyframes, or as
+// KeyframesFromGnssAndImu.
 estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Problem& problem,
                                        const OnlineEstimationOptions& options,
                                        const TimingLimits& timing, int64_t period_ns,
                                        bool use_wheel,
-                                       estimation::SlidingWindowOptions* window_options);
+                                       estimation::SlidingWindowOptions* window_options,
+                                       std::vector<std::string>* warnings);
 
 }  // namespace pipeline
 }  // namespace autocal

@@ -190,10 +190,11 @@ void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,
   }
 }
 
-void SetGnssStart(const sensors::EnuConverter& enu,
-                  const std::optional<Eigen::Matrix<double, 15, 15>>& start_covariance,
+void SetGnssStart(const sensors::EnuConverter& enu, const estimation::GnssInertialKeyframes& start,
                   const OnlineEstimationOptions& options,
-                  estimation::SlidingWindowOptions* window_options) {
+                  estimation::SlidingWindowOptions* window_options,
+                  std::vector<std::string>* warnings) {
+  const std::optional<Eigen::Matrix<double, 15, 15>>& start_covariance = start.first_covariance;
   window_options->enu_origin_lla = Eigen::Vector3d(enu.lat0_deg(), enu.lon0_deg(), enu.alt0_m());
   estimation::SlidingWindowInitialStateSigmas& sigmas = window_options->initial_state_sigmas;
   sigmas.position_m = options.initial_position_sigma_with_gnss_m;
@@ -201,6 +202,14 @@ void SetGnssStart(const sensors::EnuConverter& enu,
   Eigen::Matrix<double, 15, 15> covariance = sigmas.InStatePriorOrder().cwiseAbs2().asDiagonal();
   if (start_covariance) covariance += 0.5 * (*start_covariance + start_covariance->transpose());
   window_options->initial_state_covariance = covariance;
+  window_options->gnss_std_scale = start.gnss_std_scale;
+  if (start.gnss_noise && !start.gnss_std_scale.IsOne()) {
+    warnings->push_back(GnssNoiseWarning(
+        *start.gnss_noise, "about the GNSS-inertial start over the first seconds,",
+        "the start's states and the window's fixes take their std scaled by that until " +
+            std::to_string(estimation::kMinGnssNoiseRows) +
+            " rows of an axis group have left the window"));
+  }
 }
 
 }  // namespace pipeline

@@ -6,7 +6,10 @@
 
 #include <Eigen/Core>
 #include <optional>
+#include <string>
+#include <vector>
 
+#include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/estimation/sliding_window.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
@@ -41,11 +44,13 @@ double PlanarRotationSigma(const io::Dataset& dataset, const io::Problem& proble
 // road without turns the tilt trades against the accelerometer bias, held only by its prior)
 // plus the initial sigmas, which stand for what the solve's model leaves out (options' position
 // and accelerometer-bias sigmas for a GNSS start); those alone when the solve left a direction
-// undetermined (start_covariance empty).
-void SetGnssStart(const sensors::EnuConverter& enu,
-                  const std::optional<Eigen::Matrix<double, 15, 15>>& start_covariance,
+// undetermined (first_covariance empty). The window's fixes take the std scale the solve's fixes
+// showed (Eq. N2) until the window's own rows judge it; *warnings gets Eq. N2's warning when that
+// scale is not one.
+void SetGnssStart(const sensors::EnuConverter& enu, const estimation::GnssInertialKeyframes& start,
                   const OnlineEstimationOptions& options,
-                  estimation::SlidingWindowOptions* window_options);
+                  estimation::SlidingWindowOptions* window_options,
+                  std::vector<std::string>* warnings);
 
 // Sigmas of the estimated blocks from the window's covariance, into the calibration file.
 void FillWindowUncertainty(const estimation::CalibrationCovariance& covariance,

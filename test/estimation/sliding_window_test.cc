@@ -363,57 +363,106 @@ TEST(SlidingWindowTimedKeyframes, MakesKeyframesWithoutSweepsAndHoldsTheLidarBlo
   EXPECT_THROW(with_sweeps.AddKeyframeAt(kStart + 200'000'000), Error);
 }
 
-// Eq. N2 in the window: a platform at rest whose fixes scatter four times their stated std
-// horizontally and as stated vertically. Once 67 horizontal rows are marginalized the later
+// A platform at rest whose fixes, one per keyframe, scatter four times their stated std
+// horizontally and as stated vertically, streamed into a window of 4 over 100 keyframes.
+struct StillFixesStream {
+  GnssStdScale scale_at_first_fix;  // gnss_std_scale() before the first fix is attached
+  GnssNoiseFromResiduals noise;
+  GnssStdScale scale_at_end;
+  SlidingWindowCounters counters;
+};
+StillFixesStream StreamStillFixes(SlidingWindowOptions options, int num_keyframes) {
+  options.window_size = 4;
+  const sensors::Calibration calibration;
+  SlidingWindowEstimator estimator(options, calibration, StillState());
+  StillFixesStream out;
+  out.scale_at_first_fix = estimator.gnss_std_scale();
+  std::mt19937_64 random(9);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  int64_t t = kStart - kImuStep;
+  estimator.AddImu(StillImu(t));
+  for (int k = 1; k <= num_keyframes; ++k) {
+    const int64_t t_keyframe = kStart + int64_t{100'000'000} * k;
+    GnssPosition fix;
+    fix.t_ns = t_keyframe - 50'000'000;
+    fix.sigma_enu_m = Eigen::Vector3d(0.1, 0.1, 0.2);
+    fix.p_W_A = calibration.p_I_A +
+                Eigen::Vector3d(0.4 * normal(random), 0.4 * normal(random), 0.2 * normal(random));
+    EXPECT_TRUE(estimator.AddGnss(fix));
+    EXPECT_TRUE(estimator.AddKeyframeAt(t_keyframe));
+    const int64_t needed = t_keyframe + SecondsToNs(options.imu_coverage_margin_s);
+    while (t < needed) estimator.AddImu(StillImu(t += kImuStep));
+  }
+  EXPECT_EQ(estimator.counters().updates, num_keyframes);
+  out.noise = estimator.gnss_noise();
+  out.scale_at_end = estimator.gnss_std_scale();
+  out.counters = estimator.counters();
+  return out;
+}
+
+// Eq. N2 in the window, on StreamStillFixes. Once 67 horizontal rows are marginalized the later
 // fixes' horizontal std is scaled by what the rows show; the vertical one stays. Without the
 // option nothing is measured. Measured: 4.81 over 194 rows, vertical 0.91, 63 fixes scaled.
 // The rows read above their true 4: the Cauchy loss at 3 stated sigmas down-weights most of
 // these fixes, and the trajectory they hold loosely wanders 1.4 m (0.25 m with the std stated
 // right), so the residuals are not the fitted ones of a least-squares solve.
 TEST(SlidingWindowTimedKeyframes, ScalesLaterFixesByTheMarginalizedRowsScatter) {
+  const int num_keyframes = 100;
   for (const bool from_residuals : {true, false}) {
     SCOPED_TRACE(from_residuals ? "from the residuals" : "as stated");
     SlidingWindowOptions options = FastOptions();
-    options.window_size = 4;
     options.gnss_noise_from_residuals = from_residuals;
-    const sensors::Calibration calibration;
-    SlidingWindowEstimator estimator(options, calibration, StillState());
-    std::mt19937_64 random(9);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    int64_t t = kStart - kImuStep;
-    estimator.AddImu(StillImu(t));
-    const int num_keyframes = 100;
-    for (int k = 1; k <= num_keyframes; ++k) {
-      const int64_t t_keyframe = kStart + int64_t{100'000'000} * k;
-      GnssPosition fix;
-      fix.t_ns = t_keyframe - 50'000'000;
-      fix.sigma_enu_m = Eigen::Vector3d(0.1, 0.1, 0.2);
-      fix.p_W_A = calibration.p_I_A +
-                  Eigen::Vector3d(0.4 * normal(random), 0.4 * normal(random), 0.2 * normal(random));
-      ASSERT_TRUE(estimator.AddGnss(fix));
-      ASSERT_TRUE(estimator.AddKeyframeAt(t_keyframe));
-      const int64_t needed = t_keyframe + SecondsToNs(options.imu_coverage_margin_s);
-      while (t < needed) estimator.AddImu(StillImu(t += kImuStep));
-    }
-    ASSERT_EQ(estimator.counters().updates, num_keyframes);
-    const GnssNoiseFromResiduals& noise = estimator.gnss_noise();
+    const StillFixesStream stream = StreamStillFixes(options, num_keyframes);
+    const GnssNoiseFromResiduals& noise = stream.noise;
     if (from_residuals) {
       std::cout << "horizontal " << noise.horizontal.robust_sigma << " over "
                 << noise.horizontal.rows << " rows, vertical " << noise.vertical.robust_sigma
-                << " over " << noise.vertical.rows << ", " << estimator.counters().gnss_scaled
+                << " over " << noise.vertical.rows << ", " << stream.counters.gnss_scaled
                 << " fixes scaled\n";
       EXPECT_EQ(noise.horizontal.rows, 2 * noise.vertical.rows);
-      EXPECT_GE(noise.vertical.rows, static_cast<size_t>(num_keyframes - options.window_size));
+      EXPECT_GE(noise.vertical.rows, static_cast<size_t>(num_keyframes - 4));
       EXPECT_GT(noise.horizontal.scale, 3.0);
       EXPECT_EQ(noise.horizontal.scale, noise.horizontal.robust_sigma);
       EXPECT_EQ(noise.vertical.scale, 1.0);
-      EXPECT_GT(estimator.counters().gnss_scaled, num_keyframes / 2);
+      EXPECT_TRUE(stream.scale_at_end == noise.Scale());
+      EXPECT_GT(stream.counters.gnss_scaled, num_keyframes / 2);
+      EXPECT_LT(stream.counters.gnss_scaled, num_keyframes);
     } else {
       EXPECT_EQ(noise.horizontal.rows, 0u);
       EXPECT_TRUE(noise.Scale().IsOne());
-      EXPECT_EQ(estimator.counters().gnss_scaled, 0);
+      EXPECT_TRUE(stream.scale_at_end.IsOne());
+      EXPECT_EQ(stream.counters.gnss_scaled, 0);
     }
   }
+}
+
+// A scale given with the options (a start's fit, GnssInertialKeyframes::gnss_std_scale) scales
+// every fix from the first, per axis group until the window's own rows judge that group: then
+// the horizontal rows' scatter, and the vertical rows', which scatter as stated, back to one.
+// Without the window's own rows, the given scale throughout.
+TEST(SlidingWindowTimedKeyframes, GivenGnssStdScaleHoldsUntilTheRowsJudge) {
+  const int num_keyframes = 100;
+  const GnssStdScale given{4.0, 1.5};
+  for (const bool from_residuals : {true, false}) {
+    SCOPED_TRACE(from_residuals ? "from the residuals" : "given only");
+    SlidingWindowOptions options = FastOptions();
+    options.gnss_noise_from_residuals = from_residuals;
+    options.gnss_std_scale = given;
+    const StillFixesStream stream = StreamStillFixes(options, num_keyframes);
+    EXPECT_TRUE(stream.scale_at_first_fix == given);
+    EXPECT_EQ(stream.counters.gnss_scaled, num_keyframes);
+    if (from_residuals) {
+      EXPECT_GE(stream.noise.vertical.rows, kMinGnssNoiseRows);
+      EXPECT_GT(stream.scale_at_end.horizontal, 3.0);
+      EXPECT_EQ(stream.scale_at_end.horizontal, stream.noise.horizontal.scale);
+      EXPECT_EQ(stream.scale_at_end.vertical, 1.0);
+    } else {
+      EXPECT_TRUE(stream.scale_at_end == given);
+    }
+  }
+  SlidingWindowOptions invalid = FastOptions();
+  invalid.gnss_std_scale.vertical = 0.0;
+  EXPECT_THROW(SlidingWindowEstimator(invalid, sensors::Calibration(), StillState()), Error);
 }
 
 // A block's prior may state one sigma per axis (a lever arm measured in x and y, not in z): a

@@ -12,7 +12,8 @@
 //    fit's noise (Eqs. K8, K10) or, on a slow platform, from the track's travel (Eq. K11);
 //    a keyframe with a trusted heading gets its vehicle x axis along it (Eq. K9).
 // 2. A GNSS-inertial least-squares problem refines every state: IMU factors (Eq. F10) between
-//    consecutive keyframes, GNSS factors (Eq. F30, Cauchy loss) on each keyframe, wheel
+//    consecutive keyframes, GNSS factors (Eq. F30, Cauchy loss) on each keyframe (their std
+//    scaled by their scatter where it exceeds the stated one, Eq. N2), wheel
 //    factors (Eq. F22, F25 or F26: the form's) when wheel samples are given, and a weak prior on
 //    the first keyframe's biases. Roll and pitch follow from gravity against the track's
 //    acceleration. The yaw follows from the track only where the car accelerates sideways; on a
@@ -51,6 +52,12 @@ struct GnssInertialKeyframesOptions {
   int num_threads = 1;
   // Also compute the first keyframe's covariance (GnssInertialKeyframes::first_covariance).
   bool first_keyframe_covariance = false;
+  // GNSS noise from the residuals (estimation/gnss_noise.h, Eq. N2): about the solved states,
+  // the fixes' scatter per axis group; where it exceeds their stated std, the states are solved
+  // again with the std scaled by it, so that they and first_covariance weigh the fixes as they
+  // scatter (an optimistic receiver otherwise gives the states a covariance several times too
+  // small). false: gnss.noise_scale as given.
+  bool gnss_noise_from_residuals = true;
 };
 
 struct GnssInertialKeyframes {
@@ -64,6 +71,11 @@ struct GnssInertialKeyframes {
   // solve, ordered [dphi (right perturbation of q_W_I), dp, dv, db_g, db_a] like a state prior
   // (Eq. F42); empty when the solve leaves a direction of it undetermined.
   std::optional<Eigen::Matrix<double, 15, 15>> first_covariance;
+  // With options.gnss_noise_from_residuals: the fixes' scatter about the first solve, whitened
+  // by their stated std.
+  std::optional<GnssNoiseFromResiduals> gnss_noise;
+  // What scaled the fixes' stated std in the solve the states come from.
+  GnssStdScale gnss_std_scale;
 };
 
 // Replaces q, p, v, b_g, b_a of every keyframe (their times are kept) with the estimate from

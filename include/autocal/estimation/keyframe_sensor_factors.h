@@ -203,6 +203,17 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                    std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
                    const KeyframeGnssOptions& options = {});
 
+// Eq. N2 (estimation/gnss_noise.h) over the GNSS rows AddGnssFactors adds with `options`,
+// whitened by the fixes' stated std (options.noise_scale is not applied), at the keyframes' and
+// the calibration's values, which are only read. Throws autocal::Error as AddGnssFactors, or
+// when a row is not finite there.
+GnssNoiseFromResiduals MeasureGnssNoise(const sensors::ImuSamples& imu,
+                                        const sensors::GnssFixes& fixes,
+                                        const sensors::EnuConverter& converter,
+                                        std::vector<Keyframe>* keyframes,
+                                        sensors::Calibration* calibration,
+                                        const KeyframeGnssOptions& options);
+
 struct GnssAlignmentOptions {
   double max_fix_gap_s = 0.25;  // as KeyframeGnssOptions::max_fix_gap_s (derived likewise)
   // Refits after dropping pairs farther than max(min_outlier_distance_m, outlier_mad_factor *

@@ -154,6 +154,9 @@ class SlidingWindowEstimator {
   // gnss_noise_from_residuals): their robust sigma, their count and the scale the next fix
   // takes (1 below kMinGnssNoiseRows rows).
   GnssNoiseFromResiduals gnss_noise() const;
+  // The scale the next fix's stated std takes: per axis group, gnss_noise()'s from
+  // kMinGnssNoiseRows rows on, options.gnss_std_scale before.
+  GnssStdScale gnss_std_scale() const;
 
  private:
   class Impl;  // estimation/sliding_window_internal.h

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "autocal/estimation/estimated_blocks.h"
+#include "autocal/estimation/gnss_noise.h"
 #include "autocal/estimation/marginalization.h"
 #include "autocal/estimation/pairing_options.h"
 #include "autocal/factors/loss.h"
@@ -155,8 +156,11 @@ struct SlidingWindowOptions {
   // keyframe the window marginalizes, whitened by the fixes' stated std at the estimate it
   // leaves with; from kMinGnssNoiseRows of them on, every fix attached later has its std
   // scaled by what they show (SlidingWindowEstimator::gnss_noise). The rows already in the
-  // marginalization prior keep the std they were weighed with. false: the stated std.
+  // marginalization prior keep the std they were weighed with. false: gnss_std_scale.
   bool gnss_noise_from_residuals = true;
+  // What scales the fixes' stated std until the window's own rows judge an axis group (above),
+  // e.g. the scatter of the fixes the start was fitted to (GnssInertialKeyframes::gnss_std_scale).
+  GnssStdScale gnss_std_scale;
   // Blocks held at their value (not estimated) whose information the window carries through
   // a second marginalization, so that FixedDirectionsTheStreamMoves can test them against the
   // whole stream (docs/sliding_window.md, "Fixed blocks"); the estimate does not depend on it.
