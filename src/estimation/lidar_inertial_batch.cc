@@ -27,6 +27,7 @@
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/se3.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/outer_convergence.h"
 #include "estimation/rotation_search.h"
 #include "estimation/sweep_pairing.h"
 
@@ -123,6 +124,10 @@ struct PointGroup {
 struct Schedule {
   int coarse_level;
   double fine_point_sigma_m;
+  // The last iteration's step when it was fine and left the points' sigma settled: the next
+  // iteration then solves the same problem (the same level and sigma), a step of the same
+  // fixed-point map.
+  std::optional<internal::OuterStep> step_of_settled_map;
 };
 
 PairingOptions PairingAt(const LidarInertialBatchOptions& options, const Schedule& schedule) {
@@ -369,15 +374,6 @@ void RecordDownweightedPoints(const std::vector<double>& residuals_m, double sig
       kept == 0 ? 0.0 : std::sqrt(sum_sq / static_cast<double>(kept));
 }
 
-bool Converged(const LidarInertialBatchOptions& options, const sensors::Calibration& before,
-               const sensors::Calibration& after) {
-  return geometry::AngularDistance(before.q_I_L, after.q_I_L) * kRadToDeg <
-             options.converged_rotation_deg &&
-         (before.p_I_L - after.p_I_L).norm() < options.converged_translation_m &&
-         std::abs(before.time_offset_lidar_imu_s - after.time_offset_lidar_imu_s) <
-             options.converged_time_offset_s;
-}
-
 double SecondsBetween(std::chrono::steady_clock::time_point a,
                       std::chrono::steady_clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
@@ -458,7 +454,11 @@ bool OuterIteration(const BatchInputs& in, int iteration,
   }
   report->termination = summary.message;
 
-  report->converged = Converged(options, before, *calibration) && sigma_settled && fine;
+  const internal::OuterStep step = internal::StepBetween(before, *calibration);
+  report->converged = internal::OuterLoopConverged(options, step, schedule->step_of_settled_map) &&
+                      sigma_settled && fine;
+  schedule->step_of_settled_map =
+      fine && sigma_settled ? std::optional<internal::OuterStep>(step) : std::nullopt;
   const bool last = report->converged || iteration + 1 == options.outer_iterations;
   if (last && options.compute_covariance) {
     ComputeCovariance(&problem, calibration, held_axes, report);
@@ -533,7 +533,8 @@ LidarInertialBatchReport SolveLidarInertialBatch(const sensors::ImuSamples& imu,
                                                               in.g_W, options.pairing, search);
     calibration->q_I_L = report.rotation_search.q_I_L_start;
   }
-  Schedule schedule{std::max(0, options.coarse_to_fine_steps), options.pairing.point_sigma_m};
+  Schedule schedule{std::max(0, options.coarse_to_fine_steps), options.pairing.point_sigma_m,
+                    std::nullopt};
   for (int iteration = 0; iteration < options.outer_iterations; ++iteration) {
     if (OuterIteration(in, iteration, start, &schedule, &report)) break;
   }

@@ -94,9 +94,11 @@ struct LidarInertialBatchOptions {
   std::function<void(ceres::Problem*)> inspect_final_problem;
   // Called after every outer iteration (for progress displays); may be empty.
   std::function<void(const LidarInertialBatchProgress&)> progress;
-  // Stop the outer loop when an iteration moves the extrinsic less than these: a tenth of
-  // the accuracy the calibration is held to, or less (an axis the drive does not excite
-  // wanders by millimetres between iterations and must not keep the loop going).
+  // Stop the outer loop when an iteration moves the extrinsic less than these, or when the
+  // moves still to come, from the rate its steps shrink at, are less (Eq. P12,
+  // docs/estimation.md): a tenth of the accuracy the calibration is held to, or less (an axis
+  // the drive does not excite wanders by millimetres between iterations and must not keep the
+  // loop going).
   double converged_rotation_deg = 2e-3;
   double converged_translation_m = 1e-3;
   double converged_time_offset_s = 1e-5;
