@@ -126,6 +126,9 @@ int SlidingWindowEstimator::last_associated_points() const {
 double SlidingWindowEstimator::last_point_rms_m() const { return impl_->last_point_rms_m(); }
 GnssNoiseFromResiduals SlidingWindowEstimator::gnss_noise() const { return impl_->gnss_noise(); }
 GnssStdScale SlidingWindowEstimator::gnss_std_scale() const { return impl_->gnss_std_scale(); }
+GnssStdScale SlidingWindowEstimator::largest_gnss_std_scale() const {
+  return impl_->largest_gnss_std_scale();
+}
 
 // ---------------------------------------------------------------------------------------------
 // The implementation: construction, streaming input and one update.

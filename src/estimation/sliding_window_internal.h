@@ -67,6 +67,7 @@ class SlidingWindowEstimator::Impl {
   double last_point_rms_m() const;
   GnssNoiseFromResiduals gnss_noise() const { return gnss_rows_.Noise(); }
   GnssStdScale gnss_std_scale() const;
+  GnssStdScale largest_gnss_std_scale() const { return largest_gnss_std_scale_; }
 
  private:
   struct WindowKeyframe;
@@ -221,6 +222,7 @@ class SlidingWindowEstimator::Impl {
   // The marginalized GNSS rows whitened by the fixes' stated std (Eq. N2 over them:
   // gnss_noise()).
   GnssRowScatter gnss_rows_;
+  GnssStdScale largest_gnss_std_scale_;  // over the fixes attached so far
   std::vector<internal::AttachedFactor> calibration_priors_;
   // The solver's dense buffers, kept from update to update.
   internal::WindowSolverWorkspace solver_workspace_;

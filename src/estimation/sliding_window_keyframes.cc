@@ -326,6 +326,9 @@ void SlidingWindowEstimator::Impl::AttachIntervalMeasurements(WindowKeyframe* fr
     const GnssStdScale scale = gnss_std_scale();
     m.sigma_enu_m = scale.Applied(g.sigma_enu_m);
     if (!scale.IsOne()) ++counters_.gnss_scaled;
+    largest_gnss_std_scale_.horizontal =
+        std::max(largest_gnss_std_scale_.horizontal, scale.horizontal);
+    largest_gnss_std_scale_.vertical = std::max(largest_gnss_std_scale_.vertical, scale.vertical);
     AttachedFactor f;
     f.gnss_std_scale = scale;
     f.cost.reset(internal::PropagatedGnssResidual::Create(gnss_pim, m));

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <optional>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
@@ -461,27 +463,49 @@ estimation::CalibrationCovariance CollectResult(
   }
   if (result->counters.gnss_accepted > 0) {
     RecordGnssNoiseScale(estimator->gnss_std_scale(), &file);
+    const estimation::GnssStdScale largest = estimator->largest_gnss_std_scale();
+    file.residuals["gnss"]["largest_noise_scale_horizontal"] = largest.horizontal;
+    file.residuals["gnss"]["largest_noise_scale_vertical"] = largest.vertical;
     file.residuals["gnss"]["fixes_scaled"] = static_cast<double>(result->counters.gnss_scaled);
   }
   return covariance;
 }
 
-// Eq. N2's warning when the window's own rows scaled fixes' std; empty when they did not (the
-// start's scale has its own, SetGnssStart).
+// Eq. N2's warning when the window scaled fixes' std; empty when it did not. Per axis group
+// whose fixes took a scale: the largest they took and the rows' scatter at the end of the
+// stream, which may have fallen below the threshold since (stretches of poorer fixes).
 std::string WindowGnssNoiseWarning(const estimation::SlidingWindowEstimator& estimator,
                                    const estimation::SlidingWindowOptions& window_options) {
   const estimation::SlidingWindowCounters& counters = estimator.counters();
   if (counters.gnss_scaled == 0) return "";
+  const estimation::GnssNoiseFromResiduals noise = estimator.gnss_noise();
+  const estimation::GnssStdScale largest = estimator.largest_gnss_std_scale();
+  std::vector<std::string> groups;
+  const auto group = [&](const char* name, double largest_scale,
+                         const estimation::GnssAxisNoise& at_end) {
+    if (largest_scale == 1.0) return;
+    char text[240];
+    std::snprintf(text, sizeof(text),
+                  "the %s fixes' std scaled by up to %.2f, their rows scattering %.2f times it "
+                  "over the %zu marginalized by the end",
+                  name, largest_scale, at_end.robust_sigma, at_end.rows);
+    groups.push_back(text);
+  };
+  group("horizontal", largest.horizontal, noise.horizontal);
+  group("vertical", largest.vertical, noise.vertical);
   const std::string before =
-      window_options.gnss_std_scale.IsOne() ? "as stated" : "with the start's scale";
-  return GnssNoiseWarning(
-      estimator.gnss_noise(), "about the window's estimates as it marginalized them,",
-      std::to_string(counters.gnss_scaled) + " of the " + std::to_string(counters.gnss_accepted) +
-          " fixes it received took their std scaled, those attached once " +
-          std::to_string(estimation::kMinGnssNoiseRows) +
-          " rows of an axis group had been marginalized by what the rows had shown (the earlier "
-          "ones " +
-          before + ")");
+      window_options.gnss_std_scale.IsOne() ? "as stated before" : "with the start's scale before";
+  return "GNSS: " + std::to_string(counters.gnss_scaled) + " of the " +
+         std::to_string(counters.gnss_accepted) +
+         " fixes the window received took their std scaled by the scatter of the rows it had "
+         "marginalized (robust sigma of the whitened rows, Eq. N2; " +
+         before + " " + std::to_string(estimation::kMinGnssNoiseRows) +
+         " rows of an axis group, and only while it was at least " +
+         FormatShort(estimation::kMinGnssNoiseScale) +
+         " times the stated std): " + Join(groups, "; ") +
+         ". The receiver's std leaves errors out, or the model misses something the fixes see "
+         "(a lever arm or a clock held wrong); a scatter that changes along the stream points "
+         "to stretches of poorer fixes";
 }
 
 }  // namespace

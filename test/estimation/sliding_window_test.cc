@@ -369,6 +369,7 @@ struct StillFixesStream {
   GnssStdScale scale_at_first_fix;  // gnss_std_scale() before the first fix is attached
   GnssNoiseFromResiduals noise;
   GnssStdScale scale_at_end;
+  GnssStdScale largest_scale;
   SlidingWindowCounters counters;
 };
 StillFixesStream StreamStillFixes(SlidingWindowOptions options, int num_keyframes) {
@@ -396,6 +397,7 @@ StillFixesStream StreamStillFixes(SlidingWindowOptions options, int num_keyframe
   EXPECT_EQ(estimator.counters().updates, num_keyframes);
   out.noise = estimator.gnss_noise();
   out.scale_at_end = estimator.gnss_std_scale();
+  out.largest_scale = estimator.largest_gnss_std_scale();
   out.counters = estimator.counters();
   return out;
 }
@@ -425,12 +427,15 @@ TEST(SlidingWindowTimedKeyframes, ScalesLaterFixesByTheMarginalizedRowsScatter) 
       EXPECT_EQ(noise.horizontal.scale, noise.horizontal.robust_sigma);
       EXPECT_EQ(noise.vertical.scale, 1.0);
       EXPECT_TRUE(stream.scale_at_end == noise.Scale());
+      EXPECT_GE(stream.largest_scale.horizontal, stream.scale_at_end.horizontal);
+      EXPECT_EQ(stream.largest_scale.vertical, 1.0);
       EXPECT_GT(stream.counters.gnss_scaled, num_keyframes / 2);
       EXPECT_LT(stream.counters.gnss_scaled, num_keyframes);
     } else {
       EXPECT_EQ(noise.horizontal.rows, 0u);
       EXPECT_TRUE(noise.Scale().IsOne());
       EXPECT_TRUE(stream.scale_at_end.IsOne());
+      EXPECT_TRUE(stream.largest_scale.IsOne());
       EXPECT_EQ(stream.counters.gnss_scaled, 0);
     }
   }
@@ -456,8 +461,11 @@ TEST(SlidingWindowTimedKeyframes, GivenGnssStdScaleHoldsUntilTheRowsJudge) {
       EXPECT_GT(stream.scale_at_end.horizontal, 3.0);
       EXPECT_EQ(stream.scale_at_end.horizontal, stream.noise.horizontal.scale);
       EXPECT_EQ(stream.scale_at_end.vertical, 1.0);
+      // The vertical fixes took the given 1.5 before the rows judged them: the largest says so.
+      EXPECT_EQ(stream.largest_scale.vertical, given.vertical);
     } else {
       EXPECT_TRUE(stream.scale_at_end == given);
+      EXPECT_TRUE(stream.largest_scale == given);
     }
   }
   SlidingWindowOptions invalid = FastOptions();

@@ -22,6 +22,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -29,6 +30,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/calibration_fusion.h"
+#include "autocal/estimation/gnss_noise.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/import/import_bag.h"
 #include "autocal/io/dataset.h"
@@ -441,6 +443,19 @@ TEST(RealDataAcceptance, SkidSteerRobotStreamsThroughTheWindow) {
   EXPECT_LE(c.odometry_speed_scale, 1.00);
   EXPECT_LT(seconds, 30.0);
   EXPECT_GT(result.counters.updates, 900);
+  // The vertical fixes scatter beyond their stated std over part of the log only (measured: 206
+  // fixes scaled, by up to 2.25, the scale at one by the end); what the fixes took is said and
+  // recorded though the scale ends at one.
+  const std::map<std::string, double>& gnss = result.calibration.residuals.at("gnss");
+  std::cout << result.counters.gnss_scaled << " fixes scaled, vertically by up to "
+            << gnss.at("largest_noise_scale_vertical") << ", at the end "
+            << gnss.at("noise_scale_vertical") << "\n";
+  EXPECT_GT(result.counters.gnss_scaled, 0);
+  EXPECT_EQ(gnss.at("fixes_scaled"), static_cast<double>(result.counters.gnss_scaled));
+  EXPECT_GE(gnss.at("largest_noise_scale_vertical"), estimation::kMinGnssNoiseScale);
+  EXPECT_THAT(
+      result.warnings,
+      ::testing::Contains(::testing::HasSubstr("fixes the window received took their std scaled")));
 }
 
 // Honest sigmas through the window (Eq. W9): streamed from the launch file's mount, the

@@ -157,6 +157,9 @@ class SlidingWindowEstimator {
   // The scale the next fix's stated std takes: per axis group, gnss_noise()'s from
   // kMinGnssNoiseRows rows on, options.gnss_std_scale before.
   GnssStdScale gnss_std_scale() const;
+  // The largest scale an attached fix's stated std took, per axis group: the rows' scatter can
+  // exceed the threshold over part of the stream and fall below it by the end.
+  GnssStdScale largest_gnss_std_scale() const;
 
  private:
   class Impl;  // estimation/sliding_window_internal.h
