@@ -368,9 +368,7 @@ std::string GnssNoiseWarning(const estimation::GnssNoiseFromResiduals& noise,
   return "GNSS: " + about +
          " the fixes scatter beyond their stated std (robust sigma of the whitened rows, "
          "Eq. N2): " +
-         Join(scaled, ", ") + "; " + applied +
-         ". The receiver's std leaves errors out, or the model misses something the fixes see "
-         "(a lever arm or a clock held wrong)";
+         Join(scaled, ", ") + "; " + applied + ". " + kGnssScatterCauses;
 }
 
 void RecordGnssNoiseScale(const estimation::GnssStdScale& scale, io::CalibrationFile* file) {

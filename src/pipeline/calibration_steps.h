@@ -138,6 +138,11 @@ estimation::GnssNoiseFromResiduals MeasureGnssNoise(const SensorFactors& factors
                                                     std::vector<estimation::Keyframe>* keyframes,
                                                     sensors::Calibration* c);
 
+// What a GNSS scatter beyond the stated std may mean, ending every Eq. N2 warning.
+inline constexpr const char* kGnssScatterCauses =
+    "The receiver's std leaves errors out, or the model misses something the fixes see (a "
+    "lever arm or a clock held wrong)";
+
 // The warning that says which GNSS rows scatter beyond their stated std, with the figures,
 // where (`about`: "about the solved trajectory") and what was done (`applied`: "each is scaled
 // by that"); empty when none do.

@@ -502,10 +502,8 @@ std::string WindowGnssNoiseWarning(const estimation::SlidingWindowEstimator& est
          before + " " + std::to_string(estimation::kMinGnssNoiseRows) +
          " rows of an axis group, and only while it was at least " +
          FormatShort(estimation::kMinGnssNoiseScale) +
-         " times the stated std): " + Join(groups, "; ") +
-         ". The receiver's std leaves errors out, or the model misses something the fixes see "
-         "(a lever arm or a clock held wrong); a scatter that changes along the stream points "
-         "to stretches of poorer fixes";
+         " times the stated std): " + Join(groups, "; ") + ". " + kGnssScatterCauses +
+         "; a scatter that changes along the stream points to stretches of poorer fixes";
 }
 
 }  // namespace
