@@ -142,6 +142,36 @@ Eigen::VectorXd Condition(const Eigen::MatrixXd& S, const Partition& part,
   return step;
 }
 
+// x (tangent units) in the block's display units, to three digits.
+std::string Displayed(const EstimatedBlock& block, double x) {
+  std::ostringstream v;
+  v << std::setprecision(3) << x * block.display_scale << ' ' << block.display_unit;
+  return v.str();
+}
+
+// The warning for direction i of `block`, held at its prior with posterior sigma `after`: the
+// drive added little to the prior, or it determined the direction, but too weakly to be worth
+// more than the prior's centre (Informed's two tests).
+std::string HeldWarning(const EstimatedBlock& block, int i, double after) {
+  const auto value = [&](double x) { return Displayed(block, x); };
+  const std::string& name = block.direction_names[static_cast<size_t>(i)];
+  const double prior = block.prior_sigma(i);
+  if (after <= block.max_posterior_to_prior_sigma * prior) {
+    std::ostringstream times;
+    times << std::setprecision(3) << block.max_kept_sigma_to_limit;
+    return name + ": determined by the drive too weakly to keep (sigma " + value(after) +
+           " after the solve, above " + times.str() + " times its limit of " +
+           value(block.max_observable_sigma) + "; prior " + value(prior) + "); held at " +
+           block.prior_source;
+  }
+  // Above the prior's sigma (beyond rounding) the data's information about this direction is
+  // not positive semidefinite (Eq. C5): the data alone have no minimum there.
+  const bool wider = after > prior * (1.0 + 1e-6);
+  return name + ": not excited by the drive (sigma " + value(after) + " after the solve, prior " +
+         value(prior) + (wider ? ": alone, the data would not hold it anywhere" : "") +
+         "); held at " + block.prior_source;
+}
+
 // The flags, sigmas and warnings of one block whose first row is `first`, after the step.
 void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
             const Eigen::MatrixXd& conditioned, const std::vector<int>& unobservable,
@@ -149,11 +179,6 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
   Eigen::VectorXd sigma =
       conditioned.diagonal().segment(first, block.size).cwiseMax(0.0).cwiseSqrt();
   std::vector<bool> flags(static_cast<size_t>(block.size), true);
-  const auto value = [&](double x) {
-    std::ostringstream v;
-    v << std::setprecision(3) << x * block.display_scale << ' ' << block.display_unit;
-    return v.str();
-  };
   for (int i = 0; i < block.size; ++i) {
     const std::string& name = block.direction_names[static_cast<size_t>(i)];
     const bool held =
@@ -161,20 +186,14 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
     if (held) {
       flags[static_cast<size_t>(i)] = false;
       sigma(i) = block.prior_sigma(i);
-      // Above the prior's sigma (beyond rounding) the data's information about this direction
-      // is not positive semidefinite (Eq. C5): the data alone have no minimum there.
-      const double after = SigmaOf(S, first + i);
-      const bool wider = after > block.prior_sigma(i) * (1.0 + 1e-6);
-      out->warnings.push_back(name + ": not excited by the drive (sigma " + value(after) +
-                              " after the solve, prior " + value(block.prior_sigma(i)) +
-                              (wider ? ": alone, the data would not hold it anywhere" : "") +
-                              "); held at " + block.prior_source);
+      out->warnings.push_back(HeldWarning(block, i, SigmaOf(S, first + i)));
     } else if (!(sigma(i) <= block.max_observable_sigma)) {
       // Informed, but not to the accuracy asked for: the estimate is kept (it is better
       // than the nominal value) with its sigma, and not reported as observable.
       flags[static_cast<size_t>(i)] = false;
       out->warnings.push_back(name + ": only partly determined by the drive (sigma " +
-                              value(sigma(i)) + ", limit " + value(block.max_observable_sigma) +
+                              Displayed(block, sigma(i)) + ", limit " +
+                              Displayed(block, block.max_observable_sigma) +
                               "); the estimate is kept and not reported as observable");
     }
   }
