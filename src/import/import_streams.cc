@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 
 #include "autocal/common/error.h"
@@ -30,12 +32,22 @@ int64_t SortUnique(std::vector<T>* samples) {
   return dropped;
 }
 
-// (count - 1) / span of the stamps, 0 when it cannot be told.
+// (count - 1) intervals over span_ns, to six significant digits (the file states a rate, not
+// a nanosecond's rounding: 3059 intervals over 61.18 s are 50 Hz, not 49.99999999999999);
+// 0 when it cannot be told.
+double MeasuredRateHz(size_t count, int64_t span_ns) {
+  if (count < 2 || span_ns <= 0) return 0.0;
+  const double rate = static_cast<double>(count - 1) / (1e-9 * static_cast<double>(span_ns));
+  char digits[32];
+  std::snprintf(digits, sizeof(digits), "%.6g", rate);
+  return std::strtod(digits, nullptr);
+}
+
 template <typename T>
 double RateHz(const std::vector<T>& samples) {
-  if (samples.size() < 2) return 0.0;
-  const double span_s = 1e-9 * static_cast<double>(samples.back().t_ns - samples.front().t_ns);
-  return span_s > 0.0 ? static_cast<double>(samples.size() - 1) / span_s : 0.0;
+  return samples.empty()
+             ? 0.0
+             : MeasuredRateHz(samples.size(), samples.back().t_ns - samples.front().t_ns);
 }
 
 // The one joint whose name says `side`, preferring a rear one when several do.
@@ -252,10 +264,9 @@ io::SensorsConfig StreamImporter::MakeSensorsConfig() {
       "MEMS): replace them with your IMU's values");
   if (!sweep_stamps_.empty()) {
     sensors::LidarConfig lidar;
-    if (sweep_stamps_.size() >= 2) {
-      lidar.rate_hz = static_cast<double>(sweep_stamps_.size() - 1) /
-                      (1e-9 * static_cast<double>(sweep_stamps_.back() - sweep_stamps_.front()));
-    }
+    const double rate =
+        MeasuredRateHz(sweep_stamps_.size(), sweep_stamps_.back() - sweep_stamps_.front());
+    if (rate > 0.0) lidar.rate_hz = rate;
     if (lidar_rows_ > 1) lidar.num_beams = static_cast<int>(lidar_rows_);
     config.lidar = lidar;
   }

@@ -10,7 +10,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
+#include <string>
 
 #include "autocal/import/import_bag.h"
 #include "autocal/io/dataset.h"
@@ -183,6 +185,25 @@ TEST(RealBagsTest, Test1ImportsTheControllerTwistAsItsWheelData) {
     max_speed_m_s = std::max(max_speed_m_s, std::abs(s.speed_m_s));
   EXPECT_GT(max_speed_m_s, 0.3);
   EXPECT_LT(max_speed_m_s, 1.1);
+}
+
+// sensors.yaml states each measured rate to six significant digits: the Jackal's controller
+// twist, 3059 intervals over 61.18 s, is 50 Hz, not the division's 49.99999999999999.
+TEST(RealBagsTest, Test2StatesItsMeasuredRatesToSixDigits) {
+  AUTOCAL_REQUIRE_SHARED_DATA(BagPath("test2.bag"));
+  ImportOptions options;
+  options.input = BagPath("test2.bag").string();
+  options.output = (test::OutputDir("out") / "test2_rates").string();
+  fs::remove_all(options.output);
+  ImportBag(options);
+  const io::Dataset dataset = io::ReadDataset(options.output);
+  ASSERT_TRUE(dataset.sensors.wheel.has_value());
+  EXPECT_EQ(dataset.sensors.wheel->rate_hz, 50.0);
+  EXPECT_EQ(dataset.sensors.imu.noise.update_rate_hz, 50.0);
+  std::ifstream file(fs::path(options.output) / "sensors.yaml");
+  const std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(text, ::testing::HasSubstr("  rate_hz: 50\n"));
+  EXPECT_THAT(text, ::testing::Not(::testing::HasSubstr("99999")));
 }
 
 }  // namespace
