@@ -39,12 +39,8 @@ SourceLocation MessageLocation(const std::string& path, const BagMessage& messag
 
 std::unique_ptr<BagReader> OpenBag(const std::string& path) {
   std::error_code error;
-  if (fs::is_directory(path, error)) {
-    if (!fs::is_regular_file(fs::path(path) / "metadata.yaml", error)) {
-      throw Error("'" + path + "' is a directory without metadata.yaml: not a rosbag2 bag");
-    }
-    return OpenRosbag2Directory(path);
-  }
+  // A rosbag2 directory, with its metadata.yaml or, for part of a split recording, without.
+  if (fs::is_directory(path, error)) return OpenRosbag2Directory(path);
   if (!fs::exists(path, error)) throw Error("input bag '" + path + "' does not exist");
   const std::string ext = Extension(path);
   if (ext == ".bag") return OpenRos1Bag(path);

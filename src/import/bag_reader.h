@@ -62,8 +62,9 @@ class BagReader {
 // SQLite file "<path> (row N)".
 SourceLocation MessageLocation(const std::string& path, const BagMessage& message);
 
-// Opens `path` by what it is: a directory with metadata.yaml (rosbag2), a `.bag` file (ROS 1),
-// a `.mcap` file or a `.db3` file; the magic bytes decide when the extension is unknown.
+// Opens `path` by what it is: a rosbag2 directory (with its metadata.yaml, or without it, as a
+// part of a split recording comes), a `.bag` file (ROS 1), a `.mcap` file or a `.db3` file;
+// the magic bytes decide when the extension is unknown.
 std::unique_ptr<BagReader> OpenBag(const std::string& path);
 
 // The containers OpenBag dispatches to.

@@ -296,9 +296,11 @@ TEST(Rosbag2RealBags, CdrTestDirectory) {
   EXPECT_EQ(IndexedCounts(*reader), expected);
 }
 
+// Read as autocal_import reads its --input (OpenBag), which takes a directory without
+// metadata.yaml as the directory reader does.
 TEST(Rosbag2RealBags, SplitRecordingPartWithoutMetadata) {
   AUTOCAL_REQUIRE_SHARED_DATA(SharedBag("wbag"));
-  const auto reader = OpenRosbag2Directory(SharedBag("wbag").string());
+  const auto reader = OpenBag(SharedBag("wbag").string());
   EXPECT_EQ(reader->connections().size(), 8u);
   const std::vector<ReadMessage> messages = ReadAll(reader.get());
   EXPECT_EQ(messages.size(), 1246u);  // the file's Statistics record
@@ -439,6 +441,19 @@ TEST(Rosbag2Directory, BadInput) {
   test::WriteFile(dir + "/bag_0.mcap", SplitFile(0, 6).substr(0, 300));
   EXPECT_NE(ErrorReadingDirectory(dir).find("bag_0.mcap: byte 300: the file does not end"),
             std::string::npos);
+}
+
+// A directory that holds no bag is named as such when given as a bag.
+TEST(Rosbag2Directory, ADirectoryWithoutABagIsRefused) {
+  const std::string dir = MakeDirectory("no_bag");
+  test::WriteFile(dir + "/notes.txt", "not a bag\n");
+  try {
+    OpenBag(dir);
+    ADD_FAILURE() << "a directory without a bag was opened";
+  } catch (const Error& error) {
+    EXPECT_EQ(std::string(error.what()),
+              "'" + dir + "' is not a rosbag2 directory: no metadata.yaml, no .mcap or .db3 file");
+  }
 }
 
 }  // namespace
