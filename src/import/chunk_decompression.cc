@@ -10,6 +10,16 @@
 
 namespace autocal {
 namespace import {
+namespace {
+
+// Bytes of a chunk after its compressed stream ended: the chunk's length is not its stream's,
+// and the records after the chunk would be read from the wrong place.
+std::string TrailingBytes(const char* stream, size_t bytes) {
+  return std::string("the ") + stream + " ends " + std::to_string(bytes) +
+         " bytes before the chunk's data does (a chunk length that does not match its data)";
+}
+
+}  // namespace
 
 std::string DecompressBz2Chunk(std::string_view compressed, size_t expected_bytes,
                                std::string* out) {
@@ -53,6 +63,7 @@ std::string DecompressBz2Chunk(std::string_view compressed, size_t expected_byte
     return "bz2 data decompresses to " + std::to_string(produced) +
            " bytes but the chunk declares " + std::to_string(expected_bytes);
   }
+  if (stream.avail_in != 0) return TrailingBytes("bz2 stream", stream.avail_in);
   out->resize(produced);
   return "";
 }
@@ -65,11 +76,14 @@ std::string DecompressLz4FrameChunk(std::string_view compressed, size_t expected
   }
   std::unique_ptr<LZ4F_dctx, decltype(&LZ4F_freeDecompressionContext)> context(
       raw_context, &LZ4F_freeDecompressionContext);
-  out->resize(expected_bytes + 1);
+  // Grown as the data comes out, as in DecompressBz2Chunk.
+  const size_t limit = expected_bytes + 1;
+  out->resize(std::min(limit, std::max<size_t>(4 * compressed.size(), 1 << 20)));
   size_t in_pos = 0;
   size_t out_pos = 0;
   size_t hint = 1;
   while (in_pos < compressed.size() && hint != 0) {
+    if (out_pos == out->size()) out->resize(std::min(limit, 2 * out->size()));
     size_t in_size = compressed.size() - in_pos;
     size_t out_size = out->size() - out_pos;
     hint = LZ4F_decompress(context.get(), out->data() + out_pos, &out_size,
@@ -90,6 +104,7 @@ std::string DecompressLz4FrameChunk(std::string_view compressed, size_t expected
     return "lz4 data decompresses to " + std::to_string(out_pos) +
            " bytes but the chunk declares " + std::to_string(expected_bytes);
   }
+  if (in_pos != compressed.size()) return TrailingBytes("lz4 frame", compressed.size() - in_pos);
   out->resize(out_pos);
   return "";
 }

@@ -261,6 +261,23 @@ TEST(Ros1BagTest, ChunkWhoseSizeLiesIsRefused) {
   }
 }
 
+// Bytes after a chunk's compressed stream: its length is not its stream's, and the records
+// after it would be looked for in the wrong place (a length grown over the next chunks dropped
+// them without a word).
+TEST(Ros1BagTest, ChunkLongerThanItsStreamIsRefused) {
+  const std::string inner = InnerRecords();
+  const uint32_t size = static_cast<uint32_t>(inner.size());
+  for (const std::string compression : {"bz2", "lz4"}) {
+    SCOPED_TRACE(compression);
+    const std::string packed =
+        compression == "bz2" ? Ros1BagWriter::Bz2(inner) : Ros1BagWriter::Lz4(inner);
+    EXPECT_THAT(ErrorOf("trailing.bag", HandChunkBag(compression, size, packed + "next record")),
+                HasSubstr("byte 4109: chunk record: the " + compression +
+                          (compression == "bz2" ? " stream" : " frame") +
+                          " ends 11 bytes before the chunk's data does"));
+  }
+}
+
 TEST(Ros1BagTest, RecordRunningPastItsChunkIsRefused) {
   std::string inner = InnerRecords();
   inner.resize(inner.size() - 2);  // the message data is cut
