@@ -32,6 +32,8 @@ namespace import {
 namespace ros1 {
 namespace {
 
+constexpr const char* kBadTime = "has nanoseconds of 1e9 or more (not a time)";
+
 class Ros1BagReader final : public BagReader {
  public:
   explicit Ros1BagReader(std::string path);
@@ -311,7 +313,9 @@ void Ros1BagReader::ReadChunkIndexes(const std::vector<uint64_t>& chunk_position
       ReadAt(record_.data_offset, data.size(), data.data(), offset, "the index entries");
       IndexedTopic& topic = topics[conn];
       for (uint32_t i = 0; i < count; ++i) {
-        const int64_t t_ns = LoadTimeNs(data.data() + 12 * i);
+        const std::optional<int64_t> time_ns = LoadTimeNs(data.data() + 12 * i);
+        if (!time_ns) Fail(offset, "index entry " + std::to_string(i) + ": " + kBadTime);
+        const int64_t t_ns = *time_ns;
         if (topic.message_count == 0 || t_ns < topic.first_log_time_ns)
           topic.first_log_time_ns = t_ns;
         if (topic.message_count == 0 || t_ns > topic.last_log_time_ns)
@@ -416,7 +420,9 @@ bool Ros1BagReader::NextInChunk(BagMessage* message) {
         fail("message data record on connection " + std::to_string(message->connection_id) +
              ", which no connection record defines");
       }
-      message->log_time_ns = LoadTimeNs(time->data());
+      const std::optional<int64_t> log_time_ns = LoadTimeNs(time->data());
+      if (!log_time_ns) fail("message data record: 'time' " + std::string(kBadTime));
+      message->log_time_ns = *log_time_ns;
       message->data = data;
       message->file_offset = file_offset;
       return true;

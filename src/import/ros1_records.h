@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -38,9 +39,12 @@ inline uint32_t LoadU32(const char* p) {
   std::memcpy(&v, p, 4);
   return v;
 }
-// A ROS 1 time: u32 sec, u32 nsec.
-inline int64_t LoadTimeNs(const char* p) {
-  return int64_t{LoadU32(p)} * 1000000000 + LoadU32(p + 4);
+// A ROS 1 time: u32 sec, u32 nsec; nullopt when nsec is not below 1e9 (not a time: taken as
+// it is, it would move the stamp by up to 4.3 s).
+inline std::optional<int64_t> LoadTimeNs(const char* p) {
+  const uint32_t nsec = LoadU32(p + 4);
+  if (nsec >= 1000000000u) return std::nullopt;
+  return int64_t{LoadU32(p)} * 1000000000 + nsec;
 }
 
 // The "name=value" fields of a record header (or of a connection record's data).

@@ -1,5 +1,9 @@
 #include "import/rosbag2_metadata.h"
 
+#include <cstdint>
+#include <limits>
+#include <string>
+
 #include "io/yaml_util.h"
 
 namespace autocal {
@@ -71,8 +75,16 @@ Rosbag2Metadata ReadRosbag2Metadata(const std::string& path) {
       file.Int(Required(file, start, what + ".starting_time", "nanoseconds_since_epoch"),
                what + ".starting_time.nanoseconds_since_epoch");
   const YAML::Node duration = Required(file, info, what, "duration");
-  metadata.duration_ns = file.Int(Required(file, duration, what + ".duration", "nanoseconds"),
-                                  what + ".duration.nanoseconds");
+  const YAML::Node duration_ns = Required(file, duration, what + ".duration", "nanoseconds");
+  metadata.duration_ns = file.Int(duration_ns, what + ".duration.nanoseconds");
+  // The recording's end, starting_time + duration, must be a time too.
+  if (metadata.duration_ns < 0 ||
+      metadata.starting_time_ns > std::numeric_limits<int64_t>::max() - metadata.duration_ns) {
+    file.Fail(duration_ns, what +
+                               ".duration.nanoseconds: expected a duration of 0 or more that "
+                               "ends before the year 2262, got " +
+                               std::to_string(metadata.duration_ns));
+  }
   metadata.compression_mode = OptionalString(file, info, "compression_mode", what);
   metadata.compression_format = OptionalString(file, info, "compression_format", what);
   return metadata;

@@ -278,6 +278,27 @@ TEST(Ros1BagTest, ChunkLongerThanItsStreamIsRefused) {
   }
 }
 
+// A record time is u32 seconds and u32 nanoseconds: nanoseconds of a second or more are no
+// time (taken as they were, the stamp moved by up to 4.3 s).
+TEST(Ros1BagTest, RecordTimeWithASecondOfNanosecondsIsRefused) {
+  const std::string connection = Ros1BagWriter::Record(
+      Ros1BagWriter::Field("op", std::string(1, '\x07')) +
+          Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) + Ros1BagWriter::Field("topic", "/a"),
+      Ros1BagWriter::Field("topic", "/a") + Ros1BagWriter::Field("type", "std_msgs/String"));
+  const std::string message =
+      Ros1BagWriter::Record(Ros1BagWriter::Field("op", std::string(1, '\x02')) +
+                                Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) +
+                                Ros1BagWriter::Field("time", Ros1BagWriter::U32(1700000000) +
+                                                                 Ros1BagWriter::U32(1000000000)),
+                            "hello");
+  const std::string inner = connection + message;
+  EXPECT_THAT(
+      ErrorOf("time.bag", HandChunkBag("none", static_cast<uint32_t>(inner.size()), inner)),
+      HasSubstr("byte 4109: chunk record: the record at byte " + std::to_string(connection.size()) +
+                " of the uncompressed chunk (" + std::to_string(inner.size()) +
+                " bytes): message data record: 'time' has nanoseconds of 1e9 or more"));
+}
+
 TEST(Ros1BagTest, RecordRunningPastItsChunkIsRefused) {
   std::string inner = InnerRecords();
   inner.resize(inner.size() - 2);  // the message data is cut

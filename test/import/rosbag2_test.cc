@@ -436,6 +436,22 @@ TEST(Rosbag2Directory, BadInput) {
             std::string::npos)
       << ErrorReadingDirectory(dir);
 
+  // A recording whose end, start plus duration, is no time.
+  std::string metadata_text = Metadata("    - bag_0.mcap\n", Topic("/a", 6) + Topic("/b", 4));
+  metadata_text.replace(metadata_text.find("nanoseconds: 9"), 14, "nanoseconds: -9");
+  test::WriteFile(metadata, metadata_text);
+  EXPECT_NE(ErrorReadingDirectory(dir).find(
+                "metadata.yaml:5:18: rosbag2_bagfile_information.duration.nanoseconds: expected a "
+                "duration of 0 or more"),
+            std::string::npos)
+      << ErrorReadingDirectory(dir);
+  metadata_text.replace(metadata_text.find("nanoseconds: -9"), 15, "nanoseconds: 9");
+  metadata_text.replace(metadata_text.find("nanoseconds_since_epoch: 1000"), 29,
+                        "nanoseconds_since_epoch: 9223372036854775807");
+  test::WriteFile(metadata, metadata_text);
+  EXPECT_NE(ErrorReadingDirectory(dir).find("ends before the year 2262, got 9"), std::string::npos)
+      << ErrorReadingDirectory(dir);
+
   // A truncated file of the bag.
   test::WriteFile(metadata, Metadata("    - bag_0.mcap\n", Topic("/a", 6) + Topic("/b", 4)));
   test::WriteFile(dir + "/bag_0.mcap", SplitFile(0, 6).substr(0, 300));
