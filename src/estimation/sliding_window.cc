@@ -66,27 +66,39 @@ SlidingWindowEstimator::SlidingWindowEstimator(const SlidingWindowOptions& optio
 SlidingWindowEstimator::~SlidingWindowEstimator() = default;
 
 bool SlidingWindowEstimator::AddImu(const sensors::ImuSample& sample) {
+  impl_->RequireUsable();
   return impl_->AddImu(sample);
 }
 bool SlidingWindowEstimator::AddWheel(const sensors::WheelSample& sample) {
+  impl_->RequireUsable();
   return impl_->AddWheel(sample);
 }
 
 bool SlidingWindowEstimator::AddWheelSpeeds(const sensors::WheelSpeedSample& sample) {
+  impl_->RequireUsable();
   return impl_->AddWheelSpeeds(sample);
 }
 
 bool SlidingWindowEstimator::AddOdometry(const sensors::OdometrySample& sample) {
+  impl_->RequireUsable();
   return impl_->AddOdometry(sample);
 }
-bool SlidingWindowEstimator::AddGnss(const sensors::GnssFix& fix) { return impl_->AddGnss(fix); }
+bool SlidingWindowEstimator::AddGnss(const sensors::GnssFix& fix) {
+  impl_->RequireUsable();
+  return impl_->AddGnss(fix);
+}
 bool SlidingWindowEstimator::AddGnss(const GnssPosition& position) {
+  impl_->RequireUsable();
   return impl_->AddGnss(position);
 }
 bool SlidingWindowEstimator::AddSweep(lidar::LidarSweep sweep) {
+  impl_->RequireUsable();
   return impl_->AddSweep(std::move(sweep));
 }
-bool SlidingWindowEstimator::AddKeyframeAt(int64_t t_ns) { return impl_->AddKeyframeAt(t_ns); }
+bool SlidingWindowEstimator::AddKeyframeAt(int64_t t_ns) {
+  impl_->RequireUsable();
+  return impl_->AddKeyframeAt(t_ns);
+}
 const SlidingWindowState& SlidingWindowEstimator::latest_state() const {
   return impl_->latest_state();
 }
@@ -105,10 +117,12 @@ const sensors::Calibration& SlidingWindowEstimator::calibration() const {
 }
 CalibrationCovariance SlidingWindowEstimator::ComputeCalibrationCovariance(
     double min_reciprocal_condition_number) {
+  impl_->RequireUsable();
   return impl_->ComputeCalibrationCovariance(min_reciprocal_condition_number);
 }
 std::vector<FixedDirectionMove> SlidingWindowEstimator::FixedDirectionsTheStreamMoves(
     std::vector<EstimatedBlock> fixed, double max_sigmas) {
+  impl_->RequireUsable();
   return impl_->FixedDirectionsTheStreamMoves(std::move(fixed), max_sigmas);
 }
 int SlidingWindowEstimator::window_size() const { return impl_->window_size(); }
@@ -339,7 +353,10 @@ bool SlidingWindowEstimator::Impl::AddKeyframeAt(int64_t t_ns) {
     return false;
   }
   newest_time_ns_ = t_ns;
-  if (TooCloseToNewestKeyframe(t_ns)) {
+  // Each time waiting for the IMU becomes a keyframe: the newest of them counts as the newest
+  // keyframe.
+  if (TooCloseToNewestKeyframe(t_ns) ||
+      (!pending_times_.empty() && t_ns - pending_times_.back() < MinKeyframeIntervalNs())) {
     ++counters_.late;
     return false;
   }
@@ -373,9 +390,12 @@ int64_t SlidingWindowEstimator::Impl::KeyframeTimeOf(const SpannedSweep& sweep) 
   return KeyframeTime(sweep.sweep.t_ns, sweep.span, calibration_.time_offset_lidar_imu_s);
 }
 
+int64_t SlidingWindowEstimator::Impl::MinKeyframeIntervalNs() const {
+  return std::max<int64_t>(1, SecondsToNs(options_.min_keyframe_interval_s));
+}
+
 bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const {
-  return t_ns - latest_state().t_ns <
-         std::max<int64_t>(1, SecondsToNs(options_.min_keyframe_interval_s));
+  return t_ns - latest_state().t_ns < MinKeyframeIntervalNs();
 }
 
 void SlidingWindowEstimator::Impl::ProcessCoveredSweeps() {
@@ -406,7 +426,24 @@ void SlidingWindowEstimator::Impl::ProcessCoveredTimes() {
   }
 }
 
+void SlidingWindowEstimator::Impl::RequireUsable() const {
+  if (failed_update_.empty()) return;
+  throw Error(
+      "SlidingWindowEstimator: an earlier update failed and left the window between two states, "
+      "so it cannot go on (start a new estimator): " +
+      failed_update_);
+}
+
 void SlidingWindowEstimator::Impl::Update(int64_t t_ns, std::optional<SpannedSweep> sweep) {
+  try {
+    UpdateWindow(t_ns, std::move(sweep));
+  } catch (const std::exception& e) {
+    failed_update_ = e.what();
+    throw;
+  }
+}
+
+void SlidingWindowEstimator::Impl::UpdateWindow(int64_t t_ns, std::optional<SpannedSweep> sweep) {
   const auto start = std::chrono::steady_clock::now();
   timing_ = SlidingWindowUpdateTiming();
   AddKeyframe(t_ns, std::move(sweep));

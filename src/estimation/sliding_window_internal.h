@@ -62,6 +62,8 @@ class SlidingWindowEstimator::Impl {
   }
   bool has_marginalization_prior() const { return prior_ != nullptr; }
   const SlidingWindowCounters& counters() const { return counters_; }
+  // Throws autocal::Error naming the failed update's error once an update has thrown.
+  void RequireUsable() const;
   const SlidingWindowUpdateTiming& last_update_timing() const { return timing_; }
   int last_associated_points() const { return last_associated_points_; }
   double last_point_rms_m() const;
@@ -87,14 +89,18 @@ class SlidingWindowEstimator::Impl {
     SweepSpan span;
   };
   int64_t KeyframeTimeOf(const SpannedSweep& sweep) const;
+  int64_t MinKeyframeIntervalNs() const;  // options_.min_keyframe_interval_s, at least 1 ns
   // A keyframe at t_ns would not follow the newest one by min_keyframe_interval_s (dropped as
   // late).
   bool TooCloseToNewestKeyframe(int64_t t_ns) const;
   void ProcessCoveredSweeps();
   void ProcessCoveredTimes();
   // One window update for a new keyframe at t_ns, with its sweep when it has one (t_ns is then
-  // KeyframeTimeOf(*sweep)).
+  // KeyframeTimeOf(*sweep)). An update that throws leaves the window between two states (the
+  // keyframe and its samples taken in, the solve or the marginalization not done): the error
+  // is kept, and RequireUsable refuses every later call with it.
   void Update(int64_t t_ns, std::optional<SpannedSweep> sweep);
+  void UpdateWindow(int64_t t_ns, std::optional<SpannedSweep> sweep);
   // The keyframe at t_ns predicted with the IMU, its sweep's chosen points, and the factors
   // of the interval before it.
   void AddKeyframe(int64_t t_ns, std::optional<SpannedSweep> sweep);
@@ -230,6 +236,7 @@ class SlidingWindowEstimator::Impl {
   internal::SweepPairing pairing_;
 
   SlidingWindowCounters counters_;
+  std::string failed_update_;  // the error of an update that threw (Update)
   SlidingWindowUpdateTiming timing_;
   // q_I_L after each of the last window_size updates (the pairing's gate).
   std::deque<Eigen::Quaterniond> recent_q_I_L_;

@@ -88,7 +88,8 @@ void CheckWheelRows(const WheelRowOptions& w) {
 void CheckPriors(const SlidingWindowCalibrationPrior& c, const SlidingWindowInitialStateSigmas& x) {
   for (double s :
        {c.extrinsic_rotation_deg, c.extrinsic_translation_m, c.time_offset_s, c.wheel_radius_m,
-        c.track_width_m, c.vehicle_rotation_deg, c.vehicle_translation_m, c.gnss_lever_arm_m}) {
+        c.track_width_m, c.vehicle_rotation_deg, c.vehicle_translation_m, c.gnss_lever_arm_m,
+        c.wheel_speed_scale, c.odometry_speed_scale, c.effective_track_m}) {
     CheckPositive(s, "calibration_prior sigmas");
   }
   for (const auto& [id, sigmas] : c.axis_sigmas) {
@@ -153,10 +154,8 @@ void CheckOptions(const SlidingWindowOptions& o) {
   CheckNonNegative(o.wheel.cornering_compliance_rad_per_m_s2,
                    "wheel.cornering_compliance_rad_per_m_s2");
   CheckPositive(o.imu.gravity_m_s2, "imu.gravity_m_s2");
-  if (o.imu_coverage_margin_s < 0.0 || o.min_keyframe_interval_s < 0.0) {
-    throw Error(
-        "SlidingWindowOptions: imu_coverage_margin_s and min_keyframe_interval_s must be >= 0");
-  }
+  CheckNonNegative(o.imu_coverage_margin_s, "imu_coverage_margin_s");
+  CheckNonNegative(o.min_keyframe_interval_s, "min_keyframe_interval_s");
   CheckPriors(o.calibration_prior, o.initial_state_sigmas);
   o.gnss_std_scale.Check("SlidingWindowOptions: gnss_std_scale");
   for (const sensors::CalibrationBlockId id : o.tested_fixed_blocks) {

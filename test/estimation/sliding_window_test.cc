@@ -210,6 +210,17 @@ TEST(SlidingWindowStreaming, RejectsInvalidData) {
                   });
   expect_rejected("settled_partner_count 0",
                   [](SlidingWindowOptions* o) { o->window_pairing.settled_partner_count = 0; });
+  expect_rejected("a zero effective-track prior",
+                  [](SlidingWindowOptions* o) { o->calibration_prior.effective_track_m = 0.0; });
+  expect_rejected("a NaN odometry speed-scale prior", [](SlidingWindowOptions* o) {
+    o->calibration_prior.odometry_speed_scale = std::nan("");
+  });
+  expect_rejected("a negative wheel speed-scale prior",
+                  [](SlidingWindowOptions* o) { o->calibration_prior.wheel_speed_scale = -0.03; });
+  expect_rejected("a NaN keyframe interval",
+                  [](SlidingWindowOptions* o) { o->min_keyframe_interval_s = std::nan(""); });
+  expect_rejected("a NaN IMU coverage margin",
+                  [](SlidingWindowOptions* o) { o->imu_coverage_margin_s = std::nan(""); });
   expect_rejected("settled_extrinsic_deg < 0",
                   [](SlidingWindowOptions* o) { o->window_pairing.settled_extrinsic_deg = -0.1; });
   expect_rejected("max_point_to_plane_m 0",
@@ -356,11 +367,56 @@ TEST(SlidingWindowTimedKeyframes, MakesKeyframesWithoutSweepsAndHoldsTheLidarBlo
   EXPECT_EQ(estimator.counters().out_of_order, 1);
   EXPECT_FALSE(estimator.AddKeyframeAt(last + 1000));
   EXPECT_EQ(estimator.counters().late, 1);
+  // Two times waiting for the IMU together: the second one too close to the first is late
+  // too, though it follows the newest keyframe by more than the interval.
+  const int64_t min_interval = SecondsToNs(options.min_keyframe_interval_s);
+  EXPECT_TRUE(estimator.AddKeyframeAt(last + 2 * min_interval));
+  EXPECT_FALSE(estimator.AddKeyframeAt(last + 2 * min_interval + min_interval / 2));
+  EXPECT_EQ(estimator.counters().late, 2);
+  EXPECT_TRUE(estimator.AddKeyframeAt(last + 3 * min_interval));
+  EXPECT_EQ(estimator.pending_sweeps(), 2);
+  while (estimator.pending_sweeps() > 0) estimator.AddImu(StillImu(t += kImuStep));
+  EXPECT_EQ(estimator.latest_state().t_ns, last + 3 * min_interval);
   // Keyframes come from one source.
   EXPECT_THROW(estimator.AddSweep(SmallSweep(last + 100'000'000)), Error);
   SlidingWindowEstimator with_sweeps(FastOptions(), sensors::Calibration(), StillState());
   with_sweeps.AddSweep(SmallSweep(kStart + 100'000'000));
   EXPECT_THROW(with_sweeps.AddKeyframeAt(kStart + 200'000'000), Error);
+}
+
+// An update that throws (here its solve: an IMU reading of 1e300 m/s^2 overflows the rows)
+// leaves the window between two states, the keyframe taken in and not solved; every later call
+// refuses to go on with that error instead of building on it.
+TEST(SlidingWindowTimedKeyframes, AFailedUpdateStopsTheEstimator) {
+  SlidingWindowEstimator estimator(FastOptions(), sensors::Calibration(), StillState());
+  int64_t t = kStart - kImuStep;
+  estimator.AddImu(StillImu(t));
+  ASSERT_TRUE(estimator.AddKeyframeAt(kStart + 100'000'000));
+  sensors::ImuSample wild = StillImu(t += kImuStep);
+  wild.accel_m_s2.x() = 1e300;
+  estimator.AddImu(wild);
+  std::string failure;
+  for (int k = 0; k < 100 && failure.empty(); ++k) {
+    try {
+      estimator.AddImu(StillImu(t += kImuStep));
+    } catch (const Error& e) {
+      failure = e.what();
+    }
+  }
+  ASSERT_FALSE(failure.empty()) << "the update did not fail";
+  EXPECT_THAT(failure, ::testing::HasSubstr("window solver"));
+  for (const std::function<void()>& call :
+       std::vector<std::function<void()>>{[&] { estimator.AddImu(StillImu(t += kImuStep)); },
+                                          [&] { estimator.AddKeyframeAt(kStart + 300'000'000); },
+                                          [&] { estimator.ComputeCalibrationCovariance(); }}) {
+    try {
+      call();
+      ADD_FAILURE() << "a call went on after the failed update";
+    } catch (const Error& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("an earlier update failed"));
+      EXPECT_THAT(e.what(), ::testing::HasSubstr(failure));
+    }
+  }
 }
 
 // A platform at rest whose fixes, one per keyframe, scatter four times their stated std

@@ -92,7 +92,10 @@ class SlidingWindowEstimator {
   // accepted one of its stream is dropped (out_of_order); a wheel/GNSS sample or a sweep at or
   // before the newest keyframe's time is dropped (late). Returns whether the datum was
   // accepted. Non-finite values throw autocal::Error. AddImu and AddSweep process every
-  // buffered sweep the IMU now covers (one update per sweep).
+  // buffered sweep the IMU now covers (one update per sweep). An update that fails (its solve
+  // or marginalization throws autocal::Error) leaves the window between two states: from then
+  // on every streaming call, ComputeCalibrationCovariance and FixedDirectionsTheStreamMoves
+  // throw autocal::Error with that update's error.
   bool AddImu(const sensors::ImuSample& sample);
   bool AddWheel(const sensors::WheelSample& sample);
   // Wheels as the rear pair's linear speeds (Eq. F25).
@@ -109,7 +112,8 @@ class SlidingWindowEstimator {
   // (no prior, not in ComputeCalibrationCovariance). A window takes its keyframes from sweeps
   // or from this, never both (the first call decides; the other then throws autocal::Error).
   // A time not after the last one asked for is dropped (out_of_order), one within
-  // min_keyframe_interval_s of the newest keyframe too (late).
+  // min_keyframe_interval_s of the newest keyframe, or of the newest time still waiting for
+  // the IMU, too (late).
   bool AddKeyframeAt(int64_t t_ns);
 
   const SlidingWindowState& latest_state() const;
