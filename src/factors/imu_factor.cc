@@ -73,13 +73,25 @@ void StoreJacobian(const Eigen::MatrixBase<Derived>& j, double* jacobian) {
   out = j;
 }
 
+// The residual's square-root information. Its delta rows are the truth minus the measurement,
+// its bias rows the drift b_j - b_i; the preintegration's covariance C is that of the
+// measurement's error and the drift (ImuPreintegration::Covariance), whose cross blocks are
+// positive: a bias drifting up carries the measured deltas up with it. The residual's
+// covariance is therefore S C S, S = diag(-I9, I6), with Cholesky factor S L S and square-root
+// information S U S: U with its bias-delta block negated (docs/factors.md, Eq. F11).
+sensors::Matrix15d ResidualSqrtInformation(const sensors::ImuPreintegration& pim) {
+  sensors::Matrix15d U = pim.SqrtInformation();
+  U.bottomLeftCorner<6, 9>() *= -1.0;
+  return U;
+}
+
 }  // namespace
 
 ImuDeltaMeasurement::ImuDeltaMeasurement(const sensors::ImuPreintegration& pim)
     : dt_s(pim.dt_s()),
       deltas(pim.Linearized()),
       g_W(pim.gravity_W()),
-      sqrt_information(pim.SqrtInformation()) {}
+      sqrt_information(ResidualSqrtInformation(pim)) {}
 
 bool ImuFactor::Evaluate(double const* const* parameters, double* residuals,
                          double** jacobians) const {
