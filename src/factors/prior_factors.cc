@@ -92,11 +92,13 @@ bool VectorPriorFactor::Evaluate(double const* const* parameters, double* residu
 }
 
 StatePriorFactor::StatePriorFactor(const StatePrior& prior) : prior_(prior) {
-  prior_.state.q_W_I.normalize();
   if (!prior.state.q_W_I.coeffs().allFinite() || !prior.state.p_W_I.allFinite() ||
       !prior.state.v_W_I.allFinite() || !prior.b_g.allFinite() || !prior.b_a.allFinite()) {
     throw Error("state prior: value is not finite");
   }
+  // As QuaternionPriorFactor: a (near) zero quaternion is no rotation to normalize.
+  if (prior.state.q_W_I.norm() < 1e-6) throw Error("state prior: invalid quaternion");
+  prior_.state.q_W_I.normalize();
   CheckSqrtInformation(prior.sqrt_information, 15, "state prior");
 }
 

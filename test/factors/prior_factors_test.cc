@@ -3,6 +3,7 @@
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 #include <string>
 #include <vector>
@@ -114,6 +115,19 @@ TEST(StatePriorFactor, ZeroAtThePriorAndJacobiansCheck) {
     test::ExpectGradientCheckPasses(factor, {&manifold, nullptr, nullptr, nullptr, nullptr}, blocks,
                                     1e-6, "trial " + std::to_string(trial));
   }
+}
+
+// A prior whose rotation is no rotation (a zero quaternion, which normalizing leaves zero, or a
+// NaN) is refused when made, not evaluated to NaN in a solve.
+TEST(StatePriorFactor, RefusesAPriorWithoutARotation) {
+  StatePrior prior;
+  prior.sqrt_information = Eigen::MatrixXd::Identity(15, 15);
+  prior.state.q_W_I.coeffs().setZero();
+  EXPECT_THROW(StatePriorFactor{prior}, Error);
+  prior.state.q_W_I.coeffs() << 0.0, 0.0, std::nan(""), 1.0;
+  EXPECT_THROW(StatePriorFactor{prior}, Error);
+  prior.state.q_W_I.coeffs() << 0.0, 0.0, 0.0, 2.0;  // not unit, still a rotation
+  EXPECT_NO_THROW(StatePriorFactor{prior});
 }
 
 // A prior alone pulls a quaternion block back to its value through the manifold.
