@@ -33,7 +33,14 @@ bool McapDataWalker::Next(McapRecord* record) {
       if (NextInChunk(record)) return true;
       in_chunk_ = false;
     }
-    if (done_ || pos_ == end_) return false;
+    if (done_) return false;
+    if (pos_ == end_) {
+      // The spec's last record of the data section: without it a record whose length ran
+      // over the records after it would end the messages early without a word.
+      file_place_.Fail(pos_, kOpDataEnd,
+                       "missing: the data section ends here without one (a record length that "
+                       "does not match its record?)");
+    }
     const uint64_t offset = pos_;
     if (end_ - pos_ < kMcapRecordPrefixBytes) {
       file_place_.Fail(offset, static_cast<uint8_t>(file_[offset]),

@@ -330,6 +330,30 @@ TEST(McapReaderBadInput, ChunkLengthPastTheEnd) {
   EXPECT_PARSE_ERROR(bytes, "byte " + offset + ": Chunk record: its length 1048576 runs past");
 }
 
+// The data section must end with its Data End record: a chunk whose length is grown to reach
+// the summary would otherwise hide the chunks after it, and the file would read as complete.
+TEST(McapReaderBadInput, DataSectionWithoutItsDataEnd) {
+  McapWriterOptions options;
+  options.data_end = false;
+  McapWriter writer(options);
+  writer.AddMessage(writer.AddChannel(writer.AddSchema("t"), "/a"), 1, "x");
+  EXPECT_PARSE_ERROR(writer.Finish(), "Data End record: missing: the data section ends here");
+  McapWriterOptions small_chunks;
+  small_chunks.chunk_bytes = 1;  // one chunk per message
+  small_chunks.summary_crc = false;
+  McapWriter chunks(small_chunks);
+  const uint16_t channel = chunks.AddChannel(chunks.AddSchema("t"), "/a");
+  for (int i = 0; i < 3; ++i) chunks.AddMessage(channel, 1 + i, "x");
+  std::string bytes = chunks.Finish();
+  ASSERT_EQ(chunks.chunk_offsets().size(), 3u);
+  const uint64_t first = chunks.chunk_offsets()[1];
+  const uint64_t data_end = bytes.rfind(std::string("\x0F\x04\0\0\0\0\0\0\0", 9));
+  ASSERT_NE(data_end, std::string::npos);
+  // The second chunk's length grown over the third and the Data End record.
+  Poke<uint64_t>(&bytes, first + 1, data_end + 9 + 4 - first - 9);
+  EXPECT_PARSE_ERROR(bytes, "Data End record: missing");
+}
+
 TEST(McapReaderBadInput, ChunkUncompressedSizeLies) {
   for (const char* compression : {"", "lz4", "zstd"}) {
     for (const int64_t lie : {-1, 1}) {
