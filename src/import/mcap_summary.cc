@@ -141,6 +141,13 @@ void McapSummary::ReadMessageIndex(uint16_t channel_id, uint64_t offset) {
     place_.Fail(offset, kOpMessageIndex,
                 "expected here by a Chunk Index (channel " + std::to_string(channel_id) + ")");
   }
+  // Each indexes one channel of one chunk: a second reference would count its messages again
+  // (and many would read one large record over and over).
+  if (!message_indexes_read_.insert(offset).second) {
+    place_.Fail(offset, kOpMessageIndex,
+                "referenced a second time by the Chunk Indexes (channel " +
+                    std::to_string(channel_id) + ")");
+  }
   McapFields fields(file_.substr(offset + kMcapRecordPrefixBytes, length),
                     offset + kMcapRecordPrefixBytes, kOpMessageIndex, place_);
   if (fields.U16("channel_id") != channel_id) {

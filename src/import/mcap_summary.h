@@ -10,6 +10,7 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "import/bag_reader.h"
@@ -74,6 +75,7 @@ class McapSummary {
   McapChannels channels_;
   std::optional<Statistics> statistics_;
   std::unordered_map<uint16_t, IndexedChannel> indexed_;  // from the message indexes
+  std::unordered_set<uint64_t> message_indexes_read_;     // their offsets
 };
 
 }  // namespace internal

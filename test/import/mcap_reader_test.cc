@@ -354,6 +354,37 @@ TEST(McapReaderBadInput, DataSectionWithoutItsDataEnd) {
   EXPECT_PARSE_ERROR(bytes, "Data End record: missing");
 }
 
+// Each Message Index indexes one channel of one chunk: a Chunk Index pointing at another
+// chunk's would count its messages twice (and millions of such entries, each reading one large
+// record, would hang the opening).
+TEST(McapReaderBadInput, MessageIndexReferencedTwice) {
+  McapWriterOptions options;
+  options.chunk_bytes = 1;  // one chunk per message
+  options.summary_crc = false;
+  McapWriter writer(options);
+  const uint16_t channel = writer.AddChannel(writer.AddSchema("t"), "/a");
+  writer.AddMessage(channel, 1, "x");
+  writer.AddMessage(channel, 2, "y");
+  std::string bytes = writer.Finish();
+  ASSERT_EQ(writer.chunk_offsets().size(), 2u);
+  const auto message_index_after = [&](uint64_t chunk) {
+    uint64_t length;
+    std::memcpy(&length, bytes.data() + chunk + 1, 8);
+    return chunk + 9 + length;
+  };
+  const uint64_t first = message_index_after(writer.chunk_offsets()[0]);
+  const uint64_t second = message_index_after(writer.chunk_offsets()[1]);
+  ASSERT_EQ(static_cast<uint8_t>(bytes[first]), 0x07);
+  ASSERT_EQ(static_cast<uint8_t>(bytes[second]), 0x07);
+  const size_t reference = bytes.rfind(std::string(reinterpret_cast<const char*>(&second), 8));
+  ASSERT_GT(reference, second);  // in the summary's second Chunk Index
+  Poke<uint64_t>(&bytes, reference, first);
+  EXPECT_PARSE_ERROR(bytes, "byte " + std::to_string(first) +
+                                ": Message Index record: referenced a second time by the Chunk "
+                                "Indexes (channel " +
+                                std::to_string(channel) + ")");
+}
+
 TEST(McapReaderBadInput, ChunkUncompressedSizeLies) {
   for (const char* compression : {"", "lz4", "zstd"}) {
     for (const int64_t lie : {-1, 1}) {
