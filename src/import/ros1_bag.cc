@@ -372,6 +372,15 @@ void Ros1BagReader::LoadChunk(const Record& record) {
                             " bytes declares " + std::to_string(size) +
                             " bytes uncompressed, more than lz4 can expand to");
   }
+  // Neither stream grows incompressible data by more than a few parts in a thousand plus its
+  // framing (bz2 about 1 %, lz4 0.4 %): compressed data far beyond the declared size is a lie,
+  // refused before it is read.
+  if (record.data_bytes > size + size / 8 + 65536) {
+    Fail(record.offset, "chunk record: the " + compression + " chunk's " +
+                            std::to_string(record.data_bytes) +
+                            " compressed bytes are far more than the " + std::to_string(size) +
+                            " bytes it declares uncompressed");
+  }
   compressed_.resize(record.data_bytes);
   ReadAt(record.data_offset, record.data_bytes, compressed_.data(), record.offset,
          "the chunk's data");

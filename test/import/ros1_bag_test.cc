@@ -253,6 +253,11 @@ TEST(Ros1BagTest, ChunkWhoseSizeLiesIsRefused) {
                           " data decompresses to more than the chunk's declared size"));
     EXPECT_THAT(ErrorOf("large.bag", HandChunkBag(compression, size + 3, packed)),
                 HasSubstr("bytes but the chunk declares"));
+    // Compressed bytes far beyond the declared size: refused before they are read.
+    const std::string padded = packed + std::string(70000, '\0');
+    EXPECT_THAT(ErrorOf("padded.bag", HandChunkBag(compression, size, padded)),
+                HasSubstr("byte 4109: chunk record: the " + compression + " chunk's " +
+                          std::to_string(padded.size()) + " compressed bytes are far more than"));
     std::string corrupt = packed;
     corrupt[corrupt.size() / 2] ^= 0x55;
     corrupt[corrupt.size() / 2 + 1] ^= 0x55;
