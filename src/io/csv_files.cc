@@ -1,6 +1,7 @@
 #include "autocal/io/csv_files.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -73,6 +74,13 @@ void CheckSweepFileName(const std::string& file) {
   if (bad)
     throw Error("invalid sweep file name '" + file +
                 "' (relative to lidar/, no ',', '..' or blanks)");
+  // The formats LoadSweep reads (io::ReadPointCloudFile), told here rather than halfway
+  // through a run.
+  std::string extension = std::filesystem::path(file).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension != ".ply" && extension != ".pcd") {
+    throw Error("sweep file '" + file + "' is neither .ply nor .pcd");
+  }
 }
 
 std::string LidarRow(const LidarSweepRef& sweep) {

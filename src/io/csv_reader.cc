@@ -51,8 +51,10 @@ void CsvReader::CheckHeader(std::string_view line) {
   Split(line);
   // EuRoC-style headers start with '#'.
   if (!fields_[0].text.empty() && fields_[0].text[0] == '#') {
-    const std::string_view name = Trim(fields_[0].text.substr(1));
-    fields_[0].column += name.data() - fields_[0].text.data();
+    const std::string_view after_hash = fields_[0].text.substr(1);
+    const std::string_view name = Trim(after_hash);
+    // A blank name ("#" alone) is the empty name at the column after the '#'.
+    fields_[0].column += name.empty() ? 1 : name.data() - fields_[0].text.data();
     fields_[0].text = name;
   }
   double number = 0.0;
@@ -115,6 +117,13 @@ int64_t CsvReader::Int64(size_t field) const {
 
 int64_t CsvReader::Timestamp() {
   const int64_t t_ns = Int64(0);
+  // Within 2^62 ns (146 years) of 1970, so that any two stamps' difference, and a stamp plus
+  // such a difference, stay in int64.
+  constexpr int64_t kMaxStampNs = int64_t{1} << 62;
+  if (t_ns > kMaxStampNs || t_ns < -kMaxStampNs) {
+    Fail(0, "timestamp " + std::to_string(t_ns) +
+                " ns is more than 146 years from 1970 (2^62 ns): not a time in nanoseconds");
+  }
   if (has_previous_time_ && t_ns <= previous_time_ns_) {
     Fail(0, std::string(t_ns == previous_time_ns_ ? "duplicate" : "non-monotonic") + " timestamp " +
                 std::to_string(t_ns) + " ns: the previous row (line " +

@@ -2,6 +2,7 @@
 // then one point per line (ascii) or packed little-endian records (binary).
 // binary_compressed (LZF) is not supported and says so.
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -259,7 +260,11 @@ class PcdParser {
 
   lidar::PointCloud ReadAscii() {
     const int64_t values_per_line = values_per_point_;
-    if (static_cast<uint64_t>(points_) > source_.remaining() + 1) {
+    // A line holds at least x, y and z, each a character and a separator (the last line's
+    // newline may be missing): a count the bytes cannot hold is refused before the points are
+    // allocated. A line too short for its COUNT values is named at its line below.
+    const uint64_t most_points = (source_.remaining() + 1) / 6;
+    if (static_cast<uint64_t>(points_) > most_points) {
       source_.FailAtByte(source_.size(), "file ends at byte " + std::to_string(source_.size()) +
                                              " but the header declares " + std::to_string(points_) +
                                              " points: truncated?");

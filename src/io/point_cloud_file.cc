@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -83,9 +84,11 @@ void WritePly(const std::string& path, const lidar::PointCloud& cloud) {
                               cloud.has_intensity() ? cloud.intensity[i] : 0.0,
                               cloud.has_time() ? cloud.time_s[i] : 0.0};
     for (double value : values) {
-      if (!std::isfinite(value)) {
+      // Stored as float: a finite double beyond its range would be written as infinity, which
+      // the reader then refuses.
+      if (!std::isfinite(value) || std::abs(value) > std::numeric_limits<float>::max()) {
         throw Error("WritePly('" + path + "'): point " + std::to_string(i) +
-                    " has a non-finite value");
+                    " has a value that is not a finite float (" + std::to_string(value) + ")");
       }
       AppendLittleEndianFloat(static_cast<float>(value), &out);
     }

@@ -3,7 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <set>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "io/text_format.h"
@@ -50,11 +52,20 @@ SourceLocation Location(const std::string& path, const YAML::Mark& mark) {
 
 YamlFile::YamlFile(std::string path) : path_(std::move(path)) {
   const std::string text = ReadFileBytes(path_);
+  std::vector<YAML::Node> documents;
   try {
-    root_ = YAML::Load(text);
+    documents = YAML::LoadAll(text);
   } catch (const YAML::Exception& e) {
     throw ParseError(Location(path_, e.mark), "YAML syntax error: " + e.msg);
   }
+  // One document per file: a second (two files joined, a stray '---') would be dropped
+  // without a word, and with it whatever it sets.
+  for (size_t i = 1; i < documents.size(); ++i) {
+    if (documents[i].IsDefined() && !documents[i].IsNull()) {
+      Fail(documents[i], "a second YAML document (after '---'): the file must hold one");
+    }
+  }
+  if (!documents.empty()) root_ = documents.front();
   if (!root_.IsDefined() || root_.IsNull()) {
     SourceLocation location;
     location.file = path_;

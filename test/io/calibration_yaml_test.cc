@@ -308,6 +308,11 @@ TEST(CalibrationYamlTest, SyntaxErrorAndEmptyFile) {
                    "T_I_L: {q_xyzw: [0, 0, 0, 1], p_m: [0, 0, 0]\ntrack_width_m: 1\n",
                    kReadCalibration, 2, 1, "YAML syntax error: end of map flow not found");
   ExpectParseError("empty.yaml", "", kReadCalibration, 1, 1, "empty YAML document");
+  // Two documents (two files joined): the second would be dropped, whatever it sets.
+  ExpectParseError("two_documents.yaml",
+                   "format: autocal_calibration_1\n---\ntime_offset_lidar_imu_s: {value: 1}\n",
+                   kReadCalibration, 3, 1,
+                   "a second YAML document (after '---'): the file must hold one");
 }
 
 // A written result states that it is whole: every proper prefix of it (a run stopped while

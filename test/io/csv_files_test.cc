@@ -194,6 +194,16 @@ TEST(CsvFilesTest, WrongHeaderName) {
                    {1, FieldColumn(lines[0], 6), "is 'acc_z', expected 'az'"});
 }
 
+// A '#' with no name after it (an EuRoC-style header cut short) is named at the column after
+// the '#' (the column was a pointer difference against an empty name).
+TEST(CsvFilesTest, EmptyHashedHeaderName) {
+  std::vector<std::string> lines = ImuLines();
+  lines[0] = "# ,gx,gy,gz,ax,ay,az";
+  WriteText(OutPath("hash_header.csv"), JoinLines(lines));
+  ExpectParseError(OutPath("hash_header.csv"), kReadImu,
+                   {1, 2, "header column 1 is '', expected 't_ns'"});
+}
+
 TEST(CsvFilesTest, HeaderWithTooFewColumns) {
   WriteText(OutPath("short_header.csv"), "t_ns,gx,gy,gz,ax,ay\n");
   ExpectParseError(OutPath("short_header.csv"), kReadImu,
@@ -372,6 +382,25 @@ TEST(CsvFilesTest, MissingSweepFile) {
   ExpectParseError(OutPath("lidar_missing.csv"),
                    [&](const std::string& p) { ReadLidarCsv(p, directory); },
                    {3, 5, "sweep file '200.ply' not found"});
+}
+
+// A sweep file LoadSweep cannot read (neither .ply nor .pcd) is named with its lidar.csv line
+// when the dataset is read, not halfway through a run.
+TEST(CsvFilesTest, SweepFileOfAnotherFormat) {
+  const std::string directory = test::OutputDir("csv_files/bin_sweeps").string();
+  WriteText(directory + "/100.PLY", "ply\n");
+  WriteText(directory + "/200.bin", "raw");
+  WriteText(OutPath("lidar_bin.csv"), "t_ns,file\n100,100.PLY\n200,200.bin\n");
+  ExpectParseError(OutPath("lidar_bin.csv"),
+                   [&](const std::string& p) { ReadLidarCsv(p, directory); },
+                   {3, 5, "sweep file '200.bin' is neither .ply nor .pcd"});
+}
+
+// A stamp beyond 2^62 ns of 1970: the differences between stamps would pass int64.
+TEST(CsvFilesTest, StampFarFromAnyTime) {
+  WriteText(OutPath("far_stamp.csv"), ReplaceField(ImuLines(), 3, 0, "5000000000000000000"));
+  ExpectParseError(OutPath("far_stamp.csv"), kReadImu,
+                   {3, 1, "timestamp 5000000000000000000 ns is more than 146 years from 1970"});
 }
 
 TEST(CsvFilesTest, WheelRateInRpm) {

@@ -186,6 +186,18 @@ TEST(HostilePcdTest, LargeAsciiCountReportsTheValueCount) {
   EXPECT_THAT(e.detail(), HasSubstr("expected 2305843009213693955 values, found 4"));
 }
 
+// An ascii point is a line of at least x, y and z: a count the bytes cannot hold is refused
+// before the points are allocated (it let a 100 MB file allocate 3.6 GB, a byte a point).
+TEST(HostilePcdTest, AsciiCountBeyondWhatTheBytesHold) {
+  std::string padding;
+  for (int i = 0; i < 1000; ++i) padding += "1\n";
+  const ParseError e = ReadError("many_points.pcd",
+                                 "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                                 "WIDTH 1000\nDATA ascii\n" +
+                                     padding);
+  EXPECT_THAT(e.detail(), HasSubstr("the header declares 1000 points: truncated?"));
+}
+
 TEST(HostilePcdTest, IntensityBeyondFloatRange) {
   PointCloudReadOptions drop;
   drop.drop_non_finite_points = true;

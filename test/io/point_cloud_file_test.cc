@@ -195,6 +195,10 @@ TEST(PointCloudFileTest, WritePlyRejectsNonFinitePoints) {
   lidar::PointCloud cloud = HelixCloud(10);
   cloud.points(1, 4) = std::nan("");
   EXPECT_THROW(WritePly(OutPath("nan.ply"), cloud), Error);
+  // Finite as a double, infinite as the float the file stores: refused too.
+  cloud = HelixCloud(10);
+  cloud.points(0, 3) = 1e39;
+  EXPECT_THROW(WritePly(OutPath("float_overflow.ply"), cloud), Error);
 }
 
 class PlyFormatTypeTest
