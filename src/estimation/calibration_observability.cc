@@ -210,6 +210,7 @@ void Report(const EstimatedBlock& block, int first, const Eigen::MatrixXd& S,
 // J^T J of every residual block at the current values (robust losses applied as the solver
 // applies them), over the tangent coordinates of the problem's variable blocks.
 struct GaussNewtonHessian {
+  bool ok = true;                  // false when a residual block failed to evaluate
   Eigen::SparseMatrix<double> H;   // lower triangle
   internal::BlockOffsets offsets;  // first tangent column of each variable block
 };
@@ -323,18 +324,20 @@ Eigen::SparseMatrix<double> LowerGram(const ceres::CRSMatrix& J, int num_threads
 // The information of `ids` at the current values, J^T J over `variables`' columns, times
 // `scale`: J is evaluated for a stretch of residual blocks at a time and the stretches' grams
 // summed, so a long log's Jacobian is never held whole (on a 10-minute log it and its copies
-// were a third of the calibration's peak memory).
-Eigen::SparseMatrix<double> InformationOf(ceres::Problem* problem,
-                                          internal::VariableColumns* variables,
-                                          const std::vector<ceres::ResidualBlockId>& ids,
-                                          double scale, int num_threads) {
+// were a third of the calibration's peak memory). Nullopt when a residual block fails to
+// evaluate.
+std::optional<Eigen::SparseMatrix<double>> InformationOf(
+    ceres::Problem* problem, internal::VariableColumns* variables,
+    const std::vector<ceres::ResidualBlockId>& ids, double scale, int num_threads) {
   Eigen::SparseMatrix<double> H(variables->columns, variables->columns);
   for (size_t first = 0; first < ids.size(); first += kResidualBlocksPerStretch) {
     const size_t end = std::min(ids.size(), first + kResidualBlocksPerStretch);
     variables->evaluate.residual_blocks.assign(ids.begin() + static_cast<std::ptrdiff_t>(first),
                                                ids.begin() + static_cast<std::ptrdiff_t>(end));
     ceres::CRSMatrix crs;
-    problem->Evaluate(variables->evaluate, nullptr, nullptr, nullptr, &crs);
+    if (!problem->Evaluate(variables->evaluate, nullptr, nullptr, nullptr, &crs)) {
+      return std::nullopt;
+    }
     H = Eigen::SparseMatrix<double>(H + scale * LowerGram(crs, num_threads));
   }
   return H;
@@ -343,6 +346,7 @@ Eigen::SparseMatrix<double> InformationOf(ceres::Problem* problem,
 // J^T J in two parts: over the residual blocks outside `scaled` and, times `scale`, over those
 // inside it (empty when it has none).
 struct SplitHessian {
+  bool ok = true;                             // false when a residual block failed to evaluate
   Eigen::SparseMatrix<double> plain, scaled;  // lower triangles
   internal::BlockOffsets offsets;
 };
@@ -361,15 +365,21 @@ SplitHessian EvaluateSplitHessian(ceres::Problem* problem, int num_threads,
   for (const ceres::ResidualBlockId id : residual_blocks) {
     (in_scaled.count(id) > 0 ? rescaled : plain).push_back(id);
   }
-  out.plain = InformationOf(problem, &variables, plain, 1.0, num_threads);
-  if (!rescaled.empty()) {
-    out.scaled = InformationOf(problem, &variables, rescaled, scale, num_threads);
+  std::optional<Eigen::SparseMatrix<double>> information =
+      InformationOf(problem, &variables, plain, 1.0, num_threads);
+  out.ok = information.has_value();
+  if (out.ok) out.plain = std::move(*information);
+  if (out.ok && !rescaled.empty()) {
+    information = InformationOf(problem, &variables, rescaled, scale, num_threads);
+    out.ok = information.has_value();
+    if (out.ok) out.scaled = std::move(*information);
   }
   return out;
 }
 
 GaussNewtonHessian Sum(const SplitHessian& split, double scale) {
   GaussNewtonHessian out;
+  out.ok = split.ok;
   out.offsets = split.offsets;
   out.H = split.scaled.nonZeros() == 0
               ? split.plain
@@ -575,6 +585,7 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
                                        CovarianceOrdering* ordering) {
   if (blocks.empty()) return EmptyCovariance();
   GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads, scaled);
+  if (!hessian.ok) return BlockCovariance();
   if (!exact.empty()) {
     const std::vector<Eigen::Triplet<double>> curvature =
         internal::ResidualCurvature(problem, exact, hessian.offsets);
@@ -600,6 +611,7 @@ ErrorBudget ComputeErrorBudget(const std::vector<EstimatedBlock>& blocks, ceres:
   }
   // One J for both: the solve weighs every residual as is, the scaled covariance does not.
   const SplitHessian split = EvaluateSplitHessian(problem, num_threads, scaled, 1.0);
+  if (!split.ok) return out;
   CovarianceOrdering own;
   if (ordering == nullptr) ordering = &own;
   const InverseColumns inverse = InverseColumnsAt(blocks, Sum(split, 1.0), ordering);
@@ -757,6 +769,7 @@ StretchScatter ComputeStretchScatter(const std::vector<EstimatedBlock>& blocks,
   out.stretches = stretches;
   if (blocks.empty()) return out;
   const GaussNewtonHessian hessian = EvaluateGaussNewtonHessian(problem, num_threads, {});
+  if (!hessian.ok) return out;
   CovarianceOrdering own;
   if (ordering == nullptr) ordering = &own;
   const HessianFactor factor(hessian, ordering);

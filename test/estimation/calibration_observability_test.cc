@@ -261,6 +261,25 @@ TEST(CalibrationObservability, PriorsAloneGiveThePriorCovariance) {
   EXPECT_EQ(observability.warnings.size(), 4u);
 }
 
+// A residual block that cannot be evaluated (a cost function returning false) leaves the
+// covariance, the error budget and the rows' scatter not ok; the Jacobian of the failed stretch
+// was summed in as an empty matrix of another size before.
+struct FailingRow final : public ceres::SizedCostFunction<1, 3> {
+  bool Evaluate(double const* const*, double*, double**) const override { return false; }
+};
+
+TEST(CalibrationObservability, AResidualThatFailsToEvaluateLeavesTheCovarianceNotOk) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.05)};
+  ceres::Problem problem;
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  problem.AddResidualBlock(new FailingRow, nullptr, p.data());
+  EXPECT_FALSE(ComputeBlockCovariance(blocks, &problem).ok);
+  std::vector<ceres::ResidualBlockId> all;
+  problem.GetResidualBlocks(&all);
+  EXPECT_FALSE(ComputeErrorBudget(blocks, &problem, {{"all", all}}).ok);
+}
+
 // A linear problem: a state s measured against x (as a trajectory is solved with the
 // calibration), x + z/2 and y measured, z barely informed. After HoldUnobservableDirections
 // moves the calibration (Eq. C1) the state still belongs to the old one; pinning the held z
