@@ -128,8 +128,9 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(
     kfs[k].b_a.setZero();
   }
   GnssInertialKeyframes result;
-  result.placement = PlaceKeyframesOnGnss(keyframes, fixes, converter, calibration.p_I_A,
-                                          calibration.q_I_V, options.placement);
+  result.placement =
+      PlaceKeyframesOnGnss(keyframes, FixesOnImuClock(fixes, calibration.time_offset_gnss_imu_s),
+                           converter, calibration.p_I_A, calibration.q_I_V, options.placement);
   // ... each turned to its own heading where that is trusted (Eq. K9, K10): R_W_I =
   // R_z(psi) R_V_I with psi the heading of the antenna velocity; the antenna stays where the
   // track put it.

@@ -69,6 +69,15 @@ void FitYawAndTranslation(const std::vector<Eigen::Vector3d>& a,
 
 }  // namespace
 
+sensors::GnssFixes FixesOnImuClock(sensors::GnssFixes fixes, double time_offset_gnss_imu_s) {
+  if (!std::isfinite(time_offset_gnss_imu_s)) {
+    throw Error("FixesOnImuClock: the GNSS time offset must be finite");
+  }
+  const int64_t shift_ns = SecondsToNs(time_offset_gnss_imu_s);
+  for (sensors::GnssFix& fix : fixes) fix.t_ns += shift_ns;
+  return fixes;
+}
+
 GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::GnssFixes& fixes,
                                    const sensors::EnuConverter& converter,

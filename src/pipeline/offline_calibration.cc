@@ -70,14 +70,16 @@ bool PlaceKeyframesInEnu(const io::Dataset& dataset, const io::Problem& problem,
   try {
     estimation::GnssAlignmentOptions alignment;
     alignment.max_fix_gap_s = timing.max_fix_gap_s;
+    const sensors::GnssFixes fixes =
+        estimation::FixesOnImuClock(dataset.gnss, calibration.time_offset_gnss_imu_s);
     const estimation::GnssAlignment fit =
-        estimation::AlignKeyframesToGnss(&aligned, dataset.gnss, enu, calibration.p_I_A, alignment);
+        estimation::AlignKeyframesToGnss(&aligned, fixes, enu, calibration.p_I_A, alignment);
     if (fit.rms_m <= options.max_odometry_to_gnss_rms_m) {
       // The drift the rigid alignment leaves (Eq. K5b), which the GNSS rows' Cauchy loss would
       // pull in only over several solver steps.
       estimation::OdometryDriftOptions drift;
       drift.max_fix_gap_s = timing.max_fix_gap_s;
-      estimation::RemoveOdometryDrift(&aligned, dataset.gnss, enu, calibration.p_I_A, drift);
+      estimation::RemoveOdometryDrift(&aligned, fixes, enu, calibration.p_I_A, drift);
       *keyframes = std::move(aligned);
       return true;
     }

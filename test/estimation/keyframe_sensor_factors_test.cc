@@ -940,6 +940,33 @@ TEST_F(KeyframeSensorFactorsTest, AlignmentRecoversKnownYawAndShift) {
   EXPECT_LT(max_velocity_m_s, 1e-8);
 }
 
+// Fixes stamped 0.2 s early (a fix stamped t taken at IMU time t + 0.2 s) pair with the wrong
+// keyframe positions, the drive's speed times the offset apart; on the IMU clock
+// (FixesOnImuClock) the alignment is exact again.
+TEST_F(KeyframeSensorFactorsTest, AlignmentTakesTheFixesOnTheImuClock) {
+  const std::vector<Keyframe> truth = TrueKeyframes(*exact_simulator_, exact_->imu, 0.0);
+  constexpr double kOffsetS = 0.2;
+  sensors::GnssFixes early = exact_->gnss.fixes;
+  for (sensors::GnssFix& fix : early) fix.t_ns -= SecondsToNs(kOffsetS);
+  const Eigen::Vector3d& p_I_A = exact_simulator_->true_calibration().p_I_A;
+  std::vector<Keyframe> as_logged = truth;
+  const GnssAlignment paired_as_logged =
+      AlignKeyframesToGnss(&as_logged, early, Converter(*exact_simulator_), p_I_A);
+  std::vector<Keyframe> on_imu_clock = truth;
+  const GnssAlignment paired_on_imu_clock = AlignKeyframesToGnss(
+      &on_imu_clock, FixesOnImuClock(early, kOffsetS), Converter(*exact_simulator_), p_I_A);
+  double mean_speed_m_s = 0.0;
+  for (const Keyframe& kf : truth) mean_speed_m_s += kf.v_W_I.norm() / truth.size();
+  std::cout << "rms " << paired_as_logged.rms_m << " m as logged, " << paired_on_imu_clock.rms_m
+            << " m on the IMU clock; mean speed " << mean_speed_m_s << " m/s\n";
+  EXPECT_GT(paired_as_logged.rms_m, 0.3 * kOffsetS * mean_speed_m_s);
+  EXPECT_LT(paired_on_imu_clock.rms_m, 1e-6);
+  for (size_t k = 0; k < truth.size(); ++k) {
+    ASSERT_LT((on_imu_clock[k].p_W_I - truth[k].p_W_I).norm(), 1e-6) << k;
+  }
+  EXPECT_THROW(FixesOnImuClock(early, std::nan("")), Error);
+}
+
 // On the noisy fixes with multipath outliers the refits drop the outliers: the alignment
 // is as good as the fix noise allows.
 TEST_F(KeyframeSensorFactorsTest, AlignmentRejectsMultipathOutliers) {

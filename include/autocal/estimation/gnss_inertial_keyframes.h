@@ -79,8 +79,10 @@ struct GnssInertialKeyframes {
 };
 
 // Replaces q, p, v, b_g, b_a of every keyframe (their times are kept) with the estimate from
-// the fixes, the IMU samples and the wheel samples of any form (may be empty); the calibration
-// is used as given (its wheel blocks only as the start of their estimate; it is not changed).
+// the fixes (as logged: the placement moves them onto the IMU clock by the calibration's GNSS
+// time offset, the factors apply it), the IMU samples and the wheel samples of any form (may be
+// empty); the calibration is used as given (its wheel blocks only as the start of their
+// estimate; it is not changed).
 // Throws autocal::Error as PlaceKeyframesOnGnss, for fewer than two keyframes, IMU samples that do
 // not cover the keyframes, or a failed solve.
 GnssInertialKeyframes KeyframesFromGnssAndImu(

@@ -234,9 +234,17 @@ struct GnssAlignment {
   double rms_m = 0.0;  // RMS antenna-to-fix distance of the inliers after alignment
 };
 
+// The fixes with their stamps moved onto the IMU clock, t_imu = t_fix + time_offset_gnss_imu_s.
+// AlignKeyframesToGnss, RemoveOdometryDrift and PlaceKeyframesOnGnss pair fixes with keyframes
+// by stamp, so they take fixes on the IMU clock: a fix stamped 0.15 s early, paired as it is,
+// puts the antenna 2.25 m along the track at 15 m/s. (The GNSS factors apply the offset
+// themselves and take the fixes as logged.)
+sensors::GnssFixes FixesOnImuClock(sensors::GnssFixes fixes, double time_offset_gnss_imu_s);
+
 // 4-DoF alignment (yaw about gravity and a translation, Eqs. K3-K5) of keyframes in a
-// gravity-aligned frame to ENU: their antenna positions are fitted to the fixes interpolated
-// at the keyframe times and every state is moved (biases stay). Throws autocal::Error with
+// gravity-aligned frame to ENU: their antenna positions are fitted to the fixes (on the IMU
+// clock, FixesOnImuClock) interpolated at the keyframe times and every state is moved (biases
+// stay). Throws autocal::Error with
 // fewer than two pairs, inliers spread less than min_horizontal_extent_m, or as InterpolateGnss.
 GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::GnssFixes& fixes,
@@ -265,13 +273,13 @@ struct OdometryDrift {
 };
 
 // Eq. K5b: after AlignKeyframesToGnss, what is left of an odometry track's drift against the
-// fixes is taken out of the keyframes' positions, a keyframe moved by a line fitted (robustly,
-// per axis) to the antenna-to-fix differences within half_window_s of it, at its time: a drift's
-// local rate, so that an outage on one side of a window does not bias it. Attitudes, velocities
-// and biases stay: the correction changes over minutes, so the track's shape over a few seconds
-// (what the LiDAR's partner sweeps see) keeps. Without any window of min_pairs pairs nothing
-// moves.
-// Throws autocal::Error as InterpolateGnss, or for a non-positive half window.
+// fixes (on the IMU clock, FixesOnImuClock) is taken out of the keyframes' positions, a keyframe
+// moved by a line fitted (robustly, per axis) to the antenna-to-fix differences within
+// half_window_s of it, at its time: a drift's local rate, so that an outage on one side of a window
+// does not bias it. Attitudes, velocities and biases stay: the correction changes over minutes, so
+// the track's shape over a few seconds (what the LiDAR's partner sweeps see) keeps. Without any
+// window of min_pairs pairs nothing moves. Throws autocal::Error as InterpolateGnss, or for a
+// non-positive half window.
 OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensors::GnssFixes& fixes,
                                   const sensors::EnuConverter& converter,
                                   const Eigen::Vector3d& p_I_A,
@@ -308,11 +316,12 @@ struct GnssPlacement {
 
 // Positions, velocities and yaw from GNSS alone, for keyframes the LiDAR odometry could not
 // place (docs/keyframe_factors.md, "Keyframes from GNSS and the IMU"): each is put on the
-// antenna track fitted around it (Eq. K7) and all are turned by one yaw from the track headings
-// (Eq. K8) or the track's travel (Eq. K11); roll, pitch and biases stay. Keyframes in outages
-// are interpolated between placed ones (at the ends, moved at the nearest one's velocity).
-// Throws autocal::Error when fewer than two keyframes can be placed, when neither headings nor
-// travel give the yaw (the message gives the figures), or as InterpolateGnss.
+// antenna track fitted around it (Eq. K7; the fixes on the IMU clock, FixesOnImuClock) and all are
+// turned by one yaw from the track headings (Eq. K8) or the track's travel (Eq. K11); roll, pitch
+// and biases stay. Keyframes in outages are interpolated between placed ones (at the ends, moved at
+// the nearest one's velocity). Throws autocal::Error when fewer than two keyframes can be placed,
+// when neither headings nor travel give the yaw (the message gives the figures), or as
+// InterpolateGnss.
 GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::GnssFixes& fixes,
                                    const sensors::EnuConverter& converter,
