@@ -210,13 +210,23 @@ DatasetWriter::~DatasetWriter() {
 void DatasetWriter::WriteSensorsConfig(const SensorsConfig& config) {
   impl_->CheckOpen();
   const std::string path = Join(impl_->directory, "sensors.yaml");
-  WriteSensorsYaml(path, config);
-  // A dataset its own reader refuses is not written: the reader's ranges are the contract.
+  // A dataset its own reader refuses is not written: the reader's ranges are the contract. The
+  // text is checked beside the file and only then takes its place, so a refused configuration
+  // leaves a sensors.yaml written before as it was.
+  const std::string staged = path + ".new";
+  WriteSensorsYaml(staged, config);
+  std::error_code error;
   try {
-    ReadSensorsYaml(path);
+    ReadSensorsYaml(staged);
   } catch (const Error& e) {
+    std::filesystem::remove(staged, error);
     throw Error(std::string("the sensors' configuration is outside what sensors.yaml may state: ") +
                 e.what());
+  }
+  std::filesystem::rename(staged, path, error);
+  if (error) {
+    std::filesystem::remove(staged, error);
+    throw Error("cannot write " + path + ": " + error.message());
   }
 }
 

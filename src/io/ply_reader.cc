@@ -55,15 +55,19 @@ class PlyParser {
     ParseHeader();
     const size_t vertex_index = FindVertexElement();
     ResolveVertexRoles(elements_[vertex_index]);
+    lidar::PointCloud cloud;
     if (format_ == PlyFormat::kAscii) {
       // The body starts on the line after end_header.
       source_.set_line(source_.line() + 1);
       line_start_ = source_.pos();
       for (size_t e = 0; e < vertex_index; ++e) SkipAsciiElement(elements_[e]);
-      return ReadAsciiVertices(elements_[vertex_index]);
+      cloud = ReadAsciiVertices(elements_[vertex_index]);
+    } else {
+      for (size_t e = 0; e < vertex_index; ++e) SkipBinaryElement(elements_[e]);
+      cloud = ReadBinaryVertices(elements_[vertex_index]);
     }
-    for (size_t e = 0; e < vertex_index; ++e) SkipBinaryElement(elements_[e]);
-    return ReadBinaryVertices(elements_[vertex_index]);
+    if (vertex_index + 1 == elements_.size()) ExpectEndOfBody(elements_[vertex_index]);
+    return cloud;
   }
 
  private:
@@ -243,6 +247,23 @@ class PlyParser {
     FailOnRefusedPoint(result, "vertex", index, bad, values, [&](const std::string& message) {
       source_.FailAtLineOrByte(line, byte_offset, message);
     });
+  }
+
+  // After the last element nothing may follow but blanks (ascii): more points than the header
+  // declares (a writer that never updated its count) would otherwise be dropped silently.
+  void ExpectEndOfBody(const PlyElement& last) {
+    const std::string message = "data after the " + std::to_string(last.count) + " " + last.name +
+                                " instances the header declares (element " + last.name + " " +
+                                std::to_string(last.count) + ")";
+    if (format_ != PlyFormat::kAscii) {
+      if (source_.remaining() > 0) {
+        source_.FailAtByte(source_.pos(),
+                           std::to_string(source_.remaining()) + " bytes of " + message);
+      }
+      return;
+    }
+    AsciiToken token;
+    if (NextToken(&token)) source_.FailAt(token.line, token.column, message);
   }
 
   // ---- ascii body ----

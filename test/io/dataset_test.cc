@@ -406,6 +406,15 @@ TEST(DatasetTest, WriterRefusesASensorsFileItsReaderWouldRefuse) {
     EXPECT_THAT(e.what(), HasSubstr("wheel.noise_rad_s: must be within [1e-06, 100] rad/s"));
     EXPECT_THAT(e.what(), HasSubstr("outside what sensors.yaml may state"));
   }
+  EXPECT_FALSE(fs::exists(directory / "sensors.yaml"));
+  EXPECT_FALSE(fs::exists(directory / "sensors.yaml.new"));
+  // A sensors.yaml written before stays as it was when a later configuration is refused.
+  drive.config.wheel->noise_rad_s = 0.05;
+  writer.WriteSensorsConfig(drive.config);
+  drive.config.wheel->noise_rad_s = 0.0;
+  EXPECT_THROW(writer.WriteSensorsConfig(drive.config), Error);
+  EXPECT_EQ(ReadSensorsYaml((directory / "sensors.yaml").string()).wheel->noise_rad_s, 0.05);
+  EXPECT_FALSE(fs::exists(directory / "sensors.yaml.new"));
 }
 
 TEST(DatasetTest, MissingDirectory) {

@@ -260,6 +260,28 @@ TEST(HostilePlyTest, SkippedElementCountBeyondTheFile) {
   }
 }
 
+// Points after the last element's declared count (a writer that never updated "element vertex
+// N") are refused where they start, not dropped; blank lines after an ascii body are fine.
+TEST(HostilePlyTest, DataAfterTheDeclaredVertices) {
+  const std::string binary_header =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n";
+  const std::string record = Bytes(1.0f) + Bytes(2.0f) + Bytes(3.0f);
+  ParseError e = ReadError("extra_binary.ply", binary_header + record + record);
+  EXPECT_EQ(e.location().byte_offset, static_cast<int64_t>(binary_header.size() + 12));
+  EXPECT_THAT(e.detail(), HasSubstr("12 bytes of data after the 1 vertex instances the header "
+                                    "declares (element vertex 1)"));
+  const std::string ascii_header =
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n";
+  e = ReadError("extra_ascii.ply", ascii_header + "1 2 3\n4 5 6\n");
+  EXPECT_EQ(e.location().line, 9);
+  EXPECT_EQ(e.location().column, 1);
+  EXPECT_THAT(e.detail(), HasSubstr("data after the 1 vertex instances"));
+  EXPECT_EQ(ReadPointCloudFile(WriteFile("blank_tail.ply", ascii_header + "1 2 3\n\n  \n")).size(),
+            1);
+}
+
 // The fuzzer's case: a double intensity of 1e300 would have become float infinity.
 TEST(HostilePlyTest, IntensityBeyondFloatRange) {
   const std::string header =
