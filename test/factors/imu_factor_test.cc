@@ -121,16 +121,8 @@ TEST(ImuFactor, WhitenedResidualIsStandardNormalAtTheTruth) {
   const auto gauss = [&]() { return Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); };
   Eigen::Matrix<double, 15, 15> sample_cov = Eigen::Matrix<double, 15, 15>::Zero();
   for (int draw = 0; draw < kDraws; ++draw) {
-    sensors::ImuSamples noisy = clean;
-    Eigen::Vector3d b_g = Eigen::Vector3d::Zero(), b_a = Eigen::Vector3d::Zero();
-    for (int k = 0; k < kSamples; ++k) {
-      noisy[k].gyro_rad_s += b_g + noise.gyroscope_noise_density / std::sqrt(dt) * gauss();
-      noisy[k].accel_m_s2 += b_a + noise.accelerometer_noise_density / std::sqrt(dt) * gauss();
-      if (k + 1 < kSamples) {
-        b_g += noise.gyroscope_random_walk * std::sqrt(dt) * gauss();
-        b_a += noise.accelerometer_random_walk * std::sqrt(dt) * gauss();
-      }
-    }
+    Eigen::Vector3d b_g, b_a;
+    const sensors::ImuSamples noisy = test::NoisyDraw(clean, dt, noise, gauss, &b_g, &b_a);
     sensors::ImuPreintegration pim(noise, options);
     pim.Integrate(noisy, 0, t_end_ns);
     StateBlocks i = TrueState(trajectory, 0.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());

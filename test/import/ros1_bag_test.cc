@@ -207,17 +207,21 @@ std::string HandChunkBag(const std::string& compression, uint32_t declared_size,
   return bytes + Ros1BagWriter::Record(header, chunk_data);
 }
 
-std::string InnerRecords() {
-  const std::string connection = Ros1BagWriter::Record(
+// A connection record for /a.
+std::string ConnectionRecord() {
+  return Ros1BagWriter::Record(
       Ros1BagWriter::Field("op", std::string(1, '\x07')) +
           Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) + Ros1BagWriter::Field("topic", "/a"),
       Ros1BagWriter::Field("topic", "/a") + Ros1BagWriter::Field("type", "std_msgs/String"));
-  const std::string message =
-      Ros1BagWriter::Record(Ros1BagWriter::Field("op", std::string(1, '\x02')) +
-                                Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) +
-                                Ros1BagWriter::Field("time", Ros1BagWriter::Time(kStartNs)),
-                            "hello");
-  return connection + message;
+}
+
+// A connection record and one message on it whose 'time' field holds `time` (8 bytes).
+std::string InnerRecords(const std::string& time = Ros1BagWriter::Time(kStartNs)) {
+  const std::string message = Ros1BagWriter::Record(
+      Ros1BagWriter::Field("op", std::string(1, '\x02')) +
+          Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) + Ros1BagWriter::Field("time", time),
+      "hello");
+  return ConnectionRecord() + message;
 }
 
 TEST(Ros1BagTest, HandBuiltChunkIsRead) {
@@ -286,22 +290,13 @@ TEST(Ros1BagTest, ChunkLongerThanItsStreamIsRefused) {
 // A record time is u32 seconds and u32 nanoseconds: nanoseconds of a second or more are no
 // time (taken as they were, the stamp moved by up to 4.3 s).
 TEST(Ros1BagTest, RecordTimeWithASecondOfNanosecondsIsRefused) {
-  const std::string connection = Ros1BagWriter::Record(
-      Ros1BagWriter::Field("op", std::string(1, '\x07')) +
-          Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) + Ros1BagWriter::Field("topic", "/a"),
-      Ros1BagWriter::Field("topic", "/a") + Ros1BagWriter::Field("type", "std_msgs/String"));
-  const std::string message =
-      Ros1BagWriter::Record(Ros1BagWriter::Field("op", std::string(1, '\x02')) +
-                                Ros1BagWriter::Field("conn", Ros1BagWriter::U32(0)) +
-                                Ros1BagWriter::Field("time", Ros1BagWriter::U32(1700000000) +
-                                                                 Ros1BagWriter::U32(1000000000)),
-                            "hello");
-  const std::string inner = connection + message;
-  EXPECT_THAT(
-      ErrorOf("time.bag", HandChunkBag("none", static_cast<uint32_t>(inner.size()), inner)),
-      HasSubstr("byte 4109: chunk record: the record at byte " + std::to_string(connection.size()) +
-                " of the uncompressed chunk (" + std::to_string(inner.size()) +
-                " bytes): message data record: 'time' has nanoseconds of 1e9 or more"));
+  const std::string inner =
+      InnerRecords(Ros1BagWriter::U32(1700000000) + Ros1BagWriter::U32(1000000000));
+  EXPECT_THAT(ErrorOf("time.bag", HandChunkBag("none", static_cast<uint32_t>(inner.size()), inner)),
+              HasSubstr("byte 4109: chunk record: the record at byte " +
+                        std::to_string(ConnectionRecord().size()) + " of the uncompressed chunk (" +
+                        std::to_string(inner.size()) +
+                        " bytes): message data record: 'time' has nanoseconds of 1e9 or more"));
 }
 
 TEST(Ros1BagTest, RecordRunningPastItsChunkIsRefused) {

@@ -238,16 +238,8 @@ TEST(ImuPreintegration, CovarianceMatchesMonteCarlo) {
   Matrix15d sample_cov = Matrix15d::Zero();
   double chi2_sum = 0.0;
   for (int draw = 0; draw < kDraws; ++draw) {
-    ImuSamples noisy = clean;
-    Eigen::Vector3d b_g = Eigen::Vector3d::Zero(), b_a = Eigen::Vector3d::Zero();
-    for (int k = 0; k < kSamples; ++k) {
-      noisy[k].gyro_rad_s += b_g + noise.gyroscope_noise_density / std::sqrt(dt) * gauss();
-      noisy[k].accel_m_s2 += b_a + noise.accelerometer_noise_density / std::sqrt(dt) * gauss();
-      if (k + 1 < kSamples) {
-        b_g += noise.gyroscope_random_walk * std::sqrt(dt) * gauss();
-        b_a += noise.accelerometer_random_walk * std::sqrt(dt) * gauss();
-      }
-    }
+    Eigen::Vector3d b_g, b_a;
+    const ImuSamples noisy = test::NoisyDraw(clean, dt, noise, gauss, &b_g, &b_a);
     PreintegrationOptions fast;
     fast.compute_covariance = false;
     ImuPreintegration pim(noise, fast);

@@ -152,6 +152,28 @@ inline sensors::ImuSamples SampleImu(const ImuTrajectory& trajectory, int64_t t0
   return samples;
 }
 
+// One Monte Carlo draw of `clean` samples `period_s` apart as a real IMU reads them: white noise
+// of the densities of `noise` (sigma / sqrt(period) per sample) and biases that start at zero
+// and random-walk from sample to sample; `gauss()` gives a standard normal 3-vector. *b_g and
+// *b_a are the biases at the last sample.
+template <typename Gauss>
+sensors::ImuSamples NoisyDraw(const sensors::ImuSamples& clean, double period_s,
+                              const sensors::ImuNoise& noise, Gauss&& gauss, Eigen::Vector3d* b_g,
+                              Eigen::Vector3d* b_a) {
+  sensors::ImuSamples noisy = clean;
+  b_g->setZero();
+  b_a->setZero();
+  for (size_t k = 0; k < noisy.size(); ++k) {
+    noisy[k].gyro_rad_s += *b_g + noise.gyroscope_noise_density / std::sqrt(period_s) * gauss();
+    noisy[k].accel_m_s2 += *b_a + noise.accelerometer_noise_density / std::sqrt(period_s) * gauss();
+    if (k + 1 < noisy.size()) {
+      *b_g += noise.gyroscope_random_walk * std::sqrt(period_s) * gauss();
+      *b_a += noise.accelerometer_random_walk * std::sqrt(period_s) * gauss();
+    }
+  }
+  return noisy;
+}
+
 // The exact preintegrated deltas between t_i and t_j (Eq. F1 of docs/factors.md).
 struct TrueDeltas {
   Eigen::Quaterniond dq;
