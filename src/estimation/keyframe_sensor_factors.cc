@@ -29,9 +29,14 @@ namespace autocal {
 namespace estimation {
 namespace internal {
 
+// Spans beyond this many seconds (about 31 years) do not fit an int64 count of nanoseconds
+// with room to add them to a stamp.
+constexpr double kMaxSpanS = 1e9;
+
 int64_t GapNs(double gap_s, const std::string& name) {
-  if (!std::isfinite(gap_s) || !(gap_s > 0.0)) {
-    throw Error(name + " must be a positive number of seconds, got " + std::to_string(gap_s));
+  if (!std::isfinite(gap_s) || !(gap_s > 0.0) || gap_s > kMaxSpanS) {
+    throw Error(name + " must be a positive number of seconds up to 1e9, got " +
+                std::to_string(gap_s));
   }
   return SecondsToNs(gap_s);
 }
@@ -359,8 +364,12 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
       form_blocks.form.form != sensors::WheelForm::kSpeedYawRate) {
     factor_options.yaw_row_track_m = *form_blocks.tracks.front();
   }
-  if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_sample_sigma_rad_s >= 0.0)) {
-    throw Error("AddWheelFactors: gyro_mean_span_s and gyro_sample_sigma_rad_s must be >= 0");
+  if (!(options.gyro_mean_span_s >= 0.0) || !(options.gyro_mean_span_s <= internal::kMaxSpanS) ||
+      !(options.gyro_sample_sigma_rad_s >= 0.0) ||
+      !std::isfinite(options.gyro_sample_sigma_rad_s)) {
+    throw Error(
+        "AddWheelFactors: gyro_mean_span_s must be within [0, 1e9] s and gyro_sample_sigma_rad_s "
+        "finite and >= 0");
   }
   // The wheels' mean over the gyro reading's span for the yaw-rate rows (Eq. K13b); a moving
   // mean over a span T is an error correlated over T / 2 in the sense of Eq. K6. With the

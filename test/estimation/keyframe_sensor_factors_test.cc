@@ -967,6 +967,24 @@ TEST_F(KeyframeSensorFactorsTest, AlignmentTakesTheFixesOnTheImuClock) {
   EXPECT_THROW(FixesOnImuClock(early, std::nan("")), Error);
 }
 
+// A gap option beyond 1e9 s is refused: in nanoseconds it passed int64 and wrapped to a
+// negative gap, which paired nothing, without a word.
+TEST_F(KeyframeSensorFactorsTest, AGapBeyondAnyLogIsRefused) {
+  std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, 0.0);
+  GnssAlignmentOptions options;
+  options.max_fix_gap_s = 1e12;
+  try {
+    AlignKeyframesToGnss(&keyframes, exact_->gnss.fixes, Converter(*exact_simulator_),
+                         exact_simulator_->true_calibration().p_I_A, options);
+    ADD_FAILURE() << "a gap of 1e12 s was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("max_fix_gap_s must be a positive number of seconds "
+                                         "up to 1e9"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // On the noisy fixes with multipath outliers the refits drop the outliers: the alignment
 // is as good as the fix noise allows.
 TEST_F(KeyframeSensorFactorsTest, AlignmentRejectsMultipathOutliers) {
