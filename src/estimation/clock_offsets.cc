@@ -234,13 +234,6 @@ ScalarSeries MovingAverage(const ScalarSeries& series, double width_s) {
   return out;
 }
 
-ScalarSeries Shifted(const ScalarSeries& series, double offset_s) {
-  const int64_t shift_ns = SecondsToNs(offset_s);
-  ScalarSeries out = series;
-  for (TimedValue& s : out) s.t_ns += shift_ns;
-  return out;
-}
-
 double InterpolateSeries(const ScalarSeries& series, int64_t t_ns) {
   const auto it = std::lower_bound(series.begin(), series.end(), t_ns,
                                    [](const TimedValue& s, int64_t t) { return s.t_ns < t; });

@@ -8,11 +8,13 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
+#include "autocal/estimation/clock_offsets.h"
 #include "autocal/estimation/keyframe_sensor_factors.h"
 #include "common/order_statistics.h"
 #include "estimation/keyframe_interpolation.h"
@@ -73,9 +75,7 @@ sensors::GnssFixes FixesOnImuClock(sensors::GnssFixes fixes, double time_offset_
   if (!std::isfinite(time_offset_gnss_imu_s)) {
     throw Error("FixesOnImuClock: the GNSS time offset must be finite");
   }
-  const int64_t shift_ns = SecondsToNs(time_offset_gnss_imu_s);
-  for (sensors::GnssFix& fix : fixes) fix.t_ns += shift_ns;
-  return fixes;
+  return Shifted(std::move(fixes), time_offset_gnss_imu_s);
 }
 
 GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,

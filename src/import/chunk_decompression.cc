@@ -12,6 +12,13 @@ namespace autocal {
 namespace import {
 namespace {
 
+// The first size of a decompression buffer that grows as the data comes out, so that a chunk
+// lying about its size costs no more memory than its data really holds; `limit` is one byte
+// beyond the declared size, which tells "more than declared" from "exactly declared".
+size_t FirstOutputSize(size_t compressed_bytes, size_t limit) {
+  return std::min(limit, std::max<size_t>(4 * compressed_bytes, 1 << 20));
+}
+
 // Bytes of a chunk after its compressed stream ended: the chunk's length is not its stream's,
 // and the records after the chunk would be read from the wrong place.
 std::string TrailingBytes(const char* stream, size_t bytes) {
@@ -34,11 +41,8 @@ std::string DecompressBz2Chunk(std::string_view compressed, size_t expected_byte
   std::unique_ptr<bz_stream, int (*)(bz_stream*)> end(&stream, &BZ2_bzDecompressEnd);
   stream.next_in = const_cast<char*>(compressed.data());
   stream.avail_in = static_cast<unsigned int>(compressed.size());
-  // The buffer grows as the data comes out, so that a chunk lying about its size costs no
-  // more memory than its data really holds; one byte beyond the declared size tells "more
-  // than declared" from "exactly declared".
   const size_t limit = expected_bytes + 1;
-  out->resize(std::min(limit, std::max<size_t>(4 * compressed.size(), 1 << 20)));
+  out->resize(FirstOutputSize(compressed.size(), limit));
   size_t produced = 0;
   for (;;) {
     stream.next_out = out->data() + produced;
@@ -76,9 +80,8 @@ std::string DecompressLz4FrameChunk(std::string_view compressed, size_t expected
   }
   std::unique_ptr<LZ4F_dctx, decltype(&LZ4F_freeDecompressionContext)> context(
       raw_context, &LZ4F_freeDecompressionContext);
-  // Grown as the data comes out, as in DecompressBz2Chunk.
   const size_t limit = expected_bytes + 1;
-  out->resize(std::min(limit, std::max<size_t>(4 * compressed.size(), 1 << 20)));
+  out->resize(FirstOutputSize(compressed.size(), limit));
   size_t in_pos = 0;
   size_t out_pos = 0;
   size_t hint = 1;

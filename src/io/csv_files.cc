@@ -1,7 +1,6 @@
 #include "autocal/io/csv_files.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -13,6 +12,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/initialization.h"
+#include "autocal/io/point_cloud_file.h"
 #include "common/order_statistics.h"
 #include "estimation/gyro_unit.h"
 #include "io/csv_format.h"
@@ -74,11 +74,8 @@ void CheckSweepFileName(const std::string& file) {
   if (bad)
     throw Error("invalid sweep file name '" + file +
                 "' (relative to lidar/, no ',', '..' or blanks)");
-  // The formats LoadSweep reads (io::ReadPointCloudFile), told here rather than halfway
-  // through a run.
-  std::string extension = std::filesystem::path(file).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (extension != ".ply" && extension != ".pcd") {
+  // The formats LoadSweep reads, told here rather than halfway through a run.
+  if (!IsPointCloudFileName(file)) {
     throw Error("sweep file '" + file + "' is neither .ply nor .pcd");
   }
 }

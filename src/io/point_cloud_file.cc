@@ -38,6 +38,11 @@ void AppendLittleEndianFloat(float value, std::string* out) {
 
 }  // namespace
 
+bool IsPointCloudFileName(const std::string& path) {
+  const std::string extension = LowerExtension(path);
+  return extension == "ply" || extension == "pcd";
+}
+
 lidar::PointCloud ReadPointCloudFile(const std::string& path,
                                      const PointCloudReadOptions& options) {
   const std::string extension = LowerExtension(path);

@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/estimation/clock_offsets.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "calibration_steps.h"
@@ -21,13 +23,6 @@ namespace {
 
 constexpr double kMinKeyframePeriodS = 0.05;
 constexpr double kMaxKeyframePeriodS = 0.5;
-
-// The samples' stamps moved by offset_s.
-template <typename Samples>
-void Shift(double offset_s, Samples* samples) {
-  const int64_t shift_ns = SecondsToNs(offset_s);
-  for (auto& s : *samples) s.t_ns += shift_ns;
-}
 
 }  // namespace
 
@@ -63,10 +58,11 @@ io::Dataset OnImuClock(const io::Dataset& dataset, io::Problem* problem,
   };
   apply(applied->time_offset_wheel_imu_s, &problem->calibration.time_offset_wheel_imu_s, "wheel");
   apply(applied->time_offset_gnss_imu_s, &problem->calibration.time_offset_gnss_imu_s, "GNSS");
-  Shift(applied->time_offset_wheel_imu_s, &out.wheel);
-  Shift(applied->time_offset_wheel_imu_s, &out.wheel_speeds);
-  Shift(applied->time_offset_wheel_imu_s, &out.odometry);
-  Shift(applied->time_offset_gnss_imu_s, &out.gnss);
+  out.wheel = estimation::Shifted(std::move(out.wheel), applied->time_offset_wheel_imu_s);
+  out.wheel_speeds =
+      estimation::Shifted(std::move(out.wheel_speeds), applied->time_offset_wheel_imu_s);
+  out.odometry = estimation::Shifted(std::move(out.odometry), applied->time_offset_wheel_imu_s);
+  out.gnss = estimation::Shifted(std::move(out.gnss), applied->time_offset_gnss_imu_s);
   out.sensors.nominal_calibration.time_offset_wheel_imu_s = 0.0;
   out.sensors.nominal_calibration.time_offset_gnss_imu_s = 0.0;
   return out;

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/time.h"
 #include "autocal/sensors/measurements.h"
 
 namespace autocal {
@@ -81,8 +82,14 @@ ScalarSeries AccelAlong(const sensors::ImuSamples& imu, const Eigen::Vector3d& a
 ScalarSeries CentralDerivative(const ScalarSeries& series);
 // Centred moving average over `width_s` (a symmetric filter: it delays nothing).
 ScalarSeries MovingAverage(const ScalarSeries& series, double width_s);
-// The same samples stamped offset_s later (onto the reference clock of that offset).
-ScalarSeries Shifted(const ScalarSeries& series, double offset_s);
+// The same samples stamped offset_s later (onto the reference clock of that offset): a series
+// here, or any vector of samples with an int64 t_ns (the dataset's wheel, odometry and GNSS).
+template <typename Samples>
+Samples Shifted(Samples samples, double offset_s) {
+  const int64_t shift_ns = SecondsToNs(offset_s);
+  for (auto& s : samples) s.t_ns += shift_ns;
+  return samples;
+}
 // Linear interpolation at t_ns, clamped to the ends; `series` must not be empty.
 double InterpolateSeries(const ScalarSeries& series, int64_t t_ns);
 

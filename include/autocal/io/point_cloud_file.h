@@ -30,6 +30,8 @@ struct PointCloudReadOptions {
 
 lidar::PointCloud ReadPointCloudFile(const std::string& path,
                                      const PointCloudReadOptions& options = {});
+// Whether ReadPointCloudFile reads `path` by its extension (.ply or .pcd, any case).
+bool IsPointCloudFileName(const std::string& path);
 
 // The two formats, for callers that know the format regardless of the extension.
 lidar::PointCloud ReadPly(const std::string& path, const PointCloudReadOptions& options = {});
