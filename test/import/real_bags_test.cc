@@ -27,6 +27,16 @@ namespace fs = std::filesystem;
 
 fs::path BagPath(const std::string& name) { return test::SharedDataDir("ros1_bags") / name; }
 
+// Options that import the shared bag `bag` into a fresh output directory `output` (a previous
+// run's output removed).
+ImportOptions FreshImport(const std::string& bag, const std::string& output) {
+  ImportOptions options;
+  options.input = BagPath(bag).string();
+  options.output = (test::OutputDir("out") / output).string();
+  fs::remove_all(options.output);
+  return options;
+}
+
 const TopicListing& Find(const std::vector<TopicListing>& topics, const std::string& name) {
   for (const TopicListing& topic : topics) {
     if (topic.topic == name) return topic;
@@ -119,10 +129,7 @@ std::vector<int64_t> RestStamps(const std::string& odometry_csv) {
 
 TEST(RealBagsTest, Test1ImportsIntoADatasetWithGravityOnPlusY) {
   AUTOCAL_REQUIRE_SHARED_DATA(BagPath("test1.bag"));
-  ImportOptions options;
-  options.input = BagPath("test1.bag").string();
-  options.output = (test::OutputDir("out") / "test1").string();
-  fs::remove_all(options.output);  // a previous run's output
+  const ImportOptions options = FreshImport("test1.bag", "test1");
   const ImportSummary summary = ImportBag(options);
   EXPECT_EQ(summary.odometry.topic, "/husky_velocity_controller/odom");
 
@@ -163,10 +170,7 @@ TEST(RealBagsTest, Test1ImportsIntoADatasetWithGravityOnPlusY) {
 // data are that twist (form speed_yaw_rate) at the rate the README states.
 TEST(RealBagsTest, Test1ImportsTheControllerTwistAsItsWheelData) {
   AUTOCAL_REQUIRE_SHARED_DATA(BagPath("test1.bag"));
-  ImportOptions options;
-  options.input = BagPath("test1.bag").string();
-  options.output = (test::OutputDir("out") / "test1_form").string();
-  fs::remove_all(options.output);
+  const ImportOptions options = FreshImport("test1.bag", "test1_form");
   const ImportSummary summary = ImportBag(options);
   const io::Dataset dataset = io::ReadDataset(options.output);
   ASSERT_TRUE(dataset.sensors.wheel.has_value());
@@ -191,10 +195,7 @@ TEST(RealBagsTest, Test1ImportsTheControllerTwistAsItsWheelData) {
 // twist, 3059 intervals over 61.18 s, is 50 Hz, not the division's 49.99999999999999.
 TEST(RealBagsTest, Test2StatesItsMeasuredRatesToSixDigits) {
   AUTOCAL_REQUIRE_SHARED_DATA(BagPath("test2.bag"));
-  ImportOptions options;
-  options.input = BagPath("test2.bag").string();
-  options.output = (test::OutputDir("out") / "test2_rates").string();
-  fs::remove_all(options.output);
+  const ImportOptions options = FreshImport("test2.bag", "test2_rates");
   ImportBag(options);
   const io::Dataset dataset = io::ReadDataset(options.output);
   ASSERT_TRUE(dataset.sensors.wheel.has_value());
