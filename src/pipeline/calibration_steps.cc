@@ -759,8 +759,9 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
 estimation::BlockObservability Observe(
     const io::Dataset& dataset, const OfflineCalibrationOptions& options,
     const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-    const estimation::BlockCovariance& covariance, OfflineCalibrationResult* result) {
-  RequirePlausible(dataset, options, blocks_estimated, covariance);
+    const estimation::BlockCovariance& solved, const estimation::BlockCovariance& covariance,
+    OfflineCalibrationResult* result) {
+  RequirePlausible(dataset, options, blocks_estimated, solved);
   if (!covariance.ok) {
     result->warnings.push_back(
         "the covariance of the calibration could not be computed; no sigma and no "

@@ -281,12 +281,15 @@ void RecordBoundAtTruth(const OfflineCalibrationOptions& options,
 
 // Observability and uncertainty (step 4): directions the drive did not excite are held at
 // their prior value, the rest conditioned on them (Eq. C1-C2), in `calibration` (the blocks'
-// data point into it); sigma, flags and warnings go into the result. Returns the flags (empty
-// without a covariance). Throws when the solve ended implausibly far from the priors.
+// data point into it), by `covariance` (widened by Eq. C8); sigma, flags and warnings go into
+// the result. Returns the flags (empty without a covariance). Throws when the solve ended
+// implausibly far from the priors, judged by `solved`, the covariance of the weighting that
+// moved the estimate there (RequirePlausible).
 estimation::BlockObservability Observe(
     const io::Dataset& dataset, const OfflineCalibrationOptions& options,
     const std::vector<estimation::EstimatedBlock>& blocks_estimated,
-    const estimation::BlockCovariance& covariance, OfflineCalibrationResult* result);
+    const estimation::BlockCovariance& solved, const estimation::BlockCovariance& covariance,
+    OfflineCalibrationResult* result);
 
 // The result's calibration values, trajectory, residual statistics and timings, from
 // `keyframes` and `calibration` as they are (after SolveAgainAfterHolding, so that both come

@@ -296,7 +296,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   RecordBoundAtTruth(options, blocks_estimated, &keyframes, &calibration, joint.get(),
                      problem.solver.num_threads, &result, {}, &ordering);
   const estimation::BlockObservability observability =
-      Observe(dataset, options, blocks_estimated, covariance, &result);
+      Observe(dataset, options, blocks_estimated, solved_covariance, covariance, &result);
   result.seconds_uncertainty = SecondsSince(uncertainty_start);
   const auto holding_start = std::chrono::steady_clock::now();
   // The same budget as the first solve: pinning the held directions can move a long
@@ -311,7 +311,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                            joint.get(), &result, budget);
   }
   result.seconds_after_holding = SecondsSince(holding_start);
-  RequirePlausible(dataset, options, blocks_estimated, covariance);
+  RequirePlausible(dataset, options, blocks_estimated, solved_covariance);
   const auto fixed_start = std::chrono::steady_clock::now();
   WarnOfFixedDirectionsTheDataMove(problem, dataset.sensors, options, use_wheel, use_gnss,
                                    &calibration, joint.get(), &result.warnings);

@@ -250,12 +250,12 @@ void SolveBatch(const io::Dataset& dataset, const io::Problem& problem,
     RecordPosterior(blocks, solved_covariance, covariance, solved, result);
     RecordBoundAtTruth(options, blocks, &keyframes->keyframes, calibration, p,
                        problem.solver.num_threads, result, lidar, &ordering);
-    observability = Observe(dataset, options, blocks, covariance, result);
+    observability = Observe(dataset, options, blocks, solved_covariance, covariance, result);
     result->seconds_uncertainty = SecondsSince(uncertainty_start);
     const auto holding_start = std::chrono::steady_clock::now();
     SolveAgainAfterHolding(problem, blocks, observability, solved, calibration, p, result);
     result->seconds_after_holding = SecondsSince(holding_start);
-    RequirePlausible(dataset, options, blocks, covariance);
+    RequirePlausible(dataset, options, blocks, solved_covariance);
     const auto fixed_start = std::chrono::steady_clock::now();
     WarnOfFixedDirectionsTheDataMove(problem, dataset.sensors, options, use_wheel, enu != nullptr,
                                      calibration, p, &result->warnings);
