@@ -754,6 +754,7 @@ std::optional<StretchScatter::Source> ScatterOfSource(ceres::Problem* problem,
   const double weight = 1.0 / static_cast<double>(runs);
   out.observed -= weight * total * total.transpose();
   out.expected -= weight * (out.model - factor.QuadraticForm(Y));
+  out.expected *= source.share_ratio;
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
+#include <string>
 
 #include "autocal/common/error.h"
 
@@ -74,6 +75,41 @@ void SandwichRatio::Add(double r) {
   weight_ += s > 0.0 ? rho[1] * rho[1] * s / rho[0] : 1.0;
   psi_squared_ += rho[1] * rho[1] * s;
   psi_slope_ += rho[1] + 2.0 * s * rho[2];  // d/dr (rho'(r^2) r)
+}
+
+RowPull SandwichRatio::pull() const {
+  if (loss_ == nullptr) return {static_cast<double>(count_), static_cast<double>(count_)};
+  return {psi_squared_, weight_};
+}
+
+RowPull ExpectedRowPull(const ceres::LossFunction* loss, int dimension) {
+  if (dimension < 1) {
+    throw Error("ExpectedRowPull: a residual block has at least one row, got " +
+                std::to_string(dimension));
+  }
+  const double k = static_cast<double>(dimension);
+  if (loss == nullptr) return {k, k};
+  // Over t = |r|, chi-distributed with k degrees of freedom: density
+  // t^(k-1) exp(-t^2 / 2) / (2^(k/2-1) Gamma(k/2)), by Simpson's rule on [0, sqrt(k) + 12],
+  // beyond which the density is below 1e-30.
+  constexpr int kIntervals = 4000;
+  const double end = std::sqrt(k) + 12.0;
+  const double h = end / kIntervals;
+  const double log_norm = (0.5 * k - 1.0) * std::log(2.0) + std::lgamma(0.5 * k);
+  RowPull out{0.0, 0.0};
+  for (int i = 0; i <= kIntervals; ++i) {
+    const double t = h * i;
+    const double simpson = (i == 0 || i == kIntervals) ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0);
+    const double density = t > 0.0 ? std::exp((k - 1.0) * std::log(t) - 0.5 * t * t - log_norm)
+                                   : (k == 1.0 ? std::exp(-log_norm) : 0.0);
+    double rho[3];
+    loss->Evaluate(t * t, rho);
+    out.pull_squared += simpson * density * rho[1] * rho[1] * t * t;
+    out.weight += simpson * density * k * rho[1];
+  }
+  out.pull_squared *= h / 3.0;
+  out.weight *= h / 3.0;
+  return out;
 }
 
 double SandwichRatio::kappa() const {

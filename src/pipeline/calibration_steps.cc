@@ -554,23 +554,9 @@ estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {
   estimation::ScaledInformation out;
   std::vector<ceres::ResidualBlockId> ids;
   problem->GetResidualBlocks(&ids);
-  const ceres::LossFunction* loss = nullptr;
-  std::vector<double> distances;
-  std::vector<double*> parameters;
-  for (const ceres::ResidualBlockId id : ids) {
-    const auto* group = dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(
-        problem->GetCostFunctionForResidualBlock(id));
-    if (group == nullptr) continue;
-    out.residual_blocks.push_back(id);
-    loss = group->loss();  // one loss for every point group of a solve
-    problem->GetParameterBlocksForResidualBlock(id, &parameters);
-    const size_t n = distances.size();
-    distances.resize(n + static_cast<size_t>(group->num_points()));
-    group->WhitenedDistances(parameters.data(), distances.data() + n);
-  }
-  factors::SandwichRatio ratio(loss);
-  for (const double r : distances) ratio.Add(r);
-  out.scale = 1.0 / ratio.kappa();
+  const std::optional<factors::SandwichRatio> ratio =
+      PointGroupDistances(problem, ids, &out.residual_blocks);
+  out.scale = ratio ? 1.0 / ratio->kappa() : 1.0;
   return out;
 }
 

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <set>
+#include <utility>
 
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/factors/imu_factor.h"
@@ -58,7 +59,49 @@ bool IsLidarCost(const ceres::CostFunction* f) {
          dynamic_cast<const factors::PointToPlaneFactor*>(f);
 }
 
+// The share ratio of `ids` (ResidualSources).
+double ShareRatio(ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids) {
+  factors::RowPull sum;
+  if (const std::optional<factors::SandwichRatio> points = PointGroupDistances(problem, ids)) {
+    sum = points->pull();
+  }
+  std::map<std::pair<const ceres::LossFunction*, int>, factors::RowPull> expected;
+  for (const ceres::ResidualBlockId id : ids) {
+    const ceres::CostFunction* f = problem->GetCostFunctionForResidualBlock(id);
+    if (dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(f) != nullptr) continue;
+    const auto key = std::make_pair(problem->GetLossFunctionForResidualBlock(id),
+                                    static_cast<int>(f->num_residuals()));
+    auto found = expected.find(key);
+    if (found == expected.end()) {
+      found = expected.emplace(key, factors::ExpectedRowPull(key.first, key.second)).first;
+    }
+    sum.pull_squared += found->second.pull_squared;
+    sum.weight += found->second.weight;
+  }
+  return sum.weight > 0.0 ? sum.pull_squared / sum.weight : 1.0;
+}
+
 }  // namespace
+
+std::optional<factors::SandwichRatio> PointGroupDistances(
+    ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
+    std::vector<ceres::ResidualBlockId>* groups) {
+  std::optional<factors::SandwichRatio> ratio;
+  std::vector<double> distances;
+  std::vector<double*> parameters;
+  for (const ceres::ResidualBlockId id : ids) {
+    const auto* group = dynamic_cast<const factors::PointToSweepPlaneGroupFactor*>(
+        problem->GetCostFunctionForResidualBlock(id));
+    if (group == nullptr) continue;
+    if (groups != nullptr) groups->push_back(id);
+    if (!ratio) ratio.emplace(group->loss());
+    problem->GetParameterBlocksForResidualBlock(id, &parameters);
+    distances.resize(static_cast<size_t>(group->num_points()));
+    group->WhitenedDistances(parameters.data(), distances.data());
+    for (const double r : distances) ratio->Add(r);
+  }
+  return ratio;
+}
 
 std::vector<estimation::ResidualSource> ResidualSources(ceres::Problem* problem) {
   std::map<std::string, std::vector<ceres::ResidualBlockId>> by_sensor = BlocksBySensor(problem);
@@ -77,6 +120,9 @@ std::vector<estimation::ResidualSource> ResidualSources(ceres::Problem* problem)
   if (!lidar.residual_blocks.empty()) out.push_back(std::move(lidar));
   for (auto& [sensor, ids] : by_sensor) out.push_back({sensor, std::move(ids)});
   if (!priors.residual_blocks.empty()) out.push_back(std::move(priors));
+  for (estimation::ResidualSource& source : out) {
+    source.share_ratio = ShareRatio(problem, source.residual_blocks);
+  }
   return out;
 }
 

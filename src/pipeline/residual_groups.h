@@ -7,10 +7,12 @@
 #include <ceres/ceres.h>
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "autocal/estimation/calibration_observability.h"
+#include "autocal/factors/loss.h"
 #include "autocal/pipeline/offline_calibration.h"
 
 namespace autocal {
@@ -29,8 +31,18 @@ std::map<std::string, double> WhitenedStatistics(const std::vector<double>& rows
 // Every residual block of `problem` by where its information comes from, for the error budget:
 // "lidar" (the point-to-plane factors), "imu", "wheel", "gnss", "planar_rotation", and
 // "priors" (every other factor: the blocks' priors, the first pose or the bias priors and
-// gauge of a run without the LiDAR), the empty ones left out.
+// gauge of a run without the LiDAR), the empty ones left out. Each with its share ratio
+// (Eq. C8): the point groups' from their own distances (the points' sigma is measured from
+// them, Eq. P10, and wrong pairs give them a heavier tail than a Gaussian's), every other
+// block's as its loss gives it for rows N(0, I) at their stated sigma.
 std::vector<estimation::ResidualSource> ResidualSources(ceres::Problem* problem);
+
+// The point groups (factors::PointToSweepPlaneGroupFactor) among `ids`, appended to `groups`
+// when given, with their whitened distances at the problem's values added to the ratio of
+// their loss (one loss for every point group of a solve); nullopt when there are none.
+std::optional<factors::SandwichRatio> PointGroupDistances(
+    ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
+    std::vector<ceres::ResidualBlockId>* groups = nullptr);
 
 // Whitened residual rows (no robust loss) of the IMU, wheel and GNSS factors in `problem`,
 // by sensor, at the current parameter values.

@@ -115,6 +115,11 @@ BlockCovariance ComputeBlockCovariance(const std::vector<EstimatedBlock>& blocks
 struct ResidualSource {
   std::string name;
   std::vector<ceres::ResidualBlockId> residual_blocks;
+  // What the source's share varies by, against the least-squares share its Jacobian states,
+  // when its rows follow the source's noise model: 1 for least squares, below 1 under a
+  // robust loss (factors::RowPull). Eq. C8 takes its expectation with it; the error budget
+  // does not use it.
+  double share_ratio = 1.0;
 };
 struct ErrorBudget {
   bool ok = false;             // false when J^T J is singular or the problem does not evaluate

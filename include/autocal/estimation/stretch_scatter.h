@@ -21,17 +21,19 @@ struct BlockCovariance;
 
 // Per source, over its stretches b (the calibration's stacked coordinates), with T = sum_b U_b:
 //   observed = sum_b U_b U_b^T - T T^T / B, the shares' scatter about their mean;
-//   expected = its expectation were the source's whitened residuals independent N(0, 1), at the
-//              fitted residuals: sum_b E_b - (model - Y^T H^-1 Y) / B, where
-//              E_b = V_b - Y_b^T H^-1 Y_b, V_b = X^T J_b^T J_b X, Y_b = J_b^T J_b X and
-//              Y = sum_b Y_b (the solve fits part of each stretch's noise away);
+//   expected = its expectation were the source's rows independent and as its noise model says,
+//              at the fitted residuals: share_ratio (sum_b E_b - (model - Y^T H^-1 Y) / B),
+//              where E_b = V_b - Y_b^T H^-1 Y_b, V_b = X^T J_b^T J_b X, Y_b = J_b^T J_b X and
+//              Y = sum_b Y_b (the solve fits part of each stretch's noise away), and
+//              ResidualSource::share_ratio what a robust loss makes the shares vary by;
 //   model    = sum_b V_b, the source's part of the covariance H^-1 (whose diagonal is
 //              `variance`);
 //   degrees_of_freedom = (sum_b E_b,cc)^2 / sum_b E_b,cc^2 - 1 per coordinate (Satterthwaite's,
 //              less the one the mean takes; at least 1): a drive whose turns fall in two
 //              stretches has about one.
 // The shares are taken with the robust losses as the solver applies them (Ceres' corrector):
-// rows a loss down-weights scatter as the M-estimator weighs them. Errors that change over the
+// rows a loss down-weights scatter as the M-estimator weighs them, which under Huber at 1
+// sigma is 0.57 times what their Jacobian states for Gaussian rows. Errors that change over the
 // log or noise larger than stated make observed exceed expected; the mean part of an error
 // common to every stretch (a prior that pulls the estimate off the rows' optimum) does not.
 struct StretchScatter {
