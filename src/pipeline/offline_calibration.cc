@@ -452,21 +452,29 @@ std::string FormatCalibrationValues(const io::CalibrationFile& file) {
          Eigen::VectorXd::Constant(1, *info.sigma * scale),
          info.observable.value_or(true) ? " yes" : " no", precision);
   };
-  // Rotations as roll, pitch, yaw of the mounting (mount_angles.h): `mount` is R_I_L for the
-  // LiDAR, R_V_I for the IMU in the vehicle.
+  // Rotations as roll, pitch, yaw of the mounting (mount_angles.h), with those angles' sigma
+  // and observability: `mount` is R_I_L for the LiDAR (its tangent about the LiDAR's axes),
+  // R_V_I for the IMU in the vehicle (about the vehicle's).
   const auto pose = [&](const std::string& name, const std::string& rotation_name,
-                        const Eigen::Quaterniond& mount, const Eigen::Vector3d& p,
-                        const io::PoseBlockInfo& info, int rotation_precision) {
+                        const Eigen::Quaterniond& mount, bool about_parent_axes,
+                        const Eigen::Vector3d& p, const io::PoseBlockInfo& info,
+                        int rotation_precision) {
     if (info.sigma_rot_deg) {
-      line(rotation_name, DisplayRollPitchYawDeg(mount, rotation_precision), *info.sigma_rot_deg,
-           flags(info.observable, 0, 3), rotation_precision);
+      const std::vector<bool> rotation_flags =
+          info.observable.size() > 1
+              ? std::vector<bool>(info.observable.begin(), info.observable.begin() + 3)
+              : info.observable;
+      const DisplayedAngles angles =
+          DisplayedAngleUncertainty(mount, about_parent_axes, *info.sigma_rot_deg, rotation_flags);
+      line(rotation_name, DisplayRollPitchYawDeg(mount, rotation_precision), angles.sigma_deg,
+           flags(angles.observable, 0, 3), rotation_precision);
     }
     if (info.sigma_p_m) {
       line(name + " translation (mm)", p * 1e3, *info.sigma_p_m * 1e3, flags(info.observable, 3, 3),
            1);
     }
   };
-  pose("T_I_L", "T_I_L roll pitch yaw (deg)", c.q_I_L, c.p_I_L, u.T_I_L, 4);
+  pose("T_I_L", "T_I_L roll pitch yaw (deg)", c.q_I_L, false, c.p_I_L, u.T_I_L, 4);
   scalar("time offset lidar->imu (ms)", c.time_offset_lidar_imu_s, u.time_offset_lidar_imu_s, 1e3,
          3);
   scalar("left rear wheel radius (mm)", c.wheel_radius_left_m, u.wheel_radius_left_m, 1e3, 3);
@@ -480,7 +488,8 @@ std::string FormatCalibrationValues(const io::CalibrationFile& file) {
   scalar("effective track (mm)", c.effective_track_m, u.effective_track_m, 1e3, 1);
   scalar("wheel clock offset (ms)", c.time_offset_wheel_imu_s, u.time_offset_wheel_imu_s, 1e3, 1);
   scalar("GNSS clock offset (ms)", c.time_offset_gnss_imu_s, u.time_offset_gnss_imu_s, 1e3, 1);
-  pose("T_I_V", "IMU mount roll pitch yaw (deg)", ImuMountInVehicle(c.q_I_V), c.p_I_V, u.T_I_V, 3);
+  pose("T_I_V", "IMU mount roll pitch yaw (deg)", ImuMountInVehicle(c.q_I_V), true, c.p_I_V,
+       u.T_I_V, 3);
   if (u.p_I_A_m.sigma) {
     line("GNSS lever arm p_I_A (mm)", c.p_I_A * 1e3, *u.p_I_A_m.sigma * 1e3,
          flags(u.p_I_A_m.observable, 0, 3), 1);

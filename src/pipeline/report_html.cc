@@ -159,6 +159,15 @@ bool LidarUsed(const estimation::LidarInertialBatchReport& batch) {
          !batch.final_point_residuals_m.empty();
 }
 
+// The mounting a rotation block stands for: R_I_L for q_I_L, R_V_I for q_I_V.
+Eigen::Quaterniond DisplayedMount(const sensors::CalibrationBlockInfo& info,
+                                  const sensors::Calibration& c) {
+  const double* v = info.const_values(c);
+  const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
+  const bool vehicle = info.id == sensors::CalibrationBlockId::kVehicleRotation;
+  return vehicle ? ImuMountInVehicle(q) : q;
+}
+
 // The displayed values of a block: a rotation as the roll, pitch and yaw (deg) of the mounting
 // it stands for (mount_angles.h), anything else in its display unit.
 Eigen::VectorXd DisplayValues(const sensors::CalibrationBlockInfo& info,
@@ -167,9 +176,7 @@ Eigen::VectorXd DisplayValues(const sensors::CalibrationBlockInfo& info,
   if (info.manifold != sensors::BlockManifold::kRightQuaternion) {
     return Eigen::Map<const Eigen::VectorXd>(v, info.ambient_size) * info.display_scale;
   }
-  const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
-  const bool vehicle = info.id == sensors::CalibrationBlockId::kVehicleRotation;
-  return DisplayRollPitchYawDeg(vehicle ? ImuMountInVehicle(q) : q, kAngleDecimals);
+  return DisplayRollPitchYawDeg(DisplayedMount(info, c), kAngleDecimals);
 }
 
 // A row's label: the mounting's angle for a rotation, else the block's name, axis and unit.
@@ -195,19 +202,23 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
     if (!u.sigma && !(lidar_used && info.sensor == sensors::BlockSensor::kLidar)) continue;
     const Eigen::VectorXd value = DisplayValues(info, result.calibration.value);
     const Eigen::VectorXd nominal = DisplayValues(info, result.nominal);
-    // A rotation's sigma is about its own axes in degrees, shown beside the mounting's angles.
-    const double sigma_scale =
-        info.manifold == sensors::BlockManifold::kRightQuaternion ? 1.0 : info.display_scale;
+    const bool rotation = info.manifold == sensors::BlockManifold::kRightQuaternion;
+    std::optional<Eigen::VectorXd> sigma;
+    std::vector<bool> observable = u.observable;
+    if (u.sigma) sigma = *u.sigma * (rotation ? 1.0 : info.display_scale);
+    if (u.sigma && rotation) {  // the angles' own sigma and flags (mount_angles.h)
+      const DisplayedAngles angles = DisplayedAngleUncertainty(
+          DisplayedMount(info, result.calibration.value),
+          info.id == sensors::CalibrationBlockId::kVehicleRotation, *u.sigma, u.observable);
+      sigma = angles.sigma_deg;
+      observable = angles.observable;
+    }
     for (int k = 0; k < info.tangent_size; ++k) {
       rows << "<tr><td>" << RowLabel(info, k) << "</td><td>"
-           << (info.manifold == sensors::BlockManifold::kRightQuaternion
-                   ? FormatFixed(value(k), kAngleDecimals)
-                   : Number(value(k)))
-           << "</td><td>" << (u.sigma ? Number((*u.sigma)(k)*sigma_scale) : "–") << "</td><td>"
-           << (info.manifold == sensors::BlockManifold::kRightQuaternion
-                   ? FormatFixed(nominal(k), kAngleDecimals)
-                   : Number(nominal(k)))
-           << "</td><td>" << Observable(u.observable, static_cast<size_t>(k)) << "</td></tr>";
+           << (rotation ? FormatFixed(value(k), kAngleDecimals) : Number(value(k))) << "</td><td>"
+           << (sigma ? Number((*sigma)(k)) : "–") << "</td><td>"
+           << (rotation ? FormatFixed(nominal(k), kAngleDecimals) : Number(nominal(k)))
+           << "</td><td>" << Observable(observable, static_cast<size_t>(k)) << "</td></tr>";
     }
   }
   const std::string body = rows.str();
