@@ -10,9 +10,11 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -37,18 +39,145 @@ namespace python {
 namespace {
 
 using RowsX3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using RowsX4 = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
 using Stamps = Eigen::Matrix<int64_t, Eigen::Dynamic, 1>;
+
+// ---- Arrays in, checked as the dataset readers check the files ----
+
+// As the dataset readers: a stamp within 2^62 ns (146 years) of 1970, so that differences
+// of stamps stay in int64.
+constexpr int64_t kMaxStampNs = int64_t{1} << 62;
+
+std::string Named(const std::string& name, const std::string& message) {
+  return name + ": " + message;
+}
+
+// np.asarray(object): a list becomes an array of its natural dtype.
+py::array AsArray(py::handle object, const std::string& name) {
+  py::array array = py::array::ensure(object);
+  if (!array) {
+    throw py::type_error(
+        Named(name, "expected an array, got " + std::string(py::str(py::type::of(object)))));
+  }
+  return array;
+}
+
+std::string DtypeOf(const py::array& array) { return py::str(array.dtype()); }
+
+std::string ShapeOf(const py::array& array) {
+  std::string shape;
+  for (py::ssize_t d = 0; d < array.ndim(); ++d) {
+    shape += (d > 0 ? ", " : "") + std::to_string(array.shape(d));
+  }
+  return "(" + shape + (array.ndim() == 1 ? ",)" : ")");
+}
+
+// Copies integer stamps of any integer dtype; every value must be within kMaxStampNs.
+template <typename Integer>
+Stamps CopyStamps(const py::array& array, const std::string& name) {
+  const auto values =
+      py::array_t<Integer, py::array::forcecast>::ensure(array).template unchecked<1>();
+  Stamps t(values.shape(0));
+  for (py::ssize_t k = 0; k < values.shape(0); ++k) {
+    const Integer value = values(k);
+    const bool negative = std::is_signed_v<Integer> && value < 0;
+    const uint64_t magnitude =
+        negative ? 0 - static_cast<uint64_t>(value) : static_cast<uint64_t>(value);
+    if (magnitude > static_cast<uint64_t>(kMaxStampNs)) {
+      throw Error(Named(name, "stamp " + std::to_string(k) + " is " + std::to_string(value) +
+                                  " ns, more than 146 years from 1970 (2^62 ns): not a time in "
+                                  "nanoseconds"));
+    }
+    t(k) = static_cast<int64_t>(value);
+  }
+  return t;
+}
+
+// Stamps in int64 nanoseconds: a 1-D array of an integer dtype (the values kept exactly),
+// strictly increasing as every stream of a dataset. Float, complex and bool arrays are refused
+// rather than rounded (an empty float array, what np.asarray([]) gives, is no stamps).
+Stamps ToStamps(py::handle object, const std::string& name) {
+  const py::array array = AsArray(object, name);
+  if (array.ndim() != 1) {
+    throw Error(Named(name, "expected a 1-D array of stamps, got shape " + ShapeOf(array)));
+  }
+  const char kind = array.dtype().kind();
+  if (array.size() == 0 && kind == 'f') return Stamps(0);
+  if (kind != 'i' && kind != 'u') {
+    throw py::type_error(
+        Named(name, "expected integer nanoseconds (an int64 array), got dtype " + DtypeOf(array)));
+  }
+  const Stamps t =
+      kind == 'u' ? CopyStamps<uint64_t>(array, name) : CopyStamps<int64_t>(array, name);
+  for (Eigen::Index k = 1; k < t.size(); ++k) {
+    if (t(k) <= t(k - 1)) {
+      throw Error(Named(name, "stamp " + std::to_string(k) + " (" + std::to_string(t(k)) +
+                                  " ns) is not after stamp " + std::to_string(k - 1) + " (" +
+                                  std::to_string(t(k - 1)) +
+                                  " ns): stamps must strictly increase"));
+    }
+  }
+  return t;
+}
+
+// Real numbers, finite as the dataset readers require: a float or integer array of shape
+// (N, Cols) (an empty 1-D array is no rows). Complex, bool and non-numeric arrays are refused
+// rather than cast.
+template <int Cols>
+Eigen::Matrix<double, Eigen::Dynamic, Cols, Eigen::RowMajor> ToRows(py::handle object,
+                                                                    const std::string& name) {
+  const py::array array = AsArray(object, name);
+  const char kind = array.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    throw py::type_error(
+        Named(name, "expected real numbers (a float array), got dtype " + DtypeOf(array)));
+  }
+  Eigen::Matrix<double, Eigen::Dynamic, Cols, Eigen::RowMajor> out(0, Cols);
+  if (array.ndim() == 1 && array.size() == 0) return out;
+  if (array.ndim() != 2 || array.shape(1) != Cols) {
+    throw Error(Named(
+        name, "expected an (N, " + std::to_string(Cols) + ") array, got shape " + ShapeOf(array)));
+  }
+  const auto values =
+      py::array_t<double, py::array::forcecast>::ensure(array).template unchecked<2>();
+  out.resize(values.shape(0), Cols);
+  for (py::ssize_t i = 0; i < values.shape(0); ++i) {
+    for (py::ssize_t j = 0; j < Cols; ++j) {
+      if (!std::isfinite(values(i, j))) {
+        throw Error(Named(name, "row " + std::to_string(i) + " has a non-finite value (" +
+                                    std::to_string(values(i, j)) + ")"));
+      }
+      out(i, j) = values(i, j);
+    }
+  }
+  return out;
+}
+
+// A vector of N real numbers (shape (N,)), checked as ToRows checks rows.
+template <int N>
+Eigen::Matrix<double, N, 1> ToVector(py::handle object, const std::string& name) {
+  py::array array = AsArray(object, name);
+  if (array.ndim() != 1 || array.shape(0) != N) {
+    throw Error(Named(name, "expected an array of shape (" + std::to_string(N) + ",), got shape " +
+                                ShapeOf(array)));
+  }
+  return ToRows<N>(array.reshape({py::ssize_t{1}, py::ssize_t{N}}), name).row(0).transpose();
+}
 
 // ---- Arrays <-> measurements ----
 
-void RequireRows(const char* what, Eigen::Index rows, Eigen::Index expected) {
+void RequireRows(const std::string& what, Eigen::Index rows, Eigen::Index expected) {
   if (rows != expected) {
-    throw Error(std::string(what) + ": " + std::to_string(rows) + " rows for " +
-                std::to_string(expected) + " stamps");
+    throw Error(what + ": " + std::to_string(rows) + " rows for " + std::to_string(expected) +
+                " stamps");
   }
 }
 
-sensors::ImuSamples ImuFromArrays(const Stamps& t_ns, const RowsX3& gyro, const RowsX3& accel) {
+sensors::ImuSamples ImuFromArrays(py::handle t_ns_array, py::handle gyro_array,
+                                  py::handle accel_array) {
+  const Stamps t_ns = ToStamps(t_ns_array, "t_ns");
+  const RowsX3 gyro = ToRows<3>(gyro_array, "gyro_rad_s");
+  const RowsX3 accel = ToRows<3>(accel_array, "accel_m_s2");
   RequireRows("gyro_rad_s", gyro.rows(), t_ns.size());
   RequireRows("accel_m_s2", accel.rows(), t_ns.size());
   sensors::ImuSamples imu(static_cast<size_t>(t_ns.size()));
@@ -58,6 +187,35 @@ sensors::ImuSamples ImuFromArrays(const Stamps& t_ns, const RowsX3& gyro, const 
     imu[k].accel_m_s2 = accel.row(k).transpose();
   }
   return imu;
+}
+
+// GNSS fixes, refused where gnss.csv's reader refuses them: latitude beyond ±90°, longitude
+// beyond ±180°, a standard deviation not positive.
+sensors::GnssFixes GnssFromArrays(py::handle t_ns_array, py::handle lat_lon_alt_array,
+                                  py::handle std_enu_array) {
+  const Stamps t_ns = ToStamps(t_ns_array, "t_ns");
+  const RowsX3 lat_lon_alt = ToRows<3>(lat_lon_alt_array, "lat_lon_alt");
+  const RowsX3 std_enu = ToRows<3>(std_enu_array, "std_enu_m");
+  RequireRows("lat_lon_alt", lat_lon_alt.rows(), t_ns.size());
+  RequireRows("std_enu_m", std_enu.rows(), t_ns.size());
+  sensors::GnssFixes fixes(static_cast<size_t>(t_ns.size()));
+  for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
+    const std::string row = "row " + std::to_string(k) + ": ";
+    if (std::abs(lat_lon_alt(k, 0)) > 90.0 || std::abs(lat_lon_alt(k, 1)) > 180.0) {
+      throw Error(Named("lat_lon_alt", row +
+                                           "latitude must be within [-90, 90] deg and longitude "
+                                           "within [-180, 180] deg, got " +
+                                           std::to_string(lat_lon_alt(k, 0)) + ", " +
+                                           std::to_string(lat_lon_alt(k, 1))));
+    }
+    if (!(std_enu.row(k).minCoeff() > 0.0)) {
+      throw Error(Named("std_enu_m", row + "a standard deviation must be > 0, got " +
+                                         std::to_string(std_enu.row(k).minCoeff())));
+    }
+    fixes[k] = {t_ns(k), lat_lon_alt(k, 0), lat_lon_alt(k, 1), lat_lon_alt(k, 2),
+                std_enu.row(k).transpose()};
+  }
+  return fixes;
 }
 
 template <typename Samples, typename Get>
@@ -88,11 +246,15 @@ py::dict TrajectoryDict(const io::Trajectory& trajectory) {
   return d;
 }
 
-io::Trajectory TrajectoryFromArrays(
-    const Stamps& t_ns, const RowsX3& p,
-    const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& q) {
-  RequireRows("p_W_I", p.rows(), t_ns.size());
-  RequireRows("q_W_I_xyzw", q.rows(), t_ns.size());
+// A trajectory from (t_ns, positions (N,3), quaternions xyzw (N,4)), the arrays named
+// `prefix` + "t_ns", "p_W_I", "q_W_I_xyzw" in messages.
+io::Trajectory TrajectoryFromArrays(py::handle t_ns_array, py::handle p_array, py::handle q_array,
+                                    const std::string& prefix) {
+  const Stamps t_ns = ToStamps(t_ns_array, prefix + "t_ns");
+  const RowsX3 p = ToRows<3>(p_array, prefix + "p_W_I");
+  const RowsX4 q = ToRows<4>(q_array, prefix + "q_W_I_xyzw");
+  RequireRows(prefix + "p_W_I", p.rows(), t_ns.size());
+  RequireRows(prefix + "q_W_I_xyzw", q.rows(), t_ns.size());
   io::Trajectory out(static_cast<size_t>(t_ns.size()));
   for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
     out[k].t_ns = t_ns(k);
@@ -173,9 +335,9 @@ void BindCalibration(py::module_& m) {
       py::arg("path"), "a trajectory.tum (T_W_I on the IMU clock) as t_ns, p_W_I, q_W_I_xyzw");
   m.def(
       "write_trajectory",
-      [](const std::string& path, const Stamps& t_ns, const RowsX3& p,
-         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& q) {
-        io::WriteTumTrajectory(path, TrajectoryFromArrays(t_ns, p, q));
+      [](const std::string& path, const py::object& t_ns, const py::object& p,
+         const py::object& q) {
+        io::WriteTumTrajectory(path, TrajectoryFromArrays(t_ns, p, q, ""));
       },
       py::arg("path"), py::arg("t_ns"), py::arg("p_W_I"), py::arg("q_W_I_xyzw"),
       "writes a TUM trajectory (what autocal_evaluate reads)");
@@ -204,6 +366,17 @@ void BindCalibration(py::module_& m) {
 
 // ---- Dataset ----
 
+// Reads a written dataset as read_dataset does, so that what it would refuse (stamps not in
+// nanoseconds, an IMU in other units) is reported by the write rather than by a later read.
+void ReadBack(const std::string& directory) {
+  try {
+    io::ReadDataset(directory);
+  } catch (const Error& e) {
+    throw Error("write_dataset: '" + directory +
+                "' was written, but the dataset reader refuses it: " + e.what());
+  }
+}
+
 void BindDataset(py::module_& m) {
   py::class_<io::Dataset>(m, "Dataset",
                           "a dataset directory (datasets/README.md); arrays are copies")
@@ -231,9 +404,8 @@ void BindDataset(py::module_& m) {
                              })
       .def(
           "set_imu",
-          [](io::Dataset& d, const Stamps& t_ns, const RowsX3& gyro, const RowsX3& accel) {
-            d.imu = ImuFromArrays(t_ns, gyro, accel);
-          },
+          [](io::Dataset& d, const py::object& t_ns, const py::object& gyro,
+             const py::object& accel) { d.imu = ImuFromArrays(t_ns, gyro, accel); },
           py::arg("t_ns"), py::arg("gyro_rad_s"), py::arg("accel_m_s2"))
       .def_property_readonly("gnss_t_ns",
                              [](const io::Dataset& d) {
@@ -254,14 +426,9 @@ void BindDataset(py::module_& m) {
                              })
       .def(
           "set_gnss",
-          [](io::Dataset& d, const Stamps& t_ns, const RowsX3& lat_lon_alt, const RowsX3& std_enu) {
-            RequireRows("lat_lon_alt", lat_lon_alt.rows(), t_ns.size());
-            RequireRows("std_enu_m", std_enu.rows(), t_ns.size());
-            d.gnss.assign(static_cast<size_t>(t_ns.size()), sensors::GnssFix());
-            for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
-              d.gnss[k] = {t_ns(k), lat_lon_alt(k, 0), lat_lon_alt(k, 1), lat_lon_alt(k, 2),
-                           std_enu.row(k).transpose()};
-            }
+          [](io::Dataset& d, const py::object& t_ns, const py::object& lat_lon_alt,
+             const py::object& std_enu) {
+            d.gnss = GnssFromArrays(t_ns, lat_lon_alt, std_enu);
             if (!d.sensors.gnss) d.sensors.gnss = sensors::GnssConfig();
           },
           py::arg("t_ns"), py::arg("lat_lon_alt"), py::arg("std_enu_m"))
@@ -322,6 +489,7 @@ void BindDataset(py::module_& m) {
               "write_dataset: datasets with LiDAR sweeps are written by autocal_import "
               "or autocal_simulate");
         }
+        if (d.imu.empty()) throw Error("write_dataset: the dataset has no IMU samples (set_imu)");
         io::DatasetWriter writer(directory);
         writer.WriteSensorsConfig(d.sensors);
         writer.WriteImu(d.imu);
@@ -330,9 +498,11 @@ void BindDataset(py::module_& m) {
         if (!d.odometry.empty()) writer.WriteOdometry(d.odometry);
         if (!d.gnss.empty()) writer.WriteGnss(d.gnss);
         writer.Close();
+        ReadBack(directory);
       },
       py::arg("directory"), py::arg("dataset"),
-      "writes a dataset without LiDAR (IMU, wheel data in its form, GNSS, sensors.yaml)");
+      "writes a dataset without LiDAR (IMU, wheel data in its form, GNSS, sensors.yaml) and "
+      "reads it back: raises autocal.Error when read_dataset would refuse it");
 }
 
 // ---- Calibration and online estimation ----
@@ -499,10 +669,11 @@ void BindPipeline(py::module_& m) {
 void BindAlgorithms(py::module_& m) {
   m.def(
       "preintegrate",
-      [](const Stamps& t_ns, const RowsX3& gyro, const RowsX3& accel, int64_t t_start_ns,
-         int64_t t_end_ns, double gyroscope_noise_density, double accelerometer_noise_density,
-         double gyroscope_random_walk, double accelerometer_random_walk, double gravity_m_s2,
-         const Eigen::Vector3d& b_g, const Eigen::Vector3d& b_a) {
+      [](const py::object& t_ns, const py::object& gyro, const py::object& accel,
+         int64_t t_start_ns, int64_t t_end_ns, double gyroscope_noise_density,
+         double accelerometer_noise_density, double gyroscope_random_walk,
+         double accelerometer_random_walk, double gravity_m_s2, const py::object& b_g,
+         const py::object& b_a) {
         sensors::ImuNoise noise;
         noise.gyroscope_noise_density = gyroscope_noise_density;
         noise.accelerometer_noise_density = accelerometer_noise_density;
@@ -510,7 +681,8 @@ void BindAlgorithms(py::module_& m) {
         noise.accelerometer_random_walk = accelerometer_random_walk;
         sensors::PreintegrationOptions options;
         options.gravity_m_s2 = gravity_m_s2;
-        sensors::ImuPreintegration pre(noise, options, b_g, b_a);
+        sensors::ImuPreintegration pre(noise, options, ToVector<3>(b_g, "b_g"),
+                                       ToVector<3>(b_a, "b_a"));
         pre.Integrate(ImuFromArrays(t_ns, gyro, accel), t_start_ns, t_end_ns);
         py::dict d;
         d["dt_s"] = pre.dt_s();
@@ -524,15 +696,16 @@ void BindAlgorithms(py::module_& m) {
       py::arg("t_end_ns"), py::arg("gyroscope_noise_density") = 1.6968e-4,
       py::arg("accelerometer_noise_density") = 2.0e-3, py::arg("gyroscope_random_walk") = 1.9393e-5,
       py::arg("accelerometer_random_walk") = 3.0e-3, py::arg("gravity_m_s2") = 9.80665,
-      py::arg("b_g") = Eigen::Vector3d::Zero(), py::arg("b_a") = Eigen::Vector3d::Zero(),
+      py::arg("b_g") = std::vector<double>(3, 0.0), py::arg("b_a") = std::vector<double>(3, 0.0),
       "IMU preintegration over [t_start_ns, t_end_ns] (docs/factors.md, Eq. F3-F5): dt_s, "
       "delta_R, delta_v, delta_p and the 15x15 covariance of [dphi, dv, dp, dbg, dba]");
 
   m.def(
       "register",
-      [](const RowsX3& source, const RowsX3& target, const Eigen::Matrix4d& init,
-         const std::string& method, const std::string& loss, double loss_scale_m, double voxel_m,
-         double max_correspondence_m, int max_iterations, int num_threads) {
+      [](const py::object& source_array, const py::object& target_array,
+         const py::object& init_array, const std::string& method, const std::string& loss,
+         double loss_scale_m, double voxel_m, double max_correspondence_m, int max_iterations,
+         int num_threads) {
         lidar::RegistrationOptions setting = lidar::MakeRegistrationOptions(
             method, loss, loss_scale_m, voxel_m, max_correspondence_m);
         if (max_iterations < 1 || num_threads < 1) {
@@ -541,9 +714,15 @@ void BindAlgorithms(py::module_& m) {
         setting.icp.convergence.max_iterations = max_iterations;
         setting.icp.num_threads = num_threads;
         lidar::PointCloud s, t;
-        s.points = source.transpose();
-        t.points = target.transpose();
-        const geometry::Pose3d guess = lidar::PoseGuessFromMatrix(init, "register: init");
+        s.points = ToRows<3>(source_array, "source").transpose();
+        t.points = ToRows<3>(target_array, "target").transpose();
+        const RowsX4 init = ToRows<4>(init_array, "init");
+        if (init.rows() != 4) {
+          throw Error("init: expected a (4, 4) array, got " + std::to_string(init.rows()) +
+                      " rows");
+        }
+        const geometry::Pose3d guess =
+            lidar::PoseGuessFromMatrix(Eigen::Matrix4d(init), "register: init");
         lidar::RegistrationResult r;
         {
           py::gil_scoped_release release;
@@ -558,7 +737,9 @@ void BindAlgorithms(py::module_& m) {
         d["fitness"] = r.icp.fitness;
         return d;
       },
-      py::arg("source"), py::arg("target"), py::arg("init") = Eigen::Matrix4d::Identity(),
+      py::arg("source"), py::arg("target"),
+      py::arg("init") =
+          std::vector<std::vector<double>>{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}},
       py::arg("method") = "point_to_plane", py::arg("loss") = "none", py::arg("loss_scale_m") = 0.1,
       py::arg("voxel_m") = 0.25, py::arg("max_correspondence_m") = 1.0,
       py::arg("max_iterations") = 30, py::arg("num_threads") = 1,
@@ -588,13 +769,11 @@ void BindAlgorithms(py::module_& m) {
       "estimate minus truth per block (docs/evaluation.md, \"Calibration\")");
   m.def(
       "compare_trajectory",
-      [](const Stamps& est_t, const RowsX3& est_p,
-         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& est_q,
-         const Stamps& true_t, const RowsX3& true_p,
-         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& true_q) {
+      [](const py::object& est_t, const py::object& est_p, const py::object& est_q,
+         const py::object& true_t, const py::object& true_p, const py::object& true_q) {
         const evaluation::TrajectoryErrors e =
-            evaluation::CompareTrajectory(TrajectoryFromArrays(est_t, est_p, est_q),
-                                          TrajectoryFromArrays(true_t, true_p, true_q));
+            evaluation::CompareTrajectory(TrajectoryFromArrays(est_t, est_p, est_q, ""),
+                                          TrajectoryFromArrays(true_t, true_p, true_q, "true_"));
         py::dict d;
         d["matched_poses"] = e.matched_poses;
         d["ate_translation_rmse_m"] = e.ate_translation_rmse_m;

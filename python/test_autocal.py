@@ -88,6 +88,92 @@ class Datasets(unittest.TestCase):
         d = autocal.Dataset()
         with self.assertRaises(autocal.Error):
             d.set_imu(np.arange(3, dtype=np.int64), np.zeros((2, 3)), np.zeros((3, 3)))
+        with self.assertRaisesRegex(autocal.Error, r"gyro_rad_s: expected an \(N, 3\) array"):
+            d.set_imu(np.arange(3, dtype=np.int64), np.zeros((3, 4)), np.zeros((3, 3)))
+
+
+class ArrayChecks(unittest.TestCase):
+    """Stamps are integer nanoseconds kept exactly, values real and finite: what the dataset
+    readers accept, refused with the argument's name otherwise rather than cast."""
+
+    def setUp(self):
+        self.rates = np.zeros((2, 3))
+        self.accel = np.tile([0.0, 0.0, 9.81], (2, 1))
+
+    def test_stamps_that_are_not_integers_are_refused(self):
+        d = autocal.Dataset()
+        for stamps in [np.array([1.5, 2.7]), np.array([np.nan, 1.0]), np.array([1e30, 1.0]),
+                       np.array([1.7e18, 1.7e18 + 256]), np.array([True, False]),
+                       np.array([1 + 0j, 2 + 0j])]:
+            with self.assertRaisesRegex(TypeError, "t_ns: .*dtype " + str(stamps.dtype)):
+                d.set_imu(stamps, self.rates, self.accel)
+        self.assertEqual(len(d.imu_t_ns), 0)
+        with self.assertRaisesRegex(TypeError, "t_ns: .*float64"):
+            autocal.preintegrate(np.array([0.0, 1e7]), self.rates, self.accel, 0, 10_000_000)
+        with self.assertRaisesRegex(TypeError, "true_t_ns: .*float64"):
+            autocal.compare_trajectory([0, 1], np.zeros((2, 3)), np.tile([0, 0, 0, 1.0], (2, 1)),
+                                       np.array([0.0, 1.0]), np.zeros((2, 3)),
+                                       np.tile([0, 0, 0, 1.0], (2, 1)))
+        with self.assertRaisesRegex(TypeError, "t_ns: .*float64"):
+            autocal.write_trajectory(os.path.join(output_dir("stamps"), "t.tum"),
+                                     np.array([0.0, 1.0]), np.zeros((2, 3)),
+                                     np.tile([0, 0, 0, 1.0], (2, 1)))
+
+    def test_integer_stamps_are_kept_exactly(self):
+        d = autocal.Dataset()
+        d.set_imu([1_700_000_000_000_000_001, 1_700_000_000_000_000_002], self.rates, self.accel)
+        self.assertEqual(d.imu_t_ns.dtype, np.int64)
+        self.assertEqual(list(d.imu_t_ns), [1_700_000_000_000_000_001, 1_700_000_000_000_000_002])
+        d.set_imu(np.array([5, 2**40], dtype=np.uint64), self.rates, self.accel)
+        self.assertEqual(list(d.imu_t_ns), [5, 2**40])
+        d.set_imu(np.array([-7, 3], dtype=np.int8), self.rates, self.accel)
+        self.assertEqual(list(d.imu_t_ns), [-7, 3])
+
+    def test_stamps_out_of_range_or_order_are_refused(self):
+        d = autocal.Dataset()
+        with self.assertRaisesRegex(autocal.Error, "t_ns: stamp 0 is 9223372036854775813 ns"):
+            d.set_imu(np.array([2**63 + 5, 2**63 + 6], dtype=np.uint64), self.rates, self.accel)
+        with self.assertRaisesRegex(autocal.Error, "146 years"):
+            d.set_imu(np.array([-2**63, 0], dtype=np.int64), self.rates, self.accel)
+        with self.assertRaisesRegex(autocal.Error, "t_ns: stamp 1 .* strictly increase"):
+            d.set_imu(np.array([20, 10]), self.rates, self.accel)
+
+    def test_values_that_are_not_finite_real_numbers_are_refused(self):
+        d = autocal.Dataset()
+        t_ns = np.array([1, 2])
+        with self.assertRaisesRegex(TypeError, "gyro_rad_s: .*complex128"):
+            d.set_imu(t_ns, self.rates + 1j, self.accel)
+        with self.assertRaisesRegex(TypeError, "accel_m_s2: .*<U"):
+            d.set_imu(t_ns, self.rates, self.accel.astype(str))
+        accel = self.accel.copy()
+        accel[1, 2] = np.nan
+        with self.assertRaisesRegex(autocal.Error, "accel_m_s2: row 1 has a non-finite value"):
+            d.set_imu(t_ns, self.rates, accel)
+        with self.assertRaisesRegex(autocal.Error, "gyro_rad_s: row 1"):
+            autocal.preintegrate(t_ns, np.array([[0, 0, 0], [np.inf, 0, 0]]), self.accel, 1, 2)
+        with self.assertRaisesRegex(TypeError, "b_g: .*complex128"):
+            autocal.preintegrate(t_ns, self.rates, self.accel, 1, 2, b_g=np.zeros(3) + 1j)
+        self.assertEqual(len(d.imu_t_ns), 0)
+
+    def test_gnss_fixes_are_refused_as_gnss_csv_refuses_them(self):
+        d = autocal.Dataset()
+        t_ns = np.array([1, 2])
+        lla = np.array([[49.0, 8.4, 165.0], [91.0, 8.4, 165.0]])
+        with self.assertRaisesRegex(autocal.Error, "lat_lon_alt: row 1: latitude"):
+            d.set_gnss(t_ns, lla, np.full((2, 3), 0.5))
+        with self.assertRaisesRegex(autocal.Error, "std_enu_m: row 0: a standard deviation"):
+            d.set_gnss(t_ns, lla[:1].repeat(2, axis=0), np.array([[0.5, 0.0, 0.5], [0.5] * 3]))
+        self.assertEqual(len(d.gnss_t_ns), 0)
+
+    def test_write_dataset_refuses_what_read_dataset_refuses(self):
+        directory = output_dir("refused_dataset")
+        with self.assertRaisesRegex(autocal.Error, "no IMU samples"):
+            autocal.write_dataset(directory, autocal.Dataset())
+        n = 100
+        d = autocal.Dataset()  # 200 Hz stamped in microseconds
+        d.set_imu(1_000_000 + 5_000 * np.arange(n), np.zeros((n, 3)), np.tile([0, 0, 9.81], (n, 1)))
+        with self.assertRaisesRegex(autocal.Error, "written, but .* microseconds"):
+            autocal.write_dataset(directory, d)
 
 
 class Sweeps(unittest.TestCase):
