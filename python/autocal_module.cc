@@ -7,12 +7,14 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl_bind.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -33,6 +35,15 @@
 #include "autocal/sensors/imu_preintegration.h"
 
 namespace py = pybind11;
+
+// CalibrationFile's solver and residual maps are bound as Python objects over the C++ maps
+// (not converted to dict copies), so that f.solver["k"] = "v" changes the file's map.
+using SolverSummary = std::map<std::string, std::string>;
+using ResidualStatistics = std::map<std::string, double>;
+using Residuals = std::map<std::string, ResidualStatistics>;
+PYBIND11_MAKE_OPAQUE(SolverSummary)
+PYBIND11_MAKE_OPAQUE(ResidualStatistics)
+PYBIND11_MAKE_OPAQUE(Residuals)
 
 namespace autocal {
 namespace python {
@@ -266,27 +277,70 @@ io::Trajectory TrajectoryFromArrays(py::handle t_ns_array, py::handle p_array, p
 
 // ---- Calibration ----
 
-Eigen::Vector4d Xyzw(const Eigen::Quaterniond& q) { return q.coeffs(); }
+// A quaternion's [x, y, z, w] as a read-only array: it is a copy (the setter checks the
+// norm), so an element assigned in place would be lost; numpy refuses that instead.
+py::array Xyzw(const Eigen::Quaterniond& q) {
+  py::array_t<double> out(4);
+  std::copy(q.coeffs().data(), q.coeffs().data() + 4, out.mutable_data());
+  out.attr("setflags")(py::arg("write") = false);
+  return std::move(out);
+}
 Eigen::Quaterniond FromXyzw(const Eigen::Vector4d& v) {
   const Eigen::Quaterniond q(v(3), v(0), v(1), v(2));
   if (!(q.norm() > 0.5 && q.norm() < 1.5)) throw Error("a quaternion [x, y, z, w] of norm 1");
   return q.normalized();
 }
 
+// A Vector3d member as a writable view (c.p_I_L_m[0] = 5.0 changes c) and a checked setter.
+template <typename Class>
+void BindVector3(py::class_<Class>& cls, const char* name, Eigen::Vector3d Class::*member) {
+  cls.def_property(
+      name, [member](Class& c) -> Eigen::Vector3d& { return c.*member; },
+      [member, name](Class& c, const py::object& v) { c.*member = ToVector<3>(v, name); },
+      py::return_value_policy::reference_internal);
+}
+
+// Dict-like views of the maps; a dict converts to them, so f.solver = {...} works too.
+void BindMaps(py::module_& m) {
+  py::bind_map<SolverSummary>(m, "SolverSummary").def(py::init([](const py::dict& d) {
+    SolverSummary out;
+    for (const auto& [key, value] : d) out[key.cast<std::string>()] = value.cast<std::string>();
+    return out;
+  }));
+  py::bind_map<ResidualStatistics>(m, "ResidualStatistics").def(py::init([](const py::dict& d) {
+    ResidualStatistics out;
+    for (const auto& [key, value] : d) out[key.cast<std::string>()] = value.cast<double>();
+    return out;
+  }));
+  py::bind_map<Residuals>(m, "Residuals").def(py::init([](const py::dict& d) {
+    Residuals out;
+    for (const auto& [key, value] : d) {
+      out[key.cast<std::string>()] = value.cast<ResidualStatistics>();
+    }
+    return out;
+  }));
+  py::implicitly_convertible<py::dict, SolverSummary>();
+  py::implicitly_convertible<py::dict, ResidualStatistics>();
+  py::implicitly_convertible<py::dict, Residuals>();
+}
+
 void BindCalibration(py::module_& m) {
-  py::class_<sensors::Calibration>(m, "Calibration",
-                                   "autocal's calibration values (names and units as in "
-                                   "calibration.yaml; quaternions [x, y, z, w], Hamilton)")
-      .def(py::init<>())
+  py::class_<sensors::Calibration> calibration(
+      m, "Calibration",
+      "autocal's calibration values (names and units as in calibration.yaml; quaternions [x, y, "
+      "z, w], Hamilton)");
+  calibration.def(py::init<>())
       .def_property(
           "q_I_L_xyzw", [](const sensors::Calibration& c) { return Xyzw(c.q_I_L); },
-          [](sensors::Calibration& c, const Eigen::Vector4d& v) { c.q_I_L = FromXyzw(v); })
-      .def_readwrite("p_I_L_m", &sensors::Calibration::p_I_L)
+          [](sensors::Calibration& c, const py::object& v) {
+            c.q_I_L = FromXyzw(ToVector<4>(v, "q_I_L_xyzw"));
+          })
       .def_readwrite("time_offset_lidar_imu_s", &sensors::Calibration::time_offset_lidar_imu_s)
       .def_property(
           "q_I_V_xyzw", [](const sensors::Calibration& c) { return Xyzw(c.q_I_V); },
-          [](sensors::Calibration& c, const Eigen::Vector4d& v) { c.q_I_V = FromXyzw(v); })
-      .def_readwrite("p_I_V_m", &sensors::Calibration::p_I_V)
+          [](sensors::Calibration& c, const py::object& v) {
+            c.q_I_V = FromXyzw(ToVector<4>(v, "q_I_V_xyzw"));
+          })
       .def_readwrite("wheel_radius_left_m", &sensors::Calibration::wheel_radius_left_m)
       .def_readwrite("wheel_radius_right_m", &sensors::Calibration::wheel_radius_right_m)
       .def_readwrite("track_width_m", &sensors::Calibration::track_width_m)
@@ -294,10 +348,13 @@ void BindCalibration(py::module_& m) {
       .def_readwrite("wheel_speed_scale_right", &sensors::Calibration::wheel_speed_scale_right)
       .def_readwrite("odometry_speed_scale", &sensors::Calibration::odometry_speed_scale)
       .def_readwrite("effective_track_m", &sensors::Calibration::effective_track_m)
-      .def_readwrite("p_I_A_m", &sensors::Calibration::p_I_A)
       .def_readwrite("time_offset_wheel_imu_s", &sensors::Calibration::time_offset_wheel_imu_s)
       .def_readwrite("time_offset_gnss_imu_s", &sensors::Calibration::time_offset_gnss_imu_s);
+  BindVector3(calibration, "p_I_L_m", &sensors::Calibration::p_I_L);
+  BindVector3(calibration, "p_I_V_m", &sensors::Calibration::p_I_V);
+  BindVector3(calibration, "p_I_A_m", &sensors::Calibration::p_I_A);
 
+  BindMaps(m);
   py::class_<io::CalibrationFile>(m, "CalibrationFile",
                                   "calibration.yaml: the values, their sigma and observability")
       .def(py::init<>())
@@ -383,8 +440,10 @@ void BindDataset(py::module_& m) {
       .def(py::init<>())
       .def_readonly("directory", &io::Dataset::directory)
       .def_property(
-          "nominal", [](const io::Dataset& d) { return d.sensors.nominal_calibration; },
-          [](io::Dataset& d, const sensors::Calibration& c) { d.sensors.nominal_calibration = c; })
+          "nominal",
+          [](io::Dataset& d) -> sensors::Calibration& { return d.sensors.nominal_calibration; },
+          [](io::Dataset& d, const sensors::Calibration& c) { d.sensors.nominal_calibration = c; },
+          py::return_value_policy::reference_internal)
       .def_property_readonly("imu_t_ns",
                              [](const io::Dataset& d) {
                                return StampsOf(d.imu,

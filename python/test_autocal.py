@@ -57,6 +57,24 @@ class CalibrationFiles(unittest.TestCase):
         text = autocal.export_calibration(autocal.read_calibration(path), "fast_lio")
         self.assertIn("extrinsic_T: [1, 2, 3]", text)
 
+    def test_fields_are_assigned_in_place(self):
+        f = autocal.CalibrationFile()
+        f.value.p_I_L_m[2] = 0.55
+        f.solver["termination"] = "CONVERGENCE"
+        f.residuals["gnss"] = {"rms_m": 0.4}
+        f.residuals["gnss"]["count"] = 12.0
+        path = os.path.join(output_dir("calibration_in_place"), "calibration.yaml")
+        autocal.write_calibration(path, f)
+        back = autocal.read_calibration(path)
+        np.testing.assert_array_equal(back.value.p_I_L_m, [0.0, 0.0, 0.55])
+        self.assertEqual(dict(back.solver), {"termination": "CONVERGENCE"})
+        self.assertEqual(dict(back.residuals["gnss"]), {"rms_m": 0.4, "count": 12.0})
+        back.solver = {"iterations": "14"}  # whole maps are assigned as dicts
+        self.assertEqual(dict(back.solver), {"iterations": "14"})
+        with self.assertRaises(ValueError):  # a copy: refused rather than lost
+            back.value.q_I_L_xyzw[0] = 0.5
+        np.testing.assert_array_equal(back.value.q_I_L_xyzw, [0.0, 0.0, 0.0, 1.0])
+
     def test_a_missing_file_raises_autocal_error(self):
         with self.assertRaises(autocal.Error):
             autocal.read_calibration("/nonexistent/calibration.yaml")
@@ -83,6 +101,19 @@ class Datasets(unittest.TestCase):
         np.testing.assert_array_equal(back.imu_accel_m_s2, accel)
         np.testing.assert_array_equal(back.gnss_t_ns, fixes)
         np.testing.assert_array_equal(back.gnss_lat_lon_alt, lla)
+
+    def test_the_nominal_calibration_is_assigned_in_place(self):
+        d = autocal.Dataset()
+        d.set_imu(1_000_000_000 + 5_000_000 * np.arange(20), np.zeros((20, 3)),
+                  np.tile([0.0, 0.0, 9.81], (20, 1)))
+        d.nominal.track_width_m = 2.5
+        d.nominal.p_I_A_m[2] = 1.2
+        self.assertEqual(d.nominal.track_width_m, 2.5)
+        directory = output_dir("dataset_nominal")
+        autocal.write_dataset(directory, d)
+        back = autocal.read_dataset(directory).nominal
+        self.assertEqual(back.track_width_m, 2.5)
+        np.testing.assert_array_equal(back.p_I_A_m, [0.0, 0.0, 1.2])
 
     def test_mismatched_arrays_are_refused(self):
         d = autocal.Dataset()
