@@ -257,6 +257,19 @@ py::dict TrajectoryDict(const io::Trajectory& trajectory) {
   return d;
 }
 
+// A rotation from [x, y, z, w], normalized; a norm outside (0.5, 1.5) (zero, NaN, a matrix
+// row or degrees by mistake) is no rotation and is refused, `what` naming it.
+Eigen::Quaterniond FromXyzw(const Eigen::Vector4d& v, const std::string& what) {
+  const Eigen::Quaterniond q(v(3), v(0), v(1), v(2));
+  if (!(q.norm() > 0.5 && q.norm() < 1.5)) {
+    throw Error(what +
+                ": expected a quaternion [x, y, z, w] of norm 1 (0.5 to 1.5 is "
+                "normalized), got norm " +
+                std::to_string(q.norm()));
+  }
+  return q.normalized();
+}
+
 // A trajectory from (t_ns, positions (N,3), quaternions xyzw (N,4)), the arrays named
 // `prefix` + "t_ns", "p_W_I", "q_W_I_xyzw" in messages.
 io::Trajectory TrajectoryFromArrays(py::handle t_ns_array, py::handle p_array, py::handle q_array,
@@ -270,7 +283,7 @@ io::Trajectory TrajectoryFromArrays(py::handle t_ns_array, py::handle p_array, p
   for (Eigen::Index k = 0; k < t_ns.size(); ++k) {
     out[k].t_ns = t_ns(k);
     out[k].T_W_I.p = p.row(k).transpose();
-    out[k].T_W_I.q = Eigen::Quaterniond(q(k, 3), q(k, 0), q(k, 1), q(k, 2)).normalized();
+    out[k].T_W_I.q = FromXyzw(q.row(k).transpose(), prefix + "q_W_I_xyzw row " + std::to_string(k));
   }
   return out;
 }
@@ -284,11 +297,6 @@ py::array Xyzw(const Eigen::Quaterniond& q) {
   std::copy(q.coeffs().data(), q.coeffs().data() + 4, out.mutable_data());
   out.attr("setflags")(py::arg("write") = false);
   return std::move(out);
-}
-Eigen::Quaterniond FromXyzw(const Eigen::Vector4d& v) {
-  const Eigen::Quaterniond q(v(3), v(0), v(1), v(2));
-  if (!(q.norm() > 0.5 && q.norm() < 1.5)) throw Error("a quaternion [x, y, z, w] of norm 1");
-  return q.normalized();
 }
 
 // A Vector3d member as a writable view (c.p_I_L_m[0] = 5.0 changes c) and a checked setter.
@@ -333,13 +341,13 @@ void BindCalibration(py::module_& m) {
       .def_property(
           "q_I_L_xyzw", [](const sensors::Calibration& c) { return Xyzw(c.q_I_L); },
           [](sensors::Calibration& c, const py::object& v) {
-            c.q_I_L = FromXyzw(ToVector<4>(v, "q_I_L_xyzw"));
+            c.q_I_L = FromXyzw(ToVector<4>(v, "q_I_L_xyzw"), "q_I_L_xyzw");
           })
       .def_readwrite("time_offset_lidar_imu_s", &sensors::Calibration::time_offset_lidar_imu_s)
       .def_property(
           "q_I_V_xyzw", [](const sensors::Calibration& c) { return Xyzw(c.q_I_V); },
           [](sensors::Calibration& c, const py::object& v) {
-            c.q_I_V = FromXyzw(ToVector<4>(v, "q_I_V_xyzw"));
+            c.q_I_V = FromXyzw(ToVector<4>(v, "q_I_V_xyzw"), "q_I_V_xyzw");
           })
       .def_readwrite("wheel_radius_left_m", &sensors::Calibration::wheel_radius_left_m)
       .def_readwrite("wheel_radius_right_m", &sensors::Calibration::wheel_radius_right_m)

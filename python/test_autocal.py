@@ -196,6 +196,23 @@ class ArrayChecks(unittest.TestCase):
             d.set_gnss(t_ns, lla[:1].repeat(2, axis=0), np.array([[0.5, 0.0, 0.5], [0.5] * 3]))
         self.assertEqual(len(d.gnss_t_ns), 0)
 
+    def test_quaternions_that_are_no_rotation_are_refused_with_their_row(self):
+        t_ns = np.array([0, 1_000_000_000])
+        p = np.array([[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]])
+        unit = np.tile([0.0, 0.0, 0.0, 1.0], (2, 1))
+        zero = unit.copy()
+        zero[1] = 0.0
+        with self.assertRaisesRegex(autocal.Error, r"^q_W_I_xyzw row 1: .* got norm 0"):
+            autocal.compare_trajectory(t_ns, p, zero, t_ns, p, unit)
+        with self.assertRaisesRegex(autocal.Error, r"^true_q_W_I_xyzw row 0: .* got norm 2"):
+            autocal.compare_trajectory(t_ns, p, unit, t_ns, p, 2.0 * unit)
+        with self.assertRaisesRegex(autocal.Error, r"^q_W_I_xyzw row 1"):
+            autocal.write_trajectory(os.path.join(output_dir("quaternions"), "t.tum"), t_ns, p, zero)
+        # Within (0.5, 1.5) a quaternion is normalized, as calibration.yaml's are.
+        errors = autocal.compare_trajectory(t_ns, p, 1.2 * unit, t_ns, p, unit)
+        self.assertEqual(errors["max_rotation_error_deg"], 0.0)
+        self.assertEqual(errors["ate_rotation_rmse_deg"], 0.0)
+
     def test_write_dataset_refuses_what_read_dataset_refuses(self):
         directory = output_dir("refused_dataset")
         with self.assertRaisesRegex(autocal.Error, "no IMU samples"):
