@@ -825,15 +825,20 @@ void BindAlgorithms(py::module_& m) {
         d["wheel_radius_left_percent"] = e.wheel_radius_left_percent;
         d["wheel_radius_right_percent"] = e.wheel_radius_right_percent;
         d["track_width_percent"] = e.track_width_percent;
+        d["wheel_speed_scale_left_percent"] = e.wheel_speed_scale_left_percent;
+        d["wheel_speed_scale_right_percent"] = e.wheel_speed_scale_right_percent;
         d["odometry_speed_scale_percent"] = e.odometry_speed_scale_percent;
         d["effective_track_percent"] = e.effective_track_percent;
         d["p_I_A_mm"] = e.p_I_A_mm;
         d["T_I_V_rotation_deg"] = e.T_I_V.rotation_deg;
         d["T_I_V_translation_mm"] = e.T_I_V.translation_mm;
+        d["wheel_time_offset_ms"] = e.wheel_time_offset_ms;
+        d["gnss_time_offset_ms"] = e.gnss_time_offset_ms;
         return d;
       },
       py::arg("estimate"), py::arg("truth"),
-      "estimate minus truth per block (docs/evaluation.md, \"Calibration\")");
+      "estimate minus truth per block (docs/evaluation.md, \"Calibration\"), every field of "
+      "evaluation::CalibrationErrors");
   m.def(
       "compare_trajectory",
       [](const py::object& est_t, const py::object& est_p, const py::object& est_q,

@@ -75,6 +75,42 @@ class CalibrationFiles(unittest.TestCase):
             back.value.q_I_L_xyzw[0] = 0.5
         np.testing.assert_array_equal(back.value.q_I_L_xyzw, [0.0, 0.0, 0.0, 1.0])
 
+    def test_compare_calibration_returns_every_block(self):
+        truth = autocal.Calibration()
+        estimate = autocal.Calibration()
+        estimate.time_offset_lidar_imu_s = 0.001
+        estimate.wheel_radius_left_m = 1.01 * truth.wheel_radius_left_m
+        estimate.wheel_radius_right_m = 0.99 * truth.wheel_radius_right_m
+        estimate.track_width_m = 1.02 * truth.track_width_m
+        estimate.wheel_speed_scale_left = 1.03
+        estimate.wheel_speed_scale_right = 0.97
+        estimate.odometry_speed_scale = 1.04
+        estimate.effective_track_m = 1.05 * truth.effective_track_m
+        estimate.p_I_A_m = [0.0, 0.0, 0.002]
+        estimate.p_I_L_m = [0.003, 0.0, 0.0]
+        estimate.p_I_V_m = [0.0, 0.004, 0.0]
+        estimate.time_offset_wheel_imu_s = 0.005
+        estimate.time_offset_gnss_imu_s = -0.006
+        e = autocal.compare_calibration(estimate, truth)
+        self.assertEqual(list(e), [
+            "T_I_L_rotation_deg", "T_I_L_translation_mm", "time_offset_ms",
+            "wheel_radius_left_percent", "wheel_radius_right_percent", "track_width_percent",
+            "wheel_speed_scale_left_percent", "wheel_speed_scale_right_percent",
+            "odometry_speed_scale_percent", "effective_track_percent", "p_I_A_mm",
+            "T_I_V_rotation_deg", "T_I_V_translation_mm", "wheel_time_offset_ms",
+            "gnss_time_offset_ms"])
+        scalars = {"time_offset_ms": 1.0, "wheel_radius_left_percent": 1.0,
+                   "wheel_radius_right_percent": -1.0, "track_width_percent": 2.0,
+                   "wheel_speed_scale_left_percent": 3.0, "wheel_speed_scale_right_percent": -3.0,
+                   "odometry_speed_scale_percent": 4.0, "effective_track_percent": 5.0,
+                   "wheel_time_offset_ms": 5.0, "gnss_time_offset_ms": -6.0}
+        for name, value in scalars.items():
+            self.assertAlmostEqual(e[name], value, places=9, msg=name)
+        np.testing.assert_allclose(e["p_I_A_mm"], [0, 0, 2], atol=1e-12)
+        np.testing.assert_allclose(e["T_I_L_translation_mm"], [3, 0, 0], atol=1e-12)
+        np.testing.assert_allclose(e["T_I_V_translation_mm"], [0, 4, 0], atol=1e-12)
+        np.testing.assert_array_equal(e["T_I_L_rotation_deg"], [0, 0, 0])
+
     def test_a_missing_file_raises_autocal_error(self):
         with self.assertRaises(autocal.Error):
             autocal.read_calibration("/nonexistent/calibration.yaml")
