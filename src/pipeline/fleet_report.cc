@@ -53,6 +53,7 @@ FleetEntry ReadEntry(const std::string& directory) {
 struct BlockValues {
   std::vector<double> values, sigmas;
   std::vector<std::string> names, directions;
+  bool angles_deg = false;  // roll, pitch and yaw of a rotation
 };
 std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
                                     const io::CalibrationFile& file) {
@@ -69,6 +70,7 @@ std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
       out.directions.push_back(angle);
     }
     out.values = {rpy.x(), rpy.y(), rpy.z()};
+    out.angles_deg = true;
   } else {
     out.names = sensors::ValueColumns(info);
     out.directions.assign(info.direction_names.begin(),
@@ -94,7 +96,7 @@ void Tabulate(FleetReport* report) {
     }
     if (named == nullptr) continue;
     for (int k = 0; k < info.tangent_size; ++k) {
-      report->columns.push_back({named->names[k], named->directions[k]});
+      report->columns.push_back({named->names[k], named->directions[k], named->angles_deg});
     }
     for (size_t e = 0; e < per_run.size(); ++e) {
       for (int k = 0; k < info.tangent_size; ++k) {
@@ -105,23 +107,51 @@ void Tabulate(FleetReport* report) {
   }
 }
 
+// `degrees` wrapped into (-180, 180].
+double WrapDeg(double degrees) {
+  const double wrapped = std::remainder(degrees, 360.0);
+  return wrapped <= -180.0 ? wrapped + 360.0 : wrapped;
+}
+
+// The signed difference value - centre; for an angle the shorter way round the circle.
+double Deviation(double value, double centre, bool angle_deg) {
+  return angle_deg ? WrapDeg(value - centre) : value - centre;
+}
+
+// The median of a column. An angle's is taken on the circle: the median of the differences
+// from a reference, wrapped into (-180, 180], added to it; first about the first value, then
+// again about that median, so that a reference far from the others does not matter. A roll of
+// 179.75 and one of -178.28 then lie 3.97 degrees apart, not 358.
+double Centre(const std::vector<double>& column, bool angle_deg) {
+  if (!angle_deg) return internal::Median(column);
+  double centre = column.front();
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<double> differences;
+    for (const double v : column) differences.push_back(WrapDeg(v - centre));
+    centre = WrapDeg(centre + internal::Median(differences));
+  }
+  return centre;
+}
+
 void FindOutliers(FleetReport* report) {
   for (size_t c = 0; c < report->columns.size(); ++c) {
+    const FleetColumn& col = report->columns[c];
     std::vector<double> column;
     for (const std::vector<double>& row : report->values) {
       if (std::isfinite(row[c])) column.push_back(row[c]);
     }
     if (column.size() < 3) continue;
-    const double median = internal::Median(column);
-    const double robust_sigma = internal::MadSigma(column);
+    const double median = Centre(column, col.angle_deg);
+    std::vector<double> deviations;
+    for (const double v : column) deviations.push_back(Deviation(v, median, col.angle_deg));
+    const double robust_sigma = internal::MadSigma(deviations);
     for (size_t e = 0; e < report->entries.size(); ++e) {
       const double value = report->values[e][c], sigma = report->sigmas[e][c];
       if (!std::isfinite(value)) continue;
-      const double deviation = std::abs(value - median);
+      const double deviation = std::abs(Deviation(value, median, col.angle_deg));
       if (deviation <= kFleetOutlierSigmas * std::max(robust_sigma, sigma)) {
         continue;
       }
-      const FleetColumn& col = report->columns[c];
       std::ostringstream text;
       text << report->entries[e].vehicle << ": " << col.direction << " " << std::setprecision(7)
            << value << " (" << col.name << "), the fleet's median " << median << " (robust sigma "

@@ -89,6 +89,45 @@ TEST(FleetReport, GathersValuesFailuresAndOutliers) {
   EXPECT_THAT(html, ::testing::EndsWith("</html>\n"));
 }
 
+// A succeeded run of vehicle `name` whose IMU is mounted z down in the vehicle: roll
+// `roll_deg` (near +-180), sigma 0.2 deg.
+std::string ZDown(const fs::path& root, const std::string& name, double roll_deg) {
+  const fs::path dir = root / name;
+  fs::create_directories(dir);
+  io::CalibrationFile file;
+  const Eigen::Quaterniond q_V_I(Eigen::AngleAxisd(roll_deg * kDegToRad, Eigen::Vector3d::UnitX()));
+  file.value.q_I_V = q_V_I.conjugate();
+  file.uncertainty.T_I_V.sigma_rot_deg = Eigen::Vector3d(0.2, 0.2, 0.2);
+  io::WriteCalibrationYaml((dir / "calibration.yaml").string(), file);
+  io::RunStatus status;
+  status.tool = "autocal_calibrate";
+  status.vehicle = name;
+  io::WriteRunStatus((dir / "status.yaml").string(), status);
+  return dir.string();
+}
+
+// Rolls on both sides of +-180 deg are neighbours on the circle: 179.9 and -179.8 lie 0.3 deg
+// apart, not 359.7. Compared as plain numbers, the five agreeing mounts flagged two of them
+// (median 179.7) and the six hid the one 5 deg off (robust sigma 526 deg).
+TEST(FleetReport, ComparesAnglesOnTheCircle) {
+  const fs::path root = test::OutputDir("fleet_z_down");
+  std::vector<std::string> dirs;
+  const double rolls_deg[] = {179.9, -179.8, 179.7, -179.95, 179.85, -175.03};
+  for (int i = 0; i < 6; ++i) dirs.push_back(ZDown(root, "car_" + std::to_string(i), rolls_deg[i]));
+  EXPECT_TRUE(GatherFleet(std::vector<std::string>(dirs.begin(), dirs.end() - 1)).outliers.empty());
+  const FleetReport report = GatherFleet(dirs);
+  ASSERT_EQ(report.succeeded, 6u);
+  ASSERT_EQ(report.columns[0].name, "q_I_V_roll_deg");
+  EXPECT_TRUE(report.columns[0].angle_deg);
+  EXPECT_NEAR(report.values[1][0], -179.8, 1e-6);
+  ASSERT_EQ(report.outliers.size(), 1u);
+  EXPECT_EQ(report.outliers[0].entry, 5u);
+  EXPECT_EQ(report.outliers[0].column, 0u);
+  EXPECT_NEAR(std::abs(report.outliers[0].median), 179.95, 1e-9);
+  EXPECT_NEAR(report.outliers[0].robust_sigma, 1.4826 * 0.2, 1e-9);
+  EXPECT_THAT(report.outliers[0].text, ::testing::HasSubstr("24.6 of its own sigma off"));
+}
+
 // Fewer than three calibrations give no median to judge against.
 TEST(FleetReport, NoOutliersFromTwoRuns) {
   const fs::path root = test::OutputDir("fleet");

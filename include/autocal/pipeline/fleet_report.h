@@ -28,13 +28,16 @@ struct FleetEntry {
 // in degrees (q_I_L_roll_deg: the LiDAR in the IMU frame; q_I_V_*: the IMU in the vehicle).
 struct FleetColumn {
   std::string name;
-  std::string direction;  // in words
+  std::string direction;   // in words
+  bool angle_deg = false;  // a rotation's roll, pitch or yaw: compared on the circle
 };
 
 // A vehicle whose value lies more than kFleetOutlierSigmas robust sigmas (1.4826 MAD) of the
 // fleet from the fleet's median, and as many of its own sigma: far from the other vehicles
-// and farther than its own estimate's error explains. At 5 a vehicle of an honest fleet is
-// flagged in about one of 10^6 values (its own sigma) however the vehicles differ.
+// and farther than its own estimate's error explains. Angles are compared on the circle (a
+// roll of 179.75 and one of -178.28 deg lie 3.97 deg apart; the median is the circle's). At 5 a
+// vehicle of an honest fleet is flagged in about one of 10^6 values (its own sigma) however the
+// vehicles differ.
 constexpr double kFleetOutlierSigmas = 5.0;
 struct FleetOutlier {
   size_t entry = 0;
