@@ -19,7 +19,9 @@
 #include "tool_checks.h"
 #include "tool_help.h"
 
-DEFINE_string(output, "", "report directory; required (fleet.csv, fleet.html)");
+DEFINE_string(output, "",
+              "report directory; required (fleet.csv, fleet.html); apart from the result "
+              "directories (not one of them, inside one or holding one)");
 DEFINE_string(results_file, "",
               "a file listing result directories, one per line (# comments); added to the "
               "directories given as arguments");
@@ -42,6 +44,8 @@ int main(int argc, char** argv) {
     if (FLAGS_output.empty() || directories.empty()) {
       throw autocal::Error("--output and at least one result directory are required (see --help)");
     }
+    // The report replaces --output whole: a result directory there would be lost.
+    autocal::tools::CheckOutputApartFromInputs(FLAGS_output, "--output", directories);
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
     const autocal::pipeline::FleetReport report = autocal::pipeline::GatherFleet(directories);
     autocal::io::StagedDirectory out(FLAGS_output, autocal::io::OutputKind::kResult);

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <string>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -38,6 +39,62 @@ inline void CheckDatasetDirectory(const std::string& directory) {
     throw Error("--dataset: '" + directory +
                 "' is not a dataset: it has no imu.csv "
                 "(datasets/README.md)");
+  }
+}
+
+// `path` made absolute with its symbolic links resolved as far as it exists, without a
+// trailing separator: two names of one file or directory compare equal.
+inline std::filesystem::path ResolvedPath(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  fs::path resolved = fs::weakly_canonical(fs::absolute(path, error), error);
+  if (error) resolved = fs::absolute(path, error).lexically_normal();
+  if (!resolved.has_filename() && resolved.has_relative_path()) resolved = resolved.parent_path();
+  return resolved;
+}
+
+// True when `inner` is `outer` or lies below it (both resolved by ResolvedPath).
+inline bool IsWithin(const std::filesystem::path& inner, const std::filesystem::path& outer) {
+  auto i = inner.begin();
+  for (auto o = outer.begin(); o != outer.end(); ++o, ++i) {
+    if (i == inner.end() || *i != *o) return false;
+  }
+  return true;
+}
+
+// Throws autocal::Error when the output directory `output` (flag `flag`) is, holds or lies
+// inside one of the directories `inputs` the run reads: writing it would replace or delete
+// that input, or put the output among it. Checked before anything is written.
+inline void CheckOutputApartFromInputs(const std::string& output, const std::string& flag,
+                                       const std::vector<std::string>& inputs) {
+  const std::filesystem::path out = ResolvedPath(output);
+  for (const std::string& input : inputs) {
+    const std::filesystem::path in = ResolvedPath(input);
+    const bool holds = IsWithin(in, out), inside = IsWithin(out, in);
+    if (!holds && !inside) continue;
+    throw Error(flag + ": '" + output + "' " +
+                (holds && inside ? "is"
+                 : holds         ? "holds"
+                                 : "lies inside") +
+                " the input '" + input + "'; name a directory apart from the inputs");
+  }
+}
+
+// Throws autocal::Error when the output file `output` (flag `flag`) is one of the files
+// `inputs` names (flag, path): the run would overwrite what it reads. Two names of one file
+// (a symbolic or hard link) count as one.
+inline void CheckOutputFileIsNoInput(
+    const std::string& output, const std::string& flag,
+    const std::vector<std::pair<std::string, std::string>>& inputs) {
+  namespace fs = std::filesystem;
+  const fs::path out = ResolvedPath(output);
+  for (const auto& [input_flag, input] : inputs) {
+    if (input.empty()) continue;
+    std::error_code error;
+    if (out == ResolvedPath(input) || fs::equivalent(output, input, error)) {
+      throw Error(flag + ": '" + output + "' is the file " + input_flag + " reads ('" + input +
+                  "'); name another file");
+    }
   }
 }
 

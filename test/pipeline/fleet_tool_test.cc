@@ -10,6 +10,8 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/run_status.h"
@@ -102,6 +104,45 @@ TEST(FleetTools, RunsLeaveStatusAndTheReportGathersThem) {
   gathered = test::RunTool("autocal_fleet_report", "--output=" + report.string());
   EXPECT_EQ(gathered.exit_code, 1);
   EXPECT_THAT(gathered.text, ::testing::HasSubstr("at least one result directory"));
+}
+
+// A report written into one of the result directories it gathers, around one or inside one
+// would replace or bury that result: refused before anything is written.
+TEST(FleetTools, RefusesAReportAmongItsResults) {
+  const fs::path root = test::OutputDir("report_among_results");
+  fs::remove_all(root);
+  for (const char* vehicle : {"car_1", "car_2"}) {
+    fs::create_directories(root / "results" / vehicle);
+    io::RunStatus status;
+    status.tool = "autocal_calibrate";
+    status.vehicle = vehicle;
+    status.exit_status = 1;
+    status.message = "no GNSS";
+    io::WriteRunStatus((root / "results" / vehicle / "status.yaml").string(), status);
+  }
+  const std::string results =
+      (root / "results" / "car_1").string() + " " + (root / "results" / "car_2").string();
+  const std::vector<std::pair<fs::path, std::string>> outputs = {
+      {root / "results" / "car_1", "is the input"},
+      {root / "results" / "car_2" / "", "is the input"},
+      {root / "results" / "car_1" / "report", "lies inside the input"},
+      {root / "results", "holds the input"}};
+  for (const auto& [output, message] : outputs) {
+    const test::ToolOutput run =
+        test::RunTool("autocal_fleet_report", "--output=" + output.string() + " " + results);
+    EXPECT_EQ(run.exit_code, 1) << run.text;
+    EXPECT_THAT(run.text, ::testing::HasSubstr(message)) << output;
+    EXPECT_EQ(io::ReadRunStatus((root / "results" / "car_1" / "status.yaml").string()).vehicle,
+              "car_1");
+    EXPECT_EQ(io::ReadRunStatus((root / "results" / "car_2" / "status.yaml").string()).vehicle,
+              "car_2");
+    EXPECT_FALSE(fs::exists(root / "results" / "car_1" / "fleet.csv"));
+    EXPECT_FALSE(fs::exists(root / "results" / "car_1" / "report"));
+  }
+  const test::ToolOutput apart = test::RunTool(
+      "autocal_fleet_report", "--output=" + (root / "report").string() + " " + results);
+  EXPECT_EQ(apart.exit_code, 2) << apart.text;  // both runs failed; the report is written
+  EXPECT_TRUE(fs::is_regular_file(root / "report" / "fleet.csv"));
 }
 
 // Two logs of one vehicle in one run (--dataset twice and a list file): the shared
