@@ -115,8 +115,9 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
             << "warnings.txt, status.yaml, logs/<log>/trajectory.tum and logs/<log>/own/\n";
 }
 
-// A run that failed after its output was found writable leaves status.yaml alone there, so
-// that a batch of runs can be gathered; a failure to write it is reported, not hidden.
+// A run that failed after its flags, dataset directories, problem file and output were
+// checked leaves status.yaml alone there, so that a batch of runs can be gathered; a failure
+// to write it is reported, not hidden.
 void WriteFailureStatus(autocal::io::RunStatus status, const std::string& message, double seconds) {
   status.exit_status = 1;
   status.message = message;
@@ -161,14 +162,15 @@ int main(int argc, char** argv) {
     }
     status.datasets = directories;
     status.vehicle = VehicleLabel(directories);
-    // Everything that can be checked before the work starts is; a wrong flag leaves nothing.
+    // Everything that can be checked before the work starts is; a wrong flag, dataset
+    // directory or problem file leaves nothing, and a previous result in --output as it was.
     autocal::tools::CheckThreadsFlag(FLAGS_threads);
     autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 2);
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
-    output_checked = true;
     for (const std::string& d : directories) autocal::tools::CheckDatasetDirectory(d);
     autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
     autocal::tools::ApplyThreadsFlag(FLAGS_threads, &problem);
+    output_checked = true;  // from here on a failure leaves its status.yaml
     autocal::pipeline::OfflineCalibrationOptions options;
     options.scatter_stretches = FLAGS_scatter_stretches;
     if (FLAGS_progress) options.progress = PrintProgress;

@@ -169,10 +169,11 @@ TEST(FleetTools, CalibratesSeveralLogsOfOneVehicle) {
   const io::RunStatus status = io::ReadRunStatus((out / "status.yaml").string());
   EXPECT_EQ(status.datasets.size(), 3u);
   EXPECT_EQ(status.vehicle, "car_1");
-  // A missing list file is refused before any work, and leaves its status.
+  // A missing list file is refused before any work, and leaves the previous result.
   const test::ToolOutput bad = Calibrate("--datasets_file=" + (root / "absent.txt").string(), out);
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_THAT(bad.text, ::testing::HasSubstr("--datasets_file: cannot read"));
+  EXPECT_EQ(io::ReadRunStatus((out / "status.yaml").string()).exit_status, 0);
 }
 
 }  // namespace

@@ -168,6 +168,32 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
   EXPECT_FALSE(fs::exists(dir / "w"));
 }
 
+// A mistyped --problem or --dataset is an error of the command, not of the run: the previous
+// result in --output stays as it was (it used to be replaced by a failure's status.yaml).
+TEST_F(ToolOutputTest, AWrongInputLeavesThePreviousResult) {
+  const fs::path dir = CleanDir("wrong_input");
+  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const fs::path result = dir / "result";
+  fs::create_directories(result);
+  std::ofstream(result / "calibration.yaml") << "previous\n";
+  const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--dataset=" + dir.string(), "--problem=" + problem + "x"}, "urban_full.yamlx"},
+      {{"--dataset=" + (dir / "typo").string(), "--problem=" + problem}, "typo' does not exist"},
+      {{"--dataset=" + dir.string(), "--dataset=" + (dir / "typo").string(),
+        "--problem=" + problem},
+       "typo' does not exist"}};
+  for (const auto& [args, message] : cases) {
+    std::vector<std::string> command = {Tool("autocal_calibrate"), "--output=" + result.string()};
+    command.insert(command.end(), args.begin(), args.end());
+    const Finished f = RunTool(command, dir / "log.txt");
+    EXPECT_EQ(f.exit_code, 1) << f.output;
+    EXPECT_THAT(f.output, HasSubstr(message));
+    EXPECT_EQ(Read(result / "calibration.yaml"), "previous\n") << message;
+    EXPECT_FALSE(fs::exists(result / "status.yaml")) << message;
+  }
+}
+
 // autocal_register on the real scan pair: started at the reference 4x4 (--init=FILE) it
 // converges (exit 0, the file written); stopped after one iteration from the identity it is
 // not converged: exit 2, the report printed, no file written.
