@@ -15,7 +15,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <iostream>
 
 #include "autocal/common/error.h"
@@ -24,6 +23,7 @@
 #include "autocal/io/output_files.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/io/run_status.h"
+#include "autocal/pipeline/fleet_report.h"
 #include "autocal/pipeline/multi_log_calibration.h"
 #include "autocal/pipeline/offline_calibration.h"
 #include "keep_freed_memory.h"
@@ -78,7 +78,7 @@ void EndProgressLine() {
 
 std::string VehicleLabel(const std::vector<std::string>& datasets) {
   if (!FLAGS_vehicle.empty() || datasets.empty()) return FLAGS_vehicle;
-  return std::filesystem::path(datasets.front()).lexically_normal().filename().string();
+  return autocal::pipeline::DirectoryName(datasets.front());
 }
 
 void CalibrateOne(const std::string& directory, const autocal::io::Problem& problem,

@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <limits>
 #include <sstream>
+#include <system_error>
 
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
@@ -25,7 +26,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 FleetEntry ReadEntry(const std::string& directory) {
   FleetEntry entry;
   entry.directory = directory;
-  entry.vehicle = std::filesystem::path(directory).lexically_normal().filename().string();
+  entry.vehicle = DirectoryName(directory);
   const std::string status_path = directory + "/status.yaml";
   if (!std::filesystem::exists(status_path)) {
     entry.failure = "no status.yaml: the run did not finish (stopped, out of time or memory?)";
@@ -170,6 +171,15 @@ std::string Cell(double value) {
 }
 
 }  // namespace
+
+std::string DirectoryName(const std::string& directory) {
+  std::error_code error;
+  std::filesystem::path path = std::filesystem::absolute(directory, error);
+  if (error) path = directory;
+  path = path.lexically_normal();
+  if (!path.has_filename()) path = path.parent_path();  // "runs/car_1/" ends in an empty one
+  return path.filename().string();
+}
 
 FleetReport GatherFleet(const std::vector<std::string>& result_directories) {
   FleetReport report;

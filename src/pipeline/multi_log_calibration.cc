@@ -14,6 +14,7 @@
 #include "autocal/common/format.h"
 #include "autocal/io/output_files.h"
 #include "autocal/io/tum_trajectory.h"
+#include "autocal/pipeline/fleet_report.h"
 #include "autocal/sensors/calibration_blocks.h"
 #include "calibration_steps.h"
 #include "multi_log_report.h"
@@ -25,14 +26,13 @@ namespace {
 
 using sensors::CalibrationBlockId;
 
-// The dataset directories' last components, made unique where they repeat.
+// The dataset directories' names (DirectoryName), made unique where they repeat.
 std::vector<std::string> LogNames(const std::vector<io::Dataset>& datasets) {
   std::vector<std::string> names;
   std::set<std::string> seen;
   for (size_t i = 0; i < datasets.size(); ++i) {
-    std::string base =
-        std::filesystem::path(datasets[i].directory).lexically_normal().filename().string();
-    if (base.empty() || base == "." || base == "..") base = "log";
+    std::string base = DirectoryName(datasets[i].directory);
+    if (base.empty()) base = "log";
     // A taken name gets the log's position, then further numbers while that is taken too
     // ("day", "day", "day_2" gives day, day_2, day_2_3).
     std::string name = base;

@@ -128,6 +128,21 @@ TEST(FleetReport, ComparesAnglesOnTheCircle) {
   EXPECT_THAT(report.outliers[0].text, ::testing::HasSubstr("24.6 of its own sigma off"));
 }
 
+// A directory given with a trailing slash or dot names its vehicle all the same.
+TEST(FleetReport, NamesADirectoryByItsLastComponent) {
+  EXPECT_EQ(DirectoryName("runs/car_1"), "car_1");
+  EXPECT_EQ(DirectoryName("runs/car_1/"), "car_1");
+  EXPECT_EQ(DirectoryName("runs/car_1//"), "car_1");
+  EXPECT_EQ(DirectoryName("runs/car_1/."), "car_1");
+  EXPECT_EQ(DirectoryName("runs/car_1/x/.."), "car_1");
+  EXPECT_EQ(DirectoryName("."), fs::current_path().filename().string());
+  EXPECT_EQ(DirectoryName("/"), "");
+  const fs::path root = test::OutputDir("fleet_slash");
+  fs::create_directories(root / "car_7");  // never finished: no status.yaml, no label
+  const FleetReport report = GatherFleet({(root / "car_7").string() + "/"});
+  EXPECT_EQ(report.entries[0].vehicle, "car_7");
+}
+
 // Fewer than three calibrations give no median to judge against.
 TEST(FleetReport, NoOutliersFromTwoRuns) {
   const fs::path root = test::OutputDir("fleet");

@@ -106,6 +106,18 @@ TEST(FleetTools, RunsLeaveStatusAndTheReportGathersThem) {
   EXPECT_THAT(gathered.text, ::testing::HasSubstr("at least one result directory"));
 }
 
+// --dataset=DIR/ (as a shell completes it) labels the run after DIR, not with an empty name.
+TEST(FleetTools, LabelsARunAfterADatasetGivenWithASlash) {
+  const fs::path root = test::OutputDir("slash");
+  fs::remove_all(root);
+  fs::create_directories(root / "car_9");
+  std::ofstream(root / "car_9" / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";  // fails: no samples
+  const test::ToolOutput run =
+      Calibrate("--dataset=" + (root / "car_9").string() + "/", root / "result");
+  EXPECT_EQ(run.exit_code, 1) << run.text;
+  EXPECT_EQ(io::ReadRunStatus((root / "result" / "status.yaml").string()).vehicle, "car_9");
+}
+
 // A report written into one of the result directories it gathers, around one or inside one
 // would replace or bury that result: refused before anything is written.
 TEST(FleetTools, RefusesAReportAmongItsResults) {

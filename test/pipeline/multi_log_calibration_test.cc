@@ -182,12 +182,13 @@ TEST(MultiLogRepeatability, RefusesFewerThanTwoLogs) {
   EXPECT_THROW(CalibrateDatasets({}, ImuWheelGnssProblem()), Error);
 }
 
-// Logs are named after their directories, made unique: a log's position, then further
-// numbers while the name is taken ("day_3", "day", "day" gives day_3, day, day_4).
+// Logs are named after their directories (a trailing slash ignored), made unique: a log's
+// position, then further numbers while the name is taken ("day_3", "day", "day" gives day_3,
+// day, day_4).
 TEST(MultiLogRepeatability, NamesEveryLogApart) {
   std::vector<io::Dataset> datasets;
   for (uint64_t seed : {31, 32, 33}) datasets.push_back(io::ReadDataset(Log(seed)->directory));
-  datasets[0].directory += "/../day_3";  // read already: the name is all that changes
+  datasets[0].directory += "/../day_3/";  // read already: the name is all that changes
   datasets[1].directory += "/../a/day";
   datasets[2].directory += "/../b/day";
   const MultiLogCalibrationResult result = CalibrateDatasets(datasets, ImuWheelGnssProblem());

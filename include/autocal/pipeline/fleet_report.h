@@ -20,7 +20,7 @@ struct FleetEntry {
   std::optional<io::RunStatus> status;             // absent: no readable status.yaml
   std::optional<io::CalibrationFile> calibration;  // when the run succeeded
   std::string failure;  // why there is no calibration, in words; empty when there is one
-  std::string vehicle;  // the status's label, else the directory's name
+  std::string vehicle;  // the status's label, else DirectoryName(directory)
 };
 
 // One value of the table, in the calibration file's units (SI) under its column name
@@ -54,6 +54,11 @@ struct FleetReport {
   std::vector<FleetOutlier> outliers;
   size_t succeeded = 0;
 };
+
+// The name a directory gives the vehicle or log it holds: the last non-empty component of
+// its absolute, normalized path ("runs/car_1/" and "runs/car_1/." give "car_1", "." the
+// working directory's name); empty only for the root.
+std::string DirectoryName(const std::string& directory);
 
 // Reads every directory; a missing or malformed file makes that entry a failure with the
 // reason, never an exception. Outliers need at least three succeeded runs.
