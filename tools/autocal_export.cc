@@ -13,11 +13,14 @@
 #include "autocal/io/calibration_export.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/output_files.h"
+#include "tool_checks.h"
 #include "tool_help.h"
 
 DEFINE_string(result, "", "result directory (its calibration.yaml) or a calibration.yaml file");
 DEFINE_string(format, "", "kalibr, fast_lio, lio_sam, autoware, urdf or ros2_static_tf");
-DEFINE_string(output, "-", "file to write (replaced whole), or - for the standard output");
+DEFINE_string(output, "-",
+              "file to write (replaced whole; not the result's calibration.yaml), or - for the "
+              "standard output");
 DEFINE_string(vehicle_frame, "base_link", "name of the vehicle frame");
 DEFINE_string(imu_frame, "imu_link", "name of the IMU frame");
 DEFINE_string(lidar_frame, "lidar_link", "name of the LiDAR frame");
@@ -68,8 +71,12 @@ int main(int argc, char** argv) {
     if (FLAGS_result.empty()) throw autocal::Error("--result is required");
     if (FLAGS_format.empty()) throw autocal::Error("--format is required");
     const autocal::io::ExportFormat format = autocal::io::ParseExportFormat(FLAGS_format);
-    const autocal::io::CalibrationFile result =
-        autocal::io::ReadCalibrationYaml(CalibrationPath(FLAGS_result));
+    const std::string input = CalibrationPath(FLAGS_result);
+    if (FLAGS_output != "-") {
+      autocal::tools::CheckOutputFileIsNoInput(FLAGS_output, "--output", {{"--result", input}});
+      autocal::io::CheckOutputFile(FLAGS_output);
+    }
+    const autocal::io::CalibrationFile result = autocal::io::ReadCalibrationYaml(input);
     const std::string text = autocal::io::ExportCalibration(result, format, Options());
     if (FLAGS_output == "-") {
       std::cout << text;

@@ -15,6 +15,7 @@
 #include "autocal/io/output_files.h"
 #include "autocal/io/point_cloud_file.h"
 #include "autocal/lidar/registration.h"
+#include "tool_checks.h"
 #include "tool_help.h"
 
 DEFINE_string(source, "", "source cloud (.ply or .pcd), mapped into the target frame");
@@ -31,7 +32,7 @@ DEFINE_int32(max_iterations, 30, "ICP iterations at most (correspondence search 
 DEFINE_int32(num_threads, 1, "threads for the normals, the correspondences and the solve");
 DEFINE_string(output, "",
               "also write the result as YAML to this file (checked before the registration, "
-              "replaced atomically)");
+              "replaced atomically; not one of the input files)");
 
 namespace {
 
@@ -78,7 +79,14 @@ int main(int argc, char** argv) {
     if (FLAGS_source.empty() || FLAGS_target.empty()) {
       throw autocal::Error("both --source and --target are required");
     }
-    if (!FLAGS_output.empty()) autocal::io::CheckOutputFile(FLAGS_output);
+    if (!FLAGS_output.empty()) {
+      const bool init_is_file = FLAGS_init.find(',') == std::string::npos;
+      autocal::tools::CheckOutputFileIsNoInput(FLAGS_output, "--output",
+                                               {{"--source", FLAGS_source},
+                                                {"--target", FLAGS_target},
+                                                {"--init", init_is_file ? FLAGS_init : ""}});
+      autocal::io::CheckOutputFile(FLAGS_output);
+    }
     const autocal::lidar::RegistrationOptions setting = OptionsFromFlags();
     const autocal::geometry::Pose3d guess = InitialGuess();
     // Organized PCD clouds mark missing returns with NaN; they carry no geometry.

@@ -58,6 +58,24 @@ TEST(ExportTool, WritesTheFormatsFileFromAResultDirectory) {
   EXPECT_EQ(to_stdout.text, expected);
 }
 
+// --output naming the result's own calibration.yaml (directly or through a link) would
+// replace the calibration by its export: refused, the file kept.
+TEST(ExportTool, RefusesToOverwriteTheResult) {
+  const fs::path result = LidarResult();
+  const std::string calibration = Read(result / "calibration.yaml");
+  fs::create_symlink(result / "calibration.yaml", result / "link.yaml");
+  for (const fs::path& output :
+       {result / "calibration.yaml", result / "." / "calibration.yaml", result / "link.yaml"}) {
+    for (const fs::path& input : {result, result / "calibration.yaml"}) {
+      const ToolRun run =
+          Export("--result=" + input.string() + " --format=fast_lio --output=" + output.string());
+      EXPECT_EQ(run.exit_code, 1) << run.text;
+      EXPECT_THAT(run.text, ::testing::HasSubstr("is the file --result reads")) << output;
+      EXPECT_EQ(Read(result / "calibration.yaml"), calibration) << output;
+    }
+  }
+}
+
 TEST(ExportTool, SaysWhatItCannotDoWithStatusOne) {
   const fs::path result = LidarResult();
   const ToolRun unknown = Export("--result=" + result.string() + " --format=kitti");

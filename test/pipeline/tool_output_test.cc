@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "autocal/io/dataset.h"
+#include "autocal/io/point_cloud_file.h"
 #include "autocal/io/run_status.h"
 #include "support/test_paths.h"
 
@@ -226,6 +227,54 @@ TEST_F(ToolOutputTest, RegisterStartsFromAGuessAndSaysWhenItDidNotConverge) {
   const Finished refused = RunTool(bad, dir / "log.txt");
   EXPECT_EQ(refused.exit_code, 1);
   EXPECT_THAT(refused.output, HasSubstr("--init: expected 6 numbers"));
+}
+
+// A corner of three walls, 2 m on a side, sampled every 0.1 m: a cloud ICP aligns to itself.
+void WriteCorner(const fs::path& path) {
+  lidar::PointCloud cloud;
+  cloud.points.resize(3, 3 * 20 * 20);
+  int n = 0;
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) {
+      const double a = 0.1 * i, b = 0.1 * j;
+      cloud.points.col(n++) = Eigen::Vector3d(a, b, 0.0);
+      cloud.points.col(n++) = Eigen::Vector3d(a, 0.0, b);
+      cloud.points.col(n++) = Eigen::Vector3d(0.0, a, b);
+    }
+  }
+  io::WritePly(path.string(), cloud);
+}
+
+// autocal_register --output naming one of its inputs (the clouds, the --init file) would
+// replace that input by the result: refused before the registration, the input kept.
+TEST_F(ToolOutputTest, RegisterKeepsItsInputs) {
+  const fs::path dir = CleanDir("register_inputs");
+  WriteCorner(dir / "source.ply");
+  WriteCorner(dir / "target.ply");
+  std::ofstream(dir / "init.txt") << "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  const std::string cloud = Read(dir / "source.ply"), init = Read(dir / "init.txt");
+  const std::vector<std::string> inputs = {
+      Tool("autocal_register"), "--source=" + (dir / "source.ply").string(),
+      "--target=" + (dir / "target.ply").string(), "--init=" + (dir / "init.txt").string()};
+  for (const auto& [output, flag] : std::vector<std::pair<fs::path, std::string>>{
+           {dir / "source.ply", "--source"},
+           {dir / "sub" / ".." / "target.ply", "--target"},
+           {dir / "init.txt", "--init"}}) {
+    fs::create_directories(dir / "sub");
+    std::vector<std::string> args = inputs;
+    args.push_back("--output=" + output.string());
+    const Finished f = RunTool(args, dir / "log.txt");
+    EXPECT_EQ(f.exit_code, 1) << f.output;
+    EXPECT_THAT(f.output, HasSubstr("is the file " + flag + " reads"));
+  }
+  EXPECT_EQ(Read(dir / "source.ply"), cloud);
+  EXPECT_EQ(Read(dir / "target.ply"), cloud);
+  EXPECT_EQ(Read(dir / "init.txt"), init);
+  std::vector<std::string> apart = inputs;
+  apart.push_back("--output=" + (dir / "result.yaml").string());
+  const Finished f = RunTool(apart, dir / "log.txt");
+  EXPECT_EQ(f.exit_code, 0) << f.output;
+  EXPECT_TRUE(fs::is_regular_file(dir / "result.yaml"));
 }
 
 // --threads is recognized by both solving tools: a value out of range is refused naming the
