@@ -192,20 +192,22 @@ FleetReport GatherFleet(const std::vector<std::string>& result_directories) {
   return report;
 }
 
+std::string CsvText(const std::string& field) {
+  std::string text = field;
+  for (size_t i = 0; (i = text.find('"', i)) != std::string::npos; i += 2) text.insert(i, "\"");
+  return '"' + text + '"';
+}
+
 std::string FleetCsv(const FleetReport& report) {
   std::ostringstream csv;
   csv << "vehicle,directory,exit_status,message";
   for (const FleetColumn& c : report.columns) csv << ',' << c.name << ',' << c.name << "_sigma";
   csv << '\n';
-  const auto quoted = [](std::string text) {
-    for (size_t i = 0; (i = text.find('"', i)) != std::string::npos; i += 2) text.insert(i, "\"");
-    return '"' + text + '"';
-  };
   for (size_t e = 0; e < report.entries.size(); ++e) {
     const FleetEntry& entry = report.entries[e];
-    csv << quoted(entry.vehicle) << ',' << quoted(entry.directory) << ','
+    csv << CsvText(entry.vehicle) << ',' << CsvText(entry.directory) << ','
         << (entry.status ? std::to_string(entry.status->exit_status) : "") << ','
-        << quoted(entry.failure);
+        << CsvText(entry.failure);
     for (size_t c = 0; c < report.columns.size(); ++c) {
       csv << ',' << Cell(report.values[e][c]) << ',' << Cell(report.sigmas[e][c]);
     }

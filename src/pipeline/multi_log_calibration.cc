@@ -256,8 +256,8 @@ std::string RepeatabilityCsv(const MultiLogCalibrationResult& result) {
     std::vector<RepeatabilityEntry> entries = row.logs;
     entries.push_back(row.shared);
     for (const RepeatabilityEntry& e : entries) {
-      csv << row.key << ',' << row.direction << ',' << row.unit << ',' << e.log << ',' << e.value
-          << ',' << e.sigma << ',' << row.block->agreement.chi_square << ','
+      csv << row.key << ',' << row.direction << ',' << row.unit << ',' << CsvText(e.log) << ','
+          << e.value << ',' << e.sigma << ',' << row.block->agreement.chi_square << ','
           << row.block->agreement.degrees_of_freedom << ',' << row.block->agreement.p_value << ','
           << (row.block->agree ? "yes" : "no") << '\n';
     }

@@ -8,6 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +20,7 @@
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/fleet_report.h"
 #include "pipeline/simulated_urban_dataset.h"
 #include "support/test_paths.h"
 
@@ -150,6 +152,25 @@ TEST_F(MultiLogCalibration, WritesSharedRepeatabilityAndEveryLog) {
   text << html.rdbuf();
   EXPECT_THAT(text.str(), ::testing::HasSubstr("<h2>Repeatability</h2>"));
   EXPECT_THAT(text.str(), ::testing::HasSubstr("</html>"));
+}
+
+// A log named with a comma and a quote (its directory's name) stays one quoted field of
+// repeatability.csv, as text is in fleet.csv.
+TEST_F(MultiLogCalibration, QuotesLogNamesInTheCsv) {
+  MultiLogCalibrationResult renamed = *result_;
+  renamed.logs[0].name = "day 1, \"wet\"";
+  std::istringstream csv(RepeatabilityCsv(renamed));
+  std::string line;
+  std::getline(csv, line);
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    if (line.find("wet") == std::string::npos) continue;
+    ++rows;
+    EXPECT_THAT(line, ::testing::HasSubstr(",\"day 1, \"\"wet\"\"\","));
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 10) << line;  // 9 separators, 1 inside
+  }
+  EXPECT_GT(rows, 0);
+  EXPECT_EQ(CsvText("a,\"b\""), "\"a,\"\"b\"\"\"");
 }
 
 // The course's example: a tyre whose pressure changed between two days.

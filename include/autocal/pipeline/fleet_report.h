@@ -64,7 +64,12 @@ std::string DirectoryName(const std::string& directory);
 // reason, never an exception. Outliers need at least three succeeded runs.
 FleetReport GatherFleet(const std::vector<std::string>& result_directories);
 
-// fleet.csv: vehicle, directory, exit_status, message, then value and sigma per column.
+// A text field of fleet.csv and repeatability.csv: in double quotes, a quote inside doubled
+// (RFC 4180), so that a name or message with a comma, quote or line break stays one field.
+std::string CsvText(const std::string& text);
+
+// fleet.csv: vehicle, directory, exit_status, message (quoted by CsvText), then value and
+// sigma per column.
 std::string FleetCsv(const FleetReport& report);
 
 // fleet.html: counts, the failures with their messages, the outliers, and the table.

@@ -71,7 +71,8 @@ void WriteMultiLogResult(const std::string& directory, const MultiLogCalibration
                          const io::RunStatus* status = nullptr);
 
 // repeatability.csv: one row per log (and "shared") and block direction: value and sigma in
-// display units, then the block's chi-square, degrees of freedom, p-value and agreement.
+// display units, then the block's chi-square, degrees of freedom, p-value and agreement. The
+// log's name is quoted as fleet.csv quotes text (CsvText).
 std::string RepeatabilityCsv(const MultiLogCalibrationResult& result);
 
 // The terminal summary: the shared calibration as FormatCalibrationSummary prints one, then
