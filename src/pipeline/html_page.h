@@ -3,6 +3,7 @@
 // The frame every autocal HTML page shares: one self-contained document (inline CSS, no
 // script, no external resource) with the title as its first heading.
 
+#include <cctype>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,25 @@ inline std::string HtmlPageStart(const std::string& title) {
 }
 
 inline std::string HtmlPageEnd() { return "</body></html>\n"; }
+
+// `text` as one segment of a link's path: every byte but the unreserved letters, digits and
+// - . _ ~ percent-encoded (RFC 3986), so that a name with '#', '%', '?', '/' or a space links
+// to the file of that name.
+inline std::string PercentEncoded(const std::string& text) {
+  static const char kHex[] = "0123456789ABCDEF";
+  std::string out;
+  for (const char c : text) {
+    const unsigned char byte = static_cast<unsigned char>(c);
+    if (std::isalnum(byte) != 0 || c == '-' || c == '.' || c == '_' || c == '~') {
+      out += c;
+    } else {
+      out += '%';
+      out += kHex[byte >> 4];
+      out += kHex[byte & 15];
+    }
+  }
+  return out;
+}
 
 // A list of warnings under a heading, or nothing when there are none.
 inline std::string HtmlWarnings(const std::string& heading, const std::vector<std::string>& lines) {

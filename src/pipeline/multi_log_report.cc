@@ -68,8 +68,8 @@ std::string MultiLogReportHtml(const MultiLogCalibrationResult& result) {
   for (const LogCalibration& log : result.logs) {
     html << "<li>" << EscapeXml(log.name) << " (" << EscapeXml(log.dataset_directory)
          << "): " << log.at_shared.trajectory.size()
-         << " keyframes at the shared calibration; <a href='logs/" << EscapeXml(log.name)
-         << "/own/report.html'>its own calibration</a></li>";
+         << " keyframes at the shared calibration; <a href='logs/"
+         << EscapeXml(PercentEncoded(log.name)) << "/own/report.html'>its own calibration</a></li>";
   }
   html << "</ul>\n" << HtmlPageEnd();
   return html.str();

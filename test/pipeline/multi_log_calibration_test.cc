@@ -21,6 +21,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/fleet_report.h"
+#include "pipeline/multi_log_report.h"
 #include "pipeline/simulated_urban_dataset.h"
 #include "support/test_paths.h"
 
@@ -171,6 +172,18 @@ TEST_F(MultiLogCalibration, QuotesLogNamesInTheCsv) {
   }
   EXPECT_GT(rows, 0);
   EXPECT_EQ(CsvText("a,\"b\""), "\"a,\"\"b\"\"\"");
+}
+
+// The link to a log's own report holds its name percent-encoded: a '#' would start a
+// fragment, a '%' an escape.
+TEST_F(MultiLogCalibration, LinksToLogsWithAnyName) {
+  MultiLogCalibrationResult renamed = *result_;
+  renamed.logs[0].name = "run #2 at 50% <o'clock>";
+  const std::string html = MultiLogReportHtml(renamed);
+  EXPECT_THAT(html,
+              ::testing::HasSubstr(
+                  "<a href='logs/run%20%232%20at%2050%25%20%3Co%27clock%3E/own/report.html'>"));
+  EXPECT_THAT(html, ::testing::HasSubstr("<li>run #2 at 50% &lt;o&#39;clock&gt; ("));
 }
 
 // The course's example: a tyre whose pressure changed between two days.
