@@ -13,6 +13,7 @@
 
 #include <gflags/gflags.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -32,7 +33,8 @@
 
 DEFINE_string(dataset, "",
               "dataset directory (format: datasets/README.md); required unless --datasets_file. "
-              "Given more than once: several logs of one vehicle, one shared calibration");
+              "Given more than once (on the command line or in a flag file): several logs of "
+              "one vehicle, one shared calibration");
 DEFINE_string(datasets_file, "",
               "a file listing dataset directories, one per line (# comments); added to --dataset");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses); required");
@@ -141,8 +143,16 @@ int main(int argc, char** argv) {
       "Calibrates the sensors of a recorded log, or of several logs of one vehicle together.");
   if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_calibrate")) return 0;
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<std::string> given = autocal::tools::RepeatedFlagValues(argc, argv, "dataset");
+  // --dataset may be repeated, on the command line and in --flagfile files; gflags keeps the
+  // last value only, so they are gathered before it parses.
+  std::vector<std::string> given = autocal::tools::RepeatedFlagValues(
+      autocal::tools::ArgumentsWithFlagfiles(argc, argv), "dataset");
   gflags::ParseCommandLineFlags(&argc, &argv, true);
+  // A value gflags took from elsewhere (--fromenv=dataset, --tryfromenv) counts as well.
+  if (!FLAGS_dataset.empty() &&
+      std::find(given.begin(), given.end(), FLAGS_dataset) == given.end()) {
+    given.push_back(FLAGS_dataset);
+  }
   autocal::tools::KeepFreedMemory();
   autocal::io::RunStatus status;
   status.tool = "autocal_calibrate";

@@ -3,8 +3,11 @@
 // Checks the tools make before any work starts, so that a wrong --dataset, --output or
 // --threads is reported in a second with one line, not after a solve of minutes.
 
+#include <fnmatch.h>
+
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <system_error>
 #include <utility>
@@ -120,17 +123,79 @@ inline void ApplyThreadsFlag(int threads, io::Problem* problem) {
   if (threads > 0) problem->solver.num_threads = threads;
 }
 
-// Every value of a flag given more than once (--name=V, -name=V, --name V), in order;
-// gflags keeps only the last.
-inline std::vector<std::string> RepeatedFlagValues(int argc, char** argv, const std::string& name) {
-  std::vector<std::string> values;
+namespace internal {
+
+// The flags of the flagfile `path` appended to *arguments as gflags reads them: one flag a
+// line (leading blanks and trailing blanks dropped), blank lines and # comments skipped, a
+// line not starting with '-' naming the programs (globs) the flags after it are for, and a
+// nested --flagfile followed (at most `depth` deep). An unreadable file adds nothing: gflags
+// reports it.
+inline void AppendFlagfile(const std::string& path, const std::string& program, int depth,
+                           std::vector<std::string>* arguments) {
+  std::ifstream in(path);
+  if (!in || depth <= 0) return;
+  const std::string short_name = std::filesystem::path(program).filename().string();
+  bool relevant = true;
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    line = line.substr(first, line.find_last_not_of(" \t\r") - first + 1);
+    if (line[0] != '-') {  // the programs the following flags are for
+      relevant = false;
+      std::istringstream globs(line);
+      for (std::string glob; globs >> glob;) {
+        relevant = relevant || fnmatch(glob.c_str(), program.c_str(), 0) == 0 ||
+                   fnmatch(glob.c_str(), short_name.c_str(), 0) == 0;
+      }
+      continue;
+    }
+    if (!relevant) continue;
+    const size_t name = line.find_first_not_of('-');
+    if (name != std::string::npos && line.compare(name, 9, "flagfile=") == 0) {
+      AppendFlagfile(line.substr(name + 9), program, depth - 1, arguments);
+    } else {
+      arguments->push_back(line);
+    }
+  }
+}
+
+}  // namespace internal
+
+// The command line with every --flagfile=FILE (or --flagfile FILE) replaced by the flags in
+// FILE, in the order gflags applies them; the program name first.
+inline std::vector<std::string> ArgumentsWithFlagfiles(int argc, char** argv) {
+  constexpr int kMaxFlagfileDepth = 16;
+  const std::string program = argc > 0 ? argv[0] : "";
+  std::vector<std::string> arguments = {program};
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    const size_t name = arg.find_first_not_of('-');
+    if (name == 0 || name > 2 || name == std::string::npos) {
+      arguments.push_back(arg);
+    } else if (arg.compare(name, std::string::npos, "flagfile") == 0 && i + 1 < argc) {
+      internal::AppendFlagfile(argv[++i], program, kMaxFlagfileDepth, &arguments);
+    } else if (arg.compare(name, 9, "flagfile=") == 0) {
+      internal::AppendFlagfile(arg.substr(name + 9), program, kMaxFlagfileDepth, &arguments);
+    } else {
+      arguments.push_back(arg);
+    }
+  }
+  return arguments;
+}
+
+// Every value of a flag given more than once (--name=V, -name=V, --name V) in `arguments`
+// (ArgumentsWithFlagfiles), in order; gflags keeps only the last.
+inline std::vector<std::string> RepeatedFlagValues(const std::vector<std::string>& arguments,
+                                                   const std::string& name) {
+  std::vector<std::string> values;
+  for (size_t i = 1; i < arguments.size(); ++i) {
+    const std::string& arg = arguments[i];
     for (const std::string& prefix : {"--" + name, "-" + name}) {
       if (arg.rfind(prefix + "=", 0) == 0) {
         values.push_back(arg.substr(prefix.size() + 1));
-      } else if (arg == prefix && i + 1 < argc) {
-        values.push_back(argv[++i]);
+      } else if (arg == prefix && i + 1 < arguments.size()) {
+        values.push_back(arguments[++i]);
       }
     }
   }

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -116,6 +117,35 @@ TEST(FleetTools, LabelsARunAfterADatasetGivenWithASlash) {
       Calibrate("--dataset=" + (root / "car_9").string() + "/", root / "result");
   EXPECT_EQ(run.exit_code, 1) << run.text;
   EXPECT_EQ(io::ReadRunStatus((root / "result" / "status.yaml").string()).vehicle, "car_9");
+}
+
+// --dataset in a --flagfile (repeated, as on the command line; a section for another
+// program skipped, as gflags skips it) or from the environment (--fromenv) counts: the failed
+// run's status.yaml lists the datasets it was given.
+TEST(FleetTools, TakesDatasetsFromAFlagfileAndTheEnvironment) {
+  const fs::path root = test::OutputDir("flagfile");
+  fs::remove_all(root);
+  for (const char* log : {"day1", "day2"}) {
+    fs::create_directories(root / log);
+    std::ofstream(root / log / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";  // fails: no samples
+  }
+  std::ofstream(root / "flags.txt") << "# two logs\n--dataset=" << (root / "day1").string()
+                                    << "\n  --dataset=" << (root / "day2").string()
+                                    << "\nautocal_estimate\n--dataset=" << (root / "other").string()
+                                    << "\nautocal_cal*\n--vehicle=car_5\n";
+  test::ToolOutput run = Calibrate("--flagfile=" + (root / "flags.txt").string(), root / "result");
+  EXPECT_EQ(run.exit_code, 1) << run.text;
+  io::RunStatus status = io::ReadRunStatus((root / "result" / "status.yaml").string());
+  EXPECT_THAT(status.datasets,
+              ::testing::ElementsAre((root / "day1").string(), (root / "day2").string()));
+  EXPECT_EQ(status.vehicle, "car_5");
+
+  setenv("FLAGS_dataset", (root / "day2").string().c_str(), 1);
+  run = Calibrate("--fromenv=dataset", root / "result");
+  unsetenv("FLAGS_dataset");
+  EXPECT_EQ(run.exit_code, 1) << run.text;
+  status = io::ReadRunStatus((root / "result" / "status.yaml").string());
+  EXPECT_THAT(status.datasets, ::testing::ElementsAre((root / "day2").string()));
 }
 
 // A report written into one of the result directories it gathers, around one or inside one
