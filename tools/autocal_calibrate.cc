@@ -53,7 +53,8 @@ DEFINE_int32(threads, 0,
 DEFINE_int32(scatter_stretches, 16,
              "stretches of the log over which each sensor's rows are tested for scatter beyond "
              "their noise model; the sigmas are widened where it exceeds chance "
-             "(docs/calibration.md, Eq. C8); 0: no test");
+             "(docs/calibration.md, Eq. C8); 0: no test; at most 1000. A sensor with fewer rows "
+             "than stretches is not tested");
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
 DEFINE_bool(bound, true,
             "with a ground truth in the dataset (a simulated log): the Cramer-Rao bound of the "

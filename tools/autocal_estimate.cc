@@ -49,7 +49,7 @@ DEFINE_int32(init_sweep_stride, 3,
 DEFINE_int32(scatter_stretches, 32,
              "spans of the stream between whose ends the estimate's steps are tested against "
              "its covariance; the sigmas are widened where they scatter more "
-             "(docs/sliding_window.md, Eq. W9); 0: no test");
+             "(docs/sliding_window.md, Eq. W9); 0: no test; at most 1000");
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
 
 int main(int argc, char** argv) {

@@ -109,11 +109,18 @@ inline void CheckThreadsFlag(int threads) {
   }
 }
 
-// Throws autocal::Error unless --scatter_stretches is 0 (no test) or at least `least`.
+// The most stretches --scatter_stretches takes. A sensor with fewer rows (residual blocks)
+// than stretches is not tested at all (estimation::ComputeStretchScatter), so a count beyond
+// a log's rows would turn the test off without a word; at 1000 a sensor is tested from 1000
+// rows on (100 s of 10 Hz fixes).
+constexpr int kMaxScatterStretches = 1000;
+
+// Throws autocal::Error unless --scatter_stretches is 0 (no test) or within
+// least..kMaxScatterStretches.
 inline void CheckScatterStretchesFlag(int stretches, int least) {
-  if (stretches != 0 && stretches < least) {
-    throw Error("--scatter_stretches must be 0 (no test) or at least " + std::to_string(least) +
-                ", got " + std::to_string(stretches));
+  if (stretches != 0 && (stretches < least || stretches > kMaxScatterStretches)) {
+    throw Error("--scatter_stretches must be 0 (no test) or " + std::to_string(least) + ".." +
+                std::to_string(kMaxScatterStretches) + ", got " + std::to_string(stretches));
   }
 }
 

@@ -302,22 +302,26 @@ TEST_F(ToolOutputTest, ThreadsIsAnOverrideOfTheProblemFile) {
   ExpectNoResult(dir / "r");
 }
 
-// --scatter_stretches (Eqs. C8, W9) is checked before any work: too few stretches to compare
-// are refused in one line, 0 (no test) passes on to the dataset.
+// --scatter_stretches (Eqs. C8, W9) is checked before any work: too few stretches to compare,
+// or more than 1000 (a sensor with fewer rows than stretches goes untested without a word),
+// are refused in one line; 0 (no test) passes on to the dataset.
 TEST_F(ToolOutputTest, ScatterStretchesIsCheckedBeforeAnyWork) {
   const fs::path dir = CleanDir("scatter");
   std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
   for (const auto& [tool, least] : std::vector<std::pair<std::string, int>>{
            {"autocal_calibrate", 2}, {"autocal_estimate", 3}}) {
-    const Finished bad = RunTool(
-        {Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
-         "--output=" + (dir / "r").string(), "--scatter_stretches=" + std::to_string(least - 1)},
-        dir / "log.txt");
-    EXPECT_EQ(bad.exit_code, 1) << tool;
-    EXPECT_THAT(bad.output, HasSubstr("--scatter_stretches must be 0 (no test) or at least " +
-                                      std::to_string(least) + ", got " + std::to_string(least - 1)))
-        << tool;
+    for (const int stretches : {least - 1, 1001, 1000000}) {
+      const Finished bad = RunTool(
+          {Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+           "--output=" + (dir / "r").string(), "--scatter_stretches=" + std::to_string(stretches)},
+          dir / "log.txt");
+      EXPECT_EQ(bad.exit_code, 1) << tool;
+      EXPECT_THAT(bad.output,
+                  HasSubstr("--scatter_stretches must be 0 (no test) or " + std::to_string(least) +
+                            "..1000, got " + std::to_string(stretches)))
+          << tool;
+    }
     const Finished off = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
                                   "--output=" + (dir / "r").string(), "--scatter_stretches=0"},
                                  dir / "log.txt");
