@@ -58,7 +58,8 @@ DEFINE_int32(scatter_stretches, 16,
 DEFINE_bool(progress, true, "print the stage, percent, cost and time left while running");
 DEFINE_bool(bound, true,
             "with a ground truth in the dataset (a simulated log): the Cramer-Rao bound of the "
-            "estimated blocks in the report, next to their sigma (docs/evaluation.md)");
+            "estimated blocks in the report, next to their sigma (docs/evaluation.md); with "
+            "several logs, in each log's own report");
 
 namespace {
 
@@ -108,6 +109,11 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
   for (const std::string& d : directories) datasets.push_back(autocal::io::ReadDataset(d));
   autocal::pipeline::MultiLogCalibrationOptions multi;
   multi.calibration = options;
+  if (FLAGS_bound) {  // each log's own result against its own truth
+    for (const autocal::io::Dataset& d : datasets) {
+      multi.set_to_truth.push_back(autocal::evaluation::TruthSetter(d));
+    }
+  }
   const autocal::pipeline::MultiLogCalibrationResult result =
       autocal::pipeline::CalibrateDatasets(datasets, problem, multi);
   EndProgressLine();

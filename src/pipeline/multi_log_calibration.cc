@@ -58,6 +58,21 @@ void RequireDistinct(const std::vector<io::Dataset>& datasets) {
   }
 }
 
+// Each log's truth is its own: one setter per dataset, or none.
+void RequireTruthPerLog(const std::vector<io::Dataset>& datasets,
+                        const MultiLogCalibrationOptions& options) {
+  if (options.calibration.set_to_truth) {
+    throw Error(
+        "MultiLogCalibrationOptions: calibration.set_to_truth would set every log to one truth; "
+        "give set_to_truth, one per dataset");
+  }
+  if (!options.set_to_truth.empty() && options.set_to_truth.size() != datasets.size()) {
+    throw Error("MultiLogCalibrationOptions: set_to_truth must be empty or one per dataset, got " +
+                std::to_string(options.set_to_truth.size()) + " for " +
+                std::to_string(datasets.size()) + " datasets");
+  }
+}
+
 // What a change of a block between logs may mean, after the course's notes on each sensor.
 std::string LikelyCause(CalibrationBlockId id) {
   switch (id) {
@@ -171,6 +186,7 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
     throw Error("several logs need at least two datasets, got " + std::to_string(datasets.size()));
   }
   RequireDistinct(datasets);
+  RequireTruthPerLog(datasets, options);
   MultiLogCalibrationResult result;
   const std::vector<std::string> names = LogNames(datasets);
   std::vector<estimation::CalibrationPosterior> posteriors;
@@ -178,7 +194,9 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
     LogCalibration log;
     log.name = names[i];
     log.dataset_directory = datasets[i].directory;
-    log.own = CalibrateDataset(datasets[i], problem, options.calibration);
+    OfflineCalibrationOptions own = options.calibration;
+    if (!options.set_to_truth.empty()) own.set_to_truth = options.set_to_truth[i];
+    log.own = CalibrateDataset(datasets[i], problem, own);
     if (!log.own.posterior.covariance.ok) {
       throw Error("log " + log.name + " (" + datasets[i].directory +
                   "): the covariance of its calibration could not be computed, so it cannot be "

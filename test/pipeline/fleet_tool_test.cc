@@ -207,6 +207,10 @@ TEST(FleetTools, CalibratesSeveralLogsOfOneVehicle) {
   for (const char* day : {"day1", "day2", "day3"}) {
     EXPECT_TRUE(fs::is_regular_file(out / "logs" / day / "trajectory.tum")) << day;
     EXPECT_TRUE(fs::is_regular_file(out / "logs" / day / "own" / "calibration.yaml")) << day;
+    // --bound (default true): each simulated log's own report against its own truth.
+    EXPECT_THAT(Read(out / "logs" / day / "own" / "report.html"),
+                ::testing::HasSubstr("Against the Cramér–Rao bound"))
+        << day;
   }
   const io::RunStatus status = io::ReadRunStatus((out / "status.yaml").string());
   EXPECT_EQ(status.datasets.size(), 3u);

@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "autocal/common/error.h"
+#include "autocal/evaluation/information_bound.h"
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
@@ -210,6 +211,31 @@ TEST(MultiLogRepeatability, FindsTheChangedTyre) {
   }
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr("calibrate those logs apart")));
+}
+
+// With each log's truth (simulated logs), each log's own result carries its Cramer-Rao
+// bound; one setter for every log, or a count that does not match, is refused.
+TEST(MultiLogRepeatability, BoundsEachLogAgainstItsOwnTruth) {
+  std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> logs;
+  logs.push_back(Log(31));
+  logs.push_back(Log(32));
+  std::vector<io::Dataset> datasets;
+  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  MultiLogCalibrationOptions options;
+  options.set_to_truth = {evaluation::TruthSetter(datasets[0])};
+  EXPECT_THROW(CalibrateDatasets(datasets, ImuWheelGnssProblem(), options), Error);
+  MultiLogCalibrationOptions shared;
+  shared.calibration.set_to_truth = evaluation::TruthSetter(datasets[0]);
+  EXPECT_THROW(CalibrateDatasets(datasets, ImuWheelGnssProblem(), shared), Error);
+
+  options.set_to_truth.push_back(evaluation::TruthSetter(datasets[1]));
+  const MultiLogCalibrationResult result =
+      CalibrateDatasets(datasets, ImuWheelGnssProblem(), options);
+  for (const LogCalibration& log : result.logs) {
+    ASSERT_TRUE(log.own.bound) << log.name;
+    EXPECT_EQ(log.own.bound->matrix.rows(), log.own.posterior.covariance.matrix.rows());
+    EXPECT_FALSE(log.at_shared.bound) << log.name;  // nothing estimated there
+  }
 }
 
 TEST(MultiLogRepeatability, RefusesFewerThanTwoLogs) {

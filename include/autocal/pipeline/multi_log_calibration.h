@@ -29,6 +29,11 @@ struct MultiLogCalibrationOptions {
   // m blocks tested (Eq. M3) is flagged below a p-value of this over m (Bonferroni), so that a
   // fleet's reports do not fill with false findings as blocks are added.
   double min_agreement_p_value = 0.01;
+  // Empty, or one per dataset in their order: that log's set_to_truth for its own solve
+  // (evaluation::TruthSetter of a simulated log), so that its own result carries the
+  // Cramer-Rao bound (LogCalibration::own.bound). calibration.set_to_truth, one setter for
+  // every log, is refused: a log's truth is its own.
+  std::vector<estimation::StateSetter> set_to_truth;
 };
 
 struct LogCalibration {
@@ -57,8 +62,9 @@ struct MultiLogCalibrationResult {
 };
 
 // Throws autocal::Error naming the log when one cannot be calibrated, or when the logs
-// cannot be combined (no covariance). Fewer than two datasets, or one directory given twice
-// (its data would count twice), are refused.
+// cannot be combined (no covariance). Fewer than two datasets, one directory given twice
+// (its data would count twice), or set_to_truth options that do not match the datasets are
+// refused.
 MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& datasets,
                                             const io::Problem& problem,
                                             const MultiLogCalibrationOptions& options = {});
