@@ -18,6 +18,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/common/units.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/io/dataset.h"
@@ -42,7 +43,7 @@ DEFINE_int32(threads, 0,
              "solver.num_threads (docs/calibration.md, \"Reproducibility and threads\")");
 DEFINE_double(init_duration_s, 30.0,
               "seconds of the log (from its first sweep) given to the "
-              "initializer that starts the window; > 0");
+              "initializer that starts the window; > 0 and at most 1e9");
 DEFINE_int32(init_sweep_stride, 3,
              "every n-th sweep of those seconds goes to the initializer; "
              ">= 1");
@@ -51,6 +52,23 @@ DEFINE_int32(scatter_stretches, 32,
              "its covariance; the sigmas are widened where they scatter more "
              "(docs/sliding_window.md, Eq. W9); 0: no test; at most 1000");
 DEFINE_int32(progress_every, 10, "print the calibration every this many keyframes (0: never)");
+
+namespace {
+
+// --init_duration_s and --init_sweep_stride, before the dataset is read. A duration is turned
+// into int64 nanoseconds: beyond 1e9 s (31 years) it overflows and takes no sweep.
+void CheckInitializationFlags() {
+  if (!(FLAGS_init_duration_s > 0.0) || !(FLAGS_init_duration_s <= 1e9)) {
+    throw autocal::Error("--init_duration_s must be a positive number of seconds up to 1e9, got " +
+                         autocal::FormatShort(FLAGS_init_duration_s));
+  }
+  if (FLAGS_init_sweep_stride < 1) {
+    throw autocal::Error("--init_sweep_stride must be at least 1, got " +
+                         std::to_string(FLAGS_init_sweep_stride));
+  }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   autocal::tools::StartWithHugePageHeap(argv);
@@ -67,6 +85,7 @@ int main(int argc, char** argv) {
     }
     if (FLAGS_progress_every < 0) throw autocal::Error("--progress_every must be >= 0");
     autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 3);
+    CheckInitializationFlags();
     // Everything that can be checked before the work starts is.
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
     autocal::tools::CheckDatasetDirectory(FLAGS_dataset);

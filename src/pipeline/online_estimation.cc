@@ -93,8 +93,21 @@ void CheckOnlineInputs(const io::Dataset& dataset, const io::Problem& problem,
                 ": the online estimator without the LiDAR needs GNSS (sensors.gnss and " +
                 "gnss.csv): its start is placed on the GNSS track");
   }
-  if (!(options.keyframe_period_without_lidar_s >= 0.0)) {
-    throw Error("OnlineEstimationOptions: keyframe_period_without_lidar_s must be >= 0");
+  // Spans are turned into int64 nanoseconds and added to stamps: beyond 1e9 s (31 years) the
+  // count overflows and a span of the log becomes none.
+  constexpr double kMaxSpanS = 1e9;
+  if (!(options.keyframe_period_without_lidar_s >= 0.0) ||
+      !(options.keyframe_period_without_lidar_s <= kMaxSpanS)) {
+    throw Error(
+        "OnlineEstimationOptions: keyframe_period_without_lidar_s must be within [0, 1e9] "
+        "s, got " +
+        FormatShort(options.keyframe_period_without_lidar_s));
+  }
+  if (!(options.initialization_duration_s <= kMaxSpanS)) {
+    throw Error(
+        "OnlineEstimationOptions: initialization_duration_s must be a positive number of "
+        "seconds up to 1e9, got " +
+        FormatShort(options.initialization_duration_s));
   }
   if (!(options.initialization_duration_s > 0.0) || !(options.max_odometry_to_gnss_rms_m > 0.0) ||
       !(options.initial_position_sigma_with_gnss_m > 0.0) ||

@@ -9,12 +9,14 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/estimation/sliding_window_blocks.h"
 #include "autocal/io/dataset.h"
 #include "autocal/pipeline/offline_calibration.h"
+#include "autocal/pipeline/online_estimation.h"
 #include "pipeline/calibration_steps.h"
 #include "pipeline/online_without_lidar.h"
 #include "pipeline/residual_groups.h"
@@ -220,6 +222,39 @@ TEST(OnlineEstimationInputs, WithoutTheLidarTheStatedClockOffsetsMoveTheStamps) 
 // |r| is 1: robust sigma 1.48, where Gaussian rows give 1) and 10 at 50 sigma have a plain RMS
 // of 5, 10 outlier rows and an RMS of 1 without them; rows of several kinds get the plain
 // figures only.
+// A span option beyond 1e9 s is refused before any work: in nanoseconds it overflowed, and
+// --init_duration_s=1e300 read as an initialization over no sweep at all.
+TEST(OnlineEstimationInputs, RefusesSpansBeyondInt64Nanoseconds) {
+  io::Dataset dataset = Logged(1.0);
+  dataset.wheel.clear();
+  for (const int64_t t : {int64_t{0}, int64_t{1'000'000'000}}) {
+    sensors::ImuSample sample;
+    sample.t_ns = kStartNs + t;
+    dataset.imu.push_back(sample);
+  }
+  io::Problem problem;
+  problem.path = "imu_gnss.yaml";
+  problem.sensors.lidar = false;
+  problem.sensors.wheel = false;
+  for (const auto& [duration_s, period_s, message] :
+       std::vector<std::tuple<double, double, std::string>>{
+           {1e300, 0.0,
+            "initialization_duration_s must be a positive number of seconds up to 1e9, "
+            "got 1e+300"},
+           {30.0, 1e12, "keyframe_period_without_lidar_s must be within [0, 1e9] s, got 1e+12"},
+           {30.0, std::nan(""), "keyframe_period_without_lidar_s must be within [0, 1e9] s"}}) {
+    OnlineEstimationOptions options;
+    options.initialization_duration_s = duration_s;
+    options.keyframe_period_without_lidar_s = period_s;
+    try {
+      EstimateDatasetOnline(dataset, problem, options);
+      ADD_FAILURE() << message;
+    } catch (const Error& e) {
+      EXPECT_THAT(e.what(), HasSubstr(message));
+    }
+  }
+}
+
 TEST(WhitenedStatistics, NameTheOutliersThatCarryTheRms) {
   std::vector<double> rows;
   for (int i = 0; i < 1000; ++i) rows.push_back(std::sin(0.7 * i) * std::sqrt(2.0));

@@ -331,6 +331,29 @@ TEST_F(ToolOutputTest, ScatterStretchesIsCheckedBeforeAnyWork) {
   ExpectNoResult(dir / "r");
 }
 
+// autocal_estimate checks its initialization flags before it reads the dataset: a duration
+// of 1e300 s overflowed int64 nanoseconds and was reported as an initialization over 0 sweeps.
+TEST_F(ToolOutputTest, EstimateChecksTheInitializationFlagsFirst) {
+  const fs::path dir = CleanDir("init_flags");
+  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"--init_duration_s=1e300",
+       "--init_duration_s must be a positive number of seconds up to 1e9, got 1e+300"},
+      {"--init_duration_s=inf", "--init_duration_s must be a positive number of seconds"},
+      {"--init_duration_s=nan", "--init_duration_s must be a positive number of seconds"},
+      {"--init_duration_s=0", "--init_duration_s must be a positive number of seconds"},
+      {"--init_sweep_stride=0", "--init_sweep_stride must be at least 1, got 0"}};
+  for (const auto& [flag, message] : cases) {
+    const Finished f = RunTool({Tool("autocal_estimate"), "--dataset=" + dir.string(),
+                                "--problem=" + problem, "--output=" + (dir / "r").string(), flag},
+                               dir / "log.txt");
+    EXPECT_EQ(f.exit_code, 1) << flag;
+    EXPECT_THAT(f.output, HasSubstr(message)) << flag;
+  }
+  ExpectNoResult(dir / "r");
+}
+
 // A simulation stopped while it writes sweeps leaves only OUT.partial-XXXXXX; one that runs
 // to the end leaves the whole dataset and no staging directory.
 TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
