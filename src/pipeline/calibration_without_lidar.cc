@@ -86,13 +86,15 @@ constexpr int kMaxClockPairingSolves = 5;
 constexpr double kGaugePositionSigmaM = 1e-3;
 constexpr double kGaugeYawSigmaRad = 1e-4;
 
-// The joint solve's summary, or an autocal::Error when it is unusable.
+// The joint solve's summary, or an autocal::Error when it is unusable. Ceres' time is added
+// to *seconds_ceres.
 ceres::Solver::Summary Solve(const io::Dataset& dataset, const io::Problem& problem,
-                             ceres::Problem* p) {
+                             ceres::Problem* p, double* seconds_ceres) {
   ceres::Solver::Summary summary;
   ceres::Solve(
       JointSolverOptions(problem, problem.solver.max_iterations * problem.solver.outer_iterations),
       p, &summary);
+  *seconds_ceres += summary.total_time_in_seconds;
   if (!summary.IsSolutionUsable()) {
     throw Error("dataset " + dataset.directory +
                 ": the calibration solve failed: " + summary.message);
@@ -140,27 +142,29 @@ std::unique_ptr<ceres::Problem> NewJointProblem(const io::Dataset& dataset,
 // and the fix nearest it on the clocks' estimates (Eq. K17): while a solve moves a clock onto
 // other samples, the factors are added again at the clocks it ended at and solved again, at
 // most kMaxClockPairingSolves times in all (a warning says when the pairing still moved then).
-// *solves counts the solves.
+// *solves counts the solves; result->batch.seconds_solver sums Ceres' time.
 ceres::Solver::Summary SolvePairedAtTheClocks(const io::Dataset& dataset,
                                               const SensorFactors& sensor_factors,
                                               std::vector<estimation::Keyframe>* keyframes,
                                               sensors::Calibration* calibration,
                                               std::unique_ptr<ceres::Problem>* joint, int* solves,
-                                              std::vector<std::string>* warnings) {
+                                              OfflineCalibrationResult* result) {
   const io::Problem& problem = *sensor_factors.problem;
+  double* seconds_ceres = &result->batch.seconds_solver;
   sensors::Calibration paired = *calibration;  // the clocks the factors were paired at
-  ceres::Solver::Summary summary = Solve(dataset, problem, joint->get());
+  ceres::Solver::Summary summary = Solve(dataset, problem, joint->get(), seconds_ceres);
   for (*solves = 1; sensor_factors.PairingChanges(*keyframes, paired, *calibration); ++*solves) {
     if (*solves == kMaxClockPairingSolves) {
-      warnings->push_back("the wheel or GNSS clock still moved the keyframes onto other " +
-                          std::string("samples after ") + std::to_string(*solves) +
-                          " solves: the last factors are paired at the clocks before the last "
-                          "solve");
+      result->warnings.push_back(
+          "the wheel or GNSS clock still moved the keyframes onto other " +
+          std::string("samples after ") + std::to_string(*solves) +
+          " solves: the last factors are paired at the clocks before the last "
+          "solve");
       break;
     }
     paired = *calibration;
     *joint = NewJointProblem(dataset, sensor_factors, keyframes, calibration);
-    summary = Solve(dataset, problem, joint->get());
+    summary = Solve(dataset, problem, joint->get(), seconds_ceres);
   }
   return summary;
 }
@@ -171,8 +175,8 @@ ceres::Solver::Summary SolveWithGnssNoiseFromResiduals(
     const io::Dataset& dataset, SensorFactors* sensor_factors,
     std::vector<estimation::Keyframe>* keyframes, sensors::Calibration* calibration,
     std::unique_ptr<ceres::Problem>* joint, int* solves, OfflineCalibrationResult* result) {
-  ceres::Solver::Summary summary = SolvePairedAtTheClocks(
-      dataset, *sensor_factors, keyframes, calibration, joint, solves, &result->warnings);
+  ceres::Solver::Summary summary = SolvePairedAtTheClocks(dataset, *sensor_factors, keyframes,
+                                                          calibration, joint, solves, result);
   if (!sensor_factors->use_gnss) return summary;
   const estimation::GnssNoiseFromResiduals noise =
       MeasureGnssNoise(*sensor_factors, keyframes, calibration);
@@ -184,7 +188,7 @@ ceres::Solver::Summary SolveWithGnssNoiseFromResiduals(
   *joint = NewJointProblem(dataset, *sensor_factors, keyframes, calibration);
   int scaled_solves = 0;
   summary = SolvePairedAtTheClocks(dataset, *sensor_factors, keyframes, calibration, joint,
-                                   &scaled_solves, &result->warnings);
+                                   &scaled_solves, result);
   *solves += scaled_solves;
   return summary;
 }
@@ -204,6 +208,9 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
                 "file: the keyframes are placed by dead reckoning)");
   }
   OfflineCalibrationResult result;
+  // Loading: what CalibrateDataset did before (the checks, the IMU noise from the data), as
+  // with the LiDAR; the log's files are read by the caller.
+  result.seconds_loading = SecondsSince(start);
   result.nominal = dataset.sensors.nominal_calibration;
   std::optional<sensors::EnuConverter> enu;
   if (use_gnss) enu.emplace(sensors::EnuConverter::AtFirstFix(dataset.gnss));
@@ -232,7 +239,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
       use_gnss ? KeyframesOnGnssTrack(dataset, problem, options, timing, *enu, use_wheel,
                                       calibration, &placed)
                : KeyframesByDeadReckoning(dataset, options, timing, calibration);
-  result.seconds_initialization = SecondsSince(start);
+  result.seconds_initialization = SecondsSince(start) - result.seconds_loading;
   Report(options, "initializing", 1.0, 0.0, 0.0);
 
   // 2. The joint solve: IMU, wheel and GNSS factors and the blocks' priors. The first keyframe's

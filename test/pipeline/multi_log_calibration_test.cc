@@ -156,6 +156,21 @@ TEST_F(MultiLogCalibration, WritesSharedRepeatabilityAndEveryLog) {
   EXPECT_THAT(text.str(), ::testing::HasSubstr("</html>"));
 }
 
+// Each log's own calibration (without the LiDAR) records its stages' times: Ceres' share of
+// the solve and the loading before it were 0 in timings.yaml.
+TEST_F(MultiLogCalibration, EachLogRecordsItsTimes) {
+  for (const LogCalibration& log : result_->logs) {
+    const OfflineCalibrationResult& own = log.own;
+    EXPECT_GT(own.seconds_loading, 0.0) << log.name;
+    EXPECT_GT(own.seconds_initialization, 0.0) << log.name;
+    EXPECT_GT(own.batch.seconds_solver, 0.0) << log.name;
+    EXPECT_LE(own.batch.seconds_solver, own.seconds_solve) << log.name;
+    EXPECT_NEAR(own.seconds_loading + own.seconds_initialization + own.seconds_solve,
+                own.seconds_total, 1e-9)
+        << log.name;
+  }
+}
+
 // A log named with a comma and a quote (its directory's name) stays one quoted field of
 // repeatability.csv, as text is in fleet.csv.
 TEST_F(MultiLogCalibration, QuotesLogNamesInTheCsv) {
