@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/io/output_files.h"
 #include "autocal/sim/simulator.h"
 #include "keep_freed_memory.h"
@@ -50,7 +51,8 @@ DEFINE_double(gnss_error_correlation_s, 0.0,
               "correlation time of the fixes' errors, seconds (Gauss-Markov; 0: independent)");
 DEFINE_double(origin_lat_deg, 49.0110, "latitude of the world origin, degrees (WGS84)");
 DEFINE_double(origin_lon_deg, 8.4170, "longitude of the world origin, degrees (WGS84)");
-DEFINE_double(origin_alt_m, 165.0, "ellipsoidal height of the world origin, metres");
+DEFINE_double(origin_alt_m, 165.0,
+              "ellipsoidal height of the world origin, metres (-1000..100000)");
 DEFINE_double(imu_rate_hz, 200.0,
               "IMU sample rate, Hz (20..2000); with --preset, the preset's stamp jitter keeps its "
               "share of the sample period");
@@ -189,6 +191,10 @@ autocal::sim::SimulationOptions OptionsFromFlags() {
   set("imu_rate_hz", FLAGS_imu_rate_hz, &o.imu.noise.update_rate_hz);
   set("imu_stamp_jitter_s", FLAGS_imu_stamp_jitter_s, &o.imu.stamp_jitter_s);
   set("imu_noise_scale", FLAGS_imu_noise_scale, &o.imu.noise_scale);
+  if (!std::isfinite(FLAGS_imu_random_walk_scale)) {
+    throw Error("--imu_random_walk_scale must be a number (negative: --imu_noise_scale), got " +
+                autocal::FormatShort(FLAGS_imu_random_walk_scale));
+  }
   if (FLAGS_imu_random_walk_scale >= 0.0) o.imu.random_walk_scale = FLAGS_imu_random_walk_scale;
   if (!FLAGS_imu_mount_rpy_deg.empty()) {
     o.true_calibration = autocal::sim::WithImuMount(

@@ -125,6 +125,9 @@ void ValidateSimulationOptions(const SimulationOptions& o) {
           "gnss outage_duration_s must be finite and >= 0" + Got(o.gnss.outage_duration_s) + " s");
   Require(std::abs(o.gnss.origin_lat_deg) < 85.0 && std::abs(o.gnss.origin_lon_deg) <= 180.0,
           "gnss origin latitude/longitude out of range");
+  // From below the Dead Sea's shore (-430 m) to above any road or aircraft a dataset records.
+  Require(o.gnss.origin_alt_m >= -1000.0 && o.gnss.origin_alt_m <= 100000.0,
+          "gnss origin_alt_m must be in [-1000, 100000] m" + Got(o.gnss.origin_alt_m));
   Require(std::abs(o.true_calibration.time_offset_lidar_imu_s) < 0.5,
           "|time_offset_lidar_imu_s| must be below 0.5 s");
   Require(o.true_calibration.wheel_radius_left_m > 0.05 &&

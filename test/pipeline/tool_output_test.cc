@@ -157,6 +157,10 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
        "it is a directory"},
       {{Tool("autocal_simulate"), "--wheel_form=rates", "--out=" + (dir / "w").string()},
        "--wheel_form must be angular_rates, linear_speeds or speed_yaw_rate, got 'rates'"},
+      {{Tool("autocal_simulate"), "--imu_random_walk_scale=nan", "--out=" + (dir / "w").string()},
+       "--imu_random_walk_scale must be a number (negative: --imu_noise_scale), got nan"},
+      {{Tool("autocal_simulate"), "--origin_alt_m=1e30", "--out=" + (dir / "w").string()},
+       "gnss origin_alt_m must be in [-1000, 100000] m, got 1e+30"},
   };
   for (const Case& c : cases) {
     const Finished f = RunTool(c.args, dir / "log.txt");
