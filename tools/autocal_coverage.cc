@@ -8,6 +8,7 @@
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <system_error>
 
 #include "autocal/common/error.h"
 #include "autocal/coverage/coverage.h"
@@ -17,11 +18,35 @@
 
 DEFINE_string(rig, "", "rig file: the body and each sensor's mounting and field of view");
 DEFINE_string(scenario, "urban", "highway, urban (the course's values) or a scenario file");
-DEFINE_string(output, "", "directory for coverage.md and coverage.svg (created; optional)");
+DEFINE_string(output, "",
+              "directory for coverage.md and coverage.svg (created; optional); an existing one "
+              "must hold nothing but those");
 
 namespace {
 
 constexpr int kExitShort = 2;
+
+// Throws autocal::Error unless --output can receive coverage.md and coverage.svg: absent, or
+// a directory holding nothing but those (a previous coverage output). Any other directory is
+// refused, as the other tools refuse one, so that a mistyped --output never mixes the
+// report into unrelated files or replaces one of them.
+void CheckCoverageOutput(const std::string& directory) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  if (!fs::exists(directory, error)) return;
+  if (!fs::is_directory(directory, error)) {
+    throw autocal::Error("--output '" + directory + "': it exists and is not a directory");
+  }
+  for (const fs::directory_entry& entry : fs::directory_iterator(directory, error)) {
+    const std::string name = entry.path().filename().string();
+    if (name != "coverage.md" && name != "coverage.svg") {
+      throw autocal::Error("--output '" + directory + "': it exists and holds '" + name +
+                           "', which is not part of a coverage output; name a new directory or "
+                           "remove it");
+    }
+  }
+  if (error) throw autocal::Error("--output '" + directory + "': " + error.message());
+}
 
 autocal::coverage::Scenario Scenario() {
   if (FLAGS_scenario == "highway" || FLAGS_scenario == "urban") {
@@ -54,6 +79,7 @@ int main(int argc, char** argv) {
   try {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_rig.empty()) throw autocal::Error("--rig is required");
+    if (!FLAGS_output.empty()) CheckCoverageOutput(FLAGS_output);
     const autocal::coverage::Rig rig = autocal::io::ReadRigYaml(FLAGS_rig);
     const autocal::coverage::Scenario scenario = Scenario();
     const auto result = autocal::coverage::AnalyzeCoverage(rig, scenario);
@@ -62,9 +88,7 @@ int main(int argc, char** argv) {
     std::cout << table;
     if (!FLAGS_output.empty()) {
       const std::filesystem::path out(FLAGS_output);
-      if (std::filesystem::exists(out) && !std::filesystem::is_directory(out)) {
-        throw autocal::Error("--output " + FLAGS_output + ": it exists and is not a directory");
-      }
+      CheckCoverageOutput(FLAGS_output);  // nothing foreign appeared meanwhile
       std::filesystem::create_directories(out);
       autocal::io::WriteFileAtomically((out / "coverage.md").string(), table);
       autocal::io::WriteFileAtomically((out / "coverage.svg").string(),

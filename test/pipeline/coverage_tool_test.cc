@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "support/test_paths.h"
@@ -31,6 +32,25 @@ TEST(CoverageTool, ExitsZeroForACoveringRigAndWritesTheTableAndTheDrawing) {
   EXPECT_THAT(run.text, HasSubstr("| intersection | all around | 50 m around |"));
   EXPECT_TRUE(fs::exists(out / "coverage.md"));
   EXPECT_TRUE(fs::exists(out / "coverage.svg"));
+}
+
+// --output replaces a previous coverage output, and refuses any other directory before the
+// analysis: its files are left as they were.
+TEST(CoverageTool, WritesOnlyIntoItsOwnOutput) {
+  const fs::path root = test::OutputDir("coverage_output");
+  fs::remove_all(root);
+  const std::string rig = "--rig=" + Rig("full_rig.yaml") + " --output=";
+  EXPECT_EQ(test::RunTool("autocal_coverage", rig + (root / "out").string()).exit_code, 0);
+  EXPECT_EQ(test::RunTool("autocal_coverage", rig + (root / "out").string()).exit_code, 0);
+  fs::create_directories(root / "notes");
+  std::ofstream(root / "notes" / "todo.txt") << "keep\n";
+  const test::ToolOutput refused =
+      test::RunTool("autocal_coverage", rig + (root / "notes").string());
+  EXPECT_EQ(refused.exit_code, 1) << refused.text;
+  EXPECT_THAT(refused.text, HasSubstr("holds 'todo.txt', which is not part of a coverage output"));
+  EXPECT_THAT(refused.text, ::testing::Not(HasSubstr("emergency stop")));  // before the analysis
+  EXPECT_FALSE(fs::exists(root / "notes" / "coverage.md"));
+  EXPECT_TRUE(fs::exists(root / "notes" / "todo.txt"));
 }
 
 TEST(CoverageTool, ExitsTwoWhenARegionIsShortAndOneOnBadInput) {
