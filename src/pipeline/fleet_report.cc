@@ -49,8 +49,8 @@ FleetEntry ReadEntry(const std::string& directory) {
 }
 
 // One block's values and sigmas in the file's units (SI; a rotation as roll, pitch, yaw in
-// degrees), with their column names, or nothing when the file gives the block no sigma (not
-// estimated).
+// degrees with those angles' own sigma), with their column names, or nothing when the file
+// gives the block no sigma (not estimated).
 struct BlockValues {
   std::vector<double> values, sigmas;
   std::vector<std::string> names, directions;
@@ -62,10 +62,16 @@ std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
   if (!sigma) return std::nullopt;
   BlockValues out;
   const double* v = info.const_values(file.value);
+  out.sigmas.assign(sigma->data(), sigma->data() + info.tangent_size);
   if (info.manifold == sensors::BlockManifold::kRightQuaternion) {
-    const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
-    const Eigen::Vector3d rpy = DisplayRollPitchYawDeg(
-        info.id == sensors::CalibrationBlockId::kVehicleRotation ? ImuMountInVehicle(q) : q, 6);
+    // The angles' own sigma (mount_angles.h), not the axes' beside them.
+    const Eigen::Quaterniond mount = DisplayedMount(info, file.value);
+    const Eigen::Vector3d rpy = DisplayRollPitchYawDeg(mount, 6);
+    const Eigen::Vector3d angle_sigma =
+        DisplayedAngleUncertainty(mount, info.id == sensors::CalibrationBlockId::kVehicleRotation,
+                                  *sigma, {})
+            .sigma_deg;
+    out.sigmas = {angle_sigma.x(), angle_sigma.y(), angle_sigma.z()};
     for (const char* angle : {"roll", "pitch", "yaw"}) {
       out.names.push_back(std::string(info.key) + "_" + angle + "_deg");
       out.directions.push_back(angle);
@@ -78,7 +84,6 @@ std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
                           info.direction_names.begin() + info.tangent_size);
     out.values.assign(v, v + info.tangent_size);
   }
-  out.sigmas.assign(sigma->data(), sigma->data() + info.tangent_size);
   return out;
 }
 

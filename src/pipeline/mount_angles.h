@@ -14,6 +14,7 @@
 #include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/sensors/calibration_blocks.h"
 
 namespace autocal {
 namespace pipeline {
@@ -24,6 +25,15 @@ namespace pipeline {
 //            pitch about its left axis, yaw about its up axis).
 inline Eigen::Quaterniond ImuMountInVehicle(const Eigen::Quaterniond& q_I_V) {
   return q_I_V.conjugate();
+}
+
+// The mounting a rotation block of `c` stands for: R_I_L for q_I_L, R_V_I for q_I_V.
+inline Eigen::Quaterniond DisplayedMount(const sensors::CalibrationBlockInfo& info,
+                                         const sensors::Calibration& c) {
+  const double* v = info.const_values(c);
+  const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
+  const bool vehicle = info.id == sensors::CalibrationBlockId::kVehicleRotation;
+  return vehicle ? ImuMountInVehicle(q) : q;
 }
 
 // Roll, pitch, yaw of `q` in degrees, rounded to `decimals`, such that nearly equal rotations

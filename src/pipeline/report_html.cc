@@ -159,15 +159,6 @@ bool LidarUsed(const estimation::LidarInertialBatchReport& batch) {
          !batch.final_point_residuals_m.empty();
 }
 
-// The mounting a rotation block stands for: R_I_L for q_I_L, R_V_I for q_I_V.
-Eigen::Quaterniond DisplayedMount(const sensors::CalibrationBlockInfo& info,
-                                  const sensors::Calibration& c) {
-  const double* v = info.const_values(c);
-  const Eigen::Quaterniond q(v[3], v[0], v[1], v[2]);
-  const bool vehicle = info.id == sensors::CalibrationBlockId::kVehicleRotation;
-  return vehicle ? ImuMountInVehicle(q) : q;
-}
-
 // The displayed values of a block: a rotation as the roll, pitch and yaw (deg) of the mounting
 // it stands for (mount_angles.h), anything else in its display unit.
 Eigen::VectorXd DisplayValues(const sensors::CalibrationBlockInfo& info,

@@ -128,6 +128,30 @@ TEST(FleetReport, ComparesAnglesOnTheCircle) {
   EXPECT_THAT(report.outliers[0].text, ::testing::HasSubstr("24.6 of its own sigma off"));
 }
 
+// Each angle carries its own sigma, not the tangent axis' of the same index: an IMU on its side
+// turned -90 deg in yaw (the Husky of test1.bag) has the vehicle's left axis (sigma 1.9 deg)
+// moving its roll and the forward axis (0.2 deg) its pitch.
+TEST(FleetReport, GivesEachAngleItsOwnSigma) {
+  const fs::path dir = test::OutputDir("fleet_sideways") / "husky";
+  fs::create_directories(dir);
+  io::CalibrationFile file;
+  const Eigen::Quaterniond q_V_I = Eigen::AngleAxisd(-90.0 * kDegToRad, Eigen::Vector3d::UnitZ()) *
+                                   Eigen::AngleAxisd(89.5 * kDegToRad, Eigen::Vector3d::UnitX());
+  file.value.q_I_V = q_V_I.conjugate();
+  file.uncertainty.T_I_V.sigma_rot_deg = Eigen::Vector3d(0.2, 1.9, 5.0);
+  io::WriteCalibrationYaml((dir / "calibration.yaml").string(), file);
+  io::RunStatus status;
+  status.tool = "autocal_calibrate";
+  status.vehicle = "husky";
+  io::WriteRunStatus((dir / "status.yaml").string(), status);
+  const FleetReport report = GatherFleet({dir.string()});
+  ASSERT_EQ(report.columns.size(), 3u);
+  ASSERT_EQ(report.columns[0].name, "q_I_V_roll_deg");
+  EXPECT_NEAR(report.sigmas[0][0], 1.9, 0.01);
+  EXPECT_NEAR(report.sigmas[0][1], 0.2, 0.01);
+  EXPECT_NEAR(report.sigmas[0][2], 5.0, 0.01);
+}
+
 // A directory given with a trailing slash or dot names its vehicle all the same.
 TEST(FleetReport, NamesADirectoryByItsLastComponent) {
   EXPECT_EQ(DirectoryName("runs/car_1"), "car_1");
