@@ -668,9 +668,16 @@ estimation::BlockCovariance WidenedForScatter(
   if (options.scatter_stretches == 0 || !covariance.ok || blocks_estimated.empty()) {
     return covariance;
   }
-  const estimation::StretchScatter scatter =
-      estimation::ComputeStretchScatter(blocks_estimated, problem, SensorSources(problem),
-                                        options.scatter_stretches, num_threads, ordering);
+  const std::vector<estimation::ResidualSource> sources = SensorSources(problem);
+  for (const estimation::ResidualSource& source : sources) {
+    if (source.residual_blocks.size() >= static_cast<size_t>(options.scatter_stretches)) continue;
+    result->warnings.push_back(
+        source.name + " rows: " + std::to_string(source.residual_blocks.size()) +
+        " factors, fewer than the " + std::to_string(options.scatter_stretches) +
+        " stretches of the scatter test (Eq. C8): their scatter over the log is not tested");
+  }
+  const estimation::StretchScatter scatter = estimation::ComputeStretchScatter(
+      blocks_estimated, problem, sources, options.scatter_stretches, num_threads, ordering);
   if (!scatter.ok) {
     result->warnings.push_back(
         "the rows' scatter over the log could not be computed (Eq. C8): the sigmas are those "

@@ -543,6 +543,8 @@ std::string FormatCalibrationSummary(const OfflineCalibrationResult& result) {
     out << ": " << batch.outer_iterations << " outer iterations"
         << (batch.converged ? "" : " (stopped before converging)") << ", association "
         << batch.seconds_association << " s, Ceres " << batch.seconds_solver << " s";
+  } else if (batch.seconds_solver > 0.0) {  // without the LiDAR: Ceres' solves alone
+    out << ": Ceres " << batch.seconds_solver << " s";
   }
   out << ")\n";
   for (const std::string& warning : result.warnings) out << "warning: " << warning << '\n';

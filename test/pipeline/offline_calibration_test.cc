@@ -577,6 +577,25 @@ TEST_F(OfflineCalibrationTest, RefusesWhatTheDatasetCannotGive) {
   }
 }
 
+// A sensor with fewer factors than the scatter test's stretches is not tested (Eq. C8): the run
+// says so rather than reporting no scatter.
+TEST_F(OfflineCalibrationTest, SaysWhichSensorsTheScatterTestLeavesOut) {
+  OfflineCalibrationOptions options;
+  options.scatter_stretches = 500;
+  const OfflineCalibrationResult result =
+      CalibrateDataset(io::ReadDataset(data_->directory), LidarImuProblem(), options);
+  const auto untested = [&](const std::string& sensor) {
+    return std::any_of(result.warnings.begin(), result.warnings.end(), [&](const std::string& w) {
+      return w.rfind(sensor + " rows: ", 0) == 0 &&
+             w.find("fewer than the 500 stretches") != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(untested("imu"));  // one factor per keyframe, about 170
+  const auto imu = result.calibration.residuals.find("imu");
+  EXPECT_FALSE(imu != result.calibration.residuals.end() &&
+               imu->second.count("stretch_scatter_ratio") > 0);
+}
+
 // Without a position reference (no GNSS, no LiDAR) the keyframes are dead reckoned from the IMU
 // and the wheels, the first one's position and yaw the gauge: the yaw rows still tie the radii
 // to the track (their ratio), gravity the mount's roll and pitch, and the drive reports what it
