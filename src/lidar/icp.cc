@@ -310,7 +310,8 @@ void RequireEnough(int count, const IcpOptions& setting, Eigen::Index source_siz
 }
 
 // Eqs. (4.14)-(4.15): Cov = sigma^2 H^-1 with sigma^2 estimated from the weighted residuals
-// when not given.
+// when not given; for point-to-plane with the source range noise given, eq. (4.16) instead
+// (only LinearizePointToPlane sums eq.propagated).
 void FillStatistics(const NormalEquations& eq, const Eigen::Vector3d& centre,
                     const IcpOptions& setting, Eigen::Index source_size, IcpResult* result) {
   result->num_correspondences = eq.count;
@@ -325,7 +326,7 @@ void FillStatistics(const NormalEquations& eq, const Eigen::Vector3d& centre,
   result->residual_sigma_m = sigma;
   const Matrix6d H_inverse = eq.H.inverse();
   Matrix6d covariance_centred;
-  if (setting.source_range_sigma_m > 0.0 && eq.residual_dimension == 1) {
+  if (setting.method == IcpMethod::kPointToPlane && setting.source_range_sigma_m > 0.0) {
     covariance_centred = H_inverse * eq.propagated * H_inverse;  // eq. (4.16)
   } else {
     covariance_centred = sigma * sigma * H_inverse;  // eq. (4.14)

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <random>
 
@@ -221,6 +222,25 @@ TEST(IcpTest, GeneralizedIcpRecoversSimulatedMotionWithRangeNoise) {
   bad.gicp_epsilon = 1e-3;
   EXPECT_THROW(AlignIcp(pair.source, IcpTarget(pair.target, false), Pose3d::Identity(), bad),
                Error);
+}
+
+// source_range_sigma_m is a point-to-plane option: GICP's residual is no range along one
+// normal, so its covariance stays sigma^2 H^-1 (eq. 4.14) with the option set.
+TEST(IcpTest, GeneralizedIcpCovarianceIgnoresTheSourceRangeSigma) {
+  const SweepPair pair = StreetPair(21);
+  const IcpTarget target(pair.target, /*with_normals=*/true, StreetNormals());
+  IcpOptions setting = StreetOptions();
+  setting.method = IcpMethod::kGeneralized;
+  setting.source_normals = StreetNormals();
+  const IcpResult without = AlignIcp(pair.source, target, Pose3d::Identity(), setting);
+  setting.source_range_sigma_m = 0.02;
+  const IcpResult with = AlignIcp(pair.source, target, Pose3d::Identity(), setting);
+  EXPECT_EQ(with.T_target_source.p, without.T_target_source.p);
+  EXPECT_EQ(with.residual_sigma_m, without.residual_sigma_m);
+  EXPECT_EQ(with.covariance, without.covariance);
+  const Eigen::Matrix<double, 6, 1> eigenvalues =
+      Eigen::SelfAdjointEigenSolver<Matrix6d>(with.covariance).eigenvalues();
+  EXPECT_GT(eigenvalues(0), 0.0) << "covariance\n" << with.covariance;
 }
 
 // The same pair with its target frame kilometres from the origin and tilted, as a long drive's

@@ -68,7 +68,8 @@ struct IcpOptions {
   // Point-to-plane only: when > 0, the source points' range noise (1-sigma, along the
   // beam from the source origin) is propagated per point instead, Censi's sandwich form
   // Cov = H^-1 (sum w^2 var_i J J^T) H^-1 with var_i = sigma_r^2 (n . R u_i)^2 (eq. 4.16).
-  // Grazing ground returns then count with their small along-normal noise.
+  // Grazing ground returns then count with their small along-normal noise. Point-to-point
+  // and GICP ignore it: their covariance is sigma^2 H^-1 (eq. 4.14).
   double source_range_sigma_m = 0.0;
   // Generalized-ICP: each point's covariance is its neighbourhood's plane, eigenvalues
   // (epsilon, 1, 1) along (normal, tangents); source normals from these neighbourhoods.
@@ -137,7 +138,9 @@ struct IcpResult {
   // RMS of the residuals of those correspondences (point-to-plane distance for
   // point-to-plane, point distance for point-to-point), unweighted.
   double inlier_rmse_m = 0.0;
-  // The residual sigma used in the covariance (given or estimated).
+  // The residual sigma, given (IcpOptions::residual_sigma_m) or estimated (eq. 4.15). The
+  // covariance is sigma^2 H^-1 with it (eq. 4.14), except for point-to-plane with
+  // source_range_sigma_m > 0, whose covariance (eq. 4.16) does not use it.
   double residual_sigma_m = 0.0;
 };
 
