@@ -352,7 +352,8 @@ IcpMethod ParseIcpMethod(const std::string& name) {
   if (name == "point_to_point") return IcpMethod::kPointToPoint;
   if (name == "point_to_plane") return IcpMethod::kPointToPlane;
   if (name == "gicp") return IcpMethod::kGeneralized;
-  throw Error("unknown ICP method '" + name + "' (expected point_to_point or point_to_plane)");
+  throw Error("unknown ICP method '" + name +
+              "' (expected point_to_point, point_to_plane or gicp)");
 }
 
 const char* IcpMethodName(IcpMethod method) {

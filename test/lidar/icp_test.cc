@@ -120,7 +120,16 @@ TEST(IcpMethodTest, ParsesTheMethodNames) {
   EXPECT_EQ(ParseIcpMethod("point_to_point"), IcpMethod::kPointToPoint);
   EXPECT_EQ(ParseIcpMethod("gicp"), IcpMethod::kGeneralized);
   EXPECT_STREQ(IcpMethodName(IcpMethod::kGeneralized), "gicp");
-  EXPECT_THROW(ParseIcpMethod("plane"), Error);
+  EXPECT_EQ(ParseIcpMethod("point_to_plane"), IcpMethod::kPointToPlane);
+  try {
+    ParseIcpMethod("plane");
+    ADD_FAILURE() << "an unknown method name must be refused";
+  } catch (const Error& e) {
+    // Every accepted name is listed.
+    EXPECT_STREQ(e.what(),
+                 "unknown ICP method 'plane' (expected point_to_point, point_to_plane "
+                 "or gicp)");
+  }
 }
 
 // ---------------------------------------------------------------------------------------
