@@ -408,6 +408,15 @@ IcpTarget::IcpTarget(Eigen::Matrix3Xd points, TargetNormals normals,
 }
 
 void IcpTarget::PrepareNormals(const std::vector<int>& indices, int num_threads) const {
+  // Checked before any point is marked, so that a refused call leaves the cache as it was.
+  for (const int index : indices) {
+    if (index >= tree_.size()) {
+      throw Error("IcpTarget::PrepareNormals: point index " + std::to_string(index) +
+                  " is out of range for a target of " + std::to_string(tree_.size()) +
+                  " points (expected below " + std::to_string(tree_.size()) +
+                  ", or negative to skip)");
+    }
+  }
   if (mode_ != TargetNormals::kOnDemand) return;
   std::lock_guard<std::mutex> lock(*mutex_);
   std::vector<int> missing;

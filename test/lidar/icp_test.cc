@@ -444,6 +444,37 @@ TEST(IcpTest, PointToPointConvergesToExactCorrespondences) {
   EXPECT_LT(result.inlier_rmse_m, 1e-4);
 }
 
+// An index past the target's points is refused by name, in every normal mode, and leaves the
+// on-demand cache usable.
+TEST(IcpTargetTest, PrepareNormalsRefusesIndicesPastThePoints) {
+  const Eigen::Matrix3Xd points = RandomPoints(100, 5);
+  for (const TargetNormals mode :
+       {TargetNormals::kNone, TargetNormals::kAll, TargetNormals::kOnDemand}) {
+    const IcpTarget target(points, mode);
+    for (const int index : {100, 1 << 30}) {
+      try {
+        target.PrepareNormals({3, index}, 1);
+        ADD_FAILURE() << "index " << index << " of a 100-point target must be refused";
+      } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("point index " + std::to_string(index) +
+                                             " is out of range for a target of 100 points"),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+    target.PrepareNormals({-1, 3, 99}, 1);  // negative: skipped
+  }
+  // The refused call prepared nothing, and a later one computes the normal.
+  const IcpTarget on_demand(points, TargetNormals::kOnDemand);
+  EXPECT_THROW(on_demand.PrepareNormals({3, 100}, 1), Error);
+  EXPECT_EQ(on_demand.normals().planarity(3), 0.0);
+  on_demand.PrepareNormals({3}, 1);
+  const IcpTarget all(points, TargetNormals::kAll);
+  EXPECT_EQ(on_demand.normals().normals.col(3), all.normals().normals.col(3));
+  EXPECT_EQ(on_demand.normals().planarity(3), all.normals().planarity(3));
+  EXPECT_GT(all.normals().planarity(3), 0.0);
+}
+
 TEST(IcpTest, ClearErrorsOnUnusableInput) {
   const test::Scene scene = test::MakeStreetScene(41);
   const SweepPair pair = SimulatePair(scene, MakePose(0, 0, 1.8, 0, 0, 0),

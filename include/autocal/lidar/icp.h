@@ -111,8 +111,9 @@ class IcpTarget {
   const SurfaceNormals& normals() const { return normals_; }
 
   // Makes sure the normals of the points with these indices exist (kOnDemand computes the
-  // missing ones on num_threads threads; negative indices are skipped). Safe to call from
-  // concurrent alignments against the same target.
+  // missing ones on num_threads threads; negative indices are skipped). Throws
+  // autocal::Error, preparing nothing, when an index is not below the number of points. Safe
+  // to call from concurrent alignments against the same target.
   void PrepareNormals(const std::vector<int>& indices, int num_threads) const;
 
  private:
