@@ -4,6 +4,14 @@
 
 namespace autocal {
 namespace lidar {
+namespace {
+
+// atan2(y, x) in (-pi, pi], 0 when x = y = 0. Adding +0 turns a signed zero into +0 (IEEE:
+// -0 + +0 = +0), which atan2 would otherwise read as a side: atan2(-0, -1) = -pi and
+// atan2(+0, -0) = pi. atan2(+0, +0) is 0 on IEEE platforms.
+double Azimuth(double x, double y) { return std::atan2(y + 0.0, x + 0.0); }
+
+}  // namespace
 
 Eigen::Vector3d SphericalToCartesian(const SphericalPoint& s) {
   const double ce = std::cos(s.elevation_rad);
@@ -16,8 +24,8 @@ SphericalPoint CartesianToSpherical(const Eigen::Vector3d& p) {
   const double horizontal = std::hypot(p.x(), p.y());
   SphericalPoint s;
   s.range_m = p.norm();
-  // atan2(0, 0) is 0 on IEEE platforms, which gives the documented values at the origin.
-  s.azimuth_rad = std::atan2(p.y(), p.x());
+  s.azimuth_rad = Azimuth(p.x(), p.y());
+  // horizontal >= +0, so the elevation is 0 at the origin and +-pi/2 on the z axis.
   s.elevation_rad = std::atan2(p.z(), horizontal);
   return s;
 }
@@ -29,7 +37,7 @@ Eigen::Vector2d PolarToCartesian(const PolarPoint& s) {
 PolarPoint CartesianToPolar(const Eigen::Vector2d& p) {
   PolarPoint s;
   s.range_m = p.norm();
-  s.azimuth_rad = std::atan2(p.y(), p.x());
+  s.azimuth_rad = Azimuth(p.x(), p.y());
   return s;
 }
 

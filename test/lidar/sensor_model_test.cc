@@ -64,6 +64,30 @@ TEST(SensorModelTest, OppositeQuadrantsAreDistinguished) {
   EXPECT_NEAR(up.elevation_rad, 0.5 * kPi, 1e-15);
 }
 
+// A zero's sign is no side: (-1, -0, 0) lies on the negative x axis, azimuth pi (not -pi,
+// outside (-pi, pi]), and (-0, 0, 1) on the z axis, azimuth 0 (not pi). Rotations and
+// products make such zeros, e.g. Rz(pi) applied to (0, 0, 1) gives x = -0.
+TEST(SensorModelTest, SignedZerosGiveTheDocumentedAzimuths) {
+  const double kMinusZero = -0.0;
+  for (const double y : {0.0, kMinusZero}) {
+    EXPECT_EQ(CartesianToSpherical(Eigen::Vector3d(-1.0, y, 0.0)).azimuth_rad, kPi) << y;
+    EXPECT_EQ(CartesianToSpherical(Eigen::Vector3d(-1.0, y, 2.0)).azimuth_rad, kPi) << y;
+    EXPECT_EQ(CartesianToPolar(Eigen::Vector2d(-1.0, y)).azimuth_rad, kPi) << y;
+    EXPECT_EQ(CartesianToSpherical(Eigen::Vector3d(1.0, y, 0.0)).azimuth_rad, 0.0) << y;
+    for (const double x : {0.0, kMinusZero}) {
+      for (const double z : {1.0, -1.0, 0.0, kMinusZero}) {
+        const SphericalPoint s = CartesianToSpherical(Eigen::Vector3d(x, y, z));
+        EXPECT_EQ(s.azimuth_rad, 0.0) << x << " " << y << " " << z;
+        EXPECT_FALSE(std::signbit(s.azimuth_rad)) << x << " " << y << " " << z;
+        EXPECT_EQ(s.elevation_rad, z == 0.0 ? 0.0 : std::copysign(0.5 * kPi, z));
+      }
+      EXPECT_EQ(CartesianToPolar(Eigen::Vector2d(x, y)).azimuth_rad, 0.0) << x << " " << y;
+    }
+  }
+  EXPECT_TRUE(
+      std::isnan(CartesianToSpherical(Eigen::Vector3d(std::nan(""), 0.0, 1.0)).azimuth_rad));
+}
+
 TEST(SensorModelTest, TwoDimensionalModelIsTheZeroElevationCase) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> range(0.1, 30.0);

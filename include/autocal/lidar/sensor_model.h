@@ -35,10 +35,12 @@ struct PolarPoint {
 Eigen::Vector3d SphericalToCartesian(const SphericalPoint& s);
 
 // Forward sensor model, eq. (1.2). The origin maps to range 0 with both angles 0; a point
-// on the z axis gets azimuth 0.
+// on the z axis gets azimuth 0. Zeros count alike whatever their sign: (-1, -0, 0) has
+// azimuth pi and (-0, 0, 1) azimuth 0.
 SphericalPoint CartesianToSpherical(const Eigen::Vector3d& p);
 
-// 2D LiDAR (eq. 1.3): polar coordinates in the sensor's xy plane.
+// 2D LiDAR (eq. 1.3): polar coordinates in the sensor's xy plane. CartesianToPolar gives the
+// azimuth of CartesianToSpherical: 0 at the origin, pi on the negative x axis.
 Eigen::Vector2d PolarToCartesian(const PolarPoint& s);
 PolarPoint CartesianToPolar(const Eigen::Vector2d& p);
 
