@@ -9,6 +9,16 @@ namespace autocal {
 namespace lidar {
 namespace {
 
+// The index of the first column of `values` with a non-finite entry; -1 when all are finite.
+// One vectorized pass first: the loop runs only on bad input.
+template <typename Values>
+int64_t FirstNonFinite(const Values& values) {
+  if (values.allFinite()) return -1;
+  int64_t i = 0;
+  while (values.col(i).allFinite()) ++i;
+  return i;
+}
+
 PointCloud WithPoints(const PointCloud& cloud, Eigen::Matrix3Xd points) {
   PointCloud out;
   out.points = std::move(points);
@@ -58,11 +68,20 @@ void CheckPointCloud(const PointCloud& cloud, const std::string& what) {
     throw Error(what + ": " + std::to_string(cloud.time_s.size()) + " time values for " +
                 std::to_string(n) + " points");
   }
-  if (cloud.points.allFinite()) return;  // one vectorized pass; the loop names the point
-  for (int64_t i = 0; i < n; ++i) {
-    if (!cloud.points.col(i).allFinite()) {
-      throw Error(what + ": point " + std::to_string(i) + " has a non-finite coordinate");
-    }
+  const int64_t bad_point = FirstNonFinite(cloud.points);
+  if (bad_point >= 0) {
+    throw Error(what + ": point " + std::to_string(bad_point) + " has a non-finite coordinate");
+  }
+  const int64_t bad_intensity = FirstNonFinite(cloud.intensity.transpose());
+  if (bad_intensity >= 0) {
+    throw Error(what + ": point " + std::to_string(bad_intensity) +
+                " has a non-finite intensity (" + std::to_string(cloud.intensity(bad_intensity)) +
+                ")");
+  }
+  const int64_t bad_time = FirstNonFinite(cloud.time_s.transpose());
+  if (bad_time >= 0) {
+    throw Error(what + ": point " + std::to_string(bad_time) + " has a non-finite time (" +
+                std::to_string(cloud.time_s(bad_time)) + " s)");
   }
 }
 
@@ -75,6 +94,8 @@ PointCloud RemoveNonFinite(const PointCloud& cloud) {
   int64_t kept = 0;
   for (int64_t i = 0; i < n; ++i) {
     if (!cloud.points.col(i).allFinite()) continue;
+    if (cloud.has_intensity() && !std::isfinite(cloud.intensity(i))) continue;
+    if (cloud.has_time() && !std::isfinite(cloud.time_s(i))) continue;
     out.points.col(kept) = cloud.points.col(i);
     if (cloud.has_intensity()) out.intensity(kept) = cloud.intensity(i);
     if (cloud.has_time()) out.time_s(kept) = cloud.time_s(i);

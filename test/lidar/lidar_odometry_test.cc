@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/common/units.h"
@@ -186,6 +187,24 @@ TEST_F(LidarOdometryTest, CoarseRegistrationGridAndThreadsKeepTracking) {
   RecordProperty("coarse_drift_percent", std::to_string(report.drift_percent()));
   EXPECT_LT(report.drift_percent(), 1.0);
   EXPECT_LT(report.max_relative_rotation_error_deg, 0.1);
+}
+
+// A NaN time would deskew its point to NaN: the sweep is refused, naming the point, and the
+// odometry goes on with the next sweeps as if it had not been given.
+TEST_F(LidarOdometryTest, RefusesANonFiniteTimeAndKeepsTracking) {
+  LidarSweep bad = (*sweeps_)[0];
+  bad.cloud.time_s(17) = std::nan("");
+  LidarOdometry odometry;
+  try {
+    odometry.AddSweep(bad);
+    ADD_FAILURE() << "a sweep with a NaN time must be refused";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("point 17 has a non-finite time"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(odometry.frames().empty());
+  for (int k = 0; k < 4; ++k) EXPECT_NO_THROW(odometry.AddSweep((*sweeps_)[k])) << k;
+  EXPECT_EQ(odometry.frames().size(), 4u);
 }
 
 TEST(LidarOdometryErrorsTest, RejectsBadSequences) {

@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
+#include <string>
 #include <tuple>
 
 #include "autocal/common/error.h"
@@ -74,6 +76,37 @@ TEST(PointCloudTest, RejectsNonRotationsAndBadChannels) {
   EXPECT_EQ(cleaned.size(), cloud.size() - 1);
   EXPECT_EQ(cleaned.intensity(4), cloud.intensity(5));
   EXPECT_NO_THROW(CheckPointCloud(cleaned, "test"));
+}
+
+// A NaN or infinite time or intensity is refused like a coordinate, naming the point: the
+// odometry deskews by time, and a NaN time made every later sweep fail in the local map.
+TEST(PointCloudTest, RejectsNonFiniteTimeAndIntensityNamingThePoint) {
+  const PointCloud cloud = RandomCloud(30, 6);
+  const auto expect_refused = [](const PointCloud& bad, const std::string& message) {
+    try {
+      CheckPointCloud(bad, "sweep");
+      ADD_FAILURE() << "expected: " << message;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  };
+  PointCloud bad = cloud;
+  bad.time_s(17) = std::nan("");
+  expect_refused(bad, "sweep: point 17 has a non-finite time (nan s)");
+  bad.time_s(3) = -std::numeric_limits<double>::infinity();
+  expect_refused(bad, "sweep: point 3 has a non-finite time (-inf s)");
+  EXPECT_EQ(RemoveNonFinite(bad).size(), cloud.size() - 2);
+  EXPECT_NO_THROW(CheckPointCloud(RemoveNonFinite(bad), "sweep"));
+  bad = cloud;
+  bad.intensity(29) = std::numeric_limits<float>::infinity();
+  expect_refused(bad, "sweep: point 29 has a non-finite intensity (inf)");
+  const PointCloud cleaned = RemoveNonFinite(bad);
+  EXPECT_EQ(cleaned.size(), cloud.size() - 1);
+  EXPECT_EQ(cleaned.time_s(28), cloud.time_s(28));
+  EXPECT_NO_THROW(CheckPointCloud(cleaned, "sweep"));
+  // A non-finite coordinate is named first.
+  bad.points(0, 5) = std::nan("");
+  expect_refused(bad, "sweep: point 5 has a non-finite coordinate");
 }
 
 TEST(VoxelGridTest, CentroidPerOccupiedVoxel) {

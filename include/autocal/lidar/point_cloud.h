@@ -48,11 +48,13 @@ PointCloud Transform(const PointCloud& cloud_b, const geometry::Pose3d& T_a_b);
 void TransformInPlace(const geometry::Pose3d& T_a_b, PointCloud* cloud);
 
 // Throws autocal::Error naming `what` when the optional channels do not match the number
-// of points or a coordinate is not finite.
+// of points, or a coordinate, an intensity or a time is not finite (the message names the
+// first such point by its index).
 void CheckPointCloud(const PointCloud& cloud, const std::string& what);
 
-// The cloud without points that have a non-finite coordinate (organized PCD files mark
-// missing returns with NaN). Keeps the optional channels aligned.
+// The cloud without points that have a non-finite coordinate, intensity or time (organized
+// PCD files mark missing returns with NaN), so that it passes CheckPointCloud. Keeps the
+// optional channels aligned.
 PointCloud RemoveNonFinite(const PointCloud& cloud);
 
 }  // namespace lidar
