@@ -28,9 +28,10 @@ LidarOdometry::LidarOdometry(LidarOdometryOptions setting)
 }
 
 Eigen::Matrix3Xd LidarOdometry::Deskewed(
-    const PointCloud& grid, const std::optional<Eigen::Vector3d>& angular_velocity) const {
+    const PointCloud& grid, const Vector6d& velocity,
+    const std::optional<Eigen::Vector3d>& angular_velocity) const {
   if (!setting_.deskew) return grid.points;
-  Vector6d twist = velocity_;
+  Vector6d twist = velocity;
   if (angular_velocity) twist.tail<3>() = *angular_velocity;
   Eigen::Matrix3Xd out(3, grid.size());
   ParallelFor(0, grid.size(), setting_.num_threads, [&](int64_t begin, int64_t end, int) {
@@ -58,12 +59,19 @@ Eigen::Matrix3Xd LidarOdometry::ToWorld(const Eigen::Matrix3Xd& points_L,
   return (T_W_L.R() * points_L).colwise() + T_W_L.p;
 }
 
-IcpTarget LidarOdometry::BuildMap(const Eigen::Vector3d& viewpoint_W) const {
+IcpTarget LidarOdometry::BuildMap(const LocalVoxelMap& map,
+                                  const Eigen::Vector3d& viewpoint_W) const {
   NormalEstimationOptions normals = setting_.map_normals;
   normals.viewpoint = viewpoint_W;  // normals face the sensor at its last pose
   // Each map is registered against once or twice; most of its points never pair with a
   // sweep point, so their normals are not computed.
-  return IcpTarget(map_.Centroids(), TargetNormals::kOnDemand, normals, setting_.num_threads);
+  return IcpTarget(map.Centroids(), TargetNormals::kOnDemand, normals, setting_.num_threads);
+}
+
+void LidarOdometry::TakeInPreviousSweep() {
+  if (previous_sweep_W_.cols() == 0) return;  // taken in by a call that failed later
+  map_.AddSweep(previous_sweep_W_);
+  previous_sweep_W_.resize(3, 0);
 }
 
 const OdometryFrame& LidarOdometry::AddSweep(
@@ -82,21 +90,11 @@ const OdometryFrame& LidarOdometry::AddSweep(
     throw Error("LidarOdometry: deskewing needs per-point time, the sweep at " +
                 std::to_string(sweep.t_ns) + " ns has none");
   }
-  OdometryFrame frame;
-  frame.t_ns = sweep.t_ns;
-  if (frames_.empty()) {
-    const SweepGrids grids = Grids(sweep.cloud);
-    frame.T_W_L = setting_.initial_T_W_L;
-    // No velocity yet: the first sweep enters the map (with the second) as measured and is
-    // deskewed again once the second sweep has given a velocity.
-    first_grid_ = grids.map;
-    first_angular_velocity_ = angular_velocity_L_rad_s;
-    previous_sweep_W_ = ToWorld(Deskewed(grids.map, angular_velocity_L_rad_s), frame.T_W_L);
-    frames_.push_back(frame);
-    return frames_.back();
-  }
+  if (frames_.empty()) return AddFirstSweep(sweep, angular_velocity_L_rad_s);
 
   const OdometryFrame& previous = frames_.back();
+  OdometryFrame frame;
+  frame.t_ns = sweep.t_ns;
   const double dt_s = 1e-9 * static_cast<double>(sweep.t_ns - previous.t_ns);
   // The map takes in the previous sweep and is indexed while this sweep is gridded: the two
   // share nothing, and on one thread they run one after the other.
@@ -105,9 +103,8 @@ const OdometryFrame& LidarOdometry::AddSweep(
   ParallelFor(0, 2, setting_.num_threads, [&](int64_t begin, int64_t end, int) {
     for (int64_t task = begin; task < end; ++task) {
       if (task == 0) {
-        map_.AddSweep(previous_sweep_W_);
-        previous_sweep_W_.resize(3, 0);
-        map.emplace(BuildMap(previous.T_W_L.p));
+        TakeInPreviousSweep();
+        map.emplace(BuildMap(map_, previous.T_W_L.p));
       } else {
         grids = Grids(sweep.cloud);
       }
@@ -116,25 +113,53 @@ const OdometryFrame& LidarOdometry::AddSweep(
   // Two passes: the first deskews with the previous velocity, the second with the velocity
   // the first registration implies (the motion may have changed since the last sweep).
   // On the second sweep the first pass sees two sweeps distorted alike (no velocity yet),
-  // which aligns them consistently; the map's first sweep is then deskewed as well.
-  geometry::Pose3d T_W_L =
-      previous.T_W_L * geometry::ExpSE3(Vector6d(velocity_ * dt_s));  // eq. (5.1)
+  // which aligns them consistently; the map's first sweep is then deskewed as well, in a
+  // copy of the one-sweep map that replaces it only when this call succeeds.
+  Vector6d velocity = velocity_;
+  std::optional<LocalVoxelMap> deskewed_first_map;
+  geometry::Pose3d T_W_L = previous.T_W_L * geometry::ExpSE3(Vector6d(velocity * dt_s));  // (5.1)
   const int passes = setting_.deskew ? 2 : 1;
   for (int pass = 0; pass < passes; ++pass) {
-    frame.icp =
-        AlignIcp(Deskewed(grids.registration, angular_velocity_L_rad_s), *map, T_W_L, setting_.icp);
+    frame.icp = AlignIcp(Deskewed(grids.registration, velocity, angular_velocity_L_rad_s), *map,
+                         T_W_L, setting_.icp);
     T_W_L = frame.icp.T_target_source;
-    velocity_ = geometry::LogSE3(geometry::Pose3d(previous.T_W_L.Inverse() * T_W_L)) / dt_s;
+    velocity = geometry::LogSE3(geometry::Pose3d(previous.T_W_L.Inverse() * T_W_L)) / dt_s;
     if (frames_.size() == 1 && setting_.deskew && pass == 0) {
-      map_.ReplaceOldest(ToWorld(Deskewed(first_grid_, first_angular_velocity_), frames_[0].T_W_L));
-      first_grid_ = PointCloud();
-      map.emplace(BuildMap(previous.T_W_L.p));
+      deskewed_first_map = map_;
+      deskewed_first_map->ReplaceOldest(
+          ToWorld(Deskewed(first_grid_, velocity, first_angular_velocity_), frames_[0].T_W_L));
+      map.emplace(BuildMap(*deskewed_first_map, previous.T_W_L.p));
     }
   }
   frame.T_W_L = T_W_L;
   frame.T_prev_curr = previous.T_W_L.Inverse() * T_W_L;
-  previous_sweep_W_ = ToWorld(Deskewed(grids.map, angular_velocity_L_rad_s), frame.T_W_L);
+  Eigen::Matrix3Xd sweep_W =
+      ToWorld(Deskewed(grids.map, velocity, angular_velocity_L_rad_s), frame.T_W_L);
+  // Every step that can fail is done: the call's effects from here on.
   frames_.push_back(frame);
+  velocity_ = velocity;
+  if (deskewed_first_map) {
+    map_ = std::move(*deskewed_first_map);
+    first_grid_ = PointCloud();
+  }
+  previous_sweep_W_ = std::move(sweep_W);
+  return frames_.back();
+}
+
+const OdometryFrame& LidarOdometry::AddFirstSweep(
+    const LidarSweep& sweep, const std::optional<Eigen::Vector3d>& angular_velocity_L_rad_s) {
+  SweepGrids grids = Grids(sweep.cloud);
+  OdometryFrame frame;
+  frame.t_ns = sweep.t_ns;
+  frame.T_W_L = setting_.initial_T_W_L;
+  // No velocity yet: the first sweep enters the map (with the second) as measured and is
+  // deskewed again once the second sweep has given a velocity.
+  Eigen::Matrix3Xd sweep_W =
+      ToWorld(Deskewed(grids.map, velocity_, angular_velocity_L_rad_s), frame.T_W_L);
+  frames_.push_back(frame);
+  first_grid_ = std::move(grids.map);
+  first_angular_velocity_ = angular_velocity_L_rad_s;
+  previous_sweep_W_ = std::move(sweep_W);
   return frames_.back();
 }
 

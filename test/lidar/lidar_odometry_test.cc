@@ -207,6 +207,49 @@ TEST_F(LidarOdometryTest, RefusesANonFiniteTimeAndKeepsTracking) {
   EXPECT_EQ(odometry.frames().size(), 4u);
 }
 
+// A sweep whose registration fails leaves the odometry as it was: the run goes on exactly as
+// one never given that sweep. The bad sweep's point times are 100 s late (a clock fault), so
+// deskewing moves its points a kilometre away. On the second sweep there is no velocity yet
+// and the first pass registers it; the second pass then fails, after the map's first sweep
+// has been deskewed with its velocity. Later the first pass fails, after the map took in the
+// previous sweep. A 3-sweep map drops sweeps within the sequence, so a miscounted sweep shows.
+TEST_F(LidarOdometryTest, AFailedSweepLeavesTheOdometryAsItWas) {
+  LidarOdometryOptions setting;
+  setting.local_map_sweeps = 3;
+  constexpr size_t kUsed = 12;
+  LidarOdometry reference(setting);
+  LidarOdometry interrupted(setting);
+  int refused = 0;
+  for (size_t k = 0; k < kUsed; ++k) {
+    const LidarSweep& sweep = (*sweeps_)[k];
+    reference.AddSweep(sweep);
+    if (k == 1 || k == 6) {
+      LidarSweep late = sweep;
+      late.t_ns = (*sweeps_)[k - 1].t_ns + 50'000'000;
+      late.cloud.time_s.array() += 100.0;
+      try {
+        interrupted.AddSweep(late);
+        ADD_FAILURE() << "the late sweep before sweep " << k << " must fail";
+      } catch (const Error& e) {
+        ++refused;
+        RecordProperty("refused_before_sweep_" + std::to_string(k), e.what());
+      }
+    }
+    interrupted.AddSweep(sweep);
+  }
+  EXPECT_EQ(refused, 2);
+  ASSERT_EQ(interrupted.frames().size(), kUsed);
+  for (size_t k = 0; k < kUsed; ++k) {
+    const OdometryFrame& frame = interrupted.frames()[k];
+    const OdometryFrame& expected = reference.frames()[k];
+    EXPECT_EQ(frame.t_ns, expected.t_ns) << "sweep " << k;
+    EXPECT_EQ(frame.T_W_L.p, expected.T_W_L.p) << "sweep " << k;
+    EXPECT_EQ(frame.T_W_L.q.coeffs(), expected.T_W_L.q.coeffs()) << "sweep " << k;
+    EXPECT_EQ(frame.icp.iterations, expected.icp.iterations) << "sweep " << k;
+    EXPECT_EQ(frame.icp.covariance, expected.icp.covariance) << "sweep " << k;
+  }
+}
+
 TEST(LidarOdometryErrorsTest, RejectsBadSequences) {
   LidarOdometry odometry;
   LidarSweep sweep;

@@ -65,7 +65,9 @@ class LidarOdometry {
   // Processes the next sweep (stamps strictly increasing). angular_velocity_L_rad_s, when
   // given, is the sensor's rate during the sweep (e.g. IMU gyro rotated into L) and replaces
   // the constant-velocity rotation for deskewing. Throws autocal::Error on a non-increasing
-  // stamp, a sweep without per-point time while deskewing, or a failed registration.
+  // stamp, a sweep that fails CheckPointCloud, one without per-point time while deskewing, or
+  // a failed registration. A call that throws leaves the odometry as it was: the next sweeps
+  // are tracked as if the failed one had not been given.
   const OdometryFrame& AddSweep(
       const LidarSweep& sweep,
       const std::optional<Eigen::Vector3d>& angular_velocity_L_rad_s = std::nullopt);
@@ -78,11 +80,16 @@ class LidarOdometry {
     PointCloud map;           // voxel_m
     PointCloud registration;  // registration_voxel_m (the map grid when not coarser)
   };
+  const OdometryFrame& AddFirstSweep(
+      const LidarSweep& sweep, const std::optional<Eigen::Vector3d>& angular_velocity_L_rad_s);
   SweepGrids Grids(const PointCloud& cloud) const;
-  // The grid's points in the frame at the sweep stamp (as they are without deskewing).
-  Eigen::Matrix3Xd Deskewed(const PointCloud& grid,
+  // The grid's points in the frame at the sweep stamp (as they are without deskewing), for
+  // the body-frame twist `velocity` (eq. 5.2).
+  Eigen::Matrix3Xd Deskewed(const PointCloud& grid, const Eigen::Matrix<double, 6, 1>& velocity,
                             const std::optional<Eigen::Vector3d>& angular_velocity) const;
-  IcpTarget BuildMap(const Eigen::Vector3d& viewpoint_W) const;
+  IcpTarget BuildMap(const LocalVoxelMap& map, const Eigen::Vector3d& viewpoint_W) const;
+  // Adds previous_sweep_W_ to map_, once.
+  void TakeInPreviousSweep();
   static Eigen::Matrix3Xd ToWorld(const Eigen::Matrix3Xd& points_L, const geometry::Pose3d& T_W_L);
 
   LidarOdometryOptions setting_;
@@ -90,7 +97,9 @@ class LidarOdometry {
   // Body-frame twist [v; w] per second from the last two poses (eq. 5.1).
   Eigen::Matrix<double, 6, 1> velocity_ = Eigen::Matrix<double, 6, 1>::Zero();
   LocalVoxelMap map_;
-  // The last sweep's map grid in W: the map takes it in when the next sweep arrives.
+  // The last sweep's map grid in W: the map takes it in when the next sweep arrives, and it
+  // is empty from then on (a sweep is never empty), also when that call fails afterwards:
+  // the map holds the sweep then, as the call's retry would make it.
   Eigen::Matrix3Xd previous_sweep_W_;
   // The first sweep's grid is kept until a velocity is known to deskew it.
   PointCloud first_grid_;
