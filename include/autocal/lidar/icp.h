@@ -75,9 +75,10 @@ struct IcpOptions {
   // (epsilon, 1, 1) along (normal, tangents); source normals from these neighbourhoods.
   double gicp_epsilon = 1e-3;
   NormalEstimationOptions source_normals;
-  // Threads for the correspondence search and the normal equations of point-to-plane
-  // alignment (common/parallel_for.h; point-to-point runs on one thread). The result
-  // depends on it only through the summation order.
+  // Threads for the correspondence search and the normal equations of point-to-plane and
+  // GICP alignment (common/parallel_for.h; point-to-point runs on one thread). The sums are
+  // taken over fixed blocks of points added in order, so the result is the same bit for bit
+  // on any number of threads.
   int num_threads = 1;
 };
 
