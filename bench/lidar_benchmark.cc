@@ -1,7 +1,8 @@
 // LiDAR module speed on the real scan pair (../shared/data/lidar_scan_pair, or
 // $AUTOCAL_SHARED_DIR/data/lidar_scan_pair): voxel downsampling, k-d tree build and queries,
 // target normals, and full point-to-plane registration at 0.25 m voxels. Single-threaded.
-// nanoflann, the k-d tree the library used before its own, is measured alongside.
+// nanoflann, the k-d tree the library used before its own, is measured alongside. The
+// odometry's local voxel map is timed on synthetic planes along each axis.
 
 #include <benchmark/benchmark.h>
 
@@ -16,6 +17,7 @@
 #include "autocal/io/point_cloud_file.h"
 #include "autocal/lidar/icp.h"
 #include "autocal/lidar/kd_tree.h"
+#include "autocal/lidar/local_voxel_map.h"
 #include "autocal/lidar/normals.h"
 #include "autocal/lidar/registration.h"
 #include "autocal/lidar/voxel_grid.h"
@@ -238,5 +240,41 @@ void BM_RegisterScanPair(benchmark::State& state) {
 BENCHMARK(BM_RegisterScanPair)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+// The local map of 10 sweeps taking in 30 sweeps of a 400 x 400 plane of 0.25 m voxels, each
+// 1 m farther along the plane than the last (a drive over a flat ground or past a wall):
+// range(0) is the axis along which the plane is constant (2: ground). Every axis should cost
+// the same: the hash spreads the voxels of any plane over the table.
+void BM_LocalVoxelMapSlidingPlane(benchmark::State& state) {
+  constexpr int kSide = 400;
+  constexpr int kSweeps = 30;
+  const int fixed_axis = static_cast<int>(state.range(0));
+  std::vector<Eigen::Matrix3Xd> sweeps;
+  for (int k = 0; k < kSweeps; ++k) {
+    Eigen::Matrix3Xd points(3, kSide * kSide);
+    for (int i = 0; i < kSide; ++i) {
+      for (int j = 0; j < kSide; ++j) {
+        Eigen::Vector3d p = Eigen::Vector3d::Constant(-1.6);
+        p((fixed_axis + 1) % 3) = 0.25 * i + 0.1 + 1.0 * k;
+        p((fixed_axis + 2) % 3) = 0.25 * j + 0.1;
+        points.col(i * kSide + j) = p;
+      }
+    }
+    sweeps.push_back(std::move(points));
+  }
+  double mean_probe_length = 0.0;
+  for (auto _ : state) {
+    autocal::lidar::LocalVoxelMap map(0.25, 10);
+    for (const Eigen::Matrix3Xd& sweep : sweeps) map.AddSweep(sweep);
+    mean_probe_length = map.MeanProbeLength();
+  }
+  state.counters["mean_probe_length"] = mean_probe_length;
+}
+BENCHMARK(BM_LocalVoxelMapSlidingPlane)
+    ->ArgName("constant_axis")
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

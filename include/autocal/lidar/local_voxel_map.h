@@ -28,6 +28,10 @@ class LocalVoxelMap {
   // sequence of calls).
   Eigen::Matrix3Xd Centroids() const;
   int num_sweeps() const { return static_cast<int>(sweeps_.size()); }
+  // How far the hash table spreads the voxels: the mean number of entries a stored voxel sits
+  // past its home entry (0 when every voxel is at its home). Finding or adding a voxel reads
+  // about that many entries more than one. Walks the whole table; for tests and benchmarks.
+  double MeanProbeLength() const;
 
  private:
   struct Voxel {
@@ -59,6 +63,8 @@ class LocalVoxelMap {
   std::vector<int32_t> free_slots_;
   std::vector<uint64_t> table_keys_;
   std::vector<int32_t> table_slots_;
+  // 64 - log2(table size): Home keeps the product's top bits.
+  int home_shift_ = 64;
   size_t num_voxels_ = 0;
   std::vector<uint64_t> key_of_slot_;
   // Contribute's scratch: the index in its output of each slot's contribution, -1 outside it.
