@@ -225,6 +225,15 @@ std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
   return slots;
 }
 
+// The IMU's rotation R_I(from)_I(to) from gyro integration, in either direction: the first
+// keyframe lies inside the rest period when the LiDAR starts during it, and after its end
+// when the IMU starts recording well before the LiDAR.
+Eigen::Quaterniond GyroRotation(const sensors::ImuSamples& imu, const Eigen::Vector3d& b_g,
+                                int64_t from_ns, int64_t to_ns) {
+  if (to_ns >= from_ns) return IntegrateGyro(imu, b_g, from_ns, to_ns);
+  return IntegrateGyro(imu, b_g, to_ns, from_ns).conjugate();
+}
+
 // Step 6: W is O rotated so that gravity points along -z and the first keyframe's yaw is
 // zero, with its origin at the first keyframe's IMU position.
 geometry::Pose3d GravityAlignedWorld(const Eigen::Vector3d& g_O, const Eigen::Matrix3d& R_O_I_0,
@@ -390,8 +399,8 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<Sw
     // The IMU orientation in O at the end of the rest period, through the first keyframe.
     const Eigen::Matrix3d R_I_L = out.q_I_L.toRotationMatrix();
     const Eigen::Matrix3d R_O_I_rest = slots.front().T_O_L.R() * R_I_L.transpose() *
-                                       IntegrateGyro(imu, out.still_start.gyro_bias_rad_s,
-                                                     slots.front().t_ns, out.still_start.t_end_ns)
+                                       GyroRotation(imu, out.still_start.gyro_bias_rad_s,
+                                                    slots.front().t_ns, out.still_start.t_end_ns)
                                            .toRotationMatrix();
     InertialFit fit(imu, slots, options, R_I_L, out.still_start.gyro_bias_rad_s, R_O_I_rest, f_rest,
                     up_I, out.still_start_is_low_excitation ? nullptr : &out.still_start);
