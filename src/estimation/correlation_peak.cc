@@ -4,6 +4,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <string>
+
+#include "autocal/common/error.h"
+#include "autocal/common/format.h"
 
 namespace autocal {
 namespace estimation {
@@ -23,10 +27,39 @@ double Pearson(const std::vector<double>& a, const std::vector<double>& b) {
   return sab / std::sqrt(saa * sbb);
 }
 
+namespace {
+
+// The number of whole steps in half_range_s, so that the scan stays inside the range its
+// caller checked coverage for. Throws autocal::Error for a range or step that is not finite
+// and positive, a step longer than the range, or more than kMaxScanSteps steps.
+int ScanSteps(double center_s, double half_range_s, double step_s) {
+  const auto message = [&](const std::string& what) {
+    return "ScanCorrelation: " + what + " (centre " + FormatShort(center_s) + " s, half range " +
+           FormatShort(half_range_s) + " s, step " + FormatShort(step_s) + " s)";
+  };
+  if (!std::isfinite(center_s)) throw Error(message("the centre must be finite"));
+  if (!(std::isfinite(half_range_s) && half_range_s > 0.0)) {
+    throw Error(message("the half range must be finite and positive"));
+  }
+  if (!(std::isfinite(step_s) && step_s > 0.0)) {
+    throw Error(message("the step must be finite and positive"));
+  }
+  if (step_s > half_range_s) throw Error(message("the step must not exceed the half range"));
+  const double ratio = half_range_s / step_s;
+  if (ratio > kMaxScanSteps) {
+    throw Error(
+        message("at most " + std::to_string(kMaxScanSteps) + " steps either side are scanned"));
+  }
+  // A step that divides the range up to rounding (0.1 / 0.001) keeps its last candidate.
+  return static_cast<int>(std::floor(ratio * (1.0 + 1e-12)));
+}
+
+}  // namespace
+
 CorrelationScan ScanCorrelation(double center_s, double half_range_s, double step_s,
                                 const std::function<double(double offset_s)>& correlation_at) {
   CorrelationScan scan;
-  const int steps = static_cast<int>(std::round(half_range_s / step_s));
+  const int steps = ScanSteps(center_s, half_range_s, step_s);
   for (int k = -steps; k <= steps; ++k) {
     const double offset_s = center_s + k * step_s;
     scan.offsets_s.push_back(offset_s);

@@ -25,9 +25,15 @@ struct CorrelationScan {
   double refined_offset_s = 0.0;  // the peak's offset moved by the parabola (not at an edge)
 };
 
+// The most steps either side of the centre a scan takes (2 * 10^6 + 1 evaluations).
+constexpr int kMaxScanSteps = 1'000'000;
+
 // Evaluates correlation_at(offset) for offset = center_s + k * step_s, |k| <= steps with
-// steps = round(half_range_s / step_s), and locates the peak. The parabola moves the peak
-// only where it is concave (at most half a step either way).
+// steps = floor(half_range_s / step_s): every candidate lies inside the half range, also when
+// the step does not divide it. Locates the peak; the parabola moves the peak only where it is
+// concave (at most half a step either way). Throws autocal::Error unless the centre is
+// finite, the half range and the step are finite and positive, the step is at most the half
+// range and the half range at most kMaxScanSteps steps.
 CorrelationScan ScanCorrelation(double center_s, double half_range_s, double step_s,
                                 const std::function<double(double offset_s)>& correlation_at);
 

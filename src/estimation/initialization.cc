@@ -280,10 +280,29 @@ Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Ve
   return q;
 }
 
+namespace {
+
+// Throws autocal::Error unless the search range lies in (0, kMaxTimeOffsetSearchRangeS] and
+// the step in (0, range].
+void CheckTimeOffsetOptions(const TimeOffsetOptions& options) {
+  const double range_s = options.search_range_s;
+  if (!(range_s > 0.0 && range_s <= kMaxTimeOffsetSearchRangeS)) {
+    throw Error("EstimateTimeOffset: search_range_s must lie in (0, " +
+                FormatShort(kMaxTimeOffsetSearchRangeS) + "] s, got " + FormatShort(range_s));
+  }
+  if (!(options.step_s > 0.0 && options.step_s <= range_s)) {
+    throw Error("EstimateTimeOffset: step_s must lie in (0, search_range_s = " +
+                FormatShort(range_s) + "] s, got " + FormatShort(options.step_s));
+  }
+}
+
+}  // namespace
+
 TimeOffsetEstimate EstimateTimeOffset(const std::vector<RelativeRotation>& lidar_rotations,
                                       const sensors::ImuSamples& imu,
                                       const Eigen::Vector3d& gyro_bias_rad_s,
                                       const TimeOffsetOptions& options) {
+  CheckTimeOffsetOptions(options);
   TimeOffsetEstimate out;
   const GyroOrientationTable table(imu, gyro_bias_rad_s);
   const int64_t range_ns = SecondsToNs(options.search_range_s);

@@ -208,6 +208,10 @@ UpAxisEstimate EstimateUpAxis(const sensors::ImuSamples& imu,
 MountInitialization InitializeMount(const sensors::ImuSamples& imu,
                                     const ScalarSeries& wheel_speed_m_s, double wheel_time_offset_s,
                                     const MountInitializationOptions& options) {
+  if (!(options.window_s > 0.0 && options.window_s <= kMaxMountWindowS)) {
+    throw Error("InitializeMount: window_s must lie in (0, " + FormatShort(kMaxMountWindowS) +
+                "] s, got " + FormatShort(options.window_s));
+  }
   MountInitialization out;
   out.up = EstimateUpAxis(imu, options);
   if (!out.up.ok) out.problems.push_back(out.up.problem);

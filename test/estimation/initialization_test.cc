@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -170,6 +171,44 @@ TEST(EstimateTimeOffset, ReportsConstantRateMotionAsUnreliable) {
   const TimeOffsetEstimate estimate = EstimateTimeOffset(rotations, imu, Eigen::Vector3d::Zero());
   EXPECT_FALSE(estimate.reliable);
   EXPECT_FALSE(estimate.reason.empty());
+}
+
+// Candidate offsets stay inside the search range, whose coverage by the IMU the intervals
+// were checked for, also when the step does not divide it (0.1 / 0.006: the last whole step is
+// 0.096 s; rounding the step count made it 0.102 s). Options that are not a positive range
+// with a step inside it are refused by name (a negative range read past the correlation
+// curve's end, a zero step overflowed the step count).
+TEST(EstimateTimeOffset, ScansOnlyInsideTheSearchRange) {
+  const RotationMotion motion = RichMotion(0.0);
+  const sensors::ImuSamples imu = SimulateImu(motion, 20.0, Eigen::Vector3d::Zero(), 0.003, 3);
+  const auto rotations =
+      LidarRotations(motion, 20.0, Eigen::Quaterniond::Identity(), 0.02, 0.0005, 4);
+  TimeOffsetOptions options;
+  options.search_range_s = 0.1;
+  options.step_s = 0.006;
+  const TimeOffsetEstimate estimate =
+      EstimateTimeOffset(rotations, imu, Eigen::Vector3d::Zero(), options);
+  ASSERT_TRUE(estimate.reliable) << estimate.reason;
+  EXPECT_NEAR(estimate.offset_s, 0.02, 2e-3);
+  ASSERT_EQ(estimate.candidate_offsets_s.size(), 33u);
+  EXPECT_NEAR(estimate.candidate_offsets_s.front(), -0.096, 1e-12);
+  EXPECT_NEAR(estimate.candidate_offsets_s.back(), 0.096, 1e-12);
+  for (const auto& [range_s, step_s] :
+       {std::pair{-0.1, 0.001}, std::pair{0.0, 0.001}, std::pair{std::nan(""), 0.001},
+        std::pair{61.0, 0.001}, std::pair{0.1, 0.0}, std::pair{0.1, -0.001},
+        std::pair{0.1, std::nan("")}, std::pair{0.1, 0.2}}) {
+    options.search_range_s = range_s;
+    options.step_s = step_s;
+    try {
+      EstimateTimeOffset(rotations, imu, Eigen::Vector3d::Zero(), options);
+      ADD_FAILURE() << "range " << range_s << " s, step " << step_s << " s accepted";
+    } catch (const Error& e) {
+      const std::string message = e.what();
+      const std::string option = range_s > 0.0 && range_s <= 60.0 ? "step_s" : "search_range_s";
+      EXPECT_NE(message.find("EstimateTimeOffset: " + option + " must lie in"), std::string::npos)
+          << message;
+    }
+  }
 }
 
 // IMU rotations over intervals of 1 s (offset known) paired with the LiDAR's: longer

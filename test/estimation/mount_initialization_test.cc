@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
+#include <string>
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
@@ -161,6 +163,27 @@ TEST(InitializeMount, AVehicleThatNeverMovesHasNoForwardAxis) {
   ASSERT_FALSE(m.problems.empty());
   EXPECT_NE(m.problems.front().find("barely accelerates"), std::string::npos) << m.problems.front();
   EXPECT_LT((m.up.up_I - q_I_V * Eigen::Vector3d::UnitZ()).norm(), 0.01);
+}
+
+// A window that is not positive stepped the horizontal fit by zero nanoseconds forever (or
+// backwards), and one past SecondsToNs's range overflowed: each is refused by name.
+TEST(InitializeMount, RefusesAWindowThatIsNotAPositiveDuration) {
+  const SimulatedLog log = Simulate(Drive{}, Eigen::Quaterniond::Identity(), 0.0, 16);
+  for (double window_s : {0.0, -0.5, std::nan(""), std::numeric_limits<double>::infinity(),
+                          kMaxMountWindowS + 1.0, 1e300}) {
+    MountInitializationOptions options;
+    options.window_s = window_s;
+    try {
+      InitializeMount(log.imu, log.speed_m_s, 0.0, options);
+      ADD_FAILURE() << "window " << window_s << " s accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("window_s must lie in (0, 60] s"), std::string::npos)
+          << e.what();
+    }
+  }
+  MountInitializationOptions longest;
+  longest.window_s = kMaxMountWindowS;
+  EXPECT_FALSE(InitializeMount(log.imu, log.speed_m_s, 0.0, longest).forward_found);
 }
 
 // The span of the samples averaged, which the accelerometer bias's random walk drifts over

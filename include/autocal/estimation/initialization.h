@@ -58,9 +58,17 @@ struct RelativeRotation {
   Eigen::Quaterniond q_0_1 = Eigen::Quaterniond::Identity();
 };
 
+// The widest time-offset search accepted: clocks further apart than a minute are not
+// synchronized at all, and their stamps need aligning before a correlation can help.
+constexpr double kMaxTimeOffsetSearchRangeS = 60.0;
+
+// EstimateTimeOffset throws autocal::Error unless 0 < search_range_s <=
+// kMaxTimeOffsetSearchRangeS and 0 < step_s <= search_range_s.
 struct TimeOffsetOptions {
   double search_range_s = 0.2;  // offsets in [-range, +range] are tried
-  double step_s = 0.001;        // grid step before sub-step refinement
+  // Grid step before sub-step refinement; the grid's last candidate either side is the last
+  // whole step inside the range.
+  double step_s = 0.001;
   // Below this Pearson correlation at the peak the motion is too poor (too little rate
   // variation) to trust the estimate.
   double min_peak_correlation = 0.8;

@@ -24,6 +24,10 @@
 namespace autocal {
 namespace estimation {
 
+// The longest averaging window of the mount's horizontal fit: a minute averages a car's
+// accelerations and turns away, and the fit needs ten windows.
+constexpr double kMaxMountWindowS = 60.0;
+
 struct MountInitializationOptions {
   StillStartOptions still;  // the still period that gives the up axis when there is one
   // Without a still period, samples turning slower than this give the up axis (no
@@ -35,6 +39,7 @@ struct MountInitializationOptions {
   double max_gravity_error_m_s2 = 0.5;
   // Both sides of the horizontal fit are averaged over windows of this length (the
   // accelerometer's vibration, the speed's quantization), one fit row per window.
+  // InitializeMount throws autocal::Error unless 0 < window_s <= kMaxMountWindowS.
   double window_s = 0.5;
   double min_excitation_m_s2 = 0.05;  // rms of the modelled horizontal acceleration
   // The fit's standard deviation about the up axis: an initial value only has to lie in
