@@ -3,6 +3,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -132,6 +133,42 @@ Eigen::Matrix4d QuaternionRight(const Eigen::Quaterniond& q) {
 
 Eigen::Quaterniond PositiveW(const Eigen::Quaterniond& q) {
   return q.w() < 0.0 ? Eigen::Quaterniond(-q.coeffs()) : q;
+}
+
+// The rotation about the weakest axis (docs/estimation.md, "Hand-eye rotation"). In the
+// tangent of the solution x, the stacked system's squared singular values are the information
+// of the pairs' angular residuals per unit noise, sum_i w_i^2 4 sin^2(a_i / 2) (1 - (b_i . e)^2)
+// for pair rotations a_i about axes b_i and a direction e. The noise adds a floor, which the
+// smallest squared singular value s3^2 (the residual at x) measures; the residuals' per-axis
+// standard deviation is sigma = sqrt(4 s3^2 / (3 sum w_i^2 - 3)). A pair that turned by less
+// than a few sigma carries no axis, only noise, and its floor is not isotropic: thousands of
+// them fake motion about any axis. So the motion about the weakest axis, m = sqrt(s2^2 - s3^2),
+// is taken from the system of the pairs whose IMU rotation exceeds min_sigmas * sigma, and the
+// rotation about that axis has standard deviation sigma / m.
+void WeakestAxis(const std::vector<Eigen::Matrix4d>& blocks, const std::vector<double>& weights,
+                 const std::vector<Eigen::Quaterniond>& imu_rotations,
+                 const Eigen::Vector4d& singular_values, double min_sigmas, HandEyeRotation* out) {
+  double weight_sq_sum = 0.0;
+  for (double w : weights) weight_sq_sum += w * w;
+  const double s3_sq = singular_values(3) * singular_values(3);
+  const double sigma_rad = std::sqrt(4.0 * s3_sq / std::max(1.0, 3.0 * weight_sq_sum - 3.0));
+  std::vector<size_t> turning;
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    if (geometry::AngleOf(imu_rotations[i]) > min_sigmas * sigma_rad) turning.push_back(i);
+  }
+  out->turning_pairs = static_cast<int>(turning.size());
+  double motion_sq = 0.0;
+  if (turning.size() >= 2) {
+    Eigen::MatrixXd A(4 * turning.size(), 4);
+    for (size_t k = 0; k < turning.size(); ++k) {
+      A.middleRows<4>(4 * k) = weights[turning[k]] * blocks[turning[k]];
+    }
+    const Eigen::Vector4d s = Eigen::JacobiSVD<Eigen::MatrixXd>(A).singularValues();
+    motion_sq = s(2) * s(2) - s(3) * s(3);
+  }
+  out->weakest_axis_rotation_rad = std::sqrt(std::max(0.0, motion_sq));
+  out->weakest_axis_std_rad =
+      motion_sq > 0.0 ? sigma_rad / std::sqrt(motion_sq) : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace
@@ -364,12 +401,13 @@ HandEyeRotation SolveHandEyeRotation(const std::vector<Eigen::Quaterniond>& imu_
     blocks[i] = QuaternionLeft(PositiveW(imu_rotations[i])) -
                 QuaternionRight(PositiveW(lidar_rotations[i]));
   }
-  std::vector<double> weights(n, 1.0);
+  std::vector<double> weights(n, 1.0), solved_weights;
   Eigen::Quaterniond x = Eigen::Quaterniond::Identity();
   Eigen::Vector4d singular_values = Eigen::Vector4d::Zero();
   for (int iteration = 0; iteration < std::max(1, options.robust_iterations); ++iteration) {
     Eigen::MatrixXd A(4 * n, 4);
     for (size_t i = 0; i < n; ++i) A.middleRows<4>(4 * i) = weights[i] * blocks[i];
+    solved_weights = weights;
     const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinV);
     x.coeffs() = svd.matrixV().col(3);
     x.normalize();
@@ -386,8 +424,26 @@ HandEyeRotation SolveHandEyeRotation(const std::vector<Eigen::Quaterniond>& imu_
   }
   out.q_I_L = PositiveW(x);
   out.singular_value_ratio = singular_values(2) / std::max(singular_values(0), 1e-300);
+  WeakestAxis(blocks, solved_weights, imu_rotations, singular_values,
+              options.min_turning_pair_sigmas, &out);
   if (out.singular_value_ratio < options.min_singular_value_ratio) {
     out.reason = "the rotations do not excite two independent axes (planar motion?)";
+    return out;
+  }
+  if (out.weakest_axis_rotation_rad < options.min_weakest_axis_rotation_rad) {
+    out.reason = "the rotations turn about their weakest axis by " +
+                 FormatShort(out.weakest_axis_rotation_rad) + " rad (root-sum-square over the " +
+                 std::to_string(out.turning_pairs) + " of " + std::to_string(n) +
+                 " pairs that turned beyond the noise), need " +
+                 FormatShort(options.min_weakest_axis_rotation_rad) +
+                 ": the motion about two axes does not rise above the noise";
+    return out;
+  }
+  if (out.weakest_axis_std_rad > options.max_weakest_axis_std_rad) {
+    out.reason = "the rotation about the weakest axis is uncertain by " +
+                 FormatShort(out.weakest_axis_std_rad * kRadToDeg) + " deg (limit " +
+                 FormatShort(options.max_weakest_axis_std_rad * kRadToDeg) +
+                 " deg): the rotations are too noisy for their size";
     return out;
   }
   out.observable = true;

@@ -4,8 +4,10 @@
 
 #include <cmath>
 #include <functional>
+#include <iostream>
 #include <random>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -236,6 +238,9 @@ TEST(SolveHandEyeRotation, RecoversExtrinsicRotation) {
     const HandEyeRotation result = SolveHandEyeRotation(a, b);
     ASSERT_TRUE(result.observable) << result.reason;
     const double error_deg = geometry::AngularDistance(result.q_I_L, q_I_L) * kRadToDeg;
+    std::cout << "noise " << noise_rad << " rad: error " << error_deg << " deg, weakest axis "
+              << result.weakest_axis_rotation_rad << " rad, std "
+              << result.weakest_axis_std_rad * kRadToDeg << " deg\n";
     // Noise-free: only gyro integration error remains. With 1 mrad per axis on every LiDAR
     // rotation, the extrinsic's rotation about z is seen only through roll/pitch turns of
     // ~0.1 rad per 1 s interval: ~1 deg per pair, ~20 independent intervals -> ~0.2 deg.
@@ -252,6 +257,80 @@ TEST(SolveHandEyeRotation, PlanarMotionIsReportedUnobservable) {
   const HandEyeRotation result = SolveHandEyeRotation(a, b);
   EXPECT_FALSE(result.observable);
   EXPECT_LT(result.singular_value_ratio, 0.02);
+}
+
+// Pairs of a true extrinsic: IMU rotations Exp(w) with gyro noise, the LiDAR's
+// R_I_L^T Exp(w) R_I_L with odometry noise (per axis).
+struct NoisyPairs {
+  Eigen::Quaterniond q_I_L = Exp(Eigen::Vector3d(0.5, 1.0, 1.5).normalized() * 0.5);
+  std::vector<Eigen::Quaterniond> imu, lidar;
+  std::mt19937 rng;
+  std::normal_distribution<double> n{0.0, 1.0};
+
+  explicit NoisyPairs(uint32_t seed) : rng(seed) {}
+  Eigen::Vector3d Gauss() { return Eigen::Vector3d(n(rng), n(rng), n(rng)); }
+  void Add(const Eigen::Vector3d& w, double gyro_noise_deg, double lidar_noise_deg) {
+    const Eigen::Quaterniond a = Exp(w);
+    imu.push_back(a * Exp(Eigen::Vector3d(Gauss() * gyro_noise_deg * kDegToRad)));
+    lidar.push_back(q_I_L.conjugate() * a * q_I_L *
+                    Exp(Eigen::Vector3d(Gauss() * lidar_noise_deg * kDegToRad)));
+  }
+  // A rotation by angle_deg about a random axis.
+  void AddRandom(double angle_deg, double gyro_noise_deg, double lidar_noise_deg) {
+    Add(Gauss().normalized() * angle_deg * kDegToRad, gyro_noise_deg, lidar_noise_deg);
+  }
+};
+
+// Pairs that barely turn passed the scale-free ratio alone: 50 pairs of 0.01 deg with
+// 0.02 deg of odometry noise had a ratio of 0.94 and were observable, 31.8 deg off (no
+// rotation: 28.6 deg; 0.05 deg: 7.6 deg off). Their motion about the weakest axis stays below
+// what noise fakes. The same noise on 10 deg pairs is observable, 0.04 deg off.
+TEST(SolveHandEyeRotation, PairsAtTheNoiseLevelAreReportedUnobservable) {
+  for (double angle_deg : {0.0, 0.01, 0.05}) {
+    NoisyPairs pairs(3);
+    for (int i = 0; i < 50; ++i) pairs.AddRandom(angle_deg, 0.0, 0.02);
+    const HandEyeRotation result = SolveHandEyeRotation(pairs.imu, pairs.lidar);
+    std::cout << angle_deg << " deg per pair: ratio " << result.singular_value_ratio << ", "
+              << result.turning_pairs << " turning pairs, error "
+              << geometry::AngularDistance(result.q_I_L, pairs.q_I_L) * kRadToDeg << " deg\n";
+    EXPECT_GT(result.singular_value_ratio, 0.5);  // the ratio alone would accept them
+    EXPECT_FALSE(result.observable) << angle_deg;
+    EXPECT_NE(result.reason.find("does not rise above the noise"), std::string::npos)
+        << result.reason;
+  }
+  NoisyPairs turning(3);
+  for (int i = 0; i < 50; ++i) turning.AddRandom(10.0, 0.0, 0.02);
+  const HandEyeRotation result = SolveHandEyeRotation(turning.imu, turning.lidar);
+  ASSERT_TRUE(result.observable) << result.reason;
+  EXPECT_EQ(result.turning_pairs, 50);
+  EXPECT_LT(result.weakest_axis_std_rad * kRadToDeg, 0.1);
+  EXPECT_LT(geometry::AngularDistance(result.q_I_L, turning.q_I_L) * kRadToDeg, 0.1);
+}
+
+// Twelve turns of 8-19 deg about the vertical and many pairs driving straight: noise alone
+// rotates the straight pairs about every axis, which passed the ratio (1500 pairs with
+// 0.03 deg of odometry noise: 0.021, observable, 23 deg off). Only the turns count as
+// motion, and they turn about one axis. Also with gyro noise on the straight pairs, whose
+// floor is then not isotropic (0.1 deg per axis, 10000 pairs).
+TEST(SolveHandEyeRotation, PlanarTurnsAmongNoisyStraightPairsAreUnobservable) {
+  for (const auto& [straight, gyro_noise_deg, lidar_noise_deg] :
+       {std::tuple{1500, 0.0, 0.03}, std::tuple{3000, 0.0, 0.03}, std::tuple{10000, 0.05, 0.1},
+        std::tuple{1500, 0.15, 0.3}}) {
+    NoisyPairs pairs(5);
+    for (int i = 0; i < 12; ++i) {
+      pairs.Add(Eigen::Vector3d(0.0, 0.0, (8.0 + i) * kDegToRad), gyro_noise_deg, lidar_noise_deg);
+    }
+    for (int i = 0; i < straight; ++i)
+      pairs.Add(Eigen::Vector3d::Zero(), gyro_noise_deg, lidar_noise_deg);
+    const HandEyeRotation result = SolveHandEyeRotation(pairs.imu, pairs.lidar);
+    std::cout << straight << " straight pairs, noise " << gyro_noise_deg << " / " << lidar_noise_deg
+              << " deg: ratio " << result.singular_value_ratio << ", " << result.turning_pairs
+              << " turning pairs, weakest axis " << result.weakest_axis_rotation_rad << " rad, std "
+              << result.weakest_axis_std_rad * kRadToDeg << " deg\n";
+    EXPECT_GT(result.singular_value_ratio, HandEyeOptions().min_singular_value_ratio);
+    EXPECT_FALSE(result.observable) << straight;
+    EXPECT_LT(result.turning_pairs, 20);
+  }
 }
 
 TEST(SolveHandEyeTranslation, RecoversLeverAndHoldsUnexcitedAxes) {

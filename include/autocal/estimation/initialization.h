@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/sensors/measurements.h"
 
 namespace autocal {
@@ -99,12 +100,32 @@ Eigen::Quaterniond IntegrateGyro(const sensors::ImuSamples& imu, const Eigen::Ve
 
 // ---- 3. Hand-eye rotation.
 
+// The rotation is determined when three tests pass (docs/estimation.md, "Hand-eye
+// rotation"): the motion turns about two non-parallel axes (a scale-free ratio), it turns about
+// the weakest of them by more than odometry noise could fake, and the rotation about that axis
+// is known well enough from the noise the residuals show. The last two count only the pairs
+// that turned beyond the noise.
 struct HandEyeOptions {
   int robust_iterations = 5;
   double huber_threshold_rad = 0.005;  // angular residual where Huber weights start
-  // The rotation is determined when the second smallest singular value of the stacked
-  // system exceeds this fraction of the largest (rotation about two non-parallel axes).
+  // The second smallest singular value of the stacked system exceeds this fraction of the
+  // largest (rotation about two non-parallel axes).
   double min_singular_value_ratio = 0.02;
+  // A pair counts as motion when its IMU rotation exceeds this many residual sigmas (per
+  // axis): its rotation axis is then known to better than 30 deg. Smaller rotations are noise
+  // with a random axis, and a thousand of them fake rotation about any axis.
+  double min_turning_pair_sigmas = 2.0;
+  // The standard deviation of the rotation about the weakest axis is at most this. The
+  // hand-eye only has to start the batch inside its basin, which reaches 20 deg
+  // (docs/estimation.md): two sigmas. The figure assumes independent pairs; the initializer's
+  // pairs overlap, which makes it optimistic (the 60 s urban pipeline log: 4 deg predicted,
+  // 23 deg off about the vertical, which the inertial fit then corrects).
+  double max_weakest_axis_std_rad = 10.0 * kDegToRad;
+  // The turning pairs turn about the weakest axis by at least this much (root-sum-square over
+  // the pairs of the rotation chord across that axis): the limit above at a per-axis pair noise
+  // of 0.2 deg, the upper end of what the simulated urban drives' LiDAR odometry shows
+  // (0.04-0.33 deg). It holds where a log's own residuals understate its noise.
+  double min_weakest_axis_rotation_rad = 0.02;
 };
 
 struct HandEyeRotation {
@@ -113,6 +134,12 @@ struct HandEyeRotation {
   Eigen::Quaterniond q_I_L = Eigen::Quaterniond::Identity();
   double rms_residual_rad = 0.0;
   double singular_value_ratio = 0.0;  // second smallest / largest
+  // The pairs that turned by more than min_turning_pair_sigmas, their motion about the
+  // weakest axis (sqrt(s2^2 - s3^2) of their weighted stacked system) and the standard
+  // deviation of the rotation about it (infinite without such motion).
+  int turning_pairs = 0;
+  double weakest_axis_rotation_rad = 0.0;
+  double weakest_axis_std_rad = 0.0;
 };
 
 // Solves R_I_ij R_I_L = R_I_L R_L_ij for pairs of simultaneous relative rotations
