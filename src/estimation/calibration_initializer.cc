@@ -377,6 +377,47 @@ CalibrationInitialization InitializeLidarImuFromOdometry(
 
 namespace {
 
+// Step 5 on the keyframe slots: the inertial fit, and theta applied to out->q_I_L when the
+// fit determines it. Theta enters to first order: a second fit starts from the corrected
+// rotation. When the first fit does not determine theta (a straight drive at steady speed),
+// q_I_L keeps its value and `fallbacks` says so.
+void FitInertial(const sensors::ImuSamples& imu, const std::vector<KeyframeSlot>& slots,
+                 const CalibrationInitializerOptions& options, CalibrationInitialization* out,
+                 std::vector<Eigen::Vector3d>* p_O_I, std::vector<Eigen::Vector3d>* v_O_I) {
+  const StillStart& rest = out->still_start;
+  // The specific force at rest, R_W_I^T (0, 0, g), and the IMU's vertical.
+  const Eigen::Vector3d f_rest =
+      rest.q_W_I.conjugate() * Eigen::Vector3d(0.0, 0.0, rest.gravity_m_s2);
+  const Eigen::Vector3d up_I = f_rest.normalized();
+  double theta_total_rad = 0.0;
+  bool applied = false;
+  for (int iteration = 0; iteration < 2; ++iteration) {
+    // The IMU orientation in O at the end of the rest period, through the first keyframe.
+    const Eigen::Matrix3d R_I_L = out->q_I_L.toRotationMatrix();
+    const Eigen::Matrix3d R_O_I_rest =
+        slots.front().T_O_L.R() * R_I_L.transpose() *
+        GyroRotation(imu, rest.gyro_bias_rad_s, slots.front().t_ns, rest.t_end_ns)
+            .toRotationMatrix();
+    InertialFit fit(imu, slots, options, R_I_L, rest.gyro_bias_rad_s, R_O_I_rest, f_rest, up_I,
+                    out->still_start_is_low_excitation ? nullptr : &rest);
+    fit.Solve(&out->inertial, p_O_I, v_O_I);
+    if (!out->inertial.vertical_rotation_determined) break;
+    applied = true;
+    theta_total_rad += out->inertial.vertical_rotation_rad;
+    out->q_I_L = (Eigen::Quaterniond(Eigen::AngleAxisd(out->inertial.vertical_rotation_rad, up_I)) *
+                  out->q_I_L)
+                     .normalized();
+  }
+  out->inertial.vertical_rotation_rad = theta_total_rad;
+  out->inertial.vertical_rotation_determined = applied;
+  if (applied) return;
+  out->fallbacks.push_back(
+      "the accelerations do not determine the LiDAR-IMU rotation about the vertical (sigma " +
+      Format(out->inertial.vertical_rotation_std_rad * kRadToDeg) + " deg, limit " +
+      Format(options.max_vertical_rotation_std_rad * kRadToDeg) +
+      " deg): the rotation is not corrected about it");
+}
+
 void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<SweepTimes>& sweeps,
                             const CalibrationInitializerOptions& options,
                             CalibrationInitialization* out_ptr) {
@@ -388,29 +429,8 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<Sw
     out.problems.push_back("fewer than two sweeps lie inside the IMU log");
     return;
   }
-  // The specific force at rest, R_W_I^T (0, 0, g), and the IMU's vertical.
-  const Eigen::Vector3d f_rest =
-      out.still_start.q_W_I.conjugate() * Eigen::Vector3d(0.0, 0.0, out.still_start.gravity_m_s2);
-  const Eigen::Vector3d up_I = f_rest.normalized();
-  // Theta enters to first order: a second fit starts from the corrected rotation.
   std::vector<Eigen::Vector3d> p_O_I, v_O_I;
-  double theta_total_rad = 0.0;
-  for (int iteration = 0; iteration < 2; ++iteration) {
-    // The IMU orientation in O at the end of the rest period, through the first keyframe.
-    const Eigen::Matrix3d R_I_L = out.q_I_L.toRotationMatrix();
-    const Eigen::Matrix3d R_O_I_rest = slots.front().T_O_L.R() * R_I_L.transpose() *
-                                       GyroRotation(imu, out.still_start.gyro_bias_rad_s,
-                                                    slots.front().t_ns, out.still_start.t_end_ns)
-                                           .toRotationMatrix();
-    InertialFit fit(imu, slots, options, R_I_L, out.still_start.gyro_bias_rad_s, R_O_I_rest, f_rest,
-                    up_I, out.still_start_is_low_excitation ? nullptr : &out.still_start);
-    fit.Solve(&out.inertial, &p_O_I, &v_O_I);
-    theta_total_rad += out.inertial.vertical_rotation_rad;
-    out.q_I_L = (Eigen::Quaterniond(Eigen::AngleAxisd(out.inertial.vertical_rotation_rad, up_I)) *
-                 out.q_I_L)
-                    .normalized();
-  }
-  out.inertial.vertical_rotation_rad = theta_total_rad;
+  FitInertial(imu, slots, options, &out, &p_O_I, &v_O_I);
   out.p_I_L = out.inertial.p_I_L;
 
   const geometry::Pose3d T_I_L(out.q_I_L, out.p_I_L);

@@ -22,6 +22,10 @@ InertialFit::InertialFit(const sensors::ImuSamples& imu, const std::vector<Keyfr
   // period (eq. I3): g_O = -R_O_I,rest (f_rest - b_a).
   rows_.push_back({{{kP, I3}}, options.p_I_L_prior, options.p_I_L_prior_sigma_m});
   rows_.push_back({{{kBa, I3}}, Eigen::Vector3d::Zero(), options.accel_bias_prior_sigma_m_s2});
+  // Theta = 0 (one row of three): without horizontal acceleration its column is zero.
+  rows_.push_back({{{kTheta, Eigen::Vector3d::UnitX()}},
+                   Eigen::Vector3d::Zero(),
+                   options.vertical_rotation_prior_sigma_rad});
   rows_.push_back(
       {{{kG, I3}, {kBa, -R_O_I_rest}}, -(R_O_I_rest * f_rest), options.gravity_prior_sigma_m_s2});
   sensors::PreintegrationOptions preintegration_options;
@@ -79,15 +83,16 @@ InertialFit::InertialFit(const sensors::ImuSamples& imu, const std::vector<Keyfr
 void InertialFit::Solve(InertialAlignment* fit, std::vector<Eigen::Vector3d>* p_O_I,
                         std::vector<Eigen::Vector3d>* v_O_I) {
   // Huber re-weighting of the odometry positions with every lever-arm axis free.
+  const Eigen::Matrix<bool, 3, 1> all_free = Eigen::Matrix<bool, 3, 1>::Constant(false);
   Eigen::VectorXd x;
   for (int iteration = 0; iteration < options_.robust_iterations; ++iteration) {
-    x = SolveHolding(Eigen::Matrix<bool, 3, 1>::Constant(false));
+    x = SolveHolding(all_free, false);
     for (size_t r : position_rows_) {
       const double normalized = Residual(rows_[r], x).norm() / rows_[r].sigma;
       weights_[r] = normalized <= options_.huber_sigmas ? 1.0 : options_.huber_sigmas / normalized;
     }
   }
-  x = SolveHolding(Eigen::Matrix<bool, 3, 1>::Constant(false));
+  x = SolveHolding(all_free, false);
   // Which lever-arm axes the data determines: posterior standard deviations with only the
   // weak prior, inflated by the variance factor of the position residuals when it exceeds 1
   // (odometry noisier than odometry_position_sigma_m). A factor below 1 is not applied: the
@@ -115,8 +120,12 @@ void InertialFit::Solve(InertialAlignment* fit, std::vector<Eigen::Vector3d>* p_
     fit->lever_arm_std_m(axis) = std::sqrt(std::max(0.0, covariance(kP + axis, kP + axis)));
     fit->excited(axis) = fit->lever_arm_std_m(axis) < options_.max_excited_lever_arm_std_m;
   }
+  // Theta likewise: a straight drive at steady speed leaves it to noise (held at zero).
   fit->vertical_rotation_std_rad = std::sqrt(std::max(0.0, covariance(kTheta, kTheta)));
-  x = SolveHolding(fit->excited.unaryExpr([](bool e) { return !e; }));
+  fit->vertical_rotation_determined =
+      fit->vertical_rotation_std_rad < options_.max_vertical_rotation_std_rad;
+  x = SolveHolding(fit->excited.unaryExpr([](bool e) { return !e; }),
+                   !fit->vertical_rotation_determined);
   fit->p_I_L = x.segment<3>(kP);
   fit->accel_bias_m_s2 = x.segment<3>(kBa);
   fit->gravity_O_m_s2 = x.segment<3>(kG);
@@ -183,15 +192,17 @@ std::vector<int> InertialFit::AllFree() const {
   return index;
 }
 
-// Solves with the lever-arm axes flagged in `hold` fixed at the prior (their columns move
-// to the right-hand side).
-Eigen::VectorXd InertialFit::SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold) const {
+// Solves with the lever-arm axes flagged in `hold` fixed at the prior and, with hold_theta,
+// theta at zero (their columns move to the right-hand side).
+Eigen::VectorXd InertialFit::SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold,
+                                          bool hold_theta) const {
   Eigen::VectorXd x = Eigen::VectorXd::Zero(dim_);
   std::vector<int> index(static_cast<size_t>(dim_));
   int size = 0;
   for (int c = 0; c < dim_; ++c) {
-    const bool held = c < 3 && hold(c);
-    if (held) x(c) = options_.p_I_L_prior(c);
+    const bool held_lever_arm = c < kBa && hold(c);
+    const bool held = held_lever_arm || (c == kTheta && hold_theta);
+    if (held_lever_arm) x(c) = options_.p_I_L_prior(c);
     index[static_cast<size_t>(c)] = held ? -1 : size++;
   }
   Eigen::SparseMatrix<double> H;

@@ -34,8 +34,9 @@ struct KeyframeSlot {
 // (docs/initialization.md, eq. I3-I7). Linear in x = [p_I_L, b_a, g_O, theta, v_0 ..
 // v_{N-1}] to first order in theta; solved by normal equations, with Huber re-weighting of
 // the odometry positions (a sweep where the odometry slipped, e.g. along a featureless
-// street, is down-weighted). Outputs the IMU positions p_O_I,k integrated from the fitted
-// velocities (eq. I7), which bridge such slips.
+// street, is down-weighted). Lever-arm axes and theta whose posterior standard deviation
+// exceeds the options' limits are held (at the prior, at zero). Outputs the IMU positions p_O_I,k
+// integrated from the fitted velocities (eq. I7), which bridge such slips.
 class InertialFit {
  public:
   InertialFit(const sensors::ImuSamples& imu, const std::vector<KeyframeSlot>& slots,
@@ -65,7 +66,7 @@ class InertialFit {
   void Build(const std::vector<int>& index, const Eigen::VectorXd& held_x, int size,
              Eigen::SparseMatrix<double>* H, Eigen::VectorXd* g) const;
   std::vector<int> AllFree() const;
-  Eigen::VectorXd SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold) const;
+  Eigen::VectorXd SolveHolding(const Eigen::Matrix<bool, 3, 1>& hold, bool hold_theta) const;
 
   const CalibrationInitializerOptions& options_;
   int n_;

@@ -11,8 +11,9 @@
 //                               integrated over the offset-shifted intervals; then steps 1,
 //                               3 and 4 once more with the sweeps deskewed by the gyro
 //   5. inertial alignment       p_I_L, accel bias, gravity in O, a correction of q_I_L about
-//                               the vertical and one velocity per keyframe from a linear
-//                               least-squares fit of IMU preintegration to odometry positions
+//                               the vertical (where the accelerations determine it) and one
+//                               velocity per keyframe from a linear least-squares fit of IMU
+//                               preintegration to odometry positions
 //   6. keyframes                T_W_I = T_W_O T_O_L T_I_L^-1, W aligned with gravity
 //
 // Every step that the motion cannot support adds a plain-language problem to the result
@@ -25,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "autocal/common/units.h"
 #include "autocal/estimation/initialization.h"
 #include "autocal/estimation/keyframe.h"
 #include "autocal/geometry/se3.h"
@@ -104,6 +106,17 @@ struct CalibrationInitializerOptions {
   // An IMU-frame axis of p_I_L counts as excited when its posterior standard deviation is
   // below this; otherwise it is held at p_I_L_prior.
   double max_excited_lever_arm_std_m = 0.03;
+  // The rotation theta of q_I_L about the IMU's vertical is applied only when its posterior
+  // standard deviation is below this; otherwise it is held at zero and `fallbacks` says so.
+  // Planar driving leaves the hand-eye rotation 0.8-23 deg off about the vertical (simulated
+  // urban drives of 28-120 s); a correction known to 0.5 deg (1.5 deg at three sigmas) improves
+  // on that. Those drives determine theta to 0.15-0.33 deg; straight highway drives leave it
+  // to 2-3 deg, where odometry slips rather than the rotation move it, and a straight drive at
+  // steady speed to 100 deg and more (docs/initialization.md, "Rotation about the vertical").
+  double max_vertical_rotation_std_rad = 0.5 * kDegToRad;
+  // 1-sigma of the weak prior theta = 0 that keeps the linear system regular when the drive
+  // has no horizontal acceleration at all (the theta column is then zero).
+  double vertical_rotation_prior_sigma_rad = 1.0;
   // IMU noise densities for the preintegration weights.
   sensors::ImuNoise imu_noise;
   // Step 6: a sweep gets a keyframe when its points lie this far inside the IMU log at both
@@ -121,9 +134,12 @@ struct InertialAlignment {
   // Posterior standard deviation per axis with only the weak prior (before holding axes).
   Eigen::Vector3d lever_arm_std_m = Eigen::Vector3d::Zero();
   // Rotation of the hand-eye q_I_L about the IMU's vertical that the accelerations ask for
-  // (planar driving leaves it to a few degrees of pitch and roll in the hand-eye step).
+  // (planar driving leaves it to a few degrees of pitch and roll in the hand-eye step), and
+  // whether it was determined (standard deviation below max_vertical_rotation_std_rad) and
+  // applied; when not, the rotation is zero and q_I_L keeps the hand-eye (or fallback) value.
   double vertical_rotation_rad = 0.0;
-  double vertical_rotation_std_rad = 0.0;
+  double vertical_rotation_std_rad = 0.0;  // with only the weak prior
+  bool vertical_rotation_determined = false;
   Eigen::Vector3d accel_bias_m_s2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d gravity_O_m_s2 = Eigen::Vector3d::Zero();  // gravity in the odometry frame
   double position_rms_m = 0.0;     // weighted RMS of the odometry-position residuals
