@@ -322,6 +322,29 @@ TEST(CalibrationInitializer, ClaimsNoLeverArmAxisTheDriveDoesNotDetermine) {
   }
 }
 
+// `count` sweeps 0.1 s apart from `first_s` (ten placeholder points each), with the odometry
+// pose that `pose_at(t_s)` gives at each one's stamp.
+struct SweepsAndOdometry {
+  std::vector<lidar::LidarSweep> sweeps;
+  std::vector<lidar::OdometryFrame> odometry;
+};
+template <typename PoseAt>
+SweepsAndOdometry SweepsEvery100Ms(int count, double first_s, const PoseAt& pose_at) {
+  SweepsAndOdometry out;
+  for (int k = 0; k < count; ++k) {
+    lidar::LidarSweep sweep;
+    sweep.t_ns = SecondsToNs(first_s) + k * 100'000'000LL;
+    sweep.cloud.points = Eigen::Matrix3Xd::Zero(3, 10);
+    sweep.cloud.time_s = Eigen::VectorXd::LinSpaced(10, 0.0, 0.099);
+    out.sweeps.push_back(sweep);
+    lidar::OdometryFrame frame;
+    frame.t_ns = sweep.t_ns;
+    frame.T_W_L = pose_at(NsToSeconds(sweep.t_ns));
+    out.odometry.push_back(frame);
+  }
+  return out;
+}
+
 // A drive at rest for 3 s, then turning about all three axes while moving, with exact IMU
 // samples (200 Hz, 0 to 17 s) and odometry poses T_O_L = T_W_I T_I_L from `lidar_start_s` on
 // (10 Hz sweeps for 10 s). Pose: R_W_I = Exp(phi), body rate Jr(phi) phi'.
@@ -367,18 +390,11 @@ struct RestThenDrive {
           Orientation(t).conjugate() * (Acceleration(t) + Eigen::Vector3d(0.0, 0.0, 9.80665));
       imu.push_back(sample);
     }
-    for (int k = 0; k < 100; ++k) {
-      lidar::LidarSweep sweep;
-      sweep.t_ns = SecondsToNs(lidar_start_s) + k * 100'000'000LL;
-      sweep.cloud.points = Eigen::Matrix3Xd::Zero(3, 10);
-      sweep.cloud.time_s = Eigen::VectorXd::LinSpaced(10, 0.0, 0.099);
-      sweeps.push_back(sweep);
-      lidar::OdometryFrame frame;
-      frame.t_ns = sweep.t_ns;
-      const double t = NsToSeconds(sweep.t_ns);
-      frame.T_W_L = geometry::Pose3d(Orientation(t), Position(t)) * T_I_L;
-      odometry.push_back(frame);
-    }
+    SweepsAndOdometry lidar = SweepsEvery100Ms(100, lidar_start_s, [this](double t) {
+      return geometry::Pose3d(Orientation(t), Position(t)) * T_I_L;
+    });
+    sweeps = std::move(lidar.sweeps);
+    odometry = std::move(lidar.odometry);
   }
 };
 
@@ -451,26 +467,15 @@ TEST(CalibrationInitializer, AStraightDriveKeepsTheGivenRotationAboutTheVertical
       sample.accel_m_s2 = Eigen::Vector3d(0.0, 0.0, 9.80665) + 0.05 * gauss();
       imu.push_back(sample);
     }
-    std::vector<lidar::LidarSweep> sweeps;
-    std::vector<lidar::OdometryFrame> odometry;
-    for (int k = 0; k < 350; ++k) {
-      lidar::LidarSweep sweep;
-      sweep.t_ns = SecondsToNs(1.0) + k * 100'000'000LL;
-      sweep.cloud.points = Eigen::Matrix3Xd::Zero(3, 10);
-      sweep.cloud.time_s = Eigen::VectorXd::LinSpaced(10, 0.0, 0.099);
-      sweeps.push_back(sweep);
-      lidar::OdometryFrame frame;
-      frame.t_ns = sweep.t_ns;
-      frame.T_W_L = geometry::Pose3d(
-          geometry::Exp(Eigen::Vector3d(0.0003 * gauss())),
-          Eigen::Vector3d(20.0 * NsToSeconds(sweep.t_ns), 0.0, 0.0) + 0.01 * gauss());
-      odometry.push_back(frame);
-    }
+    const SweepsAndOdometry lidar = SweepsEvery100Ms(350, 1.0, [&](double t) {
+      return geometry::Pose3d(geometry::Exp(Eigen::Vector3d(0.0003 * gauss())),
+                              Eigen::Vector3d(20.0 * t, 0.0, 0.0) + 0.01 * gauss());
+    });
     CalibrationInitializerOptions options;
     options.fallback_time_offset_s = 0.0;
     options.fallback_q_I_L = geometry::Exp(Eigen::Vector3d(0.01, -0.02, 1.3));
     const CalibrationInitialization init =
-        InitializeLidarImuFromOdometry(imu, sweeps, odometry, options);
+        InitializeLidarImuFromOdometry(imu, lidar.sweeps, lidar.odometry, options);
     ASSERT_TRUE(init.ok) << Problems(init);
     std::cout << "seed " << seed << ": rotation about the vertical sigma "
               << init.inertial.vertical_rotation_std_rad * kRadToDeg << " deg\n";
@@ -506,26 +511,16 @@ TEST(CalibrationInitializer, NoHorizontalAccelerationLeavesTheVerticalRotationUn
     sample.accel_m_s2 = Eigen::Vector3d(0.0, 0.0, 9.80665);
     imu.push_back(sample);
   }
-  std::vector<lidar::LidarSweep> sweeps;
-  std::vector<lidar::OdometryFrame> odometry;
-  for (int k = 0; k < 100; ++k) {
-    lidar::LidarSweep sweep;
-    sweep.t_ns = SecondsToNs(6.0) + k * 100'000'000LL;
-    sweep.cloud.points = Eigen::Matrix3Xd::Zero(3, 10);
-    sweep.cloud.time_s = Eigen::VectorXd::LinSpaced(10, 0.0, 0.099);
-    sweeps.push_back(sweep);
-    lidar::OdometryFrame frame;
-    frame.t_ns = sweep.t_ns;
-    frame.T_W_L = geometry::Pose3d(Eigen::Quaterniond(Eigen::AngleAxisd(
-                                       angle(NsToSeconds(sweep.t_ns)), Eigen::Vector3d::UnitZ())),
-                                   Eigen::Vector3d::Zero());
-    odometry.push_back(frame);
-  }
+  const SweepsAndOdometry lidar = SweepsEvery100Ms(100, 6.0, [&](double t) {
+    return geometry::Pose3d(
+        Eigen::Quaterniond(Eigen::AngleAxisd(angle(t), Eigen::Vector3d::UnitZ())),
+        Eigen::Vector3d::Zero());
+  });
   CalibrationInitializerOptions options;
   options.fallback_time_offset_s = 0.0;
   options.fallback_q_I_L = Eigen::Quaterniond::Identity();
   const CalibrationInitialization init =
-      InitializeLidarImuFromOdometry(imu, sweeps, odometry, options);
+      InitializeLidarImuFromOdometry(imu, lidar.sweeps, lidar.odometry, options);
   ASSERT_TRUE(init.ok) << Problems(init);
   EXPECT_FALSE(init.inertial.vertical_rotation_determined);
   EXPECT_NEAR(init.inertial.vertical_rotation_std_rad, options.vertical_rotation_prior_sigma_rad,
