@@ -62,7 +62,6 @@ std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
   if (!sigma) return std::nullopt;
   BlockValues out;
   const double* v = info.const_values(file.value);
-  out.sigmas.assign(sigma->data(), sigma->data() + info.tangent_size);
   if (info.manifold == sensors::BlockManifold::kRightQuaternion) {
     // The angles' own sigma (mount_angles.h), not the axes' beside them.
     const Eigen::Quaterniond mount = DisplayedMount(info, file.value);
@@ -83,6 +82,7 @@ std::optional<BlockValues> ValuesOf(const sensors::CalibrationBlockInfo& info,
     out.directions.assign(info.direction_names.begin(),
                           info.direction_names.begin() + info.tangent_size);
     out.values.assign(v, v + info.tangent_size);
+    out.sigmas.assign(sigma->data(), sigma->data() + info.tangent_size);
   }
   return out;
 }
