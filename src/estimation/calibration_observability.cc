@@ -957,8 +957,10 @@ bool AllHeld(const BlockObservability& observability) {
   return AnyHeld(observability);
 }
 
-void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
-                            const BlockObservability& observability, ceres::Problem* problem) {
+std::vector<ceres::ResidualBlockId> AddHeldDirectionPriors(
+    const std::vector<EstimatedBlock>& blocks, const BlockObservability& observability,
+    ceres::Problem* problem) {
+  std::vector<ceres::ResidualBlockId> out;
   for (size_t b = 0; b < blocks.size(); ++b) {
     const EstimatedBlock& block = blocks[b];
     Eigen::MatrixXd sqrt_information = Eigen::MatrixXd::Zero(block.size, block.size);
@@ -974,8 +976,9 @@ void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
                   AsQuaternion(block.data), Eigen::Matrix3d(sqrt_information)))
             : new factors::VectorPriorFactor(
                   Eigen::Map<const Eigen::VectorXd>(block.data, block.size), sqrt_information);
-    problem->AddResidualBlock(cost, nullptr, block.data);
+    out.push_back(problem->AddResidualBlock(cost, nullptr, block.data));
   }
+  return out;
 }
 
 void SetHeldDirectionsToPrior(const std::vector<EstimatedBlock>& blocks,

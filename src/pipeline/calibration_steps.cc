@@ -485,7 +485,8 @@ void SolveAgainAfterHolding(const io::Problem& problem,
   // values.
   *calibration = solved;
   estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
-  estimation::AddHeldDirectionPriors(blocks_estimated, observability, p);
+  const std::vector<ceres::ResidualBlockId> pins =
+      estimation::AddHeldDirectionPriors(blocks_estimated, observability, p);
   ceres::Solver::Summary summary;
   ceres::Solve(JointSolverOptions(
                    problem, max_iterations > 0 ? max_iterations : problem.solver.max_iterations),
@@ -503,6 +504,7 @@ void SolveAgainAfterHolding(const io::Problem& problem,
         "solver.max_iterations");
   }
   estimation::SetHeldDirectionsToPrior(blocks_estimated, observability);
+  for (ceres::ResidualBlockId pin : pins) p->RemoveResidualBlock(pin);
 }
 
 void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOptions& options,

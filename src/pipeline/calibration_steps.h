@@ -188,7 +188,8 @@ ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_it
 // Eq. C3: when Observe held directions, pins them in `p` (the solved problem, whose blocks
 // are the keyframes and `calibration`) and solves it again from `solved` (the calibration
 // before Observe) with the held directions at their prior, so that the trajectory, the
-// residuals and the other blocks follow the calibration that is reported. Throws
+// residuals and the other blocks follow the calibration that is reported, then removes the
+// pins (the held values are known only to their priors' sigma, Eq. C7). Throws
 // autocal::Error when that solve fails; warns when it stops at its iteration limit
 // (max_iterations, 0: the problem's solver.max_iterations).
 void SolveAgainAfterHolding(const io::Problem& problem,

@@ -216,10 +216,13 @@ bool AllHeld(const BlockObservability& observability);
 // After HoldUnobservableDirections: a prior that pins every held direction at its held value
 // (a sigma of kHeldSigmaFraction of its prior sigma; the other directions get no row), so that
 // a second solve of `problem` moves the trajectory and the other blocks to the calibration that
-// is reported (Eq. C3). Ownership as AddBlockPriors.
+// is reported (Eq. C3). Ownership as AddBlockPriors; returns the residual blocks added, for
+// their removal after that solve (a held direction is held at a value known only to its prior's
+// sigma, which later tests of the problem count: Eq. C7).
 constexpr double kHeldSigmaFraction = 1e-6;
-void AddHeldDirectionPriors(const std::vector<EstimatedBlock>& blocks,
-                            const BlockObservability& observability, ceres::Problem* problem);
+std::vector<ceres::ResidualBlockId> AddHeldDirectionPriors(
+    const std::vector<EstimatedBlock>& blocks, const BlockObservability& observability,
+    ceres::Problem* problem);
 
 // After that solve: every held direction exactly at its prior value again (the solve leaves
 // it within kHeldSigmaFraction of a sigma), the other directions as they are.
