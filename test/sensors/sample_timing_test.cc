@@ -83,9 +83,16 @@ TEST(SampleTiming, ImuFrom25To1000Hz) {
 }
 
 // CAN wheel speeds arrive in bursts: the median interval is 0.3 ms, yet the rate is the mean
-// one and every keyframe on a 10 ms grid is bracketed within the derived gap.
-TEST(SampleTiming, BurstyWheelsFrom5To83Hz) {
-  for (const auto& [rate_hz, burst] : {std::pair<double, int>{5.0, 3}, {10.0, 2}, {83.0, 4}}) {
+// one and every keyframe on a 10 ms grid is bracketed within the derived gap. Bursts of 6 and
+// more samples read as 3333 Hz with every gap between them an outage before.
+TEST(SampleTiming, BurstyWheelsFrom5To200Hz) {
+  for (const auto& [rate_hz, burst] : {std::pair<double, int>{5.0, 3},
+                                       {10.0, 2},
+                                       {83.0, 4},
+                                       {100.0, 6},
+                                       {50.0, 10},
+                                       {83.0, 12},
+                                       {200.0, 20}}) {
     const std::vector<int64_t> stamps = Bursty(rate_hz, burst, 60.0);
     const SampleTiming t = MeasureTiming(stamps, "wheel");
     EXPECT_TRUE(t.bursty) << rate_hz << " Hz";
@@ -94,6 +101,21 @@ TEST(SampleTiming, BurstyWheelsFrom5To83Hz) {
     EXPECT_EQ(t.outages, 0) << rate_hz << " Hz";
     EXPECT_GE(MaxBracketingGapS(t), LongestBracketS(stamps, 0.01)) << rate_hz << " Hz";
   }
+}
+
+// Bursts of 10 at 50 Hz with 3 s of the log lost: that gap alone is an outage, and the rate
+// leaves it out.
+TEST(SampleTiming, BurstyWheelsWithAnOutage) {
+  std::vector<int64_t> stamps;
+  for (int64_t t : Bursty(50.0, 10, 60.0)) {
+    const double s = NsToSeconds(t - kStartNs);
+    if (s < 20.0 || s >= 23.0) stamps.push_back(t);
+  }
+  const SampleTiming t = MeasureTiming(stamps, "wheel");
+  EXPECT_EQ(t.outages, 1);
+  EXPECT_NEAR(t.rate_hz(), 50.0, 0.5);
+  EXPECT_NEAR(t.max_gap_s, 3.2 - 9 * 3e-4, 1e-6);
+  EXPECT_LT(MaxBracketingGapS(t), 0.3);
 }
 
 // 200 Hz with 5 % jitter and 1 % of the samples lost: one lost sample is bridged, three in a
