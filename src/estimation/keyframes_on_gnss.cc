@@ -280,7 +280,8 @@ double VelocitySigma(const std::vector<double>& tau_s, const std::vector<double>
              : std::numeric_limits<double>::infinity();
 }
 
-// Eq. K7: p(tau) = a + b tau + c tau^2 fitted to the fixes (tau from the keyframe time).
+// Eq. K7: p(tau) = a + b tau + c tau^2 fitted to the fixes (tau from the keyframe time), each
+// weighted by its horizontal sigma.
 // Multipath jumps of metres would bend a least-squares quadratic towards them (several may
 // fall in one window, one may sit at its end), so the fit starts from the least median of
 // distances over quadratics through three fixes, one from each third of the window; fixes
@@ -299,11 +300,13 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
     for (size_t i = 0; i < n; ++i) distance_m[i] = (coefficients * basis(i) - p[i]).norm();
     return Median(distance_m);
   };
+  // Weighted by the fixes' horizontal sigmas: the fit whose sigma Eq. K10 states.
   const auto solve = [&](const std::vector<size_t>& rows, Eigen::Matrix3d* coefficients) {
     Eigen::Matrix3d A = Eigen::Matrix3d::Zero(), B = Eigen::Matrix3d::Zero();
     for (size_t i : rows) {
-      A += basis(i) * basis(i).transpose();
-      B += basis(i) * p[i].transpose();
+      const double w = 1.0 / (sigma_m[i] * sigma_m[i]);
+      A += w * basis(i) * basis(i).transpose();
+      B += w * basis(i) * p[i].transpose();
     }
     const Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
     if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return false;
@@ -370,6 +373,8 @@ double ForwardHeading(const Keyframe& kf, const Eigen::Quaterniond& q_I_V) {
 
 // Eq. K8 from the keyframes with a heading: the circular mean of the yaw each needs, then
 // once more without those over 0.2 rad from it (reversing, slip, bad fits).
+// Also clears the flag (result->heading) of each keyframe whose heading it leaves out: a
+// reversing vehicle's, or an outlier's, which Eq. K9 would otherwise turn onto its velocity.
 void YawFromHeadings(const std::vector<double>& delta, GnssPlacement* result) {
   const auto circular_mean = [&](double center, double gate) {
     double s = 0.0, c = 0.0;
@@ -385,9 +390,14 @@ void YawFromHeadings(const std::vector<double>& delta, GnssPlacement* result) {
   result->yaw_rad = circular_mean(circular_mean(0.0, M_PI + 1.0), 0.2);
   double sum_rad2 = 0.0;
   result->num_headings = 0;
-  for (double d : delta) {
-    const double r = WrapAngle(d - result->yaw_rad);
-    if (std::abs(r) > 0.2) continue;
+  size_t next = 0;  // delta holds the flagged keyframes' headings in order
+  for (size_t k = 0; k < result->heading.size(); ++k) {
+    if (!result->heading[k]) continue;
+    const double r = WrapAngle(delta[next++] - result->yaw_rad);
+    if (std::abs(r) > 0.2) {
+      result->heading[k] = false;
+      continue;
+    }
     sum_rad2 += r * r;
     ++result->num_headings;
   }

@@ -1160,6 +1160,79 @@ TEST(PlaceKeyframesOnGnss, ASlowPlatformGetsTheYawFromTheTrackGeometry) {
   EXPECT_NEAR(placement.yaw_rad * kRadToDeg, 30.0, 2.0);
 }
 
+// The platform drives 60 s forward at 1 m/s, then 40 s backwards, facing the same way. The
+// reversing keyframes' headings lie 180 deg from the others: left out of the yaw, they are not
+// flagged either, so the GNSS-inertial rebuild does not turn them onto their velocity (Eq. K9),
+// which started them 180 deg off before.
+TEST(PlaceKeyframesOnGnss, AReversingPlatformsHeadingsStayOutOfTheYaw) {
+  SlowPlatform log;
+  std::mt19937_64 random(12);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const int64_t start_ns = 1'700'000'000'000'000'000;
+  const double heading_rad = 40.0 * kDegToRad;
+  const auto along_m = [](double t_s) { return t_s <= 60.0 ? t_s : 120.0 - t_s; };
+  for (double t_s = 0.0; t_s <= 100.0; t_s += 0.4) {
+    sensors::GnssFix fix;
+    fix.t_ns = start_ns + SecondsToNs(t_s);
+    fix.std_enu_m = Eigen::Vector3d(1.0, 1.0, 2.0);
+    const Eigen::Vector3d p =
+        along_m(t_s) * Eigen::Vector3d(std::cos(heading_rad), std::sin(heading_rad), 0.0) +
+        Eigen::Vector3d(noise(random), noise(random), 0.0);
+    const Eigen::Vector3d lla = log.enu.ToGeodetic(p);
+    fix.lat_deg = lla.x();
+    fix.lon_deg = lla.y();
+    fix.alt_m = lla.z();
+    log.fixes.push_back(fix);
+  }
+  std::vector<double> times_s;
+  for (double t_s = 6.0; t_s <= 94.0; t_s += 0.4) {
+    Keyframe kf;
+    kf.t_ns = start_ns + SecondsToNs(t_s + 0.13);
+    kf.q_W_I = Eigen::AngleAxisd(heading_rad - 30.0 * kDegToRad, Eigen::Vector3d::UnitZ());
+    log.keyframes.push_back(kf);
+    times_s.push_back(t_s + 0.13);
+  }
+  GnssPlacementOptions options;
+  options.half_width_s = 5.0;
+  const GnssPlacement placement =
+      PlaceKeyframesOnGnss(&log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(),
+                           Eigen::Quaterniond::Identity(), options);
+  EXPECT_NEAR(placement.yaw_rad * kRadToDeg, 30.0, 2.0);
+  EXPECT_EQ(std::count(placement.heading.begin(), placement.heading.end(), true),
+            placement.num_headings);
+  int reversing = 0;
+  for (size_t k = 0; k < times_s.size(); ++k) {
+    if (times_s[k] < 66.0) continue;
+    ++reversing;
+    EXPECT_FALSE(placement.heading[k]) << "reversing at " << times_s[k] << " s";
+  }
+  EXPECT_GT(reversing, 60);
+}
+
+// A standing platform whose fixes alternate between 2 cm and 1 m: the track's velocity is that
+// of the 2 cm fixes, as Eq. K10 states. Fitted without their weights it scattered with the 1 m
+// fixes while K10 stated the 2 cm ones' sigma, and nearly every keyframe got a heading.
+TEST(PlaceKeyframesOnGnss, AStandingPlatformWithMixedFixesGivesNoYaw) {
+  SlowPlatform log = SlowPlatformLog(0.0, 0.0, 120.0);
+  std::mt19937_64 random(13);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  for (size_t i = 0; i < log.fixes.size(); ++i) {
+    sensors::GnssFix& fix = log.fixes[i];
+    const double sigma_m = i % 2 == 0 ? 0.02 : 1.0;
+    fix.std_enu_m = Eigen::Vector3d(sigma_m, sigma_m, 2.0);
+    const Eigen::Vector3d lla =
+        log.enu.ToGeodetic(Eigen::Vector3d(sigma_m * noise(random), sigma_m * noise(random), 0.0));
+    fix.lat_deg = lla.x();
+    fix.lon_deg = lla.y();
+    fix.alt_m = lla.z();
+  }
+  GnssPlacementOptions options;
+  options.half_width_s = 5.0;
+  EXPECT_THROW(PlaceKeyframesOnGnss(&log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(),
+                                    Eigen::Quaterniond::Identity(), options),
+               Error);
+}
+
 // A standing platform: no heading stands out of the noise and the track goes nowhere. The
 // error says so with the figures.
 TEST(PlaceKeyframesOnGnss, AStandingPlatformGivesNoYaw) {
