@@ -6,6 +6,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/common/time.h"
+#include "autocal/sensors/sample_timing.h"
 #include "common/order_statistics.h"
 
 namespace autocal {
@@ -35,18 +36,20 @@ ImuScatter MeasureImuScatter(const ImuSamples& imu) {
     throw Error("MeasureImuScatter: need at least three IMU samples, got " +
                 std::to_string(imu.size()));
   }
-  std::vector<double> intervals_s;
-  intervals_s.reserve(imu.size() - 1);
-  for (size_t k = 1; k < imu.size(); ++k) {
-    if (imu[k].t_ns <= imu[k - 1].t_ns) {
+  std::vector<int64_t> stamps_ns;
+  stamps_ns.reserve(imu.size());
+  for (size_t k = 0; k < imu.size(); ++k) {
+    if (k > 0 && imu[k].t_ns <= imu[k - 1].t_ns) {
       throw Error("MeasureImuScatter: IMU sample " + std::to_string(k) +
                   " does not follow its predecessor");
     }
-    intervals_s.push_back(SecondsBetween(imu[k - 1].t_ns, imu[k].t_ns));
+    stamps_ns.push_back(imu[k].t_ns);
   }
   ImuScatter s;
   s.differences = imu.size() - 2;
-  s.rate_hz = 1.0 / internal::Median(intervals_s);
+  // The rate the samples were taken at: a driver that stamps them in bursts leaves the median
+  // interval at the burst's spacing (docs/keyframe_factors.md, "Limits from the log's timing").
+  s.rate_hz = MeasureTiming(stamps_ns, "MeasureImuScatter: IMU").rate_hz();
   for (int i = 0; i < 3; ++i) {
     s.gyro_density(i) =
         AxisDensity(imu, s.rate_hz, [i](const ImuSample& x) { return x.gyro_rad_s(i); });

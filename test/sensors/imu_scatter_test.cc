@@ -56,6 +56,20 @@ TEST(MeasureImuScatter, RecoversTheWhiteNoiseDensityUnderSlowMotion) {
   }
 }
 
+// A driver that stamps its samples in bursts of four (0.1 ms apart) at 200 Hz: the density is
+// that of the samples' own rate. The median interval read 10 kHz before, and the densities
+// sqrt(50) times too small.
+TEST(MeasureImuScatter, TakesTheRateOfBurstyStamps) {
+  ImuSamples imu = Drive(200.0, 400.0, 1.7e-4, 2e-3, 7);
+  for (size_t k = 0; k < imu.size(); ++k) {
+    imu[k].t_ns = imu[k - k % 4].t_ns + static_cast<int64_t>(k % 4) * 100'000;
+  }
+  const ImuScatter s = MeasureImuScatter(imu);
+  EXPECT_NEAR(s.rate_hz, 200.0, 1.0);
+  EXPECT_NEAR(s.gyroscope_noise_density(), 1.7e-4, 0.03 * 1.7e-4);
+  EXPECT_NEAR(s.accelerometer_noise_density(), 2e-3, 0.03 * 2e-3);
+}
+
 // The motion alone is not taken for noise: without noise the scatter of the drive is under a
 // tenth of a datasheet's density even at 25 Hz (it adds in quadrature: under 0.5 %).
 TEST(MeasureImuScatter, MotionAloneScattersFarLessThanNoise) {

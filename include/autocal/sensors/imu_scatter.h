@@ -25,8 +25,8 @@ namespace autocal {
 namespace sensors {
 
 struct ImuScatter {
-  size_t differences = 0;                                   // consecutive pairs used
-  double rate_hz = 0.0;                                     // 1 / median interval
+  size_t differences = 0;  // consecutive pairs used
+  double rate_hz = 0.0;    // 1 / mean interval, outages left out (MeasureTiming)
   Eigen::Vector3d gyro_density = Eigen::Vector3d::Zero();   // rad/s/sqrt(Hz) per IMU axis
   Eigen::Vector3d accel_density = Eigen::Vector3d::Zero();  // m/s^2/sqrt(Hz) per IMU axis
 
