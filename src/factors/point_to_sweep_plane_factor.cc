@@ -1,5 +1,9 @@
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 
+#include <cmath>
+#include <string>
+
+#include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
 
 namespace autocal {
@@ -56,7 +60,13 @@ PointToSweepPlaneFactor::Terms::Terms(const PointToSweepPlaneMeasurement& measur
       d_L_(measurement.plane_L.d),
       inv_sigma_(1.0 / measurement.sigma_m),
       offset_linearization_s_(measurement.offset_linearization_s),
-      plane_side_(plane_side) {}
+      plane_side_(plane_side) {
+  // A zero or non-finite sigma would make every residual inf or NaN.
+  if (!(measurement.sigma_m > 0.0) || !std::isfinite(measurement.sigma_m)) {
+    throw Error("point-to-sweep-plane factor: sigma_m must be finite and > 0, got " +
+                std::to_string(measurement.sigma_m));
+  }
+}
 
 PointToSweepPlaneFactor::PlaneFrame::PlaneFrame(const Frame& f, const Side& plane)
     : M_j(f.R_j * plane.delta_R),

@@ -61,6 +61,7 @@ TEST(Loss, RejectsUnknownNamesAndBadScalesWithOneClearError) {
   }
   try {
     ParseRobustLoss("tukey");
+    ADD_FAILURE() << "no error for 'tukey'";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("expected none, huber or cauchy"), std::string::npos);
   }

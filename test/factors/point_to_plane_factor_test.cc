@@ -3,11 +3,13 @@
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
 
 #include "analytic_motion.h"
+#include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 
@@ -85,6 +87,18 @@ TEST(PointToPlaneFactor, ZeroAtGroundTruth) {
     const Scene scene(&rng, tau);
     const PointToPlaneFactor factor(scene.Measurement(scene.truth.offset_s), kGravity);
     EXPECT_NEAR(Residual(factor, scene.truth), 0.0, 1e-10) << "tau = " << tau;
+  }
+}
+
+// A zero, negative or non-finite sigma is refused: it whitened every residual to inf or NaN.
+TEST(PointToPlaneFactor, RefusesASigmaThatIsNotPositive) {
+  std::mt19937 rng(1);
+  const Scene scene(&rng, 0.031);
+  for (double sigma_m : {0.0, -0.02, std::numeric_limits<double>::quiet_NaN(),
+                         std::numeric_limits<double>::infinity()}) {
+    PointToPlaneMeasurement m = scene.Measurement(scene.truth.offset_s);
+    m.sigma_m = sigma_m;
+    EXPECT_THROW(PointToPlaneFactor(m, kGravity), Error) << sigma_m;
   }
 }
 

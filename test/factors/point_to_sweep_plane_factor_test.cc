@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -103,6 +104,18 @@ TEST(PointToSweepPlaneFactor, ZeroAtGroundTruth) {
     const std::unique_ptr<ceres::CostFunction> twin(
         CreatePointToSweepPlaneAutoDiff(scene.Measurement(scene.truth.offset_s), kGravity));
     EXPECT_NEAR(Residual(*twin, scene.truth), 0.0, 1e-10) << "tau = " << tau;
+  }
+}
+
+// A zero, negative or non-finite sigma is refused: it whitened every residual to inf or NaN.
+TEST(PointToSweepPlaneFactor, RefusesASigmaThatIsNotPositive) {
+  std::mt19937 rng(1);
+  const Scene scene(&rng, 0.031);
+  for (double sigma_m : {0.0, -0.02, std::numeric_limits<double>::quiet_NaN(),
+                         std::numeric_limits<double>::infinity()}) {
+    PointToSweepPlaneMeasurement m = scene.Measurement(scene.truth.offset_s);
+    m.sigma_m = sigma_m;
+    EXPECT_THROW(PointToSweepPlaneFactor(m, kGravity), Error) << sigma_m;
   }
 }
 

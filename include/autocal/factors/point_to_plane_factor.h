@@ -11,9 +11,10 @@
 //   v(t) = v_k + g_W dt + R_k dv
 //   p(t) = p_k + v_k dt + 1/2 g_W dt^2 + R_k dp + delta * v(t)
 // where (dR, dv, dp) are the preintegrated IMU deltas from t_k to t_k + dt and omega the
-// bias-corrected body rate at t. The point in W is p_W = R(t) (R_I_L p_L + p_I_L) + p(t) and
-// the residual its signed distance to the plane n_W . x + d = 0, whitened by sigma (Eq. P4).
-// The model is first order in delta; estimators re-propagate (delta -> 0) between solves.
+// bias-corrected body rate's mean over one sweep's span centred on t (Eq. P1b). The point in W is
+// p_W = R(t) (R_I_L p_L + p_I_L) + p(t) and the residual its signed distance to the plane n_W . x +
+// d = 0, whitened by sigma (Eq. P4). The model is first order in delta; estimators re-propagate
+// (delta -> 0) between solves.
 //
 // Parameter blocks: q_W_I (4, RightQuaternionManifold), p_W_I (3), v_W_I (3),
 // q_I_L (4, RightQuaternionManifold), p_I_L (3), time_offset_lidar_imu_s (1).
@@ -36,7 +37,7 @@ struct PointMotion {
   Eigen::Quaterniond delta_q = Eigen::Quaterniond::Identity();  // R_Ik_I(t)
   Eigen::Vector3d delta_v = Eigen::Vector3d::Zero();            // preintegrated, in I_k
   Eigen::Vector3d delta_p = Eigen::Vector3d::Zero();            // preintegrated, in I_k
-  Eigen::Vector3d omega_rad_s = Eigen::Vector3d::Zero();        // body rate at t, bias-corrected
+  Eigen::Vector3d omega_rad_s = Eigen::Vector3d::Zero();        // mean body rate (Eq. P1b)
 };
 
 struct PointToPlaneMeasurement {
