@@ -155,8 +155,8 @@ void ConcludeShared(const estimation::FusedCalibration& fused, MultiLogCalibrati
   sensors::Calibration value = fused.value;
   std::vector<estimation::EstimatedBlock> blocks = fused.blocks;
   estimation::BindBlocks(&value, &blocks);
-  const estimation::BlockObservability observability =
-      estimation::HoldUnobservableDirections(blocks, fused.covariance);
+  result->observability = estimation::HoldUnobservableDirections(blocks, fused.covariance);
+  const estimation::BlockObservability& observability = result->observability;
   result->calibration.value = value;
   FillUncertainty(blocks, observability, &result->calibration.uncertainty);
   result->calibration.solver["logs"] = std::to_string(result->logs.size());
@@ -259,7 +259,14 @@ std::vector<RepeatabilityRow> RepeatabilityRows(const MultiLogCalibrationResult&
           row.logs.push_back(*e);
         }
       }
+      // The shared value is the reported one, after holding: its sigma is the reported one
+      // (Eq. C2), not the fused covariance's from before.
       row.shared = *entry("shared", result.fused.blocks, result.fused.covariance, shared, k);
+      for (size_t b = 0; b < result.fused.blocks.size(); ++b) {
+        if (result.fused.blocks[b].id == info.id && b < result.observability.sigma.size()) {
+          row.shared.sigma = result.observability.sigma[b](k) * info.display_scale;
+        }
+      }
       rows.push_back(row);
     }
   }

@@ -16,7 +16,9 @@ namespace pipeline {
 struct RepeatabilityEntry {
   std::string log;
   double value = 0.0;
-  double sigma = 0.0;  // before any direction was held
+  // A log's before any direction was held (its estimate's); the shared one's as calibration.yaml
+  // reports it, after holding (Eq. C2), with the reported value.
+  double sigma = 0.0;
 };
 
 // One block direction: every log's estimate that has the block, and the shared one.

@@ -13,7 +13,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "autocal/common/error.h"
@@ -22,6 +24,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/pipeline/fleet_report.h"
+#include "autocal/sensors/calibration_blocks.h"
 #include "pipeline/multi_log_report.h"
 #include "pipeline/simulated_urban_dataset.h"
 #include "support/test_paths.h"
@@ -143,6 +146,22 @@ TEST_F(MultiLogCalibration, WritesSharedRepeatabilityAndEveryLog) {
     directions += sensors::CalibrationBlock(r.agreement.id).tangent_size;
   }
   EXPECT_EQ(rows, directions * 4);  // three logs and the shared value
+  // The shared rows give calibration.yaml's sigmas (after holding, Eq. C2): the fused ones
+  // from before holding were shown beside the held values.
+  const std::map<std::string, std::optional<double>> reported = {
+      {"wheel_radius_left_m", read.uncertainty.wheel_radius_left_m.sigma},
+      {"wheel_radius_right_m", read.uncertainty.wheel_radius_right_m.sigma},
+      {"track_width_m", read.uncertainty.track_width_m.sigma},
+      {"time_offset_wheel_imu_s", read.uncertainty.time_offset_wheel_imu_s.sigma}};
+  int compared = 0;
+  for (const RepeatabilityRow& row : RepeatabilityRows(*result_)) {
+    const auto it = reported.find(row.key);
+    if (it == reported.end() || !it->second) continue;
+    const double scale = sensors::CalibrationBlock(row.block->agreement.id).display_scale;
+    EXPECT_NEAR(row.shared.sigma, *it->second * scale, 1e-9 * row.shared.sigma) << row.key;
+    ++compared;
+  }
+  EXPECT_GT(compared, 0);
   for (const LogCalibration& log : result_->logs) {
     EXPECT_TRUE(std::filesystem::is_regular_file(out / "logs" / log.name / "trajectory.tum"));
     EXPECT_TRUE(

@@ -55,6 +55,9 @@ struct BlockRepeatability {
 struct MultiLogCalibrationResult {
   io::CalibrationFile calibration;     // shared: values, sigma and observability
   estimation::FusedCalibration fused;  // before holding; blocks' data not bound
+  // The shared calibration's held directions and sigmas (Eq. C1-C2), per block of fused.blocks:
+  // the sigmas calibration.yaml reports.
+  estimation::BlockObservability observability;
   std::vector<LogCalibration> logs;
   std::vector<BlockRepeatability> repeatability;
   std::vector<std::string> warnings;  // the shared calibration's, then the findings
