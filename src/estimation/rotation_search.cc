@@ -200,7 +200,7 @@ StartingRotationSearch SearchStartingRotation(const sensors::ImuSamples& imu,
       !(spacing_m > 0.0)) {
     return out;
   }
-  // Eq. P12: a step moves the scored points by one gate, so that every candidate's
+  // Eq. P13: a step moves the scored points by one gate, so that every candidate's
   // neighbourhood in the cost is seen and none falls between two.
   const double step_rad =
       std::max(coarse.max_point_to_plane_m / spacing_m, options.range_rad / kMaxStepsPerSide);

@@ -1,7 +1,7 @@
 #pragma once
 
 // The LiDAR-IMU rotation's starting value when no motion checked the nominal one
-// (docs/estimation.md, "A rotation no motion checked", Eq. P12). A rotation error eps moves
+// (docs/estimation.md, "A rotation no motion checked", Eq. P13). A rotation error eps moves
 // the points of two sweeps d apart by about eps x d; the batch's pairing reaches a gate of a
 // few decimetres, so from a nominal rotation degrees off, sweeps metres apart (a highway's
 // keyframes) pair only what the error leaves near its planes, and the solve stays where it

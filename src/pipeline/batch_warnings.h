@@ -1,7 +1,7 @@
 #pragma once
 
 // What the offline calibration says of how its batch solve went: where the search for a
-// nominal LiDAR rotation started it (docs/estimation.md, Eq. P12), and which directions its
+// nominal LiDAR rotation started it (docs/estimation.md, Eq. P13), and which directions its
 // last outer iteration still moved when it stopped at solver.outer_iterations
 // (problems/README.md, "Outer iterations").
 

@@ -178,7 +178,7 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
 
 // Keyframes that no LiDAR motion placed (rebuilt from GNSS and the IMU: the odometry did not
 // follow the drive) leave the LiDAR rotation at its nominal value, which no turn checked: the
-// batch searches about it within three of its prior's sigmas (docs/estimation.md, Eq. P12).
+// batch searches about it within three of its prior's sigmas (docs/estimation.md, Eq. P13).
 // Keyframes from the odometry line the sweeps up at whatever rotation they were built with, so
 // a search there has nothing to score.
 double StartingRotationSearchDeg(const BatchKeyframes& keyframes,

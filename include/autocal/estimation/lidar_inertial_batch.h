@@ -60,7 +60,7 @@ struct LidarInertialBatchOptions {
   // keyframes that no LiDAR motion placed): before the first iteration, rotations within this
   // many degrees of it about the two axes across the direction of travel are scored by the
   // points of consecutive keyframes that find a plane, and the solve starts from the best
-  // (docs/estimation.md, "A rotation no motion checked", Eq. P12). 0: the solve starts from
+  // (docs/estimation.md, "A rotation no motion checked", Eq. P13). 0: the solve starts from
   // q_I_L as given.
   double starting_rotation_search_deg = 0.0;
   // The points' sigma after the coarse iterations: the RMS distance of the previous
