@@ -767,6 +767,52 @@ TEST(CalibrationObservability, StretchScatterOfWhiteNoiseAveragesToItsExpectatio
   }
 }
 
+// The scatter's degrees of freedom per coordinate are Satterthwaite's for the stretches'
+// expected shares less their mean, (sum_b E_b)^2 / sum_b E_b^2 - 1: 7 for 8 equal stretches.
+// This drive's regressors turn three times over 240 keyframes, so its 8 stretches inform p about
+// equally: between 6 and 7. With the rows that see p in one stretch alone, 1.
+TEST(CalibrationObservability, StretchScatterCountsTheStretchesThatInform) {
+  KeyframeRowsProblem drive(1, 0.0);
+  const StretchScatter scatter =
+      ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8);
+  ASSERT_TRUE(scatter.ok);
+  const Eigen::VectorXd& dof = scatter.sources[0].degrees_of_freedom;
+  ASSERT_EQ(dof.size(), 3);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_GT(dof(i), 6.0) << i;
+    EXPECT_LE(dof(i), 7.0) << i;
+  }
+  // The same rows with the first stretch's alone seeing p: a stretch is 1/8 of the rows.
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  std::vector<double> x(KeyframeRowsProblem::kKeyframes, 0.0);
+  ceres::Problem problem;
+  ResidualSource rows{"rows", {}};
+  std::mt19937 random(1);
+  std::normal_distribution<double> normal;
+  for (int k = 0; k < KeyframeRowsProblem::kKeyframes; ++k) {
+    const double phase = 6.0 * M_PI * k / KeyframeRowsProblem::kKeyframes;
+    const Eigen::Vector3d a = k < KeyframeRowsProblem::kKeyframes / 8
+                                  ? Eigen::Vector3d(1.0, std::sin(phase), std::cos(phase))
+                                  : Eigen::Vector3d::Zero();
+    for (const double seen : {1.0, 0.0}) {
+      rows.residual_blocks.push_back(problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<LinearRow, 1, 3, 1>(
+              new LinearRow{20.0, seen * a.x(), seen * a.y(), seen * a.z(), 1.0,
+                            0.1 * k + seen * a.dot(p) + normal(random) / 20.0}),
+          nullptr, p.data(), &x[static_cast<size_t>(k)]));
+    }
+  }
+  const std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 1.0, 0.05)};
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  ceres::Solver::Options options;
+  options.function_tolerance = options.gradient_tolerance = options.parameter_tolerance = 1e-15;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  const StretchScatter one = ComputeStretchScatter(blocks, &problem, {rows}, 8);
+  ASSERT_TRUE(one.ok);
+  for (int i = 0; i < 3; ++i) EXPECT_DOUBLE_EQ(one.sources[0].degrees_of_freedom(i), 1.0) << i;
+}
+
 // Under a robust loss the rows' shares scatter as the M-estimator weighs them: for Gaussian rows
 // under Huber at 1 sigma, 0.57 of what their Jacobians state (factors::ExpectedRowPull). With
 // that share ratio the expectation holds again; without it, errors correlated over the log
