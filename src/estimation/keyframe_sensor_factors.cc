@@ -560,6 +560,25 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
                                measurement);
 }
 
+namespace {
+
+// Whether two keyframes lie between the same two fixes: keyframes denser than the fixes, whose
+// interpolated rows (Eq. K1) would count those fixes' information again for each keyframe, at
+// the full sigma of Eq. K2 (ten keyframes a fix: sigmas sqrt(10) times too small).
+bool KeyframesShareAFixInterval(const sensors::GnssFixes& fixes, const std::vector<Keyframe>& kfs,
+                                int64_t max_gap_ns) {
+  std::optional<size_t> previous;  // the interval of the previous keyframe, by its first fix
+  for (const Keyframe& kf : kfs) {
+    const std::optional<internal::Bracket> b = internal::FindBracket(fixes, kf.t_ns, max_gap_ns);
+    const bool inside = b && b->s > 0.0 && b->s < 1.0;
+    if (inside && previous == b->first) return true;
+    previous = inside ? std::optional<size_t>(b->first) : std::nullopt;
+  }
+  return false;
+}
+
+}  // namespace
+
 int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                    const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
                    std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
@@ -572,7 +591,11 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   double* offset = &calibration->time_offset_gnss_imu_s;
   if (!std::isfinite(*offset)) throw Error("AddGnssFactors: time_offset_gnss_imu_s must be finite");
   options.noise_scale.Check("AddGnssFactors");
-  const bool shifted = options.estimate_time_offset || *offset != 0.0;
+  // With a clock, or with keyframes denser than the fixes, each fix serves one keyframe, its
+  // nearest, with the state carried to it (Eq. K16, K17); else each keyframe its interpolated
+  // fix (Eq. K1, K2).
+  const bool shifted = options.estimate_time_offset || *offset != 0.0 ||
+                       KeyframesShareAFixInterval(fixes, *keyframes, max_gap_ns);
   const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
   // The fix each keyframe takes on the receiver's clock (Eq. K17), at the offset's value now.

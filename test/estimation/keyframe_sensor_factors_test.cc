@@ -470,6 +470,35 @@ TEST_F(KeyframeSensorFactorsTest, InterpolatedFixesFollowTheAntenna) {
       InterpolateGnss(exact_->gnss.fixes, converter, exact_->gnss.fixes.back().t_ns + 1, 0.25, &m));
 }
 
+// A 1 Hz receiver (every tenth fix of the noise-free log) and keyframes every 0.1 s: ten
+// keyframes between two fixes. Interpolated to each keyframe, every fix's information entered
+// ten rows at its full sigma, and the straight line between fixes a second apart missed the
+// curving antenna by many sigmas. Each fix now serves its nearest keyframe once, the state
+// carried to it by the IMU (Eq. K16, K17), and the rows vanish at the truth.
+TEST_F(KeyframeSensorFactorsTest, SparseFixesServeOneKeyframeEach) {
+  sensors::GnssFixes fixes;
+  for (size_t i = 0; i < exact_->gnss.fixes.size(); i += 10) {
+    fixes.push_back(exact_->gnss.fixes[i]);
+  }
+  std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
+  sensors::Calibration calibration = exact_simulator_->true_calibration();
+  auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+  KeyframeGnssOptions options;
+  options.loss = factors::LossOptions();
+  options.max_fix_gap_s = 1.25;
+  options.estimate_lever_arm = false;
+  const int added = AddGnssFactors(problem.get(), exact_->imu.samples, fixes,
+                                   Converter(*exact_simulator_), &keyframes, &calibration, options);
+  EXPECT_LE(added, static_cast<int>(fixes.size()));
+  EXPECT_GT(added, static_cast<int>(fixes.size()) * 8 / 10);
+  double cost = 0.0;
+  problem->Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
+  const double whitened_rms = std::sqrt(2.0 * cost / (3.0 * added));
+  std::cout << added << " GNSS factors for " << fixes.size() << " fixes and " << keyframes.size()
+            << " keyframes; whitened RMS at the truth " << whitened_rms << "\n";
+  EXPECT_LT(whitened_rms, 0.1);
+}
+
 // A keyframe whose bracketing wheel samples are more than max_wheel_gap_s apart gets none.
 TEST_F(KeyframeSensorFactorsTest, WheelDropoutsLeaveKeyframesWithoutFactors) {
   std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);

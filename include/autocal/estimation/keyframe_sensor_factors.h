@@ -193,8 +193,10 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
 
 // Adds a GnssFactor (Eq. F30) per keyframe with an interpolated fix, on its q_W_I, p_W_I and
 // the calibration's p_I_A: two residual blocks under the loss, the horizontal rows and the
-// vertical row (factors::GnssAxes). With a GNSS clock offset each keyframe takes its nearest
-// fix instead, within max_fix_gap_s / 2, as the wheels' samples (Eq. K16, K17), and its v_W_I,
+// vertical row (factors::GnssAxes). With a GNSS clock offset, or with two keyframes between
+// the same two fixes (keyframes denser than the fixes, whose interpolated rows would count each
+// fix several times), each keyframe takes its nearest fix instead, within max_fix_gap_s / 2,
+// no fix serving two, as the wheels' samples (Eq. K16, K17), and its v_W_I,
 // b_g, b_a and the offset block enter the factor; `imu` carries the state there. Returns
 // the number of keyframes with a fix (ownership as AddWheelFactors). Throws autocal::Error as
 // InterpolateGnss, or for a keyframe q_W_I missing from the problem or without a manifold.
