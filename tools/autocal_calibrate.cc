@@ -17,6 +17,8 @@
 #include <chrono>
 #include <cstdio>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "autocal/common/error.h"
 #include "autocal/evaluation/information_bound.h"
@@ -38,10 +40,12 @@ DEFINE_string(dataset, "",
 DEFINE_string(datasets_file, "",
               "a file listing dataset directories, one per line (# comments); added to --dataset");
 DEFINE_string(problem, "", "problem file (problems/*.yaml: sensors, blocks, losses); required");
-DEFINE_string(output, "",
-              "result directory; required. Written whole at the end (a stopped run leaves only "
-              "OUTPUT.partial-XXXXXX); an existing one is replaced only when it holds nothing but "
-              "result files, otherwise refused. A failed run leaves status.yaml alone there");
+DEFINE_string(
+    output, "",
+    "result directory; required, apart from the inputs (neither holding nor inside a "
+    "dataset, nor holding the problem file). Written whole at the end (a stopped run leaves only "
+    "OUTPUT.partial-XXXXXX); an existing one is replaced only when it holds nothing but "
+    "result files, otherwise refused. A failed run leaves status.yaml alone there");
 DEFINE_string(vehicle, "",
               "the vehicle's label in status.yaml, for autocal_fleet_report; default: the first "
               "dataset directory's name");
@@ -183,6 +187,12 @@ int main(int argc, char** argv) {
     // directory or problem file leaves nothing, and a previous result in --output as it was.
     autocal::tools::CheckThreadsFlag(FLAGS_threads);
     autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 2);
+    // The result replaces --output whole: a dataset or the problem file in it would be lost
+    // with it, also by a failed run's status.yaml.
+    std::vector<std::string> inputs = directories;
+    inputs.push_back(FLAGS_problem);
+    if (!FLAGS_datasets_file.empty()) inputs.push_back(FLAGS_datasets_file);
+    autocal::tools::CheckOutputApartFromInputs(FLAGS_output, "--output", inputs);
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
     for (const std::string& d : directories) autocal::tools::CheckDatasetDirectory(d);
     autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);

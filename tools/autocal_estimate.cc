@@ -35,7 +35,8 @@ DEFINE_string(problem, "",
               "size, solver, LiDAR points); required");
 DEFINE_string(output, "",
               "result directory: trajectory.tum, trajectory_smoothed.tum, states.csv, "
-              "calibration_over_time.csv, calibration.yaml, timings.yaml; required. Written whole "
+              "calibration_over_time.csv, calibration.yaml, timings.yaml; required, apart from the "
+              "dataset and the problem file (neither holding nor inside them). Written whole "
               "at the end (a stopped run leaves only OUTPUT.partial-XXXXXX); an existing one is "
               "replaced only when it holds nothing but result files, otherwise refused");
 DEFINE_int32(threads, 0,
@@ -86,7 +87,10 @@ int main(int argc, char** argv) {
     if (FLAGS_progress_every < 0) throw autocal::Error("--progress_every must be >= 0");
     autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 3);
     CheckInitializationFlags();
-    // Everything that can be checked before the work starts is.
+    // Everything that can be checked before the work starts is. The result replaces --output
+    // whole: the dataset or the problem file in it would be lost with it.
+    autocal::tools::CheckOutputApartFromInputs(FLAGS_output, "--output",
+                                               {FLAGS_dataset, FLAGS_problem});
     autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
     autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
     autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);

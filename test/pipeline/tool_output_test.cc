@@ -128,6 +128,8 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
   const fs::path dir = CleanDir("refusals");
   std::ofstream(dir / "a_file") << "x";
   fs::create_directories(dir / "empty");
+  fs::create_directories(dir / "no_imu");
+  std::ofstream(dir / "no_imu" / "notes.txt") << "x";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
   struct Case {
     std::vector<std::string> args;
@@ -143,10 +145,10 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
       {{Tool("autocal_estimate"), "--dataset=" + (dir / "a_file").string(), "--problem=" + problem,
         "--output=" + (dir / "missing" / "r").string()},
        "/missing' does not exist"},
-      {{Tool("autocal_estimate"), "--dataset=" + dir.string(), "--problem=" + problem,
+      {{Tool("autocal_estimate"), "--dataset=" + (dir / "no_imu").string(), "--problem=" + problem,
         "--output=" + (dir / "r").string()},
        "is not a dataset: it has no imu.csv"},
-      {{Tool("autocal_calibrate"), "--dataset=" + dir.string(), "--problem=" + problem,
+      {{Tool("autocal_calibrate"), "--dataset=" + (dir / "no_imu").string(), "--problem=" + problem,
         "--output=" + (dir / "r").string(), "--threads=0"},
        "is not a dataset"},
       {{Tool("autocal_simulate"), "--duration_s=600", "--out=" + (dir / "a_file").string()},
@@ -177,15 +179,17 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
 // result in --output stays as it was (it used to be replaced by a failure's status.yaml).
 TEST_F(ToolOutputTest, AWrongInputLeavesThePreviousResult) {
   const fs::path dir = CleanDir("wrong_input");
-  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const fs::path data = dir / "data";  // a dataset apart from the output
+  fs::create_directories(data);
+  std::ofstream(data / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
   const fs::path result = dir / "result";
   fs::create_directories(result);
   std::ofstream(result / "calibration.yaml") << "previous\n";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
-      {{"--dataset=" + dir.string(), "--problem=" + problem + "x"}, "urban_full.yamlx"},
+      {{"--dataset=" + data.string(), "--problem=" + problem + "x"}, "urban_full.yamlx"},
       {{"--dataset=" + (dir / "typo").string(), "--problem=" + problem}, "typo' does not exist"},
-      {{"--dataset=" + dir.string(), "--dataset=" + (dir / "typo").string(),
+      {{"--dataset=" + data.string(), "--dataset=" + (dir / "typo").string(),
         "--problem=" + problem},
        "typo' does not exist"}};
   for (const auto& [args, message] : cases) {
@@ -196,6 +200,63 @@ TEST_F(ToolOutputTest, AWrongInputLeavesThePreviousResult) {
     EXPECT_THAT(f.output, HasSubstr(message));
     EXPECT_EQ(Read(result / "calibration.yaml"), "previous\n") << message;
     EXPECT_FALSE(fs::exists(result / "status.yaml")) << message;
+  }
+}
+
+// An --output that holds an input (a dataset kept under logs/, which a result may hold, or
+// the problem file) would be replaced with it, by the result or by a failed run's
+// status.yaml; one inside a dataset would put the result among the recordings. Both are
+// refused in one line before any work, however the paths are spelled (a symbolic link, a
+// trailing slash, '..'), and every input stays as it was.
+TEST_F(ToolOutputTest, AnOutputAroundAnInputIsRefused) {
+  const fs::path base = CleanDir("around_input");
+  const fs::path d = base / "d", day = d / "logs" / "day1", other = base / "other";
+  const std::string imu = "t_ns,gx,gy,gz,ax,ay,az\n";
+  for (const fs::path& dataset : {day, other}) {
+    fs::create_directories(dataset);
+    std::ofstream(dataset / "imu.csv") << imu;
+  }
+  const std::string shipped = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
+  const fs::path problem = d / "logs" / "problem.yaml";
+  fs::copy_file(shipped, problem);
+  const std::string link = (base / "link").string();  // another name of d
+  fs::create_directory_symlink(d, link);
+  struct Case {
+    std::vector<std::string> args;
+    std::string message;
+  };
+  const std::string holds = "' holds the input '";
+  const std::vector<Case> cases = {
+      {{Tool("autocal_calibrate"), "--dataset=" + day.string(), "--problem=" + shipped,
+        "--output=" + d.string()},
+       holds + day.string() + "'"},
+      {{Tool("autocal_calibrate"), "--dataset=" + other.string(), "--dataset=" + day.string(),
+        "--problem=" + shipped, "--output=" + link + "/"},
+       holds + day.string() + "'"},
+      {{Tool("autocal_calibrate"), "--dataset=" + other.string(), "--problem=" + problem.string(),
+        "--output=" + (day / ".." / "..").string()},
+       holds + problem.string() + "'"},
+      {{Tool("autocal_calibrate"), "--dataset=" + day.string(), "--problem=" + shipped,
+        "--output=" + (day / "result").string()},
+       "' lies inside the input '" + day.string() + "'"},
+      {{Tool("autocal_estimate"), "--dataset=" + day.string(), "--problem=" + shipped,
+        "--output=" + link},
+       holds + day.string() + "'"},
+      {{Tool("autocal_estimate"), "--dataset=" + other.string(), "--problem=" + problem.string(),
+        "--output=" + (d / "logs").string()},
+       holds + problem.string() + "'"},
+  };
+  for (const Case& c : cases) {
+    const Finished f = RunTool(c.args, base / "log.txt");
+    EXPECT_EQ(f.exit_code, 1) << c.args[0] << ": " << f.output;
+    EXPECT_THAT(f.output, HasSubstr("--output: '")) << c.args[0];
+    EXPECT_THAT(f.output, HasSubstr(c.message)) << c.args[0];
+    EXPECT_EQ(std::count(f.output.begin(), f.output.end(), '\n'), 1) << "one line: " << f.output;
+    EXPECT_EQ(Read(day / "imu.csv"), imu) << c.args.back();
+    EXPECT_EQ(Read(other / "imu.csv"), imu) << c.args.back();
+    EXPECT_EQ(Read(problem), Read(shipped)) << c.args.back();
+    EXPECT_FALSE(fs::exists(d / "status.yaml")) << c.args.back();
+    EXPECT_FALSE(fs::exists(day / "result")) << c.args.back();
   }
 }
 
@@ -286,17 +347,19 @@ TEST_F(ToolOutputTest, RegisterKeepsItsInputs) {
 // header, refused by the reader).
 TEST_F(ToolOutputTest, ThreadsIsAnOverrideOfTheProblemFile) {
   const fs::path dir = CleanDir("threads");
-  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const std::string data = (dir / "data").string();  // a dataset apart from the output
+  fs::create_directories(data);
+  std::ofstream(data + "/imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
   for (const char* tool : {"autocal_calibrate", "autocal_estimate"}) {
-    const Finished bad = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+    const Finished bad = RunTool({Tool(tool), "--dataset=" + data, "--problem=" + problem,
                                   "--output=" + (dir / "r").string(), "--threads=-1"},
                                  dir / "log.txt");
     EXPECT_EQ(bad.exit_code, 1) << tool;
     EXPECT_THAT(bad.output, HasSubstr("--threads must be 0 (the problem file's "
                                       "solver.num_threads) or 1..1024, got -1"))
         << tool;
-    const Finished good = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+    const Finished good = RunTool({Tool(tool), "--dataset=" + data, "--problem=" + problem,
                                    "--output=" + (dir / "r").string(), "--threads=3"},
                                   dir / "log.txt");
     EXPECT_EQ(good.exit_code, 1) << tool;
@@ -311,13 +374,15 @@ TEST_F(ToolOutputTest, ThreadsIsAnOverrideOfTheProblemFile) {
 // are refused in one line; 0 (no test) passes on to the dataset.
 TEST_F(ToolOutputTest, ScatterStretchesIsCheckedBeforeAnyWork) {
   const fs::path dir = CleanDir("scatter");
-  std::ofstream(dir / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  const std::string data = (dir / "data").string();  // a dataset apart from the output
+  fs::create_directories(data);
+  std::ofstream(data + "/imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
   const std::string problem = std::string(AUTOCAL_SOURCE_DIR) + "/problems/urban_full.yaml";
   for (const auto& [tool, least] : std::vector<std::pair<std::string, int>>{
            {"autocal_calibrate", 2}, {"autocal_estimate", 3}}) {
     for (const int stretches : {least - 1, 1001, 1000000}) {
       const Finished bad = RunTool(
-          {Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+          {Tool(tool), "--dataset=" + data, "--problem=" + problem,
            "--output=" + (dir / "r").string(), "--scatter_stretches=" + std::to_string(stretches)},
           dir / "log.txt");
       EXPECT_EQ(bad.exit_code, 1) << tool;
@@ -326,7 +391,7 @@ TEST_F(ToolOutputTest, ScatterStretchesIsCheckedBeforeAnyWork) {
                             "..1000, got " + std::to_string(stretches)))
           << tool;
     }
-    const Finished off = RunTool({Tool(tool), "--dataset=" + dir.string(), "--problem=" + problem,
+    const Finished off = RunTool({Tool(tool), "--dataset=" + data, "--problem=" + problem,
                                   "--output=" + (dir / "r").string(), "--scatter_stretches=0"},
                                  dir / "log.txt");
     EXPECT_EQ(off.exit_code, 1) << tool;
