@@ -9,15 +9,18 @@
 // sigma, observability), trajectory.tum and calibration_per_iteration.csv into --output. With
 // several datasets: one shared calibration, each log's trajectory at it and its own estimate,
 // and their repeatability (docs/calibration.md, "Several logs"). Every run that reaches its
-// output leaves status.yaml there, also when it fails (docs/fleet.md).
+// output leaves status.yaml there, also when it fails, unless a failed run finds a previous
+// result there: that result stays as it was (docs/fleet.md).
 
 #include <gflags/gflags.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -45,7 +48,8 @@ DEFINE_string(
     "result directory; required, apart from the inputs (neither holding nor inside a "
     "dataset, nor holding the problem file). Written whole at the end (a stopped run leaves only "
     "OUTPUT.partial-XXXXXX); an existing one is replaced only when it holds nothing but "
-    "result files, otherwise refused. A failed run leaves status.yaml alone there");
+    "result files, otherwise refused. A failed run leaves status.yaml alone there when it held "
+    "no result; a previous result stays as it was");
 DEFINE_string(vehicle, "",
               "the vehicle's label in status.yaml, for autocal_fleet_report; default: the first "
               "dataset directory's name");
@@ -128,10 +132,29 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
             << "warnings.txt, status.yaml, logs/<log>/trajectory.tum and logs/<log>/own/\n";
 }
 
+// True when `directory` holds a result: anything but a failed run's status.yaml. A directory
+// that cannot be listed counts as one (its content is kept).
+bool HoldsAResult(const std::string& directory) {
+  namespace fs = std::filesystem;
+  std::error_code error;
+  fs::directory_iterator it(directory, error);
+  if (error) return fs::exists(directory, error);
+  for (; !error && it != fs::directory_iterator(); it.increment(error)) {
+    if (it->path().filename() != "status.yaml") return true;
+  }
+  return static_cast<bool>(error);
+}
+
 // A run that failed after its flags, dataset directories, problem file and output were
-// checked leaves status.yaml alone there, so that a batch of runs can be gathered; a failure
-// to write it is reported, not hidden.
+// checked leaves status.yaml alone there, so that a batch of runs can be gathered, unless
+// --output holds a previous result: bad input loses nothing, so that result stays as it was
+// (docs/fleet.md). A failure to write the status is reported, not hidden.
 void WriteFailureStatus(autocal::io::RunStatus status, const std::string& message, double seconds) {
+  if (HoldsAResult(FLAGS_output)) {
+    std::cerr << "autocal_calibrate: the previous result in '" << FLAGS_output
+              << "' is kept as it was; this failure is not recorded there\n";
+    return;
+  }
   status.exit_status = 1;
   status.message = message;
   status.seconds = seconds;

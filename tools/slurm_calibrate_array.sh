@@ -9,7 +9,9 @@
 #   VEHICLE DATASET_DIR [DATASET_DIR ...]     (several directories: one shared calibration)
 #
 # and runs a stateless autocal_calibrate into RESULTS/VEHICLE, which then holds status.yaml
-# whether the run succeeded or not. Gather with autocal_fleet_report RESULTS/*.
+# whether the run succeeded or not; a failed run keeps a previous result found there as it
+# was (docs/fleet.md), so give each array run a RESULTS of its own. Gather with
+# autocal_fleet_report RESULTS/*.
 #
 #   n=$(grep -cv '^\s*\(#\|$\)' LIST)
 #   sbatch --array=0-$((n - 1)) tools/slurm_calibrate_array.sh LIST PROBLEM RESULTS [FLAGS...]

@@ -78,9 +78,19 @@ TEST(FleetTools, RunsLeaveStatusAndTheReportGathersThem) {
   EXPECT_EQ(status.vehicle, "broken");
   EXPECT_THAT(run.text, ::testing::HasSubstr(status.message));
   EXPECT_FALSE(fs::exists(failed / "calibration.yaml"));
-  // Rerun into the same directory: a failure's directory is replaced by the next result.
-  EXPECT_EQ(Calibrate("--dataset=" + (root / "log_a").string(), failed).exit_code, 0);
-  EXPECT_EQ(Calibrate("--dataset=" + (root / "broken").string(), failed).exit_code, 1);
+  // Rerun into a failure's directory: the next result replaces it, and a failed run after
+  // that leaves that result (with its own status.yaml) as it was.
+  const fs::path rerun = root / "rerun";
+  fs::remove_all(rerun);
+  fs::copy(failed, rerun);
+  EXPECT_EQ(Calibrate("--dataset=" + (root / "log_a").string(), rerun).exit_code, 0);
+  const std::string result = Read(rerun / "calibration.yaml");
+  ASSERT_FALSE(result.empty());
+  const test::ToolOutput again = Calibrate("--dataset=" + (root / "broken").string(), rerun);
+  EXPECT_EQ(again.exit_code, 1) << again.text;
+  EXPECT_THAT(again.text, ::testing::HasSubstr("is kept as it was"));
+  EXPECT_EQ(Read(rerun / "calibration.yaml"), result);
+  EXPECT_EQ(io::ReadRunStatus((rerun / "status.yaml").string()).exit_status, 0);
 
   const fs::path report = root / "report";
   test::ToolOutput gathered =

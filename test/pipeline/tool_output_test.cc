@@ -176,12 +176,16 @@ TEST_F(ToolOutputTest, ABadOutputOrDatasetIsRefusedBeforeAnyWork) {
 }
 
 // A mistyped --problem or --dataset is an error of the command, not of the run: the previous
-// result in --output stays as it was (it used to be replaced by a failure's status.yaml).
+// result in --output stays as it was (it used to be replaced by a failure's status.yaml). So
+// does a dataset that fails once it is read (a wrong header, no samples): bad input loses
+// nothing, and the failure says the previous result was kept.
 TEST_F(ToolOutputTest, AWrongInputLeavesThePreviousResult) {
   const fs::path dir = CleanDir("wrong_input");
   const fs::path data = dir / "data";  // a dataset apart from the output
   fs::create_directories(data);
   std::ofstream(data / "imu.csv") << "t_ns,gx,gy,gz,ax,ay,az\n";
+  fs::create_directories(dir / "bad");
+  std::ofstream(dir / "bad" / "imu.csv") << "garbage,gx\n1,2\n";
   const fs::path result = dir / "result";
   fs::create_directories(result);
   std::ofstream(result / "calibration.yaml") << "previous\n";
@@ -191,7 +195,13 @@ TEST_F(ToolOutputTest, AWrongInputLeavesThePreviousResult) {
       {{"--dataset=" + (dir / "typo").string(), "--problem=" + problem}, "typo' does not exist"},
       {{"--dataset=" + data.string(), "--dataset=" + (dir / "typo").string(),
         "--problem=" + problem},
-       "typo' does not exist"}};
+       "typo' does not exist"},
+      {{"--dataset=" + (dir / "bad").string(), "--problem=" + problem},
+       "header column 1 is 'garbage'"},
+      {{"--dataset=" + data.string(), "--problem=" + problem}, "no IMU samples after the header"},
+      {{"--dataset=" + (dir / "bad").string(), "--dataset=" + data.string(),
+        "--problem=" + problem},
+       "header column 1 is 'garbage'"}};
   for (const auto& [args, message] : cases) {
     std::vector<std::string> command = {Tool("autocal_calibrate"), "--output=" + result.string()};
     command.insert(command.end(), args.begin(), args.end());
@@ -201,6 +211,11 @@ TEST_F(ToolOutputTest, AWrongInputLeavesThePreviousResult) {
     EXPECT_EQ(Read(result / "calibration.yaml"), "previous\n") << message;
     EXPECT_FALSE(fs::exists(result / "status.yaml")) << message;
   }
+  const Finished f = RunTool({Tool("autocal_calibrate"), "--output=" + result.string(),
+                              "--dataset=" + (dir / "bad").string(), "--problem=" + problem},
+                             dir / "log.txt");
+  EXPECT_THAT(f.output, HasSubstr("the previous result in '" + result.string() +
+                                  "' is kept as it was; this failure is not recorded there"));
 }
 
 // An --output that holds an input (a dataset kept under logs/, which a result may hold, or
