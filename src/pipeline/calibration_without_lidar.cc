@@ -279,6 +279,16 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   const ceres::Solver::Summary summary = SolveWithGnssNoiseFromResiduals(
       dataset, &sensor_factors, &keyframes, &calibration, &joint, &solves, &result);
   Report(options, "solving", 1.0, summary.final_cost, 0.0);
+  if (summary.termination_type == ceres::NO_CONVERGENCE) {
+    // The values and their sigma are those of a point short of the minimum, as with the
+    // LiDAR when its outer loop stops still moving (StillMovingWarning).
+    result.warnings.push_back(
+        "the joint solve stopped at its iteration limit (" +
+        std::to_string(summary.iterations.size() - 1) +
+        ") before converging: the calibration, its sigma and the trajectory may be off; raise "
+        "solver.max_iterations (the limit is solver.max_iterations times "
+        "solver.outer_iterations)");
+  }
 
   // 3. Observability, uncertainty and the result (the last solve's summary).
   const auto uncertainty_start = std::chrono::steady_clock::now();

@@ -919,6 +919,22 @@ TEST_F(OfflineCalibrationTest, WithoutTheLidarFromImuWheelsAndGnss) {
   EXPECT_EQ(result.calibration.residuals.at("imu").at("factors_downweighted_by_loss"), 0.0);
   EXPECT_EQ(result.calibration.residuals.at("imu").at("whitened_rms_not_downweighted"),
             result.calibration.residuals.at("imu").at("whitened_rms"));
+  EXPECT_THAT(result.warnings,
+              ::testing::Not(::testing::Contains(::testing::HasSubstr("the joint solve stopped"))));
+}
+
+// Without the LiDAR, a joint solve cut off at its iteration limit says so, as the LiDAR runs'
+// outer loop does: its values and sigma are those of a point short of the minimum.
+TEST_F(OfflineCalibrationTest, WithoutTheLidarSaysWhenTheSolveStoppedAtItsLimit) {
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
+  io::Problem problem = ShippedProblem("imu_wheel_gnss.yaml");
+  problem.solver.max_iterations = 2;
+  problem.solver.outer_iterations = 1;
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
+  EXPECT_THAT(result.batch.termination, ::testing::HasSubstr("Maximum number of iterations"));
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::HasSubstr(
+                  "the joint solve stopped at its iteration limit (2) before converging")));
 }
 
 }  // namespace
