@@ -1,5 +1,9 @@
 #include "autocal/io/calibration_block_fields.h"
 
+#include <algorithm>
+#include <cstddef>
+#include <optional>
+
 namespace autocal {
 namespace io {
 
@@ -139,11 +143,30 @@ void SetBlockUncertainty(Id id, const Eigen::VectorXd& sigma, const std::vector<
     if (observable) f.vector->observable = *observable;
     return;
   }
-  (f.rotation ? f.pose->sigma_rot_deg : f.pose->sigma_p_m) = Eigen::Vector3d(sigma);
-  if (!observable) return;
+  std::optional<Eigen::Vector3d>& half_sigma =
+      f.rotation ? f.pose->sigma_rot_deg : f.pose->sigma_p_m;
+  const bool other_estimated = (f.rotation ? f.pose->sigma_p_m : f.pose->sigma_rot_deg).has_value();
+  const bool newly_estimated = !half_sigma.has_value();
+  half_sigma = Eigen::Vector3d(sigma);
   std::vector<bool>& flags = f.pose->observable;
-  if (flags.size() < 6) flags.assign(6, flags.empty() || flags[0]);  // one flag: the whole pose
-  const size_t first = f.rotation ? 0 : 3;
+  const size_t first = f.rotation ? 0 : 3, other = 3 - first;
+  if (!observable) {
+    // A half without flags counts as observable (as a pose without any does); six flags that
+    // were written while it had no sigma say "not estimated" for it, which no longer holds.
+    if (flags.size() == 6 && newly_estimated) {
+      std::fill(flags.begin() + static_cast<std::ptrdiff_t>(first),
+                flags.begin() + static_cast<std::ptrdiff_t>(first + 3), true);
+    }
+    return;
+  }
+  if (flags.size() < 6) {
+    // One flag is the whole pose's; none says the same as true. Either holds for the other
+    // half only when it was estimated: a half without sigma (the problem fixes it) is not
+    // observable.
+    const bool whole = flags.empty() || flags[0];
+    flags.assign(6, false);
+    for (size_t k = 0; k < 3; ++k) flags[other + k] = whole && other_estimated;
+  }
   for (size_t k = 0; k < observable->size(); ++k) flags[first + k] = (*observable)[k];
 }
 

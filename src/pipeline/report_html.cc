@@ -145,8 +145,10 @@ std::string ConvergenceSection(const OfflineCalibrationResult& result) {
 }
 
 // One flag for the whole block or one per component (io::PoseBlockInfo, VectorBlockInfo);
-// none means observable.
-std::string Observable(const std::vector<bool>& flags, size_t index) {
+// none means observable. A block without sigma was not estimated (the problem fixes it): it
+// is "fixed", whatever flags it carries.
+std::string Observable(bool estimated, const std::vector<bool>& flags, size_t index) {
+  if (!estimated) return "fixed";
   if (flags.empty()) return "yes";
   if (flags.size() != 1 && index >= flags.size()) return "–";
   const bool value = flags.size() == 1 ? flags[0] : flags[index];
@@ -184,8 +186,9 @@ std::string RowLabel(const sensors::CalibrationBlockInfo& info, int k) {
 }
 
 // The result table: value, sigma, nominal and observability of each reported block, in the
-// block table's order: the LiDAR's blocks whenever the LiDAR took part, the others when the
-// result carries their sigma (they were estimated).
+// block table's order: the LiDAR's blocks whenever the LiDAR took part (a fixed one with
+// sigma "–" and "fixed"), the others when the result carries their sigma (they were
+// estimated).
 std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used) {
   std::ostringstream rows;
   for (const sensors::CalibrationBlockInfo& info : sensors::CalibrationBlocks()) {
@@ -209,7 +212,8 @@ std::string SummaryTable(const OfflineCalibrationResult& result, bool lidar_used
            << (rotation ? FormatFixed(value(k), kAngleDecimals) : Number(value(k))) << "</td><td>"
            << (sigma ? Number((*sigma)(k)) : "–") << "</td><td>"
            << (rotation ? FormatFixed(nominal(k), kAngleDecimals) : Number(nominal(k)))
-           << "</td><td>" << Observable(observable, static_cast<size_t>(k)) << "</td></tr>";
+           << "</td><td>" << Observable(u.sigma.has_value(), observable, static_cast<size_t>(k))
+           << "</td></tr>";
     }
   }
   const std::string body = rows.str();

@@ -60,6 +60,33 @@ TEST(CalibrationBlockFields, EveryBlockHasItsOwnUncertainty) {
   EXPECT_EQ(u.T_I_L.observable, std::vector<bool>({true, true, false, true, true, false}));
 }
 
+// A pose half the problem fixes gets no sigma and is not estimated: when the other half is
+// written with flags, the fixed half's three flags are false, never the "true" that an empty
+// list stood for. A half given a sigma later without flags counts as observable again.
+TEST(CalibrationBlockFields, AFixedPoseHalfIsNotObservable) {
+  using Id = sensors::CalibrationBlockId;
+  CalibrationUncertainty u;
+  const std::vector<bool> flags = {true, true, false};
+  SetBlockUncertainty(Id::kLidarTranslation, Eigen::Vector3d(0.03, 0.03, 0.03), &flags, &u);
+  EXPECT_FALSE(u.T_I_L.sigma_rot_deg);
+  EXPECT_EQ(u.T_I_L.observable, std::vector<bool>({false, false, false, true, true, false}));
+  EXPECT_EQ(UncertaintyIn(u, Id::kLidarRotation).observable,
+            std::vector<bool>({false, false, false}));
+  SetBlockUncertainty(Id::kVehicleRotation, Eigen::Vector3d(0.1, 0.1, 0.1), &flags, &u);
+  EXPECT_EQ(u.T_I_V.observable, std::vector<bool>({true, true, false, false, false, false}));
+  // The other half estimated after all, without flags: observable, as a pose without flags.
+  SetBlockUncertainty(Id::kVehicleTranslation, Eigen::Vector3d(0.02, 0.02, 0.02), nullptr, &u);
+  EXPECT_EQ(u.T_I_V.observable, std::vector<bool>({true, true, false, true, true, true}));
+  // With flags of its own they replace those.
+  SetBlockUncertainty(Id::kLidarRotation, Eigen::Vector3d(0.1, 0.1, 0.1), &flags, &u);
+  EXPECT_EQ(u.T_I_L.observable, std::vector<bool>({true, true, false, true, true, false}));
+  // A half estimated before the other is written with flags keeps the empty list's meaning.
+  CalibrationUncertainty both;
+  SetBlockUncertainty(Id::kLidarRotation, Eigen::Vector3d(0.1, 0.1, 0.1), nullptr, &both);
+  SetBlockUncertainty(Id::kLidarTranslation, Eigen::Vector3d(0.03, 0.03, 0.03), &flags, &both);
+  EXPECT_EQ(both.T_I_L.observable, std::vector<bool>({true, true, true, true, true, false}));
+}
+
 // Each block lands in the field of its own name: an oracle written out here, so that two
 // blocks swapped consistently in both maps (left and right, the two clocks) are caught.
 TEST(CalibrationBlockFields, EachBlockIsItsNamedField) {

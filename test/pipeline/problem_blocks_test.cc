@@ -153,7 +153,8 @@ TEST(ProblemBlocks, FillUncertaintyWritesEachBlocksSection) {
   EXPECT_FALSE(u.T_I_L.sigma_rot_deg.has_value());
   ASSERT_TRUE(u.T_I_L.sigma_p_m.has_value());
   EXPECT_EQ(*u.T_I_L.sigma_p_m, Eigen::Vector3d(0.001, 0.002, 0.003));
-  EXPECT_THAT(u.T_I_L.observable, ::testing::ElementsAre(true, true, true, true, true, false));
+  // The fixed rotation was not estimated: not observable (it used to read true).
+  EXPECT_THAT(u.T_I_L.observable, ::testing::ElementsAre(false, false, false, true, true, false));
   ASSERT_TRUE(u.T_I_V.sigma_rot_deg.has_value());
   EXPECT_NEAR((*u.T_I_V.sigma_rot_deg)(2), 0.003 * kRadToDeg, 1e-15);
   EXPECT_EQ(u.track_width_m.sigma, 0.004);

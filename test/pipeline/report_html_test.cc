@@ -17,6 +17,7 @@
 #include "autocal/common/units.h"
 #include "autocal/geometry/roll_pitch_yaw.h"
 #include "autocal/geometry/so3.h"
+#include "autocal/io/calibration_block_fields.h"
 
 namespace autocal {
 namespace pipeline {
@@ -326,6 +327,36 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   // Three histograms, the rig from above and from the side, the trajectory.
   EXPECT_EQ(Count(html, "<figure>"), 6);
   EXPECT_FALSE(HasNonFiniteText(html));
+}
+
+// The row of the result table whose label starts with `label`, or "" when there is none.
+std::string ResultRow(const std::string& html, const std::string& label) {
+  const size_t begin = html.find("<tr><td>" + label);
+  if (begin == std::string::npos) return "";
+  return html.substr(begin, html.find("</tr>", begin) - begin);
+}
+
+// A LiDAR block the problem fixes (here the rotation and the time offset) is shown, as the
+// LiDAR took part, with sigma "–" and "fixed": it was not estimated, so not observable. The
+// estimated half beside it keeps its own flags.
+TEST(ReportHtml, ShowsAFixedLidarBlockAsFixedNotObservable) {
+  OfflineCalibrationResult result = FullResult();
+  io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  u.T_I_L = io::PoseBlockInfo();
+  u.time_offset_lidar_imu_s = io::ScalarBlockInfo();
+  const std::vector<bool> flags = {true, true, false};
+  io::SetBlockUncertainty(sensors::CalibrationBlockId::kLidarTranslation,
+                          Eigen::Vector3d(0.005, 0.006, 0.3), &flags, &u);
+  const std::string html = CalibrationReportHtml(result);
+  for (const char* label : {"T_I_L roll", "T_I_L pitch", "T_I_L yaw", "LiDAR-IMU time offset"}) {
+    const std::string row = ResultRow(html, label);
+    ASSERT_FALSE(row.empty()) << label;
+    EXPECT_THAT(row, HasSubstr("<td>–</td>")) << row;
+    EXPECT_THAT(row, HasSubstr("<td>fixed</td>")) << row;
+    EXPECT_THAT(row, Not(HasSubstr("<td>yes</td>"))) << row;
+  }
+  EXPECT_THAT(ResultRow(html, "T_I_L translation x"), HasSubstr("<td>yes</td>"));
+  EXPECT_THAT(ResultRow(html, "T_I_L translation z"), HasSubstr("<td><b>no</b></td>"));
 }
 
 // The wheels' and the receiver's clocks get result rows when estimated, and none otherwise.

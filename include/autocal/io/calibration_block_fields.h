@@ -37,7 +37,9 @@ struct BlockUncertainty {
 };
 BlockUncertainty UncertaintyIn(const CalibrationUncertainty& uncertainty,
                                sensors::CalibrationBlockId id);
-// Sets block `id`'s sigma, and its flags (one per direction) when `observable` is given.
+// Sets block `id`'s sigma, and its flags (one per direction) when `observable` is given. A
+// pose's six flags are written when either half gets flags; the other half's are then false
+// while it has no sigma (a half the problem fixes is not estimated, so not observable).
 void SetBlockUncertainty(sensors::CalibrationBlockId id, const Eigen::VectorXd& sigma,
                          const std::vector<bool>* observable, CalibrationUncertainty* uncertainty);
 
