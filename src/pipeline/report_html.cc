@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <optional>
 #include <sstream>
@@ -315,13 +316,42 @@ std::string CorrelationChart(const std::string& title, const std::vector<double>
   return LineChart(title, "candidate offset (ms)", "correlation", {curve});
 }
 
+// The candidate offset (s) where `correlation` is largest; 0 without a finite value.
+double CurvePeak(const std::vector<double>& offsets_s, const std::vector<double>& correlation) {
+  double peak_s = 0.0, best = -std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < offsets_s.size() && i < correlation.size(); ++i) {
+    if (std::isfinite(correlation[i]) && correlation[i] > best) {
+      best = correlation[i];
+      peak_s = offsets_s[i];
+    }
+  }
+  return peak_s;
+}
+
+// The LiDAR curve's caption: its peak (refined, when the initializer took it; otherwise the
+// curve's largest value, as the offset then holds the value the solve started from instead)
+// and, when that peak did not start the solve, why.
+std::string LidarClockCaption(const OfflineCalibrationResult& result) {
+  const estimation::TimeOffsetEstimate& lidar = result.initialization.time_offset;
+  const double peak_s =
+      lidar.reliable ? lidar.offset_s : CurvePeak(lidar.candidate_offsets_s, lidar.correlation);
+  std::string not_used;
+  if (!lidar.reliable) {
+    not_used =
+        ", not used: " + (lidar.reason.empty() ? std::string("not determined") : lidar.reason);
+  } else if (!result.calibration.uncertainty.time_offset_lidar_imu_s.sigma) {
+    not_used = ", not used: the problem fixes the LiDAR-IMU time offset";
+  }
+  return "LiDAR vs gyro angular-rate correlation (peak " + Number(peak_s * 1e3) + " ms" + not_used +
+         ")";
+}
+
 // The clocks' initializations: the LiDAR's against the gyro, the wheels' and the GNSS
 // receiver's (t_imu = t_sensor + offset), each the curve whose peak started the solve.
 std::string ClockSection(const OfflineCalibrationResult& result) {
   const estimation::TimeOffsetEstimate& lidar = result.initialization.time_offset;
-  std::string charts = CorrelationChart(
-      "LiDAR vs gyro angular-rate correlation (peak " + Number(lidar.offset_s * 1e3) + " ms)",
-      lidar.candidate_offsets_s, lidar.correlation);
+  std::string charts =
+      CorrelationChart(LidarClockCaption(result), lidar.candidate_offsets_s, lidar.correlation);
   if (result.wheel_clock_initialization) {
     const estimation::SeriesOffsetEstimate& e = result.wheel_clock_initialization->estimate;
     charts += CorrelationChart("wheels vs IMU, " + result.wheel_clock_initialization->signal +

@@ -88,6 +88,7 @@ OfflineCalibrationResult FullResult() {
   result.whitened_residuals["wheel"] = {Normal(500, 3.0, 5), Normal(500, 1.1, 6)};
   result.whitened_residuals["gnss"] = {Normal(300, 4.0, 7), Normal(300, 0.9, 8)};
   estimation::TimeOffsetEstimate& t = result.initialization.time_offset;
+  t.reliable = true;
   t.offset_s = 0.012;
   for (int i = -20; i <= 20; ++i) {
     t.candidate_offsets_s.push_back(0.001 * i);
@@ -459,6 +460,35 @@ TEST(ReportHtml, ChartsEveryClocksCorrelation) {
                    .empty());
   EXPECT_THAT(CalibrationReportHtml(ResultWithoutLidar()),
               Not(HasSubstr("Clock offset initialization")));
+}
+
+// The LiDAR curve's caption names the curve's own peak and says when that peak did not start
+// the solve: the initializer found no reliable peak (the offset then holds the fallback the
+// solve started from, not the curve's peak), or the problem fixes the offset.
+TEST(ReportHtml, SaysWhenTheLidarClocksPeakWasNotUsed) {
+  OfflineCalibrationResult result = FullResult();  // the curve peaks at 12 ms
+  EXPECT_FALSE(
+      Figure(CalibrationReportHtml(result), "LiDAR vs gyro angular-rate correlation (peak 12 ms)")
+          .empty());
+  EXPECT_THAT(CalibrationReportHtml(result), Not(HasSubstr("not used")));
+  estimation::TimeOffsetEstimate& t = result.initialization.time_offset;
+  t.reliable = false;
+  t.reason = "no turns";
+  t.offset_s = 0.05;  // the fallback
+  std::string html = CalibrationReportHtml(result);
+  EXPECT_FALSE(
+      Figure(html, "LiDAR vs gyro angular-rate correlation (peak 12 ms, not used: no turns)")
+          .empty())
+      << html.substr(html.find("LiDAR vs gyro"), 120);
+  EXPECT_THAT(html, Not(HasSubstr("peak 50 ms")));
+  t.reliable = true;
+  t.offset_s = 0.012;
+  result.calibration.uncertainty.time_offset_lidar_imu_s = io::ScalarBlockInfo();
+  html = CalibrationReportHtml(result);
+  EXPECT_FALSE(Figure(html,
+                      "LiDAR vs gyro angular-rate correlation (peak 12 ms, not used: the problem "
+                      "fixes the LiDAR-IMU time offset)")
+                   .empty());
 }
 
 // Every element the page opens is closed in order (the void elements excepted), and every
