@@ -316,7 +316,7 @@ TEST(ReportHtml, RendersARunWithoutLidar) {
   EXPECT_THAT(html, Not(HasSubstr("point residuals")));
   EXPECT_THAT(html, Not(HasSubstr("point-to-plane")));
   EXPECT_THAT(html, Not(HasSubstr("T_I_L roll")));
-  EXPECT_THAT(html, Not(HasSubstr("time offset lidar")));
+  EXPECT_THAT(html, Not(HasSubstr("LiDAR-IMU time offset")));
   EXPECT_THAT(html, Not(HasSubstr("Clock offset initialization")));
   for (const char* heading :
        {"<h2>IMU residuals</h2>", "<h2>Wheel odometry residuals</h2>", "<h2>GNSS residuals</h2>",
