@@ -547,9 +547,7 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
 }
 
 std::string FixedDirectionWarning(const estimation::FixedDirectionMove& moved) {
-  return moved.text +
-         ": the fixed value disagrees with the drive; estimate the block (or give it a prior) in "
-         "the problem file, or correct its nominal value";
+  return moved.text + kFixedDirectionAdvice;
 }
 
 estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {

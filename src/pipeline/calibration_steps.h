@@ -215,7 +215,11 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
                                       const OfflineCalibrationOptions& options, bool use_wheel,
                                       bool use_gnss, sensors::Calibration* calibration,
                                       ceres::Problem* p, std::vector<std::string>* warnings);
-// The warning for one such direction (the online estimator words it the same).
+// The warning for one such direction (the online estimator words it the same): the move, then
+// kFixedDirectionAdvice.
+inline constexpr char kFixedDirectionAdvice[] =
+    ": the fixed value disagrees with the drive; estimate the block (or give it a prior) in the "
+    "problem file, or correct its nominal value";
 std::string FixedDirectionWarning(const estimation::FixedDirectionMove& moved);
 
 // The residual blocks of `problem` whose Hessian the covariance completes (Eq. C5): all but

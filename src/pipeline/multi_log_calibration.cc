@@ -208,8 +208,22 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
   result.fused = estimation::FuseCalibrationPosteriors(posteriors);
   ConcludeShared(result.fused, &result);
   for (size_t i = 0; i < datasets.size(); ++i) {
-    result.logs[i].at_shared =
+    LogCalibration& log = result.logs[i];
+    log.at_shared =
         SolveAtShared(datasets[i], problem, result.calibration.value, options.calibration);
+    // Its warnings cover the trajectory written for it, and its fixed-block test says where its
+    // data would move the shared calibration (Eq. C7).
+    for (std::string w : log.at_shared.warnings) {
+      // The blocks are fixed there by the run, not by the problem file: a move says that this
+      // log's data disagree with the shared value.
+      const std::string advice = kFixedDirectionAdvice;
+      if (w.size() > advice.size() &&
+          w.compare(w.size() - advice.size(), advice.size(), advice) == 0) {
+        w.replace(w.size() - advice.size(), advice.size(),
+                  ": this log's data disagree with the shared value");
+      }
+      result.warnings.push_back("log " + log.name + " at the shared calibration: " + w);
+    }
   }
   result.repeatability = Repeatability(result.logs, posteriors, options.min_agreement_p_value);
   bool all_agree = true;

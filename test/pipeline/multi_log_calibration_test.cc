@@ -245,6 +245,22 @@ TEST(MultiLogRepeatability, FindsTheChangedTyre) {
   }
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr("calibrate those logs apart")));
+  // The changed tyre's log solved at the shared radius, as its trajectory is written: its
+  // fixed-block test (Eq. C7) says its data would move that radius. Each log's warnings there
+  // are the result's, named by the log (they were dropped before).
+  for (const LogCalibration& log : result.logs) {
+    const std::string prefix = "log " + log.name + " at the shared calibration: ";
+    EXPECT_EQ(std::count_if(result.warnings.begin(), result.warnings.end(),
+                            [&](const std::string& w) { return w.rfind(prefix, 0) == 0; }),
+              static_cast<std::ptrdiff_t>(log.at_shared.warnings.size()))
+        << log.name;
+  }
+  EXPECT_THAT(result.warnings,
+              ::testing::Contains(::testing::AllOf(
+                  ::testing::StartsWith("log " + result.logs[2].name +
+                                        " at the shared calibration: right rear wheel radius"),
+                  ::testing::HasSubstr("is fixed, but the data would move it"),
+                  ::testing::EndsWith("this log's data disagree with the shared value"))));
 }
 
 // With each log's truth (simulated logs), each log's own result carries its Cramer-Rao

@@ -39,8 +39,10 @@ struct MultiLogCalibrationOptions {
 struct LogCalibration {
   std::string name;  // unique among the logs: the dataset directory's name
   std::string dataset_directory;
-  OfflineCalibrationResult own;        // the log alone (step 1)
-  OfflineCalibrationResult at_shared;  // its trajectory and residuals at the shared calibration
+  OfflineCalibrationResult own;  // the log alone (step 1)
+  // Its trajectory at the shared calibration, every block fixed; its warnings are the shared
+  // result's too, named by the log.
+  OfflineCalibrationResult at_shared;
 };
 
 // One block's repeatability: the test and, when it fails, the finding in words.
@@ -60,7 +62,8 @@ struct MultiLogCalibrationResult {
   estimation::BlockObservability observability;
   std::vector<LogCalibration> logs;
   std::vector<BlockRepeatability> repeatability;
-  std::vector<std::string> warnings;  // the shared calibration's, then the findings
+  // The shared calibration's, each log's at the shared calibration, then the findings.
+  std::vector<std::string> warnings;
   double seconds_total = 0.0;
 };
 
