@@ -1,10 +1,7 @@
 #include "autocal/factors/point_to_plane_factor.h"
 
-#include <cmath>
-#include <string>
-
-#include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
+#include "factors/sigma_check.h"
 
 namespace autocal {
 namespace factors {
@@ -23,11 +20,7 @@ PointToPlaneFactor::PointToPlaneFactor(const PointToPlaneMeasurement& measuremen
       d_over_sigma_(measurement.plane.d / measurement.sigma_m),
       dt_s_(measurement.motion.dt_s),
       offset_linearization_s_(measurement.offset_linearization_s) {
-  // A zero or non-finite sigma would make every residual inf or NaN.
-  if (!(measurement.sigma_m > 0.0) || !std::isfinite(measurement.sigma_m)) {
-    throw Error("point-to-plane factor: sigma_m must be finite and > 0, got " +
-                std::to_string(measurement.sigma_m));
-  }
+  internal::CheckSigma(measurement.sigma_m, "point-to-plane factor: sigma_m");
 }
 
 bool PointToPlaneFactor::Evaluate(double const* const* parameters, double* residuals,

@@ -1,10 +1,7 @@
 #include "autocal/factors/point_to_sweep_plane_factor.h"
 
-#include <cmath>
-#include <string>
-
-#include "autocal/common/error.h"
 #include "autocal/geometry/so3.h"
+#include "factors/sigma_check.h"
 
 namespace autocal {
 namespace factors {
@@ -61,11 +58,7 @@ PointToSweepPlaneFactor::Terms::Terms(const PointToSweepPlaneMeasurement& measur
       inv_sigma_(1.0 / measurement.sigma_m),
       offset_linearization_s_(measurement.offset_linearization_s),
       plane_side_(plane_side) {
-  // A zero or non-finite sigma would make every residual inf or NaN.
-  if (!(measurement.sigma_m > 0.0) || !std::isfinite(measurement.sigma_m)) {
-    throw Error("point-to-sweep-plane factor: sigma_m must be finite and > 0, got " +
-                std::to_string(measurement.sigma_m));
-  }
+  internal::CheckSigma(measurement.sigma_m, "point-to-sweep-plane factor: sigma_m");
 }
 
 PointToSweepPlaneFactor::PlaneFrame::PlaneFrame(const Frame& f, const Side& plane)

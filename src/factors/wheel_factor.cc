@@ -5,6 +5,7 @@
 
 #include "autocal/common/error.h"
 #include "autocal/geometry/manifolds.h"
+#include "factors/sigma_check.h"
 
 namespace autocal {
 namespace factors {
@@ -12,10 +13,7 @@ namespace factors {
 namespace {
 
 void CheckSigma(double sigma, const char* name) {
-  if (!(sigma > 0.0) || !std::isfinite(sigma)) {
-    throw Error(std::string("wheel factor: ") + name + " must be positive, got " +
-                std::to_string(sigma));
-  }
+  internal::CheckSigma(sigma, std::string("wheel factor: ") + name);
 }
 
 void CheckRowSigmas(const WheelFactorOptions& options) {
