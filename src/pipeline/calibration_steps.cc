@@ -542,12 +542,8 @@ void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::Sens
   for (const estimation::FixedDirectionMove& moved : estimation::FixedDirectionsTheDataMove(
            fixed, p, problem.solver.num_threads, options.max_fixed_block_step_sigmas,
            ExactResidualBlocks(*p), LidarSandwich(p), scatter)) {
-    warnings->push_back(FixedDirectionWarning(moved));
+    warnings->push_back(moved.text + options.fixed_block_advice);
   }
-}
-
-std::string FixedDirectionWarning(const estimation::FixedDirectionMove& moved) {
-  return moved.text + kFixedDirectionAdvice;
 }
 
 estimation::ScaledInformation LidarSandwich(ceres::Problem* problem) {

@@ -210,17 +210,12 @@ void RequirePlausible(const io::Dataset& dataset, const OfflineCalibrationOption
 // Eq. C7: one warning for each direction of a block the problem holds fixed that the data at
 // the solution of `p` would move by more than options.max_fixed_block_step_sigmas sigmas
 // (estimation::FixedDirectionsTheDataMove, its sigma as PosteriorCovariance's widened as
-// WidenedForScatter's, at the step's residuals), naming what to do about it.
+// WidenedForScatter's, at the step's residuals): the move, then options.fixed_block_advice (the
+// online estimator words its warnings the same).
 void WarnOfFixedDirectionsTheDataMove(const io::Problem& problem, const io::SensorsConfig& sensors,
                                       const OfflineCalibrationOptions& options, bool use_wheel,
                                       bool use_gnss, sensors::Calibration* calibration,
                                       ceres::Problem* p, std::vector<std::string>* warnings);
-// The warning for one such direction (the online estimator words it the same): the move, then
-// kFixedDirectionAdvice.
-inline constexpr char kFixedDirectionAdvice[] =
-    ": the fixed value disagrees with the drive; estimate the block (or give it a prior) in the "
-    "problem file, or correct its nominal value";
-std::string FixedDirectionWarning(const estimation::FixedDirectionMove& moved);
 
 // The residual blocks of `problem` whose Hessian the covariance completes (Eq. C5): all but
 // the LiDAR's point groups and the planar-rotation rows (PosteriorCovariance).

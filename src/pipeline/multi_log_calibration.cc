@@ -173,7 +173,11 @@ OfflineCalibrationResult SolveAtShared(const io::Dataset& dataset, const io::Pro
   at_shared.sensors.nominal_calibration = shared;
   io::Problem fixed = problem;
   fixed.calibration = io::WithEveryBlockFixed(problem.calibration);
-  return CalibrateDataset(at_shared, fixed, options);
+  // The run fixes the blocks, not the problem file: a move says that the log's data disagree
+  // with the shared value.
+  OfflineCalibrationOptions at_shared_options = options;
+  at_shared_options.fixed_block_advice = ": this log's data disagree with the shared value";
+  return CalibrateDataset(at_shared, fixed, at_shared_options);
 }
 
 }  // namespace
@@ -213,15 +217,7 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
         SolveAtShared(datasets[i], problem, result.calibration.value, options.calibration);
     // Its warnings cover the trajectory written for it, and its fixed-block test says where its
     // data would move the shared calibration (Eq. C7).
-    for (std::string w : log.at_shared.warnings) {
-      // The blocks are fixed there by the run, not by the problem file: a move says that this
-      // log's data disagree with the shared value.
-      const std::string advice = kFixedDirectionAdvice;
-      if (w.size() > advice.size() &&
-          w.compare(w.size() - advice.size(), advice.size(), advice) == 0) {
-        w.replace(w.size() - advice.size(), advice.size(),
-                  ": this log's data disagree with the shared value");
-      }
+    for (const std::string& w : log.at_shared.warnings) {
       result.warnings.push_back("log " + log.name + " at the shared calibration: " + w);
     }
   }

@@ -161,7 +161,7 @@ void WarnOfFixedDirectionsTheStreamMoves(const io::Dataset& dataset, const io::P
     for (const estimation::FixedDirectionMove& moved : estimator->FixedDirectionsTheStreamMoves(
              FixedBlocks(problem, dataset.sensors, offline, use_wheel, use_gnss, &scratch),
              offline.max_fixed_block_step_sigmas)) {
-      warnings->push_back(FixedDirectionWarning(moved));
+      warnings->push_back(moved.text + offline.fixed_block_advice);
     }
   } catch (const Error& e) {
     warnings->push_back(e.what());

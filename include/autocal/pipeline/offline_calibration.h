@@ -82,6 +82,11 @@ struct OfflineCalibrationOptions {
   // A block the problem fixes is named in a warning when the data would move a direction they
   // inform by more than this many sigmas of that step (Eq. C7, docs/calibration.md).
   double max_fixed_block_step_sigmas = 5.0;
+  // What such a warning advises, after the move: a block the problem file fixes by default; a
+  // run that fixes the blocks itself says what the move means there.
+  std::string fixed_block_advice =
+      ": the fixed value disagrees with the drive; estimate the block (or give it a prior) in the "
+      "problem file, or correct its nominal value";
   // Each sensor's rows are cut into this many stretches of the log, and the calibration's
   // sigmas widened where a sensor's stretches scatter beyond its noise model at this
   // significance per direction (Eq. C8, docs/calibration.md); 0 stretches: not tested.
