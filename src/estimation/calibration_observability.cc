@@ -520,6 +520,26 @@ struct HessianFactor {
   }
 };
 
+// The tangent size the problem gives the block at `it` (its columns up to the next block's).
+int TangentColumns(const GaussNewtonHessian& hessian, internal::BlockOffsets::const_iterator it) {
+  int next = static_cast<int>(hessian.H.rows());
+  for (const auto& [data, first] : hessian.offsets) {
+    if (first > it->second) next = std::min(next, first);
+  }
+  return next - it->second;
+}
+
+// Throws autocal::Error when the problem gives `block` another tangent size than the block
+// states (a manifold that holds some of its axes): its directions would read other columns.
+void RequireTangentSize(const EstimatedBlock& block, const GaussNewtonHessian& hessian,
+                        internal::BlockOffsets::const_iterator it) {
+  const int columns = TangentColumns(hessian, it);
+  if (columns == block.size) return;
+  throw Error("the covariance of " + block.name + ": the problem gives it " +
+              std::to_string(columns) + " tangent directions where the block states " +
+              std::to_string(block.size));
+}
+
 InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
                                 const GaussNewtonHessian& hessian, CovarianceOrdering* ordering,
                                 const HessianFactor* given = nullptr) {
@@ -532,6 +552,7 @@ InverseColumns InverseColumnsAt(const std::vector<EstimatedBlock>& blocks,
   for (size_t a = 0; a < blocks.size(); ++a) {
     const auto it = hessian.offsets.find(blocks[a].data);
     if (it == hessian.offsets.end()) continue;
+    RequireTangentSize(blocks[a], hessian, it);
     for (int i = 0; i < blocks[a].size; ++i) {
       unit(it->second + i, out.offsets[a] + i) = 1.0;
       out.rows.emplace_back(it->second + i, out.offsets[a] + i);
@@ -688,10 +709,13 @@ std::optional<StretchShare> ShareOfStretch(ceres::Problem* problem,
 }
 
 // -H^-1 J^T r over every residual block of `problem`: the Gauss-Newton step from its values.
+// J^T r is summed on one thread: Ceres' threads would each sum the blocks the scheduling gave
+// them, and the step's last bits would follow the thread count and the run.
 std::optional<Eigen::VectorXd> GaussNewtonStep(ceres::Problem* problem,
                                                internal::VariableColumns variables,
                                                const HessianFactor& factor) {
   variables.evaluate.residual_blocks.clear();
+  variables.evaluate.num_threads = 1;
   std::vector<double> gradient;
   if (!problem->Evaluate(variables.evaluate, nullptr, nullptr, &gradient, nullptr)) {
     return std::nullopt;

@@ -262,6 +262,32 @@ TEST(CalibrationObservability, PriorsAloneGiveThePriorCovariance) {
   EXPECT_EQ(observability.warnings.size(), 4u);
 }
 
+// A block the problem gives fewer tangent directions than it states (z held by a subset
+// manifold) is refused: its third direction would have read the next block's column.
+TEST(CalibrationObservability, ABlockOfAnotherTangentSizeIsRefused) {
+  Eigen::Vector3d p(0.30, -0.05, 0.55);
+  sensors::Calibration c;
+  std::vector<EstimatedBlock> blocks = {VectorBlock(p.data(), p, 0.3, 0.05),
+                                        BlockOf(sensors::CalibrationBlockId::kTrackWidth, &c)};
+  blocks[1].prior = Eigen::VectorXd::Constant(1, c.track_width_m);
+  blocks[1].prior_sigma = Eigen::VectorXd::Constant(1, 0.05);
+  ceres::SubsetManifold hold_z(3, {2});
+  ceres::Problem::Options options;
+  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(options);
+  problem.AddParameterBlock(p.data(), 3, &hold_z);
+  AddBlockPriors(blocks, factors::LossOptions(), &problem);
+  try {
+    ComputeBlockCovariance(blocks, &problem);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("T_I_L translation: the problem gives it 2 "
+                                               "tangent directions where the block states 3"));
+  }
+  problem.SetManifold(p.data(), nullptr);
+  EXPECT_TRUE(ComputeBlockCovariance(blocks, &problem).ok);
+}
+
 // A residual block that cannot be evaluated (a cost function returning false) leaves the
 // covariance, the error budget and the rows' scatter not ok; the Jacobian of the failed stretch
 // was summed in as an empty matrix of another size before.
@@ -906,6 +932,25 @@ TEST(CalibrationObservability, StretchScatterAtTheGaussNewtonStepIsTheMinimumsSc
                                                               << minimum.observed;
   EXPECT_TRUE(step.expected.isApprox(minimum.expected, 1e-9));
   EXPECT_GT(as_is.sources[0].observed(0, 0), 2.0 * minimum.observed(0, 0));
+}
+
+// The step's gradient sums the residual blocks in one order whatever the thread count, so the
+// scatter at the step is the same to the bit on 1 and 4 threads, run after run. (Summed by
+// Ceres' threads, the blocks fall to them as the scheduling goes, and the last bits moved.)
+TEST(CalibrationObservability, StretchScatterAtTheStepDoesNotDependOnTheThreads) {
+  KeyframeRowsProblem drive(3, 0.0, Eigen::Vector3d::Zero(), 1.0, {}, 8);
+  for (size_t k = 0; k < drive.x.size(); ++k) drive.x[k] += 0.05 * std::sin(0.1 * k);
+  const auto at_step = [&](int threads) {
+    return ComputeStretchScatter(drive.blocks, &drive.problem, {drive.rows}, 8, threads, nullptr,
+                                 true);
+  };
+  const StretchScatter one = at_step(1);
+  ASSERT_TRUE(one.ok);
+  for (int run = 0; run < 20; ++run) {
+    const StretchScatter four = at_step(4);
+    ASSERT_TRUE(four.ok);
+    ASSERT_EQ(four.sources[0].observed, one.sources[0].observed) << "run " << run;
+  }
 }
 
 TEST(CalibrationObservability, StretchScatterLeavesOutShortSourcesAndRefusesOneStretch) {

@@ -74,8 +74,9 @@ std::vector<ceres::ResidualBlockId> AddBlockPriors(const std::vector<EstimatedBl
 // of (J^T J)^-1 over every variable block of `problem` (robust losses applied as the solver
 // applies them), from a sparse LDL^T with the blocks in problem order, so the result does not
 // depend on where they live in memory. A rotation block must carry
-// geometry::RightQuaternionManifold in `problem`; a block held constant gets zeros. J and
-// J^T J are formed on num_threads threads; the result does not depend on the count.
+// geometry::RightQuaternionManifold in `problem`; a block held constant gets zeros; a block the
+// problem gives another tangent size (a manifold holding some axes) is refused (autocal::Error).
+// J and J^T J are formed on num_threads threads; the result does not depend on the count.
 struct BlockCovariance {
   bool ok = false;  // false when J^T J is singular (a pivot at the rounding level) or not finite
   Eigen::MatrixXd matrix;
