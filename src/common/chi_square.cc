@@ -36,12 +36,12 @@ double RegularizedUpperGamma(double a, double x) {
 
 }  // namespace
 
-double ChiSquareUpperTail(double x, int k) {
+double ChiSquareUpperTail(double x, double k) {
   if (x <= 0.0) return 1.0;
   return RegularizedUpperGamma(0.5 * k, 0.5 * x);
 }
 
-double ChiSquareQuantile(double p, int k) {
+double ChiSquareQuantile(double p, double k) {
   // The tail falls monotonically in x: bisect between 0 and a bound far past the quantile.
   double low = 0.0, high = k + 10.0 * std::sqrt(2.0 * k) + 100.0;
   while (ChiSquareUpperTail(high, k) > p) high *= 2.0;

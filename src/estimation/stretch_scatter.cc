@@ -14,10 +14,10 @@ namespace {
 
 // observed_cc / expected_cc when it exceeds chance at `significance`, else 1 (Eq. C8).
 double SignificantRatio(const StretchScatter::Source& source, int c, double significance) {
+  if (!JudgesScatter(source, c)) return 1.0;
   const double expected = source.expected(c, c);
-  if (!(expected > 1e-3 * source.model(c, c)) || !(expected > 0.0)) return 1.0;
   const double ratio = source.observed(c, c) / expected;
-  const int dof = std::max(1, static_cast<int>(source.degrees_of_freedom(c)));
+  const double dof = std::max(1.0, source.degrees_of_freedom(c));
   const double limit = ChiSquareQuantile(significance, dof) / dof;
   return ratio > limit ? ratio : 1.0;
 }
@@ -26,6 +26,11 @@ double SignificantRatio(const StretchScatter::Source& source, int c, double sign
 constexpr double kReportedSigmaFactor = 1.01;
 
 }  // namespace
+
+bool JudgesScatter(const StretchScatter::Source& source, int c) {
+  const double expected = source.expected(c, c);
+  return expected > 1e-3 * source.model(c, c) && expected > 0.0;
+}
 
 BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const StretchScatter& scatter,
                                   double significance, const Eigen::VectorXd& max_variance,

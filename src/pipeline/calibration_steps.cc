@@ -600,13 +600,13 @@ std::string DirectionName(const std::vector<estimation::EstimatedBlock>& blocks,
   return "coordinate " + std::to_string(coordinate);
 }
 
-// A source's largest sqrt(observed / expected) over the directions where its share is at
-// least a tenth of J^T J's variance (Eq. C8); 0 when it informs none.
+// A source's largest sqrt(observed / expected) over the directions Eq. C8 judges where its
+// share is at least a tenth of J^T J's variance; 0 when it informs none.
 double LargestScatterRatio(const estimation::StretchScatter& scatter,
                            const estimation::StretchScatter::Source& source) {
   double largest = 0.0;
-  for (Eigen::Index c = 0; c < source.observed.rows(); ++c) {
-    if (source.expected(c, c) > 0.0 && source.model(c, c) >= 0.1 * scatter.variance(c)) {
+  for (int c = 0; c < static_cast<int>(source.observed.rows()); ++c) {
+    if (estimation::JudgesScatter(source, c) && source.model(c, c) >= 0.1 * scatter.variance(c)) {
       largest = std::max(largest, std::sqrt(source.observed(c, c) / source.expected(c, c)));
     }
   }

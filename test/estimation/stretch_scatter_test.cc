@@ -59,6 +59,21 @@ TEST(WidenedForScatter, LeavesAScatterWithinChanceAsItIs) {
             TwoCoordinates().matrix);
 }
 
+// A coordinate whose stretches the solve fits almost wholly (expected below 1e-3 of the model)
+// is not judged, however its rounding-level scatter compares: neither widened nor recorded.
+TEST(WidenedForScatter, LeavesACoordinateTheSolveFitsWhollyUnjudged) {
+  StretchScatter scatter = OneSource(100.0);
+  StretchScatter::Source& source = scatter.sources[0];
+  EXPECT_TRUE(JudgesScatter(source, 0));
+  source.expected(0, 0) = 0.999e-3 * source.model(0, 0);
+  EXPECT_FALSE(JudgesScatter(source, 0));
+  EXPECT_TRUE(JudgesScatter(source, 1));
+  EXPECT_EQ(WidenedForScatter(TwoCoordinates(), scatter, 0.001, kNoLimit).matrix,
+            TwoCoordinates().matrix);
+  source.expected(1, 1) = 0.0;
+  EXPECT_FALSE(JudgesScatter(source, 1));
+}
+
 // Nine times the expected scatter: the source's share of coordinate 0 (2 of 4) becomes 18, the
 // variance 20; the correlation and coordinate 1 stay.
 TEST(WidenedForScatter, ScalesTheSourcesShareByItsScatter) {

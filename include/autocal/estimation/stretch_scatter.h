@@ -60,6 +60,10 @@ struct ScatterExcess {
   double sigma_factor = 1.0;  // sigma with this source's share widened / sigma before
 };
 
+// Whether Eq. C8 judges coordinate c of `source`: not where the solve fits its stretches
+// almost wholly (expected_cc below 1e-3 model_cc, where the difference is rounding).
+bool JudgesScatter(const StretchScatter::Source& source, int c);
+
 // `covariance` with, for every coordinate c and source s whose observed_cc / expected_cc exceeds
 // the chi-square quantile at `significance` over its degrees of freedom (divided by them), the
 // source's share of the variance scaled by that ratio: the variance grows by
@@ -67,8 +71,7 @@ struct ScatterExcess {
 // of J^T J's variance, applied to the covariance given, which may complete J^T J, Eqs. C5-C6)
 // and the covariance is scaled as D C D, which keeps its correlations. No variance is widened
 // past `max_variance` (the prior's: a direction whose estimate errs more is held at its prior)
-// nor narrowed. Not judged: a coordinate whose stretches the solve fits almost wholly
-// (expected_cc below 1e-3 model_cc, where the difference is rounding). A covariance that is not
+// nor narrowed. Only coordinates JudgesScatter judges are widened. A covariance that is not
 // ok, or a scatter that is not, is returned as it is. `excess`, when given, receives the
 // coordinates a source widens by 1 % or more, largest sigma factor first.
 BlockCovariance WidenedForScatter(const BlockCovariance& covariance, const StretchScatter& scatter,
