@@ -469,6 +469,10 @@ void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
   }
 }
 
+int SolverIterations(const ceres::Solver::Summary& summary) {
+  return static_cast<int>(summary.iterations.size()) - 1;
+}
+
 ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_iterations) {
   return estimation::KeyframeSolverOptions(max_iterations, problem.solver.num_threads);
 }
@@ -495,11 +499,11 @@ void SolveAgainAfterHolding(const io::Problem& problem,
     throw Error("the solve with the unobservable directions held failed: " + summary.message);
   }
   result->calibration.solver["iterations_after_holding"] =
-      std::to_string(summary.iterations.size());
+      std::to_string(SolverIterations(summary));
   if (summary.termination_type == ceres::NO_CONVERGENCE) {
     result->warnings.push_back(
         "the solve with the unobservable directions held stopped at its iteration limit (" +
-        std::to_string(summary.iterations.size() - 1) +
+        std::to_string(SolverIterations(summary)) +
         ") before converging: the trajectory and the kept directions may be off; raise "
         "solver.max_iterations");
   }
@@ -779,7 +783,9 @@ void Conclude(const io::Dataset& dataset, const io::Problem& problem,
               std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result) {
   io::CalibrationFile& file = result->calibration;
   if (problem.calibration.wheel_radius_shared) {
+    // One block stands for both wheels: the right one is that estimate, not a fixed value.
     calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
+    file.uncertainty.wheel_radius_right_m = file.uncertainty.wheel_radius_left_m;
   }
   if (problem.sensors.wheel && dataset.wheel_sample_count() == 0) {
     result->warnings.push_back(

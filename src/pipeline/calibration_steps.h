@@ -181,6 +181,9 @@ void RequireStreamedSamples(const io::Dataset& dataset, bool use_wheel, bool use
 void RequireLidarFactors(const io::Dataset& dataset, const io::Problem& problem,
                          size_t num_keyframes, const OfflineCalibrationResult& result);
 
+// The iterations a solve took: Ceres' list of them starts with the evaluation at its start.
+int SolverIterations(const ceres::Solver::Summary& summary);
+
 // The options of the joint solves: sparse normal Cholesky on the problem's threads, at most
 // `max_iterations` iterations.
 ceres::Solver::Options JointSolverOptions(const io::Problem& problem, int max_iterations);

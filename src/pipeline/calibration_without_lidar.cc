@@ -284,7 +284,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
     // LiDAR when its outer loop stops still moving (StillMovingWarning).
     result.warnings.push_back(
         "the joint solve stopped at its iteration limit (" +
-        std::to_string(summary.iterations.size() - 1) +
+        std::to_string(SolverIterations(summary)) +
         ") before converging: the calibration, its sigma and the trajectory may be off; raise "
         "solver.max_iterations (the limit is solver.max_iterations times "
         "solver.outer_iterations)");
@@ -303,7 +303,7 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   result.batch.calibration_per_iteration = {calibration};  // the last solve's
   io::CalibrationFile& file = result.calibration;
   file.solver["termination"] = summary.message;
-  file.solver["iterations"] = std::to_string(summary.iterations.size());
+  file.solver["iterations"] = std::to_string(SolverIterations(summary));
   file.solver["clock_pairing_solves"] = std::to_string(solves);
   file.solver["final_cost"] = std::to_string(summary.final_cost);
   if (use_gnss) file.solver["gnss_factors"] = std::to_string(placed.gnss_factors);

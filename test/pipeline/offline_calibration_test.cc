@@ -923,6 +923,21 @@ TEST_F(OfflineCalibrationTest, WithoutTheLidarFromImuWheelsAndGnss) {
               ::testing::Not(::testing::Contains(::testing::HasSubstr("the joint solve stopped"))));
 }
 
+// One radius for both wheels: calibration.yaml gives the right wheel that estimate with its
+// sigma and flag, not a value without a sigma that reads as a fixed block.
+TEST_F(OfflineCalibrationTest, ASharedRadiusIsWrittenForBothWheels) {
+  const io::Dataset dataset = io::ReadDataset(data_->directory);
+  io::Problem problem = ShippedProblem("imu_wheel_gnss.yaml");
+  problem.calibration.wheel_radius_shared = true;
+  const OfflineCalibrationResult result = CalibrateDataset(dataset, problem);
+  const io::CalibrationUncertainty& u = result.calibration.uncertainty;
+  ASSERT_TRUE(u.wheel_radius_left_m.sigma.has_value());
+  EXPECT_EQ(u.wheel_radius_right_m.sigma, u.wheel_radius_left_m.sigma);
+  EXPECT_EQ(u.wheel_radius_right_m.observable, u.wheel_radius_left_m.observable);
+  EXPECT_EQ(result.calibration.value.wheel_radius_right_m,
+            result.calibration.value.wheel_radius_left_m);
+}
+
 // Without the LiDAR, a joint solve cut off at its iteration limit says so, as the LiDAR runs'
 // outer loop does: its values and sigma are those of a point short of the minimum.
 TEST_F(OfflineCalibrationTest, WithoutTheLidarSaysWhenTheSolveStoppedAtItsLimit) {
@@ -935,6 +950,9 @@ TEST_F(OfflineCalibrationTest, WithoutTheLidarSaysWhenTheSolveStoppedAtItsLimit)
   EXPECT_THAT(result.warnings,
               ::testing::Contains(::testing::HasSubstr(
                   "the joint solve stopped at its iteration limit (2) before converging")));
+  // The file counts the solve's iterations as the warning does (Ceres' list of them starts
+  // with the evaluation at the start).
+  EXPECT_EQ(result.calibration.solver.at("iterations"), "2");
 }
 
 }  // namespace
