@@ -195,6 +195,7 @@ ClockInitialization InitializeMountAndClocks(const io::Dataset& dataset, const i
   // A nominal that is no guess: the data's mount is the start and the prior's centre.
   calibration->q_I_V = mount.q_I_V;
   prior_centre->q_I_V = mount.q_I_V;
+  clocks.mount_from_data = true;
   char text[200];
   std::snprintf(text, sizeof(text),
                 "initialization: the nominal IMU mount is %.1f deg from the one the data give "
@@ -284,12 +285,14 @@ void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem
                               double accel_bias_sigma_m_s2, double accel_random_walk_m_s3,
                               double gravity_m_s2, std::vector<estimation::EstimatedBlock>* blocks,
                               sensors::Calibration* prior_centre) {
-  if (!init.up || !problem.calibration.ground_tilt_sigma_deg) return;
   const auto block =
       std::find_if(blocks->begin(), blocks->end(), [](const estimation::EstimatedBlock& b) {
         return b.id == sensors::CalibrationBlockId::kVehicleRotation;
       });
   if (block == blocks->end()) return;
+  const std::string centre = init.mount_from_data ? "the mount the data give" : "the nominal value";
+  block->prior_source = centre;
+  if (!init.up || !problem.calibration.ground_tilt_sigma_deg) return;
   const double ground_rad = *problem.calibration.ground_tilt_sigma_deg / kRadToDeg;
   const double bias_m_s2 =
       std::sqrt(accel_bias_sigma_m_s2 * accel_bias_sigma_m_s2 +
@@ -302,7 +305,7 @@ void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem
       prior, init.up->up_I, std::sqrt(ground_rad * ground_rad + bias_rad * bias_rad));
   block->prior = Eigen::Map<const Eigen::Vector4d>(fused.q_I_V.coeffs().data());
   block->prior_sigma = fused.sigma_rad;
-  block->prior_source = "its prior (the nominal value and gravity's up axis)";
+  block->prior_source = "its prior (" + centre + " and gravity's up axis)";
   Eigen::Map<Eigen::Quaterniond>(block->data) = fused.q_I_V;
   prior_centre->q_I_V = fused.q_I_V;
 }

@@ -23,6 +23,7 @@ struct ClockInitialization {
   std::optional<estimation::WheelImuOffset> wheel;       // when the problem estimates it
   std::optional<estimation::SeriesOffsetEstimate> gnss;  // likewise
   std::optional<estimation::UpAxisEstimate> up;  // gravity's up axis, when the mount was sought
+  bool mount_from_data = false;  // the data's mount replaced a nominal one that was no guess
 };
 
 // The rear axle's speed (m/s) and yaw rate (rad/s) on the wheel clock from the dataset's wheel
@@ -86,7 +87,8 @@ double WheelNoiseScale(const io::Dataset& dataset, const sensors::Calibration& c
 // b is the bias's mean over the span T averaged: its start (accel_bias_sigma) and its random
 // walk (density q), whose mean over T has variance q^2 T / 3, so
 // b^2 = accel_bias_sigma^2 + q^2 T / 3. The block's start and prior_centre->q_I_V move to the
-// fused centre.
+// fused centre. The block's prior_source names the centre (the data's mount when
+// init.mount_from_data), fused or not, for the warning of a direction held there.
 void FuseUpAxisIntoMountPrior(const ClockInitialization& init, const io::Problem& problem,
                               double accel_bias_sigma_m_s2, double accel_random_walk_m_s3,
                               double gravity_m_s2, std::vector<estimation::EstimatedBlock>* blocks,

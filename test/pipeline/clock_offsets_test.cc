@@ -260,6 +260,32 @@ TEST(FuseUpAxisIntoMountPrior, WidensTheUpAxisByTheBiasRandomWalk) {
   }
 }
 
+// A direction held at the mount's prior is named by the centre it is held at: the data's mount
+// when it replaced a nominal one that was no guess, with or without gravity's up axis fused.
+TEST(FuseUpAxisIntoMountPrior, NamesTheCentreADirectionIsHeldAt) {
+  for (const bool from_data : {false, true}) {
+    for (const bool fused : {false, true}) {
+      io::Problem problem;
+      if (!fused) problem.calibration.ground_tilt_sigma_deg.reset();
+      ClockInitialization init;
+      init.mount_from_data = from_data;
+      init.up = estimation::UpAxisEstimate();
+      init.up->ok = true;
+      init.up->up_I = Eigen::Vector3d::UnitZ();
+      sensors::Calibration centre;
+      std::vector<estimation::EstimatedBlock> blocks = {
+          estimation::BlockOf(sensors::CalibrationBlockId::kVehicleRotation, &centre)};
+      blocks[0].prior = Eigen::Vector4d(0.0, 0.0, 0.0, 1.0);
+      blocks[0].prior_sigma = Eigen::Vector3d::Constant(5.0 * kDegToRad);
+      FuseUpAxisIntoMountPrior(init, problem, 0.1, 0.0, 9.80665, &blocks, &centre);
+      const std::string named = from_data ? "the mount the data give" : "the nominal value";
+      EXPECT_EQ(blocks[0].prior_source,
+                fused ? "its prior (" + named + " and gravity's up axis)" : named)
+          << from_data << fused;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace pipeline
 }  // namespace autocal
