@@ -161,18 +161,20 @@ struct OfflineCalibrationResult {
 };
 
 // Runs the whole calibration; without the LiDAR in the problem, from keyframes on the GNSS
-// track (docs/calibration.md, "Without the LiDAR"). Throws autocal::Error with a message naming
-// what is wrong when the problem asks for data the dataset lacks, when the drive cannot
-// initialize the calibration (the initializer's reasons), when the solve ends implausibly far
-// from the priors (max_prior_deviation_sigmas), or when a problem without the LiDAR has no GNSS.
+// track, or dead reckoned from the IMU and the wheels without fixes (docs/calibration.md,
+// "Without the LiDAR"). Throws autocal::Error with a message naming what is wrong when the
+// problem asks for data the dataset lacks, when the drive cannot initialize the calibration
+// (the initializer's reasons), when the solve ends implausibly far from the priors
+// (max_prior_deviation_sigmas), or when a problem without the LiDAR has neither GNSS nor
+// wheels.
 OfflineCalibrationResult CalibrateDataset(const io::Dataset& dataset, const io::Problem& problem,
                                           const OfflineCalibrationOptions& options = {});
 
 // Writes calibration.yaml, trajectory.tum (TUM format, seconds),
-// calibration_per_iteration.csv, timings.yaml, report.html and, when `status` is given,
-// status.yaml into `directory` (created), all at once: the directory appears whole or not at
-// all (io/output_files.h), so a run stopped while writing never leaves a complete result
-// without its status. Throws autocal::Error on I/O failure.
+// calibration_per_iteration.csv, timings.yaml, warnings.txt, report.html and, when `status` is
+// given, status.yaml into `directory` (created), all at once: the directory appears whole or
+// not at all (io/output_files.h), so a run stopped while writing never leaves a complete
+// result without its status. Throws autocal::Error on I/O failure.
 void WriteCalibrationResult(const std::string& directory, const OfflineCalibrationResult& result,
                             const io::RunStatus* status = nullptr);
 
