@@ -38,7 +38,10 @@ std::vector<double> Normal(int count, double sigma, unsigned seed) {
 // shifted by the amounts in the comments (none of them 1 or 3, the x axis' end labels).
 std::vector<sensors::Calibration> History() {
   sensors::Calibration first;
-  first.q_I_L = geometry::Exp(Eigen::Vector3d(0.0, 0.0, 90.0 * kDegToRad));
+  // Starts turned about other axes than the steps below: a chart in the wrong perturbation
+  // (Log(q_k q_1^-1)) would show them about the turned axes, with the other sign.
+  first.q_I_L = geometry::Exp(Eigen::Vector3d(90.0 * kDegToRad, 0.0, 0.0));
+  first.q_I_V = geometry::Exp(Eigen::Vector3d(0.0, 0.0, -90.0 * kDegToRad));
   first.p_I_L = Eigen::Vector3d(0.1, 0.0, 0.5);
   first.time_offset_lidar_imu_s = 0.010;
   first.p_I_A = Eigen::Vector3d(0.0, 0.0, 1.2);
@@ -231,6 +234,9 @@ TEST(ReportHtml, ChartsTheConvergenceOfEveryEstimatedBlockInPhysicalUnits) {
     ASSERT_FALSE(figure.empty()) << block.caption;
     EXPECT_THAT(figure, HasSubstr(block.extreme)) << block.caption;
   }
+  // About the blocks' own axes (Eq. R3): the turned axes would read -1.5 and -2.
+  EXPECT_THAT(Figure(html, "T_I_L rotation (deg)"), Not(HasSubstr(">-1.5</text>")));
+  EXPECT_THAT(Figure(html, "T_I_V rotation (deg)"), Not(HasSubstr(">-2</text>")));
 }
 
 // Estimated means: moved over the iterations, or its sigma is in the result.
@@ -432,6 +438,39 @@ TEST(ReportHtml, DrawsTheRigWithSigmaEllipses) {
   OfflineCalibrationResult no_mount = FullResult();
   no_mount.calibration.uncertainty.T_I_V = io::PoseBlockInfo();
   EXPECT_FALSE(Figure(CalibrationReportHtml(no_mount), "from above, IMU frame").empty());
+}
+
+// A dot's centre on the page: the circle drawn just before its label.
+Eigen::Vector2d DotOf(const std::string& svg, const std::string& label) {
+  const std::regex dot("cx='([-0-9.]+)' cy='([-0-9.]+)'/><text[^>]*>" + label + "</text>");
+  std::smatch m;
+  if (!std::regex_search(svg, m, dot)) return Eigen::Vector2d::Constant(std::nan(""));
+  return Eigen::Vector2d(std::stod(m[1]), std::stod(m[2]));
+}
+
+// The rig from above in the vehicle frame, with the IMU mounted turned 90 deg (FullResult's
+// q_I_V, History): each sensor at p_V = R_I_V^T (p_I - p_I_V), so the IMU sits a metre to the
+// left of the rear axle and the LiDAR, 13.5 cm along the IMU's x, 15 cm to the IMU's left again
+// (the mount's 2 deg roll tilts the LiDAR's 0.5 m height too). The page's y axis points down;
+// x and y share one scale.
+TEST(ReportHtml, PlacesTheRigThroughTheMount) {
+  const OfflineCalibrationResult result = FullResult();
+  const sensors::Calibration& c = result.calibration.value;
+  const Eigen::Matrix3d R_V_I = c.q_I_V.toRotationMatrix().transpose();
+  const Eigen::Vector3d imu = R_V_I * -c.p_I_V, lidar = R_V_I * (c.p_I_L - c.p_I_V);
+  ASSERT_NEAR(imu.y(), 1.0, 0.01);
+  ASSERT_NEAR(lidar.y() - imu.y(), 0.152, 0.001);
+  const std::string top = Figure(CalibrationReportHtml(result), "from above, vehicle frame");
+  const Eigen::Vector2d axle_px = DotOf(top, "rear axle centre");
+  const Eigen::Vector2d imu_px = DotOf(top, "IMU") - axle_px;
+  const Eigen::Vector2d lidar_px = DotOf(top, "LiDAR") - axle_px;
+  ASSERT_TRUE(imu_px.allFinite() && lidar_px.allFinite()) << top;
+  const double pixels_per_m = imu_px.norm() / imu.head<2>().norm();
+  const auto on_page = [&](const Eigen::Vector3d& p) -> Eigen::Vector2d {
+    return Eigen::Vector2d(p.x(), -p.y()) * pixels_per_m;
+  };
+  EXPECT_LT((imu_px - on_page(imu)).norm(), 1.0) << imu_px.transpose();
+  EXPECT_LT((lidar_px - on_page(lidar)).norm(), 1.0) << lidar_px.transpose();
 }
 
 // Each clock that was initialized shows its correlation curve; one that was not used says why.
