@@ -93,15 +93,20 @@ std::string VehicleLabel(const std::vector<std::string>& datasets) {
   return autocal::pipeline::DirectoryName(datasets.front());
 }
 
+// Seconds since the tool started: status.yaml's wall time, success or failure alike.
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 void CalibrateOne(const std::string& directory, const autocal::io::Problem& problem,
                   autocal::pipeline::OfflineCalibrationOptions options,
-                  autocal::io::RunStatus* status) {
+                  std::chrono::steady_clock::time_point start, autocal::io::RunStatus* status) {
   const autocal::io::Dataset dataset = autocal::io::ReadDataset(directory);
   if (FLAGS_bound) options.set_to_truth = autocal::evaluation::TruthSetter(dataset);
   const autocal::pipeline::OfflineCalibrationResult result =
       autocal::pipeline::CalibrateDataset(dataset, problem, options);
   EndProgressLine();
-  status->seconds = result.seconds_total;
+  status->seconds = SecondsSince(start);
   autocal::pipeline::WriteCalibrationResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatCalibrationSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
@@ -112,7 +117,7 @@ void CalibrateOne(const std::string& directory, const autocal::io::Problem& prob
 void CalibrateSeveral(const std::vector<std::string>& directories,
                       const autocal::io::Problem& problem,
                       const autocal::pipeline::OfflineCalibrationOptions& options,
-                      autocal::io::RunStatus* status) {
+                      std::chrono::steady_clock::time_point start, autocal::io::RunStatus* status) {
   std::vector<autocal::io::Dataset> datasets;
   for (const std::string& d : directories) datasets.push_back(autocal::io::ReadDataset(d));
   autocal::pipeline::MultiLogCalibrationOptions multi;
@@ -125,7 +130,7 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
   const autocal::pipeline::MultiLogCalibrationResult result =
       autocal::pipeline::CalibrateDatasets(datasets, problem, multi);
   EndProgressLine();
-  status->seconds = result.seconds_total;
+  status->seconds = SecondsSince(start);
   autocal::pipeline::WriteMultiLogResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatMultiLogSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, repeatability.csv, report.html, "
@@ -225,16 +230,14 @@ int main(int argc, char** argv) {
     options.scatter_stretches = FLAGS_scatter_stretches;
     if (FLAGS_progress) options.progress = PrintProgress;
     if (directories.size() == 1) {
-      CalibrateOne(directories.front(), problem, options, &status);
+      CalibrateOne(directories.front(), problem, options, start, &status);
     } else {
-      CalibrateSeveral(directories, problem, options, &status);
+      CalibrateSeveral(directories, problem, options, start, &status);
     }
   } catch (const autocal::Error& e) {
     std::cerr << (progress_line_open ? "\n" : "") << "autocal_calibrate: " << e.what() << "\n";
     if (output_checked) {
-      WriteFailureStatus(
-          status, e.what(),
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      WriteFailureStatus(status, e.what(), SecondsSince(start));
     }
     return 1;
   }

@@ -68,6 +68,12 @@ TEST(FleetTools, RunsLeaveStatusAndTheReportGathersThem) {
     EXPECT_EQ(status.exit_status, 0);
     EXPECT_EQ(status.vehicle, log);
     EXPECT_TRUE(fs::is_regular_file(root / "results" / log / "calibration.yaml"));
+    // From the tool's start, as a failure's: reading the log counts, which the calibration's
+    // own total leaves out.
+    const std::string timings = Read(root / "results" / log / "timings.yaml");
+    const size_t total = timings.find("seconds_total: ");
+    ASSERT_NE(total, std::string::npos) << timings;
+    EXPECT_GT(status.seconds, std::stod(timings.substr(total + 15))) << log;
   }
   // A failed run leaves status.yaml alone, with the message it printed.
   const fs::path failed = root / "results" / "broken";

@@ -25,7 +25,7 @@ struct RunStatus {
   std::vector<std::string> datasets;
   int exit_status = 0;   // 0: the result beside this file is complete
   std::string message;   // the error, when exit_status is not 0
-  double seconds = 0.0;  // wall time
+  double seconds = 0.0;  // wall time from the tool's start (reading the logs included)
 };
 
 // Throws ParseError (file, line, column) on malformed content, autocal::Error when the file
