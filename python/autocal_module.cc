@@ -848,6 +848,11 @@ void BindAlgorithms(py::module_& m) {
                                           TrajectoryFromArrays(true_t, true_p, true_q, "true_"));
         py::dict d;
         d["matched_poses"] = e.matched_poses;
+        d["exact_matches"] = e.exact_matches;
+        d["unmatched_poses"] = e.unmatched_poses;
+        d["alignment_yaw_rad"] = e.alignment.yaw_rad;
+        d["alignment_translation_m"] = Eigen::VectorXd(e.alignment.translation_m);
+        d["alignment_yaw_from_orientation"] = e.alignment.yaw_from_orientation;
         d["ate_translation_rmse_m"] = e.ate_translation_rmse_m;
         d["ate_rotation_rmse_deg"] = e.ate_rotation_rmse_deg;
         d["tilt_rmse_deg"] = e.tilt_rmse_deg;
@@ -857,7 +862,9 @@ void BindAlgorithms(py::module_& m) {
       },
       py::arg("t_ns"), py::arg("p_W_I"), py::arg("q_W_I_xyzw"), py::arg("true_t_ns"),
       py::arg("true_p_W_I"), py::arg("true_q_W_I_xyzw"),
-      "ATE after a 4-DoF (yaw + translation) alignment (docs/evaluation.md)");
+      "ATE after a 4-DoF (yaw + translation) alignment (docs/evaluation.md): every field of "
+      "evaluation::TrajectoryErrors, the alignment's as alignment_yaw_rad, "
+      "alignment_translation_m and alignment_yaw_from_orientation");
 }
 
 }  // namespace

@@ -249,6 +249,29 @@ class ArrayChecks(unittest.TestCase):
         self.assertEqual(errors["max_rotation_error_deg"], 0.0)
         self.assertEqual(errors["ate_rotation_rmse_deg"], 0.0)
 
+    def test_compare_trajectory_gives_the_alignment_and_the_matches(self):
+        # The truth on a 20 m square at 20 Hz; the estimate the same path turned 30 deg about z
+        # and moved, stamped at the truth's samples, between two of them and past its end.
+        true_t = 50_000_000 * np.arange(5)
+        true_p = np.array([[0.0, 0, 0], [20, 0, 0], [20, 20, 0], [0, 20, 0], [0, 0, 0]])
+        unit = np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))
+        yaw = np.radians(30.0)
+        turn = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+        t = np.array([0, 50_000_000, 75_000_000, 150_000_000, 9_000_000_000])
+        p = np.array([[0.0, 0, 0], [20, 0, 0], [20, 10, 0], [0, 20, 0], [0, 0, 0]])
+        q = np.tile([0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)], (5, 1))
+        moved = p @ turn.T + [3.0, -2.0, 0.5]
+        e = autocal.compare_trajectory(t, moved, q, true_t, true_p, unit)
+        self.assertEqual(e["matched_poses"], 4)
+        self.assertEqual(e["exact_matches"], 3)
+        self.assertEqual(e["unmatched_poses"], 1)
+        # The alignment maps the estimate onto the truth: the turn and shift undone.
+        self.assertAlmostEqual(e["alignment_yaw_rad"], -yaw, places=9)
+        np.testing.assert_allclose(e["alignment_translation_m"], -turn.T @ [3.0, -2.0, 0.5],
+                                   atol=1e-9)
+        self.assertFalse(e["alignment_yaw_from_orientation"])
+        self.assertLess(e["ate_translation_rmse_m"], 1e-9)
+
     def test_write_dataset_refuses_what_read_dataset_refuses(self):
         directory = output_dir("refused_dataset")
         with self.assertRaisesRegex(autocal.Error, "no IMU samples"):
