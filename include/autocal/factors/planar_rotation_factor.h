@@ -1,6 +1,6 @@
 #pragma once
 
-// Planar-rotation factor (docs/factors.md, "Planar-rotation factor"): a ground vehicle turns
+// Planar-rotation factor (docs/factors.md, "Planar rotation"): a ground vehicle turns
 // about its own up axis, so its roll and pitch rates in V are only what the ground and the
 // body add, zero-mean and unrelated to the yaw rate:
 //   w_V = R_I_V^T (w - b_g),   r = [w_V.x, w_V.y] / sigma                           Eq. F27

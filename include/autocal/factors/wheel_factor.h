@@ -12,9 +12,10 @@
 // body rate at the same instant,
 //   v_V = R_I_V^T (R_W_I^T v_W_I + w_I x p_I_V),    w_V = R_I_V^T w_I,
 // and the residual is (Eq. F22)
-//   r = [ (v_V.x - v_wheel) / s_v,  (w_V.z - yaw_wheel) / s_yaw,  v_V.y / s_nh,  v_V.z / s_nh ]
+//   r = [ (v_V.x - v_wheel) / s_v,  (w_V.z - yaw_wheel) / s_yaw,  v_V.y / s_lat,  v_V.z / s_vert ]
 // the last two rows (no lateral or vertical speed of the rear axle) only when the
-// non-holonomic constraint is enabled.
+// non-holonomic constraint is enabled, each with its own sigma (lateral_sigma_m_s,
+// vertical_sigma_m_s).
 //
 // Parameter blocks, in order: q_W_I (4, RightQuaternionManifold), v_W_I (3), b_g (3),
 // q_I_V (4, RightQuaternionManifold), p_I_V (3), then either r_l (1), r_r (1) or one shared
