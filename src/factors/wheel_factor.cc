@@ -4,6 +4,7 @@
 #include <string>
 
 #include "autocal/common/error.h"
+#include "autocal/common/format.h"
 #include "autocal/geometry/manifolds.h"
 #include "factors/sigma_check.h"
 
@@ -16,7 +17,23 @@ void CheckSigma(double sigma, const char* name) {
   internal::CheckSigma(sigma, std::string("wheel factor: ") + name);
 }
 
-void CheckRowSigmas(const WheelFactorOptions& options) {
+// How far the yaw axis's length may be from 1: the yaw-rate row reads the rate about it as
+// given, so its length scales the row; a normalised axis is unit to rounding.
+constexpr double kYawAxisNormTolerance = 1e-6;
+
+void CheckYawAxis(const Eigen::Vector3d& axis) {
+  if (axis.isZero(0.0)) return;  // the row reads w_V.z
+  if (!axis.allFinite() || !(std::abs(axis.norm() - 1.0) <= kYawAxisNormTolerance)) {
+    throw Error("wheel factor: yaw_axis_I must be zero or a finite unit vector (norm within " +
+                FormatShort(kYawAxisNormTolerance) + " of 1), got (" + FormatShort(axis.x()) +
+                ", " + FormatShort(axis.y()) + ", " + FormatShort(axis.z()) +
+                "), norm - 1 = " + FormatShort(axis.norm() - 1.0));
+  }
+}
+
+// The options' sigmas and yaw axis.
+void CheckOptions(const WheelFactorOptions& options) {
+  CheckYawAxis(options.yaw_axis_I);
   CheckSigma(options.speed_sigma_m_s, "speed_sigma_m_s");
   CheckSigma(options.yaw_rate_sigma_rad_s, "yaw_rate_sigma_rad_s");
   if (options.yaw_row_track_m != 0.0) {
@@ -62,7 +79,7 @@ ceres::CostFunction* WheelSpeedResidual::Create(const WheelSpeedMeasurement& mea
       !measurement.YawRowSpeeds().allFinite() || !measurement.gyro_rad_s.allFinite()) {
     throw Error("wheel-speed factor: wheel speed or gyro rate is not finite");
   }
-  CheckRowSigmas(options);
+  CheckOptions(options);
   return new ceres::AutoDiffCostFunction<WheelSpeedResidual, ceres::DYNAMIC, 4, 3, 3, 4, 3, 1, 1,
                                          1>(new WheelSpeedResidual(measurement, options),
                                             NumRows(options));
@@ -75,7 +92,7 @@ ceres::CostFunction* OdometryTwistResidual::Create(const OdometryMeasurement& me
     throw Error("odometry factor: speed, yaw rate or gyro rate is not finite");
   }
   CheckSigma(measurement.controller_track_m, "controller track (b_ctrl)");
-  CheckRowSigmas(options);
+  CheckOptions(options);
   return new ceres::AutoDiffCostFunction<OdometryTwistResidual, ceres::DYNAMIC, 4, 3, 3, 4, 3, 1,
                                          1>(new OdometryTwistResidual(measurement, options),
                                             NumRows(options));
@@ -99,7 +116,7 @@ WheelFactor::WheelFactor(const WheelMeasurement& measurement, const WheelFactorO
       !measurement.YawRowRates().allFinite() || !measurement.gyro_rad_s.allFinite()) {
     throw Error("wheel factor: wheel or gyro rate is not finite");
   }
-  CheckRowSigmas(options);
+  CheckOptions(options);
   set_num_residuals(NumRows(options));
   auto* sizes = mutable_parameter_block_sizes();
   *sizes = {4, 3, 3, 4, 3, 1};

@@ -186,11 +186,52 @@ TEST(WheelFactor, RejectsBadInputAndInvalidTrackWidth) {
   bad.speed_sigma_m_s = 0.0;
   EXPECT_THROW(WheelFactor(WheelMeasurement{}, bad), Error);
   const WheelFactor factor(WheelMeasurement{}, WheelFactorOptions{});
-  WheelBlocks state;
-  state.track_width = -1.0;
-  Eigen::Vector4d residual;
-  const std::vector<double*> blocks = state.Pointers(false);
-  EXPECT_FALSE(factor.Evaluate(blocks.data(), residual.data(), nullptr));
+  // The autodiff twin agrees: a non-positive track is an invalid step, not an inf or NaN.
+  const std::unique_ptr<ceres::CostFunction> twin(
+      WheelResidual::CreateAutoDiff(WheelMeasurement{}, WheelFactorOptions{}));
+  for (double track_width : {-1.0, 0.0}) {
+    WheelBlocks state;
+    state.track_width = track_width;
+    Eigen::Vector4d residual;
+    const std::vector<double*> blocks = state.Pointers(false);
+    EXPECT_FALSE(factor.Evaluate(blocks.data(), residual.data(), nullptr)) << track_width;
+    EXPECT_FALSE(twin->Evaluate(blocks.data(), residual.data(), nullptr)) << track_width;
+  }
+}
+
+// The yaw row reads the body rate about yaw_axis_I as given (Eq. K13c): every wheel form
+// refuses an axis that is neither zero nor unit, which would scale the row or make it NaN.
+TEST(WheelFactor, EveryFormRefusesAYawAxisThatIsNotUnit) {
+  const auto build = [](const Eigen::Vector3d& axis) {
+    WheelFactorOptions options;
+    options.yaw_axis_I = axis;
+    const WheelFactor factor(WheelMeasurement{}, options);
+    const std::unique_ptr<ceres::CostFunction> speeds(WheelSpeedResidual::Create({}, options));
+    const std::unique_ptr<ceres::CostFunction> twist(OdometryTwistResidual::Create({}, options));
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Eigen::Vector3d& bad :
+       {Eigen::Vector3d(0.0, 0.0, 2.0), Eigen::Vector3d(0.0, 0.0, 1.0 + 1e-4),
+        Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d(nan, 0.0, 1.0),
+        Eigen::Vector3d(0.0, std::numeric_limits<double>::infinity(), 0.0)}) {
+    WheelFactorOptions options;
+    options.yaw_axis_I = bad;
+    EXPECT_THROW(WheelFactor(WheelMeasurement{}, options), Error) << bad.transpose();
+    EXPECT_THROW(WheelSpeedResidual::Create(WheelSpeedMeasurement{}, options), Error)
+        << bad.transpose();
+    EXPECT_THROW(OdometryTwistResidual::Create(OdometryMeasurement{}, options), Error)
+        << bad.transpose();
+  }
+  try {
+    build(Eigen::Vector3d(0.0, 0.0, 2.0));
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("yaw_axis_I"), std::string::npos) << e.what();
+  }
+  // Zero (V's up axis), a normalised axis and one a rounding off unit are accepted.
+  EXPECT_NO_THROW(build(Eigen::Vector3d::Zero()));
+  EXPECT_NO_THROW(build(Eigen::Vector3d(0.1, -0.2, 1.0).normalized()));
+  EXPECT_NO_THROW(build(Eigen::Vector3d(0.0, 0.0, 1.0 + 1e-9)));
 }
 
 // Left/right radii and track width recovered from noisy encoder rates with known states,

@@ -69,6 +69,8 @@ struct WheelFactorOptions {
   // The axis, in I (unit), about which the yaw-rate row reads the body rate: the axis the
   // vehicle turns about, measured from the log (docs/keyframe_factors.md, Eq. K13c), so that
   // the row does not depend on the mount's tilt. Zero: V's up axis through q_I_V (w_V.z).
+  // The factors refuse a non-finite axis or one whose norm is off 1 by more than 1e-6: the
+  // row reads the rate about the axis as given, so its length would scale the row.
   Eigen::Vector3d yaw_axis_I = Eigen::Vector3d::Zero();
 
   // Sigmas of speed and yaw rate from the encoders' rate noise (Eq. F23) at nominal
@@ -86,7 +88,8 @@ struct WheelFactorOptions {
 
 class WheelFactor final : public ceres::CostFunction {
  public:
-  // Throws autocal::Error on non-finite rates or non-positive sigmas.
+  // Throws autocal::Error on non-finite rates, non-positive sigmas or a yaw axis that is not
+  // zero or unit.
   WheelFactor(const WheelMeasurement& measurement, const WheelFactorOptions& options);
   static ceres::CostFunction* Create(const WheelMeasurement& measurement,
                                      const WheelFactorOptions& options) {
@@ -191,7 +194,8 @@ void WheelRows(const VehicleMotion<T>& motion, const T& speed, const T& yaw_rate
 }
 
 // Autodiff twin of WheelFactor with separate radii; the test oracle. The number of residuals
-// is 4 with the non-holonomic rows, else 2.
+// is 4 with the non-holonomic rows, else 2. It checks nothing but the track, as WheelFactor
+// does when it evaluates: a non-positive track width is an invalid step (false).
 class WheelResidual {
  public:
   WheelResidual(const WheelMeasurement& measurement, const WheelFactorOptions& options)
@@ -206,6 +210,7 @@ class WheelResidual {
   template <typename T>
   bool operator()(const T* q_W_I, const T* v_W_I, const T* b_g, const T* q_I_V, const T* p_I_V,
                   const T* r_l, const T* r_r, const T* track_width, T* residual) const {
+    if (!(track_width[0] > T(0.0))) return false;
     const VehicleMotion<T> motion =
         PredictVehicleMotion(q_W_I, v_W_I, b_g, q_I_V, p_I_V, m_.gyro_rad_s);
     const Eigen::Vector2d yaw_row = m_.YawRowRates();
@@ -245,7 +250,8 @@ class WheelSpeedResidual {
   WheelSpeedResidual(const WheelSpeedMeasurement& measurement, const WheelFactorOptions& options)
       : m_(measurement), options_(options) {}
 
-  // Throws autocal::Error on non-finite speeds or non-positive sigmas.
+  // Throws autocal::Error on non-finite speeds, non-positive sigmas or a yaw axis that is not
+  // zero or unit.
   static ceres::CostFunction* Create(const WheelSpeedMeasurement& measurement,
                                      const WheelFactorOptions& options);
 
@@ -294,7 +300,8 @@ class OdometryTwistResidual {
   OdometryTwistResidual(const OdometryMeasurement& measurement, const WheelFactorOptions& options)
       : m_(measurement), options_(options) {}
 
-  // Throws autocal::Error on a non-finite measurement, a non-positive b_ctrl or sigma.
+  // Throws autocal::Error on a non-finite measurement, a non-positive b_ctrl or sigma, or a yaw
+  // axis that is not zero or unit.
   static ceres::CostFunction* Create(const OdometryMeasurement& measurement,
                                      const WheelFactorOptions& options);
 
