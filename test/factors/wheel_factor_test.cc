@@ -489,8 +489,26 @@ TEST(WheelForms, ResidualsVanishAtGroundTruth) {
     const Eigen::Vector3d& gyro = car.measurement.gyro_rad_s;
     WheelFactorOptions options;
     options.non_holonomic = trial % 2 == 0;
+    if (trial % 5 >= 2) {  // the yaw row's sigma following the track, b or b_eff (Eq. F22b)
+      options.yaw_row_track_m = 1.5;
+      options.yaw_rate_gyro_sigma_rad_s = 0.004;
+    }
+    // The yaw row about the measured turning axis (Eq. K13c), here V's true up axis.
+    const bool yaw_axis = trial % 3 != 0;
+    if (yaw_axis) options.yaw_axis_I = truth.q_I_V * Eigen::Vector3d::UnitZ();
+    WheelSpeedMeasurement wheel_speeds = SpeedsOf(v, w, gyro, truth, f);
+    if (trial % 4 >= 2) {
+      // The gyro reading is a span's mean (Eq. K13b): the yaw row takes the wheels' speeds over
+      // the span, in which the car drove 3 m/s faster, while the instant's speeds turn 0.2 rad/s
+      // faster at the reading's speed. Either row taking the other's speeds leaves a residual.
+      const WheelSpeedMeasurement span = SpeedsOf(v + 3.0, w, gyro, truth, f);
+      const WheelSpeedMeasurement instant = SpeedsOf(v, w + 0.2, gyro, truth, f);
+      wheel_speeds.yaw_row_m_s = Eigen::Vector2d(span.left_m_s, span.right_m_s);
+      wheel_speeds.left_m_s = instant.left_m_s;
+      wheel_speeds.right_m_s = instant.right_m_s;
+    }
     const std::unique_ptr<ceres::CostFunction> speeds(
-        WheelSpeedResidual::Create(SpeedsOf(v, w, gyro, truth, f), options));
+        WheelSpeedResidual::Create(wheel_speeds, options));
     const std::unique_ptr<ceres::CostFunction> twist(
         OdometryTwistResidual::Create(TwistOf(v, w, gyro, f), options));
     const std::string context = "trial " + std::to_string(trial);
@@ -499,6 +517,17 @@ TEST(WheelForms, ResidualsVanishAtGroundTruth) {
     ASSERT_EQ(at_speeds.residual.size(), options.non_holonomic ? 4 : 2);
     EXPECT_LT(at_speeds.residual.norm(), 1e-9) << context << ": " << at_speeds.residual.transpose();
     EXPECT_LT(at_twist.residual.norm(), 1e-9) << context << ": " << at_twist.residual.transpose();
+    if (yaw_axis) {
+      // About the measured axis the yaw row does not depend on the mount's tilt: tilted by
+      // 0.1 rad, the mount leaves it at zero (about V's z it would read cos(0.1) of the rate).
+      const Eigen::Quaterniond saved = state.q_I_V;
+      state.q_I_V = saved * geometry::Exp(Eigen::Vector3d(0.1, 0.0, 0.0));
+      EXPECT_LT(std::abs(test::Evaluate(*speeds, SpeedBlocks(&state, &f)).residual(1)), 1e-9)
+          << context;
+      EXPECT_LT(std::abs(test::Evaluate(*twist, TwistBlocks(&state, &f)).residual(1)), 1e-9)
+          << context;
+      state.q_I_V = saved;
+    }
     // A 1 % error in an intrinsic shows: each block enters the prediction.
     for (double* block : {&f.scale_left, &f.scale_right, &state.track_width}) {
       const double saved = *block;
