@@ -127,11 +127,13 @@ Eigen::MatrixXd ChartJacobianAt(ResidualBlockJacobian* rb, const VariableBlock& 
   return jacobian;
 }
 
-void AppendResidualBlockCurvature(ceres::Problem* problem, ceres::ResidualBlockId id,
-                                  const BlockOffsets& offsets,
-                                  std::vector<Eigen::Triplet<double>>* entries) {
+}  // namespace
+
+BlockCurvature ResidualBlockCurvature(ceres::Problem* problem, ceres::ResidualBlockId id,
+                                      const BlockOffsets& offsets) {
+  BlockCurvature out;
   ResidualBlockJacobian rb(problem, id, offsets);
-  if (rb.columns() == 0) return;
+  if (rb.columns() == 0) return out;
   Eigen::VectorXd residual;
   Eigen::MatrixXd jacobian;
   rb.Evaluate(&residual, &jacobian);
@@ -140,33 +142,33 @@ void AppendResidualBlockCurvature(ceres::Problem* problem, ceres::ResidualBlockI
   if (const ceres::LossFunction* loss = problem->GetLossFunctionForResidualBlock(id)) {
     loss->Evaluate(residual.squaredNorm(), rho);
   }
-  Eigen::MatrixXd curvature(rb.columns(), rb.columns());
-  std::vector<int> row_of_column;  // each stacked column's row of H
+  out.columns.resize(rb.columns(), rb.columns());
   for (const VariableBlock& block : rb.variables()) {
     for (int c = 0; c < block.tangent; ++c) {
-      row_of_column.push_back(block.offset + c);
+      out.h_rows.push_back(block.offset + c);
       const Eigen::MatrixXd difference =
           ChartJacobianAt(&rb, block, c, kStep) - ChartJacobianAt(&rb, block, c, -kStep);
-      curvature.col(block.column + c) = rho[1] * difference.transpose() * residual / (2.0 * kStep);
+      out.columns.col(block.column + c) =
+          rho[1] * difference.transpose() * residual / (2.0 * kStep);
     }
   }
-  curvature = 0.5 * (curvature + curvature.transpose()).eval();
-  for (int a = 0; a < rb.columns(); ++a) {
-    for (int b = 0; b < rb.columns(); ++b) {
-      if (row_of_column[a] < row_of_column[b]) continue;  // H's lower triangle only
-      entries->emplace_back(row_of_column[a], row_of_column[b], curvature(a, b));
-    }
-  }
+  return out;
 }
-
-}  // namespace
 
 std::vector<Eigen::Triplet<double>> ResidualCurvature(
     ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
     const BlockOffsets& offsets) {
   std::vector<Eigen::Triplet<double>> entries;
   for (const ceres::ResidualBlockId id : ids) {
-    AppendResidualBlockCurvature(problem, id, offsets, &entries);
+    const BlockCurvature block = ResidualBlockCurvature(problem, id, offsets);
+    // Symmetric up to the differences' truncation: its symmetric part.
+    const Eigen::MatrixXd curvature = 0.5 * (block.columns + block.columns.transpose());
+    for (Eigen::Index a = 0; a < curvature.rows(); ++a) {
+      for (Eigen::Index b = 0; b < curvature.cols(); ++b) {
+        if (block.h_rows[a] < block.h_rows[b]) continue;  // H's lower triangle only
+        entries.emplace_back(block.h_rows[a], block.h_rows[b], curvature(a, b));
+      }
+    }
   }
   return entries;
 }

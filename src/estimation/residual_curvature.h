@@ -8,6 +8,7 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <vector>
 
@@ -31,6 +32,21 @@ namespace internal {
 std::vector<Eigen::Triplet<double>> ResidualCurvature(
     ceres::Problem* problem, const std::vector<ceres::ResidualBlockId>& ids,
     const BlockOffsets& offsets);
+
+// One residual block's term as the differences give it, before ResidualCurvature takes its
+// symmetric part: column k is rho' sum_i r_i d(J_c)_i / d delta_k over the block's variable
+// tangent coordinates, in the order of its parameter blocks, and h_rows[k] is that coordinate's
+// row of H. In the chart x (+) delta the columns are second derivatives of r, symmetric up to
+// the differences' truncation. Without the chart's right Jacobian a rotation's column k would
+// miss 1/2 e_k x g (g the rotation's part of J^T r): an antisymmetric part, which the
+// symmetric part cancels. Empty for a block without variable parameters. Throws as
+// ResidualCurvature does.
+struct BlockCurvature {
+  Eigen::MatrixXd columns;
+  std::vector<int> h_rows;
+};
+BlockCurvature ResidualBlockCurvature(ceres::Problem* problem, ceres::ResidualBlockId id,
+                                      const BlockOffsets& offsets);
 
 }  // namespace internal
 }  // namespace estimation

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -142,6 +143,30 @@ TEST(ResidualCurvature, CompletesGaussNewtonToTheCostsHessian) {
     EXPECT_GT((gauss_newton - numeric).norm(), 1e-2 * numeric.norm()) << "seed " << seed;
     // The velocities enter linearly: no curvature among them.
     EXPECT_LT((curvature.bottomRightCorner<6, 6>().norm()), 1e-6) << "seed " << seed;
+  }
+}
+
+// The symmetric part above cancels what the chart's right Jacobian adds to a rotation's
+// columns (1/2 e_k x g, antisymmetric), so that test cannot see it: here the columns as the
+// differences give them match the cost's Hessian less J^T J by themselves, and without the
+// right Jacobian they would miss it by |1/2 [g]x|, far beyond the tolerance.
+TEST(ResidualCurvature, TakesTheChartsRightJacobianForARotation) {
+  for (uint32_t seed : {1u, 2u, 3u, 4u}) {
+    Fixture f(seed);
+    const BlockCurvature block = ResidualBlockCurvature(f.problem.get(), f.id, OffsetsOf(&f));
+    ASSERT_EQ(block.columns.rows(), 9);
+    ASSERT_EQ(block.columns.cols(), 9);
+    EXPECT_EQ(block.h_rows, std::vector<int>({0, 1, 2, 3, 4, 5, 6, 7, 8}));
+    const Eigen::Matrix<double, 9, 9> columns = block.columns;
+    const auto [r, J] = Linearize(&f);
+    const Eigen::Matrix<double, 9, 9> numeric = NumericHessian(&f);
+    const Eigen::Matrix<double, 9, 9> exact = J.transpose() * J + columns;
+    EXPECT_LT((exact - numeric).norm(), 1e-5 * numeric.norm()) << "seed " << seed << "\ncolumns\n"
+                                                               << columns << "\nnumeric\n"
+                                                               << numeric;
+    const Eigen::Vector3d g = (J.transpose() * r).head<3>();
+    const double missed = 0.5 * std::sqrt(2.0) * g.norm();  // |1/2 [g]x|, Frobenius
+    EXPECT_GT(missed, 1e-2 * numeric.norm()) << "seed " << seed;
   }
 }
 
