@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,9 @@ struct Comparison {
   // which would raise the correlation of offsets that fall between dense samples.
   ScalarSeries dense;
   double sign = 1.0;  // dense time = sparse time + sign * offset
+  // The offsets +-range_ns for which every compared sample's shifted stamp was checked to lie
+  // inside the denser series.
+  int64_t range_ns = 0;
   std::vector<int64_t> t_ns;
   std::vector<double> sparse_values;
   bool sparse_is_sensor = true;
@@ -80,8 +84,15 @@ struct Comparison {
   double sparse_std = 0.0;
   double dense_std = 0.0;
 
+  // Throws autocal::Error for an offset outside the checked range (1 ns of rounding aside),
+  // where the interpolation would extrapolate the denser series past its ends.
   void Interpolate(double offset_s, std::vector<double>* dense_values) const {
     const int64_t shift_ns = SecondsToNs(sign * offset_s);
+    if (!(std::abs(shift_ns) <= range_ns + 1)) {
+      throw Error("EstimateSeriesOffset: the candidate offset " + FormatShort(offset_s) +
+                  " s lies outside the range +-" + FormatShort(NsToSeconds(range_ns)) +
+                  " s over which the series were checked to overlap");
+    }
     ForwardInterpolator interpolator(dense);
     dense_values->resize(t_ns.size());
     for (size_t i = 0; i < t_ns.size(); ++i)
@@ -98,6 +109,7 @@ Comparison MakeComparison(const ScalarSeries& reference, const ScalarSeries& sen
   c.dense = MovingAverage(dense, std::max(MedianIntervalS(sparse), 4.0 * MedianIntervalS(dense)));
   c.sign = c.sparse_is_sensor ? 1.0 : -1.0;
   const int64_t range_ns = SecondsToNs(range_s);
+  c.range_ns = range_ns;
   for (const TimedValue& s : sparse) {
     if (s.t_ns - range_ns < dense.front().t_ns || s.t_ns + range_ns > dense.back().t_ns) {
       continue;
@@ -160,8 +172,20 @@ SeriesOffsetEstimate EstimateSeriesOffset(const ScalarSeries& reference, const S
       internal::ScanCorrelation(0.0, range_s, coarse_s, correlation_at);
   out.candidate_offsets_s = coarse.offsets_s;
   out.correlation = coarse.correlation;
-  const internal::CorrelationScan fine = internal::ScanCorrelation(
-      coarse.offsets_s[coarse.peak], 2.0 * coarse_s, fine_s, correlation_at);
+  // The fine scan covers two coarse steps either side of the coarse peak, cut to the range
+  // whose coverage MakeComparison checked: a peak at or next to the range's edge would take it
+  // up to two steps beyond, where the interpolation extrapolates the denser series.
+  const double peak_s = coarse.offsets_s[coarse.peak];
+  double fine_centre_s = peak_s;
+  double fine_half_s = 2.0 * coarse_s;
+  if (peak_s - fine_half_s < -range_s || peak_s + fine_half_s > range_s) {
+    const double low_s = std::max(peak_s - fine_half_s, -range_s);
+    const double high_s = std::min(peak_s + fine_half_s, range_s);
+    fine_centre_s = 0.5 * (low_s + high_s);
+    fine_half_s = 0.5 * (high_s - low_s);  // at least coarse_s, since coarse_s <= range_s
+  }
+  const internal::CorrelationScan fine =
+      internal::ScanCorrelation(fine_centre_s, fine_half_s, fine_s, correlation_at);
   out.offset_s = internal::FitParabolaPeak(fine).value_or(fine.refined_offset_s);
   out.peak_correlation = correlation_at(out.offset_s);
   out.sensor_std = comparison.sparse_is_sensor ? comparison.sparse_std : comparison.dense_std;

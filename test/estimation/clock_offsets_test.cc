@@ -95,6 +95,32 @@ TEST(EstimateSeriesOffset, AnOffsetBeyondTheRangePeaksAtItsEdge) {
   EXPECT_FALSE(e.reason.empty());
 }
 
+// The comparison checked that the series overlap for offsets within +-1 s; the fine scan
+// around a coarse peak at or next to the edge (two 50 ms steps either side) stays inside that
+// range, where the interpolation never extrapolates (a candidate beyond it throws). With the
+// sparser series the sensor's and the reference's, so that both signs of the shift are used.
+TEST(EstimateSeriesOffset, TheFineScanStaysInsideTheCheckedRange) {
+  std::mt19937 rng(8);
+  for (const Rates rates : {Rates{100, 10}, Rates{10, 100}}) {
+    for (double offset_s : {-1.0, -0.95, 0.95, 1.0}) {
+      SCOPED_TRACE(std::to_string(rates.reference_hz) + " Hz vs " +
+                   std::to_string(rates.sensor_hz) + " Hz, offset " + std::to_string(offset_s));
+      const ScalarSeries reference = Sample(rates.reference_hz, 120.0, 0.0, 0.01, &rng);
+      const ScalarSeries sensor = Sample(rates.sensor_hz, 120.0, offset_s, 0.01, &rng);
+      SeriesOffsetEstimate e;
+      ASSERT_NO_THROW(e = EstimateSeriesOffset(reference, sensor));
+      EXPECT_LE(std::abs(e.offset_s), 1.0);
+      if (std::abs(offset_s) < 1.0) {
+        EXPECT_TRUE(e.reliable) << e.reason;
+        EXPECT_NEAR(e.offset_s, offset_s, 0.005);
+      } else {  // the peak at the edge: the offset may lie beyond it
+        EXPECT_FALSE(e.reliable);
+        EXPECT_NE(e.reason.find("edge of the search range"), std::string::npos) << e.reason;
+      }
+    }
+  }
+}
+
 TEST(EstimateSeriesOffset, AnOppositeSignIsNamed) {
   std::mt19937 rng(6);
   const ScalarSeries reference = Sample(100, 120.0, 0.0, 0.01, &rng);
