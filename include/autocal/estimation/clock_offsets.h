@@ -36,8 +36,8 @@ using ScalarSeries = std::vector<TimedValue>;
 struct SeriesOffsetOptions {
   double search_range_s = 1.0;  // offsets in [-range, +range] are tried
   // Grid step of the coarse scan; 0 chooses half the slower series' median interval (within
-  // 2-50 ms). A fine scan around the coarse peak then uses a quarter of the faster series'
-  // median interval (at least 0.5 ms) and a parabola through the peak.
+  // 2-50 ms). A fine scan around the coarse peak (within the search range) then uses a quarter
+  // of the faster series' median interval (at least 0.5 ms) and a parabola through the peak.
   double step_s = 0.0;
   // Below this Pearson correlation at the peak the two signals do not agree well enough
   // (noise, too little variation, or not the same quantity) to trust the offset.
