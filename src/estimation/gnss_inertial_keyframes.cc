@@ -3,6 +3,9 @@
 #include <ceres/ceres.h>
 
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -21,6 +24,9 @@ namespace autocal {
 namespace estimation {
 
 namespace {
+
+using internal::ForwardHeading;
+using internal::WrapAngle;
 
 // The marginal covariance of kf's five state blocks in their tangent spaces, or empty when the
 // problem leaves one of their directions undetermined (a rank-deficient Jacobian). From the
@@ -104,6 +110,87 @@ StatesSolve SolveStates(const sensors::ImuSamples& imu, const WheelData& wheel,
   return out;
 }
 
+// Eq. K9b's anchor on one side of a stretch of keyframes without a heading: the circular mean of
+// the corrections the headings within window_ns of the stretch's edge keyframe ask (towards
+// `step`, +1 or -1), each weighted by its inverse variance (speed / sigma_v)^2, and their
+// weighted mean time (s after the first keyframe): a constant gyro bias turns the correction
+// linearly in time.
+struct Anchor {
+  double t_s = 0.0;
+  double correction_rad = 0.0;
+};
+Anchor AnchorAt(const std::vector<Keyframe>& kfs, const GnssPlacement& placement,
+                const std::vector<double>& correction_rad, size_t edge, int step,
+                int64_t window_ns) {
+  double s = 0.0, c = 0.0, weight_sum = 0.0, t_sum = 0.0;
+  for (ptrdiff_t j = static_cast<ptrdiff_t>(edge);
+       j >= 0 && j < static_cast<ptrdiff_t>(kfs.size()) &&
+       std::abs(kfs[static_cast<size_t>(j)].t_ns - kfs[edge].t_ns) <= window_ns;
+       j += step) {
+    const size_t i = static_cast<size_t>(j);
+    if (!placement.heading[i]) continue;
+    const double w = kfs[i].v_W_I.head<2>().squaredNorm() /
+                     (placement.velocity_sigma_m_s[i] * placement.velocity_sigma_m_s[i]);
+    s += w * std::sin(correction_rad[i]);
+    c += w * std::cos(correction_rad[i]);
+    t_sum += w * NsToSeconds(kfs[i].t_ns - kfs.front().t_ns);
+    weight_sum += w;
+  }
+  return {t_sum / weight_sum, std::atan2(s, c)};
+}
+
+// The nearest keyframe with a heading before (or after, step = -1) each keyframe, itself for
+// one with a heading.
+std::vector<std::optional<size_t>> NearestHeading(const std::vector<bool>& heading, int step) {
+  const size_t n = heading.size();
+  std::vector<std::optional<size_t>> nearest(n);
+  std::optional<size_t> last;
+  for (size_t m = 0; m < n; ++m) {
+    const size_t k = step > 0 ? m : n - 1 - m;
+    if (heading[k]) last = k;
+    nearest[k] = last;
+  }
+  return nearest;
+}
+
+// Eqs. K9, K9b: the yaw correction about z_W of every keyframe. One with a trusted heading gets
+// its vehicle x axis along it; one without (standing, slow, in an outage, reversing) keeps its
+// gyro yaw relative to the keyframes with a heading around it: the corrections of the anchors on
+// either side, interpolated in time (one side at the log's ends). The gyro's drift is then that
+// over the stretch, not over the log. Empty when no keyframe has a heading.
+std::vector<double> HeadingCorrections(const std::vector<Keyframe>& kfs,
+                                       const GnssPlacement& placement,
+                                       const Eigen::Quaterniond& q_I_V, int64_t window_ns) {
+  if (placement.num_headings == 0) return {};
+  std::vector<double> correction_rad(kfs.size(), 0.0);
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    if (!placement.heading[k]) continue;
+    const Eigen::Vector3d& v = kfs[k].v_W_I;
+    correction_rad[k] = WrapAngle(std::atan2(v.y(), v.x()) - ForwardHeading(kfs[k], q_I_V));
+  }
+  const std::vector<std::optional<size_t>> before = NearestHeading(placement.heading, +1);
+  const std::vector<std::optional<size_t>> after = NearestHeading(placement.heading, -1);
+  std::vector<double> out = correction_rad;
+  std::optional<Anchor> b, a;  // of the stretch k lies in
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    if (placement.heading[k]) continue;
+    if (k == 0 || placement.heading[k - 1]) {  // a stretch begins
+      b.reset();
+      a.reset();
+      if (before[k]) b = AnchorAt(kfs, placement, correction_rad, *before[k], -1, window_ns);
+      if (after[k]) a = AnchorAt(kfs, placement, correction_rad, *after[k], +1, window_ns);
+    }
+    if (!a || !b) {
+      out[k] = (a ? a : b)->correction_rad;
+      continue;
+    }
+    const double t_s = NsToSeconds(kfs[k].t_ns - kfs.front().t_ns);
+    out[k] = b->correction_rad +
+             WrapAngle(a->correction_rad - b->correction_rad) * (t_s - b->t_s) / (a->t_s - b->t_s);
+  }
+  return out;
+}
+
 }  // namespace
 
 GnssInertialKeyframes KeyframesFromGnssAndImu(
@@ -132,13 +219,16 @@ GnssInertialKeyframes KeyframesFromGnssAndImu(
       PlaceKeyframesOnGnss(keyframes, FixesOnImuClock(fixes, calibration.time_offset_gnss_imu_s),
                            converter, calibration.p_I_A, calibration.q_I_V, options.placement);
   // ... each turned to its own heading where that is trusted (Eq. K9, K10): R_W_I =
-  // R_z(psi) R_V_I with psi the heading of the antenna velocity; the antenna stays where the
-  // track put it.
-  for (size_t k = 0; k < kfs.size(); ++k) {
-    if (!result.placement.heading[k]) continue;
+  // R_z(psi) R_V_I with psi the heading of the antenna velocity; the others by the correction
+  // of the headings around them (Eq. K9b). The antenna stays where the track put it.
+  const std::vector<double> correction_rad = HeadingCorrections(
+      kfs, result.placement, calibration.q_I_V, SecondsToNs(options.placement.heading_window_s));
+  for (size_t k = 0; k < correction_rad.size(); ++k) {
     Keyframe& kf = kfs[k];
     const Eigen::Vector3d p_W_A = kf.p_W_I + kf.q_W_I * calibration.p_I_A;
-    const double psi = std::atan2(kf.v_W_I.y(), kf.v_W_I.x());
+    const double psi = result.placement.heading[k]
+                           ? std::atan2(kf.v_W_I.y(), kf.v_W_I.x())
+                           : ForwardHeading(kf, calibration.q_I_V) + correction_rad[k];
     kf.q_W_I =
         (Eigen::Quaterniond(Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ())) * q_V_I).normalized();
     kf.p_W_I = p_W_A - kf.q_W_I * calibration.p_I_A;

@@ -4,7 +4,9 @@
 // the keyframe factors, the GNSS alignment of keyframes and their placement.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -170,6 +172,15 @@ int64_t GapNs(double gap_s, const std::string& name);
 // InterpolateGnss on fixes known to be in time order.
 bool InterpolateSortedGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
                            int64_t t_ns, int64_t max_gap_ns, factors::GnssMeasurement* measurement);
+
+// An angle wrapped into [-pi, pi].
+inline double WrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+
+// The heading (from x_W towards y_W) of the vehicle's forward axis R_W_I R_I_V x.
+inline double ForwardHeading(const Keyframe& kf, const Eigen::Quaterniond& q_I_V) {
+  const Eigen::Vector3d forward_W = kf.q_W_I * (q_I_V * Eigen::Vector3d::UnitX());
+  return std::atan2(forward_W.y(), forward_W.x());
+}
 
 // The gyro integrated about the vehicle's up axis (R_I_V z, in I) from the first keyframe to
 // each keyframe (trapezoids between samples, linear within one): the keyframes' relative yaw,

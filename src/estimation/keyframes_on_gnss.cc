@@ -25,8 +25,10 @@ namespace {
 
 using autocal::internal::Median;
 using internal::CheckIncreasing;
+using internal::ForwardHeading;
 using internal::GapNs;
 using internal::InterpolateSortedGnss;
+using internal::WrapAngle;
 
 // Distances to a fit beyond this are outliers: a multiple of the median distance's robust
 // sigma (1.4826 * median for a Gaussian), never below a floor.
@@ -357,50 +359,93 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
   return true;
 }
 
-double WrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
-
 // The horizontal 1-sigma of a fix: the RMS of its east and north sigmas.
 double HorizontalSigma(const sensors::GnssFix& fix) {
   return std::sqrt(0.5 *
                    (fix.std_enu_m.x() * fix.std_enu_m.x() + fix.std_enu_m.y() * fix.std_enu_m.y()));
 }
 
-// The heading of the vehicle's forward axis R_W_I R_I_V x in the keyframe's current frame.
-double ForwardHeading(const Keyframe& kf, const Eigen::Quaterniond& q_I_V) {
-  const Eigen::Vector3d forward_W = kf.q_W_I * (q_I_V * Eigen::Vector3d::UnitX());
-  return std::atan2(forward_W.y(), forward_W.x());
+// An angle's axis, as a difference in [-pi/2, pi/2]: a heading and its reverse alike.
+double WrapAxis(double a) { return 0.5 * WrapAngle(2.0 * a); }
+
+// Per heading, the axial mean (the doubled angles' circular mean, halved) of the headings
+// flagged in `use` whose times lie within window_ns of its own; a heading without any keeps
+// fallback's.
+std::vector<double> LocalAxes(const std::vector<int64_t>& t_ns, const std::vector<double>& delta,
+                              const std::vector<bool>& use, int64_t window_ns,
+                              const std::vector<double>& fallback) {
+  const size_t n = delta.size();
+  std::vector<double> sin_sum(n + 1, 0.0), cos_sum(n + 1, 0.0);
+  for (size_t i = 0; i < n; ++i) {
+    sin_sum[i + 1] = sin_sum[i] + (use[i] ? std::sin(2.0 * delta[i]) : 0.0);
+    cos_sum[i + 1] = cos_sum[i] + (use[i] ? std::cos(2.0 * delta[i]) : 0.0);
+  }
+  std::vector<double> axis(n);
+  for (size_t j = 0; j < n; ++j) {
+    const size_t lo = static_cast<size_t>(
+        std::lower_bound(t_ns.begin(), t_ns.end(), t_ns[j] - window_ns) - t_ns.begin());
+    const size_t hi = static_cast<size_t>(
+        std::upper_bound(t_ns.begin(), t_ns.end(), t_ns[j] + window_ns) - t_ns.begin());
+    const double s = sin_sum[hi] - sin_sum[lo], c = cos_sum[hi] - cos_sum[lo];
+    axis[j] = s == 0.0 && c == 0.0 ? fallback[j] : 0.5 * std::atan2(s, c);
+  }
+  return axis;
 }
 
-// Eq. K8 from the keyframes with a heading: the circular mean of the yaw each needs, then
-// once more without those over 0.2 rad from it (reversing, slip, bad fits).
-// Also clears the flag (result->heading) of each keyframe whose heading it leaves out: a
-// reversing vehicle's, or an outlier's, which Eq. K9 would otherwise turn onto its velocity.
-void YawFromHeadings(const std::vector<double>& delta, GnssPlacement* result) {
-  const auto circular_mean = [&](double center, double gate) {
-    double s = 0.0, c = 0.0;
-    int n = 0;
-    for (double d : delta) {
-      if (std::abs(WrapAngle(d - center)) > gate) continue;
-      s += std::sin(d);
-      c += std::cos(d);
-      ++n;
+// The headings (at times t_ns) within 0.2 rad of the axis of those around them, judged twice:
+// the second time against the axes of the first time's inliers.
+std::vector<bool> AxialInliers(const std::vector<int64_t>& t_ns, const std::vector<double>& delta,
+                               int64_t window_ns, std::vector<double>* axis) {
+  std::vector<bool> inlier(delta.size(), true);
+  *axis = LocalAxes(t_ns, delta, inlier, window_ns, delta);
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t j = 0; j < delta.size(); ++j) {
+      inlier[j] = std::abs(WrapAxis(delta[j] - (*axis)[j])) <= 0.2;
     }
-    return n > 0 ? std::atan2(s, c) : center;
-  };
-  result->yaw_rad = circular_mean(circular_mean(0.0, M_PI + 1.0), 0.2);
-  double sum_rad2 = 0.0;
+    if (pass == 0) *axis = LocalAxes(t_ns, delta, inlier, window_ns, *axis);
+  }
+  return inlier;
+}
+
+// Eq. K8 from the keyframes with a heading (their indices, times and the yaw each needs, delta).
+// The gyro's yaw that turned the keyframes relative to each other drifts with its bias, so a
+// heading is judged against those around it, not against one mean over the log: it is kept when
+// within 0.2 rad of the axis (heading or its reverse) of those within window_ns, on the side of
+// that axis, chained along the drive, that most of them take (a reversing vehicle's velocity
+// points backwards). yaw_rad is the circular mean of the kept ones. Clears the flag
+// (result->heading) of each keyframe left out: a reversing vehicle's, or an outlier's, which
+// Eq. K9 would otherwise turn onto its velocity.
+void YawFromHeadings(const std::vector<size_t>& index, const std::vector<int64_t>& t_ns,
+                     const std::vector<double>& delta, int64_t window_ns, GnssPlacement* result) {
+  std::vector<double> axis;
+  const std::vector<bool> inlier = AxialInliers(t_ns, delta, window_ns, &axis);
+  // The axis chained along the drive (steps between neighbours under pi/2), so that one side of
+  // it is forward throughout; forward is the side most of the inliers take.
+  std::vector<double> forward(delta.size());
+  int ahead = 0, behind = 0;
+  for (size_t j = 0; j < delta.size(); ++j) {
+    forward[j] = j == 0 ? axis[0] : forward[j - 1] + WrapAxis(axis[j] - forward[j - 1]);
+    if (!inlier[j]) continue;
+    (std::abs(WrapAngle(delta[j] - forward[j])) < 0.5 * M_PI ? ahead : behind) += 1;
+  }
+  const double flip = behind > ahead ? M_PI : 0.0;
+  double s = 0.0, c = 0.0, s_all = 0.0, c_all = 0.0, sum_rad2 = 0.0;
   result->num_headings = 0;
-  size_t next = 0;  // delta holds the flagged keyframes' headings in order
-  for (size_t k = 0; k < result->heading.size(); ++k) {
-    if (!result->heading[k]) continue;
-    const double r = WrapAngle(delta[next++] - result->yaw_rad);
-    if (std::abs(r) > 0.2) {
-      result->heading[k] = false;
+  for (size_t j = 0; j < delta.size(); ++j) {
+    s_all += std::sin(delta[j]);
+    c_all += std::cos(delta[j]);
+    const double r = WrapAngle(delta[j] - forward[j] - flip);
+    if (!inlier[j] || std::abs(r) > 0.5 * M_PI) {
+      result->heading[index[j]] = false;
       continue;
     }
+    s += std::sin(delta[j]);
+    c += std::cos(delta[j]);
     sum_rad2 += r * r;
     ++result->num_headings;
   }
+  // None kept (headings scattered beyond 0.2 rad everywhere): the circular mean of them all.
+  result->yaw_rad = result->num_headings > 0 ? std::atan2(s, c) : std::atan2(s_all, c_all);
   result->heading_rms_rad = std::sqrt(sum_rad2 / std::max(1, result->num_headings));
 }
 
@@ -496,6 +541,8 @@ std::vector<TrackFit> FitTracks(const std::vector<Keyframe>& kfs, const sensors:
 // The yaw each keyframe whose speed stands out of its velocity's noise (Eq. K10) needs
 // (Eq. K8), flagged in *heading; and, for messages, the keyframe whose speed stands out most.
 struct Headings {
+  std::vector<size_t> index;  // of the flagged keyframes, in time order
+  std::vector<int64_t> t_ns;
   std::vector<double> delta_rad;
   double best_speed_m_s = 0.0;
   double best_sigma_m_s = 0.0;
@@ -517,6 +564,8 @@ Headings TrustedHeadings(const std::vector<Keyframe>& kfs, const std::vector<boo
     }
     if (!(ratio > heading_sigmas)) continue;
     (*heading)[k] = true;
+    h.index.push_back(k);
+    h.t_ns.push_back(kfs[k].t_ns);
     h.delta_rad.push_back(WrapAngle(std::atan2(v.y(), v.x()) - ForwardHeading(kfs[k], q_I_V)));
   }
   return h;
@@ -547,10 +596,11 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
                                    const GnssPlacementOptions& options) {
   CheckIncreasing(fixes, "PlaceKeyframesOnGnss: GNSS fix");
   if (!(options.half_width_s > 0.0) || options.min_fixes < 3 || options.max_refits < 0 ||
-      !(options.heading_sigmas > 0.0) || options.min_headings < 1) {
+      !(options.heading_sigmas > 0.0) || options.min_headings < 1 ||
+      !(options.heading_window_s > 0.0)) {
     throw Error(
-        "PlaceKeyframesOnGnss: half_width_s and heading_sigmas must be positive, min_fixes at "
-        "least 3, min_headings at least 1 and max_refits not negative");
+        "PlaceKeyframesOnGnss: half_width_s, heading_sigmas and heading_window_s must be "
+        "positive, min_fixes at least 3, min_headings at least 1 and max_refits not negative");
   }
   std::vector<Keyframe>& kfs = *keyframes;
   GnssPlacement result;
@@ -566,7 +616,8 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
   const Headings headings =
       TrustedHeadings(kfs, placed, tracks, q_I_V, options.heading_sigmas, &result.heading);
   if (static_cast<int>(headings.delta_rad.size()) >= options.min_headings) {
-    YawFromHeadings(headings.delta_rad, &result);
+    YawFromHeadings(headings.index, headings.t_ns, headings.delta_rad,
+                    SecondsToNs(options.heading_window_s), &result);
   } else {
     const double sigma_m = MedianHorizontalSigma(fixes);
     const double needed_m =
@@ -578,6 +629,11 @@ GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
     result.heading.assign(kfs.size(), false);
   }
 
+  result.velocity_sigma_m_s.resize(kfs.size());
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    result.velocity_sigma_m_s[k] =
+        placed[k] ? tracks[k].velocity_sigma_m_s : std::numeric_limits<double>::infinity();
+  }
   BridgeUnplaced(kfs, placed, &tracks, &result.num_bridged);
   const Eigen::Quaterniond q_z(Eigen::AngleAxisd(result.yaw_rad, Eigen::Vector3d::UnitZ()));
   for (size_t k = 0; k < kfs.size(); ++k) {

@@ -1189,11 +1189,10 @@ TEST(PlaceKeyframesOnGnss, ASlowPlatformGetsTheYawFromTheTrackGeometry) {
   EXPECT_NEAR(placement.yaw_rad * kRadToDeg, 30.0, 2.0);
 }
 
-// The platform drives 60 s forward at 1 m/s, then 40 s backwards, facing the same way. The
-// reversing keyframes' headings lie 180 deg from the others: left out of the yaw, they are not
-// flagged either, so the GNSS-inertial rebuild does not turn them onto their velocity (Eq. K9),
-// which started them 180 deg off before.
-TEST(PlaceKeyframesOnGnss, AReversingPlatformsHeadingsStayOutOfTheYaw) {
+// The platform drives 60 s forward at 1 m/s, then 40 s backwards, facing the same way; its
+// keyframes (every 0.4 s, at times_s) point their vehicle x axis 30 deg right of it, turned
+// further by a gyro's yaw drifting at drift_rad_s.
+SlowPlatform ReversingPlatformLog(double drift_rad_s, std::vector<double>* times_s) {
   SlowPlatform log;
   std::mt19937_64 random(12);
   std::normal_distribution<double> noise(0.0, 1.0);
@@ -1213,14 +1212,23 @@ TEST(PlaceKeyframesOnGnss, AReversingPlatformsHeadingsStayOutOfTheYaw) {
     fix.alt_m = lla.z();
     log.fixes.push_back(fix);
   }
-  std::vector<double> times_s;
   for (double t_s = 6.0; t_s <= 94.0; t_s += 0.4) {
     Keyframe kf;
     kf.t_ns = start_ns + SecondsToNs(t_s + 0.13);
-    kf.q_W_I = Eigen::AngleAxisd(heading_rad - 30.0 * kDegToRad, Eigen::Vector3d::UnitZ());
+    kf.q_W_I = Eigen::AngleAxisd(heading_rad - 30.0 * kDegToRad + drift_rad_s * (t_s + 0.13),
+                                 Eigen::Vector3d::UnitZ());
     log.keyframes.push_back(kf);
-    times_s.push_back(t_s + 0.13);
+    times_s->push_back(t_s + 0.13);
   }
+  return log;
+}
+
+// The reversing keyframes' headings lie 180 deg from the others: left out of the yaw, they are
+// not flagged either, so the GNSS-inertial rebuild does not turn them onto their velocity
+// (Eq. K9), which started them 180 deg off before.
+TEST(PlaceKeyframesOnGnss, AReversingPlatformsHeadingsStayOutOfTheYaw) {
+  std::vector<double> times_s;
+  SlowPlatform log = ReversingPlatformLog(0.0, &times_s);
   GnssPlacementOptions options;
   options.half_width_s = 5.0;
   const GnssPlacement placement =
@@ -1236,6 +1244,35 @@ TEST(PlaceKeyframesOnGnss, AReversingPlatformsHeadingsStayOutOfTheYaw) {
     EXPECT_FALSE(placement.heading[k]) << "reversing at " << times_s[k] << " s";
   }
   EXPECT_GT(reversing, 60);
+}
+
+// The same platform with keyframes whose gyro yaw drifts at 5e-3 rad/s (0.44 rad over the
+// log): each heading is judged against those within 5 s (Eq. K8), so the forward ones all stay
+// and the reversing ones stay out. Judged against the mean of the whole log, only those within
+// 0.2 rad of it stayed: 82 of the 120 forward keyframes.
+TEST(PlaceKeyframesOnGnss, ADriftingGyroKeepsTheForwardHeadings) {
+  std::vector<double> times_s;
+  SlowPlatform log = ReversingPlatformLog(5e-3, &times_s);
+  GnssPlacementOptions options;
+  options.half_width_s = 5.0;
+  const GnssPlacement placement =
+      PlaceKeyframesOnGnss(&log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(),
+                           Eigen::Quaterniond::Identity(), options);
+  int forward = 0, forward_kept = 0, reversing_kept = 0;
+  for (size_t k = 0; k < times_s.size(); ++k) {
+    if (times_s[k] > 54.0 && times_s[k] < 66.0) continue;  // the turnaround
+    const bool reversing = times_s[k] >= 66.0;
+    forward += reversing ? 0 : 1;
+    (reversing ? reversing_kept : forward_kept) += placement.heading[k] ? 1 : 0;
+  }
+  std::cout << placement.num_headings << " headings kept: " << forward_kept << " of " << forward
+            << " forward, " << reversing_kept << " reversing; RMS about those around them "
+            << placement.heading_rms_rad * kRadToDeg << " deg\n";
+  EXPECT_EQ(std::count(placement.heading.begin(), placement.heading.end(), true),
+            placement.num_headings);
+  EXPECT_GT(forward, 100);
+  EXPECT_GT(forward_kept, forward * 95 / 100);
+  EXPECT_EQ(reversing_kept, 0);
 }
 
 // A standing platform whose fixes alternate between 2 cm and 1 m: the track's velocity is that

@@ -10,7 +10,10 @@
 //    PlaceKeyframesOnGnss), level and turned by the gyro's yaw about the vehicle's up axis
 //    (their relative headings), then by one yaw from the track headings that stand out of the
 //    fit's noise (Eqs. K8, K10) or, on a slow platform, from the track's travel (Eq. K11);
-//    a keyframe with a trusted heading gets its vehicle x axis along it (Eq. K9).
+//    a keyframe with a trusted heading gets its vehicle x axis along it (Eq. K9), one without
+//    keeps its gyro yaw relative to the trusted headings on either side (Eq. K9b), so that the
+//    gyro bias's drift is that over the stretch without headings, not over the log (a stop
+//    late in a long log started radians off, and past pi the solve kept it there).
 // 2. A GNSS-inertial least-squares problem refines every state: IMU factors (Eq. F10) between
 //    consecutive keyframes, GNSS factors (Eq. F30, Cauchy loss) on each keyframe (their std
 //    scaled by their scatter where it exceeds the stated one, Eq. N2), wheel

@@ -303,27 +303,36 @@ struct GnssPlacementOptions {
   // exceeds max(min_track_travel_m, heading_sigmas * sqrt(2) * median horizontal fix sigma).
   int min_headings = 5;
   double min_track_travel_m = 5.0;
+  // A heading is compared with the headings within this half window (Eq. K8), and a keyframe
+  // without one takes its yaw from those within it of the nearest keyframes with one (Eq. K9b):
+  // the gyro's yaw that turns the keyframes relative to each other drifts with its bias
+  // between them (0.025 rad over 5 s at 5e-3 rad/s), not over the whole log.
+  double heading_window_s = 5.0;
 };
 
 struct GnssPlacement {
-  double yaw_rad = 0.0;          // rotation about z_W applied to every keyframe (Eq. K8)
-  int num_placed = 0;            // keyframes placed on their own fitted track
-  int num_bridged = 0;           // keyframes without one, interpolated from placed neighbours
-  std::vector<bool> placed;      // per keyframe: on its own track (else bridged)
-  std::vector<bool> heading;     // per keyframe: its heading entered the yaw (Eq. K10)
+  double yaw_rad = 0.0;       // rotation about z_W applied to every keyframe (Eq. K8)
+  int num_placed = 0;         // keyframes placed on their own fitted track
+  int num_bridged = 0;        // keyframes without one, interpolated from placed neighbours
+  std::vector<bool> placed;   // per keyframe: on its own track (else bridged)
+  std::vector<bool> heading;  // per keyframe: its heading entered the yaw (Eq. K10)
+  // Per keyframe: the 1-sigma of its fitted velocity per horizontal axis (Eq. K10; infinity
+  // for a bridged one), so that a heading's 1-sigma is this over the speed.
+  std::vector<double> velocity_sigma_m_s;
   int num_headings = 0;          // keyframes whose heading entered the yaw
-  double heading_rms_rad = 0.0;  // RMS heading residual of those after the yaw
+  double heading_rms_rad = 0.0;  // RMS of their headings about the ones around them (Eq. K8)
   bool yaw_from_track_geometry = false;  // Eq. K11 (too few headings)
 };
 
 // Positions, velocities and yaw from GNSS alone, for keyframes the LiDAR odometry could not
 // place (docs/keyframe_factors.md, "Keyframes from GNSS and the IMU"): each is put on the
 // antenna track fitted around it (Eq. K7; the fixes on the IMU clock, FixesOnImuClock) and all are
-// turned by one yaw from the track headings (Eq. K8) or the track's travel (Eq. K11); roll, pitch
-// and biases stay. Keyframes in outages are interpolated between placed ones (at the ends, moved at
-// the nearest one's velocity). Throws autocal::Error when fewer than two keyframes can be placed,
-// when neither headings nor travel give the yaw (the message gives the figures), or as
-// InterpolateGnss.
+// turned by one yaw from the track headings (Eq. K8: those that agree with the headings around
+// them, so that keyframes whose relative yaw drifts over the log keep theirs) or the track's
+// travel (Eq. K11); roll, pitch and biases stay. Keyframes in outages are interpolated between
+// placed ones (at the ends, moved at the nearest one's velocity). Throws autocal::Error when fewer
+// than two keyframes can be placed, when neither headings nor travel give the yaw (the message
+// gives the figures), or as InterpolateGnss.
 GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::GnssFixes& fixes,
                                    const sensors::EnuConverter& converter,
