@@ -316,14 +316,17 @@ bool FitAntennaTrack(const std::vector<double>& tau_s, const std::vector<Eigen::
     return true;
   };
 
-  // Least median of distances over three-fix quadratics (at most 5 fixes per third).
+  // Least median of distances over three-fix quadratics, at most 5 fixes from each third,
+  // spread over it: the stride rounds up (rounded down, 9 fixes a third took 9 and the last
+  // third up to 11, 891 triples instead of 125).
   Eigen::Matrix3d coefficients = Eigen::Matrix3d::Zero();  // columns a, b, c
   double best_median = std::numeric_limits<double>::infinity();
   const size_t third = n / 3;
-  const size_t stride = std::max<size_t>(1, third / 5);
-  for (size_t i = 0; i < third; i += stride) {
-    for (size_t j = third; j < 2 * third; j += stride) {
-      for (size_t k = 2 * third; k < n; k += stride) {
+  const auto stride = [](size_t count) { return std::max<size_t>(1, (count + 4) / 5); };
+  const size_t stride_first = stride(third), stride_last = stride(n - 2 * third);
+  for (size_t i = 0; i < third; i += stride_first) {
+    for (size_t j = third; j < 2 * third; j += stride_first) {
+      for (size_t k = 2 * third; k < n; k += stride_last) {
         Eigen::Matrix3d candidate;
         if (!solve({i, j, k}, &candidate)) continue;
         const double median = distances(candidate);
