@@ -26,6 +26,7 @@ namespace estimation {
 namespace {
 
 using internal::ForwardHeading;
+using internal::NearestFlagged;
 using internal::WrapAngle;
 
 // The marginal covariance of kf's five state blocks in their tangent spaces, or empty when the
@@ -139,20 +140,6 @@ Anchor AnchorAt(const std::vector<Keyframe>& kfs, const GnssPlacement& placement
   return {t_sum / weight_sum, std::atan2(s, c)};
 }
 
-// The nearest keyframe with a heading before (or after, step = -1) each keyframe, itself for
-// one with a heading.
-std::vector<std::optional<size_t>> NearestHeading(const std::vector<bool>& heading, int step) {
-  const size_t n = heading.size();
-  std::vector<std::optional<size_t>> nearest(n);
-  std::optional<size_t> last;
-  for (size_t m = 0; m < n; ++m) {
-    const size_t k = step > 0 ? m : n - 1 - m;
-    if (heading[k]) last = k;
-    nearest[k] = last;
-  }
-  return nearest;
-}
-
 // Eqs. K9, K9b: the yaw correction about z_W of every keyframe. One with a trusted heading gets
 // its vehicle x axis along it; one without (standing, slow, in an outage, reversing) keeps its
 // gyro yaw relative to the keyframes with a heading around it: the corrections of the anchors on
@@ -168,8 +155,8 @@ std::vector<double> HeadingCorrections(const std::vector<Keyframe>& kfs,
     const Eigen::Vector3d& v = kfs[k].v_W_I;
     correction_rad[k] = WrapAngle(std::atan2(v.y(), v.x()) - ForwardHeading(kfs[k], q_I_V));
   }
-  const std::vector<std::optional<size_t>> before = NearestHeading(placement.heading, +1);
-  const std::vector<std::optional<size_t>> after = NearestHeading(placement.heading, -1);
+  const std::vector<std::optional<size_t>> before = NearestFlagged(placement.heading, +1);
+  const std::vector<std::optional<size_t>> after = NearestFlagged(placement.heading, -1);
   std::vector<double> out = correction_rad;
   std::optional<Anchor> b, a;  // of the stretch k lies in
   for (size_t k = 0; k < kfs.size(); ++k) {

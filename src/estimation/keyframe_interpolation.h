@@ -173,6 +173,20 @@ int64_t GapNs(double gap_s, const std::string& name);
 bool InterpolateSortedGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
                            int64_t t_ns, int64_t max_gap_ns, factors::GnssMeasurement* measurement);
 
+// The nearest flagged entry at or before each entry (step +1), or at or after it (step -1):
+// two such passes find every entry's flagged neighbours in linear time.
+inline std::vector<std::optional<size_t>> NearestFlagged(const std::vector<bool>& flag, int step) {
+  const size_t n = flag.size();
+  std::vector<std::optional<size_t>> nearest(n);
+  std::optional<size_t> last;
+  for (size_t m = 0; m < n; ++m) {
+    const size_t k = step > 0 ? m : n - 1 - m;
+    if (flag[k]) last = k;
+    nearest[k] = last;
+  }
+  return nearest;
+}
+
 // An angle wrapped into [-pi, pi].
 inline double WrapAngle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
 

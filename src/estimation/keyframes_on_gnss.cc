@@ -28,6 +28,7 @@ using internal::CheckIncreasing;
 using internal::ForwardHeading;
 using internal::GapNs;
 using internal::InterpolateSortedGnss;
+using internal::NearestFlagged;
 using internal::WrapAngle;
 
 // Distances to a fit beyond this are outliers: a multiple of the median distance's robust
@@ -484,27 +485,25 @@ double MedianHorizontalSigma(const sensors::GnssFixes& fixes) {
 }
 
 // Keyframes without a track of their own: between the nearest placed ones (or moved with the
-// nearest one's velocity at the ends).
+// nearest one's velocity at the ends), found by one pass each way (an outage of m keyframes
+// scanned outwards from each took m^2 steps).
 void BridgeUnplaced(const std::vector<Keyframe>& kfs, const std::vector<bool>& placed,
                     std::vector<TrackFit>* tracks, int* num_bridged) {
   std::vector<TrackFit>& t = *tracks;
+  const std::vector<std::optional<size_t>> before = NearestFlagged(placed, +1);
+  const std::vector<std::optional<size_t>> after = NearestFlagged(placed, -1);
   for (size_t k = 0; k < kfs.size(); ++k) {
     if (placed[k]) continue;
-    ptrdiff_t before = static_cast<ptrdiff_t>(k) - 1, after = static_cast<ptrdiff_t>(k) + 1;
-    while (before >= 0 && !placed[static_cast<size_t>(before)]) --before;
-    while (after < static_cast<ptrdiff_t>(kfs.size()) && !placed[static_cast<size_t>(after)]) {
-      ++after;
-    }
     const auto from = [&](size_t j) {
       t[k].position = t[j].position + t[j].velocity * NsToSeconds(kfs[k].t_ns - kfs[j].t_ns);
       t[k].velocity = t[j].velocity;
     };
-    if (before < 0) {
-      from(static_cast<size_t>(after));
-    } else if (after >= static_cast<ptrdiff_t>(kfs.size())) {
-      from(static_cast<size_t>(before));
+    if (!before[k]) {
+      from(*after[k]);
+    } else if (!after[k]) {
+      from(*before[k]);
     } else {
-      const size_t i = static_cast<size_t>(before), j = static_cast<size_t>(after);
+      const size_t i = *before[k], j = *after[k];
       const double s =
           NsToSeconds(kfs[k].t_ns - kfs[i].t_ns) / NsToSeconds(kfs[j].t_ns - kfs[i].t_ns);
       t[k].position = (1.0 - s) * t[i].position + s * t[j].position;

@@ -1275,6 +1275,54 @@ TEST(PlaceKeyframesOnGnss, ADriftingGyroKeepsTheForwardHeadings) {
   EXPECT_EQ(reversing_kept, 0);
 }
 
+// A slow platform's receiver silent for its first 20 s and for 150 s in the middle: the
+// keyframes there have no track of their own and are bridged from the nearest placed ones,
+// interpolated between them in time, or moved at the first placed one's velocity before it.
+TEST(PlaceKeyframesOnGnss, ALongOutageIsBridgedBetweenItsPlacedNeighbours) {
+  SlowPlatform log = SlowPlatformLog(1.0, 0.02, 300.0);
+  const int64_t start_ns = log.fixes.front().t_ns;
+  const auto silent = [&](int64_t t_ns) {
+    const double t_s = NsToSeconds(t_ns - start_ns);
+    return t_s < 20.0 || (t_s >= 100.0 && t_s < 250.0);
+  };
+  log.fixes.erase(std::remove_if(log.fixes.begin(), log.fixes.end(),
+                                 [&](const sensors::GnssFix& f) { return silent(f.t_ns); }),
+                  log.fixes.end());
+  GnssPlacementOptions options;
+  options.half_width_s = 5.0;
+  const GnssPlacement placement =
+      PlaceKeyframesOnGnss(&log.keyframes, log.fixes, log.enu, Eigen::Vector3d::Zero(),
+                           Eigen::Quaterniond::Identity(), options);
+  const std::vector<Keyframe>& kfs = log.keyframes;
+  int bridged = 0, between = 0;
+  for (size_t k = 0; k < kfs.size(); ++k) {
+    if (placement.placed[k]) continue;
+    ++bridged;
+    ptrdiff_t b = static_cast<ptrdiff_t>(k), a = static_cast<ptrdiff_t>(k);
+    while (b >= 0 && !placement.placed[static_cast<size_t>(b)]) --b;
+    while (a < static_cast<ptrdiff_t>(kfs.size()) && !placement.placed[static_cast<size_t>(a)]) ++a;
+    ASSERT_TRUE(b >= 0 || a < static_cast<ptrdiff_t>(kfs.size()));
+    const Keyframe& kf = kfs[k];
+    if (b < 0) {  // before the first placed keyframe
+      const Keyframe& first = kfs[static_cast<size_t>(a)];
+      EXPECT_EQ(kf.p_W_I, first.p_W_I + first.v_W_I * NsToSeconds(kf.t_ns - first.t_ns)) << k;
+      EXPECT_EQ(kf.v_W_I, first.v_W_I) << k;
+      continue;
+    }
+    ASSERT_LT(a, static_cast<ptrdiff_t>(kfs.size()));
+    ++between;
+    const Keyframe& i = kfs[static_cast<size_t>(b)];
+    const Keyframe& j = kfs[static_cast<size_t>(a)];
+    const double s = NsToSeconds(kf.t_ns - i.t_ns) / NsToSeconds(j.t_ns - i.t_ns);
+    EXPECT_EQ(kf.p_W_I, ((1.0 - s) * i.p_W_I + s * j.p_W_I).eval()) << k;
+    EXPECT_EQ(kf.v_W_I, ((1.0 - s) * i.v_W_I + s * j.v_W_I).eval()) << k;
+  }
+  std::cout << bridged << " bridged keyframes, " << between << " between placed ones\n";
+  EXPECT_EQ(bridged, placement.num_bridged);
+  EXPECT_GT(between, 350);
+  EXPECT_GT(bridged - between, 30);
+}
+
 // A standing platform whose fixes alternate between 2 cm and 1 m: the track's velocity is that
 // of the 2 cm fixes, as Eq. K10 states. Fitted without their weights it scattered with the 1 m
 // fixes while K10 stated the 2 cm ones' sigma, and nearly every keyframe got a heading.
