@@ -156,6 +156,41 @@ std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& sam
   return paired;
 }
 
+// The keyframe each sample serves when every sample serves its nearest keyframe (the GNSS fixes
+// without a clock offset when keyframes would share them, Eq. K17): the keyframe nearest the
+// sample's stamp, kept within max_distance_ns and, beyond the first and the last keyframe, no
+// farther than half their interval to their neighbour (a state is carried no farther, Eq. K16).
+// A sample midway between two keyframes serves the later. Unlike NearestSamples a keyframe may
+// take several samples, so that samples denser than the keyframes all count, each once.
+// Samples (or their stamps) and keyframes strictly increasing in time.
+template <typename Sample>
+std::vector<std::optional<size_t>> NearestKeyframes(const std::vector<Sample>& samples,
+                                                    const std::vector<Keyframe>& keyframes,
+                                                    int64_t max_distance_ns) {
+  std::vector<std::optional<size_t>> serves(samples.size());
+  const size_t n = keyframes.size();
+  if (n == 0) return serves;
+  const auto distance = [](int64_t a, int64_t b) { return a > b ? a - b : b - a; };
+  for (size_t j = 0; j < samples.size(); ++j) {
+    const int64_t t = StampOf(samples[j]);
+    const auto it = std::lower_bound(keyframes.begin(), keyframes.end(), t,
+                                     [](const Keyframe& kf, int64_t s) { return kf.t_ns < s; });
+    size_t k = static_cast<size_t>(it - keyframes.begin());
+    if (k == n || (k > 0 && distance(keyframes[k - 1].t_ns, t) < distance(keyframes[k].t_ns, t))) {
+      --k;
+    }
+    const int64_t d = distance(keyframes[k].t_ns, t);
+    if (d > max_distance_ns) continue;
+    if (n > 1 &&
+        ((k == 0 && distance(2 * keyframes[0].t_ns - keyframes[1].t_ns, t) < d) ||
+         (k + 1 == n && distance(2 * keyframes[k].t_ns - keyframes[k - 1].t_ns, t) <= d))) {
+      continue;
+    }
+    serves[j] = k;
+  }
+  return serves;
+}
+
 // The sample each keyframe takes in the factors of a sensor on a clock offset_s from the IMU's
 // (Eq. K17): NearestSamples within half the sensor's maximum gap between samples.
 template <typename Sample>

@@ -562,19 +562,56 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
 
 namespace {
 
-// Whether two keyframes lie between the same two fixes: keyframes denser than the fixes, whose
-// interpolated rows (Eq. K1) would count those fixes' information again for each keyframe, at
-// the full sigma of Eq. K2 (ten keyframes a fix: sigmas sqrt(10) times too small).
-bool KeyframesShareAFixInterval(const sensors::GnssFixes& fixes, const std::vector<Keyframe>& kfs,
-                                int64_t max_gap_ns) {
-  std::optional<size_t> previous;  // the interval of the previous keyframe, by its first fix
+// Whether a fix enters two keyframes' interpolated rows (Eq. K1) with a weight: keyframes
+// denser than the fixes (two between the same two fixes, or one on a fix and one beside it),
+// whose rows would count the fix's information again for each keyframe at the full sigma of
+// Eq. K2 (ten keyframes a fix: sigmas sqrt(10) times too small), or about as dense but out of
+// phase, where the straight line between the fixes misses a curving antenna.
+bool KeyframesShareAFix(const sensors::GnssFixes& fixes, const std::vector<Keyframe>& kfs,
+                        int64_t max_gap_ns) {
+  std::vector<bool> used(fixes.size(), false);
   for (const Keyframe& kf : kfs) {
     const std::optional<internal::Bracket> b = internal::FindBracket(fixes, kf.t_ns, max_gap_ns);
-    const bool inside = b && b->s > 0.0 && b->s < 1.0;
-    if (inside && previous == b->first) return true;
-    previous = inside ? std::optional<size_t>(b->first) : std::nullopt;
+    if (!b) continue;
+    if (used[b->first] || (b->second != b->first && used[b->second])) return true;
+    used[b->first] = true;
+    used[b->second] = true;
   }
   return false;
+}
+
+// A GNSS row: the keyframe and the fix it takes, carried to the fix (Eqs. K16, K17); without a
+// fix, the fixes interpolated to the keyframe (Eqs. K1, K2).
+struct GnssRow {
+  size_t keyframe = 0;
+  std::optional<size_t> fix;
+};
+
+// The rows AddGnssFactors adds (see there): with a clock each keyframe takes its nearest fix
+// (NearestSamples, which the clock's re-pairing compares); without one, where keyframes would
+// share a fix, each fix serves its nearest keyframe (NearestKeyframes: every fix once, however
+// dense); else each keyframe with bracketing fixes takes them interpolated.
+std::vector<GnssRow> GnssRows(const sensors::GnssFixes& fixes, const std::vector<Keyframe>& kfs,
+                              double offset_s, bool clock, int64_t max_gap_ns) {
+  std::vector<GnssRow> rows;
+  if (clock) {
+    const std::vector<std::optional<size_t>> paired =
+        internal::PairedSamples(fixes, kfs, offset_s, max_gap_ns);
+    for (size_t k = 0; k < kfs.size(); ++k) {
+      if (paired[k]) rows.push_back({k, paired[k]});
+    }
+  } else if (KeyframesShareAFix(fixes, kfs, max_gap_ns)) {
+    const std::vector<std::optional<size_t>> serves =
+        internal::NearestKeyframes(fixes, kfs, max_gap_ns / 2);
+    for (size_t j = 0; j < fixes.size(); ++j) {
+      if (serves[j]) rows.push_back({*serves[j], j});
+    }
+  } else {
+    for (size_t k = 0; k < kfs.size(); ++k) {
+      if (FindBracket(fixes, kfs[k].t_ns, max_gap_ns)) rows.push_back({k, std::nullopt});
+    }
+  }
+  return rows;
 }
 
 }  // namespace
@@ -591,52 +628,46 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   double* offset = &calibration->time_offset_gnss_imu_s;
   if (!std::isfinite(*offset)) throw Error("AddGnssFactors: time_offset_gnss_imu_s must be finite");
   options.noise_scale.Check("AddGnssFactors");
-  // With a clock, or with keyframes denser than the fixes, each fix serves one keyframe, its
-  // nearest, with the state carried to it (Eq. K16, K17); else each keyframe its interpolated
-  // fix (Eq. K1, K2).
-  const bool shifted = options.estimate_time_offset || *offset != 0.0 ||
-                       KeyframesShareAFixInterval(fixes, *keyframes, max_gap_ns);
+  const std::vector<GnssRow> rows = GnssRows(
+      fixes, *keyframes, *offset, options.estimate_time_offset || *offset != 0.0, max_gap_ns);
+  const bool shifted = !rows.empty() && rows.front().fix.has_value();
   const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
-  // The fix each keyframe takes on the receiver's clock (Eq. K17), at the offset's value now.
-  const std::vector<std::optional<size_t>> paired =
-      shifted ? internal::PairedSamples(fixes, *keyframes, *offset, max_gap_ns)
-              : std::vector<std::optional<size_t>>();
 
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.
   std::unique_ptr<ceres::LossFunction> unused_loss(factors::MakeLossFunction(options.loss));
   ceres::LossFunction* loss = unused_loss.get();
-  int added = 0;
-  for (size_t k = 0; k < keyframes->size(); ++k) {
-    Keyframe& kf = (*keyframes)[k];
+  std::vector<bool> with_fix(keyframes->size(), false);
+  for (const GnssRow& row : rows) {
+    Keyframe& kf = (*keyframes)[row.keyframe];
     factors::GnssMeasurement m;
-    std::optional<internal::ImuAroundKeyframe> around;  // with a clock: what carries the state
-    if (!shifted) {
-      if (!InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m)) continue;
+    std::optional<internal::ImuAroundKeyframe> around;  // carries the state to the fix
+    if (!row.fix) {
+      InterpolateSortedGnss(fixes, converter, kf.t_ns, max_gap_ns, &m);
     } else {
-      if (!paired[k]) continue;
       around = internal::ImuAround(imu, kf.t_ns, options.gravity_m_s2, max_imu_gap_ns);
       if (!around) continue;
-      m = factors::GnssMeasurement::FromFix(fixes[*paired[k]], converter);
+      m = factors::GnssMeasurement::FromFix(fixes[*row.fix], converter);
     }
     m.sigma_enu_m = options.noise_scale.Applied(m.sigma_enu_m);
     for (const factors::GnssAxes axes :
          {factors::GnssAxes::kHorizontal, factors::GnssAxes::kVertical}) {
-      if (!shifted) {
+      if (!row.fix) {
         problem->AddResidualBlock(factors::GnssFactor::Create(m, axes), loss,
                                   kf.q_W_I.coeffs().data(), kf.p_W_I.data(),
                                   calibration->p_I_A.data());
       } else {
-        problem->AddResidualBlock(internal::ShiftedGnssResidual::Create(m, fixes[*paired[k]].t_ns,
-                                                                        kf.t_ns, *around, axes),
-                                  loss, kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(),
-                                  kf.b_g.data(), kf.b_a.data(), calibration->p_I_A.data(), offset);
+        problem->AddResidualBlock(
+            internal::ShiftedGnssResidual::Create(m, fixes[*row.fix].t_ns, kf.t_ns, *around, axes),
+            loss, kf.q_W_I.coeffs().data(), kf.p_W_I.data(), kf.v_W_I.data(), kf.b_g.data(),
+            kf.b_a.data(), calibration->p_I_A.data(), offset);
       }
     }
     unused_loss.release();
-    ++added;
+    with_fix[row.keyframe] = true;
   }
+  const int added = static_cast<int>(std::count(with_fix.begin(), with_fix.end(), true));
   if (added == 0) return 0;
   SetConstantUnless(options.estimate_lever_arm, calibration->p_I_A.data(), problem);
   if (shifted) SetConstantUnless(options.estimate_time_offset, offset, problem);

@@ -126,6 +126,7 @@ TEST(GnssInertialKeyframes, SlowSkidSteerWithOdometryStatesWhatItKnows) {
   start.imu_noise = simulator.sensors_config().imu.noise;
   start.placement.half_width_s = 5.0;
   start.gnss.max_fix_gap_s = 1.0;
+  start.gnss.max_imu_gap_s = 0.1;
   start.wheel.max_wheel_gap_s = 0.25;
   start.wheel.max_imu_gap_s = 0.1;
   start.wheel.factor =

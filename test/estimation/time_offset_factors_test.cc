@@ -422,6 +422,27 @@ TEST(NearestSamples, PairsEachKeyframeWithItsNearestSampleOnce) {
   EXPECT_EQ(tie, (std::vector<std::optional<size_t>>{0, std::nullopt}));
 }
 
+// Fixes without a clock that keyframes would share: each serves the keyframe nearest it, so a
+// keyframe may take several and every fix counts once.
+TEST(NearestKeyframes, GivesEachSampleItsNearestKeyframe) {
+  using internal::NearestKeyframes;
+  using Served = std::vector<std::optional<size_t>>;
+  const std::vector<Keyframe> keyframes = KeyframesAt({0.0, 0.2, 0.4, 0.6});
+  // 8 Hz against 5 Hz: the keyframe at 0.2 s takes two fixes.
+  EXPECT_EQ(NearestKeyframes(FixesAt({0.0, 0.125, 0.25, 0.375}), keyframes, SecondsToNs(1.0)),
+            (Served{0, 1, 1, 2}));
+  // Midway between two keyframes, a fix serves the later; so fixes half a period off the
+  // keyframes all count.
+  EXPECT_EQ(NearestKeyframes(FixesAt({0.1, 0.3, 0.5}), keyframes, SecondsToNs(1.0)),
+            (Served{1, 2, 3}));
+  // Beyond the first and the last keyframe no farther than half their interval (0.1 s), and
+  // none beyond the distance.
+  EXPECT_EQ(NearestKeyframes(FixesAt({-0.1, -0.05, 0.65, 0.7}), keyframes, SecondsToNs(1.0)),
+            (Served{0, 0, 3, std::nullopt}));
+  EXPECT_EQ(NearestKeyframes(FixesAt({0.05, 0.13}), keyframes, SecondsToNs(0.06)),
+            (Served{0, std::nullopt}));
+}
+
 }  // namespace
 }  // namespace estimation
 }  // namespace autocal

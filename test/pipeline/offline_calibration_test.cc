@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -771,7 +772,9 @@ TEST_F(OfflineCalibrationTest, WheelGapFollowsTheirRateUnlessTheProblemSetsIt) {
 
 // A slower platform's sensors (IMU 100 Hz, wheels 10 Hz, GNSS 1 Hz) calibrate without the
 // LiDAR from limits derived from their rates: keyframes every 0.5 s (Eq. T2), a track window
-// of +-2.5 s (T3), and every sensor gives factors at 90 % of the keyframes or more.
+// of +-2.5 s (T3), wheel and IMU factors at 90 % of the keyframes or more, and each fix in one
+// GNSS factor (Eq. K17; interpolated to every keyframe, a fix entered three rows, and the rows
+// scattered at 1.96 of their sigma with the line between fixes missing the turning antenna).
 TEST(OfflineCalibrationSlowSensors, CalibratesWithoutTheLidarFromTheirRates) {
   sim::SimulationOptions options = test::UrbanDriveOptions(34.0);
   options.lidar.enabled = false;
@@ -793,7 +796,14 @@ TEST(OfflineCalibrationSlowSensors, CalibratesWithoutTheLidarFromTheirRates) {
   std::cout << keyframes << " keyframes: " << wheel << " wheel, " << gnss << " GNSS, " << imu
             << " IMU factors\n";
   EXPECT_GE(wheel * 10, keyframes * 9);
-  EXPECT_GE(gnss * 10, keyframes * 9);
+  const int64_t half_ns = 250'000'000;
+  const size_t fixes = static_cast<size_t>(
+      std::count_if(dataset.gnss.begin(), dataset.gnss.end(), [&](const sensors::GnssFix& f) {
+        return f.t_ns >= result.trajectory.front().t_ns - half_ns &&
+               f.t_ns <= result.trajectory.back().t_ns + half_ns;
+      }));
+  EXPECT_LE(gnss, fixes);
+  EXPECT_GE(gnss * 10, fixes * 9);
   EXPECT_EQ(imu, keyframes - 1);
   const sensors::Calibration& truth = data.simulator.true_calibration();
   const sensors::Calibration& estimate = result.calibration.value;
@@ -802,8 +812,8 @@ TEST(OfflineCalibrationSlowSensors, CalibratesWithoutTheLidarFromTheirRates) {
   };
   std::cout << "radii " << percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m) << " % "
             << percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m) << " %\n";
-  // The goal for the radii and the other test's for the keyframes (measured 0.060 % and
-  // 0.072 %, 6.0 cm RMS).
+  // The goal for the radii and the other test's for the keyframes (measured 0.023 % and
+  // 0.028 %, 4.6 cm RMS; with every fix interpolated to every keyframe 0.065 %, 0.072 %, 5.1 cm).
   EXPECT_LT(percent(estimate.wheel_radius_left_m, truth.wheel_radius_left_m), 0.1);
   EXPECT_LT(percent(estimate.wheel_radius_right_m, truth.wheel_radius_right_m), 0.1);
   EXPECT_LT(KeyframePositionRms(result, dataset, data.simulator), 0.1);

@@ -193,12 +193,14 @@ bool InterpolateGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverte
 
 // Adds a GnssFactor (Eq. F30) per keyframe with an interpolated fix, on its q_W_I, p_W_I and
 // the calibration's p_I_A: two residual blocks under the loss, the horizontal rows and the
-// vertical row (factors::GnssAxes). With a GNSS clock offset, or with two keyframes between
-// the same two fixes (keyframes denser than the fixes, whose interpolated rows would count each
-// fix several times), each keyframe takes its nearest fix instead, within max_fix_gap_s / 2,
-// no fix serving two, as the wheels' samples (Eq. K16, K17), and its v_W_I,
-// b_g, b_a and the offset block enter the factor; `imu` carries the state there. Returns
-// the number of keyframes with a fix (ownership as AddWheelFactors). Throws autocal::Error as
+// vertical row (factors::GnssAxes). With a GNSS clock offset each keyframe takes its nearest fix
+// instead, within max_fix_gap_s / 2, no fix serving two, as the wheels' samples (Eq. K16,
+// K17); without one, where a fix would enter two keyframes' interpolated rows (keyframes denser
+// than the fixes, or as dense but off their stamps: the rows would count a fix several times,
+// or scatter below their sigma and miss a curving antenna), each fix serves its nearest keyframe
+// once, a keyframe perhaps several. Its v_W_I, b_g, b_a and the offset block then enter the
+// factor; `imu` carries the state to the fix. Returns the number of keyframes with a fix
+// (ownership as AddWheelFactors). Throws autocal::Error as
 // InterpolateGnss, or for a keyframe q_W_I missing from the problem or without a manifold.
 int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                    const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
