@@ -166,6 +166,7 @@ void PlaceInEnu(const io::Dataset& dataset, const io::Problem& problem,
   keyframes->placed_without_lidar =
       !PlaceKeyframesInEnu(dataset, problem, enu, *calibration, options, use_wheel, timing,
                            &keyframes->keyframes, &result->warnings);
+  result->lidar_blocks_from_nominal = keyframes->placed_without_lidar;
   if (keyframes->placed_without_lidar) {
     calibration->q_I_L = result->nominal.q_I_L;
     calibration->p_I_L = result->nominal.p_I_L;

@@ -341,6 +341,10 @@ std::string LidarClockCaption(const OfflineCalibrationResult& result) {
         ", not used: " + (lidar.reason.empty() ? std::string("not determined") : lidar.reason);
   } else if (!result.calibration.uncertainty.time_offset_lidar_imu_s.sigma) {
     not_used = ", not used: the problem fixes the LiDAR-IMU time offset";
+  } else if (result.lidar_blocks_from_nominal) {
+    not_used =
+        ", not used: the keyframes were rebuilt from GNSS and the IMU, and the offset started "
+        "from its nominal value";
   }
   return "LiDAR vs gyro angular-rate correlation (peak " + Number(peak_s * 1e3) + " ms" + not_used +
          ")";

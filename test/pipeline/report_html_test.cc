@@ -528,6 +528,14 @@ TEST(ReportHtml, SaysWhenTheLidarClocksPeakWasNotUsed) {
                       "LiDAR vs gyro angular-rate correlation (peak 12 ms, not used: the problem "
                       "fixes the LiDAR-IMU time offset)")
                    .empty());
+  // Estimated, but from the nominal value: the odometry did not follow the drive.
+  result = FullResult();
+  result.lidar_blocks_from_nominal = true;
+  EXPECT_FALSE(Figure(CalibrationReportHtml(result),
+                      "LiDAR vs gyro angular-rate correlation (peak 12 ms, not used: the "
+                      "keyframes were rebuilt from GNSS and the IMU, and the offset started from "
+                      "its nominal value)")
+                   .empty());
 }
 
 // Every element the page opens is closed in order (the void elements excepted), and every

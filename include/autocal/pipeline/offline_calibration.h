@@ -122,6 +122,9 @@ struct OfflineCalibrationResult {
   // Plain-language findings: directions the drive did not excite, unreliable steps.
   std::vector<std::string> warnings;
   estimation::CalibrationInitialization initialization;
+  // The LiDAR odometry did not follow the drive: the keyframes were rebuilt from GNSS and the
+  // IMU, and the LiDAR blocks started from their nominal values, not the initializer's.
+  bool lidar_blocks_from_nominal = false;
   // The clocks' cross-correlations that started their offsets (docs/calibration.md), for the
   // report: the wheels' (with the signal compared) and the GNSS receiver's, when estimated.
   std::optional<estimation::WheelImuOffset> wheel_clock_initialization;
