@@ -121,7 +121,11 @@ int64_t StampOf(const Sample& sample) {
 // The sample each keyframe takes when the sensor's clock is offset_ns from the IMU's
 // (docs/keyframe_factors.md, Eq. K17): the one nearest the sensor-clock instant t_k - offset,
 // kept when it was taken no farther than max_distance_ns from t_k and no other keyframe lies
-// nearer its IMU-clock instant t_j + offset, so that no sample serves two keyframes. The first
+// nearer its IMU-clock instant t_j + offset, so that no sample serves two keyframes. Ties go
+// forward in time: a keyframe midway between two samples takes the later one, and a sample
+// midway between two keyframes serves the earlier, so that samples half a period off keyframes
+// as dense as they are each serve one (were the earlier sample taken, the earlier keyframe
+// would win it back, and every keyframe would go without). The first
 // and the last keyframe take no sample beyond half their interval to their neighbour: a state
 // is carried no farther than that (Eq. K16). Samples (or their stamps) and keyframes strictly
 // increasing in time.
@@ -137,7 +141,7 @@ std::vector<std::optional<size_t>> NearestSamples(const std::vector<Sample>& sam
     const auto it = std::lower_bound(samples.begin(), samples.end(), t_k - offset_ns,
                                      [](const Sample& a, int64_t t) { return StampOf(a) < t; });
     size_t j = static_cast<size_t>(it - samples.begin());
-    if (j == samples.size() || (j > 0 && distance(StampOf(samples[j - 1]) + offset_ns, t_k) <=
+    if (j == samples.size() || (j > 0 && distance(StampOf(samples[j - 1]) + offset_ns, t_k) <
                                              distance(StampOf(samples[j]) + offset_ns, t_k))) {
       --j;
     }

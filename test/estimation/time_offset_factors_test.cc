@@ -420,6 +420,14 @@ TEST(NearestSamples, PairsEachKeyframeWithItsNearestSampleOnce) {
   const auto tie =
       NearestSamples(FixesAt({0.07}), KeyframesAt({0.0, 0.1}), offset_ns, SecondsToNs(1.0));
   EXPECT_EQ(tie, (std::vector<std::optional<size_t>>{0, std::nullopt}));
+  // Samples half a period off keyframes as dense as they are (a receiver and a LiDAR both on
+  // the second, 50 ms apart): each keyframe takes the later of its two samples, which serves
+  // no other, so every keyframe has one. (Taking the earlier, each lost it to the keyframe
+  // before, and none had a sample.)
+  const auto half_period =
+      NearestSamples(FixesAt({0.0, 0.1, 0.2, 0.3, 0.4}), KeyframesAt({0.03, 0.13, 0.23, 0.33}),
+                     offset_ns, SecondsToNs(0.05));
+  EXPECT_EQ(half_period, (std::vector<std::optional<size_t>>{1, 2, 3, 4}));
 }
 
 // Fixes without a clock that keyframes would share: each serves the keyframe nearest it, so a
