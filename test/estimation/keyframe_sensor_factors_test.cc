@@ -43,6 +43,20 @@ std::vector<Keyframe> TrueKeyframes(const sim::Simulator& simulator, const sim::
 
 double PercentError(double estimate, double truth) { return 100.0 * (estimate - truth) / truth; }
 
+// The options of a problem whose manifolds the test owns.
+ceres::Problem::Options ManifoldsNotOwned() {
+  ceres::Problem::Options options;
+  options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return options;
+}
+
+// The keyframes' rotations in `problem` on `manifold` (quaternion blocks need their manifold
+// before factors are attached).
+void AddKeyframeRotations(std::vector<Keyframe>* keyframes, ceres::Manifold* manifold,
+                          ceres::Problem* problem) {
+  for (Keyframe& kf : *keyframes) problem->AddParameterBlock(kf.q_W_I.coeffs().data(), 4, manifold);
+}
+
 // An urban drive of 30 s (seed 7: straight driving, then the roundabout from 18 s, so the
 // yaw rate is excited), LiDAR off; once with the simulator's noise, GNSS multipath outliers
 // and outages, once without noise (outages stay); simulated once per test program and build
@@ -77,9 +91,7 @@ class KeyframeSensorFactorsTest : public ::testing::Test {
   // and q_I_V added (quaternion blocks need their manifold before factors are attached).
   std::unique_ptr<ceres::Problem> ProblemWithConstantKeyframes(std::vector<Keyframe>* keyframes,
                                                                sensors::Calibration* calibration) {
-    ceres::Problem::Options problem_options;
-    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    auto problem = std::make_unique<ceres::Problem>(problem_options);
+    auto problem = std::make_unique<ceres::Problem>(ManifoldsNotOwned());
     for (Keyframe& kf : *keyframes) {
       problem->AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold_);
       problem->SetParameterBlockConstant(kf.q_W_I.coeffs().data());
@@ -164,12 +176,8 @@ sim::SimulatedLog* KeyframeSensorFactorsTest::exact_ = nullptr;
 // true states is small (integration error only), and a keyframe velocity 5 cm/s off shows.
 TEST_F(KeyframeSensorFactorsTest, ImuFactorsBetweenConsecutiveKeyframes) {
   std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, kPhaseS);
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  for (Keyframe& kf : keyframes) {
-    problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold_);
-  }
+  ceres::Problem problem(ManifoldsNotOwned());
+  AddKeyframeRotations(&keyframes, &quaternion_manifold_, &problem);
   KeyframeImuOptions options;
   options.noise = exact_simulator_->sensors_config().imu.noise;
   options.gravity_m_s2 = exact_simulator_->options().imu.gravity_m_s2;
@@ -194,10 +202,8 @@ TEST_F(KeyframeSensorFactorsTest, ImuFactorsBetweenConsecutiveKeyframes) {
   // Samples that do not cover the keyframes are refused.
   sensors::ImuSamples short_log(exact_->imu.samples.begin(),
                                 exact_->imu.samples.begin() + exact_->imu.samples.size() / 2);
-  ceres::Problem other(problem_options);
-  for (Keyframe& kf : keyframes) {
-    other.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold_);
-  }
+  ceres::Problem other(ManifoldsNotOwned());
+  AddKeyframeRotations(&keyframes, &quaternion_manifold_, &other);
   EXPECT_THROW(AddImuFactors(&other, short_log, &keyframes, options), Error);
 }
 
@@ -536,12 +542,8 @@ GnssRowsAtTruth RowsAtTruth(const sim::Simulator& simulator, const sim::Simulate
     keyframes.push_back(TrueKeyframe(log.imu, simulator.StampAt(t_s)));
   }
   geometry::RightQuaternionManifold quaternion_manifold;
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  for (Keyframe& kf : keyframes) {
-    problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold);
-  }
+  ceres::Problem problem(ManifoldsNotOwned());
+  AddKeyframeRotations(&keyframes, &quaternion_manifold, &problem);
   KeyframeGnssOptions options;
   options.loss = factors::LossOptions();
   options.max_fix_gap_s = 2.5 * period_s;
@@ -705,12 +707,8 @@ TEST_F(KeyframeSensorFactorsTest, ClocksDoNotDependOnWhereTheSolveStartsThem) {
     sensors::Calibration calibration = noisy_simulator_->true_calibration();
     calibration.time_offset_wheel_imu_s = 1e-3 * start_ms(0);
     calibration.time_offset_gnss_imu_s = 1e-3 * start_ms(1);
-    ceres::Problem::Options problem_options;
-    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    ceres::Problem problem(problem_options);
-    for (Keyframe& kf : keyframes) {
-      problem.AddParameterBlock(kf.q_W_I.coeffs().data(), 4, &quaternion_manifold_);
-    }
+    ceres::Problem problem(ManifoldsNotOwned());
+    AddKeyframeRotations(&keyframes, &quaternion_manifold_, &problem);
     problem.AddParameterBlock(calibration.q_I_V.coeffs().data(), 4, &quaternion_manifold_);
     KeyframeImuOptions imu;
     imu.noise = noisy_simulator_->options().imu.noise;
