@@ -778,20 +778,25 @@ estimation::BlockObservability Observe(
   return observability;
 }
 
+void GiveBothWheelsTheSharedRadius(const io::Problem& problem, io::CalibrationFile* file) {
+  if (!problem.calibration.wheel_radius_shared) return;
+  file->value.wheel_radius_right_m = file->value.wheel_radius_left_m;
+  file->uncertainty.wheel_radius_right_m = file->uncertainty.wheel_radius_left_m;
+}
+
 void Conclude(const io::Dataset& dataset, const io::Problem& problem,
               const std::vector<estimation::Keyframe>& keyframes, sensors::Calibration* calibration,
               std::chrono::steady_clock::time_point start, OfflineCalibrationResult* result) {
   io::CalibrationFile& file = result->calibration;
   if (problem.calibration.wheel_radius_shared) {
-    // One block stands for both wheels: the right one is that estimate, not a fixed value.
     calibration->wheel_radius_right_m = calibration->wheel_radius_left_m;
-    file.uncertainty.wheel_radius_right_m = file.uncertainty.wheel_radius_left_m;
   }
   if (problem.sensors.wheel && dataset.wheel_sample_count() == 0) {
     result->warnings.push_back(
         "the dataset has no wheel samples: wheel blocks keep their nominal value");
   }
   file.value = *calibration;
+  GiveBothWheelsTheSharedRadius(problem, &file);
   file.solver["keyframes"] = std::to_string(keyframes.size());
   for (const estimation::Keyframe& kf : keyframes) {
     io::TrajectorySample sample;

@@ -294,6 +294,11 @@ estimation::BlockObservability Observe(
     const estimation::BlockCovariance& solved, const estimation::BlockCovariance& covariance,
     OfflineCalibrationResult* result);
 
+// With the problem's wheel_radius_shared, one block stands for both rear wheels: the right
+// radius in `file` takes the left's value, sigma and flag (not a value without a sigma, which
+// reads as a fixed block). Nothing otherwise.
+void GiveBothWheelsTheSharedRadius(const io::Problem& problem, io::CalibrationFile* file);
+
 // The result's calibration values, trajectory, residual statistics and timings, from
 // `keyframes` and `calibration` as they are (after SolveAgainAfterHolding, so that both come
 // from one solve).

@@ -211,6 +211,7 @@ MultiLogCalibrationResult CalibrateDatasets(const std::vector<io::Dataset>& data
   }
   result.fused = estimation::FuseCalibrationPosteriors(posteriors);
   ConcludeShared(result.fused, &result);
+  GiveBothWheelsTheSharedRadius(problem, &result.calibration);
   for (size_t i = 0; i < datasets.size(); ++i) {
     LogCalibration& log = result.logs[i];
     log.at_shared =

@@ -288,6 +288,26 @@ TEST(MultiLogRepeatability, BoundsEachLogAgainstItsOwnTruth) {
   }
 }
 
+// One radius for both wheels: the shared calibration gives the right wheel the fused estimate
+// with its sigma, not the first log's nominal right radius without one.
+TEST(MultiLogRepeatability, GivesASharedRadiusToBothWheels) {
+  std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> logs;
+  logs.push_back(Log(31));
+  logs.push_back(Log(32));
+  std::vector<io::Dataset> datasets;
+  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  io::Problem problem = ImuWheelGnssProblem();
+  problem.calibration.wheel_radius_shared = true;
+  const MultiLogCalibrationResult result = CalibrateDatasets(datasets, problem);
+  const io::CalibrationFile& shared = result.calibration;
+  ASSERT_TRUE(shared.uncertainty.wheel_radius_left_m.sigma.has_value());
+  EXPECT_EQ(shared.value.wheel_radius_right_m, shared.value.wheel_radius_left_m);
+  EXPECT_EQ(shared.uncertainty.wheel_radius_right_m.sigma,
+            shared.uncertainty.wheel_radius_left_m.sigma);
+  EXPECT_EQ(shared.uncertainty.wheel_radius_right_m.observable,
+            shared.uncertainty.wheel_radius_left_m.observable);
+}
+
 TEST(MultiLogRepeatability, RefusesFewerThanTwoLogs) {
   EXPECT_THROW(CalibrateDatasets({}, ImuWheelGnssProblem()), Error);
 }
