@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "autocal/common/error.h"
+#include "autocal/common/time.h"
 #include "autocal/evaluation/information_bound.h"
 #include "autocal/io/dataset.h"
 #include "autocal/io/output_files.h"
@@ -93,11 +94,6 @@ std::string VehicleLabel(const std::vector<std::string>& datasets) {
   return autocal::pipeline::DirectoryName(datasets.front());
 }
 
-// Seconds since the tool started: status.yaml's wall time, success or failure alike.
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 void CalibrateOne(const std::string& directory, const autocal::io::Problem& problem,
                   autocal::pipeline::OfflineCalibrationOptions options,
                   std::chrono::steady_clock::time_point start, autocal::io::RunStatus* status) {
@@ -106,7 +102,7 @@ void CalibrateOne(const std::string& directory, const autocal::io::Problem& prob
   const autocal::pipeline::OfflineCalibrationResult result =
       autocal::pipeline::CalibrateDataset(dataset, problem, options);
   EndProgressLine();
-  status->seconds = SecondsSince(start);
+  status->seconds = autocal::SecondsSince(start);
   autocal::pipeline::WriteCalibrationResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatCalibrationSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, trajectory.tum, "
@@ -130,7 +126,7 @@ void CalibrateSeveral(const std::vector<std::string>& directories,
   const autocal::pipeline::MultiLogCalibrationResult result =
       autocal::pipeline::CalibrateDatasets(datasets, problem, multi);
   EndProgressLine();
-  status->seconds = SecondsSince(start);
+  status->seconds = autocal::SecondsSince(start);
   autocal::pipeline::WriteMultiLogResult(FLAGS_output, result, status);
   std::cout << autocal::pipeline::FormatMultiLogSummary(result);
   std::cout << "written: " << FLAGS_output << "/calibration.yaml, repeatability.csv, report.html, "
@@ -181,6 +177,7 @@ int main(int argc, char** argv) {
       "--output=DIR\n"
       "Calibrates the sensors of a recorded log, or of several logs of one vehicle together.");
   if (autocal::tools::ShowShortHelpIfAsked(argc, argv, "autocal_calibrate")) return 0;
+  // status.yaml's wall time counts from here, success or failure alike.
   const auto start = std::chrono::steady_clock::now();
   // --dataset may be repeated, on the command line and in --flagfile files; gflags keeps the
   // last value only, so they are gathered before it parses.
@@ -237,7 +234,7 @@ int main(int argc, char** argv) {
   } catch (const autocal::Error& e) {
     std::cerr << (progress_line_open ? "\n" : "") << "autocal_calibrate: " << e.what() << "\n";
     if (output_checked) {
-      WriteFailureStatus(status, e.what(), SecondsSince(start));
+      WriteFailureStatus(status, e.what(), autocal::SecondsSince(start));
     }
     return 1;
   }

@@ -23,10 +23,6 @@ namespace {
 
 constexpr int64_t kNoStamp = std::numeric_limits<int64_t>::min();
 
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 // q and mean: quaternions [x, y, z, w]; one sigma per tangent axis.
 AttachedFactor QuaternionPrior(double* q, const double* mean, const Eigen::Vector3d& sigma_rad,
                                ceres::LossFunction* loss) {

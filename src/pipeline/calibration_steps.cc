@@ -24,10 +24,6 @@
 namespace autocal {
 namespace pipeline {
 
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 void Report(const OfflineCalibrationOptions& options, const std::string& stage, double fraction,
             double cost, double seconds_left) {
   if (!options.progress) return;

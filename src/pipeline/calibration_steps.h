@@ -33,9 +33,6 @@
 namespace autocal {
 namespace pipeline {
 
-// Wall time since `start`.
-double SecondsSince(std::chrono::steady_clock::time_point start);
-
 // Passes one stage's progress to options.progress, when there is one.
 void Report(const OfflineCalibrationOptions& options, const std::string& stage, double fraction,
             double cost, double seconds_left);

@@ -13,6 +13,7 @@
 #include "autocal/common/error.h"
 #include "autocal/common/format.h"
 #include "autocal/common/parallel_for.h"
+#include "autocal/common/time.h"
 #include "autocal/common/units.h"
 #include "autocal/estimation/gnss_inertial_keyframes.h"
 #include "autocal/geometry/manifolds.h"

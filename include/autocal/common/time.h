@@ -1,5 +1,6 @@
 #pragma once
 
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -20,6 +21,11 @@ constexpr double SecondsBetween(int64_t from_ns, int64_t to_ns) {
 }
 
 inline int64_t SecondsToNs(double t_s) { return static_cast<int64_t>(std::llround(t_s * 1e9)); }
+
+// Wall time (steady clock) since `start`, for the stages' timings.
+inline double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 // A stamp as seconds with all nine decimals ("1700000000.123456789", "-0.000000001"), so that
 // it reads back to the same nanosecond (a double holds only ~16 digits of an epoch stamp).
