@@ -44,13 +44,19 @@ std::unique_ptr<test::SimulatedUrbanDataset> Log(uint64_t seed, double right_cha
   return std::make_unique<test::SimulatedUrbanDataset>(options, "multi_log");
 }
 
+// The logs read as datasets.
+std::vector<io::Dataset> Read(
+    const std::vector<std::unique_ptr<test::SimulatedUrbanDataset>>& logs) {
+  std::vector<io::Dataset> datasets;
+  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  return datasets;
+}
+
 class MultiLogCalibration : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     for (uint64_t seed : {31, 32, 33}) logs_.push_back(Log(seed));
-    std::vector<io::Dataset> datasets;
-    for (const auto& log : logs_) datasets.push_back(io::ReadDataset(log->directory));
-    result_ = new MultiLogCalibrationResult(CalibrateDatasets(datasets, ImuWheelGnssProblem()));
+    result_ = new MultiLogCalibrationResult(CalibrateDatasets(Read(logs_), ImuWheelGnssProblem()));
     std::cout << FormatMultiLogSummary(*result_);
   }
   static void TearDownTestSuite() {
@@ -227,8 +233,7 @@ TEST(MultiLogRepeatability, FindsTheChangedTyre) {
   logs.push_back(Log(31));
   logs.push_back(Log(32));
   logs.push_back(Log(34, 0.4));
-  std::vector<io::Dataset> datasets;
-  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  std::vector<io::Dataset> datasets = Read(logs);
   const MultiLogCalibrationResult result = CalibrateDatasets(datasets, ImuWheelGnssProblem());
   std::cout << FormatMultiLogSummary(result);
   for (const BlockRepeatability& r : result.repeatability) {
@@ -269,8 +274,7 @@ TEST(MultiLogRepeatability, BoundsEachLogAgainstItsOwnTruth) {
   std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> logs;
   logs.push_back(Log(31));
   logs.push_back(Log(32));
-  std::vector<io::Dataset> datasets;
-  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  std::vector<io::Dataset> datasets = Read(logs);
   MultiLogCalibrationOptions options;
   options.set_to_truth = {evaluation::TruthSetter(datasets[0])};
   EXPECT_THROW(CalibrateDatasets(datasets, ImuWheelGnssProblem(), options), Error);
@@ -294,8 +298,7 @@ TEST(MultiLogRepeatability, GivesASharedRadiusToBothWheels) {
   std::vector<std::unique_ptr<test::SimulatedUrbanDataset>> logs;
   logs.push_back(Log(31));
   logs.push_back(Log(32));
-  std::vector<io::Dataset> datasets;
-  for (const auto& log : logs) datasets.push_back(io::ReadDataset(log->directory));
+  std::vector<io::Dataset> datasets = Read(logs);
   io::Problem problem = ImuWheelGnssProblem();
   problem.calibration.wheel_radius_shared = true;
   const MultiLogCalibrationResult result = CalibrateDatasets(datasets, problem);
