@@ -20,6 +20,7 @@
 #include "autocal/factors/gnss_factor.h"
 #include "autocal/sensors/gnss_enu.h"
 #include "autocal/sensors/measurements.h"
+#include "autocal/sensors/sample_timing.h"
 
 namespace autocal {
 namespace estimation {
@@ -207,6 +208,37 @@ std::vector<std::optional<size_t>> PairedSamples(const std::vector<Sample>& samp
 // A maximum gap in seconds as nanoseconds; throws autocal::Error naming `name` unless it is
 // a positive number.
 int64_t GapNs(double gap_s, const std::string& name);
+
+// The stamps of samples that carry a t_ns.
+template <typename Sample>
+std::vector<int64_t> StampsOf(const std::vector<Sample>& samples) {
+  std::vector<int64_t> stamps;
+  stamps.reserve(samples.size());
+  for (const Sample& sample : samples) stamps.push_back(sample.t_ns);
+  return stamps;
+}
+
+// A maximum bracketing gap option as nanoseconds: gap_s when it is set, else (0, the options'
+// default) Eq. T1 from the samples' own stamps (sensors::MaxBracketingGapS), so that a caller
+// who keeps the default gets the limit its sensor's rate needs, not one written for another
+// rate. Fewer than two samples have no interval: only a sample on a keyframe's stamp brackets
+// it. Throws autocal::Error as GapNs for a negative, non-finite or too large gap_s, or as
+// sensors::MeasureTiming for stamps that do not increase.
+template <typename Sample>
+int64_t GapNsOrFromStamps(double gap_s, const std::vector<Sample>& samples,
+                          const std::string& name) {
+  if (gap_s == 0.0) {
+    if (samples.size() < 2) return 1;
+    const sensors::SampleTiming timing = sensors::MeasureTiming(StampsOf(samples), name);
+    return GapNs(sensors::MaxBracketingGapS(timing), name);
+  }
+  if (!(gap_s > 0.0)) {
+    throw Error(name +
+                " must be 0 (from the stamps, Eq. T1) or a positive number of seconds, got " +
+                std::to_string(gap_s));
+  }
+  return GapNs(gap_s, name);
+}
 
 // InterpolateGnss on fixes known to be in time order.
 bool InterpolateSortedGnss(const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,

@@ -63,6 +63,7 @@ using internal::Bracket;
 using internal::CheckIncreasing;
 using internal::FindBracket;
 using internal::GapNs;
+using internal::GapNsOrFromStamps;
 using internal::InterpolateSortedGnss;
 
 // Ceres would treat a quaternion added implicitly by AddResidualBlock as a Euclidean 4-vector.
@@ -309,10 +310,11 @@ int AddWheelFactorsOf(ceres::Problem* problem, const sensors::ImuSamples& imu, c
                       std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
                       const KeyframeWheelOptions& options, const WheelFormBlocks& form_blocks,
                       MakeCost make_cost, ToValue to_value) {
-  const int64_t max_wheel_gap_ns = GapNs(options.max_wheel_gap_s, "max_wheel_gap_s");
-  const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   CheckIncreasing(wheel, "AddWheelFactors: wheel");
   CheckIncreasing(imu, "AddWheelFactors: IMU");
+  const int64_t max_wheel_gap_ns =
+      GapNsOrFromStamps(options.max_wheel_gap_s, wheel, "max_wheel_gap_s");
+  const int64_t max_imu_gap_ns = GapNsOrFromStamps(options.max_imu_gap_s, imu, "max_imu_gap_s");
   RequireQuaternionBlock(*problem, calibration->q_I_V, "q_I_V");
   for (const Keyframe& kf : *keyframes) {
     RequireQuaternionBlock(*problem, kf.q_W_I, "keyframe q_W_I");
@@ -620,8 +622,8 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                    const sensors::GnssFixes& fixes, const sensors::EnuConverter& converter,
                    std::vector<Keyframe>* keyframes, sensors::Calibration* calibration,
                    const KeyframeGnssOptions& options) {
-  const int64_t max_gap_ns = GapNs(options.max_fix_gap_s, "max_fix_gap_s");
   CheckIncreasing(fixes, "AddGnssFactors: GNSS fix");
+  const int64_t max_gap_ns = GapNsOrFromStamps(options.max_fix_gap_s, fixes, "max_fix_gap_s");
   for (const Keyframe& kf : *keyframes) {
     RequireQuaternionBlock(*problem, kf.q_W_I, "keyframe q_W_I");
   }
@@ -631,8 +633,10 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   const std::vector<GnssRow> rows = GnssRows(
       fixes, *keyframes, *offset, options.estimate_time_offset || *offset != 0.0, max_gap_ns);
   const bool shifted = !rows.empty() && rows.front().fix.has_value();
-  const int64_t max_imu_gap_ns = GapNs(options.max_imu_gap_s, "max_imu_gap_s");
   if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
+  // The IMU carries states only on the shifted rows; a set gap is checked either way.
+  const int64_t max_imu_gap_ns = GapNsOrFromStamps(
+      options.max_imu_gap_s, shifted ? imu : sensors::ImuSamples(), "max_imu_gap_s");
 
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.

@@ -26,7 +26,7 @@ namespace {
 using autocal::internal::Median;
 using internal::CheckIncreasing;
 using internal::ForwardHeading;
-using internal::GapNs;
+using internal::GapNsOrFromStamps;
 using internal::InterpolateSortedGnss;
 using internal::NearestFlagged;
 using internal::WrapAngle;
@@ -87,8 +87,8 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
                                    const Eigen::Vector3d& p_I_A,
                                    const GnssAlignmentOptions& options) {
   // Pairs: the antenna in the keyframes' frame (a) and its interpolated fix in ENU (g).
-  const int64_t max_gap_ns = GapNs(options.max_fix_gap_s, "max_fix_gap_s");
   CheckIncreasing(fixes, "AlignKeyframesToGnss: GNSS fix");
+  const int64_t max_gap_ns = GapNsOrFromStamps(options.max_fix_gap_s, fixes, "max_fix_gap_s");
   std::vector<Eigen::Vector3d> a, g;
   for (const Keyframe& kf : *keyframes) {
     factors::GnssMeasurement m;
@@ -214,8 +214,8 @@ OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensor
   if (!(options.half_window_s > 0.0)) {
     throw Error("RemoveOdometryDrift: half_window_s must be positive");
   }
-  const int64_t max_gap_ns = GapNs(options.max_fix_gap_s, "max_fix_gap_s");
   CheckIncreasing(fixes, "RemoveOdometryDrift: GNSS fix");
+  const int64_t max_gap_ns = GapNsOrFromStamps(options.max_fix_gap_s, fixes, "max_fix_gap_s");
   // Pairs: keyframe index, time and fix minus antenna.
   std::vector<size_t> index;
   std::vector<int64_t> t_ns;
@@ -589,21 +589,33 @@ Headings TrustedHeadings(const std::vector<Keyframe>& kfs, const std::vector<boo
       "vehicle points");
 }
 
+// The options with the track's half-width set: 0 takes Eq. T3 from the fixes' stamps (its floor,
+// 1 s, for fewer than two fixes, which place nothing).
+GnssPlacementOptions WithTrackHalfWidth(GnssPlacementOptions options,
+                                        const sensors::GnssFixes& fixes) {
+  if (options.half_width_s != 0.0) return options;
+  options.half_width_s = fixes.size() < 2 ? 1.0
+                                          : sensors::GnssTrackHalfWidthS(sensors::MeasureTiming(
+                                                internal::StampsOf(fixes), "GNSS fix"));
+  return options;
+}
+
 }  // namespace
 
 GnssPlacement PlaceKeyframesOnGnss(std::vector<Keyframe>* keyframes,
                                    const sensors::GnssFixes& fixes,
                                    const sensors::EnuConverter& converter,
                                    const Eigen::Vector3d& p_I_A, const Eigen::Quaterniond& q_I_V,
-                                   const GnssPlacementOptions& options) {
+                                   const GnssPlacementOptions& given) {
   CheckIncreasing(fixes, "PlaceKeyframesOnGnss: GNSS fix");
-  if (!(options.half_width_s > 0.0) || options.min_fixes < 3 || options.max_refits < 0 ||
-      !(options.heading_sigmas > 0.0) || options.min_headings < 1 ||
-      !(options.heading_window_s > 0.0)) {
+  if (!(given.half_width_s >= 0.0) || given.min_fixes < 3 || given.max_refits < 0 ||
+      !(given.heading_sigmas > 0.0) || given.min_headings < 1 || !(given.heading_window_s > 0.0)) {
     throw Error(
-        "PlaceKeyframesOnGnss: half_width_s, heading_sigmas and heading_window_s must be "
-        "positive, min_fixes at least 3, min_headings at least 1 and max_refits not negative");
+        "PlaceKeyframesOnGnss: half_width_s must not be negative (0: from the fixes' rate), "
+        "heading_sigmas and heading_window_s must be positive, min_fixes at least 3, "
+        "min_headings at least 1 and max_refits not negative");
   }
+  const GnssPlacementOptions options = WithTrackHalfWidth(given, fixes);
   std::vector<Keyframe>& kfs = *keyframes;
   GnssPlacement result;
   const std::vector<bool>& placed = result.placed;

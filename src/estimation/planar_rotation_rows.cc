@@ -94,7 +94,8 @@ PlanarRotationRows AddPlanarRotationFactors(ceres::Problem* problem, const senso
                                                 problem->GetManifold(q_I_V)) == nullptr) {
     throw Error("planar-rotation rows: q_I_V must be in the problem with RightQuaternionManifold");
   }
-  const int64_t max_gap_ns = internal::GapNs(options.max_imu_gap_s, "max_imu_gap_s");
+  const int64_t max_gap_ns =
+      internal::GapNsOrFromStamps(options.max_imu_gap_s, imu, "max_imu_gap_s");
   const int64_t span_ns = SecondsToNs(options.gyro_mean_span_s);
   const Eigen::Matrix3d R_V_I = calibration->q_I_V.toRotationMatrix().transpose();
   std::vector<std::optional<Eigen::Vector3d>> readings(keyframes->size());

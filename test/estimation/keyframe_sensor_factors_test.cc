@@ -15,6 +15,7 @@
 #include "autocal/common/format.h"
 #include "autocal/common/time.h"
 #include "autocal/common/units.h"
+#include "autocal/estimation/planar_rotation_rows.h"
 #include "autocal/geometry/manifolds.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sim/simulator.h"
@@ -634,6 +635,80 @@ TEST_F(KeyframeSensorFactorsTest, WheelDropoutsLeaveKeyframesWithoutFactors) {
   EXPECT_EQ(added, static_cast<int>(keyframes.size()) - inside);
 }
 
+// Every n-th sample, from the first.
+template <typename Sample>
+std::vector<Sample> EveryNth(const std::vector<Sample>& samples, size_t n) {
+  std::vector<Sample> out;
+  for (size_t i = 0; i < samples.size(); i += n) out.push_back(samples[i]);
+  return out;
+}
+
+// A slower rig, the log's samples thinned to an IMU at 25 Hz, wheels at 10 Hz and fixes at 1 Hz,
+// with the options' default gaps: they follow each sensor's own rate (Eq. T1, T3), so the
+// keyframes get their rows and the track its placement. The limits written for 200 / 100 / 10 Hz,
+// the defaults before, left every row out and placed no keyframe.
+TEST_F(KeyframeSensorFactorsTest, DefaultGapsFollowTheSensorsRates) {
+  const sensors::ImuSamples imu = EveryNth(noisy_->imu.samples, 8);
+  const sensors::WheelSamples wheel = EveryNth(noisy_->wheel, 10);
+  const sensors::GnssFixes fixes = EveryNth(noisy_->gnss.fixes, 10);
+  const sensors::EnuConverter enu = Converter(*noisy_simulator_);
+  std::vector<Keyframe> keyframes = TrueKeyframes(*noisy_simulator_, noisy_->imu, kPhaseS);
+  struct Rows {
+    int wheel = 0, gnss = 0, planar = 0;
+  };
+  const auto rows = [&](const KeyframeWheelOptions& wheel_options,
+                        const KeyframeGnssOptions& gnss_options,
+                        const PlanarRotationOptions& planar_options) {
+    sensors::Calibration calibration = noisy_simulator_->nominal_calibration();
+    auto problem = ProblemWithConstantKeyframes(&keyframes, &calibration);
+    Rows out;
+    out.wheel = AddWheelFactors(problem.get(), imu, wheel, &keyframes, &calibration, wheel_options);
+    out.gnss =
+        AddGnssFactors(problem.get(), imu, fixes, enu, &keyframes, &calibration, gnss_options);
+    out.planar =
+        AddPlanarRotationFactors(problem.get(), imu, &keyframes, &calibration, planar_options)
+            .added;
+    return out;
+  };
+  PlanarRotationOptions planar;
+  planar.sigma_rad_s = 0.01;
+  const Rows derived = rows({}, {}, planar);
+  KeyframeWheelOptions wheel_200_100;
+  wheel_200_100.max_wheel_gap_s = 0.025;
+  wheel_200_100.max_imu_gap_s = 0.0125;
+  KeyframeGnssOptions gnss_10;
+  gnss_10.max_fix_gap_s = 0.25;
+  gnss_10.max_imu_gap_s = 0.0125;
+  PlanarRotationOptions planar_200 = planar;
+  planar_200.max_imu_gap_s = 0.0125;
+  const Rows fixed = rows(wheel_200_100, gnss_10, planar_200);
+  std::cout << keyframes.size() << " keyframes, " << fixes.size()
+            << " fixes; rows with the derived gaps: wheel " << derived.wheel << ", GNSS "
+            << derived.gnss << ", planar " << derived.planar
+            << "; with 200 / 100 / 10 Hz's: " << fixed.wheel << ", " << fixed.gnss << ", "
+            << fixed.planar << "\n";
+  const int n = static_cast<int>(keyframes.size());
+  EXPECT_EQ(derived.wheel, n);
+  EXPECT_EQ(derived.planar, n);
+  EXPECT_GE(derived.gnss, static_cast<int>(fixes.size()) - 6);  // each fix once, outages aside
+  EXPECT_EQ(fixed.wheel, 0);
+  EXPECT_EQ(fixed.gnss, 0);
+  EXPECT_EQ(fixed.planar, 0);
+
+  const sensors::Calibration& c = noisy_simulator_->true_calibration();
+  std::vector<Keyframe> placed = keyframes;
+  const GnssPlacement placement = PlaceKeyframesOnGnss(&placed, fixes, enu, c.p_I_A, c.q_I_V);
+  std::cout << placement.num_placed << " keyframes placed on +-2.5 s of fixes\n";
+  // Measured 102: the log's outages and multipath leave the others fewer than five fixes.
+  EXPECT_GT(placement.num_placed, n / 4);
+  GnssPlacementOptions one_second;
+  one_second.half_width_s = 1.0;
+  EXPECT_THROW(PlaceKeyframesOnGnss(&placed, fixes, enu, c.p_I_A, c.q_I_V, one_second), Error);
+  std::vector<Keyframe> aligned = keyframes;
+  EXPECT_GT(AlignKeyframesToGnss(&aligned, fixes, enu, c.p_I_A).num_pairs, n * 3 / 4);
+  EXPECT_GT(RemoveOdometryDrift(&aligned, fixes, enu, c.p_I_A).num_pairs, n * 3 / 4);
+}
+
 // Wheels and a receiver on clocks of their own (Eq. K16, K17): the noise-free log restamped as a
 // wheel clock 0.2 s late and a GNSS clock 0.15 s early, read through offsets started 50 ms
 // off (as a cross-correlation leaves them), with the true keyframes and calibration held: the
@@ -1130,6 +1205,17 @@ TEST_F(KeyframeSensorFactorsTest, AGapBeyondAnyLogIsRefused) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("max_fix_gap_s must be a positive number of seconds "
                                          "up to 1e9"),
+              std::string::npos)
+        << e.what();
+  }
+  options.max_fix_gap_s = -0.1;  // 0 is the default: the gap from the fixes' rate
+  try {
+    AlignKeyframesToGnss(&keyframes, exact_->gnss.fixes, Converter(*exact_simulator_),
+                         exact_simulator_->true_calibration().p_I_A, options);
+    ADD_FAILURE() << "a negative gap was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("max_fix_gap_s must be 0 (from the stamps, Eq. T1) or "
+                                         "a positive number of seconds, got -0.1"),
               std::string::npos)
         << e.what();
   }

@@ -88,9 +88,10 @@ struct KeyframeWheelOptions {
   factors::WheelFactorOptions factor;
   factors::LossOptions loss = factors::FactorLossOptions().wheel;  // Huber, 2 sigma
   // Largest spacing of the wheel samples bracketing t_k (one lost sample is bridged, a dropout
-  // is not): Eq. T1 for a 100 Hz encoder; the offline calibration derives it from the log.
-  double max_wheel_gap_s = 0.025;
-  double max_imu_gap_s = 0.0125;  // the same for the raw gyro at t_k (Eq. T1 at 200 Hz)
+  // is not); 0: Eq. T1 from the wheel samples' own stamps (sensors/sample_timing.h: 0.025 s for
+  // a 100 Hz encoder, 0.25 s for 10 Hz odometry), as the offline calibration derives it.
+  double max_wheel_gap_s = 0.0;
+  double max_imu_gap_s = 0.0;  // the same for the raw gyro at t_k (0: Eq. T1 from the IMU's)
   // The rows take the mean gyro over this span around t_k (Eq. K13), which keeps the gyro's
   // white noise out of the lever-arm term w x p_I_V; 0 takes the interpolated sample. The
   // yaw-rate row compares it with the wheels' mean over the same span (Eq. K13b).
@@ -137,7 +138,7 @@ struct KeyframeWheelOptions {
 // time (Eq. K16): the keyframe's b_a and the offset block enter the factor too. The keyframes and
 // the calibration must outlive the problem (their members are the blocks); the problem owns the
 // cost and loss functions. Returns the number of factors added. Throws autocal::Error for stamps
-// that do not increase, non-positive gaps, or a quaternion block missing from the problem or
+// that do not increase, negative gaps, or a quaternion block missing from the problem or
 // without a manifold.
 int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
                     const sensors::WheelSamples& wheel, std::vector<Keyframe>* keyframes,
@@ -170,15 +171,17 @@ int AddWheelFactors(ceres::Problem* problem, const sensors::ImuSamples& imu, con
 
 struct KeyframeGnssOptions {
   factors::LossOptions loss = factors::FactorLossOptions().gnss;  // Cauchy, 3 sigma (multipath)
-  // Largest spacing of the fixes bracketing t_k (outages get no factor): Eq. T1 for a 10 Hz
-  // receiver; the offline calibration derives it from the log.
-  double max_fix_gap_s = 0.25;
+  // Largest spacing of the fixes bracketing t_k (outages get no factor); 0: Eq. T1 from the
+  // fixes' own stamps (0.25 s for a 10 Hz receiver, 2.5 s for 1 Hz), as the offline calibration
+  // derives it.
+  double max_fix_gap_s = 0.0;
   bool estimate_lever_arm = true;     // else p_I_A is set constant
   bool estimate_time_offset = false;  // time_offset_gnss_imu_s (Eq. K16); else held
   double gravity_m_s2 = 9.80665;      // as KeyframeWheelOptions::gravity_m_s2
   // With a clock offset: the largest spacing of the IMU samples that carry a keyframe's state
-  // to its fix (Eq. K16); a keyframe in an IMU dropout gets no factor. Eq. T1 at 200 Hz.
-  double max_imu_gap_s = 0.0125;
+  // to its fix (Eq. K16); a keyframe in an IMU dropout gets no factor. 0: Eq. T1 from the IMU's
+  // stamps.
+  double max_imu_gap_s = 0.0;
   // The fixes' std scaled per axis group: their scatter when it exceeds their stated std
   // (estimation/gnss_noise.h, Eq. N2).
   GnssStdScale noise_scale;
@@ -219,7 +222,7 @@ GnssNoiseFromResiduals MeasureGnssNoise(const sensors::ImuSamples& imu,
                                         const KeyframeGnssOptions& options);
 
 struct GnssAlignmentOptions {
-  double max_fix_gap_s = 0.25;  // as KeyframeGnssOptions::max_fix_gap_s (derived likewise)
+  double max_fix_gap_s = 0.0;  // as KeyframeGnssOptions::max_fix_gap_s (0: from the stamps)
   // Refits after dropping pairs farther than max(min_outlier_distance_m, outlier_mad_factor *
   // 1.4826 * median distance) from their fix (multipath).
   int max_refits = 3;
@@ -257,7 +260,7 @@ GnssAlignment AlignKeyframesToGnss(std::vector<Keyframe>* keyframes,
                                    const GnssAlignmentOptions& options = {});
 
 struct OdometryDriftOptions {
-  double max_fix_gap_s = 0.25;  // as GnssAlignmentOptions::max_fix_gap_s
+  double max_fix_gap_s = 0.0;  // as GnssAlignmentOptions::max_fix_gap_s
   // A keyframe's correction is a line fitted to the antenna-to-fix differences within this half
   // window, at its time: the odometry drifts over minutes, the fixes' noise and multipath change
   // over seconds.
@@ -291,9 +294,9 @@ OdometryDrift RemoveOdometryDrift(std::vector<Keyframe>* keyframes, const sensor
 
 struct GnssPlacementOptions {
   // The fixes within this half-width of a keyframe's time give its antenna track (Eq. K7), with
-  // outliers rejected as GnssAlignmentOptions: Eq. T3 for 1-10 Hz receivers; the offline
-  // calibration derives it from the log.
-  double half_width_s = 1.0;
+  // outliers rejected as GnssAlignmentOptions; 0: Eq. T3 from the fixes' stamps (1 s for 1-10 Hz
+  // receivers, 5 s for 0.5 Hz), as the offline calibration derives it.
+  double half_width_s = 0.0;
   int min_fixes = 5;  // fewer inliers in the window: the keyframe is left to its neighbours
   int max_refits = 3;
   double outlier_mad_factor = 5.0;

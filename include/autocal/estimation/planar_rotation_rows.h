@@ -54,7 +54,7 @@ struct PlanarRotationOptions {
   // 1-sigma of the roll and pitch rates in V, rad/s; 0: the spread measured from the log times
   // its correlation scale (Eq. K15).
   double sigma_rad_s = 0.0;
-  double max_imu_gap_s = 0.0125;  // bracketing IMU samples of a keyframe (as the wheel rows)
+  double max_imu_gap_s = 0.0;     // bracketing IMU samples of a keyframe (as the wheel rows)
   double gyro_mean_span_s = 0.0;  // the rows take the mean gyro over this span (Eq. K13)
   factors::LossOptions loss = factors::FactorLossOptions().wheel;
 };
