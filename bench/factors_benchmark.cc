@@ -1,5 +1,6 @@
 // Cost of one Evaluate with all Jacobians (Release, one core): the analytic factors and
-// their autodiff twins.
+// their autodiff twins, and the wheel and GNSS rows carried to a sample on a clock of its own
+// (Eq. K16, estimation/time_offset_factors.h), which exist only as autodiff.
 
 #include <benchmark/benchmark.h>
 
@@ -11,6 +12,7 @@
 #include "autocal/factors/imu_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/geometry/so3.h"
+#include "estimation/time_offset_factors.h"
 
 namespace autocal {
 namespace factors {
@@ -140,6 +142,49 @@ void BM_GnssFactorAutodiff(benchmark::State& state) {
   RunGnss(state, *cost);
 }
 
+// The IMU around a keyframe and the carried rows' extra blocks (b_a, the clock offset).
+estimation::internal::ImuAroundKeyframe MakeImuAround() {
+  estimation::internal::ImuAroundKeyframe imu;
+  imu.gyro_rad_s = Eigen::Vector3d(0.01, -0.02, 0.2);
+  imu.gyro_slope_rad_s2 = Eigen::Vector3d(0.001, 0.002, -0.05);
+  imu.accel_m_s2 = Eigen::Vector3d(0.8, 0.3, 9.81);
+  imu.g_W = Eigen::Vector3d(0.0, 0.0, -9.80665);
+  return imu;
+}
+constexpr int64_t kKeyframeNs = 1'000'000'000;
+constexpr int64_t kSampleNs = kKeyframeNs + 37'000'000;  // 37 ms after the keyframe
+
+void BM_ShiftedGnssResidual(benchmark::State& state) {
+  const std::unique_ptr<ceres::CostFunction> cost(estimation::internal::ShiftedGnssResidual::Create(
+      MakeGnss(), kSampleNs, kKeyframeNs, MakeImuAround()));
+  Eigen::Quaterniond q = geometry::Exp(Eigen::Vector3d(0.02, -0.01, 1.2));
+  Eigen::Vector3d p(9.8, 19.9, 0.2), v(9.0, 4.0, 0.1), b_g(1e-3, 2e-3, -1e-3),
+      b_a(0.02, -0.01, 0.03), p_I_A(0.5, 0.1, 1.3);
+  double offset_s = 0.004;
+  Evaluation evaluation(*cost, {q.coeffs().data(), p.data(), v.data(), b_g.data(), b_a.data(),
+                                p_I_A.data(), &offset_s});
+  for (auto _ : state) benchmark::DoNotOptimize(evaluation.Run(*cost, true));
+}
+
+void BM_ShiftedWheelResidual(benchmark::State& state) {
+  estimation::internal::PairedWheelSample sample;
+  sample.values = Eigen::Vector2d(29.5, 30.5);
+  sample.t_ns = kSampleNs;
+  sample.gyro_rad_s = MakeWheel().gyro_rad_s;
+  const std::unique_ptr<ceres::CostFunction> cost(
+      estimation::internal::ShiftedWheelResidual::Create(sample, kKeyframeNs, MakeImuAround(),
+                                                         estimation::internal::ShiftedWheelForm(),
+                                                         WheelFactorOptions()));
+  WheelBlocks blocks;
+  Eigen::Vector3d b_a(0.02, -0.01, 0.03);
+  double offset_s = 0.004;
+  Evaluation evaluation(
+      *cost, {blocks.q_W_I.coeffs().data(), blocks.v_W_I.data(), blocks.b_g.data(), b_a.data(),
+              blocks.q_I_V.coeffs().data(), blocks.p_I_V.data(), &blocks.r_l, &blocks.r_r,
+              &blocks.b, &offset_s});
+  for (auto _ : state) benchmark::DoNotOptimize(evaluation.Run(*cost, true));
+}
+
 BENCHMARK(BM_ImuFactorAnalytic);
 BENCHMARK(BM_ImuFactorAutodiff);
 BENCHMARK(BM_ImuFactorResidualOnly);
@@ -147,6 +192,8 @@ BENCHMARK(BM_WheelFactorAnalytic);
 BENCHMARK(BM_WheelFactorAutodiff);
 BENCHMARK(BM_GnssFactorAnalytic);
 BENCHMARK(BM_GnssFactorAutodiff);
+BENCHMARK(BM_ShiftedGnssResidual);
+BENCHMARK(BM_ShiftedWheelResidual);
 
 }  // namespace
 }  // namespace factors
