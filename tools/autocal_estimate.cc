@@ -24,6 +24,7 @@
 #include "autocal/io/dataset.h"
 #include "autocal/io/output_files.h"
 #include "autocal/io/problem_yaml.h"
+#include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/online_estimation.h"
 #include "keep_freed_memory.h"
 #include "tool_checks.h"
@@ -69,6 +70,76 @@ void CheckInitializationFlags() {
   }
 }
 
+// Every flag and the output location, before any work: the result replaces --output whole,
+// so the dataset or the problem file in it would be lost with it.
+void CheckFlags(int argc, char** argv) {
+  if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
+  if (FLAGS_dataset.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {
+    throw autocal::Error("--dataset, --problem and --output are required (see --help)");
+  }
+  if (FLAGS_progress_every < 0) throw autocal::Error("--progress_every must be >= 0");
+  autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 3);
+  CheckInitializationFlags();
+  autocal::tools::CheckOutputApartFromInputs(FLAGS_output, "--output",
+                                             {FLAGS_dataset, FLAGS_problem});
+  autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
+  autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
+}
+
+// The wheel blocks of the dataset's form, in words.
+std::string WheelBlocks(autocal::sensors::WheelForm form, const autocal::sensors::Calibration& c) {
+  char text[96];
+  switch (form) {
+    case autocal::sensors::WheelForm::kSpeedYawRate:
+      std::snprintf(text, sizeof(text), "k_v %.4f  b_eff %.4f m", c.odometry_speed_scale,
+                    c.effective_track_m);
+      break;
+    case autocal::sensors::WheelForm::kLinearSpeeds:
+      std::snprintf(text, sizeof(text), "speed scales %.4f %.4f  track %.4f m",
+                    c.wheel_speed_scale_left, c.wheel_speed_scale_right, c.track_width_m);
+      break;
+    case autocal::sensors::WheelForm::kAngularRates:
+      std::snprintf(text, sizeof(text), "radii %.4f %.4f m  track %.4f m", c.wheel_radius_left_m,
+                    c.wheel_radius_right_m, c.track_width_m);
+      break;
+  }
+  return std::string(text);
+}
+
+// One line every --progress_every keyframes: the blocks the stream moves most.
+void PrintProgress(const autocal::pipeline::OnlineEstimationProgress& p, bool lidar,
+                   autocal::sensors::WheelForm form) {
+  if (p.updates % FLAGS_progress_every != 0) return;
+  const autocal::sensors::Calibration& c = p.calibration;
+  if (!lidar) {
+    std::fprintf(stderr, "%5.1f %%  keyframe %lld  update %.0f ms  %s  p_I_A [%.3f %.3f %.3f] m\n",
+                 100.0 * p.log_fraction, static_cast<long long>(p.updates), 1e3 * p.update_s,
+                 WheelBlocks(form, c).c_str(), c.p_I_A.x(), c.p_I_A.y(), c.p_I_A.z());
+    return;
+  }
+  const Eigen::Vector3d r_deg = autocal::geometry::Log(c.q_I_L) * autocal::kRadToDeg;
+  std::fprintf(stderr,
+               "%5.1f %%  keyframe %lld  update %.0f ms  q_I_L [%.3f %.3f %.3f] deg  "
+               "p_I_L [%.3f %.3f %.3f] m  offset %.2f ms\n",
+               100.0 * p.log_fraction, static_cast<long long>(p.updates), 1e3 * p.update_s,
+               r_deg.x(), r_deg.y(), r_deg.z(), c.p_I_L.x(), c.p_I_L.y(), c.p_I_L.z(),
+               1e3 * c.time_offset_lidar_imu_s);
+}
+
+// The final values as autocal_calibrate prints its own (value, sigma and observability per
+// direction), then the warnings and the files written.
+void PrintSummary(const autocal::pipeline::OnlineEstimationResult& result, bool lidar) {
+  std::cout << "keyframes " << result.trajectory.size() << ", marginalized "
+            << result.counters.marginalizations << ", " << result.seconds_total
+            << " s (initialization " << result.seconds_initialization << " s)\n";
+  if (!lidar) std::cout << "keyframe period " << result.keyframe_period_s << " s\n";
+  std::cout << autocal::pipeline::FormatCalibrationValues(result.calibration);
+  for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
+  std::cout << "written: " << FLAGS_output
+            << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
+               "calibration.yaml, timings.yaml, warnings.txt\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -80,19 +151,7 @@ int main(int argc, char** argv) {
   gflags::ParseCommandLineFlags(&argc, &argv, true);
   autocal::tools::KeepFreedMemory();
   try {
-    if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
-    if (FLAGS_dataset.empty() || FLAGS_problem.empty() || FLAGS_output.empty()) {
-      throw autocal::Error("--dataset, --problem and --output are required (see --help)");
-    }
-    if (FLAGS_progress_every < 0) throw autocal::Error("--progress_every must be >= 0");
-    autocal::tools::CheckScatterStretchesFlag(FLAGS_scatter_stretches, 3);
-    CheckInitializationFlags();
-    // Everything that can be checked before the work starts is. The result replaces --output
-    // whole: the dataset or the problem file in it would be lost with it.
-    autocal::tools::CheckOutputApartFromInputs(FLAGS_output, "--output",
-                                               {FLAGS_dataset, FLAGS_problem});
-    autocal::io::CheckOutputDirectory(FLAGS_output, autocal::io::OutputKind::kResult);
-    autocal::tools::CheckDatasetDirectory(FLAGS_dataset);
+    CheckFlags(argc, argv);
     autocal::io::Problem problem = autocal::io::ReadProblemYaml(FLAGS_problem);
     autocal::tools::ApplyThreadsFlag(FLAGS_threads, &problem);
     const autocal::io::Dataset dataset = autocal::io::ReadDataset(FLAGS_dataset);
@@ -102,65 +161,16 @@ int main(int argc, char** argv) {
     options.scatter_stretches = FLAGS_scatter_stretches;
     const bool lidar = problem.sensors.lidar;
     const autocal::sensors::WheelForm form = dataset.wheel_form();
-    // The wheel blocks of the dataset's form, in words.
-    const auto wheels = [form](const autocal::sensors::Calibration& c) {
-      char text[96];
-      switch (form) {
-        case autocal::sensors::WheelForm::kSpeedYawRate:
-          std::snprintf(text, sizeof(text), "k_v %.4f  b_eff %.4f m", c.odometry_speed_scale,
-                        c.effective_track_m);
-          break;
-        case autocal::sensors::WheelForm::kLinearSpeeds:
-          std::snprintf(text, sizeof(text), "speed scales %.4f %.4f  track %.4f m",
-                        c.wheel_speed_scale_left, c.wheel_speed_scale_right, c.track_width_m);
-          break;
-        case autocal::sensors::WheelForm::kAngularRates:
-          std::snprintf(text, sizeof(text), "radii %.4f %.4f m  track %.4f m",
-                        c.wheel_radius_left_m, c.wheel_radius_right_m, c.track_width_m);
-          break;
-      }
-      return std::string(text);
-    };
     if (FLAGS_progress_every > 0) {
-      options.progress = [lidar, wheels](const autocal::pipeline::OnlineEstimationProgress& p) {
-        if (p.updates % FLAGS_progress_every != 0) return;
-        const autocal::sensors::Calibration& c = p.calibration;
-        if (!lidar) {
-          std::fprintf(stderr,
-                       "%5.1f %%  keyframe %lld  update %.0f ms  %s  p_I_A [%.3f %.3f %.3f] m\n",
-                       100.0 * p.log_fraction, static_cast<long long>(p.updates), 1e3 * p.update_s,
-                       wheels(c).c_str(), c.p_I_A.x(), c.p_I_A.y(), c.p_I_A.z());
-          return;
-        }
-        const Eigen::Vector3d r_deg = autocal::geometry::Log(c.q_I_L) * autocal::kRadToDeg;
-        std::fprintf(stderr,
-                     "%5.1f %%  keyframe %lld  update %.0f ms  q_I_L [%.3f %.3f %.3f] deg  "
-                     "p_I_L [%.3f %.3f %.3f] m  offset %.2f ms\n",
-                     100.0 * p.log_fraction, static_cast<long long>(p.updates), 1e3 * p.update_s,
-                     r_deg.x(), r_deg.y(), r_deg.z(), c.p_I_L.x(), c.p_I_L.y(), c.p_I_L.z(),
-                     1e3 * c.time_offset_lidar_imu_s);
+      options.progress = [lidar, form](const autocal::pipeline::OnlineEstimationProgress& p) {
+        PrintProgress(p, lidar, form);
       };
     }
     std::fprintf(stderr, "initializing from the first %.0f s ...\n", FLAGS_init_duration_s);
     const autocal::pipeline::OnlineEstimationResult result =
         autocal::pipeline::EstimateDatasetOnline(dataset, problem, options);
     autocal::pipeline::WriteOnlineEstimationResult(FLAGS_output, result);
-    const autocal::sensors::Calibration& c = result.calibration.value;
-    std::cout << "keyframes " << result.trajectory.size() << ", marginalized "
-              << result.counters.marginalizations << ", " << result.seconds_total
-              << " s (initialization " << result.seconds_initialization << " s)\n";
-    if (lidar) {
-      std::cout << "q_I_L (xyzw) " << c.q_I_L.coeffs().transpose() << "\np_I_L (m)    "
-                << c.p_I_L.transpose() << "\ntime offset  " << 1e3 * c.time_offset_lidar_imu_s
-                << " ms\n";
-    } else {
-      std::cout << "keyframe period " << result.keyframe_period_s << " s\nwheels " << wheels(c)
-                << "\np_I_A (m) " << c.p_I_A.transpose() << "\n";
-    }
-    for (const std::string& w : result.warnings) std::cout << "warning: " << w << "\n";
-    std::cout << "written: " << FLAGS_output
-              << "/trajectory.tum, trajectory_smoothed.tum, states.csv, calibration_over_time.csv, "
-                 "calibration.yaml, timings.yaml, warnings.txt\n";
+    PrintSummary(result, lidar);
   } catch (const autocal::Error& e) {
     std::cerr << "autocal_estimate: " << e.what() << "\n";
     return 1;

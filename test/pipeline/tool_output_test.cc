@@ -438,6 +438,46 @@ TEST_F(ToolOutputTest, EstimateChecksTheInitializationFlagsFirst) {
   ExpectNoResult(dir / "r");
 }
 
+// autocal_estimate ends with the final values as autocal_calibrate prints them: each estimated
+// block's value, sigma and observability per direction, with and without the LiDAR.
+TEST_F(ToolOutputTest, EstimatePrintsSigmaAndObservabilityAsTheBatchDoes) {
+  const fs::path dir = CleanDir("estimate_summary");
+  const fs::path dataset = dir / "drive";
+  const Finished sim = RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16",
+                                "--seed=7", "--out=" + dataset.string()},
+                               dir / "log.txt");
+  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  struct Case {
+    std::string problem;
+    std::vector<std::string> lines;  // each printed with "sigma" and "observable"
+  };
+  const std::vector<Case> cases = {
+      {"urban_full.yaml",
+       {"T_I_L roll pitch yaw (deg)", "T_I_L translation (mm)", "time offset lidar->imu (ms)",
+        "IMU mount roll pitch yaw (deg)", "GNSS lever arm p_I_A (mm)"}},
+      {"imu_wheel_gnss.yaml",
+       {"left rear wheel radius (mm)", "IMU mount roll pitch yaw (deg)",
+        "GNSS lever arm p_I_A (mm)"}}};
+  for (const Case& c : cases) {
+    const fs::path result = dir / ("result_" + c.problem);
+    const Finished f =
+        RunTool({Tool("autocal_estimate"), "--dataset=" + dataset.string(),
+                 "--problem=" + std::string(AUTOCAL_SOURCE_DIR) + "/problems/" + c.problem,
+                 "--output=" + result.string(), "--init_duration_s=10", "--progress_every=0"},
+                dir / "log.txt");
+    ASSERT_EQ(f.exit_code, 0) << c.problem << ": " << f.output;
+    for (const std::string& name : c.lines) {
+      const size_t at = f.output.find("\n" + name);
+      ASSERT_NE(at, std::string::npos) << c.problem << " prints no " << name << ":\n" << f.output;
+      const std::string line = f.output.substr(at + 1, f.output.find('\n', at + 1) - at - 1);
+      EXPECT_THAT(line, HasSubstr("   sigma ")) << line;
+      EXPECT_THAT(line, ::testing::ContainsRegex("observable( (yes|no))+$")) << line;
+    }
+    EXPECT_EQ(f.output.find("T_I_L") == std::string::npos, c.problem == "imu_wheel_gnss.yaml")
+        << f.output;
+  }
+}
+
 // A simulation stopped while it writes sweeps leaves only OUT.partial-XXXXXX; one that runs
 // to the end leaves the whole dataset and no staging directory.
 TEST_F(ToolOutputTest, AStoppedSimulationLeavesNoDataset) {
