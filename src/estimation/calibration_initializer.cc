@@ -202,7 +202,8 @@ void SolveRotation(const sensors::ImuSamples& imu, const CalibrationInitializerO
 std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
                                         const std::vector<SweepTimes>& sweeps,
                                         const CalibrationInitializerOptions& options,
-                                        const CalibrationInitialization& out) {
+                                        CalibrationInitialization* out_ptr) {
+  const CalibrationInitialization& out = *out_ptr;
   const double offset_s = out.time_offset.offset_s;
   const int64_t offset_ns = SecondsToNs(offset_s);
   std::vector<KeyframeSlot> slots;
@@ -218,6 +219,11 @@ std::vector<KeyframeSlot> KeyframeSlots(const sensors::ImuSamples& imu,
     // Sweeps whose points span differently (a truncated one) could bring a keyframe close to
     // the last: the IMU factor between them needs an interval.
     if (!slots.empty() && t_ns - slots.back().t_ns < SecondsToNs(options.min_keyframe_interval_s)) {
+      continue;
+    }
+    // Nor an interval without an IMU sample (a dropout): its covariance would be singular.
+    if (!slots.empty() && !sensors::ImuSampleBetween(imu, slots.back().t_ns, t_ns)) {
+      ++out_ptr->keyframes_in_imu_dropouts;
       continue;
     }
     slots.push_back({static_cast<int>(k), t_ns, PoseAt(out.odometry, t_ns - offset_ns)});
@@ -424,7 +430,7 @@ void AlignAndBuildKeyframes(const sensors::ImuSamples& imu, const std::vector<Sw
   CalibrationInitialization& out = *out_ptr;
   out.q_I_L = out.rotation.q_I_L;
   out.time_offset_lidar_imu_s = out.time_offset.offset_s;
-  const std::vector<KeyframeSlot> slots = KeyframeSlots(imu, sweeps, options, out);
+  const std::vector<KeyframeSlot> slots = KeyframeSlots(imu, sweeps, options, &out);
   if (slots.size() < 2) {
     out.problems.push_back("fewer than two sweeps lie inside the IMU log");
     return;

@@ -394,6 +394,10 @@ bool SlidingWindowEstimator::Impl::TooCloseToNewestKeyframe(int64_t t_ns) const 
   return t_ns - latest_state().t_ns < MinKeyframeIntervalNs();
 }
 
+bool SlidingWindowEstimator::Impl::NoImuSinceNewestKeyframe(int64_t t_ns) const {
+  return !sensors::ImuSampleBetween(imu_, latest_state().t_ns, t_ns);
+}
+
 void SlidingWindowEstimator::Impl::ProcessCoveredSweeps() {
   while (!pending_sweeps_.empty() && !imu_.empty()) {
     const SpannedSweep& next = pending_sweeps_.front();
@@ -407,6 +411,8 @@ void SlidingWindowEstimator::Impl::ProcessCoveredSweeps() {
     const int64_t t_ns = KeyframeTimeOf(covered);
     if (TooCloseToNewestKeyframe(t_ns)) {
       ++counters_.late;
+    } else if (NoImuSinceNewestKeyframe(t_ns)) {
+      ++counters_.without_imu;
     } else {
       Update(t_ns, std::move(covered));
     }
@@ -418,7 +424,11 @@ void SlidingWindowEstimator::Impl::ProcessCoveredTimes() {
          imu_.back().t_ns >= pending_times_.front() + SecondsToNs(options_.imu_coverage_margin_s)) {
     const int64_t t_ns = pending_times_.front();
     pending_times_.pop_front();
-    Update(t_ns, std::nullopt);
+    if (NoImuSinceNewestKeyframe(t_ns)) {
+      ++counters_.without_imu;
+    } else {
+      Update(t_ns, std::nullopt);
+    }
   }
 }
 

@@ -93,6 +93,12 @@ class SlidingWindowEstimator::Impl {
   // A keyframe at t_ns would not follow the newest one by min_keyframe_interval_s (dropped as
   // late).
   bool TooCloseToNewestKeyframe(int64_t t_ns) const;
+  // No IMU sample lies strictly between the newest keyframe and t_ns (an IMU dropout, or an IMU
+  // slower than min_keyframe_interval_s): the IMU factor over the interval would be one
+  // interpolated step, whose position and velocity share one noise draw (a singular
+  // covariance). Such a keyframe is skipped (counters.without_imu) and the next one spans the
+  // dropout.
+  bool NoImuSinceNewestKeyframe(int64_t t_ns) const;
   void ProcessCoveredSweeps();
   void ProcessCoveredTimes();
   // One window update for a new keyframe at t_ns, with its sweep when it has one (t_ns is then

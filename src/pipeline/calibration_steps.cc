@@ -17,6 +17,7 @@
 #include "autocal/factors/point_to_sweep_plane_group_factor.h"
 #include "autocal/factors/wheel_factor.h"
 #include "autocal/sensors/calibration_blocks.h"
+#include "autocal/sensors/imu_preintegration.h"
 #include "estimation/keyframe_interpolation.h"
 #include "problem_blocks.h"
 #include "residual_groups.h"
@@ -251,6 +252,42 @@ estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& da
 estimation::WheelData StartWheelData(const io::Dataset& dataset, bool use_wheel) {
   return use_wheel ? FormData(dataset, dataset.sensors.nominal_calibration)
                    : estimation::WheelData();
+}
+
+std::vector<estimation::Keyframe> KeyframesEvery(const sensors::ImuSamples& imu, int64_t first_ns,
+                                                 int64_t last_ns, int64_t period_ns,
+                                                 std::vector<std::string>* warnings) {
+  std::vector<estimation::Keyframe> keyframes;
+  int64_t skipped = 0;
+  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
+    if (!keyframes.empty() && !sensors::ImuSampleBetween(imu, keyframes.back().t_ns, t)) {
+      ++skipped;
+      continue;
+    }
+    keyframes.emplace_back();
+    keyframes.back().t_ns = t;
+  }
+  const std::string dropout = ImuDropoutWarning(imu, skipped, "the keyframes");
+  if (!dropout.empty()) warnings->push_back(dropout);
+  return keyframes;
+}
+
+std::string ImuDropoutWarning(const sensors::ImuSamples& imu, int64_t skipped,
+                              const std::string& where) {
+  if (skipped == 0 || imu.size() < 2) return "";
+  size_t longest = 1;
+  for (size_t i = 2; i < imu.size(); ++i) {
+    if (imu[i].t_ns - imu[i - 1].t_ns > imu[longest].t_ns - imu[longest - 1].t_ns) longest = i;
+  }
+  const auto seconds_in = [&](size_t i) {
+    return FormatFixed(NsToSeconds(imu[i].t_ns - imu.front().t_ns), 3);
+  };
+  return where + ": " + std::to_string(skipped) +
+         " keyframe(s) fell in IMU dropouts (no IMU sample between them and the keyframe "
+         "before) and were left out; the next keyframe's IMU factor spans each dropout, the IMU "
+         "interpolated linearly across it (the log's longest IMU interval: " +
+         FormatFixed(NsToSeconds(imu[longest].t_ns - imu[longest - 1].t_ns), 3) + " s, from " +
+         seconds_in(longest - 1) + " to " + seconds_in(longest) + " s after its first sample)";
 }
 
 void SensorFactors::Add(ceres::Problem* p, std::vector<estimation::Keyframe>* keyframes,

@@ -83,6 +83,19 @@ estimation::GnssInertialKeyframesOptions GnssInertialStart(const io::Dataset& da
 // The wheel samples of the form the dataset holds, when the problem uses the wheels (else none).
 estimation::WheelData StartWheelData(const io::Dataset& dataset, bool use_wheel);
 
+// Keyframes every period_ns over [first_ns, last_ns], leaving out each one with no IMU sample
+// since the keyframe before it (sensors::ImuSampleBetween: an IMU dropout, whose IMU factor
+// could not be formed); the next keyframe's factor spans the dropout. With any left out, a
+// warning (ImuDropoutWarning for "the keyframes") goes to *warnings.
+std::vector<estimation::Keyframe> KeyframesEvery(const sensors::ImuSamples& imu, int64_t first_ns,
+                                                 int64_t last_ns, int64_t period_ns,
+                                                 std::vector<std::string>* warnings);
+
+// The warning for `skipped` keyframes of `where` ("the keyframes", "the window") left out in IMU
+// dropouts, with the log's longest IMU interval; empty for none.
+std::string ImuDropoutWarning(const sensors::ImuSamples& imu, int64_t skipped,
+                              const std::string& where);
+
 // The sigmas of the form's factor rows from sensors.yaml's wheel noise, and the rear axle's
 // lateral slip with its cornering compliance (Eq. K6c); a sensors.yaml without a wheel:
 // section, or no sensors.yaml, means the defaults of sensors/sensor_config.h

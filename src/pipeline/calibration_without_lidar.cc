@@ -22,20 +22,18 @@ namespace pipeline {
 namespace {
 
 // Keyframes every keyframe period (the caller's inertial_keyframe_period_s, else the timing's)
-// over [first_ns, last_ns], the span the IMU shares with `other` (named in the error).
+// over [first_ns, last_ns], the span the IMU shares with `other` (named in the error), none in
+// an IMU dropout (KeyframesEvery, which warns of them).
 std::vector<estimation::Keyframe> KeyframeGrid(const io::Dataset& dataset,
                                                const OfflineCalibrationOptions& options,
                                                const TimingLimits& timing, int64_t first_ns,
-                                               int64_t last_ns, const std::string& other) {
+                                               int64_t last_ns, const std::string& other,
+                                               std::vector<std::string>* warnings) {
   const int64_t period_ns =
       SecondsToNs(options.inertial_keyframe_period_s.value_or(timing.keyframe_period_s));
   if (!(period_ns > 0)) throw Error("inertial_keyframe_period_s must be positive");
-  std::vector<estimation::Keyframe> keyframes;
-  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
-    estimation::Keyframe kf;
-    kf.t_ns = t;
-    keyframes.push_back(kf);
-  }
+  std::vector<estimation::Keyframe> keyframes =
+      KeyframesEvery(dataset.imu, first_ns, last_ns, period_ns, warnings);
   if (keyframes.size() < 2) {
     throw Error("dataset " + dataset.directory + ": the IMU and " + other +
                 " overlap too briefly for two keyframes");
@@ -49,10 +47,10 @@ std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
     const io::Dataset& dataset, const io::Problem& problem,
     const OfflineCalibrationOptions& options, const TimingLimits& timing,
     const sensors::EnuConverter& enu, bool use_wheel, const sensors::Calibration& calibration,
-    estimation::GnssInertialKeyframes* placed) {
+    estimation::GnssInertialKeyframes* placed, std::vector<std::string>* warnings) {
   std::vector<estimation::Keyframe> keyframes = KeyframeGrid(
       dataset, options, timing, std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns),
-      std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns), "the GNSS fixes");
+      std::min(dataset.imu.back().t_ns, dataset.gnss.back().t_ns), "the GNSS fixes", warnings);
   *placed = estimation::KeyframesFromGnssAndImu(
       &keyframes, dataset.imu, StartWheelData(dataset, use_wheel), dataset.gnss, enu, calibration,
       GnssInertialStart(dataset, problem, timing));
@@ -61,9 +59,11 @@ std::vector<estimation::Keyframe> KeyframesOnGnssTrack(
 
 // Keyframes over the span the IMU and the wheels share (the wheels on the IMU clock), placed
 // by dead reckoning: a log without a position reference.
-std::vector<estimation::Keyframe> KeyframesByDeadReckoning(
-    const io::Dataset& dataset, const OfflineCalibrationOptions& options,
-    const TimingLimits& timing, const sensors::Calibration& calibration) {
+std::vector<estimation::Keyframe> KeyframesByDeadReckoning(const io::Dataset& dataset,
+                                                           const OfflineCalibrationOptions& options,
+                                                           const TimingLimits& timing,
+                                                           const sensors::Calibration& calibration,
+                                                           std::vector<std::string>* warnings) {
   estimation::ScalarSeries speed, yaw_rate;
   WheelSpeedAndYawRate(dataset, calibration, &speed, &yaw_rate);
   speed = estimation::Shifted(speed, calibration.time_offset_wheel_imu_s);
@@ -72,7 +72,7 @@ std::vector<estimation::Keyframe> KeyframesByDeadReckoning(
   }
   std::vector<estimation::Keyframe> keyframes =
       KeyframeGrid(dataset, options, timing, std::max(dataset.imu.front().t_ns, speed.front().t_ns),
-                   std::min(dataset.imu.back().t_ns, speed.back().t_ns), "the wheels");
+                   std::min(dataset.imu.back().t_ns, speed.back().t_ns), "the wheels", warnings);
   estimation::PlaceKeyframesByDeadReckoning(&keyframes, dataset.imu, speed, calibration.q_I_V,
                                             calibration.p_I_V);
   return keyframes;
@@ -237,8 +237,8 @@ OfflineCalibrationResult CalibrateWithoutLidar(const io::Dataset& dataset,
   estimation::GnssInertialKeyframes placed;
   std::vector<estimation::Keyframe> keyframes =
       use_gnss ? KeyframesOnGnssTrack(dataset, problem, options, timing, *enu, use_wheel,
-                                      calibration, &placed)
-               : KeyframesByDeadReckoning(dataset, options, timing, calibration);
+                                      calibration, &placed, &result.warnings)
+               : KeyframesByDeadReckoning(dataset, options, timing, calibration, &result.warnings);
   result.seconds_initialization = SecondsSince(start) - result.seconds_loading;
   Report(options, "initializing", 1.0, 0.0, 0.0);
 

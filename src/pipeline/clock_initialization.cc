@@ -12,6 +12,7 @@
 #include "autocal/estimation/mount_initialization.h"
 #include "autocal/geometry/so3.h"
 #include "autocal/sensors/imu_scatter.h"
+#include "autocal/sensors/sample_timing.h"
 #include "calibration_steps.h"
 
 namespace autocal {
@@ -223,10 +224,49 @@ double DensityFromData(const char* sensor, const char* unit, double stated, doub
   return measured;
 }
 
+// How far `value` strays from the chord over span_ns: the RMS, over the log, of its value midway
+// between two samples span_ns apart less the mean of theirs, per axis, the largest axis.
+template <typename Value>
+double ChordDeviation(const sensors::ImuSamples& imu, int64_t span_ns, Value value) {
+  Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+  int64_t count = 0;
+  size_t mid = 0, end = 0;
+  for (size_t i = 0; i < imu.size(); ++i) {
+    while (end < imu.size() && imu[end].t_ns < imu[i].t_ns + span_ns) ++end;
+    while (mid < imu.size() && imu[mid].t_ns < imu[i].t_ns + span_ns / 2) ++mid;
+    if (end == imu.size()) break;
+    sum_sq += (value(imu[mid]) - 0.5 * (value(imu[i]) + value(imu[end]))).cwiseAbs2();
+    ++count;
+  }
+  if (count == 0) return 0.0;
+  return (sum_sq / static_cast<double>(count)).cwiseSqrt().maxCoeff();
+}
+
+// Eq. F5b's settings from the log: a dropout is an interval beyond Eq. T1's bracketing gap, and
+// over one the rate and the specific force are taken off the interpolated line by as much as
+// they stray from the chord over the log's longest dropout anywhere in the log (ChordDeviation:
+// the motion's own spread at that span, which bounds it for the shorter dropouts).
+void SetDropoutsFromData(const sensors::ImuSamples& imu, sensors::ImuNoise* noise) {
+  if (imu.size() < 2) return;
+  std::vector<int64_t> stamps;
+  stamps.reserve(imu.size());
+  for (const sensors::ImuSample& sample : imu) stamps.push_back(sample.t_ns);
+  const sensors::SampleTiming timing = sensors::MeasureTiming(stamps, "imu.csv");
+  const double max_interval_s = sensors::MaxBracketingGapS(timing);
+  if (!(timing.max_gap_s > max_interval_s)) return;
+  const int64_t span_ns = SecondsToNs(timing.max_gap_s);
+  noise->max_sample_interval_s = max_interval_s;
+  noise->dropout_gyro_sigma_rad_s =
+      ChordDeviation(imu, span_ns, [](const sensors::ImuSample& s) { return s.gyro_rad_s; });
+  noise->dropout_accel_sigma_m_s2 =
+      ChordDeviation(imu, span_ns, [](const sensors::ImuSample& s) { return s.accel_m_s2; });
+}
+
 }  // namespace
 
 sensors::ImuNoise ImuNoiseFromData(const io::Dataset& dataset, std::vector<std::string>* warnings) {
   sensors::ImuNoise noise = dataset.sensors.imu.noise;
+  SetDropoutsFromData(dataset.imu, &noise);
   const sensors::ImuScatter scatter = sensors::MeasureImuScatter(dataset.imu);
   noise.gyroscope_noise_density =
       DensityFromData("gyroscope", "rad/s/sqrt(Hz)", noise.gyroscope_noise_density,
@@ -243,7 +283,8 @@ const io::Dataset& WithImuNoiseFromData(const io::Dataset& dataset,
   const sensors::ImuNoise noise = ImuNoiseFromData(dataset, warnings);
   const sensors::ImuNoise& stated = dataset.sensors.imu.noise;
   if (noise.gyroscope_noise_density == stated.gyroscope_noise_density &&
-      noise.accelerometer_noise_density == stated.accelerometer_noise_density) {
+      noise.accelerometer_noise_density == stated.accelerometer_noise_density &&
+      noise.max_sample_interval_s == stated.max_sample_interval_s) {
     return dataset;
   }
   storage->emplace(dataset);

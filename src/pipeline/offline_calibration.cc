@@ -138,16 +138,20 @@ struct BatchKeyframes {
   bool placed_without_lidar = false;
 };
 
-// The initializer's keyframes and their reduced sweeps, taken from the reader. Throws when
-// fewer than two remain.
-BatchKeyframes InitializerKeyframes(const io::Problem& problem,
+// The initializer's keyframes and their reduced sweeps, taken from the reader, with a warning
+// for the sweeps it left out in IMU dropouts. Throws when fewer than two remain.
+BatchKeyframes InitializerKeyframes(const io::Dataset& dataset, const io::Problem& problem,
                                     const estimation::CalibrationInitialization& init,
-                                    internal::KeyframeSweepReader* sweeps) {
+                                    internal::KeyframeSweepReader* sweeps,
+                                    std::vector<std::string>* warnings) {
   BatchKeyframes out;
   for (size_t k = 0; k < init.keyframe_sweeps.size(); ++k) {
     out.sweeps.push_back(sweeps->TakeSelected(static_cast<size_t>(init.keyframe_sweeps[k])));
     out.keyframes.push_back(init.keyframes[k]);
   }
+  const std::string dropout =
+      ImuDropoutWarning(dataset.imu, init.keyframes_in_imu_dropouts, "the keyframe sweeps");
+  if (!dropout.empty()) warnings->push_back(dropout);
   if (out.keyframes.size() < 2) {
     throw Error("problem " + problem.path + ": lidar.sweep_stride " +
                 std::to_string(problem.lidar.sweep_stride) + " leaves " +
@@ -371,7 +375,8 @@ OfflineCalibrationResult CalibrateWithLidar(const io::Dataset& dataset, const io
       InitializeClockOffsets(dataset, problem, &calibration, &result.warnings);
   result.wheel_clock_initialization = clocks.wheel;
   result.gnss_clock_initialization = clocks.gnss;
-  BatchKeyframes keyframes = InitializerKeyframes(problem, result.initialization, &sweeps);
+  BatchKeyframes keyframes =
+      InitializerKeyframes(dataset, problem, result.initialization, &sweeps, &result.warnings);
   const bool use_wheel = problem.sensors.wheel && dataset.wheel_sample_count() > 0;
   const bool use_gnss = problem.sensors.gnss && !dataset.gnss.empty();
   const TimingLimits timing = DeriveTimingLimits(dataset, problem, use_wheel, use_gnss);

@@ -264,6 +264,9 @@ WindowStart StartWindow(const io::Dataset& dataset, const io::Problem& problem,
   out.calibration =
       StartFromInitializer(dataset.sensors.nominal_calibration, problem.calibration, init);
   std::vector<estimation::Keyframe> keyframes = init.keyframes;
+  const std::string dropout = ImuDropoutWarning(dataset.imu, init.keyframes_in_imu_dropouts,
+                                                "the initializer's keyframe sweeps");
+  if (!dropout.empty()) warnings->push_back(dropout);
   if (use_gnss) {
     const sensors::EnuConverter enu = sensors::EnuConverter::AtFirstFix(dataset.gnss);
     const std::string failure = OdometryMissesGnss(dataset, enu, timing, out.calibration.p_I_A,
@@ -470,6 +473,7 @@ estimation::CalibrationCovariance CollectResult(
   file.solver["updates"] = std::to_string(result->counters.updates);
   file.solver["marginalizations"] = std::to_string(result->counters.marginalizations);
   file.solver["dropped_late"] = std::to_string(result->counters.late);
+  file.solver["skipped_without_imu"] = std::to_string(result->counters.without_imu);
   if (use_lidar) {
     file.residuals["lidar"]["rms_m"] = estimator->last_point_rms_m();
     file.residuals["lidar"]["points"] = estimator->last_associated_points();
@@ -587,6 +591,9 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   checkpoints.push_back(
       {estimator.calibration(), CollectResult(window_options, use_lidar, &estimator, &result)});
   std::vector<std::string> held_warnings;
+  const std::string dropout =
+      ImuDropoutWarning(dataset.imu, estimator.counters().without_imu, "the window");
+  if (!dropout.empty()) held_warnings.push_back(dropout);
   const std::string gnss_noise = WindowGnssNoiseWarning(estimator, window_options);
   if (!gnss_noise.empty()) held_warnings.push_back(gnss_noise);
   if (failed_checkpoints > 0) {

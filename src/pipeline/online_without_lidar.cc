@@ -103,11 +103,8 @@ estimation::Keyframe StartWithoutLidar(const io::Dataset& dataset, const io::Pro
   const int64_t first_ns = std::max(dataset.imu.front().t_ns, dataset.gnss.front().t_ns);
   const int64_t last_ns = std::min({dataset.imu.back().t_ns, dataset.gnss.back().t_ns,
                                     first_ns + SecondsToNs(options.initialization_duration_s)});
-  std::vector<estimation::Keyframe> keyframes;
-  for (int64_t t = first_ns; t <= last_ns; t += period_ns) {
-    keyframes.emplace_back();
-    keyframes.back().t_ns = t;
-  }
+  std::vector<estimation::Keyframe> keyframes =
+      KeyframesEvery(dataset.imu, first_ns, last_ns, period_ns, warnings);
   if (keyframes.size() < 2) {
     throw Error("dataset " + dataset.directory +
                 ": the IMU and the GNSS fixes overlap too briefly for two keyframes " +

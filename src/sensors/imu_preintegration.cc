@@ -123,6 +123,13 @@ void StepRateJacobians(const Block& R_mid, const Eigen::Vector3d& phi, double dt
 
 }  // namespace
 
+bool ImuSampleBetween(const ImuSamples& samples, int64_t after_ns, int64_t before_ns) {
+  const auto first_after =
+      std::upper_bound(samples.begin(), samples.end(), after_ns,
+                       [](int64_t t, const ImuSample& sample) { return t < sample.t_ns; });
+  return first_after != samples.end() && first_after->t_ns < before_ns;
+}
+
 ImuSample InterpolateImu(const ImuSamples& samples, int64_t t_ns) {
   const size_t k = LastAtOrBefore(samples, t_ns);
   CheckSample(samples, k);
@@ -225,9 +232,12 @@ void ImuPreintegration::Integrate(const ImuSamples& samples, int64_t t_start_ns,
         previous.t_ns < t_start_ns ? Lerp(previous, next, t_start_ns) : previous;
     const ImuSample end = next.t_ns > t_end_ns ? Lerp(previous, next, t_end_ns) : next;
     if (end.t_ns > start.t_ns) {
+      const bool in_dropout =
+          noise_.max_sample_interval_s > 0.0 &&
+          SecondsBetween(previous.t_ns, next.t_ns) > noise_.max_sample_interval_s;
       IntegrateStep(0.5 * (start.gyro_rad_s + end.gyro_rad_s),
-                    0.5 * (start.accel_m_s2 + end.accel_m_s2),
-                    SecondsBetween(start.t_ns, end.t_ns));
+                    0.5 * (start.accel_m_s2 + end.accel_m_s2), SecondsBetween(start.t_ns, end.t_ns),
+                    in_dropout);
     }
     if (next.t_ns >= t_end_ns) break;
     previous = next;
@@ -235,11 +245,12 @@ void ImuPreintegration::Integrate(const ImuSamples& samples, int64_t t_start_ns,
 }
 
 void ImuPreintegration::IntegrateStep(const Eigen::Vector3d& gyro_rad_s,
-                                      const Eigen::Vector3d& accel_m_s2, double dt_s) {
+                                      const Eigen::Vector3d& accel_m_s2, double dt_s,
+                                      bool in_dropout) {
   if (!(dt_s > 0.0) || !std::isfinite(dt_s)) {
     throw Error("IMU step length must be positive, got " + std::to_string(dt_s) + " s");
   }
-  const Step step{gyro_rad_s, accel_m_s2, dt_s};
+  const Step step{gyro_rad_s, accel_m_s2, dt_s, in_dropout};
   steps_.push_back(step);
   Propagate(step);
 }
@@ -276,7 +287,7 @@ void ImuPreintegration::Propagate(const Step& step) {
     d_v_d_ba_ -= g_v_accel_3;
     d_theta_d_bg_ -= g_theta;
 
-    PropagateCovariance(u, g_theta, g_v_gyro, g_v_accel, dt);
+    PropagateCovariance(u, g_theta, g_v_gyro, g_v_accel, dt, step.in_dropout);
   }
 
   delta_p_ += dt * delta_v_ + (0.5 * dt) * u;
@@ -307,7 +318,7 @@ void ImuPreintegration::Propagate(const Step& step) {
 // not vectorize).
 void ImuPreintegration::PropagateCovariance(const Eigen::Vector3d& u, const Block& g_theta,
                                             const Block& g_v_gyro, const Block& g_v_accel,
-                                            double dt) {
+                                            double dt, bool in_dropout) {
   CovarianceBlocks& c = cov_;
   // The second p += dt/2 v of the previous step is still pending; v has not changed since.
   const double h = cov_pending_half_dt_s_ + 0.5 * dt;
@@ -326,10 +337,18 @@ void ImuPreintegration::PropagateCovariance(const Eigen::Vector3d& u, const Bloc
   const Block new_pv =
       c.pv + TimesHat(c.pt, u) + TimesTransposed(c.pg, g_v_gyro) + TimesTransposed(c.pa, g_v_accel);
 
-  // X = A6 B6 + H (C + Qd) / 2, Qd = sg^2/dt for the gyro (Eq. F5).
-  const double qg = noise_.gyroscope_noise_density * noise_.gyroscope_noise_density / dt;
+  // X = A6 B6 + H (C + Qd) / 2, Qd = sg^2/dt for the gyro (Eq. F5). In a dropout the rate's
+  // and the specific force's errors off the interpolated line, held over the step, add their
+  // variances as they are (Eq. F5b): the rate's to Qd, the force's sd^2 dt^2 to the v-v block.
+  const double dropout_gyro_var =
+      in_dropout ? noise_.dropout_gyro_sigma_rad_s * noise_.dropout_gyro_sigma_rad_s : 0.0;
+  const double dropout_accel_var =
+      in_dropout ? noise_.dropout_accel_sigma_m_s2 * noise_.dropout_accel_sigma_m_s2 : 0.0;
+  const double qg =
+      noise_.gyroscope_noise_density * noise_.gyroscope_noise_density / dt + dropout_gyro_var;
   const double sa2_dt =
-      noise_.accelerometer_noise_density * noise_.accelerometer_noise_density * dt;
+      noise_.accelerometer_noise_density * noise_.accelerometer_noise_density * dt +
+      dropout_accel_var * dt * dt;
   const double cg = 0.5 * (var_bg_ + qg);
   const Block X_tg = c.tg + cg * g_theta;
   const Block X_vg = AB_vg + cg * g_v_gyro;

@@ -384,6 +384,56 @@ TEST(SlidingWindowTimedKeyframes, MakesKeyframesWithoutSweepsAndHoldsTheLidarBlo
   EXPECT_THROW(with_sweeps.AddKeyframeAt(kStart + 200'000'000), Error);
 }
 
+// A keyframe with no IMU sample since the newest one has no IMU factor (one interpolated step
+// has a singular covariance): it is skipped and counted, and the next keyframe's factor spans
+// the dropout. Keyframes every 0.1 s over a still car whose IMU drops `dropout_ns` from
+// `dropout_at_ns` (0: no dropout), sampled every `imu_step_ns`; returns the counters.
+SlidingWindowCounters StreamAcrossAnImuDropout(int64_t imu_step_ns, int64_t keyframe_step_ns,
+                                               int64_t dropout_at_ns, int64_t dropout_ns) {
+  SlidingWindowOptions options = FastOptions();
+  options.window_size = 4;
+  options.imu.noise.update_rate_hz = 1e9 / static_cast<double>(imu_step_ns);
+  SlidingWindowEstimator estimator(options, sensors::Calibration(), StillState());
+  int64_t t = kStart;
+  estimator.AddImu(StillImu(t));
+  const auto add_imu_until = [&](int64_t until_ns) {
+    while (t + imu_step_ns <= until_ns) {
+      t += imu_step_ns;
+      const bool dropped = t >= dropout_at_ns && t < dropout_at_ns + dropout_ns;
+      if (!dropped) estimator.AddImu(StillImu(t));
+    }
+  };
+  for (int k = 1; k <= 10; ++k) {
+    EXPECT_TRUE(estimator.AddKeyframeAt(kStart + k * keyframe_step_ns));
+    add_imu_until(kStart + k * keyframe_step_ns + 100'000'000);
+  }
+  add_imu_until(t + 500'000'000);
+  EXPECT_NO_THROW(estimator.ComputeCalibrationCovariance());
+  EXPECT_LT(estimator.latest_state().p_W_I.norm(), 1e-3);
+  return estimator.counters();
+}
+
+TEST(SlidingWindowTimedKeyframes, SkipsKeyframesInAnImuDropout) {
+  // 200 Hz, 150 ms missing from 0.35 s: the keyframe at 0.4 s has no sample since 0.3 s.
+  const SlidingWindowCounters dropout =
+      StreamAcrossAnImuDropout(kImuStep, 100'000'000, kStart + 350'000'000, 150'000'000);
+  EXPECT_EQ(dropout.without_imu, 1);
+  EXPECT_EQ(dropout.updates, 9);
+  // 0.5 s missing: the five keyframes inside it are skipped, the one at 0.9 s spans it.
+  const SlidingWindowCounters long_dropout =
+      StreamAcrossAnImuDropout(kImuStep, 100'000'000, kStart + 305'000'000, 500'000'000);
+  EXPECT_EQ(long_dropout.without_imu, 5);
+  EXPECT_EQ(long_dropout.updates, 5);
+  // A 30 Hz IMU (33.3 ms) under keyframes 25 ms apart, more than min_keyframe_interval_s: every
+  // fourth interval holds no sample.
+  const SlidingWindowCounters slow_imu = StreamAcrossAnImuDropout(33'333'333, 25'000'000, 0, 0);
+  EXPECT_GT(slow_imu.without_imu, 0);
+  EXPECT_EQ(slow_imu.updates + slow_imu.without_imu, 10);
+  const SlidingWindowCounters none = StreamAcrossAnImuDropout(kImuStep, 100'000'000, 0, 0);
+  EXPECT_EQ(none.without_imu, 0);
+  EXPECT_EQ(none.updates, 10);
+}
+
 // An update that throws (here its solve: an IMU reading of 1e300 m/s^2 overflows the rows)
 // leaves the window between two states, the keyframe taken in and not solved; every later call
 // refuses to go on with that error instead of building on it.

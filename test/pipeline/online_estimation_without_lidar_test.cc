@@ -25,6 +25,7 @@
 #include "autocal/io/calibration_yaml.h"
 #include "autocal/io/problem_yaml.h"
 #include "autocal/io/tum_trajectory.h"
+#include "autocal/pipeline/offline_calibration.h"
 #include "autocal/pipeline/online_estimation.h"
 #include "autocal/sim/simulator.h"
 #include "pipeline/gnss_noise_expectations.h"
@@ -196,6 +197,41 @@ TEST_F(OnlineEstimationWithoutLidarTest, CalibratesTheWheelsAndLeverArmWithinThe
   }
   ASSERT_FALSE(result.warnings.empty());  // the mount's roll, at least
   EXPECT_EQ(test::WarningsFileLines(out + "/warnings.txt"), result.warnings);
+}
+
+// The IMU drops out for 0.5 s twice, once inside the window's GNSS-inertial start (first 30 s)
+// and once after it. Keyframes in a dropout have no IMU factor (one interpolated step's
+// covariance is singular) and are left out; the next keyframe's factor spans the dropout, with
+// the unknown motion's variance (Eq. F5b). Before, the run stopped on the first one ("IMU
+// preintegration covariance is not positive definite"), online and offline alike.
+TEST_F(OnlineEstimationWithoutLidarTest, BridgesImuDropoutsWithTheMotionsVariance) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  const int64_t t0 = dataset.imu.front().t_ns;
+  for (const double start_s : {10.0, 32.0}) {
+    const int64_t begin = t0 + SecondsToNs(start_s), end = begin + SecondsToNs(0.5);
+    dataset.imu.erase(std::remove_if(dataset.imu.begin(), dataset.imu.end(),
+                                     [&](const sensors::ImuSample& s) {
+                                       return s.t_ns >= begin && s.t_ns < end;
+                                     }),
+                      dataset.imu.end());
+  }
+  const sensors::Calibration& truth = data_->simulator.true_calibration();
+  const OnlineEstimationResult online = EstimateDatasetOnline(dataset, ProblemWithoutLidar());
+  // The window streams from the log's start: both dropouts, five keyframes each.
+  EXPECT_EQ(online.counters.without_imu, 10);
+  EXPECT_THAT(online.warnings, ::testing::Contains(HasSubstr("the window: 10 keyframe(s) fell in "
+                                                             "IMU dropouts")));
+  EXPECT_THAT(online.warnings, ::testing::Contains(HasSubstr("the keyframes: 5 keyframe(s)")));
+  ExpectWithinSigmas(online, dataset, truth);
+
+  const OfflineCalibrationResult offline = CalibrateDataset(dataset, ProblemWithoutLidar());
+  EXPECT_THAT(offline.warnings, ::testing::Contains(HasSubstr("the keyframes: 10 keyframe(s)")));
+  const sensors::Calibration& estimate = offline.calibration.value;
+  const io::CalibrationUncertainty& u = offline.calibration.uncertainty;
+  ExpectCovered("offline left radius (m)", estimate.wheel_radius_left_m, truth.wheel_radius_left_m,
+                u.wheel_radius_left_m.sigma, 0.01 / 3.0);
+  ExpectCovered("offline track width (m)", estimate.track_width_m, truth.track_width_m,
+                u.track_width_m.sigma, 0.05 / 3.0);
 }
 
 // The same drive with slower sensors: GNSS at 2.5 Hz (keyframes every 0.4 s), IMU at 100 Hz,

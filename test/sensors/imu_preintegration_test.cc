@@ -261,6 +261,49 @@ TEST(ImuPreintegration, CovarianceMatchesMonteCarlo) {
   EXPECT_NEAR(chi2_mean, 15.0, 0.6) << "mean normalized squared error";
 }
 
+// Eq. F5b: a step across a dropout (samples farther apart than max_sample_interval_s) adds the
+// unknown signal's variance for the whole step: on the rotation, D^2 sigma_g^2 per axis for a
+// dropout of D (the right Jacobian of the step's rotation, up to 0.3 rad here, moves it by a
+// few percent). A regular stream integrates bit for bit as without the setting.
+TEST(ImuPreintegration, ADropoutAddsTheUnknownSignalsVariance) {
+  const SmoothTrajectory trajectory = SmoothTrajectory::Random(13, 2.0, 1.0);
+  constexpr int64_t kPeriodNs = 5'000'000;
+  const ImuSamples regular = test::SampleImu(trajectory, 0, kPeriodNs, 201, kGravity);  // 1 s
+  ImuSamples dropout;
+  for (const ImuSample& sample : regular) {
+    if (sample.t_ns <= 400'000'000 || sample.t_ns >= 700'000'000) dropout.push_back(sample);
+  }
+  ImuNoise plain;
+  ImuNoise with_dropouts = plain;
+  with_dropouts.max_sample_interval_s = 0.0125;
+  with_dropouts.dropout_gyro_sigma_rad_s = 0.05;
+  with_dropouts.dropout_accel_sigma_m_s2 = 0.5;
+  const auto covariance = [](const ImuNoise& noise, const ImuSamples& samples) {
+    ImuPreintegration pim(noise, PreintegrationOptions());
+    pim.Integrate(samples, 0, 1'000'000'000);
+    return pim.Covariance();
+  };
+  EXPECT_EQ(covariance(with_dropouts, regular), covariance(plain, regular));
+  const Matrix15d added = covariance(with_dropouts, dropout) - covariance(plain, dropout);
+  const double expected = 0.3 * 0.3 * 0.05 * 0.05;
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(added(i, i), expected, 0.03 * expected) << i;
+    for (int j = 0; j < 3; ++j) {
+      if (j != i) {
+        EXPECT_NEAR(added(i, j), 0.0, 0.03 * expected) << i << ", " << j;
+      }
+    }
+  }
+  // The velocity (rows 3-5) by at least the specific force's own share, D^2 sigma_a^2; the
+  // position (rows 6-8) by at least its D^2 / 2 in the step and D T over the T = 0.3 s after it
+  // (the rotation's share, through the specific force, comes on top).
+  for (int i = 3; i < 6; ++i) EXPECT_GT(added(i, i), 0.3 * 0.3 * 0.5 * 0.5) << i;
+  const double position_share = 0.5 * 0.5 * std::pow(0.5 * 0.3 * 0.3 + 0.3 * 0.3, 2);
+  for (int i = 6; i < 9; ++i) EXPECT_GT(added(i, i), 0.95 * position_share) << i;
+  // The biases' blocks are the random walk's alone.
+  EXPECT_TRUE((added.bottomRightCorner<6, 6>().isZero(0.0)));
+}
+
 TEST(ImuPreintegration, SqrtInformationWhitensTheCovariance) {
   const SmoothTrajectory trajectory = SmoothTrajectory::Random(17);
   const ImuSamples samples = test::SampleImu(trajectory, 0, 5'000'000, 60, kGravity);

@@ -274,7 +274,7 @@ void VisitFields(A& a, sim::SimulationSummary& s) {
 
 // Every field of the options, for the key. A field added to SimulationOptions (or to a struct
 // it holds) changes its size and stops the build here: add the field to the list below.
-static_assert(sizeof(sim::SimulationOptions) == 848,
+static_assert(sizeof(sim::SimulationOptions) == 880,
               "sim::SimulationOptions changed: list its new fields in the cache key");
 template <class A>
 void VisitFields(A& a, sim::SimulationOptions& o) {
@@ -292,6 +292,9 @@ void VisitFields(A& a, sim::SimulationOptions& o) {
   a(o.imu.noise.accelerometer_noise_density);
   a(o.imu.noise.accelerometer_random_walk);
   a(o.imu.noise.update_rate_hz);
+  a(o.imu.noise.max_sample_interval_s);
+  a(o.imu.noise.dropout_gyro_sigma_rad_s);
+  a(o.imu.noise.dropout_accel_sigma_m_s2);
   a(o.imu.noise_scale);
   double random_walk_scale = o.imu.random_walk_scale.value_or(-1.0);
   a(random_walk_scale);

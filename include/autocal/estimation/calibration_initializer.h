@@ -183,6 +183,9 @@ struct CalibrationInitialization {
   geometry::Pose3d T_W_O;
   std::vector<int> keyframe_sweeps;
   std::vector<Keyframe> keyframes;
+  // Sweeps left out of the keyframes: no IMU sample since the keyframe before (an IMU dropout,
+  // sensors::ImuSampleBetween); the next keyframe spans the dropout.
+  int keyframes_in_imu_dropouts = 0;
 };
 
 // Settings for a caller that refines the initializer's rotation and offset afterwards (the

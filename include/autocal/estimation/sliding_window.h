@@ -51,7 +51,10 @@ struct SlidingWindowCounters {
   int64_t keyframe_times_accepted = 0;  // AddKeyframeAt
   int64_t out_of_order = 0;             // not newer than the newest of their stream (dropped)
   int64_t late = 0;                     // at or before the newest keyframe (dropped)
-  int64_t updates = 0;                  // keyframes added (= window updates)
+  // Keyframes (sweeps or times) skipped: no IMU sample between them and the newest keyframe
+  // (an IMU dropout); the next keyframe's IMU factor spans the dropout.
+  int64_t without_imu = 0;
+  int64_t updates = 0;  // keyframes added (= window updates)
   int64_t marginalizations = 0;
   int64_t gnss_scaled = 0;  // fixes attached with their std scaled (Eq. N2)
 };

@@ -60,9 +60,10 @@ class ImuPreintegration {
   void Integrate(const ImuSamples& samples, int64_t t_start_ns, int64_t t_end_ns);
 
   // One step of length dt_s with the mean measured rate and specific force over the step
-  // (raw, bias not removed). Eq. F3 (deltas), F4 (covariance), F6 (bias Jacobians).
+  // (raw, bias not removed). Eq. F3 (deltas), F4 (covariance), F6 (bias Jacobians); in a
+  // dropout (ImuNoise::max_sample_interval_s) with the unknown signal's variance too (Eq. F5b).
   void IntegrateStep(const Eigen::Vector3d& gyro_rad_s, const Eigen::Vector3d& accel_m_s2,
-                     double dt_s);
+                     double dt_s, bool in_dropout = false);
 
   // Re-integrates every stored step with new linearization biases (Sec. "bias
   // correction" of docs/factors.md).
@@ -122,6 +123,7 @@ class ImuPreintegration {
     Eigen::Vector3d gyro_rad_s;
     Eigen::Vector3d accel_m_s2;
     double dt_s;
+    bool in_dropout;
   };
   // A 3x3 block kept in the top rows of a 4x3 matrix whose last row is zero: each column
   // is two aligned SSE2 packets, so the column combinations that make up the 3x3 products
@@ -139,7 +141,7 @@ class ImuPreintegration {
   void Propagate(const Step& step);
   // u: the step's velocity increment in frame i (S = Hat(u) in Eq. F4).
   void PropagateCovariance(const Eigen::Vector3d& u, const Block& g_theta, const Block& g_v_gyro,
-                           const Block& g_v_accel, double dt_s);
+                           const Block& g_v_accel, double dt_s, bool in_dropout);
 
   ImuNoise noise_;
   PreintegrationOptions options_;
@@ -173,6 +175,13 @@ class ImuPreintegration {
 // The rate and specific force at t_ns, linearly interpolated between the bracketing samples.
 // Throws autocal::Error outside the samples' time span.
 ImuSample InterpolateImu(const ImuSamples& samples, int64_t t_ns);
+
+// Whether a sample (samples sorted by time) is stamped strictly between after_ns and
+// before_ns. Without one the preintegration over (after_ns, before_ns) is a single
+// interpolated step, whose position and velocity errors share one noise draw: its covariance
+// is singular and no IMU factor can be formed (an IMU dropout, or keyframes closer than the
+// IMU's period). Keyframes are placed so that every interval holds one.
+bool ImuSampleBetween(const ImuSamples& samples, int64_t after_ns, int64_t before_ns);
 
 // The mean of the gyro samples stamped in [t0_ns, t1_ns] (samples sorted by time), and how many
 // there were; zero and 0 when none.

@@ -17,6 +17,15 @@ struct ImuNoise {
   double accelerometer_noise_density = 2.0000e-3;  // m/s^2/sqrt(Hz)
   double accelerometer_random_walk = 3.0000e-3;    // m/s^3/sqrt(Hz)
   double update_rate_hz = 200.0;                   // Hz
+  // A dropout: two samples farther apart than max_sample_interval_s leave the signal between
+  // them unknown, and the preintegration reads it as the line between them. Over such a step it
+  // adds a rate and a specific force off that line by these sigmas (per axis, the same over the
+  // whole step) to the white noise (docs/factors.md, Eq. F5b). 0: no step is a dropout (the
+  // noise alone, as for a sensor's regular stream); pipeline::ImuNoiseFromData sets them from
+  // the log.
+  double max_sample_interval_s = 0.0;
+  double dropout_gyro_sigma_rad_s = 0.0;
+  double dropout_accel_sigma_m_s2 = 0.0;
 
   // 1-sigma of one gyro sample's white noise (rad/s) when sampled at sample_rate_hz.
   double GyroSampleSigmaRadS(double sample_rate_hz) const {
