@@ -195,15 +195,19 @@ void StreamImporter::AddJointState(MessageCursor* cursor, int64_t log_ns) {
     sample.left_rad_s = joints.velocity_rad_s[left];
     sample.right_rad_s = joints.velocity_rad_s[right];
   } else if (joints.position_rad.size() >= needed) {
-    // No velocities: differentiate the wheel angles between consecutive messages.
+    // No velocities: differentiate the wheel angles between consecutive messages. The
+    // difference is the rate midway between them (exact for a steady acceleration), and is
+    // stamped there: at the later message it would lag by half the messages' interval.
     const double left_rad = joints.position_rad[left];
     const double right_rad = joints.position_rad[right];
-    const bool usable = has_previous_position_ && sample.t_ns > previous_position_ns_;
-    const double dt_s = 1e-9 * static_cast<double>(sample.t_ns - previous_position_ns_);
+    const int64_t t_ns = sample.t_ns;
+    const bool usable = has_previous_position_ && t_ns > previous_position_ns_;
+    const double dt_s = 1e-9 * static_cast<double>(t_ns - previous_position_ns_);
     sample.left_rad_s = (left_rad - previous_left_rad_) / dt_s;
     sample.right_rad_s = (right_rad - previous_right_rad_) / dt_s;
+    sample.t_ns = previous_position_ns_ + (t_ns - previous_position_ns_) / 2;
     has_previous_position_ = true;
-    previous_position_ns_ = sample.t_ns;
+    previous_position_ns_ = t_ns;
     previous_left_rad_ = left_rad;
     previous_right_rad_ = right_rad;
     if (!usable) return;

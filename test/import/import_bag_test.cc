@@ -204,6 +204,19 @@ TEST_F(ImportBagTest, WheelRatesFromPositionsWhenVelocitiesAreMissing) {
   // Angles 0.01 i and 0.02 i rad, a message every 4 samples of 5 ms: 2 and 4 rad/s.
   EXPECT_NEAR(dataset.wheel[5].left_rad_s, 2.0, 1e-9);
   EXPECT_NEAR(dataset.wheel[5].right_rad_s, 4.0, 1e-9);
+  // Each difference is the rate midway between its two messages, and stamped there (at the
+  // later message it lagged by half their interval, 10 ms here: a wheel clock offset).
+  RigOptions with_velocities;
+  ImportOptions stamped = Options(Bag(with_velocities));
+  stamped.left_wheel_joint = "rear_left_wheel";
+  stamped.right_wheel_joint = "rear_right_wheel";
+  ImportBag(stamped);
+  const io::Dataset messages = io::ReadDataset(stamped.output);
+  ASSERT_EQ(messages.wheel.size(), 100u);
+  for (size_t i = 0; i < dataset.wheel.size(); ++i) {
+    EXPECT_EQ(dataset.wheel[i].t_ns, (messages.wheel[i].t_ns + messages.wheel[i + 1].t_ns) / 2)
+        << i;
+  }
 }
 
 TEST_F(ImportBagTest, WheelsThatNamesDoNotTellApartNeedAFlag) {
