@@ -525,6 +525,19 @@ std::string WindowGnssNoiseWarning(const estimation::SlidingWindowEstimator& est
 
 }  // namespace
 
+namespace {
+
+// The result's final calibration and every sample of calibration_over_time.
+std::vector<sensors::Calibration*> CalibrationsOf(OnlineEstimationResult* result) {
+  std::vector<sensors::Calibration*> out{&result->calibration.value};
+  for (CalibrationSample& sample : result->calibration_over_time) {
+    out.push_back(&sample.calibration);
+  }
+  return out;
+}
+
+}  // namespace
+
 OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
                                              const io::Problem& problem_in,
                                              const OnlineEstimationOptions& options) {
@@ -622,9 +635,13 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
     }
   }
   if (!use_lidar) {
+    // The stream ran on stamps moved onto the IMU clock (OnImuClock): the clocks it used are
+    // the applied offsets, in the result and in every sample of the stream's calibration.
     result.calibration.solver["keyframe_period_s"] = FormatSeconds(keyframe_period_ns);
-    result.calibration.value.time_offset_wheel_imu_s = applied.time_offset_wheel_imu_s;
-    result.calibration.value.time_offset_gnss_imu_s = applied.time_offset_gnss_imu_s;
+    for (sensors::Calibration* c : CalibrationsOf(&result)) {
+      c->time_offset_wheel_imu_s = applied.time_offset_wheel_imu_s;
+      c->time_offset_gnss_imu_s = applied.time_offset_gnss_imu_s;
+    }
   }
   result.warnings = start_warnings;
   result.warnings.insert(result.warnings.end(), held_warnings.begin(), held_warnings.end());

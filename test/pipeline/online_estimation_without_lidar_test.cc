@@ -234,6 +234,21 @@ TEST_F(OnlineEstimationWithoutLidarTest, BridgesImuDropoutsWithTheMotionsVarianc
                 u.track_width_m.sigma, 0.05 / 3.0);
 }
 
+// Wheels on a clock 20 ms behind the IMU's, stated in sensors.yaml: the window streams them
+// moved onto the IMU clock, and reports the clock it used, in the result and in every sample of
+// calibration_over_time (which said 0 before).
+TEST_F(OnlineEstimationWithoutLidarTest, ReportsTheStatedWheelClockAlongTheStream) {
+  io::Dataset dataset = io::ReadDataset(data_->directory);
+  for (sensors::WheelSample& w : dataset.wheel) w.t_ns -= 20'000'000;
+  dataset.sensors.nominal_calibration.time_offset_wheel_imu_s = 0.02;
+  const OnlineEstimationResult result = EstimateDatasetOnline(dataset, ProblemWithoutLidar());
+  EXPECT_EQ(result.calibration.value.time_offset_wheel_imu_s, 0.02);
+  ASSERT_FALSE(result.calibration_over_time.empty());
+  for (const CalibrationSample& sample : result.calibration_over_time) {
+    ASSERT_EQ(sample.calibration.time_offset_wheel_imu_s, 0.02) << sample.t_ns;
+  }
+}
+
 // The same drive with slower sensors: GNSS at 2.5 Hz (keyframes every 0.4 s), IMU at 100 Hz,
 // wheels at 20 Hz. Measured: radii 0.026 mm off at sigma 0.037 mm, track 2.3 mm at 2.4 mm,
 // lever arm y 5.5 mm at 14 mm; keyframe ATE 3.9 cm / 0.20 deg; 0.5 s.

@@ -150,10 +150,10 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& dataset, const i
 
 // Writes trajectory.tum, trajectory_smoothed.tum (when smoothed), states.csv,
 // calibration_over_time.csv and calibration.yaml into `directory` (created).
-// calibration_over_time.csv columns: t_s (IMU clock, seconds), q_I_L (qx qy qz qw), p_I_L (m),
-// time_offset_lidar_imu_s, wheel radii (m), track_width_m, p_I_A (m). states.csv columns: t_s,
-// p_W_I (m), q_W_I (qx qy qz qw), v_W_I (m/s), b_g (rad/s), b_a (m/s^2). Throws autocal::Error on
-// I/O failure.
+// calibration_over_time.csv columns: t_s (IMU clock, seconds), then every block of the
+// calibration table in sensors::CalibrationBlocks() order, by name (quaternions qx qy qz qw,
+// docs/sliding_window.md). states.csv columns: t_s, p_W_I (m), q_W_I (qx qy qz qw), v_W_I (m/s),
+// b_g (rad/s), b_a (m/s^2). Throws autocal::Error on I/O failure.
 void WriteOnlineEstimationResult(const std::string& directory,
                                  const OnlineEstimationResult& result);
 
