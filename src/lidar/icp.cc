@@ -474,11 +474,12 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   IcpResult result;
   geometry::Pose3d T = T_target_source_guess;
   T.q.normalize();
-  // The perturbation is linearized about the guessed source origin (eq. 4.7c): about the
-  // target's origin, which a long drive leaves kilometres behind, a tilt and a translation
-  // move the sensor's surroundings almost alike, J^T W J is conditioned by the squared
-  // distance and the degeneracy test fires on a well-constrained sweep.
-  const Eigen::Vector3d centre = T.p;
+  // The perturbation is linearized about the guessed place of the source points' centroid
+  // (eq. 4.7c): about an origin far from the points (the target's, which a long drive leaves
+  // kilometres behind, or the source's own for clouds in a map or ENU frame), a tilt and a
+  // translation move them almost alike, J^T W J is conditioned by the squared distance and
+  // the degeneracy test fires on a well-constrained pair.
+  const Eigen::Vector3d centre = T * Eigen::Vector3d(source.rowwise().mean());
   NormalEquations last;
   std::vector<int> matches;  // of the last point-to-plane or GICP iteration
   std::vector<WeightedPair> pairs;

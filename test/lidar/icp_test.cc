@@ -283,6 +283,18 @@ TEST(IcpTest, AlignmentDoesNotDependOnWhereTheOriginIs) {
                 1e-3 * std::sqrt(expected(i, i)))
         << "axis " << i;
   }
+  // Both clouds in that far frame (a map's or ENU's, as georeferenced scans come), from the
+  // identity: the linearization about the guessed source origin, kilometres from every point,
+  // refused the pair as degenerate.
+  const IcpResult both_far = AlignIcp(
+      TransformPoints(T_far, pair.source),
+      IcpTarget(TransformPoints(T_far, pair.target), TargetNormals::kOnDemand, StreetNormals()),
+      Pose3d::Identity(), setting);
+  const Pose3d both_back = T_far.Inverse() * both_far.T_target_source * T_far;
+  EXPECT_LT(geometry::TranslationError(both_back, near.T_target_source),
+            2.0 * setting.convergence.translation_m);
+  EXPECT_LT(geometry::AngularDistance(both_back.q, near.T_target_source.q),
+            2.0 * setting.convergence.rotation_rad);
 }
 
 TEST(IcpTest, OnDemandNormalsAndThreadsGiveTheSameAlignment) {
