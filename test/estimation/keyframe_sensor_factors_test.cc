@@ -9,6 +9,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "autocal/common/error.h"
@@ -1196,28 +1197,21 @@ TEST_F(KeyframeSensorFactorsTest, AlignmentTakesTheFixesOnTheImuClock) {
 // negative gap, which paired nothing, without a word.
 TEST_F(KeyframeSensorFactorsTest, AGapBeyondAnyLogIsRefused) {
   std::vector<Keyframe> keyframes = TrueKeyframes(*exact_simulator_, exact_->imu, 0.0);
-  GnssAlignmentOptions options;
-  options.max_fix_gap_s = 1e12;
-  try {
-    AlignKeyframesToGnss(&keyframes, exact_->gnss.fixes, Converter(*exact_simulator_),
-                         exact_simulator_->true_calibration().p_I_A, options);
-    ADD_FAILURE() << "a gap of 1e12 s was taken";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("max_fix_gap_s must be a positive number of seconds "
-                                         "up to 1e9"),
-              std::string::npos)
-        << e.what();
-  }
-  options.max_fix_gap_s = -0.1;  // 0 is the default: the gap from the fixes' rate
-  try {
-    AlignKeyframesToGnss(&keyframes, exact_->gnss.fixes, Converter(*exact_simulator_),
-                         exact_simulator_->true_calibration().p_I_A, options);
-    ADD_FAILURE() << "a negative gap was taken";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("max_fix_gap_s must be 0 (from the stamps, Eq. T1) or "
-                                         "a positive number of seconds, got -0.1"),
-              std::string::npos)
-        << e.what();
+  // 0 is the default (the gap from the fixes' rate); a negative gap is refused too.
+  for (const auto& [gap_s, message] : std::vector<std::pair<double, std::string>>{
+           {1e12, "max_fix_gap_s must be a positive number of seconds up to 1e9"},
+           {-0.1,
+            "max_fix_gap_s must be 0 (from the stamps, Eq. T1) or a positive number of "
+            "seconds, got -0.1"}}) {
+    GnssAlignmentOptions options;
+    options.max_fix_gap_s = gap_s;
+    try {
+      AlignKeyframesToGnss(&keyframes, exact_->gnss.fixes, Converter(*exact_simulator_),
+                           exact_simulator_->true_calibration().p_I_A, options);
+      ADD_FAILURE() << "a gap of " << gap_s << " s was taken";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
   }
 }
 

@@ -97,16 +97,24 @@ void ExpectCovered(const std::string& name, double estimate, double truth,
 // (1 cm on a radius, 5 cm on the track, 20 cm on the lever arm, 2 deg on the vehicle
 // rotation: the drive, not the prior, set them) and errors within 3 sigma; the trajectory
 // within 10 cm and 0.5 deg RMS of the truth (the offline calibration's 10 cm goal).
+// The radii and the track width as ExpectWithinSigmas judges them; `who` prefixes the names.
+void ExpectWheelsWithinSigmas(const std::string& who, const io::CalibrationFile& result,
+                              const sensors::Calibration& truth) {
+  const sensors::Calibration& estimate = result.value;
+  const io::CalibrationUncertainty& u = result.uncertainty;
+  ExpectCovered(who + "left radius (m)", estimate.wheel_radius_left_m, truth.wheel_radius_left_m,
+                u.wheel_radius_left_m.sigma, 0.01 / 3.0);
+  ExpectCovered(who + "right radius (m)", estimate.wheel_radius_right_m, truth.wheel_radius_right_m,
+                u.wheel_radius_right_m.sigma, 0.01 / 3.0);
+  ExpectCovered(who + "track width (m)", estimate.track_width_m, truth.track_width_m,
+                u.track_width_m.sigma, 0.05 / 3.0);
+}
+
 void ExpectWithinSigmas(const OnlineEstimationResult& result, const io::Dataset& dataset,
                         const sensors::Calibration& truth) {
   const sensors::Calibration& estimate = result.calibration.value;
   const io::CalibrationUncertainty& u = result.calibration.uncertainty;
-  ExpectCovered("left radius (m)", estimate.wheel_radius_left_m, truth.wheel_radius_left_m,
-                u.wheel_radius_left_m.sigma, 0.01 / 3.0);
-  ExpectCovered("right radius (m)", estimate.wheel_radius_right_m, truth.wheel_radius_right_m,
-                u.wheel_radius_right_m.sigma, 0.01 / 3.0);
-  ExpectCovered("track width (m)", estimate.track_width_m, truth.track_width_m,
-                u.track_width_m.sigma, 0.05 / 3.0);
+  ExpectWheelsWithinSigmas("", result.calibration, truth);
   ASSERT_TRUE(u.p_I_A_m.sigma.has_value());
   for (int i = 0; i < 3; ++i) {
     ExpectCovered("lever arm " + std::to_string(i) + " (m)", estimate.p_I_A(i), truth.p_I_A(i),
@@ -226,12 +234,7 @@ TEST_F(OnlineEstimationWithoutLidarTest, BridgesImuDropoutsWithTheMotionsVarianc
 
   const OfflineCalibrationResult offline = CalibrateDataset(dataset, ProblemWithoutLidar());
   EXPECT_THAT(offline.warnings, ::testing::Contains(HasSubstr("the keyframes: 10 keyframe(s)")));
-  const sensors::Calibration& estimate = offline.calibration.value;
-  const io::CalibrationUncertainty& u = offline.calibration.uncertainty;
-  ExpectCovered("offline left radius (m)", estimate.wheel_radius_left_m, truth.wheel_radius_left_m,
-                u.wheel_radius_left_m.sigma, 0.01 / 3.0);
-  ExpectCovered("offline track width (m)", estimate.track_width_m, truth.track_width_m,
-                u.track_width_m.sigma, 0.05 / 3.0);
+  ExpectWheelsWithinSigmas("offline ", offline.calibration, truth);
 }
 
 // Wheels on a clock 20 ms behind the IMU's, stated in sensors.yaml: the window streams them

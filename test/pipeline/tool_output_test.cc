@@ -113,6 +113,16 @@ void ExpectNoResult(const fs::path& dir) {
   EXPECT_EQ(io::ReadRunStatus((dir / "status.yaml").string()).exit_status, 1);
 }
 
+// A 24 s urban drive (16 beams, seed 7) simulated by autocal_simulate into dir/drive.
+fs::path SimulateShortDrive(const fs::path& dir) {
+  const fs::path dataset = dir / "drive";
+  const Finished sim = RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16",
+                                "--seed=7", "--out=" + dataset.string()},
+                               dir / "log.txt");
+  EXPECT_EQ(sim.exit_code, 0) << sim.output;
+  return dataset;
+}
+
 class ToolOutputTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -442,11 +452,7 @@ TEST_F(ToolOutputTest, EstimateChecksTheInitializationFlagsFirst) {
 // block's value, sigma and observability per direction, with and without the LiDAR.
 TEST_F(ToolOutputTest, EstimatePrintsSigmaAndObservabilityAsTheBatchDoes) {
   const fs::path dir = CleanDir("estimate_summary");
-  const fs::path dataset = dir / "drive";
-  const Finished sim = RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16",
-                                "--seed=7", "--out=" + dataset.string()},
-                               dir / "log.txt");
-  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const fs::path dataset = SimulateShortDrive(dir);
   struct Case {
     std::string problem;
     std::vector<std::string> lines;  // each printed with "sigma" and "observable"
@@ -546,11 +552,7 @@ TEST_F(ToolOutputTest, EvaluateNamesAMissingResult) {
 // A calibration stopped midway leaves the previous result as it was.
 TEST_F(ToolOutputTest, AStoppedCalibrationLeavesThePreviousResult) {
   const fs::path dir = CleanDir("calibrate");
-  const fs::path dataset = dir / "drive";
-  const Finished sim = RunTool({Tool("autocal_simulate"), "--duration_s=24", "--lidar_beams=16",
-                                "--seed=7", "--out=" + dataset.string()},
-                               dir / "log.txt");
-  ASSERT_EQ(sim.exit_code, 0) << sim.output;
+  const fs::path dataset = SimulateShortDrive(dir);
   const fs::path result = dir / "result";
   fs::create_directories(result);
   std::ofstream(result / "calibration.yaml") << "previous\n";
