@@ -294,7 +294,19 @@ class PcdParser {
       }
       AddPoint(&builder, values, i, source_.line(), 0);
     }
+    // Points beyond the declared count (a writer that never updated POINTS) would otherwise be
+    // dropped silently; blank lines may follow.
+    std::string_view line;
+    while (source_.NextLine(&line)) {
+      const std::vector<Word> words = SplitWords(line);
+      if (!words.empty()) source_.FailAtColumn(words.front().column, DataAfterThePoints());
+    }
     return builder.Finish();
+  }
+
+  std::string DataAfterThePoints() const {
+    return "data after the " + std::to_string(points_) + " points the header declares (POINTS " +
+           std::to_string(points_) + ")";
   }
 
   lidar::PointCloud ReadBinary() {
@@ -317,6 +329,11 @@ class PcdParser {
             DecodeScalar(source_.bytes().data() + record + field.offset, field.type, true);
       }
       AddPoint(&builder, values, i, 0, record);
+    }
+    const size_t end = source_.pos() + static_cast<size_t>(points_) * record_size_;
+    if (end < source_.size()) {
+      source_.FailAtByte(
+          end, std::to_string(source_.size() - end) + " bytes of " + DataAfterThePoints());
     }
     return builder.Finish();
   }

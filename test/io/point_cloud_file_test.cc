@@ -519,6 +519,36 @@ TEST(PointCloudFileTest, TruncatedBinaryPcd) {
   EXPECT_THAT(e.detail(), HasSubstr("truncated"));
 }
 
+// Points beyond the header's POINTS (a writer that never updated the count) are refused, as the
+// PLY reader refuses data after its elements, instead of being dropped silently; trailing blank
+// lines are fine.
+TEST(PointCloudFileTest, PcdDataBeyondItsPointsIsRefused) {
+  const lidar::PointCloud cloud = HelixCloud(4);
+  const std::string ascii = ComposePcd("ascii", cloud);
+  const std::string binary = ComposePcd("binary", cloud);
+  const auto declaring_two = [](std::string file) {
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"WIDTH 4\n", "WIDTH 2\n"},
+                                   {"POINTS 4\n", "POINTS 2\n"}}) {
+      file.replace(file.find(from), from.size(), to);
+    }
+    return file;
+  };
+  const std::string blank_lines = OutPath("blank_lines.pcd");
+  WriteBytes(blank_lines, ascii + "\n  \n");
+  EXPECT_EQ(ReadPointCloudFile(blank_lines).size(), 4);
+  const std::string ascii_path = OutPath("ascii_beyond.pcd");
+  WriteBytes(ascii_path, declaring_two(ascii));
+  const ParseError a = ExpectParseError(ascii_path);
+  EXPECT_EQ(a.location().line, 14);  // the third point's line, after an 11-line header
+  EXPECT_THAT(a.detail(), HasSubstr("data after the 2 points the header declares (POINTS 2)"));
+  const std::string binary_path = OutPath("binary_beyond.pcd");
+  const std::string binary_two = declaring_two(binary);
+  WriteBytes(binary_path, binary_two);
+  const ParseError b = ExpectParseError(binary_path);
+  EXPECT_EQ(b.location().byte_offset, static_cast<int64_t>(binary_two.size() - 2 * 38));
+  EXPECT_THAT(b.detail(), HasSubstr("76 bytes of data after the 2 points"));
+}
+
 TEST(PointCloudFileTest, PcdWithoutY) {
   const std::string path = OutPath("no_y.pcd");
   WriteBytes(path, "FIELDS x z\nSIZE 4 4\nTYPE F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2\n");
