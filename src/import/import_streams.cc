@@ -226,6 +226,13 @@ void StreamImporter::AddFix(MessageCursor* cursor, int64_t log_ns) {
     ++no_fix_;
     return;
   }
+  // NaN marks a coordinate the receiver did not give (nmea_navsat_driver: the altitude of
+  // every RMC fix); such a fix is dropped, whatever its covariance.
+  if (!std::isfinite(fix.latitude_deg) || !std::isfinite(fix.longitude_deg) ||
+      !std::isfinite(fix.altitude_m)) {
+    ++non_finite_fix_;
+    return;
+  }
   sensors::GnssFix out;
   out.t_ns = Stamp(fix.stamp_ns, log_ns);
   out.lat_deg = fix.latitude_deg;
@@ -243,10 +250,6 @@ void StreamImporter::AddFix(MessageCursor* cursor, int64_t log_ns) {
     }
     out.std_enu_m.setConstant(options_.unknown_gnss_sigma_m);
     ++defaulted_gnss_sigma_;
-  }
-  if (!std::isfinite(out.lat_deg) || !std::isfinite(out.lon_deg) || !std::isfinite(out.alt_m)) {
-    ++no_fix_;
-    return;
   }
   gnss_.push_back(out);
 }
@@ -353,6 +356,11 @@ void StreamImporter::Finish(const std::string& /*directory: the writer's*/) {
     Warn(count(dropped_points_,
                "LiDAR points without a return (non-finite or 0, 0, 0) were dropped"));
   if (no_fix_ > 0) Warn(count(no_fix_, "GNSS messages without a fix (status < 0) were dropped"));
+  if (non_finite_fix_ > 0) {
+    Warn(count(non_finite_fix_,
+               "GNSS fixes with a non-finite latitude, longitude or altitude were dropped (NaN "
+               "marks a coordinate the receiver did not give: an NMEA RMC fix has no altitude)"));
+  }
   if (defaulted_gnss_sigma_ > 0) {
     Warn(count(defaulted_gnss_sigma_, "GNSS fixes without a usable covariance got sigma ") +
          io::internal::FormatDouble(options_.unknown_gnss_sigma_m) + " m");

@@ -76,6 +76,7 @@ class StreamImporter {
   int64_t empty_sweeps_ = 0;
   int64_t dropped_points_ = 0;
   int64_t no_fix_ = 0;
+  int64_t non_finite_fix_ = 0;  // NaN or infinite latitude, longitude or altitude
   int64_t defaulted_gnss_sigma_ = 0;
   int64_t joint_states_without_wheels_ = 0;
 };

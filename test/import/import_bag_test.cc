@@ -55,6 +55,7 @@ struct RigOptions {
   bool second_imu = false;
   bool corrupt_imu = false;
   uint8_t gnss_covariance_type = 2;
+  bool gnss_altitude_nan = false;  // as nmea_navsat_driver publishes its RMC fixes
   bool joint_velocities = true;
   double gyro_scale = 1.0;  // 57.3: a driver that publishes deg/s
   std::vector<std::string> joints = {"front_left_wheel", "front_right_wheel", "rear_left_wheel",
@@ -101,8 +102,10 @@ std::string RigBag(const RigOptions& rig, Ros1BagWriter::Compression compression
     if (i % 40 == 0) {
       const int8_t status = (i / 40) % 5 == 4 ? -1 : 0;
       w.Write(gnss, t + 3000,
-              test::SerializeNavSatFix(false, t - kHeaderLagNs, status, 48.0 + 1e-6 * i, 11.0,
-                                       500.0, {4.0, 9.0, 16.0}, rig.gnss_covariance_type));
+              test::SerializeNavSatFix(
+                  false, t - kHeaderLagNs, status, 48.0 + 1e-6 * i, 11.0,
+                  rig.gnss_altitude_nan ? std::numeric_limits<double>::quiet_NaN() : 500.0,
+                  {4.0, 9.0, 16.0}, rig.gnss_covariance_type));
     }
     if (i % 10 == 0) {
       w.Write(odom, t + 4000, test::SerializeOdometry(false, t - kHeaderLagNs, 0.01 * i, -0.5));
@@ -237,6 +240,23 @@ TEST_F(ImportBagTest, WheelsThatNamesDoNotTellApartNeedAFlag) {
   ASSERT_EQ(dataset.wheel.size(), 100u);
   EXPECT_EQ(dataset.wheel[1].left_rad_s, 2.0);
   EXPECT_EQ(dataset.wheel[1].right_rad_s, 8.0);
+}
+
+// Fixes without an altitude (NaN: every RMC fix of nmea_navsat_driver) are dropped with their
+// own count and reason; they were counted as fixes with status < 0. Their position is not
+// checked against the covariance first: with no default sigma they failed the import.
+TEST_F(ImportBagTest, FixesWithoutAnAltitudeAreDroppedForWhatTheyLack) {
+  RigOptions rig;
+  rig.gnss_altitude_nan = true;
+  rig.gnss_covariance_type = 0;
+  ImportOptions options = Options(Bag(rig));
+  options.unknown_gnss_sigma_m = 0.0;
+  const ImportSummary summary = ImportBag(options);
+  EXPECT_TRUE(io::ReadDataset(options.output).gnss.empty());
+  EXPECT_THAT(summary.warnings,
+              ::testing::Contains(HasSubstr("8 GNSS fixes with a non-finite latitude, longitude "
+                                            "or altitude")));
+  EXPECT_THAT(summary.warnings, ::testing::Contains(HasSubstr("2 GNSS messages without a fix")));
 }
 
 TEST_F(ImportBagTest, UnknownGnssCovarianceTakesTheDefaultOrIsRefused) {
