@@ -201,7 +201,11 @@ void StreamImporter::AddJointState(MessageCursor* cursor, int64_t log_ns) {
     const double left_rad = joints.position_rad[left];
     const double right_rad = joints.position_rad[right];
     const int64_t t_ns = sample.t_ns;
-    const bool usable = has_previous_position_ && t_ns > previous_position_ns_;
+    if (has_previous_position_ && t_ns <= previous_position_ns_) {
+      ++unordered_joint_positions_;  // the angles go on from the last message in order
+      return;
+    }
+    const bool usable = has_previous_position_;
     const double dt_s = 1e-9 * static_cast<double>(t_ns - previous_position_ns_);
     sample.left_rad_s = (left_rad - previous_left_rad_) / dt_s;
     sample.right_rad_s = (right_rad - previous_right_rad_) / dt_s;
@@ -355,6 +359,11 @@ void StreamImporter::Finish(const std::string& /*directory: the writer's*/) {
   if (dropped_points_ > 0)
     Warn(count(dropped_points_,
                "LiDAR points without a return (non-finite or 0, 0, 0) were dropped"));
+  if (unordered_joint_positions_ > 0) {
+    Warn(count(unordered_joint_positions_,
+               "JointState messages (positions only) whose stamp did not follow the previous "
+               "one's were dropped: their angle differences would have no interval"));
+  }
   if (no_fix_ > 0) Warn(count(no_fix_, "GNSS messages without a fix (status < 0) were dropped"));
   if (non_finite_fix_ > 0) {
     Warn(count(non_finite_fix_,

@@ -79,6 +79,7 @@ class StreamImporter {
   int64_t non_finite_fix_ = 0;  // NaN or infinite latitude, longitude or altitude
   int64_t defaulted_gnss_sigma_ = 0;
   int64_t joint_states_without_wheels_ = 0;
+  int64_t unordered_joint_positions_ = 0;  // positions-only messages not after the previous one
 };
 
 }  // namespace import

@@ -57,7 +57,8 @@ struct RigOptions {
   uint8_t gnss_covariance_type = 2;
   bool gnss_altitude_nan = false;  // as nmea_navsat_driver publishes its RMC fixes
   bool joint_velocities = true;
-  double gyro_scale = 1.0;  // 57.3: a driver that publishes deg/s
+  bool repeated_joint_stamp = false;  // the JointState at 0.2 s stamped as the one before it
+  double gyro_scale = 1.0;            // 57.3: a driver that publishes deg/s
   std::vector<std::string> joints = {"front_left_wheel", "front_right_wheel", "rear_left_wheel",
                                      "rear_right_wheel"};
 };
@@ -95,8 +96,9 @@ std::string RigBag(const RigOptions& rig, Ros1BagWriter::Compression compression
       const std::vector<double> velocity = rig.joint_velocities
                                                ? std::vector<double>{1, 2, 3.0 + i, 4.0 + i}
                                                : std::vector<double>{};
+      const int64_t stamp = rig.repeated_joint_stamp && i == 40 ? t - 20'000'000 : t;
       w.Write(wheel, t + 2000,
-              test::SerializeJointState(false, t - kHeaderLagNs, rig.joints,
+              test::SerializeJointState(false, stamp - kHeaderLagNs, rig.joints,
                                         {0, 0, 0.01 * i, 0.02 * i}, velocity));
     }
     if (i % 40 == 0) {
@@ -220,6 +222,28 @@ TEST_F(ImportBagTest, WheelRatesFromPositionsWhenVelocitiesAreMissing) {
     EXPECT_EQ(dataset.wheel[i].t_ns, (messages.wheel[i].t_ns + messages.wheel[i + 1].t_ns) / 2)
         << i;
   }
+}
+
+// A positions-only JointState stamped as the one before it has no interval to differ over: it is
+// dropped and counted, and the next message differs from the last one in order (the angle
+// difference over the time between them). It used to become the reference for the next rate,
+// which came out halved.
+TEST_F(ImportBagTest, AJointStampThatDoesNotAdvanceIsDroppedAndCounted) {
+  RigOptions rig;
+  rig.joint_velocities = false;
+  rig.repeated_joint_stamp = true;
+  ImportOptions options = Options(Bag(rig));
+  options.left_wheel_joint = "rear_left_wheel";
+  options.right_wheel_joint = "rear_right_wheel";
+  const ImportSummary summary = ImportBag(options);
+  const io::Dataset dataset = io::ReadDataset(options.output);
+  ASSERT_EQ(dataset.wheel.size(), 98u);
+  for (const sensors::WheelSample& w : dataset.wheel) {
+    EXPECT_NEAR(w.left_rad_s, 2.0, 1e-9) << w.t_ns;
+  }
+  EXPECT_THAT(summary.warnings,
+              ::testing::Contains(HasSubstr("1 JointState messages (positions only) whose stamp "
+                                            "did not follow the previous one's were dropped")));
 }
 
 TEST_F(ImportBagTest, WheelsThatNamesDoNotTellApartNeedAFlag) {
