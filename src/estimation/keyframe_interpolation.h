@@ -209,15 +209,6 @@ std::vector<std::optional<size_t>> PairedSamples(const std::vector<Sample>& samp
 // a positive number.
 int64_t GapNs(double gap_s, const std::string& name);
 
-// The stamps of samples that carry a t_ns.
-template <typename Sample>
-std::vector<int64_t> StampsOf(const std::vector<Sample>& samples) {
-  std::vector<int64_t> stamps;
-  stamps.reserve(samples.size());
-  for (const Sample& sample : samples) stamps.push_back(sample.t_ns);
-  return stamps;
-}
-
 // A maximum bracketing gap option as nanoseconds: gap_s when it is set, else (0, the options'
 // default) Eq. T1 from the samples' own stamps (sensors::MaxBracketingGapS), so that a caller
 // who keeps the default gets the limit its sensor's rate needs, not one written for another
@@ -229,7 +220,7 @@ int64_t GapNsOrFromStamps(double gap_s, const std::vector<Sample>& samples,
                           const std::string& name) {
   if (gap_s == 0.0) {
     if (samples.size() < 2) return 1;
-    const sensors::SampleTiming timing = sensors::MeasureTiming(StampsOf(samples), name);
+    const sensors::SampleTiming timing = sensors::MeasureTiming(sensors::StampsOf(samples), name);
     return GapNs(sensors::MaxBracketingGapS(timing), name);
   }
   if (!(gap_s > 0.0)) {

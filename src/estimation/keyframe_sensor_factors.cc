@@ -635,8 +635,9 @@ int AddGnssFactors(ceres::Problem* problem, const sensors::ImuSamples& imu,
   const bool shifted = !rows.empty() && rows.front().fix.has_value();
   if (shifted) CheckIncreasing(imu, "AddGnssFactors: IMU");
   // The IMU carries states only on the shifted rows; a set gap is checked either way.
-  const int64_t max_imu_gap_ns = GapNsOrFromStamps(
-      options.max_imu_gap_s, shifted ? imu : sensors::ImuSamples(), "max_imu_gap_s");
+  const sensors::ImuSamples no_imu;
+  const int64_t max_imu_gap_ns =
+      GapNsOrFromStamps(options.max_imu_gap_s, shifted ? imu : no_imu, "max_imu_gap_s");
 
   // One loss for all the factors (the problem deletes a shared loss once); it is ours to
   // delete until a residual block uses it.

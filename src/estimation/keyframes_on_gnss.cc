@@ -596,7 +596,7 @@ GnssPlacementOptions WithTrackHalfWidth(GnssPlacementOptions options,
   if (options.half_width_s != 0.0) return options;
   options.half_width_s = fixes.size() < 2 ? 1.0
                                           : sensors::GnssTrackHalfWidthS(sensors::MeasureTiming(
-                                                internal::StampsOf(fixes), "GNSS fix"));
+                                                sensors::StampsOf(fixes), "GNSS fix"));
   return options;
 }
 

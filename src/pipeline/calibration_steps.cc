@@ -58,15 +58,6 @@ std::string Join(const std::vector<std::string>& parts, const std::string& separ
 
 namespace {
 
-// The stamps of `samples`, for sensors::MeasureTiming.
-template <typename Samples>
-std::vector<int64_t> Stamps(const Samples& samples) {
-  std::vector<int64_t> stamps;
-  stamps.reserve(samples.size());
-  for (const auto& sample : samples) stamps.push_back(sample.t_ns);
-  return stamps;
-}
-
 // How many of `samples` lie within the keyframes' time span.
 template <typename Samples>
 size_t CountWithin(const Samples& samples, const std::vector<estimation::Keyframe>& keyframes) {
@@ -114,13 +105,13 @@ void RequireCoverage(const io::Dataset& dataset, const std::string& sensor,
 std::vector<int64_t> WheelStamps(const io::Dataset& dataset) {
   switch (dataset.wheel_form()) {
     case sensors::WheelForm::kLinearSpeeds:
-      return Stamps(dataset.wheel_speeds);
+      return sensors::StampsOf(dataset.wheel_speeds);
     case sensors::WheelForm::kSpeedYawRate:
-      return Stamps(dataset.odometry);
+      return sensors::StampsOf(dataset.odometry);
     case sensors::WheelForm::kAngularRates:
       break;
   }
-  return Stamps(dataset.wheel);
+  return sensors::StampsOf(dataset.wheel);
 }
 
 // The wheel form's samples for estimation::AddWheelFactors.
@@ -195,12 +186,13 @@ TimingLimits DeriveTimingLimits(const io::Dataset& dataset, const io::Problem& p
                                 bool use_wheel, bool use_gnss) {
   const std::string where = dataset.directory + "/";
   TimingLimits t;
-  t.imu = sensors::MeasureTiming(Stamps(dataset.imu), where + "imu.csv");
+  t.imu = sensors::MeasureTiming(sensors::StampsOf(dataset.imu), where + "imu.csv");
   if (use_wheel) {
     t.wheel = sensors::MeasureTiming(WheelStamps(dataset),
                                      where + sensors::WheelFormFile(dataset.wheel_form()));
   }
-  if (use_gnss) t.gnss = sensors::MeasureTiming(Stamps(dataset.gnss), where + "gnss.csv");
+  if (use_gnss)
+    t.gnss = sensors::MeasureTiming(sensors::StampsOf(dataset.gnss), where + "gnss.csv");
   const io::ProblemTiming& o = problem.timing;
   t.max_imu_gap_s = o.max_imu_gap_s.value_or(sensors::MaxBracketingGapS(t.imu));
   if (t.wheel) t.max_wheel_gap_s = o.max_wheel_gap_s.value_or(sensors::MaxBracketingGapS(*t.wheel));
@@ -435,8 +427,8 @@ bool SensorFactors::PairingChanges(const std::vector<estimation::Keyframe>& keyf
     return true;
   }
   return use_gnss && Estimated(b.time_offset_gnss_imu_s.mode) &&
-         changes(Stamps(dataset->gnss), from.time_offset_gnss_imu_s, to.time_offset_gnss_imu_s,
-                 timing->max_fix_gap_s);
+         changes(sensors::StampsOf(dataset->gnss), from.time_offset_gnss_imu_s,
+                 to.time_offset_gnss_imu_s, timing->max_fix_gap_s);
 }
 
 void RecordPlanarRotation(const estimation::PlanarRotationRows& rows, io::CalibrationFile* file) {

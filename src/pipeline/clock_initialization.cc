@@ -248,10 +248,7 @@ double ChordDeviation(const sensors::ImuSamples& imu, int64_t span_ns, Value val
 // the motion's own spread at that span, which bounds it for the shorter dropouts).
 void SetDropoutsFromData(const sensors::ImuSamples& imu, sensors::ImuNoise* noise) {
   if (imu.size() < 2) return;
-  std::vector<int64_t> stamps;
-  stamps.reserve(imu.size());
-  for (const sensors::ImuSample& sample : imu) stamps.push_back(sample.t_ns);
-  const sensors::SampleTiming timing = sensors::MeasureTiming(stamps, "imu.csv");
+  const sensors::SampleTiming timing = sensors::MeasureTiming(sensors::StampsOf(imu), "imu.csv");
   const double max_interval_s = sensors::MaxBracketingGapS(timing);
   if (!(timing.max_gap_s > max_interval_s)) return;
   const int64_t span_ns = SecondsToNs(timing.max_gap_s);

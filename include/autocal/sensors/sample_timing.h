@@ -47,6 +47,15 @@ struct SampleTiming {
   double rate_hz() const { return 1.0 / mean_interval_s; }
 };
 
+// The stamps of `samples` (any samples with a t_ns), for MeasureTiming.
+template <typename Samples>
+std::vector<int64_t> StampsOf(const Samples& samples) {
+  std::vector<int64_t> stamps;
+  stamps.reserve(samples.size());
+  for (const auto& sample : samples) stamps.push_back(sample.t_ns);
+  return stamps;
+}
+
 // The timing of `stamps_ns` (strictly increasing, as every reader of the dataset requires).
 // `what` names them in errors ("wheel.csv"). Throws autocal::Error for fewer than two stamps
 // or a stamp that does not follow its predecessor, naming which.
