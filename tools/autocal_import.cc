@@ -43,11 +43,10 @@ int main(int argc, char** argv) {
     if (argc > 1) throw autocal::Error(std::string("unexpected argument '") + argv[1] + "'");
     if (FLAGS_input.empty()) throw autocal::Error("--input is required");
     if (FLAGS_list) {
-      bool has_index = true;
-      const auto topics = autocal::import::ListTopics(FLAGS_input, &has_index);
+      std::vector<std::string> warnings;
+      const auto topics = autocal::import::ListTopics(FLAGS_input, &warnings);
       std::cout << autocal::import::FormatTopicList(topics);
-      if (!has_index)
-        std::cout << "(the bag has no complete index: it was read by a linear scan)\n";
+      for (const std::string& warning : warnings) std::cout << "warning: " << warning << "\n";
       return 0;
     }
     if (FLAGS_output.empty()) throw autocal::Error("--output (or --list) is required");

@@ -37,6 +37,16 @@ SourceLocation MessageLocation(const std::string& path, const BagMessage& messag
   return {path, 0, 0, static_cast<int64_t>(message.file_offset)};
 }
 
+std::vector<std::string> ReadWarnings(const BagReader& reader) {
+  std::vector<std::string> warnings;
+  if (!reader.IndexedTopics().has_value()) {
+    warnings.push_back(reader.path() +
+                       ": the bag has no (complete) index; it was read by a linear scan");
+  }
+  for (std::string& warning : reader.Warnings()) warnings.push_back(std::move(warning));
+  return warnings;
+}
+
 std::unique_ptr<BagReader> OpenBag(const std::string& path) {
   std::error_code error;
   // A rosbag2 directory, with its metadata.yaml or, for part of a split recording, without.

@@ -56,7 +56,14 @@ class BagReader {
   // The next message in file order; false at the end. Throws autocal::ParseError (path, byte
   // offset and record kind) on a malformed file.
   virtual bool Next(BagMessage* message) = 0;
+  // What the reader recovered or left so far, one sentence each naming the file and byte
+  // (a ROS 1 bag whose recorder stopped mid-write: the records its last chunk holds whole).
+  virtual std::vector<std::string> Warnings() const { return {}; }
 };
+
+// The warnings a full read of `reader` leaves for its user: a missing index (read by a linear
+// scan), then the reader's Warnings().
+std::vector<std::string> ReadWarnings(const BagReader& reader);
 
 // Where a message sits in its file, for error messages: "<path>: byte N", or for a row of a
 // SQLite file "<path> (row N)".

@@ -19,5 +19,14 @@ std::string DecompressBz2Chunk(std::string_view compressed, size_t expected_byte
 std::string DecompressLz4FrameChunk(std::string_view compressed, size_t expected_bytes,
                                     std::string* out);
 
+// The open chunk a recorder stopped mid-write leaves: a stream cut short, of unknown size.
+// Decompresses what its whole blocks hold into `*out` (more than `limit` bytes is an error);
+// *ended tells whether the stream's end mark was there after all. Returns an empty string,
+// or what is wrong with the data (corrupt, not merely cut).
+std::string DecompressCutBz2Chunk(std::string_view compressed, size_t limit, std::string* out,
+                                  bool* ended);
+std::string DecompressCutLz4FrameChunk(std::string_view compressed, size_t limit, std::string* out,
+                                       bool* ended);
+
 }  // namespace import
 }  // namespace autocal

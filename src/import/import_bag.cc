@@ -39,16 +39,14 @@ ImportSummary ImportInto(BagReader* reader, const ImportOptions& options,
   Describe(selection.wheel, &summary.wheel);
   Describe(selection.gnss, &summary.gnss);
   Describe(selection.odometry, &summary.odometry);
-  if (!reader->IndexedTopics().has_value()) {
-    summary.warnings.push_back(reader->path() +
-                               ": the bag has no (complete) index; it was read by a linear scan");
-  }
 
   {
     io::DatasetWriter writer(output.temporary_path());
     StreamImporter importer(options, selection, &writer, &summary);
     BagMessage message;
     while (reader->Next(&message)) importer.Add(reader->path(), message);
+    const std::vector<std::string> read_warnings = ReadWarnings(*reader);
+    summary.warnings.insert(summary.warnings.begin(), read_warnings.begin(), read_warnings.end());
     importer.Finish(output.temporary_path());
     writer.Close();
   }

@@ -11,6 +11,13 @@
 // front and IndexedTopics(); a bag without one (index_pos 0, or chunk infos missing, as a
 // recorder killed mid-write leaves it) is first scanned for its connections, and has no
 // IndexedTopics() (callers warn).
+//
+// A recorder that stops without closing the bag (killed, out of power) leaves index_pos 0 and
+// its last chunk open: rosbag writes a chunk's header with the placeholder sizes 0 and 0 and
+// patches them when it closes the chunk, so that chunk's data runs to the file's end, and its
+// last record may be cut short. In a bag with index_pos 0 the scan reads such a chunk (or a
+// last record cut by the file's end) as far as its data holds whole records, and says what
+// it left in Warnings().
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -42,6 +49,7 @@ class Ros1BagReader final : public BagReader {
   const std::vector<Connection>& connections() const override { return connections_; }
   std::optional<std::vector<IndexedTopic>> IndexedTopics() const override { return indexed_; }
   bool Next(BagMessage* message) override;
+  std::vector<std::string> Warnings() const override { return warnings_; }
 
  private:
   // One top-level record: where it starts, its header and where its data lies.
@@ -57,8 +65,10 @@ class Ros1BagReader final : public BagReader {
   [[noreturn]] void Fail(uint64_t offset, const std::string& message) const;
   void ReadAt(uint64_t offset, size_t bytes, char* out, uint64_t record_offset,
               const std::string& what) const;
-  // Reads the record at `offset` (header parsed, data not read).
-  void ReadRecord(uint64_t offset, Record* record);
+  // Reads the record at `offset` (header parsed, data not read). A record that runs past the
+  // file's end is refused, or with `cut_ok` returned as false: record->op is the record's
+  // kind when its header is whole, else -1.
+  bool ReadRecord(uint64_t offset, Record* record, bool cut_ok = false);
   template <typename T>
   T Field(const Record& record, const char* name) const;
   std::string StringField(const HeaderFields& fields, uint64_t offset, int op,
@@ -70,6 +80,10 @@ class Ros1BagReader final : public BagReader {
   void AddConnection(const HeaderFields& record_fields, std::string_view data, uint64_t offset,
                      int op);
   void LoadChunk(const Record& record);
+  // The chunk a stopped recorder left open, its data from record.data_offset to the file's end.
+  void LoadOpenChunk(const Record& record);
+  // Whether `record` is that open chunk, or another record the file's end cut short.
+  bool IsOpenChunk(const Record& record) const;
   // The next message inside the loaded chunk; false when the chunk is used up.
   bool NextInChunk(BagMessage* message);
   void Rewind();
@@ -82,6 +96,7 @@ class Ros1BagReader final : public BagReader {
   uint32_t declared_chunks_ = 0;
   uint64_t records_begin_ = 0;  // first record after the bag header
   uint64_t records_end_ = 0;    // index_pos, or the file's end without an index
+  std::vector<std::string> warnings_;
 
   std::vector<Connection> connections_;
   std::map<uint32_t, size_t> connection_index_;
@@ -152,13 +167,17 @@ void Ros1BagReader::ReadAt(uint64_t offset, size_t bytes, char* out, uint64_t re
   }
 }
 
-void Ros1BagReader::ReadRecord(uint64_t offset, Record* record) {
+bool Ros1BagReader::ReadRecord(uint64_t offset, Record* record, bool cut_ok) {
   record->offset = offset;
   record->op = -1;
+  record->end = file_bytes_;
+  if (cut_ok && file_bytes_ - offset < 8) return false;
   char length[4];
   ReadAt(offset, 4, length, offset, "the record's header length");
   const uint32_t header_bytes = LoadU32(length);
-  if (header_bytes > file_bytes_ - std::min(file_bytes_, offset + 4)) {
+  // With `cut_ok` the data length must fit too: the header cannot be read whole otherwise.
+  if (header_bytes > file_bytes_ - std::min(file_bytes_, offset + (cut_ok ? 8 : 4))) {
+    if (cut_ok) return false;
     Fail(offset, "truncated file: the record declares a header of " + std::to_string(header_bytes) +
                      " bytes but the file ends at byte " + std::to_string(file_bytes_));
   }
@@ -176,11 +195,13 @@ void Ros1BagReader::ReadRecord(uint64_t offset, Record* record) {
   record->data_offset = offset + 8 + header_bytes;
   record->end = record->data_offset + record->data_bytes;
   if (record->end > file_bytes_) {
+    if (cut_ok) return false;
     Fail(offset, "truncated file: the " + OpName(record->op) + " declares " +
                      std::to_string(record->data_bytes) + " bytes of data, ending at byte " +
                      std::to_string(record->end) + ", but the file ends at byte " +
                      std::to_string(file_bytes_));
   }
+  return true;
 }
 
 template <typename T>
@@ -336,6 +357,7 @@ void Ros1BagReader::ReadChunkIndexes(const std::vector<uint64_t>& chunk_position
 
 void Ros1BagReader::Rewind() {
   next_record_ = records_begin_;
+  warnings_.clear();
   chunk_.clear();
   chunk_pos_ = 0;
 }
@@ -442,11 +464,92 @@ bool Ros1BagReader::NextInChunk(BagMessage* message) {
   return false;
 }
 
+bool Ros1BagReader::IsOpenChunk(const Record& record) const {
+  return record.op == kChunk && record.data_bytes == 0 && Field<uint32_t>(record, "size") == 0;
+}
+
+void Ros1BagReader::LoadOpenChunk(const Record& record) {
+  const uint64_t data_bytes = file_bytes_ - record.data_offset;
+  if (data_bytes > kMaxChunkBytes) {
+    Fail(record.offset, "the chunk left open holds " + std::to_string(data_bytes) +
+                            " bytes, more than the 1 GiB limit");
+  }
+  const std::string compression =
+      StringField(record.fields, record.offset, record.op, "compression");
+  chunk_offset_ = record.offset;
+  chunk_data_offset_ = record.data_offset;
+  chunk_pos_ = 0;
+  chunk_uncompressed_ = compression == "none";
+  std::string note;
+  if (chunk_uncompressed_) {
+    chunk_.resize(data_bytes);
+    ReadAt(record.data_offset, data_bytes, chunk_.data(), record.offset, "the chunk's data");
+  } else if (compression == "bz2" || compression == "lz4") {
+    compressed_.resize(data_bytes);
+    ReadAt(record.data_offset, data_bytes, compressed_.data(), record.offset, "the chunk's data");
+    bool ended = false;
+    const std::string why =
+        compression == "bz2"
+            ? DecompressCutBz2Chunk(compressed_, kMaxChunkBytes, &chunk_, &ended)
+            : DecompressCutLz4FrameChunk(compressed_, kMaxChunkBytes, &chunk_, &ended);
+    if (!why.empty()) Fail(record.offset, "chunk record left open: " + why);
+    if (!ended) {
+      note = "; its " + compression +
+             " stream is cut short: what follows its last whole block "
+             "was left";
+    }
+  } else {
+    Fail(record.offset,
+         "unknown chunk compression '" + compression + "' (expected none, bz2 or lz4)");
+  }
+  // Whole records only: the last one may be cut by the file's end.
+  size_t whole = 0;
+  size_t messages = 0;
+  for (;;) {
+    const size_t left = chunk_.size() - whole;
+    if (left < 8) break;
+    const uint32_t header_bytes = LoadU32(chunk_.data() + whole);
+    if (header_bytes > left - 8) break;
+    const uint32_t data_bytes_of_record = LoadU32(chunk_.data() + whole + 4 + header_bytes);
+    if (data_bytes_of_record > left - 8 - header_bytes) break;
+    std::string why;
+    if (inner_fields_.Parse(std::string_view(chunk_.data() + whole + 4, header_bytes), &why)) {
+      const std::string_view* op = inner_fields_.Find("op");
+      if (op != nullptr && op->size() == 1 && (*op)[0] == kMessageData) ++messages;
+    }
+    whole += 8 + size_t{header_bytes} + data_bytes_of_record;
+  }
+  if (chunk_.size() > whole) {
+    note += "; a record cut short (" + std::to_string(chunk_.size() - whole) + " bytes) was left";
+  }
+  warnings_.push_back(path_ + ": byte " + std::to_string(record.offset) + ": " +
+                      (record.data_bytes == 0
+                           ? "the last chunk was left open (the recorder stopped before "
+                             "closing the bag)"
+                           : "the last chunk is cut short by the file's end") +
+                      ": " + std::to_string(messages) + " messages read from it" + note);
+  chunk_.resize(whole);
+}
+
 bool Ros1BagReader::Next(BagMessage* message) {
   for (;;) {
     if (NextInChunk(message)) return true;
     if (next_record_ >= records_end_) return false;
-    ReadRecord(next_record_, &record_);
+    // index_pos 0: the recorder never closed the bag, its last records may be cut short.
+    const bool recorder_stopped = index_pos_ == 0;
+    if (!ReadRecord(next_record_, &record_, recorder_stopped) ||
+        (recorder_stopped && IsOpenChunk(record_))) {
+      next_record_ = file_bytes_;
+      if (record_.op == kChunk) {
+        LoadOpenChunk(record_);
+      } else {
+        warnings_.push_back(path_ + ": byte " + std::to_string(record_.offset) +
+                            ": the last record is cut short by the file's end; its " +
+                            std::to_string(file_bytes_ - record_.offset) +
+                            " bytes were left (the recorder stopped before closing the bag)");
+      }
+      continue;
+    }
     next_record_ = record_.end;
     switch (record_.op) {
       case kChunk:

@@ -10,9 +10,8 @@
 namespace autocal {
 namespace import {
 
-std::vector<TopicListing> ListTopics(const std::string& input, bool* has_index) {
+std::vector<TopicListing> ListTopics(const std::string& input, std::vector<std::string>* warnings) {
   const std::unique_ptr<BagReader> reader = OpenBag(input);
-  if (has_index != nullptr) *has_index = reader->IndexedTopics().has_value();
   std::map<uint32_t, std::string> topic_of;
   std::map<std::string, TopicListing> topics;
   for (const Connection& connection : reader->connections()) {
@@ -32,6 +31,7 @@ std::vector<TopicListing> ListTopics(const std::string& input, bool* has_index) 
     }
     ++listing.message_count;
   }
+  if (warnings != nullptr) *warnings = ReadWarnings(*reader);
   std::vector<TopicListing> list;
   for (auto& entry : topics) list.push_back(std::move(entry.second));
   return list;

@@ -10,6 +10,7 @@
 #include <random>
 
 #include "autocal/common/error.h"
+#include "autocal/import/import_bag.h"
 #include "import/bag_reader.h"
 #include "import/ros1_bag_writer.h"
 #include "support/test_paths.h"
@@ -142,6 +143,108 @@ TEST(Ros1BagTest, BagWithoutChunkInfosIsReadByALinearScan) {
   EXPECT_EQ(back.payloads.at("/a")[39], Payload(a, 39));
 }
 
+// A recorder that stops without closing its bag (killed, out of power) leaves index_pos 0 and
+// its last chunk open, with rosbag's placeholder sizes 0 and 0; the bag is read to the open
+// chunk's last whole record, and a warning says where and how much.
+TEST_P(Ros1BagCompressionTest, BagOfAStoppedRecorderIsReadToItsLastWholeRecord) {
+  Ros1BagWriter::Options options;
+  options.compression = GetParam();
+  options.chunk_bytes = 1 << 20;
+  Ros1BagWriter writer(options);
+  const uint32_t imu = writer.AddConnection("/imu", "sensor_msgs/Imu");
+  std::vector<std::string> written;
+  for (int i = 0; i < 2200; ++i) {
+    written.push_back(Payload(imu, i));
+    writer.Write(imu, kStartNs + i * 5000000LL, written.back());
+    if (i == 99 || i == 199) writer.EndChunk();  // two closed chunks, then the open one
+  }
+  const size_t open_chunk_at = writer.size();
+  const std::string whole = writer.StoppedInChunk(std::string::npos);
+  for (const bool cut : {false, true}) {
+    // 100 bytes: less than the last record (114 bytes), more than a bz2 stream's end mark.
+    SCOPED_TRACE(cut ? "cut 100 bytes before its end" : "whole");
+    const std::string path =
+        WriteBag("stopped.bag", cut ? whole.substr(0, whole.size() - 100) : whole);
+    const std::unique_ptr<BagReader> reader = OpenBag(path);
+    EXPECT_FALSE(reader->IndexedTopics().has_value());
+    const ReadBack back = ReadAll(reader.get());
+    const std::vector<std::string>& read = back.payloads.at("/imu");
+    ASSERT_LE(read.size(), written.size());
+    EXPECT_TRUE(std::equal(read.begin(), read.end(), written.begin()));
+    size_t expected = written.size();
+    if (cut) {
+      // The last record is cut; a cut bz2 stream gives nothing before its end (one block
+      // here), a cut lz4 frame its whole 64 KiB blocks.
+      if (GetParam() == Ros1BagWriter::Compression::kNone) expected = written.size() - 1;
+      if (GetParam() == Ros1BagWriter::Compression::kBz2) expected = 200;
+    }
+    if (GetParam() == Ros1BagWriter::Compression::kLz4 && cut) {
+      EXPECT_GT(read.size(), 1000u);
+      EXPECT_LT(read.size(), written.size());
+    } else {
+      EXPECT_EQ(read.size(), expected);
+    }
+    const std::vector<std::string> warnings = reader->Warnings();
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_THAT(warnings[0], HasSubstr("stopped.bag: byte " + std::to_string(open_chunk_at) +
+                                       ": the last chunk was left open (the recorder stopped"));
+    EXPECT_THAT(warnings[0],
+                HasSubstr(": " + std::to_string(read.size() - 200) + " messages read from it"));
+    if (cut && GetParam() != Ros1BagWriter::Compression::kNone) {
+      EXPECT_THAT(warnings[0], HasSubstr("stream is cut short"));
+    }
+    // What the import and --list tell their user: no index, then the open chunk.
+    std::vector<std::string> listed;
+    ListTopics(path, &listed);
+    ASSERT_EQ(listed.size(), 2u);
+    EXPECT_THAT(listed[0], HasSubstr("no (complete) index; it was read by a linear scan"));
+    EXPECT_EQ(listed[1], warnings[0]);
+  }
+}
+
+// Cut by the file's end elsewhere: inside a chunk that has its sizes, inside the index data
+// record after it, inside a record's header. Every whole chunk is read.
+TEST(Ros1BagTest, BagCutShortWithoutAnIndexIsReadToItsLastWholeRecord) {
+  Ros1BagWriter::Options options;
+  options.chunk_bytes = 1 << 20;
+  Ros1BagWriter writer(options);
+  const uint32_t a = writer.AddConnection("/a", "std_msgs/String");
+  size_t second_chunk_at = 0;
+  for (int i = 0; i < 40; ++i) {
+    writer.Write(a, kStartNs + i, Payload(a, i));
+    if (i == 19) {
+      writer.EndChunk();
+      second_chunk_at = writer.size();
+    }
+  }
+  const std::string bytes = writer.Unfinished();
+  // The index data record after the second chunk: header fields op (4 + 4 bytes), ver, conn
+  // and count (4 + 8 each), 20 entries of 12 bytes.
+  const size_t index_record_bytes = 4 + (8 + 12 + 13 + 14) + 4 + 20 * 12;
+  struct Case {
+    size_t size;
+    size_t messages;
+    std::string warning;
+  };
+  const std::string index_cut = "the last record is cut short by the file's end";
+  for (const Case& c : std::vector<Case>{
+           {bytes.size() - index_record_bytes - 10, 39,
+            "byte " + std::to_string(second_chunk_at) +
+                ": the last chunk is cut short by the file's end: 19 messages read from it; a "
+                "record cut short"},
+           {bytes.size() - 5, 40, index_cut},
+           {second_chunk_at + 3, 20, index_cut}}) {
+    SCOPED_TRACE(c.size);
+    ASSERT_LT(c.size, bytes.size());
+    const std::string path = WriteBag("cut.bag", bytes.substr(0, c.size));
+    const std::unique_ptr<BagReader> reader = OpenBag(path);
+    const ReadBack back = ReadAll(reader.get());
+    EXPECT_EQ(back.payloads.at("/a").size(), c.messages);
+    ASSERT_EQ(reader->Warnings().size(), 1u);
+    EXPECT_THAT(reader->Warnings()[0], HasSubstr(c.warning));
+  }
+}
+
 // The error of opening and reading `bytes` whole.
 std::string ErrorOf(const std::string& name, const std::string& bytes) {
   const std::string path = WriteBag(name, bytes);
@@ -169,10 +272,12 @@ TEST(Ros1BagTest, TruncatedFilesAreRefusedWithTheOffset) {
   // Cut inside the index: the bag header points past the end.
   EXPECT_THAT(ErrorOf("cut_index.bag", bytes.substr(0, bytes.size() - 10)),
               HasSubstr("truncated file"));
-  // Cut inside the first chunk's data, of an unindexed bag.
-  const std::string unindexed = MakeBag(Ros1BagWriter::Compression::kNone, false);
-  const std::string error = ErrorOf("cut_chunk.bag", unindexed.substr(0, 4096 + 13 + 500));
-  EXPECT_THAT(error, HasSubstr("byte 4109: truncated file: the chunk record declares"));
+  // An indexed bag cut inside its chunks: the index says the bag was closed, so its data is
+  // damaged, not left by a recorder that stopped (BagCutShortWithoutAnIndex...).
+  std::string indexed = MakeBag(Ros1BagWriter::Compression::kNone, true);
+  indexed.resize(4096 + 13 + 500);
+  EXPECT_THAT(ErrorOf("cut_chunk.bag", indexed),
+              HasSubstr("byte 13: truncated file: the bag header puts the index at byte"));
 }
 
 // The open file descriptors of this process.

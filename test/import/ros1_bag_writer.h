@@ -4,7 +4,8 @@
 // header record (padded to 4096 bytes as rosbag does), chunks of connection and message
 // data records (uncompressed, bz2 or lz4 frames), an index data record per connection
 // after each chunk, and at index_pos the connection and chunk info records. An unindexed
-// bag (as a killed recorder leaves it) has index_pos 0 and no index records.
+// bag has index_pos 0 and no index records; Unfinished() and StoppedInChunk() give the bags a
+// recorder that stopped without closing the bag leaves.
 // Written from the published format description, independently of the reader under test.
 
 #include <bzlib.h>
@@ -87,6 +88,31 @@ class Ros1BagWriter {
     return out_;
   }
 
+  // The bytes written so far: where the next chunk will start.
+  size_t size() const { return out_.size(); }
+
+  // Closes the chunk being written now, whatever its size.
+  void EndChunk() { CloseChunk(); }
+
+  // The bag a recorder leaves when it stops right after closing a chunk: every chunk closed
+  // with its index data records, no index, index_pos 0.
+  std::string Unfinished() {
+    CloseChunk();
+    return out_;
+  }
+
+  // The bag a recorder leaves when it stops with a chunk open: rosbag writes the chunk's
+  // header with the placeholder sizes 0 and 0 (patched when it closes the chunk) and then the
+  // chunk's data as it comes; here the first `kept_bytes` of that data, compressed as the
+  // options say.
+  std::string StoppedInChunk(size_t kept_bytes) {
+    const std::string header = Field("op", std::string(1, '\x05')) +
+                               Field("compression", CompressionName()) + Field("size", U32(0));
+    const std::string data = Compressed(chunk_);
+    return out_ + U32(static_cast<uint32_t>(header.size())) + header + U32(0) +
+           data.substr(0, kept_bytes);
+  }
+
   static void WriteFile(const std::string& path, const std::string& bytes) {
     std::ofstream file(path, std::ios::binary | std::ios::trunc);
     file.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
@@ -162,19 +188,25 @@ class Ros1BagWriter {
     return Record(header, data);
   }
 
+  const char* CompressionName() const {
+    const char* names[] = {"none", "bz2", "lz4"};
+    return names[static_cast<int>(options_.compression)];
+  }
+  std::string Compressed(const std::string& raw) const {
+    return options_.compression == Compression::kNone  ? raw
+           : options_.compression == Compression::kBz2 ? Bz2(raw)
+                                                       : Lz4(raw);
+  }
+
   void CloseChunk() {
     if (chunk_.empty()) return;
-    const char* names[] = {"none", "bz2", "lz4"};
-    const int kind = static_cast<int>(options_.compression);
-    const std::string data = options_.compression == Compression::kNone  ? chunk_
-                             : options_.compression == Compression::kBz2 ? Bz2(chunk_)
-                                                                         : Lz4(chunk_);
+    const std::string data = Compressed(chunk_);
     ChunkInfo info;
     info.position = out_.size();
     info.start_ns = chunk_start_ns_;
     info.end_ns = chunk_end_ns_;
     const std::string header = Field("op", std::string(1, '\x05')) +
-                               Field("compression", names[kind]) +
+                               Field("compression", CompressionName()) +
                                Field("size", U32(static_cast<uint32_t>(chunk_.size())));
     out_.append(Record(header, data));
     for (const auto& [conn, entries] : chunk_index_) {

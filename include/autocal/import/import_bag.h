@@ -77,9 +77,11 @@ struct TopicListing {
 };
 
 // Reads every message of `input` (so a malformed bag fails here too) and lists its topics
-// in name order. `has_index`, when given, tells whether the container has an index or
-// summary (else it was read by a linear scan).
-std::vector<TopicListing> ListTopics(const std::string& input, bool* has_index = nullptr);
+// in name order. `warnings`, when given, receives what the read found, one sentence each
+// naming the file: no index or summary (read by a linear scan), a last chunk a stopped recorder
+// left open (the records read from it).
+std::vector<TopicListing> ListTopics(const std::string& input,
+                                     std::vector<std::string>* warnings = nullptr);
 // One line per topic: topic, type, count, span (s), mean rate (Hz).
 std::string FormatTopicList(const std::vector<TopicListing>& topics);
 
