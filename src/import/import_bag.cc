@@ -26,6 +26,37 @@ void Describe(const SelectedTopic& selected, ImportedStream* stream) {
   stream->type = selected.type;
 }
 
+// `why` without `directory`'s path: the temporary directory is removed on the way out, so
+// naming it would point the user at nothing.
+std::string WithoutDirectory(std::string why, const std::string& directory) {
+  const std::string prefix = directory + "/";
+  for (size_t at = why.find(prefix); at != std::string::npos; at = why.find(prefix)) {
+    why.erase(at, prefix.size());
+  }
+  return why;
+}
+
+// Streams `reader` into `directory`: the sweeps as they come, then the small streams and
+// sensors.yaml.
+void WriteDataset(BagReader* reader, const ImportOptions& options, const TopicSelection& selection,
+                  const std::string& directory, ImportSummary* summary) {
+  io::DatasetWriter writer(directory);
+  StreamImporter importer(options, selection, &writer, summary);
+  BagMessage message;
+  while (reader->Next(&message)) importer.Add(reader->path(), message);
+  const std::vector<std::string> read_warnings = ReadWarnings(*reader);
+  summary->warnings.insert(summary->warnings.begin(), read_warnings.begin(), read_warnings.end());
+  importer.Finish(directory);
+  writer.Close();
+  // The writer makes lidar/ and groundtruth/ up front; an import fills groundtruth/ never.
+  std::error_code error;
+  std::filesystem::remove(directory + "/groundtruth", error);
+  if (summary->lidar.written == 0) {
+    std::filesystem::remove_all(directory + "/lidar", error);
+    std::filesystem::remove(directory + "/lidar.csv", error);
+  }
+}
+
 // Streams `reader` into output's temporary directory, checks and renames it.
 ImportSummary ImportInto(BagReader* reader, const ImportOptions& options,
                          OutputDirectory* output_directory) {
@@ -39,32 +70,20 @@ ImportSummary ImportInto(BagReader* reader, const ImportOptions& options,
   Describe(selection.wheel, &summary.wheel);
   Describe(selection.gnss, &summary.gnss);
   Describe(selection.odometry, &summary.odometry);
-
-  {
-    io::DatasetWriter writer(output.temporary_path());
-    StreamImporter importer(options, selection, &writer, &summary);
-    BagMessage message;
-    while (reader->Next(&message)) importer.Add(reader->path(), message);
-    const std::vector<std::string> read_warnings = ReadWarnings(*reader);
-    summary.warnings.insert(summary.warnings.begin(), read_warnings.begin(), read_warnings.end());
-    importer.Finish(output.temporary_path());
-    writer.Close();
+  const std::string& directory = output.temporary_path();
+  try {
+    WriteDataset(reader, options, selection, directory, &summary);
+  } catch (const Error& e) {
+    const std::string why = WithoutDirectory(e.what(), directory);
+    if (why == e.what()) throw;  // the bag's file and byte, kept as they are
+    throw Error(why);
   }
-  // The writer makes lidar/ and groundtruth/ up front; an import fills groundtruth/ never.
-  std::error_code error;
-  std::filesystem::remove(output.temporary_path() + "/groundtruth", error);
-  if (summary.lidar.written == 0)
-    std::filesystem::remove(output.temporary_path() + "/lidar", error);
   // The result must read back as a dataset before it gets its name.
   try {
-    io::ReadDataset(output.temporary_path());
+    io::ReadDataset(directory);
   } catch (const Error& e) {
-    std::string why = e.what();
-    const std::string temporary = output.temporary_path() + "/";
-    for (size_t at = why.find(temporary); at != std::string::npos; at = why.find(temporary)) {
-      why.erase(at, temporary.size());
-    }
-    throw Error("the imported data fails the dataset checks, nothing was written: " + why);
+    throw Error("the imported data fails the dataset checks, nothing was written: " +
+                WithoutDirectory(e.what(), directory));
   }
   output.Commit();
   return summary;

@@ -6,8 +6,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <optional>
 
 #include "autocal/common/error.h"
+#include "autocal/io/sensors_yaml.h"
+#include "autocal/sensors/sample_timing.h"
 #include "import/ros_messages.h"
 #include "io/text_format.h"
 
@@ -32,22 +35,21 @@ int64_t SortUnique(std::vector<T>* samples) {
   return dropped;
 }
 
-// (count - 1) intervals over span_ns, to six significant digits (the file states a rate, not
-// a nanosecond's rounding: 3059 intervals over 61.18 s are 50 Hz, not 49.99999999999999);
-// 0 when it cannot be told.
-double MeasuredRateHz(size_t count, int64_t span_ns) {
-  if (count < 2 || span_ns <= 0) return 0.0;
-  const double rate = static_cast<double>(count - 1) / (1e-9 * static_cast<double>(span_ns));
+// The rate sensors.yaml states for strictly increasing stamps: 1 / the mean interval without
+// outages (sensors::MeasureTiming: a 10 Hz receiver with outages is a 10 Hz receiver), to six
+// significant digits (a rate, not a nanosecond's rounding: 50 Hz, not 49.99999999999999);
+// 0 with fewer than two stamps.
+double RateHz(const std::vector<int64_t>& stamps_ns, const std::string& what) {
+  if (stamps_ns.size() < 2) return 0.0;
+  const double rate = sensors::MeasureTiming(stamps_ns, what).rate_hz();
   char digits[32];
   std::snprintf(digits, sizeof(digits), "%.6g", rate);
   return std::strtod(digits, nullptr);
 }
 
 template <typename T>
-double RateHz(const std::vector<T>& samples) {
-  return samples.empty()
-             ? 0.0
-             : MeasuredRateHz(samples.size(), samples.back().t_ns - samples.front().t_ns);
+double RateHz(const std::vector<T>& samples, const std::string& what) {
+  return RateHz(sensors::StampsOf(samples), what);
 }
 
 // The one joint whose name says `side`, preferring a rear one when several do.
@@ -70,6 +72,35 @@ int FindWheelJoint(const std::vector<std::string>& names, const std::string& sid
     candidates = rear;
   }
   return candidates.size() == 1 ? candidates.front() : -1;
+}
+
+// A JointState's two wheel values out of `values`: nullopt when it has too few.
+std::optional<Eigen::Vector2d> WheelPair(const std::vector<double>& values, int left, int right) {
+  if (values.size() <= static_cast<size_t>(std::max(left, right))) return std::nullopt;
+  return Eigen::Vector2d(values[left], values[right]);
+}
+
+// The rate sensors.yaml states for `stamps_ns`, or nullopt when it cannot state one: a single
+// sample, or a rate outside what ReadSensorsYaml accepts (two GNSS fixes 300 s apart).
+std::optional<double> StatedRateHz(const std::vector<int64_t>& stamps_ns,
+                                   const io::RateRangeHz& range, const std::string& what) {
+  const double rate_hz = RateHz(stamps_ns, what);
+  if (stamps_ns.size() < 2 || !range.Contains(rate_hz)) return std::nullopt;
+  return rate_hz;
+}
+
+// "N samples over S s (R Hz)", or "1 sample".
+std::string DescribeStream(const std::vector<int64_t>& stamps_ns, const std::string& what) {
+  if (stamps_ns.size() < 2) return std::to_string(stamps_ns.size()) + " " + what;
+  return std::to_string(stamps_ns.size()) + " " + what + " over " +
+         io::internal::FormatDouble(1e-9 *
+                                    static_cast<double>(stamps_ns.back() - stamps_ns.front())) +
+         " s (" + io::internal::FormatDouble(RateHz(stamps_ns, what)) + " Hz)";
+}
+
+std::string RangeText(const io::RateRangeHz& range) {
+  return "the " + io::internal::FormatDouble(range.min) + " to " +
+         io::internal::FormatDouble(range.max) + " Hz sensors.yaml can state";
 }
 
 std::string JoinNames(const std::vector<std::string>& names) {
@@ -126,6 +157,10 @@ void StreamImporter::AddImu(MessageCursor* cursor, int64_t log_ns) {
   const ImuMessage imu = DecodeImu(cursor);
   ++summary_->imu.messages;
   if (imu_frame_.empty()) imu_frame_ = imu.frame_id;
+  if (!imu.angular_velocity_rad_s.allFinite() || !imu.linear_acceleration_m_s2.allFinite()) {
+    ++non_finite_imu_;
+    return;
+  }
   sensors::ImuSample sample;
   sample.t_ns = Stamp(imu.stamp_ns, log_ns);
   sample.gyro_rad_s = imu.angular_velocity_rad_s;
@@ -180,6 +215,23 @@ std::pair<int, int> StreamImporter::WheelJoints(const std::vector<std::string>& 
   return joint_indices_;
 }
 
+std::optional<Eigen::Vector2d> StreamImporter::RatesFromAngles(int64_t t_ns,
+                                                               const Eigen::Vector2d& angles_rad,
+                                                               int64_t* midway_ns,
+                                                               bool* unordered) {
+  *unordered = has_previous_angles_ && t_ns <= previous_angles_ns_;
+  if (*unordered) return std::nullopt;  // the angles go on from the last message in order
+  const bool usable = has_previous_angles_;
+  const double dt_s = 1e-9 * static_cast<double>(t_ns - previous_angles_ns_);
+  const Eigen::Vector2d rates = (angles_rad - previous_angles_rad_) / dt_s;
+  *midway_ns = previous_angles_ns_ + (t_ns - previous_angles_ns_) / 2;
+  has_previous_angles_ = true;
+  previous_angles_ns_ = t_ns;
+  previous_angles_rad_ = angles_rad;
+  if (!usable) return std::nullopt;
+  return rates;
+}
+
 void StreamImporter::AddJointState(MessageCursor* cursor, int64_t log_ns) {
   const JointStateMessage joints = DecodeJointState(cursor);
   ++summary_->wheel.messages;
@@ -188,36 +240,33 @@ void StreamImporter::AddJointState(MessageCursor* cursor, int64_t log_ns) {
     ++joint_states_without_wheels_;
     return;
   }
+  const int64_t t_ns = Stamp(joints.stamp_ns, log_ns);
+  const std::optional<Eigen::Vector2d> velocities = WheelPair(joints.velocity_rad_s, left, right);
+  const std::optional<Eigen::Vector2d> angles = WheelPair(joints.position_rad, left, right);
+  // The rates from the angles whenever the angles are finite: the next message may need this
+  // one's as its reference (a driver that fills NaN for a velocity it does not know).
+  std::optional<Eigen::Vector2d> from_angles;
+  int64_t midway_ns = 0;
+  bool unordered = false;
+  if (angles && angles->allFinite()) {
+    from_angles = RatesFromAngles(t_ns, *angles, &midway_ns, &unordered);
+  }
   sensors::WheelSample sample;
-  sample.t_ns = Stamp(joints.stamp_ns, log_ns);
-  const size_t needed = static_cast<size_t>(std::max(left, right)) + 1;
-  if (joints.velocity_rad_s.size() >= needed) {
-    sample.left_rad_s = joints.velocity_rad_s[left];
-    sample.right_rad_s = joints.velocity_rad_s[right];
-  } else if (joints.position_rad.size() >= needed) {
-    // No velocities: differentiate the wheel angles between consecutive messages. The
-    // difference is the rate midway between them (exact for a steady acceleration), and is
-    // stamped there: at the later message it would lag by half the messages' interval.
-    const double left_rad = joints.position_rad[left];
-    const double right_rad = joints.position_rad[right];
-    const int64_t t_ns = sample.t_ns;
-    if (has_previous_position_ && t_ns <= previous_position_ns_) {
-      ++unordered_joint_positions_;  // the angles go on from the last message in order
-      return;
-    }
-    const bool usable = has_previous_position_;
-    const double dt_s = 1e-9 * static_cast<double>(t_ns - previous_position_ns_);
-    sample.left_rad_s = (left_rad - previous_left_rad_) / dt_s;
-    sample.right_rad_s = (right_rad - previous_right_rad_) / dt_s;
-    sample.t_ns = previous_position_ns_ + (t_ns - previous_position_ns_) / 2;
-    has_previous_position_ = true;
-    previous_position_ns_ = t_ns;
-    previous_left_rad_ = left_rad;
-    previous_right_rad_ = right_rad;
-    if (!usable) return;
+  if (velocities && velocities->allFinite()) {
+    sample.t_ns = t_ns;
+    sample.left_rad_s = (*velocities)(0);
+    sample.right_rad_s = (*velocities)(1);
+  } else if (from_angles) {
+    sample.t_ns = midway_ns;
+    sample.left_rad_s = (*from_angles)(0);
+    sample.right_rad_s = (*from_angles)(1);
   } else {
-    ++joint_states_without_wheels_;
-    return;
+    if (unordered) {
+      ++unordered_joint_positions_;
+    } else if (!(angles && angles->allFinite())) {
+      ++((velocities || angles) ? non_finite_joint_states_ : joint_states_without_wheels_);
+    }
+    return;  // else the first angles: the reference for the next message
   }
   wheel_.push_back(sample);
 }
@@ -263,34 +312,72 @@ void StreamImporter::AddOdometry(MessageCursor* cursor, int64_t log_ns) {
                                         ? DecodeOdometry(cursor)
                                         : DecodeTwistStamped(cursor);
   ++summary_->odometry.messages;
+  if (!std::isfinite(twist.speed_m_s) || !std::isfinite(twist.yaw_rate_rad_s)) {
+    ++non_finite_odometry_;
+    return;
+  }
   odometry_.push_back({Stamp(twist.stamp_ns, log_ns), twist.speed_m_s, twist.yaw_rate_rad_s});
+}
+
+void StreamImporter::MeasureRates() {
+  const std::vector<int64_t> imu_stamps = sensors::StampsOf(imu_);
+  const std::optional<double> imu_rate =
+      StatedRateHz(imu_stamps, io::kImuRateRangeHz, selection_.imu.topic);
+  if (!imu_rate) {
+    throw Error(selection_.imu.topic + ": " + DescribeStream(imu_stamps, "IMU samples") +
+                ", not a stream at " + RangeText(io::kImuRateRangeHz));
+  }
+  rates_.imu = *imu_rate;
+  // An optional stream without a rate is left out, with a warning, not the whole import.
+  const auto optional = [&](const std::vector<int64_t>& stamps, const io::RateRangeHz& range,
+                            const SelectedTopic& topic, const char* what) {
+    if (stamps.empty()) return 0.0;
+    const std::optional<double> rate = StatedRateHz(stamps, range, topic.topic);
+    if (rate) return *rate;
+    Warn(topic.topic + ": left out of the dataset: " + DescribeStream(stamps, what) +
+         ", not a stream at " + RangeText(range));
+    return 0.0;
+  };
+  const auto optional_samples = [&](auto* samples, const io::RateRangeHz& range,
+                                    const SelectedTopic& topic, const char* what) {
+    const double rate = optional(sensors::StampsOf(*samples), range, topic, what);
+    if (rate == 0.0) samples->clear();
+    return rate;
+  };
+  rates_.lidar = optional(sweep_stamps_, io::kLidarRateRangeHz, selection_.lidar, "sweeps");
+  if (rates_.lidar == 0.0) {
+    sweep_stamps_.clear();
+    summary_->lidar.written = 0;  // ImportBag removes the sweeps written
+  }
+  rates_.wheel =
+      optional_samples(&wheel_, io::kWheelRateRangeHz, selection_.wheel, "wheel samples");
+  rates_.odometry =
+      optional_samples(&odometry_, io::kWheelRateRangeHz, selection_.odometry, "odometry samples");
+  rates_.gnss = optional_samples(&gnss_, io::kGnssRateRangeHz, selection_.gnss, "GNSS fixes");
 }
 
 io::SensorsConfig StreamImporter::MakeSensorsConfig() {
   io::SensorsConfig config;
-  const double imu_rate = RateHz(imu_);
-  if (imu_rate > 0.0) config.imu.noise.update_rate_hz = imu_rate;
+  config.imu.noise.update_rate_hz = rates_.imu;
   Warn(
       "sensors.yaml: the IMU noise densities and random walks are placeholders (EuRoC-class "
       "MEMS): replace them with your IMU's values");
   if (!sweep_stamps_.empty()) {
     sensors::LidarConfig lidar;
-    const double rate =
-        MeasuredRateHz(sweep_stamps_.size(), sweep_stamps_.back() - sweep_stamps_.front());
-    if (rate > 0.0) lidar.rate_hz = rate;
+    lidar.rate_hz = rates_.lidar;
     if (lidar_rows_ > 1) lidar.num_beams = static_cast<int>(lidar_rows_);
     config.lidar = lidar;
   }
   if (!wheel_.empty()) {
     sensors::WheelConfig wheel;
-    if (RateHz(wheel_) > 0.0) wheel.rate_hz = RateHz(wheel_);
+    wheel.rate_hz = rates_.wheel;
     config.wheel = wheel;
   } else if (!odometry_.empty()) {
     // Without wheel rates the controller's twist is the wheel data (form speed_yaw_rate);
     // beside wheel rates, odometry.csv stays in the dataset, unused.
     sensors::WheelConfig wheel;
     wheel.form = sensors::WheelForm::kSpeedYawRate;
-    if (RateHz(odometry_) > 0.0) wheel.rate_hz = RateHz(odometry_);
+    wheel.rate_hz = rates_.odometry;
     config.wheel = wheel;
     Warn("sensors.yaml: wheel data from " + selection_.odometry.topic +
          " (form speed_yaw_rate); its noise and the controller's wheel separation "
@@ -298,7 +385,7 @@ io::SensorsConfig StreamImporter::MakeSensorsConfig() {
   }
   if (!gnss_.empty()) {
     sensors::GnssConfig gnss;
-    if (RateHz(gnss_) > 0.0) gnss.rate_hz = RateHz(gnss_);
+    gnss.rate_hz = rates_.gnss;
     config.gnss = gnss;
   }
   config.nominal_calibration = NominalCalibration();
@@ -338,7 +425,13 @@ sensors::Calibration StreamImporter::NominalCalibration() {
 }
 
 void StreamImporter::Finish(const std::string& /*directory: the writer's*/) {
-  if (imu_.empty()) throw Error(selection_.imu.topic + ": no IMU messages in the bag");
+  if (imu_.empty()) {
+    throw Error(selection_.imu.topic +
+                (summary_->imu.messages == 0
+                     ? ": no IMU messages in the bag"
+                     : ": none of its " + std::to_string(summary_->imu.messages) +
+                           " IMU messages has finite values"));
+  }
   const auto count = [](int64_t n, const std::string& what) {
     return std::to_string(n) + " " + what;
   };
@@ -378,6 +471,22 @@ void StreamImporter::Finish(const std::string& /*directory: the writer's*/) {
     Warn(count(joint_states_without_wheels_,
                "JointState messages without both wheels' rates were skipped"));
   }
+
+  if (non_finite_imu_ > 0) {
+    Warn(count(non_finite_imu_,
+               "IMU messages with a non-finite angular velocity or linear "
+               "acceleration were dropped"));
+  }
+  if (non_finite_joint_states_ > 0) {
+    Warn(count(non_finite_joint_states_,
+               "JointState messages with non-finite wheel rates (and no finite wheel angles to "
+               "take them from) were dropped"));
+  }
+  if (non_finite_odometry_ > 0) {
+    Warn(count(non_finite_odometry_,
+               "odometry messages with a non-finite speed or yaw rate were dropped"));
+  }
+  MeasureRates();
 
   writer_->WriteImu(imu_);
   summary_->imu.written = static_cast<int64_t>(imu_.size());

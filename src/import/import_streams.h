@@ -5,6 +5,8 @@
 // the DatasetWriter; the small streams are kept and written, sorted by stamp, by Finish().
 // Private to src/import.
 
+#include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,10 +37,21 @@ class StreamImporter {
   void AddImu(MessageCursor* cursor, int64_t log_ns);
   void AddCloud(MessageCursor* cursor, int64_t log_ns);
   void AddJointState(MessageCursor* cursor, int64_t log_ns);
+  // Wheel rates from a JointState's angles: the difference with the previous message's angles
+  // is the rate midway between them (exact for a steady acceleration), stamped there
+  // (*midway_ns; at the later message it would lag by half the interval). Every call with an
+  // advancing stamp makes `angles_rad` the next reference; nullopt for the first, and for a
+  // stamp at or before the reference's (*unordered).
+  std::optional<Eigen::Vector2d> RatesFromAngles(int64_t t_ns, const Eigen::Vector2d& angles_rad,
+                                                 int64_t* midway_ns, bool* unordered);
   void AddFix(MessageCursor* cursor, int64_t log_ns);
   void AddOdometry(MessageCursor* cursor, int64_t log_ns);
   // Indices of the left and right wheel joints among `names` (docs/import.md rule).
   std::pair<int, int> WheelJoints(const std::vector<std::string>& names);
+  // The rates sensors.yaml states (rates_). An IMU without one is an error; another stream
+  // without one (a single sample, or a rate outside what sensors.yaml may state) is left out
+  // with a warning, its lidar.written set to 0 for the LiDAR.
+  void MeasureRates();
   // Measured rates and the nominal calibration; the IMU noise stays at its defaults.
   io::SensorsConfig MakeSensorsConfig();
   sensors::Calibration NominalCalibration();
@@ -55,6 +68,9 @@ class StreamImporter {
   sensors::GnssFixes gnss_;
   std::vector<OdometrySample> odometry_;
   StaticTransforms transforms_;
+  struct {
+    double imu = 0.0, lidar = 0.0, wheel = 0.0, odometry = 0.0, gnss = 0.0;  // Hz
+  } rates_;
   std::string imu_frame_, lidar_frame_, gnss_frame_;
 
   // LiDAR
@@ -66,9 +82,9 @@ class StreamImporter {
   // a JointState without velocities.
   std::vector<std::string> joint_names_;
   std::pair<int, int> joint_indices_{-1, -1};
-  bool has_previous_position_ = false;
-  int64_t previous_position_ns_ = 0;
-  double previous_left_rad_ = 0.0, previous_right_rad_ = 0.0;
+  bool has_previous_angles_ = false;
+  int64_t previous_angles_ns_ = 0;
+  Eigen::Vector2d previous_angles_rad_ = Eigen::Vector2d::Zero();
 
   // Counts for the warnings.
   int64_t zero_stamps_ = 0;
@@ -80,6 +96,9 @@ class StreamImporter {
   int64_t defaulted_gnss_sigma_ = 0;
   int64_t joint_states_without_wheels_ = 0;
   int64_t unordered_joint_positions_ = 0;  // positions-only messages not after the previous one
+  int64_t non_finite_joint_states_ = 0;    // no finite velocities, nor finite angles to use
+  int64_t non_finite_imu_ = 0;             // NaN or infinite rate or specific force
+  int64_t non_finite_odometry_ = 0;        // NaN or infinite speed or yaw rate
 };
 
 }  // namespace import

@@ -35,7 +35,7 @@ sensors::ImuConfig ParseImu(const YamlFile& file, const YAML::Node& node) {
       required("accelerometer_noise_density", 1e-6, 10.0, "m/s^2/sqrt(Hz)");
   noise.accelerometer_random_walk =
       required("accelerometer_random_walk", 1e-8, 10.0, "m/s^3/sqrt(Hz)");
-  noise.update_rate_hz = required("update_rate", 1.0, 100000.0, "Hz");
+  noise.update_rate_hz = required("update_rate", kImuRateRangeHz.min, kImuRateRangeHz.max, "Hz");
   if (const YAML::Node gravity = node["gravity_m_s2"]) {
     imu.gravity_m_s2 = file.Double(gravity, "imu.gravity_m_s2");
     if (imu.gravity_m_s2 < kMinGravity || imu.gravity_m_s2 > kMaxGravity) {
@@ -58,7 +58,8 @@ sensors::LidarConfig ParseLidar(const YamlFile& file, const YAML::Node& node) {
     lidar.num_beams = static_cast<int>(beams);
   }
   if (const YAML::Node n = node["rate_hz"])
-    lidar.rate_hz = file.DoubleInRange(n, "lidar.rate_hz", 0.1, 1000.0, "Hz");
+    lidar.rate_hz =
+        file.DoubleInRange(n, "lidar.rate_hz", kLidarRateRangeHz.min, kLidarRateRangeHz.max, "Hz");
   if (const YAML::Node n = node["min_elevation_deg"])
     lidar.min_elevation_deg = file.Double(n, "lidar.min_elevation_deg");
   if (const YAML::Node n = node["max_elevation_deg"])
@@ -99,7 +100,8 @@ sensors::WheelConfig ParseWheel(const YamlFile& file, const YAML::Node& node) {
     }
   }
   if (const YAML::Node n = node["rate_hz"])
-    wheel.rate_hz = file.DoubleInRange(n, "wheel.rate_hz", 0.1, 100000.0, "Hz");
+    wheel.rate_hz =
+        file.DoubleInRange(n, "wheel.rate_hz", kWheelRateRangeHz.min, kWheelRateRangeHz.max, "Hz");
   if (const YAML::Node n = node["noise_rad_s"])
     wheel.noise_rad_s =
         file.DoubleInRange(n, "wheel.noise_rad_s", kMinWheelSigma, kMaxWheelSigma, "rad/s");
@@ -134,7 +136,8 @@ sensors::GnssConfig ParseGnss(const YamlFile& file, const YAML::Node& node) {
   file.ExpectMap(node, "gnss", {"rate_hz"});
   sensors::GnssConfig gnss;
   if (const YAML::Node n = node["rate_hz"])
-    gnss.rate_hz = file.DoubleInRange(n, "gnss.rate_hz", 0.01, 1000.0, "Hz");
+    gnss.rate_hz =
+        file.DoubleInRange(n, "gnss.rate_hz", kGnssRateRangeHz.min, kGnssRateRangeHz.max, "Hz");
   return gnss;
 }
 

@@ -59,6 +59,10 @@ struct RigOptions {
   bool joint_velocities = true;
   bool repeated_joint_stamp = false;  // the JointState at 0.2 s stamped as the one before it
   double gyro_scale = 1.0;            // 57.3: a driver that publishes deg/s
+  // NaN in the IMU message at 0.5 s, the odometry at 0.2 s and the rear wheels' velocities at
+  // 0.4 s (a driver that does not know them; their angles stay finite).
+  bool non_finite_values = false;
+  bool two_fixes_300_s_apart = false;  // every other fix without a fix; one lone sweep
   std::vector<std::string> joints = {"front_left_wheel", "front_right_wheel", "rear_left_wheel",
                                      "rear_right_wheel"};
 };
@@ -86,31 +90,44 @@ std::string RigBag(const RigOptions& rig, Ros1BagWriter::Compression compression
     const int64_t t = kStartNs + i * 5000000LL;
     // A turn on the spot about the gravity axis (+y in the IMU), its rate growing: the
     // accelerometer stays steady while the gyro moves far beyond a still gyro's noise.
-    std::string bytes = test::SerializeImu(false, t - kHeaderLagNs, "imu_link",
-                                           {0, rig.gyro_scale * 0.005 * i, 0}, {0, 9.81, 0});
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const bool nan_here = rig.non_finite_values && (i == 100 || i == 40 || i == 80);
+    std::string bytes = test::SerializeImu(
+        false, t - kHeaderLagNs, "imu_link",
+        {0, i == 100 && nan_here ? nan : rig.gyro_scale * 0.005 * i, 0}, {0, 9.81, 0});
     if (rig.corrupt_imu && i == 200) bytes.resize(bytes.size() - 1);
     w.Write(imu, t, bytes);
     if (rig.second_imu) w.Write(imu2, t, bytes);
-    if (i % 20 == 0) w.Write(lidar, t + 1000, Cloud(t - kHeaderLagNs, i / 20));
+    if (i % 20 == 0 && !(rig.two_fixes_300_s_apart && i > 0)) {
+      w.Write(lidar, t + 1000, Cloud(t - kHeaderLagNs, i / 20));
+    }
     if (i % 4 == 0) {
-      const std::vector<double> velocity = rig.joint_velocities
-                                               ? std::vector<double>{1, 2, 3.0 + i, 4.0 + i}
-                                               : std::vector<double>{};
+      std::vector<double> velocity = rig.joint_velocities
+                                         ? std::vector<double>{1, 2, 3.0 + i, 4.0 + i}
+                                         : std::vector<double>{};
+      if (i == 80 && nan_here) velocity = {1, 2, nan, nan};
       const int64_t stamp = rig.repeated_joint_stamp && i == 40 ? t - 20'000'000 : t;
       w.Write(wheel, t + 2000,
               test::SerializeJointState(false, stamp - kHeaderLagNs, rig.joints,
                                         {0, 0, 0.01 * i, 0.02 * i}, velocity));
     }
     if (i % 40 == 0) {
-      const int8_t status = (i / 40) % 5 == 4 ? -1 : 0;
+      int8_t status = (i / 40) % 5 == 4 ? -1 : 0;
+      int64_t stamp = t - kHeaderLagNs;
+      if (rig.two_fixes_300_s_apart) {
+        status = i == 0 || i == 360 ? 0 : -1;
+        if (i == 360) stamp = kStartNs - kHeaderLagNs + 300'000'000'000LL;
+      }
       w.Write(gnss, t + 3000,
               test::SerializeNavSatFix(
-                  false, t - kHeaderLagNs, status, 48.0 + 1e-6 * i, 11.0,
+                  false, stamp, status, 48.0 + 1e-6 * i, 11.0,
                   rig.gnss_altitude_nan ? std::numeric_limits<double>::quiet_NaN() : 500.0,
                   {4.0, 9.0, 16.0}, rig.gnss_covariance_type));
     }
     if (i % 10 == 0) {
-      w.Write(odom, t + 4000, test::SerializeOdometry(false, t - kHeaderLagNs, 0.01 * i, -0.5));
+      w.Write(odom, t + 4000,
+              test::SerializeOdometry(false, t - kHeaderLagNs, i == 40 && nan_here ? nan : 0.01 * i,
+                                      -0.5));
     }
   }
   return w.Finish();
@@ -244,6 +261,59 @@ TEST_F(ImportBagTest, AJointStampThatDoesNotAdvanceIsDroppedAndCounted) {
   EXPECT_THAT(summary.warnings,
               ::testing::Contains(HasSubstr("1 JointState messages (positions only) whose stamp "
                                             "did not follow the previous one's were dropped")));
+}
+
+// A NaN in an IMU, odometry or JointState message drops that message, counted; it used to fail
+// the whole import when the CSV was written, naming a temporary file that was then deleted.
+// Wheel velocities a driver does not know (NaN) are taken from the joints' angles.
+TEST_F(ImportBagTest, NonFiniteValuesDropTheirMessageCounted) {
+  RigOptions rig;
+  rig.non_finite_values = true;
+  const ImportOptions options = Options(Bag(rig));
+  const ImportSummary summary = ImportBag(options);
+  EXPECT_EQ(summary.imu.written, 399);
+  EXPECT_EQ(summary.odometry.written, 39);
+  EXPECT_EQ(summary.wheel.written, 100);
+  const std::vector<std::string>& warnings = summary.warnings;
+  EXPECT_THAT(warnings, ::testing::Contains(
+                            HasSubstr("1 IMU messages with a non-finite angular velocity or linear "
+                                      "acceleration were dropped")));
+  EXPECT_THAT(warnings, ::testing::Contains(
+                            HasSubstr("1 odometry messages with a non-finite speed or yaw rate")));
+  const io::Dataset dataset = io::ReadDataset(options.output);
+  // Message 20 (i = 80) from its angles 0.8 and 1.6 rad and message 19's 0.76 and 1.52 rad,
+  // 20 ms apart, stamped midway.
+  const sensors::WheelSample& from_angles = dataset.wheel[20];
+  EXPECT_EQ(from_angles.t_ns, (dataset.wheel[19].t_ns + dataset.wheel[21].t_ns) / 2 - 10'000'000);
+  EXPECT_NEAR(from_angles.left_rad_s, 2.0, 1e-9);
+  EXPECT_NEAR(from_angles.right_rad_s, 4.0, 1e-9);
+  EXPECT_EQ(dataset.wheel[21].left_rad_s, 3.0 + 84);
+}
+
+// A stream whose rate sensors.yaml cannot state (two fixes 300 s apart, one lone sweep) is left
+// out with a warning; it used to fail the whole import, IMU included, naming a temporary file.
+TEST_F(ImportBagTest, AStreamWithoutARateIsLeftOutNotTheImport) {
+  RigOptions rig;
+  rig.two_fixes_300_s_apart = true;
+  const ImportOptions options = Options(Bag(rig));
+  const ImportSummary summary = ImportBag(options);
+  EXPECT_EQ(summary.gnss.written, 0);
+  EXPECT_EQ(summary.lidar.written, 0);
+  EXPECT_THAT(summary.warnings,
+              ::testing::Contains(HasSubstr("/fix: left out of the dataset: 2 GNSS fixes over "
+                                            "300 s (0.00333333 Hz), not a stream at the 0.01 to "
+                                            "1000 Hz sensors.yaml can state")));
+  EXPECT_THAT(
+      summary.warnings,
+      ::testing::Contains(HasSubstr("/velodyne_points: left out of the dataset: 1 sweeps")));
+  EXPECT_THAT(summary.FormatText(), ::testing::Not(HasSubstr("importing")));
+  const io::Dataset dataset = io::ReadDataset(options.output);
+  EXPECT_EQ(dataset.imu.size(), 400u);
+  EXPECT_TRUE(dataset.gnss.empty());
+  EXPECT_TRUE(dataset.lidar_sweeps.empty());
+  EXPECT_FALSE(dataset.sensors.gnss.has_value());
+  EXPECT_FALSE(dataset.sensors.lidar.has_value());
+  EXPECT_FALSE(fs::exists(options.output + "/lidar"));
 }
 
 TEST_F(ImportBagTest, WheelsThatNamesDoNotTellApartNeedAFlag) {

@@ -33,6 +33,17 @@ namespace io {
 constexpr double kMinWheelSigma = 1e-6;
 constexpr double kMaxWheelSigma = 100.0;
 
+// The rates ReadSensorsYaml accepts, in Hz.
+struct RateRangeHz {
+  double min;
+  double max;
+  bool Contains(double rate_hz) const { return rate_hz >= min && rate_hz <= max; }
+};
+constexpr RateRangeHz kImuRateRangeHz{1.0, 100000.0};
+constexpr RateRangeHz kLidarRateRangeHz{0.1, 1000.0};
+constexpr RateRangeHz kWheelRateRangeHz{0.1, 100000.0};
+constexpr RateRangeHz kGnssRateRangeHz{0.01, 1000.0};
+
 SensorsConfig ReadSensorsYaml(const std::string& path);
 // Writes every field, so that ReadSensorsYaml returns exactly `config`.
 void WriteSensorsYaml(const std::string& path, const SensorsConfig& config);
