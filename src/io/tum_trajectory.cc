@@ -1,5 +1,6 @@
 #include "autocal/io/tum_trajectory.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -46,43 +47,71 @@ int64_t EndLineCount(std::string_view line) {
   return count;
 }
 
-// "<seconds>.<nine digits>" -> nanoseconds, exactly (no detour through double). Accepts
-// fewer decimals (evo and other tools may print microseconds).
+// A timestamp in seconds -> nanoseconds, exactly (no detour through double): decimal
+// ("1700000000.123456789", any number of decimals) or scientific notation as numpy writes it
+// ("1.403636579763555527e+09", evo's default). Digits finer than a nanosecond round to the
+// nearest one (half away from zero).
 bool ParseSecondsToNs(std::string_view text, int64_t* t_ns, std::string* why) {
-  const size_t dot = text.find('.');
-  const std::string_view whole = text.substr(0, dot);
-  const std::string_view fraction =
-      dot == std::string_view::npos ? std::string_view() : text.substr(dot + 1);
-  const bool negative = !whole.empty() && whole[0] == '-';
-  int64_t seconds = 0;
-  if (whole.empty() || (negative && whole.size() == 1) ||
-      !internal::ParseInt64(whole, &seconds, why)) {
-    *why = "expected a timestamp in seconds, found " + Quote(text);
+  const auto fail = [&](const std::string& what) {
+    *why = what;
     return false;
+  };
+  const std::string expected = "expected a timestamp in seconds, found " + Quote(text);
+  size_t at = 0;
+  bool negative = false;
+  if (!text.empty() && (text[0] == '-' || text[0] == '+')) {
+    negative = text[0] == '-';
+    at = 1;
   }
-  if (fraction.size() > 9) {
-    *why = "timestamp " + Quote(text) + " has more than 9 decimals (finer than a nanosecond)";
-    return false;
-  }
-  int64_t nanos = 0;
-  for (size_t i = 0; i < 9; ++i) {
-    int digit = 0;
-    if (i < fraction.size()) {
-      if (fraction[i] < '0' || fraction[i] > '9') {
-        *why = "expected a timestamp in seconds, found " + Quote(text);
-        return false;
-      }
-      digit = fraction[i] - '0';
+  // The mantissa's digits, and how many of them follow its point.
+  std::string digits;
+  int64_t decimals = 0;
+  bool point = false;
+  for (; at < text.size(); ++at) {
+    const char c = text[at];
+    if (c >= '0' && c <= '9') {
+      digits += c;
+      decimals += point ? 1 : 0;
+    } else if (c == '.' && !point) {
+      point = true;
+    } else {
+      break;
     }
-    nanos = nanos * 10 + digit;
   }
-  const int64_t limit = std::numeric_limits<int64_t>::max() / kNanosecondsPerSecond;
-  if (seconds >= limit || seconds <= -limit) {  // not std::abs: |INT64_MIN| is not an int64
-    *why = "timestamp " + Quote(text) + " does not fit in int64 nanoseconds";
-    return false;
+  if (digits.empty()) return fail(expected);
+  int64_t exponent = 0;
+  if (at < text.size() && (text[at] == 'e' || text[at] == 'E')) {
+    if (!internal::ParseInt64(text.substr(at + 1), &exponent, why) || exponent > 100 ||
+        exponent < -100) {
+      return fail(expected);
+    }
+    at = text.size();
   }
-  *t_ns =
-      negative ? seconds * kNanosecondsPerSecond - nanos : seconds * kNanosecondsPerSecond + nanos;
+  if (at != text.size()) return fail(expected);
+  // ns = digits * 10^shift.
+  const int64_t shift = exponent - decimals + 9;
+  const std::string too_large = "timestamp " + Quote(text) + " does not fit in int64 nanoseconds";
+  if (shift >= 0) {
+    if (static_cast<int64_t>(digits.size()) + shift > 40) return fail(too_large);
+    digits.append(static_cast<size_t>(shift), '0');
+  }
+  const size_t kept =
+      shift >= 0
+          ? digits.size()
+          : static_cast<size_t>(std::max<int64_t>(0, static_cast<int64_t>(digits.size()) + shift));
+  const bool round_up = kept < digits.size() && digits[kept] >= '5';
+  constexpr int64_t kMax = std::numeric_limits<int64_t>::max();
+  int64_t ns = 0;
+  for (size_t i = 0; i < kept; ++i) {
+    const int digit = digits[i] - '0';
+    if (ns > (kMax - digit) / 10) return fail(too_large);
+    ns = ns * 10 + digit;
+  }
+  if (round_up) {
+    if (ns == kMax) return fail(too_large);
+    ++ns;
+  }
+  *t_ns = negative ? -ns : ns;
   return true;
 }
 

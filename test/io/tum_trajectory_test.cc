@@ -70,6 +70,31 @@ void ExpectParseError(const std::string& name, const std::string& text, int64_t 
   }
 }
 
+// evo writes TUM files with numpy's default format, "%.18e": the stamps in scientific notation.
+// They read exactly, to the nanosecond; digits finer than a nanosecond round to the nearest.
+TEST(TumTrajectoryTest, ReadsScientificNotationAndRoundsToTheNanosecond) {
+  WriteText(OutPath("evo.tum"),
+            "1.403636579763555527e+09 4.688319000000000329e+00 -1.786938000000000031e+00 "
+            "7.833379999999999876e-01 5.341940000000000055e-01 -1.530109999999999872e-01 "
+            "-8.271969999999999523e-01 -8.245599999999999963e-02\n"
+            "1.4036365798135555E9 0 0 0 0 0 0 1\n"
+            "1403636580.8135555555 0 0 0 0 0 0 1\n"
+            "14036365818135555554e-10 0 0 0 0 0 0 1\n"
+            "+1.5e9 0 0 0 0 0 0 1\n");
+  const Trajectory read = ReadTumTrajectory(OutPath("evo.tum"));
+  ASSERT_EQ(read.size(), 5u);
+  EXPECT_EQ(read[0].t_ns, 1403636579763555527);
+  EXPECT_EQ(read[0].T_W_I.p.x(), 4.688319);
+  EXPECT_EQ(read[1].t_ns, 1403636579813555500);
+  EXPECT_EQ(read[2].t_ns, 1403636580813555556);  // ...555 5555: rounds up
+  EXPECT_EQ(read[3].t_ns, 1403636581813555555);  // ...555 554: rounds down
+  EXPECT_EQ(read[4].t_ns, 1'500'000'000'000'000'000);
+  const std::string head = "1.0 0 0 0 0 0 0 1\n";
+  ExpectParseError("exponent.tum", head + "2e 0 0 0 0 0 0 1\n", 2, 1, "expected a timestamp");
+  ExpectParseError("huge.tum", "1e10 0 0 0 0 0 0 1\n", 1, 1, "does not fit in int64");
+  ExpectParseError("point.tum", head + "2.0.0 0 0 0 0 0 0 1\n", 2, 1, "expected a timestamp");
+}
+
 TEST(TumTrajectoryTest, BadInput) {
   const std::string head = "# timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n";
   ExpectParseError("few.tum", head + "2.0 0 0 0 0 0 1\n", 3, 16, "expected 8 values");

@@ -6,7 +6,9 @@
 // one pose per line, blank-separated; the timestamp in seconds printed with all nine
 // decimals so that the nanosecond stamp reads back exactly; the pose is T_W_I (p_W_I and
 // q_W_I, Hamilton [qx qy qz qw]). Velocities are not part of the format: they read back as
-// zero. Lines starting with '#' are comments.
+// zero. Lines starting with '#' are comments. Stamps read exactly, without a detour through
+// double, in decimal or in scientific notation (evo writes "%.18e":
+// 1.403636579763555527e+09); digits finer than a nanosecond round to the nearest one.
 //
 // A file written here states that it is whole, in comments other TUM readers skip: its first
 // line is "# autocal_trajectory_1 timestamp tx ty tz qx qy qz qw" and its last "# end: <N>
