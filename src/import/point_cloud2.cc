@@ -229,9 +229,6 @@ class PointTimeReader {
   PointField field_;
 };
 
-// A per-point time further than this from the header stamp is not a time within a sweep.
-constexpr double kMaxPointTimeS = 1.0;
-
 }  // namespace
 
 PointCloudMessage DecodePointCloud2(MessageCursor* cursor) {
@@ -263,7 +260,7 @@ PointCloudMessage DecodePointCloud2(MessageCursor* cursor) {
         continue;
       }
       const double t_s = time_reader.Seconds(point);
-      if (!(std::abs(t_s) <= kMaxPointTimeS)) {
+      if (!(std::abs(t_s) <= lidar::kMaxPointTimeS)) {
         cursor->Fail("point " + std::to_string(size_t{row} * message.width + col) + " has time " +
                      std::to_string(t_s) + " s from the header stamp in the " +
                      PointTimeFormName(layout.time_form) +

@@ -238,22 +238,24 @@ class PcdParser {
       }
       fields_[i].role = axis;
     }
+    // The field that fills `role`, or -1.
     const auto assign_optional = [&](int role, std::string_view first, std::string_view second) {
       int i = find(first);
       if (i < 0) i = find(second);
-      if (i < 0 || fields_[i].count != 1) return false;
+      if (i < 0 || fields_[i].count != 1) return -1;
       fields_[i].role = role;
-      return true;
+      return i;
     };
-    has_intensity_ = assign_optional(kIntensity, "intensity", "scalar_intensity");
-    has_time_ = assign_optional(kTime, "t", "time");
+    has_intensity_ = assign_optional(kIntensity, "intensity", "scalar_intensity") >= 0;
+    const int time = assign_optional(kTime, "t", "time");
+    time_ = PointTimeOf(time >= 0, time >= 0 ? fields_[time].type : ScalarType::kFloat32);
   }
 
   void AddPoint(PointCloudBuilder* builder, const double (&values)[kNumPointValues], int64_t index,
                 int64_t line, size_t byte_offset) const {
     int bad = 0;
     const PointCloudBuilder::AddResult result = builder->Add(values, &bad);
-    FailOnRefusedPoint(result, "point", index, bad, values, [&](const std::string& message) {
+    FailOnRefusedPoint(result, "point", index, bad, values, time_, [&](const std::string& message) {
       source_.FailAtLineOrByte(line, byte_offset, message);
     });
   }
@@ -269,7 +271,7 @@ class PcdParser {
                                              " but the header declares " + std::to_string(points_) +
                                              " points: truncated?");
     }
-    PointCloudBuilder builder(points_, has_intensity_, has_time_, options_.drop_non_finite_points);
+    PointCloudBuilder builder(points_, has_intensity_, time_, options_.drop_non_finite_points);
     for (int64_t i = 0; i < points_; ++i) {
       std::string_view line;
       if (!source_.NextLine(&line)) {
@@ -318,7 +320,7 @@ class PcdParser {
                                              " bytes after byte " + std::to_string(source_.pos()) +
                                              ": truncated?");
     }
-    PointCloudBuilder builder(points_, has_intensity_, has_time_, options_.drop_non_finite_points);
+    PointCloudBuilder builder(points_, has_intensity_, time_, options_.drop_non_finite_points);
     for (int64_t i = 0; i < points_; ++i) {
       const size_t record = source_.pos() + static_cast<size_t>(i) * record_size_;
       double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
@@ -351,7 +353,7 @@ class PcdParser {
   size_t record_size_ = 0;
   PcdData data_ = PcdData::kAscii;
   bool has_intensity_ = false;
-  bool has_time_ = false;
+  PointTime time_ = PointTime::kNone;
 };
 
 }  // namespace

@@ -212,14 +212,17 @@ class PlyParser {
       }
       roles_[p] = axis;
     }
+    // The property that fills `role`, or -1.
     const auto assign_optional = [&](int role, std::string_view first, std::string_view second) {
       int p = find(first);
       if (p < 0) p = find(second);
-      if (p >= 0 && !vertex.properties[p].is_list) roles_[p] = role;
-      return p >= 0 && !vertex.properties[p].is_list;
+      if (p < 0 || vertex.properties[p].is_list) return -1;
+      roles_[p] = role;
+      return p;
     };
-    has_intensity_ = assign_optional(kIntensity, "intensity", "scalar_intensity");
-    has_time_ = assign_optional(kTime, "t", "time");
+    has_intensity_ = assign_optional(kIntensity, "intensity", "scalar_intensity") >= 0;
+    const int time = assign_optional(kTime, "t", "time");
+    time_ = PointTimeOf(time >= 0, time >= 0 ? vertex.properties[time].type : ScalarType::kFloat32);
   }
 
   // The rest of the file must hold `element.count` instances of at least
@@ -244,9 +247,9 @@ class PlyParser {
                 int64_t line, size_t byte_offset) const {
     int bad = 0;
     const PointCloudBuilder::AddResult result = builder->Add(values, &bad);
-    FailOnRefusedPoint(result, "vertex", index, bad, values, [&](const std::string& message) {
-      source_.FailAtLineOrByte(line, byte_offset, message);
-    });
+    FailOnRefusedPoint(
+        result, "vertex", index, bad, values, time_,
+        [&](const std::string& message) { source_.FailAtLineOrByte(line, byte_offset, message); });
   }
 
   // After the last element nothing may follow but blanks (ascii): more points than the header
@@ -351,8 +354,7 @@ class PlyParser {
 
   lidar::PointCloud ReadAsciiVertices(const PlyElement& vertex) {
     CheckInstanceCount(vertex, vertex.properties.size());
-    PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
-                              options_.drop_non_finite_points);
+    PointCloudBuilder builder(vertex.count, has_intensity_, time_, options_.drop_non_finite_points);
     for (int64_t i = 0; i < vertex.count; ++i) {
       double values[kNumPointValues] = {0.0, 0.0, 0.0, 0.0, 0.0};
       int64_t line = 0;
@@ -435,8 +437,7 @@ class PlyParser {
   lidar::PointCloud ReadBinaryVertices(const PlyElement& vertex) {
     const size_t record_size = MinBinarySize(vertex);
     CheckInstanceCount(vertex, record_size);
-    PointCloudBuilder builder(vertex.count, has_intensity_, has_time_,
-                              options_.drop_non_finite_points);
+    PointCloudBuilder builder(vertex.count, has_intensity_, time_, options_.drop_non_finite_points);
     const bool fixed_size =
         std::none_of(vertex.properties.begin(), vertex.properties.end(),
                      [](const PlyProperty& property) { return property.is_list; });
@@ -497,7 +498,7 @@ class PlyParser {
   std::vector<PlyElement> elements_;
   std::vector<int> roles_;
   bool has_intensity_ = false;
-  bool has_time_ = false;
+  PointTime time_ = PointTime::kNone;
 };
 
 }  // namespace

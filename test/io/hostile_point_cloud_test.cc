@@ -307,11 +307,15 @@ TEST(HostilePlyTest, FloatLimitAndLargeCoordinatesRead) {
       "ply\nformat ascii 1.0\nelement vertex 1\nproperty double x\nproperty float y\n"
       "property float z\nproperty double intensity\nproperty double t\nend_header\n";
   const lidar::PointCloud cloud = ReadPointCloudFile(
-      WriteFile("float_limit.ply", header + "1e300 2 3 3.4028234663852886e38 -1e300\n"));
+      WriteFile("float_limit.ply", header + "1e300 2 3 3.4028234663852886e38 -0.5\n"));
   ASSERT_EQ(cloud.size(), 1);
   EXPECT_EQ(cloud.points(0, 0), 1e300);
   EXPECT_EQ(cloud.intensity[0], std::numeric_limits<float>::max());
-  EXPECT_EQ(cloud.time_s[0], -1e300);
+  EXPECT_EQ(cloud.time_s[0], -0.5);
+  // A time is a time within one sweep (lidar::kMaxPointTimeS), whatever a double can hold.
+  EXPECT_THAT(ReadError("far_time.ply", header + "1 2 3 4 -1e300\n").detail(),
+              HasSubstr("vertex 0 has time -1e+300 (a floating point property: seconds), not a "
+                        "time within one sweep"));
 
   const ParseError e = ReadError("beyond_double.ply", header + "1 2 3 4 1e400\n");
   EXPECT_EQ(e.location().line, 10);

@@ -253,6 +253,26 @@ TEST(PointCloudFileTest, PlyTimeAndScalarIntensityAliases) {
   EXPECT_EQ(cloud.time_s[1], 0.5);
 }
 
+// A point's time takes its unit from its type, as the bag importer reads it: an integer `t`
+// (Ouster's uint32 offsets) is nanoseconds, a floating point one seconds. Read as seconds, an
+// Ouster `t` became up to 1e8 s, which nothing downstream refused.
+TEST(PointCloudFileTest, IntegerPointTimesAreNanoseconds) {
+  const std::string ply_path = OutPath("ouster_t.ply");
+  WriteBytes(ply_path,
+             "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+             "property float z\nproperty uint t\nend_header\n1 2 3 0\n-1 -2 -3 99000000\n");
+  const std::string pcd_path = OutPath("ouster_t.pcd");
+  WriteBytes(pcd_path,
+             "VERSION 0.7\nFIELDS x y z t\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 2\n"
+             "HEIGHT 1\nPOINTS 2\nDATA ascii\n1 2 3 0\n-1 -2 -3 99000000\n");
+  for (const std::string& path : {ply_path, pcd_path}) {
+    const lidar::PointCloud cloud = ReadPointCloudFile(path);
+    ASSERT_TRUE(cloud.has_time()) << path;
+    EXPECT_EQ(cloud.time_s[0], 0.0) << path;
+    EXPECT_NEAR(cloud.time_s[1], 0.099, 1e-15) << path;
+  }
+}
+
 // ---- PCD ----
 
 std::string PcdHeader(const std::string& data, int n) {
@@ -325,6 +345,29 @@ ParseError ExpectParseError(const std::string& path) {
   }
   ADD_FAILURE() << "no ParseError for " << path;
   return ParseError(SourceLocation{}, "none");
+}
+
+// A time beyond one second from the sweep's stamp is not a time within a sweep: a float `t`
+// written in nanoseconds, or an integer one in microseconds, is refused where it stands.
+TEST(PointCloudFileTest, PointTimesBeyondASecondAreRefused) {
+  const std::string ply_path = OutPath("t_in_ns.ply");
+  WriteBytes(ply_path,
+             "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+             "property float z\nproperty double time\nend_header\n1 2 3 0.05\n-1 -2 -3 "
+             "50000000\n");
+  const ParseError ply = ExpectParseError(ply_path);
+  EXPECT_EQ(ply.location().line, 10);
+  EXPECT_THAT(ply.detail(),
+              HasSubstr("vertex 1 has time 5e+07 (a floating point property: "
+                        "seconds), not a time within one sweep (expected |t| <= 1 s"));
+  const std::string pcd_path = OutPath("t_in_us.pcd");
+  WriteBytes(pcd_path,
+             "VERSION 0.7\nFIELDS x y z t\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 1\n"
+             "HEIGHT 1\nPOINTS 1\nDATA binary\n" +
+                 std::string(12, '\0') + std::string("\x00\xca\x9a\x3c", 4));
+  const ParseError pcd = ExpectParseError(pcd_path);
+  EXPECT_THAT(pcd.detail(), HasSubstr("point 0 has time 1016777216 (an integer property: "
+                                      "nanoseconds), not a time within one sweep"));
 }
 
 TEST(PointCloudFileTest, EmptyPlyFile) {

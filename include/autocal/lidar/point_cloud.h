@@ -13,6 +13,10 @@
 namespace autocal {
 namespace lidar {
 
+// A point's time further than this from its sweep's stamp is not a time within one sweep
+// (a sweep lasts 0.05 to 0.2 s): the readers refuse it (a time in the wrong unit).
+constexpr double kMaxPointTimeS = 1.0;
+
 struct PointCloud {
   Eigen::Matrix3Xd points;
   // Empty, or one value per point.
