@@ -105,6 +105,17 @@ bool RunOdometry(const sensors::ImuSamples& imu, lidar::SweepSource* sweeps,
     }
   }
   out->odometry = odometry.frames();
+  int weak = 0;
+  for (const lidar::OdometryFrame& frame : out->odometry) {
+    weak += !frame.icp.weak_translations.empty() || !frame.icp.weak_rotation_axes.empty();
+  }
+  if (weak > 0) {
+    out->fallbacks.push_back(
+        "LiDAR odometry: " + std::to_string(weak) + " of " + std::to_string(sweeps->size()) +
+        " sweeps had a direction of motion that few correspondences constrain (a corridor, a "
+        "tunnel, a road between barriers: fewer than 1 in 200 look along it); their motion "
+        "along it rests on those few");
+  }
   return true;
 }
 

@@ -25,6 +25,15 @@ constexpr int64_t kPointsPerPartialSum = 256;
 // Relative size of the smallest eigenvalue of J^T W J below which a motion direction is
 // treated as unconstrained.
 constexpr double kDegenerateEigenRatio = 1e-10;
+// A correspondence constrains a direction when its normal (its lever, for a rotation) lies
+// within 60 degrees of it (docs/lidar.md, "Degeneracy").
+constexpr double kAlignedCosine = 0.5;
+// The share of the correspondences a direction needs aligned with it: at least 1 in 200.
+constexpr int kAlignedShareDivisor = 200;
+// Only a target neighbourhood this planar counts as looking along its normal: a line's (a
+// beam's trace on a far wall) PCA normal is any direction across it. 0.3 is a patch about
+// half as wide as it is long ((l1 - l0) / l2 of normals.h).
+constexpr double kCountedPlanarity = 0.3;
 
 struct WeightedPair {
   Eigen::Vector3d source;
@@ -299,6 +308,112 @@ void RequireConstrained(const NormalEquations& eq) {
   }
 }
 
+// The directions of motion the correspondences of `matches` at T leave unconstrained
+// (docs/lidar.md, "Degeneracy"), as unit columns of the centred perturbation [rho; phi]. For
+// each eigen-direction v of sum n n^T, and each eigen-axis u of sum a a^T with the unit lever
+// a = (p - c) x n / |p - c|, over the correspondences whose target is a plane
+// (kCountedPlanarity), it counts those with |n . v| (|a . u|) of at least kAlignedCosine; fewer
+// than max(6, count / 200) of them leave it weak. A corridor's along-track
+// translation has none: normals estimated from noise or corners carry a little of it, enough
+// for J^T W J to look regular (and its covariance to claim millimetres), never a normal within
+// 60 degrees of the track.
+Eigen::Matrix<double, 6, Eigen::Dynamic> FindWeakDirections(
+    const Eigen::Matrix3Xd& source, const IcpTarget& target, const geometry::Pose3d& T,
+    const Eigen::Vector3d& centre, const IcpOptions& setting, const std::vector<int>& matches) {
+  const Eigen::Matrix3d R = T.R();
+  const Eigen::VectorXd& planarity = target.normals().planarity;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> normals_and_levers;
+  Eigen::Matrix3d normal_scatter = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d lever_scatter = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < matches.size(); ++i) {
+    const int match = matches[i];
+    if (match < 0 || planarity(match) <= 0.0 || planarity(match) < setting.min_target_planarity) {
+      continue;
+    }
+    const Eigen::Vector3d n = target.normals().normals.col(match);
+    const Eigen::Vector3d arm = R * source.col(static_cast<Eigen::Index>(i)) + T.p - centre;
+    const double arm_m = arm.norm();
+    const Eigen::Vector3d lever =
+        arm_m > 0.0 ? Eigen::Vector3d(arm.cross(n) / arm_m) : Eigen::Vector3d::Zero();
+    if (planarity(match) < kCountedPlanarity) continue;
+    normals_and_levers.emplace_back(n, lever);
+    normal_scatter.noalias() += n * n.transpose();
+    lever_scatter.noalias() += lever * lever.transpose();
+  }
+  const int64_t needed = std::max<int64_t>(
+      kMinCorrespondences, static_cast<int64_t>(normals_and_levers.size()) / kAlignedShareDivisor);
+  std::vector<Vector6d> weak;
+  for (const bool rotation : {false, true}) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(rotation ? lever_scatter
+                                                                        : normal_scatter);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d v = eigen.eigenvectors().col(k);
+      int64_t aligned = 0;
+      for (const auto& [n, lever] : normals_and_levers) {
+        aligned += std::abs((rotation ? lever : n).dot(v)) >= kAlignedCosine;
+      }
+      if (aligned >= needed) continue;
+      Vector6d direction = Vector6d::Zero();
+      // Signed so that its largest component is positive: the same axis reads the same.
+      Eigen::Index largest = 0;
+      v.cwiseAbs().maxCoeff(&largest);
+      direction.segment<3>(rotation ? 3 : 0) = v(largest) < 0.0 ? Eigen::Vector3d(-v) : v;
+      weak.push_back(direction);
+    }
+  }
+  Eigen::Matrix<double, 6, Eigen::Dynamic> out(6, static_cast<Eigen::Index>(weak.size()));
+  for (size_t k = 0; k < weak.size(); ++k) out.col(static_cast<Eigen::Index>(k)) = weak[k];
+  return out;
+}
+
+// An orthonormal basis of the directions orthogonal to the columns of `weak` (themselves
+// orthonormal: eigenvectors of one block each).
+Eigen::Matrix<double, 6, Eigen::Dynamic> ConstrainedBasis(
+    const Eigen::Matrix<double, 6, Eigen::Dynamic>& weak) {
+  const Matrix6d projector = Matrix6d::Identity() - weak * weak.transpose();
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(projector);
+  const Eigen::Index kept = 6 - weak.cols();
+  return eigen.eigenvectors().rightCols(kept);  // eigenvalue 1, ascending order
+}
+
+// H^-1, or with weak directions the inverse on the others, zero along the weak ones.
+Matrix6d ConstrainedInverse(const Matrix6d& H,
+                            const Eigen::Matrix<double, 6, Eigen::Dynamic>& weak) {
+  if (weak.cols() == 0) return H.inverse();
+  if (weak.cols() == 6) return Matrix6d::Zero();
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> P = ConstrainedBasis(weak);
+  return P * (P.transpose() * H * P).inverse() * P.transpose();
+}
+
+// The Gauss-Newton step of eq. (4.11), in the directions `weak` leaves (none: all of them);
+// LDLT on the system, no explicit inverse.
+Vector6d ConstrainedStep(const NormalEquations& eq,
+                         const Eigen::Matrix<double, 6, Eigen::Dynamic>& weak) {
+  if (weak.cols() == 0) return -eq.H.ldlt().solve(eq.g);
+  if (weak.cols() == 6) return Vector6d::Zero();  // every motion held: no plane seen at all
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> P = ConstrainedBasis(weak);
+  const Eigen::MatrixXd reduced = P.transpose() * eq.H * P;
+  return -P * reduced.ldlt().solve(P.transpose() * eq.g);
+}
+
+// The error for weak directions under IcpDegenerate::kRefuse.
+std::string DescribeWeak(const Eigen::Matrix<double, 6, Eigen::Dynamic>& weak, int count) {
+  std::ostringstream message;
+  message.precision(2);
+  message << std::fixed << "ICP is degenerate: of the " << count
+          << " correspondences, too few have a normal within 60 degrees of";
+  for (Eigen::Index k = 0; k < weak.cols(); ++k) {
+    const bool rotation = weak.col(k).head<3>().isZero();
+    const Eigen::Vector3d v = weak.col(k).segment<3>(rotation ? 3 : 0);
+    message << (k > 0 ? "," : "")
+            << (rotation ? " the rotation about (" : " the translation along (") << v.x() << ", "
+            << v.y() << ", " << v.z() << ")";
+  }
+  message << " in the target frame (a corridor or tunnel leaves its axis so): that motion is "
+             "not determined by the clouds (IcpOptions::degenerate = kHoldGuess keeps the guess's)";
+  return message.str();
+}
+
 void RequireEnough(int count, const IcpOptions& setting, Eigen::Index source_size) {
   if (count < kMinCorrespondences) {
     throw Error("ICP found only " + std::to_string(count) + " correspondences for " +
@@ -312,8 +427,9 @@ void RequireEnough(int count, const IcpOptions& setting, Eigen::Index source_siz
 // Eqs. (4.14)-(4.15): Cov = sigma^2 H^-1 with sigma^2 estimated from the weighted residuals
 // when not given; for point-to-plane with the source range noise given, eq. (4.16) instead
 // (only LinearizePointToPlane sums eq.propagated).
-void FillStatistics(const NormalEquations& eq, const Eigen::Vector3d& centre,
-                    const IcpOptions& setting, Eigen::Index source_size, IcpResult* result) {
+void FillStatistics(const NormalEquations& eq, const Eigen::Matrix<double, 6, Eigen::Dynamic>& weak,
+                    const Eigen::Vector3d& centre, const IcpOptions& setting,
+                    Eigen::Index source_size, IcpResult* result) {
   result->num_correspondences = eq.count;
   result->fitness = source_size > 0 ? static_cast<double>(eq.count) / source_size : 0.0;
   const int num_residuals = eq.count * eq.residual_dimension;
@@ -324,7 +440,7 @@ void FillStatistics(const NormalEquations& eq, const Eigen::Vector3d& centre,
         num_residuals > 6 ? std::sqrt(eq.weighted_squared_residuals / (num_residuals - 6)) : 0.0;
   }
   result->residual_sigma_m = sigma;
-  const Matrix6d H_inverse = eq.H.inverse();
+  const Matrix6d H_inverse = ConstrainedInverse(eq.H, weak);
   Matrix6d covariance_centred;
   if (setting.method == IcpMethod::kPointToPlane && setting.source_range_sigma_m > 0.0) {
     covariance_centred = H_inverse * eq.propagated * H_inverse;  // eq. (4.16)
@@ -481,6 +597,8 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   // the degeneracy test fires on a well-constrained pair.
   const Eigen::Vector3d centre = T * Eigen::Vector3d(source.rowwise().mean());
   NormalEquations last;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> weak(6, 0);  // of the last iteration
+  const Eigen::Matrix<double, 6, Eigen::Dynamic> none(6, 0);
   std::vector<int> matches;  // of the last point-to-plane or GICP iteration
   std::vector<WeightedPair> pairs;
   if (!point_to_plane && !generalized) pairs.reserve(static_cast<size_t>(source.cols()));
@@ -495,8 +613,12 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
                          : LinearizePointToPlane(source, target, T, centre, setting, &matches);
       RequireEnough(last.count, setting, source.cols());
       RequireConstrained(last);
-      // Gauss-Newton step of eq. (4.11); LDLT on the 6x6 system, no explicit inverse.
-      const Vector6d delta_c = -last.H.ldlt().solve(last.g);
+      weak = FindWeakDirections(source, target, T, centre, setting, matches);
+      if (weak.cols() > 0 && setting.degenerate == IcpDegenerate::kRefuse) {
+        throw Error(DescribeWeak(weak, last.count));
+      }
+      const Vector6d delta_c =
+          ConstrainedStep(last, setting.degenerate == IcpDegenerate::kHoldGuess ? weak : none);
       T = StepAbout(delta_c, centre, T);
       step_translation_m = delta_c.head<3>().norm();
       step_rotation_rad = delta_c.tail<3>().norm();
@@ -519,7 +641,13 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   // The statistics use the last linearization; after convergence it is one step (below the
   // tolerances) from the returned pose, which changes nothing at the noise level.
   result.T_target_source = T;
-  FillStatistics(last, centre, setting, source.cols(), &result);
+  FillStatistics(last, setting.degenerate == IcpDegenerate::kHoldGuess ? weak : none, centre,
+                 setting, source.cols(), &result);
+  for (Eigen::Index k = 0; k < weak.cols(); ++k) {
+    const bool rotation = weak.col(k).head<3>().isZero();
+    (rotation ? result.weak_rotation_axes : result.weak_translations)
+        .push_back(weak.col(k).segment<3>(rotation ? 3 : 0));
+  }
   return result;
 }
 

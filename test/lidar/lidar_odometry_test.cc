@@ -250,6 +250,47 @@ TEST_F(LidarOdometryTest, AFailedSweepLeavesTheOdometryAsItWas) {
   }
 }
 
+// In a corridor (ground and two walls, a tunnel) the map says nothing about the motion along
+// it. By default each frame reports that direction (the pose solved as usual); with
+// IcpDegenerate::kHoldGuess the odometry keeps its motion model's motion there, rather than
+// "converging" to an along-track shift with a sigma of millimetres. Driving at 10 m/s from a
+// start without velocity, the model has none to give: the odometry stands still along the
+// axis, and tracks the 0.5 m/s drift across it.
+TEST(LidarOdometryCorridorTest, ReportsOrHoldsTheMotionAlongTheAxis) {
+  test::Scene corridor;
+  corridor.boxes = {test::Box{Eigen::Vector3d(-500, 5, 0), Eigen::Vector3d(500, 6, 4)},
+                    test::Box{Eigen::Vector3d(-500, -6, 0), Eigen::Vector3d(500, -5, 4)}};
+  const auto T_W_L = [](double t) { return test::MakePose(10.0 * t, 0.5 * t, 1.8, 0.0, 0.0, 0.0); };
+  test::ScanPattern pattern;
+  pattern.range_noise_m = 0.02;
+  pattern.sweep_period_s = kSweepPeriodS;
+  std::mt19937_64 rng(5);
+  std::vector<LidarSweep> sweeps;
+  for (int k = 0; k < 6; ++k) {
+    const double t_k = k * kSweepPeriodS;
+    LidarSweep sweep;
+    sweep.t_ns = static_cast<int64_t>(std::llround(t_k * 1e9));
+    sweep.cloud = test::SimulateSweep(
+        corridor, [&](double tau) { return T_W_L(t_k + tau); }, pattern, &rng);
+    sweeps.push_back(std::move(sweep));
+  }
+  for (const IcpDegenerate mode : {IcpDegenerate::kReport, IcpDegenerate::kHoldGuess}) {
+    LidarOdometryOptions setting;
+    setting.icp.degenerate = mode;
+    LidarOdometry odometry(setting);
+    for (int k = 0; k < 6; ++k) {
+      const OdometryFrame& frame = odometry.AddSweep(sweeps[k]);
+      if (k == 0) continue;
+      ASSERT_EQ(frame.icp.weak_translations.size(), 1u) << k;
+      EXPECT_GT(frame.icp.weak_translations[0].x(), 0.999) << k;
+      EXPECT_TRUE(frame.icp.weak_rotation_axes.empty()) << k;
+      if (mode == IcpDegenerate::kReport) continue;
+      EXPECT_NEAR(frame.T_W_L.p.x(), 0.0, 3e-3) << k;
+      EXPECT_NEAR(frame.T_W_L.p.y(), 0.5 * k * kSweepPeriodS, 0.01) << k;
+    }
+  }
+}
+
 TEST(LidarOdometryErrorsTest, RejectsBadSequences) {
   LidarOdometry odometry;
   LidarSweep sweep;

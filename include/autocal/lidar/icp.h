@@ -50,8 +50,15 @@ struct IcpConvergenceOptions {
   double rotation_rad = 1e-5;
 };
 
+// What point-to-plane and GICP alignment do with a direction of motion the correspondences do
+// not constrain (docs/lidar.md, "Degeneracy": too few normals within 60 degrees of it, as a
+// corridor's or tunnel's axis has): refuse the alignment, keep the guess's motion along it, or
+// solve as if it were constrained and report it (IcpResult::weak_translations).
+enum class IcpDegenerate { kRefuse, kHoldGuess, kReport };
+
 struct IcpOptions {
   IcpMethod method = IcpMethod::kPointToPlane;
+  IcpDegenerate degenerate = IcpDegenerate::kRefuse;
   // Pairs farther apart than this are not correspondences. About 4 voxels: wide enough to
   // pull in a start that is off by tens of centimetres, tight enough to ignore other
   // surfaces.
@@ -144,12 +151,22 @@ struct IcpResult {
   // covariance is sigma^2 H^-1 with it (eq. 4.14), except for point-to-plane with
   // source_range_sigma_m > 0, whose covariance (eq. 4.16) does not use it.
   double residual_sigma_m = 0.0;
+  // IcpDegenerate::kHoldGuess and kReport: the directions the correspondences left
+  // unconstrained, unit vectors in the target frame, each signed with its largest component
+  // positive. Under kHoldGuess the motion along them is the guess's, taken at the guessed
+  // place of the source points' centroid (translations of that point, rotations about axes
+  // through it), and the covariance holds the other directions only: taken at that point it is
+  // zero along these, where the clouds say nothing. Under kReport the solve and the covariance
+  // are those of a constrained alignment: the motion along these rests on a few
+  // correspondences, or on none.
+  std::vector<Eigen::Vector3d> weak_translations;
+  std::vector<Eigen::Vector3d> weak_rotation_axes;
 };
 
 // Aligns `source` to `target` starting from `T_target_source_guess` (e.g. from a motion
 // model). Throws autocal::Error on non-finite input, when the target lacks normals for
 // point-to-plane, when too few correspondences are found (fewer than 6), or when the
-// geometry leaves a direction of motion unconstrained.
+// geometry leaves a direction of motion unconstrained (unless IcpOptions::degenerate holds it).
 IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
                    const geometry::Pose3d& T_target_source_guess, const IcpOptions& setting);
 

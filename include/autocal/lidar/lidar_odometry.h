@@ -40,9 +40,13 @@ struct LidarOdometryOptions {
   // Map normals from at most 1 m around a point so that corners do not blend faces.
   NormalEstimationOptions map_normals{10, 1.0, Eigen::Vector3d::Zero()};
   // Point-to-plane, Huber with 0.1 m scale: moving objects and map clutter are down-weighted.
+  // Directions few correspondences constrain (a tunnel, a barrier-lined road) are reported
+  // in IcpResult::weak_translations, the pose solved as usual: on simulated streets the few
+  // correspondences beat the motion model (kHoldGuess; docs/lidar.md, "Degeneracy").
   IcpOptions icp = [] {
     IcpOptions setting;
     setting.robust = factors::RobustKernel{factors::RobustLoss::kHuber, 0.1};
+    setting.degenerate = IcpDegenerate::kReport;
     return setting;
   }();
   geometry::Pose3d initial_T_W_L;
