@@ -1,6 +1,9 @@
 #include "autocal/lidar/sensor_model.h"
 
 #include <cmath>
+#include <string>
+
+#include "autocal/common/error.h"
 
 namespace autocal {
 namespace lidar {
@@ -11,7 +14,38 @@ namespace {
 // atan2(+0, -0) = pi. atan2(+0, +0) is 0 on IEEE platforms.
 double Azimuth(double x, double y) { return std::atan2(y + 0.0, x + 0.0); }
 
+// The speed of light in a medium of `refractive_index`, refused below 1 (faster than in vacuum).
+double SpeedOfLightMS(double refractive_index) {
+  if (!(refractive_index >= 1.0) || !std::isfinite(refractive_index)) {
+    throw Error("time of flight: the refractive index must be a finite number >= 1, got " +
+                std::to_string(refractive_index));
+  }
+  return kSpeedOfLightVacuumMS / refractive_index;
+}
+
+void RequireNonNegative(double value, const char* what) {
+  if (!(value >= 0.0) || !std::isfinite(value)) {
+    throw Error(std::string("time of flight: ") + what + " must be a finite number >= 0, got " +
+                std::to_string(value));
+  }
+}
+
 }  // namespace
+
+double RangeFromRoundTripTime(double round_trip_s, double refractive_index) {
+  RequireNonNegative(round_trip_s, "the round-trip time");
+  return 0.5 * SpeedOfLightMS(refractive_index) * round_trip_s;
+}
+
+double RoundTripTimeFromRange(double range_m, double refractive_index) {
+  RequireNonNegative(range_m, "the range");
+  return 2.0 * range_m / SpeedOfLightMS(refractive_index);
+}
+
+double RangeSigmaFromTimingSigma(double timing_sigma_s, double refractive_index) {
+  RequireNonNegative(timing_sigma_s, "the timing sigma");
+  return 0.5 * SpeedOfLightMS(refractive_index) * timing_sigma_s;
+}
 
 Eigen::Vector3d SphericalToCartesian(const SphericalPoint& s) {
   const double ce = std::cos(s.elevation_rad);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <random>
 
+#include "autocal/common/error.h"
 #include "autocal/common/units.h"
 
 namespace autocal {
@@ -20,6 +21,25 @@ std::vector<SphericalPoint> SampleSpherical(int count, uint64_t seed) {
   std::vector<SphericalPoint> out;
   for (int i = 0; i < count; ++i) out.push_back({range(rng), azimuth(rng), elevation(rng)});
   return out;
+}
+
+// Eq. (1.0): r = c t / (2 n). In vacuum a 1 ns round trip is 0.149896229 m; in air a 100 m
+// target answers 0.18 ns later than in vacuum, which a range taken at c would read as 2.75 cm
+// farther.
+TEST(SensorModelTest, TimeOfFlightIsHalfTheRoundTripAtTheSpeedOfLightInAir) {
+  EXPECT_DOUBLE_EQ(RangeFromRoundTripTime(1e-9, 1.0), 0.149896229);
+  EXPECT_DOUBLE_EQ(RangeSigmaFromTimingSigma(1e-9, 1.0), 0.149896229);
+  EXPECT_NEAR(RangeFromRoundTripTime(RoundTripTimeFromRange(87.5)), 87.5, 1e-12);
+  const double in_air_s = RoundTripTimeFromRange(100.0);
+  EXPECT_NEAR(in_air_s, 2.0 * 100.0 * 1.000275 / 299792458.0, 1e-21);
+  EXPECT_NEAR(in_air_s - RoundTripTimeFromRange(100.0, 1.0), 0.1834e-9, 0.0001e-9);
+  EXPECT_NEAR(RangeFromRoundTripTime(in_air_s, 1.0) - 100.0, 0.0275, 1e-6);
+  // A stopwatch of 67 ps (1-sigma) ranges to 1 cm.
+  EXPECT_NEAR(RangeSigmaFromTimingSigma(66.7e-12), 0.01, 1e-5);
+  EXPECT_THROW(RangeFromRoundTripTime(-1e-9), Error);
+  EXPECT_THROW(RangeFromRoundTripTime(std::nan("")), Error);
+  EXPECT_THROW(RoundTripTimeFromRange(10.0, 0.99), Error);
+  EXPECT_THROW(RangeSigmaFromTimingSigma(-1.0), Error);
 }
 
 TEST(SensorModelTest, SphericalRoundTripCoversAllQuadrants) {

@@ -1,8 +1,10 @@
 #pragma once
 
-// LiDAR sensor models (docs/lidar.md §1). A spinning LiDAR reports each return in
-// spherical coordinates: range r, azimuth alpha measured counter-clockwise from the
-// sensor's x axis in its xy plane, and elevation epsilon measured up from that plane.
+// LiDAR sensor models (docs/lidar.md §1). A LiDAR ranges by time of flight: the stopwatch's
+// round-trip time t of a pulse gives r = v t / 2 with v = c / n, the speed of light in air
+// (eq. 1.0). A spinning LiDAR reports each return in spherical coordinates: range r, azimuth alpha
+// measured counter-clockwise from the sensor's x axis in its xy plane, and elevation epsilon
+// measured up from that plane.
 //
 //   inverse model (eq. 1.1): p = h^-1(r, alpha, eps) = r (cos eps cos alpha,
 //                                                        cos eps sin alpha,
@@ -19,6 +21,24 @@
 
 namespace autocal {
 namespace lidar {
+
+// Time of flight (eq. 1.0). The speed of light in vacuum, exact by the SI definition of the
+// metre, and the refractive index of air that slows it (dry air at 15 C and 101.325 kPa for
+// near-infrared light, 1.00027 to 1.00028 over the 850 to 1550 nm of automotive LiDARs; it
+// moves with temperature, pressure and humidity by parts in 10^5, the course's "the speed of
+// light varies").
+constexpr double kSpeedOfLightVacuumMS = 299792458.0;
+constexpr double kAirRefractiveIndex = 1.000275;
+
+// r = c t / (2 n): half the round trip. Throws autocal::Error for a negative or non-finite
+// time, or an index below 1.
+double RangeFromRoundTripTime(double round_trip_s, double refractive_index = kAirRefractiveIndex);
+// Its inverse, t = 2 n r / c.
+double RoundTripTimeFromRange(double range_m, double refractive_index = kAirRefractiveIndex);
+// The range sigma of a stopwatch with timing sigma sigma_t: sigma_r = c sigma_t / (2 n) (eq.
+// 1.0 is linear in t); 1 ns is 0.15 m, so centimetre ranging needs tens of picoseconds.
+double RangeSigmaFromTimingSigma(double timing_sigma_s,
+                                 double refractive_index = kAirRefractiveIndex);
 
 struct SphericalPoint {
   double range_m = 0.0;
