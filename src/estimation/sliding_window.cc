@@ -311,6 +311,7 @@ bool SlidingWindowEstimator::Impl::AddGnss(const GnssPosition& position) {
   newest_gnss_ns_ = position.t_ns;
   if (position.t_ns <= latest_state().t_ns) {
     ++counters_.late;
+    ++counters_.late_gnss;
     return false;
   }
   gnss_.push_back(position);

@@ -473,6 +473,7 @@ estimation::CalibrationCovariance CollectResult(
   file.solver["updates"] = std::to_string(result->counters.updates);
   file.solver["marginalizations"] = std::to_string(result->counters.marginalizations);
   file.solver["dropped_late"] = std::to_string(result->counters.late);
+  file.solver["dropped_late_gnss"] = std::to_string(result->counters.late_gnss);
   file.solver["skipped_without_imu"] = std::to_string(result->counters.without_imu);
   if (use_lidar) {
     file.residuals["lidar"]["rms_m"] = estimator->last_point_rms_m();
@@ -607,6 +608,14 @@ OnlineEstimationResult EstimateDatasetOnline(const io::Dataset& input,
   const std::string dropout =
       ImuDropoutWarning(dataset.imu, estimator.counters().without_imu, "the window");
   if (!dropout.empty()) held_warnings.push_back(dropout);
+  if (const int64_t late = estimator.counters().late_gnss; late > 0) {
+    held_warnings.push_back(
+        "the window: " + std::to_string(late) + " of " +
+        std::to_string(late + estimator.counters().gnss_accepted) +
+        " GNSS fixes came at or before the newest keyframe, whose interval was already solved, "
+        "and were left out (calibration.yaml: solver.dropped_late_gnss); the offline "
+        "calibration uses every fix");
+  }
   const std::string gnss_noise = WindowGnssNoiseWarning(estimator, window_options);
   if (!gnss_noise.empty()) held_warnings.push_back(gnss_noise);
   if (failed_checkpoints > 0) {

@@ -96,6 +96,7 @@ TEST(SlidingWindowStreaming, DropsOutOfOrderAndLateSamples) {
   fix.t_ns -= 1;
   EXPECT_FALSE(estimator.AddGnss(fix));
   EXPECT_EQ(estimator.counters().out_of_order, 4);
+  EXPECT_EQ(estimator.counters().late_gnss, 0);
 
   EXPECT_TRUE(estimator.AddSweep(SmallSweep(kStart + 100'000'000)));
   EXPECT_FALSE(estimator.AddSweep(SmallSweep(kStart + 50'000'000)));
@@ -103,6 +104,21 @@ TEST(SlidingWindowStreaming, DropsOutOfOrderAndLateSamples) {
   EXPECT_EQ(estimator.counters().wheel_accepted, 1);
   EXPECT_EQ(estimator.counters().gnss_accepted, 1);
   EXPECT_EQ(estimator.counters().sweeps_accepted, 1);
+}
+
+// A fix stamped at or before the newest keyframe comes after its interval was solved: dropped
+// as late, and counted apart (the pipeline warns with the count).
+TEST(SlidingWindowStreaming, CountsTheGnssFixesDroppedAsLate) {
+  SlidingWindowEstimator estimator(FastOptions(), sensors::Calibration(), StillState());
+  GnssPosition fix;
+  fix.sigma_enu_m = Eigen::Vector3d(0.03, 0.03, 0.06);
+  fix.t_ns = kStart;  // the initial keyframe's own time
+  EXPECT_FALSE(estimator.AddGnss(fix));
+  sensors::WheelSample wheel;
+  wheel.t_ns = kStart - 1;
+  EXPECT_FALSE(estimator.AddWheel(wheel));
+  EXPECT_EQ(estimator.counters().late, 2);
+  EXPECT_EQ(estimator.counters().late_gnss, 1);
 }
 
 // A sweep whose keyframe would land just after the newest keyframe (here the initial state,

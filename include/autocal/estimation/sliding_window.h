@@ -51,6 +51,7 @@ struct SlidingWindowCounters {
   int64_t keyframe_times_accepted = 0;  // AddKeyframeAt
   int64_t out_of_order = 0;             // not newer than the newest of their stream (dropped)
   int64_t late = 0;                     // at or before the newest keyframe (dropped)
+  int64_t late_gnss = 0;                // of them, GNSS fixes
   // Keyframes (sweeps or times) skipped: no IMU sample between them and the newest keyframe
   // (an IMU dropout); the next keyframe's IMU factor spans the dropout.
   int64_t without_imu = 0;
