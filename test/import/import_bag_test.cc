@@ -141,6 +141,11 @@ class ImportBagTest : public ::testing::Test {
     Ros1BagWriter::WriteFile(path, RigBag(rig, compression));
     return path;
   }
+  // Imports the rig's bag with the default options into *options' output.
+  ImportSummary ImportRig(const RigOptions& rig, ImportOptions* options) {
+    *options = Options(Bag(rig));
+    return ImportBag(*options);
+  }
   ImportOptions Options(const std::string& bag) {
     ImportOptions options;
     options.input = bag;
@@ -269,8 +274,8 @@ TEST_F(ImportBagTest, AJointStampThatDoesNotAdvanceIsDroppedAndCounted) {
 TEST_F(ImportBagTest, NonFiniteValuesDropTheirMessageCounted) {
   RigOptions rig;
   rig.non_finite_values = true;
-  const ImportOptions options = Options(Bag(rig));
-  const ImportSummary summary = ImportBag(options);
+  ImportOptions options;
+  const ImportSummary summary = ImportRig(rig, &options);
   EXPECT_EQ(summary.imu.written, 399);
   EXPECT_EQ(summary.odometry.written, 39);
   EXPECT_EQ(summary.wheel.written, 100);
@@ -293,12 +298,12 @@ TEST_F(ImportBagTest, NonFiniteValuesDropTheirMessageCounted) {
 // A stream whose rate sensors.yaml cannot state (two fixes 300 s apart, one lone sweep) is left
 // out with a warning; it used to fail the whole import, IMU included, naming a temporary file.
 TEST_F(ImportBagTest, AStreamWithoutARateIsLeftOutNotTheImport) {
+  ImportOptions options;
   RigOptions rig;
   rig.two_fixes_300_s_apart = true;
-  const ImportOptions options = Options(Bag(rig));
-  const ImportSummary summary = ImportBag(options);
-  EXPECT_EQ(summary.gnss.written, 0);
+  const ImportSummary summary = ImportRig(rig, &options);
   EXPECT_EQ(summary.lidar.written, 0);
+  EXPECT_EQ(summary.gnss.written, 0);
   EXPECT_THAT(summary.warnings,
               ::testing::Contains(HasSubstr("/fix: left out of the dataset: 2 GNSS fixes over "
                                             "300 s (0.00333333 Hz), not a stream at the 0.01 to "
