@@ -159,6 +159,12 @@ NormalEquations Combined(const std::vector<NormalEquations>& partial, int residu
   return eq;
 }
 
+// Whether a target point with this planarity carries a plane for point-to-plane and GICP:
+// planarity 0 marks a point without a normal (EstimateNormals).
+bool CarriesPlane(double planarity, const IcpOptions& setting) {
+  return planarity > 0.0 && planarity >= setting.min_target_planarity;
+}
+
 // The sums of one linearization over the source points matched at T to a target point with a
 // plane (planarity above 0 and min_target_planarity): `add(eq, i, match, p)` adds source point
 // i, at p = T source_i, to its block's sums, or returns without adding to skip it. The points
@@ -183,9 +189,7 @@ NormalEquations SumOverMatchedPlanes(const Eigen::Matrix3Xd& source, const IcpTa
       for (int64_t i = block * kPointsPerPartialSum; i < end; ++i) {
         const int match = matches[static_cast<size_t>(i)];
         if (match < 0) continue;
-        // Planarity 0 marks a target point without a normal (EstimateNormals).
-        const double target_planarity = planarity(match);
-        if (target_planarity <= 0.0 || target_planarity < setting.min_target_planarity) continue;
+        if (!CarriesPlane(planarity(match), setting)) continue;
         add(eq, i, match, Eigen::Vector3d(R * source.col(i) + T.p));
       }
     }
@@ -327,7 +331,8 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> FindWeakDirections(
   Eigen::Matrix3d lever_scatter = Eigen::Matrix3d::Zero();
   for (size_t i = 0; i < matches.size(); ++i) {
     const int match = matches[i];
-    if (match < 0 || planarity(match) <= 0.0 || planarity(match) < setting.min_target_planarity) {
+    if (match < 0 || !CarriesPlane(planarity(match), setting) ||
+        planarity(match) < kCountedPlanarity) {
       continue;
     }
     const Eigen::Vector3d n = target.normals().normals.col(match);
@@ -335,7 +340,6 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> FindWeakDirections(
     const double arm_m = arm.norm();
     const Eigen::Vector3d lever =
         arm_m > 0.0 ? Eigen::Vector3d(arm.cross(n) / arm_m) : Eigen::Vector3d::Zero();
-    if (planarity(match) < kCountedPlanarity) continue;
     normals_and_levers.emplace_back(n, lever);
     normal_scatter.noalias() += n * n.transpose();
     lever_scatter.noalias() += lever * lever.transpose();
@@ -597,8 +601,12 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   // the degeneracy test fires on a well-constrained pair.
   const Eigen::Vector3d centre = T * Eigen::Vector3d(source.rowwise().mean());
   NormalEquations last;
-  Eigen::Matrix<double, 6, Eigen::Dynamic> weak(6, 0);  // of the last iteration
+  // Weak directions of the last linearization, and where it was taken. kRefuse and kHoldGuess
+  // need them at every iteration; kReport only at the end.
+  Eigen::Matrix<double, 6, Eigen::Dynamic> weak(6, 0);
   const Eigen::Matrix<double, 6, Eigen::Dynamic> none(6, 0);
+  const bool weak_every_iteration = setting.degenerate != IcpDegenerate::kReport;
+  geometry::Pose3d linearized_at = T;
   std::vector<int> matches;  // of the last point-to-plane or GICP iteration
   std::vector<WeightedPair> pairs;
   if (!point_to_plane && !generalized) pairs.reserve(static_cast<size_t>(source.cols()));
@@ -613,9 +621,12 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
                          : LinearizePointToPlane(source, target, T, centre, setting, &matches);
       RequireEnough(last.count, setting, source.cols());
       RequireConstrained(last);
-      weak = FindWeakDirections(source, target, T, centre, setting, matches);
-      if (weak.cols() > 0 && setting.degenerate == IcpDegenerate::kRefuse) {
-        throw Error(DescribeWeak(weak, last.count));
+      linearized_at = T;
+      if (weak_every_iteration) {
+        weak = FindWeakDirections(source, target, T, centre, setting, matches);
+        if (weak.cols() > 0 && setting.degenerate == IcpDegenerate::kRefuse) {
+          throw Error(DescribeWeak(weak, last.count));
+        }
       }
       const Vector6d delta_c =
           ConstrainedStep(last, setting.degenerate == IcpDegenerate::kHoldGuess ? weak : none);
@@ -641,6 +652,9 @@ IcpResult AlignIcp(const Eigen::Matrix3Xd& source, const IcpTarget& target,
   // The statistics use the last linearization; after convergence it is one step (below the
   // tolerances) from the returned pose, which changes nothing at the noise level.
   result.T_target_source = T;
+  if (!weak_every_iteration && (point_to_plane || generalized)) {
+    weak = FindWeakDirections(source, target, linearized_at, centre, setting, matches);
+  }
   FillStatistics(last, setting.degenerate == IcpDegenerate::kHoldGuess ? weak : none, centre,
                  setting, source.cols(), &result);
   for (Eigen::Index k = 0; k < weak.cols(); ++k) {
