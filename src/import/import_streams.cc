@@ -47,11 +47,6 @@ double RateHz(const std::vector<int64_t>& stamps_ns, const std::string& what) {
   return std::strtod(digits, nullptr);
 }
 
-template <typename T>
-double RateHz(const std::vector<T>& samples, const std::string& what) {
-  return RateHz(sensors::StampsOf(samples), what);
-}
-
 // The one joint whose name says `side`, preferring a rear one when several do.
 int FindWheelJoint(const std::vector<std::string>& names, const std::string& side,
                    const std::string& named) {
@@ -80,26 +75,18 @@ std::optional<Eigen::Vector2d> WheelPair(const std::vector<double>& values, int 
   return Eigen::Vector2d(values[left], values[right]);
 }
 
-// The rate sensors.yaml states for `stamps_ns`, or nullopt when it cannot state one: a single
-// sample, or a rate outside what ReadSensorsYaml accepts (two GNSS fixes 300 s apart).
-std::optional<double> StatedRateHz(const std::vector<int64_t>& stamps_ns,
-                                   const io::RateRangeHz& range, const std::string& what) {
-  const double rate_hz = RateHz(stamps_ns, what);
-  if (stamps_ns.size() < 2 || !range.Contains(rate_hz)) return std::nullopt;
-  return rate_hz;
-}
-
-// "N samples over S s (R Hz)", or "1 sample".
-std::string DescribeStream(const std::vector<int64_t>& stamps_ns, const std::string& what) {
-  if (stamps_ns.size() < 2) return std::to_string(stamps_ns.size()) + " " + what;
-  return std::to_string(stamps_ns.size()) + " " + what + " over " +
-         io::internal::FormatDouble(1e-9 *
-                                    static_cast<double>(stamps_ns.back() - stamps_ns.front())) +
-         " s (" + io::internal::FormatDouble(RateHz(stamps_ns, what)) + " Hz)";
-}
-
-std::string RangeText(const io::RateRangeHz& range) {
-  return "the " + io::internal::FormatDouble(range.min) + " to " +
+// Why a stream's rate (RateHz of its stamps) cannot be stated in sensors.yaml: "N samples over
+// S s (R Hz), not a stream at the ... Hz sensors.yaml can state", or "1 sample, ...".
+std::string WhyNoStatedRate(const std::vector<int64_t>& stamps_ns, double rate_hz, const char* what,
+                            const io::RateRangeHz& range) {
+  std::string text = std::to_string(stamps_ns.size()) + " " + what;
+  if (stamps_ns.size() >= 2) {
+    text += " over " +
+            io::internal::FormatDouble(1e-9 *
+                                       static_cast<double>(stamps_ns.back() - stamps_ns.front())) +
+            " s (" + io::internal::FormatDouble(rate_hz) + " Hz)";
+  }
+  return text + ", not a stream at the " + io::internal::FormatDouble(range.min) + " to " +
          io::internal::FormatDouble(range.max) + " Hz sensors.yaml can state";
 }
 
@@ -320,22 +307,21 @@ void StreamImporter::AddOdometry(MessageCursor* cursor, int64_t log_ns) {
 }
 
 void StreamImporter::MeasureRates() {
+  // RateHz is 0 for fewer than two stamps, which no range contains.
   const std::vector<int64_t> imu_stamps = sensors::StampsOf(imu_);
-  const std::optional<double> imu_rate =
-      StatedRateHz(imu_stamps, io::kImuRateRangeHz, selection_.imu.topic);
-  if (!imu_rate) {
-    throw Error(selection_.imu.topic + ": " + DescribeStream(imu_stamps, "IMU samples") +
-                ", not a stream at " + RangeText(io::kImuRateRangeHz));
+  rates_.imu = RateHz(imu_stamps, selection_.imu.topic);
+  if (!io::kImuRateRangeHz.Contains(rates_.imu)) {
+    throw Error(selection_.imu.topic + ": " +
+                WhyNoStatedRate(imu_stamps, rates_.imu, "IMU samples", io::kImuRateRangeHz));
   }
-  rates_.imu = *imu_rate;
   // An optional stream without a rate is left out, with a warning, not the whole import.
   const auto optional = [&](const std::vector<int64_t>& stamps, const io::RateRangeHz& range,
                             const SelectedTopic& topic, const char* what) {
     if (stamps.empty()) return 0.0;
-    const std::optional<double> rate = StatedRateHz(stamps, range, topic.topic);
-    if (rate) return *rate;
-    Warn(topic.topic + ": left out of the dataset: " + DescribeStream(stamps, what) +
-         ", not a stream at " + RangeText(range));
+    const double rate_hz = RateHz(stamps, topic.topic);
+    if (range.Contains(rate_hz)) return rate_hz;
+    Warn(topic.topic +
+         ": left out of the dataset: " + WhyNoStatedRate(stamps, rate_hz, what, range));
     return 0.0;
   };
   const auto optional_samples = [&](auto* samples, const io::RateRangeHz& range,

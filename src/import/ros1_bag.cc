@@ -82,7 +82,7 @@ class Ros1BagReader final : public BagReader {
   void LoadChunk(const Record& record);
   // The chunk a stopped recorder left open, its data from record.data_offset to the file's end.
   void LoadOpenChunk(const Record& record);
-  // Whether `record` is that open chunk, or another record the file's end cut short.
+  // Whether `record` is that open chunk: a chunk with rosbag's placeholder sizes 0 and 0.
   bool IsOpenChunk(const Record& record) const;
   // The next message inside the loaded chunk; false when the chunk is used up.
   bool NextInChunk(BagMessage* message);
